@@ -1,0 +1,38 @@
+"""Integrators as swappable, stateless objects, selected by name.
+
+==========  =====  ===========================================================
+name        order  what it is
+==========  =====  ===========================================================
+euler       1      forward Euler: cheapest, drifts, unstable at large |Omega| h
+rk4         4      classical Runge-Kutta: accurate per step, slow drift
+splitting   2      Strang composition of exact sub-flows: |Pi| exact, energy bounded
+exact       exact  exact uncontrolled flow (+ torque kicks, 2nd order, with control)
+dop853      8      scipy adaptive DOP853 at rtol 1e-12: the accuracy reference
+==========  =====  ===========================================================
+"""
+
+from __future__ import annotations
+
+from .base import Integrator
+from .exact import Exact
+from .explicit import RK4, Euler
+from .reference import Dop853
+from .splitting import Splitting
+
+__all__ = ["Integrator", "Euler", "RK4", "Splitting", "Exact", "Dop853", "INTEGRATORS", "get_integrator"]
+
+INTEGRATORS: dict[str, type[Integrator]] = {cls.name: cls for cls in (Euler, RK4, Splitting, Exact, Dop853)}
+
+
+def get_integrator(name: str | Integrator, **options) -> Integrator:
+    """The integrator called ``name`` (options go to its constructor, e.g. dop853's ``rtol``).
+
+    An :class:`Integrator` instance is passed through unchanged.
+    """
+    if isinstance(name, Integrator):
+        return name
+    try:
+        cls = INTEGRATORS[name]
+    except (KeyError, TypeError):
+        raise ValueError(f"integrator must be one of {sorted(INTEGRATORS)}, got {name!r}") from None
+    return cls(**options)

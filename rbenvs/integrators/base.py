@@ -1,0 +1,55 @@
+"""The integrator interface shared by every system.
+
+What to integrate (a system: vector field, invariants, exact sub-flows) is separate from how
+(an integrator). An integrator is a stateless, immutable object that declares its order and
+what it conserves, and advances components ``y`` under a control ``u`` held constant for a
+step ``h``. A system offers, as far as it can:
+
+* ``rhs(y, u) -> dy``: the vector field (every integrator but the geometric ones);
+* ``normalize(y) -> y``: projection back onto the state manifold (unit quaternions);
+* ``split_flows() -> (flow, ...)``: exact flows ``flow(y, u, h)`` of pieces of the dynamics,
+  for :class:`~rbenvs.integrators.splitting.Splitting`;
+* ``kick(y, u, h)`` and ``free_flow(y, h)``: the exact flow of the control alone and of the
+  uncontrolled system, for :class:`~rbenvs.integrators.exact.Exact`.
+
+Components are floats (one state) or arrays of one batch shape (many states), so one
+integrator object serves the single env, the vector env and the benchmarks.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+__all__ = ["Integrator"]
+
+
+@dataclass(frozen=True)
+class Integrator:
+    """Base class. Subclasses set the class attributes and implement :meth:`step`.
+
+    Attributes:
+        name: registry name.
+        order: global order of accuracy for smooth problems (with a control held constant
+            over the step).
+        evaluations: right-hand-side evaluations per step (``None``: not rhs-based or adaptive;
+            :meth:`step_counted` reports the real count).
+        conserves: invariants kept to round-off for the uncontrolled system.
+    """
+
+    name = "base"
+    order = 0
+    evaluations: int | None = None
+    conserves: tuple[str, ...] = ()
+    requires: tuple[str, ...] = ("rhs",)
+
+    def supports(self, system) -> bool:
+        """Whether ``system`` offers everything this scheme needs."""
+        return all(hasattr(system, attr) for attr in self.requires)
+
+    def step(self, system, y, u, h):
+        """Advance ``y`` by ``h`` under control ``u`` (``None`` = zero)."""
+        raise NotImplementedError
+
+    def step_counted(self, system, y, u, h):
+        """:meth:`step` plus the number of rhs evaluations it made (for cost accounting)."""
+        return self.step(system, y, u, h), self.evaluations or 0

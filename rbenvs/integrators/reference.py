@@ -1,0 +1,52 @@
+"""The accuracy reference: scipy's adaptive DOP853 at tight tolerances."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.integrate import solve_ivp
+
+from .base import Integrator
+
+__all__ = ["Dop853"]
+
+
+@dataclass(frozen=True)
+class Dop853(Integrator):
+    """Dormand-Prince 8(5,3) via ``scipy.integrate.solve_ivp`` with ``rtol``/``atol``.
+
+    The whole batch is one ODE system (the step size follows its stiffest member). Expensive
+    per call; use it to check the others. scipy clamps ``rtol`` below ``100 eps`` (~2.2e-14).
+    """
+
+    name = "dop853"
+    order = 8
+    evaluations = None
+    rtol: float = 1e-12
+    atol: float = 1e-14
+
+    def step(self, system, y, u, h):
+        return self.step_counted(system, y, u, h)[0]
+
+    def step_counted(self, system, y, u, h):
+        arrays = np.broadcast_arrays(*(np.asarray(c, dtype=float) for c in y))
+        shape = arrays[0].shape
+        dim = len(arrays)
+        y0 = np.stack(arrays).reshape(-1)
+        if u is not None:
+            u = tuple(np.broadcast_to(np.asarray(c, dtype=float), shape).reshape(-1) for c in u)
+
+        def fun(_t, flat):
+            comps = tuple(flat.reshape(dim, -1))
+            return np.concatenate([np.broadcast_to(np.asarray(d, dtype=float), comps[0].shape) for d in system.rhs(comps, u)])
+
+        sol = solve_ivp(fun, (0.0, float(h)), y0, method="DOP853", rtol=self.rtol, atol=self.atol)
+        if not sol.success:
+            raise RuntimeError(f"dop853 failed: {sol.message}")
+        out = sol.y[:, -1].reshape((dim,) + shape)
+        if shape == ():
+            comps = tuple(float(c) for c in out)
+        else:
+            comps = tuple(out)
+        return system.normalize(comps), int(sol.nfev)

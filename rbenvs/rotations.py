@@ -1,0 +1,92 @@
+"""Quaternion helpers on components.
+
+Every function takes and returns quaternions as tuples of components ``(w, x, y, z)``
+(scalar first, Hamilton convention, body-to-space when used as an attitude). Each component
+is a Python float or a numpy array of any batch shape; all components of one argument share
+that shape. Writing the algebra component by component lets one implementation serve a single
+state (plain floats: no numpy call overhead) and a batch (arrays: one vectorised op per line).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = [
+    "quat_multiply",
+    "quat_conjugate",
+    "quat_normalize",
+    "quat_rotate",
+    "quat_from_axis_angle",
+    "quat_angle",
+    "quat_random",
+]
+
+
+def quat_multiply(p, q):
+    """Hamilton product ``p * q`` of two quaternions given as ``(w, x, y, z)`` components."""
+    pw, px, py, pz = p
+    qw, qx, qy, qz = q
+    return (
+        pw * qw - px * qx - py * qy - pz * qz,
+        pw * qx + px * qw + py * qz - pz * qy,
+        pw * qy - px * qz + py * qw + pz * qx,
+        pw * qz + px * qy - py * qx + pz * qw,
+    )
+
+
+def quat_conjugate(q):
+    """Conjugate (the inverse, for a unit quaternion)."""
+    w, x, y, z = q
+    return (w, -x, -y, -z)
+
+
+def quat_normalize(q):
+    """Project onto the unit sphere (non-geometric integrators drift off it, physics.md §4)."""
+    w, x, y, z = q
+    inv = (w * w + x * x + y * y + z * z) ** -0.5
+    return (w * inv, x * inv, y * inv, z * inv)
+
+
+def quat_rotate(q, v):
+    """Rotate the vector ``v = (vx, vy, vz)`` by the unit quaternion ``q``: ``R(q) v``."""
+    w, x, y, z = q
+    vx, vy, vz = v
+    # t = 2 (q_vec x v); v' = v + w t + q_vec x t  (the two-cross-product form: 15 mul, 15 add)
+    tx = 2.0 * (y * vz - z * vy)
+    ty = 2.0 * (z * vx - x * vz)
+    tz = 2.0 * (x * vy - y * vx)
+    return (
+        vx + w * tx + (y * tz - z * ty),
+        vy + w * ty + (z * tx - x * tz),
+        vz + w * tz + (x * ty - y * tx),
+    )
+
+
+def quat_from_axis_angle(axis, angle):
+    """Unit quaternion of a rotation by ``angle`` (rad) about the unit vector ``axis``."""
+    half = 0.5 * np.asarray(angle, dtype=float)
+    s = np.sin(half)
+    ax, ay, az = axis
+    return (np.cos(half), ax * s, ay * s, az * s)
+
+
+def quat_angle(q):
+    """Rotation angle in ``[0, pi]`` of a unit quaternion (``q`` and ``-q`` give the same).
+
+    Uses ``2 atan2(|v|, |w|)``, which stays accurate near 0 and pi where ``acos`` does not.
+    """
+    w, x, y, z = q
+    return 2.0 * np.arctan2(np.sqrt(x * x + y * y + z * z), np.abs(w))
+
+
+def quat_random(rng: np.random.Generator, shape=()):
+    """Uniformly distributed unit quaternions (Shoemake's method), as component arrays."""
+    u1, u2, u3 = rng.random((3,) + tuple(shape))
+    a = np.sqrt(1.0 - u1)
+    b = np.sqrt(u1)
+    return (
+        a * np.sin(2.0 * np.pi * u2),
+        a * np.cos(2.0 * np.pi * u2),
+        b * np.sin(2.0 * np.pi * u3),
+        b * np.cos(2.0 * np.pi * u3),
+    )
