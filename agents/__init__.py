@@ -1,0 +1,1 @@
+"""Baseline agents (installed as ``rbenvs_agents``): training, evaluation, analytic baselines."""

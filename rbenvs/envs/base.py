@@ -1,0 +1,168 @@
+"""Glue shared by every rbenvs environment: spaces, seeding, stepping, state access, errors.
+
+The physics (a system from :mod:`rbenvs.dynamics`), the time stepping (an integrator) and the
+task (:mod:`rbenvs.tasks`) are separate objects; this class only wires them to gymnasium's
+API. The state is held as a tuple of Python floats, the batch of one, so a single env pays no
+numpy call overhead inside the integrator.
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+
+import gymnasium as gym
+import numpy as np
+
+from ..dynamics.validation import require_finite_positive, require_int_at_least
+from ..integrators import get_integrator
+
+__all__ = ["RigidBodyEnv", "NumericalFailureWarning"]
+
+
+class NumericalFailureWarning(RuntimeWarning):
+    """The state went non-finite; the episode was ended and the last finite state kept."""
+
+
+class RigidBodyEnv(gym.Env):
+    """Base class. A subclass builds ``self.system``, ``self.task``, the action space and
+    implements :meth:`_control` (normalised action -> control components)."""
+
+    metadata = {"render_modes": []}
+
+    def _setup(self, system, task, integrator, dt, substeps, observation_high, render_mode):
+        self.system = system
+        self.task = task
+        self._dt = require_finite_positive("dt", dt)
+        self.substeps = require_int_at_least("substeps", substeps, 1)
+        self.integrator = get_integrator(integrator)
+        if not self.integrator.supports(system):
+            raise ValueError(f"integrator {self.integrator.name!r} is not available for {type(system).__name__}")
+        self._h = self._dt / self.substeps
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise ValueError(f"render_mode must be one of {self.metadata['render_modes'] or [None]}, got {render_mode!r}")
+        self.render_mode = render_mode
+        self.metadata = dict(self.metadata, render_fps=max(1, round(1.0 / self._dt)))
+        self._obs_high = np.asarray(observation_high, dtype=np.float64)
+        high32 = self._obs_high.astype(np.float32)
+        self.observation_space = gym.spaces.Box(-high32, high32, dtype=np.float32)
+        self._y = None
+
+    # ------------------------------------------------------------------ gymnasium API
+    @property
+    def dt(self) -> float:
+        """Control period [s]: time advanced by one :meth:`step`."""
+        return self._dt
+
+    def reset(self, *, seed=None, options=None):
+        super().reset(seed=seed)
+        options = {} if options is None else dict(options)
+        state = options.pop("state", None)
+        if options:
+            raise ValueError(f"reset options must be a subset of {{'state'}}, got unknown {sorted(options)}")
+        if state is None:
+            self._y = tuple(float(c) for c in self.task.initial_state(self.system, self.np_random, ()))
+        else:
+            self._y = self._state_from_dict(state)
+        self._u_zero = (0.0,) * self.action_size
+        obs, over = self._observation(self._y)
+        if over:
+            raise ValueError("the initial state lies outside the observation bounds; raise the limit parameters")
+        return obs, self._info(self._y, numerical_failure=False)
+
+    def step(self, action):
+        if self._y is None:
+            raise RuntimeError("call reset() before step()")
+        a = np.asarray(action, dtype=np.float64)
+        if a.shape != self.action_space.shape:
+            raise ValueError(f"action must have shape {self.action_space.shape}, got {a.shape}")
+        if not np.all(np.isfinite(a)):
+            raise ValueError(f"action must be finite, got {action!r}")
+        # Out-of-range actions are clipped to the action space (documented).
+        a = np.clip(a, -1.0, 1.0)
+        u_norm, u = self._control(a)
+        y = self._y
+        integ, system, h = self.integrator, self.system, self._h
+        for _ in range(self.substeps):
+            y = integ.step(system, y, u, h)
+        if not all(math.isfinite(c) for c in y):
+            warnings.warn(
+                f"{type(self).__name__}: the state became non-finite with integrator {integ.name!r} "
+                f"(h = {h:g} s); the episode ends and the last finite state is kept",
+                NumericalFailureWarning,
+                stacklevel=2,
+            )
+            obs, _ = self._observation(self._y)
+            info = self._info(self._y, numerical_failure=True)
+            info["terminal_reason"] = "numerical_failure"
+            return obs, 0.0, True, False, info
+        self._y = y = tuple(float(c) for c in y)
+        obs, over = self._observation(y)
+        reward = float(self.task.reward(system, y, u_norm))
+        terminated = bool(self.task.terminated(system, y))
+        info = self._info(y, numerical_failure=False)
+        if over:
+            terminated = True
+            info["terminal_reason"] = "observation_limit"
+        elif terminated:
+            info["terminal_reason"] = "task"
+        return obs, reward, terminated, False, info
+
+    # ------------------------------------------------------------------ state access
+    def get_state(self) -> dict[str, np.ndarray]:
+        """The physical state as named float64 arrays (copies); see the class docstring."""
+        if self._y is None:
+            raise RuntimeError("call reset() before get_state()")
+        return {name: np.array(self._y[a:b], dtype=np.float64) for name, (a, b) in self.system.layout.items()}
+
+    def _state_from_dict(self, state) -> tuple:
+        if not isinstance(state, dict):
+            raise ValueError(f"options['state'] must be a dict of named arrays, got {type(state).__name__}")
+        layout = self.system.layout
+        unknown = sorted(set(state) - set(layout))
+        missing = sorted(set(layout) - set(state))
+        if unknown or missing:
+            raise ValueError(
+                f"state must have exactly the names {sorted(layout)} for this scene"
+                + (f"; unknown: {unknown}" if unknown else "")
+                + (f"; missing: {missing}" if missing else "")
+            )
+        comps = [0.0] * self.system.dim
+        for name, (a, b) in layout.items():
+            arr = np.asarray(state[name], dtype=np.float64)
+            if arr.shape != (b - a,):
+                raise ValueError(f"state[{name!r}] must have shape ({b - a},), got {arr.shape}")
+            if not np.all(np.isfinite(arr)):
+                raise ValueError(f"state[{name!r}] must be finite, got {arr}")
+            comps[a:b] = (float(x) for x in arr)
+        self._check_state(dict((name, np.asarray(state[name], dtype=np.float64)) for name in layout))
+        return tuple(comps)
+
+    def _check_state(self, state):
+        """Subclass hook for physical constraints on a state dict (e.g. unit quaternions)."""
+
+    # ------------------------------------------------------------------ helpers
+    def _observation(self, y):
+        o = np.asarray(self.task.observe(self.system, y), dtype=np.float64)
+        over = bool(np.any(np.abs(o) > self._obs_high))
+        if over:
+            o = np.clip(o, -self._obs_high, self._obs_high)
+        return o.astype(np.float32), over
+
+    def _info(self, y, numerical_failure: bool) -> dict:
+        info = {name: _to_python(v) for name, v in self._readouts(y).items()}
+        info.update({name: _to_python(v) for name, v in self.task.metrics(self.system, y).items()})
+        info["numerical_failure"] = numerical_failure
+        return info
+
+    def _readouts(self, y) -> dict:
+        raise NotImplementedError
+
+    def _control(self, a):
+        raise NotImplementedError
+
+
+def _to_python(v):
+    if isinstance(v, (bool, np.bool_)):
+        return bool(v)
+    return float(v)

@@ -1,0 +1,189 @@
+"""``rbenvs/FreeRigidBody-v0``: a torque-controlled free rigid body."""
+
+from __future__ import annotations
+
+import math
+
+import gymnasium as gym
+import numpy as np
+
+from ..dynamics import FreeBody, FreeBodyParams
+from ..dynamics.validation import require_finite_nonnegative, require_finite_positive
+from ..tasks import AXIS_NAMES, DetumbleTask, ReorientTask, SpinTask
+from .base import RigidBodyEnv
+
+__all__ = ["FreeRigidBodyEnv"]
+
+
+class FreeRigidBodyEnv(RigidBodyEnv):
+    """A rigid body turning freely about its centre of mass, driven by bounded body torques.
+
+    ## Description
+    Euler's equations ``dPi/dt = Pi x Omega + tau`` in the principal body frame (physics.md §1,
+    seed 15.3). Without torque, spins about the major and minor axes are stable and the
+    intermediate-axis spin is unstable (the rigid body stability theorem, 15.9.1): a small
+    perturbation grows like ``exp(lambda t)``, ``lambda = |Omega2| sqrt((I1-I2)(I2-I3)/(I1 I3))``,
+    and the body flips. The attitude quaternion is integrated only for the ``reorient`` task.
+
+    ## Action space
+    ``Box(-1, 1, (k,), float32)``, ``k`` = number of actuated axes (``actuated`` mask, in axis
+    order). Action ``a`` gives the body torque ``tau_i = max_torque * a_j`` [N m] on the
+    ``j``-th actuated axis ``i``, held constant over the control period; unactuated axes get
+    none. Out-of-range actions are clipped to [-1, 1]; non-finite actions raise ``ValueError``.
+
+    ## Observation space (float32)
+    | task | components | unit | bounds |
+    |---|---|---|---|
+    | spin, detumble | ``Omega1, Omega2, Omega3`` (body angular velocity) | rad/s | ``+-max_angular_velocity`` |
+    | reorient | ``Omega1..3``, then error quaternion ``conj(target) * q`` (``w >= 0``) | rad/s, 1 | ``+-max_angular_velocity``, ``+-1`` |
+
+    ## Rewards (per step; ``u`` = clipped action on all three axes, 0 if unactuated)
+    * ``spin``: ``Pi_axis / |Pi| - control_cost * mean(u^2)``: alignment of the angular
+      momentum with the chosen principal axis, in [-1, 1].
+    * ``detumble``: ``-|Omega| / spin_rate - control_cost * mean(u^2)``.
+    * ``reorient``: ``-angle/pi - 0.1 |Omega| / spin_rate - control_cost * mean(u^2)``, ``angle``
+      the rotation angle between attitude and target.
+
+    ## Starting state (drawn from the env's seeded generator)
+    * ``spin``: ``Pi = I_axis spin_rate n``, ``n`` tilted from ``+e_axis`` by an angle uniform in
+      ``[0, perturbation]`` rad.
+    * ``detumble``: ``Omega`` of magnitude ``spin_rate * U(0.5, 1)`` in a uniform direction.
+    * ``reorient``: uniform random attitude, ``|Omega| = spin_rate * U(0, 0.1)``.
+
+    ## Episode end
+    * Terminated: ``detumble`` when ``|Omega| < 0.01 spin_rate`` (success); any task when an
+      observation component leaves its bounds (the last observation is clipped to them,
+      ``info["terminal_reason"] = "observation_limit"``) or when the state goes non-finite
+      (a ``NumericalFailureWarning``, ``info["numerical_failure"] = True``, the last finite
+      state and observation are kept, reward 0).
+    * Truncated: after ``max_episode_steps`` (400 steps = 20 s at the default ``dt``) by the
+      registration's ``TimeLimit``.
+
+    ## Info (after every reset and step)
+    ``energy`` [J], ``momentum_norm`` ``|Pi|`` [kg m^2/s], ``numerical_failure``, ``is_success``,
+    and per task ``alignment`` / ``angular_speed`` / ``attitude_error`` [rad].
+
+    ## State access
+    ``get_state()`` returns ``{"angular_momentum": Pi (3,), "attitude": q (4,) (w, x, y, z),
+    body to space; reorient only}`` as float64 copies; ``reset(options={"state": d})`` starts
+    exactly there (a round trip reproduces the trajectory bit for bit). Unknown or missing
+    names, wrong shapes, non-finite values or a non-unit quaternion raise ``ValueError``.
+
+    ## Arguments
+    * ``inertia=(2.0, 1.5, 1.0)``: principal moments [kg m^2]; positive, ``Ii + Ij >= Ik``.
+    * ``task="spin"``: ``"spin"``, ``"detumble"`` or ``"reorient"``.
+    * ``axis="intermediate"``: spin task's axis, ``"major"``, ``"intermediate"``, ``"minor"`` or an
+      index 0-2 (a name must be unambiguous: no tie in the moments).
+    * ``spin_rate=1.0``: rad/s, the initial spin (spin) or angular-speed scale (detumble, reorient).
+    * ``perturbation=0.05``: rad, largest initial tilt of the spin from its axis, in [0, pi).
+    * ``dt=0.05``: control period [s]; ``substeps=1``: integrator steps per control period.
+    * ``integrator="rk4"``: ``euler``, ``rk4``, ``splitting``, ``exact`` or ``dop853``.
+    * ``max_torque=0.2``: N m per actuated axis (``>= 0``).
+    * ``actuated=(True, True, True)``: which body axes take torque (at least one).
+    * ``control_cost=0.01``: weight of ``mean(u^2)`` in the reward (``>= 0``).
+    * ``max_angular_velocity=10.0``: rad/s, observation bound.
+    * ``target_attitude=(1, 0, 0, 0)``: reorient target, unit quaternion (w, x, y, z).
+
+    ## Version history
+    * v0: initial release.
+    """
+
+    tasks = ("spin", "detumble", "reorient")
+    integrators = ("euler", "rk4", "splitting", "exact", "dop853")
+
+    def __init__(
+        self,
+        inertia=(2.0, 1.5, 1.0),
+        task: str = "spin",
+        axis="intermediate",
+        spin_rate: float = 1.0,
+        perturbation: float = 0.05,
+        dt: float = 0.05,
+        substeps: int = 1,
+        integrator: str = "rk4",
+        max_torque: float = 0.2,
+        actuated=(True, True, True),
+        control_cost: float = 0.01,
+        max_angular_velocity: float = 10.0,
+        target_attitude=(1.0, 0.0, 0.0, 0.0),
+        render_mode=None,
+    ):
+        params = FreeBodyParams(inertia)
+        self.max_torque = require_finite_nonnegative("max_torque", max_torque)
+        spin_rate = require_finite_positive("spin_rate", spin_rate)
+        control_cost = require_finite_nonnegative("control_cost", control_cost)
+        perturbation = require_finite_nonnegative("perturbation", perturbation)
+        if perturbation >= math.pi:
+            raise ValueError(f"perturbation must be in [0, pi) rad, got {perturbation!r}")
+        max_w = require_finite_positive("max_angular_velocity", max_angular_velocity)
+        self.actuated = _actuation_mask(actuated)
+        self.axis = _axis_index(axis, params)
+        if task == "spin":
+            task_obj = SpinTask(axis=self.axis, spin_rate=spin_rate, perturbation=perturbation, control_cost=control_cost)
+        elif task == "detumble":
+            task_obj = DetumbleTask(spin_rate=spin_rate, control_cost=control_cost)
+        elif task == "reorient":
+            task_obj = ReorientTask(target=_unit_quaternion("target_attitude", target_attitude), spin_rate=spin_rate, control_cost=control_cost)
+        else:
+            raise ValueError(f"task must be one of {list(self.tasks)}, got {task!r}")
+        system = FreeBody(params, attitude=task_obj.needs_attitude)
+        high = [max_w] * 3 + [1.0] * (task_obj.observation_size - 3)
+        self._setup(system, task_obj, integrator, dt, substeps, high, render_mode)
+        if max(params.inertia[self.axis] * spin_rate / params.inertia[i] for i in range(3)) >= max_w and task == "spin":
+            raise ValueError("max_angular_velocity must exceed the initial spin rate (spin_rate * I_axis / I_min)")
+        self.action_size = sum(self.actuated)
+        self.action_space = gym.spaces.Box(-1.0, 1.0, (self.action_size,), dtype=np.float32)
+        self._actuated_axes = tuple(i for i in range(3) if self.actuated[i])
+
+    @property
+    def params(self) -> FreeBodyParams:
+        return self.system.params
+
+    def _control(self, a):
+        u_norm = [0.0, 0.0, 0.0]
+        for j, i in enumerate(self._actuated_axes):
+            u_norm[i] = float(a[j])
+        tau = self.max_torque
+        return u_norm, (tau * u_norm[0], tau * u_norm[1], tau * u_norm[2])
+
+    def _readouts(self, y):
+        return {"energy": self.system.energy(y), "momentum_norm": self.system.momentum_norm(y)}
+
+    def _check_state(self, state):
+        if "attitude" in state:
+            n = float(np.linalg.norm(state["attitude"]))
+            if abs(n - 1.0) > 1e-6:
+                raise ValueError(f"state['attitude'] must be a unit quaternion (|q| = 1 within 1e-6), got |q| = {n}")
+
+
+def _actuation_mask(actuated) -> tuple[bool, bool, bool]:
+    try:
+        mask = tuple(bool(x) for x in actuated)
+    except TypeError:
+        raise ValueError(f"actuated must be three booleans (one per body axis), got {actuated!r}") from None
+    if len(mask) != 3:
+        raise ValueError(f"actuated must be three booleans (one per body axis), got {actuated!r}")
+    if not any(mask):
+        raise ValueError("actuated must enable at least one axis")
+    return mask
+
+
+def _axis_index(axis, params: FreeBodyParams) -> int:
+    if isinstance(axis, (int, np.integer)) and not isinstance(axis, bool):
+        if 0 <= int(axis) <= 2:
+            return int(axis)
+        raise ValueError(f"axis must be 0, 1, 2 or one of {list(AXIS_NAMES)}, got {axis!r}")
+    if axis not in AXIS_NAMES:
+        raise ValueError(f"axis must be 0, 1, 2 or one of {list(AXIS_NAMES)}, got {axis!r}")
+    i1, i2, i3 = params.inertia
+    if len({i1, i2, i3}) < 3:
+        # With a tie "major"/"minor"/"intermediate" can name two axes: demand an index.
+        raise ValueError(f"axis={axis!r} is ambiguous for inertia {params.inertia} with equal moments; give an index 0-2")
+    return params.axis_order[AXIS_NAMES.index(axis)]
+
+
+def _unit_quaternion(name, q) -> tuple[float, float, float, float]:
+    arr = np.asarray(q, dtype=float)
+    if arr.shape != (4,) or not np.all(np.isfinite(arr)) or abs(np.linalg.norm(arr) - 1.0) > 1e-6:
+        raise ValueError(f"{name} must be a finite unit quaternion (w, x, y, z), got {q!r}")
+    return tuple(float(x) for x in arr)
