@@ -116,6 +116,8 @@ class FreeRigidBodyEnv(RigidBodyEnv):
         if perturbation >= math.pi:
             raise ValueError(f"perturbation must be in [0, pi) rad, got {perturbation!r}")
         max_w = require_finite_positive("max_angular_velocity", max_angular_velocity)
+        if max_w > float(np.finfo(np.float32).max):
+            raise ValueError(f"max_angular_velocity must be <= {np.finfo(np.float32).max:.3g} (float32 observations), got {max_w!r}")
         self.actuated = _actuation_mask(actuated)
         self.axis = _axis_index(axis, params)
         if task == "spin":

@@ -1,0 +1,24 @@
+# Two entry points for a fresh machine (see README): `make run` and `make test`.
+# Both create .venv on first use. torch is installed first and pinned (2.13.0, the CPU build),
+# so stable-baselines3 finds it satisfied and pulls no CUDA packages.
+PYTHON ?= python3
+VENV   := .venv
+BIN    := $(VENV)/bin
+STAMP  := $(VENV)/.installed
+
+.PHONY: run test setup
+
+setup: $(STAMP)
+
+$(STAMP): pyproject.toml
+	$(PYTHON) -m venv $(VENV)
+	$(BIN)/python -m pip install --quiet --upgrade pip
+	$(BIN)/python -m pip install --quiet torch==2.13.0
+	$(BIN)/python -m pip install --quiet -e ".[agents,dev]"
+	touch $(STAMP)
+
+run: $(STAMP)
+	$(BIN)/rbenvs run
+
+test: $(STAMP)
+	$(BIN)/python -m pytest -q
