@@ -5,6 +5,7 @@
 * ``rbenvs run [--scene NAME] [--episodes N] [--seed S]``: the main job. Runs a scene with its
   analytic controller and with no control, and prints an episode summary (return, success,
   the task's final measure, and the invariants at start and end).
+* ``rbenvs bench kernels``: the layout measurement behind the component kernels.
 """
 
 from __future__ import annotations
@@ -100,6 +101,12 @@ def _cmd_run(args) -> int:
     return 0
 
 
+def _cmd_bench_kernels(args) -> int:
+    from .bench.kernels import main as bench_main
+
+    return bench_main()
+
+
 def _print_table(rows) -> None:
     widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
     for n, row in enumerate(rows):
@@ -118,6 +125,9 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--episodes", type=int, default=3, help="episodes per controller (default: %(default)s)")
     run.add_argument("--seed", type=int, default=0, help="seed of the first episode (default: %(default)s)")
     run.set_defaults(func=_cmd_run)
+    bench = sub.add_parser("bench", help="benchmarks (each prints the peer measured in the same run)")
+    bench_sub = bench.add_subparsers(dest="bench", required=True)
+    bench_sub.add_parser("kernels", help="RK4 kernel: our (3, n) components vs np.cross on (n, 3)").set_defaults(func=_cmd_bench_kernels)
     return parser
 
 

@@ -49,3 +49,13 @@ def test_core_runs_without_torch_sb3_yaml():
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert out.strip() == "ok"
+
+
+def test_bench_kernels_agree_with_the_cross_product_form():
+    from rbenvs.bench.kernels import run
+
+    rows = run(sizes=(1, 8))
+    for r in rows:
+        # the component kernel and the np.cross kernel compute the same RK4 step
+        assert r["max_abs_difference"] < 1e-14
+        assert r["components_us"] > 0 and r["cross_n3_us"] > 0
