@@ -22,3 +22,4 @@ run: $(STAMP)
 
 test: $(STAMP)
 	$(BIN)/python -m pytest -q
+	$(BIN)/rbenvs verify --quick --no-progress

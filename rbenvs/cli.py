@@ -5,6 +5,8 @@
 * ``rbenvs run [--scene NAME] [--episodes N] [--seed S]``: the main job. Runs a scene with its
   analytic controller and with no control, and prints an episode summary (return, success,
   the task's final measure, and the invariants at start and end).
+* ``rbenvs verify [--quick] [--json PATH] [--seed S]``: simulator against the oracles
+  (:mod:`rbenvs.verify`); exits non-zero on any failure.
 * ``rbenvs bench kernels``: the layout measurement behind the component kernels.
 """
 
@@ -125,6 +127,8 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--episodes", type=int, default=3, help="episodes per controller (default: %(default)s)")
     run.add_argument("--seed", type=int, default=0, help="seed of the first episode (default: %(default)s)")
     run.set_defaults(func=_cmd_run)
+    # `verify` has its own parser (rbenvs.verify.main); main() hands it the rest of the line.
+    sub.add_parser("verify", help="check the simulator against the analytic oracles (see rbenvs verify --help)")
     bench = sub.add_parser("bench", help="benchmarks (each prints the peer measured in the same run)")
     bench_sub = bench.add_subparsers(dest="bench", required=True)
     bench_sub.add_parser("kernels", help="RK4 kernel: our (3, n) components vs np.cross on (n, 3)").set_defaults(func=_cmd_bench_kernels)
@@ -132,6 +136,11 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv=None) -> int:
+    argv = sys.argv[1:] if argv is None else list(argv)
+    if argv[:1] == ["verify"]:
+        from .verify import main as verify_main
+
+        return verify_main(argv[1:])
     args = build_parser().parse_args(argv)
     if getattr(args, "episodes", 1) < 1:
         print("rbenvs: --episodes must be >= 1", file=sys.stderr)
