@@ -9,9 +9,12 @@ state (plain floats: no numpy call overhead) and a batch (arrays: one vectorised
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 __all__ = [
+    "sqrt",
     "quat_multiply",
     "quat_conjugate",
     "quat_normalize",
@@ -20,6 +23,12 @@ __all__ = [
     "quat_angle",
     "quat_random",
 ]
+
+
+def sqrt(x):
+    """Square root of a float or an array, with the same bits either way (IEEE sqrt is
+    correctly rounded; ``x ** 0.5`` is libm ``pow`` for a float but SIMD sqrt for an array)."""
+    return math.sqrt(x) if isinstance(x, float) else np.sqrt(x)
 
 
 def quat_multiply(p, q):
@@ -43,7 +52,7 @@ def quat_conjugate(q):
 def quat_normalize(q):
     """Project onto the unit sphere (non-geometric integrators drift off it, physics.md §4)."""
     w, x, y, z = q
-    inv = (w * w + x * x + y * y + z * z) ** -0.5
+    inv = 1.0 / sqrt(w * w + x * x + y * y + z * z)
     return (w * inv, x * inv, y * inv, z * inv)
 
 

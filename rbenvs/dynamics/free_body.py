@@ -19,8 +19,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..elliptic import elliptic_f, elliptic_k, jacobi_sn_cn_dn
-from ..rotations import quat_multiply, quat_normalize
+from ..elliptic import elliptic_f_sc, elliptic_k, jacobi_sn_cn_dn
+from ..rotations import quat_multiply, quat_normalize, sqrt
 from .validation import require_inertia
 
 __all__ = ["FreeBodyParams", "FreeBody", "FreeBodyOrbit"]
@@ -115,7 +115,7 @@ class FreeBody:
 
     def momentum_norm(self, y):
         """``|Pi|`` [kg m^2/s], the Casimir (its square) of the Lie-Poisson bracket."""
-        return (y[0] * y[0] + y[1] * y[1] + y[2] * y[2]) ** 0.5
+        return sqrt(y[0] * y[0] + y[1] * y[1] + y[2] * y[2])
 
     def angular_velocity(self, y):
         """Body angular velocity ``Omega = I^-1 Pi`` [rad/s]."""
@@ -144,11 +144,12 @@ class FreeBody:
     def free_flow(self, y, h):
         """Exact torque-free flow for time ``h`` (elliptic functions, 15.8)."""
         orbit = FreeBodyOrbit(self.params, y[0:3])
-        pi = orbit.momentum_at(h)
-        if not self.attitude:
-            return pi
-        q = quat_multiply(y[3:7], orbit.attitude_increment(h))
-        return pi + quat_normalize(q)
+        out = orbit.momentum_at(h)
+        if self.attitude:
+            out = out + quat_normalize(quat_multiply(y[3:7], orbit.attitude_increment(h)))
+        if isinstance(y[0], float):  # a single state stays plain floats
+            return tuple(float(c) for c in out)
+        return out
 
 
 @dataclass(frozen=True)
@@ -244,13 +245,14 @@ class FreeBodyOrbit:
         m = np.where(st, 0.0, np.clip(m, 0.0, 1.0))
         m1 = np.where(st, 1.0, np.clip(m1, 0.0, 1.0))
         nu = np.where(st, 0.0, nu)
-        # Initial phase: am(tau0) = atan2(sn, cn), the amplitudes divided out as a ratio so that
-        # nothing is 0/0 near the c-axis.
+        # Initial phase: am(tau0) has (sin, cos) proportional to (Omega_b / B, Omega_a / A); the
+        # amplitudes are divided out as a ratio so that nothing is 0/0 near the c-axis, and the
+        # angle is never formed (near the intermediate axis it sits at pi/2, where F is steep).
         with np.errstate(invalid="ignore"):
-            y_ = pb * np.sqrt(np.abs(Ic - Ib) / Ib)
-            x_ = s_a * pa * np.sqrt(np.abs(Ic - Ia) / Ia)
-        phi0 = np.where(st, 0.0, np.arctan2(y_, x_))
-        self.tau0 = elliptic_f(phi0, m, m1)
+            y_ = np.where(st, 0.0, pb * np.sqrt(np.abs(Ic - Ib) / Ib))
+            x_ = np.where(st, 1.0, s_a * pa * np.sqrt(np.abs(Ic - Ia) / Ia))
+        x_ = np.where((x_ == 0.0) & (y_ == 0.0), 1.0, x_)  # a spin exactly about c: phase 0
+        self.tau0 = elliptic_f_sc(y_, x_, m, m1)
         self.nu, self.m, self.m1 = nu, m, m1
         self.amp = (np.where(st, 0.0, s_a * amp_a), np.where(st, 0.0, amp_b), np.where(st, 0.0, s_c * amp_c))
         self.inertia_abc = (Ia, Ib, Ic)
@@ -272,8 +274,9 @@ class FreeBodyOrbit:
         if reduce:
             # Reduce modulo the period 4K so accuracy does not decay with |u| (not on the
             # separatrix, which has no period).
-            four_k = 4.0 * elliptic_k(self.m1)
-            u = np.where(self.m1 > 0.0, u - four_k * np.round(u / np.where(self.m1 > 0.0, four_k, 1.0)), u)
+            periodic = self.m1 > 0.0
+            four_k = np.where(periodic, 4.0 * elliptic_k(self.m1), 1.0)
+            u = np.where(periodic, u - four_k * np.round(u / four_k), u)
         sn, cn, dn = jacobi_sn_cn_dn(u, self.m, self.m1)
         Ia, Ib, Ic = self.inertia_abc
         A, B, C = self.amp
@@ -328,24 +331,44 @@ class FreeBodyOrbit:
         idx_y = np.where(cyc, idx_c, i_mid)
         return tuple(vx * (idx_x == i) + vy * (idx_y == i) + vz * (idx_a == i) for i in range(3))
 
+    def _panels(self, h):
+        """Quadrature panels per element: at most _PANEL_PHASE in u, and narrower still when the
+        orbit passes close to the reference axis "a" (nearly equal I_a, I_b near the
+        separatrix), where the integrand has a peak of relative width ``rho``, the least
+        distance of ``Pi`` from that axis over ``|Pi|``."""
+        Ia, Ib, Ic = self.inertia_abc
+        A = self.amp[0]
+        norm = np.where(self.momentum_norm > 0.0, self.momentum_norm, 1.0)
+        rho2 = np.clip(1.0 - (Ia * A / norm) ** 2, 1e-12, 1.0)
+        width = self._PANEL_PHASE * np.minimum(1.0, np.sqrt(rho2))
+        return np.maximum(1, np.ceil(np.abs(self.nu) * abs(h) / width)).astype(int)
+
     def attitude_increment(self, h):
-        """Body-frame rotation ``r`` with ``q(t + h) = q(t) * r`` along the exact motion."""
+        """Body-frame rotation ``r`` with ``q(t + h) = q(t) * r`` along the exact motion.
+
+        Each element gets its own panel count and its panel sums are accumulated in order, so
+        an element's result does not depend on the rest of the batch.
+        """
         h = float(h)
-        n_panels = int(max(1, math.ceil(float(np.max(np.abs(self.nu))) * abs(h) / self._PANEL_PHASE)))
-        edges = np.linspace(0.0, h, n_panels + 1)
-        half = 0.5 * (edges[1:] - edges[:-1])
-        mid = 0.5 * (edges[1:] + edges[:-1])
-        t_nodes = (mid[:, None] + half[:, None] * self._NODES[None, :]).ravel()
-        w_nodes = (half[:, None] * self._WEIGHTS[None, :]).ravel()
+        n_panels = np.asarray(self._panels(h))
         tau0 = np.asarray(self.tau0)[..., None]
         nu = np.asarray(self.nu)[..., None]
-        sn, cn, dn = jacobi_sn_cn_dn(tau0 + nu * t_nodes, np.asarray(self.m)[..., None], np.asarray(self.m1)[..., None])
+        m, m1 = np.asarray(self.m)[..., None], np.asarray(self.m1)[..., None]
         Ia, Ib, Ic = (np.asarray(x)[..., None] for x in self.inertia_abc)
         A, B, C = (np.asarray(x)[..., None] for x in self.amp)
-        pb = Ib * B * sn
-        pc = Ic * C * dn
-        rate = np.asarray(self.momentum_norm)[..., None] * (pb * pb / Ib + pc * pc / Ic) / (pb * pb + pc * pc)
-        dphi = np.sum(rate * w_nodes, axis=-1)
+        norm = np.asarray(self.momentum_norm)[..., None]
+        width = (h / n_panels)[..., None]
+        dphi = np.zeros(n_panels.shape)
+        for k in range(int(np.max(n_panels))):
+            active = k < n_panels
+            t = (k + 0.5 + 0.5 * self._NODES) * width  # nodes of panel k, per element
+            sn, cn, dn = jacobi_sn_cn_dn(tau0 + nu * t, m, m1)
+            pb = Ib * B * sn
+            pc = Ic * C * dn
+            with np.errstate(invalid="ignore", divide="ignore"):
+                rate = norm * (pb * pb / Ib + pc * pc / Ic) / (pb * pb + pc * pc)
+            panel = np.sum(rate * (0.5 * width) * self._WEIGHTS, axis=-1)
+            dphi = np.where(active, dphi + panel, dphi)
         w0 = self._w_quaternion(*self._abc_at(0.0, reduce=False))
         w1 = self._w_quaternion(*self._abc_at(h, reduce=False))
         z = (np.cos(0.5 * dphi), 0.0 * dphi, 0.0 * dphi, np.sin(0.5 * dphi))

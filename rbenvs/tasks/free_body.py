@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..rotations import quat_angle, quat_conjugate, quat_multiply, quat_random
+from ..rotations import quat_angle, quat_conjugate, quat_multiply, quat_random, sqrt
 
 __all__ = ["SpinTask", "DetumbleTask", "ReorientTask", "AXIS_NAMES"]
 
@@ -110,7 +110,7 @@ class DetumbleTask:
 
     def speed(self, system, y):
         w = system.angular_velocity(y)
-        return (w[0] * w[0] + w[1] * w[1] + w[2] * w[2]) ** 0.5
+        return sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2])
 
     def observe(self, system, y):
         return system.angular_velocity(y)
@@ -167,7 +167,7 @@ class ReorientTask:
 
     def _angle_and_speed(self, system, y):
         w = system.angular_velocity(y)
-        speed = (w[0] * w[0] + w[1] * w[1] + w[2] * w[2]) ** 0.5
+        speed = sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2])
         return quat_angle(y[3:7] if self.target == (1.0, 0.0, 0.0, 0.0) else self.error(y)), speed
 
     def reward(self, system, y, u):

@@ -1,0 +1,198 @@
+"""Quaternion helpers on component tuples, for single states and batches."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from rbenvs.rotations import (
+    quat_angle,
+    quat_conjugate,
+    quat_from_axis_angle,
+    quat_multiply,
+    quat_normalize,
+    quat_random,
+    quat_rotate,
+)
+
+EPS = np.finfo(float).eps
+# Products/rotations of unit quaternions: each output is a short sum of O(1) terms, so a
+# dozen ulp covers accumulated rounding.
+TOL = 16 * EPS
+
+SHAPES = pytest.mark.parametrize("shape", [(), (5,), (2, 3)], ids=["scalar", "batch5", "batch2x3"])
+
+
+def _rotation_matrix(q):
+    """R(q) for a unit quaternion (Hamilton, scalar first), shape (3, 3) + batch."""
+    w, x, y, z = (np.asarray(c, dtype=float) for c in q)
+    return np.array(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+            [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+            [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
+        ]
+    )
+
+
+def _vec(rng, shape, scale=1.0):
+    return tuple(scale * rng.standard_normal(shape) for _ in range(3))
+
+
+def _norm(q):
+    return np.sqrt(sum(np.asarray(c) ** 2 for c in q))
+
+
+@SHAPES
+def test_random_quaternions_are_unit_and_shaped(shape):
+    rng = np.random.default_rng(0)
+    q = quat_random(rng, shape)
+    assert len(q) == 4
+    for c in q:
+        assert np.shape(c) == shape
+    # sqrt(1-u)^2 + sqrt(u)^2 = 1 up to rounding of two sqrt and sin^2 + cos^2.
+    np.testing.assert_allclose(_norm(q), 1.0, atol=4 * EPS)
+
+
+@SHAPES
+def test_product_is_associative_and_matches_matrix_product(shape):
+    rng = np.random.default_rng(1)
+    p, q, r = quat_random(rng, shape), quat_random(rng, shape), quat_random(rng, shape)
+    left = quat_multiply(quat_multiply(p, q), r)
+    right = quat_multiply(p, quat_multiply(q, r))
+    for a, b in zip(left, right):
+        np.testing.assert_allclose(a, b, atol=TOL)
+    # The product represents the composition of rotations: R(p q) = R(p) R(q).
+    pq = quat_multiply(p, q)
+    np.testing.assert_allclose(
+        _rotation_matrix(pq), np.einsum("ij...,jk...->ik...", _rotation_matrix(p), _rotation_matrix(q)), atol=TOL
+    )
+    # Unit in, unit out (|pq| = |p| |q|).
+    np.testing.assert_allclose(_norm(pq), 1.0, atol=TOL)
+    # Identity and inverse.
+    one = (1.0, 0.0, 0.0, 0.0)
+    for a, b in zip(quat_multiply(one, p), p):
+        np.testing.assert_array_equal(a, b)  # multiplying by 1 and adding zeros is exact
+    for a, b in zip(quat_multiply(p, quat_conjugate(p)), one):
+        np.testing.assert_allclose(a, b, atol=TOL)
+
+
+@SHAPES
+def test_rotate_matches_rotation_matrix(shape):
+    rng = np.random.default_rng(2)
+    q = quat_random(rng, shape)
+    v = _vec(rng, shape, scale=3.0)
+    got = quat_rotate(q, v)
+    want = np.einsum("ij...,j...->i...", _rotation_matrix(q), np.array(v))
+    for g, w in zip(got, want):
+        assert np.shape(g) == shape
+        # |v| ~ 3-5 here: relative round-off times the vector size.
+        np.testing.assert_allclose(g, w, atol=TOL * 10)
+    # Rotations keep length and compose like the product: R(p q) v = R(p) R(q) v.
+    np.testing.assert_allclose(_norm(got), _norm(v), rtol=TOL)
+    p = quat_random(rng, shape)
+    a = quat_rotate(quat_multiply(p, q), v)
+    b = quat_rotate(p, quat_rotate(q, v))
+    for x, y in zip(a, b):
+        np.testing.assert_allclose(x, y, atol=TOL * 10)
+    # The conjugate undoes the rotation.
+    back = quat_rotate(quat_conjugate(q), got)
+    for x, y in zip(back, v):
+        np.testing.assert_allclose(x, y, atol=TOL * 10)
+
+
+@SHAPES
+def test_axis_angle_rotates_about_axis(shape):
+    rng = np.random.default_rng(3)
+    axis = _vec(rng, shape)
+    n = _norm(axis)
+    axis = tuple(a / n for a in axis)
+    angle = rng.uniform(-np.pi, np.pi, shape)
+    q = quat_from_axis_angle(axis, angle)
+    np.testing.assert_allclose(_norm(q), 1.0, atol=4 * EPS)  # cos^2 + sin^2 |axis|^2, unit axis
+    # The axis is fixed by the rotation.
+    fixed = quat_rotate(q, axis)
+    for a, b in zip(fixed, axis):
+        np.testing.assert_allclose(a, b, atol=TOL)
+    # Rodrigues: R v = v cos + (k x v) sin + k (k.v)(1 - cos).
+    v = _vec(rng, shape)
+    k = np.array(axis)
+    vv = np.array(v)
+    c, s = np.cos(angle), np.sin(angle)
+    want = vv * c + np.cross(k, vv, axis=0) * s + k * np.sum(k * vv, axis=0) * (1 - c)
+    for g, w in zip(quat_rotate(q, v), want):
+        np.testing.assert_allclose(g, w, atol=TOL * 10)  # |v| ~ 2: a few products of size 1
+    np.testing.assert_allclose(quat_angle(q), np.abs(angle), atol=8 * EPS)  # atan2 form, well conditioned
+
+
+@SHAPES
+def test_normalize(shape):
+    rng = np.random.default_rng(4)
+    q = quat_random(rng, shape)
+    scale = rng.uniform(0.1, 10.0, shape)
+    scaled = tuple(scale * c for c in q)
+    n = quat_normalize(scaled)
+    np.testing.assert_allclose(_norm(n), 1.0, atol=4 * EPS)  # one rsqrt and a multiply
+    for a, b in zip(n, q):
+        np.testing.assert_allclose(a, b, atol=8 * EPS)  # direction unchanged
+    # Idempotent on unit quaternions up to round-off.
+    for a, b in zip(quat_normalize(n), n):
+        np.testing.assert_allclose(a, b, atol=4 * EPS)
+
+
+@SHAPES
+def test_angle_near_zero_and_pi(shape):
+    rng = np.random.default_rng(5)
+    axis = _vec(rng, shape)
+    n = _norm(axis)
+    axis = tuple(a / n for a in axis)
+    for small in (1e-14, 1e-9, 1e-5):
+        theta = np.full(shape, small)
+        q = quat_from_axis_angle(axis, theta)
+        # Near 0: 2 atan2(|v|, |w|) ~ 2|v| is relatively accurate (acos(w) would give 0 or ~1e-8).
+        np.testing.assert_allclose(quat_angle(q), small, rtol=1e-14)
+        # Near pi: pi - small, where acos would lose the small part; here only absolute rounding of pi.
+        q = quat_from_axis_angle(axis, np.pi - theta)
+        np.testing.assert_allclose(np.pi - quat_angle(q), small, atol=4 * EPS * np.pi, rtol=1e-10)
+        # q and -q are the same rotation: same angle (no 2 pi - angle jump).
+        neg = tuple(-c for c in q)
+        np.testing.assert_array_equal(quat_angle(neg), quat_angle(q))
+    # The identity has angle exactly 0, a half turn exactly pi.
+    zero = np.zeros(shape)
+    assert np.all(quat_angle((zero + 1.0, zero, zero, zero)) == 0.0)
+    assert np.all(quat_angle((zero, zero + 1.0, zero, zero)) == np.pi)
+
+
+def test_float_components_give_floats_and_match_arrays():
+    """A single state may be given as plain floats; the result equals the batch path bit for bit."""
+    rng = np.random.default_rng(6)
+    p = quat_random(rng, (4,))
+    q = quat_random(rng, (4,))
+    v = _vec(rng, (4,))
+    batch_mul = quat_multiply(p, q)
+    batch_rot = quat_rotate(q, v)
+    for i in range(4):
+        pi = tuple(float(c[i]) for c in p)
+        qi = tuple(float(c[i]) for c in q)
+        vi = tuple(float(c[i]) for c in v)
+        mul = quat_multiply(pi, qi)
+        rot = quat_rotate(qi, vi)
+        assert all(isinstance(c, float) for c in mul + rot)
+        assert mul == tuple(float(c[i]) for c in batch_mul)
+        assert rot == tuple(float(c[i]) for c in batch_rot)
+
+
+def test_random_quaternions_are_uniform():
+    """Shoemake's method samples the Haar measure: moments of S^3's uniform law."""
+    rng = np.random.default_rng(7)
+    n = 200_000
+    q = np.array(quat_random(rng, (n,)))
+    # Uniform on S^3: E[q_i] = 0, E[q_i^2] = 1/4, E[q_i^4] = 1/8. Standard errors are
+    # ~ sqrt(var/n) <= 0.5/sqrt(n) ~ 1.1e-3; allow 5 sigma.
+    tol = 5 * 0.5 / np.sqrt(n)
+    np.testing.assert_allclose(q.mean(axis=1), 0.0, atol=tol)
+    np.testing.assert_allclose((q**2).mean(axis=1), 0.25, atol=tol)
+    np.testing.assert_allclose((q**4).mean(axis=1), 0.125, atol=tol)
+    # Rotation angle density on SO(3) is (1 - cos a)/pi: mean angle pi/2 + 2/pi.
+    angle = quat_angle(tuple(q))
+    assert angle.mean() == pytest.approx(np.pi / 2 + 2 / np.pi, abs=5 * 0.7 / np.sqrt(n))  # std(angle) < 0.7
