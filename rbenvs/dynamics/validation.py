@@ -7,7 +7,20 @@ import numbers
 
 import numpy as np
 
-__all__ = ["require_finite_positive", "require_finite_nonnegative", "require_int_at_least", "require_inertia"]
+__all__ = ["require_finite", "require_finite_positive", "require_finite_nonnegative", "require_all_positive", "require_int_at_least", "require_inertia"]
+
+
+def require_finite(name: str, value) -> float:
+    """``value`` as a float; ``ValueError`` unless it is a finite real number."""
+    v = _as_real(name, value)
+    if not math.isfinite(v):
+        raise ValueError(f"{name} must be finite, got {value!r}")
+    return v
+
+
+def require_all_positive(**values) -> list[float]:
+    """:func:`require_finite_positive` for each keyword, in order."""
+    return [require_finite_positive(name, value) for name, value in values.items()]
 
 
 def require_finite_positive(name: str, value) -> float:

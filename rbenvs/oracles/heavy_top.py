@@ -24,13 +24,12 @@ Units: SI throughout (kg, m, s, rad, kg m^2).
 from __future__ import annotations
 
 import math
-import numbers
 from dataclasses import dataclass
 from typing import NamedTuple
 
 import numpy as np
 
-from ..dynamics.validation import require_finite_positive
+from ..dynamics.validation import require_all_positive, require_finite
 
 __all__ = [
     "critical_spin",
@@ -46,31 +45,20 @@ __all__ = [
 # validation helpers (ValueError naming the parameter and the rule, as rbenvs.dynamics.validation)
 
 
-def _require_finite(name: str, value) -> float:
-    if isinstance(value, bool) or not isinstance(value, numbers.Real):
-        raise ValueError(f"{name} must be a real number, got {value!r}")
-    v = float(value)
-    if not math.isfinite(v):
-        raise ValueError(f"{name} must be finite, got {value!r}")
-    return v
-
 
 def _require_tilt(name: str, value) -> float:
-    v = _require_finite(name, value)
+    v = require_finite(name, value)
     if not (0.0 <= v <= math.pi):
         raise ValueError(f"{name} must lie in [0, pi] (angle from the upward vertical), got {value!r}")
     return v
 
 
 def _require_nonzero(name: str, value) -> float:
-    v = _require_finite(name, value)
+    v = require_finite(name, value)
     if v == 0.0:
         raise ValueError(f"{name} must be finite and nonzero, got {value!r}")
     return v
 
-
-def _positive(**kwargs) -> list[float]:
-    return [require_finite_positive(name, value) for name, value in kwargs.items()]
 
 
 # --------------------------------------------------------------------------------------------
@@ -87,7 +75,7 @@ def critical_spin(I1, I3, mass, length, gravity) -> float:
     ``|Omega3|``) the linearization :func:`upright_eigenvalues` is purely imaginary; below it two
     eigenvalues have positive real part.
     """
-    I1, I3, mass, length, gravity = _positive(I1=I1, I3=I3, mass=mass, length=length, gravity=gravity)
+    I1, I3, mass, length, gravity = require_all_positive(I1=I1, I3=I3, mass=mass, length=length, gravity=gravity)
     return 2.0 * math.sqrt(mass * gravity * length * I1) / I3
 
 
@@ -109,20 +97,23 @@ def upright_eigenvalues(I1, I3, mass, length, gravity, spin) -> np.ndarray:
     ``|spin| >`` :func:`critical_spin` both roots ``x`` are real and non-positive, so every
     ``lambda`` is imaginary (spectrally stable); below it ``x`` is a complex pair and the four
     ``lambda`` are ``+-lambda0, +-conj(lambda0)`` with ``Re lambda0 != 0`` (unstable).
-    (This polynomial is re-derived in the module tests from a finite-difference Jacobian.)
+    (tests/test_oracles_tops.py checks these roots against the eigenvalues of a
+    finite-difference Jacobian of the 6-dimensional vector field.)
 
     Returns a complex array of shape ``(4,)`` [1/s], sorted by real part then imaginary part
     (``numpy.sort_complex``).
     """
-    I1, I3, mass, length, gravity = _positive(I1=I1, I3=I3, mass=mass, length=length, gravity=gravity)
-    w = _require_finite("spin", spin)
+    I1, I3, mass, length, gravity = require_all_positive(I1=I1, I3=I3, mass=mass, length=length, gravity=gravity)
+    w = require_finite("spin", spin)
     mgl = mass * gravity * length
     w2 = w * w
     b = ((I1 * I1 + (I1 - I3) ** 2) * w2 - 2.0 * mgl * I1) / (I1 * I1)
     c = ((I1 - I3) * w2 + mgl) ** 2 / (I1 * I1)
     disc = complex((2.0 * I1 - I3) ** 2 * w2 * (I3 * I3 * w2 - 4.0 * mgl * I1) / I1**4)
     x1, x2 = _quadratic_roots(complex(b), complex(c), disc)
-    r1, r2 = np.sqrt(x1 + 0j), np.sqrt(x2 + 0j)
+    if disc.real < 0.0:  # real coefficients: the roots are an exact conjugate pair
+        x2 = x1.conjugate()
+    r1, r2 = np.sqrt(x1), np.sqrt(x2)
     return np.sort_complex(np.array([r1, -r1, r2, -r2], dtype=complex))
 
 
@@ -181,8 +172,8 @@ def regular_precession_rates(A, C, mass, length, gravity, spin, tilt) -> Regular
     Raises ``ValueError`` (naming ``spin``) when ``(C n)^2 < 4 A m g h cos(alpha)``: the top
     spins too slowly for any real regular precession at this tilt.
     """
-    A, C, mass, length, gravity = _positive(A=A, C=C, mass=mass, length=length, gravity=gravity)
-    n = _require_finite("spin", spin)
+    A, C, mass, length, gravity = require_all_positive(A=A, C=C, mass=mass, length=length, gravity=gravity)
+    n = require_finite("spin", spin)
     alpha = _require_tilt("tilt", tilt)
     mgh = mass * gravity * length
     cos_a = math.cos(alpha)
@@ -198,6 +189,9 @@ def regular_precession_rates(A, C, mass, length, gravity, spin, tilt) -> Regular
             f"spin must satisfy (C*spin)^2 >= 4 A m g h cos(tilt) for a real regular precession, "
             f"i.e. |spin| >= {n_min!r} at tilt={alpha!r}; got spin={spin!r}"
         )
+    if K == 0.0:  # cos(alpha) < 0 here: the conical pendulum, an exactly symmetric pair
+        rate = math.sqrt(mgh / (A * -cos_a))
+        return RegularPrecession(rate, -rate)
     q = 0.5 * (K + math.copysign(math.sqrt(disc), K))
     return RegularPrecession(mgh / q, q / (A * cos_a))
 
@@ -239,7 +233,7 @@ def fast_top_nutation(A, C, mass, length, gravity, spin, tilt) -> FastTopNutatio
 
     ``spin`` must be finite and nonzero (the formulas divide by ``C n``).
     """
-    A, C, mass, length, gravity = _positive(A=A, C=C, mass=mass, length=length, gravity=gravity)
+    A, C, mass, length, gravity = require_all_positive(A=A, C=C, mass=mass, length=length, gravity=gravity)
     n = _require_nonzero("spin", spin)
     alpha = _require_tilt("tilt", tilt)
     mgh = mass * gravity * length

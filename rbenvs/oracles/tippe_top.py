@@ -39,13 +39,12 @@ with physics.md exactly.
 from __future__ import annotations
 
 import math
-import numbers
 from dataclasses import dataclass
 
 import numpy as np
 from scipy import optimize
 
-from ..dynamics.validation import require_finite_positive
+from ..dynamics.validation import require_all_positive, require_finite
 
 __all__ = [
     "jellett",
@@ -68,24 +67,13 @@ _FINAL_TILT_GRID = 4097  # grid points on [0, pi] before the local refinement
 # validation
 
 
-def _require_finite(name: str, value) -> float:
-    if isinstance(value, bool) or not isinstance(value, numbers.Real):
-        raise ValueError(f"{name} must be a real number, got {value!r}")
-    v = float(value)
-    if not math.isfinite(v):
-        raise ValueError(f"{name} must be finite, got {value!r}")
-    return v
-
 
 def _require_alpha(value) -> float:
-    v = _require_finite("alpha", value)
+    v = require_finite("alpha", value)
     if not (0.0 < v < 1.0):
         raise ValueError(f"alpha (= h/R, centre-of-mass offset over radius) must lie in (0, 1), got {value!r}")
     return v
 
-
-def _positive(**kwargs) -> list[float]:
-    return [require_finite_positive(name, value) for name, value in kwargs.items()]
 
 
 def _finite_array(name: str, value) -> np.ndarray:
@@ -118,7 +106,7 @@ def jellett(L, k, R, alpha):
     seed 2's ``R A phi' sin^2(theta) + (R cos(theta) - h) C omega3``. Conserved under any friction
     law at the contact point.
     """
-    (R,) = _positive(R=R)
+    (R,) = require_all_positive(R=R)
     alpha = _require_alpha(alpha)
     L = _vector_array("L", L)
     k = _vector_array("k", k)
@@ -133,9 +121,9 @@ def jellett(L, k, R, alpha):
 def jellett_upright(C, R, alpha, spin) -> float:
     """Jellett's integral of the top spinning at ``spin`` [rad/s] upright on its broad end
     (``theta = 0``, ``L = C spin z_hat``): ``J = R C spin (1 - alpha)``."""
-    C, R = _positive(C=C, R=R)
+    C, R = require_all_positive(C=C, R=R)
     alpha = _require_alpha(alpha)
-    n = _require_finite("spin", spin)
+    n = require_finite("spin", spin)
     return R * C * n * (1.0 - alpha)
 
 
@@ -153,14 +141,17 @@ def _energy_star(theta, J, m, g, R, alpha, A, C):
     return J * J / (2.0 * R * R * _d_theta(theta, alpha, A, C)) + m * g * R * (1.0 - alpha * np.cos(theta))
 
 
-def _energy_star_slope(theta, J, m, g, R, alpha, A, C):
-    """dE*/dtheta = sin(theta) [m g R alpha - J^2 ((A - C) cos(theta) + C alpha) / (R^2 D^2)]."""
+def _slope_factor(theta, J, m, g, R, alpha, A, C):
+    """``dE*/dtheta = sin(theta) * factor``, ``factor = m g R alpha - J^2 ((A - C) cos + C alpha)/(R^2 D^2)``.
+
+    ``d^2E*/dtheta^2`` is ``factor(0)`` at ``theta = 0`` and ``-factor(pi)`` at ``theta = pi``.
+    """
     d = _d_theta(theta, alpha, A, C)
-    return np.sin(theta) * (m * g * R * alpha - J * J * ((A - C) * np.cos(theta) + C * alpha) / (R * R * d * d))
+    return m * g * R * alpha - J * J * ((A - C) * np.cos(theta) + C * alpha) / (R * R * d * d)
 
 
 def _tippe_params(m, g, R, alpha, A, C):
-    m, g, R, A, C = _positive(m=m, g=g, R=R, A=A, C=C)
+    m, g, R, A, C = require_all_positive(m=m, g=g, R=R, A=A, C=C)
     return m, g, R, _require_alpha(alpha), A, C
 
 
@@ -235,7 +226,7 @@ def inversion_criterion(A, C, alpha, m=None, g=None, R=None, J=None) -> Inversio
     ``m`` [kg], ``g`` [m/s^2] and ``R`` [m] come together or not at all; without them the
     thresholds are ``None``.
     """
-    A, C = _positive(A=A, C=C)
+    A, C = require_all_positive(A=A, C=C)
     alpha = _require_alpha(alpha)
     given = {"m": m, "g": g, "R": R}
     missing = [name for name, v in given.items() if v is None]
@@ -243,11 +234,11 @@ def inversion_criterion(A, C, alpha, m=None, g=None, R=None, J=None) -> Inversio
         raise ValueError(f"m, g and R must be given together; missing {', '.join(missing)}")
     have_scale = not missing
     if have_scale:
-        m, g, R = _positive(m=m, g=g, R=R)
+        m, g, R = require_all_positive(m=m, g=g, R=R)
     if J is not None:
         if not have_scale:
             raise ValueError("J needs m, g and R (the thresholds it is compared with depend on them)")
-        J = _require_finite("J", J)
+        J = require_finite("J", J)
 
     gamma = A / C
     upright_unstable = gamma > 1.0 - alpha
@@ -300,34 +291,43 @@ def inversion_spin_threshold(A, C, alpha, m, g, R) -> float:
 def final_tilt(J, m, g, R, alpha, A, C) -> float:
     """The tilt ``theta`` in ``[0, pi]`` of the global minimum of :func:`energy_star` at this ``J``.
 
-    Dense grid (4097 points), then refinement in the cells beside the best grid point: a root of
-    the analytic slope ``dE*/dtheta`` by ``scipy.optimize.brentq`` where it brackets one, else
-    ``scipy.optimize.minimize_scalar(method='bounded')``; the ends ``0`` and ``pi`` (always
-    critical points: ``E*`` is even about both) compete with the refined interior point.
+    ``dE*/dtheta = sin(theta) F(theta)`` with ``F = m g R alpha - J^2 ((A - C) cos(theta) +
+    C alpha) / (R^2 D^2)``. Candidates: ``theta = 0`` if ``F(0) >= 0``, ``theta = pi`` if
+    ``F(pi) <= 0`` (the ends are always critical, ``E*`` being even about both), and every
+    interior minimum, found as a ``-`` to ``+`` sign change of ``F`` on a dense grid (4097 points)
+    and refined by the bracketing ``scipy.optimize.brentq``; the candidate with the least ``E*``
+    wins. Deciding the ends by the sign of the curvature, not by comparing energies, matters:
+    near a flat end the energy differences are below rounding (``E*`` is dominated by its
+    ``J^2`` term). A dense-grid minimum refined by ``minimize_scalar(method='bounded')`` is the
+    fallback should no candidate be found.
 
     This is where dissipation takes a top whose ``theta = 0`` is unstable (then ``E*`` has a single
     minimum); if ``theta = 0`` is stable (:func:`inversion_criterion` says ``'no inversion'``) the
     top stays near 0 even when the global minimum lies elsewhere.
     """
     m, g, R, alpha, A, C = _tippe_params(m, g, R, alpha, A, C)
-    J = _require_finite("J", J)
+    J = require_finite("J", J)
     args = (J, m, g, R, alpha, A, C)
-    grid = np.linspace(0.0, math.pi, _FINAL_TILT_GRID)
-    values = _energy_star(grid, *args)
-    i = int(np.argmin(values))
-    lo, hi = grid[max(i - 1, 0)], grid[min(i + 1, grid.size - 1)]
 
-    def f(t):
+    def energy(t):
         return float(_energy_star(t, *args))
 
-    def slope(t):
-        return float(_energy_star_slope(t, *args))
+    def factor(t):
+        return float(_slope_factor(t, *args))
 
-    candidates = [0.0, math.pi]
-    s_lo, s_hi = slope(lo), slope(hi)
-    if s_lo < 0.0 < s_hi:
-        candidates.append(optimize.brentq(slope, lo, hi, xtol=1e-15, rtol=4.0 * np.finfo(float).eps))
-    else:
-        res = optimize.minimize_scalar(f, bounds=(lo, hi), method="bounded", options={"xatol": 1e-12})
-        candidates.append(float(res.x))
-    return min(candidates, key=f)
+    grid = np.linspace(0.0, math.pi, _FINAL_TILT_GRID)
+    F = _slope_factor(grid, *args)
+    candidates = []
+    if F[0] >= 0.0:
+        candidates.append(0.0)
+    if F[-1] <= 0.0:
+        candidates.append(math.pi)
+    for i in np.flatnonzero((F[:-1] < 0.0) & (F[1:] > 0.0)):
+        candidates.append(optimize.brentq(factor, grid[i], grid[i + 1], xtol=1e-15, rtol=4.0 * np.finfo(float).eps))
+    if not candidates:  # not expected: a continuous E* has a minimum; guard against rounding
+        values = _energy_star(grid, *args)
+        i = int(np.argmin(values))
+        lo, hi = grid[max(i - 1, 0)], grid[min(i + 1, grid.size - 1)]
+        res = optimize.minimize_scalar(energy, bounds=(lo, hi), method="bounded", options={"xatol": 1e-12})
+        candidates = [float(res.x), float(grid[i])]
+    return float(min(candidates, key=energy))
