@@ -64,7 +64,6 @@ class RigidBodyEnv(gym.Env):
             self._y = tuple(float(c) for c in self.task.initial_state(self.system, self.np_random, ()))
         else:
             self._y = self._state_from_dict(state)
-        self._u_zero = (0.0,) * self.action_size
         obs, over = self._observation(self._y)
         if over:
             raise ValueError("the initial state lies outside the observation bounds; raise the limit parameters")

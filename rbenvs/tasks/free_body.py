@@ -168,7 +168,7 @@ class ReorientTask:
     def _angle_and_speed(self, system, y):
         w = system.angular_velocity(y)
         speed = sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2])
-        return quat_angle(y[3:7] if self.target == (1.0, 0.0, 0.0, 0.0) else self.error(y)), speed
+        return quat_angle(self.error(y)), speed
 
     def reward(self, system, y, u):
         angle, speed = self._angle_and_speed(system, y)
