@@ -6,6 +6,7 @@
 id                             tasks                         max_episode_steps
 =============================  ============================  =================
 ``rbenvs/FreeRigidBody-v0``    spin, detumble, reorient      400
+``rbenvs/LagrangeTop-v0``      upright, precess              500
 =============================  ============================  =================
 """
 
@@ -15,13 +16,19 @@ from gymnasium.envs.registration import register, registry
 
 __version__ = "0.1.0"
 
-# One place for every registration. reward_threshold applies to the default scene
-# (spin about the intermediate axis): 380 = a mean alignment of 0.95 over 400 steps.
+# One place for every registration. reward_threshold applies to each id's default scene:
+# FreeRigidBody (spin about the intermediate axis): 380 = a mean alignment of 0.95 over 400
+# steps; LagrangeTop (upright below the critical spin): 475 = a mean cos(tilt) of 0.95 over 500.
 ENVIRONMENTS = {
     "rbenvs/FreeRigidBody-v0": dict(
         entry_point="rbenvs.envs.free_body:FreeRigidBodyEnv",
         max_episode_steps=400,
         reward_threshold=380.0,
+    ),
+    "rbenvs/LagrangeTop-v0": dict(
+        entry_point="rbenvs.envs.heavy_top:LagrangeTopEnv",
+        max_episode_steps=500,
+        reward_threshold=475.0,
     ),
 }
 

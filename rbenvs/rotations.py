@@ -15,12 +15,15 @@ import numpy as np
 
 __all__ = [
     "sqrt",
+    "atan2",
     "quat_multiply",
     "quat_conjugate",
     "quat_normalize",
     "quat_rotate",
     "quat_from_axis_angle",
     "quat_angle",
+    "quat_from_two_vectors",
+    "quat_to_euler_zxz",
     "quat_random",
 ]
 
@@ -29,6 +32,13 @@ def sqrt(x):
     """Square root of a float or an array, with the same bits either way (IEEE sqrt is
     correctly rounded; ``x ** 0.5`` is libm ``pow`` for a float but SIMD sqrt for an array)."""
     return math.sqrt(x) if isinstance(x, float) else np.sqrt(x)
+
+
+def atan2(y, x):
+    """``atan2`` of floats (libm) or arrays (numpy)."""
+    if isinstance(y, float) and isinstance(x, float):
+        return math.atan2(y, x)
+    return np.arctan2(y, x)
 
 
 def quat_multiply(p, q):
@@ -86,6 +96,55 @@ def quat_angle(q):
     """
     w, x, y, z = q
     return 2.0 * np.arctan2(np.sqrt(x * x + y * y + z * z), np.abs(w))
+
+
+def quat_from_two_vectors(a, b):
+    """The shortest rotation taking the unit vector ``a`` to the unit vector ``b``.
+
+    ``q ~ (1 + a.b, a x b)``, normalised. For opposite vectors (``1 + a.b`` at round-off level)
+    the axis is undefined; any axis normal to ``a`` gives a half turn, and one is chosen.
+    """
+    ax, ay, az = a
+    bx, by, bz = b
+    w = 1.0 + (ax * bx + ay * by + az * bz)
+    x, y, z = ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx
+    tiny = 1e-14
+    if isinstance(w, float):
+        if w <= tiny:
+            w, (x, y, z) = 0.0, ((0.0, az, -ay) if abs(ax) < 0.9 else (-az, 0.0, ax))
+    else:
+        opposite = w <= tiny
+        if np.any(opposite):
+            use_x = np.abs(ax) < 0.9
+            px, py, pz = np.where(use_x, 0.0, -az), np.where(use_x, az, 0.0), np.where(use_x, -ay, ax)
+            w = np.where(opposite, 0.0, w)
+            x, y, z = np.where(opposite, px, x), np.where(opposite, py, y), np.where(opposite, pz, z)
+    return quat_normalize((w, x, y, z))
+
+
+def quat_to_euler_zxz(q):
+    """Euler angles ``(phi, theta, psi)`` [rad] of ``R(q) = Rz(phi) Rx(theta) Rz(psi)``.
+
+    The classical angles of the top (precession, nutation, spin; seed 2, 3.62; seed 1, 15.6).
+    ``theta`` in ``[0, pi]`` comes from ``atan2`` (accurate near the poles); at ``theta = 0`` or
+    ``pi`` only ``phi + psi`` (or ``phi - psi``) is defined and ``psi`` is set to 0 there.
+    For output only: never integrate them.
+    """
+    w, x, y, z = q
+    r13 = 2.0 * (x * z + w * y)
+    r23 = 2.0 * (y * z - w * x)
+    r31 = 2.0 * (x * z - w * y)
+    r32 = 2.0 * (y * z + w * x)
+    r33 = 1.0 - 2.0 * (x * x + y * y)
+    r11 = 1.0 - 2.0 * (y * y + z * z)
+    r21 = 2.0 * (x * y + w * z)
+    sin_t = np.sqrt(r13 * r13 + r23 * r23)
+    theta = np.arctan2(sin_t, r33)
+    pole = sin_t < 1e-12
+    # at a pole R = Rz(phi +- psi): take psi = 0, phi from the first column
+    phi = np.where(pole, np.arctan2(r21, r11), np.arctan2(r13, -r23))
+    psi = np.where(pole, 0.0, np.arctan2(r31, r32))
+    return phi, theta, psi
 
 
 def quat_random(rng: np.random.Generator, shape=()):

@@ -1,5 +1,20 @@
 """Analytic controllers: reference feedback laws that map observations to actions."""
 
-from .free_body import DetumbleDamping, ReorientPD, SpinLQR, ZeroController, controller_for
+from .free_body import DetumbleDamping, ReorientPD, SpinLQR, ZeroController
+from .heavy_top import PrecessionTracking, UprightLQR
 
-__all__ = ["ZeroController", "SpinLQR", "DetumbleDamping", "ReorientPD", "controller_for"]
+__all__ = ["ZeroController", "SpinLQR", "DetumbleDamping", "ReorientPD", "UprightLQR", "PrecessionTracking", "controller_for"]
+
+# Task names are unique across the systems, so the task alone picks the law.
+_BY_TASK = {
+    "spin": SpinLQR,
+    "detumble": DetumbleDamping,
+    "reorient": ReorientPD,
+    "upright": UprightLQR,
+    "precess": PrecessionTracking,
+}
+
+
+def controller_for(env):
+    """The analytic controller for ``env``'s task."""
+    return _BY_TASK[env.unwrapped.task.name](env)

@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.linalg import solve_continuous_are
 
-__all__ = ["ZeroController", "SpinLQR", "DetumbleDamping", "ReorientPD", "controller_for"]
+__all__ = ["ZeroController", "SpinLQR", "DetumbleDamping", "ReorientPD"]
 
 
 class ZeroController:
@@ -102,11 +102,3 @@ class ReorientPD(_Actuated):
         obs = np.asarray(obs, dtype=float)
         omega, err = obs[:3], obs[4:7]
         return self._action(self.inertia * (-self.kp * err - self.kd * omega))
-
-
-_BY_TASK = {"spin": SpinLQR, "detumble": DetumbleDamping, "reorient": ReorientPD}
-
-
-def controller_for(env):
-    """The analytic controller for ``env``'s task."""
-    return _BY_TASK[env.unwrapped.task.name](env)

@@ -1,5 +1,6 @@
 """Equations of motion, one module per system (pure: no gymnasium)."""
 
 from .free_body import FreeBody, FreeBodyOrbit, FreeBodyParams
+from .heavy_top import HeavyTop, HeavyTopParams
 
-__all__ = ["FreeBody", "FreeBodyOrbit", "FreeBodyParams"]
+__all__ = ["FreeBody", "FreeBodyOrbit", "FreeBodyParams", "HeavyTop", "HeavyTopParams"]

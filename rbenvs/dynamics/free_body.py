@@ -21,6 +21,7 @@ import numpy as np
 
 from ..elliptic import elliptic_f_sc, elliptic_k, jacobi_sn_cn_dn
 from ..rotations import quat_multiply, quat_normalize, sqrt
+from .flows import AxisRotation
 from .validation import require_inertia
 
 __all__ = ["FreeBodyParams", "FreeBody", "FreeBodyOrbit"]
@@ -52,12 +53,6 @@ class FreeBodyParams:
         """Indices of the (major, intermediate, minor) axes; ties broken by index."""
         order = sorted(range(3), key=lambda i: (-self.inertia[i], i))
         return (order[0], order[1], order[2])
-
-
-def _sincos(x):
-    if isinstance(x, float):
-        return math.sin(x), math.cos(x)
-    return np.sin(x), np.cos(x)
 
 
 class FreeBody:
@@ -129,9 +124,10 @@ class FreeBody:
             return y
         return (y[0] + h * u[0], y[1] + h * u[1], y[2] + h * u[2]) + tuple(y[3:])
 
-    def axis_rotation(self, i: int) -> "AxisRotation":
-        """Exact flow of ``H_i = Pi_i^2 / (2 I_i)``: a rotation about body axis ``i``."""
-        return AxisRotation(i, self.params.inverse[i], self.attitude)
+    def axis_rotation(self, i: int) -> AxisRotation:
+        """Exact flow of ``H_i = Pi_i^2 / (2 I_i)``: a rotation about body axis ``i``
+        (``Pi`` turns by ``-Omega_i h``, the attitude by ``+Omega_i h``)."""
+        return AxisRotation(i, self.params.inverse[i], (0,), 3 if self.attitude else None)
 
     def split_flows(self):
         """Pieces for a symmetric (Strang) splitting: torque kick, then the three axis rotations.
@@ -150,36 +146,6 @@ class FreeBody:
         if isinstance(y[0], float):  # a single state stays plain floats
             return tuple(float(c) for c in out)
         return out
-
-
-@dataclass(frozen=True)
-class AxisRotation:
-    """Exact flow ``flow(y, u, h)`` of ``H_i = Pi_i^2 / (2 I_i)`` (physics.md §4 splitting).
-
-    ``Pi_i`` is constant, so ``Omega = (Pi_i / I_i) e_i`` is too: ``Pi`` turns by
-    ``-Omega_i h`` about ``e_i`` and the attitude by ``+Omega_i h``. Both are exact rotations,
-    so ``|Pi|``, ``|q|`` and the spatial momentum ``R Pi`` are kept to round-off. (A class,
-    not a closure, so that environments pickle.)
-    """
-
-    i: int
-    inverse_inertia: float
-    attitude: bool
-
-    def __call__(self, y, u, h):
-        i = self.i
-        j, k = (i + 1) % 3, (i + 2) % 3
-        w = self.inverse_inertia * y[i] * h
-        s, c = _sincos(w)
-        out = list(y)
-        out[j] = y[j] * c + y[k] * s
-        out[k] = y[k] * c - y[j] * s
-        if self.attitude:
-            sh, ch = _sincos(0.5 * w)
-            r = [0.0, 0.0, 0.0]
-            r[i] = sh
-            out[3:7] = quat_multiply(y[3:7], (ch, r[0], r[1], r[2]))
-        return tuple(out)
 
 
 class FreeBodyOrbit:

@@ -2,5 +2,6 @@
 
 from .base import NumericalFailureWarning, RigidBodyEnv
 from .free_body import FreeRigidBodyEnv
+from .heavy_top import LagrangeTopEnv
 
-__all__ = ["RigidBodyEnv", "FreeRigidBodyEnv", "NumericalFailureWarning"]
+__all__ = ["RigidBodyEnv", "FreeRigidBodyEnv", "LagrangeTopEnv", "NumericalFailureWarning"]

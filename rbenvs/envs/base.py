@@ -61,7 +61,7 @@ class RigidBodyEnv(gym.Env):
         if options:
             raise ValueError(f"reset options must be a subset of {{'state'}}, got unknown {sorted(options)}")
         if state is None:
-            self._y = tuple(float(c) for c in self.task.initial_state(self.system, self.np_random, ()))
+            self._y = tuple(float(c) for c in self._initial_state(self.np_random))
         else:
             self._y = self._state_from_dict(state)
         obs, over = self._observation(self._y)
@@ -136,6 +136,11 @@ class RigidBodyEnv(gym.Env):
             comps[a:b] = (float(x) for x in arr)
         self._check_state(dict((name, np.asarray(state[name], dtype=np.float64)) for name in layout))
         return tuple(comps)
+
+    def _initial_state(self, rng):
+        """Components of a random initial state (the task's distribution; subclasses may add
+        components the task does not know of, such as an attitude)."""
+        return self.task.initial_state(self.system, rng, ())
 
     def _check_state(self, state):
         """Subclass hook for physical constraints on a state dict (e.g. unit quaternions)."""

@@ -1,0 +1,309 @@
+"""The heavy top on a fixed pivot under gravity, in Lie-Poisson form (physics.md §2).
+
+State layout (components, see :mod:`rbenvs.rotations` for the convention):
+
+* ``(Pi1, Pi2, Pi3)``: body angular momentum about the pivot [kg m^2/s], principal body frame;
+* ``(G1, G2, G3)``: ``Gamma = R^T e_z``, the upward vertical seen from the body (unit);
+* optionally ``(qw, qx, qy, qz)``: attitude, unit quaternion body -> space, when a scene needs
+  the heading (``Gamma`` fixes the attitude up to a turn about the vertical).
+
+``(Pi, Gamma)`` is integrated, never Euler angles: they are singular at the upright state,
+exactly where the sleeping top lives. ``dPi/dt = Pi x Omega + M g l Gamma x chi + tau``,
+``dGamma/dt = Gamma x Omega`` (15.10.1-2), ``chi`` the unit vector from the pivot to the centre
+of mass in the body. An optional viscous spin friction at the pivot adds
+``-k (Omega . chi) chi``: it slows the spin about the centre-of-mass axis (and lets a top that
+started above the critical spin fall).
+
+Everything here is pure: a frozen parameter object and components in, components out. Each
+component is a float (single state) or an array of any batch shape (many states at once).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..rotations import atan2, quat_from_two_vectors, quat_multiply, quat_normalize, sqrt
+from .flows import AxisRotation, SymmetricFreeRotation
+from .validation import require_finite_nonnegative, require_finite_positive, require_inertia
+
+__all__ = ["HeavyTopParams", "HeavyTop"]
+
+
+@dataclass(frozen=True)
+class HeavyTopParams:
+    """Physical parameters of a heavy top. Defaults: a Lagrange top (``I1 = I2``, ``chi = e3``).
+
+    * ``inertia``: principal moments ``(I1, I2, I3)`` **about the pivot** [kg m^2]. They must be
+      those of a real body: removing the parallel-axis term leaves the inertia about the centre
+      of mass ``I - M l^2 (1 - chi chi^T)``, which must be positive semi-definite with
+      eigenvalues obeying the triangle inequality.
+    * ``mass`` ``M`` [kg], ``length`` ``l`` = pivot to centre of mass [m], ``gravity`` ``g`` [m/s^2].
+    * ``com_direction``: ``chi``, the direction from the pivot to the centre of mass in the body
+      frame (any nonzero vector; normalised).
+    * ``spin_friction``: ``k`` [N m s] of the pivot's viscous torque ``-k (Omega . chi) chi``.
+    """
+
+    inertia: tuple[float, float, float] = (0.45, 0.45, 0.3)
+    mass: float = 1.0
+    length: float = 0.5
+    gravity: float = 9.81
+    com_direction: tuple[float, float, float] = (0.0, 0.0, 1.0)
+    spin_friction: float = 0.0
+    coefficients: tuple[float, float, float] = field(init=False, repr=False)
+    inverse: tuple[float, float, float] = field(init=False, repr=False)
+    weight: tuple[float, float, float] = field(init=False, repr=False)  # M g l chi [N m]
+    symmetry_axis: int | None = field(init=False, repr=False)
+
+    def __post_init__(self):
+        i1, i2, i3 = require_inertia("inertia", self.inertia)
+        mass = require_finite_positive("mass", self.mass)
+        length = require_finite_positive("length", self.length)
+        gravity = require_finite_positive("gravity", self.gravity)
+        friction = require_finite_nonnegative("spin_friction", self.spin_friction)
+        chi = np.asarray(self.com_direction, dtype=float)
+        if chi.shape != (3,) or not np.all(np.isfinite(chi)) or not np.any(chi != 0.0):
+            raise ValueError(f"com_direction must be a finite nonzero 3-vector, got {self.com_direction!r}")
+        chi = chi / np.linalg.norm(chi)
+        if np.count_nonzero(chi) == 1:  # exactly a body axis: keep the exact unit vector
+            chi = np.sign(chi)
+        _require_physical_inertia((i1, i2, i3), mass, length, chi)
+        chi_t = tuple(float(c) for c in chi)
+        set_ = object.__setattr__
+        set_(self, "inertia", (i1, i2, i3))
+        set_(self, "mass", mass)
+        set_(self, "length", length)
+        set_(self, "gravity", gravity)
+        set_(self, "spin_friction", friction)
+        set_(self, "com_direction", chi_t)
+        set_(self, "coefficients", ((i2 - i3) / (i2 * i3), (i3 - i1) / (i3 * i1), (i1 - i2) / (i1 * i2)))
+        set_(self, "inverse", (1.0 / i1, 1.0 / i2, 1.0 / i3))
+        mgl = mass * gravity * length
+        set_(self, "weight", tuple(mgl * c for c in chi_t))
+        axis = None
+        for k in range(3):
+            a, b = (k + 1) % 3, (k + 2) % 3
+            if chi_t[k] != 0.0 and chi_t[a] == chi_t[b] == 0.0 and self.inertia[a] == self.inertia[b]:
+                axis = k
+        set_(self, "symmetry_axis", axis)
+
+    @property
+    def mgl(self) -> float:
+        """``M g l`` [N m]: the largest gravity torque (axis horizontal)."""
+        return self.mass * self.gravity * self.length
+
+    @property
+    def is_lagrange(self) -> bool:
+        """Two equal moments and the centre of mass on the third axis: the integrable top."""
+        return self.symmetry_axis is not None
+
+    @property
+    def transverse_inertia(self) -> float:
+        """``I1`` of a Lagrange top (the equal moments); ``nan`` for another top."""
+        k = self.symmetry_axis
+        return math.nan if k is None else self.inertia[(k + 1) % 3]
+
+    @property
+    def axial_inertia(self) -> float:
+        """``I3`` of a Lagrange top (about the centre-of-mass axis); ``nan`` for another top."""
+        k = self.symmetry_axis
+        return math.nan if k is None else self.inertia[k]
+
+    @property
+    def critical_spin(self) -> float:
+        """``2 sqrt(M g l I1) / I3`` [rad/s] (15.10.1) for a Lagrange top; ``nan`` otherwise."""
+        if not self.is_lagrange:
+            return math.nan
+        return 2.0 * math.sqrt(self.mgl * self.transverse_inertia) / self.axial_inertia
+
+
+def _require_physical_inertia(inertia, mass, length, chi):
+    """Parallel-axis theorem backwards: the inertia about the centre of mass must be a body's."""
+    i_pivot = np.diag(inertia)
+    i_com = i_pivot - mass * length**2 * (np.eye(3) - np.outer(chi, chi))
+    ev = np.sort(np.linalg.eigvalsh(i_com))
+    slack = 1e-12 * max(inertia)
+    if ev[0] < -slack or ev[0] + ev[1] < ev[2] - slack:
+        raise ValueError(
+            "inertia must be the principal moments about the pivot of a real body: "
+            "inertia - mass*length^2*(1 - chi chi^T) (the inertia about the centre of mass) must have "
+            f"eigenvalues >= 0 obeying the triangle inequality; got {ev.tolist()} for inertia={tuple(inertia)}, "
+            f"mass={mass}, length={length} (the transverse moments about the pivot must be at least mass*length^2)"
+        )
+
+
+class HeavyTop:
+    """Vector field, invariants and exact sub-flows of the heavy top.
+
+    ``attitude=True`` appends the quaternion. Controls ``u`` are body torques
+    ``(tau1, tau2, tau3)`` [N m], constant over a step, or ``None`` for zero torque.
+    """
+
+    def __init__(self, params: HeavyTopParams, attitude: bool = False):
+        self.params = params
+        self.attitude = bool(attitude)
+        self.dim = 10 if self.attitude else 6
+        self.layout = {"angular_momentum": (0, 3), "vertical": (3, 6)} | ({"attitude": (6, 10)} if self.attitude else {})
+        vectors, quat = (0, 3), (6 if self.attitude else None)
+        k = params.symmetry_axis
+        if k is not None:
+            # Lagrange top: the free flow of a symmetric body is two commuting rotations, exact.
+            free = (SymmetricFreeRotation(k, params.inertia[(k + 1) % 3], params.inertia[k], vectors, quat),)
+        else:
+            free = tuple(AxisRotation(i, params.inverse[i], vectors, quat) for i in range(3))
+        self._split = (self.kick,) + free
+
+    # ------------------------------------------------------------------ vector field
+    def rhs(self, y, u):
+        """``dPi/dt = Pi x Omega + M g l Gamma x chi + tau - k (Omega.chi) chi``,
+        ``dGamma/dt = Gamma x Omega``, ``dq/dt = q * (0, Omega) / 2``."""
+        c1, c2, c3 = self.params.coefficients
+        j1, j2, j3 = self.params.inverse
+        k1, k2, k3 = self.params.weight
+        p1, p2, p3, g1, g2, g3 = y[0], y[1], y[2], y[3], y[4], y[5]
+        w1, w2, w3 = j1 * p1, j2 * p2, j3 * p3
+        d1 = c1 * p2 * p3 + (g2 * k3 - g3 * k2)
+        d2 = c2 * p3 * p1 + (g3 * k1 - g1 * k3)
+        d3 = c3 * p1 * p2 + (g1 * k2 - g2 * k1)
+        if u is not None:
+            d1 = d1 + u[0]
+            d2 = d2 + u[1]
+            d3 = d3 + u[2]
+        friction = self.params.spin_friction
+        if friction:
+            x1, x2, x3 = self.params.com_direction
+            f = friction * (w1 * x1 + w2 * x2 + w3 * x3)
+            d1, d2, d3 = d1 - f * x1, d2 - f * x2, d3 - f * x3
+        out = (d1, d2, d3, g2 * w3 - g3 * w2, g3 * w1 - g1 * w3, g1 * w2 - g2 * w1)
+        if not self.attitude:
+            return out
+        h1, h2, h3 = 0.5 * w1, 0.5 * w2, 0.5 * w3
+        qw, qx, qy, qz = y[6], y[7], y[8], y[9]
+        return out + (
+            -qx * h1 - qy * h2 - qz * h3,
+            qw * h1 + qy * h3 - qz * h2,
+            qw * h2 - qx * h3 + qz * h1,
+            qw * h3 + qx * h2 - qy * h1,
+        )
+
+    def normalize(self, y):
+        """Project ``Gamma`` back onto the unit sphere, and the quaternion (the projection
+        method for the non-geometric integrators, physics.md §4). ``Gamma`` is a direction: its
+        length carries no physics, but a drifted length would scale the gravity torque. The
+        other Casimir ``Pi.Gamma`` and the energy are not projected: their drift is the
+        integrator's error, measured. (The splitting never needs this: its pieces are exact
+        rotations.)"""
+        g = y[3:6]
+        inv = 1.0 / sqrt(g[0] * g[0] + g[1] * g[1] + g[2] * g[2])
+        out = (y[0], y[1], y[2], g[0] * inv, g[1] * inv, g[2] * inv)
+        if not self.attitude:
+            return out
+        return out + quat_normalize(y[6:10])
+
+    # ------------------------------------------------------------------ invariants, read-outs
+    def energy(self, y):
+        """``H = 1/2 Pi.Omega + M g l Gamma.chi`` [J] (zero potential with the axis horizontal)."""
+        j1, j2, j3 = self.params.inverse
+        k1, k2, k3 = self.params.weight
+        kinetic = 0.5 * (j1 * y[0] * y[0] + j2 * y[1] * y[1] + j3 * y[2] * y[2])
+        return kinetic + (k1 * y[3] + k2 * y[4] + k3 * y[5])
+
+    def pi_dot_gamma(self, y):
+        """Casimir ``Pi . Gamma`` [kg m^2/s]: the angular momentum about the vertical."""
+        return y[0] * y[3] + y[1] * y[4] + y[2] * y[5]
+
+    def vertical_norm(self, y):
+        """Casimir ``|Gamma|`` (exactly 1 for the true motion; kept at 1 by the splitting's
+        exact rotations and by the projection of the other integrators)."""
+        return sqrt(y[3] * y[3] + y[4] * y[4] + y[5] * y[5])
+
+    def angular_velocity(self, y):
+        """Body angular velocity ``Omega = I^-1 Pi`` [rad/s]."""
+        j1, j2, j3 = self.params.inverse
+        return (j1 * y[0], j2 * y[1], j3 * y[2])
+
+    def spin(self, y):
+        """``Omega . chi`` [rad/s]: the rate about the centre-of-mass axis (``Omega3`` of a
+        Lagrange top; conserved by it without axial torque or friction)."""
+        x1, x2, x3 = self.params.com_direction
+        j1, j2, j3 = self.params.inverse
+        return j1 * y[0] * x1 + j2 * y[1] * x2 + j3 * y[2] * x3
+
+    def tilt(self, y):
+        """Angle [rad] between the centre-of-mass axis ``chi`` and the upward vertical: 0
+        upright, ``pi/2`` horizontal, ``pi`` hanging. ``atan2(|Gamma x chi|, Gamma . chi)``:
+        accurate at both ends, and independent of any drift of ``|Gamma|``."""
+        x1, x2, x3 = self.params.com_direction
+        g1, g2, g3 = y[3], y[4], y[5]
+        c1, c2, c3 = g2 * x3 - g3 * x2, g3 * x1 - g1 * x3, g1 * x2 - g2 * x1
+        return atan2(sqrt(c1 * c1 + c2 * c2 + c3 * c3), g1 * x1 + g2 * x2 + g3 * x3)
+
+    def precession_rate(self, y):
+        """``d(phi)/dt`` [rad/s]: the rate at which the centre-of-mass axis turns about the
+        vertical. With ``omega = phi' z + theta' n + psi' k`` (Euler angles, ``k`` = ``chi`` in
+        space), ``omega.z - cos(theta) omega.k = phi' sin^2(theta)``; in the body frame
+        ``omega.z = Omega.Gamma`` and ``omega.k = Omega.chi``. Undefined (``nan``) upright."""
+        w = self.angular_velocity(y)
+        x = self.params.com_direction
+        n = self.vertical_norm(y)
+        g = (y[3] / n, y[4] / n, y[5] / n)
+        cos_t = g[0] * x[0] + g[1] * x[1] + g[2] * x[2]
+        w_z = w[0] * g[0] + w[1] * g[1] + w[2] * g[2]
+        w_k = w[0] * x[0] + w[1] * x[1] + w[2] * x[2]
+        c = (g[1] * x[2] - g[2] * x[1], g[2] * x[0] - g[0] * x[2], g[0] * x[1] - g[1] * x[0])
+        sin2 = c[0] * c[0] + c[1] * c[1] + c[2] * c[2]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            if isinstance(sin2, float):
+                return (w_z - cos_t * w_k) / sin2 if sin2 > 0.0 else math.nan
+            return (w_z - cos_t * w_k) / sin2
+
+    def attitude_from_vertical(self, gamma, heading):
+        """A quaternion ``q`` with ``R(q)^T e_z = Gamma`` and the given heading [rad]: the
+        shortest turn taking ``Gamma`` to ``e_z``, then a turn by ``heading`` about ``e_z``."""
+        one = 1.0 + 0.0 * gamma[0]
+        zero = 0.0 * gamma[0]
+        r = quat_from_two_vectors(gamma, (zero, zero, one))
+        half = 0.5 * np.asarray(heading, dtype=float)
+        turn = (np.cos(half) * one, zero, zero, np.sin(half) * one)
+        return quat_normalize(quat_multiply(turn, r))
+
+    # ------------------------------------------------------------------ exact pieces
+    def kick(self, y, u, h):
+        """Exact flow for time ``h`` of the torques with ``Gamma`` held fixed: gravity
+        ``M g l Gamma x chi``, the control ``tau`` and the spin friction.
+
+        Without friction ``Pi += h f``, ``f = M g l Gamma x chi + tau``. With friction
+        ``s = Omega.chi`` obeys ``ds/dt = b - kappa s`` (``b = chi.I^-1 f``,
+        ``kappa = k chi.I^-1 chi``), so ``Pi(h) = Pi + h f - k chi int_0^h s`` in closed form.
+        Gravity's part keeps ``Pi.Gamma`` (its torque is normal to ``Gamma``).
+        """
+        k1, k2, k3 = self.params.weight
+        g1, g2, g3 = y[3], y[4], y[5]
+        f1, f2, f3 = g2 * k3 - g3 * k2, g3 * k1 - g1 * k3, g1 * k2 - g2 * k1
+        if u is not None:
+            f1, f2, f3 = f1 + u[0], f2 + u[1], f3 + u[2]
+        p1, p2, p3 = y[0] + h * f1, y[1] + h * f2, y[2] + h * f3
+        friction = self.params.spin_friction
+        if friction:
+            x1, x2, x3 = self.params.com_direction
+            j1, j2, j3 = self.params.inverse
+            c_s = j1 * x1 * x1 + j2 * x2 * x2 + j3 * x3 * x3
+            kappa = friction * c_s
+            s0 = j1 * y[0] * x1 + j2 * y[1] * x2 + j3 * y[2] * x3
+            b = j1 * f1 * x1 + j2 * f2 * x2 + j3 * f3 * x3
+            e1 = -math.expm1(-kappa * h) / kappa  # int_0^h exp(-kappa t) dt
+            integral = friction * s0 * e1 + b * (h - e1) / c_s  # k int_0^h s dt
+            p1, p2, p3 = p1 - integral * x1, p2 - integral * x2, p3 - integral * x3
+        return (p1, p2, p3) + tuple(y[3:])
+
+    def split_flows(self):
+        """Pieces for a symmetric (Strang) splitting: the torque kick, then the free flow.
+
+        For a Lagrange top the free flow is exact (:class:`SymmetricFreeRotation`), so the only
+        error is the splitting of gravity from the free motion; otherwise it is the three axis
+        rotations of the Lie-Poisson splitting. Every piece keeps ``|Gamma|`` and (without
+        control and friction) ``Pi.Gamma`` to round-off.
+        """
+        return self._split

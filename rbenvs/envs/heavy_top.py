@@ -1,0 +1,267 @@
+"""``rbenvs/LagrangeTop-v0``: a heavy top on a fixed pivot, driven by bounded body torques."""
+
+from __future__ import annotations
+
+import math
+
+import gymnasium as gym
+import numpy as np
+
+from ..dynamics import HeavyTop, HeavyTopParams
+from ..dynamics.validation import require_finite, require_finite_nonnegative, require_finite_positive
+from ..rotations import quat_conjugate, quat_rotate, quat_to_euler_zxz
+from ..tasks import PrecessTask, UprightTask, slow_precession_rate, transverse_basis
+from .base import RigidBodyEnv
+
+__all__ = ["LagrangeTopEnv"]
+
+_DEFAULT_TILT_LIMIT = {"upright": math.pi / 4, "precess": 0.3}
+
+
+class LagrangeTopEnv(RigidBodyEnv):
+    """A spinning top on a fixed pivot under gravity, kept upright or precessing by body torques.
+
+    ## Description
+    The heavy top in Lie-Poisson form (physics.md §2, seed 1 15.10): body angular momentum about
+    the pivot ``Pi`` and the upward vertical seen from the body ``Gamma = R^T e_z``, with
+    ``dPi/dt = Pi x Omega + M g l Gamma x chi + tau``, ``dGamma/dt = Gamma x Omega``. The default
+    is the Lagrange top (``I1 = I2``, centre of mass on the symmetry axis ``chi = e3``); any
+    inertia and centre-of-mass direction are allowed. Without torque the upright ("sleeping") top
+    is stable only above the critical spin ``2 sqrt(M g l I1) / I3`` (heavy top stability
+    theorem, 15.10.1); below it, it falls. Euler angles are never integrated (singular upright).
+
+    ## Action space
+    ``Box(-1, 1, (2,) or (3,), float32)``: body torque ``max_torque * (a0 t1 + a1 t2 [+ a2 chi])``
+    [N m], ``(t1, t2)`` the body axes normal to ``chi`` (``e1``, ``e2`` for a Lagrange top) and
+    the third entry, about ``chi``, only with ``axial_torque=True``. Held over the control
+    period; out-of-range actions are clipped to [-1, 1]; non-finite actions raise ``ValueError``.
+
+    ## Observation space (float32, both tasks)
+    | components | unit | bounds |
+    |---|---|---|
+    | ``Gamma / |Gamma|`` (upward vertical in the body frame) | 1 | ``+-1`` |
+    | ``Omega1, Omega2, Omega3`` (body angular velocity) | rad/s | ``+-max_angular_velocity`` |
+
+    ## Rewards (per step; ``u`` = clipped action)
+    * ``upright``: ``cos(tilt) - control_cost * mean(u^2)``.
+    * ``precess``: ``1 - |tilt - target_tilt| / tilt_limit - min(|p - p*| / |p*|, 1) -
+      control_cost * mean(u^2)``, ``p`` the precession rate of the axis about the vertical and
+      ``p*`` the target rate.
+
+    ## Starting state (drawn from the env's seeded generator)
+    * spin ``n ~ U(spin)`` about ``chi`` (a number gives a fixed spin);
+    * ``upright``: the vertical tilted from ``chi`` by ``U(0, perturbation)`` rad, ``Omega = n chi``;
+    * ``precess``: tilt ``target_tilt + U(-perturbation, perturbation)`` and the angular velocity
+      of the regular precession at the target rate, ``Omega = p* Gamma + (n - p* cos(tilt)) chi``;
+    * azimuths (and the heading, with ``attitude=True``) uniform.
+
+    ## Episode end
+    * Terminated: ``upright`` when ``tilt > tilt_limit`` (default ``pi/4``: beyond it the
+      default ``max_torque`` cannot hold gravity's ``M g l sin(tilt)``); ``precess`` when
+      ``|tilt - target_tilt| > tilt_limit`` (default 0.3 rad); any task when an angular velocity
+      leaves ``+-max_angular_velocity`` (``info["terminal_reason"] = "observation_limit"``) or
+      the state goes non-finite (a ``NumericalFailureWarning``, ``info["numerical_failure"]``,
+      the last finite state kept, reward 0).
+    * Truncated: after ``max_episode_steps`` (500 steps = 10 s at the default ``dt``).
+
+    ## Info (after every reset and step)
+    ``energy`` [J], ``pi_dot_gamma`` (Casimir ``Pi.Gamma`` [kg m^2/s]), ``vertical_norm``
+    (Casimir ``|Gamma|``), ``tilt`` [rad] between ``chi`` and the upward vertical, ``spin``
+    ``Omega.chi`` [rad/s], ``critical_spin`` [rad/s] (``nan`` unless a Lagrange top),
+    ``numerical_failure``, ``is_success``; ``precess`` adds ``precession_rate``,
+    ``target_precession_rate`` [rad/s] and ``tilt_error`` [rad]; ``attitude=True`` adds the Euler
+    angles ``precession_angle``, ``nutation_angle``, ``spin_angle`` [rad] (z-x-z, for output).
+
+    ## State access
+    ``get_state()`` returns ``{"angular_momentum": Pi (3,), "vertical": Gamma (3,), "attitude":
+    q (4,) (w, x, y, z), body to space, only with attitude=True}`` as float64 copies;
+    ``reset(options={"state": d})`` starts exactly there. ``Gamma`` must be a unit vector and ``q``
+    a unit quaternion with ``R(q)^T e_z = Gamma`` (within 1e-6), else ``ValueError``.
+
+    ## Arguments
+    * ``inertia=(0.45, 0.45, 0.3)``: principal moments **about the pivot** [kg m^2]; with
+      ``mass`` and ``length`` they must be a real body's (inertia about the centre of mass
+      ``inertia - M l^2 (1 - chi chi^T)`` positive semi-definite, triangle inequality).
+    * ``mass=1.0`` [kg], ``length=0.5`` [m] (pivot to centre of mass), ``gravity=9.81`` [m/s^2].
+      The defaults give a critical spin of 9.90 rad/s.
+    * ``com_direction=(0, 0, 1)``: ``chi`` in the body frame (normalised).
+    * ``task="upright"``: ``"upright"`` or ``"precess"`` (``precess`` needs a Lagrange top).
+    * ``spin=None``: rad/s, a number or a range ``(low, high)`` drawn per episode. ``None``:
+      half the critical spin for ``upright`` (the top falls without control), twice it for
+      ``precess``; 0 for an upright top that is not a Lagrange top.
+    * ``perturbation=0.05``: rad, initial tilt (upright) or tilt offset (precess) bound.
+    * ``target_tilt=0.5`` rad, ``target_rate=None`` rad/s (precess; ``None``: the slow root of
+      (3.82), torque-free).
+    * ``tilt_limit=None``: rad, see Episode end.
+    * ``dt=0.02``: control period [s]; ``substeps=1``: integrator steps per control period.
+    * ``integrator="splitting"``: ``euler``, ``rk4``, ``splitting`` or ``dop853`` (``exact`` does
+      not exist for the heavy top). The default splitting applies the free flow of a Lagrange
+      top exactly (fast spin costs nothing in accuracy) and keeps both Casimirs to round-off;
+      ``euler``, ``rk4`` and ``dop853`` project ``Gamma`` (and ``q``) back to unit length after
+      each step; their energy and ``Pi.Gamma`` drift (rk4 at the default ``dt``: about 1e-5 of
+      the energy in a 10 s precession episode at twice the critical spin).
+    * ``max_torque=2.0``: N m per torque direction (``>= 0``); ``axial_torque=False``.
+    * ``spin_friction=0.0``: N m s, viscous pivot torque ``-k (Omega.chi) chi``.
+    * ``control_cost=0.01``; ``max_angular_velocity=100.0`` rad/s (observation bound);
+      ``attitude=False``: also integrate the attitude quaternion (heading, Euler angles).
+
+    ## Version history
+    * v0: initial release.
+    """
+
+    tasks = ("upright", "precess")
+    # info keys of the quantities the uncontrolled, frictionless motion conserves
+    invariants = ("energy", "pi_dot_gamma", "vertical_norm")
+    integrators = ("euler", "rk4", "splitting", "dop853")
+
+    def __init__(
+        self,
+        inertia=(0.45, 0.45, 0.3),
+        mass: float = 1.0,
+        length: float = 0.5,
+        gravity: float = 9.81,
+        com_direction=(0.0, 0.0, 1.0),
+        task: str = "upright",
+        spin=None,
+        perturbation: float = 0.05,
+        target_tilt: float = 0.5,
+        target_rate=None,
+        tilt_limit=None,
+        dt: float = 0.02,
+        substeps: int = 1,
+        integrator: str = "splitting",
+        max_torque: float = 2.0,
+        axial_torque: bool = False,
+        spin_friction: float = 0.0,
+        control_cost: float = 0.01,
+        max_angular_velocity: float = 100.0,
+        attitude: bool = False,
+        render_mode=None,
+    ):
+        params = HeavyTopParams(inertia, mass, length, gravity, com_direction, spin_friction)
+        if task not in self.tasks:
+            raise ValueError(f"task must be one of {list(self.tasks)}, got {task!r}")
+        self.max_torque = require_finite_nonnegative("max_torque", max_torque)
+        control_cost = require_finite_nonnegative("control_cost", control_cost)
+        perturbation = require_finite_nonnegative("perturbation", perturbation)
+        max_w = require_finite_positive("max_angular_velocity", max_angular_velocity)
+        if max_w > float(np.finfo(np.float32).max):
+            raise ValueError(f"max_angular_velocity must be <= {np.finfo(np.float32).max:.3g} (float32 observations), got {max_w!r}")
+        limit = _DEFAULT_TILT_LIMIT[task] if tilt_limit is None else require_finite_positive("tilt_limit", tilt_limit)
+        if limit > math.pi:
+            raise ValueError(f"tilt_limit must be in (0, pi] rad, got {tilt_limit!r}")
+        if perturbation >= limit:
+            raise ValueError(f"perturbation must be below tilt_limit ({limit!r} rad), got {perturbation!r}")
+        if task == "precess" and not params.is_lagrange:
+            raise ValueError("task='precess' needs a Lagrange top: two equal moments and com_direction along the third axis")
+        low, high = _spin_range(spin, task, params)
+        if task == "upright":
+            task_obj = UprightTask(low, high, perturbation, limit, control_cost)
+            peak = max(abs(low), abs(high))
+        else:
+            alpha = require_finite("target_tilt", target_tilt)
+            if not (limit < alpha < math.pi - limit):
+                raise ValueError(f"target_tilt must lie in (tilt_limit, pi - tilt_limit) = ({limit!r}, {math.pi - limit!r}) rad, got {target_tilt!r}")
+            if target_rate is None:
+                _require_real_precession(params, low, high, alpha)
+            else:
+                target_rate = require_finite("target_rate", target_rate)
+                if target_rate == 0.0:
+                    raise ValueError("target_rate must be nonzero (or None for the torque-free rate)")
+            task_obj = PrecessTask(low, high, alpha, target_rate, perturbation, limit, control_cost)
+            system = HeavyTop(params)
+            rates = [abs(task_obj.target_rate if target_rate is not None else slow_precession_rate(system, n, alpha)) for n in (low, high)]
+            peak = max(2.0 * r + abs(n) for r, n in zip(rates, (low, high)))
+        if peak >= max_w:
+            raise ValueError(f"max_angular_velocity must exceed the initial angular speed ({peak:.6g} rad/s), got {max_w!r}")
+        self.axial_torque = bool(axial_torque)
+        system = HeavyTop(params, attitude=bool(attitude))
+        self._setup(system, task_obj, integrator, dt, substeps, [1.0, 1.0, 1.0, max_w, max_w, max_w], render_mode)
+        t1, t2 = transverse_basis(params.com_direction)
+        self.torque_directions = (t1, t2) + ((params.com_direction,) if self.axial_torque else ())
+        self.action_space = gym.spaces.Box(-1.0, 1.0, (len(self.torque_directions),), dtype=np.float32)
+
+    @property
+    def params(self) -> HeavyTopParams:
+        return self.system.params
+
+    @property
+    def critical_spin(self) -> float:
+        return self.system.params.critical_spin
+
+    def _control(self, a):
+        u_norm = tuple(float(x) for x in a)
+        tau = [0.0, 0.0, 0.0]
+        for x, d in zip(u_norm, self.torque_directions):
+            for i in range(3):
+                tau[i] += self.max_torque * x * d[i]
+        return u_norm, (tau[0], tau[1], tau[2])
+
+    def _initial_state(self, rng):
+        y = self.task.initial_state(self.system, rng, ())
+        if self.system.attitude:
+            q = self.system.attitude_from_vertical(y[3:6], rng.uniform(0.0, 2.0 * np.pi))
+            y = tuple(y) + tuple(q)
+        return y
+
+    def _readouts(self, y):
+        s = self.system
+        out = {
+            "energy": s.energy(y),
+            "pi_dot_gamma": s.pi_dot_gamma(y),
+            "vertical_norm": s.vertical_norm(y),
+            "tilt": s.tilt(y),
+            "spin": s.spin(y),
+            "critical_spin": s.params.critical_spin,
+        }
+        if s.attitude:
+            phi, theta, psi = quat_to_euler_zxz(y[6:10])
+            out.update(precession_angle=phi, nutation_angle=theta, spin_angle=psi)
+        return out
+
+    def _check_state(self, state):
+        g = state["vertical"]
+        n = float(np.linalg.norm(g))
+        if abs(n - 1.0) > 1e-6:
+            raise ValueError(f"state['vertical'] must be a unit vector (|Gamma| = 1 within 1e-6), got |Gamma| = {n}")
+        if "attitude" in state:
+            q = state["attitude"]
+            nq = float(np.linalg.norm(q))
+            if abs(nq - 1.0) > 1e-6:
+                raise ValueError(f"state['attitude'] must be a unit quaternion (|q| = 1 within 1e-6), got |q| = {nq}")
+            gz = np.array(quat_rotate(quat_conjugate(tuple(q / nq)), (0.0, 0.0, 1.0)))
+            if np.max(np.abs(gz - g)) > 1e-6:
+                raise ValueError(f"state['vertical'] must equal R(attitude)^T e_z within 1e-6; the attitude gives {gz.tolist()}")
+
+
+def _spin_range(spin, task, params) -> tuple[float, float]:
+    if spin is None:
+        crit = params.critical_spin
+        if not params.is_lagrange:
+            return 0.0, 0.0
+        s = 0.5 * crit if task == "upright" else 2.0 * crit
+        return s, s
+    if isinstance(spin, (int, float, np.integer, np.floating)) and not isinstance(spin, bool):
+        s = require_finite("spin", spin)
+        return s, s
+    try:
+        low, high = spin
+    except (TypeError, ValueError):
+        raise ValueError(f"spin must be a number or a range (low, high) in rad/s, got {spin!r}") from None
+    low, high = require_finite("spin[0]", low), require_finite("spin[1]", high)
+    if low > high:
+        raise ValueError(f"spin range must have low <= high, got {spin!r}")
+    return low, high
+
+
+def _require_real_precession(params, low, high, alpha):
+    """The torque-free regular precession (3.82) exists at tilt ``alpha`` for every spin drawn."""
+    a, c, mgl = params.transverse_inertia, params.axial_inertia, params.mgl
+    need = 4.0 * a * mgl * math.cos(alpha)
+    n_min = math.sqrt(max(need, 0.0)) / c
+    if need > 0.0 and (low * high <= 0.0 or min(abs(low), abs(high)) <= n_min):
+        raise ValueError(
+            f"spin must satisfy (I3 spin)^2 > 4 I1 M g l cos(target_tilt) for a torque-free regular precession "
+            f"(|spin| > {n_min:.6g} rad/s at target_tilt={alpha!r}, one sign); got the range ({low!r}, {high!r}). "
+            "Raise the spin or give target_rate"
+        )
