@@ -2,9 +2,10 @@
 
 * ``rbenvs list``: every registered id with its tasks, ``max_episode_steps`` and reward threshold.
 * ``rbenvs scenes``: the named scenes under ``configs/scenes``.
-* ``rbenvs run [--scene NAME] [--episodes N] [--seed S]``: the main job. Runs a scene with its
-  analytic controller and with no control, and prints an episode summary (return, success,
-  the task's final measure, and the invariants at start and end).
+* ``rbenvs run [--scene NAME ...] [--episodes N] [--seed S]``: the main job. Runs scenes (by
+  default the headline scene of each system) with their analytic controller and with no
+  control, and prints an episode summary per scene (return, success, the task's final
+  measure, and the invariants at start and end).
 * ``rbenvs verify [--quick] [--json PATH] [--seed S]``: simulator against the oracles
   (:mod:`rbenvs.verify`); exits non-zero on any failure.
 * ``rbenvs bench kernels``: the layout measurement behind the component kernels.
@@ -63,11 +64,24 @@ def run_episode(env, policy, seed):
     return total, info0, info, steps
 
 
+# The main job's scenes: per system, the one where control matters (unstable without it).
+MAIN_SCENES = ("default", "top_upright")
+
+
 def _cmd_run(args) -> int:
-    from .controllers import ZeroController, controller_for
     from .scenes import load_scene
 
-    scene = load_scene(args.scene)
+    scenes = [load_scene(name) for name in (args.scene or MAIN_SCENES)]  # fail before running any
+    for n, scene in enumerate(scenes):
+        if n:
+            print()
+        _run_scene(scene, args)
+    return 0
+
+
+def _run_scene(scene, args) -> None:
+    from .controllers import ZeroController, controller_for
+
     env = scene.make()
     task = env.unwrapped.task.name
     measure = _FINAL_MEASURE[task]
@@ -93,7 +107,6 @@ def _cmd_run(args) -> int:
         rows.append((f"{label} ({type(policy).__name__})", f"{ret.mean():.2f} +- {ret.std():.2f}", f"{succ:.0%}", f"{fin:.4f}", *changes, f"{steps:.0f}"))
     _print_table(rows)
     env.close()
-    return 0
 
 
 def _cmd_bench_kernels(args) -> int:
@@ -115,8 +128,8 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", required=True)
     sub.add_parser("list", help="registered environment ids").set_defaults(func=_cmd_list)
     sub.add_parser("scenes", help="named scenes in configs/scenes").set_defaults(func=_cmd_scenes)
-    run = sub.add_parser("run", help="main job: a scene with its analytic controller and with no control")
-    run.add_argument("--scene", default="default", help="scene name or YAML path (default: %(default)s)")
+    run = sub.add_parser("run", help="main job: scenes with their analytic controller and with no control")
+    run.add_argument("--scene", action="append", help=f"scene name or YAML path, repeatable (default: {' and '.join(MAIN_SCENES)})")
     run.add_argument("--episodes", type=int, default=3, help="episodes per controller (default: %(default)s)")
     run.add_argument("--seed", type=int, default=0, help="seed of the first episode (default: %(default)s)")
     run.set_defaults(func=_cmd_run)

@@ -99,27 +99,46 @@ def quat_angle(q):
 
 
 def quat_from_two_vectors(a, b):
-    """The shortest rotation taking the unit vector ``a`` to the unit vector ``b``.
+    """A rotation taking the unit vector ``a`` to the unit vector ``b`` (the shortest one when
+    ``a . b >= 0``).
 
-    ``q ~ (1 + a.b, a x b)``, normalised. For opposite vectors (``1 + a.b`` at round-off level)
-    the axis is undefined; any axis normal to ``a`` gives a half turn, and one is chosen.
+    ``q ~ (1 + a.b, a x b)`` loses accuracy as ``a`` approaches ``-b`` (``1 + a.b`` cancels). For
+    ``a . b < 0`` the rotation is built as the short turn from ``a`` to ``-b`` followed by a half
+    turn about an axis ``p`` normal to ``b``: ``q = (0, p) * q(a -> -b)``, accurate everywhere.
     """
     ax, ay, az = a
     bx, by, bz = b
-    w = 1.0 + (ax * bx + ay * by + az * bz)
-    x, y, z = ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx
-    tiny = 1e-14
-    if isinstance(w, float):
-        if w <= tiny:
-            w, (x, y, z) = 0.0, ((0.0, az, -ay) if abs(ax) < 0.9 else (-az, 0.0, ax))
+    dot = ax * bx + ay * by + az * bz
+    if isinstance(dot, float):
+        if dot >= 0.0:
+            return _short_turn(a, b, dot)
+        return quat_multiply((0.0,) + _normal_axis(b), _short_turn(a, (-bx, -by, -bz), -dot))
+    with np.errstate(divide="ignore", invalid="ignore"):  # each branch is kept only where it is valid
+        direct = _short_turn(a, b, dot)
+        flipped = quat_multiply((0.0 * dot,) + _normal_axis(b), _short_turn(a, (-bx, -by, -bz), -dot))
+    return tuple(np.where(dot >= 0.0, d, f) for d, f in zip(direct, flipped))
+
+
+def _short_turn(a, b, dot):
+    """``normalize(1 + a.b, a x b)`` for ``a . b >= 0`` (no cancellation there)."""
+    ax, ay, az = a
+    bx, by, bz = b
+    return quat_normalize((1.0 + dot, ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx))
+
+
+def _normal_axis(b):
+    """A unit vector normal to the unit vector ``b``: ``b x e``, ``e`` the axis least aligned."""
+    bx, by, bz = b
+    if isinstance(bx, float):
+        if abs(bx) < 0.9:
+            v = (0.0, bz, -by)  # b x e_x
+        else:
+            v = (-bz, 0.0, bx)  # b x e_y
     else:
-        opposite = w <= tiny
-        if np.any(opposite):
-            use_x = np.abs(ax) < 0.9
-            px, py, pz = np.where(use_x, 0.0, -az), np.where(use_x, az, 0.0), np.where(use_x, -ay, ax)
-            w = np.where(opposite, 0.0, w)
-            x, y, z = np.where(opposite, px, x), np.where(opposite, py, y), np.where(opposite, pz, z)
-    return quat_normalize((w, x, y, z))
+        use_x = np.abs(bx) < 0.9
+        v = (np.where(use_x, 0.0, -bz), np.where(use_x, bz, 0.0), np.where(use_x, -by, bx))
+    n = sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
+    return (v[0] / n, v[1] / n, v[2] / n)
 
 
 def quat_to_euler_zxz(q):

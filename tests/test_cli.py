@@ -9,6 +9,7 @@ def test_list(capsys):
     assert main(["list"]) == 0
     out = capsys.readouterr().out
     assert "rbenvs/FreeRigidBody-v0" in out and "spin, detumble, reorient" in out and "400" in out
+    assert "rbenvs/LagrangeTop-v0" in out and "upright, precess" in out and "500" in out
 
 
 def test_every_scene_loads_and_makes_an_env():
@@ -23,6 +24,14 @@ def test_main_job_runs_and_summarises(capsys):
     assert main(["run", "--episodes", "1"]) == 0
     out = capsys.readouterr().out
     assert "SpinLQR" in out and "ZeroController" in out and "final alignment" in out
+    # the heavy top's headline scene runs in the same job
+    assert "UprightLQR" in out and "final tilt" in out and "pi_dot_gamma" in out
+
+
+def test_run_selected_scenes(capsys):
+    assert main(["run", "--episodes", "1", "--scene", "top_precess", "--scene", "detumble"]) == 0
+    out = capsys.readouterr().out
+    assert "PrecessionTracking" in out and "DetumbleDamping" in out and "SpinLQR" not in out
 
 
 def test_unknown_scene_is_a_clear_error(capsys):

@@ -98,8 +98,8 @@ class LagrangeTopEnv(RigidBodyEnv):
       not exist for the heavy top). The default splitting applies the free flow of a Lagrange
       top exactly (fast spin costs nothing in accuracy) and keeps both Casimirs to round-off;
       ``euler``, ``rk4`` and ``dop853`` project ``Gamma`` (and ``q``) back to unit length after
-      each step; their energy and ``Pi.Gamma`` drift (rk4 at the default ``dt``: about 1e-5 of
-      the energy in a 10 s precession episode at twice the critical spin).
+      each step; their energy and ``Pi.Gamma`` drift (``task="precess"`` with zero torque,
+      seed 0, one 10 s episode: rk4 1.6e-4 and 2.1e-3 relative, splitting 7e-8 and 1e-15).
     * ``max_torque=2.0``: N m per torque direction (``>= 0``); ``axial_torque=False``.
     * ``spin_friction=0.0``: N m s, viscous pivot torque ``-k (Omega.chi) chi``.
     * ``control_cost=0.01``; ``max_angular_velocity=100.0`` rad/s (observation bound);

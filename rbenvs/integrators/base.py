@@ -19,6 +19,7 @@ integrator object serves the single env, the vector env and the benchmarks.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import ClassVar
 
 __all__ = ["Integrator"]
 
@@ -36,11 +37,13 @@ class Integrator:
         conserves: invariants kept to round-off for the uncontrolled system.
     """
 
-    name = "base"
-    order = 0
-    evaluations: int | None = None
-    conserves: tuple[str, ...] = ()
-    requires: tuple[str, ...] = ("rhs",)
+    # Class-level constants, not dataclass fields: a field's default would be stamped onto
+    # every instance by __init__ and hide the subclass's value.
+    name: ClassVar[str] = "base"
+    order: ClassVar[int] = 0
+    evaluations: ClassVar[int | None] = None
+    conserves: ClassVar[tuple[str, ...]] = ()
+    requires: ClassVar[tuple[str, ...]] = ("rhs",)
 
     def supports(self, system) -> bool:
         """Whether ``system`` offers everything this scheme needs."""
