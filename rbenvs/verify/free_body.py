@@ -1,11 +1,5 @@
-"""``rbenvs verify``: simulate what the theorems speak of and compare with the oracles.
-
-Each check prints one row (system, integrator, check, predicted, measured, tolerance,
-PASS/FAIL); the command exits non-zero on any FAIL. Cases are drawn at random from documented
-ranges with a seed (``--seed``), never hand-picked; a failing row carries its parameters so it
-can be replayed.
-
-Free rigid body (physics.md §1), per integrator, on a batch of random bodies:
+"""Free rigid body checks of ``rbenvs verify`` (physics.md §1), per integrator, on a batch of
+random bodies:
 
 * ``exact solution``: max ``|Pi - Pi_exact| / |Pi0|`` over ``[0, T]`` against
   :func:`rbenvs.oracles.exact_solution`;
@@ -26,40 +20,16 @@ random direction and ``|Omega| = 1`` rad/s (fast spins belong to the extremes te
 
 from __future__ import annotations
 
-import argparse
-import json
 import math
-import sys
-from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
-from .dynamics import FreeBody, FreeBodyParams
-from .integrators import get_integrator
-from .oracles import exact_solution, intermediate_axis_growth_rate, orbit_period
+from ..dynamics import FreeBody, FreeBodyParams
+from ..integrators import get_integrator
+from ..oracles import exact_solution, intermediate_axis_growth_rate, orbit_period
+from .common import ROUND_OFF, Check
 
-__all__ = ["Check", "free_body_checks", "run_checks", "main"]
-
-
-@dataclass
-class Check:
-    system: str
-    integrator: str
-    check: str
-    predicted: float
-    measured: float
-    tolerance: float
-    relative: bool = False  # compare |measured - predicted| / |predicted|
-    case: dict = field(default_factory=dict)
-
-    @property
-    def passed(self) -> bool:
-        if not math.isfinite(self.measured):
-            return False
-        err = abs(self.measured - self.predicted)
-        if self.relative:
-            err /= abs(self.predicted)
-        return bool(err <= self.tolerance)
+__all__ = ["FREE_BODY_SETTINGS", "free_body_checks"]
 
 
 # Step sizes per integrator (s) for |Omega| ~ 1 rad/s, and the accuracy each is held to over
@@ -72,7 +42,6 @@ FREE_BODY_SETTINGS = {
     "exact": (0.1, 1e-11, 1e-12),  # round-off
     "dop853": (1.0, 1e-9, 1e-10),  # rtol 1e-12 per unit time
 }
-ROUND_OFF = 1e-13  # relative; for the invariants an integrator declares it conserves
 
 
 def _random_inertia(rng, n, distinct=0.0):
@@ -86,8 +55,6 @@ def _random_inertia(rng, n, distinct=0.0):
             continue
         out.append(i)
     return np.array(out)
-
-
 
 
 def free_body_checks(integrators, seed=0, n_cases=6, horizon=10.0, progress=None) -> list[Check]:
@@ -216,73 +183,3 @@ def _axis_checks(integ, inertias, h) -> list[Check]:
                                  predicted / (math.sqrt(2) * eps * p), measured_max / (math.sqrt(2) * eps * p), 0.02, relative=True,
                                  case={"inertia": inertia.tolist(), "axis": int(j), "h": h}))
     return out
-
-
-def run_checks(systems=("free_body",), integrators=None, quick=False, seed=0, show_progress=True) -> list[Check]:
-    integrators = list(integrators or FREE_BODY_SETTINGS)
-    n_cases = 2 if quick else 8
-    progress = _Progress(total=len(integrators) * (n_cases + 1), enabled=show_progress)
-    checks = []
-    if "free_body" in systems:
-        checks += free_body_checks(integrators, seed=seed, n_cases=n_cases, progress=progress.update)
-    progress.close()
-    return checks
-
-
-class _Progress:
-    """tqdm when installed (the cli extra), otherwise silent."""
-
-    def __init__(self, total, enabled):
-        self.bar = None
-        if enabled:
-            try:
-                from tqdm import tqdm
-
-                self.bar = tqdm(total=total, desc="verify", file=sys.stderr, leave=False)
-            except ImportError:
-                pass
-
-    def update(self):
-        if self.bar is not None:
-            self.bar.update()
-
-    def close(self):
-        if self.bar is not None:
-            self.bar.close()
-
-
-def _fmt(x):
-    return f"{x:.3e}" if (x != 0 and (abs(x) < 1e-3 or abs(x) >= 1e4)) else f"{x:.4f}"
-
-
-def print_table(checks, file=None):
-    file = sys.stdout if file is None else file
-    rows = [("system", "integrator", "check", "predicted", "measured", "tolerance", "result")]
-    for c in checks:
-        tol = f"{c.tolerance:.0e}" + (" rel" if c.relative else "")
-        rows.append((c.system, c.integrator, c.check, _fmt(c.predicted), _fmt(c.measured), tol, "PASS" if c.passed else "FAIL"))
-    widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
-    for n, r in enumerate(rows):
-        print("  ".join(x.ljust(w) for x, w in zip(r, widths)).rstrip(), file=file)
-        if n == 0:
-            print("  ".join("-" * w for w in widths), file=file)
-    failed = [c for c in checks if not c.passed]
-    print(f"\n{len(checks) - len(failed)} passed, {len(failed)} failed", file=file)
-    for c in failed:
-        print(f"FAILED {c.system}/{c.integrator}/{c.check}: replay with {c.case}", file=file)
-
-
-def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(prog="rbenvs verify", description="Simulate what the theorems speak of and compare with the oracles.")
-    parser.add_argument("--quick", action="store_true", help="fewer random cases (under a minute, for CI)")
-    parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--integrator", action="append", help="restrict to these integrators (repeatable)")
-    parser.add_argument("--json", metavar="PATH", help="also write a machine-readable report")
-    parser.add_argument("--no-progress", action="store_true")
-    args = parser.parse_args(argv)
-    checks = run_checks(integrators=args.integrator, quick=args.quick, seed=args.seed, show_progress=not args.no_progress)
-    print_table(checks)
-    if args.json:
-        with open(args.json, "w") as f:
-            json.dump([asdict(c) | {"passed": c.passed} for c in checks], f, indent=1)
-    return 0 if all(c.passed for c in checks) else 1
