@@ -7,6 +7,7 @@ id                             tasks                         max_episode_steps
 =============================  ============================  =================
 ``rbenvs/FreeRigidBody-v0``    spin, detumble, reorient      400
 ``rbenvs/LagrangeTop-v0``      upright, precess              500
+``rbenvs/TippeTop-v0``         invert, hold                  2500
 =============================  ============================  =================
 """
 
@@ -19,6 +20,7 @@ __version__ = "0.1.0"
 # One place for every registration. reward_threshold applies to each id's default scene:
 # FreeRigidBody (spin about the intermediate axis): 380 = a mean alignment of 0.95 over 400
 # steps; LagrangeTop (upright below the critical spin): 475 = a mean cos(tilt) of 0.95 over 500.
+# TippeTop (invert) has none: its return is minus the time to invert, with no natural bar.
 ENVIRONMENTS = {
     "rbenvs/FreeRigidBody-v0": dict(
         entry_point="rbenvs.envs.free_body:FreeRigidBodyEnv",
@@ -29,6 +31,10 @@ ENVIRONMENTS = {
         entry_point="rbenvs.envs.heavy_top:LagrangeTopEnv",
         max_episode_steps=500,
         reward_threshold=475.0,
+    ),
+    "rbenvs/TippeTop-v0": dict(
+        entry_point="rbenvs.envs.tippe_top:TippeTopEnv",
+        max_episode_steps=2500,
     ),
 }
 

@@ -2,5 +2,6 @@
 
 from .free_body import FreeBody, FreeBodyOrbit, FreeBodyParams
 from .heavy_top import HeavyTop, HeavyTopParams
+from .tippe_top import TippeTop, TippeTopParams
 
-__all__ = ["FreeBody", "FreeBodyOrbit", "FreeBodyParams", "HeavyTop", "HeavyTopParams"]
+__all__ = ["FreeBody", "FreeBodyOrbit", "FreeBodyParams", "HeavyTop", "HeavyTopParams", "TippeTop", "TippeTopParams"]

@@ -3,5 +3,6 @@
 from .base import NumericalFailureWarning, RigidBodyEnv
 from .free_body import FreeRigidBodyEnv
 from .heavy_top import LagrangeTopEnv
+from .tippe_top import TippeTopEnv
 
-__all__ = ["RigidBodyEnv", "FreeRigidBodyEnv", "LagrangeTopEnv", "NumericalFailureWarning"]
+__all__ = ["RigidBodyEnv", "FreeRigidBodyEnv", "LagrangeTopEnv", "TippeTopEnv", "NumericalFailureWarning"]

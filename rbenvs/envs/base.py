@@ -80,14 +80,12 @@ class RigidBodyEnv(gym.Env):
         # Out-of-range actions are clipped to the action space (documented).
         a = np.clip(a, -1.0, 1.0)
         u_norm, u = self._control(a)
-        y = self._y
-        integ, system, h = self.integrator, self.system, self._h
-        for _ in range(self.substeps):
-            y = integ.step(system, y, u, h)
+        integ, system = self.integrator, self.system
+        y, event = self._advance(self._y, u)
         if not all(math.isfinite(c) for c in y):
             warnings.warn(
                 f"{type(self).__name__}: the state became non-finite with integrator {integ.name!r} "
-                f"(h = {h:g} s); the episode ends and the last finite state is kept",
+                f"(h = {self._h:g} s); the episode ends and the last finite state is kept",
                 NumericalFailureWarning,
                 stacklevel=2,
             )
@@ -100,21 +98,39 @@ class RigidBodyEnv(gym.Env):
         reward = float(self.task.reward(system, y, u_norm))
         terminated = bool(self.task.terminated(system, y))
         info = self._info(y, numerical_failure=False)
-        if over:
+        if event is not None:
+            terminated = True
+            info["terminal_reason"] = event
+        elif over:
             terminated = True
             info["terminal_reason"] = "observation_limit"
         elif terminated:
             info["terminal_reason"] = "task"
         return obs, reward, terminated, False, info
 
+    def _advance(self, y, u):
+        """Integrate one control period from ``y`` under ``u``: ``(y_new, event)``.
+
+        ``event`` is ``None``, or the name of a physical event that ends the episode (a
+        subclass's: the tippe top's lift-off), which becomes ``info["terminal_reason"]``.
+        """
+        integ, system, h = self.integrator, self.system, self._h
+        for _ in range(self.substeps):
+            y = integ.step(system, y, u, h)
+        return y, None
+
     # ------------------------------------------------------------------ state access
     def get_state(self) -> dict[str, np.ndarray]:
         """The physical state as named float64 arrays (copies); see the class docstring."""
         if self._y is None:
             raise RuntimeError("call reset() before get_state()")
+        if hasattr(self.system, "export_state"):  # a system whose named state is not slices
+            return self.system.export_state(self._y)
         return {name: np.array(self._y[a:b], dtype=np.float64) for name, (a, b) in self.system.layout.items()}
 
     def _state_from_dict(self, state) -> tuple:
+        if hasattr(self.system, "import_state"):
+            return self.system.import_state(state)
         if not isinstance(state, dict):
             raise ValueError(f"options['state'] must be a dict of named arrays, got {type(state).__name__}")
         layout = self.system.layout

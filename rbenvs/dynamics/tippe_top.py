@@ -1,0 +1,451 @@
+"""The tippe top: a sphere with an offset centre of mass on a table (physics.md §3).
+
+Geometry (seed 2, 3.92-3.114): sphere radius ``a``; centre of mass ``G`` at ``h = alpha a``
+from the centre ``O`` along the symmetry axis ``k`` (body ``e3``), ``G = O - h k``; moments
+about ``G``: ``A = I1 = I2``, ``C = I3``; the table is ``z = 0`` with ``z_hat`` up. ``theta`` is
+the angle between ``k`` and ``z_hat``: 0 = on the broad end, centre of mass low; ``pi`` =
+inverted on the stem. Contact point ``P = O - a z_hat``, so ``r = P - G = h k - a z_hat``.
+
+The contact is a **constraint**, not a spring: while the sphere touches the table the centre
+sits at height ``a``, so ``z_G = a - h cos(theta)`` and ``dz_G/dt`` follow from the attitude
+and the angular velocity and are not integrated. The normal force ``N`` is whatever keeps the
+second derivative of that constraint satisfied; it is solved in closed form at every
+evaluation (it is linear in ``N`` because every friction law scales with ``N``). No
+penetration, no bouncing, no energy gain. ``N < 0`` means the table would have to pull: the
+top lifts off, which the environment detects and reports.
+
+Fidelity levels (a scene models only what it needs):
+
+* ``"gliding"``: the sphere slides; friction ``F = N f(v_P)`` opposes the slip velocity of the
+  contact point ``v_P = v_G + omega x r`` (Coulomb regularised near zero slip, or viscous).
+  State ``(x, y, vx, vy, q, Omega)``: 11 components.
+* ``"frictionless"``: the same without friction (a sliding top: energy, ``L.z_hat`` and
+  ``L.k`` conserved; the horizontal velocity of ``G`` only follows the table). 11 components.
+* ``"rolling"``: the non-holonomic pure-rolling limit ``v_P = 0`` (infinite friction); the
+  full contact force is the constraint force, from a 3x3 linear solve. ``v_G = -omega x r``
+  is not integrated: state ``(x, y, q, Omega)``, 9 components. Energy and Jellett conserved;
+  a rolling top does **not** invert (inversion needs sliding friction to dissipate energy).
+
+In every level the equations are written in the table's frame. Controls ``u`` are
+``(a_x, a_y, mu, tau1, tau2, tau3)``: the table's horizontal acceleration [m/s^2] (a moving
+plate: in its frame a fictitious force ``-m a_T`` acts at ``G``, so it reaches the rotation only
+through friction), the friction coefficient, and an optional body torque [N m] about ``G``.
+``u = None`` means a table at rest, the parameter's friction coefficient and no torque.
+
+Jellett's integral ``J = L . (a z_hat - h k)`` (3.106) is conserved for any force at the
+contact point or at ``G``: with no body torque it holds under every friction law and table
+motion, which the tests and ``rbenvs verify`` check.
+
+Components are floats (one state) or arrays of one batch shape (many states at once).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..rotations import atan2, quat_normalize, sqrt
+from .validation import require_finite_nonnegative, require_finite_positive
+
+__all__ = ["TippeTopParams", "TippeTop", "FIDELITIES", "FRICTION_LAWS"]
+
+FIDELITIES = ("gliding", "frictionless", "rolling")
+FRICTION_LAWS = ("coulomb", "viscous")
+
+
+@dataclass(frozen=True)
+class TippeTopParams:
+    """Physical parameters. Defaults: the tippe top of Leine and Glocker (2003), physics.md §3.
+
+    * ``radius`` ``a`` [m]; ``offset`` ``alpha = h / a`` in (0, 1); ``mass`` [kg]; ``gravity``.
+    * ``inertia = (A, C)`` about the centre of mass [kg m^2], ``C <= 2 A`` (a real symmetric
+      body: triangle inequality ``A + A >= C``).
+    * ``friction``: the coefficient ``mu`` (>= 0): dimensionless for Coulomb, [s/m] for the
+      viscous law ``F = -mu N v_P``.
+    * ``friction_law``: ``"coulomb"``: ``F = -mu N v_P / sqrt(|v_P|^2 + slip_regularization^2)``
+      (Coulomb's law, 3.96, smoothed for slips below ``slip_regularization`` [m/s]) or
+      ``"viscous"``.
+    """
+
+    radius: float = 0.015
+    mass: float = 0.006
+    offset: float = 0.2
+    inertia: tuple[float, float] = (8e-7, 7e-7)
+    gravity: float = 9.81
+    friction: float = 0.3
+    friction_law: str = "coulomb"
+    slip_regularization: float = 1e-3
+    height: float = field(init=False, repr=False)  # h = alpha a [m]
+
+    def __post_init__(self):
+        a = require_finite_positive("radius", self.radius)
+        m = require_finite_positive("mass", self.mass)
+        g = require_finite_positive("gravity", self.gravity)
+        alpha = require_finite_positive("offset", self.offset)
+        if not alpha < 1.0:
+            raise ValueError(f"offset (alpha = h/R, centre-of-mass offset over radius) must lie in (0, 1), got {self.offset!r}")
+        try:
+            big_a, big_c = self.inertia
+        except (TypeError, ValueError):
+            raise ValueError(f"inertia must be (A, C): the transverse and axial moments about the centre of mass, got {self.inertia!r}") from None
+        big_a = require_finite_positive("inertia[0] (A)", big_a)
+        big_c = require_finite_positive("inertia[1] (C)", big_c)
+        if big_c > 2.0 * big_a:
+            raise ValueError(f"inertia must satisfy C <= 2 A (triangle inequality of a real body), got A={big_a!r}, C={big_c!r}")
+        mu = require_finite_nonnegative("friction", self.friction)
+        if self.friction_law not in FRICTION_LAWS:
+            raise ValueError(f"friction_law must be one of {list(FRICTION_LAWS)}, got {self.friction_law!r}")
+        eps = require_finite_positive("slip_regularization", self.slip_regularization)
+        set_ = object.__setattr__
+        for name, value in (("radius", a), ("mass", m), ("gravity", g), ("offset", alpha), ("inertia", (big_a, big_c)),
+                            ("friction", mu), ("slip_regularization", eps), ("height", alpha * a)):
+            set_(self, name, value)
+
+    @property
+    def gamma(self) -> float:
+        """``A / C``: inversion needs ``1 - alpha < gamma < 1 + alpha`` (physics.md §3)."""
+        return self.inertia[0] / self.inertia[1]
+
+    def contact_mobility(self) -> float:
+        """An upper bound of ``|M|``, ``M = 1/m + [r x]^T I^-1 [r x]``: the contact point's
+        acceleration per unit contact force [1/kg] (``|r| <= a + h``)."""
+        return 1.0 / self.mass + (self.radius + self.height) ** 2 / min(self.inertia)
+
+
+class TippeTop:
+    """Vector field, contact forces and read-outs of the tippe top at one fidelity level."""
+
+    def __init__(self, params: TippeTopParams, fidelity: str = "gliding"):
+        if fidelity not in FIDELITIES:
+            raise ValueError(f"fidelity must be one of {list(FIDELITIES)}, got {fidelity!r}")
+        self.params = params
+        self.fidelity = fidelity
+        self.rolling = fidelity == "rolling"
+        self.friction_law = None if fidelity != "gliding" else params.friction_law
+        if self.rolling:
+            self.layout = {"position": (0, 2), "attitude": (2, 6), "angular_velocity": (6, 9)}
+            self.dim = 9
+            self._q, self._w = 2, 6
+        else:
+            self.layout = {"position": (0, 2), "velocity": (2, 4), "attitude": (4, 8), "angular_velocity": (8, 11)}
+            self.dim = 11
+            self._q, self._w = 4, 8
+
+    # ------------------------------------------------------------------ kinematics
+    def frame(self, y):
+        """Rotation matrix entries of ``q`` (body -> space) and ``Gamma = R^T z_hat``."""
+        o = self._q
+        w, x, yy, z = y[o], y[o + 1], y[o + 2], y[o + 3]
+        r11, r12, r13 = 1.0 - 2.0 * (yy * yy + z * z), 2.0 * (x * yy - w * z), 2.0 * (x * z + w * yy)
+        r21, r22, r23 = 2.0 * (x * yy + w * z), 1.0 - 2.0 * (x * x + z * z), 2.0 * (yy * z - w * x)
+        r31, r32, r33 = 2.0 * (x * z - w * yy), 2.0 * (yy * z + w * x), 1.0 - 2.0 * (x * x + yy * yy)
+        return (r11, r12, r13, r21, r22, r23, r31, r32, r33)
+
+    def angular_velocity(self, y):
+        o = self._w
+        return (y[o], y[o + 1], y[o + 2])
+
+    def vertical(self, y):
+        """``Gamma``: the upward vertical in the body frame."""
+        rm = self.frame(y)
+        return (rm[6], rm[7], rm[8])
+
+    def _contact_arm(self, g1, g2, g3):
+        """``r = P - G = h e3 - a Gamma`` in the body frame."""
+        a, h = self.params.radius, self.params.height
+        return -a * g1, -a * g2, h - a * g3
+
+    def _g_velocity_body(self, y, rm, w, r):
+        """Velocity of ``G`` relative to the table, in the body frame."""
+        w1, w2, w3 = w
+        if self.rolling:  # v_P = 0: v_G = -Omega x r
+            return -(w2 * r[2] - w3 * r[1]), -(w3 * r[0] - w1 * r[2]), -(w1 * r[1] - w2 * r[0])
+        h = self.params.height
+        vx, vy = y[2], y[3]
+        vz = -h * (w2 * rm[6] - w1 * rm[7])  # d/dt (a - h cos(theta)), from the constraint
+        return (rm[0] * vx + rm[3] * vy + rm[6] * vz, rm[1] * vx + rm[4] * vy + rm[7] * vz, rm[2] * vx + rm[5] * vy + rm[8] * vz)
+
+    def velocity(self, y):
+        """Velocity of ``G`` relative to the table, space frame, vertical part included."""
+        rm = self.frame(y)
+        w = self.angular_velocity(y)
+        if not self.rolling:
+            h = self.params.height
+            return (y[2], y[3], -h * (w[1] * rm[6] - w[0] * rm[7]))
+        vb = self._g_velocity_body(y, rm, w, self._contact_arm(rm[6], rm[7], rm[8]))
+        return tuple(rm[3 * i] * vb[0] + rm[3 * i + 1] * vb[1] + rm[3 * i + 2] * vb[2] for i in range(3))
+
+    def height(self, y):
+        """``z_G = a - h cos(theta)`` [m] (the constraint)."""
+        rm = self.frame(y)
+        return self.params.radius - self.params.height * rm[8]
+
+    # ------------------------------------------------------------------ contact
+    def _contact(self, y, u):
+        """Everything the vector field needs: ``(dOmega, N, F_body, v_G_body, frame)``."""
+        prm = self.params
+        big_a, big_c = prm.inertia
+        m, g, h = prm.mass, prm.gravity, prm.height
+        rm = self.frame(y)
+        g1, g2, g3 = rm[6], rm[7], rm[8]
+        w1, w2, w3 = self.angular_velocity(y)
+        r = self._contact_arm(g1, g2, g3)
+        vb = self._g_velocity_body(y, rm, (w1, w2, w3), r)
+        if u is None:
+            ax = ay = t1 = t2 = t3 = 0.0
+            mu = prm.friction
+        else:
+            ax, ay, mu, t1, t2, t3 = u
+        # gyroscopic + applied torque, per moment: w0 = I^-1 (L x Omega + tau)
+        w01 = ((big_a - big_c) * w2 * w3 + t1) / big_a
+        w02 = ((big_c - big_a) * w3 * w1 + t2) / big_a
+        w03 = t3 / big_c
+        if self.rolling:
+            return self._rolling_contact(rm, (w1, w2, w3), r, vb, (w01, w02, w03), (ax, ay))
+        # slip velocity of the contact point, body frame, horizontal part
+        s1 = vb[0] + w2 * r[2] - w3 * r[1]
+        s2 = vb[1] + w3 * r[0] - w1 * r[2]
+        s3 = vb[2] + w1 * r[1] - w2 * r[0]
+        sv = s1 * g1 + s2 * g2 + s3 * g3  # zero by the constraint; removed against round-off
+        s1, s2, s3 = s1 - sv * g1, s2 - sv * g2, s3 - sv * g3
+        law = self.friction_law
+        if law == "coulomb":
+            eps = prm.slip_regularization
+            k = -mu / sqrt(s1 * s1 + s2 * s2 + s3 * s3 + eps * eps)
+        elif law == "viscous":
+            k = -mu
+        else:
+            k = 0.0
+        f1, f2, f3 = k * s1, k * s2, k * s3  # friction per unit normal force
+        e1, e2, e3 = g1 + f1, g2 + f2, g3 + f3  # contact force per unit N
+        # torque per unit N about G, over the moments: a1 = I^-1 (r x e)
+        a11 = (r[1] * e3 - r[2] * e2) / big_a
+        a12 = (r[2] * e1 - r[0] * e3) / big_a
+        a13 = (r[0] * e2 - r[1] * e1) / big_c
+        # second derivative of z_G = a - h Gamma.e3 = 0 gives N (linear in N)
+        c = w3 * (w1 * g1 + w2 * g2) - (w1 * w1 + w2 * w2) * g3
+        den = 1.0 + m * h * (a12 * g1 - a11 * g2)
+        n = m * (g - h * (w02 * g1 - w01 * g2 + c)) / den
+        dw = (w01 + n * a11, w02 + n * a12, w03 + n * a13)
+        return dw, n, (n * f1, n * f2, n * f3), vb, rm, (ax, ay)
+
+    def _rolling_contact(self, rm, w, r, vb, w0, accel):
+        """Pure rolling: the contact force ``Lambda`` (body frame) keeps ``dv_P/dt = 0``.
+
+        ``(1/m + [r x]^T I^-1 [r x]) Lambda = g Gamma + a_T - w0 x r - h Omega x (Omega x e3)``
+        (from ``dv_G/dt = Lambda/m - g z_hat - a_T``, Euler's equations about ``G`` and
+        ``dr/dt = h omega x k``); the matrix is symmetric positive definite.
+        """
+        prm = self.params
+        big_a, big_c = prm.inertia
+        m, g, h = prm.mass, prm.gravity, prm.height
+        g1, g2, g3 = rm[6], rm[7], rm[8]
+        w1, w2, w3 = w
+        r1, r2, r3 = r
+        d1, d2, d3 = 1.0 / big_a, 1.0 / big_a, 1.0 / big_c
+        im = 1.0 / m
+        m11 = im + d2 * r3 * r3 + d3 * r2 * r2
+        m22 = im + d1 * r3 * r3 + d3 * r1 * r1
+        m33 = im + d1 * r2 * r2 + d2 * r1 * r1
+        m12, m13, m23 = -d3 * r1 * r2, -d2 * r1 * r3, -d1 * r2 * r3
+        ax, ay = accel
+        atb = (rm[0] * ax + rm[3] * ay, rm[1] * ax + rm[4] * ay, rm[2] * ax + rm[5] * ay)  # a_T in body
+        # h Omega x (Omega x e3) = h (Omega Omega3 - e3 |Omega|^2)
+        wsq = w1 * w1 + w2 * w2 + w3 * w3
+        b1 = g * g1 + atb[0] - (w0[1] * r3 - w0[2] * r2) - h * w1 * w3
+        b2 = g * g2 + atb[1] - (w0[2] * r1 - w0[0] * r3) - h * w2 * w3
+        b3 = g * g3 + atb[2] - (w0[0] * r2 - w0[1] * r1) - h * (w3 * w3 - wsq)
+        # symmetric 3x3 solve by cofactors
+        c11 = m22 * m33 - m23 * m23
+        c12 = m13 * m23 - m12 * m33
+        c13 = m12 * m23 - m13 * m22
+        c22 = m11 * m33 - m13 * m13
+        c23 = m12 * m13 - m11 * m23
+        c33 = m11 * m22 - m12 * m12
+        det = m11 * c11 + m12 * c12 + m13 * c13
+        l1 = (c11 * b1 + c12 * b2 + c13 * b3) / det
+        l2 = (c12 * b1 + c22 * b2 + c23 * b3) / det
+        l3 = (c13 * b1 + c23 * b2 + c33 * b3) / det
+        dw = (
+            w0[0] + d1 * (r2 * l3 - r3 * l2),
+            w0[1] + d2 * (r3 * l1 - r1 * l3),
+            w0[2] + d3 * (r1 * l2 - r2 * l1),
+        )
+        n = l1 * g1 + l2 * g2 + l3 * g3
+        return dw, n, (l1 - n * g1, l2 - n * g2, l3 - n * g3), vb, rm, accel
+
+    # ------------------------------------------------------------------ vector field
+    def rhs(self, y, u):
+        dw, n, fb, vb, rm, (ax, ay) = self._contact(y, u)
+        o = self._q
+        qw, qx, qy, qz = y[o], y[o + 1], y[o + 2], y[o + 3]
+        h1, h2, h3 = 0.5 * y[self._w], 0.5 * y[self._w + 1], 0.5 * y[self._w + 2]
+        dq = (
+            -qx * h1 - qy * h2 - qz * h3,
+            qw * h1 + qy * h3 - qz * h2,
+            qw * h2 - qx * h3 + qz * h1,
+            qw * h3 + qx * h2 - qy * h1,
+        )
+        # horizontal velocity of G in space: from the state, or (rolling) from -Omega x r
+        if self.rolling:
+            dpos = (rm[0] * vb[0] + rm[1] * vb[1] + rm[2] * vb[2], rm[3] * vb[0] + rm[4] * vb[1] + rm[5] * vb[2])
+            return dpos + dq + dw
+        m = self.params.mass
+        fx = rm[0] * fb[0] + rm[1] * fb[1] + rm[2] * fb[2]
+        fy = rm[3] * fb[0] + rm[4] * fb[1] + rm[5] * fb[2]
+        return (y[2], y[3], fx / m - ax, fy / m - ay) + dq + dw
+
+    def normalize(self, y):
+        o = self._q
+        return tuple(y[:o]) + quat_normalize(y[o : o + 4]) + tuple(y[o + 4 :])
+
+    # ------------------------------------------------------------------ read-outs
+    def contact_forces(self, y, u=None):
+        """``(N, (Fx, Fy), slip_speed)``: normal force [N], friction in space [N] and the slip
+        speed ``|v_P|`` [m/s] (0 when rolling)."""
+        dw, n, fb, vb, rm, _ = self._contact(y, u)
+        fx = rm[0] * fb[0] + rm[1] * fb[1] + rm[2] * fb[2]
+        fy = rm[3] * fb[0] + rm[4] * fb[1] + rm[5] * fb[2]
+        return n, (fx, fy), self.slip_speed(y)
+
+    def slip_speed(self, y):
+        """``|v_P|`` [m/s], the speed of the material point at the contact."""
+        if self.rolling:
+            return 0.0 * y[0]
+        rm = self.frame(y)
+        w1, w2, w3 = self.angular_velocity(y)
+        r = self._contact_arm(rm[6], rm[7], rm[8])
+        vb = self._g_velocity_body(y, rm, (w1, w2, w3), r)
+        s1 = vb[0] + w2 * r[2] - w3 * r[1]
+        s2 = vb[1] + w3 * r[0] - w1 * r[2]
+        s3 = vb[2] + w1 * r[1] - w2 * r[0]
+        return sqrt(s1 * s1 + s2 * s2 + s3 * s3)
+
+    def energy(self, y):
+        """Kinetic (translation + rotation about ``G``) plus potential ``m g z_G`` [J], table frame."""
+        prm = self.params
+        big_a, big_c = prm.inertia
+        w1, w2, w3 = self.angular_velocity(y)
+        v = self.velocity(y)
+        kin = 0.5 * prm.mass * (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]) + 0.5 * (big_a * (w1 * w1 + w2 * w2) + big_c * w3 * w3)
+        return kin + prm.mass * prm.gravity * self.height(y)
+
+    def jellett(self, y):
+        """``J = L . (a z_hat - h k)`` [kg m^2/s] (3.106), in the body frame ``L.(a Gamma - h e3)``."""
+        prm = self.params
+        big_a, big_c = prm.inertia
+        a, h = prm.radius, prm.height
+        rm = self.frame(y)
+        w1, w2, w3 = self.angular_velocity(y)
+        return big_a * a * (w1 * rm[6] + w2 * rm[7]) + big_c * w3 * (a * rm[8] - h)
+
+    def tilt(self, y):
+        """``theta`` [rad] between the symmetry axis and the upward vertical (0 upright, pi
+        inverted on the stem)."""
+        rm = self.frame(y)
+        return atan2(sqrt(rm[6] * rm[6] + rm[7] * rm[7]), rm[8])
+
+    def spin(self, y):
+        """``Omega3`` [rad/s], the angular velocity about the symmetry axis."""
+        return y[self._w + 2]
+
+    # ------------------------------------------------------------------ state construction
+    def state(self, position, attitude, angular_velocity, velocity=None):
+        """Components from a horizontal position ``(x, y)`` [m], an attitude quaternion, the body
+        angular velocity [rad/s] and the horizontal velocity of ``G`` [m/s] (``None``: the
+        contact point at rest, ``v_G = -omega x r``; ignored when rolling, where it is always
+        that)."""
+        pos = tuple(position)[:2]
+        q = tuple(attitude)
+        w = tuple(angular_velocity)
+        if self.rolling:
+            return pos + q + w
+        if velocity is None:
+            velocity = self.no_slip_velocity(q, w)[:2]
+        return pos + tuple(velocity)[:2] + q + w
+
+    def no_slip_velocity(self, attitude, angular_velocity):
+        """``v_G = -omega x r`` in space [m/s]: the velocity that puts the contact point at rest."""
+        y = (0.0 * attitude[0],) * self._q + tuple(attitude) + tuple(angular_velocity)
+        rm = self.frame(y)
+        w = tuple(angular_velocity)
+        r = self._contact_arm(rm[6], rm[7], rm[8])
+        vb = (-(w[1] * r[2] - w[2] * r[1]), -(w[2] * r[0] - w[0] * r[2]), -(w[0] * r[1] - w[1] * r[0]))
+        return tuple(rm[3 * i] * vb[0] + rm[3 * i + 1] * vb[1] + rm[3 * i + 2] * vb[2] for i in range(3))
+
+    def export_state(self, y) -> dict:
+        """Named arrays: ``position`` (3, with ``z_G`` from the constraint), ``velocity`` (3,
+        space, table frame), ``attitude`` (4, w x y z, body to space), ``angular_velocity`` (3, body)."""
+        o = self._q
+        return {
+            "position": np.array([y[0], y[1], self.height(y)], dtype=np.float64),
+            "velocity": np.array(self.velocity(y), dtype=np.float64),
+            "attitude": np.array(y[o : o + 4], dtype=np.float64),
+            "angular_velocity": np.array(y[o + 4 : o + 7], dtype=np.float64),
+        }
+
+    def import_state(self, state: dict) -> tuple:
+        """Components from :meth:`export_state`'s dict, checked against the contact constraint:
+        ``z_G = a - h cos(theta)``, ``v_z`` (and, rolling, the whole velocity) as the attitude and
+        angular velocity require. ``ValueError`` naming the entry otherwise."""
+        names = ("position", "velocity", "attitude", "angular_velocity")
+        if not isinstance(state, dict):
+            raise ValueError(f"options['state'] must be a dict of named arrays, got {type(state).__name__}")
+        unknown, missing = sorted(set(state) - set(names)), sorted(set(names) - set(state))
+        if unknown or missing:
+            raise ValueError(f"state must have exactly the names {sorted(names)}" + (f"; unknown: {unknown}" if unknown else "") + (f"; missing: {missing}" if missing else ""))
+        arrs = {}
+        for name, size in zip(names, (3, 3, 4, 3)):
+            arr = np.asarray(state[name], dtype=np.float64)
+            if arr.shape != (size,):
+                raise ValueError(f"state[{name!r}] must have shape ({size},), got {arr.shape}")
+            if not np.all(np.isfinite(arr)):
+                raise ValueError(f"state[{name!r}] must be finite, got {arr}")
+            arrs[name] = arr
+        qn = float(np.linalg.norm(arrs["attitude"]))
+        if abs(qn - 1.0) > 1e-6:
+            raise ValueError(f"state['attitude'] must be a unit quaternion (|q| = 1 within 1e-6), got |q| = {qn}")
+        q = tuple(float(c) for c in arrs["attitude"])
+        w = tuple(float(c) for c in arrs["angular_velocity"])
+        pos = tuple(float(c) for c in arrs["position"])
+        vel = tuple(float(c) for c in arrs["velocity"])
+        y = self.state(pos, q, w, vel[:2])
+        prm = self.params
+        z = self.height(y)
+        if abs(pos[2] - z) > 1e-9 * prm.radius + 1e-12:
+            raise ValueError(f"state['position'][2] must be the contact height a - h cos(theta) = {z!r} m for this attitude (the sphere touches the table), got {pos[2]!r}")
+        v_need = self.velocity(y)
+        scale = 1e-9 * (1.0 + prm.radius * float(np.linalg.norm(w)))
+        checked = range(3) if self.rolling else (2,)
+        for i in checked:
+            if abs(vel[i] - v_need[i]) > scale:
+                what = "the rolling velocity -omega x r" if self.rolling else "the vertical velocity the contact constraint gives"
+                raise ValueError(f"state['velocity'] must equal {what} ({list(v_need)}), got {list(vel)}")
+        return y
+
+    def max_stable_step(self, integrator_name: str, mu: float | None = None, normal_force: float | None = None) -> float:
+        """The largest internal step [s] at which the friction law is stable for ``integrator``.
+
+        Near zero slip regularised Coulomb friction is a viscous law of rate
+        ``mu N |M| / eps`` (viscous: ``mu N |M|``), ``|M|`` the contact mobility
+        (:meth:`TippeTopParams.contact_mobility`); explicit schemes are stable up to
+        ``h lambda = 2`` (euler) or ``2.78`` (rk4) on the negative real axis. The bound takes
+        twice the larger of ``m g`` and the current ``normal_force`` (``N`` varies within a
+        control period) and keeps half the margin: ``h <= c / lambda``, ``c = 1`` (euler),
+        ``1.39`` (rk4). ``inf`` without friction, when rolling, and for adaptive schemes.
+        """
+        if self.friction_law is None or integrator_name not in ("euler", "rk4"):
+            return math.inf
+        prm = self.params
+        mu = prm.friction if mu is None else mu
+        weight = prm.mass * prm.gravity
+        load = weight if normal_force is None else max(weight, float(normal_force))
+        rate = mu * 2.0 * load * prm.contact_mobility()
+        if self.friction_law == "coulomb":
+            rate /= prm.slip_regularization
+        if rate == 0.0:
+            return math.inf
+        return (1.0 if integrator_name == "euler" else 1.39) / rate
+

@@ -1,0 +1,258 @@
+"""``rbenvs/TippeTop-v0``: the tippe top on a moving table, with contact and friction."""
+
+from __future__ import annotations
+
+import math
+
+import gymnasium as gym
+import numpy as np
+
+from ..dynamics import TippeTop, TippeTopParams
+from ..dynamics.tippe_top import FIDELITIES
+from ..dynamics.validation import require_finite, require_finite_nonnegative, require_finite_positive
+from ..tasks import HoldTask, InvertTask
+from .base import RigidBodyEnv
+
+__all__ = ["TippeTopEnv"]
+
+# Accuracy bound on the internal step from the rotation itself: |Omega| h <= this (rad).
+SPIN_STEP = 0.1
+
+
+class TippeTopEnv(RigidBodyEnv):
+    """A sphere with an offset centre of mass spinning on a table that the agent can move.
+
+    ## Description
+    The tippe top of physics.md §3 (seed 2, 3.92-3.114): a sphere of radius ``a`` whose centre
+    of mass sits ``h = alpha a`` below its centre along the symmetry axis, moments ``A``
+    (transverse) and ``C`` (axial) about the centre of mass. Spun fast on its broad end it
+    climbs onto its stem when ``1 - alpha < A/C < 1 + alpha`` and Jellett's integral is large
+    enough: sliding friction at the contact dissipates energy while keeping Jellett's integral.
+    The contact is a constraint (the normal force is solved from it, no spring, no penetration),
+    with a choice of ``fidelity``: ``gliding`` (friction; the default), ``frictionless``, or
+    ``rolling`` (no slip). If the normal force would have to pull (``N < 0``) the top lifts
+    off: the episode ends (``terminal_reason = "lift_off"``); free flight is not modelled.
+
+    ## Action space
+    ``Box(-1, 1, (k,), float32)``: the table's horizontal acceleration
+    ``max_table_acceleration * (a0, a1)`` [m/s^2] in the table frame (it acts on the top only
+    through friction at the contact); with ``friction_action=True`` a further entry sets the
+    friction coefficient in ``friction_range`` (affine in [-1, 1]); with ``torque_action=True``
+    three more give a body torque ``max_torque * (a_i)`` [N m] about the centre of mass (this
+    one breaks Jellett's integral). Out-of-range actions are clipped; non-finite ones raise.
+
+    ## Observation space (float32, 8 numbers, space frame)
+    | components | unit | bounds |
+    |---|---|---|
+    | ``k`` (symmetry axis; ``k_z = cos(theta)``) | 1 | ``+-1`` |
+    | ``omega`` (angular velocity) | rad/s | ``+-max_angular_velocity`` |
+    | ``v_x, v_y`` (centre of mass, relative to the table) | m/s | ``+-max_speed`` |
+
+    ## Rewards (per step; ``u`` = clipped action)
+    * ``invert``: ``-(1 + cos(theta))/2 - control_cost * mean(u^2)``: the time to invert,
+      weighted by how far from inverted. Time rather than dissipated energy: Jellett's integral
+      fixes the energy left at the end (the top settles near the minimum ``E*(pi)``), so every
+      successful policy dissipates nearly the same energy; the time differs.
+    * ``hold``: ``(1 + cos(theta))/2 - control_cost * mean(u^2)``.
+
+    ## Starting state (seeded)
+    Spin ``n ~ U(spin)`` about the symmetry axis at tilt ``theta ~ U(tilt)``, uniform azimuth
+    and heading, at the origin, the contact point at rest.
+
+    ## Episode end
+    * Terminated: ``invert`` when ``theta > 150 deg`` (success; past it the climb slows with the
+      slip speed under regularised Coulomb friction, physics.md §3); ``hold`` when
+      ``theta > 90 deg``; lift-off (``N < 0`` at any internal step); an observation bound; a
+      non-finite state (``NumericalFailureWarning``, last finite state kept).
+    * Truncated: after ``max_episode_steps`` (2500 steps = 25 s at the default ``dt``; without
+      action the default top passes 90 deg at 7.0 s and 150 deg at 17.3 s).
+
+    ## Info
+    ``energy`` [J] (table frame), ``jellett`` ``J = L.(a z_hat - h k)`` [kg m^2/s], ``tilt``
+    ``theta`` [rad], ``normal_force`` ``N`` [N], ``slip_speed`` ``|v_P|`` [m/s], ``lifted_off``,
+    ``spin`` (``Omega3`` [rad/s]), ``internal_step`` [s], ``numerical_failure``, ``is_success``.
+
+    ## State access
+    ``get_state()``: ``position`` (3, ``G`` in the table frame; ``z`` from the contact),
+    ``velocity`` (3), ``attitude`` (4, w x y z, body to space), ``angular_velocity`` (3, body).
+    ``reset(options={"state": d})`` checks the contact: ``z`` must be ``a - h cos(theta)`` and
+    ``v_z`` (rolling: the whole velocity) what the attitude and spin require.
+
+    ## Internal step (automatic)
+    Each control period is split into ``n = max(substeps, ceil(dt |Omega| / 0.1),
+    ceil(dt / h_f))`` equal steps, ``h_f`` the explicit stability bound of the friction law
+    (:meth:`rbenvs.dynamics.TippeTop.max_stable_step`: near zero slip, regularised Coulomb
+    friction is a viscous law of rate ``mu N |M| / slip_regularization``, stiff). ``n`` is set
+    from the state at the start of each period; ``info["internal_step"]`` reports ``dt / n``.
+
+    ## Arguments
+    * ``radius=0.015`` m, ``mass=0.006`` kg, ``offset=0.2`` (``alpha``), ``inertia=(8e-7, 7e-7)``
+      (``A, C`` about the centre of mass, kg m^2), ``gravity=9.81``: the Leine-Glocker top.
+    * ``friction=0.3``, ``friction_law="coulomb"`` or ``"viscous"``,
+      ``slip_regularization=1e-3`` m/s, ``fidelity="gliding"``, ``"frictionless"`` or ``"rolling"``.
+    * ``task="invert"`` or ``"hold"``; ``spin=150.0`` rad/s and ``tilt=0.1`` rad (numbers or
+      ``(low, high)`` ranges). Not Leine and Glocker's 180 rad/s: with this model (gliding
+      friction, regularised Coulomb, no drilling friction) their top's normal force dips to
+      about -0.03 m g near 80 degrees of tilt at 180 rad/s (a hop, which ends the episode),
+      while at 150 rad/s it stays above 0.38 m g through the inversion.
+    * ``dt=0.01`` s, ``substeps=1`` (a minimum), ``integrator="rk4"`` (``euler``, ``rk4``, ``dop853``).
+    * ``max_table_acceleration=2.0`` m/s^2; ``friction_action=False``, ``friction_range=(0.0, 0.6)``;
+      ``torque_action=False``, ``max_torque=1e-4`` N m; ``control_cost=0.01``.
+    * ``max_angular_velocity=None`` (``2 max|spin| + 50``) rad/s, ``max_speed=5.0`` m/s.
+
+    ## Version history
+    * v0: initial release.
+    """
+
+    tasks = ("invert", "hold")
+    integrators = ("euler", "rk4", "dop853")
+    fidelities = FIDELITIES
+    # info keys of the quantities the motion keeps: Jellett always (no body torque), the energy
+    # without friction
+    invariants = ("jellett", "energy")
+
+    def __init__(
+        self,
+        radius: float = 0.015,
+        mass: float = 0.006,
+        offset: float = 0.2,
+        inertia=(8e-7, 7e-7),
+        gravity: float = 9.81,
+        friction: float = 0.3,
+        friction_law: str = "coulomb",
+        slip_regularization: float = 1e-3,
+        fidelity: str = "gliding",
+        task: str = "invert",
+        spin=150.0,
+        tilt=0.1,
+        dt: float = 0.01,
+        substeps: int = 1,
+        integrator: str = "rk4",
+        max_table_acceleration: float = 2.0,
+        friction_action: bool = False,
+        friction_range=(0.0, 0.6),
+        torque_action: bool = False,
+        max_torque: float = 1e-4,
+        control_cost: float = 0.01,
+        max_angular_velocity=None,
+        max_speed: float = 5.0,
+        render_mode=None,
+    ):
+        params = TippeTopParams(radius, mass, offset, inertia, gravity, friction, friction_law, slip_regularization)
+        if fidelity not in FIDELITIES:
+            raise ValueError(f"fidelity must be one of {list(FIDELITIES)}, got {fidelity!r}")
+        if task not in self.tasks:
+            raise ValueError(f"task must be one of {list(self.tasks)}, got {task!r}")
+        spin_lo, spin_hi = _range("spin", spin)
+        tilt_lo, tilt_hi = _range("tilt", tilt)
+        if tilt_lo < 0.0 or tilt_hi >= math.pi / 2:
+            raise ValueError(f"tilt must lie in [0, pi/2) rad (a start on the broad end), got {tilt!r}")
+        self.max_table_acceleration = require_finite_nonnegative("max_table_acceleration", max_table_acceleration)
+        self.max_torque = require_finite_nonnegative("max_torque", max_torque)
+        control_cost = require_finite_nonnegative("control_cost", control_cost)
+        self.friction_action = bool(friction_action)
+        self.torque_action = bool(torque_action)
+        mu_lo, mu_hi = _range("friction_range", friction_range)
+        if mu_lo < 0.0:
+            raise ValueError(f"friction_range must lie in [0, inf), got {friction_range!r}")
+        self.friction_range = (mu_lo, mu_hi)
+        if self.friction_action and fidelity != "gliding":
+            raise ValueError(f"friction_action needs fidelity='gliding' (there is no friction coefficient to set when {fidelity!r})")
+        peak = max(abs(spin_lo), abs(spin_hi))
+        max_w = 2.0 * peak + 50.0 if max_angular_velocity is None else require_finite_positive("max_angular_velocity", max_angular_velocity)
+        if peak >= max_w:
+            raise ValueError(f"max_angular_velocity must exceed the initial spin ({peak!r} rad/s), got {max_angular_velocity!r}")
+        max_v = require_finite_positive("max_speed", max_speed)
+        if params.radius * peak >= max_v:
+            raise ValueError(f"max_speed must exceed the initial speed of the centre of mass (radius * spin = {params.radius * peak!r} m/s), got {max_speed!r}")
+        task_cls = InvertTask if task == "invert" else HoldTask
+        task_obj = task_cls(spin_lo, spin_hi, tilt_lo, tilt_hi, control_cost)
+        system = TippeTop(params, fidelity)
+        high = [1.0] * 3 + [max_w] * 3 + [max_v] * 2
+        self._setup(system, task_obj, integrator, dt, substeps, high, render_mode)
+        size = 2 + (1 if self.friction_action else 0) + (3 if self.torque_action else 0)
+        self.action_space = gym.spaces.Box(-1.0, 1.0, (size,), dtype=np.float32)
+        self._u = None  # the control of the last step (info's normal force depends on it)
+        self._last_h = self._h
+        self._lifted = False
+
+    @property
+    def params(self) -> TippeTopParams:
+        return self.system.params
+
+    def reset(self, *, seed=None, options=None):
+        self._u = None
+        self._lifted = False
+        self._last_h = self._h
+        return super().reset(seed=seed, options=options)
+
+    def _control(self, a):
+        u_norm = tuple(float(x) for x in a)
+        acc = self.max_table_acceleration
+        ax, ay = acc * u_norm[0], acc * u_norm[1]
+        j = 2
+        mu = self.params.friction
+        if self.friction_action:
+            lo, hi = self.friction_range
+            mu = lo + 0.5 * (u_norm[j] + 1.0) * (hi - lo)
+            j += 1
+        tau = (0.0, 0.0, 0.0)
+        if self.torque_action:
+            tau = tuple(self.max_torque * x for x in u_norm[j : j + 3])
+        u = (ax, ay, mu) + tau
+        self._u = u
+        return u_norm, u
+
+    def internal_steps(self, y, u) -> int:
+        """Steps per control period from the state (see the class docstring)."""
+        system = self.system
+        w = system.angular_velocity(y)
+        n = max(self.substeps, math.ceil(self.dt * math.sqrt(w[0] ** 2 + w[1] ** 2 + w[2] ** 2) / SPIN_STEP))
+        if system.friction_law is not None:
+            normal = system.contact_forces(y, u)[0]
+            h_f = system.max_stable_step(self.integrator.name, mu=u[2], normal_force=normal)
+            if math.isfinite(h_f) and h_f > 0.0:
+                n = max(n, math.ceil(self.dt / h_f))
+        return n
+
+    def _advance(self, y, u):
+        integ, system = self.integrator, self.system
+        n = self.internal_steps(y, u)
+        h = self.dt / n
+        self._last_h = h
+        for _ in range(n):
+            y = integ.step(system, y, u, h)
+            if not all(math.isfinite(c) for c in y):
+                return y, None
+            if system.contact_forces(y, u)[0] < 0.0:
+                self._lifted = True
+                return y, "lift_off"
+        return y, None
+
+    def _readouts(self, y):
+        s = self.system
+        normal, _, slip = s.contact_forces(y, self._u)
+        return {
+            "energy": s.energy(y),
+            "jellett": s.jellett(y),
+            "tilt": s.tilt(y),
+            "normal_force": normal,
+            "slip_speed": slip,
+            "lifted_off": self._lifted,
+            "spin": s.spin(y),
+            "internal_step": self._last_h,
+        }
+
+
+def _range(name, value) -> tuple[float, float]:
+    if isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, bool):
+        v = require_finite(name, value)
+        return v, v
+    try:
+        lo, hi = value
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be a number or a range (low, high), got {value!r}") from None
+    lo, hi = require_finite(f"{name}[0]", lo), require_finite(f"{name}[1]", hi)
+    if lo > hi:
+        raise ValueError(f"{name} range must have low <= high, got {value!r}")
+    return lo, hi
