@@ -9,6 +9,7 @@
 * ``rbenvs verify [--quick] [--json PATH] [--seed S]``: simulator against the oracles
   (:mod:`rbenvs.verify`); exits non-zero on any failure.
 * ``rbenvs bench kernels``: the layout measurement behind the component kernels.
+* ``rbenvs bench fidelity``: the tippe top's fidelity levels, each against gliding friction.
 """
 
 from __future__ import annotations
@@ -49,7 +50,7 @@ def _cmd_scenes(args) -> int:
     return 0
 
 
-_FINAL_MEASURE = {"spin": "alignment", "detumble": "angular_speed", "reorient": "attitude_error", "upright": "tilt", "precess": "tilt_error"}
+_FINAL_MEASURE = {"spin": "alignment", "detumble": "angular_speed", "reorient": "attitude_error", "upright": "tilt", "precess": "tilt_error", "invert": "tilt", "hold": "tilt"}
 
 
 def run_episode(env, policy, seed):
@@ -65,7 +66,7 @@ def run_episode(env, policy, seed):
 
 
 # The main job's scenes: per system, the one where control matters (unstable without it).
-MAIN_SCENES = ("default", "top_upright")
+MAIN_SCENES = ("default", "top_upright", "tippe_hold")
 
 
 def _cmd_run(args) -> int:
@@ -102,7 +103,7 @@ def _run_scene(scene, args) -> None:
             v0 = np.mean([r[1][key] for r in results])
             v1 = np.mean([r[2][key] for r in results])
             rel = f" ({(v1 - v0) / abs(v0):+.1e})" if v0 != 0 else ""
-            changes.append(f"{v0:.6f} -> {v1:.6f}{rel}")
+            changes.append(f"{v0:.7g} -> {v1:.7g}{rel}")
         steps = np.mean([r[3] for r in results])
         rows.append((f"{label} ({type(policy).__name__})", f"{ret.mean():.2f} +- {ret.std():.2f}", f"{succ:.0%}", f"{fin:.4f}", *changes, f"{steps:.0f}"))
     _print_table(rows)
@@ -111,6 +112,12 @@ def _run_scene(scene, args) -> None:
 
 def _cmd_bench_kernels(args) -> int:
     from .bench.kernels import main as bench_main
+
+    return bench_main()
+
+
+def _cmd_bench_fidelity(args) -> int:
+    from .bench.fidelity import main as bench_main
 
     return bench_main()
 
@@ -138,6 +145,7 @@ def build_parser() -> argparse.ArgumentParser:
     bench = sub.add_parser("bench", help="benchmarks (each prints the peer measured in the same run)")
     bench_sub = bench.add_subparsers(dest="bench", required=True)
     bench_sub.add_parser("kernels", help="RK4 kernel: our (3, n) components vs np.cross on (n, 3)").set_defaults(func=_cmd_bench_kernels)
+    bench_sub.add_parser("fidelity", help="tippe top: cost of each fidelity level against gliding").set_defaults(func=_cmd_bench_fidelity)
     return parser
 
 

@@ -10,6 +10,7 @@ def test_list(capsys):
     out = capsys.readouterr().out
     assert "rbenvs/FreeRigidBody-v0" in out and "spin, detumble, reorient" in out and "400" in out
     assert "rbenvs/LagrangeTop-v0" in out and "upright, precess" in out and "500" in out
+    assert "rbenvs/TippeTop-v0" in out and "invert, hold" in out and "2500" in out
 
 
 def test_every_scene_loads_and_makes_an_env():
@@ -26,6 +27,7 @@ def test_main_job_runs_and_summarises(capsys):
     assert "SpinLQR" in out and "ZeroController" in out and "final alignment" in out
     # the heavy top's headline scene runs in the same job
     assert "UprightLQR" in out and "final tilt" in out and "pi_dot_gamma" in out
+    assert "SlipCancelling" in out and "jellett" in out
 
 
 def test_run_selected_scenes(capsys):
@@ -68,3 +70,17 @@ def test_bench_kernels_agree_with_the_cross_product_form():
         # the component kernel and the np.cross kernel compute the same RK4 step
         assert r["max_abs_difference"] < 1e-14
         assert r["components_us"] > 0 and r["cross_n3_us"] > 0
+
+
+def test_bench_fidelity_measures_every_level_against_gliding():
+    from rbenvs.bench.fidelity import run
+
+    rows = run(repeat=1)
+    assert [r["level"] for r in rows][0] == "gliding, coulomb"
+    assert rows[0]["vs_gliding"] == 1.0
+    by = {r["level"]: r for r in rows}
+    # rolling carries no velocity of G: 9 components against 11
+    assert by["rolling"]["components"] == 9 and by["frictionless"]["components"] == 11
+    # only regularised Coulomb friction is stiff: it needs the most internal steps
+    assert by["gliding, coulomb"]["internal_steps"] > by["frictionless"]["internal_steps"]
+    assert all(r["env_step_us"] > 0 and r["rhs_us"] > 0 for r in rows)

@@ -2,8 +2,9 @@
 
 from .free_body import DetumbleDamping, ReorientPD, SpinLQR, ZeroController
 from .heavy_top import PrecessionTracking, UprightLQR
+from .tippe_top import SlipCancelling
 
-__all__ = ["ZeroController", "SpinLQR", "DetumbleDamping", "ReorientPD", "UprightLQR", "PrecessionTracking", "controller_for"]
+__all__ = ["ZeroController", "SpinLQR", "DetumbleDamping", "ReorientPD", "UprightLQR", "PrecessionTracking", "SlipCancelling", "controller_for"]
 
 # Task names are unique across the systems, so the task alone picks the law.
 _BY_TASK = {
@@ -12,6 +13,10 @@ _BY_TASK = {
     "reorient": ReorientPD,
     "upright": UprightLQR,
     "precess": PrecessionTracking,
+    # The tippe top inverts by itself: no action is the reference for "invert" (an analytic
+    # law that inverts faster is an open problem here); "hold" removes the slip.
+    "invert": ZeroController,
+    "hold": SlipCancelling,
 }
 
 

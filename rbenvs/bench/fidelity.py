@@ -1,0 +1,65 @@
+"""``rbenvs bench fidelity``: what each tippe-top fidelity level costs, measured in one run.
+
+For every level (gliding with Coulomb and with viscous friction, frictionless, rolling) on
+the default ``TippeTop-v0`` scene (Leine-Glocker top, 150 rad/s, ``dt = 0.01`` s, rk4):
+
+* ``rhs us``: one evaluation of the vector field on a single state (plain floats);
+* ``internal steps``: steps per control period from the automatic rule (friction stiffness
+  and spin), at the start state;
+* ``env step us``: one ``env.step`` with zero action (the whole control period);
+* ``vs gliding``: the env-step cost relative to the gliding (Coulomb) level, the peer.
+"""
+
+from __future__ import annotations
+
+import timeit
+
+import numpy as np
+
+__all__ = ["run", "main"]
+
+LEVELS = (
+    ("gliding, coulomb", dict(fidelity="gliding", friction_law="coulomb")),
+    ("gliding, viscous", dict(fidelity="gliding", friction_law="viscous", friction=3.0)),
+    ("frictionless", dict(fidelity="frictionless")),
+    ("rolling", dict(fidelity="rolling")),
+)
+
+
+def _best(fn, repeat=5):
+    number, _ = timeit.Timer(fn).autorange()
+    return min(timeit.repeat(fn, number=number, repeat=repeat)) / number
+
+
+def run(levels=LEVELS, repeat=5) -> list[dict]:
+    from ..envs import TippeTopEnv
+
+    rows = []
+    for label, kwargs in levels:
+        env = TippeTopEnv(**kwargs)
+        env.reset(seed=0)
+        y = env._y
+        system = env.system
+        rhs_s = _best(lambda: system.rhs(y, None), repeat)
+        action = np.zeros(env.action_space.shape, dtype=np.float32)
+        substeps = env.internal_steps(y, (0.0, 0.0, env.params.friction, 0.0, 0.0, 0.0))
+
+        def one_step():
+            env.reset(seed=0)
+            env.step(action)
+
+        reset_s = _best(lambda: env.reset(seed=0), repeat)
+        step_s = _best(one_step, repeat) - reset_s
+        rows.append({"level": label, "components": system.dim, "rhs_us": rhs_s * 1e6, "internal_steps": substeps, "env_step_us": step_s * 1e6})
+    peer = rows[0]["env_step_us"]
+    for r in rows:
+        r["vs_gliding"] = r["env_step_us"] / peer
+    return rows
+
+
+def main() -> int:
+    rows = run()
+    print(f"{'level':<18} {'components':>10} {'rhs us':>8} {'internal steps':>15} {'env step us':>12} {'vs gliding':>11}")
+    for r in rows:
+        print(f"{r['level']:<18} {r['components']:>10d} {r['rhs_us']:>8.2f} {r['internal_steps']:>15d} {r['env_step_us']:>12.1f} {r['vs_gliding']:>11.3f}")
+    return 0
