@@ -68,11 +68,14 @@ class FreeBody:
         self.dim = 7 if self.attitude else 3
         self.layout = {"angular_momentum": (0, 3)} | ({"attitude": (3, 7)} if self.attitude else {})
         self._split = (self.kick, self.axis_rotation(0), self.axis_rotation(1), self.axis_rotation(2))
+        # the hot path reads these on every call: plain attributes, not params.<field> chains
+        self._coefficients = params.coefficients
+        self._inverse = params.inverse
 
     # ------------------------------------------------------------------ vector field
     def rhs(self, y, u):
         """``dy/dt``: ``dPi/dt = Pi x Omega + tau`` (15.3.9-10), ``dq/dt = q * (0, Omega) / 2``."""
-        c1, c2, c3 = self.params.coefficients
+        c1, c2, c3 = self._coefficients
         p1, p2, p3 = y[0], y[1], y[2]
         d1 = c1 * p2 * p3
         d2 = c2 * p3 * p1
@@ -83,7 +86,7 @@ class FreeBody:
             d3 = d3 + u[2]
         if not self.attitude:
             return (d1, d2, d3)
-        j1, j2, j3 = self.params.inverse
+        j1, j2, j3 = self._inverse
         w1, w2, w3 = 0.5 * j1 * p1, 0.5 * j2 * p2, 0.5 * j3 * p3
         qw, qx, qy, qz = y[3], y[4], y[5], y[6]
         return (
@@ -105,7 +108,7 @@ class FreeBody:
     # ------------------------------------------------------------------ invariants
     def energy(self, y):
         """Kinetic energy ``H = 1/2 sum Pi_i^2 / I_i`` [J]."""
-        j1, j2, j3 = self.params.inverse
+        j1, j2, j3 = self._inverse
         return 0.5 * (j1 * y[0] * y[0] + j2 * y[1] * y[1] + j3 * y[2] * y[2])
 
     def momentum_norm(self, y):
@@ -114,7 +117,7 @@ class FreeBody:
 
     def angular_velocity(self, y):
         """Body angular velocity ``Omega = I^-1 Pi`` [rad/s]."""
-        j1, j2, j3 = self.params.inverse
+        j1, j2, j3 = self._inverse
         return (j1 * y[0], j2 * y[1], j3 * y[2])
 
     # ------------------------------------------------------------------ exact pieces

@@ -144,10 +144,12 @@ class FreeRigidBodyEnv(RigidBodyEnv):
         return self.system.params
 
     def _control(self, a):
+        tau = self.max_torque
+        if self.action_size == 3:  # fully actuated: the action is the normalised torque
+            return a, (tau * a[0], tau * a[1], tau * a[2])
         u_norm = [0.0, 0.0, 0.0]
         for j, i in enumerate(self._actuated_axes):
-            u_norm[i] = float(a[j])
-        tau = self.max_torque
+            u_norm[i] = a[j]
         return u_norm, (tau * u_norm[0], tau * u_norm[1], tau * u_norm[2])
 
     def _readouts(self, y):

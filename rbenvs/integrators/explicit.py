@@ -1,12 +1,56 @@
-"""Explicit Runge-Kutta schemes on components: forward Euler and classical RK4."""
+"""Explicit Runge-Kutta schemes on components: forward Euler and classical RK4.
+
+The stage combinations ``y + c h k`` are unrolled per state dimension: a function is
+generated once per dimension from the templates below (the same arithmetic, in the same
+order, as the loop form ``tuple(a + c * h * b for a, b in zip(y, k))``, so results are
+bit-identical to it). For a single state of plain floats the loop form's generator and zip
+overhead costs twice the physics; unrolled, a free-body RK4 step drops from about 2.9 to
+about 1.1 us (``rbenvs bench throughput``). The physics is untouched: every stage calls the
+system's one ``rhs``, on floats or on arrays alike.
+"""
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 
 from .base import Integrator
 
 __all__ = ["Euler", "RK4"]
+
+
+@lru_cache(maxsize=None)
+def _unrolled(kind: str, dim: int):
+    y = [f"y{i}" for i in range(dim)]
+    ys = ", ".join(y) + ("," if dim == 1 else "")
+
+    def comps(expr):
+        return "(" + ", ".join(expr(i) for i in range(dim)) + ("," if dim == 1 else "") + ")"
+
+    def names(p):
+        return ", ".join(f"{p}{i}" for i in range(dim)) + ("," if dim == 1 else "")
+
+    if kind == "euler":
+        body = [
+            f"{ys} = y",
+            f"{names('k')} = f(y, u)",
+            "return normalize(" + comps(lambda i: f"y{i} + h * k{i}") + ")",
+        ]
+    else:
+        body = [
+            f"{ys} = y",
+            "hh = 0.5 * h",
+            f"{names('a')} = f(y, u)",
+            f"{names('b')} = f(" + comps(lambda i: f"y{i} + hh * a{i}") + ", u)",
+            f"{names('c')} = f(" + comps(lambda i: f"y{i} + hh * b{i}") + ", u)",
+            f"{names('d')} = f(" + comps(lambda i: f"y{i} + h * c{i}") + ", u)",
+            "h6 = h / 6.0",
+            "return normalize(" + comps(lambda i: f"y{i} + h6 * (a{i} + 2.0 * (b{i} + c{i}) + d{i})") + ")",
+        ]
+    src = "def step(f, normalize, y, u, h):\n" + "\n".join("    " + line for line in body) + "\n"
+    namespace: dict = {}
+    exec(compile(src, f"<rbenvs {kind} dim={dim}>", "exec"), namespace)
+    return namespace["step"]
 
 
 @dataclass(frozen=True)
@@ -19,8 +63,7 @@ class Euler(Integrator):
     evaluations = 1
 
     def step(self, system, y, u, h):
-        k = system.rhs(y, u)
-        return system.normalize(tuple(a + h * b for a, b in zip(y, k)))
+        return _unrolled("euler", len(y))(system.rhs, system.normalize, y, u, h)
 
 
 @dataclass(frozen=True)
@@ -32,12 +75,4 @@ class RK4(Integrator):
     evaluations = 4
 
     def step(self, system, y, u, h):
-        f = system.rhs
-        hh = 0.5 * h
-        k1 = f(y, u)
-        k2 = f(tuple(a + hh * b for a, b in zip(y, k1)), u)
-        k3 = f(tuple(a + hh * b for a, b in zip(y, k2)), u)
-        k4 = f(tuple(a + h * b for a, b in zip(y, k3)), u)
-        h6 = h / 6.0
-        out = tuple(a + h6 * (b1 + 2.0 * (b2 + b3) + b4) for a, b1, b2, b3, b4 in zip(y, k1, k2, k3, k4))
-        return system.normalize(out)
+        return _unrolled("rk4", len(y))(system.rhs, system.normalize, y, u, h)

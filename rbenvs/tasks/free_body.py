@@ -83,6 +83,15 @@ class SpinTask:
         a = self.alignment(system, y)
         return {"alignment": a, "is_success": a >= math.cos(self.success_angle)}
 
+    def evaluate(self, system, y, u):
+        """``(reward, terminated, metrics)`` with the alignment computed once."""
+        a = self.alignment(system, y)
+        return a - self.control_cost * _effort(u), False, {"alignment": a, "is_success": a >= self._cos_success}
+
+    @property
+    def _cos_success(self):
+        return math.cos(self.success_angle)
+
 
 @dataclass(frozen=True)
 class DetumbleTask:
