@@ -24,16 +24,19 @@ __version__ = "0.1.0"
 ENVIRONMENTS = {
     "rbenvs/FreeRigidBody-v0": dict(
         entry_point="rbenvs.envs.free_body:FreeRigidBodyEnv",
+        vector_entry_point="rbenvs.vector:FreeRigidBodyVectorEnv",
         max_episode_steps=400,
         reward_threshold=380.0,
     ),
     "rbenvs/LagrangeTop-v0": dict(
         entry_point="rbenvs.envs.heavy_top:LagrangeTopEnv",
+        vector_entry_point="rbenvs.vector:LagrangeTopVectorEnv",
         max_episode_steps=500,
         reward_threshold=475.0,
     ),
     "rbenvs/TippeTop-v0": dict(
         entry_point="rbenvs.envs.tippe_top:TippeTopEnv",
+        vector_entry_point="rbenvs.vector:TippeTopVectorEnv",
         max_episode_steps=2500,
     ),
 }

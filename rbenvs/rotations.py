@@ -35,9 +35,11 @@ def sqrt(x):
 
 
 def atan2(y, x):
-    """``atan2`` of floats (libm) or arrays (numpy)."""
+    """``atan2`` of floats or arrays, numpy's in both cases: numpy's array ``arctan2`` differs
+    from libm's ``math.atan2`` in the last bit for a few percent of arguments, and a single
+    env must compute exactly what its row of a batch computes."""
     if isinstance(y, float) and isinstance(x, float):
-        return math.atan2(y, x)
+        return float(np.arctan2(y, x))
     return np.arctan2(y, x)
 
 

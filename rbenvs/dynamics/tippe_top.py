@@ -435,17 +435,18 @@ class TippeTop:
         twice the larger of ``m g`` and the current ``normal_force`` (``N`` varies within a
         control period) and keeps half the margin: ``h <= c / lambda``, ``c = 1`` (euler),
         ``1.39`` (rk4). ``inf`` without friction, when rolling, and for adaptive schemes.
+        ``mu`` and ``normal_force`` may be arrays (a batch): the result is then an array.
         """
         if self.friction_law is None or integrator_name not in ("euler", "rk4"):
             return math.inf
         prm = self.params
         mu = prm.friction if mu is None else mu
         weight = prm.mass * prm.gravity
-        load = weight if normal_force is None else max(weight, float(normal_force))
+        load = weight if normal_force is None else np.maximum(weight, normal_force)
         rate = mu * 2.0 * load * prm.contact_mobility()
         if self.friction_law == "coulomb":
-            rate /= prm.slip_regularization
-        if rate == 0.0:
-            return math.inf
-        return (1.0 if integrator_name == "euler" else 1.39) / rate
+            rate = rate / prm.slip_regularization
+        with np.errstate(divide="ignore"):
+            bound = np.where(rate > 0.0, (1.0 if integrator_name == "euler" else 1.39) / np.where(rate > 0.0, rate, 1.0), np.inf)
+        return float(bound) if bound.ndim == 0 else bound
 

@@ -39,6 +39,7 @@ class RigidBodyEnv(gym.Env):
         if not self.integrator.supports(system):
             raise ValueError(f"integrator {self.integrator.name!r} is not available for {type(system).__name__}")
         self._h = self._dt / self.substeps
+        self._last_h = self._h  # internal step of the last control period
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(f"render_mode must be one of {self.metadata['render_modes'] or [None]}, got {render_mode!r}")
         self.render_mode = render_mode
@@ -95,15 +96,36 @@ class RigidBodyEnv(gym.Env):
             info["terminal_reason"] = "task"
         return obs, reward, terminated, False, info
 
+    # Hooks for systems with internal events and state-dependent stepping (the tippe top);
+    # each works on floats (this env) and on arrays (the vector env) alike.
+    event_name: str | None = None  # e.g. "lift_off": what _event_mask detects
+
+    def _internal_steps(self, y, u):
+        """Integrator steps per control period (an int, or an int array for a batch)."""
+        return self.substeps
+
+    def _event_mask(self, y, u):
+        """Whether the physical event ``event_name`` happened at ``y`` (bool or bool array)."""
+        return False
+
     def _advance(self, y, u):
         """Integrate one control period from ``y`` under ``u``: ``(y_new, event)``.
 
-        ``event`` is ``None``, or the name of a physical event that ends the episode (a
-        subclass's: the tippe top's lift-off), which becomes ``info["terminal_reason"]``.
+        ``event`` is ``None``, or ``event_name`` when :meth:`_event_mask` fired after an internal
+        step (integration stops there), which becomes ``info["terminal_reason"]``.
         """
-        integ, system, h = self.integrator, self.system, self._h
-        for _ in range(self.substeps):
+        integ, system = self.integrator, self.system
+        n = self._internal_steps(y, u)
+        h = self._h if n == self.substeps else self._dt / n
+        self._last_h = h
+        watch = self.event_name is not None
+        for _ in range(n):
             y = integ.step(system, y, u, h)
+            if watch:
+                if not all(math.isfinite(c) for c in y):
+                    return y, None
+                if self._event_mask(y, u):
+                    return y, self.event_name
         return y, None
 
     # ------------------------------------------------------------------ state access
@@ -204,6 +226,14 @@ class RigidBodyEnv(gym.Env):
             terminated = task.terminated(system, y)
             metrics = task.metrics(system, y)
         return float(reward), bool(terminated), metrics
+
+    def _evaluate_batch(self, y, u_norm):
+        """:meth:`_evaluate` for a batch of states (arrays, no conversion to Python types)."""
+        task, system = self.task, self.system
+        evaluate = getattr(task, "evaluate", None)
+        if evaluate is not None:
+            return evaluate(system, y, u_norm)
+        return task.reward(system, y, u_norm), task.terminated(system, y), task.metrics(system, y)
 
     def _info(self, y, numerical_failure: bool, metrics=None) -> dict:
         info = self._readouts(y)

@@ -190,7 +190,7 @@ class LagrangeTopEnv(RigidBodyEnv):
         return self.system.params.critical_spin
 
     def _control(self, a):
-        u_norm = tuple(float(x) for x in a)
+        u_norm = tuple(a)
         tau = [0.0, 0.0, 0.0]
         for x, d in zip(u_norm, self.torque_directions):
             for i in range(3):

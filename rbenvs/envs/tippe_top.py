@@ -187,7 +187,7 @@ class TippeTopEnv(RigidBodyEnv):
         return super().reset(seed=seed, options=options)
 
     def _control(self, a):
-        u_norm = tuple(float(x) for x in a)
+        u_norm = tuple(a)
         acc = self.max_table_acceleration
         ax, ay = acc * u_norm[0], acc * u_norm[1]
         j = 2
@@ -203,31 +203,33 @@ class TippeTopEnv(RigidBodyEnv):
         self._u = u
         return u_norm, u
 
-    def internal_steps(self, y, u) -> int:
-        """Steps per control period from the state (see the class docstring)."""
+    event_name = "lift_off"
+
+    def internal_steps(self, y, u):
+        """Steps per control period from the state (see the class docstring); an int, or an
+        int array for a batch of states."""
         system = self.system
         w = system.angular_velocity(y)
-        n = max(self.substeps, math.ceil(self.dt * math.sqrt(w[0] ** 2 + w[1] ** 2 + w[2] ** 2) / SPIN_STEP))
+        speed = np.sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2])
+        n = np.maximum(self.substeps, np.ceil(self.dt * speed / SPIN_STEP))
         if system.friction_law is not None:
             normal = system.contact_forces(y, u)[0]
             h_f = system.max_stable_step(self.integrator.name, mu=u[2], normal_force=normal)
-            if math.isfinite(h_f) and h_f > 0.0:
-                n = max(n, math.ceil(self.dt / h_f))
-        return n
+            n = np.maximum(n, np.ceil(self.dt / h_f))  # h_f = inf for adaptive schemes: 0
+        n = n.astype(np.int64)
+        return int(n) if n.ndim == 0 else n
+
+    _internal_steps = internal_steps
+
+    def _event_mask(self, y, u):
+        """Lift-off: the contact would have to pull (``N < 0``)."""
+        return self.system.contact_forces(y, u)[0] < 0.0
 
     def _advance(self, y, u):
-        integ, system = self.integrator, self.system
-        n = self.internal_steps(y, u)
-        h = self.dt / n
-        self._last_h = h
-        for _ in range(n):
-            y = integ.step(system, y, u, h)
-            if not all(math.isfinite(c) for c in y):
-                return y, None
-            if system.contact_forces(y, u)[0] < 0.0:
-                self._lifted = True
-                return y, "lift_off"
-        return y, None
+        y, event = super()._advance(y, u)
+        if event is not None:
+            self._lifted = True
+        return y, event
 
     def _readouts(self, y):
         s = self.system

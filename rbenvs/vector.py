@@ -1,0 +1,338 @@
+"""Natively batched vector environments: one batched call of the same physics and tasks.
+
+A :class:`RigidBodyVectorEnv` builds one single environment of its system as a *template*
+(its constructor validates the arguments and builds the system, the task and the integrator)
+and then steps ``num_envs`` states held as arrays, one array per state component, through
+exactly the code the single env runs on Python floats: the system's vector field, the
+integrator, the task's reward and termination, the env's action mapping and read-outs. There
+is no second implementation of the dynamics or the rewards, and sub-environment ``i`` follows
+bit for bit the trajectory of a single env started in the same state with the same actions
+(``dop853`` excepted: one adaptive solve for the whole batch picks its steps from all
+members, so it agrees to its tolerance only).
+
+Conventions (gymnasium 1.x):
+
+* ``gymnasium.make_vec(id, num_envs=N, vectorization_mode="vector_entry_point", **kwargs)``
+  returns one; the keyword arguments are the single env's.
+* Autoreset: ``metadata["autoreset_mode"]``, ``NEXT_STEP`` by default (as gymnasium's own
+  vector envs): the step after an episode ends resets that sub-env and returns its first
+  observation with reward 0 and ``terminated = truncated = False``. ``SAME_STEP`` (argument
+  ``autoreset_mode``) resets in the ending step and puts the last observation and info in
+  ``info["final_obs"]`` and ``info["final_info"]`` (masks ``"_final_obs"``, ``"_final_info"``).
+* Seeding: ``reset(seed=s)`` seeds sub-env ``i`` with ``s + i`` (a list gives one seed each),
+  each with its own generator, so sub-env ``i`` draws the same initial states as a single env
+  seeded ``s + i`` and reset without a seed after each episode.
+* ``info``: a dict of arrays of length ``num_envs`` plus a boolean mask ``"_key"`` per key
+  (gymnasium's vector convention). ``terminal_reason`` is a string array ("" where the episode
+  goes on).
+* Truncation at ``max_episode_steps`` (from the registration) is done here: a vector env is
+  not wrapped in ``TimeLimit``.
+* ``get_state()`` returns the single env's dict with every array batched along a leading
+  axis of length ``num_envs``; ``reset(options={"state": d})`` starts every sub-env there
+  (each row validated like the single env's). ``reset(options={"reset_mask": m})`` resets only
+  the sub-envs where ``m`` is true.
+"""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+from gymnasium.utils import seeding
+from gymnasium.vector import AutoresetMode, VectorEnv
+from gymnasium.vector.utils import batch_space
+
+from .dynamics.validation import require_int_at_least
+from .envs import FreeRigidBodyEnv, LagrangeTopEnv, NumericalFailureWarning, TippeTopEnv
+
+__all__ = ["RigidBodyVectorEnv", "FreeRigidBodyVectorEnv", "LagrangeTopVectorEnv", "TippeTopVectorEnv"]
+
+
+class RigidBodyVectorEnv(VectorEnv):
+    """Base class: ``env_class`` is the single environment whose code is run on arrays."""
+
+    env_class: type = None
+
+    def __init__(self, num_envs: int = 1, max_episode_steps: int | None = None, autoreset_mode=AutoresetMode.NEXT_STEP, **kwargs):
+        self.num_envs = require_int_at_least("num_envs", num_envs, 1)
+        self.env = env = self.env_class(**kwargs)
+        if max_episode_steps is not None:
+            max_episode_steps = require_int_at_least("max_episode_steps", max_episode_steps, 1)
+        self.max_episode_steps = max_episode_steps
+        try:
+            mode = AutoresetMode(autoreset_mode)
+        except ValueError:
+            raise ValueError(f"autoreset_mode must be one of {[m.value for m in AutoresetMode if m is not AutoresetMode.DISABLED]}, got {autoreset_mode!r}") from None
+        if mode is AutoresetMode.DISABLED:
+            raise ValueError("autoreset_mode must be NextStep or SameStep (Disabled is not supported)")
+        self.autoreset_mode = mode
+        self.metadata = dict(env.metadata, autoreset_mode=mode)
+        self.render_mode = env.render_mode
+        self.single_observation_space = env.observation_space
+        self.single_action_space = env.action_space
+        self.observation_space = batch_space(env.observation_space, self.num_envs)
+        self.action_space = batch_space(env.action_space, self.num_envs)
+        self.system, self.task, self.integrator = env.system, env.task, env.integrator
+        self._obs_high = env._obs_high
+        self._y = None
+        self._steps = np.zeros(self.num_envs, dtype=np.int64)
+        self._prev_done = np.zeros(self.num_envs, dtype=bool)
+        self._rngs = [None] * self.num_envs
+
+    @property
+    def dt(self) -> float:
+        return self.env.dt
+
+    # ------------------------------------------------------------------ reset
+    def reset(self, *, seed=None, options=None):
+        n = self.num_envs
+        if seed is None:
+            seeds = [None] * n
+        elif isinstance(seed, (int, np.integer)) and not isinstance(seed, bool):
+            seeds = [int(seed) + i for i in range(n)]
+        else:
+            seeds = list(seed)
+            if len(seeds) != n:
+                raise ValueError(f"seed must be an int, None or a list of {n} seeds, got {len(seeds)}")
+        options = {} if options is None else dict(options)
+        state = options.pop("state", None)
+        mask = options.pop("reset_mask", None)
+        if options:
+            raise ValueError(f"reset options must be a subset of {{'state', 'reset_mask'}}, got unknown {sorted(options)}")
+        if mask is None:
+            mask = np.ones(n, dtype=bool)
+        else:
+            mask = np.asarray(mask)
+            if mask.shape != (n,) or mask.dtype != bool:
+                raise ValueError(f"options['reset_mask'] must be a boolean array of shape ({n},)")
+        for i in np.flatnonzero(mask):
+            if seeds[i] is not None or self._rngs[i] is None:
+                self._rngs[i] = seeding.np_random(seeds[i])[0]
+        rows = self._rows_from_state(state, mask) if state is not None else {i: self._draw(i) for i in np.flatnonzero(mask)}
+        self._set_rows(rows)
+        self._steps[mask] = 0
+        self._prev_done[mask] = False
+        obs, over = self._observation(self._y)
+        if np.any(over & mask):
+            raise ValueError("an initial state lies outside the observation bounds; raise the limit parameters")
+        self.env._last_h = np.full(n, self.env._h)
+        if hasattr(self.env, "_u"):
+            self.env._u = None  # as the single env after reset: table at rest
+        info = self._info(self._y, np.zeros(n, dtype=bool), lifted=np.zeros(n, dtype=bool))
+        return obs, info
+
+    def _draw(self, i) -> tuple:
+        return tuple(float(c) for c in self.env._initial_state(self._rngs[i]))
+
+    def _rows_from_state(self, state, mask) -> dict:
+        if not isinstance(state, dict):
+            raise ValueError(f"options['state'] must be a dict of arrays batched along axis 0, got {type(state).__name__}")
+        n = self.num_envs
+        arrays = {}
+        for name, value in state.items():
+            arr = np.asarray(value, dtype=np.float64)
+            if arr.ndim < 1 or arr.shape[0] != n:
+                raise ValueError(f"state[{name!r}] must be batched along a leading axis of length num_envs = {n}, got shape {arr.shape}")
+            arrays[name] = arr
+        # each row validated by the single env's own checks
+        return {i: self.env._state_from_dict({k: v[i] for k, v in arrays.items()}) for i in np.flatnonzero(mask)}
+
+    def _set_rows(self, rows: dict) -> None:
+        if self._y is None:
+            dim = self.system.dim
+            self._y = tuple(np.zeros(self.num_envs) for _ in range(dim))
+        comps = [c.copy() for c in self._y]
+        for i, row in rows.items():
+            for c, v in zip(comps, row):
+                c[i] = v
+        self._y = tuple(comps)
+
+    # ------------------------------------------------------------------ step
+    def step(self, actions):
+        if self._y is None:
+            raise RuntimeError("call reset() before step()")
+        n = self.num_envs
+        a = np.asarray(actions, dtype=np.float64)
+        if a.shape != self.action_space.shape:
+            raise ValueError(f"actions must have shape {self.action_space.shape}, got {a.shape}")
+        if not np.all(np.isfinite(a)):
+            bad = np.flatnonzero(~np.all(np.isfinite(a), axis=1))
+            raise ValueError(f"actions must be finite; sub-envs {bad.tolist()} are not")
+        a = np.clip(a, -1.0, 1.0)
+        # NEXT_STEP: the sub-envs whose episode ended last step are reset, not stepped.
+        restart = self._prev_done.copy() if self.autoreset_mode is AutoresetMode.NEXT_STEP else np.zeros(n, dtype=bool)
+        env = self.env
+        u_norm, u = env._control(tuple(a.T))
+        y0 = self._y
+        y, event, h = self._advance(y0, u)
+        finite = np.ones(n, dtype=bool)
+        for c in y:
+            finite &= np.isfinite(c)
+        failed = ~finite & ~restart
+        if np.any(failed):
+            warnings.warn(
+                f"{type(self).__name__}: sub-envs {np.flatnonzero(failed).tolist()} became non-finite with integrator "
+                f"{self.integrator.name!r}; their episodes end and their last finite states are kept",
+                NumericalFailureWarning,
+                stacklevel=2,
+            )
+            y = tuple(np.where(finite, c, c0) for c, c0 in zip(y, y0))
+        self._y = y
+        env._last_h = h
+        obs, over = self._observation(y)
+        reward, terminated, metrics = env._evaluate_batch(y, u_norm)
+        reward = np.where(failed, 0.0, np.broadcast_to(np.asarray(reward, dtype=np.float64), (n,)))
+        terminated = np.broadcast_to(np.asarray(terminated, dtype=bool), (n,)) & ~failed
+        lifted = event & ~failed
+        info = self._info(y, failed, lifted=lifted, metrics=metrics)
+        reason = np.full(n, "", dtype=object)
+        reason[terminated] = "task"
+        reason[over] = "observation_limit"
+        reason[lifted] = env.event_name or ""
+        reason[failed] = "numerical_failure"
+        terminated = terminated | over | lifted | failed
+        self._steps += 1
+        truncated = np.zeros(n, dtype=bool) if self.max_episode_steps is None else self._steps >= self.max_episode_steps  # as TimeLimit
+        info["terminal_reason"] = reason
+        info["_terminal_reason"] = terminated | truncated
+        if np.any(restart):
+            obs, info = self._restart(restart, obs, info)
+            reward = np.where(restart, 0.0, reward)
+            terminated = terminated & ~restart
+            truncated = truncated & ~restart
+        done = terminated | truncated
+        if self.autoreset_mode is AutoresetMode.NEXT_STEP:
+            self._prev_done = done
+        elif np.any(done):
+            obs, info = self._same_step_reset(done, obs, info)
+        return obs, reward.astype(np.float64), terminated, truncated, info
+
+    def _advance(self, y, u):
+        """One control period for the whole batch: ``(y, event_mask, internal_step)``.
+
+        The internal step count may differ per sub-env (the tippe top's automatic rule): each
+        element takes its own ``h = dt / n_i`` and is frozen once its ``n_i`` steps (or its
+        event) are done, so it sees exactly the steps a single env would take.
+        """
+        env, integ, system = self.env, self.integrator, self.system
+        n_env = self.num_envs
+        steps = np.broadcast_to(np.asarray(env._internal_steps(y, u)), (n_env,))
+        event = np.zeros(n_env, dtype=bool)
+        watch = env.event_name is not None
+        if integ.name == "dop853" and np.any(steps != steps[0]):
+            # one adaptive solve per group of equal internal steps (its h must be a scalar)
+            out = [np.array(c, dtype=float) for c in y]
+            for k in np.unique(steps):
+                idx = np.flatnonzero(steps == k)
+                sub_y = tuple(c[idx] for c in y)
+                sub_u = tuple(c[idx] if np.ndim(c) else c for c in u)
+                for _ in range(int(k)):
+                    sub_y = integ.step(system, sub_y, sub_u, env.dt / int(k))
+                for o, c in zip(out, sub_y):
+                    o[idx] = c
+            return tuple(out), event, env.dt / steps
+        uniform = bool(np.all(steps == steps[0]))
+        h = env.dt / steps[0] if uniform else env.dt / steps
+        if uniform and not watch:
+            for _ in range(int(steps[0])):
+                y = integ.step(system, y, u, h)
+            return y, event, np.full(n_env, h)
+        active = np.ones(n_env, dtype=bool)
+        for k in range(int(steps.max())):
+            y_new = integ.step(system, y, u, h)
+            active &= k < steps
+            if watch:
+                with np.errstate(invalid="ignore"):
+                    fired = active & np.asarray(env._event_mask(y_new, u), dtype=bool)
+            y = tuple(np.where(active, c_new, c) for c_new, c in zip(y_new, y))
+            if watch:
+                event |= fired
+                active &= ~fired
+            if not np.any(active):
+                break
+        return y, event, np.broadcast_to(np.asarray(h, dtype=float), (n_env,)).copy()
+
+    def _restart(self, which, obs, info):
+        """NEXT_STEP autoreset of the sub-envs in ``which``: new initial states, fresh info."""
+        idx = np.flatnonzero(which)
+        self._set_rows({i: self._draw(i) for i in idx})
+        self._steps[which] = 0
+        new_obs, _ = self._observation(self._y)
+        obs = obs.copy()
+        obs[which] = new_obs[which]
+        fresh = self._info(self._y, np.zeros(self.num_envs, dtype=bool), lifted=np.zeros(self.num_envs, dtype=bool))
+        for key, value in fresh.items():
+            if key.startswith("_"):
+                continue
+            info[key] = np.where(which, value, info[key]) if key in info else value
+        info["terminal_reason"] = np.where(which, "", info["terminal_reason"])
+        info["_terminal_reason"] = info["_terminal_reason"] & ~which
+        return obs, info
+
+    def _same_step_reset(self, done, obs, info):
+        final_obs = obs.copy()
+        final_info = {k: (v.copy() if isinstance(v, np.ndarray) else v) for k, v in info.items()}
+        obs, info = self._restart(done, obs, info)
+        info["final_obs"] = np.array([final_obs[i] if done[i] else None for i in range(self.num_envs)], dtype=object)
+        info["_final_obs"] = done.copy()
+        info["final_info"] = final_info
+        info["_final_info"] = done.copy()
+        return obs, info
+
+    # ------------------------------------------------------------------ read-outs
+    def _observation(self, y):
+        comps = self.task.observe(self.system, y)
+        o = np.empty((self.num_envs, len(comps)))
+        for j, c in enumerate(comps):
+            o[:, j] = c
+        over = np.any(np.abs(o) > self._obs_high, axis=1)
+        if np.any(over):
+            o = np.clip(o, -self._obs_high, self._obs_high)
+        return o.astype(np.float32), over
+
+    def _info(self, y, failed, lifted, metrics=None) -> dict:
+        env = self.env
+        if hasattr(env, "_lifted"):
+            env._lifted = lifted
+        n = self.num_envs
+        raw = env._readouts(y)
+        raw.update(self.task.metrics(self.system, y) if metrics is None else metrics)
+        info = {}
+        for key, value in raw.items():
+            info[key] = np.broadcast_to(np.asarray(value), (n,)).copy()
+            info["_" + key] = np.ones(n, dtype=bool)
+        info["numerical_failure"] = np.asarray(failed, dtype=bool).copy()
+        info["_numerical_failure"] = np.ones(n, dtype=bool)
+        return info
+
+    # ------------------------------------------------------------------ state access
+    def get_state(self) -> dict[str, np.ndarray]:
+        """The physical state of every sub-env: the single env's names, batched on axis 0."""
+        if self._y is None:
+            raise RuntimeError("call reset() before get_state()")
+        system = self.system
+        if hasattr(system, "export_state"):
+            return {k: np.array(v, dtype=np.float64).T.copy() for k, v in system.export_state(self._y).items()}
+        return {name: np.stack(self._y[a:b], axis=1).astype(np.float64) for name, (a, b) in system.layout.items()}
+
+    def close_extras(self, **kwargs):
+        self.env.close()
+
+
+class FreeRigidBodyVectorEnv(RigidBodyVectorEnv):
+    """``rbenvs/FreeRigidBody-v0`` batched (see :class:`rbenvs.envs.FreeRigidBodyEnv`)."""
+
+    env_class = FreeRigidBodyEnv
+
+
+class LagrangeTopVectorEnv(RigidBodyVectorEnv):
+    """``rbenvs/LagrangeTop-v0`` batched (see :class:`rbenvs.envs.LagrangeTopEnv`)."""
+
+    env_class = LagrangeTopEnv
+
+
+class TippeTopVectorEnv(RigidBodyVectorEnv):
+    """``rbenvs/TippeTop-v0`` batched (see :class:`rbenvs.envs.TippeTopEnv`)."""
+
+    env_class = TippeTopEnv
+
