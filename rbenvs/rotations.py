@@ -62,9 +62,20 @@ def quat_conjugate(q):
 
 
 def quat_normalize(q):
-    """Project onto the unit sphere (non-geometric integrators drift off it, physics.md §4)."""
+    """Project onto the unit sphere (non-geometric integrators drift off it, physics.md §4).
+
+    A quaternion whose squared norm overflowed or vanished has no direction left: the result
+    is NaN, so the environment's non-finite check ends the episode instead of carrying on
+    with a zero "rotation"."""
     w, x, y, z = q
-    inv = 1.0 / sqrt(w * w + x * x + y * y + z * z)
+    n2 = w * w + x * x + y * y + z * z
+    if isinstance(n2, float):
+        if not 0.0 < n2 < math.inf:  # overflowed or collapsed: no rotation left to project
+            return (math.nan, math.nan, math.nan, math.nan)
+        inv = 1.0 / math.sqrt(n2)
+    else:
+        with np.errstate(divide="ignore", invalid="ignore"):
+            inv = np.where((n2 > 0.0) & (n2 < np.inf), 1.0 / np.sqrt(n2), np.nan)
     return (w * inv, x * inv, y * inv, z * inv)
 
 

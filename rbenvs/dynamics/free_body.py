@@ -14,7 +14,6 @@ component is a float (single state) or an array of any batch shape (many states 
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 
 import numpy as np

@@ -17,7 +17,19 @@ import numpy as np
 from ..dynamics.validation import require_finite_positive, require_int_at_least
 from ..integrators import get_integrator
 
-__all__ = ["RigidBodyEnv", "NumericalFailureWarning"]
+__all__ = ["RigidBodyEnv", "NumericalFailureWarning", "MAX_INTERNAL_STEPS", "require_float32_bound"]
+
+
+def require_float32_bound(name: str, value) -> float:
+    """An observation bound: finite, > 0 and representable in float32 (the observation dtype)."""
+    v = require_finite_positive(name, value)
+    if v > float(np.finfo(np.float32).max):
+        raise ValueError(f"{name} must be <= {np.finfo(np.float32).max:.3g} (float32 observations), got {value!r}")
+    return v
+
+
+# More internal steps than this in one control period is treated as a numerical failure.
+MAX_INTERNAL_STEPS = 1_000_000
 
 
 class NumericalFailureWarning(RuntimeWarning):
@@ -116,6 +128,11 @@ class RigidBodyEnv(gym.Env):
         """
         integ, system = self.integrator, self.system
         n = self._internal_steps(y, u)
+        if n > MAX_INTERNAL_STEPS:
+            # a state beyond what the scheme can resolve in a control period: a numerical
+            # failure (the episode ends, the last finite state is kept), never a hang
+            self._last_h = self._dt / n
+            return tuple(math.nan for _ in y), None
         h = self._h if n == self.substeps else self._dt / n
         self._last_h = h
         watch = self.event_name is not None
@@ -205,7 +222,7 @@ class RigidBodyEnv(gym.Env):
     def _numerical_failure(self):
         warnings.warn(
             f"{type(self).__name__}: the state became non-finite with integrator {self.integrator.name!r} "
-            f"(h = {self._h:g} s); the episode ends and the last finite state is kept",
+            f"(internal step h = {float(np.max(self._last_h)):g} s); the episode ends and the last finite state is kept",
             NumericalFailureWarning,
             stacklevel=3,
         )

@@ -10,7 +10,7 @@ import numpy as np
 from ..dynamics import FreeBody, FreeBodyParams
 from ..dynamics.validation import require_finite_nonnegative, require_finite_positive
 from ..tasks import AXIS_NAMES, DetumbleTask, ReorientTask, SpinTask
-from .base import RigidBodyEnv
+from .base import RigidBodyEnv, require_float32_bound
 
 __all__ = ["FreeRigidBodyEnv"]
 
@@ -117,9 +117,7 @@ class FreeRigidBodyEnv(RigidBodyEnv):
         perturbation = require_finite_nonnegative("perturbation", perturbation)
         if perturbation >= math.pi:
             raise ValueError(f"perturbation must be in [0, pi) rad, got {perturbation!r}")
-        max_w = require_finite_positive("max_angular_velocity", max_angular_velocity)
-        if max_w > float(np.finfo(np.float32).max):
-            raise ValueError(f"max_angular_velocity must be <= {np.finfo(np.float32).max:.3g} (float32 observations), got {max_w!r}")
+        max_w = require_float32_bound("max_angular_velocity", max_angular_velocity)
         self.actuated = _actuation_mask(actuated)
         self.axis = _axis_index(axis, params)
         if task == "spin":

@@ -11,7 +11,7 @@ from ..dynamics import HeavyTop, HeavyTopParams
 from ..dynamics.validation import require_finite, require_finite_nonnegative, require_finite_positive
 from ..rotations import quat_conjugate, quat_rotate, quat_to_euler_zxz
 from ..tasks import PrecessTask, UprightTask, slow_precession_rate, transverse_basis
-from .base import RigidBodyEnv
+from .base import RigidBodyEnv, require_float32_bound
 
 __all__ = ["LagrangeTopEnv"]
 
@@ -144,9 +144,7 @@ class LagrangeTopEnv(RigidBodyEnv):
         self.max_torque = require_finite_nonnegative("max_torque", max_torque)
         control_cost = require_finite_nonnegative("control_cost", control_cost)
         perturbation = require_finite_nonnegative("perturbation", perturbation)
-        max_w = require_finite_positive("max_angular_velocity", max_angular_velocity)
-        if max_w > float(np.finfo(np.float32).max):
-            raise ValueError(f"max_angular_velocity must be <= {np.finfo(np.float32).max:.3g} (float32 observations), got {max_w!r}")
+        max_w = require_float32_bound("max_angular_velocity", max_angular_velocity)
         limit = _DEFAULT_TILT_LIMIT[task] if tilt_limit is None else require_finite_positive("tilt_limit", tilt_limit)
         if limit > math.pi:
             raise ValueError(f"tilt_limit must be in (0, pi] rad, got {tilt_limit!r}")

@@ -9,9 +9,9 @@ import numpy as np
 
 from ..dynamics import TippeTop, TippeTopParams
 from ..dynamics.tippe_top import FIDELITIES
-from ..dynamics.validation import require_finite, require_finite_nonnegative, require_finite_positive
+from ..dynamics.validation import require_finite, require_finite_nonnegative
 from ..tasks import HoldTask, InvertTask
-from .base import RigidBodyEnv
+from .base import MAX_INTERNAL_STEPS, RigidBodyEnv, require_float32_bound
 
 __all__ = ["TippeTopEnv"]
 
@@ -159,10 +159,10 @@ class TippeTopEnv(RigidBodyEnv):
         if self.friction_action and fidelity != "gliding":
             raise ValueError(f"friction_action needs fidelity='gliding' (there is no friction coefficient to set when {fidelity!r})")
         peak = max(abs(spin_lo), abs(spin_hi))
-        max_w = 2.0 * peak + 50.0 if max_angular_velocity is None else require_finite_positive("max_angular_velocity", max_angular_velocity)
+        max_w = 2.0 * peak + 50.0 if max_angular_velocity is None else require_float32_bound("max_angular_velocity", max_angular_velocity)
         if peak >= max_w:
             raise ValueError(f"max_angular_velocity must exceed the initial spin ({peak!r} rad/s), got {max_angular_velocity!r}")
-        max_v = require_finite_positive("max_speed", max_speed)
+        max_v = require_float32_bound("max_speed", max_speed)
         if params.radius * peak >= max_v:
             raise ValueError(f"max_speed must exceed the initial speed of the centre of mass (radius * spin = {params.radius * peak!r} m/s), got {max_speed!r}")
         task_cls = InvertTask if task == "invert" else HoldTask
@@ -216,7 +216,9 @@ class TippeTopEnv(RigidBodyEnv):
             normal = system.contact_forces(y, u)[0]
             h_f = system.max_stable_step(self.integrator.name, mu=u[2], normal_force=normal)
             n = np.maximum(n, np.ceil(self.dt / h_f))  # h_f = inf for adaptive schemes: 0
-        n = n.astype(np.int64)
+        # cap before the integer cast (an absurd state can ask for 1e300 steps); above
+        # MAX_INTERNAL_STEPS the period is refused as a numerical failure
+        n = np.minimum(n, MAX_INTERNAL_STEPS + 1).astype(np.int64)
         return int(n) if n.ndim == 0 else n
 
     _internal_steps = internal_steps
