@@ -10,6 +10,8 @@
   (:mod:`rbenvs.verify`); exits non-zero on any failure.
 * ``rbenvs bench kernels``: the layout measurement behind the component kernels.
 * ``rbenvs bench fidelity``: the tippe top's fidelity levels, each against gliding friction.
+* ``rbenvs bench throughput [--quick] [--json PATH]``: env-steps per second, single and vector,
+  against Pendulum-v1 and CartPole-v1's native vector env in the same run.
 """
 
 from __future__ import annotations
@@ -146,6 +148,8 @@ def build_parser() -> argparse.ArgumentParser:
     bench_sub = bench.add_subparsers(dest="bench", required=True)
     bench_sub.add_parser("kernels", help="RK4 kernel: our (3, n) components vs np.cross on (n, 3)").set_defaults(func=_cmd_bench_kernels)
     bench_sub.add_parser("fidelity", help="tippe top: cost of each fidelity level against gliding").set_defaults(func=_cmd_bench_fidelity)
+    # `bench throughput` has its own parser (rbenvs.bench.throughput.main); main() hands it the rest.
+    bench_sub.add_parser("throughput", help="env-steps/s against Pendulum-v1 and CartPole-v1's vector env (see its --help)")
     return parser
 
 
@@ -155,6 +159,10 @@ def main(argv=None) -> int:
         from .verify import main as verify_main
 
         return verify_main(argv[1:])
+    if argv[:2] == ["bench", "throughput"]:
+        from .bench.throughput import main as throughput_main
+
+        return throughput_main(argv[2:])
     args = build_parser().parse_args(argv)
     if getattr(args, "episodes", 1) < 1:
         print("rbenvs: --episodes must be >= 1", file=sys.stderr)

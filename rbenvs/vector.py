@@ -44,6 +44,7 @@ from gymnasium.vector.utils import batch_space
 
 from .dynamics.validation import require_int_at_least
 from .envs import FreeRigidBodyEnv, LagrangeTopEnv, NumericalFailureWarning, TippeTopEnv
+from .envs.base import MAX_INTERNAL_STEPS
 
 __all__ = ["RigidBodyVectorEnv", "FreeRigidBodyVectorEnv", "LagrangeTopVectorEnv", "TippeTopVectorEnv"]
 
@@ -74,10 +75,16 @@ class RigidBodyVectorEnv(VectorEnv):
         self.action_space = batch_space(env.action_space, self.num_envs)
         self.system, self.task, self.integrator = env.system, env.task, env.integrator
         self._obs_high = env._obs_high
+        self._obs_high32 = env._obs_high.astype(np.float32)
         self._y = None
         self._steps = np.zeros(self.num_envs, dtype=np.int64)
         self._prev_done = np.zeros(self.num_envs, dtype=bool)
         self._rngs = [None] * self.num_envs
+        # shared read-only masks: every step's info reuses them instead of allocating
+        self._true = np.ones(self.num_envs, dtype=bool)
+        self._false = np.zeros(self.num_envs, dtype=bool)
+        self._true.flags.writeable = False
+        self._false.flags.writeable = False
 
     @property
     def dt(self) -> float:
@@ -111,14 +118,14 @@ class RigidBodyVectorEnv(VectorEnv):
         rows = self._rows_from_state(state, mask) if state is not None else {i: self._draw(i) for i in np.flatnonzero(mask)}
         self._set_rows(rows)
         self._steps[mask] = 0
-        self._prev_done[mask] = False
+        self._prev_done = self._prev_done & ~mask
         obs, over = self._observation(self._y)
         if np.any(over & mask):
             raise ValueError("an initial state lies outside the observation bounds; raise the limit parameters")
         self.env._last_h = np.full(n, self.env._h)
         if hasattr(self.env, "_u"):
             self.env._u = None  # as the single env after reset: table at rest
-        info = self._info(self._y, np.zeros(n, dtype=bool), lifted=np.zeros(n, dtype=bool))
+        info = self._info(self._y, self._false, lifted=self._false)
         return obs, info
 
     def _draw(self, i) -> tuple:
@@ -152,50 +159,66 @@ class RigidBodyVectorEnv(VectorEnv):
         if self._y is None:
             raise RuntimeError("call reset() before step()")
         n = self.num_envs
-        a = np.asarray(actions, dtype=np.float64)
+        a = np.asarray(actions)
         if a.shape != self.action_space.shape:
             raise ValueError(f"actions must have shape {self.action_space.shape}, got {a.shape}")
-        if not np.all(np.isfinite(a)):
+        if not np.isfinite(a).all():
             bad = np.flatnonzero(~np.all(np.isfinite(a), axis=1))
             raise ValueError(f"actions must be finite; sub-envs {bad.tolist()} are not")
-        a = np.clip(a, -1.0, 1.0)
+        # Out-of-range actions are clipped (as the single env); one (k, n) float64 copy, so that
+        # each column the action mapping reads is contiguous.
+        cols = np.clip(a.T, -1.0, 1.0).astype(np.float64, order="C")
         # NEXT_STEP: the sub-envs whose episode ended last step are reset, not stepped.
-        restart = self._prev_done.copy() if self.autoreset_mode is AutoresetMode.NEXT_STEP else np.zeros(n, dtype=bool)
+        restart = self._prev_done if self.autoreset_mode is AutoresetMode.NEXT_STEP else self._false
+        any_restart = bool(restart.any())
         env = self.env
-        u_norm, u = env._control(tuple(a.T))
+        u_norm, u = env._control(tuple(cols))
         y0 = self._y
         y, event, h = self._advance(y0, u)
-        finite = np.ones(n, dtype=bool)
-        for c in y:
-            finite &= np.isfinite(c)
-        failed = ~finite & ~restart
-        if np.any(failed):
-            warnings.warn(
-                f"{type(self).__name__}: sub-envs {np.flatnonzero(failed).tolist()} became non-finite with integrator "
-                f"{self.integrator.name!r}; their episodes end and their last finite states are kept",
-                NumericalFailureWarning,
-                stacklevel=2,
-            )
+        failed = self._false
+        # one reduction on the sum of the components (a non-finite one makes it non-finite);
+        # the exact per-component test runs only if that flags anything
+        if not np.isfinite(sum(y)).all():
+            finite = np.ones(n, dtype=bool)
+            for c in y:
+                finite &= np.isfinite(c)
+            failed = ~finite & ~restart
+            if failed.any():
+                warnings.warn(
+                    f"{type(self).__name__}: sub-envs {np.flatnonzero(failed).tolist()} became non-finite with integrator "
+                    f"{self.integrator.name!r}; their episodes end and their last finite states are kept",
+                    NumericalFailureWarning,
+                    stacklevel=2,
+                )
             y = tuple(np.where(finite, c, c0) for c, c0 in zip(y, y0))
         self._y = y
         env._last_h = h
         obs, over = self._observation(y)
         reward, terminated, metrics = env._evaluate_batch(y, u_norm)
-        reward = np.where(failed, 0.0, np.broadcast_to(np.asarray(reward, dtype=np.float64), (n,)))
-        terminated = np.broadcast_to(np.asarray(terminated, dtype=bool), (n,)) & ~failed
-        lifted = event & ~failed
+        reward = np.asarray(reward, dtype=np.float64)
+        if reward.shape != (n,):
+            reward = np.broadcast_to(reward, (n,)).copy()
+        terminated = np.asarray(terminated, dtype=bool)
+        if terminated.shape != (n,):
+            terminated = np.broadcast_to(terminated, (n,)).copy()
+        lifted = self._false if event is None else event & ~failed
+        if failed is not self._false:
+            reward = np.where(failed, 0.0, reward)
+            terminated = (terminated & ~failed) | failed
         info = self._info(y, failed, lifted=lifted, metrics=metrics)
-        reason = np.full(n, "", dtype=object)
-        reason[terminated] = "task"
-        reason[over] = "observation_limit"
-        reason[lifted] = env.event_name or ""
-        reason[failed] = "numerical_failure"
-        terminated = terminated | over | lifted | failed
         self._steps += 1
-        truncated = np.zeros(n, dtype=bool) if self.max_episode_steps is None else self._steps >= self.max_episode_steps  # as TimeLimit
-        info["terminal_reason"] = reason
-        info["_terminal_reason"] = terminated | truncated
-        if np.any(restart):
+        truncated = self._false.copy() if self.max_episode_steps is None else self._steps >= self.max_episode_steps  # as TimeLimit
+        ended = terminated | over | lifted
+        if ended.any() or truncated.any():
+            reason = np.full(n, "", dtype=object)
+            reason[terminated] = "task"
+            reason[over] = "observation_limit"
+            reason[lifted] = env.event_name or ""
+            reason[failed] = "numerical_failure"
+            terminated = ended
+            info["terminal_reason"] = reason
+            info["_terminal_reason"] = terminated | truncated
+        if any_restart:
             obs, info = self._restart(restart, obs, info)
             reward = np.where(restart, 0.0, reward)
             terminated = terminated & ~restart
@@ -203,9 +226,9 @@ class RigidBodyVectorEnv(VectorEnv):
         done = terminated | truncated
         if self.autoreset_mode is AutoresetMode.NEXT_STEP:
             self._prev_done = done
-        elif np.any(done):
+        elif done.any():
             obs, info = self._same_step_reset(done, obs, info)
-        return obs, reward.astype(np.float64), terminated, truncated, info
+        return obs, reward, terminated, truncated, info
 
     def _advance(self, y, u):
         """One control period for the whole batch: ``(y, event_mask, internal_step)``.
@@ -217,8 +240,12 @@ class RigidBodyVectorEnv(VectorEnv):
         env, integ, system = self.env, self.integrator, self.system
         n_env = self.num_envs
         steps = np.broadcast_to(np.asarray(env._internal_steps(y, u)), (n_env,))
-        event = np.zeros(n_env, dtype=bool)
+        refused = steps > MAX_INTERNAL_STEPS  # numerical failures, as in the single env
+        if refused.any():
+            y = tuple(np.where(refused, np.nan, c) for c in y)
+            steps = np.where(refused, 1, steps)
         watch = env.event_name is not None
+        event = np.zeros(n_env, dtype=bool) if watch else None
         if integ.name == "dop853" and np.any(steps != steps[0]):
             # one adaptive solve per group of equal internal steps (its h must be a scalar)
             out = [np.array(c, dtype=float) for c in y]
@@ -236,7 +263,7 @@ class RigidBodyVectorEnv(VectorEnv):
         if uniform and not watch:
             for _ in range(int(steps[0])):
                 y = integ.step(system, y, u, h)
-            return y, event, np.full(n_env, h)
+            return y, event, h
         active = np.ones(n_env, dtype=bool)
         for k in range(int(steps.max())):
             y_new = integ.step(system, y, u, h)
@@ -260,13 +287,14 @@ class RigidBodyVectorEnv(VectorEnv):
         new_obs, _ = self._observation(self._y)
         obs = obs.copy()
         obs[which] = new_obs[which]
-        fresh = self._info(self._y, np.zeros(self.num_envs, dtype=bool), lifted=np.zeros(self.num_envs, dtype=bool))
+        fresh = self._info(self._y, self._false, lifted=self._false)
         for key, value in fresh.items():
             if key.startswith("_"):
                 continue
             info[key] = np.where(which, value, info[key]) if key in info else value
-        info["terminal_reason"] = np.where(which, "", info["terminal_reason"])
-        info["_terminal_reason"] = info["_terminal_reason"] & ~which
+        if "terminal_reason" in info:
+            info["terminal_reason"] = np.where(which, "", info["terminal_reason"])
+            info["_terminal_reason"] = info["_terminal_reason"] & ~which
         return obs, info
 
     def _same_step_reset(self, done, obs, info):
@@ -281,14 +309,26 @@ class RigidBodyVectorEnv(VectorEnv):
 
     # ------------------------------------------------------------------ read-outs
     def _observation(self, y):
+        """``(obs float32 (n, k), over)``; ``over`` flags sub-envs outside the bounds.
+
+        Fast path: the float32 copy is checked against the float32 bounds with ``<``; as
+        rounding to float32 is monotone, ``float32(v) < float32(hi)`` implies ``v < hi``, so
+        passing it means every float64 value is inside. Otherwise the exact float64 test of
+        the single env decides.
+        """
         comps = self.task.observe(self.system, y)
-        o = np.empty((self.num_envs, len(comps)))
+        o = np.empty((self.num_envs, len(comps)), dtype=np.float32)
         for j, c in enumerate(comps):
             o[:, j] = c
-        over = np.any(np.abs(o) > self._obs_high, axis=1)
-        if np.any(over):
-            o = np.clip(o, -self._obs_high, self._obs_high)
-        return o.astype(np.float32), over
+        if (np.abs(o) < self._obs_high32).all():
+            return o, self._false
+        o64 = np.empty((self.num_envs, len(comps)))
+        for j, c in enumerate(comps):
+            o64[:, j] = c
+        outside = ~(np.abs(o64) <= self._obs_high)
+        if not outside.any():
+            return o64.astype(np.float32), self._false
+        return np.clip(o64, -self._obs_high, self._obs_high).astype(np.float32), outside.any(axis=1)
 
     def _info(self, y, failed, lifted, metrics=None) -> dict:
         env = self.env
@@ -298,11 +338,17 @@ class RigidBodyVectorEnv(VectorEnv):
         raw = env._readouts(y)
         raw.update(self.task.metrics(self.system, y) if metrics is None else metrics)
         info = {}
+        every = self._true
         for key, value in raw.items():
-            info[key] = np.broadcast_to(np.asarray(value), (n,)).copy()
-            info["_" + key] = np.ones(n, dtype=bool)
-        info["numerical_failure"] = np.asarray(failed, dtype=bool).copy()
-        info["_numerical_failure"] = np.ones(n, dtype=bool)
+            value = np.asarray(value)
+            if value.shape != (n,):
+                value = np.broadcast_to(value, (n,)).copy()
+            elif any(value is c for c in y):  # never hand out the state itself
+                value = value.copy()
+            info[key] = value
+            info["_" + key] = every
+        info["numerical_failure"] = failed.copy() if failed is not self._false else self._false
+        info["_numerical_failure"] = every
         return info
 
     # ------------------------------------------------------------------ state access
