@@ -178,7 +178,9 @@ class RigidBodyVectorEnv(VectorEnv):
         env = self.env
         u_norm, u = env._control(tuple(cols))
         y0 = self._y
-        y, event, h = self._advance(y0, u)
+        with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+            # a sub-env blowing up is reported once, below, as the single env does
+            y, event, h = self._advance(y0, u)
         failed = self._false
         # one reduction on the sum of the components (a non-finite one makes it non-finite);
         # the exact per-component test runs only if that flags anything
@@ -297,6 +299,10 @@ class RigidBodyVectorEnv(VectorEnv):
         new_obs, _ = self._observation(self._y)
         obs = obs.copy()
         obs[which] = new_obs[which]
+        env = self.env
+        last_h, env._last_h = env._last_h, np.full(self.num_envs, env._h)  # as after reset()
+        if hasattr(env, "_u"):
+            env._u = None
         fresh = self._info(self._y, self._false, lifted=self._false)
         for key, value in fresh.items():
             if key.startswith("_"):
@@ -305,13 +311,17 @@ class RigidBodyVectorEnv(VectorEnv):
         if "terminal_reason" in info:
             info["terminal_reason"] = np.where(which, "", info["terminal_reason"])
             info["_terminal_reason"] = info["_terminal_reason"] & ~which
+        env._last_h = last_h
         return obs, info
 
     def _same_step_reset(self, done, obs, info):
         final_obs = obs.copy()
         final_info = {k: (v.copy() if isinstance(v, np.ndarray) else v) for k, v in info.items()}
         obs, info = self._restart(done, obs, info)
-        info["final_obs"] = np.array([final_obs[i] if done[i] else None for i in range(self.num_envs)], dtype=object)
+        final = np.empty(self.num_envs, dtype=object)  # one float32 observation per ended sub-env
+        for i in np.flatnonzero(done):
+            final[i] = final_obs[i]
+        info["final_obs"] = final
         info["_final_obs"] = done.copy()
         info["final_info"] = final_info
         info["_final_info"] = done.copy()
@@ -353,8 +363,8 @@ class RigidBodyVectorEnv(VectorEnv):
             value = np.asarray(value)
             if value.shape != (n,):
                 value = np.broadcast_to(value, (n,)).copy()
-            elif any(value is c for c in y):  # never hand out the state itself
-                value = value.copy()
+            elif any(value is c for c in y) or value is getattr(env, "_last_h", None):
+                value = value.copy()  # never hand out the state (or the env's own arrays)
             info[key] = value
             info["_" + key] = every
         info["numerical_failure"] = failed.copy() if failed is not self._false else self._false
