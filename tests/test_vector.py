@@ -880,3 +880,13 @@ def test_bench_throughput_smoke():
     for r in rows:
         assert r["step_us"] > 0 and r["pendulum_step_us"] > 0
         assert r["ratio_to_pendulum"] == pytest.approx(r["step_us"] / r["pendulum_step_us"], rel=1e-12)
+
+
+def test_bench_sb3_rows_compare_the_adapter_with_dummy_vec_env():
+    from rbenvs.bench.throughput import run_sb3
+
+    rows = run_sb3(sizes=(4,), min_time=0.01, repeat=1)
+    assert len(rows) == 1 and rows[0]["num_envs"] == 4
+    r = rows[0]
+    assert r["sb3_native_env_steps_per_s"] > 0 and r["sb3_dummy_env_steps_per_s"] > 0
+    assert r["ratio"] == pytest.approx(r["sb3_native_env_steps_per_s"] / r["sb3_dummy_env_steps_per_s"], rel=1e-12)

@@ -9,6 +9,8 @@ For every system and integrator (default scene of each id, zero action):
   for N = 1, 16, 256, 4096 against CartPole-v1's own native vector env at the same N; the
   ratio is ours / CartPole in env-steps per second, and ``ns/env`` the time per env-step.
   One extra line, "lean info", is the free body with ``info_readouts=False``.
+* ``sb3`` (when stable-baselines3 is installed): SB3's ``VecEnv.step`` through the native
+  adapter against ``DummyVecEnv`` of single envs, at N = 16 and 256.
 
 Throughput per env grows with N while the fixed cost per call (Python, numpy dispatch)
 dominates, and flattens once every array operation streams its operands from memory: a
@@ -129,6 +131,30 @@ def run_vector(systems=SYSTEMS, sizes=SIZES, min_time=0.2, repeat=3, progress=No
     return rows
 
 
+def run_sb3(sizes=(16, 256), min_time=0.2, repeat=3) -> list[dict]:
+    """SB3's ``VecEnv.step`` on the native adapter against ``DummyVecEnv`` of single envs
+    (the free body, rk4). Empty when stable-baselines3 (the agents extra) is not installed."""
+    try:
+        from stable_baselines3.common.env_util import make_vec_env
+
+        from rbenvs_agents.sb3_vec_env import make_sb3_vec_env
+    except ImportError:
+        return []
+    env_id = "rbenvs/FreeRigidBody-v0"
+    rows = []
+    for n in sizes:
+        native = make_sb3_vec_env(env_id, n, seed=0)
+        dummy = make_vec_env(env_id, n_envs=n, seed=0, env_kwargs={"render_mode": None})
+        rates = []
+        for venv in (native, dummy):
+            venv.reset()
+            a = np.zeros((n,) + venv.action_space.shape, dtype=np.float32)
+            rates.append(n / _timed(lambda: venv.step(a), min_time, repeat))
+            venv.close()
+        rows.append({"id": env_id, "num_envs": n, "sb3_native_env_steps_per_s": rates[0], "sb3_dummy_env_steps_per_s": rates[1], "ratio": rates[0] / rates[1]})
+    return rows
+
+
 def _progress(total, enabled):
     if not enabled:
         return None, None
@@ -153,6 +179,7 @@ def main(argv=None) -> int:
     update, bar = _progress(n_single + n_vector, not args.no_progress)
     single = run_single(min_time=min_time, progress=update)
     vector = run_vector(sizes=sizes, min_time=min_time, progress=update)
+    sb3 = run_sb3(sizes=(16, 256), min_time=min_time)
     if bar is not None:
         bar.close()
     print("single env: one step of gymnasium.make(id) against Pendulum-v1, same run (us)")
@@ -163,7 +190,12 @@ def main(argv=None) -> int:
     print(f"{'id':<26} {'integrator':<16} {'num_envs':>8} {'env-steps/s':>13} {'ns/env':>9} {'CartPole/s':>13} {'ratio':>8}")
     for r in vector:
         print(f"{r['id']:<26} {r['integrator']:<16} {r['num_envs']:>8d} {r['env_steps_per_s']:>13.4g} {r['ns_per_env_step']:>9.1f} {r['cartpole_env_steps_per_s']:>13.4g} {r['ratio_to_cartpole']:>8.3f}")
+    if sb3:
+        print("\nstable-baselines3 VecEnv.step: the native adapter (rbenvs_agents.sb3_vec_env) against DummyVecEnv, same run")
+        print(f"{'id':<26} {'num_envs':>8} {'native/s':>12} {'Dummy/s':>12} {'ratio':>8}")
+        for r in sb3:
+            print(f"{r['id']:<26} {r['num_envs']:>8d} {r['sb3_native_env_steps_per_s']:>12.4g} {r['sb3_dummy_env_steps_per_s']:>12.4g} {r['ratio']:>8.2f}")
     if args.json:
         with open(args.json, "w") as f:
-            json.dump({"single": single, "vector": vector}, f, indent=1)
+            json.dump({"single": single, "vector": vector, "sb3": sb3}, f, indent=1)
     return 0
