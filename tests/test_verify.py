@@ -6,9 +6,10 @@ import json
 import pytest
 
 from rbenvs import verify
-from rbenvs.dynamics import HeavyTopParams
+from rbenvs.dynamics import HeavyTopParams, TippeTopParams
 from rbenvs.dynamics import free_body as fb
 from rbenvs.dynamics import heavy_top as ht
+from rbenvs.dynamics import tippe_top as tp
 
 
 def failed(checks):
@@ -155,7 +156,7 @@ def test_heavy_top_has_no_exact_rows_and_system_filter(tmp_path):
     report = json.loads(path.read_text())
     assert report and {r["system"] for r in report} == {"heavy_top"} and all(r["passed"] for r in report)
     with pytest.raises(SystemExit):
-        verify.main(["--system", "tippe_top"])
+        verify.main(["--system", "rattleback"])
 
 
 def test_heavy_top_ranges_are_physical_and_seeded():
@@ -167,3 +168,152 @@ def test_heavy_top_ranges_are_physical_and_seeded():
     for p in a:
         ratio = p.inertia[2] / p.inertia[0]
         assert p.is_lagrange and 0.5 <= ratio <= 1.5
+
+
+# ---------------------------------------------------------------------------------------------
+# tippe top
+
+
+class FlippedFriction(tp.TippeTop):
+    """A simulator whose friction pushes along the slip (``mu -> -mu``): energy grows."""
+
+    def __init__(self, params, fidelity="gliding"):
+        super().__init__(params, fidelity)
+        flipped = dataclasses.replace(params)
+        object.__setattr__(flipped, "friction", -params.friction)
+        self.params = flipped
+
+    def _contact(self, y, u):
+        if u is not None:
+            u = tuple(u[:2]) + (-u[2],) + tuple(u[3:])
+        return super()._contact(y, u)
+
+
+class FlippedContactArm(tp.TippeTop):
+    """A simulator with the centre of mass on the wrong side of the centre: ``r = -h e3 - a Gamma``
+    (``G = O + h k``) in the dynamics, while the read-outs and the oracles keep ``G = O - h k``."""
+
+    def _contact_arm(self, g1, g2, g3):
+        a, h = self.params.radius, self.params.height
+        return -a * g1, -a * g2, -h - a * g3
+
+
+def tippe_rows(checks, word):
+    return [c for c in checks if word in c.check]
+
+
+def test_tippe_top_checks_pass_quick_rk4():
+    checks = verify.tippe_top_checks(["rk4"], quick=True, t90=False)
+    assert checks and not failed(checks), [(c.check, c.measured, c.case) for c in failed(checks)]
+    assert {c.system for c in checks} == {"tippe_top"} and {c.integrator for c in checks} == {"rk4"}
+    names = " ".join(c.check for c in checks)
+    for law in ("coulomb", "viscous", "frictionless", "rolling", "moving table"):
+        assert f"Jellett held ({law})" in names
+    for word in ("energy non-increasing (coulomb)", "energy non-increasing (viscous)", "energy conserved (frictionless)",
+                 "energy conserved (rolling)"):
+        assert word in names
+    classes = tippe_rows(checks, "inversion class")
+    assert sorted(c.predicted for c in classes) == [0, 1, 2]  # one top below, inside and above the window
+    tilts = {c.check: c for c in tippe_rows(checks, "final tilt")}
+    assert len(tilts) == 3
+    for c in tilts.values():
+        assert c.case["settled"] and c.case["lift-off at"] is None and c.case["min N/(m g)"] > 0
+    inside = next(c for k, c in tilts.items() if "1 - alpha < A/C" in k)
+    above = next(c for k, c in tilts.items() if "A/C > 1 + alpha" in k)
+    assert inside.predicted == 180.0 and 90.0 < above.predicted < 170.0
+
+
+def test_tippe_top_ranges_are_seeded_and_physical():
+    import numpy as np
+
+    for regime in ("below", "inside", "above"):
+        a = verify.tippe_top.random_tops(np.random.default_rng(5), 30, regime)
+        assert a == verify.tippe_top.random_tops(np.random.default_rng(5), 30, regime)
+        for top in a:
+            window = (1 - top.alpha, 1 + top.alpha)
+            assert {"below": top.gamma < window[0], "inside": window[0] < top.gamma < window[1],
+                    "above": top.gamma > window[1]}[regime]
+            params = top.params()  # valid parameters (C <= 2 A, 0 < alpha < 1)
+            assert params.inertia[1] <= 2 * params.inertia[0]
+            assert top.c <= verify.tippe_top.ball_bound(top.alpha, top.gamma) + 1e-15
+            crit = verify.tippe_top.inversion_criterion(top.A, top.C, top.alpha, top.mass, top.gravity, top.radius)
+            J = top.spin * top.radius * top.C * (1 - top.alpha)
+            if regime != "below":  # the spin exceeds the thresholds
+                assert J > crit.J_upright and (crit.J_min is None or J > crit.J_min)
+
+
+def test_flipped_friction_is_caught():
+    checks = verify.tippe_top_checks(["rk4"], quick=True, t90=False, system_class=FlippedFriction, regimes=("inside",))
+    bad = {c.check for c in failed(checks)}
+    assert any("energy non-increasing (coulomb)" in c for c in bad)
+    assert any("energy non-increasing (viscous)" in c for c in bad)
+    assert any("final tilt" in c for c in bad)  # the top hops off the table instead of inverting
+    # without friction nothing changes
+    assert not any("frictionless" in c or "rolling" in c for c in bad)
+
+
+def test_flipped_contact_arm_is_caught():
+    checks = verify.tippe_top_checks(["rk4"], quick=True, t90=False, system_class=FlippedContactArm, regimes=("inside",))
+    bad = {c.check for c in failed(checks)}
+    for law in ("coulomb", "viscous", "rolling"):
+        assert f"Jellett held ({law})" in " ".join(bad)
+    assert any("energy conserved" in c for c in bad)
+    assert any("final tilt" in c for c in bad) or any("inversion class" in c for c in bad)
+
+
+def test_failing_tippe_row_carries_its_parameters():
+    checks = verify.tippe_top_checks(["rk4"], quick=True, t90=False, system_class=FlippedContactArm, regimes=("inside",))
+    row = next(c for c in failed(checks) if "Jellett held (viscous)" in c.check)
+    case = row.case
+    for key in ("radius", "mass", "offset", "inertia", "gravity", "friction", "friction_law", "fidelity", "attitude",
+                "angular_velocity", "slip", "h", "T"):
+        assert key in case
+    TippeTopParams(radius=case["radius"], mass=case["mass"], offset=case["offset"], inertia=tuple(case["inertia"]),
+                   friction=case["friction"], friction_law=case["friction_law"])  # replayable
+
+
+def test_tippe_top_leaves_out_other_integrators_and_filters():
+    assert verify.run_checks(systems=("tippe_top",), integrators=["splitting", "exact"], quick=True, show_progress=False) == []
+
+
+def test_sweep_point_and_plot(tmp_path, capsys):
+    points = verify.tippe_top.sweep(alphas=(0.3,), offsets=(1.5,))
+    (p,) = points
+    assert p.predicted_class == "partial inversion" and 90 < p.predicted_tilt < 170
+    assert p.settled and p.passed and p.difference < 0.5
+    verify.tippe_top.print_sweep(points)
+    out = capsys.readouterr().out
+    assert "partial inversion" in out and "PASS" in out and "1 passed, 0 failed" in out
+    pytest.importorskip("matplotlib")
+    path = tmp_path / "sweep.png"
+    verify.tippe_top.plot_sweep(points, path)
+    assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_sweep_cli_arguments(monkeypatch, capsys):
+    with pytest.raises(SystemExit):
+        verify.main(["--plot", "x.png"])  # --plot needs --sweep
+    with pytest.raises(SystemExit):
+        verify.main(["--sweep", "--system", "heavy_top"])
+    with pytest.raises(SystemExit):
+        verify.main(["--sweep", "--integrator", "euler"])
+    # without matplotlib: a clear message and a non-zero exit, before any simulation
+    import sys
+
+    monkeypatch.setitem(sys.modules, "matplotlib", None)  # "import matplotlib" raises ImportError
+    monkeypatch.setattr(verify, "run_sweep", lambda **kw: pytest.fail("ran the sweep"))
+    assert verify.main(["--sweep", "--plot", "x.png", "--no-progress"]) == 2
+    assert "needs matplotlib" in capsys.readouterr().err
+    with pytest.raises(RuntimeError, match="needs matplotlib"):
+        verify.tippe_top.plot_sweep([], "x.png")
+
+
+def test_quick_sweep_command(tmp_path, capsys):
+    path = tmp_path / "sweep.json"
+    assert verify.main(["--sweep", "--quick", "--no-progress", "--system", "tippe_top", "--json", str(path)]) == 0
+    out = capsys.readouterr().out
+    for word in ("no inversion", "full inversion", "partial inversion", "3 passed, 0 failed"):
+        assert word in out
+    report = json.loads(path.read_text())
+    assert len(report) == 3 and all(r["passed"] for r in report)
+    assert {"alpha", "gamma", "J", "predicted_class", "predicted_tilt", "simulated_tilt"} <= set(report[0])

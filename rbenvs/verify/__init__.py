@@ -13,6 +13,18 @@ Systems (``--system``, repeatable; default all):
 * ``heavy_top``: :mod:`rbenvs.verify.heavy_top` (physics.md §2): critical spin by bisection,
   upright stable above / unstable below with the growth rate, regular precession held, fast
   top nutation, invariants. Not for ``exact`` (the heavy top has no exact flow).
+* ``tippe_top``: :mod:`rbenvs.verify.tippe_top` (physics.md §3): Jellett's integral held under
+  Coulomb and viscous friction, without friction, rolling and on a moving table; the energy
+  non-increasing under friction and conserved without; inversion where the criterion says and
+  the final tilt at the minimum of ``E*``, for tops below, inside and above the window
+  ``1 - alpha < A/C < 1 + alpha``; the time to pass 90 degrees converged in the step (rk4).
+  For euler, rk4 and dop853 (the tippe top has no splitting or exact flow).
+
+``--sweep`` (with ``--system tippe_top`` or alone) runs, instead of the checks, the sweep of the
+tippe top's final tilt over a grid of ``A/C`` (below, inside and above the window) and
+``alpha`` (:func:`rbenvs.verify.tippe_top.sweep`): a table of the predicted class and final tilt
+against the simulated one (``--quick``: 3 points); ``--plot PATH`` also draws it (needs
+matplotlib, which rbenvs does not install).
 """
 
 from __future__ import annotations
@@ -26,21 +38,26 @@ from ..integrators import INTEGRATORS, get_integrator
 from .common import ROUND_OFF, Check
 from .free_body import FREE_BODY_SETTINGS, free_body_checks
 from .heavy_top import HEAVY_TOP_SETTINGS, heavy_top_checks
+from . import tippe_top as _tippe
+from .tippe_top import TIPPE_TOP_SETTINGS, tippe_top_checks
 
 __all__ = [
     "Check",
     "ROUND_OFF",
     "FREE_BODY_SETTINGS",
     "HEAVY_TOP_SETTINGS",
+    "TIPPE_TOP_SETTINGS",
     "SYSTEMS",
     "free_body_checks",
     "heavy_top_checks",
+    "tippe_top_checks",
+    "run_sweep",
     "run_checks",
     "print_table",
     "main",
 ]
 
-SYSTEMS = ("free_body", "heavy_top")
+SYSTEMS = ("free_body", "heavy_top", "tippe_top")
 
 # random cases per system: (quick, full)
 FREE_BODY_CASES = (2, 8)
@@ -57,28 +74,41 @@ def run_checks(systems=SYSTEMS, integrators=None, quick=False, seed=0, show_prog
         raise ValueError(f"system must be one of {list(SYSTEMS)}, got {unknown[0]!r}")
     fb = [n for n in integrators if n in FREE_BODY_SETTINGS] if "free_body" in systems else []
     ht = [n for n in integrators if n in HEAVY_TOP_SETTINGS] if "heavy_top" in systems else []
+    tt = [n for n in integrators if n in TIPPE_TOP_SETTINGS] if "tippe_top" in systems else []
     n_fb = FREE_BODY_CASES[0 if quick else 1]
     n_ht = HEAVY_TOP_CASES[0 if quick else 1]
-    progress = _Progress(total=len(fb) * (n_fb + 1) + len(ht) * n_ht, enabled=show_progress)
+    total = len(fb) * (n_fb + 1) + len(ht) * n_ht + _tippe.progress_total(tt, quick=quick)
+    progress = _Progress(total=total, enabled=show_progress)
     checks = []
     if fb:
         checks += free_body_checks(fb, seed=seed, n_cases=n_fb, progress=progress.update)
     if ht:
         checks += heavy_top_checks(ht, seed=seed, n_tops=n_ht, progress=progress.update)
+    if tt:
+        checks += tippe_top_checks(tt, seed=seed, quick=quick, progress=progress.update)
     progress.close()
     return checks
+
+
+def run_sweep(quick=False, show_progress=True):
+    """The tippe top's final-tilt sweep (:func:`rbenvs.verify.tippe_top.sweep`); ``quick``: 3 points."""
+    alphas, offsets = _tippe.SWEEP_QUICK if quick else (_tippe.SWEEP_ALPHAS, _tippe.SWEEP_OFFSETS)
+    progress = _Progress(total=len(alphas) * len(offsets), enabled=show_progress, desc="sweep")
+    points = _tippe.sweep(alphas, offsets, progress=progress.update)
+    progress.close()
+    return points
 
 
 class _Progress:
     """tqdm when installed (the cli extra), otherwise silent."""
 
-    def __init__(self, total, enabled):
+    def __init__(self, total, enabled, desc="verify"):
         self.bar = None
         if enabled:
             try:
                 from tqdm import tqdm
 
-                self.bar = tqdm(total=total, desc="verify", file=sys.stderr, leave=False)
+                self.bar = tqdm(total=total, desc=desc, file=sys.stderr, leave=False)
             except ImportError:
                 pass
 
@@ -120,7 +150,18 @@ def main(argv=None) -> int:
     parser.add_argument("--integrator", action="append", help="restrict to these integrators (repeatable)")
     parser.add_argument("--json", metavar="PATH", help="also write a machine-readable report")
     parser.add_argument("--no-progress", action="store_true")
+    parser.add_argument("--sweep", action="store_true",
+                        help="instead of the checks: the tippe top's final tilt over a grid of A/C and alpha, predicted against simulated")
+    parser.add_argument("--plot", metavar="PATH", help="with --sweep: also draw the sweep to this PNG (needs matplotlib)")
     args = parser.parse_args(argv)
+    if args.plot and not args.sweep:
+        parser.error("--plot needs --sweep")
+    if args.sweep:
+        if args.system and args.system != ["tippe_top"]:
+            parser.error("--sweep is the tippe top's: use it alone or with --system tippe_top")
+        if args.integrator:
+            parser.error("--sweep runs rk4 only: leave out --integrator")
+        return _sweep_main(args)
     checks = run_checks(systems=tuple(args.system or SYSTEMS), integrators=args.integrator, quick=args.quick, seed=args.seed,
                         show_progress=not args.no_progress)
     print_table(checks)
@@ -128,3 +169,21 @@ def main(argv=None) -> int:
         with open(args.json, "w") as f:
             json.dump([asdict(c) | {"passed": c.passed} for c in checks], f, indent=1)
     return 0 if all(c.passed for c in checks) else 1
+
+
+def _sweep_main(args) -> int:
+    if args.plot:  # fail before the long run if the plot cannot be drawn
+        try:
+            __import__("matplotlib")
+        except ImportError:
+            print("rbenvs verify --plot needs matplotlib, which rbenvs does not install (pip install matplotlib)", file=sys.stderr)
+            return 2
+    points = run_sweep(quick=args.quick, show_progress=not args.no_progress)
+    _tippe.print_sweep(points)
+    if args.plot:
+        _tippe.plot_sweep(points, args.plot)
+        print(f"plot written to {args.plot}")
+    if args.json:
+        with open(args.json, "w") as f:
+            json.dump([asdict(p) | {"passed": p.passed} for p in points], f, indent=1)
+    return 0 if all(p.passed for p in points) else 1
