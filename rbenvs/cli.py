@@ -6,8 +6,8 @@
   default the headline scene of each system) with their analytic controller and with no
   control, and prints an episode summary per scene (return, success, the task's final
   measure, and the invariants at start and end).
-* ``rbenvs verify [--quick] [--json PATH] [--seed S]``: simulator against the oracles
-  (:mod:`rbenvs.verify`); exits non-zero on any failure.
+* ``rbenvs verify [--quick] [--json PATH] [--seed S] [--system NAME] [--sweep [--plot PNG]]``:
+  simulator against the oracles (:mod:`rbenvs.verify`); exits non-zero on any failure.
 * ``rbenvs bench kernels``: the layout measurement behind the component kernels.
 * ``rbenvs bench fidelity``: the tippe top's fidelity levels, each against gliding friction.
 * ``rbenvs bench throughput [--quick] [--json PATH]``: env-steps per second, single and vector,
