@@ -48,8 +48,21 @@ def observe(system, y):
     return k + omega + (v[0], v[1])
 
 
+class _SpunTop:
+    """Start and observation shared by the tippe-top tasks (fields ``spin_low``, ``spin_high``,
+    ``tilt_low``, ``tilt_high`` of the dataclass)."""
+
+    observation_size = 8
+
+    def initial_state(self, system, rng, shape):
+        return tilted_spin_state(system, rng, shape, self.spin_low, self.spin_high, self.tilt_low, self.tilt_high)
+
+    def observe(self, system, y):
+        return observe(system, y)
+
+
 @dataclass(frozen=True)
-class InvertTask:
+class InvertTask(_SpunTop):
     """Turn the top onto its stem as fast as possible.
 
     * Start: spin ``n ~ U(spin_low, spin_high)`` about the symmetry axis at tilt
@@ -72,13 +85,6 @@ class InvertTask:
     goal_tilt: float = math.radians(150.0)
 
     name = "invert"
-    observation_size = 8
-
-    def initial_state(self, system, rng, shape):
-        return tilted_spin_state(system, rng, shape, self.spin_low, self.spin_high, self.tilt_low, self.tilt_high)
-
-    def observe(self, system, y):
-        return observe(system, y)
 
     def reward(self, system, y, u):
         return -0.5 * (1.0 + system.frame(y)[8]) - self.control_cost * _effort(u)
@@ -91,7 +97,7 @@ class InvertTask:
 
 
 @dataclass(frozen=True)
-class HoldTask:
+class HoldTask(_SpunTop):
     """Keep the top spinning on its broad end, against its own tendency to invert.
 
     * Start: as :class:`InvertTask`.
@@ -109,13 +115,6 @@ class HoldTask:
     success_tilt: float = 0.2
 
     name = "hold"
-    observation_size = 8
-
-    def initial_state(self, system, rng, shape):
-        return tilted_spin_state(system, rng, shape, self.spin_low, self.spin_high, self.tilt_low, self.tilt_high)
-
-    def observe(self, system, y):
-        return observe(system, y)
 
     def reward(self, system, y, u):
         return 0.5 * (1.0 + system.frame(y)[8]) - self.control_cost * _effort(u)

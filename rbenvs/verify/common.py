@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
-__all__ = ["Check", "ROUND_OFF"]
+__all__ = ["Check", "ROUND_OFF", "worst"]
 
 ROUND_OFF = 1e-13  # relative; for the invariants an integrator declares it conserves
 
@@ -38,3 +38,18 @@ class Check:
     def passed(self) -> bool:
         err = self.error
         return bool(math.isfinite(err) and err <= self.tolerance)
+
+
+def worst(candidates: list[Check]) -> Check:
+    """The case closest to (or farthest beyond) its tolerance; a non-finite one first: the
+    row a table of random cases shows for one check."""
+
+    def badness(c):
+        err = c.error
+        if not math.isfinite(err):
+            return math.inf
+        if c.tolerance > 0:
+            return err / c.tolerance
+        return math.inf if err > 0 else 0.0
+
+    return max(candidates, key=badness)

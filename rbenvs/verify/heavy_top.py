@@ -83,7 +83,7 @@ import numpy as np
 from ..dynamics import HeavyTop, HeavyTopParams
 from ..integrators import get_integrator
 from ..oracles import critical_spin, fast_top_nutation, regular_precession_rates, upright_eigenvalues
-from .common import ROUND_OFF, Check
+from .common import ROUND_OFF, Check, worst
 
 __all__ = ["HEAVY_TOP_SETTINGS", "TopSetting", "heavy_top_checks", "random_tops"]
 
@@ -468,7 +468,7 @@ def heavy_top_checks(integrators, seed=0, n_tops=3, system_class=HeavyTop, progr
             checks_for_top(system_class(top.params), integ, setting, top, add)
             if progress:
                 progress()
-        checks.extend(_worst(c) for c in rows.values())
+        checks.extend(worst(c) for c in rows.values())
     return checks
 
 
@@ -512,15 +512,3 @@ def checks_for_top(system, integ, setting, top, add):
     add(Check(SYSTEM, name, "| |Gamma| - 1 |", 0.0, d_norm, round_off, case=case))
 
 
-def _worst(candidates: list[Check]) -> Check:
-    """The case closest to (or farthest beyond) its tolerance; a non-finite one first."""
-
-    def badness(c):
-        err = c.error
-        if not math.isfinite(err):
-            return math.inf
-        if c.tolerance > 0:
-            return err / c.tolerance
-        return math.inf if err > 0 else 0.0
-
-    return max(candidates, key=badness)

@@ -90,7 +90,7 @@ from ..dynamics import TippeTop, TippeTopParams
 from ..integrators import get_integrator
 from ..oracles import final_tilt, inversion_criterion, jellett
 from ..rotations import quat_multiply, quat_rotate
-from .common import Check
+from .common import Check, worst
 
 __all__ = [
     "TIPPE_TOP_SETTINGS",
@@ -701,7 +701,7 @@ def tippe_top_checks(integrators, seed=0, quick=False, system_class=TippeTop, pr
             tops = random_tops(np.random.default_rng([seed, 4, REGIMES.index(regime)]), setting.inversion_tops[mode], regime,
                                setting.alpha_max)
             rows |= _inversion_rows(name, integ, setting, tops, system_class, progress)
-        checks.extend(_worst(c) for c in rows.values())
+        checks.extend(worst(c) for c in rows.values())
         if name == "rk4" and t90:
             checks.extend(_t90_rows(order=not quick, system_class=system_class))
             if progress:
@@ -717,18 +717,6 @@ def progress_total(integrators, quick=False, t90=True) -> int:
             s = TIPPE_TOP_SETTINGS[name]
             total += 1 + len(s.regimes[mode]) * s.inversion_tops[mode] + (1 if name == "rk4" and t90 else 0)
     return total
-
-
-def _worst(candidates: list[Check]) -> Check:
-    def badness(c):
-        err = c.error
-        if not math.isfinite(err):
-            return math.inf
-        if c.tolerance > 0:
-            return err / c.tolerance
-        return math.inf if err > 0 else 0.0
-
-    return max(candidates, key=badness)
 
 
 # ------------------------------------------------------------------------------------------
