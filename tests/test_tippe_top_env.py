@@ -83,6 +83,9 @@ def run(env, policy, seed=None, options=None, steps=None):
 CHECK_VARIANTS = [
     pytest.param(dict(fidelity=f, task=t, integrator=i), id=f"{f}-{t}-{i}") for f in FIDELITIES for t in ("invert", "hold") for i in ("rk4", "euler")
 ] + [
+    # dop853 on the gliding level is in tests/test_envs.py (default fidelity, every task)
+    pytest.param(dict(fidelity=f, task=t, integrator="dop853"), id=f"{f}-{t}-dop853") for f in ("frictionless", "rolling") for t in ("invert", "hold")
+] + [
     pytest.param(dict(friction_action=True, torque_action=True), id="friction+torque-rk4"),
     pytest.param(dict(friction_action=True, torque_action=True, task="hold", integrator="euler"), id="friction+torque-hold-euler"),
     pytest.param(dict(friction_action=True, friction_law="viscous", friction_range=(0.0, 2.0)), id="friction-viscous"),
