@@ -24,7 +24,7 @@ Systems (``--system``, repeatable; default all):
 tippe top's final tilt over a grid of ``A/C`` (below, inside and above the window) and
 ``alpha`` (:func:`rbenvs.verify.tippe_top.sweep`): a table of the predicted class and final tilt
 against the simulated one (``--quick``: 3 points); ``--plot PATH`` also draws it (needs
-matplotlib, which rbenvs does not install).
+matplotlib: the ``plot`` extra).
 """
 
 from __future__ import annotations
@@ -176,7 +176,7 @@ def _sweep_main(args) -> int:
         try:
             __import__("matplotlib")
         except ImportError:
-            print("rbenvs verify --plot needs matplotlib, which rbenvs does not install (pip install matplotlib)", file=sys.stderr)
+            print("rbenvs verify --plot needs matplotlib (pip install 'rbenvs[plot]')", file=sys.stderr)
             return 2
     points = run_sweep(quick=args.quick, show_progress=not args.no_progress)
     _tippe.print_sweep(points)

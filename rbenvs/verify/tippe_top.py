@@ -811,7 +811,7 @@ def print_sweep(points, file=None):
 
 def plot_sweep(points, path):
     """Predicted (lines, on a fine grid of ``A/C`` at each row's ``J``) and simulated (markers)
-    final tilt against ``A/C``, one colour per ``alpha``, the window ``1 +- alpha`` shaded. Needs matplotlib (not a dependency of rbenvs):
+    final tilt against ``A/C``, one colour per ``alpha``, the window ``1 +- alpha`` shaded. Needs matplotlib (the ``plot`` extra):
     ``RuntimeError`` with a message if it is missing."""
     try:
         import matplotlib
@@ -819,7 +819,7 @@ def plot_sweep(points, path):
         matplotlib.use("Agg")
         import matplotlib.pyplot as plt
     except ImportError:
-        raise RuntimeError("--plot needs matplotlib, which rbenvs does not install: pip install matplotlib") from None
+        raise RuntimeError("--plot needs matplotlib: pip install 'rbenvs[plot]'") from None
     fig, ax = plt.subplots(figsize=(7, 4.5))
     alphas = sorted({p.alpha for p in points})
     for i, alpha in enumerate(alphas):
