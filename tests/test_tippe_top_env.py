@@ -954,3 +954,31 @@ def test_an_overflowing_step_count_neither_stalls_nor_reports_a_negative_step():
             return  # a clear refusal would do too
     assert info["internal_step"] > 0.0
     assert te or not same_state(env.get_state(), before)
+
+
+def test_slip_cancelling_keeps_the_top_on_its_broad_end():
+    """The hold task's reference: without action the default top passes 90 deg at about 7 s;
+    moving the table with the contact point removes the slip, so friction does no work, the
+    energy stays (it may even rise: the table does work) and the top cannot climb."""
+    from rbenvs.controllers import SlipCancelling, controller_for
+
+    env = TippeTopEnv(task="hold")
+    assert isinstance(controller_for(env), SlipCancelling)
+    policy = SlipCancelling(env)
+    obs, info0 = env.reset(seed=0)
+    max_tilt, steps = 0.0, 900  # 9 s: past the uncontrolled top's 90 deg
+    for _ in range(steps):
+        obs, _, terminated, truncated, info = env.step(policy(obs))
+        max_tilt = max(max_tilt, info["tilt"])
+        assert not terminated
+    assert max_tilt < 0.12  # started at 0.1 rad
+    assert info["slip_speed"] < 1e-3  # below the regularisation speed
+    assert info["energy"] > 0.99 * info0["energy"]
+    # the same start without action falls past 90 deg within those 9 s
+    env.reset(seed=0)
+    zero = np.zeros(env.action_space.shape, dtype=np.float32)
+    for k in range(steps):
+        _, _, terminated, _, info = env.step(zero)
+        if terminated:
+            break
+    assert terminated and info["terminal_reason"] == "task" and info["tilt"] > np.pi / 2
