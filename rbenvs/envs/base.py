@@ -45,6 +45,7 @@ class RigidBodyEnv(gym.Env):
     def _setup(self, system, task, integrator, dt, substeps, observation_high, render_mode):
         self.system = system
         self.task = task
+        self._task_evaluate = getattr(task, "evaluate", None)  # reward, end and metrics at once
         self._dt = require_finite_positive("dt", dt)
         self.substeps = require_int_at_least("substeps", substeps, 1)
         self.integrator = get_integrator(integrator)
@@ -253,7 +254,7 @@ class RigidBodyEnv(gym.Env):
         """``(reward, terminated, metrics)`` as Python float, bool and dict. A task may offer
         ``evaluate`` to compute the three at once (sharing its intermediate read-outs)."""
         task, system = self.task, self.system
-        evaluate = getattr(task, "evaluate", None)
+        evaluate = self._task_evaluate
         if evaluate is not None:
             reward, terminated, metrics = evaluate(system, y, u_norm)
         else:

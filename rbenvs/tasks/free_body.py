@@ -81,16 +81,15 @@ class SpinTask:
 
     def metrics(self, system, y):
         a = self.alignment(system, y)
-        return {"alignment": a, "is_success": a >= math.cos(self.success_angle)}
+        return {"alignment": a, "is_success": a >= self.cos_success}
 
     def evaluate(self, system, y, u):
         """``(reward, terminated, metrics)`` with the alignment computed once."""
         a = self.alignment(system, y)
-        return a - self.control_cost * _effort(u), False, {"alignment": a, "is_success": a >= self._cos_success}
+        return a - self.control_cost * _effort(u), False, {"alignment": a, "is_success": a >= self.cos_success}
 
-    @property
-    def _cos_success(self):
-        return math.cos(self.success_angle)
+    def __post_init__(self):
+        object.__setattr__(self, "cos_success", math.cos(self.success_angle))
 
 
 @dataclass(frozen=True)
