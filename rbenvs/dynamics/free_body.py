@@ -61,6 +61,9 @@ class FreeBody:
     ``(tau1, tau2, tau3)`` [N m], constant over a step, or ``None`` for zero torque.
     """
 
+    # read-outs that are Casimirs of the Lie-Poisson bracket (kept by the exact sub-flows)
+    casimirs = ("momentum_norm",)
+
     def __init__(self, params: FreeBodyParams, attitude: bool = False):
         self.params = params
         self.attitude = bool(attitude)

@@ -141,6 +141,9 @@ class HeavyTop:
     ``(tau1, tau2, tau3)`` [N m], constant over a step, or ``None`` for zero torque.
     """
 
+    # read-outs that are Casimirs of the Lie-Poisson bracket (kept by the exact sub-flows)
+    casimirs = ("pi_dot_gamma", "vertical_norm")
+
     def __init__(self, params: HeavyTopParams, attitude: bool = False):
         self.params = params
         self.attitude = bool(attitude)

@@ -34,7 +34,9 @@ class Integrator:
             over the step).
         evaluations: right-hand-side evaluations per step (``None``: not rhs-based or adaptive;
             :meth:`step_counted` reports the real count).
-        conserves: invariants kept to round-off for the uncontrolled system.
+        conserves: what it keeps to round-off for the uncontrolled system: ``"casimirs"`` (the
+            system's :attr:`casimirs`, the invariants of the Lie-Poisson bracket: ``|Pi|`` for
+            the free body, ``|Gamma|`` and ``Pi.Gamma`` for the heavy top) and/or ``"energy"``.
     """
 
     # Class-level constants, not dataclass fields: a field's default would be stamped onto

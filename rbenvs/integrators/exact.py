@@ -21,7 +21,7 @@ class Exact(Integrator):
     name = "exact"
     order = 2  # with control; exact (to round-off) without
     evaluations = 0
-    conserves = ("momentum_norm", "energy")
+    conserves = ("casimirs", "energy")
     requires = ("free_flow", "kick")
 
     def step(self, system, y, u, h):

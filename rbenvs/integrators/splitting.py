@@ -14,7 +14,8 @@ class Splitting(Integrator):
     """``f1(h/2) ... f_{n-1}(h/2) f_n(h) f_{n-1}(h/2) ... f1(h/2)`` over ``system.split_flows()``.
 
     Each piece is an exact flow, so whatever all pieces conserve is kept to round-off (for the
-    free body ``|Pi|``, the spatial momentum and ``|q|``) and, the composition being symmetric
+    free body ``|Pi|``, the spatial momentum and ``|q|``; for the heavy top ``|Gamma|`` and
+    ``Pi.Gamma``: the systems' ``casimirs``) and, the composition being symmetric
     and symplectic on the coadjoint orbit, the energy error stays bounded over long runs.
     Second order; no rhs calls.
     """
@@ -22,7 +23,7 @@ class Splitting(Integrator):
     name = "splitting"
     order = 2
     evaluations = 0
-    conserves = ("momentum_norm",)
+    conserves = ("casimirs",)
     requires = ("split_flows",)
 
     def step(self, system, y, u, h):
