@@ -136,12 +136,6 @@ class RigidBodyEnv(gym.Env):
         step (integration stops there), which becomes ``info["terminal_reason"]``.
         """
         integ, system = self.integrator, self.system
-        if self.event_name is None and type(self)._internal_steps is RigidBodyEnv._internal_steps:
-            # the common case (fixed substeps, no events): the plain loop
-            h = self._h
-            for _ in range(self.substeps):
-                y = integ.step(system, y, u, h)
-            return y, None
         n = self._internal_steps(y, u)
         if n > MAX_INTERNAL_STEPS:
             # a state beyond what the scheme can resolve in a control period: a numerical

@@ -362,13 +362,8 @@ def _upright_growth_rate(system, integ, setting, top, spin):
     return float(np.polyfit(ts[sel], np.log(tilts[sel]), 1)[0]), h
 
 
-def _regular_precession(system, integ, setting, top):
-    alpha = top.precession_tilt
-    A, C = top.A, top.C
-    mgl = top.params.mgl
-    n = top.precession_factor * 2.0 * math.sqrt(A * mgl * math.cos(alpha)) / C
-    p = regular_precession_rates(*top.oracle_args(), n, alpha).slow
-    y = _lagrange_state(top, alpha, n, p)
+def _recorder(system):
+    """Lists of times, tilts and precession rates, and the callback of :func:`_run` that fills them."""
     ts, tilts, rates = [], [], []
 
     def observe(t, y):
@@ -376,6 +371,18 @@ def _regular_precession(system, integ, setting, top):
         tilts.append(float(system.tilt(y)))
         rates.append(float(system.precession_rate(y)))
         return False
+
+    return ts, tilts, rates, observe
+
+
+def _regular_precession(system, integ, setting, top):
+    alpha = top.precession_tilt
+    A, C = top.A, top.C
+    mgl = top.params.mgl
+    n = top.precession_factor * 2.0 * math.sqrt(A * mgl * math.cos(alpha)) / C
+    p = regular_precession_rates(*top.oracle_args(), n, alpha).slow
+    y = _lagrange_state(top, alpha, n, p)
+    ts, tilts, rates, observe = _recorder(system)
 
     horizon = setting.periods * 2.0 * math.pi / abs(p)
     omega = math.hypot(n, p * math.sin(alpha))
@@ -393,13 +400,7 @@ def _fast_top(system, integ, setting, top):
     n = math.sqrt(A * top.params.mgl / eps) / C
     oracle = fast_top_nutation(*top.oracle_args(), n, alpha)
     y = _lagrange_state(top, alpha, n)
-    ts, tilts, rates = [], [], []
-
-    def observe(t, y):
-        ts.append(t)
-        tilts.append(float(system.tilt(y)))
-        rates.append(float(system.precession_rate(y)))
-        return False
+    ts, tilts, rates, observe = _recorder(system)
 
     nod = 2.0 * math.pi * A / (C * n)  # the nutation time scale C n / A of the top
     horizon = (setting.nods + 0.25) * nod
