@@ -92,9 +92,9 @@ class TippeTopEnv(RigidBodyEnv):
       ``slip_regularization=1e-3`` m/s, ``fidelity="gliding"``, ``"frictionless"`` or ``"rolling"``.
     * ``task="invert"`` or ``"hold"``; ``spin=150.0`` rad/s and ``tilt=0.1`` rad (numbers or
       ``(low, high)`` ranges). Not Leine and Glocker's 180 rad/s: with this model (gliding
-      friction, regularised Coulomb, no drilling friction) their top's normal force dips to
-      about -0.03 m g near 80 degrees of tilt at 180 rad/s (a hop, which ends the episode),
-      while at 150 rad/s it stays above 0.38 m g through the inversion.
+      friction, regularised Coulomb, no drilling friction) their top's normal force dips just
+      below zero near 80 degrees of tilt at 180 rad/s (a hop, which ends the episode), while at
+      150 rad/s it stays positive through the inversion (tests/test_tippe_top_env.py).
     * ``dt=0.01`` s, ``substeps=1`` (a minimum), ``integrator="rk4"`` (``euler``, ``rk4``, ``dop853``).
     * ``max_table_acceleration=2.0`` m/s^2; ``friction_action=False``, ``friction_range=(0.0, 0.6)``;
       ``torque_action=False``, ``max_torque=1e-4`` N m; ``control_cost=0.01``.
