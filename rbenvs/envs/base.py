@@ -40,7 +40,8 @@ class RigidBodyEnv(gym.Env):
     """Base class. A subclass builds ``self.system``, ``self.task``, the action space and
     implements :meth:`_control` (normalised action -> control components)."""
 
-    metadata = {"render_modes": []}
+    # render_fps is set per instance from dt (one frame per step)
+    metadata = {"render_modes": ["human", "rgb_array"]}
 
     def _setup(self, system, task, integrator, dt, substeps, observation_high, render_mode):
         self.system = system
@@ -56,6 +57,9 @@ class RigidBodyEnv(gym.Env):
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(f"render_mode must be one of {self.metadata['render_modes'] or [None]}, got {render_mode!r}")
         self.render_mode = render_mode
+        self._renderer = None  # built by the first render(): matplotlib is imported only then
+        if render_mode == "human":  # draw after every reset and step; the class's step is untouched
+            self.step, self.reset = self._step_human, self._reset_human
         self.metadata = dict(self.metadata, render_fps=max(1, round(1.0 / self._dt)))
         self._obs_high = np.asarray(observation_high, dtype=np.float64)
         self._obs_high_list = self._obs_high.tolist()
@@ -153,6 +157,59 @@ class RigidBodyEnv(gym.Env):
                 if self._event_mask(y, u):
                     return y, self.event_name
         return y, None
+
+    # ------------------------------------------------------------------ rendering
+    def render(self):
+        """A picture of the current state (it reads the state, never changes it).
+
+        ``render_mode="rgb_array"``: an ``(H, W, 3)`` uint8 frame (``rbenvs.render.FRAME_SIZE``).
+        ``"human"``: the frame in a matplotlib window when a display exists (drawn after every
+        reset and step; nothing without a display), returns ``None``. Needs matplotlib (the
+        ``plot`` extra): ``ImportError`` naming it otherwise. Without a render mode: ``None``
+        and a warning, as in gymnasium.
+        """
+        if self.render_mode is None:
+            gym.logger.warn(f"{type(self).__name__}.render() called without a render_mode: pass render_mode='rgb_array' or 'human'")
+            return None
+        if self._y is None:
+            raise RuntimeError("call reset() before render()")
+        if self._renderer is None:
+            from ..render import Renderer
+
+            self._renderer = Renderer()
+        if self.render_mode == "human" and not self._renderer.can_show():
+            return None
+        frame = self._renderer.frame(self._render_scene())
+        if self.render_mode == "rgb_array":
+            return frame
+        self._renderer.show(frame, self.metadata["render_fps"])
+        return None
+
+    def _render_scene(self) -> dict:
+        """The geometry of the current state for :meth:`render` (format: :mod:`rbenvs.render.common`)."""
+        raise NotImplementedError
+
+    def _step_human(self, action):
+        out = type(self).step(self, action)
+        self.render()
+        return out
+
+    def _reset_human(self, *, seed=None, options=None):
+        out = type(self).reset(self, seed=seed, options=options)
+        self.render()
+        return out
+
+    def close(self):
+        renderer = getattr(self, "_renderer", None)
+        if renderer is not None:
+            renderer.close()
+            self._renderer = None
+        super().close()
+
+    def __getstate__(self):
+        state = self.__dict__.copy()
+        state["_renderer"] = None  # a figure (and window) is rebuilt by the next render()
+        return state
 
     # ------------------------------------------------------------------ state access
     def get_state(self) -> dict[str, np.ndarray]:

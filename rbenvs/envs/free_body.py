@@ -84,6 +84,12 @@ class FreeRigidBodyEnv(RigidBodyEnv):
     * ``max_angular_velocity=10.0``: rad/s, observation bound.
     * ``target_attitude=(1, 0, 0, 0)``: reorient target, unit quaternion (w, x, y, z).
 
+    ## Rendering
+    ``render_mode="rgb_array"``: ``render()`` returns a 480x480x3 uint8 frame of the box with
+    the body's moments, its principal axes, ``Pi`` (red) and ``Omega`` (blue); in the body frame
+    with the orbit of ``Pi`` dotted, or in space for ``reorient``. ``"human"``: the same in a
+    matplotlib window after every step (when a display exists). Needs the ``plot`` extra.
+
     ## Version history
     * v0: initial release.
     """
@@ -152,6 +158,11 @@ class FreeRigidBodyEnv(RigidBodyEnv):
 
     def _readouts(self, y):
         return {"energy": self.system.energy(y), "momentum_norm": self.system.momentum_norm(y)}
+
+    def _render_scene(self):
+        from ..render.free_body import scene
+
+        return scene(self.system, self._y)
 
     def _check_state(self, state):
         if "attitude" in state:

@@ -105,6 +105,12 @@ class LagrangeTopEnv(RigidBodyEnv):
     * ``control_cost=0.01``; ``max_angular_velocity=100.0`` rad/s (observation bound);
       ``attitude=False``: also integrate the attitude quaternion (heading, Euler angles).
 
+    ## Rendering
+    ``render_mode="rgb_array"``: ``render()`` returns a 480x480x3 uint8 frame of the top on its
+    pivot with ``Pi`` (red), ``Omega`` (blue) and gravity; in space with ``attitude=True``, else in
+    a frame turning with the precession. ``"human"``: the same in a matplotlib window after every
+    step (when a display exists). Needs the ``plot`` extra.
+
     ## Version history
     * v0: initial release.
     """
@@ -216,6 +222,11 @@ class LagrangeTopEnv(RigidBodyEnv):
             phi, theta, psi = quat_to_euler_zxz(y[6:10])
             out.update(precession_angle=phi, nutation_angle=theta, spin_angle=psi)
         return out
+
+    def _render_scene(self):
+        from ..render.heavy_top import scene
+
+        return scene(self.system, self._y)
 
     def _check_state(self, state):
         g = state["vertical"]

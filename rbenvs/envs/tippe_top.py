@@ -100,6 +100,12 @@ class TippeTopEnv(RigidBodyEnv):
       ``torque_action=False``, ``max_torque=1e-4`` N m; ``control_cost=0.01``.
     * ``max_angular_velocity=None`` (``2 max|spin| + 50``) rad/s, ``max_speed=5.0`` m/s.
 
+    ## Rendering
+    ``render_mode="rgb_array"``: ``render()`` returns a 480x480x3 uint8 frame of the sphere on
+    the table (broad and stem halves in two colours) with the contact point, the centre of mass,
+    ``L`` about it (red) and ``omega`` (blue); the view follows the top. ``"human"``: the same in
+    a matplotlib window after every step (when a display exists). Needs the ``plot`` extra.
+
     ## Version history
     * v0: initial release.
     """
@@ -232,6 +238,11 @@ class TippeTopEnv(RigidBodyEnv):
         if event is not None:
             self._lifted = True
         return y, event
+
+    def _render_scene(self):
+        from ..render.tippe_top import scene
+
+        return scene(self.system, self._y, self._u)
 
     def _readouts(self, y):
         s = self.system
