@@ -12,6 +12,9 @@
 * ``rbenvs bench fidelity``: the tippe top's fidelity levels, each against gliding friction.
 * ``rbenvs bench throughput [--quick] [--json PATH]``: env-steps per second, single and vector,
   against Pendulum-v1 and CartPole-v1's native vector env in the same run.
+* ``rbenvs plot [WHAT ...] [--out DIR] [--quick]``: PNG figures (:mod:`rbenvs.plotting`; needs
+  the ``plot`` extra): ``free_body``, ``heavy_top``, ``tippe_top``, ``frames`` (one rendered
+  frame per system) or ``all`` (the default; the pictures under ``docs/``).
 """
 
 from __future__ import annotations
@@ -124,6 +127,36 @@ def _cmd_bench_fidelity(args) -> int:
     return bench_main()
 
 
+PLOT_CHOICES = ("free_body", "heavy_top", "tippe_top", "frames", "all")
+
+
+def _cmd_plot(args) -> int:
+    import os
+
+    from .render.common import require_matplotlib
+
+    what = args.what or ["all"]
+    unknown = [w for w in what if w not in PLOT_CHOICES]
+    if unknown:
+        raise ValueError(f"plot: unknown figure {unknown[0]!r}; choose from {', '.join(PLOT_CHOICES)}")
+    require_matplotlib()  # before any simulation: ImportError naming the plot extra
+    from . import plotting
+
+    names = PLOT_CHOICES[:-1] if "all" in what else tuple(dict.fromkeys(what))
+    os.makedirs(args.out, exist_ok=True)
+    # --quick: short runs for a smoke test (the tippe top with viscous friction, 10 s)
+    quick = {"free_body": dict(max_time=20.0), "heavy_top": dict(duration=1.0), "tippe_top": dict(duration=10.0, friction_law="viscous")}
+    for name in names:
+        if name == "frames":
+            for path in plotting.render_frames(args.out):
+                print(f"wrote {path}")
+            continue
+        func, filename = plotting.PLOTS[name]
+        path = func(os.path.join(args.out, filename), **(quick[name] if args.quick else {}))
+        print(f"wrote {path}")
+    return 0
+
+
 def _print_table(rows) -> None:
     widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
     for n, row in enumerate(rows):
@@ -150,6 +183,11 @@ def build_parser() -> argparse.ArgumentParser:
     bench_sub.add_parser("fidelity", help="tippe top: cost of each fidelity level against gliding").set_defaults(func=_cmd_bench_fidelity)
     # `bench throughput` has its own parser (rbenvs.bench.throughput.main); main() hands it the rest.
     bench_sub.add_parser("throughput", help="env-steps/s against Pendulum-v1 and CartPole-v1's vector env (see its --help)")
+    plot = sub.add_parser("plot", help="PNG figures of the three systems against their oracles, and rendered frames (plot extra)")
+    plot.add_argument("what", nargs="*", metavar="WHAT", help=f"figures to draw, of {', '.join(PLOT_CHOICES)} (default: all)")
+    plot.add_argument("--out", default="docs", help="output folder (default: %(default)s)")
+    plot.add_argument("--quick", action="store_true", help="short simulations (a smoke test; not the committed pictures)")
+    plot.set_defaults(func=_cmd_plot)
     return parser
 
 

@@ -162,7 +162,9 @@ class Renderer:
         self.figure = Figure(figsize=(w / _DPI, h / _DPI), dpi=_DPI)
         self.canvas = FigureCanvasAgg(self.figure)
         self.figure.subplots_adjust(left=0.0, right=1.0, bottom=0.0, top=0.94)
-        self.axes = self.figure.add_subplot(projection="3d")
+        # drawn in call order: the body (its faces depth-sorted), then lines, vectors and points
+        # on top, so a vector that starts inside the body stays visible
+        self.axes = self.figure.add_subplot(projection="3d", computed_zorder=False)
         self._window = None  # (pyplot module, figure, image) once a window is open
         self._headless = None
 

@@ -1,0 +1,307 @@
+"""Figures of the three systems, simulated with the package's own environments and drawn with
+the analytic results over them (``rbenvs plot``; PNG files; matplotlib, the ``plot`` extra,
+imported only here and only when a figure is drawn).
+
+* :func:`plot_free_body`: trajectories of ``Pi`` on one momentum sphere, with the intersections
+  of the sphere and the energy ellipsoids (physics.md §1, seed Fig. 15.3.1) and the
+  intermediate-axis separatrix.
+* :func:`plot_heavy_top`: tilt and precession rate of a fast top released without precession,
+  with the fast-top nutation bounds and mean rate (seed 2, 3.76-3.78), and of a top started on
+  its regular precession, with the slow root of (3.82).
+* :func:`plot_tippe_top`: tilt, energy and Jellett's integral of the inverting tippe top, with
+  the final tilt and the least energy ``E*`` that Jellett's integral allows (physics.md §3).
+* :func:`render_frames`: one ``render_mode="rgb_array"`` frame per system.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .render.common import require_matplotlib
+from .render.free_body import momentum_orbit
+
+__all__ = ["plot_free_body", "plot_heavy_top", "plot_tippe_top", "render_frames", "PLOTS"]
+
+
+def _figure(figsize):
+    Figure, FigureCanvasAgg = require_matplotlib()
+    fig = Figure(figsize=figsize, dpi=100)
+    FigureCanvasAgg(fig)
+    return fig
+
+
+def _save(fig, path) -> str:
+    fig.savefig(str(path), format="png")
+    return str(path)
+
+
+def _run_zero_action(env, state, steps, stop=None):
+    """Step ``env`` from ``state`` with zero action; the list of states (tuples) after reset and
+    every step, stopping early when ``stop(info)`` is true."""
+    env.reset(seed=0, options={"state": state} if state is not None else None)
+    a = np.zeros(env.action_space.shape, dtype=np.float32)
+    ys = [env._y]
+    for _ in range(steps):
+        _, _, _, _, info = env.step(a)
+        ys.append(env._y)
+        if stop is not None and stop(info):
+            break
+    return ys
+
+
+# ---------------------------------------------------------------------------------- free body
+def _visible_split(points, view_dir):
+    """``(front, back)``: copies of ``points`` (n, 3) with the points on the hidden (resp.
+    visible) half of the sphere replaced by nan, so a line breaks where it goes round."""
+    front = np.array(points, dtype=float)
+    back = front.copy()
+    facing = front @ view_dir >= 0.0
+    front[~facing] = np.nan
+    back[facing] = np.nan
+    return front, back
+
+
+def _separatrix(inertia, r, n=400):
+    """The two great circles of the separatrix on ``|Pi| = r`` (``2 H = r^2 / I_mid``): the
+    planes through the intermediate axis where ``(1/I_max - 1/I_mid) P_max^2 +
+    (1/I_min - 1/I_mid) P_min^2 = 0``."""
+    inertia = np.asarray(inertia, dtype=float)
+    lo, mid, hi = np.argsort(inertia)
+    s = math.sqrt((1.0 / inertia[mid] - 1.0 / inertia[hi]) / (1.0 / inertia[lo] - 1.0 / inertia[mid]))
+    t = np.linspace(0.0, 2.0 * np.pi, n)
+    out = []
+    for sign in (1.0, -1.0):
+        n_vec = np.zeros(3)
+        n_vec[hi], n_vec[lo] = 1.0, sign * s
+        n_vec /= np.linalg.norm(n_vec)
+        e = np.zeros(3)
+        e[mid] = 1.0
+        out.append(r * (np.cos(t)[:, None] * e + np.sin(t)[:, None] * n_vec))
+    return out
+
+
+def plot_free_body(path, inertia=(2.0, 1.5, 1.0), dt=0.02, max_time=60.0, integrator="rk4"):
+    """Trajectories of ``Pi`` on the sphere ``|Pi| = 1`` (:class:`rbenvs.envs.FreeRigidBodyEnv`,
+    zero torque, each for one period of its orbit or ``max_time`` s), the analytic orbits (the
+    sphere cut by the energy ellipsoid through each start, dotted) and the separatrix (black)
+    through the intermediate axis. Returns ``path``."""
+    from .envs import FreeRigidBodyEnv
+    from .oracles import orbit_period
+
+    inertia = tuple(float(v) for v in inertia)
+    env = FreeRigidBodyEnv(inertia=inertia, task="spin", axis=0, integrator=integrator, dt=dt, max_angular_velocity=10.0 / min(inertia) + 10.0)
+    lo, mid, hi = np.argsort(inertia)
+    starts = []
+    # around the major and the minor axis at growing distance, and one just off the
+    # intermediate axis (it follows the separatrix round to the opposite side: the flip)
+    for axis, angles in ((hi, (0.25, 0.5, 0.75, 1.0)), (lo, (0.25, 0.5, 0.75, 1.0))):
+        other = mid
+        for ang in angles:
+            p = np.zeros(3)
+            p[axis], p[other] = math.cos(ang), math.sin(ang)
+            starts.append(p)
+    p = np.zeros(3)
+    p[mid], p[hi] = math.cos(0.02), math.sin(0.02)
+    starts.append(p)
+    view = (22.0, 35.0)
+    el, az = np.radians(view[0]), np.radians(view[1])
+    view_dir = np.array([math.cos(el) * math.cos(az), math.cos(el) * math.sin(az), math.sin(el)])
+
+    fig = _figure((7.0, 7.0))
+    ax = fig.add_subplot(projection="3d", computed_zorder=False)  # drawn in call order
+    u, v = np.mgrid[0.0 : 2.0 * np.pi : 37j, 0.0 : np.pi : 19j]
+    ax.plot_wireframe(np.cos(u) * np.sin(v), np.sin(u) * np.sin(v), np.cos(v), color="#cccccc", lw=0.3)
+    cmap_major, cmap_minor = ("#1f77b4", "#6baed6"), ("#d62728", "#fc9272")
+    for k, circle in enumerate(_separatrix(inertia, 1.0)):
+        f, b = _visible_split(circle, view_dir)
+        ax.plot(*f.T, color="k", lw=1.0, ls="--", label="separatrix (2H = |Pi|^2 / I_mid)" if k == 0 else None)
+        ax.plot(*b.T, color="k", lw=0.6, ls="--", alpha=0.25)
+    for n, p0 in enumerate(starts):
+        period = orbit_period(inertia, p0)
+        t_end = min(1.02 * period, max_time) if math.isfinite(period) else max_time
+        steps = int(math.ceil(t_end / dt))
+        ys = _run_zero_action(env, {"angular_momentum": p0}, steps)
+        traj = np.array([y[0:3] for y in ys])
+        last = n == len(starts) - 1
+        color = "#2ca02c" if last else (cmap_major if n < 4 else cmap_minor)[n % 2]
+        front, back = _visible_split(traj, view_dir)
+        label = None
+        if n == 0:
+            label = "simulated, around the major axis"
+        elif n == 4:
+            label = "simulated, around the minor axis"
+        elif n == len(starts) - 1:
+            label = "simulated, from 0.02 rad off the intermediate axis"
+        ax.plot(*front.T, color=color, lw=2.4 if last else 1.8, label=label)
+        ax.plot(*back.T, color=color, lw=0.8, alpha=0.3)
+        orbit = momentum_orbit(inertia, p0)
+        if orbit is not None:
+            f, _ = _visible_split(orbit, view_dir)
+            ax.plot(*f.T, color="k", lw=0.8, ls=":", label="sphere cut by the energy ellipsoid" if n == 0 else None)
+    names = {hi: "major", mid: "intermediate", lo: "minor"}
+    for i in range(3):
+        e = np.zeros(3)
+        e[i] = 1.25
+        ax.plot([0, e[0]], [0, e[1]], [0, e[2]], color="#555555", lw=0.8)
+        ax.text(*(1.32 * e / 1.25), f"Pi{i + 1} ({names[i]}, I={inertia[i]:g})", fontsize=8)
+    ax.set_box_aspect((1, 1, 1))
+    ax.set_xlim(-1.1, 1.1)
+    ax.set_ylim(-1.1, 1.1)
+    ax.set_zlim(-1.1, 1.1)
+    ax.view_init(elev=view[0], azim=view[1])
+    ax.set_xlabel("Pi1")
+    ax.set_ylabel("Pi2")
+    ax.set_zlabel("Pi3")
+    ax.set_title(f"Free rigid body: Pi on the sphere |Pi| = 1, inertia {inertia}\n(FreeRigidBody-v0, zero torque, {integrator}, dt = {dt} s; hidden side faint)", fontsize=10)
+    ax.legend(loc="lower left", fontsize=7)
+    return _save(fig, path)
+
+
+# ---------------------------------------------------------------------------------- heavy top
+def plot_heavy_top(path, spin_factor=4.0, tilt=0.5, duration=3.0, dt=0.002):
+    """Tilt and precession rate of the default Lagrange top (:class:`rbenvs.envs.LagrangeTopEnv`,
+    zero torque, splitting) spun at ``spin_factor`` times the critical spin, (a) released at
+    ``tilt`` with no precession: it nods between ``tilt`` and the fast-top bound ``beta`` (3.76)
+    and drifts at the mean rate ``m g l/(C n)`` (3.78); (b) started on its slow regular
+    precession (3.82): tilt and rate stay put. Returns ``path``."""
+    from .envs import LagrangeTopEnv
+    from .oracles import fast_top_nutation, regular_precession_rates
+
+    probe = LagrangeTopEnv()
+    n = float(spin_factor) * probe.critical_spin
+    env = LagrangeTopEnv(task="upright", spin=n, tilt_limit=math.pi, dt=dt, max_angular_velocity=max(100.0, 4.0 * abs(n)))
+    prm = env.params
+    A, C = prm.transverse_inertia, prm.axial_inertia
+    I = np.asarray(prm.inertia, dtype=float)
+    gamma = np.array([math.sin(tilt), 0.0, math.cos(tilt)])
+    chi = np.array([0.0, 0.0, 1.0])
+    nut = fast_top_nutation(A, C, prm.mass, prm.length, prm.gravity, n, tilt)
+    p_slow = regular_precession_rates(A, C, prm.mass, prm.length, prm.gravity, n, tilt).slow
+    steps = int(round(duration / dt))
+    runs = []
+    for label, omega in (
+        ("released without precession", n * chi),
+        ("started on the slow regular precession", p_slow * gamma + (n - p_slow * math.cos(tilt)) * chi),
+    ):
+        ys = _run_zero_action(env, {"angular_momentum": I * omega, "vertical": gamma}, steps)
+        t = np.arange(len(ys)) * dt
+        runs.append((label, t, np.array([env.system.tilt(y) for y in ys]), np.array([env.system.precession_rate(y) for y in ys])))
+
+    fig = _figure((8.0, 6.5))
+    ax1, ax2 = fig.add_subplot(2, 1, 1), fig.add_subplot(2, 1, 2)
+    colors = ("#1f77b4", "#d62728")
+    for (label, t, th, rate), c in zip(runs, colors):
+        ax1.plot(t, np.degrees(th), color=c, lw=1.2, label=f"simulated, {label}")
+        ax2.plot(t, rate, color=c, lw=1.2, label=f"simulated, {label}")
+    ax1.axhline(math.degrees(tilt), color="k", ls=":", lw=1, label="release tilt alpha (upper turning point)")
+    ax1.axhline(math.degrees(tilt + nut.angle_amplitude), color="k", ls="--", lw=1, label="fast-top bound beta = alpha + 2 A m g l sin(alpha)/(C n)^2 (3.79)")
+    ax1.axhline(math.degrees(nut.mean_tilt), color="#2ca02c", ls="-.", lw=1, label="mean tilt (3.77)")
+    ax2.axhline(nut.mean_precession_rate, color="k", ls="--", lw=1, label="fast-top mean rate m g l/(C n) (3.78)")
+    ax2.axhline(p_slow, color="#ff7f0e", ls=":", lw=1.5, label="slow root of A p^2 cos(alpha) - C n p + m g l = 0 (3.82)")
+    ax1.set_ylabel("tilt [deg]")
+    ax2.set_ylabel("precession rate [rad/s]")
+    ax2.set_xlabel("time [s]")
+    ax1.set_title(
+        f"Lagrange top (LagrangeTop-v0, zero torque), spin n = {n:.3g} rad/s = {spin_factor:g} x critical, alpha = {tilt} rad\n"
+        f"nutation period 2 pi A/(C n) = {nut.period:.3g} s, expansion parameter {nut.expansion_parameter:.2g}",
+        fontsize=9,
+    )
+    for ax in (ax1, ax2):
+        ax.legend(fontsize=7, loc="upper right")
+        ax.grid(alpha=0.3)
+    ax1.set_ylim(math.degrees(tilt) - 0.2 * math.degrees(nut.angle_amplitude) - 0.05, math.degrees(tilt + 2.2 * nut.angle_amplitude))
+    fig.tight_layout()
+    return _save(fig, path)
+
+
+# ---------------------------------------------------------------------------------- tippe top
+def plot_tippe_top(path, duration=25.0, **env_kwargs):
+    """Tilt, energy and Jellett's integral of the tippe top (:class:`rbenvs.envs.TippeTopEnv`
+    with ``env_kwargs``; default: the Leine-Glocker top at 150 rad/s, Coulomb friction) under
+    zero action for ``duration`` s (on past the task's end at 150 deg, until lift-off or a
+    numerical failure), with the final tilt and the least energy ``E*`` at that tilt allowed by
+    the initial Jellett's integral (physics.md §3). Returns ``path``."""
+    from .envs import TippeTopEnv
+    from .oracles import energy_star, final_tilt
+
+    env = TippeTopEnv(**env_kwargs)
+    s, prm = env.system, env.params
+    steps = int(math.ceil(duration / env.dt))
+    ys = _run_zero_action(env, None, steps, stop=lambda info: info.get("terminal_reason") in ("lift_off", "numerical_failure"))
+    t = np.arange(len(ys)) * env.dt
+    tilt = np.degrees([s.tilt(y) for y in ys])
+    energy = np.array([s.energy(y) for y in ys])
+    jell = np.array([s.jellett(y) for y in ys])
+    A, C = prm.inertia
+    args = (prm.mass, prm.gravity, prm.radius, prm.offset, A, C)
+    theta_f = final_tilt(jell[0], *args)
+    e_min = energy_star(theta_f, jell[0], *args)
+
+    fig = _figure((8.0, 8.0))
+    ax1, ax2, ax3 = (fig.add_subplot(3, 1, k) for k in (1, 2, 3))
+    ax1.plot(t, tilt, color="#1f77b4", lw=1.3, label="simulated tilt")
+    ax1.axhline(math.degrees(theta_f), color="k", ls="--", lw=1, label="final tilt predicted from J (minimum of E*)")
+    for deg in (90.0, 150.0):
+        cross = np.flatnonzero(tilt >= deg)
+        if cross.size:
+            ax1.axvline(t[cross[0]], color="#888888", ls=":", lw=1)
+            ax1.annotate(f"{deg:.0f} deg at {t[cross[0]]:.2f} s", (t[cross[0]], deg), fontsize=7, xytext=(4, -12), textcoords="offset points")
+    ax1.set_ylabel("tilt theta [deg]")
+    ax2.plot(t, energy * 1e3, color="#d62728", lw=1.3, label="simulated energy")
+    ax2.axhline(e_min * 1e3, color="k", ls="--", lw=1, label="E*(final tilt): least energy at this J")
+    ax2.set_ylabel("energy [mJ]")
+    ax3.plot(t, jell / jell[0] - 1.0, color="#2ca02c", lw=1.3, label="J(t)/J(0) - 1")
+    ax3.axhline(0.0, color="k", lw=0.8)
+    ax3.set_ylabel("Jellett's integral\nrelative change")
+    ax3.set_xlabel("time [s]")
+    ax3.ticklabel_format(axis="y", style="sci", scilimits=(-2, 2))
+    law = prm.friction_law if s.friction_law is not None else s.fidelity
+    ax1.set_title(
+        f"Tippe top (TippeTop-v0, zero action, {law}, {env.integrator.name}, dt = {env.dt} s)\n"
+        f"A/C = {A / C:.3g}, alpha = {prm.offset}, J = {jell[0]:.4g} kg m^2/s",
+        fontsize=9,
+    )
+    for ax in (ax1, ax2, ax3):
+        ax.legend(fontsize=7, loc="best")
+        ax.grid(alpha=0.3)
+    fig.tight_layout()
+    return _save(fig, path)
+
+
+# ---------------------------------------------------------------------------------- frames
+def render_frames(directory, prefix="render_"):
+    """One ``rgb_array`` frame per system, at a moment that shows its motion: the free body
+    mid-flip off its intermediate axis, the top precessing, the tippe top half-way up.
+    Returns the paths written."""
+    import os
+
+    from .envs import FreeRigidBodyEnv, LagrangeTopEnv, TippeTopEnv
+
+    Figure, FigureCanvasAgg = require_matplotlib()
+    scenes = (
+        ("free_body", FreeRigidBodyEnv(render_mode="rgb_array"), 200),
+        ("heavy_top", LagrangeTopEnv(task="precess", attitude=True, render_mode="rgb_array"), 40),
+        ("tippe_top", TippeTopEnv(render_mode="rgb_array"), 700),
+    )
+    paths = []
+    for name, env, steps in scenes:
+        _run_zero_action(env, None, steps)
+        frame = env.render()
+        fig = Figure(figsize=(frame.shape[1] / 100, frame.shape[0] / 100), dpi=100)
+        FigureCanvasAgg(fig)
+        fig.figimage(frame)
+        path = os.path.join(str(directory), f"{prefix}{name}.png")
+        fig.savefig(path, dpi=100, format="png")
+        env.close()
+        paths.append(path)
+    return paths
+
+
+# name -> (function, file name) for ``rbenvs plot``
+PLOTS = {
+    "free_body": (plot_free_body, "plot_free_body.png"),
+    "heavy_top": (plot_heavy_top, "plot_heavy_top.png"),
+    "tippe_top": (plot_tippe_top, "plot_tippe_top.png"),
+}

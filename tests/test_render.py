@@ -1,0 +1,212 @@
+"""Rendering (render_mode rgb_array and human) and the figures of rbenvs.plotting."""
+
+import pickle
+import subprocess
+import sys
+import warnings
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from gymnasium.utils.env_checker import check_env
+
+from conftest import ENV_IDS
+from rbenvs.render import FRAME_SIZE
+
+# a state of each system far from its default start, to see the frame change
+OTHER_STATE = {
+    "rbenvs/FreeRigidBody-v0": {"angular_momentum": np.array([1.2, -0.3, 0.5])},
+    "rbenvs/LagrangeTop-v0": {"angular_momentum": np.array([0.1, 0.0, 1.5]), "vertical": np.array([np.sin(0.6), 0.0, np.cos(0.6)])},
+}
+
+
+@pytest.fixture(autouse=True)
+def headless(monkeypatch):
+    # "human" must not open a window or fail on a machine without a display
+    monkeypatch.delenv("DISPLAY", raising=False)
+    monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
+
+
+def _colours(frame):
+    return len(np.unique(frame.reshape(-1, 3), axis=0))
+
+
+@pytest.mark.parametrize("env_id", ENV_IDS)
+def test_frame_shape_dtype_and_content(env_id):
+    env = gym.make(env_id, render_mode="rgb_array")
+    env.reset(seed=0)
+    frame = env.render()
+    assert isinstance(frame, np.ndarray) and frame.dtype == np.uint8
+    assert frame.shape == FRAME_SIZE + (3,)
+    assert _colours(frame) > 50  # body, vectors, text: not a blank image
+    # the frames of an episode keep one shape (what RecordVideo needs)
+    for _ in range(3):
+        env.step(env.action_space.sample())
+        assert env.render().shape == frame.shape
+    env.close()
+
+
+@pytest.mark.parametrize("env_id", ENV_IDS)
+def test_frame_changes_with_the_state(env_id):
+    env = gym.make(env_id, render_mode="rgb_array")
+    env.reset(seed=0)
+    first = env.render()
+    if env_id in OTHER_STATE:
+        env.reset(options={"state": OTHER_STATE[env_id]})
+    else:  # the tippe top: 0.1 s on (it turns 15 rad about its axis)
+        for _ in range(10):
+            env.step(np.zeros(env.action_space.shape, dtype=np.float32))
+    second = env.render()
+    assert np.mean(np.any(first != second, axis=2)) > 0.01
+
+
+@pytest.mark.parametrize("env_id", ENV_IDS)
+def test_check_env_render_rgb_array(env_id):
+    # gymnasium's render check: metadata render_modes and render_fps, the frame's type, and a
+    # fresh env for every declared mode (human included, headless here)
+    env = gym.make(env_id, render_mode="rgb_array")
+    assert env.metadata["render_fps"] == round(1.0 / env.unwrapped.dt)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        check_env(env.unwrapped)
+
+
+@pytest.mark.parametrize("env_id", ENV_IDS)
+def test_rendering_does_not_change_the_trajectory(env_id):
+    def rollout(render_mode):
+        env = gym.make(env_id, render_mode=render_mode)
+        env.action_space.seed(1)
+        obs, info = env.reset(seed=1)
+        out = [(obs, info)]
+        for _ in range(6):
+            if render_mode is not None:
+                env.render()
+            out.append(env.step(env.action_space.sample()))
+        return out, env.unwrapped.get_state()
+
+    plain, plain_state = rollout(None)
+    drawn, drawn_state = rollout("rgb_array")
+    for a, b in zip(plain, drawn):
+        for x, y in zip(a, b):
+            if isinstance(x, np.ndarray):
+                assert x.tobytes() == y.tobytes()
+            else:
+                assert x == y
+    for name in plain_state:
+        assert plain_state[name].tobytes() == drawn_state[name].tobytes()
+
+
+def test_rendering_off_costs_nothing():
+    # no render mode: the class's step runs (no per-instance wrapper) and matplotlib is never
+    # imported, whatever is stepped
+    code = (
+        "import sys, gymnasium as gym, rbenvs\n"
+        "for eid in rbenvs.ENVIRONMENTS:\n"
+        "    env = gym.make(eid)\n"
+        "    env.reset(seed=0)\n"
+        "    env.step(env.action_space.sample())\n"
+        "    assert 'step' not in vars(env.unwrapped) and env.unwrapped._renderer is None\n"
+        "print(sorted(m for m in sys.modules if m.split('.')[0] in ('matplotlib', 'mpl_toolkits')))\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.strip() == "[]"
+
+
+def test_core_imports_without_matplotlib_and_render_names_the_extra():
+    code = (
+        "import sys\n"
+        "sys.modules['matplotlib'] = None  # blocked: 'import matplotlib' raises ImportError\n"
+        "import gymnasium as gym, rbenvs, rbenvs.render, rbenvs.plotting\n"
+        "env = gym.make('rbenvs/LagrangeTop-v0', render_mode='rgb_array')\n"
+        "env.reset(seed=0)\n"
+        "env.step(env.action_space.sample())\n"
+        "try:\n"
+        "    env.render()\n"
+        "except ImportError as exc:\n"
+        "    print(exc)\n"
+        "try:\n"
+        "    rbenvs.plotting.plot_heavy_top('x.png')\n"
+        "except ImportError as exc:\n"
+        "    print(exc)\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    lines = out.strip().splitlines()
+    assert len(lines) == 2 and all("plot extra" in line and "rbenvs[plot]" in line for line in lines)
+
+
+def test_human_mode_headless_does_not_fail():
+    env = gym.make("rbenvs/FreeRigidBody-v0", render_mode="human")
+    env.reset(seed=0)
+    for _ in range(3):
+        env.step(env.action_space.sample())
+    assert env.render() is None
+    env.close()
+
+
+def test_render_without_mode_and_before_reset():
+    env = gym.make("rbenvs/FreeRigidBody-v0").unwrapped
+    env.reset(seed=0)
+    with pytest.warns(UserWarning, match="render_mode"):
+        assert env.render() is None
+    fresh = gym.make("rbenvs/FreeRigidBody-v0", render_mode="rgb_array").unwrapped
+    with pytest.raises(RuntimeError, match="reset"):
+        fresh.render()
+    with pytest.raises(ValueError, match="render_mode"), warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # gymnasium's own warning about the unknown mode
+        gym.make("rbenvs/FreeRigidBody-v0", render_mode="ansi")
+
+
+def test_pickle_after_render_and_space_frame_scenes():
+    env = gym.make("rbenvs/FreeRigidBody-v0", task="reorient", render_mode="rgb_array").unwrapped
+    env.reset(seed=0)
+    frame = env.render()
+    clone = pickle.loads(pickle.dumps(env))
+    assert clone._renderer is None
+    assert np.array_equal(clone.render(), frame)
+    top = gym.make("rbenvs/LagrangeTop-v0", attitude=True, render_mode="rgb_array").unwrapped
+    top.reset(seed=0)
+    assert top.render().shape == FRAME_SIZE + (3,)
+
+
+def test_scene_geometry():
+    from rbenvs.dynamics import FreeBodyParams
+    from rbenvs.render.free_body import momentum_orbit
+    from rbenvs.render.heavy_top import display_rotation
+
+    inertia = (2.0, 1.5, 1.0)
+    p = np.array([0.3, 0.5, 0.8])
+    orbit = momentum_orbit(FreeBodyParams(inertia).inertia, p)
+    # every point on the orbit has the start's |Pi| and energy
+    assert np.allclose(np.linalg.norm(orbit, axis=1), np.linalg.norm(p))
+    assert np.allclose(np.sum(orbit**2 / np.array(inertia), axis=1), np.sum(p**2 / np.array(inertia)))
+    assert momentum_orbit(inertia, np.zeros(3)) is None
+    gamma, chi = np.array([0.3, -0.2, 0.9]), np.array([0.0, 0.0, 1.0])
+    gamma /= np.linalg.norm(gamma)
+    rot = display_rotation(gamma, chi)
+    assert np.allclose(rot @ rot.T, np.eye(3)) and np.isclose(np.linalg.det(rot), 1.0)
+    assert np.allclose(rot.T @ np.array([0.0, 0.0, 1.0]), gamma)  # R^T e_z = Gamma
+    axis = rot @ chi
+    assert abs(axis[1]) < 1e-12 and axis[0] > 0.0  # leaning toward +x
+
+
+def test_plot_functions_write_pngs(tmp_path):
+    from rbenvs import plotting
+
+    paths = [
+        plotting.plot_free_body(tmp_path / "fb.png", max_time=10.0, dt=0.05),
+        plotting.plot_heavy_top(tmp_path / "ht.png", duration=0.5),
+        plotting.plot_tippe_top(tmp_path / "tt.png", duration=2.0, friction_law="viscous"),
+    ]
+    for path in paths:
+        with open(path, "rb") as f:
+            assert f.read(8) == b"\x89PNG\r\n\x1a\n"
+
+
+def test_plot_command(tmp_path, capsys):
+    from rbenvs.cli import main
+
+    assert main(["plot", "heavy_top", "--quick", "--out", str(tmp_path)]) == 0
+    assert (tmp_path / "plot_heavy_top.png").stat().st_size > 10_000
+    assert "wrote" in capsys.readouterr().out
+    assert main(["plot", "nope", "--out", str(tmp_path)]) == 2
+    assert "unknown figure" in capsys.readouterr().err
