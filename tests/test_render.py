@@ -210,3 +210,13 @@ def test_plot_command(tmp_path, capsys):
     assert "wrote" in capsys.readouterr().out
     assert main(["plot", "nope", "--out", str(tmp_path)]) == 2
     assert "unknown figure" in capsys.readouterr().err
+
+
+def test_render_collection_wrapper_gets_one_frame_per_step():
+    # the frame list a video recorder consumes (RecordVideo itself needs moviepy)
+    env = gym.wrappers.RenderCollection(gym.make("rbenvs/LagrangeTop-v0", render_mode="rgb_array"))
+    env.reset(seed=0)
+    for _ in range(3):
+        env.step(env.action_space.sample())
+    frames = env.render()
+    assert len(frames) == 4 and all(f.shape == FRAME_SIZE + (3,) and f.dtype == np.uint8 for f in frames)
