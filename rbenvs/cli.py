@@ -12,6 +12,9 @@
 * ``rbenvs bench fidelity``: the tippe top's fidelity levels, each against gliding friction.
 * ``rbenvs bench throughput [--quick] [--json PATH]``: env-steps per second, single and vector,
   against Pendulum-v1 and CartPole-v1's native vector env in the same run.
+* ``rbenvs bench accuracy [--quick] [--json PATH] [--plot PNG] [--system NAME]``: error, order,
+  invariant drift and cost of every integrator on every system, and a recommended integrator
+  per scene (:mod:`rbenvs.bench.accuracy`).
 * ``rbenvs plot [WHAT ...] [--out DIR] [--quick]``: PNG figures (:mod:`rbenvs.plotting`; needs
   the ``plot`` extra): ``free_body``, ``heavy_top``, ``tippe_top``, ``frames`` (one rendered
   frame per system) or ``all`` (the default; the pictures under ``docs/``).
@@ -183,6 +186,8 @@ def build_parser() -> argparse.ArgumentParser:
     bench_sub.add_parser("fidelity", help="tippe top: cost of each fidelity level against gliding").set_defaults(func=_cmd_bench_fidelity)
     # `bench throughput` has its own parser (rbenvs.bench.throughput.main); main() hands it the rest.
     bench_sub.add_parser("throughput", help="env-steps/s against Pendulum-v1 and CartPole-v1's vector env (see its --help)")
+    # `bench accuracy` too (rbenvs.bench.accuracy.main).
+    bench_sub.add_parser("accuracy", help="error, order, drift and cost per integrator and system; a step per scene (see its --help)")
     plot = sub.add_parser("plot", help="PNG figures of the three systems against their oracles, and rendered frames (plot extra)")
     plot.add_argument("what", nargs="*", metavar="WHAT", help=f"figures to draw, of {', '.join(PLOT_CHOICES)} (default: all)")
     plot.add_argument("--out", default="docs", help="output folder (default: %(default)s)")
@@ -201,6 +206,10 @@ def main(argv=None) -> int:
         from .bench.throughput import main as throughput_main
 
         return throughput_main(argv[2:])
+    if argv[:2] == ["bench", "accuracy"]:
+        from .bench.accuracy import main as accuracy_main
+
+        return accuracy_main(argv[2:])
     args = build_parser().parse_args(argv)
     if getattr(args, "episodes", 1) < 1:
         print("rbenvs: --episodes must be >= 1", file=sys.stderr)
