@@ -102,7 +102,7 @@ class Case:
 CASES = (
     Case("free_body", "free body (2, 1.5, 1), |Omega| = 1 rad/s", ("euler", "rk4", "splitting", "exact", "dop853"),
          10.0, tuple(0.2 / 2**k for k in range(6)), tuple(0.0125 / 2**k for k in range(6)), 0.05,
-         {"euler": (10**4, 10**6), "rk4": (10**4, 10**6), "splitting": (10**4, 10**6), "exact": (10**4, 10**5), "dop853": (10**3, 10**4)}, True),
+         {"euler": (10**4, 10**6), "rk4": (10**4, 10**6), "splitting": (10**4, 10**6), "exact": (2000, 10**5), "dop853": (10**3, 10**4)}, True),
     Case("heavy_top", "Lagrange top, |Omega| 5-20 rad/s", ("euler", "rk4", "splitting", "dop853"),
          2.0, tuple(0.02 / 2**k for k in range(6)), tuple(5e-5 / 2**k for k in range(4)), 0.02,
          {"euler": (10**4, 10**5), "rk4": (10**4, 10**5), "splitting": (10**4, 10**5), "dop853": (10**3, 10**3)}, True),

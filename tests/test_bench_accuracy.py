@@ -1,0 +1,114 @@
+"""``rbenvs bench accuracy``: the measured orders, drifts and the command's outputs."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+
+import pytest
+
+from rbenvs.bench import accuracy
+from rbenvs.cli import main as cli_main
+from rbenvs.integrators import get_integrator
+from rbenvs.verify.common import ROUND_OFF
+
+CASES = {c.key: c for c in accuracy.CASES}
+
+# Small grids: three halvings in the asymptotic range of each scheme (errors 1e-9 to 1e-2).
+HORIZON = {"free_body": 10.0, "heavy_top": 1.0, "tippe_top": 0.05}
+GRIDS = {
+    ("free_body", "euler"): (0.0125, 0.00625, 0.003125),
+    ("free_body", "rk4"): (0.2, 0.1, 0.05),
+    ("free_body", "splitting"): (0.05, 0.025, 0.0125),
+    ("heavy_top", "euler"): (4e-5, 2e-5, 1e-5),
+    ("heavy_top", "rk4"): (0.01, 0.005, 0.0025),
+    ("heavy_top", "splitting"): (0.01, 0.005, 0.0025),
+    ("tippe_top", "euler"): (1e-5, 5e-6, 2.5e-6),
+    ("tippe_top", "rk4"): (1e-3, 5e-4, 2.5e-4),
+}
+
+
+def small(key, name):
+    grid = GRIDS[(key, name)]
+    return dataclasses.replace(CASES[key], horizon=HORIZON[key], grid=grid, euler_grid=grid)
+
+
+@pytest.mark.parametrize("key, name", list(GRIDS))
+def test_measured_order_matches_declared(key, name):
+    row = accuracy.convergence(small(key, name), name, min_time=1e-3)
+    assert row["order"] is not None, row["points"]
+    assert abs(row["order"] - get_integrator(name).order) < 0.3, row
+    # the error falls with the step at every halving (no point is past the reference's floor)
+    errors = [p["error"] for p in row["points"]]
+    assert all(b < a for a, b in zip(errors, errors[1:])), errors
+
+
+def test_exact_free_flow_is_at_round_off():
+    row = accuracy.convergence(small("free_body", "rk4"), "exact", min_time=1e-3)
+    assert max(p["error"] for p in row["points"]) < 1e-12, row["points"]
+    assert row["order"] is None  # nothing to fit at round-off
+
+
+def test_splitting_keeps_momentum_norm_and_bounds_energy_while_rk4_drifts():
+    case = CASES["free_body"]
+    steps = 10**4
+    split = accuracy.drift(case, "splitting", steps)
+    rk4 = accuracy.drift(case, "rk4", steps)
+    # |Pi| is the splitting's Casimir: round-off, growing at most like sqrt(steps)
+    assert split["drift_long"]["|Pi|"] < ROUND_OFF * steps**0.5
+    # its energy error does not grow from 1e3 to 1e4 steps (bounded: a symplectic scheme)...
+    assert split["drift_long"]["energy"] < 1.5 * split["drift_short"]["energy"]
+    # ...while rk4's grows about linearly with the number of steps
+    assert rk4["drift_long"]["energy"] > 5.0 * rk4["drift_short"]["energy"]
+    assert split["diverged_at"] is None and rk4["diverged_at"] is None
+
+
+def test_fit_order_uses_only_the_asymptotic_range():
+    hs = [0.1, 0.05, 0.025, 0.0125, 0.00625]
+    errors = [0.5, 1e-4 * 16, 1e-4, 1e-4 / 16, 1e-15]  # one point above the ceiling, one at the floor
+    assert accuracy.fit_order(hs, errors, floor=1e-12) == pytest.approx(4.0)
+    assert accuracy.fit_order(hs[:3], errors[:3], floor=1e-12) is None  # two usable points
+
+
+@pytest.fixture(scope="module")
+def quick_run(tmp_path_factory):
+    out = tmp_path_factory.mktemp("accuracy")
+    json_path, png_path = out / "accuracy.json", out / "accuracy.png"
+    rc = cli_main(["bench", "accuracy", "--quick", "--system", "free_body", "--no-progress", "--json", str(json_path), "--plot", str(png_path)])
+    return rc, json_path, png_path
+
+
+def test_json_has_the_documented_keys(quick_run):
+    rc, json_path, _ = quick_run
+    assert rc == 0
+    data = json.loads(json_path.read_text())
+    assert set(data) >= {"cases", "convergence", "drift", "settings"}
+    assert set(data["cases"]["free_body"]) >= {"label", "horizon", "states", "drift_h", "reference", "reference_check"}
+    names = {c["integrator"] for c in data["convergence"]}
+    assert names == {"euler", "rk4", "splitting", "exact", "dop853"}
+    for c in data["convergence"]:
+        assert set(c) >= {"case", "integrator", "declared_order", "order", "points"}
+        for p in c["points"]:
+            assert set(p) >= {"h", "steps", "error", "seconds_per_step", "rhs_per_step", "seconds_per_simulated_second"}
+            assert p["seconds_per_step"] > 0
+    for d in data["drift"]:
+        assert set(d) >= {"case", "integrator", "h", "short_steps", "long_steps", "drift_short", "drift_long", "diverged_at"}
+    rk4 = next(c for c in data["convergence"] if c["integrator"] == "rk4")
+    assert rk4["points"][0]["rhs_per_step"] == 4
+
+
+def test_plot_is_written(quick_run):
+    rc, _, png_path = quick_run
+    assert rc == 0
+    assert png_path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_scene_errors_follow_the_order_and_pick_a_scheme_that_meets_the_target():
+    row = accuracy.run_scenes(["spin_major"], seeds=1, min_time=1e-3)[0]
+    euler = [c for c in row["candidates"] if c["integrator"] == "euler"]
+    # doubling the substeps halves euler's error over the episode (first order)
+    for a, b in zip(euler, euler[1:]):
+        assert b["error"] / a["error"] == pytest.approx(0.5, abs=0.1)
+    rec = row["recommended"]
+    chosen = next(c for c in row["candidates"] if (c["integrator"], c["substeps"]) == (rec["integrator"], rec["substeps"]))
+    assert chosen["error"] <= accuracy.TARGET
