@@ -39,6 +39,11 @@ Measured per case and integrator:
   and ``Pi.Gamma``, 1 for ``|Gamma|``, ``|L| (R + h)`` for Jellett's integral. A run that
   passes a drift of 1 (100%) or goes non-finite stops there: ``diverged at step k``.
 
+MuJoCo (``--mujoco``, on when the ``mujoco`` extra is installed): the free-body case as a
+free-floating body with the same principal moments and zero gravity, under MuJoCo's ``Euler``,
+``RK4``, ``implicit`` and ``implicitfast`` integrators, on the same grids and states
+(:func:`mujoco_free_body`; its long run is 1e5 steps, state by state).
+
 ``--quick`` runs shorter grids and long runs (CI); ``--json PATH`` writes every figure;
 ``--plot PATH.png`` draws the work-precision figure (needs matplotlib, the ``plot`` extra).
 
@@ -72,7 +77,7 @@ from ..integrators.reference import Dop853
 from ..verify.tippe_top import _Floats
 from .throughput import _episode_stepper, _progress, _timed
 
-__all__ = ["CASES", "REFERENCE", "TARGET", "Case", "run", "run_scenes", "fit_order", "convergence", "drift", "print_report", "print_scenes", "plot", "main"]
+__all__ = ["CASES", "REFERENCE", "TARGET", "Case", "run", "run_scenes", "fit_order", "convergence", "drift", "mujoco_free_body", "print_report", "print_scenes", "plot", "main"]
 
 FIT_FLOOR = {"exact": 1e-12, "dop853": 1e-10}  # by the reference's kind
 FIT_CEILING = 1e-2
@@ -307,8 +312,9 @@ def drift(case, name, steps, setup=None, short=1000, samples=1000):
             "drift_long": worst, "diverged_at": diverged, "seconds": elapsed}
 
 
-def run(systems=None, quick=False, progress=None, min_time=None) -> dict:
-    """Convergence and drift of every case in ``systems`` (default all)."""
+def run(systems=None, quick=False, progress=None, min_time=None, mujoco=True) -> dict:
+    """Convergence and drift of every case in ``systems`` (default all); with ``mujoco`` (and
+    the package installed) MuJoCo's integrators on the free body too."""
     cases = [c for c in CASES if systems is None or c.key in systems]
     min_time = (0.02 if quick else 0.1) if min_time is None else min_time
     result = {"cases": {}, "convergence": [], "drift": []}
@@ -328,7 +334,89 @@ def run(systems=None, quick=False, progress=None, min_time=None) -> dict:
             result["drift"].append(drift(case, name, case.long_steps[name][0 if quick else 1], setup=setup))
             if progress:
                 progress()
+        if case.key == "free_body" and mujoco:
+            conv, drifts = mujoco_free_body(quick=quick, min_time=min_time)
+            result["convergence"] += conv
+            result["drift"] += drifts
     return result
+
+
+# ------------------------------------------------------------------------------------ MuJoCo
+MUJOCO_INTEGRATORS = {"Euler": 1, "RK4": 4, "implicit": 1, "implicitfast": 1}  # MuJoCo's, with their orders
+
+
+def mujoco_free_body(quick=False, min_time=0.1):
+    """The free-body case in MuJoCo (the ``mujoco`` extra): a free-floating body with the same
+    principal moments and zero gravity, the same start states (``Omega = I^-1 Pi`` as the free
+    joint's body-frame angular velocity), each MuJoCo integrator on the same grid; ``Pi = I
+    Omega`` at ``T`` against the exact solution, and the energy and ``|Pi|`` drift at the case's
+    ``drift h`` over 1e3 steps and 1e5 (1e4 with ``quick``). Empty if mujoco is not installed."""
+    try:
+        import mujoco
+    except ImportError:
+        return [], []
+    from ..oracles import exact_solution
+
+    case = CASES[0]
+    system, y0, invariants = _setup(case.key)
+    inertia = np.array(system.params.inertia)
+    pi0 = np.array(y0)
+    ref = np.array(exact_solution(tuple(inertia), pi0, case.horizon))
+
+    def model(integrator, h):
+        xml = (f'<mujoco><option gravity="0 0 0" integrator="{integrator}" timestep="{float(h)!r}"/><worldbody><body><freejoint/>'
+               f'<inertial pos="0 0 0" mass="1" diaginertia="{float(inertia[0])!r} {float(inertia[1])!r} {float(inertia[2])!r}"/></body></worldbody></mujoco>')
+        m = mujoco.MjModel.from_xml_string(xml)
+        return m, mujoco.MjData(m)
+
+    def start(m, d, i):
+        mujoco.mj_resetData(m, d)
+        d.qvel[3:6] = pi0[:, i] / inertia
+
+    conv, drifts = [], []
+    for name, order in MUJOCO_INTEGRATORS.items():
+        grid = case.euler_grid if order == 1 else case.grid
+        grid = grid[:QUICK_POINTS] if quick else grid
+        points = []
+        for h in grid:
+            n = int(round(case.horizon / h))
+            m, d = model(name, case.horizon / n)
+            out = []
+            for i in range(pi0.shape[1]):
+                start(m, d, i)
+                for _ in range(n):
+                    mujoco.mj_step(m, d)
+                out.append(d.qvel[3:6] * inertia)
+            y = np.array(out).T
+            start(m, d, 0)
+            seconds = _timed(lambda: mujoco.mj_step(m, d), min_time, 3)
+            err = float(np.max(np.linalg.norm(y - ref, axis=0) / np.linalg.norm(pi0, axis=0)))
+            points.append({"h": case.horizon / n, "steps": n, "error": err, "seconds_per_step": seconds, "rhs_per_step": None,
+                           "seconds_per_simulated_second": seconds * n / case.horizon})
+        fitted = fit_order([p["h"] for p in points], [p["error"] for p in points], FIT_FLOOR["exact"])
+        conv.append({"case": case.key, "integrator": f"mujoco {name}", "declared_order": order, "order": fitted, "points": points})
+        steps = 10**4 if quick else 10**5
+        m, d = model(name, case.drift_h)
+        short, long_, diverged = {k: 0.0 for k in invariants}, {k: 0.0 for k in invariants}, None
+        every = max(1, steps // 100)
+        for i in range(pi0.shape[1]):
+            start(m, d, i)
+            for k in range(1, steps + 1):
+                mujoco.mj_step(m, d)
+                if k % every and k != 1000:
+                    continue
+                for key, (f, scale) in invariants.items():
+                    change = abs(float(f(tuple(d.qvel[3:6] * inertia))) - float(f(tuple(pi0[:, i])))) / float(np.asarray(scale)[i])
+                    change = change if math.isfinite(change) else math.inf
+                    long_[key] = max(long_[key], change)
+                    if k <= 1000:
+                        short[key] = max(short[key], change)
+                if max(long_.values()) > DIVERGED:  # (MuJoCo resets an unstable state: stop at the first sign)
+                    diverged = k if diverged is None else min(diverged, k)
+                    break
+        drifts.append({"case": case.key, "integrator": f"mujoco {name}", "h": case.drift_h, "short_steps": 1000, "long_steps": steps,
+                       "drift_short": None if diverged is not None and diverged < 1000 else short, "drift_long": long_, "diverged_at": diverged, "seconds": None})
+    return conv, drifts
 
 
 def progress_total(systems=None, quick=False):
@@ -449,7 +537,7 @@ def print_report(result, file=None):
         for c in (c for c in result["convergence"] if c["case"] == key):
             pts = c["points"]
             order = "round-off" if c["integrator"] == "exact" and max(p["error"] for p in pts) < 1e-12 else _g(c["order"], ".2f")
-            rhs = "adaptive" if c["integrator"] == "dop853" else str(pts[0]["rhs_per_step"])
+            rhs = "adaptive" if c["integrator"] == "dop853" else _g(pts[0]["rhs_per_step"], "d")
             us = min(p["seconds_per_step"] for p in pts) * 1e6
             errs = "  ".join(f"{p['h']:.2e}:{p['error']:.1e}" for p in pts)
             print(f"{c['integrator']:<10} {order:>6} {c['declared_order']:>8} {rhs:>8} {us:>8.2f}  {errs}", file=file)
@@ -495,14 +583,16 @@ def plot(result, path):
         raise RuntimeError("--plot needs matplotlib: pip install 'rbenvs[plot]'") from None
     keys = list(result["cases"])
     fig, axes = plt.subplots(1, len(keys), figsize=(4.2 * len(keys), 4.0), squeeze=False)
-    colors = {"euler": "C0", "rk4": "C1", "splitting": "C2", "exact": "C3", "dop853": "C4"}
+    colors = {"euler": "C0", "rk4": "C1", "splitting": "C2", "exact": "C3", "dop853": "C4",
+              "mujoco Euler": "C5", "mujoco RK4": "C6", "mujoco implicit": "C7", "mujoco implicitfast": "C8"}
     for ax, key in zip(axes[0], keys):
         for c in (c for c in result["convergence"] if c["case"] == key):
             pts = c["points"]
             x = [p["seconds_per_simulated_second"] for p in pts]
             y = [max(p["error"], 1e-17) for p in pts]
             label = c["integrator"] + ("" if c["order"] is None else f" (order {c['order']:.2f})")
-            ax.loglog(x, y, "o-", color=colors.get(c["integrator"]), label=label, ms=3)
+            style = "s--" if c["integrator"].startswith("mujoco") else "o-"
+            ax.loglog(x, y, style, color=colors.get(c["integrator"]), label=label, ms=3)
         info = result["cases"][key]
         ax.set_title(f"{key} (T = {info['horizon']:g} s)", fontsize=9)
         ax.set_xlabel("CPU seconds per simulated second (one state)")
@@ -523,6 +613,8 @@ def main(argv=None) -> int:
     parser.add_argument("--plot", metavar="PATH", help="draw the work-precision figure to this PNG (needs matplotlib)")
     parser.add_argument("--system", action="append", choices=keys, help="restrict to these cases (repeatable; default all)")
     parser.add_argument("--scenes", action=argparse.BooleanOptionalAction, default=None, help="the per-scene recommendation (default: on, off with --quick)")
+    parser.add_argument("--mujoco", action=argparse.BooleanOptionalAction, default=True,
+                        help="MuJoCo's integrators on the free body when mujoco is installed (the mujoco extra; default: on)")
     parser.add_argument("--no-progress", action="store_true")
     args = parser.parse_args(argv)
     if args.plot:  # fail before the long run if the plot cannot be drawn
@@ -533,7 +625,7 @@ def main(argv=None) -> int:
             return 2
     scenes = (not args.quick) if args.scenes is None else args.scenes
     update, bar = _progress(progress_total(args.system, args.quick), not args.no_progress)
-    result = run(systems=args.system, quick=args.quick, progress=update)
+    result = run(systems=args.system, quick=args.quick, progress=update, mujoco=args.mujoco)
     if bar is not None:
         bar.close()
     if scenes:
