@@ -47,7 +47,7 @@ from gymnasium.vector.utils import batch_space
 
 from .dynamics.validation import require_int_at_least
 from .envs import FreeRigidBodyEnv, LagrangeTopEnv, NumericalFailureWarning, TippeTopEnv
-from .envs.base import MAX_INTERNAL_STEPS, RigidBodyEnv
+from .envs.base import MAX_INTERNAL_STEPS
 
 __all__ = ["RigidBodyVectorEnv", "FreeRigidBodyVectorEnv", "LagrangeTopVectorEnv", "TippeTopVectorEnv"]
 
@@ -245,7 +245,8 @@ class RigidBodyVectorEnv(VectorEnv):
         """
         env, integ, system = self.env, self.integrator, self.system
         n_env = self.num_envs
-        if env.event_name is None and type(env)._internal_steps is RigidBodyEnv._internal_steps:
+        post = env._after_internal_step
+        if env._plain_advance:
             # the common case (fixed substeps, no events): the single env's plain loop
             h = env._h
             for _ in range(env.substeps):
@@ -266,7 +267,9 @@ class RigidBodyVectorEnv(VectorEnv):
                 sub_y = tuple(c[idx] for c in y)
                 sub_u = tuple(c[idx] if np.ndim(c) else c for c in u)
                 for _ in range(int(k)):
-                    sub_y = integ.step(system, sub_y, sub_u, env.dt / int(k))
+                    sub_prev, sub_y = sub_y, integ.step(system, sub_y, sub_u, env.dt / int(k))
+                    if post is not None:
+                        sub_y = post(sub_prev, sub_y, sub_u, env.dt / int(k))
                 for o, c in zip(out, sub_y):
                     o[idx] = c
             return tuple(out), event, env.dt / steps
@@ -274,11 +277,15 @@ class RigidBodyVectorEnv(VectorEnv):
         h = env.dt / steps[0] if uniform else env.dt / steps
         if uniform and not watch:
             for _ in range(int(steps[0])):
-                y = integ.step(system, y, u, h)
+                y_prev, y = y, integ.step(system, y, u, h)
+                if post is not None:
+                    y = post(y_prev, y, u, h)
             return y, event, h
         active = np.ones(n_env, dtype=bool)
         for k in range(int(steps.max())):
             y_new = integ.step(system, y, u, h)
+            if post is not None:
+                y_new = post(y, y_new, u, h)
             active &= k < steps
             if watch:
                 with np.errstate(invalid="ignore"):

@@ -41,7 +41,7 @@ ID = "rbenvs/FreeRigidBody-v0"
         (dict(max_angular_velocity=0.0), "max_angular_velocity"),
         (dict(max_angular_velocity=1e300), "max_angular_velocity"),
         (dict(task="reorient", target_attitude=(1.0, 1.0, 0.0, 0.0)), "target_attitude"),
-        (dict(render_mode="human"), "render_mode"),
+        (dict(render_mode="video"), "render_mode"),
     ],
 )
 def test_bad_parameters_name_parameter(kwargs, name):

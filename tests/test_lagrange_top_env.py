@@ -177,7 +177,7 @@ def run(env, policy, seed=None, options=None, steps=None):
         (dict(spin=(-20.0, 5.0), max_angular_velocity=10.0), "max_angular_velocity"),
         (dict(task="precess", max_angular_velocity=20.0), "max_angular_velocity"),
         (dict(task="precess", target_rate=1.5, max_angular_velocity=22.0), "max_angular_velocity"),
-        (dict(render_mode="human"), "render_mode"),
+        (dict(render_mode="video"), "render_mode"),
     ],
 )
 def test_bad_parameters_name_parameter(kwargs, name):

@@ -21,7 +21,10 @@ ID = "rbenvs/TippeTop-v0"
 NAN, INF = float("nan"), float("inf")
 FIDELITIES = ("gliding", "frictionless", "rolling")
 STATE_NAMES = {"position", "velocity", "attitude", "angular_velocity"}
-INFO_KEYS = {"energy", "jellett", "tilt", "normal_force", "slip_speed", "lifted_off", "spin", "internal_step", "numerical_failure", "is_success"}
+INFO_KEYS = {
+    "energy", "jellett", "tilt", "normal_force", "slip_speed", "lifted_off", "airborne", "hops", "gap",
+    "spin", "internal_step", "numerical_failure", "is_success",
+}
 
 # The documented defaults (class docstring, "Arguments"): the Leine-Glocker top.
 A_R, M0, ALPHA, (A0, C0), G0 = 0.015, 0.006, 0.2, (8e-7, 7e-7), 9.81
@@ -198,7 +201,7 @@ def test_check_env_gymnasium_and_sb3(kwargs):
         (dict(max_speed=A_R * 150.0), "max_speed"),  # radius * spin = 2.25 m/s: must exceed it
         (dict(max_speed=2.0), "max_speed"),
         (dict(spin=(100.0, 300.0), max_speed=4.0), "max_speed"),  # 0.015 * 300 = 4.5 m/s
-        (dict(render_mode="human"), "render_mode"),
+        (dict(render_mode="video"), "render_mode"),
     ],
 )
 def test_bad_parameters_name_parameter(kwargs, name):
@@ -459,9 +462,10 @@ def test_info_keys_and_python_types(fidelity, task):
     for info in infos:
         assert set(info) == INFO_KEYS  # no episode ends in 5 steps: no terminal_reason
         for key, value in info.items():
-            expected = bool if key in ("lifted_off", "numerical_failure", "is_success") else float
+            expected = bool if key in ("lifted_off", "airborne", "numerical_failure", "is_success") else int if key == "hops" else float
             assert type(value) is expected, (key, type(value))
-        assert info["lifted_off"] is False and info["numerical_failure"] is False
+        assert info["lifted_off"] is False and info["airborne"] is False and info["numerical_failure"] is False
+        assert info["hops"] == 0 and info["gap"] == 0.0
 
 
 def check_readouts(env, obs, info):

@@ -3,6 +3,7 @@
 import dataclasses
 import json
 
+import numpy as np
 import pytest
 
 from rbenvs import verify
@@ -10,6 +11,7 @@ from rbenvs.dynamics import HeavyTopParams, TippeTopParams
 from rbenvs.dynamics import free_body as fb
 from rbenvs.dynamics import heavy_top as ht
 from rbenvs.dynamics import tippe_top as tp
+from rbenvs.verify.tippe_top import _hop_rows
 
 
 def failed(checks):
@@ -177,8 +179,8 @@ def test_heavy_top_ranges_are_physical_and_seeded():
 class FlippedFriction(tp.TippeTop):
     """A simulator whose friction pushes along the slip (``mu -> -mu``): energy grows."""
 
-    def __init__(self, params, fidelity="gliding"):
-        super().__init__(params, fidelity)
+    def __init__(self, params, fidelity="gliding", flight=False):
+        super().__init__(params, fidelity, flight)
         flipped = dataclasses.replace(params)
         object.__setattr__(flipped, "friction", -params.friction)
         self.params = flipped
@@ -187,6 +189,23 @@ class FlippedFriction(tp.TippeTop):
         if u is not None:
             u = tuple(u[:2]) + (-u[2],) + tuple(u[3:])
         return super()._contact(y, u)
+
+
+class WrongImpact(tp.TippeTop):
+    """A touchdown impulse computed with the rotation's share of the contact point's vertical
+    velocity of the wrong sign (``v_z - Omega.(r x Gamma)``): a slip that was made while
+    writing the impact law, and which gains energy."""
+
+    def impact(self, y):
+        prm = self.params
+        rm = self.frame(y)
+        w = self.angular_velocity(y)
+        r = self._contact_arm(rm[6], rm[7], rm[8])
+        t = np.cross(r, rm[6:9])
+        rot = float(np.dot(w, t))
+        flipped = y[:5] + (y[5] - 2.0 * rot,) + y[6:]  # so that the true law sees v_z - rot
+        after, lam = super().impact(flipped)
+        return after[:5] + (after[5] + 2.0 * rot,) + after[6:], lam
 
 
 class FlippedContactArm(tp.TippeTop):
@@ -250,6 +269,11 @@ def test_flipped_friction_is_caught():
     assert any("final tilt" in c for c in bad)  # the top hops off the table instead of inverting
     # without friction nothing changes
     assert not any("frictionless" in c or "rolling" in c for c in bad)
+
+
+def test_wrong_impact_law_is_caught():
+    bad = {c.check for c in failed(_hop_rows(WrongImpact))}
+    assert any("plastic impact" in c for c in bad)
 
 
 def test_flipped_contact_arm_is_caught():

@@ -1,6 +1,8 @@
 """``rbenvs bench fidelity``: what each tippe-top fidelity level costs, measured in one run.
 
-For every level (gliding with Coulomb and with viscous friction, frictionless, rolling) on
+For every level (gliding with Coulomb and with viscous friction, gliding with free flight
+(hops modelled: the contact flag carried and the switch tested every internal step; no hop
+happens in this scene), frictionless, rolling) on
 the default ``TippeTop-v0`` scene (Leine-Glocker top, 150 rad/s, ``dt = 0.01`` s, rk4):
 
 * ``rhs us``: one evaluation of the vector field on a single state (plain floats);
@@ -21,6 +23,7 @@ __all__ = ["run", "main"]
 LEVELS = (
     ("gliding, coulomb", dict(fidelity="gliding", friction_law="coulomb")),
     ("gliding, viscous", dict(fidelity="gliding", friction_law="viscous", friction=3.0)),
+    ("gliding + flight", dict(fidelity="gliding", friction_law="coulomb", free_flight=True)),
     ("frictionless", dict(fidelity="frictionless")),
     ("rolling", dict(fidelity="rolling")),
 )

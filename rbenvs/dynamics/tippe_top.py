@@ -26,6 +26,22 @@ Fidelity levels (a scene models only what it needs):
   is not integrated: state ``(x, y, q, Omega)``, 9 components. Energy and Jellett conserved;
   a rolling top does **not** invert (inversion needs sliding friction to dissipate energy).
 
+**Free flight** (``flight=True``, gliding or frictionless): the top may leave the table, as
+real tippe tops do (they hop while they rise; Cross, Am. J. Phys. 81, 280 (2013)). The state
+then carries the height and vertical velocity of ``G`` and two bookkeeping components: the
+contact flag ``c`` (1 on the table, 0 in flight) and the number of lift-offs so far; both have
+zero derivative, so every integrator carries them unchanged. In contact (``c = 1``) the vector
+field is the constrained one above and :meth:`normalize` keeps ``(z, v_z)`` on the constraint;
+in flight (``c = 0``) no contact force acts: ``G`` falls freely and the rotation is torque-free
+(Jellett's integral and the energy are conserved in flight). The switches are made between
+internal steps by :meth:`switch_contact`: lift-off when ``N < 0`` (located to within one
+internal step: until then the constraint, which does no work, holds), touchdown when the
+sphere reaches the table (located to round-off by a bracketed Newton iteration on the
+integrator's own step), followed by a plastic, frictionless impact (:meth:`impact`): the normal
+impulse stops the contact point's vertical motion, removes ``lambda^2 M_zz / 2`` of energy and
+keeps Jellett's integral exactly (an impulse at the contact point has no moment about ``r``).
+State ``(x, y, z, vx, vy, vz, q, Omega, c, hops)``: 15 components.
+
 In every level the equations are written in the table's frame. Controls ``u`` are
 ``(a_x, a_y, mu, tau1, tau2, tau3)``: the table's horizontal acceleration [m/s^2] (a moving
 plate: in its frame a fictitious force ``-m a_T`` acts at ``G``, so it reaches the rotation only
@@ -52,6 +68,12 @@ from .validation import require_finite_nonnegative, require_finite_positive
 __all__ = ["TippeTopParams", "TippeTop", "FIDELITIES", "FRICTION_LAWS"]
 
 FIDELITIES = ("gliding", "frictionless", "rolling")
+# Free flight: the lift-off is located to |N| <= LIFT_OFF_TOL m g and the touchdown to
+# |gap| <= TOUCHDOWN_TOL a (a few ulp of the height), in at most LOCATE_ITERATIONS trial steps.
+LIFT_OFF_TOL = 1e-12
+TOUCHDOWN_TOL = 1e-13
+LOCATE_ITERATIONS = 60
+EPS = float(np.finfo(float).eps)
 FRICTION_LAWS = ("coulomb", "viscous")
 
 
@@ -117,14 +139,22 @@ class TippeTopParams:
 class TippeTop:
     """Vector field, contact forces and read-outs of the tippe top at one fidelity level."""
 
-    def __init__(self, params: TippeTopParams, fidelity: str = "gliding"):
+    def __init__(self, params: TippeTopParams, fidelity: str = "gliding", flight: bool = False):
         if fidelity not in FIDELITIES:
             raise ValueError(f"fidelity must be one of {list(FIDELITIES)}, got {fidelity!r}")
         self.params = params
         self.fidelity = fidelity
         self.rolling = fidelity == "rolling"
+        self.flight = bool(flight)
+        if self.flight and self.rolling:
+            raise ValueError("flight=True needs fidelity 'gliding' or 'frictionless' (a rolling top has no slip to resume after a touchdown)")
         self.friction_law = None if fidelity != "gliding" else params.friction_law
-        if self.rolling:
+        if self.flight:
+            self.layout = {"position": (0, 3), "velocity": (3, 6), "attitude": (6, 10), "angular_velocity": (10, 13), "contact": (13, 14), "hops": (14, 15)}
+            self.dim = 15
+            self._q, self._w = 6, 10
+            self._v = 3  # index of v_x
+        elif self.rolling:
             self.layout = {"position": (0, 2), "attitude": (2, 6), "angular_velocity": (6, 9)}
             self.dim = 9
             self._q, self._w = 2, 6
@@ -132,6 +162,8 @@ class TippeTop:
             self.layout = {"position": (0, 2), "velocity": (2, 4), "attitude": (4, 8), "angular_velocity": (8, 11)}
             self.dim = 11
             self._q, self._w = 4, 8
+        if not self.flight:
+            self._v = 2
 
     # ------------------------------------------------------------------ kinematics
     def frame(self, y):
@@ -163,12 +195,16 @@ class TippeTop:
         if self.rolling:  # v_P = 0: v_G = -Omega x r
             return -(w2 * r[2] - w3 * r[1]), -(w3 * r[0] - w1 * r[2]), -(w1 * r[1] - w2 * r[0])
         h = self.params.height
-        vx, vy = y[2], y[3]
-        vz = -h * (w2 * rm[6] - w1 * rm[7])  # d/dt (a - h cos(theta)), from the constraint
+        vx, vy = y[self._v], y[self._v + 1]
+        # d/dt (a - h cos(theta)), from the constraint (with flight: the contact's value, which
+        # normalize() keeps in the state while c = 1; the flight branch does not use vb)
+        vz = -h * (w2 * rm[6] - w1 * rm[7])
         return (rm[0] * vx + rm[3] * vy + rm[6] * vz, rm[1] * vx + rm[4] * vy + rm[7] * vz, rm[2] * vx + rm[5] * vy + rm[8] * vz)
 
     def velocity(self, y):
         """Velocity of ``G`` relative to the table, space frame, vertical part included."""
+        if self.flight:
+            return (y[3], y[4], y[5])
         rm = self.frame(y)
         w = self.angular_velocity(y)
         if not self.rolling:
@@ -178,9 +214,33 @@ class TippeTop:
         return tuple(rm[3 * i] * vb[0] + rm[3 * i + 1] * vb[1] + rm[3 * i + 2] * vb[2] for i in range(3))
 
     def height(self, y):
-        """``z_G = a - h cos(theta)`` [m] (the constraint)."""
+        """``z_G`` [m]: ``a - h cos(theta)`` on the table (the constraint); with flight, the state's."""
+        if self.flight:
+            return y[2]
         rm = self.frame(y)
         return self.params.radius - self.params.height * rm[8]
+
+    def gap(self, y):
+        """Height of the sphere's lowest point above the table [m]: ``z_G + h cos(theta) - a``
+        (0 on the table; positive in flight)."""
+        if not self.flight:
+            return 0.0 * y[0]
+        rm = self.frame(y)
+        return y[2] + self.params.height * rm[8] - self.params.radius
+
+    def gap_rate(self, y):
+        """``d gap / dt`` [m/s]: ``v_z + h d(cos theta)/dt``, ``d Gamma/dt = Gamma x Omega``."""
+        if not self.flight:
+            return 0.0 * y[0]
+        rm = self.frame(y)
+        w1, w2, _ = self.angular_velocity(y)
+        return y[5] + self.params.height * (rm[6] * w2 - rm[7] * w1)
+
+    def in_contact(self, y):
+        """Whether the sphere is on the table (the contact flag; always true without flight)."""
+        if not self.flight:
+            return 0.0 * y[0] == 0.0
+        return y[13] == 1.0
 
     # ------------------------------------------------------------------ contact
     def _contact(self, y, u):
@@ -288,6 +348,8 @@ class TippeTop:
             qw * h2 - qx * h3 + qz * h1,
             qw * h3 + qx * h2 - qy * h1,
         )
+        if self.flight:
+            return self._flight_rhs(y, u, dq, dw, n, fb, rm, ax, ay)
         # horizontal velocity of G in space: from the state, or (rolling) from -Omega x r
         if self.rolling:
             dpos = (rm[0] * vb[0] + rm[1] * vb[1] + rm[2] * vb[2], rm[3] * vb[0] + rm[4] * vb[1] + rm[5] * vb[2])
@@ -297,9 +359,144 @@ class TippeTop:
         fy = rm[3] * fb[0] + rm[4] * fb[1] + rm[5] * fb[2]
         return (y[2], y[3], fx / m - ax, fy / m - ay) + dq + dw
 
+    def _flight_rhs(self, y, u, dq, dw_contact, n, fb, rm, ax, ay):
+        """Vector field with free flight: the constrained one where ``c = 1``, ballistic and
+        torque-free where ``c = 0`` (a blend ``c X + (1 - c) Y`` that is exact for ``c`` in
+        {0, 1}, so one expression serves floats and batches)."""
+        prm = self.params
+        big_a, big_c = prm.inertia
+        m, g = prm.mass, prm.gravity
+        c = y[13]
+        f = 1.0 - c
+        w1, w2, w3 = self.angular_velocity(y)
+        fx = rm[0] * fb[0] + rm[1] * fb[1] + rm[2] * fb[2]
+        fy = rm[3] * fb[0] + rm[4] * fb[1] + rm[5] * fb[2]
+        vz_contact = -prm.height * (w2 * rm[6] - w1 * rm[7])
+        # torque-free rotation (plus any body torque): what dw_contact is without the contact force
+        u_t = (0.0, 0.0, 0.0) if u is None else u[3:6]
+        w01 = ((big_a - big_c) * w2 * w3 + u_t[0]) / big_a
+        w02 = ((big_c - big_a) * w3 * w1 + u_t[1]) / big_a
+        w03 = u_t[2] / big_c
+        zero = 0.0 * c
+        return (
+            y[3],
+            y[4],
+            c * vz_contact + f * y[5],
+            c * (fx / m) - ax,
+            c * (fy / m) - ay,
+            c * (n / m) - g,  # the friction force is horizontal: N alone lifts G
+        ) + dq + (
+            c * dw_contact[0] + f * w01,
+            c * dw_contact[1] + f * w02,
+            c * dw_contact[2] + f * w03,
+            zero,
+            zero,
+        )
+
     def normalize(self, y):
         o = self._q
-        return tuple(y[:o]) + quat_normalize(y[o : o + 4]) + tuple(y[o + 4 :])
+        y = tuple(y[:o]) + quat_normalize(y[o : o + 4]) + tuple(y[o + 4 :])
+        if not self.flight:
+            return y
+        # in contact (c = 1) the height and vertical velocity are the constraint's
+        c = y[13]
+        f = 1.0 - c
+        rm = self.frame(y)
+        w1, w2, _ = self.angular_velocity(y)
+        prm = self.params
+        z = c * (prm.radius - prm.height * rm[8]) + f * y[2]
+        vz = c * (-prm.height * (w2 * rm[6] - w1 * rm[7])) + f * y[5]
+        return y[:2] + (z, y[3], y[4], vz) + y[6:]
+
+    # ------------------------------------------------------------------ free flight: switches
+    def impact(self, y):
+        """Touchdown of a state at the table (gap 0, approaching): a plastic, frictionless
+        impact. The normal impulse ``lambda z_hat`` at the contact point ends the vertical motion
+        of the contact point, ``lambda = -v_Pz / M_zz``, ``M_zz = 1/m + (r x Gamma).I^-1(r x Gamma)``;
+        the energy drops by ``lambda^2 M_zz / 2`` and Jellett's integral ``-L.r`` is unchanged
+        (``(r x Gamma).r = 0``). Returns the state in contact (``c = 1``) and ``lambda`` [N s]."""
+        prm = self.params
+        big_a, big_c = prm.inertia
+        rm = self.frame(y)
+        g1, g2, g3 = rm[6], rm[7], rm[8]
+        w1, w2, w3 = self.angular_velocity(y)
+        r1, r2, r3 = self._contact_arm(g1, g2, g3)
+        # moment arm of a vertical unit impulse, r x Gamma (body)
+        t1, t2, t3 = r2 * g3 - r3 * g2, r3 * g1 - r1 * g3, r1 * g2 - r2 * g1
+        m_zz = 1.0 / prm.mass + t1 * t1 / big_a + t2 * t2 / big_a + t3 * t3 / big_c
+        # vertical velocity of the contact point: v_z + (Omega x r).Gamma = v_z + Omega.(r x Gamma)
+        v_pz = y[5] + (w1 * t1 + w2 * t2 + w3 * t3)
+        lam = -v_pz / m_zz
+        if lam < 0.0:  # separating, not touching down: no impulse
+            lam = 0.0
+        w = (w1 + lam * t1 / big_a, w2 + lam * t2 / big_a, w3 + lam * t3 / big_c)
+        out = y[:5] + (y[5] + lam / prm.mass,) + y[6:10] + w + (1.0, y[14])
+        return self.normalize(out), lam
+
+    def switch_contact(self, y_prev, y, u, h, integrator):
+        """Contact switches after one internal step ``y_prev -> y`` of length ``h`` (floats: one
+        state). An event (lift-off: on the table and ``N < 0`` at the end; touchdown: in flight
+        and the sphere below the table at the end) is located inside the step by a bracketed
+        regula falsi (Illinois) whose every trial is one step of ``integrator`` from ``y_prev``;
+        the switch is made there (after a touchdown, the plastic :meth:`impact`) and the rest of
+        the step taken in the new mode. Locating the lift-off matters for the energy: past
+        ``N = 0`` the friction law would push along the slip. A state that already violates its
+        mode at the start of the step (a second event inside one step) switches at once."""
+        prm = self.params
+        if y_prev[13] == 1.0:
+            def normal(z):
+                return self._raw_normal_force(z, u)
+
+            n_end = normal(y)
+            if n_end >= 0.0:
+                return y
+            if normal(y_prev) < 0.0:
+                t, y_off = 0.0, y_prev
+            else:
+                t, y_off = self._locate(y_prev, y, n_end, u, h, integrator, normal, LIFT_OFF_TOL * prm.mass * prm.gravity)
+            y_off = y_off[:13] + (0.0, y_off[14] + 1.0)
+            return integrator.step(self, y_off, u, h - t) if t < h else y_off
+        gap_end = self.gap(y)
+        if gap_end >= 0.0:
+            return y
+        if self.gap(y_prev) <= 0.0:
+            t, y_hit = 0.0, y_prev
+        else:
+            t, y_hit = self._locate(y_prev, y, gap_end, u, h, integrator, self.gap, TOUCHDOWN_TOL * prm.radius)
+        y_on, _ = self.impact(y_hit)
+        return integrator.step(self, y_on, u, h - t) if t < h else y_on
+
+    def _locate(self, y0, y1, f1, u, h, integrator, event, tol):
+        """First time ``t`` in ``(0, h]`` where ``event`` (>= 0 at ``y0``, ``f1 < 0`` at ``y1``)
+        turns negative, to ``|event| <= tol`` or the bracket's round-off: ``(t, state at t)``
+        with ``event(state) < 0``, the state from one step of ``integrator`` of length ``t``."""
+        a, fa = 0.0, event(y0)
+        b, fb, yb = h, f1, y1
+        wa, wb = fa, fb  # Illinois weights (halved on a repeated side)
+        side = 0
+        for _ in range(LOCATE_ITERATIONS):
+            if fb >= -tol or b - a <= 4.0 * EPS * h:
+                break
+            t = (a * wb - b * wa) / (wb - wa)
+            if not a < t < b:
+                t = 0.5 * (a + b)
+            yt = integrator.step(self, y0, u, t)
+            ft = event(yt)
+            if ft < 0.0:
+                b, fb, yb, wb = t, ft, yt, ft
+                if side == -1:
+                    wa *= 0.5
+                side = -1
+            else:
+                a, fa, wa = t, ft, ft
+                if side == 1:
+                    wb *= 0.5
+                side = 1
+        return b, yb
+
+    def _raw_normal_force(self, y, u):
+        """``N`` from the contact constraint, whether or not the top is on the table."""
+        return self._contact(y, u)[1]
 
     # ------------------------------------------------------------------ read-outs
     def contact_forces(self, y, u=None):
@@ -308,6 +505,9 @@ class TippeTop:
         dw, n, fb, vb, rm, _ = self._contact(y, u)
         fx = rm[0] * fb[0] + rm[1] * fb[1] + rm[2] * fb[2]
         fy = rm[3] * fb[0] + rm[4] * fb[1] + rm[5] * fb[2]
+        if self.flight:  # no contact force in flight
+            c = y[13]
+            n, fx, fy = c * n, c * fx, c * fy
         return n, (fx, fy), self.slip_speed(y)
 
     def slip_speed(self, y):
@@ -364,12 +564,16 @@ class TippeTop:
             return pos + q + w
         if velocity is None:
             velocity = self.no_slip_velocity(q, w)[:2]
+        if self.flight:  # on the table: z and v_z from the constraint (normalize), no lift-off yet
+            zero = 0.0 * q[0]
+            y = pos + (zero,) + tuple(velocity)[:2] + (zero,) + q + w + (zero + 1.0, zero)
+            return self.normalize(y)
         return pos + tuple(velocity)[:2] + q + w
 
     def no_slip_velocity(self, attitude, angular_velocity):
         """``v_G = -omega x r`` in space [m/s]: the velocity that puts the contact point at rest."""
         y = (0.0 * attitude[0],) * self._q + tuple(attitude) + tuple(angular_velocity)
-        rm = self.frame(y)
+        rm = self.frame(y)  # (reads only the attitude)
         w = tuple(angular_velocity)
         r = self._contact_arm(rm[6], rm[7], rm[8])
         vb = (-(w[1] * r[2] - w[2] * r[1]), -(w[2] * r[0] - w[0] * r[2]), -(w[0] * r[1] - w[1] * r[0]))
@@ -413,6 +617,8 @@ class TippeTop:
         vel = tuple(float(c) for c in arrs["velocity"])
         y = self.state(pos, q, w, vel[:2])
         prm = self.params
+        if self.flight:
+            return self._place_flight_state(y, pos, vel)
         z = self.height(y)
         if abs(pos[2] - z) > 1e-9 * prm.radius + 1e-12:
             raise ValueError(f"state['position'][2] must be the contact height a - h cos(theta) = {z!r} m for this attitude (the sphere touches the table), got {pos[2]!r}")
@@ -423,6 +629,26 @@ class TippeTop:
             if abs(vel[i] - v_need[i]) > scale:
                 what = "the rolling velocity -omega x r" if self.rolling else "the vertical velocity the contact constraint gives"
                 raise ValueError(f"state['velocity'] must equal {what} ({list(v_need)}), got {list(vel)}")
+        return y
+
+    def _place_flight_state(self, y, pos, vel):
+        """With flight: the given height and vertical velocity, classified. On the table (gap
+        within round-off of 0, not approaching faster than round-off): in contact, ``v_z`` must
+        be the constraint's; above it: in flight; below it: refused."""
+        prm = self.params
+        tol = 1e-9 * prm.radius + 1e-12
+        air = y[:2] + (pos[2],) + y[3:5] + (vel[2],) + y[6:13] + (0.0, 0.0)
+        gap = self.gap(air)
+        if gap < -tol:
+            raise ValueError(f"state['position'][2] puts the sphere {-gap!r} m into the table (z_G must be >= a - h cos(theta) = {pos[2] - gap!r} m)")
+        if gap > tol:
+            return air
+        v_need = self.velocity(y)[2]  # y is on the table: the constraint's v_z
+        scale = 1e-9 * (1.0 + prm.radius * float(np.linalg.norm(y[10:13])))
+        if vel[2] - v_need > scale:  # on the table and leaving it: in flight
+            return air
+        if abs(vel[2] - v_need) > scale:
+            raise ValueError(f"state['velocity'][2] must be the vertical velocity the contact constraint gives ({v_need!r}) or above it (leaving the table), got {vel[2]!r}")
         return y
 
     def max_stable_step(self, integrator_name: str, mu: float | None = None, normal_force: float | None = None) -> float:

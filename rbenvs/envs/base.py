@@ -65,7 +65,11 @@ class RigidBodyEnv(gym.Env):
         self._obs_high_list = self._obs_high.tolist()
         self._obs_high_uniform = self._obs_high_list[0] if len(set(self._obs_high_list)) == 1 else None
         # the plain substep loop applies unless the class steps by state or watches events
-        self._plain_advance = self.event_name is None and type(self)._internal_steps is RigidBodyEnv._internal_steps
+        self._plain_advance = (
+            self.event_name is None
+            and self._after_internal_step is None
+            and type(self)._internal_steps is RigidBodyEnv._internal_steps
+        )
         high32 = self._obs_high.astype(np.float32)
         self.observation_space = gym.spaces.Box(-high32, high32, dtype=np.float32)
         self._y = None
@@ -133,6 +137,10 @@ class RigidBodyEnv(gym.Env):
         """Whether the physical event ``event_name`` happened at ``y`` (bool or bool array)."""
         return False
 
+    # ``_after_internal_step(y_prev, y, u, h) -> y``: a hybrid system's switching (the tippe
+    # top's lift-off and touchdown) applied after every internal step; ``None`` for smooth ones.
+    _after_internal_step = None
+
     def _advance(self, y, u):
         """Integrate one control period from ``y`` under ``u``: ``(y_new, event)``.
 
@@ -149,8 +157,11 @@ class RigidBodyEnv(gym.Env):
         h = self._h if n == self.substeps else self._dt / n
         self._last_h = h
         watch = self.event_name is not None
+        post = self._after_internal_step
         for _ in range(n):
-            y = integ.step(system, y, u, h)
+            y_prev, y = y, integ.step(system, y, u, h)
+            if post is not None:
+                y = post(y_prev, y, u, h)
             if watch:
                 if not all(math.isfinite(c) for c in y):
                     return y, None
@@ -341,4 +352,6 @@ class RigidBodyEnv(gym.Env):
 def _to_python(v):
     if isinstance(v, (bool, np.bool_)):
         return bool(v)
+    if isinstance(v, (int, np.integer)):  # counts stay counts
+        return int(v)
     return float(v)

@@ -31,7 +31,10 @@ class TippeTopEnv(RigidBodyEnv):
     The contact is a constraint (the normal force is solved from it, no spring, no penetration),
     with a choice of ``fidelity``: ``gliding`` (friction; the default), ``frictionless``, or
     ``rolling`` (no slip). If the normal force would have to pull (``N < 0``) the top lifts
-    off: the episode ends (``terminal_reason = "lift_off"``); free flight is not modelled.
+    off: by default the episode ends there (``terminal_reason = "lift_off"``); with
+    ``free_flight=True`` the top flies (ballistic, torque-free) and lands again with a plastic,
+    frictionless impact, so long runs go on through the hops that real tippe tops make
+    (:class:`rbenvs.dynamics.TippeTop`, "Free flight").
 
     ## Action space
     ``Box(-1, 1, (k,), float32)``: the table's horizontal acceleration
@@ -62,21 +65,26 @@ class TippeTopEnv(RigidBodyEnv):
     ## Episode end
     * Terminated: ``invert`` when ``theta > 150 deg`` (success; past it the climb slows with the
       slip speed under regularised Coulomb friction, physics.md §3); ``hold`` when
-      ``theta > 90 deg``; lift-off (``N < 0`` at any internal step); an observation bound; a
-      non-finite state (``NumericalFailureWarning``, last finite state kept).
+      ``theta > 90 deg``; lift-off (``N < 0`` at any internal step; not with ``free_flight``);
+      an observation bound; a non-finite state (``NumericalFailureWarning``, last finite state
+      kept).
     * Truncated: after ``max_episode_steps`` (2500 steps = 25 s at the default ``dt``; without
       action the default top passes 90 deg at 7.0 s and 150 deg at 17.3 s).
 
     ## Info
     ``energy`` [J] (table frame), ``jellett`` ``J = L.(a z_hat - h k)`` [kg m^2/s], ``tilt``
-    ``theta`` [rad], ``normal_force`` ``N`` [N], ``slip_speed`` ``|v_P|`` [m/s], ``lifted_off``,
-    ``spin`` (``Omega3`` [rad/s]), ``internal_step`` [s], ``numerical_failure``, ``is_success``.
+    ``theta`` [rad], ``normal_force`` ``N`` [N] (0 in flight), ``slip_speed`` ``|v_P|`` [m/s],
+    ``lifted_off`` (the top has left the table this episode), ``airborne`` (in flight now),
+    ``hops`` (lift-offs this episode), ``gap`` (height of the sphere's lowest point above the
+    table [m]), ``spin`` (``Omega3`` [rad/s]), ``internal_step`` [s], ``numerical_failure``,
+    ``is_success``.
 
     ## State access
     ``get_state()``: ``position`` (3, ``G`` in the table frame; ``z`` from the contact),
     ``velocity`` (3), ``attitude`` (4, w x y z, body to space), ``angular_velocity`` (3, body).
     ``reset(options={"state": d})`` checks the contact: ``z`` must be ``a - h cos(theta)`` and
-    ``v_z`` (rolling: the whole velocity) what the attitude and spin require.
+    ``v_z`` (rolling: the whole velocity) what the attitude and spin require. With
+    ``free_flight`` a state above the table starts in flight (the hop count starts at 0).
 
     ## Internal step (automatic)
     Each control period is split into ``n = max(substeps, ceil(dt |Omega| / 0.1),
@@ -90,6 +98,9 @@ class TippeTopEnv(RigidBodyEnv):
       (``A, C`` about the centre of mass, kg m^2), ``gravity=9.81``: the Leine-Glocker top.
     * ``friction=0.3``, ``friction_law="coulomb"`` or ``"viscous"``,
       ``slip_regularization=1e-3`` m/s, ``fidelity="gliding"``, ``"frictionless"`` or ``"rolling"``.
+    * ``free_flight=False``: model hops (gliding or frictionless) instead of ending the episode
+      at lift-off; about 1.15x the gliding level's cost per step on the table (the contact
+      flag is carried and the switch tested at every internal step; ``rbenvs bench fidelity``).
     * ``task="invert"`` or ``"hold"``; ``spin=150.0`` rad/s and ``tilt=0.1`` rad (numbers or
       ``(low, high)`` ranges). Not Leine and Glocker's 180 rad/s: with this model (gliding
       friction, regularised Coulomb, no drilling friction) their top's normal force dips just
@@ -142,6 +153,7 @@ class TippeTopEnv(RigidBodyEnv):
         control_cost: float = 0.01,
         max_angular_velocity=None,
         max_speed: float = 5.0,
+        free_flight: bool = False,
         render_mode=None,
     ):
         params = TippeTopParams(radius, mass, offset, inertia, gravity, friction, friction_law, slip_regularization)
@@ -162,6 +174,9 @@ class TippeTopEnv(RigidBodyEnv):
         if mu_lo < 0.0:
             raise ValueError(f"friction_range must lie in [0, inf), got {friction_range!r}")
         self.friction_range = (mu_lo, mu_hi)
+        self.free_flight = bool(free_flight)
+        if self.free_flight and fidelity == "rolling":
+            raise ValueError("free_flight needs fidelity 'gliding' or 'frictionless' (a rolling top has no slip to resume after a touchdown)")
         if self.friction_action and fidelity != "gliding":
             raise ValueError(f"friction_action needs fidelity='gliding' (there is no friction coefficient to set when {fidelity!r})")
         peak = max(abs(spin_lo), abs(spin_hi))
@@ -173,7 +188,10 @@ class TippeTopEnv(RigidBodyEnv):
             raise ValueError(f"max_speed must exceed the initial speed of the centre of mass (radius * spin = {params.radius * peak!r} m/s), got {max_speed!r}")
         task_cls = InvertTask if task == "invert" else HoldTask
         task_obj = task_cls(spin_lo, spin_hi, tilt_lo, tilt_hi, control_cost)
-        system = TippeTop(params, fidelity)
+        system = TippeTop(params, fidelity, flight=self.free_flight)
+        if self.free_flight:  # hops are modelled, not episode ends (set before _setup reads them)
+            self.event_name = None
+            self._after_internal_step = self._switch_contact
         high = [1.0] * 3 + [max_w] * 3 + [max_v] * 2
         self._setup(system, task_obj, integrator, dt, substeps, high, render_mode)
         size = 2 + (1 if self.friction_action else 0) + (3 if self.torque_action else 0)
@@ -233,6 +251,32 @@ class TippeTopEnv(RigidBodyEnv):
         """Lift-off: the contact would have to pull (``N < 0``)."""
         return self.system.contact_forces(y, u)[0] < 0.0
 
+    def _switch_contact(self, y_prev, y, u, h):
+        """With free flight: lift-off and touchdown after each internal step
+        (:meth:`rbenvs.dynamics.TippeTop.switch_contact`); a batch runs the rare switches
+        element by element through the same float code, so sub-env ``i`` of the vector env
+        takes exactly the single env's steps."""
+        system, integ = self.system, self.integrator
+        if not isinstance(y[0], np.ndarray):
+            return system.switch_contact(y_prev, y, u, h, integ)
+        on_table = y_prev[13] == 1.0
+        with np.errstate(invalid="ignore"):
+            switch = np.where(on_table, system._raw_normal_force(y, u) < 0.0, system.gap(y) < 0.0)
+        if switch.any():
+            y = [np.array(c, dtype=np.float64) for c in y]
+            for i in np.flatnonzero(switch):
+                one = system.switch_contact(
+                    tuple(float(c[i]) for c in y_prev),
+                    tuple(float(c[i]) for c in y),
+                    None if u is None else tuple(float(c[i]) if np.ndim(c) else float(c) for c in u),
+                    float(h[i]) if np.ndim(h) else float(h),
+                    integ,
+                )
+                for c, v in zip(y, one):
+                    c[i] = v
+            y = tuple(y)
+        return y
+
     def _advance(self, y, u):
         y, event = super()._advance(y, u)
         if event is not None:
@@ -247,13 +291,23 @@ class TippeTopEnv(RigidBodyEnv):
     def _readouts(self, y):
         s = self.system
         normal, _, slip = s.contact_forces(y, self._u)
+        if s.flight:
+            hops, airborne = y[14], y[13] == 0.0
+            lifted = hops > 0.0
+            hops = int(hops) if isinstance(hops, float) else hops.astype(np.int64)
+        else:
+            airborne, lifted = 0.0 * y[0] != 0.0, self._lifted
+            hops = 0 if isinstance(y[0], float) else np.zeros(np.shape(y[0]), dtype=np.int64)
         return {
             "energy": s.energy(y),
             "jellett": s.jellett(y),
             "tilt": s.tilt(y),
             "normal_force": normal,
             "slip_speed": slip,
-            "lifted_off": self._lifted,
+            "lifted_off": lifted,
+            "airborne": airborne,
+            "hops": hops,
+            "gap": s.gap(y),
             "spin": s.spin(y),
             "internal_step": self._last_h,
         }

@@ -678,6 +678,72 @@ def _t90_rows(order=True, system_class=TippeTop):
 
 
 # ------------------------------------------------------------------------------------------
+# hops (free flight)
+
+HOP_CASE = {"spin": 2000.0, "friction": 1.0, "tilt": 0.1, "seconds": 0.3}
+HOP_JELLETT_TOL = 1e-7  # relative; rk4 at the automatic step keeps it to ~1e-9 over 0.3 s
+IMPACT_TOL = 1e-8  # relative; E_before - E_after cancels ~8 digits of E
+
+
+def _hop_rows(system_class=TippeTop):
+    """A fast top (2000 rad/s, mu = 1) hops hundreds of times: Jellett's integral kept, the
+    energy never rising in a control period; and the plastic impact's energy loss
+    ``lambda^2 M_zz / 2`` against the energy read-out, on random touchdowns."""
+    from ..envs import TippeTopEnv  # (the env runs the switches between internal steps)
+
+    case = dict(HOP_CASE)
+    env = TippeTopEnv(spin=case["spin"], friction=case["friction"], tilt=case["tilt"], free_flight=True, max_speed=40.0)
+    env.system = system_class(env.params, "gliding", flight=True)
+    _, info = env.reset(seed=0)
+    j0, e0 = info["jellett"], info["energy"]
+    dj, rise = 0.0, -math.inf
+    energy = e0
+    for _ in range(round(case["seconds"] / env.dt)):
+        _, _, terminated, _, info = env.step(np.zeros(2, dtype=np.float32))
+        dj = max(dj, abs(info["jellett"] - j0))
+        rise = max(rise, info["energy"] - energy)
+        energy = info["energy"]
+        if terminated:
+            dj = rise = math.nan
+            break
+    case["hops"] = info["hops"]
+    rows = [
+        Check(SYSTEM, "rk4", f"hops ({case['hops']}): Jellett held, max |dJ| / |J|", 0.0, dj / abs(j0), HOP_JELLETT_TOL, case=case),
+        Check(SYSTEM, "rk4", "hops: energy never rises in a control period, max rise / E0", 0.0, max(rise, 0.0) / e0, 1e-13,
+              case=case),
+    ]
+    system = env.system
+    rng = np.random.default_rng(0)
+    worst_loss = 0.0
+    for _ in range(20):
+        y = _touchdown_state(system, rng)
+        after, lam = system.impact(y)
+        rm = system.frame(y)
+        r = system._contact_arm(rm[6], rm[7], rm[8])
+        t = (r[1] * rm[8] - r[2] * rm[7], r[2] * rm[6] - r[0] * rm[8], r[0] * rm[7] - r[1] * rm[6])
+        big_a, big_c = system.params.inertia
+        m_zz = 1.0 / system.params.mass + (t[0] ** 2 + t[1] ** 2) / big_a + t[2] ** 2 / big_c
+        loss = system.energy(y) - system.energy(after)
+        expected = 0.5 * lam * lam * m_zz
+        worst_loss = max(worst_loss, abs(loss / expected - 1.0) if expected > 0.0 else math.inf)
+    rows.append(Check(SYSTEM, "rk4", "plastic impact: energy loss / (lambda^2 M_zz / 2) - 1, 20 touchdowns", 0.0, worst_loss,
+                      IMPACT_TOL))
+    return rows
+
+
+def _touchdown_state(system, rng):
+    """A flight state at the table, its contact point moving down."""
+    prm = system.params
+    q = rng.normal(size=4)
+    q /= np.linalg.norm(q)
+    w = tuple(rng.normal(size=3) * np.array([20.0, 20.0, 300.0]))
+    y = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0) + tuple(q) + w + (0.0, 0.0)
+    y = y[:2] + (prm.radius - prm.height * system.frame(y)[8],) + y[3:]  # gap 0
+    wanted = -abs(system.gap_rate(y)) - 0.05  # the gap closing
+    return y[:5] + (y[5] + wanted - system.gap_rate(y),) + y[6:]
+
+
+# ------------------------------------------------------------------------------------------
 # all rows
 
 
@@ -706,6 +772,10 @@ def tippe_top_checks(integrators, seed=0, quick=False, system_class=TippeTop, pr
             checks.extend(_t90_rows(order=not quick, system_class=system_class))
             if progress:
                 progress()
+        if name == "rk4":
+            checks.extend(_hop_rows(system_class))
+            if progress:
+                progress()
     return checks
 
 
@@ -716,6 +786,7 @@ def progress_total(integrators, quick=False, t90=True) -> int:
         if name in TIPPE_TOP_SETTINGS:
             s = TIPPE_TOP_SETTINGS[name]
             total += 1 + len(s.regimes[mode]) * s.inversion_tops[mode] + (1 if name == "rk4" and t90 else 0)
+            total += 1 if name == "rk4" else 0  # the hop rows
     return total
 
 
