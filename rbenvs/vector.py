@@ -180,7 +180,7 @@ class RigidBodyVectorEnv(VectorEnv):
         y0 = self._y
         with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
             # a sub-env blowing up is reported once, below, as the single env does
-            y, event, h = self._advance(y0, u)
+            y, event, h = self._advance(y0, u, restart if any_restart else None)
         failed = self._false
         # one reduction on the sum of the components (a non-finite one makes it non-finite);
         # the exact per-component test runs only if that flags anything
@@ -236,12 +236,14 @@ class RigidBodyVectorEnv(VectorEnv):
             obs, info = self._same_step_reset(done, obs, info)
         return obs, reward, terminated, truncated, info
 
-    def _advance(self, y, u):
+    def _advance(self, y, u, skip=None):
         """One control period for the whole batch: ``(y, event_mask, internal_step)``.
 
-        The internal step count may differ per sub-env (the tippe top's automatic rule): each
-        element takes its own ``h = dt / n_i`` and is frozen once its ``n_i`` steps (or its
-        event) are done, so it sees exactly the steps a single env would take.
+        The internal step count may differ per sub-env (guarded stepping): each element takes
+        its own ``h = dt / n_i`` and is frozen once its ``n_i`` steps (or its event) are done,
+        so it sees exactly the steps a single env would take. ``skip`` marks sub-envs whose
+        result is discarded (NEXT_STEP restarts): they take ``substeps`` steps, are never
+        refused and never stretch the batch's loop.
         """
         env, integ, system = self.env, self.integrator, self.system
         n_env = self.num_envs
@@ -253,6 +255,11 @@ class RigidBodyVectorEnv(VectorEnv):
                 y = integ.step(system, y, u, h)
             return y, None, h
         steps = np.broadcast_to(np.asarray(env._internal_steps(y, u)), (n_env,))
+        if skip is not None:
+            steps = np.where(skip, env.substeps, steps)
+        if env.guard == "refuse" and np.any(steps > env.substeps):
+            bad = np.flatnonzero(steps > env.substeps)
+            raise env._refusal(int(steps.max()), f" of sub-envs {bad.tolist()}")
         refused = steps > MAX_INTERNAL_STEPS  # numerical failures, as in the single env
         if refused.any():
             y = tuple(np.where(refused, np.nan, c) for c in y)

@@ -17,7 +17,7 @@ import numpy as np
 from ..dynamics.validation import require_finite_positive, require_int_at_least
 from ..integrators import get_integrator
 
-__all__ = ["RigidBodyEnv", "NumericalFailureWarning", "MAX_INTERNAL_STEPS", "require_float32_bound"]
+__all__ = ["RigidBodyEnv", "NumericalFailureWarning", "MAX_INTERNAL_STEPS", "GUARDS", "require_float32_bound", "require_guard"]
 
 
 def require_float32_bound(name: str, value) -> float:
@@ -31,6 +31,19 @@ def require_float32_bound(name: str, value) -> float:
 # More internal steps than this in one control period is treated as a numerical failure.
 MAX_INTERNAL_STEPS = 1_000_000
 
+# Guarded stepping (``guard=`` of every env): when the internal step ``dt / substeps`` exceeds
+# what the integrator can resolve at the current state, ``"subdivide"`` (default) splits the
+# control period into more equal internal steps, ``"refuse"`` raises ``ValueError`` from
+# ``step``, ``"off"`` takes ``substeps`` steps regardless (blow-ups then end the episode as
+# numerical failures). Each env documents its bounds (``step_bounds``).
+GUARDS = ("subdivide", "refuse", "off")
+
+
+def require_guard(guard) -> str:
+    if not isinstance(guard, str) or guard not in GUARDS:
+        raise ValueError(f"guard must be one of {list(GUARDS)}, got {guard!r}")
+    return guard
+
 
 class NumericalFailureWarning(RuntimeWarning):
     """The state went non-finite; the episode was ended and the last finite state kept."""
@@ -43,7 +56,8 @@ class RigidBodyEnv(gym.Env):
     # render_fps is set per instance from dt (one frame per step)
     metadata = {"render_modes": ["human", "rgb_array"]}
 
-    def _setup(self, system, task, integrator, dt, substeps, observation_high, render_mode):
+    def _setup(self, system, task, integrator, dt, substeps, observation_high, render_mode, guard="subdivide"):
+        self.guard = require_guard(guard)
         self.system = system
         self.task = task
         self._task_evaluate = getattr(task, "evaluate", None)  # reward, end and metrics at once
@@ -64,12 +78,16 @@ class RigidBodyEnv(gym.Env):
         self._obs_high = np.asarray(observation_high, dtype=np.float64)
         self._obs_high_list = self._obs_high.tolist()
         self._obs_high_uniform = self._obs_high_list[0] if len(set(self._obs_high_list)) == 1 else None
-        # the plain substep loop applies unless the class steps by state or watches events
-        self._plain_advance = (
+        # the plain substep loop applies unless the class steps by state or watches events; a
+        # guarded env uses it when no state inside the observation bounds can trip its guard
+        # (then a step that ends outside them drops to the checked path until the next reset)
+        self._configure_guard()
+        self._plain_default = (
             self.event_name is None
             and self._after_internal_step is None
-            and type(self)._internal_steps is RigidBodyEnv._internal_steps
+            and (type(self)._internal_steps is RigidBodyEnv._internal_steps or self._guard_idle())
         )
+        self._plain_advance = self._plain_default
         high32 = self._obs_high.astype(np.float32)
         self.observation_space = gym.spaces.Box(-high32, high32, dtype=np.float32)
         self._y = None
@@ -86,6 +104,8 @@ class RigidBodyEnv(gym.Env):
         state = options.pop("state", None)
         if options:
             raise ValueError(f"reset options must be a subset of {{'state'}}, got unknown {sorted(options)}")
+        self._plain_advance = self._plain_default
+        self._last_h = self._h
         if state is None:
             self._y = tuple(float(c) for c in self._initial_state(self.np_random))
         else:
@@ -121,6 +141,7 @@ class RigidBodyEnv(gym.Env):
         elif over:
             terminated = True
             info["terminal_reason"] = "observation_limit"
+            self._plain_advance = False  # outside the bounds the guard's static proof is void
         elif terminated:
             info["terminal_reason"] = "task"
         return obs, reward, terminated, False, info
@@ -132,6 +153,67 @@ class RigidBodyEnv(gym.Env):
     def _internal_steps(self, y, u):
         """Integrator steps per control period (an int, or an int array for a batch)."""
         return self.substeps
+
+    # ------------------------------------------------------------------ guarded stepping
+    # A guarded env (free body, heavy top) sets ``_internal_steps = RigidBodyEnv._guarded_steps``
+    # and implements ``_step_limit() -> (bound, growth, spin_weight, rate, text)``: with
+    # ``lambda = spin_weight |Omega| + rate``, the internal step must satisfy ``lambda h <= bound``
+    # and ``lambda^2 h dt <= growth`` (``inf``: no such bound). The second is forward Euler's:
+    # it amplifies a rotation by ``sqrt(1 + (lambda h)^2)`` per step, by at most
+    # ``exp(lambda^2 h dt / 2)`` per control period.
+    _step_bound, _period_growth, _spin_weight, _fixed_rate, _guard_text = math.inf, math.inf, 0.0, 0.0, ""
+
+    def _step_limit(self):
+        return math.inf, math.inf, 0.0, 0.0, ""
+
+    def _configure_guard(self):
+        self._step_bound, self._period_growth, self._spin_weight, self._fixed_rate, self._guard_text = self._step_limit()
+
+    def _guard_idle(self) -> bool:
+        """True when no state inside the observation bounds can need more than ``substeps``
+        steps (the plain loop is then exact); ``_speed_ceiling`` bounds ``|Omega|`` there."""
+        if self.guard == "off" or (self._step_bound == math.inf and self._period_growth == math.inf):
+            return True
+        ceiling = (self._spin_weight * self._speed_ceiling() + self._fixed_rate) * (1.0 + 1e-9)
+        return self._h * ceiling <= self._step_bound and self._h * self._dt * ceiling * ceiling <= self._period_growth
+
+    def _speed_ceiling(self) -> float:
+        return math.inf
+
+    def _guarded_steps(self, y, u):
+        """``max(substeps, ceil(dt lambda / bound), ceil((dt lambda)^2 / growth))``,
+        ``lambda = w |Omega| + rate`` from the state at the start of the period (an int, or an int array for a batch; the float and array paths do the
+        same IEEE operations, so a vector env takes the single env's steps). A non-finite or
+        absurd rate gives ``MAX_INTERNAL_STEPS + 1``: refused as a numerical failure."""
+        bound, growth = self._step_bound, self._period_growth
+        if self.guard == "off" or (bound == math.inf and growth == math.inf):
+            return self.substeps
+        rate = self._fixed_rate
+        if self._spin_weight:
+            w0, w1, w2 = self.system.angular_velocity(y)[:3]
+            s2 = w0 * w0 + w1 * w1 + w2 * w2
+            speed = math.sqrt(s2) if type(s2) is float else np.sqrt(s2)
+            rate = self._spin_weight * speed + rate
+        x = self._dt * rate / bound
+        if growth != math.inf:
+            z = self._dt * rate
+            x = max(x, z * z / growth) if type(x) is float else np.maximum(x, z * z / growth)
+        if type(x) is float:
+            if x <= self.substeps:
+                return self.substeps
+            return math.ceil(x) if x <= MAX_INTERNAL_STEPS else MAX_INTERNAL_STEPS + 1
+        x = np.broadcast_to(x, np.shape(y[0]))
+        with np.errstate(invalid="ignore"):
+            n = np.where(x <= MAX_INTERNAL_STEPS, np.ceil(np.where(x <= MAX_INTERNAL_STEPS, x, 0.0)), MAX_INTERNAL_STEPS + 1)
+        return np.maximum(self.substeps, n).astype(np.int64)
+
+    def _refusal(self, n, where: str = "") -> ValueError:
+        """The ``guard="refuse"`` error for a period that needs ``n`` internal steps."""
+        return ValueError(
+            f"{type(self).__name__}: guard='refuse' and the state{where} needs {n} internal steps per control period, "
+            f"more than substeps={self.substeps} (dt={self._dt!r}, integrator {self.integrator.name!r}: "
+            f"{self._guard_text}); raise substeps to at least {n} or lower dt, or pass guard='subdivide'"
+        )
 
     def _event_mask(self, y, u):
         """Whether the physical event ``event_name`` happened at ``y`` (bool or bool array)."""
@@ -149,6 +231,8 @@ class RigidBodyEnv(gym.Env):
         """
         integ, system = self.integrator, self.system
         n = self._internal_steps(y, u)
+        if n > self.substeps and self.guard == "refuse":
+            raise self._refusal(n)
         if n > MAX_INTERNAL_STEPS:
             # a state beyond what the scheme can resolve in a control period: a numerical
             # failure (the episode ends, the last finite state is kept), never a hang

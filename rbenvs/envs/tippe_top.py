@@ -86,12 +86,22 @@ class TippeTopEnv(RigidBodyEnv):
     ``v_z`` (rolling: the whole velocity) what the attitude and spin require. With
     ``free_flight`` a state above the table starts in flight (the hop count starts at 0).
 
-    ## Internal step (automatic)
-    Each control period is split into ``n = max(substeps, ceil(dt |Omega| / 0.1),
-    ceil(dt / h_f))`` equal steps, ``h_f`` the explicit stability bound of the friction law
+    ## Internal step (guarded stepping, ``guard``)
+    With ``guard="subdivide"`` (default) each control period is split into ``n = max(substeps,
+    ceil(dt |Omega| / 0.1), ceil(dt / h_f))`` equal steps: ``|Omega| h <= 0.1`` (``SPIN_STEP``,
+    an accuracy bound for every integrator: the contact geometry turns with the body) and
+    ``h <= h_f``, the explicit stability bound of the friction law
     (:meth:`rbenvs.dynamics.TippeTop.max_stable_step`: near zero slip, regularised Coulomb
-    friction is a viscous law of rate ``mu N |M| / slip_regularization``, stiff). ``n`` is set
-    from the state at the start of each period; ``info["internal_step"]`` reports ``dt / n``.
+    friction is a viscous law of rate ``lambda = mu N |M| / slip_regularization``, stiff;
+    ``h_f = 1 / lambda`` for euler, whose interval on the negative real axis is
+    ``|h lambda| <= 2``, and ``1.39 / lambda`` for rk4, interval 2.78: half the margin, with
+    ``N`` taken as twice the larger of ``m g`` and its current value; ``inf`` without friction,
+    when rolling, and for dop853). ``n`` is set from the state at the start of each period;
+    ``info["internal_step"]`` reports ``dt / n``. ``guard="refuse"`` raises ``ValueError`` from
+    ``step`` (naming ``substeps`` and the ``n`` needed) when ``n > substeps``, leaving the state
+    unchanged; ``guard="off"`` always takes ``substeps`` steps (an explicit scheme may then
+    blow up: a numerical failure). More than ``MAX_INTERNAL_STEPS`` (1e6) steps is a numerical
+    failure.
 
     ## Arguments
     * ``radius=0.015`` m, ``mass=0.006`` kg, ``offset=0.2`` (``alpha``), ``inertia=(8e-7, 7e-7)``
@@ -107,6 +117,7 @@ class TippeTopEnv(RigidBodyEnv):
       below zero near 80 degrees of tilt at 180 rad/s (a hop, which ends the episode), while at
       150 rad/s it stays positive through the inversion (tests/test_tippe_top_env.py).
     * ``dt=0.01`` s, ``substeps=1`` (a minimum), ``integrator="rk4"`` (``euler``, ``rk4``, ``dop853``).
+    * ``guard="subdivide"``: ``"subdivide"``, ``"refuse"`` or ``"off"`` (Internal step).
     * ``max_table_acceleration=2.0`` m/s^2; ``friction_action=False``, ``friction_range=(0.0, 0.6)``;
       ``torque_action=False``, ``max_torque=1e-4`` N m; ``control_cost=0.01``.
     * ``max_angular_velocity=None`` (``2 max|spin| + 50``) rad/s, ``max_speed=5.0`` m/s.
@@ -155,6 +166,7 @@ class TippeTopEnv(RigidBodyEnv):
         max_speed: float = 5.0,
         free_flight: bool = False,
         render_mode=None,
+        guard: str = "subdivide",
     ):
         params = TippeTopParams(radius, mass, offset, inertia, gravity, friction, friction_law, slip_regularization)
         if fidelity not in FIDELITIES:
@@ -193,7 +205,7 @@ class TippeTopEnv(RigidBodyEnv):
             self.event_name = None
             self._after_internal_step = self._switch_contact
         high = [1.0] * 3 + [max_w] * 3 + [max_v] * 2
-        self._setup(system, task_obj, integrator, dt, substeps, high, render_mode)
+        self._setup(system, task_obj, integrator, dt, substeps, high, render_mode, guard)
         size = 2 + (1 if self.friction_action else 0) + (3 if self.torque_action else 0)
         self.action_space = gym.spaces.Box(-1.0, 1.0, (size,), dtype=np.float32)
         self._u = None  # the control of the last step (info's normal force depends on it)
@@ -233,6 +245,8 @@ class TippeTopEnv(RigidBodyEnv):
         """Steps per control period from the state (see the class docstring); an int, or an
         int array for a batch of states."""
         system = self.system
+        if self.guard == "off":
+            return self.substeps
         w = system.angular_velocity(y)
         speed = np.sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2])
         n = np.maximum(self.substeps, np.ceil(self.dt * speed / SPIN_STEP))
@@ -246,6 +260,9 @@ class TippeTopEnv(RigidBodyEnv):
         return int(n) if n.ndim == 0 else n
 
     _internal_steps = internal_steps
+
+    def _step_limit(self):  # only the refusal's text: internal_steps is the rule
+        return math.inf, math.inf, 0.0, 0.0, f"|Omega| h <= {SPIN_STEP} and h <= h_f, the friction law's stability bound"
 
     def _event_mask(self, y, u):
         """Lift-off: the contact would have to pull (``N < 0``)."""
