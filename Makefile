@@ -17,8 +17,10 @@ $(STAMP): pyproject.toml
 	$(BIN)/python -m pip install --quiet -e ".[agents,dev]"
 	touch $(STAMP)
 
+# The main job: PPO on the default scene (the intermediate-axis spin; about 2 minutes here),
+# then the learned agent against the analytic controller and zero action.
 run: $(STAMP)
-	$(BIN)/rbenvs run
+	$(BIN)/rbenvs-train --algo ppo --scene default --seed 0
 
 test: $(STAMP)
 	$(BIN)/python -m pytest -q

@@ -1,0 +1,177 @@
+"""Command line: ``rbenvs-train``, ``rbenvs-eval`` and ``rbenvs-results``.
+
+* ``rbenvs-train --algo ppo --scene default``: train (progress bar, seed, checkpoints), then
+  evaluate the agent beside the scene's analytic controller and zero action.
+* ``rbenvs-eval --scene default --agent runs/ppo/model.zip --agent analytic --agent zero``.
+* ``rbenvs-results``: the README's results table: every (scene, algorithm) of
+  ``configs/agents/results.yml`` trained on several seeds, with the analytic controller and
+  zero action evaluated the same way.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+__all__ = ["train_main", "eval_main", "results_main"]
+
+
+def _scene(name):
+    from rbenvs.scenes import load_scene
+
+    return load_scene(name)
+
+
+def _policy_factory(agent: str, algo_hint: str | None = None):
+    """``analytic``, ``zero`` or a path to an SB3 ``model.zip`` (its ``run.json`` names the algorithm)."""
+    from .evaluate import analytic_policy, sb3_policy, zero_policy
+
+    if agent == "analytic":
+        return analytic_policy
+    if agent == "zero":
+        return zero_policy
+    path = Path(agent)
+    if not path.is_file():
+        raise ValueError(f"agent must be 'analytic', 'zero' or a path to a model.zip, got {agent!r}")
+    algo = algo_hint
+    meta = path.with_name("run.json")
+    if algo is None and meta.is_file():
+        algo = json.loads(meta.read_text())["algo"]
+    if algo is None:
+        raise ValueError(f"cannot tell the algorithm of {agent}: no run.json beside it; pass --algo")
+    from .train import algorithm_class
+
+    model = algorithm_class(algo).load(path, device="cpu")
+    return lambda env: sb3_policy(model)
+
+
+def _table(rows, header):
+    widths = [max(len(str(r[i])) for r in [header] + rows) for i in range(len(header))]
+    lines = ["  ".join(str(c).ljust(w) for c, w in zip(header, widths)).rstrip(), "  ".join("-" * w for w in widths)]
+    lines += ["  ".join(str(c).ljust(w) for c, w in zip(r, widths)).rstrip() for r in rows]
+    return "\n".join(lines)
+
+
+def _eval_rows(scene, named_factories, episodes, seeds):
+    from .evaluate import evaluate, summarize
+
+    rows, records = [], []
+    for label, factory in named_factories:
+        evals = [evaluate(factory, scene, episodes=episodes, seed=s) for s in seeds]
+        summary = summarize(evals)
+        records.append({"agent": label} | summary | {"per_seed": [e.as_dict() for e in evals]})
+        rows.append((label, f"{summary['return_mean']:.2f} +- {summary['return_std']:.2f}", f"{summary['success_mean']:.0%}"))
+    return rows, records
+
+
+def train_main(argv=None) -> int:
+    from .config import ALGORITHMS
+
+    p = argparse.ArgumentParser(prog="rbenvs-train", description="Train an SB3 agent on a scene, then evaluate it against the analytic controller.")
+    p.add_argument("--algo", choices=ALGORITHMS, default="ppo")
+    p.add_argument("--scene", default="default", help="scene name (configs/scenes) or YAML path (default: %(default)s)")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--timesteps", type=int, default=None, help="training budget (default: configs/agents/<algo>.yml)")
+    p.add_argument("--out", type=Path, default=None, help="run directory (default: runs/<algo>-<scene>-seed<seed>)")
+    p.add_argument("--checkpoint-every", type=int, default=None, metavar="STEPS")
+    p.add_argument("--eval-episodes", type=int, default=10)
+    p.add_argument("--eval-seeds", type=int, nargs="+", default=[100], help="evaluation seeds (default: %(default)s)")
+    p.add_argument("--no-compare", action="store_true", help="skip the evaluation")
+    p.add_argument("--no-progress", action="store_true")
+    args = p.parse_args(argv)
+    scene = _scene(args.scene)
+    out = args.out or Path("runs") / f"{args.algo}-{scene.name}-seed{args.seed}"
+    from .evaluate import analytic_policy, sb3_policy, zero_policy
+    from .train import train
+
+    model, info = train(args.algo, scene, seed=args.seed, timesteps=args.timesteps, out_dir=out, progress=not args.no_progress,
+                        checkpoint_every=args.checkpoint_every)
+    print(f"trained {args.algo} on '{scene.name}' for {info['timesteps']} steps in {info['wall_time_s']:.1f} s -> {out / 'model.zip'}")
+    if not args.no_compare:
+        rows, _ = _eval_rows(scene, [(f"{args.algo} (seed {args.seed})", lambda env: sb3_policy(model)),
+                                     ("analytic", analytic_policy), ("zero action", zero_policy)],
+                             args.eval_episodes, args.eval_seeds)
+        print(f"\nevaluation on '{scene.name}' ({scene.description}), {args.eval_episodes} episodes x seeds {args.eval_seeds}:")
+        print(_table(rows, ("agent", "return", "success")))
+    return 0
+
+
+def eval_main(argv=None) -> int:
+    p = argparse.ArgumentParser(prog="rbenvs-eval", description="Evaluate agents and analytic controllers on a scene.")
+    p.add_argument("--scene", default="default")
+    p.add_argument("--agent", action="append", required=True, help="'analytic', 'zero' or a model.zip path; repeatable")
+    p.add_argument("--algo", default=None, help="algorithm of a model.zip without run.json")
+    p.add_argument("--episodes", type=int, default=10)
+    p.add_argument("--seeds", type=int, nargs="+", default=[100, 101, 102])
+    p.add_argument("--json", action="store_true")
+    args = p.parse_args(argv)
+    scene = _scene(args.scene)
+    rows, records = _eval_rows(scene, [(a, _policy_factory(a, args.algo)) for a in args.agent], args.episodes, args.seeds)
+    if args.json:
+        print(json.dumps({"scene": scene.name, "results": records}, indent=2))
+    else:
+        print(_table(rows, ("agent", "return (mean +- std over seeds)", "success")))
+    return 0
+
+
+def results_main(argv=None) -> int:
+    import yaml
+
+    from .config import configs_dir
+    from .evaluate import analytic_policy, evaluate, sb3_policy, summarize, zero_policy
+    from .train import train
+
+    p = argparse.ArgumentParser(prog="rbenvs-results", description="The README's results table: train and evaluate every (scene, algorithm) of configs/agents/results.yml.")
+    p.add_argument("--seeds", type=int, default=3)
+    p.add_argument("--quick", action="store_true", help="1/20 of each budget, 1 seed, 2 episodes: a smoke run of the whole grid")
+    p.add_argument("--json", type=Path, default=None, help="also write the records here")
+    p.add_argument("--no-progress", action="store_true")
+    args = p.parse_args(argv)
+    grid = yaml.safe_load((configs_dir() / "results.yml").read_text())
+    seeds = [0] if args.quick else list(range(args.seeds))
+    rows, records = [], []
+    for entry in grid["runs"]:
+        scene = _scene(entry["scene"])
+        episodes = 2 if args.quick else int(entry.get("eval_episodes", 10))
+        agents = [("zero action", zero_policy, 0, 0.0), ("analytic", analytic_policy, 0, 0.0)]
+        evaluated = []
+        for label, factory, steps, wall in agents:
+            evals = [evaluate(factory, scene, episodes=episodes, seed=100 + s) for s in seeds]
+            evaluated.append((label, steps, wall, evals))
+        for algo in entry["algos"]:
+            evals, walls, steps = [], [], 0
+            for s in seeds:
+                budget = None
+                if args.quick:
+                    from .config import agent_config
+
+                    budget = max(1000, agent_config(algo, scene.env_id, scene.name).n_timesteps // 20)
+                t0 = time.perf_counter()
+                model, info = train(algo, scene, seed=s, timesteps=budget, progress=not args.no_progress)
+                walls.append(time.perf_counter() - t0)
+                steps = info["timesteps"]
+                evals.append(evaluate(lambda env, m=model: sb3_policy(m), scene, episodes=episodes, seed=100 + s))
+            evaluated.append((algo.upper(), steps, sum(walls) / len(walls), evals))
+        task = scene.kwargs.get("task", "")
+        for label, steps, wall, evals in evaluated:
+            summary = summarize(evals)
+            records.append({"scene": scene.name, "env_id": scene.env_id, "task": task, "agent": label, "timesteps": steps,
+                            "wall_time_s": wall} | summary)
+            rows.append((scene.env_id.split("/")[-1], f"{task} ({scene.name})", label, f"{steps:,}" if steps else "-",
+                         f"{wall:.0f} s" if wall else "-", f"{summary['return_mean']:.1f} +- {summary['return_std']:.1f}",
+                         f"{summary['success_mean']:.0%}"))
+    header = ("env", "task (scene)", "agent", "training steps", "wall time / seed", f"return (mean +- std, {len(seeds)} seeds)", "success")
+    print("| " + " | ".join(header) + " |")
+    print("|" + "---|" * len(header))
+    for r in rows:
+        print("| " + " | ".join(r) + " |")
+    if args.json:
+        args.json.write_text(json.dumps(records, indent=2))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(train_main())

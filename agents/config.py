@@ -1,0 +1,90 @@
+"""Agent hyperparameters: ``configs/agents/<algo>.yml``, the rl-baselines3-zoo layout.
+
+One file per algorithm; top-level keys are env ids plus a ``default:`` block; a scene may
+override its env's block under ``scenes: {<scene>: {...}}``. Values are structured (numbers,
+strings naming SB3 things, lists, mappings), never code. Reserved keys:
+
+* ``n_timesteps``: the training budget (env steps over all sub-envs);
+* ``n_envs``: sub-environments of the native vector env (SB3 adapter);
+* ``policy``: SB3 policy name (``MlpPolicy``);
+* ``policy_kwargs``: a mapping (``net_arch: [64, 64]``);
+* ``eval_episodes``: episodes per evaluation seed.
+
+Every other key goes to the algorithm's constructor (``learning_rate``, ``gamma``, ...).
+Precedence: ``default`` < env id < scene < explicit overrides.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+
+__all__ = ["ALGORITHMS", "AgentConfig", "agent_config", "configs_dir"]
+
+ALGORITHMS = ("ppo", "sac", "td3")
+RESERVED = ("n_timesteps", "n_envs", "policy", "policy_kwargs", "eval_episodes")
+
+
+def configs_dir() -> Path:
+    """``$RBENVS_CONFIGS/agents`` if set, else ``configs/agents`` of the source checkout."""
+    root = os.environ.get("RBENVS_CONFIGS")
+    base = Path(root) if root else Path(__file__).resolve().parents[1] / "configs"
+    return base / "agents"
+
+
+@dataclass(frozen=True)
+class AgentConfig:
+    algo: str
+    env_id: str
+    scene: str | None
+    n_timesteps: int
+    n_envs: int = 1
+    policy: str = "MlpPolicy"
+    policy_kwargs: dict = field(default_factory=dict)
+    eval_episodes: int = 10
+    hyperparams: dict = field(default_factory=dict)
+
+
+def agent_config(algo: str, env_id: str, scene: str | None = None, **overrides) -> AgentConfig:
+    """The merged configuration of ``algo`` for ``env_id`` (and ``scene``)."""
+    import yaml
+
+    if algo not in ALGORITHMS:
+        raise ValueError(f"algo must be one of {list(ALGORITHMS)}, got {algo!r}")
+    path = configs_dir() / f"{algo}.yml"
+    if not path.is_file():
+        raise ValueError(f"no hyperparameters for {algo!r}: {path} is missing")
+    data = yaml.safe_load(path.read_text()) or {}
+    if not isinstance(data, dict) or not isinstance(data.get("default", {}), dict):
+        raise ValueError(f"{path} must be a mapping with a 'default:' block")
+    merged: dict = {}
+    env_block = data.get(env_id, {}) or {}
+    scene_block = (env_block.get("scenes", {}) or {}).get(scene, {}) if scene else {}
+    for block in (data.get("default", {}) or {}, env_block, scene_block, overrides):
+        for key, value in block.items():
+            if key == "scenes":
+                continue
+            if key == "policy_kwargs":
+                merged[key] = dict(merged.get(key, {})) | dict(value or {})
+            else:
+                merged[key] = value
+    if "n_timesteps" not in merged:
+        raise ValueError(f"{path}: no n_timesteps for {env_id!r} (set it in 'default:' or the env's block)")
+    n_timesteps = int(merged.pop("n_timesteps"))
+    if n_timesteps < 1:
+        raise ValueError(f"n_timesteps must be >= 1, got {n_timesteps}")
+    n_envs = int(merged.pop("n_envs", 1))
+    if n_envs < 1:
+        raise ValueError(f"n_envs must be >= 1, got {n_envs}")
+    return AgentConfig(
+        algo=algo,
+        env_id=env_id,
+        scene=scene,
+        n_timesteps=n_timesteps,
+        n_envs=n_envs,
+        policy=str(merged.pop("policy", "MlpPolicy")),
+        policy_kwargs=dict(merged.pop("policy_kwargs", {}) or {}),
+        eval_episodes=int(merged.pop("eval_episodes", 10)),
+        hyperparams=merged,
+    )

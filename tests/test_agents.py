@@ -1,0 +1,85 @@
+"""Baseline agents (rbenvs_agents): configuration, smoke training of every algorithm on every
+env (CI's smoke run), evaluation of learned and analytic policies, the command line."""
+
+import json
+
+import numpy as np
+import pytest
+
+pytest.importorskip("stable_baselines3")
+
+from rbenvs.scenes import load_scene  # noqa: E402
+from rbenvs_agents.cli import eval_main, train_main  # noqa: E402
+from rbenvs_agents.config import agent_config  # noqa: E402
+from rbenvs_agents.evaluate import analytic_policy, evaluate, summarize, zero_policy  # noqa: E402
+from rbenvs_agents.train import train  # noqa: E402
+
+SMOKE_SCENES = ("default", "top_upright", "tippe_hold")
+
+
+def test_config_precedence_default_env_scene_override():
+    base = agent_config("ppo", "rbenvs/Unknown-v0")  # only the default block applies
+    env = agent_config("ppo", "rbenvs/FreeRigidBody-v0", "default")
+    assert base.n_timesteps == 200000 and env.n_timesteps == 500000  # the env's block wins
+    assert env.n_envs == 8 and env.hyperparams["gamma"] == 0.98
+    over = agent_config("ppo", "rbenvs/FreeRigidBody-v0", "default", n_timesteps=123, gamma=0.9)
+    assert over.n_timesteps == 123 and over.hyperparams["gamma"] == 0.9
+    assert env.policy_kwargs == {"net_arch": [64, 64]}
+    for reserved in ("n_timesteps", "n_envs", "policy", "policy_kwargs", "eval_episodes"):
+        assert reserved not in env.hyperparams
+
+
+def test_config_errors_name_the_problem():
+    with pytest.raises(ValueError, match="algo"):
+        agent_config("a2c", "rbenvs/FreeRigidBody-v0")
+    with pytest.raises(ValueError, match="n_timesteps"):
+        agent_config("ppo", "rbenvs/FreeRigidBody-v0", n_timesteps=0)
+
+
+@pytest.mark.parametrize("scene_name", SMOKE_SCENES)
+@pytest.mark.parametrize("algo", ["ppo", "sac", "td3"])
+def test_smoke_training_of_every_algorithm_on_every_env(algo, scene_name, tmp_path):
+    scene = load_scene(scene_name)
+    # a few thousand env steps where a step is cheap; the tippe top's step costs ~100x more
+    steps = 300 if scene.env_id == "rbenvs/TippeTop-v0" else 2000
+    extra = {} if algo == "ppo" else {"learning_starts": 100}
+    model, info = train(algo, scene, seed=0, timesteps=steps, out_dir=tmp_path, progress=False, **extra)
+    assert info["timesteps"] == steps and info["wall_time_s"] > 0
+    assert (tmp_path / "model.zip").is_file()
+    assert json.loads((tmp_path / "run.json").read_text())["algo"] == algo
+    env = scene.make()
+    obs, _ = env.reset(seed=0)
+    action, _ = model.predict(obs, deterministic=True)
+    assert env.action_space.contains(action.astype(np.float32))
+
+
+def test_zero_action_reproduces_the_theorems():
+    """Stable axes and a sleeping top succeed without control; the intermediate axis and a slow
+    top do not; the analytic controllers succeed on the unstable ones."""
+    for name, zero_succeeds in (("spin_major", True), ("spin_minor", True), ("top_sleeping", True), ("default", False), ("top_upright", False)):
+        scene = load_scene(name)
+        zero = evaluate(zero_policy, scene, episodes=3, seed=7)
+        assert zero.success_rate == (1.0 if zero_succeeds else 0.0), name
+        if not zero_succeeds:
+            assert evaluate(analytic_policy, scene, episodes=3, seed=7).success_rate == 1.0, name
+
+
+def test_evaluation_is_seeded_and_summarized_across_seeds():
+    scene = load_scene("default")
+    a = evaluate(analytic_policy, scene, episodes=2, seed=3)
+    b = evaluate(analytic_policy, scene, episodes=2, seed=3)
+    assert a == b and len(a.returns) == 2 and all(n == 400 for n in a.lengths)
+    s = summarize([a, evaluate(analytic_policy, scene, episodes=2, seed=4)])
+    assert s["seeds"] == 2 and s["success_mean"] == 1.0 and s["return_std"] >= 0.0
+
+
+def test_train_and_eval_commands(tmp_path, capsys):
+    out = tmp_path / "run"
+    assert train_main(["--algo", "ppo", "--scene", "top_upright", "--timesteps", "512", "--out", str(out), "--eval-episodes", "1", "--no-progress"]) == 0
+    text = capsys.readouterr().out
+    assert "analytic" in text and "zero action" in text and "ppo (seed 0)" in text
+    assert eval_main(["--scene", "top_upright", "--agent", str(out / "model.zip"), "--agent", "zero", "--episodes", "1", "--seeds", "0", "--json"]) == 0
+    records = json.loads(capsys.readouterr().out)["results"]
+    assert [r["agent"] for r in records] == [str(out / "model.zip"), "zero"]
+    with pytest.raises(ValueError, match="model.zip"):
+        eval_main(["--scene", "top_upright", "--agent", str(tmp_path / "missing.zip")])
