@@ -1,7 +1,8 @@
 """Training stable-baselines3 agents on rbenvs scenes, on the native vector env.
 
 ``train(algo, scene, seed)`` builds the scene's batched vector env through the SB3 adapter
-(:mod:`rbenvs_agents.sb3_vec_env`; one batched physics call per step for all sub-envs), the
+(:mod:`rbenvs_agents.sb3_vec_env`; one batched physics call per step for all sub-envs; with
+``n_envs: 1``, SB3's ``DummyVecEnv`` of one single env, whose float path is faster), the
 algorithm with the hyperparameters of ``configs/agents/<algo>.yml``, and learns for the
 configured budget with a progress bar and optional checkpoints. The run directory receives
 ``model.zip`` and ``run.json`` (configuration, seed, steps, wall time).
@@ -64,7 +65,14 @@ def train(algo: str, scene, seed: int = 0, timesteps: int | None = None, out_dir
     cfg = agent_config(algo, scene.env_id, scene.name, **overrides)
     total = int(timesteps if timesteps is not None else cfg.n_timesteps)
     torch.set_num_threads(1)  # small MLPs: threads cost more than they give on 2 cores
-    venv = make_sb3_vec_env(scene.env_id, cfg.n_envs, seed=seed, **scene.kwargs)
+    if cfg.n_envs == 1:
+        # one env: the single env's float path beats a batch of one (numpy's per-call cost
+        # dominates arrays of length 1; about 10x on the tippe top)
+        from stable_baselines3.common.env_util import make_vec_env
+
+        venv = make_vec_env(lambda: scene.make(), n_envs=1, seed=seed)
+    else:
+        venv = make_sb3_vec_env(scene.env_id, cfg.n_envs, seed=seed, **scene.kwargs)
     cls = algorithm_class(algo)
     model = cls(cfg.policy, venv, seed=seed, device=device, policy_kwargs=cfg.policy_kwargs or None, verbose=0,
                 **cfg.hyperparams)
