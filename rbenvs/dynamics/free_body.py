@@ -68,6 +68,8 @@ class FreeBody:
         self.params = params
         self.attitude = bool(attitude)
         self.dim = 7 if self.attitude else 3
+        # without a quaternion there is nothing to project: integrators may skip normalize()
+        self.needs_projection = self.attitude
         self.layout = {"angular_momentum": (0, 3)} | ({"attitude": (3, 7)} if self.attitude else {})
         self._split = (self.kick, self.axis_rotation(0), self.axis_rotation(1), self.axis_rotation(2))
         # the hot path reads these on every call: plain attributes, not params.<field> chains
@@ -102,7 +104,7 @@ class FreeBody:
         )
 
     def normalize(self, y):
-        """Renormalise the quaternion (no-op without attitude)."""
+        """Renormalise the quaternion (no-op without attitude: see :attr:`needs_projection`)."""
         if not self.attitude:
             return y
         return (y[0], y[1], y[2]) + quat_normalize(y[3:7])

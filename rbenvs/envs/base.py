@@ -88,6 +88,8 @@ class RigidBodyEnv(gym.Env):
             and (type(self)._internal_steps is RigidBodyEnv._internal_steps or self._guard_idle())
         )
         self._plain_advance = self._plain_default
+        # the integrator with this system bound once (the hot path's step; same bits as integ.step)
+        self._bound_step = self.integrator.bind(system, system.dim)
         high32 = self._obs_high.astype(np.float32)
         self.observation_space = gym.spaces.Box(-high32, high32, dtype=np.float32)
         self._y = None
@@ -121,9 +123,12 @@ class RigidBodyEnv(gym.Env):
         a = self._action_values(action)
         u_norm, u = self._control(a)
         if self._plain_advance:  # fixed substeps, no events: the loop inline (the hot path)
-            y, event, integ, system, h = self._y, None, self.integrator, self.system, self._h
-            for _ in range(self.substeps):
-                y = integ.step(system, y, u, h)
+            y, event, step, h = self._y, None, self._bound_step, self._h
+            if self.substeps == 1:
+                y = step(y, u, h)
+            else:
+                for _ in range(self.substeps):
+                    y = step(y, u, h)
         else:
             y, event = self._advance(self._y, u)
         # a non-finite component makes the sum non-finite; the exact test runs only then
@@ -304,7 +309,12 @@ class RigidBodyEnv(gym.Env):
     def __getstate__(self):
         state = self.__dict__.copy()
         state["_renderer"] = None  # a figure (and window) is rebuilt by the next render()
+        state["_bound_step"] = None  # generated code: bound again on unpickling
         return state
+
+    def __setstate__(self, state):
+        self.__dict__.update(state)
+        self._bound_step = self.integrator.bind(self.system, self.system.dim)
 
     # ------------------------------------------------------------------ state access
     def get_state(self) -> dict[str, np.ndarray]:
@@ -355,6 +365,10 @@ class RigidBodyEnv(gym.Env):
         """The action as a list of Python floats, validated (shape, finite) and clipped to [-1, 1]."""
         if type(action) is np.ndarray and action.shape == self.action_space.shape:
             values = action.tolist()
+            # the common case in three builtins: every entry in [-1, 1] and the sum finite (min
+            # and max may step over a NaN, the sum cannot); anything else goes the long way
+            if -1.0 <= min(values) and max(values) <= 1.0 and math.isfinite(sum(values)):
+                return values
         else:
             arr = np.asarray(action, dtype=np.float64)
             if arr.shape != self.action_space.shape:

@@ -21,6 +21,18 @@ __all__ = ["Euler", "RK4"]
 
 @lru_cache(maxsize=None)
 def _unrolled(kind: str, dim: int):
+    """``step(f, normalize, y, u, h)``: one step of ``kind`` for states of ``dim`` components."""
+    return _generate(kind, dim, project=True)["step"]
+
+
+@lru_cache(maxsize=None)
+def _factory(kind: str, dim: int, project: bool):
+    """``make(f, normalize) -> step(y, u, h)``: the same step with the system's functions bound
+    once (and, for a system with nothing to project, without the identity ``normalize`` call)."""
+    return _generate(kind, dim, project)["make"]
+
+
+def _generate(kind: str, dim: int, project: bool) -> dict:
     y = [f"y{i}" for i in range(dim)]
     ys = ", ".join(y) + ("," if dim == 1 else "")
 
@@ -30,11 +42,14 @@ def _unrolled(kind: str, dim: int):
     def names(p):
         return ", ".join(f"{p}{i}" for i in range(dim)) + ("," if dim == 1 else "")
 
+    def result(expr):
+        return "return normalize(" + expr + ")" if project else "return " + expr
+
     if kind == "euler":
         body = [
             f"{ys} = y",
             f"{names('k')} = f(y, u)",
-            "return normalize(" + comps(lambda i: f"y{i} + h * k{i}") + ")",
+            result(comps(lambda i: f"y{i} + h * k{i}")),
         ]
     else:
         body = [
@@ -45,12 +60,14 @@ def _unrolled(kind: str, dim: int):
             f"{names('c')} = f(" + comps(lambda i: f"y{i} + hh * b{i}") + ", u)",
             f"{names('d')} = f(" + comps(lambda i: f"y{i} + h * c{i}") + ", u)",
             "h6 = h / 6.0",
-            "return normalize(" + comps(lambda i: f"y{i} + h6 * (a{i} + 2.0 * (b{i} + c{i}) + d{i})") + ")",
+            result(comps(lambda i: f"y{i} + h6 * (a{i} + 2.0 * (b{i} + c{i}) + d{i})")),
         ]
     src = "def step(f, normalize, y, u, h):\n" + "\n".join("    " + line for line in body) + "\n"
+    src += "def make(f, normalize):\n    def step(y, u, h):\n" + "\n".join("        " + line for line in body)
+    src += "\n    return step\n"
     namespace: dict = {}
-    exec(compile(src, f"<rbenvs {kind} dim={dim}>", "exec"), namespace)
-    return namespace["step"]
+    exec(compile(src, f"<rbenvs {kind} dim={dim}{'' if project else ' no projection'}>", "exec"), namespace)
+    return namespace
 
 
 @dataclass(frozen=True)
@@ -65,6 +82,9 @@ class Euler(Integrator):
     def step(self, system, y, u, h):
         return _unrolled("euler", len(y))(system.rhs, system.normalize, y, u, h)
 
+    def bind(self, system, dim):
+        return _factory("euler", dim, getattr(system, "needs_projection", True))(system.rhs, system.normalize)
+
 
 @dataclass(frozen=True)
 class RK4(Integrator):
@@ -76,3 +96,6 @@ class RK4(Integrator):
 
     def step(self, system, y, u, h):
         return _unrolled("rk4", len(y))(system.rhs, system.normalize, y, u, h)
+
+    def bind(self, system, dim):
+        return _factory("rk4", dim, getattr(system, "needs_projection", True))(system.rhs, system.normalize)
