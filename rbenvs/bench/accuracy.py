@@ -541,6 +541,7 @@ def print_report(result, file=None):
             us = min(p["seconds_per_step"] for p in pts) * 1e6
             errs = "  ".join(f"{p['h']:.2e}:{p['error']:.1e}" for p in pts)
             print(f"{c['integrator']:<10} {order:>6} {c['declared_order']:>8} {rhs:>8} {us:>8.2f}  {errs}", file=file)
+        _print_mujoco_ratios([c for c in result["convergence"] if c["case"] == key], file)
         drifts = [d for d in result["drift"] if d["case"] == key]
         names = list(drifts[0]["drift_long"])
         print(f"drift at h = {info['drift_h']:.4g} s (largest relative change from the start)", file=file)
@@ -552,6 +553,36 @@ def print_report(result, file=None):
             print(f"{d['integrator']:<10} {d['long_steps']:>10.0e}  {cols}  {note}", file=file)
     if result.get("scenes"):
         print_scenes(result["scenes"], file=file)
+
+
+# accuracies at which the cheapest rbenvs and MuJoCo schemes are compared (relative error at T)
+COST_TARGETS = (1e-3, 1e-6, 1e-9)
+
+
+def cheapest(convergence_rows, tol):
+    """``(integrator, seconds per simulated second)`` of the cheapest grid point with error
+    ``<= tol`` among ``convergence_rows``; ``None`` if none reaches it."""
+    best = None
+    for c in convergence_rows:
+        for p in c["points"]:
+            if p["error"] <= tol and (best is None or p["seconds_per_simulated_second"] < best[1]):
+                best = (c["integrator"], p["seconds_per_simulated_second"])
+    return best
+
+
+def _print_mujoco_ratios(rows, file):
+    """With MuJoCo lines: the cost of reaching each accuracy, ours against MuJoCo's (same run)."""
+    theirs = [c for c in rows if c["integrator"].startswith("mujoco")]
+    if not theirs:
+        return
+    ours = [c for c in rows if not c["integrator"].startswith("mujoco")]
+    print("cost to reach a relative error at T (CPU s per simulated s, the cheapest grid point of each side):", file=file)
+    for tol in COST_TARGETS:
+        a, b = cheapest(ours, tol), cheapest(theirs, tol)
+        if a is None or b is None:
+            print(f"  error <= {tol:.0e}: rbenvs {a[0] if a else 'none'}, MuJoCo {b[0] if b else 'none on the grid'}", file=file)
+            continue
+        print(f"  error <= {tol:.0e}: rbenvs {a[0]} {a[1]:.2e} s, MuJoCo {b[0][7:]} {b[1]:.2e} s: MuJoCo / rbenvs = {b[1] / a[1]:.1f}", file=file)
 
 
 def print_scenes(rows, file=None):
