@@ -17,26 +17,21 @@ import rbenvs  # noqa: F401  (registers the ids)
 from rbenvs.dynamics import TippeTop, TippeTopParams
 from rbenvs.dynamics.tippe_top import TOUCHDOWN_TOL
 from rbenvs.envs import TippeTopEnv
+from test_tippe_top_env import rotation  # the body-to-space matrix, the tests' own formula
 
 ZERO = np.zeros(2, dtype=np.float32)
 
 
-def rotation(q):
-    """Body-to-space rotation matrix of ``q = (w, x, y, z)`` (own formula, not the package's)."""
-    w, x, y, z = q
-    return np.array(
-        [
-            [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-            [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-            [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
-        ]
-    )
-
-
 def run(env, steps, seed=1):
-    """Zero-action run: lists of infos (reset included) and observations."""
+    """Zero-action run from a seeded reset: lists of infos (reset included) and observations."""
     obs, info = env.reset(seed=seed)
-    infos, observations = [info], [obs]
+    infos, observations = run_from_state(env, steps)
+    return [info] + infos, [obs] + observations
+
+
+def run_from_state(env, steps):
+    """Zero-action run from the env's current state (no reset)."""
+    infos, observations = [], []
     for _ in range(steps):
         obs, _, terminated, truncated, info = env.step(ZERO)
         infos.append(info)
@@ -159,17 +154,6 @@ def test_a_dropped_top_lands_plastically_and_stays_on_the_table(integrator):
     assert all(abs(i["jellett"] - j0) <= 1e-9 * abs(j0) for i in infos)
     after = [i["energy"] for i in infos[infos.index(landed[0]):] if not i["airborne"]]
     assert max(after) - min(after) <= 1e-9 * after[0]
-
-
-def run_from_state(env, steps):
-    infos, observations = [], []
-    for _ in range(steps):
-        obs, _, terminated, truncated, info = env.step(ZERO)
-        infos.append(info)
-        observations.append(obs)
-        if terminated or truncated:
-            break
-    return infos, observations
 
 
 # ---------------------------------------------------------------------------- long fast runs
