@@ -78,7 +78,7 @@ def train_main(argv=None) -> int:
     p.add_argument("--out", type=Path, default=None, help="run directory (default: runs/<algo>-<scene>-seed<seed>)")
     p.add_argument("--checkpoint-every", type=int, default=None, metavar="STEPS")
     p.add_argument("--eval-episodes", type=int, default=10)
-    p.add_argument("--eval-seeds", type=int, nargs="+", default=[100], help="evaluation seeds (default: %(default)s)")
+    p.add_argument("--eval-seeds", type=int, nargs="+", default=[100, 101, 102], help="evaluation seeds (default: %(default)s)")
     p.add_argument("--no-compare", action="store_true", help="skip the evaluation")
     p.add_argument("--no-progress", action="store_true")
     args = p.parse_args(argv)
@@ -95,7 +95,7 @@ def train_main(argv=None) -> int:
                                      ("analytic", analytic_policy), ("zero action", zero_policy)],
                              args.eval_episodes, args.eval_seeds)
         print(f"\nevaluation on '{scene.name}' ({scene.description}), {args.eval_episodes} episodes x seeds {args.eval_seeds}:")
-        print(_table(rows, ("agent", "return", "success")))
+        print(_table(rows, ("agent", "return (mean +- std over seeds)", "success")))
     return 0
 
 

@@ -42,8 +42,8 @@ def _progress_callback(total: int, label: str, enabled: bool):
                 self.bar = tqdm(total=total, desc=label, unit="step", dynamic_ncols=True)
 
         def _on_step(self):
-            if self.bar is not None:
-                self.bar.update(self.training_env.num_envs)
+            if self.bar is not None:  # (rollouts may overshoot the budget: the bar stops at it)
+                self.bar.update(min(self.training_env.num_envs, total - self.bar.n))
             return True
 
         def _on_training_end(self):
