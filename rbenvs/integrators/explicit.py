@@ -83,6 +83,8 @@ class Euler(Integrator):
         return _unrolled("euler", len(y))(system.rhs, system.normalize, y, u, h)
 
     def bind(self, system, dim):
+        if type(self).step is not Euler.step:  # a subclass that changes step: bind that
+            return super().bind(system, dim)
         return _factory("euler", dim, getattr(system, "needs_projection", True))(system.rhs, system.normalize)
 
 
@@ -98,4 +100,6 @@ class RK4(Integrator):
         return _unrolled("rk4", len(y))(system.rhs, system.normalize, y, u, h)
 
     def bind(self, system, dim):
+        if type(self).step is not RK4.step:  # a subclass that changes step: bind that
+            return super().bind(system, dim)
         return _factory("rk4", dim, getattr(system, "needs_projection", True))(system.rhs, system.normalize)
