@@ -395,6 +395,28 @@ class RigidBodyVectorEnv(VectorEnv):
             return {k: np.array(v, dtype=np.float64).T.copy() for k, v in system.export_state(self._y).items()}
         return {name: np.stack(self._y[a:b], axis=1).astype(np.float64) for name, (a, b) in system.layout.items()}
 
+    # ------------------------------------------------------------------ rendering
+    def render(self):
+        """``render_mode="rgb_array"``: a tuple with one ``(H, W, 3)`` uint8 frame per sub-env
+        (gymnasium's vector convention), drawn by the template env with its state set to each
+        row in turn; ``"human"``: sub-env 0 in the template's window, ``None``. The template's
+        own state is restored; the batch is only read."""
+        if self.render_mode is None:
+            warnings.warn(f"{type(self).__name__}.render() called without a render_mode: pass render_mode='rgb_array' or 'human'", stacklevel=2)
+            return None
+        if self._y is None:
+            raise RuntimeError("call reset() before render()")
+        env, saved = self.env, self.env._y
+        rows = range(self.num_envs) if self.render_mode == "rgb_array" else (0,)
+        frames = []
+        try:
+            for i in rows:
+                env._y = tuple(float(c[i]) for c in self._y)
+                frames.append(env.render())
+        finally:
+            env._y = saved
+        return tuple(frames) if self.render_mode == "rgb_array" else None
+
     def close_extras(self, **kwargs):
         self.env.close()
 

@@ -220,3 +220,20 @@ def test_render_collection_wrapper_gets_one_frame_per_step():
         env.step(env.action_space.sample())
     frames = env.render()
     assert len(frames) == 4 and all(f.shape == FRAME_SIZE + (3,) and f.dtype == np.uint8 for f in frames)
+
+
+@pytest.mark.parametrize("env_id", ["rbenvs/FreeRigidBody-v0", "rbenvs/LagrangeTop-v0", "rbenvs/TippeTop-v0"])
+def test_vector_env_renders_one_frame_per_sub_env_as_the_single_env_does(env_id):
+    venv = gym.make_vec(env_id, num_envs=3, vectorization_mode="vector_entry_point", render_mode="rgb_array")
+    venv.reset(seed=0)
+    venv.step(venv.action_space.sample())
+    frames = venv.render()
+    assert isinstance(frames, tuple) and len(frames) == 3
+    state = venv.unwrapped.get_state()
+    for i, frame in enumerate(frames):
+        single = gym.make(env_id, render_mode="rgb_array").unwrapped
+        single.reset(options={"state": {k: v[i] for k, v in state.items()}})
+        np.testing.assert_array_equal(frame, single.render())
+        single.close()
+    assert not np.array_equal(frames[0], frames[1])  # different states, different pictures
+    venv.close()
