@@ -445,7 +445,7 @@ class TippeTop:
         prm = self.params
         if y_prev[13] == 1.0:
             def normal(z):
-                return self._raw_normal_force(z, u)
+                return self.constraint_normal_force(z, u)
 
             n_end = normal(y)
             if n_end >= 0.0:
@@ -494,8 +494,9 @@ class TippeTop:
                 side = 1
         return b, yb
 
-    def _raw_normal_force(self, y, u):
-        """``N`` from the contact constraint, whether or not the top is on the table."""
+    def constraint_normal_force(self, y, u):
+        """``N`` [N] the contact constraint asks for at ``y`` under ``u``, whether or not the top is
+        on the table (negative: the table would have to pull; lift-off)."""
         return self._contact(y, u)[1]
 
     # ------------------------------------------------------------------ read-outs

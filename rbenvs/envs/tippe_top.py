@@ -278,7 +278,7 @@ class TippeTopEnv(RigidBodyEnv):
             return system.switch_contact(y_prev, y, u, h, integ)
         on_table = y_prev[13] == 1.0
         with np.errstate(invalid="ignore"):
-            switch = np.where(on_table, system._raw_normal_force(y, u) < 0.0, system.gap(y) < 0.0)
+            switch = np.where(on_table, system.constraint_normal_force(y, u) < 0.0, system.gap(y) < 0.0)
         if switch.any():
             y = [np.array(c, dtype=np.float64) for c in y]
             for i in np.flatnonzero(switch):
