@@ -29,26 +29,23 @@ def algorithm_class(algo: str):
 def _progress_callback(total: int, label: str, enabled: bool):
     from stable_baselines3.common.callbacks import BaseCallback
 
+    from rbenvs.progress import Progress
+
     class ProgressBar(BaseCallback):
-        """tqdm bar over env steps (SB3's own bar needs `rich`, which the agents extra omits)."""
+        """A bar over env steps (SB3's own bar needs `rich`, which the agents extra omits)."""
 
         def _on_training_start(self):
-            self.bar = None
-            if enabled:
-                try:
-                    from tqdm.auto import tqdm
-                except ImportError:
-                    return
-                self.bar = tqdm(total=total, desc=label, unit="step", dynamic_ncols=True)
+            self.bar, self.done = Progress(total, enabled, label), 0
 
         def _on_step(self):
-            if self.bar is not None:  # (rollouts may overshoot the budget: the bar stops at it)
-                self.bar.update(min(self.training_env.num_envs, total - self.bar.n))
+            # (rollouts may overshoot the budget: the bar stops at it)
+            n = min(self.training_env.num_envs, total - self.done)
+            self.bar.update(n)
+            self.done += n
             return True
 
         def _on_training_end(self):
-            if self.bar is not None:
-                self.bar.close()
+            self.bar.close()
 
     return ProgressBar()
 

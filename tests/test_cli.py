@@ -84,3 +84,18 @@ def test_bench_fidelity_measures_every_level_against_gliding():
     # only regularised Coulomb friction is stiff: it needs the most internal steps
     assert by["gliding, coulomb"]["internal_steps"] > by["frictionless"]["internal_steps"]
     assert all(r["env_step_us"] > 0 and r["rhs_us"] > 0 for r in rows)
+
+
+def test_progress_bar_counts_and_is_silent_when_off(capsys):
+    from rbenvs.progress import Progress
+
+    bar = Progress(5, enabled=True, desc="t")
+    for _ in range(3):
+        bar.update()
+    bar.update(2)
+    assert bar.bar is not None and bar.bar.n == 5  # tqdm is in the cli extra
+    bar.close()
+    off = Progress(5, enabled=False)
+    off.update()
+    off.close()
+    assert off.bar is None

@@ -75,7 +75,8 @@ import numpy as np
 from ..integrators import get_integrator
 from ..integrators.reference import Dop853
 from ..verify.tippe_top import _Floats
-from .throughput import _episode_stepper, _progress, _timed
+from ..progress import Progress
+from .throughput import _episode_stepper, _timed
 
 __all__ = ["CASES", "REFERENCE", "TARGET", "Case", "run", "run_scenes", "fit_order", "convergence", "drift", "mujoco_free_body", "print_report", "print_scenes", "plot", "main"]
 
@@ -655,10 +656,9 @@ def main(argv=None) -> int:
             print("rbenvs bench accuracy --plot needs matplotlib (pip install 'rbenvs[plot]')", file=sys.stderr)
             return 2
     scenes = (not args.quick) if args.scenes is None else args.scenes
-    update, bar = _progress(progress_total(args.system, args.quick), not args.no_progress)
-    result = run(systems=args.system, quick=args.quick, progress=update, mujoco=args.mujoco)
-    if bar is not None:
-        bar.close()
+    bar = Progress(progress_total(args.system, args.quick), not args.no_progress, "bench accuracy")
+    result = run(systems=args.system, quick=args.quick, progress=bar.update, mujoco=args.mujoco)
+    bar.close()
     if scenes:
         result["scenes"] = run_scenes()
     result["settings"] = {"quick": args.quick, "target": TARGET, "fit_range": [FIT_FLOOR, FIT_CEILING]}

@@ -25,11 +25,12 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
 import time
 import warnings
 
 import numpy as np
+
+from ..progress import Progress
 
 __all__ = ["run_single", "run_vector", "main"]
 
@@ -155,17 +156,6 @@ def run_sb3(sizes=(16, 256), min_time=0.2, repeat=3) -> list[dict]:
     return rows
 
 
-def _progress(total, enabled):
-    if not enabled:
-        return None, None
-    try:
-        from tqdm import tqdm
-    except ImportError:
-        return None, None
-    bar = tqdm(total=total, desc="bench throughput", file=sys.stderr, leave=False)
-    return bar.update, bar
-
-
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(prog="rbenvs bench throughput", description="Env-steps per second against Pendulum-v1 and CartPole-v1's native vector env.")
     parser.add_argument("--json", metavar="PATH", help="also write the figures as JSON")
@@ -176,12 +166,11 @@ def main(argv=None) -> int:
     min_time = 0.05 if args.quick else 0.2
     n_single = sum(len(i) for _, i in SYSTEMS)
     n_vector = sum(1 for _, ints in SYSTEMS for i in ints for n in sizes if n <= LARGEST.get(i, max(sizes))) + len(sizes)
-    update, bar = _progress(n_single + n_vector, not args.no_progress)
-    single = run_single(min_time=min_time, progress=update)
-    vector = run_vector(sizes=sizes, min_time=min_time, progress=update)
+    bar = Progress(n_single + n_vector, not args.no_progress, "bench throughput")
+    single = run_single(min_time=min_time, progress=bar.update)
+    vector = run_vector(sizes=sizes, min_time=min_time, progress=bar.update)
     sb3 = run_sb3(sizes=(16, 256), min_time=min_time)
-    if bar is not None:
-        bar.close()
+    bar.close()
     print("single env: one step of gymnasium.make(id) against Pendulum-v1, same run (us)")
     print(f"{'id':<26} {'integrator':<10} {'ours':>9} {'Pendulum':>9} {'ratio':>7}")
     for r in single:

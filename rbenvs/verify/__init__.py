@@ -35,6 +35,7 @@ import sys
 from dataclasses import asdict
 
 from ..integrators import INTEGRATORS, get_integrator
+from ..progress import Progress
 from .common import ROUND_OFF, Check
 from .free_body import FREE_BODY_SETTINGS, free_body_checks
 from .heavy_top import HEAVY_TOP_SETTINGS, heavy_top_checks
@@ -78,7 +79,7 @@ def run_checks(systems=SYSTEMS, integrators=None, quick=False, seed=0, show_prog
     n_fb = FREE_BODY_CASES[0 if quick else 1]
     n_ht = HEAVY_TOP_CASES[0 if quick else 1]
     total = len(fb) * (n_fb + 1) + len(ht) * n_ht + _tippe.progress_total(tt, quick=quick)
-    progress = _Progress(total=total, enabled=show_progress)
+    progress = Progress(total=total, enabled=show_progress, desc="verify")
     checks = []
     if fb:
         checks += free_body_checks(fb, seed=seed, n_cases=n_fb, progress=progress.update)
@@ -93,32 +94,10 @@ def run_checks(systems=SYSTEMS, integrators=None, quick=False, seed=0, show_prog
 def run_sweep(quick=False, show_progress=True):
     """The tippe top's final-tilt sweep (:func:`rbenvs.verify.tippe_top.sweep`); ``quick``: 3 points."""
     alphas, offsets = _tippe.SWEEP_QUICK if quick else (_tippe.SWEEP_ALPHAS, _tippe.SWEEP_OFFSETS)
-    progress = _Progress(total=len(alphas) * len(offsets), enabled=show_progress, desc="sweep")
+    progress = Progress(total=len(alphas) * len(offsets), enabled=show_progress, desc="sweep")
     points = _tippe.sweep(alphas, offsets, progress=progress.update)
     progress.close()
     return points
-
-
-class _Progress:
-    """tqdm when installed (the cli extra), otherwise silent."""
-
-    def __init__(self, total, enabled, desc="verify"):
-        self.bar = None
-        if enabled:
-            try:
-                from tqdm import tqdm
-
-                self.bar = tqdm(total=total, desc=desc, file=sys.stderr, leave=False)
-            except ImportError:
-                pass
-
-    def update(self):
-        if self.bar is not None:
-            self.bar.update()
-
-    def close(self):
-        if self.bar is not None:
-            self.bar.close()
 
 
 def _fmt(x):
