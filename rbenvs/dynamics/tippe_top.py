@@ -140,6 +140,7 @@ class TippeTop:
     """Vector field, contact forces and read-outs of the tippe top at one fidelity level."""
 
     def __init__(self, params: TippeTopParams, fidelity: str = "gliding", flight: bool = False):
+        self._v = 2  # index of v_x in the state (not used when rolling)
         if fidelity not in FIDELITIES:
             raise ValueError(f"fidelity must be one of {list(FIDELITIES)}, got {fidelity!r}")
         self.params = params
@@ -153,7 +154,7 @@ class TippeTop:
             self.layout = {"position": (0, 3), "velocity": (3, 6), "attitude": (6, 10), "angular_velocity": (10, 13), "contact": (13, 14), "hops": (14, 15)}
             self.dim = 15
             self._q, self._w = 6, 10
-            self._v = 3  # index of v_x
+            self._v = 3  # index of v_x (2 without flight)
         elif self.rolling:
             self.layout = {"position": (0, 2), "attitude": (2, 6), "angular_velocity": (6, 9)}
             self.dim = 9
@@ -162,8 +163,6 @@ class TippeTop:
             self.layout = {"position": (0, 2), "velocity": (2, 4), "attitude": (4, 8), "angular_velocity": (8, 11)}
             self.dim = 11
             self._q, self._w = 4, 8
-        if not self.flight:
-            self._v = 2
 
     # ------------------------------------------------------------------ kinematics
     def frame(self, y):
@@ -288,6 +287,8 @@ class TippeTop:
         c = w3 * (w1 * g1 + w2 * g2) - (w1 * w1 + w2 * w2) * g3
         den = 1.0 + m * h * (a12 * g1 - a11 * g2)
         n = m * (g - h * (w02 * g1 - w01 * g2 + c)) / den
+        if self.flight:  # in flight (contact flag 0) no contact force: the same lines with N = 0
+            n = y[13] * n
         dw = (w01 + n * a11, w02 + n * a12, w03 + n * a13)
         return dw, n, (n * f1, n * f2, n * f3), vb, rm, (ax, ay)
 
@@ -349,7 +350,7 @@ class TippeTop:
             qw * h3 + qx * h2 - qy * h1,
         )
         if self.flight:
-            return self._flight_rhs(y, u, dq, dw, n, fb, rm, ax, ay)
+            return self._flight_rhs(y, dq, dw, n, fb, rm, ax, ay)
         # horizontal velocity of G in space: from the state, or (rolling) from -Omega x r
         if self.rolling:
             dpos = (rm[0] * vb[0] + rm[1] * vb[1] + rm[2] * vb[2], rm[3] * vb[0] + rm[4] * vb[1] + rm[5] * vb[2])
@@ -359,39 +360,27 @@ class TippeTop:
         fy = rm[3] * fb[0] + rm[4] * fb[1] + rm[5] * fb[2]
         return (y[2], y[3], fx / m - ax, fy / m - ay) + dq + dw
 
-    def _flight_rhs(self, y, u, dq, dw_contact, n, fb, rm, ax, ay):
-        """Vector field with free flight: the constrained one where ``c = 1``, ballistic and
-        torque-free where ``c = 0`` (a blend ``c X + (1 - c) Y`` that is exact for ``c`` in
-        {0, 1}, so one expression serves floats and batches)."""
+    def _flight_rhs(self, y, dq, dw, n, fb, rm, ax, ay):
+        """Vector field with free flight. ``_contact`` has already set the contact force to zero
+        where ``c = 0``; what remains is the height: the constraint's rate on the table, the
+        state's ``v_z`` in flight (a blend ``c X + (1 - c) Y``, exact for ``c`` in {0, 1}, so one
+        expression serves floats and batches)."""
         prm = self.params
-        big_a, big_c = prm.inertia
-        m, g = prm.mass, prm.gravity
+        m = prm.mass
         c = y[13]
-        f = 1.0 - c
-        w1, w2, w3 = self.angular_velocity(y)
+        w1, w2, _ = self.angular_velocity(y)
         fx = rm[0] * fb[0] + rm[1] * fb[1] + rm[2] * fb[2]
         fy = rm[3] * fb[0] + rm[4] * fb[1] + rm[5] * fb[2]
         vz_contact = -prm.height * (w2 * rm[6] - w1 * rm[7])
-        # torque-free rotation (plus any body torque): what dw_contact is without the contact force
-        u_t = (0.0, 0.0, 0.0) if u is None else u[3:6]
-        w01 = ((big_a - big_c) * w2 * w3 + u_t[0]) / big_a
-        w02 = ((big_c - big_a) * w3 * w1 + u_t[1]) / big_a
-        w03 = u_t[2] / big_c
         zero = 0.0 * c
         return (
             y[3],
             y[4],
-            c * vz_contact + f * y[5],
-            c * (fx / m) - ax,
-            c * (fy / m) - ay,
-            c * (n / m) - g,  # the friction force is horizontal: N alone lifts G
-        ) + dq + (
-            c * dw_contact[0] + f * w01,
-            c * dw_contact[1] + f * w02,
-            c * dw_contact[2] + f * w03,
-            zero,
-            zero,
-        )
+            c * vz_contact + (1.0 - c) * y[5],
+            fx / m - ax,
+            fy / m - ay,
+            n / m - prm.gravity,  # the friction force is horizontal: N alone lifts G
+        ) + dq + dw + (zero, zero)
 
     def normalize(self, y):
         o = self._q
@@ -495,8 +484,8 @@ class TippeTop:
         return b, yb
 
     def constraint_normal_force(self, y, u):
-        """``N`` [N] the contact constraint asks for at ``y`` under ``u``, whether or not the top is
-        on the table (negative: the table would have to pull; lift-off)."""
+        """``N`` [N] the contact constraint asks for at ``y`` under ``u`` (negative: the table
+        would have to pull; lift-off); 0 in flight."""
         return self._contact(y, u)[1]
 
     # ------------------------------------------------------------------ read-outs
@@ -506,9 +495,6 @@ class TippeTop:
         dw, n, fb, vb, rm, _ = self._contact(y, u)
         fx = rm[0] * fb[0] + rm[1] * fb[1] + rm[2] * fb[2]
         fy = rm[3] * fb[0] + rm[4] * fb[1] + rm[5] * fb[2]
-        if self.flight:  # no contact force in flight
-            c = y[13]
-            n, fx, fy = c * n, c * fx, c * fy
         return n, (fx, fy), self.slip_speed(y)
 
     def slip_speed(self, y):
