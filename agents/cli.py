@@ -120,7 +120,7 @@ def eval_main(argv=None) -> int:
 def results_main(argv=None) -> int:
     import yaml
 
-    from .config import configs_dir
+    from .config import agent_config, configs_dir
     from .evaluate import analytic_policy, evaluate, sb3_policy, summarize, zero_policy
     from .train import train
 
@@ -146,8 +146,6 @@ def results_main(argv=None) -> int:
             for s in seeds:
                 budget = None
                 if args.quick:
-                    from .config import agent_config
-
                     budget = max(1000, agent_config(algo, scene.env_id, scene.name).n_timesteps // 20)
                 t0 = time.perf_counter()
                 model, info = train(algo, scene, seed=s, timesteps=budget, progress=not args.no_progress)

@@ -39,7 +39,7 @@ class Evaluation:
 class _Controller:
     """An analytic controller (``controller(obs) -> action``) as a policy."""
 
-    def __init__(self, env, controller):
+    def __init__(self, controller):
         self.controller = controller
 
     def predict(self, obs):
@@ -49,13 +49,13 @@ class _Controller:
 def analytic_policy(env):
     from rbenvs.controllers import controller_for
 
-    return _Controller(env, controller_for(env))
+    return _Controller(controller_for(env))
 
 
 def zero_policy(env):
     from rbenvs.controllers import ZeroController
 
-    return _Controller(env, ZeroController(env))
+    return _Controller(ZeroController(env))
 
 
 class _SB3:

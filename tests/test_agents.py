@@ -83,3 +83,21 @@ def test_train_and_eval_commands(tmp_path, capsys):
     assert [r["agent"] for r in records] == [str(out / "model.zip"), "zero"]
     with pytest.raises(ValueError, match="model.zip"):
         eval_main(["--scene", "top_upright", "--agent", str(tmp_path / "missing.zip")])
+
+
+def test_results_command_prints_the_table_of_its_grid(tmp_path, monkeypatch, capsys):
+    """rbenvs-results on a one-scene grid (--quick: a twentieth of the budget, one seed)."""
+    import shutil
+
+    import rbenvs_agents.config as config
+    from rbenvs_agents.cli import results_main
+
+    shutil.copy(config.configs_dir() / "ppo.yml", tmp_path / "ppo.yml")
+    (tmp_path / "results.yml").write_text("runs:\n  - scene: top_sleeping\n    algos: [ppo]\n")
+    monkeypatch.setattr(config, "configs_dir", lambda: tmp_path)
+    assert results_main(["--quick", "--no-progress", "--json", str(tmp_path / "r.json")]) == 0
+    lines = capsys.readouterr().out.strip().splitlines()
+    assert lines[0].startswith("| env | task (scene) | agent |") and len(lines) == 2 + 3  # header, rule, 3 agents
+    records = json.loads((tmp_path / "r.json").read_text())
+    assert [r["agent"] for r in records] == ["zero action", "analytic", "PPO"]
+    assert records[2]["timesteps"] == 5000 and records[0]["success_mean"] == 1.0  # zero action: a sleeping top

@@ -112,3 +112,16 @@ def test_scene_errors_follow_the_order_and_pick_a_scheme_that_meets_the_target()
     rec = row["recommended"]
     chosen = next(c for c in row["candidates"] if (c["integrator"], c["substeps"]) == (rec["integrator"], rec["substeps"]))
     assert chosen["error"] <= accuracy.TARGET
+
+
+def test_cheapest_picks_the_least_cost_point_within_the_tolerance():
+    from rbenvs.bench.accuracy import cheapest
+
+    rows = [
+        {"integrator": "a", "points": [{"error": 1e-2, "seconds_per_simulated_second": 1.0}, {"error": 1e-7, "seconds_per_simulated_second": 4.0}]},
+        {"integrator": "b", "points": [{"error": 1e-7, "seconds_per_simulated_second": 3.0}, {"error": 1e-10, "seconds_per_simulated_second": 9.0}]},
+    ]
+    assert cheapest(rows, 1e-1) == ("a", 1.0)
+    assert cheapest(rows, 1e-6) == ("b", 3.0)
+    assert cheapest(rows, 1e-9) == ("b", 9.0)
+    assert cheapest(rows, 1e-12) is None
