@@ -13,6 +13,8 @@ import math
 
 import numpy as np
 
+from .compiled import jitable
+
 __all__ = [
     "sqrt",
     "atan2",
@@ -25,9 +27,11 @@ __all__ = [
     "quat_from_two_vectors",
     "quat_to_euler_zxz",
     "quat_random",
+    "quat_from_uniforms",
 ]
 
 
+@jitable
 def sqrt(x):
     """Square root of a float or an array, with the same bits either way (IEEE sqrt is
     correctly rounded; ``x ** 0.5`` is libm ``pow`` for a float but SIMD sqrt for an array)."""
@@ -181,7 +185,11 @@ def quat_to_euler_zxz(q):
 
 def quat_random(rng: np.random.Generator, shape=()):
     """Uniformly distributed unit quaternions (Shoemake's method), as component arrays."""
-    u1, u2, u3 = rng.random((3,) + tuple(shape))
+    return quat_from_uniforms(*rng.random((3,) + tuple(shape)))
+
+
+def quat_from_uniforms(u1, u2, u3):
+    """Shoemake's map from three uniforms on [0, 1) to a uniformly distributed unit quaternion."""
     a = np.sqrt(1.0 - u1)
     b = np.sqrt(u1)
     return (

@@ -18,12 +18,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..compiled import jitable
 from ..elliptic import elliptic_f_sc, elliptic_k, jacobi_sn_cn_dn
 from ..rotations import quat_multiply, quat_normalize, sqrt
 from .flows import AxisRotation
 from .validation import require_inertia
 
-__all__ = ["FreeBodyParams", "FreeBody", "FreeBodyOrbit"]
+__all__ = ["FreeBodyParams", "FreeBody", "FreeBodyOrbit", "euler_rhs", "kinetic_energy", "momentum_norm", "angular_velocity", "free_body_readouts"]
 
 _CYCLIC = {(0, 1, 2), (1, 2, 0), (2, 0, 1)}
 
@@ -54,6 +55,50 @@ class FreeBodyParams:
         return (order[0], order[1], order[2])
 
 
+# Pure functions on the momentum components ``y[0:3]`` (floats or arrays; compiled by
+# rbenvs.compiled for the batch kernel). The methods of FreeBody call them.
+@jitable
+def euler_rhs(c, y, u):
+    """``dPi/dt = Pi x Omega + tau`` (15.3.9-10) with ``c`` the coefficients of
+    :class:`FreeBodyParams`: ``dPi1/dt = c1 Pi2 Pi3 + tau1`` etc."""
+    c1, c2, c3 = c
+    p1, p2, p3 = y[0], y[1], y[2]
+    d1 = c1 * p2 * p3
+    d2 = c2 * p3 * p1
+    d3 = c3 * p1 * p2
+    if u is not None:
+        d1 = d1 + u[0]
+        d2 = d2 + u[1]
+        d3 = d3 + u[2]
+    return (d1, d2, d3)
+
+
+@jitable
+def kinetic_energy(inv, y):
+    """``H = 1/2 sum Pi_i^2 / I_i`` [J], ``inv`` the inverse moments."""
+    j1, j2, j3 = inv
+    return 0.5 * (j1 * y[0] * y[0] + j2 * y[1] * y[1] + j3 * y[2] * y[2])
+
+
+@jitable
+def momentum_norm(y):
+    """``|Pi|`` [kg m^2/s]."""
+    return sqrt(y[0] * y[0] + y[1] * y[1] + y[2] * y[2])
+
+
+@jitable
+def angular_velocity(inv, y):
+    """``Omega = I^-1 Pi`` [rad/s]."""
+    j1, j2, j3 = inv
+    return (j1 * y[0], j2 * y[1], j3 * y[2])
+
+
+@jitable
+def free_body_readouts(inv, y):
+    """The env's physical read-outs ``(energy, momentum_norm)`` (names: FreeBody.readout_names)."""
+    return (kinetic_energy(inv, y), momentum_norm(y))
+
+
 class FreeBody:
     """Vector field, invariants and exact sub-flows of the free rigid body.
 
@@ -75,23 +120,21 @@ class FreeBody:
         # the hot path reads these on every call: plain attributes, not params.<field> chains
         self._coefficients = params.coefficients
         self._inverse = params.inverse
+        # the vector field as a pure function of (P, y, u), for the generated integrator steps
+        # and the compiled batch kernel (with a quaternion, the projection is not pure: none)
+        self.kernel_rhs = None if self.attitude else (euler_rhs, params.coefficients)
+        self.kernel_readouts = (free_body_readouts, params.inverse)
+
+    readout_names = ("energy", "momentum_norm")
 
     # ------------------------------------------------------------------ vector field
     def rhs(self, y, u):
         """``dy/dt``: ``dPi/dt = Pi x Omega + tau`` (15.3.9-10), ``dq/dt = q * (0, Omega) / 2``."""
-        c1, c2, c3 = self._coefficients
-        p1, p2, p3 = y[0], y[1], y[2]
-        d1 = c1 * p2 * p3
-        d2 = c2 * p3 * p1
-        d3 = c3 * p1 * p2
-        if u is not None:
-            d1 = d1 + u[0]
-            d2 = d2 + u[1]
-            d3 = d3 + u[2]
+        d1, d2, d3 = euler_rhs(self._coefficients, y, u)
         if not self.attitude:
             return (d1, d2, d3)
         j1, j2, j3 = self._inverse
-        w1, w2, w3 = 0.5 * j1 * p1, 0.5 * j2 * p2, 0.5 * j3 * p3
+        w1, w2, w3 = 0.5 * j1 * y[0], 0.5 * j2 * y[1], 0.5 * j3 * y[2]
         qw, qx, qy, qz = y[3], y[4], y[5], y[6]
         return (
             d1,
@@ -112,17 +155,15 @@ class FreeBody:
     # ------------------------------------------------------------------ invariants
     def energy(self, y):
         """Kinetic energy ``H = 1/2 sum Pi_i^2 / I_i`` [J]."""
-        j1, j2, j3 = self._inverse
-        return 0.5 * (j1 * y[0] * y[0] + j2 * y[1] * y[1] + j3 * y[2] * y[2])
+        return kinetic_energy(self._inverse, y)
 
     def momentum_norm(self, y):
         """``|Pi|`` [kg m^2/s], the Casimir (its square) of the Lie-Poisson bracket."""
-        return sqrt(y[0] * y[0] + y[1] * y[1] + y[2] * y[2])
+        return momentum_norm(y)
 
     def angular_velocity(self, y):
         """Body angular velocity ``Omega = I^-1 Pi`` [rad/s]."""
-        j1, j2, j3 = self._inverse
-        return (j1 * y[0], j2 * y[1], j3 * y[2])
+        return angular_velocity(self._inverse, y)
 
     # ------------------------------------------------------------------ exact pieces
     def kick(self, y, u, h):

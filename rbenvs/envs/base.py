@@ -90,6 +90,7 @@ class RigidBodyEnv(gym.Env):
         self._plain_advance = self._plain_default
         # the integrator with this system bound once (the hot path's step; same bits as integ.step)
         self._bound_step = self.integrator.bind(system, system.dim)
+        self._pure = self._pure_parts()
         high32 = self._obs_high.astype(np.float32)
         self.observation_space = gym.spaces.Box(-high32, high32, dtype=np.float32)
         self._y = None
@@ -137,9 +138,22 @@ class RigidBodyEnv(gym.Env):
             return self._numerical_failure()
         # (integrators return the components of a float state as floats: no conversion)
         self._y = y
-        obs, over = self._observation(y)
-        reward, terminated, metrics = self._evaluate(y, u_norm)
-        info = self._info(y, numerical_failure=False, metrics=metrics)
+        pure = self._pure
+        if pure is not None:
+            # the task's and system's pure functions called directly (the ones the compiled
+            # batch step calls): on floats they return Python floats and bools
+            observe, po, evaluate, pe, readouts, pr, readout_names, metric_names = pure
+            obs, over = self._observation_array(observe(po, y))
+            r = evaluate(pe, y, u_norm)
+            reward, terminated = float(r[0]), bool(r[1])
+            info = dict(zip(readout_names, readouts(pr, y)))
+            info["internal_step"] = self._last_h
+            info.update(zip(metric_names, r[2:]))
+            info["numerical_failure"] = False
+        else:
+            obs, over = self._observation(y)
+            reward, terminated, metrics = self._evaluate(y, u_norm)
+            info = self._info(y, numerical_failure=False, metrics=metrics)
         if event is not None:
             terminated = True
             info["terminal_reason"] = event
@@ -384,7 +398,10 @@ class RigidBodyEnv(gym.Env):
         return out
 
     def _observation(self, y):
-        o = self.task.observe(self.system, y)
+        return self._observation_array(self.task.observe(self.system, y))
+
+    def _observation_array(self, o):
+        """``(float32 observation, over)`` from the observation's components ``o``."""
         hi = self._obs_high_uniform
         if hi is not None:  # one bound for every component: two builtin calls
             over = not (-hi <= min(o) and max(o) <= hi)
@@ -440,8 +457,39 @@ class RigidBodyEnv(gym.Env):
         info["numerical_failure"] = numerical_failure
         return info
 
-    def _readouts(self, y) -> dict:
-        raise NotImplementedError
+    def _readouts(self, y, physical=None) -> dict:
+        """The physical read-outs of ``info``: a system with pure read-outs (``kernel_readouts``
+        and ``readout_names``) gives them, plus the last internal step; other envs override.
+        ``physical``: the system's values already computed (the compiled batch step)."""
+        f, p = self.system.kernel_readouts
+        info = dict(zip(self.system.readout_names, f(p, y) if physical is None else physical))
+        info["internal_step"] = self._last_h
+        return info
+
+    def _pure_parts(self):
+        """``(observe, PO, evaluate, PE, readouts, PR, readout names, metric names)`` when the
+        task and the system have pure forms (:mod:`rbenvs.compiled`) and the env's read-outs
+        are the base class's; ``None`` otherwise (the step then goes through the methods)."""
+        kernels = getattr(self.task, "kernels", None)
+        readouts = getattr(self.system, "kernel_readouts", None)
+        if kernels is None or readouts is None or type(self)._readouts is not RigidBodyEnv._readouts:
+            return None
+        (observe, po), (evaluate, pe) = kernels(self.system)
+        f, pr = readouts
+        return observe, po, evaluate, pe, f, pr, self.system.readout_names, self.task.metric_names
+
+    def _kernel_parts(self):
+        """What :func:`rbenvs.compiled.batch_kernel` needs to run this env's step on a batch:
+        ``(step, observe, evaluate, readouts)``, each ``(pure function, parameters)``, or
+        ``None`` where a part has no pure form (then the batch runs on numpy arrays). Only
+        a period of plain fixed substeps qualifies (no guard check, no events)."""
+        step = self.integrator.kernel_step(self.system)
+        kernels = getattr(self.task, "kernels", None)
+        readouts = getattr(self.system, "kernel_readouts", None)
+        if step is None or kernels is None or readouts is None or not self._plain_default:
+            return None
+        observe, evaluate = kernels(self.system)
+        return step, observe, evaluate, readouts
 
     def _control(self, a):
         raise NotImplementedError

@@ -211,9 +211,6 @@ class FreeRigidBodyEnv(RigidBodyEnv):
             u_norm[i] = a[j]
         return u_norm, (tau * u_norm[0], tau * u_norm[1], tau * u_norm[2])
 
-    def _readouts(self, y):
-        return {"energy": self.system.energy(y), "momentum_norm": self.system.momentum_norm(y), "internal_step": self._last_h}
-
     def _render_scene(self):
         from ..render.free_body import scene
 

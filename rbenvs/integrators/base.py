@@ -61,6 +61,12 @@ class Integrator:
         ``needs_projection`` is false has an identity ``normalize`` that may be skipped."""
         return lambda y, u, h: self.step(system, y, u, h)
 
+    def kernel_step(self, system):
+        """``(step, P)`` with ``step(P, y, u, h)`` a pure function equal to :meth:`step` for
+        ``system`` (for :mod:`rbenvs.compiled`), or ``None`` where this scheme or this system
+        offers none (the batch then runs on numpy arrays)."""
+        return None
+
     def step_counted(self, system, y, u, h):
         """:meth:`step` plus the number of rhs evaluations it made (for cost accounting)."""
         return self.step(system, y, u, h), self.evaluations or 0

@@ -7,6 +7,11 @@ bit-identical to it). For a single state of plain floats the loop form's generat
 overhead costs twice the physics; unrolled, a free-body RK4 step drops from about 2.9 to
 about 1.1 us (``rbenvs bench throughput``). The physics is untouched: every stage calls the
 system's one ``rhs``, on floats or on arrays alike.
+
+A system that offers its vector field as a pure function (``kernel_rhs = (f, P)``, ``f(P, y,
+u)`` equal to ``rhs(y, u)``) gets the same step with ``f(P, ...)`` in every stage: bound to
+``P`` for the single env, and as the pure ``step(P, y, u, h)`` that the compiled batch kernel
+calls (:mod:`rbenvs.compiled`). One template, so the same arithmetic in all three.
 """
 
 from __future__ import annotations
@@ -32,7 +37,15 @@ def _factory(kind: str, dim: int, project: bool):
     return _generate(kind, dim, project)["make"]
 
 
-def _generate(kind: str, dim: int, project: bool) -> dict:
+@lru_cache(maxsize=None)
+def _pure(kind: str, dim: int):
+    """``(make(f, P) -> step(y, u, h), pure(f) -> step(P, y, u, h))`` for a pure vector field
+    ``f(P, y, u)`` of a system with nothing to project."""
+    ns = _generate(kind, dim, project=False, params=True)
+    return ns["make"], ns["pure"]
+
+
+def _generate(kind: str, dim: int, project: bool, params: bool = False) -> dict:
     y = [f"y{i}" for i in range(dim)]
     ys = ", ".join(y) + ("," if dim == 1 else "")
 
@@ -45,29 +58,55 @@ def _generate(kind: str, dim: int, project: bool) -> dict:
     def result(expr):
         return "return normalize(" + expr + ")" if project else "return " + expr
 
+    call = "f(P, " if params else "f("
     if kind == "euler":
         body = [
             f"{ys} = y",
-            f"{names('k')} = f(y, u)",
+            f"{names('k')} = {call}y, u)",
             result(comps(lambda i: f"y{i} + h * k{i}")),
         ]
     else:
         body = [
             f"{ys} = y",
             "hh = 0.5 * h",
-            f"{names('a')} = f(y, u)",
-            f"{names('b')} = f(" + comps(lambda i: f"y{i} + hh * a{i}") + ", u)",
-            f"{names('c')} = f(" + comps(lambda i: f"y{i} + hh * b{i}") + ", u)",
-            f"{names('d')} = f(" + comps(lambda i: f"y{i} + h * c{i}") + ", u)",
+            f"{names('a')} = {call}y, u)",
+            f"{names('b')} = {call}" + comps(lambda i: f"y{i} + hh * a{i}") + ", u)",
+            f"{names('c')} = {call}" + comps(lambda i: f"y{i} + hh * b{i}") + ", u)",
+            f"{names('d')} = {call}" + comps(lambda i: f"y{i} + h * c{i}") + ", u)",
             "h6 = h / 6.0",
             result(comps(lambda i: f"y{i} + h6 * (a{i} + 2.0 * (b{i} + c{i}) + d{i})")),
         ]
-    src = "def step(f, normalize, y, u, h):\n" + "\n".join("    " + line for line in body) + "\n"
-    src += "def make(f, normalize):\n    def step(y, u, h):\n" + "\n".join("        " + line for line in body)
-    src += "\n    return step\n"
+    inner = "\n".join("        " + line for line in body)
+    if params:  # f(P, y, u): bound to P, or pure with P the first argument
+        src = "def make(f, P):\n    def step(y, u, h):\n" + inner + "\n    return step\n"
+        src += "def pure(f):\n    def step(P, y, u, h):\n" + inner + "\n    return step\n"
+    else:
+        src = "def step(f, normalize, y, u, h):\n" + "\n".join("    " + line for line in body) + "\n"
+        src += "def make(f, normalize):\n    def step(y, u, h):\n" + inner + "\n    return step\n"
     namespace: dict = {}
-    exec(compile(src, f"<rbenvs {kind} dim={dim}{'' if project else ' no projection'}>", "exec"), namespace)
+    exec(compile(src, f"<rbenvs {kind} dim={dim}{'' if project else ' no projection'}{' pure' if params else ''}>", "exec"), namespace)
     return namespace
+
+
+def _bind(kind: str, system, dim: int):
+    pure = getattr(system, "kernel_rhs", None)
+    if pure is not None:
+        f, params = pure
+        return _pure(kind, dim)[0](f, params)
+    return _factory(kind, dim, getattr(system, "needs_projection", True))(system.rhs, system.normalize)
+
+
+@lru_cache(maxsize=None)
+def _pure_step(kind: str, dim: int, f):
+    return _pure(kind, dim)[1](f)
+
+
+def _kernel_step(kind: str, integrator, cls, system):
+    pure = getattr(system, "kernel_rhs", None)
+    if pure is None or type(integrator).step is not cls.step:
+        return None
+    f, params = pure
+    return _pure_step(kind, system.dim, f), params
 
 
 @dataclass(frozen=True)
@@ -85,7 +124,10 @@ class Euler(Integrator):
     def bind(self, system, dim):
         if type(self).step is not Euler.step:  # a subclass that changes step: bind that
             return super().bind(system, dim)
-        return _factory("euler", dim, getattr(system, "needs_projection", True))(system.rhs, system.normalize)
+        return _bind("euler", system, dim)
+
+    def kernel_step(self, system):
+        return _kernel_step("euler", self, Euler, system)
 
 
 @dataclass(frozen=True)
@@ -102,4 +144,7 @@ class RK4(Integrator):
     def bind(self, system, dim):
         if type(self).step is not RK4.step:  # a subclass that changes step: bind that
             return super().bind(system, dim)
-        return _factory("rk4", dim, getattr(system, "needs_projection", True))(system.rhs, system.normalize)
+        return _bind("rk4", system, dim)
+
+    def kernel_step(self, system):
+        return _kernel_step("rk4", self, RK4, system)

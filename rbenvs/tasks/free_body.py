@@ -12,33 +12,72 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..rotations import quat_angle, quat_conjugate, quat_multiply, quat_random, sqrt
+from ..compiled import jitable
+from ..dynamics.free_body import angular_velocity, momentum_norm
+from ..rotations import quat_angle, quat_conjugate, quat_from_uniforms, quat_multiply, sqrt
 
 __all__ = ["SpinTask", "DetumbleTask", "ReorientTask", "AXIS_NAMES"]
 
 AXIS_NAMES = ("major", "intermediate", "minor")
 
 
-def _unit_vectors_in_cone(rng, shape, max_angle):
-    """Unit vectors about +z with polar angle uniform in ``[0, max_angle]``, azimuth uniform."""
-    theta = rng.uniform(0.0, max_angle, shape)
-    phi = rng.uniform(0.0, 2.0 * np.pi, shape)
-    st = np.sin(theta)
-    return st * np.cos(phi), st * np.sin(phi), np.cos(theta)
+# Initial states are drawn in two parts: ``initial_draws(rng)``, the generator's raw numbers
+# for one state (one sub-env's generator, a few calls), and ``initial_from_draws(system, d)``,
+# the arithmetic that turns them into a state, on floats or on rows of a batch. A vector env
+# resetting thousands of sub-envs then makes the per-sub-env generator calls only and the
+# arithmetic once (rbenvs.vector); ``initial_state`` is the two in a row (the single env).
+# A uniform on [a, b) is ``a + (b - a) U`` (numpy's own formula), so these draws are the
+# same numbers as ``rng.uniform``.
+def _directions(n0, n1, n2):
+    """Unit vectors along normal deviates (a uniform direction)."""
+    norm = np.sqrt(n0 * n0 + n1 * n1 + n2 * n2)
+    return n0 / norm, n1 / norm, n2 / norm
 
 
-def _random_directions(rng, shape):
-    v = rng.standard_normal((3,) + tuple(shape))
-    v /= np.linalg.norm(v, axis=0)
-    return v[0], v[1], v[2]
+class _TwoStageDraw:
+    def initial_state(self, system, rng, shape=()):
+        if tuple(shape) != ():
+            raise ValueError("initial_state draws one state; a batch draws per sub-env (initial_draws) and converts at once (initial_from_draws)")
+        return self.initial_from_draws(system, self.initial_draws(rng))
 
 
+@jitable
 def _effort(u):
     return (u[0] * u[0] + u[1] * u[1] + u[2] * u[2]) / 3.0
 
 
+# The tasks' arithmetic as pure functions of (parameters, state, action): the methods below
+# call them on floats or arrays, the compiled batch kernel (rbenvs.compiled) on floats.
+# ``evaluate`` returns ``(reward, terminated, *metrics)`` in the order of ``metric_names``.
+@jitable
+def spin_alignment(axis, y):
+    # + 1e-300 keeps Pi = 0 (a full despin) finite without changing any normal value
+    return y[axis] / (momentum_norm(y) + 1e-300)
+
+
+@jitable
+def spin_evaluate(p, y, u):
+    axis, control_cost, cos_success = p
+    a = spin_alignment(axis, y)
+    return a - control_cost * _effort(u), False, a, a >= cos_success
+
+
+@jitable
+def angular_speed(inv, y):
+    w = angular_velocity(inv, y)
+    return sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2])
+
+
+@jitable
+def detumble_evaluate(p, y, u):
+    inv, spin_rate, control_cost, tolerance = p
+    s = angular_speed(inv, y)
+    done = s < tolerance * spin_rate
+    return -s / spin_rate - control_cost * _effort(u), done, s, done
+
+
 @dataclass(frozen=True)
-class SpinTask:
+class SpinTask(_TwoStageDraw):
     """Hold the rotation about principal axis ``axis`` (an index 0, 1, 2).
 
     * Start: ``Pi = I_axis spin_rate n`` with ``n`` tilted from ``+e_axis`` by an angle uniform in
@@ -58,23 +97,30 @@ class SpinTask:
     needs_attitude = False
     observation_size = 3
 
-    def initial_state(self, system, rng, shape):
+    def initial_draws(self, rng):
+        return rng.random(2)  # tilt and azimuth of the spin direction
+
+    def initial_from_draws(self, system, d):
         p = system.params.inertia[self.axis] * self.spin_rate
-        x, y, z = _unit_vectors_in_cone(rng, shape, self.perturbation)
+        theta = 0.0 + self.perturbation * d[0]  # polar angle uniform in [0, perturbation]
+        phi = 0.0 + 2.0 * np.pi * d[1]  # azimuth uniform
+        st = np.sin(theta)
+        x, y, z = st * np.cos(phi), st * np.sin(phi), np.cos(theta)
         comps = [None, None, None]
         j, k = (self.axis + 1) % 3, (self.axis + 2) % 3
         comps[self.axis], comps[j], comps[k] = p * z, p * x, p * y
         return tuple(comps)
 
+    metric_names = ("alignment", "is_success")
+
     def alignment(self, system, y):
-        # + 1e-300 keeps Pi = 0 (a full despin) finite without changing any normal value
-        return y[self.axis] / (system.momentum_norm(y) + 1e-300)
+        return spin_alignment(self.axis, y)
 
     def observe(self, system, y):
         return system.angular_velocity(y)
 
     def reward(self, system, y, u):
-        return self.alignment(system, y) - self.control_cost * _effort(u)
+        return self.evaluate(system, y, u)[0]
 
     def terminated(self, system, y):
         return False
@@ -85,15 +131,20 @@ class SpinTask:
 
     def evaluate(self, system, y, u):
         """``(reward, terminated, metrics)`` with the alignment computed once."""
-        a = self.alignment(system, y)
-        return a - self.control_cost * _effort(u), False, {"alignment": a, "is_success": a >= self.cos_success}
+        reward, terminated, a, success = spin_evaluate(self._params, y, u)
+        return reward, terminated, {"alignment": a, "is_success": success}
+
+    def kernels(self, system):
+        """``((observe, P), (evaluate, P))`` for :mod:`rbenvs.compiled`."""
+        return (angular_velocity, system.params.inverse), (spin_evaluate, self._params)
 
     def __post_init__(self):
         object.__setattr__(self, "cos_success", math.cos(self.success_angle))
+        object.__setattr__(self, "_params", (int(self.axis), float(self.control_cost), self.cos_success))
 
 
 @dataclass(frozen=True)
-class DetumbleTask:
+class DetumbleTask(_TwoStageDraw):
     """Bring the angular velocity to zero.
 
     * Start: ``Omega = spin_rate * s * n``, ``n`` a uniform random direction, ``s ~ U(0.5, 1)``.
@@ -110,21 +161,28 @@ class DetumbleTask:
     needs_attitude = False
     observation_size = 3
 
-    def initial_state(self, system, rng, shape):
-        n = _random_directions(rng, shape)
-        s = self.spin_rate * rng.uniform(0.5, 1.0, shape)
+    def initial_draws(self, rng):
+        d = np.empty(4)
+        d[:3] = rng.standard_normal(3)  # direction
+        d[3] = rng.random()  # speed
+        return d
+
+    def initial_from_draws(self, system, d):
+        n = _directions(d[0], d[1], d[2])
+        s = self.spin_rate * (0.5 + 0.5 * d[3])
         inertia = system.params.inertia
         return tuple(inertia[i] * s * n[i] for i in range(3))
 
+    metric_names = ("angular_speed", "is_success")
+
     def speed(self, system, y):
-        w = system.angular_velocity(y)
-        return sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2])
+        return angular_speed(system.params.inverse, y)
 
     def observe(self, system, y):
         return system.angular_velocity(y)
 
     def reward(self, system, y, u):
-        return -self.speed(system, y) / self.spin_rate - self.control_cost * _effort(u)
+        return self.evaluate(system, y, u)[0]
 
     def terminated(self, system, y):
         return self.speed(system, y) < self.tolerance * self.spin_rate
@@ -133,9 +191,21 @@ class DetumbleTask:
         s = self.speed(system, y)
         return {"angular_speed": s, "is_success": s < self.tolerance * self.spin_rate}
 
+    def evaluate(self, system, y, u):
+        """``(reward, terminated, metrics)`` with the speed computed once."""
+        reward, done, s, success = detumble_evaluate(self._params(system), y, u)
+        return reward, done, {"angular_speed": s, "is_success": success}
+
+    def kernels(self, system):
+        """``((observe, P), (evaluate, P))`` for :mod:`rbenvs.compiled`."""
+        return (angular_velocity, system.params.inverse), (detumble_evaluate, self._params(system))
+
+    def _params(self, system):
+        return (system.params.inverse, float(self.spin_rate), float(self.control_cost), float(self.tolerance))
+
 
 @dataclass(frozen=True)
-class ReorientTask:
+class ReorientTask(_TwoStageDraw):
     """Reach the target attitude ``target`` (unit quaternion, body -> space) and stay there.
 
     The one free-body task that carries the attitude quaternion.
@@ -158,10 +228,17 @@ class ReorientTask:
     needs_attitude = True
     observation_size = 7
 
-    def initial_state(self, system, rng, shape):
-        q = quat_random(rng, shape)
-        n = _random_directions(rng, shape)
-        s = self.spin_rate * rng.uniform(0.0, 0.1, shape)
+    def initial_draws(self, rng):
+        d = np.empty(7)
+        d[:3] = rng.random(3)  # attitude
+        d[3:6] = rng.standard_normal(3)  # direction of Omega
+        d[6] = rng.random()  # speed
+        return d
+
+    def initial_from_draws(self, system, d):
+        q = quat_from_uniforms(d[0], d[1], d[2])
+        n = _directions(d[3], d[4], d[5])
+        s = self.spin_rate * (0.0 + 0.1 * d[6])
         inertia = system.params.inertia
         return tuple(inertia[i] * s * n[i] for i in range(3)) + tuple(q)
 

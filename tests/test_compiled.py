@@ -1,0 +1,164 @@
+"""The compiled batch step (rbenvs.compiled): the same functions as the single env, compiled.
+
+Where numba is installed (the ``fast`` extra, part of ``dev``) the free-body vector env steps
+through one compiled kernel; these tests hold it to the single env and to the numpy path bit
+for bit, through resets, terminations, observation limits and numerical failures, and check
+which settings take it and that the others say why they do not.
+"""
+
+import warnings
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+from rbenvs import compiled, vector
+from rbenvs.envs import NumericalFailureWarning
+
+from test_vector import FREE, LAGRANGE, TIPPE, lockstep, make_singles, make_vec, same
+
+pytest.importorskip("numba", reason="the compiled path needs the 'fast' extra (numba)")
+
+# free-body settings with a compiled step (spin and detumble, euler and rk4, substeps > 1,
+# partial actuation, the observation limit) as (kwargs, max_episode_steps, steps)
+COMPILED = [
+    (dict(), 5, 17),
+    (dict(integrator="euler", substeps=4, max_angular_velocity=3.0, task="detumble", spin_rate=0.3), 6, 17),
+    (dict(integrator="rk4", substeps=3, actuated=(True, False, True), axis="major"), 5, 17),
+    (dict(integrator="euler", substeps=4, max_angular_velocity=3.0, axis="minor"), 7, 30),
+    (dict(integrator="rk4", max_angular_velocity=1.6, max_torque=5.0), 40, 40),  # observation_limit
+]
+
+
+def _ids(cases):
+    return [",".join(f"{k}={v}" for k, v in kw.items()) or "default" for kw, _, _ in cases]
+
+
+@pytest.mark.parametrize("kwargs,max_steps,steps", COMPILED, ids=_ids(COMPILED))
+def test_compiled_settings_take_the_kernel(kwargs, max_steps, steps):
+    venv = vector.FreeRigidBodyVectorEnv(num_envs=2, **kwargs)
+    assert venv.compiled
+    assert not vector.FreeRigidBodyVectorEnv(num_envs=2, compiled=False, **kwargs).compiled
+
+
+@pytest.mark.parametrize("mode", ["NextStep", "SameStep"])
+@pytest.mark.parametrize("kwargs,max_steps,steps", COMPILED, ids=_ids(COMPILED))
+def test_compiled_sub_envs_equal_single_envs_bit_for_bit(kwargs, max_steps, steps, mode):
+    n_term, n_trunc, _ = lockstep(FREE, 3, 11, steps, mode, max_steps, kwargs, vector_kwargs=dict(compiled=True))
+    assert n_term + n_trunc >= 3
+
+
+@pytest.mark.parametrize("mode", ["NextStep", "SameStep"])
+@pytest.mark.parametrize("kwargs,max_steps,steps", COMPILED, ids=_ids(COMPILED))
+def test_numpy_path_sub_envs_equal_single_envs_bit_for_bit(kwargs, max_steps, steps, mode):
+    """The numpy path of the same settings (where numba is missing, this is the one that runs)."""
+    n_term, n_trunc, _ = lockstep(FREE, 3, 11, steps, mode, max_steps, kwargs, vector_kwargs=dict(compiled=False))
+    assert n_term + n_trunc >= 3
+
+
+def test_compiled_equals_numpy_path_on_a_large_batch():
+    """4096 sub-envs, 300 steps of random actions (many out of range): observations, rewards,
+    flags, every info array and the final state agree bit for bit, dtypes included."""
+    n = 4096
+    kwargs = dict(max_episode_steps=120, max_angular_velocity=1.6, max_torque=5.0)
+    fast = vector.FreeRigidBodyVectorEnv(num_envs=n, **kwargs)
+    slow = vector.FreeRigidBodyVectorEnv(num_envs=n, compiled=False, **kwargs)
+    assert fast.compiled and not slow.compiled
+    fast.reset(seed=3)
+    slow.reset(seed=3)
+    rng = np.random.default_rng(0)
+    ended = 0
+    for _ in range(300):
+        a = rng.uniform(-1.0, 1.5, (n, 3)).astype(np.float32)  # biased: the spin grows
+        out_f, out_s = fast.step(a), slow.step(a)
+        for x, y in zip(out_f[:4], out_s[:4]):
+            assert x.dtype == y.dtype and same(x, y)
+        info_f, info_s = out_f[4], out_s[4]
+        assert list(info_f) == list(info_s)
+        for key in info_f:
+            assert info_f[key].dtype == info_s[key].dtype and np.array_equal(info_f[key], info_s[key]), key
+        ended += int(out_f[2].sum())
+    assert ended > 100  # observation limits were crossed, not only time limits
+    s_f, s_s = fast.get_state(), slow.get_state()
+    assert all(np.array_equal(s_f[k], s_s[k]) for k in s_f)
+
+
+def test_non_finite_states_take_the_numerical_failure_path():
+    """A torque of 1e300 N m overflows sub-env 1 inside the kernel: the step falls back to the
+    numpy failure path (one warning, last finite state kept, reward 0) and every sub-env still
+    equals its single env."""
+    n = 3
+    kwargs = dict(max_torque=1e300, max_angular_velocity=3e38, guard="off")
+    venv = make_vec(FREE, n, compiled=True, **kwargs)
+    assert venv.unwrapped.compiled
+    singles = make_singles(FREE, n, **kwargs)
+    venv.reset(seed=0)
+    for i, env in enumerate(singles):
+        env.reset(seed=i)
+    a = np.zeros((n, 3), dtype=np.float32)
+    venv.step(a)
+    for env in singles:
+        env.step(a[0])
+    last = venv.get_state()
+    a[1] = 1.0
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        obs, r, te, tr, info = venv.step(a)
+    assert len([w for w in caught if issubclass(w.category, NumericalFailureWarning)]) == 1
+    assert np.array_equal(te, [False, True, False]) and r[1] == 0.0
+    assert list(info["terminal_reason"]) == ["", "numerical_failure", ""]
+    now = venv.get_state()
+    assert np.array_equal(now["angular_momentum"][1], last["angular_momentum"][1])
+    for i, env in enumerate(singles):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", NumericalFailureWarning)
+            o, sr, ste, _, _ = env.step(a[i])
+        assert same(obs[i], o) and r[i] == sr and te[i] == ste
+    # the next step resets the failed sub-env and runs compiled again
+    obs, r, te, tr, info = venv.step(np.zeros((n, 3), dtype=np.float32))
+    assert not te.any() and not info["numerical_failure"].any()
+
+
+@pytest.mark.parametrize(
+    "env_id,kwargs",
+    [
+        (FREE, dict(task="reorient")),  # the quaternion projection has no pure form
+        (FREE, dict(integrator="splitting")),
+        (FREE, dict(integrator="exact")),
+        (FREE, dict(integrator="euler")),  # the guard checks every period at the default dt
+        (LAGRANGE, dict()),
+        (TIPPE, dict()),
+    ],
+)
+def test_settings_without_a_kernel_run_on_numpy_and_say_why(env_id, kwargs):
+    assert not make_vec(env_id, 2, **kwargs).unwrapped.compiled
+    with pytest.raises(ValueError, match="compiled=True but .*has no compiled step"):
+        make_vec(env_id, 2, compiled=True, **kwargs)
+
+
+def test_disabled_by_the_environment_variable(monkeypatch):
+    monkeypatch.setenv(compiled.DISABLE_VARIABLE, "0")
+    assert not compiled.available()
+    assert not vector.FreeRigidBodyVectorEnv(num_envs=2).compiled
+    with pytest.raises(ValueError, match="numba is not installed .* RBENVS_COMPILED=0"):
+        vector.FreeRigidBodyVectorEnv(num_envs=2, compiled=True)
+
+
+def test_compiled_argument_is_validated():
+    with pytest.raises(ValueError, match="compiled must be True, False or 'auto'"):
+        vector.FreeRigidBodyVectorEnv(num_envs=2, compiled="yes")
+
+
+def test_kernels_are_shared_by_envs_of_one_layout():
+    a = vector.FreeRigidBodyVectorEnv(num_envs=2, inertia=(3.0, 2.0, 1.5))
+    b = vector.FreeRigidBodyVectorEnv(num_envs=8, spin_rate=0.5, axis="major")
+    assert a._batch_step.kernel is b._batch_step.kernel  # parameters are arguments, not constants
+
+
+def test_jitable_functions_stay_plain_python():
+    """The marker changes nothing on the single-env path: the functions are the originals."""
+    from rbenvs.dynamics.free_body import euler_rhs
+
+    gym.make(FREE).reset(seed=0)
+    assert type(euler_rhs).__name__ == "function"
+    assert euler_rhs((1.0, 2.0, 3.0), (1.0, 1.0, 1.0), None) == (1.0, 2.0, 3.0)
