@@ -27,7 +27,7 @@ from __future__ import annotations
 import os
 from functools import lru_cache
 
-__all__ = ["jitable", "available", "batch_kernel", "BatchStep", "DISABLE_VARIABLE"]
+__all__ = ["jitable", "available", "batch_kernel", "state_finish", "BatchStep", "DISABLE_VARIABLE"]
 
 # set to "0" to keep the numpy path even where numba is installed (comparisons, debugging)
 DISABLE_VARIABLE = "RBENVS_COMPILED"
@@ -166,6 +166,41 @@ def batch_kernel(step, dim: int, n_control: int, observe, n_obs: int, evaluate, 
     # error_model="numpy": a float division by zero gives inf/nan as on arrays (and needs no
     # per-element check, which would keep the loops out of SIMD registers)
     return numba.njit(error_model="numpy")(namespace["kernel"])
+
+
+@lru_cache(maxsize=None)
+def state_finish(observe, n_obs: int, evaluate, metric_names: tuple, readouts, readout_names: tuple, high: tuple):
+    """The single env's counterpart of the batch kernel's task loops, for one state of floats:
+    ``finish(y, u_norm, PO, PE, PR, h) -> (obs, over, reward, terminated, info)``.
+
+    Plain Python, generated per layout like the kernel: it calls the same pure functions
+    (observation, reward and metrics, read-outs) and builds ``info`` as one dict display (the
+    single env's step costs a few microseconds; a method call per part costs about a tenth
+    of one each). ``high``: the observation bounds; a state outside them gets the clipped
+    observation and ``over`` true.
+    """
+    import numpy as np
+
+    lines = ["def finish(y, u_norm, PO, PE, PR, h):", "    o = observe(PO, y)"]
+    inside = " and ".join(f"{-hi!r} <= o[{j}] <= {hi!r}" for j, hi in enumerate(high))
+    lines += [
+        f"    if {inside}:",
+        "        obs, over = array(o, F32), False",
+        "    else:",
+        "        obs, over = clip(array(o, F64), LOW, HIGH).astype(F32), True",
+        "    r = evaluate(PE, y, u_norm)",
+        "    v = readouts(PR, y)",
+    ]
+    items = [f"{name!r}: v[{j}]" for j, name in enumerate(readout_names)] + ["'internal_step': h"]
+    items += [f"{name!r}: r[{j + 2}]" for j, name in enumerate(metric_names)] + ["'numerical_failure': False"]
+    lines += ["    return obs, over, float(r[0]), bool(r[1]), {" + ", ".join(items) + "}"]
+    namespace = {
+        "observe": observe, "evaluate": evaluate, "readouts": readouts, "array": np.array, "clip": np.clip,
+        "F32": np.dtype(np.float32), "F64": np.dtype(np.float64), "LOW": -np.asarray(high), "HIGH": np.asarray(high),
+    }
+    assert len(high) == n_obs
+    exec(compile("\n".join(lines) + "\n", f"<rbenvs state finish n_obs={n_obs}>", "exec"), namespace)
+    return namespace["finish"]
 
 
 class BatchStep:

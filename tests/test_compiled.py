@@ -17,7 +17,9 @@ from rbenvs.envs import NumericalFailureWarning
 
 from test_vector import FREE, LAGRANGE, TIPPE, lockstep, make_singles, make_vec, same
 
-pytest.importorskip("numba", reason="the compiled path needs the 'fast' extra (numba)")
+# (numba is in the dev extra, so CI runs these; RBENVS_COMPILED=0 runs the rest on numpy)
+needs_numba = pytest.mark.skipif(not compiled.available(), reason="the compiled path needs the 'fast' extra (numba) and RBENVS_COMPILED unset")
+
 
 # free-body settings with a compiled step (spin and detumble, euler and rk4, substeps > 1,
 # partial actuation, the observation limit) as (kwargs, max_episode_steps, steps)
@@ -34,6 +36,31 @@ def _ids(cases):
     return [",".join(f"{k}={v}" for k, v in kw.items()) or "default" for kw, _, _ in cases]
 
 
+@pytest.mark.parametrize("task", ["spin", "detumble"])
+def test_single_env_generated_finish_equals_the_methods(task):
+    """The single env's generated read-out function (rbenvs.compiled.state_finish) gives the
+    observation, bound flag, reward, termination and info of the task's and env's methods,
+    for states inside and outside the observation bounds (where the observation is clipped)."""
+    env = gym.make(FREE, task=task, max_angular_velocity=2.0).unwrapped
+    env.reset(seed=0)
+    finish, po, pe, pr = env._pure
+    rng = np.random.default_rng(5)
+    outside = 0
+    for _ in range(300):
+        y = tuple(float(v) for v in rng.normal(0.0, 2.5, 3))
+        u = [float(v) for v in rng.uniform(-1.0, 1.0, 3)]
+        obs, over, reward, terminated, info = finish(y, u, po, pe, pr, env._last_h)
+        want_obs, want_over = env._observation(y)
+        want_reward, want_terminated, metrics = env._evaluate(y, u)
+        want_info = env._info(y, numerical_failure=False, metrics=metrics)
+        assert obs.dtype == np.float32 and same(obs, want_obs) and over == want_over
+        assert type(reward) is float and reward == want_reward and terminated is want_terminated
+        assert list(info) == list(want_info) and all(type(info[k]) is type(want_info[k]) and info[k] == want_info[k] for k in info)
+        outside += over
+    assert 50 < outside < 250
+
+
+@needs_numba
 @pytest.mark.parametrize("kwargs,max_steps,steps", COMPILED, ids=_ids(COMPILED))
 def test_compiled_settings_take_the_kernel(kwargs, max_steps, steps):
     venv = vector.FreeRigidBodyVectorEnv(num_envs=2, **kwargs)
@@ -41,6 +68,7 @@ def test_compiled_settings_take_the_kernel(kwargs, max_steps, steps):
     assert not vector.FreeRigidBodyVectorEnv(num_envs=2, compiled=False, **kwargs).compiled
 
 
+@needs_numba
 @pytest.mark.parametrize("mode", ["NextStep", "SameStep"])
 @pytest.mark.parametrize("kwargs,max_steps,steps", COMPILED, ids=_ids(COMPILED))
 def test_compiled_sub_envs_equal_single_envs_bit_for_bit(kwargs, max_steps, steps, mode):
@@ -56,6 +84,7 @@ def test_numpy_path_sub_envs_equal_single_envs_bit_for_bit(kwargs, max_steps, st
     assert n_term + n_trunc >= 3
 
 
+@needs_numba
 def test_compiled_equals_numpy_path_on_a_large_batch():
     """4096 sub-envs, 300 steps of random actions (many out of range): observations, rewards,
     flags, every info array and the final state agree bit for bit, dtypes included."""
@@ -83,6 +112,7 @@ def test_compiled_equals_numpy_path_on_a_large_batch():
     assert all(np.array_equal(s_f[k], s_s[k]) for k in s_f)
 
 
+@needs_numba
 def test_non_finite_states_take_the_numerical_failure_path():
     """A torque of 1e300 N m overflows sub-env 1 inside the kernel: the step falls back to the
     numpy failure path (one warning, last finite state kept, reward 0) and every sub-env still
@@ -119,6 +149,7 @@ def test_non_finite_states_take_the_numerical_failure_path():
     assert not te.any() and not info["numerical_failure"].any()
 
 
+@needs_numba
 @pytest.mark.parametrize(
     "env_id,kwargs",
     [
@@ -149,6 +180,7 @@ def test_compiled_argument_is_validated():
         vector.FreeRigidBodyVectorEnv(num_envs=2, compiled="yes")
 
 
+@needs_numba
 def test_kernels_are_shared_by_envs_of_one_layout():
     a = vector.FreeRigidBodyVectorEnv(num_envs=2, inertia=(3.0, 2.0, 1.5))
     b = vector.FreeRigidBodyVectorEnv(num_envs=8, spin_rate=0.5, axis="major")

@@ -35,6 +35,7 @@ def test_step_types_and_info(env_id, task, integrator):
         for key in env.unwrapped.invariants + ("numerical_failure", "is_success"):
             assert key in info
         assert np.isfinite(info["energy"]) and info["numerical_failure"] is False
+        assert all(type(v) in (float, bool, int, str) for v in info.values()), {k: type(v) for k, v in info.items()}
 
 
 @pytest.mark.parametrize("env_id", ENV_IDS)

@@ -15,6 +15,7 @@ import gymnasium as gym
 import numpy as np
 
 from ..dynamics.validation import require_finite_positive, require_int_at_least
+from ..compiled import state_finish
 from ..integrators import get_integrator
 
 __all__ = ["RigidBodyEnv", "NumericalFailureWarning", "MAX_INTERNAL_STEPS", "GUARDS", "require_float32_bound", "require_guard"]
@@ -140,16 +141,10 @@ class RigidBodyEnv(gym.Env):
         self._y = y
         pure = self._pure
         if pure is not None:
-            # the task's and system's pure functions called directly (the ones the compiled
-            # batch step calls): on floats they return Python floats and bools
-            observe, po, evaluate, pe, readouts, pr, readout_names, metric_names = pure
-            obs, over = self._observation_array(observe(po, y))
-            r = evaluate(pe, y, u_norm)
-            reward, terminated = float(r[0]), bool(r[1])
-            info = dict(zip(readout_names, readouts(pr, y)))
-            info["internal_step"] = self._last_h
-            info.update(zip(metric_names, r[2:]))
-            info["numerical_failure"] = False
+            # the task's and system's pure functions (the ones the compiled batch step calls),
+            # composed into one generated function: on floats they return floats and bools
+            finish, po, pe, pr = pure
+            obs, over, reward, terminated, info = finish(y, u_norm, po, pe, pr, self._last_h)
         else:
             obs, over = self._observation(y)
             reward, terminated, metrics = self._evaluate(y, u_norm)
@@ -323,12 +318,14 @@ class RigidBodyEnv(gym.Env):
     def __getstate__(self):
         state = self.__dict__.copy()
         state["_renderer"] = None  # a figure (and window) is rebuilt by the next render()
-        state["_bound_step"] = None  # generated code: bound again on unpickling
+        state["_bound_step"] = None  # generated code: made again on unpickling
+        state["_pure"] = None
         return state
 
     def __setstate__(self, state):
         self.__dict__.update(state)
         self._bound_step = self.integrator.bind(self.system, self.system.dim)
+        self._pure = self._pure_parts()
 
     # ------------------------------------------------------------------ state access
     def get_state(self) -> dict[str, np.ndarray]:
@@ -467,16 +464,18 @@ class RigidBodyEnv(gym.Env):
         return info
 
     def _pure_parts(self):
-        """``(observe, PO, evaluate, PE, readouts, PR, readout names, metric names)`` when the
-        task and the system have pure forms (:mod:`rbenvs.compiled`) and the env's read-outs
-        are the base class's; ``None`` otherwise (the step then goes through the methods)."""
+        """``(finish, PO, PE, PR)`` (:func:`rbenvs.compiled.state_finish` and its parameters)
+        when the task and the system have pure forms and the env's read-outs are the base
+        class's; ``None`` otherwise (the step then goes through the methods)."""
         kernels = getattr(self.task, "kernels", None)
         readouts = getattr(self.system, "kernel_readouts", None)
         if kernels is None or readouts is None or type(self)._readouts is not RigidBodyEnv._readouts:
             return None
         (observe, po), (evaluate, pe) = kernels(self.system)
         f, pr = readouts
-        return observe, po, evaluate, pe, f, pr, self.system.readout_names, self.task.metric_names
+        high = tuple(self._obs_high_list)
+        finish = state_finish(observe, len(high), evaluate, tuple(self.task.metric_names), f, tuple(self.system.readout_names), high)
+        return finish, po, pe, pr
 
     def _kernel_parts(self):
         """What :func:`rbenvs.compiled.batch_kernel` needs to run this env's step on a batch:
