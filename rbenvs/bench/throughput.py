@@ -8,14 +8,24 @@ For every system and integrator (default scene of each id, zero action):
 * ``vector``: ``gymnasium.make_vec(id, num_envs=N, vectorization_mode="vector_entry_point")``
   for N = 1, 16, 256, 4096 against CartPole-v1's own native vector env at the same N; the
   ratio is ours / CartPole in env-steps per second, and ``ns/env`` the time per env-step.
-  One extra line, "lean info", is the free body with ``info_readouts=False``.
+  ``path`` says whether the step ran compiled (:mod:`rbenvs.compiled`, where numba is
+  installed and the setting has pure forms) or on numpy arrays. Extra lines: the free body
+  with rk4 on the numpy path (with the compiled/numpy ratio per N: what the compiler buys),
+  and with ``info_readouts=False`` ("lean info").
+* ``scaling`` (not with ``--quick``): the free body with rk4 on each path from 1 to 65536
+  sub-envs, with the bytes of arrays one step moves per env.
 * ``sb3`` (when stable-baselines3 is installed): SB3's ``VecEnv.step`` through the native
   adapter against ``DummyVecEnv`` of single envs, at N = 16 and 256.
 
-Throughput per env grows with N while the fixed cost per call (Python, numpy dispatch)
-dominates, and flattens once every array operation streams its operands from memory: a
-free-body RK4 step touches about 30 arrays of N doubles, so at N = 4096 (1 MB in flight) the
-arrays leave the L2 cache and the cost per env stops falling.
+Every timing covers whole episodes' worth of steps, resets included (``min_time`` spans
+several episode ends at the larger N): the time limit ends all sub-envs of the default scene
+together, so a step's true cost includes 1/400 of resetting every sub-env.
+
+Throughput per env grows with N while the fixed cost per call dominates (Python glue, and on
+the numpy path about a microsecond of dispatch per array operation, some 150 of them per
+free-body step), and flattens once the arrays a step moves stop fitting in the caches: the
+scaling table prints those bytes per env beside the time, to read against the machine's L2
+and L3 sizes.
 
 Slow combinations (``dop853`` on large batches, the stiff tippe top) are measured with fewer
 calls; each figure is the best of ``repeat`` timings of at least ``min_time`` seconds or one call.
@@ -30,9 +40,10 @@ import warnings
 
 import numpy as np
 
+from ..compiled import available
 from ..progress import Progress
 
-__all__ = ["run_single", "run_vector", "main"]
+__all__ = ["run_single", "run_vector", "run_scaling", "main"]
 
 SIZES = (1, 16, 256, 4096)
 # (id, integrators, largest N measured per integrator: the reference solver is slow in bulk)
@@ -109,26 +120,64 @@ def run_vector(systems=SYSTEMS, sizes=SIZES, min_time=0.2, repeat=3, progress=No
         cart_rate[n] = n / _timed(lambda: cart.step(a), min_time, repeat)
         cart.close()
     rows = []
-    combos = [(env_id, integ, True) for env_id, integrators in systems for integ in integrators]
-    # the cost of info's physical read-outs, shown once: the free body with rk4 without them
-    combos += [(env_id, "rk4", False) for env_id, integrators in systems[:1] if "rk4" in integrators]
-    for env_id, integ, readouts in combos:
-        if True:
-            for n in sizes:
-                if n > LARGEST.get(integ, max(sizes)):
-                    continue
-                venv = gym.make_vec(env_id, num_envs=n, vectorization_mode="vector_entry_point", integrator=integ, info_readouts=readouts)
-                venv.reset(seed=0)
-                a = np.zeros(venv.action_space.shape, dtype=np.float32)
-                with warnings.catch_warnings():
-                    warnings.simplefilter("ignore")
-                    t = _timed(lambda: venv.step(a), min_time, repeat)
-                rate = n / t
-                rows.append({"id": env_id, "integrator": integ if readouts else f"{integ}, lean info", "num_envs": n, "env_steps_per_s": rate, "ns_per_env_step": 1e9 * t / n,
-                             "cartpole_env_steps_per_s": cart_rate[n], "ratio_to_cartpole": rate / cart_rate[n]})
-                venv.close()
-                if progress:
-                    progress()
+    # (id, integrator, info read-outs, compiled): every combination on the path it takes by
+    # default; the free body with rk4 also on the numpy path (the compiled kernel's
+    # justification, measured) and without info's physical read-outs
+    combos = [(env_id, integ, True, "auto") for env_id, integrators in systems for integ in integrators]
+    for env_id, integrators in systems[:1]:
+        if "rk4" in integrators:
+            # (without numba the default rows are the numpy path already)
+            combos += [(env_id, "rk4", True, False)] if available() else []
+            combos += [(env_id, "rk4", False, "auto")]
+    for env_id, integ, readouts, compiled in combos:
+        for n in sizes:
+            if n > LARGEST.get(integ, max(sizes)):
+                continue
+            venv = gym.make_vec(env_id, num_envs=n, vectorization_mode="vector_entry_point", integrator=integ, info_readouts=readouts, compiled=compiled)
+            path = "compiled" if venv.unwrapped.compiled else "numpy"
+            venv.reset(seed=0)
+            a = np.zeros(venv.action_space.shape, dtype=np.float32)
+            venv.step(a)  # a kernel compiles on its first call: not timed
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                t = _timed(lambda: venv.step(a), min_time, repeat)
+            rate = n / t
+            label = integ if readouts else f"{integ}, lean info"
+            rows.append({"id": env_id, "integrator": label, "path": path, "num_envs": n, "env_steps_per_s": rate, "ns_per_env_step": 1e9 * t / n,
+                         "cartpole_env_steps_per_s": cart_rate[n], "ratio_to_cartpole": rate / cart_rate[n]})
+            venv.close()
+            if progress:
+                progress()
+    return rows
+
+
+SCALING_SIZES = (1, 16, 256, 1024, 4096, 16384, 65536)
+
+
+def run_scaling(sizes=SCALING_SIZES, min_time=0.2, repeat=3, progress=None) -> list[dict]:
+    """The free body with rk4 from 1 to 65536 sub-envs on each path: time per env-step and
+    the bytes of arrays one step reads and writes per env (state in and out, actions, every
+    output array), to see where the per-env cost stops falling and why."""
+    import gymnasium as gym
+
+    import rbenvs  # noqa: F401
+
+    env_id = SYSTEMS[0][0]
+    rows = []
+    for compiled in ([True] if available() else []) + [False]:
+        for n in sizes:
+            venv = gym.make_vec(env_id, num_envs=n, vectorization_mode="vector_entry_point", compiled=compiled)
+            venv.reset(seed=0)
+            a = np.zeros(venv.action_space.shape, dtype=np.float32)
+            obs, reward, terminated, truncated, info = venv.step(a)
+            state = sum(v.nbytes for v in venv.unwrapped.get_state().values())
+            arrays = [obs, reward, terminated, truncated, a] + [v for v in info.values() if isinstance(v, np.ndarray)]
+            moved = 2 * state + sum(x.nbytes for x in arrays)
+            t = _timed(lambda: venv.step(a), min_time, repeat)
+            rows.append({"path": "compiled" if compiled else "numpy", "num_envs": n, "ns_per_env_step": 1e9 * t / n, "bytes_per_env_step": moved / n, "megabytes_per_step": moved / 1e6})
+            venv.close()
+            if progress:
+                progress()
     return rows
 
 
@@ -156,6 +205,15 @@ def run_sb3(sizes=(16, 256), min_time=0.2, repeat=3) -> list[dict]:
     return rows
 
 
+def compiled_speedup(vector_rows) -> list[tuple[int, float]]:
+    """``(num_envs, compiled rate / numpy rate)`` for the combination measured on both paths."""
+    by_path = {}
+    for r in vector_rows:
+        if r["integrator"] == "rk4" and r["id"] == SYSTEMS[0][0]:
+            by_path[(r["path"], r["num_envs"])] = r["env_steps_per_s"]
+    return [(n, by_path[("compiled", n)] / by_path[("numpy", n)]) for (p, n) in sorted(by_path) if p == "compiled" and ("numpy", n) in by_path]
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(prog="rbenvs bench throughput", description="Env-steps per second against Pendulum-v1 and CartPole-v1's native vector env.")
     parser.add_argument("--json", metavar="PATH", help="also write the figures as JSON")
@@ -165,10 +223,12 @@ def main(argv=None) -> int:
     sizes = (1, 256) if args.quick else SIZES
     min_time = 0.05 if args.quick else 0.2
     n_single = sum(len(i) for _, i in SYSTEMS)
-    n_vector = sum(1 for _, ints in SYSTEMS for i in ints for n in sizes if n <= LARGEST.get(i, max(sizes))) + len(sizes)
-    bar = Progress(n_single + n_vector, not args.no_progress, "bench throughput")
+    n_vector = sum(1 for _, ints in SYSTEMS for i in ints for n in sizes if n <= LARGEST.get(i, max(sizes))) + (2 if available() else 1) * len(sizes)
+    n_scaling = 0 if args.quick else (2 if available() else 1) * len(SCALING_SIZES)
+    bar = Progress(n_single + n_vector + n_scaling, not args.no_progress, "bench throughput")
     single = run_single(min_time=min_time, progress=bar.update)
     vector = run_vector(sizes=sizes, min_time=min_time, progress=bar.update)
+    scaling = [] if args.quick else run_scaling(min_time=min_time, progress=bar.update)
     sb3 = run_sb3(sizes=(16, 256), min_time=min_time)
     bar.close()
     print("single env: one step of gymnasium.make(id) against Pendulum-v1, same run (us)")
@@ -176,9 +236,19 @@ def main(argv=None) -> int:
     for r in single:
         print(f"{r['id']:<26} {r['integrator']:<10} {r['step_us']:>9.2f} {r['pendulum_step_us']:>9.2f} {r['ratio_to_pendulum']:>7.3f}")
     print("\nvector env (vector_entry_point) against CartPole-v1's native vector env, same run")
-    print(f"{'id':<26} {'integrator':<16} {'num_envs':>8} {'env-steps/s':>13} {'ns/env':>9} {'CartPole/s':>13} {'ratio':>8}")
+    print(f"{'id':<26} {'integrator':<16} {'path':<9} {'num_envs':>8} {'env-steps/s':>13} {'ns/env':>9} {'CartPole/s':>13} {'ratio':>8}")
     for r in vector:
-        print(f"{r['id']:<26} {r['integrator']:<16} {r['num_envs']:>8d} {r['env_steps_per_s']:>13.4g} {r['ns_per_env_step']:>9.1f} {r['cartpole_env_steps_per_s']:>13.4g} {r['ratio_to_cartpole']:>8.3f}")
+        print(f"{r['id']:<26} {r['integrator']:<16} {r['path']:<9} {r['num_envs']:>8d} {r['env_steps_per_s']:>13.4g} {r['ns_per_env_step']:>9.1f} {r['cartpole_env_steps_per_s']:>13.4g} {r['ratio_to_cartpole']:>8.3f}")
+    paths = compiled_speedup(vector)
+    if paths:
+        print("\ncompiled step against the numpy path of the same env (free body, rk4), same run")
+        for n, ratio in paths:
+            print(f"  num_envs {n:>5d}: {ratio:.2f}x")
+    if scaling:
+        print("\nscaling: the free body with rk4, time per env-step against num_envs, and the arrays one step moves")
+        print(f"{'path':<9} {'num_envs':>8} {'ns/env':>9} {'bytes/env':>10} {'MB/step':>9}")
+        for r in scaling:
+            print(f"{r['path']:<9} {r['num_envs']:>8d} {r['ns_per_env_step']:>9.1f} {r['bytes_per_env_step']:>10.0f} {r['megabytes_per_step']:>9.3f}")
     if sb3:
         print("\nstable-baselines3 VecEnv.step: the native adapter (rbenvs_agents.sb3_vec_env) against DummyVecEnv, same run")
         print(f"{'id':<26} {'num_envs':>8} {'native/s':>12} {'Dummy/s':>12} {'ratio':>8}")
@@ -186,5 +256,5 @@ def main(argv=None) -> int:
             print(f"{r['id']:<26} {r['num_envs']:>8d} {r['sb3_native_env_steps_per_s']:>12.4g} {r['sb3_dummy_env_steps_per_s']:>12.4g} {r['ratio']:>8.2f}")
     if args.json:
         with open(args.json, "w") as f:
-            json.dump({"single": single, "vector": vector, "sb3": sb3}, f, indent=1)
+            json.dump({"single": single, "vector": vector, "scaling": scaling, "sb3": sb3}, f, indent=1)
     return 0
