@@ -27,7 +27,7 @@ from __future__ import annotations
 import os
 from functools import lru_cache
 
-__all__ = ["jitable", "available", "batch_kernel", "state_finish", "BatchStep", "DISABLE_VARIABLE"]
+__all__ = ["jitable", "available", "batch_kernel", "physics_kernel", "state_finish", "BatchStep", "DISABLE_VARIABLE"]
 
 # set to "0" to keep the numpy path even where numba is installed (comparisons, debugging)
 DISABLE_VARIABLE = "RBENVS_COMPILED"
@@ -74,6 +74,47 @@ def _register_all() -> None:
         _registered = True
 
 
+def _comps(fmt, k):
+    return ", ".join(fmt.format(j=j) for j in range(k)) + ("," if k == 1 else "")
+
+
+def _physics_lines(dim: int, n_control: int) -> list[str]:
+    """The body of the physics loops: ``Ynew`` = ``substeps`` steps of ``step`` from ``Y``."""
+    y_new = f"y = ({_comps('Ynew[{j}, i]', dim)})"
+    u = f"u = ({_comps('U[{j}][i]', n_control)})"
+    return [
+        "    n = Y.shape[1]",
+        # substeps as passes over the batch: a runtime-length loop inside the element loop
+        # would keep it scalar (measured: 36 us against 5 us); the first pass reads Y, the
+        # rest update Ynew in place (the same steps per element, in the same order)
+        "    for i in range(n):",
+        f"        y = ({_comps('Y[{j}, i]', dim)})",
+        f"        {u}",
+        "        y = step(PS, y, u, h)",
+        *[f"        Ynew[{j}, i] = y[{j}]" for j in range(dim)],
+        "    for _ in range(substeps - 1):",
+        "        for i in range(n):",
+        f"            {y_new}",
+        f"            {u}",
+        "            y = step(PS, y, u, h)",
+        *[f"            Ynew[{j}, i] = y[{j}]" for j in range(dim)],
+    ]
+
+
+@lru_cache(maxsize=None)
+def physics_kernel(step, dim: int, n_control: int):
+    """The physics loops alone, compiled: ``advance(Y, Ynew, U, h, substeps, PS)`` (the batch
+    kernel's first part; ``rbenvs bench kernels`` times it)."""
+    import numba
+
+    _register_all()
+    _register(step)
+    src = "def advance(Y, Ynew, U, h, substeps, PS):\n" + "\n".join(_physics_lines(dim, n_control)) + "\n"
+    namespace = {"step": step}
+    exec(compile(src, f"<rbenvs physics kernel dim={dim}>", "exec"), namespace)
+    return numba.njit(error_model="numpy")(namespace["advance"])
+
+
 @lru_cache(maxsize=None)
 def batch_kernel(step, dim: int, n_control: int, observe, n_obs: int, evaluate, n_metrics: int, readouts, n_readouts: int):
     """The compiled step of a batch for one layout (cached per process).
@@ -99,9 +140,7 @@ def batch_kernel(step, dim: int, n_control: int, observe, n_obs: int, evaluate, 
     for fn in (step, observe, evaluate) + ((readouts,) if readouts is not None else ()):
         _register(fn)
 
-    def comps(fmt, k):
-        return ", ".join(fmt.format(j=j) for j in range(k)) + ("," if k == 1 else "")
-
+    comps = _comps
     metrics = comps("M{j}", n_metrics)
     reads = comps("R{j}", n_readouts) if readouts is not None else ""
     args = "Y, Ynew, U, UN, h, substeps, PS, PO, PE, PR, HI, obs, over, reward, terminated"
@@ -113,21 +152,7 @@ def batch_kernel(step, dim: int, n_control: int, observe, n_obs: int, evaluate, 
     # against 15 us at 4096 free bodies).
     lines = [
         f"def kernel({args}):",
-        "    n = Y.shape[1]",
-        # substeps as passes over the batch: a runtime-length loop inside the element loop
-        # would keep it scalar (measured: 36 us against 5 us); the first pass reads Y, the
-        # rest update Ynew in place (the same steps per element, in the same order)
-        "    for i in range(n):",
-        f"        y = ({comps('Y[{j}, i]', dim)})",
-        f"        u = ({comps('U[{j}][i]', n_control)})",
-        "        y = step(PS, y, u, h)",
-        *[f"        Ynew[{j}, i] = y[{j}]" for j in range(dim)],
-        "    for _ in range(substeps - 1):",
-        "        for i in range(n):",
-        f"            {y_new}",
-        f"            u = ({comps('U[{j}][i]', n_control)})",
-        "            y = step(PS, y, u, h)",
-        *[f"            Ynew[{j}, i] = y[{j}]" for j in range(dim)],
+        *_physics_lines(dim, n_control),
         "    bad = 0",
         "    for i in range(n):",
         "        if not (" + " and ".join(f"isfinite(Ynew[{j}, i])" for j in range(dim)) + "):",

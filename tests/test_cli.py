@@ -70,6 +70,10 @@ def test_bench_kernels_agree_with_the_cross_product_form():
         # the component kernel and the np.cross kernel compute the same RK4 step
         assert r["max_abs_difference"] < 1e-14
         assert r["components_us"] > 0 and r["cross_n3_us"] > 0
+    from rbenvs.compiled import available
+
+    if available():  # the compiled column: the same step, the same bits
+        assert all(r["compiled_equals_components"] and r["compiled_us"] > 0 for r in rows)
 
 
 def test_bench_fidelity_measures_every_level_against_gliding():

@@ -877,6 +877,24 @@ def test_bench_throughput_smoke():
         assert r["ns_per_env_step"] * r["env_steps_per_s"] == pytest.approx(1e9, rel=1e-12)
     # one CartPole figure per size, shared by every row of that size
     assert len({(r["num_envs"], r["cartpole_env_steps_per_s"]) for r in rows}) == 2
+    from rbenvs.bench.throughput import compiled_speedup, run_scaling
+    from rbenvs.compiled import available
+
+    # the default rows take the path the env takes; with numba the numpy path is measured too
+    paths = {(r["integrator"], r["path"]) for r in rows}
+    if available():
+        assert paths == {("rk4", "compiled"), ("rk4", "numpy"), ("rk4, lean info", "compiled")}
+        speedup = compiled_speedup(rows)
+        assert [n for n, _ in speedup] == [1, 16] and all(x > 0 for _, x in speedup)
+    else:
+        assert paths == {("rk4", "numpy"), ("rk4, lean info", "numpy")}
+    scaling = run_scaling(sizes=(1, 4), min_time=0.01, repeat=1)
+    assert [(r["path"], r["num_envs"]) for r in scaling] == [(p, n) for p in (["compiled"] if available() else []) + ["numpy"] for n in (1, 4)]
+    for r in scaling:
+        # state in and out (2 x 24), a float32 action and observation (12 + 12), reward (8),
+        # two flags (2) and the info arrays: at least 82 bytes per env
+        assert r["ns_per_env_step"] > 0 and r["bytes_per_env_step"] >= 82
+        assert r["megabytes_per_step"] == pytest.approx(r["bytes_per_env_step"] * r["num_envs"] / 1e6)
     rows = run_single(systems=systems, min_time=0.01, repeat=1)
     assert [(r["id"], r["integrator"]) for r in rows] == [(FREE, "rk4")]
     for r in rows:

@@ -6,7 +6,10 @@ One RK4 step of Euler's equations, three ways, on the same states:
   :class:`rbenvs.dynamics.FreeBody`), state = three floats (n = 1) or three ``(n,)`` arrays,
   i.e. a ``(3, n)`` layout;
 * ``np.cross (n,3)``: a textbook numpy RK4 on an ``(n, 3)`` array with ``np.cross``;
-* for n = 1 also the ``(n, 3)`` version, which is how a naive single env would call numpy.
+* for n = 1 also the ``(n, 3)`` version, which is how a naive single env would call numpy;
+* ``compiled`` (with the ``fast`` extra): the same generated step, compiled by numba with a
+  batch loop over the ``(3, n)`` states (:func:`rbenvs.compiled.physics_kernel`): what the
+  vector env's compiled step spends on physics.
 
 Prints microseconds per step (per batch) and the ratio of the peer to ours.
 """
@@ -17,6 +20,7 @@ import timeit
 
 import numpy as np
 
+from ..compiled import available, physics_kernel
 from ..dynamics import FreeBody, FreeBodyParams
 from ..integrators import RK4
 
@@ -62,14 +66,30 @@ def run(sizes=(1, 16, 256, 4096), seed=0) -> list[dict]:
         peer = _time(lambda: _cross_rk4(inertia_arr, pi, tau, h))
         # same numbers: the two kernels agree to round-off
         diff = float(np.max(np.abs(np.array(rk4.step(system, y, u, h)).reshape(3, -1).T - _cross_rk4(inertia_arr, pi, tau, h))))
-        rows.append({"n": n, "components_us": ours * 1e6, "cross_n3_us": peer * 1e6, "ratio": peer / ours, "max_abs_difference": diff})
+        row = {"n": n, "components_us": ours * 1e6, "cross_n3_us": peer * 1e6, "ratio": peer / ours, "max_abs_difference": diff}
+        if available():
+            step, params = rk4.kernel_step(system)
+            advance = physics_kernel(step, 3, 3)
+            Y, U, Ynew = np.ascontiguousarray(pi.T), tuple(np.ascontiguousarray(tau.T)), np.empty((3, n))
+            advance(Y, Ynew, U, h, 1, params)  # compiles on the first call
+            row["compiled_us"] = _time(lambda: advance(Y, Ynew, U, h, 1, params)) * 1e6
+            want = np.array(rk4.step(system, tuple(Y), U, h)).reshape(3, -1)
+            row["compiled_equals_components"] = bool(np.array_equal(Ynew, want))
+        rows.append(row)
     return rows
 
 
 def main(args=None) -> int:
     rows = run()
     print("RK4 step of Euler's equations with torque, microseconds per call (best of 5)")
-    print(f"{'n':>6}  {'components (ours)':>18}  {'np.cross on (n,3)':>18}  {'peer/ours':>9}  {'max |diff|':>10}")
+    compiled = "compiled_us" in rows[0]
+    head = f"{'n':>6}  {'components (ours)':>18}  {'np.cross on (n,3)':>18}  {'peer/ours':>9}  {'max |diff|':>10}"
+    print(head + (f"  {'compiled (ours)':>16}  {'same bits':>9}" if compiled else ""))
     for r in rows:
-        print(f"{r['n']:>6}  {r['components_us']:>18.2f}  {r['cross_n3_us']:>18.2f}  {r['ratio']:>9.2f}  {r['max_abs_difference']:>10.1e}")
+        line = f"{r['n']:>6}  {r['components_us']:>18.2f}  {r['cross_n3_us']:>18.2f}  {r['ratio']:>9.2f}  {r['max_abs_difference']:>10.1e}"
+        if compiled:
+            line += f"  {r['compiled_us']:>16.2f}  {str(r['compiled_equals_components']):>9}"
+        print(line)
+    if not compiled:
+        print("(the compiled column needs the 'fast' extra: numba)")
     return 0
