@@ -32,7 +32,8 @@ Conventions (gymnasium 1.x):
   much as the rest of the step (``rbenvs bench throughput`` measures both).
 * ``compiled="auto"`` (default): where numba is installed (the ``fast`` extra) and the env's
   integrator, system and task all have pure forms (today: the free body without attitude,
-  spin and detumble, ``euler``/``rk4`` at substeps that need no guard check), the step runs
+  spin and detumble, ``euler``/``rk4``; a guarded period that needs more than ``substeps``
+  steps runs on numpy), the step runs
   as one compiled kernel of the same functions (:mod:`rbenvs.compiled`), bit for bit the
   numpy path's result; elsewhere, and with ``compiled=False``, the numpy path.
   ``compiled=True`` demands the kernel (``ValueError`` saying why it cannot be had).
@@ -240,7 +241,7 @@ class RigidBodyVectorEnv(VectorEnv):
         fast = None
         with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
             # a sub-env blowing up is reported once, below, as the single env does
-            if self._batch_step is not None:
+            if self._batch_step is not None and self._uniform_period(y0, u, restart):
                 y, fast = self._compiled_advance(y0, u, u_norm)
                 event, h = None, env._h
             else:
@@ -313,6 +314,18 @@ class RigidBodyVectorEnv(VectorEnv):
         elif done.any():
             obs, info = self._same_step_reset(done, obs, info)
         return obs, reward, terminated, truncated, info
+
+    def _uniform_period(self, y, u, restart) -> bool:
+        """Whether every sub-env takes ``substeps`` steps this period (the compiled kernel's
+        case): always without a guard check, else where the guard asks for no more (sub-envs
+        about to restart take ``substeps`` regardless, as in :meth:`_advance`). Otherwise the
+        numpy path runs the period (subdividing, or refusing, per sub-env)."""
+        env = self.env
+        if env._plain_advance:
+            return True
+        with np.errstate(over="ignore", invalid="ignore"):
+            steps = env._internal_steps(y, u)
+        return bool(np.all((steps == env.substeps) | restart))
 
     def _compiled_advance(self, y, u, u_norm):
         """The compiled step: ``(y, fast)``; ``fast`` is ``(Y, obs, over, reward, terminated,

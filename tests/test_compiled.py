@@ -29,6 +29,10 @@ COMPILED = [
     (dict(integrator="rk4", substeps=3, actuated=(True, False, True), axis="major"), 5, 17),
     (dict(integrator="euler", substeps=4, max_angular_velocity=3.0, axis="minor"), 7, 30),
     (dict(integrator="rk4", max_angular_velocity=1.6, max_torque=5.0), 40, 40),  # observation_limit
+    (dict(integrator="euler"), 5, 17),  # guarded: the guard's check runs, every period fits
+    # guarded, and the flip about the intermediate axis needs subdivided periods: those run
+    # on numpy, the others compiled (see test_guarded_periods_switch_paths)
+    (dict(integrator="euler", spin_rate=1.8, perturbation=0.5), 120, 120),
 ]
 
 
@@ -82,6 +86,29 @@ def test_numpy_path_sub_envs_equal_single_envs_bit_for_bit(kwargs, max_steps, st
     """The numpy path of the same settings (where numba is missing, this is the one that runs)."""
     n_term, n_trunc, _ = lockstep(FREE, 3, 11, steps, mode, max_steps, kwargs, vector_kwargs=dict(compiled=False))
     assert n_term + n_trunc >= 3
+
+
+@needs_numba
+def test_guarded_periods_switch_paths():
+    """A guarded env runs compiled the periods its guard leaves at ``substeps`` and on numpy
+    the ones it subdivides; both kinds occur in this run (and the lockstep test above holds
+    the same setting to single envs bit for bit)."""
+    venv = vector.FreeRigidBodyVectorEnv(num_envs=3, integrator="euler", spin_rate=1.8, perturbation=0.5)
+    calls = {"compiled": 0, "numpy": 0}
+    compiled_advance, numpy_advance = venv._compiled_advance, venv._advance
+
+    def counted(name, fn):
+        def wrapper(*args):
+            calls[name] += 1
+            return fn(*args)
+        return wrapper
+
+    venv._compiled_advance, venv._advance = counted("compiled", compiled_advance), counted("numpy", numpy_advance)
+    venv.reset(seed=11)
+    rng = np.random.default_rng(0)
+    for _ in range(120):
+        venv.step(rng.uniform(-1.0, 1.0, (3, 3)).astype(np.float32))
+    assert calls["compiled"] > 5 and calls["numpy"] > 5, calls
 
 
 @needs_numba
@@ -156,7 +183,6 @@ def test_non_finite_states_take_the_numerical_failure_path():
         (FREE, dict(task="reorient")),  # the quaternion projection has no pure form
         (FREE, dict(integrator="splitting")),
         (FREE, dict(integrator="exact")),
-        (FREE, dict(integrator="euler")),  # the guard checks every period at the default dt
         (LAGRANGE, dict()),
         (TIPPE, dict()),
     ],

@@ -480,12 +480,15 @@ class RigidBodyEnv(gym.Env):
     def _kernel_parts(self):
         """What :func:`rbenvs.compiled.batch_kernel` needs to run this env's step on a batch:
         ``(step, observe, evaluate, readouts)``, each ``(pure function, parameters)``, or
-        ``None`` where a part has no pure form (then the batch runs on numpy arrays). Only
-        a period of plain fixed substeps qualifies (no guard check, no events)."""
+        ``None`` where a part has no pure form (then the batch runs on numpy arrays). The
+        kernel takes ``substeps`` equal steps: a guarded env uses it for the periods whose
+        guard asks for no more (the vector env checks); events and hybrid switching (the
+        tippe top) never."""
         step = self.integrator.kernel_step(self.system)
         kernels = getattr(self.task, "kernels", None)
         readouts = getattr(self.system, "kernel_readouts", None)
-        if step is None or kernels is None or readouts is None or not self._plain_default:
+        hybrid = self.event_name is not None or self._after_internal_step is not None
+        if step is None or kernels is None or readouts is None or hybrid:
             return None
         observe, evaluate = kernels(self.system)
         return step, observe, evaluate, readouts
