@@ -1,10 +1,13 @@
-"""Optional compiled batch step (numba): the package's own functions, compiled, in one loop.
+"""Optional compiled batch step (numba): the package's own functions, compiled, in one call.
 
 Why: a numpy step of a batch is one array operation per arithmetic line. At 4096 states each
 costs about 1 us, almost all of it dispatch, and a free-body RK4 step alone is about 65 of
 them; the reward, observation and read-outs as many again (``rbenvs bench throughput`` prints
 both paths). Compiled, the whole step is one call: the physics loop runs in SIMD registers
-(about 1 ns per state) and the task loop once over the batch.
+(about 1.3 ns per state, ``rbenvs bench kernels``), then one loop per read-out stage.
+
+The same pure parts also make the single env's read-out function (:func:`state_finish`):
+plain Python, generated per layout, one call instead of a method per part.
 
 What is compiled is not a second implementation. The pure functions the single env runs on
 Python floats (a system's vector field, a task's reward and observation, a system's read-outs)
