@@ -482,12 +482,16 @@ class RigidBodyVectorEnv(VectorEnv):
         raw.update(self.task.metrics(self.system, y) if metrics is None else metrics)
         info = {}
         every = self._true
+        # never hand out the state (or the env's own arrays): those values are copied
+        own = {id(c) for c in y}
+        own.add(id(getattr(env, "_last_h", None)))
         for key, value in raw.items():
-            value = np.asarray(value)
+            if type(value) is not np.ndarray:
+                value = np.asarray(value)
             if value.shape != (n,):
-                value = np.broadcast_to(value, (n,)).copy()
-            elif any(value is c for c in y) or value is getattr(env, "_last_h", None):
-                value = value.copy()  # never hand out the state (or the env's own arrays)
+                value = np.full(n, value) if value.ndim == 0 else np.broadcast_to(value, (n,)).copy()
+            elif id(value) in own:
+                value = value.copy()
             info[key] = value
             info["_" + key] = every
         info["numerical_failure"] = failed.copy() if failed is not self._false else self._false
