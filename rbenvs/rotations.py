@@ -17,6 +17,7 @@ from .compiled import jitable
 
 __all__ = [
     "sqrt",
+    "maximum",
     "atan2",
     "quat_multiply",
     "quat_conjugate",
@@ -29,6 +30,12 @@ __all__ = [
     "quat_random",
     "quat_from_uniforms",
 ]
+
+
+@jitable
+def maximum(a, b):
+    """The larger of two floats (``max``) or the elementwise larger of arrays (``np.maximum``)."""
+    return max(a, b) if isinstance(a, float) else np.maximum(a, b)
 
 
 @jitable

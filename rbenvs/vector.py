@@ -241,10 +241,11 @@ class RigidBodyVectorEnv(VectorEnv):
         fast = None
         with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
             # a sub-env blowing up is reported once, below, as the single env does
-            if self._batch_step is not None and self._uniform_period(y0, u, restart):
-                y, fast = self._compiled_advance(y0, u, u_norm)
+            y = None
+            if self._batch_step is not None:
+                y, fast = self._compiled_advance(y0, u, u_norm, restart)
                 event, h = None, env._h
-            else:
+            if y is None:  # no kernel, or a guarded period that needs subdividing
                 y, event, h = self._advance(y0, u, restart if any_restart else None)
         failed = self._false
         if fast is not None:  # the kernel's read-outs: every new state finite
@@ -315,28 +316,22 @@ class RigidBodyVectorEnv(VectorEnv):
             obs, info = self._same_step_reset(done, obs, info)
         return obs, reward, terminated, truncated, info
 
-    def _uniform_period(self, y, u, restart) -> bool:
-        """Whether every sub-env takes ``substeps`` steps this period (the compiled kernel's
-        case): always without a guard check, else where the guard asks for no more (sub-envs
-        about to restart take ``substeps`` regardless, as in :meth:`_advance`). Otherwise the
-        numpy path runs the period (subdividing, or refusing, per sub-env)."""
-        env = self.env
-        if env._plain_advance:
-            return True
-        with np.errstate(over="ignore", invalid="ignore"):
-            steps = env._internal_steps(y, u)
-        return bool(np.all((steps == env.substeps) | restart))
-
-    def _compiled_advance(self, y, u, u_norm):
+    def _compiled_advance(self, y, u, u_norm, restart):
         """The compiled step: ``(y, fast)``; ``fast`` is ``(Y, obs, over, reward, terminated,
         metrics, physical read-outs)``, or ``None`` when a new state is non-finite (the numpy
-        path then handles the failure from ``y``)."""
+        path then handles the failure from ``y``). ``(None, None)`` when the env's guard asks
+        for more than ``substeps`` steps of a sub-env (other than those about to restart,
+        which take ``substeps`` regardless, as in :meth:`_advance`): the numpy path runs that
+        period."""
         n, env = self.num_envs, self.env
         Y = self._y2d if self._y2d is not None else np.stack(y)
         # controls as (n,) float64 arrays (an unactuated axis is a 0.0 for every sub-env)
         u = tuple(c if type(c) is np.ndarray else np.full(n, c, dtype=np.float64) for c in u)
         u_norm = tuple(c if type(c) is np.ndarray else np.full(n, c, dtype=np.float64) for c in u_norm)
-        Ynew, bad, obs, over, reward, terminated, metrics, physical = self._batch_step(Y, u, u_norm, env._h, env.substeps)
+        out = self._batch_step(Y, u, u_norm, env._h, env.substeps, not env._plain_advance, restart)
+        Ynew, bad, obs, over, reward, terminated, metrics, physical = out
+        if bad < 0:
+            return None, None
         y = tuple(Ynew)
         if bad:
             return y, None

@@ -124,6 +124,7 @@ class FreeBody:
         # and the compiled batch kernel (with a quaternion, the projection is not pure: none)
         self.kernel_rhs = None if self.attitude else (euler_rhs, params.coefficients)
         self.kernel_readouts = (free_body_readouts, params.inverse)
+        self.kernel_angular_velocity = (angular_velocity, params.inverse)  # the guard's input
 
     readout_names = ("energy", "momentum_norm")
 

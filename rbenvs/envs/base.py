@@ -14,9 +14,10 @@ import warnings
 import gymnasium as gym
 import numpy as np
 
+from ..compiled import jitable, state_finish
 from ..dynamics.validation import require_finite_positive, require_int_at_least
-from ..compiled import state_finish
 from ..integrators import get_integrator
+from ..rotations import maximum, sqrt
 
 __all__ = ["RigidBodyEnv", "NumericalFailureWarning", "MAX_INTERNAL_STEPS", "GUARDS", "require_float32_bound", "require_guard"]
 
@@ -44,6 +45,23 @@ def require_guard(guard) -> str:
     if not isinstance(guard, str) or guard not in GUARDS:
         raise ValueError(f"guard must be one of {list(GUARDS)}, got {guard!r}")
     return guard
+
+
+@jitable
+def guard_ratio(g, w):
+    """``x`` with ``n = ceil(x)`` the internal steps the guard asks for (see
+    :meth:`RigidBodyEnv._guarded_steps`): ``g = (spin_weight, rate, dt, bound, growth)``, ``w``
+    the angular velocity (floats or arrays; pure, so the compiled batch step checks the guard
+    with the same arithmetic)."""
+    spin_weight, rate, dt, bound, growth = g
+    if spin_weight != 0.0:
+        speed = sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2])
+        rate = spin_weight * speed + rate
+    x = dt * rate / bound
+    if growth != math.inf:
+        z = dt * rate
+        x = maximum(x, z * z / growth)
+    return x
 
 
 class NumericalFailureWarning(RuntimeWarning):
@@ -199,19 +217,11 @@ class RigidBodyEnv(gym.Env):
         ``lambda = w |Omega| + rate`` from the state at the start of the period (an int, or an int array for a batch; the float and array paths do the
         same IEEE operations, so a vector env takes the single env's steps). A non-finite or
         absurd rate gives ``MAX_INTERNAL_STEPS + 1``: refused as a numerical failure."""
-        bound, growth = self._step_bound, self._period_growth
-        if self.guard == "off" or (bound == math.inf and growth == math.inf):
+        params = self._guard_params()
+        if params is None:
             return self.substeps
-        rate = self._fixed_rate
-        if self._spin_weight:
-            w0, w1, w2 = self.system.angular_velocity(y)[:3]
-            s2 = w0 * w0 + w1 * w1 + w2 * w2
-            speed = math.sqrt(s2) if type(s2) is float else np.sqrt(s2)
-            rate = self._spin_weight * speed + rate
-        x = self._dt * rate / bound
-        if growth != math.inf:
-            z = self._dt * rate
-            x = max(x, z * z / growth) if type(x) is float else np.maximum(x, z * z / growth)
+        w = self.system.angular_velocity(y) if self._spin_weight else (0.0, 0.0, 0.0)
+        x = guard_ratio(params, w)
         if type(x) is float:
             if x <= self.substeps:
                 return self.substeps
@@ -220,6 +230,14 @@ class RigidBodyEnv(gym.Env):
         with np.errstate(invalid="ignore"):
             n = np.where(x <= MAX_INTERNAL_STEPS, np.ceil(np.where(x <= MAX_INTERNAL_STEPS, x, 0.0)), MAX_INTERNAL_STEPS + 1)
         return np.maximum(self.substeps, n).astype(np.int64)
+
+    def _guard_params(self):
+        """``(spin_weight, rate, dt, bound, growth)`` for :func:`guard_ratio`, or ``None`` when
+        no guard applies (``guard="off"``, or no bound for this integrator)."""
+        bound, growth = self._step_bound, self._period_growth
+        if self.guard == "off" or (bound == math.inf and growth == math.inf):
+            return None
+        return (float(self._spin_weight), float(self._fixed_rate), self._dt, bound, growth)
 
     def _refusal(self, n, where: str = "") -> ValueError:
         """The ``guard="refuse"`` error for a period that needs ``n`` internal steps."""
@@ -479,19 +497,29 @@ class RigidBodyEnv(gym.Env):
 
     def _kernel_parts(self):
         """What :func:`rbenvs.compiled.batch_kernel` needs to run this env's step on a batch:
-        ``(step, observe, evaluate, readouts)``, each ``(pure function, parameters)``, or
-        ``None`` where a part has no pure form (then the batch runs on numpy arrays). The
-        kernel takes ``substeps`` equal steps: a guarded env uses it for the periods whose
-        guard asks for no more (the vector env checks); events and hybrid switching (the
-        tippe top) never."""
+        ``(step, observe, evaluate, readouts, guard)``, each ``(pure function, parameters)``
+        (``guard``: ``((guard_ratio, G), (angular velocity, P))``, or ``None`` without a guard
+        check), or ``None`` where a part has no pure form (then the batch runs on numpy
+        arrays). The kernel takes ``substeps`` equal steps: a guarded period that needs more
+        goes back to the numpy path; events and hybrid switching (the tippe top) never
+        compile."""
         step = self.integrator.kernel_step(self.system)
         kernels = getattr(self.task, "kernels", None)
         readouts = getattr(self.system, "kernel_readouts", None)
         hybrid = self.event_name is not None or self._after_internal_step is not None
         if step is None or kernels is None or readouts is None or hybrid:
             return None
+        guard = None
+        steps_rule = type(self)._internal_steps
+        if steps_rule is RigidBodyEnv._guarded_steps and not self._plain_default:
+            angular = getattr(self.system, "kernel_angular_velocity", None)
+            if angular is None:
+                return None
+            guard = ((guard_ratio, self._guard_params()), angular)
+        elif steps_rule is not RigidBodyEnv._internal_steps and steps_rule is not RigidBodyEnv._guarded_steps:
+            return None  # a rule of its own that the kernel cannot evaluate
         observe, evaluate = kernels(self.system)
-        return step, observe, evaluate, readouts
+        return step, observe, evaluate, readouts, guard
 
     def _control(self, a):
         raise NotImplementedError
