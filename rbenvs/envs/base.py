@@ -200,6 +200,7 @@ class RigidBodyEnv(gym.Env):
 
     def _configure_guard(self):
         self._step_bound, self._period_growth, self._spin_weight, self._fixed_rate, self._guard_text = self._step_limit()
+        self._guard_tuple = self._guard_params()  # read by every guarded period
 
     def _guard_idle(self) -> bool:
         """True when no state inside the observation bounds can need more than ``substeps``
@@ -217,7 +218,7 @@ class RigidBodyEnv(gym.Env):
         ``lambda = w |Omega| + rate`` from the state at the start of the period (an int, or an int array for a batch; the float and array paths do the
         same IEEE operations, so a vector env takes the single env's steps). A non-finite or
         absurd rate gives ``MAX_INTERNAL_STEPS + 1``: refused as a numerical failure."""
-        params = self._guard_params()
+        params = self._guard_tuple
         if params is None:
             return self.substeps
         w = self.system.angular_velocity(y) if self._spin_weight else (0.0, 0.0, 0.0)
@@ -515,7 +516,7 @@ class RigidBodyEnv(gym.Env):
             angular = getattr(self.system, "kernel_angular_velocity", None)
             if angular is None:
                 return None
-            guard = ((guard_ratio, self._guard_params()), angular)
+            guard = ((guard_ratio, self._guard_tuple), angular)
         elif steps_rule is not RigidBodyEnv._internal_steps and steps_rule is not RigidBodyEnv._guarded_steps:
             return None  # a rule of its own that the kernel cannot evaluate
         observe, evaluate = kernels(self.system)
