@@ -3,8 +3,9 @@
 Why: a numpy step of a batch is one array operation per arithmetic line. At 4096 states each
 costs about 1 us, almost all of it dispatch, and a free-body RK4 step alone is about 65 of
 them; the reward, observation and read-outs as many again (``rbenvs bench throughput`` prints
-both paths). Compiled, the whole step is one call: the physics loop runs in SIMD registers
-(about 1.3 ns per state, ``rbenvs bench kernels``), then one loop per read-out stage.
+both paths). Compiled, the whole step is one call: the guard's check where the env has one,
+the physics loop in SIMD registers (about 1.3 ns per state, ``rbenvs bench kernels``), then
+one loop per read-out stage.
 
 The same pure parts also make the single env's read-out function (:func:`state_finish`):
 plain Python, generated per layout, one call instead of a method per part.
@@ -37,6 +38,7 @@ DISABLE_VARIABLE = "RBENVS_COMPILED"
 
 _JITABLE: list = []  # pure functions compiled code may call, in definition order
 _registered = False
+_done: set = set()  # ids of the functions registered with numba (each once)
 
 
 def jitable(fn):
@@ -64,9 +66,12 @@ def available() -> bool:
 
 
 def _register(fn) -> None:
+    if id(fn) in _done:
+        return
     from numba.extending import register_jitable
 
     register_jitable(fn)
+    _done.add(id(fn))
 
 
 def _register_all() -> None:
