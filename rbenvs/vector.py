@@ -28,14 +28,14 @@ Conventions (gymnasium 1.x):
 * Truncation at ``max_episode_steps`` (from the registration) is done here: a vector env is
   not wrapped in ``TimeLimit``.
 * ``info_readouts=False`` leaves the physical read-outs (energy, invariants, contact forces)
-  out of ``info``, keeping the task's metrics: at thousands of sub-envs they cost about as
-  much as the rest of the step (``rbenvs bench throughput`` measures both).
+  out of ``info``, keeping the task's metrics: on the numpy path at thousands of sub-envs
+  they cost a good part of the step (``rbenvs bench throughput`` measures both).
 * ``compiled="auto"`` (default): where numba is installed (the ``fast`` extra) and the env's
   integrator, system and task all have pure forms (today: the free body without attitude,
   spin and detumble, ``euler``/``rk4``; a guarded period that needs more than ``substeps``
-  steps runs on numpy), the step runs
-  as one compiled kernel of the same functions (:mod:`rbenvs.compiled`), bit for bit the
-  numpy path's result; elsewhere, and with ``compiled=False``, the numpy path.
+  steps runs on numpy), the step runs as one compiled kernel of the same functions
+  (:mod:`rbenvs.compiled`), bit for bit the numpy path's result; elsewhere, and with
+  ``compiled=False``, the numpy path.
   ``compiled=True`` demands the kernel (``ValueError`` saying why it cannot be had).
   ``self.compiled`` tells which path runs.
 * ``get_state()`` returns the single env's dict with every array batched along a leading
