@@ -115,8 +115,8 @@ class RigidBodyVectorEnv(VectorEnv):
         elif parts is None:
             reason = (
                 f"{type(env).__name__} with integrator {self.integrator.name!r}, task {getattr(self.task, 'name', '?')!r} "
-                "and these settings has no compiled step (the integrator, system and task need pure forms, "
-                "and the control period fixed substeps without a guard check)"
+                "and these settings has no compiled step (the integrator, system and task need pure forms; "
+                "events and hybrid switching never compile)"
             )
         else:
             n_control = len(env._control((0.0,) * env.action_space.shape[0])[1])
@@ -178,7 +178,7 @@ class RigidBodyVectorEnv(VectorEnv):
 
         Where the task draws in two stages (``initial_draws`` per generator, then
         ``initial_from_draws``: see :mod:`rbenvs.tasks.free_body`) only the generator calls run
-        per sub-env and the arithmetic once on the batch (4096 resets: about 3 ms instead of
+        per sub-env and the arithmetic once on the batch (4096 resets: about 5 ms instead of
         22); otherwise one ``_initial_state`` per sub-env. Either way sub-env ``i`` gets the
         state a single env draws from the same generator (tested)."""
         env, task = self.env, self.task

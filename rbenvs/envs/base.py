@@ -414,10 +414,7 @@ class RigidBodyEnv(gym.Env):
         return out
 
     def _observation(self, y):
-        return self._observation_array(self.task.observe(self.system, y))
-
-    def _observation_array(self, o):
-        """``(float32 observation, over)`` from the observation's components ``o``."""
+        o = self.task.observe(self.system, y)
         hi = self._obs_high_uniform
         if hi is not None:  # one bound for every component: two builtin calls
             over = not (-hi <= min(o) and max(o) <= hi)
