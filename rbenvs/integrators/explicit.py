@@ -18,6 +18,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from functools import lru_cache
+from typing import ClassVar
 
 from .base import Integrator
 
@@ -88,63 +89,56 @@ def _generate(kind: str, dim: int, project: bool, params: bool = False) -> dict:
     return namespace
 
 
-def _bind(kind: str, system, dim: int):
-    pure = getattr(system, "kernel_rhs", None)
-    if pure is not None:
-        f, params = pure
-        return _pure(kind, dim)[0](f, params)
-    return _factory(kind, dim, getattr(system, "needs_projection", True))(system.rhs, system.normalize)
-
-
 @lru_cache(maxsize=None)
 def _pure_step(kind: str, dim: int, f):
     return _pure(kind, dim)[1](f)
 
 
-def _kernel_step(kind: str, integrator, cls, system):
-    pure = getattr(system, "kernel_rhs", None)
-    if pure is None or type(integrator).step is not cls.step:
-        return None
-    f, params = pure
-    return _pure_step(kind, system.dim, f), params
+@dataclass(frozen=True)
+class _Generated(Integrator):
+    """A scheme whose step is generated from its template (``kind``), unrolled per dimension."""
+
+    kind: ClassVar[str] = ""
+
+    def step(self, system, y, u, h):
+        return _unrolled(self.kind, len(y))(system.rhs, system.normalize, y, u, h)
+
+    def _overridden(self) -> bool:
+        return type(self).step is not _Generated.step  # a subclass that changes step
+
+    def bind(self, system, dim):
+        if self._overridden():
+            return super().bind(system, dim)
+        pure = getattr(system, "kernel_rhs", None)
+        if pure is not None:
+            f, params = pure
+            return _pure(self.kind, dim)[0](f, params)
+        return _factory(self.kind, dim, getattr(system, "needs_projection", True))(system.rhs, system.normalize)
+
+    def kernel_step(self, system):
+        pure = getattr(system, "kernel_rhs", None)
+        if pure is None or self._overridden():
+            return None
+        f, params = pure
+        return _pure_step(self.kind, system.dim, f), params
 
 
 @dataclass(frozen=True)
-class Euler(Integrator):
+class Euler(_Generated):
     """Forward Euler: first order, one rhs call; drifts in every invariant and is unstable
     for large ``|Omega| h`` (physics.md §4). The cheapest baseline, not a recommendation."""
 
     name = "euler"
+    kind = "euler"
     order = 1
     evaluations = 1
 
-    def step(self, system, y, u, h):
-        return _unrolled("euler", len(y))(system.rhs, system.normalize, y, u, h)
-
-    def bind(self, system, dim):
-        if type(self).step is not Euler.step:  # a subclass that changes step: bind that
-            return super().bind(system, dim)
-        return _bind("euler", system, dim)
-
-    def kernel_step(self, system):
-        return _kernel_step("euler", self, Euler, system)
-
 
 @dataclass(frozen=True)
-class RK4(Integrator):
+class RK4(_Generated):
     """Classical fourth-order Runge-Kutta, four rhs calls; invariants drift slowly."""
 
     name = "rk4"
+    kind = "rk4"
     order = 4
     evaluations = 4
-
-    def step(self, system, y, u, h):
-        return _unrolled("rk4", len(y))(system.rhs, system.normalize, y, u, h)
-
-    def bind(self, system, dim):
-        if type(self).step is not RK4.step:  # a subclass that changes step: bind that
-            return super().bind(system, dim)
-        return _bind("rk4", system, dim)
-
-    def kernel_step(self, system):
-        return _kernel_step("rk4", self, RK4, system)
