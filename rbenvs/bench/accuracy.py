@@ -77,6 +77,7 @@ from ..integrators.reference import Dop853
 from ..verify.tippe_top import _Floats
 from ..progress import Progress
 from .throughput import _episode_stepper, _timed
+from ..render.common import plot_unavailable
 
 __all__ = ["CASES", "REFERENCE", "TARGET", "Case", "run", "run_scenes", "fit_order", "convergence", "drift", "mujoco_free_body", "print_report", "print_scenes", "plot", "main"]
 
@@ -649,12 +650,8 @@ def main(argv=None) -> int:
                         help="MuJoCo's integrators on the free body when mujoco is installed (the mujoco extra; default: on)")
     parser.add_argument("--no-progress", action="store_true")
     args = parser.parse_args(argv)
-    if args.plot:  # fail before the long run if the plot cannot be drawn
-        try:
-            __import__("matplotlib")
-        except ImportError:
-            print("rbenvs bench accuracy --plot needs matplotlib (pip install 'rbenvs[plot]')", file=sys.stderr)
-            return 2
+    if args.plot and plot_unavailable("rbenvs bench accuracy"):  # fail before the long run, not after it
+        return 2
     scenes = (not args.quick) if args.scenes is None else args.scenes
     bar = Progress(progress_total(args.system, args.quick), not args.no_progress, "bench accuracy")
     result = run(systems=args.system, quick=args.quick, progress=bar.update, mujoco=args.mujoco)

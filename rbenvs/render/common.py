@@ -68,6 +68,17 @@ def require_matplotlib():
     return Figure, FigureCanvasAgg
 
 
+def plot_unavailable(command: str) -> bool:
+    """Whether ``command --plot`` cannot draw (matplotlib missing); says so on stderr. A long
+    command calls it before its run, so that it fails at once instead of at the end."""
+    try:
+        __import__("matplotlib")
+    except ImportError:
+        print(f"{command} --plot needs matplotlib (pip install 'rbenvs[plot]')", file=sys.stderr)
+        return True
+    return False
+
+
 def display_available() -> bool:
     """Whether a window can be opened: a display on Linux/BSD; assumed on macOS and Windows."""
     if sys.platform.startswith(("linux", "freebsd", "openbsd", "netbsd")):

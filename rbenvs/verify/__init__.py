@@ -41,6 +41,7 @@ from .free_body import FREE_BODY_SETTINGS, free_body_checks
 from .heavy_top import HEAVY_TOP_SETTINGS, heavy_top_checks
 from . import tippe_top as _tippe
 from .tippe_top import TIPPE_TOP_SETTINGS, tippe_top_checks
+from ..render.common import plot_unavailable
 
 __all__ = [
     "Check",
@@ -151,12 +152,8 @@ def main(argv=None) -> int:
 
 
 def _sweep_main(args) -> int:
-    if args.plot:  # fail before the long run if the plot cannot be drawn
-        try:
-            __import__("matplotlib")
-        except ImportError:
-            print("rbenvs verify --plot needs matplotlib (pip install 'rbenvs[plot]')", file=sys.stderr)
-            return 2
+    if args.plot and plot_unavailable("rbenvs verify"):  # fail before the long run, not after it
+        return 2
     points = run_sweep(quick=args.quick, show_progress=not args.no_progress)
     _tippe.print_sweep(points)
     if args.plot:
