@@ -12,13 +12,16 @@ strings naming SB3 things, lists, mappings), never code. Reserved keys:
 
 Every other key goes to the algorithm's constructor (``learning_rate``, ``gamma``, ...).
 Precedence: ``default`` < env id < scene < explicit overrides.
+
+The files ship with the package (``rbenvs.configs``); ``$RBENVS_CONFIGS`` replaces them with a
+folder of your own (see :func:`rbenvs.configs.configs_root`).
 """
 
 from __future__ import annotations
 
-import os
 from dataclasses import dataclass, field
-from pathlib import Path
+
+from rbenvs.configs import configs_root
 
 __all__ = ["ALGORITHMS", "AgentConfig", "agent_config", "configs_dir"]
 
@@ -26,11 +29,9 @@ ALGORITHMS = ("ppo", "sac", "td3")
 RESERVED = ("n_timesteps", "n_envs", "policy", "policy_kwargs", "eval_episodes")
 
 
-def configs_dir() -> Path:
-    """``$RBENVS_CONFIGS/agents`` if set, else ``configs/agents`` of the source checkout."""
-    root = os.environ.get("RBENVS_CONFIGS")
-    base = Path(root) if root else Path(__file__).resolve().parents[1] / "configs"
-    return base / "agents"
+def configs_dir():
+    """The folder of the hyperparameter files: ``agents/`` of :func:`rbenvs.configs.configs_root`."""
+    return configs_root() / "agents"
 
 
 @dataclass(frozen=True)

@@ -1,7 +1,8 @@
 """The ``rbenvs`` command line (also ``python -m rbenvs``).
 
 * ``rbenvs list``: every registered id with its tasks, ``max_episode_steps`` and reward threshold.
-* ``rbenvs scenes``: the named scenes under ``configs/scenes``.
+* ``rbenvs scenes``: the named scenes under ``configs/scenes`` (shipped as ``rbenvs.configs``;
+  ``$RBENVS_CONFIGS`` replaces them, see :func:`rbenvs.configs.configs_root`).
 * ``rbenvs run [--scene NAME ...] [--episodes N] [--seed S]``: the main job. Runs scenes (by
   default the headline scene of each system) with their analytic controller and with no
   control, and prints an episode summary per scene (return, success, the task's final
@@ -48,8 +49,10 @@ def _cmd_list(args) -> int:
 
 
 def _cmd_scenes(args) -> int:
-    from .scenes import list_scenes, load_scene
+    from .scenes import list_scenes, load_scene, no_scenes_found
 
+    if not list_scenes():
+        raise ValueError(no_scenes_found())
     rows = [("scene", "id", "task", "description")]
     for name in list_scenes():
         s = load_scene(name)
