@@ -6,6 +6,10 @@
 * ``rbenvs-results``: the README's results table: every (scene, algorithm) of
   ``configs/agents/results.yml`` trained on several seeds, with the analytic controller and
   zero action evaluated the same way.
+
+Each needs the ``agents`` extra (stable-baselines3, torch; ``rbenvs-eval`` of ``analytic`` and
+``zero`` alone needs only ``cli``). A missing extra, an unknown scene or another bad input is one
+line on stderr and exit status 2, as for ``rbenvs`` (:func:`rbenvs.extras.run_command`).
 """
 
 from __future__ import annotations
@@ -16,7 +20,11 @@ import sys
 import time
 from pathlib import Path
 
+from rbenvs.extras import require, run_command
+
 __all__ = ["train_main", "eval_main", "results_main"]
+
+BASELINES = ("analytic", "zero")  # the agents that are not SB3 models
 
 
 def _scene(name):
@@ -68,6 +76,10 @@ def _eval_rows(scene, named_factories, episodes, seeds):
 
 
 def train_main(argv=None) -> int:
+    return run_command("rbenvs-train", _train, argv)
+
+
+def _train(argv) -> int:
     from .config import ALGORITHMS
 
     p = argparse.ArgumentParser(prog="rbenvs-train", description="Train an SB3 agent on a scene, then evaluate it against the analytic controller.")
@@ -82,6 +94,7 @@ def train_main(argv=None) -> int:
     p.add_argument("--no-compare", action="store_true", help="skip the evaluation")
     p.add_argument("--no-progress", action="store_true")
     args = p.parse_args(argv)
+    require("agents")
     scene = _scene(args.scene)
     out = args.out or Path("runs") / f"{args.algo}-{scene.name}-seed{args.seed}"
     from .evaluate import analytic_policy, sb3_policy, zero_policy
@@ -100,6 +113,10 @@ def train_main(argv=None) -> int:
 
 
 def eval_main(argv=None) -> int:
+    return run_command("rbenvs-eval", _eval, argv)
+
+
+def _eval(argv) -> int:
     p = argparse.ArgumentParser(prog="rbenvs-eval", description="Evaluate agents and analytic controllers on a scene.")
     p.add_argument("--scene", default="default")
     p.add_argument("--agent", action="append", required=True, help="'analytic', 'zero' or a model.zip path; repeatable")
@@ -108,6 +125,7 @@ def eval_main(argv=None) -> int:
     p.add_argument("--seeds", type=int, nargs="+", default=[100, 101, 102])
     p.add_argument("--json", action="store_true")
     args = p.parse_args(argv)
+    require("cli" if set(args.agent) <= set(BASELINES) else "agents")
     scene = _scene(args.scene)
     rows, records = _eval_rows(scene, [(a, _policy_factory(a, args.algo)) for a in args.agent], args.episodes, args.seeds)
     if args.json:
@@ -118,23 +136,32 @@ def eval_main(argv=None) -> int:
 
 
 def results_main(argv=None) -> int:
-    import yaml
+    return run_command("rbenvs-results", _results, argv)
 
-    from .config import agent_config, configs_dir
-    from .evaluate import analytic_policy, evaluate, sb3_policy, summarize, zero_policy
-    from .train import train
 
+def _results(argv) -> int:
     p = argparse.ArgumentParser(prog="rbenvs-results", description="The README's results table: train and evaluate every (scene, algorithm) of configs/agents/results.yml.")
     p.add_argument("--seeds", type=int, default=3)
     p.add_argument("--quick", action="store_true", help="1/20 of each budget, 1 seed, 2 episodes: a smoke run of the whole grid")
     p.add_argument("--json", type=Path, default=None, help="also write the records here")
     p.add_argument("--no-progress", action="store_true")
     args = p.parse_args(argv)
+    require("agents")
+    import yaml
+
+    from .config import agent_config, configs_dir
+    from .evaluate import analytic_policy, evaluate, sb3_policy, summarize, zero_policy
+    from .train import train
+
     grid = yaml.safe_load((configs_dir() / "results.yml").read_text())
     seeds = [0] if args.quick else list(range(args.seeds))
     rows, records = [], []
-    for entry in grid["runs"]:
-        scene = _scene(entry["scene"])
+    # every scene and algorithm of the grid checked before the first (long) training run
+    scenes = [_scene(entry["scene"]) for entry in grid["runs"]]
+    for entry, scene in zip(grid["runs"], scenes):
+        for algo in entry["algos"]:
+            agent_config(algo, scene.env_id, scene.name)
+    for entry, scene in zip(grid["runs"], scenes):
         episodes = 2 if args.quick else int(entry.get("eval_episodes", 10))
         agents = [("zero action", zero_policy, 0, 0.0), ("analytic", analytic_policy, 0, 0.0)]
         evaluated = []

@@ -22,6 +22,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from rbenvs.configs import configs_root
+from rbenvs.extras import require
 
 __all__ = ["ALGORITHMS", "AgentConfig", "agent_config", "configs_dir"]
 
@@ -49,6 +50,7 @@ class AgentConfig:
 
 def agent_config(algo: str, env_id: str, scene: str | None = None, **overrides) -> AgentConfig:
     """The merged configuration of ``algo`` for ``env_id`` (and ``scene``)."""
+    require("cli")
     import yaml
 
     if algo not in ALGORITHMS:

@@ -19,6 +19,10 @@
 * ``rbenvs plot [WHAT ...] [--out DIR] [--quick]``: PNG figures (:mod:`rbenvs.plotting`; needs
   the ``plot`` extra): ``free_body``, ``heavy_top``, ``tippe_top``, ``frames`` (one rendered
   frame per system) or ``all`` (the default; the pictures under ``docs/``).
+
+A command that needs an extra it lacks (``scenes``, ``run`` and the scenes of ``bench accuracy``
+need ``cli``, for PyYAML; ``plot`` needs ``plot``) says which in one line and exits with status 2,
+as does bad input such as an unknown scene (:func:`rbenvs.extras.run_command`).
 """
 
 from __future__ import annotations
@@ -49,8 +53,10 @@ def _cmd_list(args) -> int:
 
 
 def _cmd_scenes(args) -> int:
+    from .extras import require
     from .scenes import list_scenes, load_scene, no_scenes_found
 
+    require("cli")
     if not list_scenes():
         raise ValueError(no_scenes_found())
     rows = [("scene", "id", "task", "description")]
@@ -81,8 +87,10 @@ MAIN_SCENES = ("default", "top_upright", "tippe_hold")
 
 
 def _cmd_run(args) -> int:
+    from .extras import require
     from .scenes import load_scene
 
+    require("cli")
     scenes = [load_scene(name) for name in (args.scene or MAIN_SCENES)]  # fail before running any
     for n, scene in enumerate(scenes):
         if n:
@@ -200,7 +208,15 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv=None) -> int:
+    """The command line; a missing extra or bad input is one line on stderr and exit status 2
+    (:func:`rbenvs.extras.run_command`)."""
+    from .extras import run_command
+
     argv = sys.argv[1:] if argv is None else list(argv)
+    return run_command("rbenvs", _main, argv)
+
+
+def _main(argv) -> int:
     if argv[:1] == ["verify"]:
         from .verify import main as verify_main
 
@@ -217,11 +233,7 @@ def main(argv=None) -> int:
     if getattr(args, "episodes", 1) < 1:
         print("rbenvs: --episodes must be >= 1", file=sys.stderr)
         return 2
-    try:
-        return args.func(args)
-    except (ValueError, ImportError) as exc:
-        print(f"rbenvs: error: {exc}", file=sys.stderr)
-        return 2
+    return args.func(args)
 
 
 if __name__ == "__main__":

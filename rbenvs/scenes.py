@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from .configs import configs_root
+from .extras import require
 
 __all__ = ["Scene", "scenes_dir", "list_scenes", "no_scenes_found", "load_scene"]
 
@@ -54,10 +55,8 @@ def no_scenes_found() -> str:
 
 def load_scene(name_or_path: str) -> Scene:
     """A scene by name (``configs/scenes/<name>.yml``) or by path to a YAML file."""
-    try:
-        import yaml
-    except ImportError:
-        raise ImportError("reading scenes needs PyYAML: pip install 'rbenvs[cli]'") from None
+    require("cli")
+    import yaml
 
     path = Path(name_or_path)
     if path.suffix not in (".yml", ".yaml"):

@@ -81,8 +81,10 @@ def test_train_and_eval_commands(tmp_path, capsys):
     assert eval_main(["--scene", "top_upright", "--agent", str(out / "model.zip"), "--agent", "zero", "--episodes", "1", "--seeds", "0", "--json"]) == 0
     records = json.loads(capsys.readouterr().out)["results"]
     assert [r["agent"] for r in records] == [str(out / "model.zip"), "zero"]
-    with pytest.raises(ValueError, match="model.zip"):
-        eval_main(["--scene", "top_upright", "--agent", str(tmp_path / "missing.zip")])
+    # a bad agent is one line and exit status 2, like an unknown scene (rbenvs.extras.run_command)
+    assert eval_main(["--scene", "top_upright", "--agent", str(tmp_path / "missing.zip")]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("rbenvs-eval: error: agent must be") and "model.zip" in err and err.count("\n") == 1
 
 
 def test_results_command_prints_the_table_of_its_grid(tmp_path, monkeypatch, capsys):

@@ -78,6 +78,7 @@ from ..verify.tippe_top import _Floats
 from ..progress import Progress
 from .throughput import _episode_stepper, _timed
 from ..render.common import plot_unavailable
+from ..extras import require
 
 __all__ = ["CASES", "REFERENCE", "TARGET", "Case", "run", "run_scenes", "fit_order", "convergence", "drift", "mujoco_free_body", "print_report", "print_scenes", "plot", "main"]
 
@@ -653,6 +654,8 @@ def main(argv=None) -> int:
     if args.plot and plot_unavailable("rbenvs bench accuracy"):  # fail before the long run, not after it
         return 2
     scenes = (not args.quick) if args.scenes is None else args.scenes
+    if scenes:
+        require("cli")  # the scenes are YAML: say so before the long run, not after it
     bar = Progress(progress_total(args.system, args.quick), not args.no_progress, "bench accuracy")
     result = run(systems=args.system, quick=args.quick, progress=bar.update, mujoco=args.mujoco)
     bar.close()

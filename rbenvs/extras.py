@@ -1,0 +1,62 @@
+"""Optional extras and how the command lines report what is missing.
+
+The core package needs gymnasium, numpy and scipy alone; the rest comes with extras
+(``pyproject.toml``). :func:`require` is called where a command first needs an extra (before any
+long work): a missing module raises :class:`MissingExtra`, an ``ImportError`` whose message names
+the extra and its ``pip install`` line. :func:`run_command` runs a command line's body and turns
+that, and a ``ValueError`` of bad input (an unknown scene, a bad value), into one line on stderr
+and exit status 2, no traceback. ``rbenvs`` (:mod:`rbenvs.cli`) and ``rbenvs-train``,
+``rbenvs-eval``, ``rbenvs-results`` (:mod:`rbenvs_agents.cli`) all go through it.
+"""
+
+from __future__ import annotations
+
+import sys
+from importlib.util import find_spec
+
+__all__ = ["EXTRAS", "MissingExtra", "require", "run_command"]
+
+# extra -> (module, distribution) pairs that a command needing the extra cannot do without.
+EXTRAS = {
+    # Scenes and agent hyperparameters are YAML files. The extra's tqdm is not required:
+    # rbenvs.progress shows no progress bar without it.
+    "cli": (("yaml", "PyYAML"),),
+    # The agents: stable-baselines3 on torch; their scenes and hyperparameters are YAML too.
+    "agents": (("stable_baselines3", "stable-baselines3"), ("torch", "torch"), ("yaml", "PyYAML")),
+}
+
+
+class MissingExtra(ImportError):
+    """A module of an extra is not installed; the message says which extra to install."""
+
+    def __init__(self, extra: str, distribution: str):
+        self.extra = extra
+        self.distribution = distribution
+        super().__init__(f"the {extra!r} extra is needed ({distribution} is not installed): pip install 'rbenvs[{extra}]'")
+
+
+def require(extra: str) -> None:
+    """Raise :class:`MissingExtra` unless every module of ``extra`` can be imported.
+
+    The modules are located, not imported (no cost for torch); a module blocked in
+    ``sys.modules`` (set to ``None``) counts as missing.
+    """
+    for module, distribution in EXTRAS[extra]:
+        try:
+            found = find_spec(module) is not None
+        except (ImportError, ValueError):
+            found = False
+        if not found:
+            raise MissingExtra(extra, distribution)
+
+
+def run_command(prog: str, body, *args) -> int:
+    """``body(*args)``, its exit status; a missing extra or a ``ValueError`` or ``ImportError``
+    becomes one line on stderr (``prog: ...``) and exit status 2."""
+    try:
+        return body(*args)
+    except MissingExtra as exc:
+        print(f"{prog}: {exc}", file=sys.stderr)
+    except (ValueError, ImportError) as exc:
+        print(f"{prog}: error: {exc}", file=sys.stderr)
+    return 2
