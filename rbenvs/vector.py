@@ -54,7 +54,7 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
 from . import compiled as _compiled
-from .dynamics.validation import require_int_at_least
+from .dynamics.validation import real_array, require_bool, require_int_at_least
 from .envs import FreeRigidBodyEnv, LagrangeTopEnv, NumericalFailureWarning, TippeTopEnv
 from .envs.base import MAX_INTERNAL_STEPS, RigidBodyEnv
 
@@ -68,9 +68,10 @@ class RigidBodyVectorEnv(VectorEnv):
 
     def __init__(self, num_envs: int = 1, max_episode_steps: int | None = None, autoreset_mode=AutoresetMode.NEXT_STEP, info_readouts: bool = True, compiled="auto", **kwargs):
         self.num_envs = require_int_at_least("num_envs", num_envs, 1)
-        self.info_readouts = bool(info_readouts)
-        if compiled not in (True, False, "auto"):
+        self.info_readouts = require_bool("info_readouts", info_readouts)
+        if not (isinstance(compiled, (bool, np.bool_)) or compiled == "auto"):
             raise ValueError(f"compiled must be True, False or 'auto', got {compiled!r}")
+        compiled = compiled if compiled == "auto" else bool(compiled)
         self.env = env = self.env_class(**kwargs)
         if max_episode_steps is not None:
             max_episode_steps = require_int_at_least("max_episode_steps", max_episode_steps, 1)
@@ -200,7 +201,7 @@ class RigidBodyVectorEnv(VectorEnv):
         n = self.num_envs
         arrays = {}
         for name, value in state.items():
-            arr = np.asarray(value, dtype=np.float64)
+            arr = real_array(f"state[{name!r}]", value)
             if arr.ndim < 1 or arr.shape[0] != n:
                 raise ValueError(f"state[{name!r}] must be batched along a leading axis of length num_envs = {n}, got shape {arr.shape}")
             arrays[name] = arr
@@ -223,7 +224,7 @@ class RigidBodyVectorEnv(VectorEnv):
         if self._y is None:
             raise RuntimeError("call reset() before step()")
         n = self.num_envs
-        a = np.asarray(actions)
+        a = real_array("actions", actions, dtype=None)  # the single env's types: real numbers only
         if a.shape != self.action_space.shape:
             raise ValueError(f"actions must have shape {self.action_space.shape}, got {a.shape}")
         if not np.isfinite(a).all():
@@ -363,8 +364,10 @@ class RigidBodyVectorEnv(VectorEnv):
             raise env._refusal(int(steps.max()), f" of sub-envs {bad.tolist()}")
         refused = steps > MAX_INTERNAL_STEPS  # numerical failures, as in the single env
         if refused.any():
+            # refused: NaN at once (one dummy step), reported with the single env's h = dt / n
             y = tuple(np.where(refused, np.nan, c) for c in y)
-            steps = np.where(refused, 1, steps)
+            y, event, h = self._advance(y, u, np.where(refused, True, skip) if skip is not None else refused)
+            return y, event, np.where(refused, env.dt / steps, h)
         watch = env.event_name is not None
         event = np.zeros(n_env, dtype=bool) if watch else None
         if integ.name == "dop853" and np.any(steps != steps[0]):

@@ -179,11 +179,18 @@ def test_unknown_guard_is_refused(cls, bad):
 def test_guard_off_exposes_the_numerical_failure_path():
     """guard='off' takes substeps steps whatever |Omega| h: forward Euler at dt = 5 s (7
     substeps) and 50 rad/s overflows (a numerical failure, last finite state kept, finite
-    observation); the guarded env needs (5 * 50)^2 / 0.02 > MAX_INTERNAL_STEPS steps: refused as
-    a numerical failure too, before integrating; at dt = 0.05 s the guarded euler stays finite."""
+    observation); the guarded env needs (5 * 50)^2 / 0.02 > MAX_INTERNAL_STEPS steps: a start
+    there is refused at construction (naming dt), and a state reached there (here: reset to
+    it) is refused as a numerical failure, before integrating; at dt = 0.05 s the guarded
+    euler stays finite."""
+    with pytest.raises(ValueError, match="dt=5.0 s cannot be resolved"):
+        FreeRigidBodyEnv(integrator="euler", spin_rate=50.0, dt=5.0, substeps=7, max_angular_velocity=3e38)
+    fast = FreeRigidBodyEnv(integrator="euler", spin_rate=50.0, dt=5.0, substeps=7, max_angular_velocity=3e38, guard="off")
+    fast.reset(seed=0)
+    start = fast.get_state()  # a spin at 50 rad/s
     for guard in ("off", "subdivide"):
-        env = FreeRigidBodyEnv(integrator="euler", spin_rate=50.0, dt=5.0, substeps=7, max_angular_velocity=3e38, guard=guard)
-        obs0, _ = env.reset(seed=0)
+        env = FreeRigidBodyEnv(integrator="euler", spin_rate=1.0, dt=5.0, substeps=7, max_angular_velocity=3e38, guard=guard)
+        obs0, _ = env.reset(seed=0, options={"state": start})
         last = env.get_state()
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
@@ -202,9 +209,10 @@ def test_guard_off_exposes_the_numerical_failure_path():
 def test_stepping_past_an_observation_limit_stays_guarded():
     """The default rk4 env runs unchecked because no state inside the bounds can trip the
     guard (sqrt(3) * 10 * 0.05 = 0.87 <= 1); a step that ends outside them switches the check
-    back on until the next reset."""
-    env = FreeRigidBodyEnv(task="detumble", max_torque=2e3)
-    env.reset(seed=0)
+    back on until the next reset. (Start near the bounds, Omega = (9, 9, 9), and push outwards
+    with the strongest torque allowed, a change of one box width, 20 rad/s, per period.)"""
+    env = FreeRigidBodyEnv(task="detumble", inertia=(1.0, 1.0, 1.0), max_torque=230.0)
+    env.reset(seed=0, options={"state": {"angular_momentum": np.array([9.0, 9.0, 9.0])}})
     info = env.step(np.ones(3, dtype=np.float32))[4]
     assert info["terminal_reason"] == "observation_limit"
     speed = float(np.linalg.norm(env.system.angular_velocity(env._y)))
@@ -290,7 +298,9 @@ def test_euler_at_1e4_rad_per_s_is_a_numerical_failure_or_within_its_growth_boun
     """Euler cannot follow 1e4 rad/s at dt = 0.01 s: (100)^2 / 0.02 = 5e5 steps per period,
     below MAX_INTERNAL_STEPS, each growing |Pi| by sqrt(1 + (h|Omega|)^2): the documented
     per-period growth exp(|Omega|^2 h dt / 2) <= exp(0.01), with |Omega| at most |Pi|/I_min.
-    At dt = 0.05 s it would need 1.25e7 steps: a numerical failure, the state kept."""
+    At dt = 0.05 s it would need 1.25e7 steps: such a start is refused at construction (naming
+    dt), and such a state reached later (here: reset to it) is a numerical failure, the state
+    kept."""
     env = FreeRigidBodyEnv(integrator="euler", spin_rate=1e4, axis="minor", perturbation=0.3, dt=0.01, max_angular_velocity=3e4)
     _, info0 = env.reset(seed=0)
     speed = math.sqrt(sum(c * c for c in env.system.angular_velocity(env._y)))
@@ -301,7 +311,14 @@ def test_euler_at_1e4_rad_per_s_is_a_numerical_failure_or_within_its_growth_boun
     c0, c1 = info0["momentum_norm"], info["momentum_norm"]
     w_max = c1 / 1.0  # I_min = 1
     assert 1.0 - 1e-12 <= c1 / c0 <= math.exp(w_max * w_max * h * 0.01 / 2)
-    env, info0, infos, caught = run_free("euler", 1e4, "minor", 0.05, 1)
+    with pytest.raises(ValueError, match="dt=0.05 s cannot be resolved"):
+        run_free("euler", 1e4, "minor", 0.05, 1)
+    start = env.get_state()  # about 1e4 rad/s
+    env = FreeRigidBodyEnv(integrator="euler", spin_rate=1.0, axis="minor", dt=0.05, max_angular_velocity=3e4)
+    _, info0 = env.reset(seed=0, options={"state": start})
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        infos = step_all(env, 1)
     assert [w.category for w in caught] == [NumericalFailureWarning] and infos[0]["numerical_failure"] is True
     assert infos[0]["momentum_norm"] == info0["momentum_norm"]
 

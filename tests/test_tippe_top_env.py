@@ -16,6 +16,7 @@ from gymnasium.utils.env_checker import check_env
 from stable_baselines3.common.env_checker import check_env as sb3_check_env
 
 from rbenvs.envs import NumericalFailureWarning, TippeTopEnv
+from rbenvs.integrators import RK4
 
 ID = "rbenvs/TippeTop-v0"
 NAN, INF = float("nan"), float("inf")
@@ -34,6 +35,15 @@ MG = M0 * G0  # weight [N]
 
 def zeros(env):
     return np.zeros(env.action_space.shape, dtype=np.float32)
+
+
+class _DivergingRK4(RK4):
+    """RK4 that returns NaN once ``diverge`` is non-empty: stands in for any scheme that
+    diverges inside a control period."""
+
+    def step(self, system, y, u, h):
+        y = super().step(system, y, u, h)
+        return tuple(float("nan") for _ in y) if self.diverge else y
 
 
 def rotation(q):
@@ -564,17 +574,23 @@ INTERNAL_CASES = [
     pytest.param(dict(fidelity="frictionless", spin=300.0), "spin", id="frictionless-spin"),
     pytest.param(dict(fidelity="rolling", spin=300.0, integrator="euler"), "spin", id="rolling-spin"),
     pytest.param(dict(substeps=300), "substeps", id="substeps"),
-    pytest.param(dict(fidelity="frictionless", substeps=3, spin=(-10.0, 10.0)), "substeps", id="substeps-low-spin"),
+    pytest.param(dict(fidelity="frictionless", substeps=6, spin=(-10.0, 10.0)), "substeps", id="substeps-low-spin"),
+    # a slow frictionless top: gravity's rate (38.9 rad/s for the default top) sets the step
+    pytest.param(dict(fidelity="frictionless", spin=(-10.0, 10.0)), "gravity", id="gravity-low-spin"),
+    pytest.param(dict(fidelity="rolling", spin=(5.0, 20.0), dt=0.05), "gravity", id="gravity-rolling"),
 ]
 
 
 def documented_internal_steps(env, state, u):
-    """``n = max(substeps, ceil(dt |Omega| / 0.1), ceil(dt / h_f))``, ``h_f = c / lambda`` with
+    """``n = max(substeps, ceil(dt |Omega| / 0.1), ceil(dt omega_g / 0.1), ceil(dt / h_f))``,
+    ``omega_g = sqrt(m g (a + h) / min(A, C))``, ``h_f = c / lambda`` with
     ``lambda = mu 2 max(m g, N) |M| (/ eps for Coulomb)``, ``|M| = 1/m + (a + h)^2 / min(A, C)``,
     ``c = 1`` (euler) or ``1.39`` (rk4); no ``h_f`` term without friction. Returns (n, terms)."""
     e = env.unwrapped
     p = e.params
-    terms = {"substeps": e.substeps, "spin": math.ceil(e.dt * np.linalg.norm(state["angular_velocity"]) / 0.1), "friction": 0}
+    omega_g = math.sqrt(p.mass * p.gravity * (p.radius + p.height) / min(p.inertia))
+    terms = {"substeps": e.substeps, "spin": math.ceil(e.dt * np.linalg.norm(state["angular_velocity"]) / 0.1), "friction": 0,
+             "gravity": math.ceil(e.dt * omega_g / 0.1)}
     if e.system.fidelity == "gliding" and u[2] > 0.0:
         normal = e.system.contact_forces(components(env, state), u)[0]
         mobility = 1.0 / p.mass + (p.radius + p.height) ** 2 / min(p.inertia)
@@ -889,13 +905,17 @@ def test_fixed_spin_and_tilt():
 
 @pytest.mark.parametrize("fidelity", FIDELITIES)
 def test_non_finite_state_ends_episode_with_last_finite_state(fidelity):
-    """An axial torque of 1e300 N m (finite, accepted) drives Omega3 past the float range inside
-    one control period: the gyroscopic and contact terms overflow, the state goes non-finite."""
-    env = TippeTopEnv(fidelity=fidelity, torque_action=True, max_torque=1e300)
+    """A scheme that diverges inside a control period (stood in for by an RK4 that returns NaN
+    once told to: a torque large enough to overflow the state is refused at construction, so
+    no valid setting reaches it with the guard on) ends the episode with the last finite state."""
+    integ = _DivergingRK4()
+    object.__setattr__(integ, "diverge", [])
+    env = TippeTopEnv(fidelity=fidelity, torque_action=True, integrator=integ)
     env.reset(seed=0)
     env.step(zeros(env))  # ordinary steps first: the kept state is not the reset one
     last_obs = env.step(zeros(env))[0]
     last = env.get_state()
+    integ.diverge.append(True)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         obs, r, te, tr, info = env.step(np.array([0.0, 0.0, 0.0, 0.0, 1.0], dtype=np.float32))
@@ -936,8 +956,13 @@ def test_observation_bounds_beyond_float32_are_refused(name):
 
 @pytest.mark.parametrize("fidelity", ["gliding", "frictionless"])
 def test_euler_overflow_is_a_numerical_failure(fidelity):
-    env = TippeTopEnv(fidelity=fidelity, integrator="euler", torque_action=True, max_torque=1e300)
-    env.reset(seed=0)
+    # forward Euler with the guard off, 100 steps of h = 0.1 ms on a top tumbling at 1e8 rad/s
+    # about every axis (it hops at once: free flight, so the episode does not end at the
+    # lift-off): Euler multiplies a rotation by sqrt(1 + (h rate)^2) ~ 1e3 per step, past the
+    # float range within the period
+    env = TippeTopEnv(fidelity=fidelity, integrator="euler", torque_action=True, guard="off", substeps=100,
+                      max_angular_velocity=3e38, max_speed=3e38, free_flight=True)
+    env.reset(seed=0, options={"state": make_state(env, tilted(0.3), (1e8, 1e8, 1e8))})
     last = env.get_state()
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
@@ -947,8 +972,10 @@ def test_euler_overflow_is_a_numerical_failure(fidelity):
 
 
 def test_an_overflowing_step_count_neither_stalls_nor_reports_a_negative_step():
-    env = TippeTopEnv(torque_action=True, max_torque=1e300)
-    env.reset(seed=0)
+    # a start at 1e37 rad/s (inside bounds raised to float32's): the guard's step count,
+    # dt |Omega| / 0.1 = 1e36, overflows any integer step loop
+    env = TippeTopEnv(torque_action=True, max_angular_velocity=3e38, max_speed=3e38)
+    env.reset(seed=0, options={"state": make_state(env, tilted(0.1), (0.0, 0.0, 1e37))})
     before = env.get_state()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)

@@ -616,20 +616,29 @@ def test_terminal_reason_lift_off():
 @pytest.mark.parametrize("kwargs", [dict(fidelity="frictionless"), dict(), dict(integrator="euler", fidelity="rolling")],
                          ids=["frictionless", "gliding", "euler-rolling"])
 def test_numerical_failure_ends_only_the_failing_sub_env(kwargs):
-    """An axial torque of 1e300 N m drives sub-env 1 non-finite inside one control period: its
-    episode ends with reward 0, the last finite state and observation kept, one
+    """Sub-env 1 reset to a spin of 1e37 rad/s (inside bounds raised to float32's; a torque that
+    could get there in a step is refused at construction): its guard asks for 1e36 internal
+    steps, more than MAX_INTERNAL_STEPS, so its period is refused and its state goes
+    non-finite: its episode ends with reward 0, the last finite state and observation kept, one
     NumericalFailureWarning; sub-envs 0 and 2 go on exactly as single envs."""
     n, seed = 3, 0
-    kwargs = dict(kwargs, torque_action=True, max_torque=1e300)
+    kwargs = dict(kwargs, torque_action=True, max_angular_velocity=3e38, max_speed=3e38)
     venv = make_vec(TIPPE, n, **kwargs)
     singles = make_singles(TIPPE, n, **kwargs)
     venv.reset(seed=seed)
     for i, env in enumerate(singles):
         env.reset(seed=seed + i)
     zero = np.zeros((n, 5), dtype=np.float32)
-    last_obs = venv.step(zero)[0]
+    venv.step(zero)
     for env in singles:
         env.step(zero[0])
+    system = singles[1].unwrapped.system
+    fast = system.export_state(system.state((0.0, 0.0), (math.cos(0.05), math.sin(0.05), 0.0, 0.0), (0.0, 0.0, 1e37)))
+    state = venv.get_state()
+    for key, value in fast.items():
+        state[key][1] = value
+    last_obs, _ = venv.reset(options={"state": state, "reset_mask": np.array([False, True, False])})
+    singles[1].reset(options={"state": fast})
     last = venv.get_state()
     a = zero.copy()
     a[1, 4] = 1.0

@@ -27,7 +27,7 @@ import numpy as np
 
 from ..rotations import atan2, quat_from_two_vectors, quat_multiply, quat_normalize, sqrt
 from .flows import AxisRotation, SymmetricFreeRotation
-from .validation import require_finite_nonnegative, require_finite_positive, require_inertia
+from .validation import require_finite_nonnegative, require_finite_positive, require_finite_result, require_inertia, require_real_vector
 
 __all__ = ["HeavyTopParams", "HeavyTop"]
 
@@ -63,10 +63,14 @@ class HeavyTopParams:
         length = require_finite_positive("length", self.length)
         gravity = require_finite_positive("gravity", self.gravity)
         friction = require_finite_nonnegative("spin_friction", self.spin_friction)
-        chi = np.asarray(self.com_direction, dtype=float)
-        if chi.shape != (3,) or not np.all(np.isfinite(chi)) or not np.any(chi != 0.0):
+        chi = np.asarray(require_real_vector("com_direction", self.com_direction, 3, " (a nonzero direction in the body frame)"))
+        norm = float(np.linalg.norm(chi))
+        if not 0.0 < norm < math.inf:
             raise ValueError(f"com_direction must be a finite nonzero 3-vector, got {self.com_direction!r}")
-        chi = chi / np.linalg.norm(chi)
+        chi = chi / norm
+        # products the dynamics forms: refused here, by name, rather than overflowing later
+        require_finite_result("mass, length and gravity", mass * length * gravity, "M g l [N m]")
+        require_finite_result("mass and length", mass * length * length, "M l^2 [kg m^2]")
         if np.count_nonzero(chi) == 1:  # exactly a body axis: keep the exact unit vector
             chi = np.sign(chi)
         _require_physical_inertia((i1, i2, i3), mass, length, chi)
@@ -122,7 +126,7 @@ class HeavyTopParams:
 def _require_physical_inertia(inertia, mass, length, chi):
     """Parallel-axis theorem backwards: the inertia about the centre of mass must be a body's."""
     i_pivot = np.diag(inertia)
-    i_com = i_pivot - mass * length**2 * (np.eye(3) - np.outer(chi, chi))
+    i_com = i_pivot - mass * length * length * (np.eye(3) - np.outer(chi, chi))
     ev = np.sort(np.linalg.eigvalsh(i_com))
     slack = 1e-12 * max(inertia)
     if ev[0] < -slack or ev[0] + ev[1] < ev[2] - slack:
@@ -247,7 +251,10 @@ class HeavyTop:
         """``d(phi)/dt`` [rad/s]: the rate at which the centre-of-mass axis turns about the
         vertical. With ``omega = phi' z + theta' n + psi' k`` (Euler angles, ``k`` = ``chi`` in
         space), ``omega.z - cos(theta) omega.k = phi' sin^2(theta)``; in the body frame
-        ``omega.z = Omega.Gamma`` and ``omega.k = Omega.chi``. Undefined (``nan``) upright."""
+        ``omega.z = Omega.Gamma`` and ``omega.k = Omega.chi``. With the axis exactly on the
+        vertical (``sin(theta) = 0``) the axis has no azimuth to turn (the rate has no limit
+        there: it grows like ``|Omega_transverse| / theta``); it is reported as 0 there, a
+        finite value a reward can use (the precess task then counts the full rate error)."""
         w = self.angular_velocity(y)
         x = self.params.com_direction
         n = self.vertical_norm(y)
@@ -257,10 +264,10 @@ class HeavyTop:
         w_k = w[0] * x[0] + w[1] * x[1] + w[2] * x[2]
         c = (g[1] * x[2] - g[2] * x[1], g[2] * x[0] - g[0] * x[2], g[0] * x[1] - g[1] * x[0])
         sin2 = c[0] * c[0] + c[1] * c[1] + c[2] * c[2]
+        if isinstance(sin2, float):
+            return (w_z - cos_t * w_k) / sin2 if sin2 > 0.0 else 0.0
         with np.errstate(divide="ignore", invalid="ignore"):
-            if isinstance(sin2, float):
-                return (w_z - cos_t * w_k) / sin2 if sin2 > 0.0 else math.nan
-            return (w_z - cos_t * w_k) / sin2
+            return np.where(sin2 > 0.0, (w_z - cos_t * w_k) / sin2, 0.0)
 
     def attitude_from_vertical(self, gamma, heading):
         """A quaternion ``q`` with ``R(q)^T e_z = Gamma`` and the given heading [rad]: the

@@ -63,7 +63,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..rotations import atan2, quat_normalize, sqrt
-from .validation import require_finite_nonnegative, require_finite_positive
+from .validation import real_array, require_choice, require_finite_nonnegative, require_finite_positive, require_finite_result, require_real_vector
 
 __all__ = ["TippeTopParams", "TippeTop", "FIDELITIES", "FRICTION_LAWS"]
 
@@ -108,18 +108,18 @@ class TippeTopParams:
         alpha = require_finite_positive("offset", self.offset)
         if not alpha < 1.0:
             raise ValueError(f"offset (alpha = h/R, centre-of-mass offset over radius) must lie in (0, 1), got {self.offset!r}")
-        try:
-            big_a, big_c = self.inertia
-        except (TypeError, ValueError):
-            raise ValueError(f"inertia must be (A, C): the transverse and axial moments about the centre of mass, got {self.inertia!r}") from None
+        big_a, big_c = require_real_vector("inertia", self.inertia, 2, " (A, C): the transverse and axial moments about the centre of mass")
         big_a = require_finite_positive("inertia[0] (A)", big_a)
         big_c = require_finite_positive("inertia[1] (C)", big_c)
         if big_c > 2.0 * big_a:
             raise ValueError(f"inertia must satisfy C <= 2 A (triangle inequality of a real body), got A={big_a!r}, C={big_c!r}")
         mu = require_finite_nonnegative("friction", self.friction)
-        if self.friction_law not in FRICTION_LAWS:
-            raise ValueError(f"friction_law must be one of {list(FRICTION_LAWS)}, got {self.friction_law!r}")
+        require_choice("friction_law", self.friction_law, FRICTION_LAWS)
         eps = require_finite_positive("slip_regularization", self.slip_regularization)
+        # products the dynamics forms: refused here, by name, rather than overflowing in a step
+        require_finite_result("mass, radius and inertia", m * a * a + big_a + big_c, "m a^2 + A + C [kg m^2]")
+        require_finite_result("radius and inertia", (a + alpha * a) * (a + alpha * a) / min(big_a, big_c), "(a + h)^2 / min(A, C) [1/kg]")
+        require_finite_result("mass and gravity", m * g * a, "m g a [J]")
         set_ = object.__setattr__
         for name, value in (("radius", a), ("mass", m), ("gravity", g), ("offset", alpha), ("inertia", (big_a, big_c)),
                             ("friction", mu), ("slip_regularization", eps), ("height", alpha * a)):
@@ -129,6 +129,13 @@ class TippeTopParams:
     def gamma(self) -> float:
         """``A / C``: inversion needs ``1 - alpha < gamma < 1 + alpha`` (physics.md §3)."""
         return self.inertia[0] / self.inertia[1]
+
+    def gravity_rate(self) -> float:
+        """``sqrt(m g (a + h) / min(A, C))`` [rad/s]: an upper bound of the rates gravity drives
+        through the contact (the weight at the longest arm ``|r| <= a + h`` over the smallest
+        moment; the rocking frequency ``sqrt(m g h / (A + m (a - h)^2))`` of a top at rest is
+        below it). The guard resolves it as it does the spin (``rbenvs.envs.tippe_top``)."""
+        return math.sqrt(self.mass * self.gravity * (self.radius + self.height) / min(self.inertia))
 
     def contact_mobility(self) -> float:
         """An upper bound of ``|M|``, ``M = 1/m + [r x]^T I^-1 [r x]``: the contact point's
@@ -589,7 +596,7 @@ class TippeTop:
             raise ValueError(f"state must have exactly the names {sorted(names)}" + (f"; unknown: {unknown}" if unknown else "") + (f"; missing: {missing}" if missing else ""))
         arrs = {}
         for name, size in zip(names, (3, 3, 4, 3)):
-            arr = np.asarray(state[name], dtype=np.float64)
+            arr = real_array(f"state[{name!r}]", state[name])
             if arr.shape != (size,):
                 raise ValueError(f"state[{name!r}] must have shape ({size},), got {arr.shape}")
             if not np.all(np.isfinite(arr)):

@@ -15,18 +15,21 @@ import gymnasium as gym
 import numpy as np
 
 from ..compiled import jitable, state_finish
-from ..dynamics.validation import require_finite_positive, require_int_at_least
+from ..dynamics.validation import real_array, require_finite_positive, require_int_in
 from ..integrators import get_integrator
 from ..rotations import maximum, sqrt
 
-__all__ = ["RigidBodyEnv", "NumericalFailureWarning", "MAX_INTERNAL_STEPS", "GUARDS", "require_float32_bound", "require_guard"]
+__all__ = ["RigidBodyEnv", "NumericalFailureWarning", "MAX_INTERNAL_STEPS", "GUARDS", "require_float32_bound", "require_guard", "action_array"]
+
+
+FLOAT32_MAX = float(np.finfo(np.float32).max)  # the largest observation value
 
 
 def require_float32_bound(name: str, value) -> float:
     """An observation bound: finite, > 0 and representable in float32 (the observation dtype)."""
     v = require_finite_positive(name, value)
-    if v > float(np.finfo(np.float32).max):
-        raise ValueError(f"{name} must be <= {np.finfo(np.float32).max:.3g} (float32 observations), got {value!r}")
+    if v > FLOAT32_MAX:
+        raise ValueError(f"{name} must be <= {FLOAT32_MAX:.3g} (float32 observations), got {value!r}")
     return v
 
 
@@ -64,6 +67,21 @@ def guard_ratio(g, w):
     return x
 
 
+# float dtypes an action array may have on the fast path (builtin dtypes are singletons)
+_REAL_FLOATS = (np.dtype(np.float32), np.dtype(np.float64))
+
+
+def action_array(action, shape) -> np.ndarray:
+    """An action (one env: ``shape`` the action space's; a batch: ``(n, k)``) as a float64
+    array. Only real numbers are actions: strings (even ``"0.5"``), complex numbers, dicts and
+    other objects raise :class:`~rbenvs.dynamics.validation.ParameterTypeError` (a
+    ``TypeError``); a wrong shape raises ``ValueError``."""
+    arr = real_array("action", action)
+    if arr.shape != shape:
+        raise ValueError(f"action must have shape {shape}, got {arr.shape}")
+    return arr
+
+
 class NumericalFailureWarning(RuntimeWarning):
     """The state went non-finite; the episode was ended and the last finite state kept."""
 
@@ -81,14 +99,14 @@ class RigidBodyEnv(gym.Env):
         self.task = task
         self._task_evaluate = getattr(task, "evaluate", None)  # reward, end and metrics at once
         self._dt = require_finite_positive("dt", dt)
-        self.substeps = require_int_at_least("substeps", substeps, 1)
+        self.substeps = require_int_in("substeps", substeps, 1, MAX_INTERNAL_STEPS, " (more internal steps in a control period is a numerical failure)")
         self.integrator = get_integrator(integrator)
         if not self.integrator.supports(system):
             raise ValueError(f"integrator {self.integrator.name!r} is not available for {type(system).__name__}")
         self._h = self._dt / self.substeps
         self._last_h = self._h  # internal step of the last control period
-        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
-            raise ValueError(f"render_mode must be one of {self.metadata['render_modes'] or [None]}, got {render_mode!r}")
+        if render_mode is not None and (not isinstance(render_mode, str) or render_mode not in self.metadata["render_modes"]):
+            raise ValueError(f"render_mode must be None or one of {self.metadata['render_modes']}, got {render_mode!r}")
         self.render_mode = render_mode
         self._renderer = None  # built by the first render(): matplotlib is imported only then
         if render_mode == "human":  # draw after every reset and step; the class's step is untouched
@@ -113,6 +131,57 @@ class RigidBodyEnv(gym.Env):
         high32 = self._obs_high.astype(np.float32)
         self.observation_space = gym.spaces.Box(-high32, high32, dtype=np.float32)
         self._y = None
+        self._require_resolvable()
+
+    # ------------------------------------------------------------------ construction checks
+    # What sets the fastest rate at the start, named for the error messages (each env's keywords).
+    _rate_sources = "dt"
+    _start_speed = 0.0  # an upper bound of |Omega| [rad/s] over the task's initial states
+
+    def _start_steps(self) -> tuple[float, str]:
+        """``(x, rule)``: the internal steps per control period (``ceil(x)``) that the step rule
+        asks for at the fastest start, and the rule in words. Integrators without a bound of
+        their own (exact flows, adaptive schemes) count one radian of the fastest rate per step."""
+        bound, growth, spin_weight, rate, text = self._step_limit()
+        if bound == math.inf and growth == math.inf:
+            bound, text = 1.0, "one radian of the fastest rate per step"
+        x = guard_ratio((float(spin_weight), float(rate), self._dt, bound, growth), (self._start_speed, 0.0, 0.0))
+        return x, text
+
+    def _require_resolvable(self) -> None:
+        """Refuse, at construction, a control period that no run could resolve: more than
+        ``MAX_INTERNAL_STEPS`` internal steps at the start would end the first step as a
+        numerical failure (``dt=1e300``; a friction, gravity or spin so large that its time
+        scale is far below the step). The error names the parameters that set the rate.
+        ``guard="off"`` opts out: it takes ``substeps`` steps whatever the state (a blow-up is
+        then reported as a numerical failure, as documented)."""
+        if self.guard == "off":
+            return
+        x, rule = self._start_steps()
+        if not x <= MAX_INTERNAL_STEPS:
+            raise ValueError(
+                f"dt={self._dt!r} s cannot be resolved: at the start the integrator {self.integrator.name!r} needs "
+                f"{x:.3g} internal steps per control period ({rule}), more than MAX_INTERNAL_STEPS = {MAX_INTERNAL_STEPS}; "
+                f"lower dt, or check {self._rate_sources}, which set the fastest rate"
+            )
+
+    @staticmethod
+    def _require_authority(name: str, change: float, bound_name: str, bound: float, unit: str) -> None:
+        """An actuator whose full action over one control period can change an observed
+        velocity by more than the width of its observation box (``2 * bound``) is refused.
+
+        Why the box: the guard sizes the internal step from the state at the start of a period,
+        which lies inside the box; under full action the velocity can grow by ``change``
+        within the period, and keeping that within one box width keeps the step inside the
+        scheme's region (rk4: ``|Omega| h <= 1`` at the start, below its stability limit 2.83
+        with the growth). It also keeps a huge value (``max_torque=1e300``) from overflowing
+        the state and the energy in one step. An actuator that merely leaves the box within a
+        few steps is legal: the episode ends there (``observation_limit``)."""
+        if not change <= 2.0 * bound:
+            raise ValueError(
+                f"{name} is too large: its full action can change the {unit} by {change:.6g} in one control period, more "
+                f"than the width of the observation box (2 * {bound_name} = {2.0 * bound:.6g}); lower {name} or dt, or raise {bound_name}"
+            )
 
     # ------------------------------------------------------------------ gymnasium API
     @property
@@ -371,13 +440,13 @@ class RigidBodyEnv(gym.Env):
             )
         comps = [0.0] * self.system.dim
         for name, (a, b) in layout.items():
-            arr = np.asarray(state[name], dtype=np.float64)
+            arr = real_array(f"state[{name!r}]", state[name])
             if arr.shape != (b - a,):
                 raise ValueError(f"state[{name!r}] must have shape ({b - a},), got {arr.shape}")
             if not np.all(np.isfinite(arr)):
                 raise ValueError(f"state[{name!r}] must be finite, got {arr}")
             comps[a:b] = (float(x) for x in arr)
-        self._check_state(dict((name, np.asarray(state[name], dtype=np.float64)) for name in layout))
+        self._check_state(dict((name, real_array(name, state[name])) for name in layout))
         return tuple(comps)
 
     def _initial_state(self, rng):
@@ -392,17 +461,15 @@ class RigidBodyEnv(gym.Env):
     # The single-env step path works on Python floats: for a handful of numbers, list and
     # math operations cost a fraction of numpy's per-call overhead (rbenvs bench throughput).
     def _action_values(self, action) -> list[float]:
-        """The action as a list of Python floats, validated (shape, finite) and clipped to [-1, 1]."""
-        if type(action) is np.ndarray and action.shape == self.action_space.shape:
+        """The action as a list of Python floats, validated (type, shape, finite) and clipped to [-1, 1]."""
+        if type(action) is np.ndarray and action.shape == self.action_space.shape and action.dtype in _REAL_FLOATS:
             values = action.tolist()
             # the common case in three builtins: every entry in [-1, 1] and the sum finite (min
             # and max may step over a NaN, the sum cannot); anything else goes the long way
             if -1.0 <= min(values) and max(values) <= 1.0 and math.isfinite(sum(values)):
                 return values
         else:
-            arr = np.asarray(action, dtype=np.float64)
-            if arr.shape != self.action_space.shape:
-                raise ValueError(f"action must have shape {self.action_space.shape}, got {arr.shape}")
+            arr = action_array(action, self.action_space.shape)
             values = arr.tolist()
         out = []
         for v in values:

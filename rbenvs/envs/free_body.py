@@ -8,7 +8,14 @@ import gymnasium as gym
 import numpy as np
 
 from ..dynamics import FreeBody, FreeBodyParams
-from ..dynamics.validation import require_finite_nonnegative, require_finite_positive
+from ..dynamics.validation import (
+    ParameterTypeError,
+    require_bool_mask,
+    require_choice,
+    require_finite_nonnegative,
+    require_finite_positive,
+    require_real_vector,
+)
 from ..tasks import AXIS_NAMES, DetumbleTask, ReorientTask, SpinTask
 from .base import RigidBodyEnv, require_float32_bound
 
@@ -127,6 +134,19 @@ class FreeRigidBodyEnv(RigidBodyEnv):
     * ``max_angular_velocity=10.0``: rad/s, observation bound.
     * ``target_attitude=(1, 0, 0, 0)``: reorient target, unit quaternion (w, x, y, z).
 
+    Every keyword is checked at construction, whatever the task (one the task ignores, such as
+    ``target_attitude`` for ``spin`` must still be a valid value): a wrong type raises
+    ``TypeError`` (a ``ParameterTypeError``, also a ``ValueError``), a bad value ``ValueError``,
+    each naming the keyword and the rule. Flags and ``actuated`` (three bools) take ``bool``
+    only (``"False"`` is refused, not read as true). Beyond the ranges above: ``substeps <=
+    1e6`` (``MAX_INTERNAL_STEPS``: more in a period is a numerical failure); ``dt`` must be
+    resolvable at the start (the guard's step count at the fastest initial state at most 1e6;
+    not checked with ``guard="off"``); the full torque may change ``Omega`` by at most the
+    observation box's width per period (``max_torque sqrt(k) dt / I_min <= 2
+    max_angular_velocity``, ``k`` actuated axes: the guard sizes the step from the period's
+    start); the initial state must lie inside the observation bounds. ``axis`` is resolved (by
+    name, against the moments) for the spin task only, so a sphere detumbles.
+
     ## Rendering
     ``render_mode="rgb_array"``: ``render()`` returns a 480x480x3 uint8 frame of the box with
     the body's moments, its principal axes, ``Pi`` (red) and ``Omega`` (blue); in the body frame
@@ -160,6 +180,9 @@ class FreeRigidBodyEnv(RigidBodyEnv):
         render_mode=None,
         guard: str = "subdivide",
     ):
+        # every keyword is checked, whatever the task (a keyword the task ignores must still be
+        # a valid value: a typo is reported, not silently kept)
+        task = require_choice("task", task, self.tasks)
         params = FreeBodyParams(inertia)
         self.max_torque = require_finite_nonnegative("max_torque", max_torque)
         spin_rate = require_finite_positive("spin_rate", spin_rate)
@@ -168,25 +191,40 @@ class FreeRigidBodyEnv(RigidBodyEnv):
         if perturbation >= math.pi:
             raise ValueError(f"perturbation must be in [0, pi) rad, got {perturbation!r}")
         max_w = require_float32_bound("max_angular_velocity", max_angular_velocity)
-        self.actuated = _actuation_mask(actuated)
-        self.axis = _axis_index(axis, params)
+        self.actuated = require_bool_mask("actuated", actuated, 3, " (one per body axis: which take torque)")
+        if not any(self.actuated):
+            raise ValueError("actuated must enable at least one axis")
+        target = _unit_quaternion("target_attitude", target_attitude)
+        _check_axis(axis)
+        # the axis is resolved only where it is used: a name is ambiguous with equal moments,
+        # which a detumble or reorient scene may well have
+        self.axis = _axis_index(axis, params) if task == "spin" else None
         if task == "spin":
             task_obj = SpinTask(axis=self.axis, spin_rate=spin_rate, perturbation=perturbation, control_cost=control_cost)
+            # |Omega| <= |Pi| / I_min, |Pi| = I_axis spin_rate
+            start_speed = params.inertia[self.axis] * spin_rate / min(params.inertia)
+            source = "spin_rate * I_axis / I_min"
         elif task == "detumble":
             task_obj = DetumbleTask(spin_rate=spin_rate, control_cost=control_cost)
-        elif task == "reorient":
-            task_obj = ReorientTask(target=_unit_quaternion("target_attitude", target_attitude), spin_rate=spin_rate, control_cost=control_cost)
+            start_speed, source = spin_rate, "spin_rate"
         else:
-            raise ValueError(f"task must be one of {list(self.tasks)}, got {task!r}")
+            task_obj = ReorientTask(target=target, spin_rate=spin_rate, control_cost=control_cost)
+            start_speed, source = 0.1 * spin_rate, "0.1 spin_rate"
+        if not start_speed < max_w:
+            raise ValueError(f"max_angular_velocity ({max_w!r} rad/s) must exceed the initial angular speed ({source} = {start_speed:.6g} rad/s): lower spin_rate or raise max_angular_velocity")
         system = FreeBody(params, attitude=task_obj.needs_attitude)
         high = [max_w] * 3 + [1.0] * (task_obj.observation_size - 3)
         self._max_w = max_w
+        self._start_speed = start_speed
         self._setup(system, task_obj, integrator, dt, substeps, high, render_mode, guard)
-        if max(params.inertia[self.axis] * spin_rate / params.inertia[i] for i in range(3)) >= max_w and task == "spin":
-            raise ValueError("max_angular_velocity must exceed the initial spin rate (spin_rate * I_axis / I_min)")
         self.action_size = sum(self.actuated)
         self.action_space = gym.spaces.Box(-1.0, 1.0, (self.action_size,), dtype=np.float32)
         self._actuated_axes = tuple(i for i in range(3) if self.actuated[i])
+        # |Delta Omega| <= max_torque sqrt(k) dt / I_min over a period of full torque on k axes
+        change = self.max_torque * math.sqrt(self.action_size) * self._dt / min(params.inertia)
+        self._require_authority("max_torque", change, "max_angular_velocity", max_w, "angular velocity [rad/s]")
+
+    _rate_sources = "spin_rate and inertia"
 
     @property
     def params(self) -> FreeBodyParams:
@@ -223,25 +261,21 @@ class FreeRigidBodyEnv(RigidBodyEnv):
                 raise ValueError(f"state['attitude'] must be a unit quaternion (|q| = 1 within 1e-6), got |q| = {n}")
 
 
-def _actuation_mask(actuated) -> tuple[bool, bool, bool]:
-    try:
-        mask = tuple(bool(x) for x in actuated)
-    except TypeError:
-        raise ValueError(f"actuated must be three booleans (one per body axis), got {actuated!r}") from None
-    if len(mask) != 3:
-        raise ValueError(f"actuated must be three booleans (one per body axis), got {actuated!r}")
-    if not any(mask):
-        raise ValueError("actuated must enable at least one axis")
-    return mask
+def _check_axis(axis) -> None:
+    """``axis`` is an index 0-2 or one of the names (checked for every task)."""
+    if isinstance(axis, (int, np.integer)) and not isinstance(axis, (bool, np.bool_)):
+        if not 0 <= int(axis) <= 2:
+            raise ValueError(f"axis must be 0, 1, 2 or one of {list(AXIS_NAMES)}, got {axis!r}")
+    elif not isinstance(axis, str):
+        raise ParameterTypeError(f"axis must be 0, 1, 2 or one of {list(AXIS_NAMES)}, got {axis!r} ({type(axis).__name__})")
+    elif axis not in AXIS_NAMES:
+        raise ValueError(f"axis must be 0, 1, 2 or one of {list(AXIS_NAMES)}, got {axis!r}")
 
 
 def _axis_index(axis, params: FreeBodyParams) -> int:
-    if isinstance(axis, (int, np.integer)) and not isinstance(axis, bool):
-        if 0 <= int(axis) <= 2:
-            return int(axis)
-        raise ValueError(f"axis must be 0, 1, 2 or one of {list(AXIS_NAMES)}, got {axis!r}")
-    if axis not in AXIS_NAMES:
-        raise ValueError(f"axis must be 0, 1, 2 or one of {list(AXIS_NAMES)}, got {axis!r}")
+    _check_axis(axis)
+    if not isinstance(axis, str):
+        return int(axis)
     i1, i2, i3 = params.inertia
     if len({i1, i2, i3}) < 3:
         # With a tie "major"/"minor"/"intermediate" can name two axes: demand an index.
@@ -250,7 +284,7 @@ def _axis_index(axis, params: FreeBodyParams) -> int:
 
 
 def _unit_quaternion(name, q) -> tuple[float, float, float, float]:
-    arr = np.asarray(q, dtype=float)
-    if arr.shape != (4,) or not np.all(np.isfinite(arr)) or abs(np.linalg.norm(arr) - 1.0) > 1e-6:
+    comps = require_real_vector(name, q, 4, " (a unit quaternion w, x, y, z)")
+    if abs(math.sqrt(sum(c * c for c in comps)) - 1.0) > 1e-6:
         raise ValueError(f"{name} must be a finite unit quaternion (w, x, y, z), got {q!r}")
-    return tuple(float(x) for x in arr)
+    return comps

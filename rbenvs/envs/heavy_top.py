@@ -8,7 +8,7 @@ import gymnasium as gym
 import numpy as np
 
 from ..dynamics import HeavyTop, HeavyTopParams
-from ..dynamics.validation import require_finite, require_finite_nonnegative, require_finite_positive
+from ..dynamics.validation import require_bool, require_choice, require_finite, require_finite_nonnegative, require_finite_positive, require_range
 from ..rotations import quat_conjugate, quat_rotate, quat_to_euler_zxz
 from ..tasks import PrecessTask, UprightTask, slow_precession_rate, transverse_basis
 from .base import RigidBodyEnv, require_float32_bound
@@ -71,7 +71,8 @@ class LagrangeTopEnv(RigidBodyEnv):
     ## Info (after every reset and step)
     ``energy`` [J], ``pi_dot_gamma`` (Casimir ``Pi.Gamma`` [kg m^2/s]), ``vertical_norm``
     (Casimir ``|Gamma|``), ``tilt`` [rad] between ``chi`` and the upward vertical, ``spin``
-    ``Omega.chi`` [rad/s], ``critical_spin`` [rad/s] (``nan`` unless a Lagrange top),
+    ``Omega.chi`` [rad/s], ``critical_spin`` [rad/s] (a Lagrange top only: 15.10.1 gives no
+    threshold for another top, so the key is absent there; every ``info`` value is finite),
     ``numerical_failure``, ``is_success``; ``precess`` adds ``precession_rate``,
     ``target_precession_rate`` [rad/s] and ``tilt_error`` [rad]; ``attitude=True`` adds the Euler
     angles ``precession_angle``, ``nutation_angle``, ``spin_angle`` [rad] (z-x-z, for output);
@@ -144,6 +145,20 @@ class LagrangeTopEnv(RigidBodyEnv):
     * ``control_cost=0.01``; ``max_angular_velocity=100.0`` rad/s (observation bound);
       ``attitude=False``: also integrate the attitude quaternion (heading, Euler angles).
 
+    Every keyword is checked at construction, whatever the task (one the task ignores, such as
+    ``target_tilt`` or ``target_rate`` for ``upright`` must still be a valid value): a wrong
+    type raises ``TypeError`` (a ``ParameterTypeError``, also a ``ValueError``), a bad value
+    ``ValueError``, each naming the keyword and the rule. Flags (``axial_torque``, ``attitude``)
+    take ``bool`` only (``"False"`` is refused, not read as true). Beyond the ranges above:
+    ``substeps <= 1e6`` (``MAX_INTERNAL_STEPS``: more in a period is a numerical failure);
+    ``dt`` must be resolvable at the start (the guard's step count at the fastest initial state
+    at most 1e6; not checked with ``guard="off"``); the full torque may change ``Omega`` by at
+    most the observation box's width per period (``max_torque sqrt(k) dt / I_min <= 2
+    max_angular_velocity``); ``M g l`` and ``M l^2`` must be finite; the initial state must lie
+    inside the observation bounds. ``target_tilt`` lies in (0, pi) for every task (and in
+    (tilt_limit, pi - tilt_limit) for ``precess``); a ``target_rate`` is finite, nonzero and
+    below ``max_angular_velocity``.
+
     ## Rendering
     ``render_mode="rgb_array"``: ``render()`` returns a 480x480x3 uint8 frame of the top on its
     pivot with ``Pi`` (red), ``Omega`` (blue) and gravity; in space with ``attitude=True``, else in
@@ -184,9 +199,9 @@ class LagrangeTopEnv(RigidBodyEnv):
         render_mode=None,
         guard: str = "subdivide",
     ):
+        # every keyword is checked, whatever the task (one the task ignores must still be valid)
+        task = require_choice("task", task, self.tasks)
         params = HeavyTopParams(inertia, mass, length, gravity, com_direction, spin_friction)
-        if task not in self.tasks:
-            raise ValueError(f"task must be one of {list(self.tasks)}, got {task!r}")
         self.max_torque = require_finite_nonnegative("max_torque", max_torque)
         control_cost = require_finite_nonnegative("control_cost", control_cost)
         perturbation = require_finite_nonnegative("perturbation", perturbation)
@@ -196,35 +211,51 @@ class LagrangeTopEnv(RigidBodyEnv):
             raise ValueError(f"tilt_limit must be in (0, pi] rad, got {tilt_limit!r}")
         if perturbation >= limit:
             raise ValueError(f"perturbation must be below tilt_limit ({limit!r} rad), got {perturbation!r}")
+        alpha = require_finite("target_tilt", target_tilt)
+        if not 0.0 < alpha < math.pi:
+            raise ValueError(f"target_tilt must lie in (0, pi) rad, got {target_tilt!r}")
+        if target_rate is not None:
+            target_rate = require_finite("target_rate", target_rate)
+            if target_rate == 0.0:
+                raise ValueError("target_rate must be nonzero (or None for the torque-free rate)")
+            if not abs(target_rate) < max_w:
+                raise ValueError(f"target_rate ({target_rate!r} rad/s) must be below max_angular_velocity ({max_w!r} rad/s) in magnitude")
+        self.axial_torque = require_bool("axial_torque", axial_torque)
+        attitude = require_bool("attitude", attitude)
         if task == "precess" and not params.is_lagrange:
             raise ValueError("task='precess' needs a Lagrange top: two equal moments and com_direction along the third axis")
         low, high = _spin_range(spin, task, params)
+        if spin is None:
+            source = f"spin=None: {'half' if task == 'upright' else 'twice'} the critical spin 2 sqrt(M g l I1) / I3, set by mass, length, gravity and inertia"
+        else:
+            source = "spin"
         if task == "upright":
             task_obj = UprightTask(low, high, perturbation, limit, control_cost)
             peak = max(abs(low), abs(high))
         else:
-            alpha = require_finite("target_tilt", target_tilt)
             if not (limit < alpha < math.pi - limit):
                 raise ValueError(f"target_tilt must lie in (tilt_limit, pi - tilt_limit) = ({limit!r}, {math.pi - limit!r}) rad, got {target_tilt!r}")
             if target_rate is None:
                 _require_real_precession(params, low, high, alpha)
-            else:
-                target_rate = require_finite("target_rate", target_rate)
-                if target_rate == 0.0:
-                    raise ValueError("target_rate must be nonzero (or None for the torque-free rate)")
             task_obj = PrecessTask(low, high, alpha, target_rate, perturbation, limit, control_cost)
             system = HeavyTop(params)
             rates = [abs(task_obj.target_rate if target_rate is not None else slow_precession_rate(system, n, alpha)) for n in (low, high)]
             peak = max(2.0 * r + abs(n) for r, n in zip(rates, (low, high)))
-        if peak >= max_w:
-            raise ValueError(f"max_angular_velocity must exceed the initial angular speed ({peak:.6g} rad/s), got {max_w!r}")
-        self.axial_torque = bool(axial_torque)
-        system = HeavyTop(params, attitude=bool(attitude))
+            source += " and the precession rate (target_rate, or the torque-free rate of (3.82))"
+        if not peak < max_w:
+            raise ValueError(f"max_angular_velocity ({max_w!r} rad/s) must exceed the initial angular speed ({peak:.6g} rad/s, from {source}); lower it or raise max_angular_velocity")
+        system = HeavyTop(params, attitude=attitude)
         self._max_w = max_w
+        self._start_speed = peak
         self._setup(system, task_obj, integrator, dt, substeps, [1.0, 1.0, 1.0, max_w, max_w, max_w], render_mode, guard)
         t1, t2 = transverse_basis(params.com_direction)
         self.torque_directions = (t1, t2) + ((params.com_direction,) if self.axial_torque else ())
         self.action_space = gym.spaces.Box(-1.0, 1.0, (len(self.torque_directions),), dtype=np.float32)
+        # orthonormal torque directions: |tau| <= max_torque sqrt(k), |Delta Omega| <= |tau| dt / I_min
+        change = self.max_torque * math.sqrt(len(self.torque_directions)) * self._dt / min(params.inertia)
+        self._require_authority("max_torque", change, "max_angular_velocity", max_w, "angular velocity [rad/s]")
+
+    _rate_sources = "mass, length, gravity, inertia, spin_friction and spin"
 
     @property
     def params(self) -> HeavyTopParams:
@@ -278,9 +309,10 @@ class LagrangeTopEnv(RigidBodyEnv):
             "vertical_norm": s.vertical_norm(y),
             "tilt": s.tilt(y),
             "spin": s.spin(y),
-            "critical_spin": s.params.critical_spin,
             "internal_step": self._last_h,
         }
+        if s.params.is_lagrange:  # the threshold of the stability theorem exists for a Lagrange top only
+            out["critical_spin"] = s.params.critical_spin
         if s.attitude:
             phi, theta, psi = quat_to_euler_zxz(y[6:10])
             out.update(precession_angle=phi, nutation_angle=theta, spin_angle=psi)
@@ -313,17 +345,7 @@ def _spin_range(spin, task, params) -> tuple[float, float]:
             return 0.0, 0.0
         s = 0.5 * crit if task == "upright" else 2.0 * crit
         return s, s
-    if isinstance(spin, (int, float, np.integer, np.floating)) and not isinstance(spin, bool):
-        s = require_finite("spin", spin)
-        return s, s
-    try:
-        low, high = spin
-    except (TypeError, ValueError):
-        raise ValueError(f"spin must be a number or a range (low, high) in rad/s, got {spin!r}") from None
-    low, high = require_finite("spin[0]", low), require_finite("spin[1]", high)
-    if low > high:
-        raise ValueError(f"spin range must have low <= high, got {spin!r}")
-    return low, high
+    return require_range("spin", spin)
 
 
 def _require_real_precession(params, low, high, alpha):

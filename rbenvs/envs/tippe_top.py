@@ -9,7 +9,7 @@ import numpy as np
 
 from ..dynamics import TippeTop, TippeTopParams
 from ..dynamics.tippe_top import FIDELITIES
-from ..dynamics.validation import require_finite, require_finite_nonnegative
+from ..dynamics.validation import require_bool, require_choice, require_finite_nonnegative, require_range
 from ..tasks import HoldTask, InvertTask
 from .base import MAX_INTERNAL_STEPS, RigidBodyEnv, require_float32_bound
 
@@ -88,8 +88,11 @@ class TippeTopEnv(RigidBodyEnv):
 
     ## Internal step (guarded stepping, ``guard``)
     With ``guard="subdivide"`` (default) each control period is split into ``n = max(substeps,
-    ceil(dt |Omega| / 0.1), ceil(dt / h_f))`` equal steps: ``|Omega| h <= 0.1`` (``SPIN_STEP``,
-    an accuracy bound for every integrator: the contact geometry turns with the body) and
+    ceil(dt max(|Omega|, omega_g) / 0.1), ceil(dt / h_f))`` equal steps: ``|Omega| h <= 0.1``
+    (``SPIN_STEP``, an accuracy bound for every integrator: the contact geometry turns with the
+    body), the same for gravity's rate ``omega_g = sqrt(m g (a + h) / min(A, C))`` (an upper
+    bound of the rocking frequency; 38.9 rad/s for the default top, below its spin, so it sets
+    the step only for slow tops without friction; :meth:`TippeTopParams.gravity_rate`) and
     ``h <= h_f``, the explicit stability bound of the friction law
     (:meth:`rbenvs.dynamics.TippeTop.max_stable_step`: near zero slip, regularised Coulomb
     friction is a viscous law of rate ``lambda = mu N |M| / slip_regularization``, stiff;
@@ -121,6 +124,20 @@ class TippeTopEnv(RigidBodyEnv):
     * ``max_table_acceleration=2.0`` m/s^2; ``friction_action=False``, ``friction_range=(0.0, 0.6)``;
       ``torque_action=False``, ``max_torque=1e-4`` N m; ``control_cost=0.01``.
     * ``max_angular_velocity=None`` (``2 max|spin| + 50``) rad/s, ``max_speed=5.0`` m/s.
+
+    Every keyword is checked at construction, whatever the task (one the task ignores, such as
+    ``friction_range`` without ``friction_action`` must still be a valid value): a wrong type
+    raises ``TypeError`` (a ``ParameterTypeError``, also a ``ValueError``), a bad value
+    ``ValueError``, each naming the keyword and the rule. Flags (``friction_action``,
+    ``torque_action``, ``free_flight``) take ``bool`` only (``"False"`` is refused, not read as
+    true). Beyond the ranges above: ``substeps <= 1e6`` (``MAX_INTERNAL_STEPS``: more in a
+    period is a numerical failure); ``dt`` must be resolvable at the start (the guard's step
+    count at the fastest initial state at most 1e6; not checked with ``guard="off"``); the full
+    table acceleration and body torque may change the observed velocities by at most the width
+    of their boxes per period; the friction law's stability bound is checked at the largest
+    coefficient the env can use (``friction`` or ``friction_range``'s upper end); the initial
+    state must lie inside the observation bounds. ``m a^2``, ``(a + h)^2 / min(A, C)`` and ``m g
+    a`` must be finite.
 
     ## Rendering
     ``render_mode="rgb_array"``: ``render()`` returns a 480x480x3 uint8 frame of the sphere on
@@ -168,35 +185,39 @@ class TippeTopEnv(RigidBodyEnv):
         render_mode=None,
         guard: str = "subdivide",
     ):
+        # every keyword is checked, whatever the task and options (an unused one must still be valid)
+        task = require_choice("task", task, self.tasks)
+        fidelity = require_choice("fidelity", fidelity, FIDELITIES)
         params = TippeTopParams(radius, mass, offset, inertia, gravity, friction, friction_law, slip_regularization)
-        if fidelity not in FIDELITIES:
-            raise ValueError(f"fidelity must be one of {list(FIDELITIES)}, got {fidelity!r}")
-        if task not in self.tasks:
-            raise ValueError(f"task must be one of {list(self.tasks)}, got {task!r}")
-        spin_lo, spin_hi = _range("spin", spin)
-        tilt_lo, tilt_hi = _range("tilt", tilt)
+        spin_lo, spin_hi = require_range("spin", spin)
+        tilt_lo, tilt_hi = require_range("tilt", tilt)
         if tilt_lo < 0.0 or tilt_hi >= math.pi / 2:
             raise ValueError(f"tilt must lie in [0, pi/2) rad (a start on the broad end), got {tilt!r}")
         self.max_table_acceleration = require_finite_nonnegative("max_table_acceleration", max_table_acceleration)
         self.max_torque = require_finite_nonnegative("max_torque", max_torque)
         control_cost = require_finite_nonnegative("control_cost", control_cost)
-        self.friction_action = bool(friction_action)
-        self.torque_action = bool(torque_action)
-        mu_lo, mu_hi = _range("friction_range", friction_range)
+        self.friction_action = require_bool("friction_action", friction_action)
+        self.torque_action = require_bool("torque_action", torque_action)
+        mu_lo, mu_hi = require_range("friction_range", friction_range)
         if mu_lo < 0.0:
             raise ValueError(f"friction_range must lie in [0, inf), got {friction_range!r}")
         self.friction_range = (mu_lo, mu_hi)
-        self.free_flight = bool(free_flight)
+        self.free_flight = require_bool("free_flight", free_flight)
         if self.free_flight and fidelity == "rolling":
             raise ValueError("free_flight needs fidelity 'gliding' or 'frictionless' (a rolling top has no slip to resume after a touchdown)")
         if self.friction_action and fidelity != "gliding":
             raise ValueError(f"friction_action needs fidelity='gliding' (there is no friction coefficient to set when {fidelity!r})")
         peak = max(abs(spin_lo), abs(spin_hi))
-        max_w = 2.0 * peak + 50.0 if max_angular_velocity is None else require_float32_bound("max_angular_velocity", max_angular_velocity)
-        if peak >= max_w:
-            raise ValueError(f"max_angular_velocity must exceed the initial spin ({peak!r} rad/s), got {max_angular_velocity!r}")
+        if max_angular_velocity is None:
+            max_w = 2.0 * peak + 50.0
+            if not max_w <= float(np.finfo(np.float32).max):
+                raise ValueError(f"spin ({spin!r} rad/s) is too large for float32 observations (max_angular_velocity=None takes 2 max|spin| + 50 = {max_w:.6g} rad/s)")
+        else:
+            max_w = require_float32_bound("max_angular_velocity", max_angular_velocity)
+        if not peak < max_w:
+            raise ValueError(f"max_angular_velocity ({max_w!r} rad/s) must exceed the initial spin (spin = {peak!r} rad/s); lower spin or raise max_angular_velocity")
         max_v = require_float32_bound("max_speed", max_speed)
-        if params.radius * peak >= max_v:
+        if not params.radius * peak < max_v:
             raise ValueError(f"max_speed must exceed the initial speed of the centre of mass (radius * spin = {params.radius * peak!r} m/s), got {max_speed!r}")
         task_cls = InvertTask if task == "invert" else HoldTask
         task_obj = task_cls(spin_lo, spin_hi, tilt_lo, tilt_hi, control_cost)
@@ -205,9 +226,16 @@ class TippeTopEnv(RigidBodyEnv):
             self.event_name = None
             self._after_internal_step = self._switch_contact
         high = [1.0] * 3 + [max_w] * 3 + [max_v] * 2
+        self._start_speed = peak
+        self._gravity_rate = params.gravity_rate()  # the guard resolves it as it does the spin
         self._setup(system, task_obj, integrator, dt, substeps, high, render_mode, guard)
         size = 2 + (1 if self.friction_action else 0) + (3 if self.torque_action else 0)
         self.action_space = gym.spaces.Box(-1.0, 1.0, (size,), dtype=np.float32)
+        # the table's acceleration moves v_G (relative to the table) by at most |a_T| dt per period;
+        # a body torque moves Omega by at most |tau| dt / min(A, C)
+        self._require_authority("max_table_acceleration", self.max_table_acceleration * math.sqrt(2.0) * self._dt, "max_speed", max_v, "velocity of the centre of mass [m/s]")
+        change = self.max_torque * math.sqrt(3.0) * self._dt / min(params.inertia)
+        self._require_authority("max_torque", change, "max_angular_velocity", max_w, "angular velocity [rad/s]")
         self._u = None  # the control of the last step (info's normal force depends on it)
         self._last_h = self._h
         self._lifted = False
@@ -248,7 +276,7 @@ class TippeTopEnv(RigidBodyEnv):
         if self.guard == "off":
             return self.substeps
         w = system.angular_velocity(y)
-        speed = np.sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2])
+        speed = np.maximum(np.sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2]), self._gravity_rate)
         n = np.maximum(self.substeps, np.ceil(self.dt * speed / SPIN_STEP))
         if system.friction_law is not None:
             normal = system.contact_forces(y, u)[0]
@@ -262,7 +290,23 @@ class TippeTopEnv(RigidBodyEnv):
     _internal_steps = internal_steps
 
     def _step_limit(self):  # only the refusal's text: internal_steps is the rule
-        return math.inf, math.inf, 0.0, 0.0, f"|Omega| h <= {SPIN_STEP} and h <= h_f, the friction law's stability bound"
+        return math.inf, math.inf, 0.0, 0.0, f"max(|Omega|, omega_g) h <= {SPIN_STEP} and h <= h_f, the friction law's stability bound"
+
+    _rate_sources = "spin, gravity, mass, inertia, radius, offset, friction, friction_range and slip_regularization"
+
+    def _start_steps(self):
+        """The steps :meth:`internal_steps` asks for at the fastest start (spin ``max|spin|``,
+        normal force ``m g``) with the largest friction coefficient the env can use."""
+        spin = max(self._start_speed, self._gravity_rate)
+        x = self.dt * spin / SPIN_STEP
+        rule = f"max(|Omega|, omega_g) h <= {SPIN_STEP}, omega_g = {self._gravity_rate:.6g} rad/s"
+        if self.system.friction_law is not None and self.guard != "off":
+            mu = max(self.params.friction, self.friction_range[1])
+            h_f = self.system.max_stable_step(self.integrator.name, mu=mu)
+            if h_f < math.inf:
+                x = max(x, self.dt / h_f)
+                rule += f", and h <= h_f = {h_f:.3g} s (the friction law's stability bound at mu = {mu!r})"
+        return x, rule
 
     def _event_mask(self, y, u):
         """Lift-off: the contact would have to pull (``N < 0``)."""
@@ -328,17 +372,3 @@ class TippeTopEnv(RigidBodyEnv):
             "spin": s.spin(y),
             "internal_step": self._last_h,
         }
-
-
-def _range(name, value) -> tuple[float, float]:
-    if isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, bool):
-        v = require_finite(name, value)
-        return v, v
-    try:
-        lo, hi = value
-    except (TypeError, ValueError):
-        raise ValueError(f"{name} must be a number or a range (low, high), got {value!r}") from None
-    lo, hi = require_finite(f"{name}[0]", lo), require_finite(f"{name}[1]", hi)
-    if lo > hi:
-        raise ValueError(f"{name} range must have low <= high, got {value!r}")
-    return lo, hi

@@ -184,7 +184,7 @@ class PrecessTask:
         tilt_err = abs(system.tilt(y) - self.target_tilt)
         rate_err = abs(rate - target) / abs(target)
         if isinstance(rate_err, float):
-            rate_err = 1.0 if not rate_err <= 1.0 else rate_err  # nan (axis exactly upright) counts as 1
+            rate_err = 1.0 if not rate_err <= 1.0 else rate_err  # capped at 1 (the axis exactly upright has rate 0: error 1)
         else:
             rate_err = np.where(rate_err <= 1.0, rate_err, 1.0)
         return tilt_err, rate_err, rate, target

@@ -1,0 +1,313 @@
+"""Every keyword of every env, against a table of bad values: each case is either a documented
+valid value (the env then runs with finite info) or an error at construction that names the
+keyword. Actions and reset states of the wrong type are refused alike by the single and the
+vector env."""
+
+import inspect
+import math
+import signal
+import warnings
+from contextlib import contextmanager
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+from rbenvs.envs import FreeRigidBodyEnv, LagrangeTopEnv, TippeTopEnv
+from rbenvs.envs.base import MAX_INTERNAL_STEPS
+
+TASKS = {FreeRigidBodyEnv: ("spin", "detumble", "reorient"), LagrangeTopEnv: ("upright", "precess"), TippeTopEnv: ("invert", "hold")}
+IDS = {FreeRigidBodyEnv: "rbenvs/FreeRigidBody-v0", LagrangeTopEnv: "rbenvs/LagrangeTop-v0", TippeTopEnv: "rbenvs/TippeTop-v0"}
+
+# The bad values of the issue's table, each tried on every keyword of every env and task.
+CASES = {
+    "nan": math.nan,
+    "inf": math.inf,
+    "negative": -1.0,
+    "zero": 0.0,
+    "string": "abc",
+    "bool_string": "False",
+    "none": None,
+    "wrong_length": (1.0, 2.0, 3.0, 4.0, 5.0),  # no vector keyword has 5 entries
+    "huge": 1e300,
+    "huge_int": 10**9,
+    "wrong_type": object(),
+    "complex": 1j,
+}
+
+# The cases that are documented valid values (the docstrings' Arguments); every other case must
+# be refused at construction with the keyword's name. Keyed by (env class, keyword): the cases,
+# or a dict task -> cases where it depends on the task.
+VALID = {
+    (FreeRigidBodyEnv, "perturbation"): {"zero"},  # an exact principal-axis spin
+    (FreeRigidBodyEnv, "max_torque"): {"zero"},  # no actuator (the body turns freely)
+    (FreeRigidBodyEnv, "control_cost"): {"zero", "huge", "huge_int"},  # any finite weight >= 0
+    (FreeRigidBodyEnv, "max_angular_velocity"): {"huge_int"},  # any bound up to float32's
+    (FreeRigidBodyEnv, "render_mode"): {"none"},
+    (LagrangeTopEnv, "spin"): {"upright": {"negative", "zero", "none"}, "precess": {"none"}},  # precess needs (3.82) real
+    (LagrangeTopEnv, "perturbation"): {"zero"},
+    (LagrangeTopEnv, "target_rate"): {"negative", "none"},  # a retrograde forced precession; None: (3.82)
+    (LagrangeTopEnv, "tilt_limit"): {"none"},
+    (LagrangeTopEnv, "max_torque"): {"zero"},
+    (LagrangeTopEnv, "spin_friction"): {"zero", "huge", "huge_int"},  # splitting solves it exactly
+    (LagrangeTopEnv, "control_cost"): {"zero", "huge", "huge_int"},
+    (LagrangeTopEnv, "max_angular_velocity"): {"huge_int"},
+    (LagrangeTopEnv, "render_mode"): {"none"},
+    (TippeTopEnv, "friction"): {"zero"},
+    (TippeTopEnv, "slip_regularization"): {"huge", "huge_int"},  # Coulomb friction fades to nothing
+    (TippeTopEnv, "spin"): {"negative", "zero"},  # spun the other way, or not at all
+    (TippeTopEnv, "tilt"): {"zero"},
+    (TippeTopEnv, "max_table_acceleration"): {"zero"},
+    (TippeTopEnv, "friction_range"): {"zero"},
+    (TippeTopEnv, "max_torque"): {"zero"},
+    (TippeTopEnv, "control_cost"): {"zero", "huge", "huge_int"},
+    (TippeTopEnv, "max_angular_velocity"): {"none", "huge_int"},
+    (TippeTopEnv, "max_speed"): {"huge_int"},
+    (TippeTopEnv, "render_mode"): {"none"},
+}
+
+
+def keywords(cls):
+    return [name for name in inspect.signature(cls.__init__).parameters if name != "self"]
+
+
+def valid(cls, keyword, task, case) -> bool:
+    entry = VALID.get((cls, keyword), set())
+    if isinstance(entry, dict):
+        entry = entry.get(task, set())
+    return case in entry
+
+
+@contextmanager
+def deadline(seconds):
+    """Fail (rather than hang) when the block runs longer than ``seconds``."""
+
+    def expired(*_):
+        raise AssertionError(f"took longer than {seconds} s")
+
+    old = signal.signal(signal.SIGALRM, expired)
+    signal.alarm(seconds)
+    try:
+        yield
+    finally:
+        signal.alarm(0)
+        signal.signal(signal.SIGALRM, old)
+
+
+GRID = [
+    pytest.param(cls, task, keyword, case, id=f"{cls.__name__}-{task}-{keyword}-{case}")
+    for cls, tasks in TASKS.items()
+    for keyword in keywords(cls)
+    for task in (tasks if keyword != "task" else tasks[:1])
+    for case in CASES
+]
+
+
+@pytest.mark.parametrize("cls,task,keyword,case", GRID)
+def test_every_keyword_is_valid_or_refused_by_name(cls, task, keyword, case):
+    kwargs = {keyword: CASES[case]} if keyword == "task" else {"task": task, keyword: CASES[case]}
+    with deadline(20):
+        if not valid(cls, keyword, task, case):
+            with pytest.raises((ValueError, TypeError)) as err:
+                cls(**kwargs)
+            assert keyword in str(err.value), str(err.value)
+            return
+        env = cls(**kwargs)
+        env.reset(seed=0)
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")  # no numerical failure, no other warning
+            for a in (np.zeros, np.ones, lambda s, dtype: -np.ones(s, dtype)):
+                _, r, _, _, info = env.step(a(env.action_space.shape, dtype=np.float32))
+                assert math.isfinite(r) and info["numerical_failure"] is False
+                assert all(math.isfinite(v) for v in info.values() if not isinstance(v, str)), info
+
+
+def test_the_grid_covers_every_keyword():
+    """Each env's keywords are all in the grid, and the table names no keyword that is gone."""
+    covered = {(p.values[0], p.values[2]) for p in GRID}
+    assert covered == {(cls, kw) for cls in TASKS for kw in keywords(cls)}
+    assert set(VALID) <= covered
+
+
+# ----------------------------------------------------------------- the issue's named cases
+@pytest.mark.parametrize(
+    "cls,kwargs,name",
+    [
+        (TippeTopEnv, dict(free_flight="False"), "free_flight"),  # read as True before
+        (TippeTopEnv, dict(friction_action=1), "friction_action"),
+        (TippeTopEnv, dict(torque_action="yes"), "torque_action"),
+        (LagrangeTopEnv, dict(attitude=0), "attitude"),
+        (LagrangeTopEnv, dict(axial_torque="True"), "axial_torque"),
+        (FreeRigidBodyEnv, dict(actuated="abc"), "actuated"),  # enabled three axes before
+        (FreeRigidBodyEnv, dict(actuated=(1, 0, 0)), "actuated"),
+        (FreeRigidBodyEnv, dict(actuated=(True, False)), "actuated"),
+        (FreeRigidBodyEnv, dict(task="spin", target_attitude=math.nan), "target_attitude"),
+        (LagrangeTopEnv, dict(task="upright", target_tilt="abc"), "target_tilt"),
+        (LagrangeTopEnv, dict(task="upright", target_rate=math.inf), "target_rate"),
+        (FreeRigidBodyEnv, dict(substeps=10**9), "substeps"),
+        (FreeRigidBodyEnv, dict(substeps=MAX_INTERNAL_STEPS + 1), "substeps"),
+        (FreeRigidBodyEnv, dict(dt=1e300), "dt"),
+        (LagrangeTopEnv, dict(dt=1e300), "dt"),
+        (TippeTopEnv, dict(dt=1e300), "dt"),
+        (TippeTopEnv, dict(mass=1e300), "mass"),
+        (TippeTopEnv, dict(gravity=1e300), "gravity"),
+        (TippeTopEnv, dict(gravity=1e300, fidelity="frictionless"), "gravity"),
+        (TippeTopEnv, dict(friction=1e300), "friction"),
+        (TippeTopEnv, dict(spin=1e300), "spin"),
+        (LagrangeTopEnv, dict(length=1e300), "length"),  # an OverflowError before
+        (LagrangeTopEnv, dict(gravity=1e300), "gravity"),  # blamed max_angular_velocity before
+        (LagrangeTopEnv, dict(spin=1e300), "spin"),
+        (LagrangeTopEnv, dict(com_direction="abc"), "com_direction"),  # "could not convert string to float"
+        (LagrangeTopEnv, dict(spin_friction=1e300, integrator="rk4"), "spin_friction"),
+    ],
+)
+def test_named_bad_values_are_refused_at_construction(cls, kwargs, name):
+    with pytest.raises((ValueError, TypeError)) as err:
+        cls(**kwargs)
+    assert name in str(err.value)
+
+
+def test_a_sphere_detumbles():
+    """The axis a task does not use is not resolved: equal moments make 'intermediate' ambiguous
+    for the spin task only."""
+    env = FreeRigidBodyEnv(inertia=(1.0, 1.0, 1.0), task="detumble")
+    env.reset(seed=0)
+    assert env.step(np.zeros(3, dtype=np.float32))[4]["numerical_failure"] is False
+    FreeRigidBodyEnv(inertia=(1.0, 1.0, 1.0), task="reorient")
+    with pytest.raises(ValueError, match="axis"):
+        FreeRigidBodyEnv(inertia=(1.0, 1.0, 1.0), task="spin")
+    with pytest.raises(ValueError, match="axis"):
+        FreeRigidBodyEnv(inertia=(1.0, 1.0, 1.0), task="detumble", axis="middle")  # still checked
+
+
+def test_flags_take_numpy_bools():
+    env = TippeTopEnv(free_flight=np.True_, torque_action=np.False_)
+    assert env.free_flight is True and env.torque_action is False
+    assert FreeRigidBodyEnv(actuated=np.array([True, False, True])).actuated == (True, False, True)
+
+
+# ----------------------------------------------------------------- actions and reset states
+BAD_ACTIONS = {
+    "complex": lambda k: np.full(k, 0.5 + 0.5j),
+    "complex_list": lambda k: [0.5 + 0.0j] * k,
+    "strings": lambda k: ["0.5"] * k,
+    "string": lambda k: "abc",
+    "dict": lambda k: {"a": 0.5},
+    "object": lambda k: object(),
+    "object_array": lambda k: np.array([0.5] * (k - 1) + [None], dtype=object),
+    "bools": lambda k: np.ones(k, dtype=bool),
+}
+
+
+@pytest.mark.parametrize("cls", list(TASKS))
+@pytest.mark.parametrize("kind", list(BAD_ACTIONS))
+def test_mistyped_actions_raise_type_error_single_and_vector(cls, kind):
+    env = cls()
+    env.reset(seed=0)
+    before = env.get_state()
+    k = env.action_space.shape[0]
+    with pytest.raises(TypeError, match="action"):
+        env.step(BAD_ACTIONS[kind](k))
+    assert all(np.array_equal(before[n], v) for n, v in env.get_state().items())
+    venv = gym.make_vec(IDS[cls], num_envs=2, vectorization_mode="vector_entry_point")
+    venv.reset(seed=0)
+    bad = BAD_ACTIONS[kind](k)
+    batch = [bad, bad] if not isinstance(bad, np.ndarray) else np.stack([bad, bad])
+    with pytest.raises(TypeError, match="action"):
+        venv.step(batch)
+
+
+@pytest.mark.parametrize("cls", list(TASKS))
+def test_integer_actions_are_real_numbers(cls):
+    """Integers are real numbers: an int action array is an action (clipped like any other)."""
+    env = cls()
+    env.reset(seed=0)
+    a = np.zeros(env.action_space.shape, dtype=np.int64)
+    assert env.step(a)[4]["numerical_failure"] is False
+
+
+BAD_ENTRIES = {
+    "complex": lambda v: v.astype(complex),
+    "strings": lambda v: [str(x) for x in v],
+    "dict": lambda v: {"x": 1.0},
+    "object": lambda v: object(),
+}
+
+
+@pytest.mark.parametrize("cls", list(TASKS))
+@pytest.mark.parametrize("kind", list(BAD_ENTRIES))
+def test_mistyped_reset_states_raise_type_error_single_and_vector(cls, kind):
+    env = cls()
+    env.reset(seed=0)
+    state = env.get_state()
+    name = next(iter(state))
+    bad = dict(state, **{name: BAD_ENTRIES[kind](state[name])})
+    with pytest.raises(TypeError, match="state"):
+        env.reset(options={"state": bad})
+    venv = gym.make_vec(IDS[cls], num_envs=2, vectorization_mode="vector_entry_point")
+    venv.reset(seed=0)
+    vstate = venv.unwrapped.get_state()
+    entry = BAD_ENTRIES[kind](vstate[name][0])
+    vbad = dict(vstate, **{name: [entry, entry]})
+    with pytest.raises(TypeError, match="state"):
+        venv.reset(options={"state": vbad})
+
+
+# ----------------------------------------------------------------- finite info, both checkers
+CHECKED_CONFIGS = [
+    pytest.param(LagrangeTopEnv, dict(inertia=(0.5, 0.45, 0.3)), id="asymmetric-top"),
+    pytest.param(LagrangeTopEnv, dict(com_direction=(0.1, 0.0, 1.0)), id="off-axis-top"),
+    pytest.param(LagrangeTopEnv, dict(inertia=(0.5, 0.45, 0.3), com_direction=(0.3, -0.2, 1.0), spin=(-4.0, 4.0)), id="general-top"),
+    pytest.param(LagrangeTopEnv, dict(inertia=(0.5, 0.45, 0.3), integrator="rk4", attitude=True), id="asymmetric-top-rk4-attitude"),
+    pytest.param(LagrangeTopEnv, dict(task="precess"), id="precess"),
+    pytest.param(FreeRigidBodyEnv, dict(inertia=(1.0, 1.0, 1.0), task="detumble"), id="sphere-detumble"),
+    *[
+        pytest.param(TippeTopEnv, dict(fidelity=f, free_flight=ff), id=f"tippe-{f}{'-flight' if ff else ''}")
+        for f in ("gliding", "frictionless", "rolling")
+        for ff in (False, True)
+        if not (f == "rolling" and ff)
+    ],
+]
+
+
+@pytest.mark.parametrize("cls,kwargs", CHECKED_CONFIGS)
+def test_both_checkers_pass_and_info_is_finite(cls, kwargs):
+    from gymnasium.utils.env_checker import check_env
+    from stable_baselines3.common.env_checker import check_env as sb3_check_env
+
+    env = cls(**kwargs)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        check_env(env, skip_render_check=True)
+        sb3_check_env(env, warn=True)
+    env.action_space.seed(0)
+    _, info = env.reset(seed=1)
+    for _ in range(30):
+        assert all(math.isfinite(v) for v in info.values() if not isinstance(v, str)), info
+        _, _, te, tr, info = env.step(env.action_space.sample())
+        if te or tr:
+            break
+
+
+def test_precess_at_tilt_zero_has_a_finite_precession_rate():
+    """The axis exactly on the vertical has no azimuth to turn: rate 0 (documented), so the
+    reward counts the full rate error and every info value is finite; the checkers pass on the
+    env reset there."""
+    from gymnasium.utils.env_checker import check_env
+
+    env = LagrangeTopEnv(task="precess")
+    env.reset(seed=0)
+    spin = 2.0 * env.critical_spin
+    upright = {"angular_momentum": np.array([0.0, 0.0, 0.3 * spin]), "vertical": np.array([0.0, 0.0, 1.0])}
+    _, info = env.reset(options={"state": upright})
+    assert info["precession_rate"] == 0.0 and info["tilt_error"] == pytest.approx(0.5)
+    assert all(math.isfinite(v) for v in info.values())
+    _, r, te, _, info = env.step(np.zeros(2, dtype=np.float32))
+    assert te and info["terminal_reason"] == "task"  # 0.5 rad from the target: past tilt_limit
+    assert math.isfinite(r) and all(math.isfinite(v) for k, v in info.items() if k != "terminal_reason")
+    # the batch computes the same value (0) where sin(tilt) = 0
+    y = tuple(np.array([c, c]) for c in (0.0, 0.0, 0.3 * spin, 0.0, 0.0, 1.0))
+    assert np.array_equal(env.system.precession_rate(y), [0.0, 0.0])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        check_env(env, skip_render_check=True)
