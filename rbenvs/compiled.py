@@ -28,59 +28,13 @@ first use in a process (about a second) and reused by every env of the same layo
 
 from __future__ import annotations
 
-import os
 from functools import lru_cache
 
+from .jit import DISABLE_VARIABLE, available, jitable
+from .jit import register as _register
+from .jit import register_all as _register_all
+
 __all__ = ["jitable", "available", "batch_kernel", "physics_kernel", "state_finish", "BatchStep", "DISABLE_VARIABLE"]
-
-# set to "0" to keep the numpy path even where numba is installed (comparisons, debugging)
-DISABLE_VARIABLE = "RBENVS_COMPILED"
-
-_JITABLE: list = []  # pure functions compiled code may call, in definition order
-_registered = False
-_done: set = set()  # ids of the functions registered with numba (each once)
-
-
-def jitable(fn):
-    """Mark ``fn`` as callable from a compiled kernel; returns ``fn`` itself, unchanged.
-
-    ``fn`` must be pure arithmetic on floats and tuples of floats (it is also run on numpy
-    arrays by the batched numpy path): ``math``/``numpy`` scalar functions, ``if`` on ``is
-    None`` and ``isinstance`` (resolved at compile time), calls to other jitable functions.
-    """
-    _JITABLE.append(fn)
-    if _registered:
-        _register(fn)
-    return fn
-
-
-def available() -> bool:
-    """Whether compiled kernels can be used: numba importable and not disabled."""
-    if os.environ.get(DISABLE_VARIABLE, "1") == "0":
-        return False
-    try:
-        import numba  # noqa: F401
-    except ImportError:
-        return False
-    return True
-
-
-def _register(fn) -> None:
-    if id(fn) in _done:
-        return
-    from numba.extending import register_jitable
-
-    register_jitable(fn)
-    _done.add(id(fn))
-
-
-def _register_all() -> None:
-    global _registered
-    if not _registered:
-        for fn in _JITABLE:
-            _register(fn)
-        _registered = True
-
 
 def _comps(fmt, k):
     return ", ".join(fmt.format(j=j) for j in range(k)) + ("," if k == 1 else "")

@@ -13,7 +13,7 @@ import math
 
 import numpy as np
 
-from .compiled import jitable
+from .jit import jitable
 
 __all__ = [
     "sqrt",

@@ -356,7 +356,7 @@ class RigidBodyVectorEnv(VectorEnv):
             for _ in range(env.substeps):
                 y = integ.step(system, y, u, h)
             return y, None, h
-        steps = np.broadcast_to(np.asarray(env._internal_steps(y, u)), (n_env,))
+        steps = np.broadcast_to(np.asarray(env.internal_steps(y, u)), (n_env,))
         if skip is not None:
             steps = np.where(skip, env.substeps, steps)
         if env.guard == "refuse" and np.any(steps > env.substeps):

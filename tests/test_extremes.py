@@ -578,4 +578,4 @@ def test_tippe_top_dt_range(dt):
     assert jellett_drift(infos, info0) < 1e-9
     h = infos[0]["internal_step"]
     assert h <= dt and h * 150.0 * 1.01 <= 0.1 + 1e-12
-    assert h <= env.system.max_stable_step("rk4", normal_force=info0["normal_force"])
+    assert h <= env.system.max_stable_step(get_integrator("rk4"), normal_force=info0["normal_force"])

@@ -76,6 +76,14 @@ def test_rbenvs_comes_from_the_wheel(wheel_venv):
     assert int(n_timesteps) > 0
 
 
+def test_every_package_of_the_source_tree_is_in_the_wheel(wheel_venv):
+    """A subpackage left out of pyproject's list would import in the checkout and fail here."""
+    bindir, site, env, work = wheel_venv
+    source = {p.parent.relative_to(ROOT).as_posix() for p in (ROOT / "rbenvs").rglob("__init__.py")}
+    installed = {p.parent.relative_to(site).as_posix() for p in (site / "rbenvs").rglob("__init__.py")}
+    assert source <= installed, sorted(source - installed)
+
+
 def test_every_scene_is_listed(wheel_venv):
     bindir, site, env, work = wheel_venv
     out = _run([bindir / "rbenvs", "scenes"], cwd=work, env=env)

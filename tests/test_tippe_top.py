@@ -218,7 +218,7 @@ def member(y, i):
 
 def stable_step(system, omega_max, mu=None):
     """``min(max_stable_step, 0.1 / |Omega|)``: the env's internal step rule at weight load."""
-    return min(system.max_stable_step("rk4", mu=mu), SPIN_STEP / omega_max)
+    return min(system.max_stable_step(get_integrator("rk4"), mu=mu), SPIN_STEP / omega_max)
 
 
 def steps_for(t_end, h_max):
@@ -586,7 +586,7 @@ def test_energy_never_increases_during_coulomb_inversion():
     step to the next beyond the rounding of E (4 eps E; measured: it falls at every one of the
     117956 steps, the largest step change being -4.4e-15 J)."""
     h = 8e-5
-    assert h <= default_top(friction=0.2).max_stable_step("rk4")
+    assert h <= default_top(friction=0.2).max_stable_step(get_integrator("rk4"))
     marks, worst_rise, e0, e_end, _ = _coulomb_inversion(h, True)
     assert worst_rise <= 4 * EPS * e0, worst_rise
     assert e_end < e0 and marks[90] < marks[150]
@@ -897,7 +897,7 @@ def test_fast_spin_near_upright():
         for period in range(periods):
             normal = system.contact_forces(y, u)[0]
             w = system.angular_velocity(y)
-            n = max(math.ceil(dt * math.sqrt(sum(c * c for c in w)) / SPIN_STEP), math.ceil(dt / system.max_stable_step("rk4", mu=1.0, normal_force=normal)))
+            n = max(math.ceil(dt * math.sqrt(sum(c * c for c in w)) / SPIN_STEP), math.ceil(dt / system.max_stable_step(get_integrator("rk4"), mu=1.0, normal_force=normal)))
             h = dt / (n * refine)
             for i in range(n * refine):
                 y = RK4.step(system, y, u, h)
@@ -937,7 +937,7 @@ def test_coulomb_near_zero_slip_has_no_chatter():
     system = default_top(inertia=(0.7 * c, c))
     prm = system.params
     n, h = steps_for(1.0, stable_step(system, 150.0 * 1.01))
-    assert h <= system.max_stable_step("rk4")
+    assert h <= system.max_stable_step(get_integrator("rk4"))
     slips = []
     for refine in (1, 2):
         y = upright_start(system)

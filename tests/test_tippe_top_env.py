@@ -16,7 +16,7 @@ from gymnasium.utils.env_checker import check_env
 from stable_baselines3.common.env_checker import check_env as sb3_check_env
 
 from rbenvs.envs import NumericalFailureWarning, TippeTopEnv
-from rbenvs.integrators import RK4
+from rbenvs.integrators import RK4, get_integrator
 
 ID = "rbenvs/TippeTop-v0"
 NAN, INF = float("nan"), float("inf")
@@ -630,14 +630,14 @@ def test_internal_step_follows_the_documented_rule(kwargs, dominant):
 def test_friction_bound_is_infinite_without_friction_and_for_dop853():
     env = TippeTopEnv()
     s = env.system
-    assert s.max_stable_step("dop853") == math.inf
-    assert s.max_stable_step("rk4", mu=0.0) == math.inf
-    assert TippeTopEnv(fidelity="frictionless").system.max_stable_step("rk4") == math.inf
-    assert TippeTopEnv(fidelity="rolling").system.max_stable_step("euler") == math.inf
+    assert s.max_stable_step(get_integrator("dop853")) == math.inf
+    assert s.max_stable_step(get_integrator("rk4"), mu=0.0) == math.inf
+    assert TippeTopEnv(fidelity="frictionless").system.max_stable_step(get_integrator("rk4")) == math.inf
+    assert TippeTopEnv(fidelity="rolling").system.max_stable_step(get_integrator("euler")) == math.inf
     # rk4 allows 1.39x euler's step; a larger load only shortens it
-    assert s.max_stable_step("rk4") == pytest.approx(1.39 * s.max_stable_step("euler"), rel=1e-15)
-    assert s.max_stable_step("rk4", normal_force=0.5 * MG) == s.max_stable_step("rk4")
-    assert s.max_stable_step("rk4", normal_force=4.0 * MG) == pytest.approx(0.25 * s.max_stable_step("rk4"), rel=1e-15)
+    assert s.max_stable_step(get_integrator("rk4")) == pytest.approx(1.39 * s.max_stable_step(get_integrator("euler")), rel=1e-15)
+    assert s.max_stable_step(get_integrator("rk4"), normal_force=0.5 * MG) == s.max_stable_step(get_integrator("rk4"))
+    assert s.max_stable_step(get_integrator("rk4"), normal_force=4.0 * MG) == pytest.approx(0.25 * s.max_stable_step(get_integrator("rk4")), rel=1e-15)
 
 
 # ---------------------------------------------------------------------------------- 5. state dict

@@ -14,17 +14,19 @@ component is a float (single state) or an array of any batch shape (many states 
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..compiled import jitable
+from ..contracts import GuardRates
 from ..elliptic import elliptic_f_sc, elliptic_k, jacobi_sn_cn_dn
+from ..jit import jitable
 from ..rotations import quat_multiply, quat_normalize, sqrt
 from .flows import AxisRotation
 from .validation import require_inertia
 
-__all__ = ["FreeBodyParams", "FreeBody", "FreeBodyOrbit", "euler_rhs", "kinetic_energy", "momentum_norm", "angular_velocity", "free_body_readouts"]
+__all__ = ["FreeBodyParams", "FreeBody", "FreeBodyOrbit", "euler_rhs", "kinetic_energy", "momentum_norm", "angular_velocity", "rotation_rate", "free_body_readouts"]
 
 _CYCLIC = {(0, 1, 2), (1, 2, 0), (2, 0, 1)}
 
@@ -94,6 +96,19 @@ def angular_velocity(inv, y):
 
 
 @jitable
+def rotation_rate(p, y):
+    """``lambda = w |Omega| + r`` [1/s], ``p = (inv, w, r)``: a rigid body's fastest rotation
+    rate for the step guard (the body-frame vectors turn about ``Omega`` at ``|Omega|``; ``r``
+    adds state-independent rates such as gravity's). ``w = 0`` skips ``|Omega|``."""
+    inv, weight, fixed = p
+    if weight != 0.0:
+        w = angular_velocity(inv, y)
+        speed = sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2])
+        return weight * speed + fixed
+    return fixed
+
+
+@jitable
 def free_body_readouts(inv, y):
     """The env's physical read-outs ``(energy, momentum_norm)`` (names: FreeBody.readout_names)."""
     return (kinetic_energy(inv, y), momentum_norm(y))
@@ -127,6 +142,17 @@ class FreeBody:
         self.kernel_angular_velocity = (angular_velocity, params.inverse)  # the guard's input
 
     readout_names = ("energy", "momentum_norm")
+
+    def readouts(self, y, u=None):
+        """``(energy, momentum_norm)`` (:attr:`readout_names`); the control plays no part."""
+        return free_body_readouts(self._inverse, y)
+
+    def guard_rates(self, region, speed_ceiling: float = math.inf) -> GuardRates:
+        """In the body frame ``Pi`` turns about ``Omega`` at ``|Omega|`` (at a steady spin the
+        linearisation's eigenvalues have modulus ``<= |Omega|``, 15.9.1): one oscillatory rate,
+        ``lambda = |Omega|``, for every scheme (the splitting's pieces are exact rotations,
+        but their composition follows the motion only below about a radian per step)."""
+        return GuardRates(rotation=(rotation_rate, (self._inverse, 1.0, 0.0)), ceiling=speed_ceiling, text="lambda = |Omega|")
 
     # ------------------------------------------------------------------ vector field
     def rhs(self, y, u):

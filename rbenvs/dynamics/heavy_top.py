@@ -25,7 +25,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..rotations import atan2, quat_from_two_vectors, quat_multiply, quat_normalize, sqrt
+from ..contracts import GuardRates
+from ..rotations import atan2, quat_from_two_vectors, quat_multiply, quat_normalize, quat_to_euler_zxz, sqrt
+from .free_body import rotation_rate
 from .flows import AxisRotation, SymmetricFreeRotation
 from .validation import require_finite_nonnegative, require_finite_positive, require_finite_result, require_inertia, require_real_vector
 
@@ -161,6 +163,48 @@ class HeavyTop:
         else:
             free = tuple(AxisRotation(i, params.inverse[i], vectors, quat) for i in range(3))
         self._split = (self.kick,) + free
+
+    @property
+    def readout_names(self) -> tuple:
+        """The ``info`` keys of :meth:`readouts`: energy, the Casimirs, tilt and spin; the
+        critical spin for a Lagrange top only (15.10.1 gives no threshold for another top, so
+        the key is absent rather than NaN); the Euler angles with the attitude."""
+        names = ("energy", "pi_dot_gamma", "vertical_norm", "tilt", "spin")
+        if self.params.is_lagrange:
+            names += ("critical_spin",)
+        if self.attitude:
+            names += ("precession_angle", "nutation_angle", "spin_angle")
+        return names
+
+    def readouts(self, y, u=None) -> tuple:
+        """The read-outs in :attr:`readout_names` order (floats or arrays; ``u`` plays no part)."""
+        out = (self.energy(y), self.pi_dot_gamma(y), self.vertical_norm(y), self.tilt(y), self.spin(y))
+        if self.params.is_lagrange:
+            out += (self.params.critical_spin,)
+        if self.attitude:
+            out += tuple(quat_to_euler_zxz(y[6:10]))
+        return out
+
+    def guard_rates(self, region, speed_ceiling: float = math.inf) -> GuardRates:
+        """Three rates bound the dynamics: the turn of ``Pi`` and ``Gamma`` about ``Omega``
+        (``|Omega|``), gravity's ``omega_g = sqrt(M g l / I_min)`` (the hanging top's pendulum
+        frequency, the upright top's growth rate; ``I_min`` is conservative) and the spin
+        friction's decay ``kappa = k chi.I^-1 chi``. A scheme of exact sub-flows (the
+        splitting) solves the friction exactly in its kick and, for a Lagrange top, the free
+        flow exactly: only ``omega_g`` counts then (``|Omega| + omega_g`` for another top).
+        Every other scheme resolves ``lambda = |Omega| + omega_g + kappa``."""
+        prm = self.params
+        omega_g = math.sqrt(prm.mgl / min(prm.inertia))
+        x1, x2, x3 = prm.com_direction
+        j1, j2, j3 = prm.inverse
+        kappa = prm.spin_friction * (j1 * x1 * x1 + j2 * x2 * x2 + j3 * x3 * x3)
+        if region.exact_subflows:
+            weight, fixed = (0.0 if prm.is_lagrange else 1.0), omega_g
+            text = ("lambda = omega_g" if prm.is_lagrange else "lambda = |Omega| + omega_g") + f" (omega_g = sqrt(M g l / I_min) = {omega_g:.6g} rad/s)"
+        else:
+            weight, fixed = 1.0, omega_g + kappa
+            text = f"lambda = |Omega| + omega_g + kappa (omega_g = {omega_g:.6g} rad/s, kappa = {kappa:.6g} 1/s)"
+        return GuardRates(rotation=(rotation_rate, (prm.inverse, weight, fixed)), ceiling=weight * speed_ceiling + fixed, text=text)
 
     # ------------------------------------------------------------------ vector field
     def rhs(self, y, u):

@@ -62,10 +62,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..rotations import atan2, quat_normalize, sqrt
+from ..contracts import GuardRates
+from ..jit import jitable
+from ..rotations import atan2, maximum, quat_normalize, sqrt
 from .validation import real_array, require_choice, require_finite_nonnegative, require_finite_positive, require_finite_result, require_real_vector
 
-__all__ = ["TippeTopParams", "TippeTop", "FIDELITIES", "FRICTION_LAWS"]
+__all__ = ["TippeTopParams", "TippeTop", "FIDELITIES", "FRICTION_LAWS", "SPIN_STEP", "FRICTION_MARGIN", "tippe_rotation_rate"]
 
 FIDELITIES = ("gliding", "frictionless", "rolling")
 # Free flight: the lift-off is located to |N| <= LIFT_OFF_TOL m g and the touchdown to
@@ -75,6 +77,19 @@ TOUCHDOWN_TOL = 1e-13
 LOCATE_ITERATIONS = 60
 EPS = float(np.finfo(float).eps)
 FRICTION_LAWS = ("coulomb", "viscous")
+# The step guard: the contact geometry turns with the body, so every scheme takes at most
+# SPIN_STEP rad of max(|Omega|, omega_g) per internal step (an accuracy bound), and at most
+# FRICTION_MARGIN of its real-axis stability interval of the friction's stiffness.
+SPIN_STEP = 0.1
+FRICTION_MARGIN = 0.5
+
+
+@jitable
+def tippe_rotation_rate(p, y):
+    """``max(|Omega|, omega_g)`` [rad/s], ``p = (index of Omega_1 in the state, omega_g)``."""
+    o, omega_g = p
+    w0, w1, w2 = y[o], y[o + 1], y[o + 2]
+    return maximum(sqrt(w0 * w0 + w1 * w1 + w2 * w2), omega_g)
 
 
 @dataclass(frozen=True)
@@ -645,28 +660,56 @@ class TippeTop:
             raise ValueError(f"state['velocity'][2] must be the vertical velocity the contact constraint gives ({v_need!r}) or above it (leaving the table), got {vel[2]!r}")
         return y
 
-    def max_stable_step(self, integrator_name: str, mu: float | None = None, normal_force: float | None = None) -> float:
-        """The largest internal step [s] at which the friction law is stable for ``integrator``.
-
-        Near zero slip regularised Coulomb friction is a viscous law of rate
-        ``mu N |M| / eps`` (viscous: ``mu N |M|``), ``|M|`` the contact mobility
-        (:meth:`TippeTopParams.contact_mobility`); explicit schemes are stable up to
-        ``h lambda = 2`` (euler) or ``2.78`` (rk4) on the negative real axis. The bound takes
-        twice the larger of ``m g`` and the current ``normal_force`` (``N`` varies within a
-        control period) and keeps half the margin: ``h <= c / lambda``, ``c = 1`` (euler),
-        ``1.39`` (rk4). ``inf`` without friction, when rolling, and for adaptive schemes.
-        ``mu`` and ``normal_force`` may be arrays (a batch): the result is then an array.
-        """
-        if self.friction_law is None or integrator_name not in ("euler", "rk4"):
-            return math.inf
+    # ------------------------------------------------------------------ step guard
+    # Near zero slip regularised Coulomb friction is a viscous law of rate mu N |M| / eps (viscous:
+    # mu N |M|), |M| the contact mobility: stiff, a decaying (negative real) rate. The guard takes
+    # twice the larger of m g and the current N (N varies within a control period) and keeps half
+    # of the scheme's real-axis interval (FRICTION_MARGIN).
+    def friction_stiffness(self, mu, normal_force=None):
+        """``lambda_d = mu 2 max(m g, N) |M|`` (``/ eps`` for Coulomb) [1/s]; 0 without friction.
+        ``mu`` and ``normal_force`` may be arrays (a batch)."""
+        if self.friction_law is None:
+            return 0.0
         prm = self.params
-        mu = prm.friction if mu is None else mu
         weight = prm.mass * prm.gravity
         load = weight if normal_force is None else np.maximum(weight, normal_force)
         rate = mu * 2.0 * load * prm.contact_mobility()
         if self.friction_law == "coulomb":
             rate = rate / prm.slip_regularization
-        with np.errstate(divide="ignore"):
-            bound = np.where(rate > 0.0, (1.0 if integrator_name == "euler" else 1.39) / np.where(rate > 0.0, rate, 1.0), np.inf)
-        return float(bound) if bound.ndim == 0 else bound
+        return rate
 
+    def friction_rate(self, _p, y, u):
+        """The guard's ``lambda_d`` at ``y`` under ``u`` (``(fn, P)`` form: ``P`` unused)."""
+        mu = self.params.friction if u is None else u[2]
+        return self.friction_stiffness(mu, self.contact_forces(y, u)[0])
+
+    def guard_rates(self, region, speed_ceiling: float = math.inf) -> GuardRates:
+        """The contact geometry turns with the body: ``max(|Omega|, omega_g) h <= SPIN_STEP``
+        (0.1 rad, an accuracy bound of this system for every scheme; ``omega_g`` from
+        :meth:`TippeTopParams.gravity_rate`), and, with friction, ``h <= c / lambda_d``
+        (:meth:`friction_stiffness`) with ``c`` half the scheme's real-axis interval (euler
+        1.0, rk4 1.39; none for dop853)."""
+        omega_g = self.params.gravity_rate()
+        dissipation = (self.friction_rate, ()) if self.friction_law is not None else None
+        text = f"lambda = max(|Omega|, omega_g) (omega_g = {omega_g:.6g} rad/s)"
+        if dissipation is not None:
+            text += f", lambda_d = mu 2 max(m g, N) |M|{' / eps' if self.friction_law == 'coulomb' else ''} (the friction law's stiffness)"
+        return GuardRates(rotation=(tippe_rotation_rate, (self._w, omega_g)), rotation_bound=SPIN_STEP, dissipation=dissipation,
+                          dissipation_margin=FRICTION_MARGIN, ceiling=max(speed_ceiling, omega_g), text=text)
+
+    def max_stable_step(self, region, mu: float | None = None, normal_force: float | None = None) -> float:
+        """The largest internal step [s] at which the friction law is stable for a scheme of
+        ``region`` (a :class:`~rbenvs.contracts.StepRegion`, or an integrator declaring one):
+        ``c / lambda_d``, ``c`` =
+        ``FRICTION_MARGIN`` of its real-axis interval (euler ``h lambda <= 2``: ``c = 1``; rk4
+        2.78: ``c = 1.39``), ``lambda_d`` from :meth:`friction_stiffness` at ``mu`` (default:
+        the parameter's) and ``normal_force`` (default ``m g``). ``inf`` without friction, when
+        rolling, and for schemes without a real-axis bound (dop853). Arrays in, array out."""
+        region = getattr(region, "region", region)  # an integrator, or its region
+        c = FRICTION_MARGIN * region.dissipation
+        if self.friction_law is None or c == math.inf:
+            return math.inf
+        rate = self.friction_stiffness(self.params.friction if mu is None else mu, normal_force)
+        with np.errstate(divide="ignore"):
+            bound = np.where(rate > 0.0, c / np.where(rate > 0.0, rate, 1.0), np.inf)
+        return float(bound) if bound.ndim == 0 else bound

@@ -8,14 +8,16 @@ numpy call overhead inside the integrator.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import warnings
 
 import gymnasium as gym
 import numpy as np
 
-from ..compiled import jitable, state_finish
+from ..compiled import state_finish
 from ..dynamics.validation import real_array, require_finite_positive, require_int_in
+from ..core.guard import GUARDS, MAX_INTERNAL_STEPS, StepRule, require_guard, step_ratio
 from ..integrators import get_integrator
 from ..rotations import maximum, sqrt
 
@@ -31,40 +33,6 @@ def require_float32_bound(name: str, value) -> float:
     if v > FLOAT32_MAX:
         raise ValueError(f"{name} must be <= {FLOAT32_MAX:.3g} (float32 observations), got {value!r}")
     return v
-
-
-# More internal steps than this in one control period is treated as a numerical failure.
-MAX_INTERNAL_STEPS = 1_000_000
-
-# Guarded stepping (``guard=`` of every env): when the internal step ``dt / substeps`` exceeds
-# what the integrator can resolve at the current state, ``"subdivide"`` (default) splits the
-# control period into more equal internal steps, ``"refuse"`` raises ``ValueError`` from
-# ``step``, ``"off"`` takes ``substeps`` steps regardless (blow-ups then end the episode as
-# numerical failures). Each env documents its bounds (``step_bounds``).
-GUARDS = ("subdivide", "refuse", "off")
-
-
-def require_guard(guard) -> str:
-    if not isinstance(guard, str) or guard not in GUARDS:
-        raise ValueError(f"guard must be one of {list(GUARDS)}, got {guard!r}")
-    return guard
-
-
-@jitable
-def guard_ratio(g, w):
-    """``x`` with ``n = ceil(x)`` the internal steps the guard asks for (see
-    :meth:`RigidBodyEnv._guarded_steps`): ``g = (spin_weight, rate, dt, bound, growth)``, ``w``
-    the angular velocity (floats or arrays; pure, so the compiled batch step checks the guard
-    with the same arithmetic)."""
-    spin_weight, rate, dt, bound, growth = g
-    if spin_weight != 0.0:
-        speed = sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2])
-        rate = spin_weight * speed + rate
-    x = dt * rate / bound
-    if growth != math.inf:
-        z = dt * rate
-        x = maximum(x, z * z / growth)
-    return x
 
 
 # float dtypes an action array may have on the fast path (builtin dtypes are singletons)
@@ -103,6 +71,9 @@ class RigidBodyEnv(gym.Env):
         self.integrator = get_integrator(integrator)
         if not self.integrator.supports(system):
             raise ValueError(f"integrator {self.integrator.name!r} is not available for {type(system).__name__}")
+        region = getattr(self.integrator, "region", None)
+        if region is None:  # declared, not probed: no region, no guard, no run
+            raise ValueError(f"integrator {self.integrator.name!r} declares no step region (StepRegion, rbenvs.contracts): it cannot be guarded")
         self._h = self._dt / self.substeps
         self._last_h = self._h  # internal step of the last control period
         if render_mode is not None and (not isinstance(render_mode, str) or render_mode not in self.metadata["render_modes"]):
@@ -118,12 +89,10 @@ class RigidBodyEnv(gym.Env):
         # the plain substep loop applies unless the class steps by state or watches events; a
         # guarded env uses it when no state inside the observation bounds can trip its guard
         # (then a step that ends outside them drops to the checked path until the next reset)
-        self._configure_guard()
-        self._plain_default = (
-            self.event_name is None
-            and self._after_internal_step is None
-            and (type(self)._internal_steps is RigidBodyEnv._internal_steps or self._guard_idle())
-        )
+        # the step guard: the system's rates for this integrator's region (rbenvs.core.guard)
+        rates = system.guard_rates(region, self._speed_ceiling())
+        self.step_rule = StepRule.build(rates, region, self._dt, self.guard)
+        self._plain_default = self.event_name is None and self._after_internal_step is None and self.step_rule.idle(self.substeps)
         self._plain_advance = self._plain_default
         # the integrator with this system bound once (the hot path's step; same bits as integ.step)
         self._bound_step = self.integrator.bind(system, system.dim)
@@ -142,11 +111,20 @@ class RigidBodyEnv(gym.Env):
         """``(x, rule)``: the internal steps per control period (``ceil(x)``) that the step rule
         asks for at the fastest start, and the rule in words. Integrators without a bound of
         their own (exact flows, adaptive schemes) count one radian of the fastest rate per step."""
-        bound, growth, spin_weight, rate, text = self._step_limit()
-        if bound == math.inf and growth == math.inf:
-            bound, text = 1.0, "one radian of the fastest rate per step"
-        x = guard_ratio((float(spin_weight), float(rate), self._dt, bound, growth), (self._start_speed, 0.0, 0.0))
-        return x, text
+        region = self.integrator.region
+        if not region.bounded:
+            region = dataclasses.replace(region, rotation=1.0, reason="one radian of the fastest rate per step")
+        rates = self.system.guard_rates(region, self._start_speed)
+        rule = StepRule.build(rates, region, self._dt, "subdivide")
+        x = step_ratio(rule.params, rates.ceiling)
+        lam_d = self._start_dissipation()
+        if rule.dissipation is not None and lam_d > 0.0:
+            x = max(x, self._dt / (rule.dissipation_step / lam_d))
+        return x, rule.text
+
+    def _start_dissipation(self) -> float:
+        """The stiffest decaying rate at the start (0 where none): the tippe top's friction."""
+        return 0.0
 
     def _require_resolvable(self) -> None:
         """Refuse, at construction, a control period that no run could resolve: more than
@@ -251,70 +229,26 @@ class RigidBodyEnv(gym.Env):
     # each works on floats (this env) and on arrays (the vector env) alike.
     event_name: str | None = None  # e.g. "lift_off": what _event_mask detects
 
-    def _internal_steps(self, y, u):
-        """Integrator steps per control period (an int, or an int array for a batch)."""
-        return self.substeps
-
     # ------------------------------------------------------------------ guarded stepping
-    # A guarded env (free body, heavy top) sets ``_internal_steps = RigidBodyEnv._guarded_steps``
-    # and implements ``_step_limit() -> (bound, growth, spin_weight, rate, text)``: with
-    # ``lambda = spin_weight |Omega| + rate``, the internal step must satisfy ``lambda h <= bound``
-    # and ``lambda^2 h dt <= growth`` (``inf``: no such bound). The second is forward Euler's:
-    # it amplifies a rotation by ``sqrt(1 + (lambda h)^2)`` per step, by at most
-    # ``exp(lambda^2 h dt / 2)`` per control period.
-    _step_bound, _period_growth, _spin_weight, _fixed_rate, _guard_text = math.inf, math.inf, 0.0, 0.0, ""
-
-    def _step_limit(self):
-        return math.inf, math.inf, 0.0, 0.0, ""
-
-    def _configure_guard(self):
-        self._step_bound, self._period_growth, self._spin_weight, self._fixed_rate, self._guard_text = self._step_limit()
-        self._guard_tuple = self._guard_params()  # read by every guarded period
-
-    def _guard_idle(self) -> bool:
-        """True when no state inside the observation bounds can need more than ``substeps``
-        steps (the plain loop is then exact); ``_speed_ceiling`` bounds ``|Omega|`` there."""
-        if self.guard == "off" or (self._step_bound == math.inf and self._period_growth == math.inf):
-            return True
-        ceiling = (self._spin_weight * self._speed_ceiling() + self._fixed_rate) * (1.0 + 1e-9)
-        return self._h * ceiling <= self._step_bound and self._h * self._dt * ceiling * ceiling <= self._period_growth
-
+    # The step rule (self.step_rule, rbenvs.core.guard) sizes each period from the system's
+    # declared rates and the integrator's declared region; no per-env table.
     def _speed_ceiling(self) -> float:
+        """An upper bound of ``|Omega|`` over the states inside the observation bounds (``inf``:
+        none known); a rule whose ceiling fits in ``substeps`` needs no check."""
         return math.inf
 
-    def _guarded_steps(self, y, u):
-        """``max(substeps, ceil(dt lambda / bound), ceil((dt lambda)^2 / growth))``,
-        ``lambda = w |Omega| + rate`` from the state at the start of the period (an int, or an int array for a batch; the float and array paths do the
-        same IEEE operations, so a vector env takes the single env's steps). A non-finite or
-        absurd rate gives ``MAX_INTERNAL_STEPS + 1``: refused as a numerical failure."""
-        params = self._guard_tuple
-        if params is None:
-            return self.substeps
-        w = self.system.angular_velocity(y) if self._spin_weight else (0.0, 0.0, 0.0)
-        x = guard_ratio(params, w)
-        if type(x) is float:
-            if x <= self.substeps:
-                return self.substeps
-            return math.ceil(x) if x <= MAX_INTERNAL_STEPS else MAX_INTERNAL_STEPS + 1
-        x = np.broadcast_to(x, np.shape(y[0]))
-        with np.errstate(invalid="ignore"):
-            n = np.where(x <= MAX_INTERNAL_STEPS, np.ceil(np.where(x <= MAX_INTERNAL_STEPS, x, 0.0)), MAX_INTERNAL_STEPS + 1)
-        return np.maximum(self.substeps, n).astype(np.int64)
-
-    def _guard_params(self):
-        """``(spin_weight, rate, dt, bound, growth)`` for :func:`guard_ratio`, or ``None`` when
-        no guard applies (``guard="off"``, or no bound for this integrator)."""
-        bound, growth = self._step_bound, self._period_growth
-        if self.guard == "off" or (bound == math.inf and growth == math.inf):
-            return None
-        return (float(self._spin_weight), float(self._fixed_rate), self._dt, bound, growth)
+    def internal_steps(self, y, u):
+        """Integrator steps per control period at ``y`` under ``u``: ``max(substeps, ceil(x))``
+        from the step rule (an int, or an int array for a batch); ``MAX_INTERNAL_STEPS + 1``
+        marks a period refused as a numerical failure."""
+        return self.step_rule.steps(y, u, self.substeps)
 
     def _refusal(self, n, where: str = "") -> ValueError:
         """The ``guard="refuse"`` error for a period that needs ``n`` internal steps."""
         return ValueError(
             f"{type(self).__name__}: guard='refuse' and the state{where} needs {n} internal steps per control period, "
             f"more than substeps={self.substeps} (dt={self._dt!r}, integrator {self.integrator.name!r}: "
-            f"{self._guard_text}); raise substeps to at least {n} or lower dt, or pass guard='subdivide'"
+            f"{self.step_rule.text}); raise substeps to at least {n} or lower dt, or pass guard='subdivide'"
         )
 
     def _event_mask(self, y, u):
@@ -332,7 +266,7 @@ class RigidBodyEnv(gym.Env):
         step (integration stops there), which becomes ``info["terminal_reason"]``.
         """
         integ, system = self.integrator, self.system
-        n = self._internal_steps(y, u)
+        n = self.internal_steps(y, u)
         if n > self.substeps and self.guard == "refuse":
             raise self._refusal(n)
         if n > MAX_INTERNAL_STEPS:
@@ -563,7 +497,7 @@ class RigidBodyEnv(gym.Env):
     def _kernel_parts(self):
         """What :func:`rbenvs.compiled.batch_kernel` needs to run this env's step on a batch:
         ``(step, observe, evaluate, readouts, guard)``, each ``(pure function, parameters)``
-        (``guard``: ``((guard_ratio, G), (angular velocity, P))``, or ``None`` without a guard
+        (``guard``: ``((step_ratio, G), (rotation rate, P))``, or ``None`` without a guard
         check), or ``None`` where a part has no pure form (then the batch runs on numpy
         arrays). The kernel takes ``substeps`` equal steps: a guarded period that needs more
         goes back to the numpy path; events and hybrid switching (the tippe top) never
@@ -575,14 +509,11 @@ class RigidBodyEnv(gym.Env):
         if step is None or kernels is None or readouts is None or hybrid:
             return None
         guard = None
-        steps_rule = type(self)._internal_steps
-        if steps_rule is RigidBodyEnv._guarded_steps and not self._plain_default:
-            angular = getattr(self.system, "kernel_angular_velocity", None)
-            if angular is None:
-                return None
-            guard = ((guard_ratio, self._guard_tuple), angular)
-        elif steps_rule is not RigidBodyEnv._internal_steps and steps_rule is not RigidBodyEnv._guarded_steps:
-            return None  # a rule of its own that the kernel cannot evaluate
+        rule = self.step_rule
+        if rule.active and not self._plain_default:
+            if rule.dissipation is not None:
+                return None  # a rate that depends on the control: not in the kernel yet
+            guard = ((step_ratio, rule.params), rule.rotation)
         observe, evaluate = kernels(self.system)
         return step, observe, evaluate, readouts, guard
 

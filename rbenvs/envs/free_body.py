@@ -19,11 +19,7 @@ from ..dynamics.validation import (
 from ..tasks import AXIS_NAMES, DetumbleTask, ReorientTask, SpinTask
 from .base import RigidBodyEnv, require_float32_bound
 
-__all__ = ["FreeRigidBodyEnv", "STEP_BOUNDS"]
-
-# Guarded stepping, per integrator: (bound on |Omega| h, bound on |Omega|^2 h dt); see the
-# class docstring.
-STEP_BOUNDS = {"euler": (0.1, 0.02), "rk4": (1.0, math.inf), "splitting": (1.0, math.inf)}
+__all__ = ["FreeRigidBodyEnv"]
 
 
 class FreeRigidBodyEnv(RigidBodyEnv):
@@ -229,13 +225,6 @@ class FreeRigidBodyEnv(RigidBodyEnv):
     @property
     def params(self) -> FreeBodyParams:
         return self.system.params
-
-    _internal_steps = RigidBodyEnv._guarded_steps
-
-    def _step_limit(self):
-        bound, growth = STEP_BOUNDS.get(self.integrator.name, (math.inf, math.inf))
-        text = f"|Omega| h <= {bound}" + (f" and |Omega|^2 h dt <= {growth}" if growth != math.inf else "")
-        return bound, growth, 1.0, 0.0, text
 
     def _speed_ceiling(self):
         return math.sqrt(3.0) * self._max_w  # every Omega_i within +-max_angular_velocity

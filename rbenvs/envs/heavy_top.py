@@ -13,11 +13,7 @@ from ..rotations import quat_conjugate, quat_rotate, quat_to_euler_zxz
 from ..tasks import PrecessTask, UprightTask, slow_precession_rate, transverse_basis
 from .base import RigidBodyEnv, require_float32_bound
 
-__all__ = ["LagrangeTopEnv", "STEP_BOUNDS"]
-
-# Guarded stepping: integrator -> (bound on lambda h, bound on lambda^2 h dt), lambda the
-# fastest rate of the dynamics for that scheme (class docstring).
-STEP_BOUNDS = {"euler": (0.1, 0.02), "rk4": (1.0, math.inf), "splitting": (1.0, math.inf)}
+__all__ = ["LagrangeTopEnv"]
 
 _DEFAULT_TILT_LIMIT = {"upright": math.pi / 4, "precess": 0.3}
 
@@ -264,24 +260,6 @@ class LagrangeTopEnv(RigidBodyEnv):
     @property
     def critical_spin(self) -> float:
         return self.system.params.critical_spin
-
-    _internal_steps = RigidBodyEnv._guarded_steps
-
-    def _step_limit(self):
-        prm = self.system.params
-        omega_g = math.sqrt(prm.mgl / min(prm.inertia))
-        x1, x2, x3 = prm.com_direction
-        j1, j2, j3 = prm.inverse
-        kappa = prm.spin_friction * (j1 * x1 * x1 + j2 * x2 * x2 + j3 * x3 * x3)
-        name = self.integrator.name
-        bound, growth = STEP_BOUNDS.get(name, (math.inf, math.inf))
-        if name == "splitting":  # the kick solves the friction exactly; a Lagrange top's free flow is exact
-            w_spin = 0.0 if prm.is_lagrange else 1.0
-            what = "omega_g h" if prm.is_lagrange else "(|Omega| + omega_g) h"
-            return bound, growth, w_spin, omega_g, f"{what} <= {bound} (omega_g = sqrt(M g l / I_min) = {omega_g:.6g} rad/s)"
-        text = f"lambda h <= {bound}" + (f" and lambda^2 h dt <= {growth}" if growth != math.inf else "")
-        text += f", lambda = |Omega| + omega_g + kappa (omega_g = {omega_g:.6g} rad/s, kappa = {kappa:.6g} 1/s)"
-        return bound, growth, 1.0, omega_g + kappa, text
 
     def _speed_ceiling(self):
         return math.sqrt(3.0) * self._max_w  # every Omega_i within +-max_angular_velocity

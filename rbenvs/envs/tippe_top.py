@@ -11,13 +11,9 @@ from ..dynamics import TippeTop, TippeTopParams
 from ..dynamics.tippe_top import FIDELITIES
 from ..dynamics.validation import require_bool, require_choice, require_finite_nonnegative, require_range
 from ..tasks import HoldTask, InvertTask
-from .base import MAX_INTERNAL_STEPS, RigidBodyEnv, require_float32_bound
+from .base import RigidBodyEnv, require_float32_bound
 
 __all__ = ["TippeTopEnv"]
-
-# Accuracy bound on the internal step from the rotation itself: |Omega| h <= this (rad).
-SPIN_STEP = 0.1
-
 
 class TippeTopEnv(RigidBodyEnv):
     """A sphere with an offset centre of mass spinning on a table that the agent can move.
@@ -227,7 +223,7 @@ class TippeTopEnv(RigidBodyEnv):
             self._after_internal_step = self._switch_contact
         high = [1.0] * 3 + [max_w] * 3 + [max_v] * 2
         self._start_speed = peak
-        self._gravity_rate = params.gravity_rate()  # the guard resolves it as it does the spin
+        self._max_w = max_w
         self._setup(system, task_obj, integrator, dt, substeps, high, render_mode, guard)
         size = 2 + (1 if self.friction_action else 0) + (3 if self.torque_action else 0)
         self.action_space = gym.spaces.Box(-1.0, 1.0, (size,), dtype=np.float32)
@@ -269,44 +265,15 @@ class TippeTopEnv(RigidBodyEnv):
 
     event_name = "lift_off"
 
-    def internal_steps(self, y, u):
-        """Steps per control period from the state (see the class docstring); an int, or an
-        int array for a batch of states."""
-        system = self.system
-        if self.guard == "off":
-            return self.substeps
-        w = system.angular_velocity(y)
-        speed = np.maximum(np.sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2]), self._gravity_rate)
-        n = np.maximum(self.substeps, np.ceil(self.dt * speed / SPIN_STEP))
-        if system.friction_law is not None:
-            normal = system.contact_forces(y, u)[0]
-            h_f = system.max_stable_step(self.integrator.name, mu=u[2], normal_force=normal)
-            n = np.maximum(n, np.ceil(self.dt / h_f))  # h_f = inf for adaptive schemes: 0
-        # cap before the integer cast (an absurd state can ask for 1e300 steps); above
-        # MAX_INTERNAL_STEPS the period is refused as a numerical failure
-        n = np.minimum(n, MAX_INTERNAL_STEPS + 1).astype(np.int64)
-        return int(n) if n.ndim == 0 else n
-
-    _internal_steps = internal_steps
-
-    def _step_limit(self):  # only the refusal's text: internal_steps is the rule
-        return math.inf, math.inf, 0.0, 0.0, f"max(|Omega|, omega_g) h <= {SPIN_STEP} and h <= h_f, the friction law's stability bound"
-
     _rate_sources = "spin, gravity, mass, inertia, radius, offset, friction, friction_range and slip_regularization"
 
-    def _start_steps(self):
-        """The steps :meth:`internal_steps` asks for at the fastest start (spin ``max|spin|``,
-        normal force ``m g``) with the largest friction coefficient the env can use."""
-        spin = max(self._start_speed, self._gravity_rate)
-        x = self.dt * spin / SPIN_STEP
-        rule = f"max(|Omega|, omega_g) h <= {SPIN_STEP}, omega_g = {self._gravity_rate:.6g} rad/s"
-        if self.system.friction_law is not None and self.guard != "off":
-            mu = max(self.params.friction, self.friction_range[1])
-            h_f = self.system.max_stable_step(self.integrator.name, mu=mu)
-            if h_f < math.inf:
-                x = max(x, self.dt / h_f)
-                rule += f", and h <= h_f = {h_f:.3g} s (the friction law's stability bound at mu = {mu!r})"
-        return x, rule
+    def _speed_ceiling(self):
+        return math.sqrt(3.0) * self._max_w
+
+    def _start_dissipation(self):
+        """The friction's stiffness at the start (``N = m g``) at the largest coefficient the env
+        can use (``friction``, or ``friction_range``'s upper end with ``friction_action``)."""
+        return self.system.friction_stiffness(max(self.params.friction, self.friction_range[1]))
 
     def _event_mask(self, y, u):
         """Lift-off: the contact would have to pull (``N < 0``)."""

@@ -21,7 +21,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import ClassVar
 
-__all__ = ["Integrator"]
+from ..contracts import StepRegion
+
+__all__ = ["Integrator", "StepRegion"]
 
 
 @dataclass(frozen=True)
@@ -37,6 +39,8 @@ class Integrator:
         conserves: what it keeps to round-off for the uncontrolled system: ``"casimirs"`` (the
             system's :attr:`casimirs`, the invariants of the Lie-Poisson bracket: ``|Pi|`` for
             the free body, ``|Gamma|`` and ``Pi.Gamma`` for the heavy top) and/or ``"energy"``.
+        region: where its step can be trusted (:class:`~rbenvs.contracts.StepRegion`): what the
+            step guard reads. A scheme without one cannot be guarded: the envs refuse it.
     """
 
     # Class-level constants, not dataclass fields: a field's default would be stamped onto
@@ -46,6 +50,7 @@ class Integrator:
     evaluations: ClassVar[int | None] = None
     conserves: ClassVar[tuple[str, ...]] = ()
     requires: ClassVar[tuple[str, ...]] = ("rhs",)
+    region: ClassVar[StepRegion | None] = None
 
     def supports(self, system) -> bool:
         """Whether ``system`` offers everything this scheme needs."""

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from .base import Integrator
+from .base import Integrator, StepRegion
 
 __all__ = ["Exact"]
 
@@ -23,6 +23,7 @@ class Exact(Integrator):
     evaluations = 0
     conserves = ("casimirs", "energy")
     requires = ("free_flow", "kick")
+    region = StepRegion.unbounded("the exact flow (torque as exact kicks)", exact_subflows=True)
 
     def step(self, system, y, u, h):
         if u is None:

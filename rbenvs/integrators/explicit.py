@@ -20,7 +20,7 @@ from dataclasses import dataclass
 from functools import lru_cache
 from typing import ClassVar
 
-from .base import Integrator
+from .base import Integrator, StepRegion
 
 __all__ = ["Euler", "RK4"]
 
@@ -132,6 +132,11 @@ class Euler(_Generated):
     kind = "euler"
     order = 1
     evaluations = 1
+    # No stability interval on the imaginary axis: a rotation grows by sqrt(1 + (lambda h)^2)
+    # a step (0.5 % at 0.1), by at most exp(lambda^2 h dt / 2) a period (1 % at 0.02); on the
+    # negative real axis stable for |lambda h| <= 2.
+    region = StepRegion(rotation=0.1, growth=0.02, dissipation=2.0,
+                        reason="accuracy bounds: no stability interval on the imaginary axis; real-axis interval 2")
 
 
 @dataclass(frozen=True)
@@ -142,3 +147,7 @@ class RK4(_Generated):
     kind = "rk4"
     order = 4
     evaluations = 4
+    # Stability interval 2 sqrt(2) = 2.83 on the imaginary axis (at 1.0 a rotation's amplitude
+    # and phase errors are 0.61 % and 0.56 % a step) and 2.78 on the negative real axis.
+    region = StepRegion(rotation=1.0, dissipation=2.78,
+                        reason="imaginary-axis interval 2.83 (1.0 kept: 0.6 % amplitude error a step), real-axis interval 2.78")

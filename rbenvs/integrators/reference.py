@@ -3,11 +3,12 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import ClassVar
 
 import numpy as np
 from scipy.integrate import solve_ivp
 
-from .base import Integrator
+from .base import Integrator, StepRegion
 
 __all__ = ["Dop853"]
 
@@ -23,6 +24,7 @@ class Dop853(Integrator):
     name = "dop853"
     order = 8
     evaluations = None
+    region: ClassVar[StepRegion] = StepRegion.unbounded("adaptive error control (rtol, atol)")
     rtol: float = 1e-12
     atol: float = 1e-14
 

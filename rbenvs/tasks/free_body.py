@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..compiled import jitable
+from ..jit import jitable
 from ..dynamics.free_body import angular_velocity, momentum_norm
 from ..rotations import quat_angle, quat_conjugate, quat_from_uniforms, quat_multiply, sqrt
 

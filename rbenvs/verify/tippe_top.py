@@ -341,7 +341,7 @@ class _Floats:
 
 def _step_size(system, name, omega_h, omega):
     """``h = omega_h / omega``, kept below the friction law's stability bound."""
-    return min(omega_h / omega, system.max_stable_step(name))
+    return min(omega_h / omega, system.max_stable_step(get_integrator(name).region))
 
 
 # ------------------------------------------------------------------------------------------
@@ -644,7 +644,7 @@ def leine_glocker_t90(h_factor=1.0, spin=150.0, system_class=TippeTop):
     rk4 at ``h = h_factor * max_stable_step``; ``t90`` by linear interpolation."""
     system = system_class(TippeTopParams(), "gliding")
     integ = get_integrator("rk4")
-    h = h_factor * system.max_stable_step("rk4")
+    h = h_factor * system.max_stable_step(get_integrator("rk4").region)
     y = upright_start(system, spin)
     prev = system.tilt(y)
     t = 0.0

@@ -1,0 +1,248 @@
+"""What a system, a task, an integrator and an actuator must provide: the contracts, written down.
+
+The step core (:mod:`rbenvs.core`) runs any combination of these parts through one written-once
+step, on Python floats (one env) or on arrays (a batch). Each part declares what it can do; the
+core reads the declarations and probes nothing, so a missing piece is an error at construction
+(:func:`require_parts`), never a silent change of behaviour.
+
+Conventions shared by every contract:
+
+* **Components.** A state ``y`` is a tuple of components, each a Python float (one state) or a
+  float64 array of one batch shape (many states). Every function below takes and returns
+  components, so the same function serves the single env, the numpy batch and, where it is
+  marked :func:`rbenvs.jit.jitable`, the compiled batch.
+* **Pure parts.** ``(fn, P)`` pairs: a module-level function and its parameter tuple, with
+  ``fn(P, ...)`` depending on nothing else. These are what compiled code can call.
+* Controls ``u`` are the system's physical inputs (torques, accelerations), ``None`` for none;
+  ``u_norm`` is the normalised action on every input in ``[-1, 1]``.
+
+This module is the bottom of the package's layers: it imports nothing from rbenvs.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any, Callable, NamedTuple, Protocol, runtime_checkable
+
+__all__ = [
+    "PureFunction",
+    "StepRegion",
+    "GuardRates",
+    "System",
+    "HybridSystem",
+    "Task",
+    "Integrator",
+    "Actuator",
+    "StepResult",
+    "require_parts",
+]
+
+# A pure function and its parameters: ``fn(P, *args)``.
+PureFunction = tuple[Callable[..., Any], tuple]
+
+
+@dataclass(frozen=True)
+class StepRegion:
+    """Where an integrator's step ``h`` can be trusted, in units of a rate ``lambda`` of the
+    dynamics: what the step guard reads to size the internal step (:mod:`rbenvs.core.guard`).
+
+    * ``rotation``: the largest ``|lambda| h`` for an oscillatory rate (eigenvalues on the
+      imaginary axis: a rotation), a stability or an accuracy bound (``inf``: none);
+    * ``growth``: the largest ``|lambda|^2 h dt`` per control period ``dt`` (forward Euler
+      multiplies a rotation's amplitude by ``sqrt(1 + (lambda h)^2)`` a step, by at most
+      ``exp(lambda^2 h dt / 2)`` a period; ``inf``: none);
+    * ``dissipation``: the stability interval on the negative real axis (``|lambda| h`` for a
+      decaying rate, such as regularised friction near zero slip; ``inf``: unconditionally
+      stable there);
+    * ``exact_subflows``: the scheme composes the system's exact sub-flows (splitting, the
+      exact flow), so the rates those flows solve exactly do not count;
+    * ``reason``: what the bounds are, in words (shown in refusals and docs).
+
+    Every integrator declares one; an integrator without a region cannot be guarded, and the
+    envs refuse it (rather than run it unguarded).
+    """
+
+    rotation: float = math.inf
+    growth: float = math.inf
+    dissipation: float = math.inf
+    exact_subflows: bool = False
+    reason: str = ""
+
+    @classmethod
+    def unbounded(cls, reason: str, exact_subflows: bool = False) -> "StepRegion":
+        """No bound: an exact flow, or a scheme that controls its own error (adaptive)."""
+        return cls(exact_subflows=exact_subflows, reason=reason)
+
+    @property
+    def bounded(self) -> bool:
+        return not (self.rotation == math.inf and self.growth == math.inf and self.dissipation == math.inf)
+
+
+@dataclass(frozen=True)
+class GuardRates:
+    """The rates of a system that an internal step must resolve, for one integrator's region
+    (:meth:`System.guard_rates`); the guard turns them into a step count.
+
+    * ``rotation``: pure ``fn(P, y) -> lambda`` [1/s], the fastest oscillatory rate at ``y``;
+    * ``rotation_bound``: a bound on ``lambda h`` the system itself needs whatever the scheme
+      (an accuracy bound of its geometry), replacing the region's ``rotation`` and ``growth``;
+      ``None``: the region's bounds apply;
+    * ``dissipation``: pure ``fn(P, y, u) -> lambda_d`` [1/s], the stiffest decaying rate, or
+      ``None``; resolved within ``dissipation_margin`` of the region's ``dissipation``;
+    * ``ceiling``: an upper bound of ``lambda`` over every state inside the observation bounds
+      (``inf``: none known; a guard whose ceiling fits in ``substeps`` never needs checking);
+    * ``text``: the rule in words, with the parameters that set the rates.
+    """
+
+    rotation: PureFunction
+    text: str
+    rotation_bound: float | None = None
+    dissipation: PureFunction | None = None
+    dissipation_margin: float = 1.0
+    ceiling: float = math.inf
+
+
+@runtime_checkable
+class System(Protocol):
+    """The physics of one rigid-body system: a vector field, its exact pieces, read-outs.
+
+    Attributes: ``dim`` (number of state components), ``layout`` (name -> ``(start, stop)``
+    slices of the components, the names of ``get_state``), ``readout_names`` (the ``info`` keys
+    of :meth:`readouts`), ``casimirs`` (read-outs the Lie-Poisson bracket keeps), ``params``
+    (a frozen parameter object). Optional capabilities, declared by having them: ``split_flows``
+    (exact sub-flows, for the splitting), ``free_flow`` and ``kick`` (the exact flow), pure forms
+    ``kernel_rhs`` / ``kernel_readouts`` (``(fn, P)``, for generated and compiled steps).
+    """
+
+    dim: int
+    layout: dict
+    readout_names: tuple
+
+    def rhs(self, y, u):
+        """``dy/dt`` at ``y`` under ``u`` (components)."""
+
+    def normalize(self, y):
+        """``y`` projected back onto the state manifold (unit quaternions, unit vectors)."""
+
+    def readouts(self, y, u) -> tuple:
+        """The physical read-outs in ``readout_names`` order at ``y`` after a period under
+        ``u`` (``None`` after a reset); floats or arrays."""
+
+    def angular_velocity(self, y):
+        """Body angular velocity ``Omega`` [rad/s] (components)."""
+
+    def guard_rates(self, region: StepRegion) -> GuardRates:
+        """The rates the internal step must resolve with an integrator of ``region``."""
+
+
+@runtime_checkable
+class HybridSystem(System, Protocol):
+    """A system whose contact can switch (the tippe top's lift-off and touchdown).
+
+    ``events(u)``: the events to watch after each internal step, each ``(name, guard_fn,
+    applies, tolerance, switch)``: ``applies(y)`` whether the event can happen from ``y``'s
+    mode, ``guard_fn(y)`` a function whose sign change (>= 0 to < 0) is the event, located to
+    ``tolerance`` inside the step by the hybrid layer (:mod:`rbenvs.core.hybrid`), and
+    ``switch(y) -> y`` the state in the new mode at the event. The system never calls an
+    integrator: locating an event is the hybrid layer's job.
+    """
+
+    def events(self, u) -> tuple:
+        """The switching events under control ``u``."""
+
+
+@runtime_checkable
+class Task(Protocol):
+    """What an agent is asked to do with a system: start, observation, reward, end.
+
+    Attributes: ``name``; ``observation_names`` and ``observation_units`` (one per observation
+    component); ``metric_names`` (the ``info`` keys of the metrics, ``is_success`` last);
+    ``final_measure`` (the metric that summarises an episode's end, for ``rbenvs run``);
+    ``controller`` (the name of the reference controller in :mod:`rbenvs.controllers`).
+    """
+
+    name: str
+    observation_names: tuple
+    metric_names: tuple
+
+    def initial_state(self, system, rng, shape):
+        """Components of a random initial state drawn from ``rng``."""
+
+    def observe(self, system, y) -> tuple:
+        """The observation components at ``y``."""
+
+    def evaluate(self, system, y, u_norm):
+        """``(reward, terminated, metrics)``: metrics a dict in ``metric_names`` order."""
+
+
+@runtime_checkable
+class Integrator(Protocol):
+    """How to advance a state by ``h`` (stateless, immutable).
+
+    Attributes: ``name``; ``order`` (global order for smooth problems); ``evaluations`` (rhs
+    calls per step, ``None`` if not rhs-based); ``conserves`` (invariants kept to round-off);
+    ``requires`` (system capabilities it needs); ``region`` (:class:`StepRegion`).
+    """
+
+    name: str
+    order: int
+    region: StepRegion
+
+    def supports(self, system) -> bool:
+        """Whether ``system`` offers everything this scheme needs."""
+
+    def step(self, system, y, u, h):
+        """``y`` advanced by ``h`` under ``u``."""
+
+
+@runtime_checkable
+class Actuator(Protocol):
+    """Maps a normalised action (components in ``[-1, 1]``) to the system's controls.
+
+    ``size``: the action size. ``control(a) -> (u_norm, u)``: the normalised action on every
+    input (0 where none acts; for the reward's effort term) and the physical control, on
+    floats or arrays alike.
+    """
+
+    size: int
+
+    def control(self, a) -> tuple:
+        """``(u_norm, u)`` for the action components ``a``."""
+
+
+class StepResult(NamedTuple):
+    """Everything one control period produces (floats for one env, arrays for a batch).
+
+    ``y``: the new state (the last finite one where the period failed); ``obs``: observation
+    (float32, clipped to the bounds); ``reward``; ``terminated``; ``info``: read-outs, metrics,
+    ``internal_step``, ``numerical_failure`` (and ``terminal_reason`` where an episode ended);
+    ``u``: the control that acted (an input of the next read-outs: the tippe top's normal force
+    depends on it); ``event``: the name of the event that ended the period, or ``None``.
+    """
+
+    y: Any
+    obs: Any
+    reward: Any
+    terminated: Any
+    info: dict
+    u: Any = None
+    event: Any = None
+
+
+def require_parts(obj, protocol, role: str) -> None:
+    """``TypeError`` naming ``role`` and the missing members unless ``obj`` provides every
+    member of ``protocol`` (checked once, at construction)."""
+    missing = [name for name in _members(protocol) if not hasattr(obj, name)]
+    if missing:
+        raise TypeError(f"{role} {type(obj).__name__} does not provide {missing} ({protocol.__name__} contract, rbenvs.contracts)")
+
+
+def _members(protocol) -> list[str]:
+    names = []
+    for klass in reversed(protocol.__mro__):
+        if klass in (object, Protocol) or not getattr(klass, "_is_protocol", False):
+            continue
+        names += [n for n in getattr(klass, "__annotations__", {})]
+        names += [n for n, v in vars(klass).items() if callable(v) and not n.startswith("_")]
+    return sorted(set(names))

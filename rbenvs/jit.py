@@ -1,0 +1,64 @@
+"""The marker that lets compiled code call the package's own pure functions.
+
+:func:`jitable` leaves a function exactly what it was (the single env calls it on Python
+floats, the numpy batch on arrays, with no wrapper in between) and, once numba is in use,
+registers it so that compiled kernels (:mod:`rbenvs.compiled`) may call it too. It sits at the
+bottom of the package's layers: rotations, dynamics and tasks mark their functions with it.
+
+numba is optional (the ``fast`` extra); ``RBENVS_COMPILED=0`` in the environment keeps every
+path on numpy even where it is installed (:func:`available`).
+"""
+
+from __future__ import annotations
+
+import os
+
+__all__ = ["jitable", "available", "register_all", "register", "DISABLE_VARIABLE"]
+
+# set to "0" to keep the numpy path even where numba is installed (comparisons, debugging)
+DISABLE_VARIABLE = "RBENVS_COMPILED"
+
+_JITABLE: list = []  # pure functions compiled code may call, in definition order
+_registered = False
+_done: set = set()  # ids of the functions registered with numba (each once)
+
+
+def jitable(fn):
+    """Mark ``fn`` as callable from a compiled kernel; returns ``fn`` itself, unchanged.
+
+    ``fn`` must be pure arithmetic on floats and tuples of floats (it is also run on numpy
+    arrays by the batched numpy path): ``math``/``numpy`` scalar functions, ``if`` on ``is
+    None`` and ``isinstance`` (resolved at compile time), calls to other jitable functions.
+    """
+    _JITABLE.append(fn)
+    if _registered:
+        register(fn)
+    return fn
+
+
+def available() -> bool:
+    """Whether compiled kernels can be used: numba importable and not disabled."""
+    if os.environ.get(DISABLE_VARIABLE, "1") == "0":
+        return False
+    try:
+        import numba  # noqa: F401
+    except ImportError:
+        return False
+    return True
+
+
+def register(fn) -> None:
+    if id(fn) in _done:
+        return
+    from numba.extending import register_jitable
+
+    register_jitable(fn)
+    _done.add(id(fn))
+
+
+def register_all() -> None:
+    global _registered
+    if not _registered:
+        for fn in _JITABLE:
+            register(fn)
+        _registered = True
