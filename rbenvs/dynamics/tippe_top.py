@@ -33,11 +33,11 @@ contact flag ``c`` (1 on the table, 0 in flight) and the number of lift-offs so 
 zero derivative, so every integrator carries them unchanged. In contact (``c = 1``) the vector
 field is the constrained one above and :meth:`normalize` keeps ``(z, v_z)`` on the constraint;
 in flight (``c = 0``) no contact force acts: ``G`` falls freely and the rotation is torque-free
-(Jellett's integral and the energy are conserved in flight). The switches are made between
-internal steps by :meth:`switch_contact`: lift-off when ``N < 0`` (located to within one
-internal step: until then the constraint, which does no work, holds), touchdown when the
-sphere reaches the table (located to round-off by a bracketed Newton iteration on the
-integrator's own step), followed by a plastic, frictionless impact (:meth:`impact`): the normal
+(Jellett's integral and the energy are conserved in flight). The switches are declared by
+:meth:`events` and made between internal steps by the hybrid layer (:mod:`rbenvs.core.hybrid`,
+which alone calls the integrator): lift-off when ``N < 0`` and touchdown when the sphere
+reaches the table, each located inside the step to round-off by regula falsi on the
+integrator's own step; a touchdown is followed by a plastic, frictionless impact (:meth:`impact`): the normal
 impulse stops the contact point's vertical motion, removes ``lambda^2 M_zz / 2`` of energy and
 keeps Jellett's integral exactly (an impulse at the contact point has no moment about ``r``).
 State ``(x, y, z, vx, vy, vz, q, Omega, c, hops)``: 15 components.
@@ -59,24 +59,35 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import Callable, NamedTuple
 
 import numpy as np
 
 from ..contracts import GuardRates
 from ..jit import jitable
 from ..rotations import atan2, maximum, quat_normalize, sqrt
+from .contact import FRICTION_LAWS
 from .validation import real_array, require_choice, require_finite_nonnegative, require_finite_positive, require_finite_result, require_real_vector
 
-__all__ = ["TippeTopParams", "TippeTop", "FIDELITIES", "FRICTION_LAWS", "SPIN_STEP", "FRICTION_MARGIN", "tippe_rotation_rate"]
+class Event(NamedTuple):
+    """A switching event of a hybrid system (:meth:`TippeTop.events`): where it can happen
+    (``applies(y)``), the function whose sign change (``>= 0`` to ``< 0``) it is, the tolerance
+    to locate it to, and the state in the new mode at the event (``switch(y)``)."""
+
+    name: str
+    applies: Callable
+    function: Callable
+    tolerance: float
+    switch: Callable
+
+
+__all__ = ["TippeTopParams", "TippeTop", "Event", "FIDELITIES", "FRICTION_LAWS", "SPIN_STEP", "FRICTION_MARGIN", "tippe_rotation_rate"]
 
 FIDELITIES = ("gliding", "frictionless", "rolling")
 # Free flight: the lift-off is located to |N| <= LIFT_OFF_TOL m g and the touchdown to
-# |gap| <= TOUCHDOWN_TOL a (a few ulp of the height), in at most LOCATE_ITERATIONS trial steps.
+# |gap| <= TOUCHDOWN_TOL a (a few ulp of the height), by rbenvs.core.hybrid.
 LIFT_OFF_TOL = 1e-12
 TOUCHDOWN_TOL = 1e-13
-LOCATE_ITERATIONS = 60
-EPS = float(np.finfo(float).eps)
-FRICTION_LAWS = ("coulomb", "viscous")
 # The step guard: the contact geometry turns with the body, so every scheme takes at most
 # SPIN_STEP rad of max(|Omega|, omega_g) per internal step (an accuracy bound), and at most
 # FRICTION_MARGIN of its real-axis stability interval of the friction's stiffness.
@@ -171,7 +182,8 @@ class TippeTop:
         self.flight = bool(flight)
         if self.flight and self.rolling:
             raise ValueError("flight=True needs fidelity 'gliding' or 'frictionless' (a rolling top has no slip to resume after a touchdown)")
-        self.friction_law = None if fidelity != "gliding" else params.friction_law
+        self.friction_law = None if fidelity != "gliding" else params.friction_law  # its name
+        self.friction = None if self.friction_law is None else FRICTION_LAWS[self.friction_law]  # the law (dynamics.contact)
         if self.flight:
             self.layout = {"position": (0, 3), "velocity": (3, 6), "attitude": (6, 10), "angular_velocity": (10, 13), "contact": (13, 14), "hops": (14, 15)}
             self.dim = 15
@@ -291,14 +303,8 @@ class TippeTop:
         s3 = vb[2] + w1 * r[1] - w2 * r[0]
         sv = s1 * g1 + s2 * g2 + s3 * g3  # zero by the constraint; removed against round-off
         s1, s2, s3 = s1 - sv * g1, s2 - sv * g2, s3 - sv * g3
-        law = self.friction_law
-        if law == "coulomb":
-            eps = prm.slip_regularization
-            k = -mu / sqrt(s1 * s1 + s2 * s2 + s3 * s3 + eps * eps)
-        elif law == "viscous":
-            k = -mu
-        else:
-            k = 0.0
+        law = self.friction
+        k = 0.0 if law is None else law.coefficient(mu, s1, s2, s3, prm.slip_regularization)
         f1, f2, f3 = k * s1, k * s2, k * s3  # friction per unit normal force
         e1, e2, e3 = g1 + f1, g2 + f2, g3 + f3  # contact force per unit N
         # torque per unit N about G, over the moments: a1 = I^-1 (r x e)
@@ -444,66 +450,45 @@ class TippeTop:
         out = y[:5] + (y[5] + lam / prm.mass,) + y[6:10] + w + (1.0, y[14])
         return self.normalize(out), lam
 
-    def switch_contact(self, y_prev, y, u, h, integrator):
-        """Contact switches after one internal step ``y_prev -> y`` of length ``h`` (floats: one
-        state). An event (lift-off: on the table and ``N < 0`` at the end; touchdown: in flight
-        and the sphere below the table at the end) is located inside the step by a bracketed
-        regula falsi (Illinois) whose every trial is one step of ``integrator`` from ``y_prev``;
-        the switch is made there (after a touchdown, the plastic :meth:`impact`) and the rest of
-        the step taken in the new mode. Locating the lift-off matters for the energy: past
-        ``N = 0`` the friction law would push along the slip. A state that already violates its
-        mode at the start of the step (a second event inside one step) switches at once."""
+    def events(self, u):
+        """The contact switches to watch after each internal step under control ``u``
+        (:class:`rbenvs.contracts.HybridSystem`; located and applied by
+        :mod:`rbenvs.core.hybrid`, which calls the integrator: the dynamics never does).
+
+        * lift-off, from the table (``c = 1``): the constraint's normal force turns negative
+          (located to ``|N| <= LIFT_OFF_TOL m g``); the state goes to flight (``c = 0``) and the
+          hop count up by one. Locating it matters for the energy: past ``N = 0`` the friction
+          law would push along the slip.
+        * touchdown, in flight: the sphere's gap to the table turns negative (located to
+          ``|gap| <= TOUCHDOWN_TOL a``); the state after the plastic :meth:`impact`.
+        """
+        if not self.flight:
+            return ()
         prm = self.params
-        if y_prev[13] == 1.0:
-            def normal(z):
-                return self.constraint_normal_force(z, u)
 
-            n_end = normal(y)
-            if n_end >= 0.0:
-                return y
-            if normal(y_prev) < 0.0:
-                t, y_off = 0.0, y_prev
-            else:
-                t, y_off = self._locate(y_prev, y, n_end, u, h, integrator, normal, LIFT_OFF_TOL * prm.mass * prm.gravity)
-            y_off = y_off[:13] + (0.0, y_off[14] + 1.0)
-            return integrator.step(self, y_off, u, h - t) if t < h else y_off
-        gap_end = self.gap(y)
-        if gap_end >= 0.0:
-            return y
-        if self.gap(y_prev) <= 0.0:
-            t, y_hit = 0.0, y_prev
-        else:
-            t, y_hit = self._locate(y_prev, y, gap_end, u, h, integrator, self.gap, TOUCHDOWN_TOL * prm.radius)
-        y_on, _ = self.impact(y_hit)
-        return integrator.step(self, y_on, u, h - t) if t < h else y_on
+        def normal(z):
+            return self.constraint_normal_force(z, u)
 
-    def _locate(self, y0, y1, f1, u, h, integrator, event, tol):
-        """First time ``t`` in ``(0, h]`` where ``event`` (>= 0 at ``y0``, ``f1 < 0`` at ``y1``)
-        turns negative, to ``|event| <= tol`` or the bracket's round-off: ``(t, state at t)``
-        with ``event(state) < 0``, the state from one step of ``integrator`` of length ``t``."""
-        a, fa = 0.0, event(y0)
-        b, fb, yb = h, f1, y1
-        wa, wb = fa, fb  # Illinois weights (halved on a repeated side)
-        side = 0
-        for _ in range(LOCATE_ITERATIONS):
-            if fb >= -tol or b - a <= 4.0 * EPS * h:
-                break
-            t = (a * wb - b * wa) / (wb - wa)
-            if not a < t < b:
-                t = 0.5 * (a + b)
-            yt = integrator.step(self, y0, u, t)
-            ft = event(yt)
-            if ft < 0.0:
-                b, fb, yb, wb = t, ft, yt, ft
-                if side == -1:
-                    wa *= 0.5
-                side = -1
-            else:
-                a, fa, wa = t, ft, ft
-                if side == 1:
-                    wb *= 0.5
-                side = 1
-        return b, yb
+        lift_off = Event("lift_off", self.on_table, normal, LIFT_OFF_TOL * prm.mass * prm.gravity, self.take_off)
+        touchdown = Event("touchdown", self.airborne, self.gap, TOUCHDOWN_TOL * prm.radius, self.touch_down)
+        return (lift_off, touchdown)
+
+    @staticmethod
+    def on_table(y) -> bool:
+        return y[13] == 1.0
+
+    @staticmethod
+    def airborne(y) -> bool:
+        return y[13] != 1.0
+
+    @staticmethod
+    def take_off(y):
+        """The state at a lift-off: in flight, one more hop."""
+        return y[:13] + (0.0, y[14] + 1.0)
+
+    def touch_down(self, y):
+        """The state after a touchdown: the plastic impact's."""
+        return self.impact(y)[0]
 
     def constraint_normal_force(self, y, u):
         """``N`` [N] the contact constraint asks for at ``y`` under ``u`` (negative: the table
@@ -666,17 +651,15 @@ class TippeTop:
     # twice the larger of m g and the current N (N varies within a control period) and keeps half
     # of the scheme's real-axis interval (FRICTION_MARGIN).
     def friction_stiffness(self, mu, normal_force=None):
-        """``lambda_d = mu 2 max(m g, N) |M|`` (``/ eps`` for Coulomb) [1/s]; 0 without friction.
-        ``mu`` and ``normal_force`` may be arrays (a batch)."""
-        if self.friction_law is None:
+        """``lambda_d`` [1/s]: the friction law's stiffness (:mod:`rbenvs.dynamics.contact`) at
+        twice ``max(m g, N)`` and the contact mobility ``|M|`` (Coulomb: ``mu 2 max(m g, N) |M|
+        / eps``); 0 without friction. ``mu`` and ``normal_force`` may be arrays (a batch)."""
+        if self.friction is None:
             return 0.0
         prm = self.params
         weight = prm.mass * prm.gravity
         load = weight if normal_force is None else np.maximum(weight, normal_force)
-        rate = mu * 2.0 * load * prm.contact_mobility()
-        if self.friction_law == "coulomb":
-            rate = rate / prm.slip_regularization
-        return rate
+        return self.friction.stiffness(mu, 2.0 * load, prm.contact_mobility(), prm.slip_regularization)
 
     def friction_rate(self, _p, y, u):
         """The guard's ``lambda_d`` at ``y`` under ``u`` (``(fn, P)`` form: ``P`` unused)."""
@@ -693,7 +676,7 @@ class TippeTop:
         dissipation = (self.friction_rate, ()) if self.friction_law is not None else None
         text = f"lambda = max(|Omega|, omega_g) (omega_g = {omega_g:.6g} rad/s)"
         if dissipation is not None:
-            text += f", lambda_d = mu 2 max(m g, N) |M|{' / eps' if self.friction_law == 'coulomb' else ''} (the friction law's stiffness)"
+            text += f", lambda_d = the {self.friction_law} law's stiffness at 2 max(m g, N)"
         return GuardRates(rotation=(tippe_rotation_rate, (self._w, omega_g)), rotation_bound=SPIN_STEP, dissipation=dissipation,
                           dissipation_margin=FRICTION_MARGIN, ceiling=max(speed_ceiling, omega_g), text=text)
 

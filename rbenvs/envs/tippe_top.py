@@ -11,6 +11,7 @@ from ..dynamics import TippeTop, TippeTopParams
 from ..dynamics.tippe_top import FIDELITIES
 from ..dynamics.validation import require_bool, require_choice, require_finite_nonnegative, require_range
 from ..tasks import HoldTask, InvertTask
+from ..core.hybrid import Switching
 from .base import RigidBodyEnv, require_float32_bound
 
 __all__ = ["TippeTopEnv"]
@@ -233,6 +234,7 @@ class TippeTopEnv(RigidBodyEnv):
         change = self.max_torque * math.sqrt(3.0) * self._dt / min(params.inertia)
         self._require_authority("max_torque", change, "max_angular_velocity", max_w, "angular velocity [rad/s]")
         self._u = None  # the control of the last step (info's normal force depends on it)
+        self._switching = None  # the hybrid layer, made at the first switch check
         self._last_h = self._h
         self._lifted = False
 
@@ -280,30 +282,14 @@ class TippeTopEnv(RigidBodyEnv):
         return self.system.contact_forces(y, u)[0] < 0.0
 
     def _switch_contact(self, y_prev, y, u, h):
-        """With free flight: lift-off and touchdown after each internal step
-        (:meth:`rbenvs.dynamics.TippeTop.switch_contact`); a batch runs the rare switches
-        element by element through the same float code, so sub-env ``i`` of the vector env
-        takes exactly the single env's steps."""
-        system, integ = self.system, self.integrator
-        if not isinstance(y[0], np.ndarray):
-            return system.switch_contact(y_prev, y, u, h, integ)
-        on_table = y_prev[13] == 1.0
-        with np.errstate(invalid="ignore"):
-            switch = np.where(on_table, system.constraint_normal_force(y, u) < 0.0, system.gap(y) < 0.0)
-        if switch.any():
-            y = [np.array(c, dtype=np.float64) for c in y]
-            for i in np.flatnonzero(switch):
-                one = system.switch_contact(
-                    tuple(float(c[i]) for c in y_prev),
-                    tuple(float(c[i]) for c in y),
-                    None if u is None else tuple(float(c[i]) if np.ndim(c) else float(c) for c in u),
-                    float(h[i]) if np.ndim(h) else float(h),
-                    integ,
-                )
-                for c, v in zip(y, one):
-                    c[i] = v
-            y = tuple(y)
-        return y
+        """With free flight: lift-off and touchdown after each internal step, located and made
+        by the hybrid layer (:class:`rbenvs.core.hybrid.Switching`, from the system's declared
+        events); a batch runs the rare switches element by element through the same float code,
+        so sub-env ``i`` of the vector env takes exactly the single env's steps."""
+        switching = self._switching
+        if switching is None or switching.system is not self.system:  # (verify swaps in mutants)
+            switching = self._switching = Switching(self.system, self.integrator)
+        return switching.after_step(y_prev, y, u, h)
 
     def _advance(self, y, u):
         y, event = super()._advance(y, u)
