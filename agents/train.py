@@ -1,7 +1,7 @@
 """Training stable-baselines3 agents on rbenvs scenes, on the native vector env.
 
 ``train(algo, scene, seed)`` builds the scene's batched vector env through the SB3 adapter
-(:mod:`rbenvs_agents.sb3_vec_env`; one batched physics call per step for all sub-envs; with
+(:mod:`rbenvs.vector.sb3`; one batched physics call per step for all sub-envs; with
 ``n_envs: 1``, SB3's ``DummyVecEnv`` of one single env, whose float path is faster), the
 algorithm with the hyperparameters of ``configs/agents/<algo>.yml``, and learns for the
 configured budget with a progress bar and optional checkpoints. The run directory receives
@@ -57,7 +57,7 @@ def train(algo: str, scene, seed: int = 0, timesteps: int | None = None, out_dir
     import torch
     from stable_baselines3.common.callbacks import CallbackList, CheckpointCallback
 
-    from .sb3_vec_env import make_sb3_vec_env
+    from rbenvs.vector.sb3 import make_sb3_vec_env
 
     cfg = agent_config(algo, scene.env_id, scene.name, **overrides)
     total = int(timesteps if timesteps is not None else cfg.n_timesteps)

@@ -67,9 +67,6 @@ def _cmd_scenes(args) -> int:
     return 0
 
 
-_FINAL_MEASURE = {"spin": "alignment", "detumble": "angular_speed", "reorient": "attitude_error", "upright": "tilt", "precess": "tilt_error", "invert": "tilt", "hold": "tilt"}
-
-
 def run_episode(env, policy, seed):
     """One episode; returns (return, first info, last info, steps)."""
     obs, info0 = env.reset(seed=seed)
@@ -103,8 +100,7 @@ def _run_scene(scene, args) -> None:
     from .controllers import ZeroController, controller_for
 
     env = scene.make()
-    task = env.unwrapped.task.name
-    measure = _FINAL_MEASURE[task]
+    measure = env.unwrapped.task.final_measure  # the metric or read-out that summarises an episode's end
     print(f"scene {scene.name!r}: {scene.description}")
     print(f"  {scene.env_id} {scene.kwargs}")
     print(f"  dt = {env.unwrapped.dt} s, {env.spec.max_episode_steps} steps, integrator {env.unwrapped.integrator.name}, {args.episodes} episodes from seed {args.seed}\n")

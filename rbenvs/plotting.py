@@ -42,10 +42,10 @@ def _run_zero_action(env, state, steps, stop=None):
     every step, stopping early when ``stop(info)`` is true."""
     env.reset(seed=0, options={"state": state} if state is not None else None)
     a = np.zeros(env.action_space.shape, dtype=np.float32)
-    ys = [env._y]
+    ys = [env.unwrapped.state_components]
     for _ in range(steps):
         _, _, _, _, info = env.step(a)
-        ys.append(env._y)
+        ys.append(env.unwrapped.state_components)
         if stop is not None and stop(info):
             break
     return ys

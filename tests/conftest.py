@@ -1,7 +1,9 @@
 import gymnasium as gym
+import numpy as np
 import pytest
 
 import rbenvs
+from rbenvs import vector
 
 ENV_IDS = sorted(rbenvs.ENVIRONMENTS)
 
@@ -24,3 +26,112 @@ def all_variants():
             for integ in cls.integrators:
                 out.append(pytest.param(env_id, task, integ, id=f"{env_id}-{task}-{integ}"))
     return out
+
+
+# ---------------------------------------------------------------- vector env = single envs
+# Shared by tests/test_vector.py and tests/test_compiled.py.
+FREE, LAGRANGE, TIPPE = "rbenvs/FreeRigidBody-v0", "rbenvs/LagrangeTop-v0", "rbenvs/TippeTop-v0"
+VECTOR_CLASS = {FREE: vector.FreeRigidBodyVectorEnv, LAGRANGE: vector.LagrangeTopVectorEnv, TIPPE: vector.TippeTopVectorEnv}
+# the tippe top's read-outs that depend on the last control period, not on the state alone
+TIPPE_CONTROL_READOUTS = {"normal_force", "internal_step"}
+
+
+def make_vec(env_id, n, **kwargs):
+    return gym.make_vec(env_id, num_envs=n, vectorization_mode="vector_entry_point", **kwargs)
+
+
+def make_singles(env_id, n, **kwargs):
+    return [gym.make(env_id, **kwargs) for _ in range(n)]
+
+
+def same(a, b):
+    """Bit-for-bit equality of two numbers or arrays (NaN equal to NaN)."""
+    return np.array_equal(np.asarray(a), np.asarray(b), equal_nan=True)
+
+
+def same_state(a, b):
+    return set(a) == set(b) and all(np.array_equal(a[k], b[k]) for k in a)
+
+
+def random_actions(rng, space, scale=2.0):
+    """Actions in [-scale, scale]: many outside the action space (clipped by the envs)."""
+    return rng.uniform(-scale, scale, space.shape).astype(np.float32)
+
+
+def check_info_row(vinfo, i, single_info, skip=()):
+    """Every key of the single env's info equals row ``i`` of the vector info, bit for bit."""
+    for key, value in single_info.items():
+        if key in skip:
+            continue
+        if key == "terminal_reason":
+            assert vinfo["_terminal_reason"][i] and vinfo["terminal_reason"][i] == value, (key, i)
+            continue
+        assert key in vinfo and vinfo["_" + key][i], (key, i)
+        assert same(vinfo[key][i], value), (key, i, vinfo[key][i], value)
+    if "terminal_reason" not in single_info and "terminal_reason" in vinfo:
+        assert vinfo["terminal_reason"][i] == "", i
+
+
+def lockstep(env_id, n, seed, steps, mode, max_steps, kwargs, action_scale=2.0, vector_kwargs=None):
+    """Run a vector env and ``n`` single envs side by side; assert sub-env ``i`` equals single
+    env ``i`` (seeded ``seed + i``) bit for bit. Returns (#terminations, #truncations, infos).
+    ``vector_kwargs``: arguments of the vector env alone (``compiled``)."""
+    venv = make_vec(env_id, n, max_episode_steps=max_steps, autoreset_mode=mode, **kwargs, **(vector_kwargs or {}))
+    singles = make_singles(env_id, n, max_episode_steps=max_steps, **kwargs)
+    reset_skip = ()  # every info key, the tippe top's control-dependent read-outs included
+    rng = np.random.default_rng(seed)
+    obs, info = venv.reset(seed=seed)
+    assert obs.dtype == np.float32 and obs.shape == venv.observation_space.shape
+    for i, env in enumerate(singles):
+        o, inf = env.reset(seed=seed + i)
+        assert same(obs[i], o)
+        check_info_row(info, i, inf)
+    prev_done = np.zeros(n, dtype=bool)
+    n_term = n_trunc = 0
+    infos = [info]
+    for t in range(steps):
+        a = random_actions(rng, venv.action_space, action_scale)
+        obs, reward, terminated, truncated, info = venv.step(a)
+        infos.append(info)
+        assert obs.dtype == np.float32 and reward.dtype == np.float64 and terminated.dtype == bool and truncated.dtype == bool
+        assert obs.shape == venv.observation_space.shape and reward.shape == terminated.shape == truncated.shape == (n,)
+        for i, env in enumerate(singles):
+            if mode == "NextStep" and prev_done[i]:
+                # the step after a done resets the sub-env: first obs, reward 0, no flags
+                o, inf = env.reset()
+                assert same(obs[i], o) and reward[i] == 0.0 and not terminated[i] and not truncated[i], (t, i)
+                check_info_row(info, i, inf, skip=reset_skip)
+                continue
+            o, r, te, tr, inf = env.step(a[i])
+            assert reward[i] == r and terminated[i] == te and truncated[i] == tr, (t, i, reward[i], r)
+            n_term += te
+            n_trunc += tr
+            if mode == "SameStep" and (te or tr):
+                assert info["_final_obs"][i] and info["_final_info"][i]
+                assert same(np.asarray(info["final_obs"][i], dtype=np.float32), o), (t, i)
+                check_info_row(info["final_info"], i, inf)
+                o, inf = env.reset()
+                skip = reset_skip
+            else:
+                if mode == "SameStep" and "_final_obs" in info:
+                    assert not info["_final_obs"][i] and info["final_obs"][i] is None
+                skip = ()
+            assert same(obs[i], o), (t, i, obs[i], o)
+            check_info_row(info, i, inf, skip=skip)
+        prev_done = terminated | truncated
+    venv.close()
+    return n_term, n_trunc, infos
+
+
+# ---------------------------------------------------------------- the tests' own formulas
+def rotation(q):
+    """Body-to-space rotation matrix of the quaternion ``q = (w, x, y, z)`` (the tests' own
+    formula, independent of rbenvs.rotations)."""
+    w, x, y, z = q
+    return np.array(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+            [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+            [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
+        ]
+    )

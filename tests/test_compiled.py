@@ -15,7 +15,7 @@ import pytest
 from rbenvs import compiled, vector
 from rbenvs.envs import NumericalFailureWarning
 
-from test_vector import FREE, LAGRANGE, TIPPE, lockstep, make_singles, make_vec, same
+from conftest import FREE, LAGRANGE, TIPPE, lockstep, make_singles, make_vec, same
 
 # (numba is in the dev extra, so CI runs these; RBENVS_COMPILED=0 runs the rest on numpy)
 needs_numba = pytest.mark.skipif(not compiled.available(), reason="the compiled path needs the 'fast' extra (numba) and RBENVS_COMPILED unset")
@@ -43,20 +43,21 @@ def _ids(cases):
 @pytest.mark.parametrize("task", ["spin", "detumble"])
 def test_single_env_generated_finish_equals_the_methods(task):
     """The single env's generated read-out function (rbenvs.compiled.state_finish) gives the
-    observation, bound flag, reward, termination and info of the task's and env's methods,
+    observation, bound flag, reward, termination and info of the engine's component methods,
     for states inside and outside the observation bounds (where the observation is clipped)."""
     env = gym.make(FREE, task=task, max_angular_velocity=2.0).unwrapped
     env.reset(seed=0)
-    finish, po, pe, pr = env._pure
+    engine = env.engine
+    finish, po, pe, pr = engine.finish_one
     rng = np.random.default_rng(5)
     outside = 0
     for _ in range(300):
         y = tuple(float(v) for v in rng.normal(0.0, 2.5, 3))
         u = [float(v) for v in rng.uniform(-1.0, 1.0, 3)]
-        obs, over, reward, terminated, info = finish(y, u, po, pe, pr, env._last_h)
-        want_obs, want_over = env._observation(y)
-        want_reward, want_terminated, metrics = env._evaluate(y, u)
-        want_info = env._info(y, numerical_failure=False, metrics=metrics)
+        obs, over, reward, terminated, info = finish(y, u, po, pe, pr, engine.h)
+        want_obs, want_over = engine.observe(y)
+        want_reward, want_terminated, metrics = engine.evaluate(y, u)
+        want_info = engine.info_one(y, u, False, engine.h, metrics, failed=False)
         assert obs.dtype == np.float32 and same(obs, want_obs) and over == want_over
         assert type(reward) is float and reward == want_reward and terminated is want_terminated
         assert list(info) == list(want_info) and all(type(info[k]) is type(want_info[k]) and info[k] == want_info[k] for k in info)
@@ -95,14 +96,14 @@ def test_guarded_periods_switch_paths():
     the same setting to single envs bit for bit)."""
     venv = vector.FreeRigidBodyVectorEnv(num_envs=3, integrator="euler", spin_rate=1.8, perturbation=0.5)
     numpy_periods = 0
-    numpy_advance = venv._advance
+    numpy_advance = venv.engine.advance
 
     def counted(*args):
         nonlocal numpy_periods
         numpy_periods += 1
         return numpy_advance(*args)
 
-    venv._advance = counted  # the numpy path's period (the kernel's guard sent it back)
+    venv.engine.advance = counted  # the numpy path's period (the kernel's guard sent it back)
     venv.reset(seed=11)
     rng = np.random.default_rng(0)
     for _ in range(120):

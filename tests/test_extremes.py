@@ -147,9 +147,9 @@ def test_heavy_top_subdivides_by_the_documented_rule(kwargs, rate):
 @pytest.mark.parametrize(
     "make",
     [
-        lambda g: FreeRigidBodyEnv(spin_rate=100.0, max_angular_velocity=1e3, guard=g),
-        lambda g: LagrangeTopEnv(integrator="rk4", spin=100.0, max_angular_velocity=1e3, guard=g),
-        lambda g: TippeTopEnv(guard=g),  # the default top needs ~160 steps per period
+        lambda g, n=1: FreeRigidBodyEnv(spin_rate=100.0, max_angular_velocity=1e3, guard=g, substeps=n),
+        lambda g, n=1: LagrangeTopEnv(integrator="rk4", spin=100.0, max_angular_velocity=1e3, guard=g, substeps=n),
+        lambda g, n=1: TippeTopEnv(guard=g, substeps=n),  # the default top needs ~160 steps per period
     ],
     ids=["free", "lagrange", "tippe"],
 )
@@ -163,8 +163,7 @@ def test_refuse_raises_naming_substeps_and_keeps_the_state(make):
     assert all(same(before[k], v) for k, v in env.get_state().items())
     # enough substeps: accepted, and the same steps as the subdivided env
     n = int(str(err.value).split(" needs ")[1].split()[0])
-    ok, sub = make("refuse"), make("subdivide")
-    ok.substeps, ok._h = n, ok.dt / n  # as if constructed with substeps=n
+    ok, sub = make("refuse", n), make("subdivide")
     ok.reset(seed=0), sub.reset(seed=0)
     assert same(ok.step(zeros(ok))[0], sub.step(zeros(sub))[0])
 

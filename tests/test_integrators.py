@@ -320,7 +320,7 @@ def _bind_cases():
 
     for env in (FreeRigidBodyEnv(), FreeRigidBodyEnv(task="reorient"), LagrangeTopEnv(), TippeTopEnv(free_flight=True)):
         env.reset(seed=3)
-        yield env.system, env._y, env._control(env.action_space.sample().tolist())[1]
+        yield env.system, env._y, env.actuator.control(env.action_space.sample().tolist())[1]
 
 
 @pytest.mark.parametrize("name", sorted(INTEGRATORS))

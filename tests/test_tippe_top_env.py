@@ -18,6 +18,8 @@ from stable_baselines3.common.env_checker import check_env as sb3_check_env
 from rbenvs.envs import NumericalFailureWarning, TippeTopEnv
 from rbenvs.integrators import RK4, get_integrator
 
+from conftest import rotation
+
 ID = "rbenvs/TippeTop-v0"
 NAN, INF = float("nan"), float("inf")
 FIDELITIES = ("gliding", "frictionless", "rolling")
@@ -44,18 +46,6 @@ class _DivergingRK4(RK4):
     def step(self, system, y, u, h):
         y = super().step(system, y, u, h)
         return tuple(float("nan") for _ in y) if self.diverge else y
-
-
-def rotation(q):
-    """Body-to-space rotation matrix of the quaternion ``q = (w, x, y, z)`` (own formula)."""
-    w, x, y, z = q
-    return np.array(
-        [
-            [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-            [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-            [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
-        ]
-    )
 
 
 def tilted(theta):

@@ -17,7 +17,7 @@ import rbenvs  # noqa: F401  (registers the ids)
 from rbenvs.dynamics import TippeTop, TippeTopParams
 from rbenvs.dynamics.tippe_top import TOUCHDOWN_TOL
 from rbenvs.envs import TippeTopEnv
-from test_tippe_top_env import rotation  # the body-to-space matrix, the tests' own formula
+from conftest import rotation  # the body-to-space matrix, the tests' own formula
 
 ZERO = np.zeros(2, dtype=np.float32)
 

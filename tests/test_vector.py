@@ -19,103 +19,7 @@ import rbenvs
 from rbenvs import vector
 from rbenvs.envs import NumericalFailureWarning
 
-from conftest import ENV_IDS
-
-FREE, LAGRANGE, TIPPE = "rbenvs/FreeRigidBody-v0", "rbenvs/LagrangeTop-v0", "rbenvs/TippeTop-v0"
-VECTOR_CLASS = {FREE: vector.FreeRigidBodyVectorEnv, LAGRANGE: vector.LagrangeTopVectorEnv, TIPPE: vector.TippeTopVectorEnv}
-# the tippe top's read-outs that depend on the last control period, not on the state alone
-TIPPE_CONTROL_READOUTS = {"normal_force", "internal_step"}
-
-
-def make_vec(env_id, n, **kwargs):
-    return gym.make_vec(env_id, num_envs=n, vectorization_mode="vector_entry_point", **kwargs)
-
-
-def make_singles(env_id, n, **kwargs):
-    return [gym.make(env_id, **kwargs) for _ in range(n)]
-
-
-def same(a, b):
-    """Bit-for-bit equality of two numbers or arrays (NaN equal to NaN)."""
-    return np.array_equal(np.asarray(a), np.asarray(b), equal_nan=True)
-
-
-def same_state(a, b):
-    return set(a) == set(b) and all(np.array_equal(a[k], b[k]) for k in a)
-
-
-def random_actions(rng, space, scale=2.0):
-    """Actions in [-scale, scale]: many outside the action space (clipped by the envs)."""
-    return rng.uniform(-scale, scale, space.shape).astype(np.float32)
-
-
-def check_info_row(vinfo, i, single_info, skip=()):
-    """Every key of the single env's info equals row ``i`` of the vector info, bit for bit."""
-    for key, value in single_info.items():
-        if key in skip:
-            continue
-        if key == "terminal_reason":
-            assert vinfo["_terminal_reason"][i] and vinfo["terminal_reason"][i] == value, (key, i)
-            continue
-        assert key in vinfo and vinfo["_" + key][i], (key, i)
-        assert same(vinfo[key][i], value), (key, i, vinfo[key][i], value)
-    if "terminal_reason" not in single_info and "terminal_reason" in vinfo:
-        assert vinfo["terminal_reason"][i] == "", i
-
-
-def lockstep(env_id, n, seed, steps, mode, max_steps, kwargs, action_scale=2.0, vector_kwargs=None):
-    """Run a vector env and ``n`` single envs side by side; assert sub-env ``i`` equals single
-    env ``i`` (seeded ``seed + i``) bit for bit. Returns (#terminations, #truncations, infos).
-    ``vector_kwargs``: arguments of the vector env alone (``compiled``)."""
-    venv = make_vec(env_id, n, max_episode_steps=max_steps, autoreset_mode=mode, **kwargs, **(vector_kwargs or {}))
-    singles = make_singles(env_id, n, max_episode_steps=max_steps, **kwargs)
-    reset_skip = ()  # every info key, the tippe top's control-dependent read-outs included
-    rng = np.random.default_rng(seed)
-    obs, info = venv.reset(seed=seed)
-    assert obs.dtype == np.float32 and obs.shape == venv.observation_space.shape
-    for i, env in enumerate(singles):
-        o, inf = env.reset(seed=seed + i)
-        assert same(obs[i], o)
-        check_info_row(info, i, inf)
-    prev_done = np.zeros(n, dtype=bool)
-    n_term = n_trunc = 0
-    infos = [info]
-    for t in range(steps):
-        a = random_actions(rng, venv.action_space, action_scale)
-        obs, reward, terminated, truncated, info = venv.step(a)
-        infos.append(info)
-        assert obs.dtype == np.float32 and reward.dtype == np.float64 and terminated.dtype == bool and truncated.dtype == bool
-        assert obs.shape == venv.observation_space.shape and reward.shape == terminated.shape == truncated.shape == (n,)
-        for i, env in enumerate(singles):
-            if mode == "NextStep" and prev_done[i]:
-                # the step after a done resets the sub-env: first obs, reward 0, no flags
-                o, inf = env.reset()
-                assert same(obs[i], o) and reward[i] == 0.0 and not terminated[i] and not truncated[i], (t, i)
-                check_info_row(info, i, inf, skip=reset_skip)
-                continue
-            o, r, te, tr, inf = env.step(a[i])
-            assert reward[i] == r and terminated[i] == te and truncated[i] == tr, (t, i, reward[i], r)
-            n_term += te
-            n_trunc += tr
-            if mode == "SameStep" and (te or tr):
-                assert info["_final_obs"][i] and info["_final_info"][i]
-                assert same(np.asarray(info["final_obs"][i], dtype=np.float32), o), (t, i)
-                check_info_row(info["final_info"], i, inf)
-                o, inf = env.reset()
-                skip = reset_skip
-            else:
-                if mode == "SameStep" and "_final_obs" in info:
-                    assert not info["_final_obs"][i] and info["final_obs"][i] is None
-                skip = ()
-            assert same(obs[i], o), (t, i, obs[i], o)
-            check_info_row(info, i, inf, skip=skip)
-        prev_done = terminated | truncated
-    venv.close()
-    return n_term, n_trunc, infos
-
-
-# ----------------------------------------------------------------------------------- 1. make_vec
-
+from conftest import ENV_IDS, FREE, LAGRANGE, TIPPE, TIPPE_CONTROL_READOUTS, VECTOR_CLASS, check_info_row, lockstep, make_singles, make_vec, random_actions, same, same_state
 
 @pytest.mark.parametrize("env_id", ENV_IDS)
 def test_make_vec_returns_the_native_vector_env(env_id):
@@ -250,7 +154,7 @@ def test_same_step_final_obs_is_a_1d_array_of_float32_observations(n_ending):
 def test_sb3_ppo_across_simultaneous_time_limits():
     from stable_baselines3 import PPO
 
-    from rbenvs_agents.sb3_vec_env import make_sb3_vec_env
+    from rbenvs.vector.sb3 import make_sb3_vec_env
 
     venv = make_sb3_vec_env(FREE, 2, seed=0, max_episode_steps=8)
     PPO("MlpPolicy", venv, n_steps=32, batch_size=64, n_epochs=1, device="cpu", seed=0).learn(64)
@@ -754,7 +658,7 @@ import stable_baselines3  # noqa: E402, F401  (the agents extra, part of dev: mi
 
 
 def _sb3():
-    from rbenvs_agents.sb3_vec_env import SB3VecEnv, make_sb3_vec_env
+    from rbenvs.vector.sb3 import SB3VecEnv, make_sb3_vec_env
 
     return SB3VecEnv, make_sb3_vec_env
 

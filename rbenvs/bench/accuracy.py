@@ -74,9 +74,9 @@ import numpy as np
 
 from ..integrators import get_integrator
 from ..integrators.reference import Dop853
-from ..verify.tippe_top import _Floats
+from ..verify.tippe_top import FloatSystem
 from ..progress import Progress
-from .throughput import _episode_stepper, _timed
+from .throughput import episode_stepper, timed
 from ..render.common import plot_unavailable
 from ..extras import require
 
@@ -163,7 +163,7 @@ def _setup(key):
     for seed in range(4):
         env = TippeTopEnv(friction_law="viscous", friction=3.0, fidelity=fidelity)
         env.reset(seed=seed)
-        states.append(env._y)
+        states.append(env.state_components)
     system = env.system
     y0 = tuple(np.array(c) for c in zip(*states))
     inv = {"jellett": (lambda y: oracle_jellett(system, y)[0], oracle_jellett(system, y0)[1])}
@@ -202,7 +202,7 @@ class _FloatDop853(Dop853):
 
     def step_counted(self, system, y, u, h):
         if all(isinstance(c, float) for c in y):
-            system = _Floats(system)
+            system = FloatSystem(system)
         return super().step_counted(system, y, u, h)
 
 
@@ -240,7 +240,7 @@ def _integrate(case, system, integ, y0, h, n):
 def _cost(system, integ, y0, h, min_time):
     """Seconds per step of one state on floats (best of 3) and rhs evaluations per step."""
     y = _state(y0, 0)
-    seconds = _timed(lambda: integ.step(system, y, None, h), min_time, 3)
+    seconds = timed(lambda: integ.step(system, y, None, h), min_time, 3)
     return seconds, int(integ.step_counted(system, y, None, h)[1])
 
 
@@ -392,7 +392,7 @@ def mujoco_free_body(quick=False, min_time=0.1):
                 out.append(d.qvel[3:6] * inertia)
             y = np.array(out).T
             start(m, d, 0)
-            seconds = _timed(lambda: mujoco.mj_step(m, d), min_time, 3)
+            seconds = timed(lambda: mujoco.mj_step(m, d), min_time, 3)
             err = float(np.max(np.linalg.norm(y - ref, axis=0) / np.linalg.norm(pi0, axis=0)))
             points.append({"h": case.horizon / n, "steps": n, "error": err, "seconds_per_step": seconds, "rhs_per_step": None,
                            "seconds_per_simulated_second": seconds * n / case.horizon})
@@ -470,7 +470,7 @@ def _scene_cost(scene, integrator, substeps, min_time):
     env.reset(seed=0)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        t = _timed(_episode_stepper(env, np.zeros(env.action_space.shape, dtype=np.float32)), min_time, 3)
+        t = timed(episode_stepper(env, np.zeros(env.action_space.shape, dtype=np.float32)), min_time, 3)
     env.close()
     return t
 
@@ -497,7 +497,7 @@ def run_scenes(names=None, target=TARGET, seeds=SCENE_SEEDS, min_time=0.1, progr
         ladder = [2**k for k in range(int(math.log2(MAX_SUBSTEPS)) + 1)]
         if tippe:  # the env takes max(substeps, its own rule's count): only counts above the rule matter
             probe.reset(seed=0)
-            n0 = probe.internal_steps(probe._y, (0.0, 0.0, probe.params.friction, 0.0, 0.0, 0.0))
+            n0 = probe.internal_steps(probe.state_components, (0.0, 0.0, probe.params.friction, 0.0, 0.0, 0.0))
             ladder = [1] + [k for k in (2**j for j in range(1, 9)) if k >= 2 * n0]
         for integ in (i for i in probe.integrators if i != "dop853"):
             for substeps in ladder:

@@ -41,7 +41,7 @@ def run(levels=LEVELS, repeat=5) -> list[dict]:
     for label, kwargs in levels:
         env = TippeTopEnv(**kwargs)
         env.reset(seed=0)
-        y = env._y
+        y = env.state_components
         system = env.system
         rhs_s = _best(lambda: system.rhs(y, None), repeat)
         action = np.zeros(env.action_space.shape, dtype=np.float32)

@@ -43,7 +43,7 @@ import numpy as np
 from ..compiled import available
 from ..progress import Progress
 
-__all__ = ["run_single", "run_vector", "run_scaling", "main"]
+__all__ = ["run_single", "run_vector", "run_scaling", "timed", "episode_stepper", "main"]
 
 SIZES = (1, 16, 256, 4096)
 # (id, integrators, largest N measured per integrator: the reference solver is slow in bulk)
@@ -55,7 +55,7 @@ SYSTEMS = (
 LARGEST = {"dop853": 256, "exact": 4096}
 
 
-def _timed(fn, min_time: float, repeat: int) -> float:
+def timed(fn, min_time: float, repeat: int) -> float:
     """Best seconds per call of ``fn`` over ``repeat`` rounds of at least ``min_time``."""
     best = float("inf")
     for _ in range(repeat):
@@ -70,7 +70,7 @@ def _timed(fn, min_time: float, repeat: int) -> float:
     return best
 
 
-def _episode_stepper(env, action):
+def episode_stepper(env, action):
     """A step function that resets the env when its episode ends (not timed separately)."""
     state = {"done": False}
 
@@ -90,17 +90,17 @@ def run_single(systems=SYSTEMS, min_time=0.2, repeat=5, progress=None) -> list[d
 
     pendulum = gym.make("Pendulum-v1")
     pendulum.reset(seed=0)
-    p_step = _episode_stepper(pendulum, np.zeros(1, dtype=np.float32))
+    p_step = episode_stepper(pendulum, np.zeros(1, dtype=np.float32))
     rows = []
     for env_id, integrators in systems:
         for integ in integrators:
             env = gym.make(env_id, integrator=integ)
             env.reset(seed=0)
-            ours = _episode_stepper(env, np.zeros(env.action_space.shape, dtype=np.float32))
+            ours = episode_stepper(env, np.zeros(env.action_space.shape, dtype=np.float32))
             t_ours, t_pend = float("inf"), float("inf")
             for _ in range(repeat):  # interleaved, so that machine load hits both alike
-                t_ours = min(t_ours, _timed(ours, min_time / repeat, 1))
-                t_pend = min(t_pend, _timed(p_step, min_time / repeat, 1))
+                t_ours = min(t_ours, timed(ours, min_time / repeat, 1))
+                t_pend = min(t_pend, timed(p_step, min_time / repeat, 1))
             rows.append({"id": env_id, "integrator": integ, "step_us": t_ours * 1e6, "pendulum_step_us": t_pend * 1e6, "ratio_to_pendulum": t_ours / t_pend})
             if progress:
                 progress()
@@ -117,7 +117,7 @@ def run_vector(systems=SYSTEMS, sizes=SIZES, min_time=0.2, repeat=3, progress=No
         cart = gym.make_vec("CartPole-v1", num_envs=n, vectorization_mode="vector_entry_point")
         cart.reset(seed=0)
         a = np.ones(n, dtype=np.int64)
-        cart_rate[n] = n / _timed(lambda: cart.step(a), min_time, repeat)
+        cart_rate[n] = n / timed(lambda: cart.step(a), min_time, repeat)
         cart.close()
     rows = []
     # (id, integrator, info read-outs, compiled): every combination on the path it takes by
@@ -140,7 +140,7 @@ def run_vector(systems=SYSTEMS, sizes=SIZES, min_time=0.2, repeat=3, progress=No
             venv.step(a)  # a kernel compiles on its first call: not timed
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")
-                t = _timed(lambda: venv.step(a), min_time, repeat)
+                t = timed(lambda: venv.step(a), min_time, repeat)
             rate = n / t
             label = integ if readouts else f"{integ}, lean info"
             rows.append({"id": env_id, "integrator": label, "path": path, "num_envs": n, "env_steps_per_s": rate, "ns_per_env_step": 1e9 * t / n,
@@ -173,7 +173,7 @@ def run_scaling(sizes=SCALING_SIZES, min_time=0.2, repeat=3, progress=None) -> l
             state = sum(v.nbytes for v in venv.unwrapped.get_state().values())
             arrays = [obs, reward, terminated, truncated, a] + [v for v in info.values() if isinstance(v, np.ndarray)]
             moved = 2 * state + sum(x.nbytes for x in arrays)
-            t = _timed(lambda: venv.step(a), min_time, repeat)
+            t = timed(lambda: venv.step(a), min_time, repeat)
             rows.append({"path": "compiled" if compiled else "numpy", "num_envs": n, "ns_per_env_step": 1e9 * t / n, "bytes_per_env_step": moved / n, "megabytes_per_step": moved / 1e6})
             venv.close()
             if progress:
@@ -187,7 +187,7 @@ def run_sb3(sizes=(16, 256), min_time=0.2, repeat=3) -> list[dict]:
     try:
         from stable_baselines3.common.env_util import make_vec_env
 
-        from rbenvs_agents.sb3_vec_env import make_sb3_vec_env
+        from ..vector.sb3 import make_sb3_vec_env
     except ImportError:
         return []
     env_id = "rbenvs/FreeRigidBody-v0"
@@ -199,7 +199,7 @@ def run_sb3(sizes=(16, 256), min_time=0.2, repeat=3) -> list[dict]:
         for venv in (native, dummy):
             venv.reset()
             a = np.zeros((n,) + venv.action_space.shape, dtype=np.float32)
-            rates.append(n / _timed(lambda: venv.step(a), min_time, repeat))
+            rates.append(n / timed(lambda: venv.step(a), min_time, repeat))
             venv.close()
         rows.append({"id": env_id, "num_envs": n, "sb3_native_env_steps_per_s": rates[0], "sb3_dummy_env_steps_per_s": rates[1], "ratio": rates[0] / rates[1]})
     return rows
@@ -250,7 +250,7 @@ def main(argv=None) -> int:
         for r in scaling:
             print(f"{r['path']:<9} {r['num_envs']:>8d} {r['ns_per_env_step']:>9.1f} {r['bytes_per_env_step']:>10.0f} {r['megabytes_per_step']:>9.3f}")
     if sb3:
-        print("\nstable-baselines3 VecEnv.step: the native adapter (rbenvs_agents.sb3_vec_env) against DummyVecEnv, same run")
+        print("\nstable-baselines3 VecEnv.step: the native adapter (rbenvs.vector.sb3) against DummyVecEnv, same run")
         print(f"{'id':<26} {'num_envs':>8} {'native/s':>12} {'Dummy/s':>12} {'ratio':>8}")
         for r in sb3:
             print(f"{r['id']:<26} {r['num_envs']:>8d} {r['sb3_native_env_steps_per_s']:>12.4g} {r['sb3_dummy_env_steps_per_s']:>12.4g} {r['ratio']:>8.2f}")

@@ -24,6 +24,7 @@ from ..elliptic import elliptic_f_sc, elliptic_k, jacobi_sn_cn_dn
 from ..jit import jitable
 from ..rotations import quat_multiply, quat_normalize, sqrt
 from .flows import AxisRotation
+from .state import export_layout, import_layout
 from .validation import require_inertia
 
 __all__ = ["FreeBodyParams", "FreeBody", "FreeBodyOrbit", "euler_rhs", "kinetic_energy", "momentum_norm", "angular_velocity", "rotation_rate", "free_body_readouts"]
@@ -143,9 +144,31 @@ class FreeBody:
 
     readout_names = ("energy", "momentum_norm")
 
-    def readouts(self, y, u=None):
+    # a smooth system: no events, no switches (rbenvs.contracts.HybridSystem)
+    hybrid = False
+    completes_initial_state = False  # a task's start is a whole state
+
+    def readouts(self, y, u=None, fired=False):
         """``(energy, momentum_norm)`` (:attr:`readout_names`); the control plays no part."""
         return free_body_readouts(self._inverse, y)
+
+    def complete_initial_state(self, y, rng):
+        """A task's start as it is (the task draws the attitude where it needs one)."""
+        return y
+
+    def export_state(self, y) -> dict:
+        """``{"angular_momentum": Pi (3,), "attitude": q (4,) (reorient only)}``, float64 copies."""
+        return export_layout(self.layout, y)
+
+    def import_state(self, state: dict) -> tuple:
+        """Components from :meth:`export_state`'s dict; the attitude must be a unit quaternion
+        (within 1e-6)."""
+        y, arrays = import_layout(self.layout, self.dim, state)
+        if "attitude" in arrays:
+            n = float(np.linalg.norm(arrays["attitude"]))
+            if abs(n - 1.0) > 1e-6:
+                raise ValueError(f"state['attitude'] must be a unit quaternion (|q| = 1 within 1e-6), got |q| = {n}")
+        return y
 
     def guard_rates(self, region, speed_ceiling: float = math.inf) -> GuardRates:
         """In the body frame ``Pi`` turns about ``Omega`` at ``|Omega|`` (at a steady spin the

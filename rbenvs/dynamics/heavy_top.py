@@ -26,8 +26,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..contracts import GuardRates
-from ..rotations import atan2, quat_from_two_vectors, quat_multiply, quat_normalize, quat_to_euler_zxz, sqrt
+from ..rotations import atan2, quat_conjugate, quat_from_two_vectors, quat_multiply, quat_normalize, quat_rotate, quat_to_euler_zxz, sqrt
 from .free_body import rotation_rate
+from .state import export_layout, import_layout
 from .flows import AxisRotation, SymmetricFreeRotation
 from .validation import require_finite_nonnegative, require_finite_positive, require_finite_result, require_inertia, require_real_vector
 
@@ -176,7 +177,13 @@ class HeavyTop:
             names += ("precession_angle", "nutation_angle", "spin_angle")
         return names
 
-    def readouts(self, y, u=None) -> tuple:
+    # a smooth system: no events, no switches (rbenvs.contracts.HybridSystem)
+    hybrid = False
+    # no pure forms (yet): generated and compiled steps are the free body's only
+    kernel_rhs = None
+    kernel_readouts = None
+
+    def readouts(self, y, u=None, fired=False) -> tuple:
         """The read-outs in :attr:`readout_names` order (floats or arrays; ``u`` plays no part)."""
         out = (self.energy(y), self.pi_dot_gamma(y), self.vertical_norm(y), self.tilt(y), self.spin(y))
         if self.params.is_lagrange:
@@ -184,6 +191,40 @@ class HeavyTop:
         if self.attitude:
             out += tuple(quat_to_euler_zxz(y[6:10]))
         return out
+
+    @property
+    def completes_initial_state(self) -> bool:
+        """Whether a task's start needs completing (the attitude's heading is drawn here)."""
+        return self.attitude
+
+    def complete_initial_state(self, y, rng):
+        """A task's start ``(Pi, Gamma)``, with the attitude appended where the system carries
+        it: the one with this ``Gamma`` and a heading uniform in ``[0, 2 pi)`` from ``rng``."""
+        if not self.attitude:
+            return y
+        return tuple(y) + tuple(self.attitude_from_vertical(y[3:6], rng.uniform(0.0, 2.0 * np.pi)))
+
+    def export_state(self, y) -> dict:
+        """``{"angular_momentum": Pi, "vertical": Gamma, "attitude": q (with attitude)}``, float64 copies."""
+        return export_layout(self.layout, y)
+
+    def import_state(self, state: dict) -> tuple:
+        """Components from :meth:`export_state`'s dict: ``Gamma`` a unit vector and ``q`` a unit
+        quaternion with ``R(q)^T e_z = Gamma`` (within 1e-6)."""
+        y, arrays = import_layout(self.layout, self.dim, state)
+        g = arrays["vertical"]
+        n = float(np.linalg.norm(g))
+        if abs(n - 1.0) > 1e-6:
+            raise ValueError(f"state['vertical'] must be a unit vector (|Gamma| = 1 within 1e-6), got |Gamma| = {n}")
+        if "attitude" in arrays:
+            q = arrays["attitude"]
+            nq = float(np.linalg.norm(q))
+            if abs(nq - 1.0) > 1e-6:
+                raise ValueError(f"state['attitude'] must be a unit quaternion (|q| = 1 within 1e-6), got |q| = {nq}")
+            gz = np.array(quat_rotate(quat_conjugate(tuple(q / nq)), (0.0, 0.0, 1.0)))
+            if np.max(np.abs(gz - g)) > 1e-6:
+                raise ValueError(f"state['vertical'] must equal R(attitude)^T e_z within 1e-6; the attitude gives {gz.tolist()}")
+        return y
 
     def guard_rates(self, region, speed_ceiling: float = math.inf) -> GuardRates:
         """Three rates bound the dynamics: the turn of ``Pi`` and ``Gamma`` about ``Omega``

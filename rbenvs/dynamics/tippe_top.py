@@ -450,6 +450,51 @@ class TippeTop:
         out = y[:5] + (y[5] + lam / prm.mass,) + y[6:10] + w + (1.0, y[14])
         return self.normalize(out), lam
 
+    # ------------------------------------------------------------------ hybrid system
+    # (rbenvs.contracts.HybridSystem) A contact that can open: without free flight a lift-off
+    # ends the episode (the terminal event); with it the top flies and lands (the switches).
+    hybrid = True
+    kernel_rhs = None  # no pure forms (yet)
+    kernel_readouts = None
+
+    @property
+    def switches(self) -> bool:
+        """Whether the contact switches (free flight) rather than ending the episode."""
+        return self.flight
+
+    def terminal_event(self):
+        """``("lift_off", fn)``: the event that ends an episode, ``fn(y, u)`` true where the
+        contact would have to pull (``N < 0``); ``None`` with free flight (the top flies)."""
+        return None if self.flight else ("lift_off", self.lifts_off)
+
+    def lifts_off(self, y, u):
+        """Lift-off: the contact would have to pull (``N < 0``); a bool or a mask."""
+        return self.contact_forces(y, u)[0] < 0.0
+
+    readout_names = ("energy", "jellett", "tilt", "normal_force", "slip_speed", "lifted_off", "airborne", "hops", "gap", "spin")
+
+    def readouts(self, y, u=None, fired=False) -> tuple:
+        """The read-outs in :attr:`readout_names` order under the control ``u`` that acted
+        (``None``: a table at rest; the normal force depends on it): energy, Jellett's
+        integral, tilt, normal force, slip speed, ``lifted_off`` (with free flight: a hop so
+        far; without: the lift-off that ended this period, ``fired``), ``airborne``, ``hops``,
+        the gap to the table and the spin. Floats or arrays."""
+        normal, _, slip = self.contact_forces(y, u)
+        if self.flight:
+            hops, airborne = y[14], y[13] == 0.0
+            lifted = hops > 0.0
+            hops = int(hops) if isinstance(hops, float) else hops.astype(np.int64)
+        else:
+            airborne, lifted = 0.0 * y[0] != 0.0, fired
+            hops = 0 if isinstance(y[0], float) else np.zeros(np.shape(y[0]), dtype=np.int64)
+        return (self.energy(y), self.jellett(y), self.tilt(y), normal, slip, lifted, airborne, hops, self.gap(y), self.spin(y))
+
+    completes_initial_state = False  # a task's start is a whole state
+
+    def complete_initial_state(self, y, rng):
+        """A task's start as it is."""
+        return y
+
     def events(self, u):
         """The contact switches to watch after each internal step under control ``u``
         (:class:`rbenvs.contracts.HybridSystem`; located and applied by

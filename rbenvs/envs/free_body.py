@@ -3,8 +3,8 @@
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
-import gymnasium as gym
 import numpy as np
 
 from ..dynamics import FreeBody, FreeBodyParams
@@ -17,9 +17,10 @@ from ..dynamics.validation import (
     require_real_vector,
 )
 from ..tasks import AXIS_NAMES, DetumbleTask, ReorientTask, SpinTask
+from ..core.model import observation_bounds
 from .base import RigidBodyEnv, require_float32_bound
 
-__all__ = ["FreeRigidBodyEnv"]
+__all__ = ["FreeRigidBodyEnv", "BodyTorque"]
 
 
 class FreeRigidBodyEnv(RigidBodyEnv):
@@ -180,7 +181,7 @@ class FreeRigidBodyEnv(RigidBodyEnv):
         # a valid value: a typo is reported, not silently kept)
         task = require_choice("task", task, self.tasks)
         params = FreeBodyParams(inertia)
-        self.max_torque = require_finite_nonnegative("max_torque", max_torque)
+        require_finite_nonnegative("max_torque", max_torque)
         spin_rate = require_finite_positive("spin_rate", spin_rate)
         control_cost = require_finite_nonnegative("control_cost", control_cost)
         perturbation = require_finite_nonnegative("perturbation", perturbation)
@@ -209,15 +210,15 @@ class FreeRigidBodyEnv(RigidBodyEnv):
         if not start_speed < max_w:
             raise ValueError(f"max_angular_velocity ({max_w!r} rad/s) must exceed the initial angular speed ({source} = {start_speed:.6g} rad/s): lower spin_rate or raise max_angular_velocity")
         system = FreeBody(params, attitude=task_obj.needs_attitude)
-        high = [max_w] * 3 + [1.0] * (task_obj.observation_size - 3)
+        self.max_torque = max_torque = require_finite_nonnegative("max_torque", max_torque)
+        actuator = BodyTorque(max_torque, tuple(i for i in range(3) if self.actuated[i]))
         self._max_w = max_w
         self._start_speed = start_speed
-        self._setup(system, task_obj, integrator, dt, substeps, high, render_mode, guard)
-        self.action_size = sum(self.actuated)
-        self.action_space = gym.spaces.Box(-1.0, 1.0, (self.action_size,), dtype=np.float32)
-        self._actuated_axes = tuple(i for i in range(3) if self.actuated[i])
+        high = observation_bounds(task_obj, {"rad/s": max_w})
+        self._setup(system, task_obj, actuator, integrator, dt, substeps, high, render_mode, guard)
+        self.action_size = actuator.size
         # |Delta Omega| <= max_torque sqrt(k) dt / I_min over a period of full torque on k axes
-        change = self.max_torque * math.sqrt(self.action_size) * self._dt / min(params.inertia)
+        change = max_torque * math.sqrt(actuator.size) * self.dt / min(params.inertia)
         self._require_authority("max_torque", change, "max_angular_velocity", max_w, "angular velocity [rad/s]")
 
     _rate_sources = "spin_rate and inertia"
@@ -229,25 +230,35 @@ class FreeRigidBodyEnv(RigidBodyEnv):
     def _speed_ceiling(self):
         return math.sqrt(3.0) * self._max_w  # every Omega_i within +-max_angular_velocity
 
-    def _control(self, a):
-        tau = self.max_torque
-        if self.action_size == 3:  # fully actuated: the action is the normalised torque
-            return a, (tau * a[0], tau * a[1], tau * a[2])
-        u_norm = [0.0, 0.0, 0.0]
-        for j, i in enumerate(self._actuated_axes):
-            u_norm[i] = a[j]
-        return u_norm, (tau * u_norm[0], tau * u_norm[1], tau * u_norm[2])
-
-    def _render_scene(self):
+    @staticmethod
+    def scene(system, y, u=None):
         from ..render.free_body import scene
 
-        return scene(self.system, self._y)
+        return scene(system, y)
 
-    def _check_state(self, state):
-        if "attitude" in state:
-            n = float(np.linalg.norm(state["attitude"]))
-            if abs(n - 1.0) > 1e-6:
-                raise ValueError(f"state['attitude'] must be a unit quaternion (|q| = 1 within 1e-6), got |q| = {n}")
+
+@dataclass(frozen=True)
+class BodyTorque:
+    """The free body's actuator: a normalised action ``a`` on the actuated body ``axes`` gives
+    the torque ``max_torque * a`` [N m] there (none elsewhere); floats or arrays alike."""
+
+    max_torque: float
+    axes: tuple
+
+    @property
+    def size(self) -> int:
+        return len(self.axes)
+
+    def control(self, a):
+        """``(u_norm, u)``: the normalised action on all three axes (0 where unactuated; the
+        reward's effort term) and the torque."""
+        tau = self.max_torque
+        if len(self.axes) == 3:  # fully actuated: the action is the normalised torque
+            return a, (tau * a[0], tau * a[1], tau * a[2])
+        u_norm = [0.0, 0.0, 0.0]
+        for j, i in enumerate(self.axes):
+            u_norm[i] = a[j]
+        return u_norm, (tau * u_norm[0], tau * u_norm[1], tau * u_norm[2])
 
 
 def _check_axis(axis) -> None:

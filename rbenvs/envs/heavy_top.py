@@ -3,17 +3,15 @@
 from __future__ import annotations
 
 import math
-
-import gymnasium as gym
-import numpy as np
+from dataclasses import dataclass
 
 from ..dynamics import HeavyTop, HeavyTopParams
 from ..dynamics.validation import require_bool, require_choice, require_finite, require_finite_nonnegative, require_finite_positive, require_range
-from ..rotations import quat_conjugate, quat_rotate, quat_to_euler_zxz
 from ..tasks import PrecessTask, UprightTask, slow_precession_rate, transverse_basis
+from ..core.model import observation_bounds
 from .base import RigidBodyEnv, require_float32_bound
 
-__all__ = ["LagrangeTopEnv"]
+__all__ = ["LagrangeTopEnv", "PivotTorque"]
 
 _DEFAULT_TILT_LIMIT = {"upright": math.pi / 4, "precess": 0.3}
 
@@ -241,14 +239,15 @@ class LagrangeTopEnv(RigidBodyEnv):
         if not peak < max_w:
             raise ValueError(f"max_angular_velocity ({max_w!r} rad/s) must exceed the initial angular speed ({peak:.6g} rad/s, from {source}); lower it or raise max_angular_velocity")
         system = HeavyTop(params, attitude=attitude)
-        self._max_w = max_w
-        self._start_speed = peak
-        self._setup(system, task_obj, integrator, dt, substeps, [1.0, 1.0, 1.0, max_w, max_w, max_w], render_mode, guard)
         t1, t2 = transverse_basis(params.com_direction)
         self.torque_directions = (t1, t2) + ((params.com_direction,) if self.axial_torque else ())
-        self.action_space = gym.spaces.Box(-1.0, 1.0, (len(self.torque_directions),), dtype=np.float32)
+        actuator = PivotTorque(self.max_torque, self.torque_directions)
+        self._max_w = max_w
+        self._start_speed = peak
+        high = observation_bounds(task_obj, {"rad/s": max_w})
+        self._setup(system, task_obj, actuator, integrator, dt, substeps, high, render_mode, guard)
         # orthonormal torque directions: |tau| <= max_torque sqrt(k), |Delta Omega| <= |tau| dt / I_min
-        change = self.max_torque * math.sqrt(len(self.torque_directions)) * self._dt / min(params.inertia)
+        change = self.max_torque * math.sqrt(len(self.torque_directions)) * self.dt / min(params.inertia)
         self._require_authority("max_torque", change, "max_angular_velocity", max_w, "angular velocity [rad/s]")
 
     _rate_sources = "mass, length, gravity, inertia, spin_friction and spin"
@@ -264,56 +263,33 @@ class LagrangeTopEnv(RigidBodyEnv):
     def _speed_ceiling(self):
         return math.sqrt(3.0) * self._max_w  # every Omega_i within +-max_angular_velocity
 
-    def _control(self, a):
+    @staticmethod
+    def scene(system, y, u=None):
+        from ..render.heavy_top import scene
+
+        return scene(system, y)
+
+
+@dataclass(frozen=True)
+class PivotTorque:
+    """The heavy top's actuator: body torque ``max_torque * sum_j a_j d_j`` [N m] along the
+    orthonormal ``directions`` (the two transverse axes, and ``chi`` with axial torque)."""
+
+    max_torque: float
+    directions: tuple
+
+    @property
+    def size(self) -> int:
+        return len(self.directions)
+
+    def control(self, a):
+        """``(u_norm, u)``: the normalised action and the body torque; floats or arrays."""
         u_norm = tuple(a)
         tau = [0.0, 0.0, 0.0]
-        for x, d in zip(u_norm, self.torque_directions):
+        for x, d in zip(u_norm, self.directions):
             for i in range(3):
                 tau[i] += self.max_torque * x * d[i]
         return u_norm, (tau[0], tau[1], tau[2])
-
-    def _initial_state(self, rng):
-        y = self.task.initial_state(self.system, rng, ())
-        if self.system.attitude:
-            q = self.system.attitude_from_vertical(y[3:6], rng.uniform(0.0, 2.0 * np.pi))
-            y = tuple(y) + tuple(q)
-        return y
-
-    def _readouts(self, y):
-        s = self.system
-        out = {
-            "energy": s.energy(y),
-            "pi_dot_gamma": s.pi_dot_gamma(y),
-            "vertical_norm": s.vertical_norm(y),
-            "tilt": s.tilt(y),
-            "spin": s.spin(y),
-            "internal_step": self._last_h,
-        }
-        if s.params.is_lagrange:  # the threshold of the stability theorem exists for a Lagrange top only
-            out["critical_spin"] = s.params.critical_spin
-        if s.attitude:
-            phi, theta, psi = quat_to_euler_zxz(y[6:10])
-            out.update(precession_angle=phi, nutation_angle=theta, spin_angle=psi)
-        return out
-
-    def _render_scene(self):
-        from ..render.heavy_top import scene
-
-        return scene(self.system, self._y)
-
-    def _check_state(self, state):
-        g = state["vertical"]
-        n = float(np.linalg.norm(g))
-        if abs(n - 1.0) > 1e-6:
-            raise ValueError(f"state['vertical'] must be a unit vector (|Gamma| = 1 within 1e-6), got |Gamma| = {n}")
-        if "attitude" in state:
-            q = state["attitude"]
-            nq = float(np.linalg.norm(q))
-            if abs(nq - 1.0) > 1e-6:
-                raise ValueError(f"state['attitude'] must be a unit quaternion (|q| = 1 within 1e-6), got |q| = {nq}")
-            gz = np.array(quat_rotate(quat_conjugate(tuple(q / nq)), (0.0, 0.0, 1.0)))
-            if np.max(np.abs(gz - g)) > 1e-6:
-                raise ValueError(f"state['vertical'] must equal R(attitude)^T e_z within 1e-6; the attitude gives {gz.tolist()}")
 
 
 def _spin_range(spin, task, params) -> tuple[float, float]:

@@ -3,18 +3,18 @@
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
-import gymnasium as gym
 import numpy as np
 
 from ..dynamics import TippeTop, TippeTopParams
 from ..dynamics.tippe_top import FIDELITIES
 from ..dynamics.validation import require_bool, require_choice, require_finite_nonnegative, require_range
 from ..tasks import HoldTask, InvertTask
-from ..core.hybrid import Switching
+from ..core.model import observation_bounds
 from .base import RigidBodyEnv, require_float32_bound
 
-__all__ = ["TippeTopEnv"]
+__all__ = ["TippeTopEnv", "TableActuator"]
 
 class TippeTopEnv(RigidBodyEnv):
     """A sphere with an offset centre of mass spinning on a table that the agent can move.
@@ -219,53 +219,21 @@ class TippeTopEnv(RigidBodyEnv):
         task_cls = InvertTask if task == "invert" else HoldTask
         task_obj = task_cls(spin_lo, spin_hi, tilt_lo, tilt_hi, control_cost)
         system = TippeTop(params, fidelity, flight=self.free_flight)
-        if self.free_flight:  # hops are modelled, not episode ends (set before _setup reads them)
-            self.event_name = None
-            self._after_internal_step = self._switch_contact
-        high = [1.0] * 3 + [max_w] * 3 + [max_v] * 2
+        actuator = TableActuator(self.max_table_acceleration, params.friction, self.friction_range if self.friction_action else None,
+                                 self.max_torque if self.torque_action else None)
         self._start_speed = peak
         self._max_w = max_w
-        self._setup(system, task_obj, integrator, dt, substeps, high, render_mode, guard)
-        size = 2 + (1 if self.friction_action else 0) + (3 if self.torque_action else 0)
-        self.action_space = gym.spaces.Box(-1.0, 1.0, (size,), dtype=np.float32)
+        high = observation_bounds(task_obj, {"rad/s": max_w, "m/s": max_v})
+        self._setup(system, task_obj, actuator, integrator, dt, substeps, high, render_mode, guard)
         # the table's acceleration moves v_G (relative to the table) by at most |a_T| dt per period;
         # a body torque moves Omega by at most |tau| dt / min(A, C)
-        self._require_authority("max_table_acceleration", self.max_table_acceleration * math.sqrt(2.0) * self._dt, "max_speed", max_v, "velocity of the centre of mass [m/s]")
-        change = self.max_torque * math.sqrt(3.0) * self._dt / min(params.inertia)
+        self._require_authority("max_table_acceleration", self.max_table_acceleration * math.sqrt(2.0) * self.dt, "max_speed", max_v, "velocity of the centre of mass [m/s]")
+        change = self.max_torque * math.sqrt(3.0) * self.dt / min(params.inertia)
         self._require_authority("max_torque", change, "max_angular_velocity", max_w, "angular velocity [rad/s]")
-        self._u = None  # the control of the last step (info's normal force depends on it)
-        self._switching = None  # the hybrid layer, made at the first switch check
-        self._last_h = self._h
-        self._lifted = False
 
     @property
     def params(self) -> TippeTopParams:
         return self.system.params
-
-    def reset(self, *, seed=None, options=None):
-        self._u = None
-        self._lifted = False
-        self._last_h = self._h
-        return super().reset(seed=seed, options=options)
-
-    def _control(self, a):
-        u_norm = tuple(a)
-        acc = self.max_table_acceleration
-        ax, ay = acc * u_norm[0], acc * u_norm[1]
-        j = 2
-        mu = self.params.friction
-        if self.friction_action:
-            lo, hi = self.friction_range
-            mu = lo + 0.5 * (u_norm[j] + 1.0) * (hi - lo)
-            j += 1
-        tau = (0.0, 0.0, 0.0)
-        if self.torque_action:
-            tau = tuple(self.max_torque * x for x in u_norm[j : j + 3])
-        u = (ax, ay, mu) + tau
-        self._u = u
-        return u_norm, u
-
-    event_name = "lift_off"
 
     _rate_sources = "spin, gravity, mass, inertia, radius, offset, friction, friction_range and slip_regularization"
 
@@ -277,51 +245,40 @@ class TippeTopEnv(RigidBodyEnv):
         can use (``friction``, or ``friction_range``'s upper end with ``friction_action``)."""
         return self.system.friction_stiffness(max(self.params.friction, self.friction_range[1]))
 
-    def _event_mask(self, y, u):
-        """Lift-off: the contact would have to pull (``N < 0``)."""
-        return self.system.contact_forces(y, u)[0] < 0.0
-
-    def _switch_contact(self, y_prev, y, u, h):
-        """With free flight: lift-off and touchdown after each internal step, located and made
-        by the hybrid layer (:class:`rbenvs.core.hybrid.Switching`, from the system's declared
-        events); a batch runs the rare switches element by element through the same float code,
-        so sub-env ``i`` of the vector env takes exactly the single env's steps."""
-        switching = self._switching
-        if switching is None or switching.system is not self.system:  # (verify swaps in mutants)
-            switching = self._switching = Switching(self.system, self.integrator)
-        return switching.after_step(y_prev, y, u, h)
-
-    def _advance(self, y, u):
-        y, event = super()._advance(y, u)
-        if event is not None:
-            self._lifted = True
-        return y, event
-
-    def _render_scene(self):
+    @staticmethod
+    def scene(system, y, u=None):
         from ..render.tippe_top import scene
 
-        return scene(self.system, self._y, self._u)
+        return scene(system, y, u)
 
-    def _readouts(self, y):
-        s = self.system
-        normal, _, slip = s.contact_forces(y, self._u)
-        if s.flight:
-            hops, airborne = y[14], y[13] == 0.0
-            lifted = hops > 0.0
-            hops = int(hops) if isinstance(hops, float) else hops.astype(np.int64)
-        else:
-            airborne, lifted = 0.0 * y[0] != 0.0, self._lifted
-            hops = 0 if isinstance(y[0], float) else np.zeros(np.shape(y[0]), dtype=np.int64)
-        return {
-            "energy": s.energy(y),
-            "jellett": s.jellett(y),
-            "tilt": s.tilt(y),
-            "normal_force": normal,
-            "slip_speed": slip,
-            "lifted_off": lifted,
-            "airborne": airborne,
-            "hops": hops,
-            "gap": s.gap(y),
-            "spin": s.spin(y),
-            "internal_step": self._last_h,
-        }
+
+@dataclass(frozen=True)
+class TableActuator:
+    """The tippe top's actuator: the table's horizontal acceleration ``max_table_acceleration *
+    (a0, a1)`` [m/s^2]; with ``friction_range`` a further entry sets the friction coefficient
+    (affine in [-1, 1]); with ``max_torque`` three more a body torque [N m]. Controls
+    ``(a_x, a_y, mu, tau1, tau2, tau3)`` (:mod:`rbenvs.dynamics.tippe_top`)."""
+
+    max_table_acceleration: float
+    friction: float  # the coefficient when the action does not set it
+    friction_range: tuple | None = None
+    max_torque: float | None = None
+
+    @property
+    def size(self) -> int:
+        return 2 + (self.friction_range is not None) + 3 * (self.max_torque is not None)
+
+    def control(self, a):
+        u_norm = tuple(a)
+        acc = self.max_table_acceleration
+        ax, ay = acc * u_norm[0], acc * u_norm[1]
+        j = 2
+        mu = self.friction
+        if self.friction_range is not None:
+            lo, hi = self.friction_range
+            mu = lo + 0.5 * (u_norm[j] + 1.0) * (hi - lo)
+            j += 1
+        tau = (0.0, 0.0, 0.0)
+        if self.max_torque is not None:
+            tau = tuple(self.max_torque * x for x in u_norm[j : j + 3])
+        return u_norm, (ax, ay, mu) + tau

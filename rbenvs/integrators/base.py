@@ -51,6 +51,9 @@ class Integrator:
     conserves: ClassVar[tuple[str, ...]] = ()
     requires: ClassVar[tuple[str, ...]] = ("rhs",)
     region: ClassVar[StepRegion | None] = None
+    # one scalar step for a whole batch (an adaptive solve whose step follows all members): a
+    # batch whose members need different step counts runs in groups of equal counts
+    uniform_step_only: ClassVar[bool] = False
 
     def supports(self, system) -> bool:
         """Whether ``system`` offers everything this scheme needs."""

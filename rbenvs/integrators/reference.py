@@ -25,6 +25,7 @@ class Dop853(Integrator):
     order = 8
     evaluations = None
     region: ClassVar[StepRegion] = StepRegion.unbounded("adaptive error control (rtol, atol)")
+    uniform_step_only: ClassVar[bool] = True  # one solve, one step size, for the whole batch
     rtol: float = 1e-12
     atol: float = 1e-14
 

@@ -13,6 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..jit import jitable
+from .common import effort
 from ..dynamics.free_body import angular_velocity, momentum_norm
 from ..rotations import quat_angle, quat_conjugate, quat_from_uniforms, quat_multiply, sqrt
 
@@ -35,15 +36,13 @@ def _directions(n0, n1, n2):
 
 
 class _TwoStageDraw:
+    # a batch of starts draws per generator and converts once (rbenvs.vector)
+    two_stage_draws = True
+
     def initial_state(self, system, rng, shape=()):
         if tuple(shape) != ():
             raise ValueError("initial_state draws one state; a batch draws per sub-env (initial_draws) and converts at once (initial_from_draws)")
         return self.initial_from_draws(system, self.initial_draws(rng))
-
-
-@jitable
-def _effort(u):
-    return (u[0] * u[0] + u[1] * u[1] + u[2] * u[2]) / 3.0
 
 
 # The tasks' arithmetic as pure functions of (parameters, state, action): the methods below
@@ -59,7 +58,7 @@ def spin_alignment(axis, y):
 def spin_evaluate(p, y, u):
     axis, control_cost, cos_success = p
     a = spin_alignment(axis, y)
-    return a - control_cost * _effort(u), False, a, a >= cos_success
+    return a - control_cost * effort(u), False, a, a >= cos_success
 
 
 @jitable
@@ -73,7 +72,7 @@ def detumble_evaluate(p, y, u):
     inv, spin_rate, control_cost, tolerance = p
     s = angular_speed(inv, y)
     done = s < tolerance * spin_rate
-    return -s / spin_rate - control_cost * _effort(u), done, s, done
+    return -s / spin_rate - control_cost * effort(u), done, s, done
 
 
 @dataclass(frozen=True)
@@ -96,6 +95,10 @@ class SpinTask(_TwoStageDraw):
     name = "spin"
     needs_attitude = False
     observation_size = 3
+    observation_names = ("Omega1", "Omega2", "Omega3")
+    observation_units = ("rad/s",) * 3
+    final_measure = "alignment"
+    controller = "SpinLQR"
 
     def initial_draws(self, rng):
         return rng.random(2)  # tilt and azimuth of the spin direction
@@ -160,6 +163,10 @@ class DetumbleTask(_TwoStageDraw):
     name = "detumble"
     needs_attitude = False
     observation_size = 3
+    observation_names = ("Omega1", "Omega2", "Omega3")
+    observation_units = ("rad/s",) * 3
+    final_measure = "angular_speed"
+    controller = "DetumbleDamping"
 
     def initial_draws(self, rng):
         d = np.empty(4)
@@ -227,6 +234,12 @@ class ReorientTask(_TwoStageDraw):
     name = "reorient"
     needs_attitude = True
     observation_size = 7
+    observation_names = ("Omega1", "Omega2", "Omega3", "error_w", "error_x", "error_y", "error_z")
+    observation_units = ("rad/s",) * 3 + ("1",) * 4
+    metric_names = ("attitude_error", "is_success")
+    final_measure = "attitude_error"
+    controller = "ReorientPD"
+    kernels = None  # no pure forms (yet): the batch runs on numpy
 
     def initial_draws(self, rng):
         d = np.empty(7)
@@ -257,7 +270,7 @@ class ReorientTask(_TwoStageDraw):
 
     def reward(self, system, y, u):
         angle, speed = self._angle_and_speed(system, y)
-        return -angle / np.pi - self.rate_cost * speed / self.spin_rate - self.control_cost * _effort(u)
+        return -angle / np.pi - self.rate_cost * speed / self.spin_rate - self.control_cost * effort(u)
 
     def terminated(self, system, y):
         return False
@@ -265,3 +278,10 @@ class ReorientTask(_TwoStageDraw):
     def metrics(self, system, y):
         angle, speed = self._angle_and_speed(system, y)
         return {"attitude_error": angle, "is_success": (angle < self.success_angle) & (speed < self.success_angle * self.spin_rate)}
+
+    def evaluate(self, system, y, u):
+        """``(reward, terminated, metrics)`` with the angle and speed computed once."""
+        angle, speed = self._angle_and_speed(system, y)
+        reward = -angle / np.pi - self.rate_cost * speed / self.spin_rate - self.control_cost * effort(u)
+        success = (angle < self.success_angle) & (speed < self.success_angle * self.spin_rate)
+        return reward, False, {"attitude_error": angle, "is_success": success}

@@ -16,6 +16,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .common import effort
+
 __all__ = ["UprightTask", "PrecessTask", "transverse_basis", "slow_precession_rate"]
 
 
@@ -37,10 +39,6 @@ def transverse_basis(chi) -> tuple[tuple[float, float, float], tuple[float, floa
 
 def _dot(a, b):
     return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-
-
-def _effort(u):
-    return sum(c * c for c in u) / len(u)
 
 
 def _clip_unit(x):
@@ -101,6 +99,13 @@ class UprightTask:
 
     name = "upright"
     observation_size = 6
+    observation_names = ("Gamma1", "Gamma2", "Gamma3", "Omega1", "Omega2", "Omega3")
+    observation_units = ("1",) * 3 + ("rad/s",) * 3
+    metric_names = ("is_success",)
+    final_measure = "tilt"
+    controller = "UprightLQR"
+    kernels = None  # no pure forms (yet): the batch runs on numpy
+    two_stage_draws = False  # one start per generator
 
     def initial_state(self, system, rng, shape):
         prm = system.params
@@ -114,13 +119,18 @@ class UprightTask:
         return _observe(system, y)
 
     def reward(self, system, y, u):
-        return _cos_tilt(system, y) - self.control_cost * _effort(u)
+        return _cos_tilt(system, y) - self.control_cost * effort(u)
 
     def terminated(self, system, y):
         return system.tilt(y) > self.tilt_limit
 
     def metrics(self, system, y):
         return {"is_success": system.tilt(y) < self.success_tilt}
+
+    def evaluate(self, system, y, u):
+        """``(reward, terminated, metrics)`` with the tilt computed once."""
+        tilt = system.tilt(y)
+        return _cos_tilt(system, y) - self.control_cost * effort(u), tilt > self.tilt_limit, {"is_success": tilt < self.success_tilt}
 
 
 def _cos_tilt(system, y):
@@ -158,6 +168,13 @@ class PrecessTask:
 
     name = "precess"
     observation_size = 6
+    observation_names = ("Gamma1", "Gamma2", "Gamma3", "Omega1", "Omega2", "Omega3")
+    observation_units = ("1",) * 3 + ("rad/s",) * 3
+    metric_names = ("precession_rate", "target_precession_rate", "tilt_error", "is_success")
+    final_measure = "tilt_error"
+    controller = "PrecessionTracking"
+    kernels = None  # no pure forms (yet): the batch runs on numpy
+    two_stage_draws = False  # one start per generator
 
     def rate_target(self, system, y):
         if self.target_rate is not None:
@@ -191,7 +208,7 @@ class PrecessTask:
 
     def reward(self, system, y, u):
         tilt_err, rate_err, _, _ = self._errors(system, y)
-        return 1.0 - tilt_err / self.tilt_limit - rate_err - self.control_cost * _effort(u)
+        return 1.0 - tilt_err / self.tilt_limit - rate_err - self.control_cost * effort(u)
 
     def terminated(self, system, y):
         return abs(system.tilt(y) - self.target_tilt) > self.tilt_limit
@@ -204,4 +221,12 @@ class PrecessTask:
             "tilt_error": tilt_err,
             "is_success": (tilt_err < self.success_tilt) & (rate_err < 0.1),
         }
+
+    def evaluate(self, system, y, u):
+        """``(reward, terminated, metrics)`` with the errors computed once."""
+        tilt_err, rate_err, rate, target = self._errors(system, y)
+        reward = 1.0 - tilt_err / self.tilt_limit - rate_err - self.control_cost * effort(u)
+        metrics = {"precession_rate": rate, "target_precession_rate": target, "tilt_error": tilt_err,
+                   "is_success": (tilt_err < self.success_tilt) & (rate_err < 0.1)}
+        return reward, tilt_err > self.tilt_limit, metrics
 

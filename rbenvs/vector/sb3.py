@@ -1,4 +1,4 @@
-"""stable-baselines3 on rbenvs' native vector envs.
+"""stable-baselines3 on rbenvs' native vector envs (needs stable-baselines3: the ``agents`` extra).
 
 SB3 takes its own ``VecEnv``, not a gymnasium ``VectorEnv``. :class:`SB3VecEnv` adapts an
 rbenvs vector env (built with ``autoreset_mode="SameStep"``, SB3's semantics) so that SB3's
@@ -22,7 +22,7 @@ from __future__ import annotations
 import gymnasium as gym
 import numpy as np
 from gymnasium.vector import AutoresetMode
-from stable_baselines3.common.vec_env.base_vec_env import VecEnv
+from stable_baselines3.common.vec_env.base_vec_env import VecEnv  # the agents extra (this module is imported on demand)
 
 __all__ = ["SB3VecEnv", "make_sb3_vec_env"]
 
@@ -74,14 +74,16 @@ class SB3VecEnv(VecEnv):
         self.venv.close()
 
     def get_attr(self, attr_name, indices=None):
-        value = getattr(self.venv.env, attr_name)
+        """Every sub-env shares one configuration: the vector env's attribute, once per index."""
+        value = getattr(self.venv, attr_name)
         return [value for _ in self._get_indices(indices)]
 
     def set_attr(self, attr_name, value, indices=None):
         raise AttributeError("SB3VecEnv: sub-environments share one configuration; set attributes on the vector env itself")
 
     def env_method(self, method_name, *method_args, indices=None, **method_kwargs):
-        method = getattr(self.venv.env, method_name)
+        """The vector env's method (the sub-envs share one configuration), once per index."""
+        method = getattr(self.venv, method_name)
         return [method(*method_args, **method_kwargs) for _ in self._get_indices(indices)]
 
     def env_is_wrapped(self, wrapper_class, indices=None):

@@ -1,0 +1,68 @@
+"""A model: everything one env configuration steps with, frozen, shared by every front end.
+
+An env's constructor validates its keyword arguments and builds one :class:`Model` (system,
+task, integrator, actuator, control period, guard, observation bounds); the single env and the
+vector env then run the same :class:`~rbenvs.core.step.Engine` of that model. Nothing else is
+needed to step, reset or read the state: the vector env reads no attribute of a single env
+but its public ``model`` and spaces.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+from ..contracts import StepRegion
+from .guard import StepRule
+
+__all__ = ["Model", "observation_bounds"]
+
+
+@dataclass(frozen=True, eq=False)
+class Model:
+    """One env configuration (see the contracts in :mod:`rbenvs.contracts`).
+
+    * ``system``, ``task``, ``integrator``, ``actuator``: the parts;
+    * ``dt`` [s] and ``substeps``: the control period and its minimum number of internal steps;
+    * ``guard``: ``"subdivide"``, ``"refuse"`` or ``"off"`` (:mod:`rbenvs.core.guard`);
+    * ``observation_high``: the bound of each observation component (the box ``[-high, high]``);
+    * ``speed_ceiling``: an upper bound of ``|Omega|`` inside those bounds (``inf``: unknown),
+      which lets a guard prove it never needs more than ``substeps`` steps;
+    * ``step_rule`` (derived): the guard's rule from the system's rates and the integrator's
+      region.
+    """
+
+    system: object
+    task: object
+    integrator: object
+    actuator: object
+    dt: float
+    substeps: int
+    guard: str
+    observation_high: tuple
+    speed_ceiling: float = math.inf
+    step_rule: StepRule = field(init=False)
+
+    def __post_init__(self):
+        region: StepRegion = self.integrator.region
+        rates = self.system.guard_rates(region, self.speed_ceiling)
+        object.__setattr__(self, "step_rule", StepRule.build(rates, region, self.dt, self.guard))
+
+    @property
+    def h(self) -> float:
+        """The internal step of a period of ``substeps`` steps [s]."""
+        return self.dt / self.substeps
+
+    def initial_state(self, rng) -> tuple:
+        """A random start from ``rng``: the task's distribution, completed by the system (the
+        heavy top adds a random heading where it carries the attitude)."""
+        y = self.task.initial_state(self.system, rng, ())
+        return self.system.complete_initial_state(y, rng)
+
+
+def observation_bounds(task, limits: dict) -> tuple:
+    """The bound of each of ``task``'s observation components from its declared units:
+    ``limits`` maps a unit (``"rad/s"``, ``"m/s"``) to the env's limit; unit ``"1"`` is bound
+    by 1 (unit vectors, quaternions)."""
+    bounds = dict(limits, **{"1": 1.0})
+    return tuple(float(bounds[unit]) for unit in task.observation_units)

@@ -1,0 +1,435 @@
+"""The step of a control period, written once, for one state (floats) and for a batch (arrays).
+
+:class:`Engine` runs a :class:`~rbenvs.core.model.Model`: the single env calls it on a tuple of
+Python floats (the batch of one: no numpy call overhead inside the integrator), the vector env
+on a tuple of arrays, one per component. Each part of the step is here once:
+
+1. the action: validated and clipped (:func:`action_values`, :func:`action_columns`), mapped to
+   controls by the model's actuator;
+2. the period (:meth:`Engine.advance`): ``substeps`` equal internal steps, or as many as the step
+   guard asks for per state (:mod:`rbenvs.core.guard`; each element of a batch takes its own
+   ``h`` and is frozen after its own count), the hybrid layer's switches after every internal
+   step (:mod:`rbenvs.core.hybrid`) and the system's terminal event (the tippe top's lift-off
+   without free flight) ending a period early;
+3. numerical failure: a state that went non-finite ends its episode; the last finite state is
+   kept and reported (reward 0, ``NumericalFailureWarning``), never passed on;
+4. the observation (:meth:`Engine.observe`): the task's components, clipped to the bounds, and
+   whether the state left them (``observation_limit``);
+5. reward, termination and metrics (the task's ``evaluate``), the read-outs (the system's
+   ``readouts`` under the control that acted, and ``internal_step``), assembled into ``info``;
+6. the terminal reason (:func:`terminal_reason`): ``numerical_failure`` over the event over
+   ``observation_limit`` over ``task``.
+
+Where a model's parts have pure forms, the single env's step 4-5 runs as one function generated
+from them (:meth:`Engine.finish_one`; tested equal to the methods) and the vector env's steps 2-5
+as one compiled kernel of the same functions (:mod:`rbenvs.compiled`); those are the same
+parts, specialised, not other implementations.
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+
+import numpy as np
+
+from ..dynamics.validation import real_array
+from .guard import MAX_INTERNAL_STEPS
+from .hybrid import Switching
+
+__all__ = ["Engine", "NumericalFailureWarning", "action_values", "action_columns", "terminal_reason"]
+
+
+class NumericalFailureWarning(RuntimeWarning):
+    """The state went non-finite; the episode was ended and the last finite state kept."""
+
+
+# float dtypes an action array may have on the fast path (builtin dtypes are singletons)
+_REAL_FLOATS = (np.dtype(np.float32), np.dtype(np.float64))
+
+
+def action_values(action, shape) -> list:
+    """One env's action as a list of Python floats: real numbers only (strings, complex
+    numbers, dicts and objects raise ``TypeError``), of ``shape``, finite (``ValueError``),
+    clipped to ``[-1, 1]`` (documented)."""
+    if type(action) is np.ndarray and action.shape == shape and action.dtype in _REAL_FLOATS:
+        values = action.tolist()
+        # the common case in three builtins: every entry in [-1, 1] and the sum finite (min
+        # and max may step over a NaN, the sum cannot); anything else goes the long way
+        if -1.0 <= min(values) and max(values) <= 1.0 and math.isfinite(sum(values)):
+            return values
+    else:
+        arr = real_array("action", action)
+        if arr.shape != shape:
+            raise ValueError(f"action must have shape {shape}, got {arr.shape}")
+        values = arr.tolist()
+    out = []
+    for v in values:
+        v = float(v)
+        if not math.isfinite(v):
+            raise ValueError(f"action must be finite, got {action!r}")
+        out.append(-1.0 if v < -1.0 else (1.0 if v > 1.0 else v))
+    return out
+
+
+def action_columns(actions, shape) -> tuple:
+    """A batch's actions ``(n, k)`` as ``k`` contiguous float64 columns: the single env's
+    rules (real numbers, the shape, finite; clipped to ``[-1, 1]``)."""
+    a = real_array("actions", actions, dtype=None)
+    if a.shape != shape:
+        raise ValueError(f"actions must have shape {shape}, got {a.shape}")
+    if not np.isfinite(a).all():
+        bad = np.flatnonzero(~np.all(np.isfinite(a), axis=1))
+        raise ValueError(f"actions must be finite; sub-envs {bad.tolist()} are not")
+    return tuple(np.clip(a.T, -1.0, 1.0).astype(np.float64, order="C"))
+
+
+def terminal_reason(failed, fired, over, terminated, event_name):
+    """Why an episode ended: ``numerical_failure`` over the event over ``observation_limit``
+    over ``task``; for one env a string or ``None``, for a batch an object array of strings
+    (``""`` where the episode goes on)."""
+    if type(over) is bool or isinstance(over, np.bool_):
+        if failed:
+            return "numerical_failure"
+        if fired:
+            return event_name
+        if over:
+            return "observation_limit"
+        return "task" if terminated else None
+    reason = np.full(np.shape(over), "", dtype=object)
+    reason[terminated] = "task"
+    reason[over] = "observation_limit"
+    reason[fired] = event_name or ""
+    reason[failed] = "numerical_failure"
+    return reason
+
+
+def _to_python(v):
+    if isinstance(v, (bool, np.bool_)):
+        return bool(v)
+    if isinstance(v, (int, np.integer)):  # counts stay counts
+        return int(v)
+    return float(v)
+
+
+class Engine:
+    """The step of one :class:`~rbenvs.core.model.Model` (floats or arrays; see the module)."""
+
+    def __init__(self, model):
+        m = self.model = model
+        self.system, self.task, self.integrator, self.actuator = m.system, m.task, m.integrator, m.actuator
+        self.dt, self.substeps, self.guard, self.rule = m.dt, m.substeps, m.guard, m.step_rule
+        self.h = m.dt / m.substeps
+        system = m.system
+        # a hybrid system declares its terminal event (ends the episode: the tippe top's
+        # lift-off without free flight) and its switches (free flight: hops)
+        self.event = system.terminal_event() if system.hybrid else None
+        self.event_name = None if self.event is None else self.event[0]
+        self.switching = Switching(system, m.integrator) if system.hybrid and system.switches else None
+        # the plain loop (substeps equal steps, nothing watched) is exact when no state inside
+        # the observation bounds can trip the guard; a step that ends outside them drops to the
+        # checked path until the next reset (the single env's and the vector env's rule)
+        self.plain = self.event is None and self.switching is None and self.rule.idle(m.substeps)
+        self.bound_step = m.integrator.bind(system, system.dim)  # the hot path's step, same bits
+        self.high = np.asarray(m.observation_high, dtype=np.float64)
+        self.high32 = self.high.astype(np.float32)
+        self.high_list = self.high.tolist()
+        self.high_uniform = self.high_list[0] if len(set(self.high_list)) == 1 else None
+        self.metric_names = tuple(m.task.metric_names)
+        self.readout_names = tuple(system.readout_names)
+        self.finish_one = self._generated_finish()
+
+    def __reduce__(self):  # generated functions are made again, not pickled
+        return (Engine, (self.model,))
+
+    # ------------------------------------------------------------------ the period
+    def advance(self, y, u, plain: bool, skip=None):
+        """One control period from ``y`` under ``u``: ``(y, fired, h)``.
+
+        ``fired``: whether the terminal event ended the period (a bool, or a mask for a batch);
+        ``h``: the internal step taken (``dt / n``; per element for a batch whose elements take
+        different counts). ``plain``: ``substeps`` equal steps, nothing checked. Otherwise the
+        guard's count ``n`` per state (``guard="refuse"`` raises instead of subdividing; more
+        than ``MAX_INTERNAL_STEPS`` is refused as a numerical failure: the state becomes NaN,
+        never a hang). ``skip`` (a batch): elements whose result is discarded (vector
+        autoreset) take ``substeps`` steps, are never refused and never stretch the loop.
+        """
+        if plain:
+            step, h = self.bound_step, self.h
+            y = step(y, u, h)
+            for _ in range(self.substeps - 1):
+                y = step(y, u, h)
+            return y, False, h
+        batch = isinstance(y[0], np.ndarray)
+        n = self.rule.steps(y, u, self.substeps)
+        if batch:
+            n = np.broadcast_to(np.asarray(n), np.shape(y[0]))
+            if skip is not None:
+                n = np.where(skip, self.substeps, n)
+        over = n > self.substeps
+        if self.guard == "refuse" and np.any(over):
+            if batch:
+                raise self.refusal(int(n.max()), f" of sub-envs {np.flatnonzero(over).tolist()}")
+            raise self.refusal(n)
+        refused = n > MAX_INTERNAL_STEPS
+        if np.any(refused):
+            # a state beyond what the scheme can resolve in a period: NaN (a numerical
+            # failure, reported with h = dt / n), at once
+            h_refused = self.dt / n
+            if not batch:
+                return tuple(math.nan for _ in y), False, h_refused
+            y = tuple(np.where(refused, np.nan, c) for c in y)
+            y, fired, h = self.advance(y, u, False, refused if skip is None else (skip | refused))
+            return y, fired, np.where(refused, h_refused, h)
+        integ, system, post, event = self.integrator, self.system, self.switching, self.event
+        if not batch:  # one state: the same steps, returning at the event
+            h = self.h if n == self.substeps else self.dt / n
+            for _ in range(n):
+                y_prev, y = y, integ.step(system, y, u, h)
+                if post is not None:
+                    y = post.after_step(y_prev, y, u, h)
+                if event is not None:
+                    if not all(math.isfinite(c) for c in y):
+                        return y, False, h
+                    if event[1](y, u):
+                        return y, True, h
+            return y, False, h
+        uniform = bool(np.all(n == n.flat[0]))
+        if self.integrator.uniform_step_only and not uniform:
+            # a scheme that takes one scalar step for the whole batch (adaptive dop853: one
+            # solve whose step follows all members): one run per group of equal counts
+            out = [np.array(c, dtype=float) for c in y]
+            fired = np.zeros(n.shape, dtype=bool)
+            for k in np.unique(n):
+                idx = np.flatnonzero(n == k)
+                sub_u = None if u is None else tuple(c[idx] if np.ndim(c) else c for c in u)
+                sub_y, sub_fired = self._loop(tuple(c[idx] for c in y), sub_u, np.full(len(idx), k), self.dt / int(k))
+                for o, c in zip(out, sub_y):
+                    o[idx] = c
+                fired[idx] = sub_fired
+            return tuple(out), fired, self.dt / n
+        h = self.dt / n.flat[0] if uniform else self.dt / n
+        y, fired = self._loop(y, u, n, h)
+        if uniform and event is None:
+            return y, fired, h
+        return y, fired, np.broadcast_to(np.asarray(h, dtype=float), n.shape).copy()
+
+    def _loop(self, y, u, n, h):
+        """A batch's internal steps: element ``i`` takes ``n[i]`` steps of ``h`` (``h[i]``) and is
+        frozen after them or at its terminal event: ``(y, fired)``."""
+        integ, system, post, event = self.integrator, self.system, self.switching, self.event
+        fired = np.zeros(n.shape, dtype=bool)
+        if event is None and bool(np.all(n == n.flat[0])):
+            for _ in range(int(n.flat[0])):
+                y_prev, y = y, integ.step(system, y, u, h)
+                if post is not None:
+                    y = post.after_step(y_prev, y, u, h)
+            return y, fired
+        active = np.ones(n.shape, dtype=bool)
+        for k in range(int(n.max())):
+            y_new = integ.step(system, y, u, h)
+            if post is not None:
+                y_new = post.after_step(y, y_new, u, h)
+            active &= k < n
+            if event is not None:
+                with np.errstate(invalid="ignore"):
+                    hit = active & np.asarray(event[1](y_new, u), dtype=bool)
+            y = tuple(np.where(active, c_new, c) for c_new, c in zip(y_new, y))
+            if event is not None:
+                fired |= hit
+                active &= ~hit
+            if not np.any(active):
+                break
+        return y, fired
+
+    def refusal(self, n, where: str = "") -> ValueError:
+        """The ``guard="refuse"`` error for a period that needs ``n`` internal steps."""
+        return ValueError(
+            f"guard='refuse' and the state{where} needs {n} internal steps per control period, more than "
+            f"substeps={self.substeps} (dt={self.dt!r}, integrator {self.integrator.name!r}: {self.rule.text}); "
+            f"raise substeps to at least {n} or lower dt, or pass guard='subdivide'"
+        )
+
+    def internal_steps(self, y, u):
+        """The internal steps the guard asks for at ``y`` under ``u`` (an int or an int array)."""
+        return self.rule.steps(y, u, self.substeps)
+
+    # ------------------------------------------------------------------ after the period
+    def observe(self, y):
+        """``(obs, over)``: the task's observation as float32 (one state: ``(k,)``; a batch:
+        ``(n, k)``), clipped to the bounds, and whether the state left them (a bool or a mask)."""
+        comps = self.task.observe(self.system, y)
+        if not isinstance(comps[0], np.ndarray) and not isinstance(y[0], np.ndarray):
+            hi = self.high_uniform
+            if hi is not None:  # one bound for every component: two builtin calls
+                over = not (-hi <= min(comps) and max(comps) <= hi)
+            else:
+                over = any(not -b <= v <= b for v, b in zip(comps, self.high_list))
+            if over:
+                return np.clip(np.asarray(comps, dtype=np.float64), -self.high, self.high).astype(np.float32), True
+            return np.array(comps, dtype=np.float32), False
+        # a batch: the float32 copy checked against the float32 bounds with <; rounding to
+        # float32 is monotone, so float32(v) < float32(hi) implies v < hi and passing means
+        # every float64 value is inside; otherwise the exact float64 test decides
+        n = len(y[0])
+        o = np.empty((n, len(comps)), dtype=np.float32)
+        for j, c in enumerate(comps):
+            o[:, j] = c
+        none = np.zeros(n, dtype=bool)
+        if (np.abs(o) < self.high32).all():
+            return o, none
+        o64 = np.empty((n, len(comps)))
+        for j, c in enumerate(comps):
+            o64[:, j] = c
+        outside = ~(np.abs(o64) <= self.high)
+        if not outside.any():
+            return o64.astype(np.float32), none
+        return np.clip(o64, -self.high, self.high).astype(np.float32), outside.any(axis=1)
+
+    def evaluate(self, y, u_norm):
+        """``(reward, terminated, metrics)`` (the task's ``evaluate``): for one state a Python
+        float, bool and dict; for a batch arrays of the batch's length."""
+        reward, terminated, metrics = self.task.evaluate(self.system, y, u_norm)
+        if not isinstance(y[0], np.ndarray):
+            return float(reward), bool(terminated), metrics
+        n = len(y[0])
+        reward = np.asarray(reward, dtype=np.float64)
+        if reward.shape != (n,):
+            reward = np.broadcast_to(reward, (n,)).copy()
+        terminated = np.asarray(terminated, dtype=bool)
+        if terminated.shape != (n,):
+            terminated = np.broadcast_to(terminated, (n,)).copy()
+        return reward, terminated, metrics
+
+    def readouts(self, y, u, fired, h) -> dict:
+        """The physical read-outs (the system's, under the control ``u`` that acted and with the
+        event flag) and ``internal_step`` (``h``), keyed by name."""
+        info = dict(zip(self.readout_names, self.system.readouts(y, u, fired)))
+        info["internal_step"] = h
+        return info
+
+    def info_one(self, y, u, fired, h, metrics, failed: bool) -> dict:
+        """One env's ``info``: read-outs, metrics, ``numerical_failure``; Python scalars."""
+        info = self.readouts(y, u, fired, h)
+        info.update(metrics)
+        for name, v in info.items():
+            if type(v) is not float and type(v) is not bool:
+                info[name] = _to_python(v)
+        info["numerical_failure"] = failed
+        return info
+
+    # ------------------------------------------------------------------ one env (floats)
+    def reset_one(self, y):
+        """``(obs, info)`` of a start ``y`` (no control has acted: ``u = None``)."""
+        obs, over = self.observe(y)
+        if over:
+            raise ValueError("the initial state lies outside the observation bounds; raise the limit parameters")
+        _, _, metrics = self.evaluate(y, self.actuator.control((0.0,) * self.actuator.size)[0])
+        return obs, self.info_one(y, None, False, self.h, metrics, failed=False)
+
+    def step_one(self, y0, a, plain: bool):
+        """One control period of one env from ``y0`` under the action ``a`` (validated floats):
+        ``(y, obs, reward, terminated, info, u, plain)``, ``u`` the control that acted and
+        ``plain`` whether the next period may take the plain loop."""
+        u_norm, u = self.actuator.control(a)
+        if plain:  # fixed substeps, nothing watched: the loop inline (the hot path)
+            step, h = self.bound_step, self.h
+            y = step(y0, u, h)
+            if self.substeps != 1:
+                for _ in range(self.substeps - 1):
+                    y = step(y, u, h)
+            fired = False
+        else:
+            y, fired, h = self.advance(y0, u, False)
+        # a non-finite component makes the sum non-finite; the exact test runs only then
+        if not math.isfinite(sum(y)) and not all(math.isfinite(c) for c in y):
+            return self._failed_one(y0, u_norm, u, h, plain)
+        finish = self.finish_one
+        if finish is not None:
+            fn, po, pe, pr = finish
+            obs, over, reward, terminated, info = fn(y, u_norm, po, pe, pr, h)
+        else:
+            obs, over = self.observe(y)
+            reward, terminated, metrics = self.evaluate(y, u_norm)
+            info = self.info_one(y, u, fired, h, metrics, failed=False)
+        if fired:
+            terminated = True
+            info["terminal_reason"] = self.event_name
+        elif over:
+            terminated = True
+            info["terminal_reason"] = "observation_limit"
+            plain = False  # outside the bounds the guard's static proof is void
+        elif terminated:
+            info["terminal_reason"] = "task"
+        return y, obs, reward, terminated, info, u, plain
+
+    def _failed_one(self, y0, u_norm, u, h, plain):
+        warnings.warn(
+            f"the state became non-finite with integrator {self.integrator.name!r} (internal step h = {float(np.max(h)):g} s); "
+            "the episode ends and the last finite state is kept",
+            NumericalFailureWarning,
+            stacklevel=5,
+        )
+        obs, _ = self.observe(y0)
+        _, _, metrics = self.evaluate(y0, u_norm)
+        info = self.info_one(y0, u, False, h, metrics, failed=True)
+        info["terminal_reason"] = "numerical_failure"
+        return y0, obs, 0.0, True, info, u, plain
+
+    # ------------------------------------------------------------------ a batch (arrays)
+    def settle(self, y0, y, skip):
+        """``(y, failed)`` after a batch's period: elements that went non-finite keep their
+        last finite state; ``failed`` marks them (not those in ``skip``, about to restart);
+        one ``NumericalFailureWarning`` names them. ``failed`` is ``None`` when none failed."""
+        if np.isfinite(sum(y)).all():
+            return y, None
+        finite = np.ones(np.shape(y[0]), dtype=bool)
+        for c in y:
+            finite &= np.isfinite(c)
+        failed = ~finite & ~skip
+        if failed.any():
+            warnings.warn(
+                f"sub-envs {np.flatnonzero(failed).tolist()} became non-finite with integrator {self.integrator.name!r}; "
+                "their episodes end and their last finite states are kept",
+                NumericalFailureWarning,
+                stacklevel=3,
+            )
+        return tuple(np.where(finite, c, c0) for c, c0 in zip(y, y0)), (failed if failed.any() else None)
+
+    # ------------------------------------------------------------------ pure forms
+    def _generated_finish(self):
+        """``(finish, PO, PE, PR)``: steps 4-5 for one state of floats as one generated
+        function of the task's and system's pure forms (:func:`rbenvs.compiled.state_finish`),
+        or ``None`` where a part has none (the methods then run)."""
+        from ..compiled import state_finish
+
+        kernels, readouts = self.task.kernels, self.system.kernel_readouts
+        if kernels is None or readouts is None or self.system.hybrid:
+            return None
+        (observe, po), (evaluate, pe) = kernels(self.system)
+        f, pr = readouts
+        high = tuple(self.high_list)
+        fn = state_finish(observe, len(high), evaluate, self.metric_names, f, self.readout_names, high)
+        return fn, po, pe, pr
+
+    def kernel_parts(self):
+        """What :func:`rbenvs.compiled.batch_kernel` needs to run this model's step on a batch:
+        ``(step, observe, evaluate, readouts, guard)``, each ``(pure function, parameters)``
+        (``guard``: ``((step_ratio, G), (rotation rate, P))``, or ``None`` where no guard check
+        is needed), or ``None`` where a part has no pure form (the batch then runs on numpy).
+        The kernel takes ``substeps`` equal steps: a guarded period that needs more goes back to
+        the numpy path; events and hybrid switching (the tippe top) never compile (yet)."""
+        from .guard import step_ratio
+
+        step = self.integrator.kernel_step(self.system)
+        kernels, readouts = self.task.kernels, self.system.kernel_readouts
+        if step is None or kernels is None or readouts is None or self.system.hybrid:
+            return None
+        guard = None
+        rule = self.rule
+        if rule.active and not self.plain:
+            if rule.dissipation is not None:
+                return None  # a rate that depends on the control: not in the kernel yet
+            guard = ((step_ratio, rule.params), rule.rotation)
+        observe, evaluate = kernels(self.system)
+        return step, observe, evaluate, readouts, guard
