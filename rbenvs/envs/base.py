@@ -36,6 +36,16 @@ def require_float32_bound(name: str, value) -> float:
     return v
 
 
+class _SupportedSchemes:
+    """``cls.integrators``: the registered integrators whose declared needs (``requires``) the
+    env's ``system_class`` meets, in registry order (a scheme registered later appears too)."""
+
+    def __get__(self, obj, cls):
+        from ..integrators import INTEGRATORS
+
+        return tuple(name for name, scheme in INTEGRATORS.items() if all(hasattr(cls.system_class, need) for need in scheme.requires))
+
+
 class RigidBodyEnv(gym.Env):
     """Base class. A subclass validates its arguments, builds its system, task and actuator,
     and calls :meth:`_setup`; it names the keywords that set its rates (``_rate_sources``),
@@ -44,6 +54,8 @@ class RigidBodyEnv(gym.Env):
 
     # render_fps is set per instance from dt (one frame per step)
     metadata = {"render_modes": ["human", "rgb_array"]}
+    system_class: type = None  # the system the env builds (its capabilities pick the integrators)
+    integrators = _SupportedSchemes()
 
     def _setup(self, system, task, actuator, integrator, dt, substeps, observation_high, render_mode, guard="subdivide"):
         guard = require_guard(guard)

@@ -157,7 +157,7 @@ class FreeRigidBodyEnv(RigidBodyEnv):
     tasks = ("spin", "detumble", "reorient")
     # info keys of the quantities the uncontrolled motion conserves (summaries, checks)
     invariants = ("energy", "momentum_norm")
-    integrators = ("euler", "rk4", "splitting", "exact", "dop853")
+    system_class = FreeBody
 
     def __init__(
         self,

@@ -166,7 +166,7 @@ class LagrangeTopEnv(RigidBodyEnv):
     tasks = ("upright", "precess")
     # info keys of the quantities the uncontrolled, frictionless motion conserves
     invariants = ("energy", "pi_dot_gamma", "vertical_norm")
-    integrators = ("euler", "rk4", "splitting", "dop853")
+    system_class = HeavyTop
 
     def __init__(
         self,

@@ -147,7 +147,7 @@ class TippeTopEnv(RigidBodyEnv):
     """
 
     tasks = ("invert", "hold")
-    integrators = ("euler", "rk4", "dop853")
+    system_class = TippeTop
     fidelities = FIDELITIES
     # info keys of the quantities the motion keeps: Jellett always (no body torque), the energy
     # without friction

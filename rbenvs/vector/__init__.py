@@ -55,9 +55,8 @@ from gymnasium.vector.utils import batch_space
 from .. import compiled as _compiled
 from ..core.step import action_columns, terminal_reason
 from ..dynamics.validation import real_array, require_bool, require_int_at_least
-from ..envs import FreeRigidBodyEnv, LagrangeTopEnv, TippeTopEnv
 
-__all__ = ["RigidBodyVectorEnv", "FreeRigidBodyVectorEnv", "LagrangeTopVectorEnv", "TippeTopVectorEnv"]
+__all__ = ["RigidBodyVectorEnv", "vector_class", "FreeRigidBodyVectorEnv", "LagrangeTopVectorEnv", "TippeTopVectorEnv"]
 
 
 class RigidBodyVectorEnv(VectorEnv):
@@ -425,19 +424,42 @@ class RigidBodyVectorEnv(VectorEnv):
             self._renderer = None
 
 
-class FreeRigidBodyVectorEnv(RigidBodyVectorEnv):
-    """``rbenvs/FreeRigidBody-v0`` batched (see :class:`rbenvs.envs.FreeRigidBodyEnv`)."""
-
-    env_class = FreeRigidBodyEnv
-
-
-class LagrangeTopVectorEnv(RigidBodyVectorEnv):
-    """``rbenvs/LagrangeTop-v0`` batched (see :class:`rbenvs.envs.LagrangeTopEnv`)."""
-
-    env_class = LagrangeTopEnv
+# One vector class per registered id, made from its single env's class: ``rbenvs/X-v0`` with
+# entry point ``...:XEnv`` has ``rbenvs.vector.XVectorEnv`` (its vector_entry_point). A new
+# system needs its registration only.
+_MADE: dict = {}
 
 
-class TippeTopVectorEnv(RigidBodyVectorEnv):
-    """``rbenvs/TippeTop-v0`` batched (see :class:`rbenvs.envs.TippeTopEnv`)."""
+def vector_class(env_class: type) -> type:
+    """The vector env class of a single env class (made once)."""
+    cls = _MADE.get(env_class)
+    if cls is None:
+        name = env_class.__name__[: -len("Env")] + "VectorEnv"
+        doc = f"The vector env of :class:`{env_class.__module__}.{env_class.__name__}` (see :mod:`rbenvs.vector`)."
+        cls = _MADE[env_class] = type(name, (RigidBodyVectorEnv,), {"env_class": env_class, "__doc__": doc, "__module__": __name__})
+    return cls
 
-    env_class = TippeTopEnv
+
+def _registered() -> dict:
+    """``{vector class name: "module:SingleEnvClass"}`` of every registered id."""
+    from .. import ENVIRONMENTS
+
+    out = {}
+    for spec in ENVIRONMENTS.values():
+        module, attr = spec["entry_point"].split(":")
+        out[attr[: -len("Env")] + "VectorEnv"] = (module, attr)
+    return out
+
+
+def __getattr__(name):
+    entry = _registered().get(name)
+    if entry is None:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    import importlib
+
+    module, attr = entry
+    return vector_class(getattr(importlib.import_module(module), attr))
+
+
+def __dir__():
+    return sorted(list(globals()) + list(_registered()))
