@@ -109,15 +109,22 @@ class System(Protocol):
 
     Attributes: ``dim`` (number of state components), ``layout`` (name -> ``(start, stop)``
     slices of the components, the names of ``get_state``), ``readout_names`` (the ``info`` keys
-    of :meth:`readouts`), ``casimirs`` (read-outs the Lie-Poisson bracket keeps), ``params``
-    (a frozen parameter object). Optional capabilities, declared by having them: ``split_flows``
-    (exact sub-flows, for the splitting), ``free_flow`` and ``kick`` (the exact flow), pure forms
-    ``kernel_rhs`` / ``kernel_readouts`` (``(fn, P)``, for generated and compiled steps).
+    of :meth:`readouts`), ``params`` (a frozen parameter object), ``hybrid`` (whether its
+    contact can switch: then it is a :class:`HybridSystem`), ``completes_initial_state``
+    (whether :meth:`complete_initial_state` adds to a task's start), ``kernel_rhs`` and
+    ``kernel_readouts`` (pure forms ``(fn, P)`` of the vector field and the read-outs for
+    generated and compiled steps, or ``None``). Optional capabilities an integrator may
+    require (its ``requires``): ``split_flows`` (exact sub-flows, for the splitting),
+    ``free_flow`` and ``kick`` (the exact flow).
     """
 
     dim: int
     layout: dict
     readout_names: tuple
+    hybrid: bool
+    completes_initial_state: bool
+    kernel_rhs: Any
+    kernel_readouts: Any
 
     def rhs(self, y, u):
         """``dy/dt`` at ``y`` under ``u`` (components)."""
@@ -125,31 +132,46 @@ class System(Protocol):
     def normalize(self, y):
         """``y`` projected back onto the state manifold (unit quaternions, unit vectors)."""
 
-    def readouts(self, y, u) -> tuple:
+    def readouts(self, y, u, fired):
         """The physical read-outs in ``readout_names`` order at ``y`` after a period under
-        ``u`` (``None`` after a reset); floats or arrays."""
+        ``u`` (``None`` after a reset); ``fired``: whether the period ended at the terminal
+        event. Floats or arrays."""
 
     def angular_velocity(self, y):
         """Body angular velocity ``Omega`` [rad/s] (components)."""
 
-    def guard_rates(self, region: StepRegion) -> GuardRates:
-        """The rates the internal step must resolve with an integrator of ``region``."""
+    def guard_rates(self, region: StepRegion, speed_ceiling: float) -> GuardRates:
+        """The rates the internal step must resolve with an integrator of ``region``;
+        ``speed_ceiling`` bounds ``|Omega|`` inside the observation bounds."""
+
+    def complete_initial_state(self, y, rng):
+        """A task's start ``y`` completed with what the system adds (or ``y``)."""
+
+    def export_state(self, y) -> dict:
+        """The named state (float64 copies)."""
+
+    def import_state(self, state: dict) -> tuple:
+        """Components from a named state, checked (shapes, finiteness, physical constraints)."""
 
 
 @runtime_checkable
 class HybridSystem(System, Protocol):
-    """A system whose contact can switch (the tippe top's lift-off and touchdown).
+    """A system whose contact can open (the tippe top): ``hybrid`` is true.
 
-    ``events(u)``: the events to watch after each internal step, each ``(name, guard_fn,
-    applies, tolerance, switch)``: ``applies(y)`` whether the event can happen from ``y``'s
-    mode, ``guard_fn(y)`` a function whose sign change (>= 0 to < 0) is the event, located to
-    ``tolerance`` inside the step by the hybrid layer (:mod:`rbenvs.core.hybrid`), and
-    ``switch(y) -> y`` the state in the new mode at the event. The system never calls an
+    ``switches``: whether the contact switches (free flight: lift-off and touchdown, located
+    inside the internal step by :mod:`rbenvs.core.hybrid` from :meth:`events`) rather than a
+    lift-off ending the episode (:meth:`terminal_event`). The system never calls an
     integrator: locating an event is the hybrid layer's job.
     """
 
+    switches: bool
+
+    def terminal_event(self):
+        """``(name, fn)`` with ``fn(y, u)`` true where the episode ends, or ``None``."""
+
     def events(self, u) -> tuple:
-        """The switching events under control ``u``."""
+        """The switches under control ``u``: ``Event(name, applies, function, tolerance,
+        switch)`` each (:class:`rbenvs.dynamics.tippe_top.Event`)."""
 
 
 @runtime_checkable
@@ -157,14 +179,22 @@ class Task(Protocol):
     """What an agent is asked to do with a system: start, observation, reward, end.
 
     Attributes: ``name``; ``observation_names`` and ``observation_units`` (one per observation
-    component); ``metric_names`` (the ``info`` keys of the metrics, ``is_success`` last);
-    ``final_measure`` (the metric that summarises an episode's end, for ``rbenvs run``);
-    ``controller`` (the name of the reference controller in :mod:`rbenvs.controllers`).
+    component: the env maps a unit to its bound); ``metric_names`` (the ``info`` keys of the
+    metrics, ``is_success`` last); ``final_measure`` (the metric or read-out that summarises an
+    episode's end, for ``rbenvs run``); ``controller`` (the class name of the reference
+    controller in :mod:`rbenvs.controllers`); ``kernels`` (pure forms of ``observe`` and
+    ``evaluate`` for generated and compiled steps, or ``None``); ``two_stage_draws`` (whether
+    starts split into per-generator draws and one batched conversion).
     """
 
     name: str
     observation_names: tuple
+    observation_units: tuple
     metric_names: tuple
+    final_measure: str
+    controller: str
+    kernels: Any
+    two_stage_draws: bool
 
     def initial_state(self, system, rng, shape):
         """Components of a random initial state drawn from ``rng``."""
@@ -181,19 +211,30 @@ class Integrator(Protocol):
     """How to advance a state by ``h`` (stateless, immutable).
 
     Attributes: ``name``; ``order`` (global order for smooth problems); ``evaluations`` (rhs
-    calls per step, ``None`` if not rhs-based); ``conserves`` (invariants kept to round-off);
-    ``requires`` (system capabilities it needs); ``region`` (:class:`StepRegion`).
+    calls per step, ``None`` if not rhs-based: the cost); ``conserves`` (invariants kept to
+    round-off); ``requires`` (system capabilities it needs); ``region`` (:class:`StepRegion`);
+    ``uniform_step_only`` (one scalar step for a whole batch: adaptive schemes).
     """
 
     name: str
     order: int
+    evaluations: Any
+    conserves: tuple
+    requires: tuple
     region: StepRegion
+    uniform_step_only: bool
 
     def supports(self, system) -> bool:
         """Whether ``system`` offers everything this scheme needs."""
 
     def step(self, system, y, u, h):
         """``y`` advanced by ``h`` under ``u``."""
+
+    def bind(self, system, dim: int):
+        """``step(y, u, h)`` with ``system`` bound once (the hot path; the same bits)."""
+
+    def kernel_step(self, system):
+        """``(step, P)``, a pure form of :meth:`step` for compiled code, or ``None``."""
 
 
 @runtime_checkable

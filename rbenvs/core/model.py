@@ -12,7 +12,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
-from ..contracts import StepRegion
+from ..contracts import Actuator, HybridSystem, Integrator, StepRegion, System, Task, require_parts
 from .guard import StepRule
 
 __all__ = ["Model", "observation_bounds"]
@@ -44,6 +44,11 @@ class Model:
     step_rule: StepRule = field(init=False)
 
     def __post_init__(self):
+        # the contracts, checked once: a missing piece is an error here, not a silent change
+        require_parts(self.system, HybridSystem if self.system.hybrid else System, "system")
+        require_parts(self.task, Task, "task")
+        require_parts(self.integrator, Integrator, "integrator")
+        require_parts(self.actuator, Actuator, "actuator")
         region: StepRegion = self.integrator.region
         rates = self.system.guard_rates(region, self.speed_ceiling)
         object.__setattr__(self, "step_rule", StepRule.build(rates, region, self.dt, self.guard))
