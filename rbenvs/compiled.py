@@ -15,7 +15,7 @@ Python floats (a system's vector field, a task's reward and observation, a syste
 are marked :func:`jitable`; that marker leaves each of them the plain Python function it was
 (no call overhead on the single-env path) and, when numba is installed, registers it so that
 compiled code may call it. The integrator step is the one generated per scheme and dimension
-(:mod:`rbenvs.integrators.explicit`). The only new code here is the batch loop that calls
+(:mod:`rbenvs.integrators.runge_kutta`). The only new code here is the batch loop that calls
 them: generated per layout (state size, observation size, number of metrics and read-outs).
 numba compiles float arithmetic in source order without contraction into fused multiply-adds
 (no ``fastmath``), and ``sqrt`` is correctly rounded, so a compiled sub-env follows the single
@@ -30,6 +30,7 @@ from __future__ import annotations
 
 from functools import lru_cache
 
+from .core.codegen import generate
 from .jit import DISABLE_VARIABLE, available, jitable
 from .jit import register as _register
 from .jit import register_all as _register_all
@@ -72,8 +73,7 @@ def physics_kernel(step, dim: int, n_control: int):
     _register_all()
     _register(step)
     src = "def advance(Y, Ynew, U, h, substeps, PS):\n" + "\n".join(_physics_lines(dim, n_control)) + "\n"
-    namespace = {"step": step}
-    exec(compile(src, f"<rbenvs physics kernel dim={dim}>", "exec"), namespace)
+    namespace = generate(src, f"physics kernel dim={dim}", {"step": step})
     return numba.njit(error_model="numpy")(namespace["advance"])
 
 
@@ -165,7 +165,7 @@ def batch_kernel(step, dim: int, n_control: int, observe, n_obs: int, evaluate, 
     from math import isfinite
 
     namespace = {"step": step, "observe": observe, "evaluate": evaluate, "readouts": readouts, "guard": guard, "angular": angular, "isfinite": isfinite}
-    exec(compile("\n".join(lines) + "\n", f"<rbenvs batch kernel dim={dim}>", "exec"), namespace)
+    generate("\n".join(lines), f"batch kernel dim={dim} n_obs={n_obs}", namespace)
     # error_model="numpy": a float division by zero gives inf/nan as on arrays (and needs no
     # per-element check, which would keep the loops out of SIMD registers)
     return numba.njit(error_model="numpy")(namespace["kernel"])
@@ -202,7 +202,7 @@ def state_finish(observe, n_obs: int, evaluate, metric_names: tuple, readouts, r
         "F32": np.dtype(np.float32), "F64": np.dtype(np.float64), "LOW": -np.asarray(high), "HIGH": np.asarray(high),
     }
     assert len(high) == n_obs
-    exec(compile("\n".join(lines) + "\n", f"<rbenvs state finish n_obs={n_obs}>", "exec"), namespace)
+    generate("\n".join(lines), f"state finish n_obs={n_obs}", namespace)
     return namespace["finish"]
 
 

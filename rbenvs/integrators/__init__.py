@@ -15,11 +15,11 @@ from __future__ import annotations
 
 from .base import Integrator
 from .exact import Exact
-from .explicit import RK4, Euler
+from .runge_kutta import RK4, ButcherTableau, Euler, ExplicitRungeKutta
 from .reference import Dop853
 from .splitting import Splitting
 
-__all__ = ["Integrator", "Euler", "RK4", "Splitting", "Exact", "Dop853", "INTEGRATORS", "get_integrator"]
+__all__ = ["Integrator", "ButcherTableau", "ExplicitRungeKutta", "Euler", "RK4", "Splitting", "Exact", "Dop853", "INTEGRATORS", "get_integrator"]
 
 INTEGRATORS: dict[str, type[Integrator]] = {cls.name: cls for cls in (Euler, RK4, Splitting, Exact, Dop853)}
 

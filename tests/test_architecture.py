@@ -1,0 +1,130 @@
+"""The layers and contracts the code promises (issue 16), checked on the source itself."""
+
+import ast
+from pathlib import Path
+
+import pytest
+
+from rbenvs.contracts import Integrator, StepRegion, System, Task, require_parts
+from rbenvs.envs import FreeRigidBodyEnv, LagrangeTopEnv, TippeTopEnv
+from rbenvs.integrators import INTEGRATORS
+
+ROOT = Path(__file__).resolve().parents[1]
+PACKAGE = ROOT / "rbenvs"
+
+
+def _trees(folder: Path, pattern="*.py"):
+    for path in sorted(folder.rglob(pattern)):
+        if "__pycache__" not in path.parts:
+            yield path, ast.parse(path.read_text(), filename=str(path))
+
+
+def test_the_vector_env_reads_no_private_attribute_of_another_object():
+    """rbenvs/vector* drives the model's engine through public names only: ``x._name`` is
+    allowed for ``self`` alone (no template env's privates read or written)."""
+    offences = []
+    for path, tree in _trees(PACKAGE / "vector"):
+        for node in ast.walk(tree):
+            if isinstance(node, ast.Attribute) and node.attr.startswith("_") and not node.attr.startswith("__"):
+                if not (isinstance(node.value, ast.Name) and node.value.id == "self"):
+                    offences.append(f"{path.relative_to(ROOT)}:{node.lineno} .{node.attr}")
+    assert not offences, offences
+
+
+def test_exec_appears_in_one_module_only():
+    """Generated code is compiled in rbenvs/core/codegen.py alone."""
+    users = set()
+    for path, tree in _trees(PACKAGE):
+        for node in ast.walk(tree):
+            if isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and node.func.id in ("exec", "eval"):
+                users.add(path.relative_to(ROOT).as_posix())
+    assert users == {"rbenvs/core/codegen.py"}, users
+
+
+def test_nothing_in_rbenvs_imports_the_agents():
+    for path, tree in _trees(PACKAGE):
+        for node in ast.walk(tree):
+            names = [a.name for a in node.names] if isinstance(node, ast.Import) else [node.module or ""] if isinstance(node, ast.ImportFrom) else []
+            assert not any(n.split(".")[0] == "rbenvs_agents" for n in names), (path, node.lineno)
+
+
+def test_bench_and_verify_use_each_others_public_names_only():
+    for folder, other in (("bench", "verify"), ("verify", "bench")):
+        for path, tree in _trees(PACKAGE / folder):
+            for node in ast.walk(tree):
+                if isinstance(node, ast.ImportFrom) and node.module and (other in node.module.split(".") or node.level and node.module.split(".")[0] in (folder, other)):
+                    private = [a.name for a in node.names if a.name.startswith("_")]
+                    assert not private, (path, node.lineno, private)
+
+
+def test_tests_share_helpers_through_conftest_not_each_other():
+    for path, tree in _trees(ROOT / "tests", "test_*.py"):
+        for node in ast.walk(tree):
+            if isinstance(node, ast.ImportFrom) and node.module:
+                assert not node.module.startswith("test_"), (path, node.lineno, node.module)
+            if isinstance(node, ast.Import):
+                assert not any(a.name.startswith("test_") for a in node.names), (path, node.lineno)
+
+
+@pytest.mark.parametrize("name", sorted(INTEGRATORS))
+def test_every_integrator_declares_its_contract_and_region(name):
+    integ = INTEGRATORS[name]()
+    require_parts(integ, Integrator, "integrator")
+    assert isinstance(integ.region, StepRegion) and integ.region.reason
+
+
+class _NoRegion(INTEGRATORS["rk4"]):
+    region = None
+
+
+def test_an_integrator_without_a_region_cannot_run():
+    with pytest.raises(ValueError, match="step region"):
+        FreeRigidBodyEnv(integrator=_NoRegion())
+
+
+@pytest.mark.parametrize("env", [FreeRigidBodyEnv(), FreeRigidBodyEnv(task="reorient"), LagrangeTopEnv(task="precess", attitude=True), TippeTopEnv(free_flight=True)],
+                         ids=["free", "reorient", "precess", "tippe"])
+def test_every_system_and_task_provides_its_contract(env):
+    require_parts(env.system, System, "system")
+    require_parts(env.task, Task, "task")
+    assert len(env.task.observation_names) == len(env.task.observation_units) == env.observation_space.shape[0]
+    assert env.task.metric_names[-1] == "is_success"
+
+
+def test_require_parts_names_what_is_missing():
+    class Half:
+        dim, layout, readout_names = 3, {}, ()
+
+    with pytest.raises(TypeError, match="rhs"):
+        require_parts(Half(), System, "system")
+
+
+def test_a_registered_scheme_is_in_every_env_it_supports_and_verify_reports_it_unverified(monkeypatch):
+    """A new integrator registered once appears in the choices of every env whose system meets
+    its needs, runs guarded by its own region, and `rbenvs verify` reports it as unverified
+    (a FAIL row) until it has settings, rather than skipping it."""
+    from dataclasses import dataclass
+
+    from rbenvs import integrators, verify
+
+    @dataclass(frozen=True)
+    class RK4Copy(integrators.RK4):
+        name = "rk4_copy"
+
+    monkeypatch.setitem(integrators.INTEGRATORS, "rk4_copy", RK4Copy)
+    assert all("rk4_copy" in cls.integrators for cls in (FreeRigidBodyEnv, LagrangeTopEnv, TippeTopEnv))
+    env = FreeRigidBodyEnv(integrator="rk4_copy", spin_rate=30.0, max_angular_velocity=200.0, task="detumble")
+    assert env.step_rule.active and env.step_rule.params[1] == 1.0  # the region RK4Copy declares
+    rows = verify.run_checks(systems=("free_body", "tippe_top"), integrators=["rk4_copy"], quick=True, show_progress=False)
+    assert [(r.system, r.passed) for r in rows if "verification settings" in r.check] == [("free_body", False), ("tippe_top", False)]
+
+
+def test_vector_classes_come_from_the_registration():
+    from rbenvs import vector
+
+    for env_id, cls in (("rbenvs/FreeRigidBody-v0", FreeRigidBodyEnv), ("rbenvs/LagrangeTop-v0", LagrangeTopEnv), ("rbenvs/TippeTop-v0", TippeTopEnv)):
+        vcls = vector.vector_class(cls)
+        assert vcls.env_class is cls and vcls.__name__ == cls.__name__.replace("Env", "VectorEnv")
+        assert getattr(vector, vcls.__name__) is vcls
+    with pytest.raises(AttributeError):
+        vector.NoSuchVectorEnv  # noqa: B018
