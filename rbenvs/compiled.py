@@ -209,7 +209,7 @@ def state_finish(observe, n_obs: int, evaluate, metric_names: tuple, readouts, r
 class BatchStep:
     """One env's compiled batch step: the kernel of its layout plus its parameters.
 
-    ``parts`` is :meth:`rbenvs.envs.base.RigidBodyEnv._kernel_parts`; ``dim`` the state size,
+    ``parts`` is :meth:`rbenvs.core.step.Engine.kernel_parts`; ``dim`` the state size,
     ``n_obs`` the observation size, ``n_control`` the control size, ``sample`` any state (as
     floats) used once to learn the metrics' types.
     """
