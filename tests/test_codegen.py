@@ -1,6 +1,8 @@
 """The one code generator (rbenvs.core.codegen) and explicit Runge-Kutta schemes from their
 Butcher tableaus (rbenvs.integrators.runge_kutta)."""
 
+import inspect
+import linecache
 import math
 import traceback
 from dataclasses import dataclass
@@ -22,6 +24,17 @@ def test_generated_code_shows_its_source_in_tracebacks():
         ns["f"](2.0)
     text = "".join(traceback.format_exception(err.value))
     assert "<rbenvs generated: test zero division #" in text and "return 1 / (y - y)" in text
+
+
+def test_generated_code_is_readable_with_inspect_and_survives_checkcache():
+    """Each source has its own pseudo-file (even under one label), kept by linecache.checkcache."""
+    first = codegen.generate("def f(x):\n    return x * 3\n", "same label")["f"]
+    second = codegen.generate("def f(x):\n    return x * 4\n", "same label")["f"]
+    linecache.checkcache()
+    assert inspect.getsourcefile(first) != inspect.getsourcefile(second)
+    assert "return x * 3" in inspect.getsource(first) and "return x * 4" in inspect.getsource(second)
+    step = RK4().bind(FreeBody(FreeBodyParams((2.0, 1.5, 1.0))), 3)
+    assert "h_sum = h / 6.0" in inspect.getsource(step)
 
 
 def test_the_dump_variable_writes_every_generated_source(tmp_path, monkeypatch):
@@ -75,10 +88,12 @@ def test_tableau_steps_equal_the_hand_written_formulas_bit_for_bit(scheme, refer
         assert scheme.step(system, y, u, 1e-3) == want
         bound = scheme.bind(system, system.dim)(y, u, 1e-3)
         assert bound == (want if getattr(system, "needs_projection", True) else reference(system.rhs, y, u, 1e-3))
-        batch = tuple(np.array([c, 2.0 * c]) for c in y)
+        y2 = tuple(2.0 * c for c in y)
+        want2 = system.normalize(reference(system.rhs, y2, u, 1e-3))
+        batch = tuple(np.array([c, c2]) for c, c2 in zip(y, y2))
         ub = tuple(np.array([c, c]) for c in u)
         got = scheme.step(system, batch, ub, 1e-3)
-        assert all(g[0] == w for g, w in zip(got, want))
+        assert all(g[0] == w and g[1] == w2 for g, w, w2 in zip(got, want, want2))
         pure = scheme.kernel_step(system)
         if pure is not None:
             step, params = pure

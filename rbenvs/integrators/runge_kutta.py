@@ -143,7 +143,11 @@ def _body(tableau: ButcherTableau, dim: int, call: str, project: bool) -> list[s
             parts.append(inner if n == 1 else f"{n}.0 * ({inner})")
         return " + ".join(parts)
 
-    result = tup([f"y{i} + {hd} * ({total(i)})" for i in range(dim)])
+    def scaled_sum(i):  # a single term needs no parentheses (the same operations either way)
+        t = total(i)
+        return t if len(groups) == 1 and len(groups[0][1]) == 1 and groups[0][0] == 1 else f"({t})"
+
+    result = tup([f"y{i} + {hd} * {scaled_sum(i)}" for i in range(dim)])
     lines.append(f"return normalize({result})" if project else f"return {result}")
     return lines
 
