@@ -16,7 +16,6 @@ from gymnasium.vector import AutoresetMode
 from gymnasium.vector.utils import batch_space
 
 import rbenvs
-from rbenvs import vector
 from rbenvs.envs import NumericalFailureWarning
 
 from conftest import ENV_IDS, FREE, LAGRANGE, TIPPE, TIPPE_CONTROL_READOUTS, VECTOR_CLASS, check_info_row, lockstep, make_singles, make_vec, random_actions, same, same_state

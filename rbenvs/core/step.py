@@ -119,6 +119,7 @@ class Engine:
         m = self.model = model
         self.system, self.task, self.integrator, self.actuator = m.system, m.task, m.integrator, m.actuator
         self.dt, self.substeps, self.guard, self.rule = m.dt, m.substeps, m.guard, m.step_rule
+        self.control = m.actuator.control  # bound once: the hot path calls it every step
         self.h = m.dt / m.substeps
         system = m.system
         # a hybrid system declares its terminal event (ends the episode: the tippe top's
@@ -160,32 +161,19 @@ class Engine:
             for _ in range(self.substeps - 1):
                 y = step(y, u, h)
             return y, False, h
-        batch = isinstance(y[0], np.ndarray)
         n = self.rule.steps(y, u, self.substeps)
-        if batch:
-            n = np.broadcast_to(np.asarray(n), np.shape(y[0]))
-            if skip is not None:
-                n = np.where(skip, self.substeps, n)
-        over = n > self.substeps
-        if self.guard == "refuse" and np.any(over):
-            if batch:
-                raise self.refusal(int(n.max()), f" of sub-envs {np.flatnonzero(over).tolist()}")
-            raise self.refusal(n)
-        refused = n > MAX_INTERNAL_STEPS
-        if np.any(refused):
-            # a state beyond what the scheme can resolve in a period: NaN (a numerical
-            # failure, reported with h = dt / n), at once
-            h_refused = self.dt / n
-            if not batch:
-                return tuple(math.nan for _ in y), False, h_refused
-            y = tuple(np.where(refused, np.nan, c) for c in y)
-            y, fired, h = self.advance(y, u, False, refused if skip is None else (skip | refused))
-            return y, fired, np.where(refused, h_refused, h)
-        integ, system, post, event = self.integrator, self.system, self.switching, self.event
-        if not batch:  # one state: the same steps, returning at the event
+        post, event = self.switching, self.event
+        if not isinstance(y[0], np.ndarray):  # one state: plain Python (no numpy call per period)
+            if n > self.substeps and self.guard == "refuse":
+                raise self.refusal(n)
+            if n > MAX_INTERNAL_STEPS:
+                # a state beyond what the scheme can resolve in a period: NaN (a numerical
+                # failure, reported with h = dt / n), at once, never a hang
+                return tuple(math.nan for _ in y), False, self.dt / n
             h = self.h if n == self.substeps else self.dt / n
+            step = self.bound_step  # integ.step with the system bound (the same bits)
             for _ in range(n):
-                y_prev, y = y, integ.step(system, y, u, h)
+                y_prev, y = y, step(y, u, h)
                 if post is not None:
                     y = post.after_step(y_prev, y, u, h)
                 if event is not None:
@@ -194,6 +182,18 @@ class Engine:
                     if event[1](y, u):
                         return y, True, h
             return y, False, h
+        # a batch: the same rules per element (each takes its own count, then is frozen)
+        n = np.broadcast_to(np.asarray(n), np.shape(y[0]))
+        if skip is not None:
+            n = np.where(skip, self.substeps, n)
+        over = n > self.substeps
+        if self.guard == "refuse" and over.any():
+            raise self.refusal(int(n.max()), f" of sub-envs {np.flatnonzero(over).tolist()}")
+        refused = n > MAX_INTERNAL_STEPS
+        if refused.any():
+            y = tuple(np.where(refused, np.nan, c) for c in y)
+            y, fired, h = self.advance(y, u, False, refused if skip is None else (skip | refused))
+            return y, fired, np.where(refused, self.dt / n, h)
         uniform = bool(np.all(n == n.flat[0]))
         if self.integrator.uniform_step_only and not uniform:
             # a scheme that takes one scalar step for the whole batch (adaptive dop853: one
@@ -217,17 +217,17 @@ class Engine:
     def _loop(self, y, u, n, h):
         """A batch's internal steps: element ``i`` takes ``n[i]`` steps of ``h`` (``h[i]``) and is
         frozen after them or at its terminal event: ``(y, fired)``."""
-        integ, system, post, event = self.integrator, self.system, self.switching, self.event
+        step, post, event = self.bound_step, self.switching, self.event
         fired = np.zeros(n.shape, dtype=bool)
         if event is None and bool(np.all(n == n.flat[0])):
             for _ in range(int(n.flat[0])):
-                y_prev, y = y, integ.step(system, y, u, h)
+                y_prev, y = y, step(y, u, h)
                 if post is not None:
                     y = post.after_step(y_prev, y, u, h)
             return y, fired
         active = np.ones(n.shape, dtype=bool)
         for k in range(int(n.max())):
-            y_new = integ.step(system, y, u, h)
+            y_new = step(y, u, h)
             if post is not None:
                 y_new = post.after_step(y, y_new, u, h)
             active &= k < n
@@ -331,7 +331,7 @@ class Engine:
         """One control period of one env from ``y0`` under the action ``a`` (validated floats):
         ``(y, obs, reward, terminated, info, u, plain)``, ``u`` the control that acted and
         ``plain`` whether the next period may take the plain loop."""
-        u_norm, u = self.actuator.control(a)
+        u_norm, u = self.control(a)
         if plain:  # fixed substeps, nothing watched: the loop inline (the hot path)
             step, h = self.bound_step, self.h
             y = step(y0, u, h)

@@ -79,6 +79,8 @@ class RigidBodyEnv(gym.Env):
         high32 = np.asarray(high, dtype=np.float32)
         self.observation_space = gym.spaces.Box(-high32, high32, dtype=np.float32)
         self.action_space = gym.spaces.Box(-1.0, 1.0, (actuator.size,), dtype=np.float32)
+        self._action_shape = self.action_space.shape  # read on every step
+        self._step_one = self.engine.step_one
         self._y = None  # the state: a tuple of floats
         self._u = None  # the control of the last step (None after a reset: nothing acted yet)
         self._plain = self.engine.plain
@@ -180,8 +182,8 @@ class RigidBodyEnv(gym.Env):
     def step(self, action):
         if self._y is None:
             raise RuntimeError("call reset() before step()")
-        a = action_values(action, self.action_space.shape)
-        self._y, obs, reward, terminated, info, self._u, self._plain = self.engine.step_one(self._y, a, self._plain)
+        a = action_values(action, self._action_shape)
+        self._y, obs, reward, terminated, info, self._u, self._plain = self._step_one(self._y, a, self._plain)
         return obs, reward, terminated, False, info
 
     def internal_steps(self, y, u):

@@ -152,9 +152,21 @@ def _body(tableau: ButcherTableau, dim: int, call: str, project: bool) -> list[s
     return lines
 
 
-@lru_cache(maxsize=None)
-def _generated(tableau: ButcherTableau, label: str, dim: int, project: bool, params: bool) -> dict:
-    """The namespace of the generated step functions (see :class:`ExplicitRungeKutta`)."""
+def _generated(scheme: type, dim: int, project: bool, params: bool) -> dict:
+    """The namespace of ``scheme``'s generated step functions (see :class:`ExplicitRungeKutta`),
+    made once per scheme class and layout. (Keyed by the class, which hashes by identity:
+    hashing the tableau's fractions on every step would cost more than the step.)"""
+    key = (scheme, dim, project, params)
+    ns = _GENERATED.get(key)
+    if ns is None:
+        ns = _GENERATED[key] = _generate(scheme.tableau, scheme.name, dim, project, params)
+    return ns
+
+
+_GENERATED: dict = {}
+
+
+def _generate(tableau: ButcherTableau, label: str, dim: int, project: bool, params: bool) -> dict:
     call = "f(P, " if params else "f("
     body = _body(tableau, dim, call, project)
     inner = "\n".join("        " + line for line in body)
@@ -169,8 +181,8 @@ def _generated(tableau: ButcherTableau, label: str, dim: int, project: bool, par
 
 
 @lru_cache(maxsize=None)
-def _pure_step(tableau: ButcherTableau, label: str, dim: int, f):
-    return _generated(tableau, label, dim, False, True)["pure"](f)
+def _pure_step(scheme: type, dim: int, f):
+    return _generated(scheme, dim, False, True)["pure"](f)
 
 
 @dataclass(frozen=True)
@@ -181,7 +193,7 @@ class ExplicitRungeKutta(Integrator):
     tableau: ClassVar[ButcherTableau]
 
     def step(self, system, y, u, h):
-        return _generated(self.tableau, self.name, len(y), True, False)["step"](system.rhs, system.normalize, y, u, h)
+        return _generated(type(self), len(y), True, False)["step"](system.rhs, system.normalize, y, u, h)
 
     def _overridden(self) -> bool:
         return type(self).step is not ExplicitRungeKutta.step  # a subclass that changes step
@@ -192,15 +204,15 @@ class ExplicitRungeKutta(Integrator):
         pure = getattr(system, "kernel_rhs", None)
         if pure is not None:
             f, params = pure
-            return _generated(self.tableau, self.name, dim, False, True)["make"](f, params)
-        return _generated(self.tableau, self.name, dim, getattr(system, "needs_projection", True), False)["make"](system.rhs, system.normalize)
+            return _generated(type(self), dim, False, True)["make"](f, params)
+        return _generated(type(self), dim, getattr(system, "needs_projection", True), False)["make"](system.rhs, system.normalize)
 
     def kernel_step(self, system):
         pure = getattr(system, "kernel_rhs", None)
         if pure is None or self._overridden():
             return None
         f, params = pure
-        return _pure_step(self.tableau, self.name, system.dim, f), params
+        return _pure_step(type(self), system.dim, f), params
 
 
 @dataclass(frozen=True)

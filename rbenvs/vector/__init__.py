@@ -230,7 +230,7 @@ class RigidBodyVectorEnv(VectorEnv):
     def step(self, actions):
         if self._y is None:
             raise RuntimeError("call reset() before step()")
-        engine, n = self.engine, self.num_envs
+        engine = self.engine
         cols = action_columns(actions, self.action_space.shape)
         # NEXT_STEP: the sub-envs whose episode ended last step are reset, not stepped.
         restart = self._prev_done if self.autoreset_mode is AutoresetMode.NEXT_STEP else self._false
@@ -268,7 +268,6 @@ class RigidBodyVectorEnv(VectorEnv):
 
     def _finish(self, obs, over, reward, terminated, fired, failed, metrics, restart, any_restart, physical=None):
         """Info, truncation, terminal reasons and autoreset: the rest of :meth:`step`."""
-        n = self.num_envs
         # (a sub-env that left the observation bounds restarts before it is stepped again, so
         # the guard's static proof holds for every state this env steps: it stays plain)
         failed_mask = self._false if failed is None else failed
