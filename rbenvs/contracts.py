@@ -110,8 +110,7 @@ class System(Protocol):
     Attributes: ``dim`` (number of state components), ``layout`` (name -> ``(start, stop)``
     slices of the components, the names of ``get_state``), ``readout_names`` (the ``info`` keys
     of :meth:`readouts`), ``params`` (a frozen parameter object), ``hybrid`` (whether its
-    contact can switch: then it is a :class:`HybridSystem`), ``completes_initial_state``
-    (whether :meth:`complete_initial_state` adds to a task's start), ``kernel_rhs`` and
+    contact can switch: then it is a :class:`HybridSystem`), ``kernel_rhs`` and
     ``kernel_readouts`` (pure forms ``(fn, P)`` of the vector field and the read-outs for
     generated and compiled steps, or ``None``). Optional capabilities an integrator may
     require (its ``requires``): ``split_flows`` (exact sub-flows, for the splitting),
@@ -122,7 +121,6 @@ class System(Protocol):
     layout: dict
     readout_names: tuple
     hybrid: bool
-    completes_initial_state: bool
     kernel_rhs: Any
     kernel_readouts: Any
 
@@ -144,8 +142,12 @@ class System(Protocol):
         """The rates the internal step must resolve with an integrator of ``region``;
         ``speed_ceiling`` bounds ``|Omega|`` inside the observation bounds."""
 
-    def complete_initial_state(self, y, rng):
-        """A task's start ``y`` completed with what the system adds (or ``y``)."""
+    def start_draws(self, rng):
+        """The generator's numbers the system adds to a start (an array, maybe empty)."""
+
+    def complete_initial_state(self, y, d):
+        """A task's start ``y`` completed from the system's draws ``d`` (or ``y``); floats or
+        rows of a batch."""
 
     def export_state(self, y) -> dict:
         """The named state (float64 copies)."""
@@ -183,8 +185,9 @@ class Task(Protocol):
     metrics, ``is_success`` last); ``final_measure`` (the metric or read-out that summarises an
     episode's end, for ``rbenvs run``); ``controller`` (the class name of the reference
     controller in :mod:`rbenvs.controllers`); ``kernels`` (pure forms of ``observe`` and
-    ``evaluate`` for generated and compiled steps, or ``None``); ``two_stage_draws`` (whether
-    starts split into per-generator draws and one batched conversion).
+    ``evaluate`` for generated and compiled steps, or ``None``). Starts come in two stages
+    (:class:`rbenvs.tasks.common.TwoStageStart`): the generator's draws per sub-env, then one
+    conversion for the whole batch.
     """
 
     name: str
@@ -194,10 +197,12 @@ class Task(Protocol):
     final_measure: str
     controller: str
     kernels: Any
-    two_stage_draws: bool
 
-    def initial_state(self, system, rng, shape):
-        """Components of a random initial state drawn from ``rng``."""
+    def initial_draws(self, rng):
+        """The generator's raw numbers for one start (an array)."""
+
+    def initial_from_draws(self, system, d):
+        """A start's components from its draws (floats, or rows of a batch)."""
 
     def observe(self, system, y) -> tuple:
         """The observation components at ``y``."""

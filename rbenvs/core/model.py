@@ -58,11 +58,20 @@ class Model:
         """The internal step of a period of ``substeps`` steps [s]."""
         return self.dt / self.substeps
 
+    def initial_draws(self, rng) -> tuple:
+        """The generator's numbers for one start: ``(the task's, the system's)`` (the heavy top
+        adds a heading where it carries the attitude). Only these run per sub-env of a batch."""
+        return self.task.initial_draws(rng), self.system.start_draws(rng)
+
+    def initial_from_draws(self, task_draws, system_draws) -> tuple:
+        """A start's components from its draws (floats, or rows of a batch: the draws of many
+        sub-envs stacked, converted at once)."""
+        y = self.task.initial_from_draws(self.system, task_draws)
+        return self.system.complete_initial_state(y, system_draws)
+
     def initial_state(self, rng) -> tuple:
-        """A random start from ``rng``: the task's distribution, completed by the system (the
-        heavy top adds a random heading where it carries the attitude)."""
-        y = self.task.initial_state(self.system, rng, ())
-        return self.system.complete_initial_state(y, rng)
+        """A random start from ``rng``: the task's distribution, completed by the system."""
+        return self.initial_from_draws(*self.initial_draws(rng))
 
 
 def observation_bounds(task, limits: dict) -> tuple:

@@ -146,13 +146,16 @@ class FreeBody:
 
     # a smooth system: no events, no switches (rbenvs.contracts.HybridSystem)
     hybrid = False
-    completes_initial_state = False  # a task's start is a whole state
 
     def readouts(self, y, u=None, fired=False):
         """``(energy, momentum_norm)`` (:attr:`readout_names`); the control plays no part."""
         return free_body_readouts(self._inverse, y)
 
-    def complete_initial_state(self, y, rng):
+    def start_draws(self, rng):
+        """The generator's numbers the system adds to a task's start: none."""
+        return rng.random(0)
+
+    def complete_initial_state(self, y, d):
         """A task's start as it is (the task draws the attitude where it needs one)."""
         return y
 

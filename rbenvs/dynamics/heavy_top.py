@@ -192,17 +192,18 @@ class HeavyTop:
             out += tuple(quat_to_euler_zxz(y[6:10]))
         return out
 
-    @property
-    def completes_initial_state(self) -> bool:
-        """Whether a task's start needs completing (the attitude's heading is drawn here)."""
-        return self.attitude
+    def start_draws(self, rng):
+        """The generator's numbers the system adds to a task's start: the heading where it
+        carries the attitude (one uniform), else none."""
+        return rng.random(1 if self.attitude else 0)
 
-    def complete_initial_state(self, y, rng):
+    def complete_initial_state(self, y, d):
         """A task's start ``(Pi, Gamma)``, with the attitude appended where the system carries
-        it: the one with this ``Gamma`` and a heading uniform in ``[0, 2 pi)`` from ``rng``."""
+        it: the one with this ``Gamma`` and the heading ``2 pi d[0]``, uniform in ``[0, 2 pi)``
+        (floats or rows of a batch)."""
         if not self.attitude:
             return y
-        return tuple(y) + tuple(self.attitude_from_vertical(y[3:6], rng.uniform(0.0, 2.0 * np.pi)))
+        return tuple(y) + tuple(self.attitude_from_vertical(y[3:6], 0.0 + 2.0 * np.pi * d[0]))
 
     def export_state(self, y) -> dict:
         """``{"angular_momentum": Pi, "vertical": Gamma, "attitude": q (with attitude)}``, float64 copies."""

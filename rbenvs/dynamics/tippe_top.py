@@ -489,9 +489,11 @@ class TippeTop:
             hops = 0 if isinstance(y[0], float) else np.zeros(np.shape(y[0]), dtype=np.int64)
         return (self.energy(y), self.jellett(y), self.tilt(y), normal, slip, lifted, airborne, hops, self.gap(y), self.spin(y))
 
-    completes_initial_state = False  # a task's start is a whole state
+    def start_draws(self, rng):
+        """The generator's numbers the system adds to a task's start: none."""
+        return rng.random(0)
 
-    def complete_initial_state(self, y, rng):
+    def complete_initial_state(self, y, d):
         """A task's start as it is."""
         return y
 

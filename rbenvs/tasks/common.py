@@ -11,7 +11,22 @@ from __future__ import annotations
 
 from ..jit import jitable
 
-__all__ = ["effort"]
+__all__ = ["effort", "TwoStageStart"]
+
+
+class TwoStageStart:
+    """Starts drawn in two parts (every task): ``initial_draws(rng)``, the generator's raw numbers
+    for one start (a few calls on one sub-env's generator), and ``initial_from_draws(system,
+    d)``, the arithmetic that turns them into components, on floats or on rows of a batch. A
+    vector env restarting thousands of sub-envs then makes only the generator calls per sub-env
+    and the arithmetic once (:mod:`rbenvs.vector`); :meth:`initial_state` is the two in a row
+    (the single env). A uniform on ``[a, b)`` is ``a + (b - a) U`` (numpy's own formula), so
+    ``rng.random`` draws give the same numbers as ``rng.uniform``."""
+
+    def initial_state(self, system, rng, shape=()):
+        if tuple(shape) != ():
+            raise ValueError("initial_state draws one state; a batch draws per sub-env (initial_draws) and converts at once (initial_from_draws)")
+        return self.initial_from_draws(system, self.initial_draws(rng))
 
 
 @jitable

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..jit import jitable
-from .common import effort
+from .common import TwoStageStart, effort
 from ..dynamics.free_body import angular_velocity, momentum_norm
 from ..rotations import quat_angle, quat_conjugate, quat_from_uniforms, quat_multiply, sqrt
 
@@ -22,27 +22,11 @@ __all__ = ["SpinTask", "DetumbleTask", "ReorientTask", "AXIS_NAMES"]
 AXIS_NAMES = ("major", "intermediate", "minor")
 
 
-# Initial states are drawn in two parts: ``initial_draws(rng)``, the generator's raw numbers
-# for one state (one sub-env's generator, a few calls), and ``initial_from_draws(system, d)``,
-# the arithmetic that turns them into a state, on floats or on rows of a batch. A vector env
-# resetting thousands of sub-envs then makes the per-sub-env generator calls only and the
-# arithmetic once (rbenvs.vector); ``initial_state`` is the two in a row (the single env).
-# A uniform on [a, b) is ``a + (b - a) U`` (numpy's own formula), so these draws are the
-# same numbers as ``rng.uniform``.
+# Initial states: two stages (rbenvs.tasks.common.TwoStageStart).
 def _directions(n0, n1, n2):
     """Unit vectors along normal deviates (a uniform direction)."""
     norm = np.sqrt(n0 * n0 + n1 * n1 + n2 * n2)
     return n0 / norm, n1 / norm, n2 / norm
-
-
-class _TwoStageDraw:
-    # a batch of starts draws per generator and converts once (rbenvs.vector)
-    two_stage_draws = True
-
-    def initial_state(self, system, rng, shape=()):
-        if tuple(shape) != ():
-            raise ValueError("initial_state draws one state; a batch draws per sub-env (initial_draws) and converts at once (initial_from_draws)")
-        return self.initial_from_draws(system, self.initial_draws(rng))
 
 
 # The tasks' arithmetic as pure functions of (parameters, state, action): the methods below
@@ -76,7 +60,7 @@ def detumble_evaluate(p, y, u):
 
 
 @dataclass(frozen=True)
-class SpinTask(_TwoStageDraw):
+class SpinTask(TwoStageStart):
     """Hold the rotation about principal axis ``axis`` (an index 0, 1, 2).
 
     * Start: ``Pi = I_axis spin_rate n`` with ``n`` tilted from ``+e_axis`` by an angle uniform in
@@ -147,7 +131,7 @@ class SpinTask(_TwoStageDraw):
 
 
 @dataclass(frozen=True)
-class DetumbleTask(_TwoStageDraw):
+class DetumbleTask(TwoStageStart):
     """Bring the angular velocity to zero.
 
     * Start: ``Omega = spin_rate * s * n``, ``n`` a uniform random direction, ``s ~ U(0.5, 1)``.
@@ -212,7 +196,7 @@ class DetumbleTask(_TwoStageDraw):
 
 
 @dataclass(frozen=True)
-class ReorientTask(_TwoStageDraw):
+class ReorientTask(TwoStageStart):
     """Reach the target attitude ``target`` (unit quaternion, body -> space) and stay there.
 
     The one free-body task that carries the attitude quaternion.

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .common import effort
+from .common import TwoStageStart, effort
 
 __all__ = ["UprightTask", "PrecessTask", "transverse_basis", "slow_precession_rate"]
 
@@ -47,11 +47,12 @@ def _clip_unit(x):
     return np.clip(x, -1.0, 1.0)
 
 
-def _vertical_in_cone(chi, rng, shape, low, high):
-    """Unit vectors at an angle uniform in ``[low, high]`` from ``chi``, azimuth uniform."""
+def _vertical_in_cone(chi, u_tilt, u_azimuth, low, high):
+    """Unit vectors at an angle uniform in ``[low, high]`` from ``chi``, azimuth uniform, from two
+    uniforms on [0, 1) (floats or rows of a batch); ``(vector, angle)``."""
     t1, t2 = transverse_basis(chi)
-    theta = rng.uniform(low, high, shape)
-    phi = rng.uniform(0.0, 2.0 * np.pi, shape)
+    theta = low + (high - low) * u_tilt
+    phi = 0.0 + 2.0 * np.pi * u_azimuth
     a, b, c = np.sin(theta) * np.cos(phi), np.sin(theta) * np.sin(phi), np.cos(theta)
     return tuple(a * t1[i] + b * t2[i] + c * chi[i] for i in range(3)), theta
 
@@ -81,7 +82,7 @@ def slow_precession_rate(system, spin, tilt):
 
 
 @dataclass(frozen=True)
-class UprightTask:
+class UprightTask(TwoStageStart):
     """Keep the top upright: the centre-of-mass axis on the upward vertical.
 
     * Start: spin ``n ~ U(spin_low, spin_high)`` about ``chi`` (``Omega = n chi``), the vertical
@@ -105,13 +106,15 @@ class UprightTask:
     final_measure = "tilt"
     controller = "UprightLQR"
     kernels = None  # no pure forms (yet): the batch runs on numpy
-    two_stage_draws = False  # one start per generator
 
-    def initial_state(self, system, rng, shape):
+    def initial_draws(self, rng):
+        return rng.random(3)  # tilt, azimuth, spin
+
+    def initial_from_draws(self, system, d):
         prm = system.params
         chi = prm.com_direction
-        gamma, _ = _vertical_in_cone(chi, rng, shape, 0.0, self.perturbation)
-        n = rng.uniform(self.spin_low, self.spin_high, shape)
+        gamma, _ = _vertical_in_cone(chi, d[0], d[1], 0.0, self.perturbation)
+        n = self.spin_low + (self.spin_high - self.spin_low) * d[2]
         pi = tuple(prm.inertia[i] * n * chi[i] for i in range(3))
         return pi + gamma
 
@@ -140,7 +143,7 @@ def _cos_tilt(system, y):
 
 
 @dataclass(frozen=True)
-class PrecessTask:
+class PrecessTask(TwoStageStart):
     """Hold a regular precession at tilt ``target_tilt`` (Lagrange tops only).
 
     The target rate is ``target_rate`` [rad/s] if given (a forced precession: it needs torque
@@ -174,19 +177,21 @@ class PrecessTask:
     final_measure = "tilt_error"
     controller = "PrecessionTracking"
     kernels = None  # no pure forms (yet): the batch runs on numpy
-    two_stage_draws = False  # one start per generator
 
     def rate_target(self, system, y):
         if self.target_rate is not None:
             return self.target_rate
         return slow_precession_rate(system, system.spin(y), self.target_tilt)
 
-    def initial_state(self, system, rng, shape):
+    def initial_draws(self, rng):
+        return rng.random(3)  # tilt, azimuth, spin
+
+    def initial_from_draws(self, system, d):
         prm = system.params
         chi = prm.com_direction
         lo, hi = self.target_tilt - self.perturbation, self.target_tilt + self.perturbation
-        gamma, tilt = _vertical_in_cone(chi, rng, shape, lo, hi)
-        n = rng.uniform(self.spin_low, self.spin_high, shape)
+        gamma, tilt = _vertical_in_cone(chi, d[0], d[1], lo, hi)
+        n = self.spin_low + (self.spin_high - self.spin_low) * d[2]
         p = self.target_rate if self.target_rate is not None else slow_precession_rate(system, n, self.target_tilt)
         axial = n - p * np.cos(tilt)
         omega = tuple(p * gamma[i] + axial * chi[i] for i in range(3))

@@ -16,18 +16,19 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..rotations import quat_multiply
-from .common import effort
+from .common import TwoStageStart, effort
 
 __all__ = ["InvertTask", "HoldTask", "tilted_spin_state"]
 
 
-def tilted_spin_state(system, rng, shape, spin_low, spin_high, tilt_low, tilt_high):
+def tilted_spin_state(system, d, spin_low, spin_high, tilt_low, tilt_high):
     """Spin ``n ~ U(spin)`` about the symmetry axis, tilted by ``theta ~ U(tilt)`` at a uniform
-    azimuth and heading, at the origin, the contact point at rest (no initial slip)."""
-    theta = rng.uniform(tilt_low, tilt_high, shape)
-    phi = rng.uniform(0.0, 2.0 * np.pi, shape)
-    psi = rng.uniform(0.0, 2.0 * np.pi, shape)
-    n = rng.uniform(spin_low, spin_high, shape)
+    azimuth and heading, at the origin, the contact point at rest (no initial slip), from four
+    uniforms ``d`` on [0, 1) (floats or rows of a batch: tilt, azimuth, heading, spin)."""
+    theta = tilt_low + (tilt_high - tilt_low) * d[0]
+    phi = 0.0 + 2.0 * np.pi * d[1]
+    psi = 0.0 + 2.0 * np.pi * d[2]
+    n = spin_low + (spin_high - spin_low) * d[3]
     zero = 0.0 * theta
     qz1 = (np.cos(0.5 * phi), zero, zero, np.sin(0.5 * phi))
     qx = (np.cos(0.5 * theta), np.sin(0.5 * theta), zero, zero)
@@ -54,7 +55,7 @@ def observe(system, y):
     return k + omega + (v[0], v[1])
 
 
-class _SpunTop:
+class _SpunTop(TwoStageStart):
     """Start and observation shared by the tippe-top tasks (fields ``spin_low``, ``spin_high``,
     ``tilt_low``, ``tilt_high`` of the dataclass)."""
 
@@ -64,10 +65,12 @@ class _SpunTop:
     metric_names = ("is_success",)
     final_measure = "tilt"
     kernels = None  # no pure forms (yet): the batch runs on numpy
-    two_stage_draws = False  # one start per generator
 
-    def initial_state(self, system, rng, shape):
-        return tilted_spin_state(system, rng, shape, self.spin_low, self.spin_high, self.tilt_low, self.tilt_high)
+    def initial_draws(self, rng):
+        return rng.random(4)  # tilt, azimuth, heading, spin
+
+    def initial_from_draws(self, system, d):
+        return tilted_spin_state(system, d, self.spin_low, self.spin_high, self.tilt_low, self.tilt_high)
 
     def observe(self, system, y):
         return observe(system, y)
