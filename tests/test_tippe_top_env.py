@@ -1026,3 +1026,25 @@ def test_gravity_rate_resolves_slow_frictionless_tops(spin, tilt):
     de, dj, h = drifts["subdivide"]
     assert h == 0.01 / 4 and de < 2e-8 and dj < 1e-6
     assert drifts["off"][2] == 0.01 and drifts["off"][0] > 100 * de and drifts["off"][1] > 100 * dj
+
+
+def test_the_lift_off_check_shares_the_next_stage_contact_solve(monkeypatch):
+    """One period of n rk4 steps solves the contact 4 n + 1 times (the guard's at the start,
+    three new stages and the lift-off check per step: the next step's first stage and the
+    read-outs reuse the check's solve), not 5 n + 2; the trajectory is the same bits."""
+    env = TippeTopEnv()
+    ref = TippeTopEnv()
+    env.reset(seed=0)
+    ref.reset(seed=0)
+    system = env.unwrapped.system
+    calls = []
+    solve = system._solve_contact
+    monkeypatch.setattr(system, "_solve_contact", lambda y, u: calls.append(1) or solve(y, u))
+    _, _, _, _, info = env.step(zeros(env))
+    n = round(env.dt / info["internal_step"])
+    assert len(calls) == 4 * n + 1, (len(calls), n)
+    ref.system._memo = None
+    ref_system = ref.unwrapped.system
+    monkeypatch.setattr(ref_system, "_contact", ref_system._solve_contact)  # no sharing
+    _, _, _, _, ref_info = ref.step(zeros(ref))
+    assert same_state(env.get_state(), ref.get_state()) and info == ref_info
