@@ -258,13 +258,16 @@ class Actuator(Protocol):
 
 
 class StepResult(NamedTuple):
-    """Everything one control period produces (floats for one env, arrays for a batch).
+    """Everything one control period of one env produces (:meth:`rbenvs.core.step.Engine.step_one`
+    returns a plain tuple in these fields; ``StepResult._make`` names it where speed does not
+    matter).
 
     ``y``: the new state (the last finite one where the period failed); ``obs``: observation
     (float32, clipped to the bounds); ``reward``; ``terminated``; ``info``: read-outs, metrics,
-    ``internal_step``, ``numerical_failure`` (and ``terminal_reason`` where an episode ended);
+    ``internal_step``, ``numerical_failure`` (and ``terminal_reason`` where the episode ended);
     ``u``: the control that acted (an input of the next read-outs: the tippe top's normal force
-    depends on it); ``event``: the name of the event that ended the period, or ``None``.
+    depends on it); ``plain``: whether the next period may take the unchecked loop (false once
+    the state left the observation bounds).
     """
 
     y: Any
@@ -272,8 +275,8 @@ class StepResult(NamedTuple):
     reward: Any
     terminated: Any
     info: dict
-    u: Any = None
-    event: Any = None
+    u: Any
+    plain: bool
 
 
 def require_parts(obj, protocol, role: str) -> None:

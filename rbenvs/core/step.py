@@ -88,7 +88,7 @@ def terminal_reason(failed, fired, over, terminated, event_name):
     """Why an episode ended: ``numerical_failure`` over the event over ``observation_limit``
     over ``task``; for one env a string or ``None``, for a batch an object array of strings
     (``""`` where the episode goes on)."""
-    if type(over) is bool or isinstance(over, np.bool_):
+    if not isinstance(over, np.ndarray):
         if failed:
             return "numerical_failure"
         if fired:
@@ -329,8 +329,10 @@ class Engine:
 
     def step_one(self, y0, a, plain: bool):
         """One control period of one env from ``y0`` under the action ``a`` (validated floats):
-        ``(y, obs, reward, terminated, info, u, plain)``, ``u`` the control that acted and
-        ``plain`` whether the next period may take the plain loop."""
+        a plain tuple in the fields of :class:`~rbenvs.contracts.StepResult` ``(y, obs, reward,
+        terminated, info, u, plain)``, ``u`` the control that acted and ``plain`` whether the
+        next period may take the plain loop (a tuple, not the NamedTuple itself: making one
+        costs 0.2 us, 4 % of a free-body step; ``StepResult._make`` names it off the hot path)."""
         u_norm, u = self.control(a)
         if plain:  # fixed substeps, nothing watched: the loop inline (the hot path)
             step, h = self.bound_step, self.h
@@ -352,15 +354,11 @@ class Engine:
             obs, over = self.observe(y)
             reward, terminated, metrics = self.evaluate(y, u_norm)
             info = self.info_one(y, u, fired, h, metrics, failed=False)
-        if fired:
+        if fired or over or terminated:  # (the common case tests three bools and goes on)
+            info["terminal_reason"] = terminal_reason(False, fired, over, terminated, self.event_name)
             terminated = True
-            info["terminal_reason"] = self.event_name
-        elif over:
-            terminated = True
-            info["terminal_reason"] = "observation_limit"
-            plain = False  # outside the bounds the guard's static proof is void
-        elif terminated:
-            info["terminal_reason"] = "task"
+            if over:
+                plain = False  # outside the bounds the guard's static proof is void
         return y, obs, reward, terminated, info, u, plain
 
     def _failed_one(self, y0, u_norm, u, h, plain):
@@ -373,7 +371,7 @@ class Engine:
         obs, _ = self.observe(y0)
         _, _, metrics = self.evaluate(y0, u_norm)
         info = self.info_one(y0, u, False, h, metrics, failed=True)
-        info["terminal_reason"] = "numerical_failure"
+        info["terminal_reason"] = terminal_reason(True, False, False, True, self.event_name)
         return y0, obs, 0.0, True, info, u, plain
 
     # ------------------------------------------------------------------ a batch (arrays)

@@ -100,21 +100,8 @@ class SpinTask(TwoStageStart):
 
     metric_names = ("alignment", "is_success")
 
-    def alignment(self, system, y):
-        return spin_alignment(self.axis, y)
-
     def observe(self, system, y):
         return system.angular_velocity(y)
-
-    def reward(self, system, y, u):
-        return self.evaluate(system, y, u)[0]
-
-    def terminated(self, system, y):
-        return False
-
-    def metrics(self, system, y):
-        a = self.alignment(system, y)
-        return {"alignment": a, "is_success": a >= self.cos_success}
 
     def evaluate(self, system, y, u):
         """``(reward, terminated, metrics)`` with the alignment computed once."""
@@ -166,21 +153,8 @@ class DetumbleTask(TwoStageStart):
 
     metric_names = ("angular_speed", "is_success")
 
-    def speed(self, system, y):
-        return angular_speed(system.params.inverse, y)
-
     def observe(self, system, y):
         return system.angular_velocity(y)
-
-    def reward(self, system, y, u):
-        return self.evaluate(system, y, u)[0]
-
-    def terminated(self, system, y):
-        return self.speed(system, y) < self.tolerance * self.spin_rate
-
-    def metrics(self, system, y):
-        s = self.speed(system, y)
-        return {"angular_speed": s, "is_success": s < self.tolerance * self.spin_rate}
 
     def evaluate(self, system, y, u):
         """``(reward, terminated, metrics)`` with the speed computed once."""
@@ -251,17 +225,6 @@ class ReorientTask(TwoStageStart):
         w = system.angular_velocity(y)
         speed = sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2])
         return quat_angle(self.error(y)), speed
-
-    def reward(self, system, y, u):
-        angle, speed = self._angle_and_speed(system, y)
-        return -angle / np.pi - self.rate_cost * speed / self.spin_rate - self.control_cost * effort(u)
-
-    def terminated(self, system, y):
-        return False
-
-    def metrics(self, system, y):
-        angle, speed = self._angle_and_speed(system, y)
-        return {"attitude_error": angle, "is_success": (angle < self.success_angle) & (speed < self.success_angle * self.spin_rate)}
 
     def evaluate(self, system, y, u):
         """``(reward, terminated, metrics)`` with the angle and speed computed once."""

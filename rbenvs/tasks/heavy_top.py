@@ -121,15 +121,6 @@ class UprightTask(TwoStageStart):
     def observe(self, system, y):
         return _observe(system, y)
 
-    def reward(self, system, y, u):
-        return _cos_tilt(system, y) - self.control_cost * effort(u)
-
-    def terminated(self, system, y):
-        return system.tilt(y) > self.tilt_limit
-
-    def metrics(self, system, y):
-        return {"is_success": system.tilt(y) < self.success_tilt}
-
     def evaluate(self, system, y, u):
         """``(reward, terminated, metrics)`` with the tilt computed once."""
         tilt = system.tilt(y)
@@ -210,22 +201,6 @@ class PrecessTask(TwoStageStart):
         else:
             rate_err = np.where(rate_err <= 1.0, rate_err, 1.0)
         return tilt_err, rate_err, rate, target
-
-    def reward(self, system, y, u):
-        tilt_err, rate_err, _, _ = self._errors(system, y)
-        return 1.0 - tilt_err / self.tilt_limit - rate_err - self.control_cost * effort(u)
-
-    def terminated(self, system, y):
-        return abs(system.tilt(y) - self.target_tilt) > self.tilt_limit
-
-    def metrics(self, system, y):
-        tilt_err, rate_err, rate, target = self._errors(system, y)
-        return {
-            "precession_rate": rate,
-            "target_precession_rate": target,
-            "tilt_error": tilt_err,
-            "is_success": (tilt_err < self.success_tilt) & (rate_err < 0.1),
-        }
 
     def evaluate(self, system, y, u):
         """``(reward, terminated, metrics)`` with the errors computed once."""

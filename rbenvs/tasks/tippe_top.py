@@ -104,15 +104,6 @@ class InvertTask(_SpunTop):
     # faster is an open problem here)
     controller = "ZeroController"
 
-    def reward(self, system, y, u):
-        return -0.5 * (1.0 + system.frame(y)[8]) - self.control_cost * effort(u)
-
-    def terminated(self, system, y):
-        return system.tilt(y) > self.goal_tilt
-
-    def metrics(self, system, y):
-        return {"is_success": system.tilt(y) > self.goal_tilt}
-
     def evaluate(self, system, y, u):
         """``(reward, terminated, metrics)`` with the tilt computed once."""
         done = system.tilt(y) > self.goal_tilt
@@ -139,15 +130,6 @@ class HoldTask(_SpunTop):
 
     name = "hold"
     controller = "SlipCancelling"
-
-    def reward(self, system, y, u):
-        return 0.5 * (1.0 + system.frame(y)[8]) - self.control_cost * effort(u)
-
-    def terminated(self, system, y):
-        return system.tilt(y) > self.fall_tilt
-
-    def metrics(self, system, y):
-        return {"is_success": system.tilt(y) < self.success_tilt}
 
     def evaluate(self, system, y, u):
         """``(reward, terminated, metrics)`` with the tilt computed once."""

@@ -693,6 +693,7 @@ def _hop_rows(system_class=TippeTop):
     ``lambda^2 M_zz / 2`` against the energy read-out, on random touchdowns."""
     from gymnasium.utils import seeding
 
+    from ..contracts import StepResult
     from ..core.step import Engine
     from ..envs import TippeTopEnv
 
@@ -708,7 +709,8 @@ def _hop_rows(system_class=TippeTop):
     energy = e0
     plain = engine.plain
     for _ in range(round(case["seconds"] / env.dt)):
-        y, _, _, terminated, info, _, plain = engine.step_one(y, [0.0, 0.0], plain)
+        result = StepResult._make(engine.step_one(y, [0.0, 0.0], plain))
+        y, terminated, info, plain = result.y, result.terminated, result.info, result.plain
         dj = max(dj, abs(info["jellett"] - j0))
         rise = max(rise, info["energy"] - energy)
         energy = info["energy"]
