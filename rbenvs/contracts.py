@@ -110,11 +110,25 @@ class System(Protocol):
     Attributes: ``dim`` (number of state components), ``layout`` (name -> ``(start, stop)``
     slices of the components, the names of ``get_state``), ``readout_names`` (the ``info`` keys
     of :meth:`readouts`), ``params`` (a frozen parameter object), ``hybrid`` (whether its
-    contact can switch: then it is a :class:`HybridSystem`), ``kernel_rhs`` and
-    ``kernel_readouts`` (pure forms ``(fn, P)`` of the vector field and the read-outs for
-    generated and compiled steps, or ``None``). Optional capabilities an integrator may
-    require (its ``requires``): ``split_flows`` (exact sub-flows, for the splitting),
-    ``free_flow`` and ``kick`` (the exact flow).
+    contact can switch: then it is a :class:`HybridSystem`). Optional capabilities an
+    integrator may require (its ``requires``): ``split_flows`` (exact sub-flows, for the
+    splitting), ``free_flow`` and ``kick`` (the exact flow).
+
+    **Pure forms** (``(fn, P)`` pairs, or ``None`` where the system has none; what generated
+    steps and compiled kernels call, and what the methods call too, so there is one
+    implementation):
+
+    * ``kernel_rhs``: ``fn(P, y, u) -> dy``, equal to :meth:`rhs` (``u`` a tuple of controls);
+    * ``kernel_normalize``: ``fn(P, y) -> y``, equal to :meth:`normalize`; ``None`` where there is
+      nothing to project (the identity may be skipped);
+    * ``kernel_readouts``: ``fn(P, y, u, fired) -> (r_1, ...)`` in ``readout_names`` order, equal
+      to :meth:`readouts` (``u`` the control that acted, ``fired`` the period's terminal event);
+    * ``kernel_split_flows`` (with ``split_flows``): the exact sub-flows as ``((fn, P), ...)``,
+      ``fn(P, y, u, h) -> y``, in :meth:`split_flows` order.
+
+    Every pure function is marked :func:`rbenvs.jit.jitable`: arithmetic on floats and tuples
+    of floats that also runs on numpy arrays (``isinstance(x, float)`` and ``x is None``
+    branches are resolved when compiled).
     """
 
     dim: int
@@ -122,6 +136,7 @@ class System(Protocol):
     readout_names: tuple
     hybrid: bool
     kernel_rhs: Any
+    kernel_normalize: Any
     kernel_readouts: Any
 
     def rhs(self, y, u):

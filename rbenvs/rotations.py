@@ -135,6 +135,7 @@ def _atan2_arrays(y, x):
         return np.where(np.isnan(x) | np.isnan(y), x + y, z)
 
 
+@jitable
 def quat_multiply(p, q):
     """Hamilton product ``p * q`` of two quaternions given as ``(w, x, y, z)`` components."""
     pw, px, py, pz = p
@@ -147,12 +148,14 @@ def quat_multiply(p, q):
     )
 
 
+@jitable
 def quat_conjugate(q):
     """Conjugate (the inverse, for a unit quaternion)."""
     w, x, y, z = q
     return (w, -x, -y, -z)
 
 
+@jitable
 def quat_normalize(q):
     """Project onto the unit sphere (non-geometric integrators drift off it, physics.md §4).
 
@@ -166,11 +169,17 @@ def quat_normalize(q):
             return (math.nan, math.nan, math.nan, math.nan)
         inv = 1.0 / math.sqrt(n2)
     else:
-        with np.errstate(divide="ignore", invalid="ignore"):
-            inv = np.where((n2 > 0.0) & (n2 < np.inf), 1.0 / np.sqrt(n2), np.nan)
+        inv = _inverse_norm_arrays(n2)
     return (w * inv, x * inv, y * inv, z * inv)
 
 
+@jitable  # (registered so that compiled code can name it; it only ever runs on arrays)
+def _inverse_norm_arrays(n2):
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where((n2 > 0.0) & (n2 < np.inf), 1.0 / np.sqrt(n2), np.nan)
+
+
+@jitable
 def quat_rotate(q, v):
     """Rotate the vector ``v = (vx, vy, vz)`` by the unit quaternion ``q``: ``R(q) v``."""
     w, x, y, z = q

@@ -349,7 +349,7 @@ class Engine:
         finish = self.finish_one
         if finish is not None:
             fn, po, pe, pr = finish
-            obs, over, reward, terminated, info = fn(y, u_norm, po, pe, pr, h)
+            obs, over, reward, terminated, info = fn(y, u_norm, po, pe, pr, h, u, fired)
         else:
             obs, over = self.observe(y)
             reward, terminated, metrics = self.evaluate(y, u_norm)

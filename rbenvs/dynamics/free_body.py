@@ -27,7 +27,7 @@ from .flows import AxisRotation
 from .state import export_layout, import_layout
 from .validation import require_inertia
 
-__all__ = ["FreeBodyParams", "FreeBody", "FreeBodyOrbit", "euler_rhs", "kinetic_energy", "momentum_norm", "angular_velocity", "rotation_rate", "free_body_readouts"]
+__all__ = ["FreeBodyParams", "FreeBody", "FreeBodyOrbit", "euler_rhs", "kinetic_energy", "momentum_norm", "angular_velocity", "rotation_rate", "free_body_readouts", "attitude_rhs", "attitude_normalize"]
 
 _CYCLIC = {(0, 1, 2), (1, 2, 0), (2, 0, 1)}
 
@@ -110,8 +110,36 @@ def rotation_rate(p, y):
 
 
 @jitable
-def free_body_readouts(inv, y):
-    """The env's physical read-outs ``(energy, momentum_norm)`` (names: FreeBody.readout_names)."""
+def attitude_rhs(p, y, u):
+    """Euler's equations and ``dq/dt = q * (0, Omega) / 2`` for ``y = (Pi, q)``; ``p = (c, inv)``,
+    the coefficients and inverse moments of :class:`FreeBodyParams`."""
+    c, inv = p
+    d1, d2, d3 = euler_rhs(c, y, u)
+    j1, j2, j3 = inv
+    w1, w2, w3 = 0.5 * j1 * y[0], 0.5 * j2 * y[1], 0.5 * j3 * y[2]
+    qw, qx, qy, qz = y[3], y[4], y[5], y[6]
+    return (
+        d1,
+        d2,
+        d3,
+        -qx * w1 - qy * w2 - qz * w3,
+        qw * w1 + qy * w3 - qz * w2,
+        qw * w2 - qx * w3 + qz * w1,
+        qw * w3 + qx * w2 - qy * w1,
+    )
+
+
+@jitable
+def attitude_normalize(p, y):
+    """``(Pi, q)`` with ``q`` projected back onto the unit sphere (``p`` unused: ``()``)."""
+    q = quat_normalize((y[3], y[4], y[5], y[6]))
+    return (y[0], y[1], y[2], q[0], q[1], q[2], q[3])
+
+
+@jitable
+def free_body_readouts(inv, y, u, fired):
+    """The env's physical read-outs ``(energy, momentum_norm)`` (names: FreeBody.readout_names;
+    the control ``u`` and the event flag ``fired`` play no part)."""
     return (kinetic_energy(inv, y), momentum_norm(y))
 
 
@@ -136,11 +164,15 @@ class FreeBody:
         # the hot path reads these on every call: plain attributes, not params.<field> chains
         self._coefficients = params.coefficients
         self._inverse = params.inverse
-        # the vector field as a pure function of (P, y, u), for the generated integrator steps
-        # and the compiled batch kernel (with a quaternion, the projection is not pure: none)
-        self.kernel_rhs = None if self.attitude else (euler_rhs, params.coefficients)
+        # the vector field and the projection as pure functions of (P, y, u) and (N, y), for the
+        # generated integrator steps and the compiled batch kernel (rbenvs.contracts.System)
+        if self.attitude:
+            self.kernel_rhs = (attitude_rhs, (params.coefficients, params.inverse))
+            self.kernel_normalize = (attitude_normalize, ())
+        else:
+            self.kernel_rhs = (euler_rhs, params.coefficients)
+            self.kernel_normalize = None
         self.kernel_readouts = (free_body_readouts, params.inverse)
-        self.kernel_angular_velocity = (angular_velocity, params.inverse)  # the guard's input
 
     readout_names = ("energy", "momentum_norm")
 
@@ -149,7 +181,7 @@ class FreeBody:
 
     def readouts(self, y, u=None, fired=False):
         """``(energy, momentum_norm)`` (:attr:`readout_names`); the control plays no part."""
-        return free_body_readouts(self._inverse, y)
+        return free_body_readouts(self._inverse, y, u, fired)
 
     def start_draws(self, rng):
         """The generator's numbers the system adds to a task's start: none."""
@@ -183,27 +215,13 @@ class FreeBody:
     # ------------------------------------------------------------------ vector field
     def rhs(self, y, u):
         """``dy/dt``: ``dPi/dt = Pi x Omega + tau`` (15.3.9-10), ``dq/dt = q * (0, Omega) / 2``."""
-        d1, d2, d3 = euler_rhs(self._coefficients, y, u)
-        if not self.attitude:
-            return (d1, d2, d3)
-        j1, j2, j3 = self._inverse
-        w1, w2, w3 = 0.5 * j1 * y[0], 0.5 * j2 * y[1], 0.5 * j3 * y[2]
-        qw, qx, qy, qz = y[3], y[4], y[5], y[6]
-        return (
-            d1,
-            d2,
-            d3,
-            -qx * w1 - qy * w2 - qz * w3,
-            qw * w1 + qy * w3 - qz * w2,
-            qw * w2 - qx * w3 + qz * w1,
-            qw * w3 + qx * w2 - qy * w1,
-        )
+        return self.kernel_rhs[0](self.kernel_rhs[1], y, u)
 
     def normalize(self, y):
         """Renormalise the quaternion (no-op without attitude: see :attr:`needs_projection`)."""
         if not self.attitude:
             return y
-        return (y[0], y[1], y[2]) + quat_normalize(y[3:7])
+        return attitude_normalize((), y)
 
     # ------------------------------------------------------------------ invariants
     def energy(self, y):

@@ -182,6 +182,7 @@ class HeavyTop:
     # no pure forms (yet): generated and compiled steps are the free body's only
     kernel_rhs = None
     kernel_readouts = None
+    kernel_normalize = None
 
     def readouts(self, y, u=None, fired=False) -> tuple:
         """The read-outs in :attr:`readout_names` order (floats or arrays; ``u`` plays no part)."""

@@ -469,6 +469,7 @@ class TippeTop:
     # ends the episode (the terminal event); with it the top flies and lands (the switches).
     hybrid = True
     kernel_rhs = None  # no pure forms (yet)
+    kernel_normalize = None
     kernel_readouts = None
 
     @property

@@ -18,10 +18,11 @@ the same operations, in the same order, as the hand-written forms they replace (
 ``tests/test_integrators.py``).
 
 A system that offers its vector field as a pure function (``kernel_rhs = (f, P)``, ``f(P, y,
-u)`` equal to ``rhs(y, u)``) gets the same step with ``f(P, ...)`` in every stage: bound to
-``P`` for the single env, and as the pure ``step(P, y, u, h)`` that the compiled batch kernel
-calls (:mod:`rbenvs.compiled`). One generator, so the same arithmetic in all three. A new
-explicit scheme is a new tableau.
+u)`` equal to ``rhs(y, u)``, and its projection ``kernel_normalize = (g, N)`` or ``None``)
+gets the same step with ``f(P, ...)`` in every stage and ``g(N, ...)`` at the end: bound to
+``P`` (and ``N``) for the single env, and as the pure ``step(PS, y, u, h)`` that the compiled
+batch kernel calls (:mod:`rbenvs.compiled`; ``PS`` is ``P``, or ``(P, N)`` with a projection).
+One generator, so the same arithmetic in all three. A new explicit scheme is a new tableau.
 """
 
 from __future__ import annotations
@@ -169,10 +170,15 @@ _GENERATED: dict = {}
 def _generate(tableau: ButcherTableau, label: str, dim: int, project: bool, params: bool) -> dict:
     call = "f(P, " if params else "f("
     body = _body(tableau, dim, call, project)
+    if params and project:  # the pure projection takes its own parameters N
+        body[-1] = body[-1].replace("return normalize(", "return normalize(N, ", 1)
     inner = "\n".join("        " + line for line in body)
-    if params:  # f(P, y, u): bound to P, or pure with P the first argument
-        src = "def make(f, P):\n    def step(y, u, h):\n" + inner + "\n    return step\n"
-        src += "def pure(f):\n    def step(P, y, u, h):\n" + inner + "\n    return step\n"
+    if params:  # f(P, y, u) [and normalize(N, y)]: bound to P [and N], or pure with them first
+        bound, unpack = ("f, P, normalize, N", "        P, N = PS\n") if project else ("f, P", "")
+        src = f"def make({bound}):\n    def step(y, u, h):\n" + inner + "\n    return step\n"
+        pure_args = "f, normalize" if project else "f"
+        pure_params = "PS" if project else "P"
+        src += f"def pure({pure_args}):\n    def step({pure_params}, y, u, h):\n" + unpack + inner + "\n    return step\n"
     else:
         src = "def step(f, normalize, y, u, h):\n" + "\n".join("    " + line for line in body) + "\n"
         src += "def make(f, normalize):\n    def step(y, u, h):\n" + inner + "\n    return step\n"
@@ -181,8 +187,12 @@ def _generate(tableau: ButcherTableau, label: str, dim: int, project: bool, para
 
 
 @lru_cache(maxsize=None)
-def _pure_step(scheme: type, dim: int, f):
-    return _generated(scheme, dim, False, True)["pure"](f)
+def _pure_step(scheme: type, dim: int, f, normalize):
+    """The pure step ``step(PS, y, u, h)`` of ``scheme`` for the pure vector field ``f`` (and the
+    pure projection ``normalize``, or ``None``); one function per combination, as compiled
+    kernels key on it."""
+    ns = _generated(scheme, dim, normalize is not None, True)
+    return ns["pure"](f) if normalize is None else ns["pure"](f, normalize)
 
 
 @dataclass(frozen=True)
@@ -202,9 +212,12 @@ class ExplicitRungeKutta(Integrator):
         if self._overridden():
             return super().bind(system, dim)
         pure = getattr(system, "kernel_rhs", None)
-        if pure is not None:
+        if pure is not None:  # the pure vector field (and projection): the same step the kernel runs
             f, params = pure
-            return _generated(type(self), dim, False, True)["make"](f, params)
+            project = getattr(system, "kernel_normalize", None)
+            if project is None:
+                return _generated(type(self), dim, False, True)["make"](f, params)
+            return _generated(type(self), dim, True, True)["make"](f, params, *project)
         return _generated(type(self), dim, getattr(system, "needs_projection", True), False)["make"](system.rhs, system.normalize)
 
     def kernel_step(self, system):
@@ -212,7 +225,11 @@ class ExplicitRungeKutta(Integrator):
         if pure is None or self._overridden():
             return None
         f, params = pure
-        return _pure_step(type(self), system.dim, f), params
+        project = getattr(system, "kernel_normalize", None)
+        if project is None:
+            return _pure_step(type(self), system.dim, f, None), params
+        normalize, n_params = project
+        return _pure_step(type(self), system.dim, f, normalize), (params, n_params)
 
 
 @dataclass(frozen=True)

@@ -134,6 +134,13 @@ class RigidBodyVectorEnv(VectorEnv):
     def dt(self) -> float:
         return self.model.dt
 
+    @property
+    def batch_step(self):
+        """The compiled :class:`rbenvs.compiled.BatchStep` this env steps with, or ``None`` on the
+        numpy path (read-only; ``rbenvs bench throughput`` times it alone: the kernel's share of
+        a step, without the Python around it)."""
+        return self._batch_step
+
     # ------------------------------------------------------------------ reset
     def reset(self, *, seed=None, options=None):
         n = self.num_envs
