@@ -78,7 +78,7 @@ def physics_kernel(step, dim: int, n_control: int):
 
 
 @lru_cache(maxsize=None)
-def batch_kernel(step, dim: int, n_control: int, observe, n_obs: int, evaluate, n_metrics: int, readouts, n_readouts: int, guard=None, angular=None):
+def batch_kernel(step, dim: int, n_control: int, observe, n_obs: int, evaluate, n_metrics: int, readouts, n_readouts: int, guard=None, angular=None, n_action: int | None = None):
     """The compiled step of a batch for one layout (cached per process).
 
     ``step(PS, y, u, h) -> y`` (the integrator's generated step, pure), ``observe(PO, y) ->
@@ -155,7 +155,7 @@ def batch_kernel(step, dim: int, n_control: int, observe, n_obs: int, evaluate, 
         "        over[i] = out",
         "    for i in range(n):",
         "        " + y_new,
-        f"        r = evaluate(PE, y, ({comps('UN[{j}][i]', n_control)}))",
+        f"        r = evaluate(PE, y, ({comps('UN[{j}][i]', n_control if n_action is None else n_action)}))",
         "        reward[i] = r[0]",
         "        terminated[i] = r[1]",
         *[f"        M{j}[i] = r[{j + 2}]" for j in range(n_metrics)],
@@ -216,18 +216,18 @@ class BatchStep:
     floats) used once to learn the metrics' types.
     """
 
-    def __init__(self, parts, dim: int, n_obs: int, n_control: int, sample, obs_high):
+    def __init__(self, parts, dim: int, n_obs: int, n_control: int, sample, obs_high, n_action: int | None = None):
         import numpy as np
 
         (step, ps), (observe, po), (evaluate, pe), (readouts, pr), guard = parts
         (guard_fn, pg), (angular, pa) = guard if guard is not None else ((None, ()), (None, ()))
-        zero = (0.0,) * n_control
-        values = evaluate(pe, tuple(sample), zero)
+        n_action = n_control if n_action is None else n_action
+        values = evaluate(pe, tuple(sample), (0.0,) * n_action)
         physical = readouts(pr, tuple(sample), (0.0,) * n_control, False)
         self.n_metrics, self.n_readouts = len(values) - 2, len(physical)
         # each metric's array type from its value on a float state (a bool stays a bool)
         self.metric_dtypes = tuple(np.bool_ if isinstance(v, (bool, np.bool_)) else np.float64 for v in values[2:])
-        self.kernel = batch_kernel(step, dim, n_control, observe, n_obs, evaluate, self.n_metrics, readouts, self.n_readouts, guard_fn, angular)
+        self.kernel = batch_kernel(step, dim, n_control, observe, n_obs, evaluate, self.n_metrics, readouts, self.n_readouts, guard_fn, angular, n_action)
         self.params = (ps, po, pe, pr)
         self.guard_params = (pg, pa)
         self.high = np.asarray(obs_high, dtype=np.float64)

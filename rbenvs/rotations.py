@@ -18,6 +18,8 @@ from .jit import jitable
 __all__ = [
     "sqrt",
     "maximum",
+    "select",
+    "expm1",
     "atan2",
     "atan_kernel",
     "quat_multiply",
@@ -37,6 +39,34 @@ __all__ = [
 def maximum(a, b):
     """The larger of two floats (``max``) or the elementwise larger of arrays (``np.maximum``)."""
     return max(a, b) if isinstance(a, float) else np.maximum(a, b)
+
+
+@jitable
+def select(cond, a, b):
+    """``a`` where ``cond`` else ``b``: a conditional for one state (``cond`` a bool), ``np.where``
+    for a batch (``cond`` a boolean array)."""
+    if isinstance(cond, bool):
+        return a if cond else b
+    return _select_arrays(cond, a, b)
+
+
+@jitable  # (registered so that compiled code can name it; it only ever runs on arrays)
+def _select_arrays(cond, a, b):
+    return np.where(cond, a, b)
+
+
+@jitable
+def expm1(x):
+    """``exp(x) - 1`` with libm's bits for floats, arrays and compiled code (numpy's SIMD
+    ``expm1`` differs from libm's in the last bit for a third of arguments)."""
+    if isinstance(x, float):
+        return math.expm1(x)
+    return _expm1_arrays(x)
+
+
+@jitable  # (registered so that compiled code can name it; it only ever runs on arrays)
+def _expm1_arrays(x):
+    return np.vectorize(math.expm1, otypes=[np.float64])(x)
 
 
 @jitable
@@ -256,6 +286,7 @@ def _normal_axis(b):
     return (v[0] / n, v[1] / n, v[2] / n)
 
 
+@jitable
 def quat_to_euler_zxz(q):
     """Euler angles ``(phi, theta, psi)`` [rad] of ``R(q) = Rz(phi) Rx(theta) Rz(psi)``.
 
@@ -272,12 +303,12 @@ def quat_to_euler_zxz(q):
     r33 = 1.0 - 2.0 * (x * x + y * y)
     r11 = 1.0 - 2.0 * (y * y + z * z)
     r21 = 2.0 * (x * y + w * z)
-    sin_t = np.sqrt(r13 * r13 + r23 * r23)
-    theta = np.arctan2(sin_t, r33)
+    sin_t = sqrt(r13 * r13 + r23 * r23)
+    theta = atan2(sin_t, r33)
     pole = sin_t < 1e-12
     # at a pole R = Rz(phi +- psi): take psi = 0, phi from the first column
-    phi = np.where(pole, np.arctan2(r21, r11), np.arctan2(r13, -r23))
-    psi = np.where(pole, 0.0, np.arctan2(r31, r32))
+    phi = select(pole, atan2(r21, r11), atan2(r13, -r23))
+    psi = select(pole, 0.0 * sin_t, atan2(r31, r32))
     return phi, theta, psi
 
 

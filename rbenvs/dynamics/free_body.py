@@ -27,7 +27,7 @@ from .flows import AxisRotation
 from .state import export_layout, import_layout
 from .validation import require_inertia
 
-__all__ = ["FreeBodyParams", "FreeBody", "FreeBodyOrbit", "euler_rhs", "kinetic_energy", "momentum_norm", "angular_velocity", "rotation_rate", "free_body_readouts", "attitude_rhs", "attitude_normalize"]
+__all__ = ["FreeBodyParams", "FreeBody", "FreeBodyOrbit", "euler_rhs", "kinetic_energy", "momentum_norm", "angular_velocity", "rotation_rate", "free_body_readouts", "attitude_rhs", "attitude_normalize", "free_body_kick"]
 
 _CYCLIC = {(0, 1, 2), (1, 2, 0), (2, 0, 1)}
 
@@ -137,6 +137,15 @@ def attitude_normalize(p, y):
 
 
 @jitable
+def free_body_kick(p, y, u, h):
+    """Exact flow of the torque alone for time ``h``: ``Pi += h tau`` (attitude unchanged; ``p``
+    unused: ``()``)."""
+    if u is None:
+        return y
+    return (y[0] + h * u[0], y[1] + h * u[1], y[2] + h * u[2]) + y[3:]
+
+
+@jitable
 def free_body_readouts(inv, y, u, fired):
     """The env's physical read-outs ``(energy, momentum_norm)`` (names: FreeBody.readout_names;
     the control ``u`` and the event flag ``fired`` play no part)."""
@@ -239,14 +248,18 @@ class FreeBody:
     # ------------------------------------------------------------------ exact pieces
     def kick(self, y, u, h):
         """Exact flow of the torque alone for time ``h``: ``Pi += h tau`` (attitude unchanged)."""
-        if u is None:
-            return y
-        return (y[0] + h * u[0], y[1] + h * u[1], y[2] + h * u[2]) + tuple(y[3:])
+        return free_body_kick((), tuple(y), u, h)
 
     def axis_rotation(self, i: int) -> AxisRotation:
         """Exact flow of ``H_i = Pi_i^2 / (2 I_i)``: a rotation about body axis ``i``
         (``Pi`` turns by ``-Omega_i h``, the attitude by ``+Omega_i h``)."""
         return AxisRotation(i, self.params.inverse[i], (0,), 3 if self.attitude else None)
+
+    @property
+    def kernel_split_flows(self) -> tuple:
+        """The pure forms of :meth:`split_flows` (generated flows are made on access, not
+        stored: the system pickles)."""
+        return ((free_body_kick, ()),) + tuple(flow.kernel for flow in self._split[1:])
 
     def split_flows(self):
         """Pieces for a symmetric (Strang) splitting: torque kick, then the three axis rotations.

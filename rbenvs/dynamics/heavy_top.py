@@ -26,13 +26,186 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..contracts import GuardRates
-from ..rotations import atan2, quat_conjugate, quat_from_two_vectors, quat_multiply, quat_normalize, quat_rotate, quat_to_euler_zxz, sqrt
-from .free_body import rotation_rate
+from ..jit import jitable
+from ..rotations import atan2, expm1, quat_conjugate, quat_from_two_vectors, quat_multiply, quat_normalize, quat_rotate, quat_to_euler_zxz, sqrt
+from .free_body import angular_velocity, rotation_rate
 from .state import export_layout, import_layout
 from .flows import AxisRotation, SymmetricFreeRotation
 from .validation import require_finite_nonnegative, require_finite_positive, require_finite_result, require_inertia, require_real_vector
 
-__all__ = ["HeavyTopParams", "HeavyTop"]
+__all__ = [
+    "HeavyTopParams",
+    "HeavyTop",
+    "heavy_top_rhs",
+    "heavy_top_attitude_rhs",
+    "heavy_top_normalize",
+    "heavy_top_attitude_normalize",
+    "heavy_top_kick",
+    "heavy_top_readouts",
+    "heavy_top_attitude_readouts",
+    "top_tilt",
+    "top_spin",
+    "heavy_top_energy",
+    "pi_dot_gamma",
+    "vertical_norm",
+    "precession_rate",
+]
+
+
+# The heavy top's arithmetic as pure functions of (parameters, state[, control, step]): the
+# methods of HeavyTop call them on floats or arrays, generated steps and the compiled batch
+# kernel (rbenvs.compiled) on floats. ``p`` tuples are built once per system (HeavyTop).
+@jitable
+def heavy_top_rhs(p, y, u):
+    """``dPi/dt = Pi x Omega + M g l Gamma x chi + tau - k (Omega.chi) chi``,
+    ``dGamma/dt = Gamma x Omega`` (15.10.1-2); ``p = (coefficients, inverse, weight, k, chi)``
+    (:class:`HeavyTopParams`: ``weight = M g l chi``, ``k`` the spin friction)."""
+    c, inv, weight, friction, chi = p
+    c1, c2, c3 = c
+    j1, j2, j3 = inv
+    k1, k2, k3 = weight
+    p1, p2, p3, g1, g2, g3 = y[0], y[1], y[2], y[3], y[4], y[5]
+    w1, w2, w3 = j1 * p1, j2 * p2, j3 * p3
+    d1 = c1 * p2 * p3 + (g2 * k3 - g3 * k2)
+    d2 = c2 * p3 * p1 + (g3 * k1 - g1 * k3)
+    d3 = c3 * p1 * p2 + (g1 * k2 - g2 * k1)
+    if u is not None:
+        d1 = d1 + u[0]
+        d2 = d2 + u[1]
+        d3 = d3 + u[2]
+    if friction != 0.0:
+        x1, x2, x3 = chi
+        f = friction * (w1 * x1 + w2 * x2 + w3 * x3)
+        d1, d2, d3 = d1 - f * x1, d2 - f * x2, d3 - f * x3
+    return (d1, d2, d3, g2 * w3 - g3 * w2, g3 * w1 - g1 * w3, g1 * w2 - g2 * w1)
+
+
+@jitable
+def heavy_top_attitude_rhs(p, y, u):
+    """:func:`heavy_top_rhs` and ``dq/dt = q * (0, Omega) / 2`` for ``y = (Pi, Gamma, q)``."""
+    j1, j2, j3 = p[1]
+    h1, h2, h3 = 0.5 * (j1 * y[0]), 0.5 * (j2 * y[1]), 0.5 * (j3 * y[2])
+    qw, qx, qy, qz = y[6], y[7], y[8], y[9]
+    return heavy_top_rhs(p, y, u) + (
+        -qx * h1 - qy * h2 - qz * h3,
+        qw * h1 + qy * h3 - qz * h2,
+        qw * h2 - qx * h3 + qz * h1,
+        qw * h3 + qx * h2 - qy * h1,
+    )
+
+
+@jitable
+def heavy_top_normalize(p, y):
+    """``(Pi, Gamma / |Gamma|)`` (``p`` unused: ``()``)."""
+    inv = 1.0 / sqrt(y[3] * y[3] + y[4] * y[4] + y[5] * y[5])
+    return (y[0], y[1], y[2], y[3] * inv, y[4] * inv, y[5] * inv)
+
+
+@jitable
+def heavy_top_attitude_normalize(p, y):
+    """``(Pi, Gamma / |Gamma|, q / |q|)`` (``p`` unused: ``()``)."""
+    return heavy_top_normalize(p, y) + quat_normalize((y[6], y[7], y[8], y[9]))
+
+
+@jitable
+def heavy_top_kick(p, y, u, h):
+    """Exact flow for time ``h`` of the torques with ``Gamma`` held fixed (see
+    :meth:`HeavyTop.kick`); ``p = (weight, k, chi, inverse)``."""
+    weight, friction, chi, inv = p
+    k1, k2, k3 = weight
+    g1, g2, g3 = y[3], y[4], y[5]
+    f1, f2, f3 = g2 * k3 - g3 * k2, g3 * k1 - g1 * k3, g1 * k2 - g2 * k1
+    if u is not None:
+        f1, f2, f3 = f1 + u[0], f2 + u[1], f3 + u[2]
+    p1, p2, p3 = y[0] + h * f1, y[1] + h * f2, y[2] + h * f3
+    if friction != 0.0:
+        x1, x2, x3 = chi
+        j1, j2, j3 = inv
+        c_s = j1 * x1 * x1 + j2 * x2 * x2 + j3 * x3 * x3
+        kappa = friction * c_s
+        s0 = j1 * y[0] * x1 + j2 * y[1] * x2 + j3 * y[2] * x3
+        b = j1 * f1 * x1 + j2 * f2 * x2 + j3 * f3 * x3
+        e1 = -expm1(-kappa * h) / kappa  # int_0^h exp(-kappa t) dt
+        integral = friction * s0 * e1 + b * (h - e1) / c_s  # k int_0^h s dt
+        p1, p2, p3 = p1 - integral * x1, p2 - integral * x2, p3 - integral * x3
+    return (p1, p2, p3) + y[3:]
+
+
+@jitable
+def vertical_norm(y):
+    """``|Gamma|``."""
+    return sqrt(y[3] * y[3] + y[4] * y[4] + y[5] * y[5])
+
+
+@jitable
+def top_tilt(chi, y):
+    """Angle [rad] between ``chi`` and the upward vertical: ``atan2(|Gamma x chi|, Gamma.chi)``."""
+    x1, x2, x3 = chi
+    g1, g2, g3 = y[3], y[4], y[5]
+    c1, c2, c3 = g2 * x3 - g3 * x2, g3 * x1 - g1 * x3, g1 * x2 - g2 * x1
+    return atan2(sqrt(c1 * c1 + c2 * c2 + c3 * c3), g1 * x1 + g2 * x2 + g3 * x3)
+
+
+@jitable
+def heavy_top_energy(inv, weight, y):
+    """``H = 1/2 Pi.Omega + M g l Gamma.chi`` [J] (zero potential with the axis horizontal)."""
+    j1, j2, j3 = inv
+    k1, k2, k3 = weight
+    kinetic = 0.5 * (j1 * y[0] * y[0] + j2 * y[1] * y[1] + j3 * y[2] * y[2])
+    return kinetic + (k1 * y[3] + k2 * y[4] + k3 * y[5])
+
+
+@jitable
+def pi_dot_gamma(y):
+    """Casimir ``Pi . Gamma`` [kg m^2/s]."""
+    return y[0] * y[3] + y[1] * y[4] + y[2] * y[5]
+
+
+@jitable
+def top_spin(inv, chi, y):
+    """``Omega . chi`` [rad/s]."""
+    x1, x2, x3 = chi
+    j1, j2, j3 = inv
+    return j1 * y[0] * x1 + j2 * y[1] * x2 + j3 * y[2] * x3
+
+
+@jitable
+def heavy_top_readouts(p, y, u, fired):
+    """``(energy, pi_dot_gamma, vertical_norm, tilt, spin) + extra``; ``p = (inverse, weight,
+    chi, extra)``, ``extra`` the constant read-outs (``(critical_spin,)`` of a Lagrange top, or
+    ``()``). The control and the event flag play no part."""
+    inv, weight, chi, extra = p
+    return (heavy_top_energy(inv, weight, y), pi_dot_gamma(y), vertical_norm(y), top_tilt(chi, y), top_spin(inv, chi, y)) + extra
+
+
+@jitable
+def heavy_top_attitude_readouts(p, y, u, fired):
+    """:func:`heavy_top_readouts` and the z-x-z Euler angles of the attitude."""
+    return heavy_top_readouts(p, y, u, fired) + quat_to_euler_zxz((y[6], y[7], y[8], y[9]))
+
+
+@jitable
+def precession_rate(p, y):
+    """``d(phi)/dt`` [rad/s] of the centre-of-mass axis about the vertical (see
+    :meth:`HeavyTop.precession_rate`); ``p = (inverse, chi)``; 0 with the axis on the vertical."""
+    inv, x = p
+    w = angular_velocity(inv, y)
+    n = vertical_norm(y)
+    g = (y[3] / n, y[4] / n, y[5] / n)
+    cos_t = g[0] * x[0] + g[1] * x[1] + g[2] * x[2]
+    w_z = w[0] * g[0] + w[1] * g[1] + w[2] * g[2]
+    w_k = w[0] * x[0] + w[1] * x[1] + w[2] * x[2]
+    c = (g[1] * x[2] - g[2] * x[1], g[2] * x[0] - g[0] * x[2], g[0] * x[1] - g[1] * x[0])
+    sin2 = c[0] * c[0] + c[1] * c[1] + c[2] * c[2]
+    if isinstance(sin2, float):
+        return (w_z - cos_t * w_k) / sin2 if sin2 > 0.0 else 0.0
+    return _rate_arrays(w_z - cos_t * w_k, sin2)
+
+
+@jitable  # (registered so that compiled code can name it; it only ever runs on arrays)
+def _rate_arrays(num, sin2):
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(sin2 > 0.0, num / sin2, 0.0)
 
 
 @dataclass(frozen=True)
@@ -164,6 +337,19 @@ class HeavyTop:
         else:
             free = tuple(AxisRotation(i, params.inverse[i], vectors, quat) for i in range(3))
         self._split = (self.kick,) + free
+        # the pure forms (rbenvs.contracts.System): the methods below call them too
+        rhs_p = (params.coefficients, params.inverse, params.weight, params.spin_friction, params.com_direction)
+        extra = (params.critical_spin,) if params.is_lagrange else ()
+        readout_p = (params.inverse, params.weight, params.com_direction, extra)
+        if self.attitude:
+            self.kernel_rhs = (heavy_top_attitude_rhs, rhs_p)
+            self.kernel_normalize = (heavy_top_attitude_normalize, ())
+            self.kernel_readouts = (heavy_top_attitude_readouts, readout_p)
+        else:
+            self.kernel_rhs = (heavy_top_rhs, rhs_p)
+            self.kernel_normalize = (heavy_top_normalize, ())
+            self.kernel_readouts = (heavy_top_readouts, readout_p)
+        self._kick = (params.weight, params.spin_friction, params.com_direction, params.inverse)
 
     @property
     def readout_names(self) -> tuple:
@@ -179,19 +365,11 @@ class HeavyTop:
 
     # a smooth system: no events, no switches (rbenvs.contracts.HybridSystem)
     hybrid = False
-    # no pure forms (yet): generated and compiled steps are the free body's only
-    kernel_rhs = None
-    kernel_readouts = None
-    kernel_normalize = None
 
     def readouts(self, y, u=None, fired=False) -> tuple:
         """The read-outs in :attr:`readout_names` order (floats or arrays; ``u`` plays no part)."""
-        out = (self.energy(y), self.pi_dot_gamma(y), self.vertical_norm(y), self.tilt(y), self.spin(y))
-        if self.params.is_lagrange:
-            out += (self.params.critical_spin,)
-        if self.attitude:
-            out += tuple(quat_to_euler_zxz(y[6:10]))
-        return out
+        fn, p = self.kernel_readouts
+        return fn(p, tuple(y), u, fired)
 
     def start_draws(self, rng):
         """The generator's numbers the system adds to a task's start: the heading where it
@@ -252,35 +430,9 @@ class HeavyTop:
     # ------------------------------------------------------------------ vector field
     def rhs(self, y, u):
         """``dPi/dt = Pi x Omega + M g l Gamma x chi + tau - k (Omega.chi) chi``,
-        ``dGamma/dt = Gamma x Omega``, ``dq/dt = q * (0, Omega) / 2``."""
-        c1, c2, c3 = self.params.coefficients
-        j1, j2, j3 = self.params.inverse
-        k1, k2, k3 = self.params.weight
-        p1, p2, p3, g1, g2, g3 = y[0], y[1], y[2], y[3], y[4], y[5]
-        w1, w2, w3 = j1 * p1, j2 * p2, j3 * p3
-        d1 = c1 * p2 * p3 + (g2 * k3 - g3 * k2)
-        d2 = c2 * p3 * p1 + (g3 * k1 - g1 * k3)
-        d3 = c3 * p1 * p2 + (g1 * k2 - g2 * k1)
-        if u is not None:
-            d1 = d1 + u[0]
-            d2 = d2 + u[1]
-            d3 = d3 + u[2]
-        friction = self.params.spin_friction
-        if friction:
-            x1, x2, x3 = self.params.com_direction
-            f = friction * (w1 * x1 + w2 * x2 + w3 * x3)
-            d1, d2, d3 = d1 - f * x1, d2 - f * x2, d3 - f * x3
-        out = (d1, d2, d3, g2 * w3 - g3 * w2, g3 * w1 - g1 * w3, g1 * w2 - g2 * w1)
-        if not self.attitude:
-            return out
-        h1, h2, h3 = 0.5 * w1, 0.5 * w2, 0.5 * w3
-        qw, qx, qy, qz = y[6], y[7], y[8], y[9]
-        return out + (
-            -qx * h1 - qy * h2 - qz * h3,
-            qw * h1 + qy * h3 - qz * h2,
-            qw * h2 - qx * h3 + qz * h1,
-            qw * h3 + qx * h2 - qy * h1,
-        )
+        ``dGamma/dt = Gamma x Omega``, ``dq/dt = q * (0, Omega) / 2`` (:func:`heavy_top_rhs`)."""
+        fn, p = self.kernel_rhs
+        return fn(p, y, u)
 
     def normalize(self, y):
         """Project ``Gamma`` back onto the unit sphere, and the quaternion (the projection
@@ -289,50 +441,37 @@ class HeavyTop:
         other Casimir ``Pi.Gamma`` and the energy are not projected: their drift is the
         integrator's error, measured. (The splitting never needs this: its pieces are exact
         rotations.)"""
-        g = y[3:6]
-        inv = 1.0 / sqrt(g[0] * g[0] + g[1] * g[1] + g[2] * g[2])
-        out = (y[0], y[1], y[2], g[0] * inv, g[1] * inv, g[2] * inv)
-        if not self.attitude:
-            return out
-        return out + quat_normalize(y[6:10])
+        fn, p = self.kernel_normalize
+        return fn(p, tuple(y))
 
     # ------------------------------------------------------------------ invariants, read-outs
     def energy(self, y):
         """``H = 1/2 Pi.Omega + M g l Gamma.chi`` [J] (zero potential with the axis horizontal)."""
-        j1, j2, j3 = self.params.inverse
-        k1, k2, k3 = self.params.weight
-        kinetic = 0.5 * (j1 * y[0] * y[0] + j2 * y[1] * y[1] + j3 * y[2] * y[2])
-        return kinetic + (k1 * y[3] + k2 * y[4] + k3 * y[5])
+        return heavy_top_energy(self.params.inverse, self.params.weight, y)
 
     def pi_dot_gamma(self, y):
         """Casimir ``Pi . Gamma`` [kg m^2/s]: the angular momentum about the vertical."""
-        return y[0] * y[3] + y[1] * y[4] + y[2] * y[5]
+        return pi_dot_gamma(y)
 
     def vertical_norm(self, y):
         """Casimir ``|Gamma|`` (exactly 1 for the true motion; kept at 1 by the splitting's
         exact rotations and by the projection of the other integrators)."""
-        return sqrt(y[3] * y[3] + y[4] * y[4] + y[5] * y[5])
+        return vertical_norm(y)
 
     def angular_velocity(self, y):
         """Body angular velocity ``Omega = I^-1 Pi`` [rad/s]."""
-        j1, j2, j3 = self.params.inverse
-        return (j1 * y[0], j2 * y[1], j3 * y[2])
+        return angular_velocity(self.params.inverse, y)
 
     def spin(self, y):
         """``Omega . chi`` [rad/s]: the rate about the centre-of-mass axis (``Omega3`` of a
         Lagrange top; conserved by it without axial torque or friction)."""
-        x1, x2, x3 = self.params.com_direction
-        j1, j2, j3 = self.params.inverse
-        return j1 * y[0] * x1 + j2 * y[1] * x2 + j3 * y[2] * x3
+        return top_spin(self.params.inverse, self.params.com_direction, y)
 
     def tilt(self, y):
         """Angle [rad] between the centre-of-mass axis ``chi`` and the upward vertical: 0
         upright, ``pi/2`` horizontal, ``pi`` hanging. ``atan2(|Gamma x chi|, Gamma . chi)``:
         accurate at both ends, and independent of any drift of ``|Gamma|``."""
-        x1, x2, x3 = self.params.com_direction
-        g1, g2, g3 = y[3], y[4], y[5]
-        c1, c2, c3 = g2 * x3 - g3 * x2, g3 * x1 - g1 * x3, g1 * x2 - g2 * x1
-        return atan2(sqrt(c1 * c1 + c2 * c2 + c3 * c3), g1 * x1 + g2 * x2 + g3 * x3)
+        return top_tilt(self.params.com_direction, y)
 
     def precession_rate(self, y):
         """``d(phi)/dt`` [rad/s]: the rate at which the centre-of-mass axis turns about the
@@ -342,19 +481,7 @@ class HeavyTop:
         vertical (``sin(theta) = 0``) the axis has no azimuth to turn (the rate has no limit
         there: it grows like ``|Omega_transverse| / theta``); it is reported as 0 there, a
         finite value a reward can use (the precess task then counts the full rate error)."""
-        w = self.angular_velocity(y)
-        x = self.params.com_direction
-        n = self.vertical_norm(y)
-        g = (y[3] / n, y[4] / n, y[5] / n)
-        cos_t = g[0] * x[0] + g[1] * x[1] + g[2] * x[2]
-        w_z = w[0] * g[0] + w[1] * g[1] + w[2] * g[2]
-        w_k = w[0] * x[0] + w[1] * x[1] + w[2] * x[2]
-        c = (g[1] * x[2] - g[2] * x[1], g[2] * x[0] - g[0] * x[2], g[0] * x[1] - g[1] * x[0])
-        sin2 = c[0] * c[0] + c[1] * c[1] + c[2] * c[2]
-        if isinstance(sin2, float):
-            return (w_z - cos_t * w_k) / sin2 if sin2 > 0.0 else 0.0
-        with np.errstate(divide="ignore", invalid="ignore"):
-            return np.where(sin2 > 0.0, (w_z - cos_t * w_k) / sin2, 0.0)
+        return precession_rate((self.params.inverse, self.params.com_direction), y)
 
     def attitude_from_vertical(self, gamma, heading):
         """A quaternion ``q`` with ``R(q)^T e_z = Gamma`` and the given heading [rad]: the
@@ -369,31 +496,20 @@ class HeavyTop:
     # ------------------------------------------------------------------ exact pieces
     def kick(self, y, u, h):
         """Exact flow for time ``h`` of the torques with ``Gamma`` held fixed: gravity
-        ``M g l Gamma x chi``, the control ``tau`` and the spin friction.
+        ``M g l Gamma x chi``, the control ``tau`` and the spin friction (:func:`heavy_top_kick`).
 
         Without friction ``Pi += h f``, ``f = M g l Gamma x chi + tau``. With friction
         ``s = Omega.chi`` obeys ``ds/dt = b - kappa s`` (``b = chi.I^-1 f``,
         ``kappa = k chi.I^-1 chi``), so ``Pi(h) = Pi + h f - k chi int_0^h s`` in closed form.
         Gravity's part keeps ``Pi.Gamma`` (its torque is normal to ``Gamma``).
         """
-        k1, k2, k3 = self.params.weight
-        g1, g2, g3 = y[3], y[4], y[5]
-        f1, f2, f3 = g2 * k3 - g3 * k2, g3 * k1 - g1 * k3, g1 * k2 - g2 * k1
-        if u is not None:
-            f1, f2, f3 = f1 + u[0], f2 + u[1], f3 + u[2]
-        p1, p2, p3 = y[0] + h * f1, y[1] + h * f2, y[2] + h * f3
-        friction = self.params.spin_friction
-        if friction:
-            x1, x2, x3 = self.params.com_direction
-            j1, j2, j3 = self.params.inverse
-            c_s = j1 * x1 * x1 + j2 * x2 * x2 + j3 * x3 * x3
-            kappa = friction * c_s
-            s0 = j1 * y[0] * x1 + j2 * y[1] * x2 + j3 * y[2] * x3
-            b = j1 * f1 * x1 + j2 * f2 * x2 + j3 * f3 * x3
-            e1 = -math.expm1(-kappa * h) / kappa  # int_0^h exp(-kappa t) dt
-            integral = friction * s0 * e1 + b * (h - e1) / c_s  # k int_0^h s dt
-            p1, p2, p3 = p1 - integral * x1, p2 - integral * x2, p3 - integral * x3
-        return (p1, p2, p3) + tuple(y[3:])
+        return heavy_top_kick(self._kick, tuple(y), u, h)
+
+    @property
+    def kernel_split_flows(self) -> tuple:
+        """The pure forms of :meth:`split_flows` (generated flows are made on access, not
+        stored: the system pickles)."""
+        return ((heavy_top_kick, self._kick),) + tuple(flow.kernel for flow in self._split[1:])
 
     def split_flows(self):
         """Pieces for a symmetric (Strang) splitting: the torque kick, then the free flow.

@@ -3,10 +3,37 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 
+from ..core.codegen import generate
 from .base import Integrator, StepRegion
 
 __all__ = ["Splitting"]
+
+
+def _order(n: int) -> list[tuple[int, str]]:
+    """``(flow, step)`` of the symmetric composition of ``n`` flows: half steps out and back
+    around a full step of the last."""
+    return [(i, "hh") for i in range(n - 1)] + [(n - 1, "h")] + [(i, "hh") for i in reversed(range(n - 1))]
+
+
+@lru_cache(maxsize=None)
+def _composition(n: int) -> dict:
+    """The generated composition of ``n`` pure flows ``f_i(P_i, y, u, h)``: ``make(f.., P..)``
+    gives the step with the parameters bound (the single env), ``pure(f..)`` the step
+    ``step(PS, y, u, h)`` with ``PS = (P_0, ...)`` (compiled kernels). The operations are those
+    of :meth:`Splitting.step`, in its order."""
+    fs, ps = [f"f{i}" for i in range(n)], [f"P{i}" for i in range(n)]
+    body = ["hh = 0.5 * h"] + [f"y = f{i}(P{i}, y, u, {h})" for i, h in _order(n)] + ["return y"]
+    inner = "".join(f"        {line}\n" for line in body)
+    src = f"def make({', '.join(fs + ps)}):\n    def step(y, u, h):\n{inner}    return step\n"
+    src += f"def pure({', '.join(fs)}):\n    def step(PS, y, u, h):\n        {', '.join(ps)}, = PS\n{inner}    return step\n"
+    return generate(src, f"splitting of {n} flows")
+
+
+@lru_cache(maxsize=None)
+def _pure_step(fns: tuple):
+    return _composition(len(fns))["pure"](*fns)
 
 
 @dataclass(frozen=True)
@@ -17,7 +44,9 @@ class Splitting(Integrator):
     free body ``|Pi|``, the spatial momentum and ``|q|``; for the heavy top ``|Gamma|`` and
     ``Pi.Gamma``: the systems' ``casimirs``) and, the composition being symmetric
     and symplectic on the coadjoint orbit, the energy error stays bounded over long runs.
-    Second order; no rhs calls.
+    Second order; no rhs calls. Where the system offers its flows' pure forms
+    (``kernel_split_flows``) the composition is generated from them: the single env's bound
+    step and the compiled kernel's step, the same operations as :meth:`step`.
     """
 
     name = "splitting"
@@ -38,3 +67,17 @@ class Splitting(Integrator):
         for flow in reversed(flows[:-1]):
             y = flow(y, u, hh)
         return y
+
+    def bind(self, system, dim):
+        pure = getattr(system, "kernel_split_flows", None)
+        if pure is None or type(self).step is not Splitting.step:
+            return super().bind(system, dim)
+        fns, params = zip(*pure)
+        return _composition(len(fns))["make"](*fns, *params)
+
+    def kernel_step(self, system):
+        pure = getattr(system, "kernel_split_flows", None)
+        if pure is None or type(self).step is not Splitting.step:
+            return None
+        fns, params = zip(*pure)
+        return _pure_step(tuple(fns)), tuple(params)

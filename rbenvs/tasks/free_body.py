@@ -15,9 +15,9 @@ import numpy as np
 from ..jit import jitable
 from .common import TwoStageStart, effort
 from ..dynamics.free_body import angular_velocity, momentum_norm
-from ..rotations import quat_angle, quat_conjugate, quat_from_uniforms, quat_multiply, sqrt
+from ..rotations import quat_angle, quat_conjugate, quat_from_uniforms, quat_multiply, select, sqrt
 
-__all__ = ["SpinTask", "DetumbleTask", "ReorientTask", "AXIS_NAMES"]
+__all__ = ["SpinTask", "DetumbleTask", "ReorientTask", "AXIS_NAMES", "spin_evaluate", "detumble_evaluate", "attitude_error", "reorient_observe", "reorient_evaluate"]
 
 AXIS_NAMES = ("major", "intermediate", "minor")
 
@@ -57,6 +57,33 @@ def detumble_evaluate(p, y, u):
     s = angular_speed(inv, y)
     done = s < tolerance * spin_rate
     return -s / spin_rate - control_cost * effort(u), done, s, done
+
+
+@jitable
+def attitude_error(target, y):
+    """The error quaternion ``conj(target) * q`` of ``y = (Pi, q)``, its sign chosen so that
+    ``w >= 0`` (``q`` and ``-q`` are one attitude)."""
+    e = quat_multiply(quat_conjugate(target), (y[3], y[4], y[5], y[6]))
+    sign = select(e[0] < 0.0, -1.0, 1.0)
+    return (sign * e[0], sign * e[1], sign * e[2], sign * e[3])
+
+
+@jitable
+def reorient_observe(p, y):
+    """``(Omega, error quaternion)``; ``p = (inverse moments, target)``."""
+    inv, target = p
+    return angular_velocity(inv, y) + attitude_error(target, y)
+
+
+@jitable
+def reorient_evaluate(p, y, u):
+    """``(reward, terminated, attitude_error, is_success)``; ``p = (inverse, target, spin_rate,
+    rate_cost, control_cost, success_angle)``."""
+    inv, target, spin_rate, rate_cost, control_cost, success_angle = p
+    angle = quat_angle(attitude_error(target, y))
+    speed = angular_speed(inv, y)
+    reward = -angle / math.pi - rate_cost * speed / spin_rate - control_cost * effort(u)
+    return reward, False, angle, (angle < success_angle) & (speed < success_angle * spin_rate)
 
 
 @dataclass(frozen=True)
@@ -197,7 +224,6 @@ class ReorientTask(TwoStageStart):
     metric_names = ("attitude_error", "is_success")
     final_measure = "attitude_error"
     controller = "ReorientPD"
-    kernels = None  # no pure forms (yet): the batch runs on numpy
 
     def initial_draws(self, rng):
         d = np.empty(7)
@@ -214,21 +240,23 @@ class ReorientTask(TwoStageStart):
         return tuple(inertia[i] * s * n[i] for i in range(3)) + tuple(q)
 
     def error(self, y):
-        e = quat_multiply(quat_conjugate(self.target), y[3:7])
-        sign = np.where(e[0] < 0.0, -1.0, 1.0)
-        return tuple(sign * c for c in e)
+        """The error quaternion (:func:`attitude_error`)."""
+        return attitude_error(self._target, tuple(y))
 
     def observe(self, system, y):
-        return tuple(system.angular_velocity(y)) + self.error(y)
-
-    def _angle_and_speed(self, system, y):
-        w = system.angular_velocity(y)
-        speed = sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2])
-        return quat_angle(self.error(y)), speed
+        return reorient_observe((system.params.inverse, self._target), tuple(y))
 
     def evaluate(self, system, y, u):
         """``(reward, terminated, metrics)`` with the angle and speed computed once."""
-        angle, speed = self._angle_and_speed(system, y)
-        reward = -angle / np.pi - self.rate_cost * speed / self.spin_rate - self.control_cost * effort(u)
-        success = (angle < self.success_angle) & (speed < self.success_angle * self.spin_rate)
-        return reward, False, {"attitude_error": angle, "is_success": success}
+        reward, terminated, angle, success = reorient_evaluate(self._params(system), tuple(y), u)
+        return reward, terminated, {"attitude_error": angle, "is_success": success}
+
+    def kernels(self, system):
+        """``((observe, P), (evaluate, P))`` for :mod:`rbenvs.compiled`."""
+        return (reorient_observe, (system.params.inverse, self._target)), (reorient_evaluate, self._params(system))
+
+    def _params(self, system):
+        return (system.params.inverse, self._target, float(self.spin_rate), float(self.rate_cost), float(self.control_cost), float(self.success_angle))
+
+    def __post_init__(self):
+        object.__setattr__(self, "_target", tuple(float(c) for c in self.target))

@@ -16,6 +16,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..dynamics.free_body import angular_velocity
+from ..dynamics.heavy_top import precession_rate, top_spin, top_tilt, vertical_norm
+from ..jit import jitable
+from ..rotations import maximum, select, sqrt
 from .common import TwoStageStart, effort
 
 __all__ = ["UprightTask", "PrecessTask", "transverse_basis", "slow_precession_rate"]
@@ -41,9 +45,16 @@ def _dot(a, b):
     return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 
 
-def _clip_unit(x):
+@jitable
+def clip_unit(x):
+    """``x`` clipped to ``[-1, 1]`` (a unit vector's component, against round-off)."""
     if isinstance(x, float):
         return min(1.0, max(-1.0, x))
+    return _clip_unit_arrays(x)
+
+
+@jitable  # (registered so that compiled code can name it; it only ever runs on arrays)
+def _clip_unit_arrays(x):
     return np.clip(x, -1.0, 1.0)
 
 
@@ -57,27 +68,66 @@ def _vertical_in_cone(chi, u_tilt, u_azimuth, low, high):
     return tuple(a * t1[i] + b * t2[i] + c * chi[i] for i in range(3)), theta
 
 
-def _observe(system, y):
-    n = system.vertical_norm(y)
-    g = tuple(_clip_unit(y[i] / n) for i in (3, 4, 5))  # a unit vector: clipped against round-off
-    return g + tuple(system.angular_velocity(y))
+# The tasks' arithmetic as pure functions of (parameters, state, action): the methods below call
+# them on floats or arrays, the compiled batch kernel (rbenvs.compiled) on floats.
+@jitable
+def top_observe(inv, y):
+    """``(Gamma / |Gamma|, Omega)``: a unit vector (clipped against round-off) and [rad/s]."""
+    n = vertical_norm(y)
+    return (clip_unit(y[3] / n), clip_unit(y[4] / n), clip_unit(y[5] / n)) + angular_velocity(inv, y)
+
+
+@jitable
+def upright_evaluate(p, y, u):
+    """``(reward, terminated, is_success)``; ``p = (chi, control_cost, tilt_limit, success_tilt)``."""
+    chi, control_cost, tilt_limit, success_tilt = p
+    tilt = top_tilt(chi, y)
+    cos_tilt = (y[3] * chi[0] + y[4] * chi[1] + y[5] * chi[2]) / vertical_norm(y)
+    return cos_tilt - control_cost * effort(u), tilt > tilt_limit, tilt < success_tilt
+
+
+@jitable
+def slow_precession_root(p, spin):
+    """Slow root of (3.82) ``A cos(a) p^2 - C n p + M g l = 0`` at spin ``n``; ``p = (C, M g l,
+    4 A M g l cos(a))``. Without cancellation: ``q = (C n + sgn(C n) sqrt(D)) / 2``,
+    ``p = M g l / q``, the discriminant ``D`` clamped at 0 (a spin too slow for a real root,
+    reached only if friction has slowed the top, gives the double root's rate) and ``|q|``
+    kept off 0."""
+    c, mgl, four_a_mgl_cos = p
+    k = c * spin
+    disc = k * k - four_a_mgl_cos
+    root = sqrt(maximum(disc, 0.0))
+    q = 0.5 * (k + select(k < 0.0, -root, root))
+    q = select(abs(q) > 1e-300, q, 1e-300)
+    return mgl / q
+
+
+@jitable
+def precess_evaluate(p, y, u):
+    """``(reward, terminated, precession_rate, target_precession_rate, tilt_error, is_success)``;
+    ``p = (inverse, chi, target_tilt, fixed, target_rate, root, tilt_limit, success_tilt,
+    control_cost)`` (``fixed``: a given ``target_rate``; else the slow root's parameters
+    ``root`` at the current spin)."""
+    inv, chi, target_tilt, fixed, target_rate, root, tilt_limit, success_tilt, control_cost = p
+    target = target_rate if fixed else slow_precession_root(root, top_spin(inv, chi, y))
+    rate = precession_rate((inv, chi), y)
+    tilt_err = abs(top_tilt(chi, y) - target_tilt)
+    rate_err = abs(rate - target) / abs(target)
+    # capped at 1 (the axis exactly upright has rate 0: error 1); NaN counts as 1
+    rate_err = select(rate_err <= 1.0, rate_err, 1.0)
+    reward = 1.0 - tilt_err / tilt_limit - rate_err - control_cost * effort(u)
+    return reward, tilt_err > tilt_limit, rate, target, tilt_err, (tilt_err < success_tilt) & (rate_err < 0.1)
+
+
+def _root_params(system, tilt):
+    prm = system.params
+    return (prm.axial_inertia, prm.mgl, 4.0 * prm.transverse_inertia * prm.mgl * math.cos(tilt))
 
 
 def slow_precession_rate(system, spin, tilt):
-    """Slow root of (3.82) ``A cos(a) p^2 - C n p + M g l = 0`` for arrays/floats of ``spin``.
-
-    Without cancellation: ``q = (C n + sgn(C n) sqrt(D)) / 2``, ``p = M g l / q``, with the
-    discriminant ``D`` clamped at 0 (a spin too slow for a real root, reached only if friction
-    has slowed the top, gives the double root's rate) and ``|q|`` kept off 0.
-    """
-    prm = system.params
-    a, c, mgl = prm.transverse_inertia, prm.axial_inertia, prm.mgl
-    k = c * spin
-    disc = k * k - 4.0 * a * mgl * math.cos(tilt)
-    root = np.sqrt(np.maximum(disc, 0.0))
-    q = 0.5 * (k + np.where(k < 0.0, -root, root))
-    q = np.where(np.abs(q) > 1e-300, q, 1e-300)
-    p = mgl / q
+    """Slow root of (3.82) ``A cos(a) p^2 - C n p + M g l = 0`` for arrays/floats of ``spin``
+    (:func:`slow_precession_root`)."""
+    p = slow_precession_root(_root_params(system, tilt), float(spin) if np.ndim(spin) == 0 else np.asarray(spin, dtype=np.float64))
     return float(p) if np.ndim(p) == 0 else p
 
 
@@ -105,7 +155,6 @@ class UprightTask(TwoStageStart):
     metric_names = ("is_success",)
     final_measure = "tilt"
     controller = "UprightLQR"
-    kernels = None  # no pure forms (yet): the batch runs on numpy
 
     def initial_draws(self, rng):
         return rng.random(3)  # tilt, azimuth, spin
@@ -119,18 +168,19 @@ class UprightTask(TwoStageStart):
         return pi + gamma
 
     def observe(self, system, y):
-        return _observe(system, y)
+        return top_observe(system.params.inverse, tuple(y))
 
     def evaluate(self, system, y, u):
         """``(reward, terminated, metrics)`` with the tilt computed once."""
-        tilt = system.tilt(y)
-        return _cos_tilt(system, y) - self.control_cost * effort(u), tilt > self.tilt_limit, {"is_success": tilt < self.success_tilt}
+        reward, terminated, success = upright_evaluate(self._params(system), tuple(y), u)
+        return reward, terminated, {"is_success": success}
 
+    def kernels(self, system):
+        """``((observe, P), (evaluate, P))`` for :mod:`rbenvs.compiled`."""
+        return (top_observe, system.params.inverse), (upright_evaluate, self._params(system))
 
-def _cos_tilt(system, y):
-    n = system.vertical_norm(y)
-    chi = system.params.com_direction
-    return (y[3] * chi[0] + y[4] * chi[1] + y[5] * chi[2]) / n
+    def _params(self, system):
+        return (system.params.com_direction, float(self.control_cost), float(self.tilt_limit), float(self.success_tilt))
 
 
 @dataclass(frozen=True)
@@ -167,7 +217,6 @@ class PrecessTask(TwoStageStart):
     metric_names = ("precession_rate", "target_precession_rate", "tilt_error", "is_success")
     final_measure = "tilt_error"
     controller = "PrecessionTracking"
-    kernels = None  # no pure forms (yet): the batch runs on numpy
 
     def rate_target(self, system, y):
         if self.target_rate is not None:
@@ -189,24 +238,21 @@ class PrecessTask(TwoStageStart):
         return tuple(prm.inertia[i] * omega[i] for i in range(3)) + gamma
 
     def observe(self, system, y):
-        return _observe(system, y)
-
-    def _errors(self, system, y):
-        target = self.rate_target(system, y)
-        rate = system.precession_rate(y)
-        tilt_err = abs(system.tilt(y) - self.target_tilt)
-        rate_err = abs(rate - target) / abs(target)
-        if isinstance(rate_err, float):
-            rate_err = 1.0 if not rate_err <= 1.0 else rate_err  # capped at 1 (the axis exactly upright has rate 0: error 1)
-        else:
-            rate_err = np.where(rate_err <= 1.0, rate_err, 1.0)
-        return tilt_err, rate_err, rate, target
+        return top_observe(system.params.inverse, tuple(y))
 
     def evaluate(self, system, y, u):
         """``(reward, terminated, metrics)`` with the errors computed once."""
-        tilt_err, rate_err, rate, target = self._errors(system, y)
-        reward = 1.0 - tilt_err / self.tilt_limit - rate_err - self.control_cost * effort(u)
-        metrics = {"precession_rate": rate, "target_precession_rate": target, "tilt_error": tilt_err,
-                   "is_success": (tilt_err < self.success_tilt) & (rate_err < 0.1)}
-        return reward, tilt_err > self.tilt_limit, metrics
+        reward, terminated, rate, target, tilt_err, success = precess_evaluate(self._params(system), tuple(y), u)
+        metrics = {"precession_rate": rate, "target_precession_rate": target, "tilt_error": tilt_err, "is_success": success}
+        return reward, terminated, metrics
 
+    def kernels(self, system):
+        """``((observe, P), (evaluate, P))`` for :mod:`rbenvs.compiled`."""
+        return (top_observe, system.params.inverse), (precess_evaluate, self._params(system))
+
+    def _params(self, system):
+        prm = system.params
+        fixed = self.target_rate is not None
+        rate = float(self.target_rate) if fixed else 0.0
+        return (prm.inverse, prm.com_direction, float(self.target_tilt), fixed, rate, _root_params(system, self.target_tilt),
+                float(self.tilt_limit), float(self.success_tilt), float(self.control_cost))

@@ -123,9 +123,9 @@ class RigidBodyVectorEnv(VectorEnv):
             )
         else:
             actuator = self.model.actuator
-            n_control = len(actuator.control((0.0,) * actuator.size)[1])
+            u_norm, u = actuator.control((0.0,) * actuator.size)
             sample = self.model.initial_state(np.random.default_rng(0))
-            return _compiled.BatchStep(parts, self.system.dim, self.single_observation_space.shape[0], n_control, sample, self.engine.high)
+            return _compiled.BatchStep(parts, self.system.dim, self.single_observation_space.shape[0], len(u), sample, self.engine.high, len(u_norm))
         if compiled is True:
             raise ValueError(f"compiled=True but {reason}")
         return None
