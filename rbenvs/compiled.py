@@ -29,13 +29,14 @@ first use in a process (about a second) and reused by every env of the same layo
 from __future__ import annotations
 
 from functools import lru_cache
+from typing import Callable, NamedTuple
 
 from .core.codegen import generate
 from .jit import DISABLE_VARIABLE, available, jitable
 from .jit import register as _register
 from .jit import register_all as _register_all
 
-__all__ = ["jitable", "available", "batch_kernel", "physics_kernel", "state_finish", "BatchStep", "DISABLE_VARIABLE"]
+__all__ = ["jitable", "available", "Layout", "batch_kernel", "physics_kernel", "state_finish", "BatchStep", "BatchResult", "DISABLE_VARIABLE"]
 
 def _comps(fmt, k):
     return ", ".join(fmt.format(j=j) for j in range(k)) + ("," if k == 1 else "")
@@ -77,73 +78,132 @@ def physics_kernel(step, dim: int, n_control: int):
     return numba.njit(error_model="numpy")(namespace["advance"])
 
 
+class Layout(NamedTuple):
+    """What a batch kernel is compiled for (the parameters are arguments, not part of it):
+    the pure functions and the sizes of their tuples.
+
+    ``step(PS, y, u, h) -> y``; ``observe(PO, y) -> o`` (``n_obs``); ``evaluate(PE, y, u_norm)
+    -> (reward, terminated, m_1..m_k)`` (``k = n_metrics``); ``readouts(PR, y, u, fired) ->
+    (r_1..r_m)`` (``m = n_readouts``); the guard's ``rotation(PA, y) -> lambda`` and
+    ``dissipation(PD, y, u) -> lambda_d`` (or ``None``: no such rate); the terminal ``event(PV,
+    y, u) -> bool`` checked after every internal step (or ``None``).
+    """
+
+    step: Callable
+    dim: int
+    n_control: int
+    n_action: int
+    observe: Callable
+    n_obs: int
+    evaluate: Callable
+    n_metrics: int
+    readouts: Callable
+    n_readouts: int
+    rotation: Callable | None = None
+    dissipation: Callable | None = None
+    event: Callable | None = None
+
+
 @lru_cache(maxsize=None)
-def batch_kernel(step, dim: int, n_control: int, observe, n_obs: int, evaluate, n_metrics: int, readouts, n_readouts: int, guard=None, angular=None, n_action: int | None = None):
-    """The compiled step of a batch for one layout (cached per process).
+def batch_kernel(layout: Layout):
+    """The compiled step of a batch for one :class:`Layout` (cached per process). Signature::
 
-    ``step(PS, y, u, h) -> y`` (the integrator's generated step, pure), ``observe(PO, y) ->
-    o`` (``n_obs`` components), ``evaluate(PE, y, u_norm) -> (reward, terminated, m_1..m_k)``
-    (``k = n_metrics``), ``readouts(PR, y, u, fired) -> (r_1..r_m)`` (``m = n_readouts``, or
-    ``readouts`` ``None``); ``guard(PG, angular(PA, y)) -> x`` the guard's step ratio (a period needs
-    ``ceil(x)`` steps) or ``None``. The kernel's signature::
+        kernel(Y, Ynew, U, UN, h, dt, substeps, check, refuse, skip, PS, PO, PE, PR, PG, PA, PD,
+               CD, PV, HI, counts, hstep, fired, obs, over, reward, terminated, M_1..M_k,
+               R_1..R_m) -> status
 
-        kernel(Y, Ynew, U, UN, h, substeps, PS, PO, PE, PR, HI, check, skip, PG, PA, obs, over,
-               reward, terminated, M_1..M_k, R_1..R_m) -> number of non-finite new states, or
-               -1 when ``check`` and a sub-env not in ``skip`` needs more than ``substeps``
+    ``Y``/``Ynew``: ``(dim, n)`` float64 states before/after; ``U``/``UN``: tuples of ``(n,)``
+    float64 control and normalised action components; ``h = dt / substeps``.
 
-    ``Y``/``Ynew``: ``(dim, n)`` float64 state before/after; ``U``/``UN``: tuples of ``(n,)``
-    float64 control and normalised action components; ``HI``: observation bounds ``(n_obs,)``.
-    The observation is clipped to the bounds and ``over`` set where the state left them (the
-    single env's rule). If any new state is non-finite the kernel stops after the physics
-    and returns their count, the other outputs unset: the caller's numerical-failure path
-    takes over from ``Ynew``.
+    The period is the step core's (:meth:`rbenvs.core.step.Engine.advance`), per sub-env:
+    with ``check`` the guard counts its internal steps from its state (``x = step_ratio(PG,
+    rotation(PA, y))``, raised to ``dt / (CD / dissipation(PD, y, u))`` where that is larger;
+    ``max(substeps, ceil(x))``, or ``MAX_INTERNAL_STEPS + 1`` past the cap: a refused period,
+    its state NaN), except sub-envs in ``skip`` (about to restart: ``substeps``). With
+    ``refuse`` and any count above ``substeps`` nothing is written and ``-1`` returned (the
+    caller raises, naming ``max(counts)``). When every count is ``substeps`` and no event is
+    watched, the steps run as passes over the batch (SIMD); otherwise sub-env by sub-env,
+    each with its own ``h = dt / count`` and, with an ``event``, frozen where it fires.
+    ``counts``, ``hstep`` and ``fired`` report that per sub-env.
+
+    If any new state is non-finite the kernel returns their count after the physics, the task
+    outputs unset: the caller's numerical-failure path takes over from ``Ynew``. Otherwise the
+    observation is clipped to ``HI`` (``over`` where the state left the bounds; the single
+    env's rule), then the task's evaluation and the read-outs fill their arrays; 0 returned.
     """
     import numba
 
+    from .core.guard import MAX_INTERNAL_STEPS
+
+    L = layout
     _register_all()
-    for fn in (step, observe, evaluate, readouts, guard, angular):
+    for fn in (L.step, L.observe, L.evaluate, L.readouts, L.rotation, L.dissipation, L.event):
         if fn is not None:
             _register(fn)
-
-    comps = _comps
-    metrics = comps("M{j}", n_metrics)
-    reads = comps("R{j}", n_readouts) if readouts is not None else ""
-    args = "Y, Ynew, U, UN, h, substeps, PS, PO, PE, PR, HI, check, skip, PG, PA, obs, over, reward, terminated"
-    args += (", " + metrics.rstrip(",")) if n_metrics else ""
-    args += (", " + reads.rstrip(",")) if reads else ""
+    comps, dim = _comps, L.dim
+    metrics = [f"M{j}" for j in range(L.n_metrics)]
+    reads = [f"R{j}" for j in range(L.n_readouts)]
+    args = ["Y", "Ynew", "U", "UN", "h", "dt", "substeps", "check", "refuse", "skip", "PS", "PO", "PE", "PR", "PG", "PA", "PD", "CD", "PV", "HI",
+            "counts", "hstep", "fired", "obs", "over", "reward", "terminated"] + metrics + reads
+    y_old = f"y = ({comps('Y[{j}, i]', dim)})"
     y_new = f"y = ({comps('Ynew[{j}, i]', dim)})"
-    u = f"u = ({comps('U[{j}][i]', n_control)})"
-    # One loop per stage: a loop with nothing but arithmetic and unit-stride loads and stores
-    # runs in SIMD registers; one fused loop would run element by element (measured: 56 us
-    # against 15 us at 4096 free bodies).
-    lines = [f"def kernel({args}):"]
-    if guard is not None:
-        # the guard first, before anything is written: a period that needs more than
-        # substeps steps goes back to the caller (the numpy path subdivides it per sub-env)
-        lines += [
-            "    if check:",
-            "        need = 0",
-            "        for i in range(Y.shape[1]):",
-            f"            x = guard(PG, angular(PA, ({comps('Y[{j}, i]', dim)})))",
-            "            if not (x <= substeps) and not skip[i]:",
-            "                need += 1",
-            "        if need:",
-            "            return -1",
+    u = f"u = ({comps('U[{j}][i]', L.n_control)})"
+    un = f"un = ({comps('UN[{j}][i]', L.n_action)})"
+    store = [f"Ynew[{j}, i] = y[{j}]" for j in range(dim)]
+    lines = [f"def kernel({', '.join(args)}):", "    n = Y.shape[1]", "    uniform = True"]
+    # 1. the guard's counts, before anything is written
+    count = ["for i in range(n):", "    c = substeps"]
+    if L.rotation is not None:
+        guarded = ["x = step_ratio(PG, rotation(PA, y))"]
+        if L.dissipation is not None:
+            guarded += [u, "rate = dissipation(PD, y, u)", "if rate > 0.0:", "    v = dt / (CD / rate)", "    if v > x:", "        x = v"]
+        guarded += ["if not (x <= substeps):", f"    c = ceil(x) if x <= {MAX_INTERNAL_STEPS} else {MAX_INTERNAL_STEPS + 1}", "    need += 1"]
+        count += ["    if check and not skip[i]:", "        " + y_old, *("        " + line for line in guarded)]
+    count += ["    counts[i] = c", "    if c != substeps:", "        uniform = False"]
+    lines += ["    need = 0", *("    " + line for line in count), "    if refuse and need:", "        return -1"]
+    # 2. the physics: passes over the batch where every count is substeps, else per sub-env
+    per_env = [
+        "for i in range(n):",
+        "    " + y_old,
+        "    " + u,
+        "    c = counts[i]",
+        "    f = False",
+        f"    if c > {MAX_INTERNAL_STEPS}:",  # refused: a numerical failure, reported with dt / c
+        "        hi = dt / c",
+        f"        y = ({comps('nan', dim)})",
+        "    else:",
+        "        hi = h if c == substeps else dt / c",
+        "        for k in range(c):",
+        "            y = step(PS, y, u, hi)",
+    ]
+    if L.event is not None:  # the step core's rule: a non-finite state stops, an event freezes
+        per_env += [
+            "            if not (" + " and ".join(f"isfinite(y[{j}])" for j in range(dim)) + "):",
+            "                break",
+            "            if event(PV, y, u):",
+            "                f = True",
+            "                break",
         ]
+    per_env += [*("    " + line for line in store), "    hstep[i] = hi", "    fired[i] = f"]
+    simd = [line[4:] for line in _physics_lines(dim, L.n_control)] + ["for i in range(n):", "    hstep[i] = h", "    fired[i] = False"]
+    if L.event is None:
+        lines += ["    if uniform:", *("        " + line for line in simd), "    else:", *("        " + line for line in per_env)]
+    else:
+        lines += ["    " + line for line in per_env]
+    # 3. non-finite states go back to the caller's failure path
     lines += [
-        *_physics_lines(dim, n_control),
         "    bad = 0",
         "    for i in range(n):",
         "        if not (" + " and ".join(f"isfinite(Ynew[{j}, i])" for j in range(dim)) + "):",
         "            bad += 1",
-        "    if bad:",  # the caller's numerical-failure path takes over from the new states
+        "    if bad:",
         "        return bad",
-        "    for i in range(n):",
-        "        " + y_new,
-        "        o = observe(PO, y)",
-        "        out = False",
     ]
-    for j in range(n_obs):
+    # 4. observation, evaluation, read-outs: one loop per stage (a loop of arithmetic and
+    # unit-stride loads and stores runs in SIMD registers; one fused loop would not: measured
+    # 56 us against 15 us at 4096 free bodies)
+    lines += ["    for i in range(n):", "        " + y_new, "        o = observe(PO, y)", "        out = False"]
+    for j in range(L.n_obs):
         lines += [
             f"        v = o[{j}]",
             f"        if not (-HI[{j}] <= v <= HI[{j}]):",
@@ -155,18 +215,25 @@ def batch_kernel(step, dim: int, n_control: int, observe, n_obs: int, evaluate, 
         "        over[i] = out",
         "    for i in range(n):",
         "        " + y_new,
-        f"        r = evaluate(PE, y, ({comps('UN[{j}][i]', n_control if n_action is None else n_action)}))",
+        "        " + un,
+        "        r = evaluate(PE, y, un)",
         "        reward[i] = r[0]",
         "        terminated[i] = r[1]",
-        *[f"        M{j}[i] = r[{j + 2}]" for j in range(n_metrics)],
+        *[f"        M{j}[i] = r[{j + 2}]" for j in range(L.n_metrics)],
+        "    for i in range(n):",
+        "        " + y_new,
+        "        " + u,
+        "        q = readouts(PR, y, u, fired[i])",
+        *[f"        R{j}[i] = q[{j}]" for j in range(L.n_readouts)],
+        "    return 0",
     ]
-    if readouts is not None:
-        lines += ["    for i in range(n):", "        " + y_new, f"        {u}", "        q = readouts(PR, y, u, False)", *[f"        R{j}[i] = q[{j}]" for j in range(n_readouts)]]
-    lines += ["    return bad"]
-    from math import isfinite
+    from math import ceil, isfinite, nan
 
-    namespace = {"step": step, "observe": observe, "evaluate": evaluate, "readouts": readouts, "guard": guard, "angular": angular, "isfinite": isfinite}
-    generate("\n".join(lines), f"batch kernel dim={dim} n_obs={n_obs}", namespace)
+    from .core.guard import step_ratio
+
+    namespace = {"step": L.step, "observe": L.observe, "evaluate": L.evaluate, "readouts": L.readouts, "rotation": L.rotation,
+                 "dissipation": L.dissipation, "event": L.event, "step_ratio": step_ratio, "isfinite": isfinite, "ceil": ceil, "nan": nan}
+    generate("\n".join(lines), f"batch kernel dim={dim} n_obs={L.n_obs}", namespace)
     # error_model="numpy": a float division by zero gives inf/nan as on arrays (and needs no
     # per-element check, which would keep the loops out of SIMD registers)
     return numba.njit(error_model="numpy")(namespace["kernel"])
@@ -208,37 +275,60 @@ def state_finish(observe, n_obs: int, evaluate, metric_names: tuple, readouts, r
     return namespace["finish"]
 
 
+class BatchResult(NamedTuple):
+    """What :class:`BatchStep` returns. ``status``: 0, the number of non-finite new states (the
+    task outputs are then unset), or -1 when ``refuse`` was set and a sub-env needs more than
+    ``substeps`` steps (nothing was run; ``counts`` holds the counts). ``fired``: the terminal
+    event ended the sub-env's period; ``h``: its internal step; ``counts``: its step count."""
+
+    Y: object
+    status: int
+    obs: object
+    over: object
+    reward: object
+    terminated: object
+    metrics: tuple
+    readouts: tuple
+    fired: object
+    h: object
+    counts: object
+
+
 class BatchStep:
     """One env's compiled batch step: the kernel of its layout plus its parameters.
 
-    ``parts`` is :meth:`rbenvs.core.step.Engine.kernel_parts`; ``dim`` the state size,
-    ``n_obs`` the observation size, ``n_control`` the control size, ``sample`` any state (as
-    floats) used once to learn the metrics' types.
+    ``parts`` is :meth:`rbenvs.core.step.Engine.kernel_parts` (a
+    :class:`rbenvs.core.step.KernelParts`); ``dim`` the state size, ``n_obs`` the observation
+    size, ``n_control`` the control size, ``n_action`` the normalised action's, ``sample`` any
+    state (as floats) used once to learn the metrics' types, ``dt`` the control period.
     """
 
-    def __init__(self, parts, dim: int, n_obs: int, n_control: int, sample, obs_high, n_action: int | None = None):
+    def __init__(self, parts, dim: int, n_obs: int, n_control: int, sample, obs_high, n_action: int | None = None, dt: float | None = None):
         import numpy as np
 
-        (step, ps), (observe, po), (evaluate, pe), (readouts, pr), guard = parts
-        (guard_fn, pg), (angular, pa) = guard if guard is not None else ((None, ()), (None, ()))
         n_action = n_control if n_action is None else n_action
+        (step, ps), (observe, po), (evaluate, pe), (readouts, pr) = parts.step, parts.observe, parts.evaluate, parts.readouts
+        (rotation, pa) = parts.rotation if parts.rotation is not None else (None, ())
+        (dissipation, pd) = parts.dissipation if parts.dissipation is not None else (None, ())
+        (event, pv) = parts.event if parts.event is not None else (None, ())
         values = evaluate(pe, tuple(sample), (0.0,) * n_action)
         physical = readouts(pr, tuple(sample), (0.0,) * n_control, False)
         self.n_metrics, self.n_readouts = len(values) - 2, len(physical)
         # each metric's array type from its value on a float state (a bool stays a bool)
         self.metric_dtypes = tuple(np.bool_ if isinstance(v, (bool, np.bool_)) else np.float64 for v in values[2:])
-        self.kernel = batch_kernel(step, dim, n_control, observe, n_obs, evaluate, self.n_metrics, readouts, self.n_readouts, guard_fn, angular, n_action)
-        self.params = (ps, po, pe, pr)
-        self.guard_params = (pg, pa)
+        self.readout_dtypes = tuple(np.bool_ if isinstance(v, (bool, np.bool_)) else (np.int64 if isinstance(v, (int, np.integer)) else np.float64) for v in physical)
+        layout = Layout(step, dim, n_control, n_action, observe, n_obs, evaluate, self.n_metrics, readouts, self.n_readouts, rotation, dissipation, event)
+        self.kernel = batch_kernel(layout)
+        self.params = (ps, po, pe, pr, parts.guard_params, pa, pd, float(parts.dissipation_step), pv)
         self.high = np.asarray(obs_high, dtype=np.float64)
         self.n_obs = n_obs
+        self.dt = float(dt) if dt is not None else None
 
-    def __call__(self, Y, u, u_norm, h: float, substeps: int, check: bool = False, skip=None):
-        """``(Ynew, bad, obs, over, reward, terminated, metrics, readouts)`` for states ``Y``
-        ``(dim, n)`` under controls ``u`` and normalised actions ``u_norm`` (tuples of
-        ``(n,)`` float64 arrays); ``bad`` counts non-finite new states, or is -1 when
-        ``check`` is set and the guard asks more than ``substeps`` steps of a sub-env not in
-        ``skip`` (bool ``(n,)``); in either case the other outputs are unset."""
+    def __call__(self, Y, u, u_norm, h: float, substeps: int, check: bool = False, skip=None, refuse: bool = False) -> BatchResult:
+        """One control period of the states ``Y`` ``(dim, n)`` under controls ``u`` and normalised
+        actions ``u_norm`` (tuples of ``(n,)`` float64 arrays): a :class:`BatchResult`.
+        ``check``: run the guard (else ``substeps`` steps each); ``skip`` (bool ``(n,)``):
+        sub-envs about to restart; ``refuse``: ``guard="refuse"``."""
         import numpy as np
 
         n = Y.shape[1]
@@ -247,11 +337,15 @@ class BatchStep:
         over = np.empty(n, dtype=bool)
         reward = np.empty(n)
         terminated = np.empty(n, dtype=bool)
+        fired = np.empty(n, dtype=bool)
+        hstep = np.empty(n)
+        counts = np.empty(n, dtype=np.int64)
         metrics = tuple(np.empty(n, dtype=t) for t in self.metric_dtypes)
-        readouts = tuple(np.empty(n) for _ in range(self.n_readouts))
-        ps, po, pe, pr = self.params
-        pg, pa = self.guard_params
+        readouts = tuple(np.empty(n, dtype=t) for t in self.readout_dtypes)
+        ps, po, pe, pr, pg, pa, pd, cd, pv = self.params
         if skip is None:
             skip = np.zeros(n, dtype=bool)
-        bad = self.kernel(Y, Ynew, u, u_norm, h, substeps, ps, po, pe, pr, self.high, check, skip, pg, pa, obs, over, reward, terminated, *metrics, *readouts)
-        return Ynew, bad, obs, over, reward, terminated, metrics, readouts
+        dt = self.dt if self.dt is not None else h * substeps
+        status = self.kernel(Y, Ynew, u, u_norm, h, dt, substeps, check, refuse, skip, ps, po, pe, pr, pg, pa, pd, cd, pv, self.high,
+                             counts, hstep, fired, obs, over, reward, terminated, *metrics, *readouts)
+        return BatchResult(Ynew, status, obs, over, reward, terminated, metrics, readouts, fired, hstep, counts)

@@ -90,10 +90,12 @@ def test_numpy_path_sub_envs_equal_single_envs_bit_for_bit(kwargs, max_steps, st
 
 
 @needs_numba
-def test_guarded_periods_switch_paths():
-    """A guarded env runs compiled the periods its guard leaves at ``substeps`` and on numpy
-    the ones it subdivides; both kinds occur in this run (and the lockstep test above holds
-    the same setting to single envs bit for bit)."""
+def test_guarded_periods_subdivide_inside_the_kernel():
+    """A guarded env's kernel counts each sub-env's internal steps itself: the periods its guard
+    leaves at ``substeps`` and the ones it subdivides (here the flip about the intermediate
+    axis) both occur in this run, all compiled (the numpy period never runs), each sub-env
+    with its own ``internal_step`` (and the lockstep test above holds the same setting to
+    single envs bit for bit)."""
     venv = vector.FreeRigidBodyVectorEnv(num_envs=3, integrator="euler", spin_rate=1.8, perturbation=0.5)
     numpy_periods = 0
     numpy_advance = venv.engine.advance
@@ -103,12 +105,17 @@ def test_guarded_periods_switch_paths():
         numpy_periods += 1
         return numpy_advance(*args)
 
-    venv.engine.advance = counted  # the numpy path's period (the kernel's guard sent it back)
+    venv.engine.advance = counted
     venv.reset(seed=11)
     rng = np.random.default_rng(0)
+    subdivided = mixed = 0
     for _ in range(120):
-        venv.step(rng.uniform(-1.0, 1.0, (3, 3)).astype(np.float32))
-    assert 5 < numpy_periods < 115, numpy_periods
+        info = venv.step(rng.uniform(-1.0, 1.0, (3, 3)).astype(np.float32))[4]
+        h = info["internal_step"]
+        subdivided += bool((h < venv.engine.h).any())
+        mixed += len(set(h.tolist())) > 1
+    assert numpy_periods == 0
+    assert 5 < subdivided < 115 and mixed > 0, (subdivided, mixed)
 
 
 @needs_numba

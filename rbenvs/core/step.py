@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import math
 import warnings
+from typing import NamedTuple
 
 import numpy as np
 
@@ -37,7 +38,7 @@ from ..dynamics.validation import real_array
 from .guard import MAX_INTERNAL_STEPS
 from .hybrid import Switching
 
-__all__ = ["Engine", "NumericalFailureWarning", "action_values", "action_columns", "terminal_reason"]
+__all__ = ["Engine", "KernelParts", "NumericalFailureWarning", "action_values", "action_columns", "terminal_reason"]
 
 
 class NumericalFailureWarning(RuntimeWarning):
@@ -411,23 +412,43 @@ class Engine:
         return fn, po, pe, pr
 
     def kernel_parts(self):
-        """What :func:`rbenvs.compiled.batch_kernel` needs to run this model's step on a batch:
-        ``(step, observe, evaluate, readouts, guard)``, each ``(pure function, parameters)``
-        (``guard``: ``((step_ratio, G), (rotation rate, P))``, or ``None`` where no guard check
-        is needed), or ``None`` where a part has no pure form (the batch then runs on numpy).
-        The kernel takes ``substeps`` equal steps: a guarded period that needs more goes back to
-        the numpy path; events and hybrid switching (the tippe top) never compile (yet)."""
-        from .guard import step_ratio
-
-        step = self.integrator.kernel_step(self.system)
-        kernels, readouts = self.task.kernels, self.system.kernel_readouts
-        if step is None or kernels is None or readouts is None or self.system.hybrid:
+        """What :class:`rbenvs.compiled.BatchStep` needs to run this model's period and finish on
+        a batch (:class:`KernelParts`), or ``None`` where a part has no pure form (the batch then
+        runs on numpy): the integrator's pure step, the task's observation and evaluation, the
+        system's read-outs, the guard's rates where a check can be needed, and the terminal
+        event of a hybrid system. Hybrid switching (free flight) does not compile (yet)."""
+        system, task = self.system, self.task
+        step = self.integrator.kernel_step(system)
+        readouts = system.kernel_readouts
+        if step is None or task.kernels is None or readouts is None or self.switching is not None:
             return None
-        guard = None
+        event = None
+        if self.event is not None:
+            event = getattr(system, "kernel_event", None)
+            if event is None:
+                return None
         rule = self.rule
+        rotation, dissipation = None, None
         if rule.active and not self.plain:
-            if rule.dissipation is not None:
-                return None  # a rate that depends on the control: not in the kernel yet
-            guard = ((step_ratio, rule.params), rule.rotation)
-        observe, evaluate = kernels(self.system)
-        return step, observe, evaluate, readouts, guard
+            rotation, dissipation = rule.rotation, rule.dissipation
+        observe, evaluate = task.kernels(system)
+        return KernelParts(step, observe, evaluate, readouts, rotation, rule.params, dissipation, rule.dissipation_step, event)
+
+
+class KernelParts(NamedTuple):
+    """A model's step in pure forms, each ``(function, parameters)`` (:meth:`Engine.kernel_parts`):
+    ``step`` (the integrator's, ``step(PS, y, u, h)``), ``observe``, ``evaluate``, ``readouts``
+    (the task's and the system's), the guard's ``rotation`` rate (``None``: no check can be
+    needed) with ``guard_params`` (``(dt, bound, growth)`` of
+    :func:`rbenvs.core.guard.step_ratio`), its ``dissipation`` rate (or ``None``) with
+    ``dissipation_step`` (``h <= c / lambda_d``), and the terminal ``event`` (or ``None``)."""
+
+    step: tuple
+    observe: tuple
+    evaluate: tuple
+    readouts: tuple
+    rotation: tuple | None
+    guard_params: tuple
+    dissipation: tuple | None
+    dissipation_step: float
+    event: tuple | None

@@ -125,7 +125,7 @@ class RigidBodyVectorEnv(VectorEnv):
             actuator = self.model.actuator
             u_norm, u = actuator.control((0.0,) * actuator.size)
             sample = self.model.initial_state(np.random.default_rng(0))
-            return _compiled.BatchStep(parts, self.system.dim, self.single_observation_space.shape[0], len(u), sample, self.engine.high, len(u_norm))
+            return _compiled.BatchStep(parts, self.system.dim, self.single_observation_space.shape[0], len(u), sample, self.engine.high, len(u_norm), self.model.dt)
         if compiled is True:
             raise ValueError(f"compiled=True but {reason}")
         return None
@@ -241,11 +241,9 @@ class RigidBodyVectorEnv(VectorEnv):
         fast = None
         with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
             # a sub-env blowing up is reported once, below, as the single env does
-            y = None
             if self._batch_step is not None:
-                y, fast = self._compiled_advance(y0, u, u_norm, restart)
-                fired, h = self._false, engine.h
-            if y is None:  # no kernel, or a guarded period that needs subdividing
+                y, fast, fired, h = self._compiled_advance(y0, u, u_norm, restart)
+            else:
                 y, fired, h = engine.advance(y0, u, self._plain, restart if any_restart else None)
                 if fired is False:
                     fired = self._false
@@ -294,24 +292,25 @@ class RigidBodyVectorEnv(VectorEnv):
         return obs, reward, terminated, truncated, info
 
     def _compiled_advance(self, y, u, u_norm, restart):
-        """The compiled step: ``(y, fast)``; ``fast`` is ``(Y, obs, over, reward, terminated,
-        metrics, physical read-outs)``, or ``None`` when a new state is non-finite (the numpy
-        path then handles the failure from ``y``). ``(None, None)`` when the guard asks for
-        more than ``substeps`` steps of a sub-env (other than those about to restart, which take
-        ``substeps`` regardless, as on the numpy path): the numpy path runs that period."""
+        """The compiled period: ``(y, fast, fired, h)``; ``fast`` is ``(Y, obs, over, reward,
+        terminated, metrics, physical read-outs)``, or ``None`` when a new state is non-finite
+        (the numpy path then handles the failure from ``y``). The kernel runs the guard per
+        sub-env (those about to restart take ``substeps``, as on the numpy path); with
+        ``guard="refuse"`` a period it would subdivide raises before anything changes."""
         n, engine = self.num_envs, self.engine
         Y = self._y2d if self._y2d is not None else np.stack(y)
         # controls as (n,) float64 arrays (an unactuated axis is a 0.0 for every sub-env)
         u = tuple(c if type(c) is np.ndarray else np.full(n, c, dtype=np.float64) for c in u)
         u_norm = tuple(c if type(c) is np.ndarray else np.full(n, c, dtype=np.float64) for c in u_norm)
-        out = self._batch_step(Y, u, u_norm, engine.h, engine.substeps, not self._plain, restart)
-        Ynew, bad, obs, over, reward, terminated, metrics, physical = out
-        if bad < 0:
-            return None, None
-        y = tuple(Ynew)
-        if bad:
-            return y, None
-        return y, (Ynew, obs, over, reward, terminated, metrics, physical)
+        out = self._batch_step(Y, u, u_norm, engine.h, engine.substeps, not self._plain, restart, engine.guard == "refuse")
+        if out.status < 0:
+            over = (out.counts > engine.substeps) & ~restart
+            raise engine.refusal(int(out.counts[over].max()), f" of sub-envs {np.flatnonzero(over).tolist()}")
+        fired = out.fired if out.fired.any() else self._false
+        y = tuple(out.Y)
+        if out.status:
+            return y, None, fired, out.h
+        return y, (out.Y, out.obs, out.over, out.reward, out.terminated, out.metrics, out.readouts), fired, out.h
 
     def _restart(self, which, obs, info):
         """NEXT_STEP autoreset of the sub-envs in ``which``: new initial states, fresh info."""
