@@ -116,7 +116,7 @@ def _to_python(v):
 class Engine:
     """The step of one :class:`~rbenvs.core.model.Model` (floats or arrays; see the module)."""
 
-    def __init__(self, model):
+    def __init__(self, model, compiled="auto"):
         m = self.model = model
         self.system, self.task, self.integrator, self.actuator = m.system, m.task, m.integrator, m.actuator
         self.dt, self.substeps, self.guard, self.rule = m.dt, m.substeps, m.guard, m.step_rule
@@ -140,9 +140,45 @@ class Engine:
         self.metric_names = tuple(m.task.metric_names)
         self.readout_names = tuple(system.readout_names)
         self.finish_one = self._generated_finish()
+        # the compiled single-state step (rbenvs.compiled.StateStep): "auto" uses it where numba
+        # is installed and every part has a pure form, built on the first step (compiling costs
+        # about a second per layout and process); False keeps the float path; True demands it
+        self.compiled = compiled
+        self._state_step = None
+        self._state_step_tried = compiled is False
+        if compiled is True:
+            self._state_step = self._build_state_step(required=True)
 
-    def __reduce__(self):  # generated functions are made again, not pickled
-        return (Engine, (self.model,))
+    def __reduce__(self):  # generated and compiled functions are made again, not pickled
+        return (Engine, (self.model, self.compiled))
+
+    @property
+    def state_step(self):
+        """The compiled single-state step the single env runs (:class:`rbenvs.compiled.StateStep`),
+        or ``None`` (the float path); built on first use."""
+        if not self._state_step_tried:
+            self._state_step = self._build_state_step(required=False)
+        return self._state_step
+
+    def _build_state_step(self, required: bool):
+        from .. import compiled as _compiled
+
+        self._state_step_tried = True
+        parts = self.kernel_parts()
+        reason = None
+        if not _compiled.available():
+            reason = f"numba is not installed (the 'fast' extra) or {_compiled.DISABLE_VARIABLE}=0 is set"
+        elif parts is None:
+            reason = f"integrator {self.integrator.name!r} with task {self.task.name!r} and these settings has no compiled step"
+        if reason is not None:
+            if required:
+                raise ValueError(f"compiled=True but {reason}")
+            return None
+        m = self.model
+        u_norm, u = m.actuator.control((0.0,) * m.actuator.size)
+        sample = tuple(float(c) for c in m.initial_state(np.random.default_rng(0)))
+        return _compiled.StateStep(parts, self.system.dim, len(self.high_list), len(u), len(u_norm), sample, self.high_list, self.h, self.dt, self.substeps,
+                                   self.metric_names, self.readout_names)
 
     # ------------------------------------------------------------------ the period
     def advance(self, y, u, plain: bool, skip=None):
@@ -335,6 +371,20 @@ class Engine:
         next period may take the plain loop (a tuple, not the NamedTuple itself: making one
         costs 0.2 us, 4 % of a free-body step; ``StepResult._make`` names it off the hot path)."""
         u_norm, u = self.control(a)
+        one = self._state_step if self._state_step_tried else self.state_step
+        if one is not None:  # the same period and finish, compiled: one call
+            status, count, h, fired, y, o, over, r, q = one(y0, u, u_norm, not plain, self.guard == "refuse")
+            if status:
+                if status < 0:
+                    raise self.refusal(count)
+                return self._failed_one(y0, u_norm, u, h, plain)
+            obs, reward, terminated, info = np.array(o, dtype=np.float32), r[0], r[1], one.info(q, r, h)
+            if fired or over or terminated:
+                info["terminal_reason"] = terminal_reason(False, fired, over, terminated, self.event_name)
+                terminated = True
+                if over:
+                    plain = False
+            return y, obs, reward, terminated, info, u, plain
         if plain:  # fixed substeps, nothing watched: the loop inline (the hot path)
             step, h = self.bound_step, self.h
             y = step(y0, u, h)

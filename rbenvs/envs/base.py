@@ -22,7 +22,7 @@ from ..core.step import Engine, NumericalFailureWarning, action_values
 from ..dynamics.validation import require_finite_positive, require_int_in
 from ..integrators import get_integrator
 
-__all__ = ["RigidBodyEnv", "NumericalFailureWarning", "MAX_INTERNAL_STEPS", "GUARDS", "FLOAT32_MAX", "require_float32_bound", "require_guard"]
+__all__ = ["RigidBodyEnv", "NumericalFailureWarning", "MAX_INTERNAL_STEPS", "GUARDS", "FLOAT32_MAX", "require_float32_bound", "require_guard", "require_compiled"]
 
 
 FLOAT32_MAX = float(np.finfo(np.float32).max)  # the largest observation value
@@ -34,6 +34,15 @@ def require_float32_bound(name: str, value) -> float:
     if v > FLOAT32_MAX:
         raise ValueError(f"{name} must be <= {FLOAT32_MAX:.3g} (float32 observations), got {value!r}")
     return v
+
+
+def require_compiled(compiled):
+    """``compiled=``: ``True``, ``False`` or ``"auto"`` (a bool only: ``"False"`` is refused)."""
+    if isinstance(compiled, (bool, np.bool_)):
+        return bool(compiled)
+    if isinstance(compiled, str) and compiled == "auto":
+        return compiled
+    raise ValueError(f"compiled must be True, False or 'auto', got {compiled!r}")
 
 
 class _SupportedSchemes:
@@ -57,8 +66,9 @@ class RigidBodyEnv(gym.Env):
     system_class: type = None  # the system the env builds (its capabilities pick the integrators)
     integrators = _SupportedSchemes()
 
-    def _setup(self, system, task, actuator, integrator, dt, substeps, observation_high, render_mode, guard="subdivide"):
+    def _setup(self, system, task, actuator, integrator, dt, substeps, observation_high, render_mode, guard="subdivide", compiled="auto"):
         guard = require_guard(guard)
+        compiled = require_compiled(compiled)
         dt = require_finite_positive("dt", dt)
         substeps = require_int_in("substeps", substeps, 1, MAX_INTERNAL_STEPS, " (more internal steps in a control period is a numerical failure)")
         integrator = get_integrator(integrator)
@@ -70,7 +80,7 @@ class RigidBodyEnv(gym.Env):
             raise ValueError(f"render_mode must be None or one of {self.metadata['render_modes']}, got {render_mode!r}")
         high = tuple(float(v) for v in observation_high)
         self.model = Model(system, task, integrator, actuator, dt, substeps, guard, high, self._speed_ceiling())
-        self.engine = Engine(self.model)
+        self.engine = Engine(self.model, compiled)
         self.render_mode = render_mode
         self._renderer = None  # built by the first render(): matplotlib is imported only then
         if render_mode == "human":  # draw after every reset and step; the class's step is untouched
@@ -94,6 +104,11 @@ class RigidBodyEnv(gym.Env):
     substeps = property(lambda self: self.model.substeps)
     guard = property(lambda self: self.model.guard)
     step_rule = property(lambda self: self.model.step_rule)
+
+    @property
+    def compiled(self) -> bool:
+        """Whether the steps run as one compiled call (``compiled=``; decided on the first step)."""
+        return self.engine.state_step is not None
 
     @property
     def dt(self) -> float:

@@ -125,6 +125,11 @@ class FreeRigidBodyEnv(RigidBodyEnv):
     * ``dt=0.05``: control period [s]; ``substeps=1``: integrator steps per control period.
     * ``integrator="rk4"``: ``euler``, ``rk4``, ``splitting``, ``exact`` or ``dop853``.
     * ``guard="subdivide"``: ``"subdivide"``, ``"refuse"`` or ``"off"`` (Guarded stepping).
+    * ``compiled="auto"``: run each step as one compiled call of the same functions (numba, the
+      ``fast`` extra; built on the first step, about a second per setting and process), bit
+      for bit the float path, where numba is installed and the setting has pure forms (the
+      explicit schemes ``euler``, ``rk4``, ``splitting``); ``False``: the float path; ``True``:
+      demand it (``ValueError`` saying why it cannot be had). ``env.unwrapped.compiled`` tells.
     * ``max_torque=0.2``: N m per actuated axis (``>= 0``).
     * ``actuated=(True, True, True)``: which body axes take torque (at least one).
     * ``control_cost=0.01``: weight of ``mean(u^2)`` in the reward (``>= 0``).
@@ -176,6 +181,7 @@ class FreeRigidBodyEnv(RigidBodyEnv):
         target_attitude=(1.0, 0.0, 0.0, 0.0),
         render_mode=None,
         guard: str = "subdivide",
+        compiled="auto",
     ):
         # every keyword is checked, whatever the task (a keyword the task ignores must still be
         # a valid value: a typo is reported, not silently kept)
@@ -215,7 +221,7 @@ class FreeRigidBodyEnv(RigidBodyEnv):
         self._max_w = max_w
         self._start_speed = start_speed
         high = observation_bounds(task_obj, {"rad/s": max_w})
-        self._setup(system, task_obj, actuator, integrator, dt, substeps, high, render_mode, guard)
+        self._setup(system, task_obj, actuator, integrator, dt, substeps, high, render_mode, guard, compiled)
         self.action_size = actuator.size
         # |Delta Omega| <= max_torque sqrt(k) dt / I_min over a period of full torque on k axes
         change = max_torque * math.sqrt(actuator.size) * self.dt / min(params.inertia)
@@ -254,11 +260,11 @@ class BodyTorque:
         reward's effort term) and the torque."""
         tau = self.max_torque
         if len(self.axes) == 3:  # fully actuated: the action is the normalised torque
-            return a, (tau * a[0], tau * a[1], tau * a[2])
+            return tuple(a), (tau * a[0], tau * a[1], tau * a[2])
         u_norm = [0.0, 0.0, 0.0]
         for j, i in enumerate(self.axes):
             u_norm[i] = a[j]
-        return u_norm, (tau * u_norm[0], tau * u_norm[1], tau * u_norm[2])
+        return tuple(u_norm), (tau * u_norm[0], tau * u_norm[1], tau * u_norm[2])
 
 
 def _check_axis(axis) -> None:

@@ -134,6 +134,11 @@ class LagrangeTopEnv(RigidBodyEnv):
       each step; their energy and ``Pi.Gamma`` drift (``task="precess"`` with zero torque,
       seed 0, one 10 s episode: rk4 1.6e-4 and 2.1e-3 relative, splitting 7e-8 and 1e-15).
     * ``guard="subdivide"``: ``"subdivide"``, ``"refuse"`` or ``"off"`` (Guarded stepping).
+    * ``compiled="auto"``: run each step as one compiled call of the same functions (numba, the
+      ``fast`` extra; built on the first step, about a second per setting and process), bit
+      for bit the float path, where numba is installed and the setting has pure forms (the
+      explicit schemes ``euler``, ``rk4``, ``splitting``); ``False``: the float path; ``True``:
+      demand it (``ValueError`` saying why it cannot be had). ``env.unwrapped.compiled`` tells.
     * ``max_torque=2.0``: N m per torque direction (``>= 0``); ``axial_torque=False``.
     * ``spin_friction=0.0``: N m s, viscous pivot torque ``-k (Omega.chi) chi``.
     * ``control_cost=0.01``; ``max_angular_velocity=100.0`` rad/s (observation bound);
@@ -192,6 +197,7 @@ class LagrangeTopEnv(RigidBodyEnv):
         attitude: bool = False,
         render_mode=None,
         guard: str = "subdivide",
+        compiled="auto",
     ):
         # every keyword is checked, whatever the task (one the task ignores must still be valid)
         task = require_choice("task", task, self.tasks)
@@ -245,7 +251,7 @@ class LagrangeTopEnv(RigidBodyEnv):
         self._max_w = max_w
         self._start_speed = peak
         high = observation_bounds(task_obj, {"rad/s": max_w})
-        self._setup(system, task_obj, actuator, integrator, dt, substeps, high, render_mode, guard)
+        self._setup(system, task_obj, actuator, integrator, dt, substeps, high, render_mode, guard, compiled)
         # orthonormal torque directions: |tau| <= max_torque sqrt(k), |Delta Omega| <= |tau| dt / I_min
         change = self.max_torque * math.sqrt(len(self.torque_directions)) * self.dt / min(params.inertia)
         self._require_authority("max_torque", change, "max_angular_velocity", max_w, "angular velocity [rad/s]")

@@ -118,6 +118,11 @@ class TippeTopEnv(RigidBodyEnv):
       150 rad/s it stays positive through the inversion (tests/test_tippe_top_env.py).
     * ``dt=0.01`` s, ``substeps=1`` (a minimum), ``integrator="rk4"`` (``euler``, ``rk4``, ``dop853``).
     * ``guard="subdivide"``: ``"subdivide"``, ``"refuse"`` or ``"off"`` (Internal step).
+    * ``compiled="auto"``: run each step as one compiled call of the same functions (numba, the
+      ``fast`` extra; built on the first step, about a second per setting and process), bit
+      for bit the float path, where numba is installed and the setting has pure forms (the
+      explicit schemes ``euler``, ``rk4``, ``splitting``); ``False``: the float path; ``True``:
+      demand it (``ValueError`` saying why it cannot be had). ``env.unwrapped.compiled`` tells.
     * ``max_table_acceleration=2.0`` m/s^2; ``friction_action=False``, ``friction_range=(0.0, 0.6)``;
       ``torque_action=False``, ``max_torque=1e-4`` N m; ``control_cost=0.01``.
     * ``max_angular_velocity=None`` (``2 max|spin| + 50``) rad/s, ``max_speed=5.0`` m/s.
@@ -181,6 +186,7 @@ class TippeTopEnv(RigidBodyEnv):
         free_flight: bool = False,
         render_mode=None,
         guard: str = "subdivide",
+        compiled="auto",
     ):
         # every keyword is checked, whatever the task and options (an unused one must still be valid)
         task = require_choice("task", task, self.tasks)
@@ -224,7 +230,7 @@ class TippeTopEnv(RigidBodyEnv):
         self._start_speed = peak
         self._max_w = max_w
         high = observation_bounds(task_obj, {"rad/s": max_w, "m/s": max_v})
-        self._setup(system, task_obj, actuator, integrator, dt, substeps, high, render_mode, guard)
+        self._setup(system, task_obj, actuator, integrator, dt, substeps, high, render_mode, guard, compiled)
         # the table's acceleration moves v_G (relative to the table) by at most |a_T| dt per period;
         # a body torque moves Omega by at most |tau| dt / min(A, C)
         self._require_authority("max_table_acceleration", self.max_table_acceleration * math.sqrt(2.0) * self.dt, "max_speed", max_v, "velocity of the centre of mass [m/s]")

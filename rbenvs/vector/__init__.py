@@ -54,6 +54,7 @@ from gymnasium.vector.utils import batch_space
 
 from .. import compiled as _compiled
 from ..core.step import action_columns, terminal_reason
+from ..envs.base import require_compiled
 from ..dynamics.validation import real_array, require_bool, require_int_at_least
 
 __all__ = ["RigidBodyVectorEnv", "vector_class", "FreeRigidBodyVectorEnv", "LagrangeTopVectorEnv", "TippeTopVectorEnv"]
@@ -67,9 +68,7 @@ class RigidBodyVectorEnv(VectorEnv):
     def __init__(self, num_envs: int = 1, max_episode_steps: int | None = None, autoreset_mode=AutoresetMode.NEXT_STEP, info_readouts: bool = True, compiled="auto", **kwargs):
         self.num_envs = require_int_at_least("num_envs", num_envs, 1)
         self.info_readouts = require_bool("info_readouts", info_readouts)
-        if not (isinstance(compiled, (bool, np.bool_)) or compiled == "auto"):
-            raise ValueError(f"compiled must be True, False or 'auto', got {compiled!r}")
-        compiled = compiled if compiled == "auto" else bool(compiled)
+        compiled = require_compiled(compiled)
         if max_episode_steps is not None:
             max_episode_steps = require_int_at_least("max_episode_steps", max_episode_steps, 1)
         self.max_episode_steps = max_episode_steps
