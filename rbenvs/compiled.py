@@ -86,7 +86,11 @@ class Layout(NamedTuple):
     -> (reward, terminated, m_1..m_k)`` (``k = n_metrics``); ``readouts(PR, y, u, fired) ->
     (r_1..r_m)`` (``m = n_readouts``); the guard's ``rotation(PA, y) -> lambda`` and
     ``dissipation(PD, y, u) -> lambda_d`` (or ``None``: no such rate); the terminal ``event(PV,
-    y, u) -> bool`` checked after every internal step (or ``None``).
+    y, u) -> g`` checked after every internal step, firing where ``g < 0`` (or ``None``); and
+    ``rhs_event(PV, y, u) -> (dy, g)``: the vector field and the event from one evaluation (or
+    ``None``), with which ``step`` is the integrator's step given its first stage,
+    ``step(PS, y, k0, u, h)``: the evaluation that checks the event at a new state is the next
+    step's first stage (the tippe top's contact solve, once per stage).
     """
 
     step: Callable
@@ -102,6 +106,7 @@ class Layout(NamedTuple):
     rotation: Callable | None = None
     dissipation: Callable | None = None
     event: Callable | None = None
+    rhs_event: Callable | None = None
 
 
 def _count_lines(L: Layout, u: str) -> list[str]:
@@ -129,17 +134,32 @@ def _period_lines(L: Layout) -> list[str]:
         f"    y = ({_comps('nan', L.dim)})",
         "else:",
         "    hi = h if c == substeps else dt / c",
-        "    for k in range(c):",
-        "        y = step(PS, y, u, hi)",
     ]
-    if L.event is not None:  # the step core's rule: a non-finite state stops, an event freezes
+    finite = "        if not (" + " and ".join(f"isfinite(y[{j}])" for j in range(L.dim)) + "):"
+    if L.rhs_event is not None:  # the event's evaluation at a new state is the next first stage
         lines += [
-            "        if not (" + " and ".join(f"isfinite(y[{j}])" for j in range(L.dim)) + "):",
+            "    kk, g = rhs_event(PV, y, u)",
+            "    for k in range(c):",
+            "        y = step(PS, y, kk, u, hi)",
+            finite,
             "            break",
-            "        if event(PV, y, u):",
+            "        kk, g = rhs_event(PV, y, u)",
+            "        if g < 0.0:",
             "            f = True",
             "            break",
         ]
+    elif L.event is not None:  # the step core's rule: a non-finite state stops, an event freezes
+        lines += [
+            "    for k in range(c):",
+            "        y = step(PS, y, u, hi)",
+            finite,
+            "            break",
+            "        if event(PV, y, u) < 0.0:",
+            "            f = True",
+            "            break",
+        ]
+    else:
+        lines += ["    for k in range(c):", "        y = step(PS, y, u, hi)"]
     return lines
 
 
@@ -149,11 +169,12 @@ def _namespace(L: Layout) -> dict:
     from .core.guard import step_ratio
 
     _register_all()
-    for fn in (L.step, L.observe, L.evaluate, L.readouts, L.rotation, L.dissipation, L.event):
+    for fn in (L.step, L.observe, L.evaluate, L.readouts, L.rotation, L.dissipation, L.event, L.rhs_event):
         if fn is not None:
             _register(fn)
     return {"step": L.step, "observe": L.observe, "evaluate": L.evaluate, "readouts": L.readouts, "rotation": L.rotation,
-            "dissipation": L.dissipation, "event": L.event, "step_ratio": step_ratio, "isfinite": isfinite, "ceil": ceil, "nan": nan}
+            "dissipation": L.dissipation, "event": L.event, "rhs_event": L.rhs_event, "step_ratio": step_ratio, "isfinite": isfinite, "ceil": ceil,
+            "nan": nan}
 
 
 @lru_cache(maxsize=None)
@@ -207,7 +228,7 @@ def batch_kernel(layout: Layout):
     per_env = ["for i in range(n):", "    " + y_old, "    " + u, "    c = counts[i]", *("    " + line for line in _period_lines(L))]
     per_env += [*("    " + line for line in store), "    hstep[i] = hi", "    fired[i] = f"]
     simd = [line[4:] for line in _physics_lines(dim, L.n_control)] + ["for i in range(n):", "    hstep[i] = h", "    fired[i] = False"]
-    if L.event is None:
+    if L.event is None and L.rhs_event is None:
         lines += ["    if uniform:", *("        " + line for line in simd), "    else:", *("        " + line for line in per_env)]
     else:
         lines += ["    " + line for line in per_env]
@@ -313,9 +334,12 @@ class StateStep:
         (rotation, pa) = parts.rotation if parts.rotation is not None else (None, ())
         (dissipation, pd) = parts.dissipation if parts.dissipation is not None else (None, ())
         (event, pv) = parts.event if parts.event is not None else (None, ())
+        rhs_event = None
+        if parts.rhs_event is not None:
+            rhs_event, pv = parts.rhs_event
         n_metrics = len(evaluate(pe, tuple(sample), (0.0,) * n_action)) - 2
         n_readouts = len(readouts(pr, tuple(sample), (0.0,) * n_control, False))
-        layout = Layout(step, dim, n_control, n_action, observe, n_obs, evaluate, n_metrics, readouts, n_readouts, rotation, dissipation, event)
+        layout = Layout(step, dim, n_control, n_action, observe, n_obs, evaluate, n_metrics, readouts, n_readouts, rotation, dissipation, event, rhs_event)
         self.kernel = state_kernel(layout)
         high = tuple(float(v) for v in obs_high)
         self.params = (float(h), float(dt), int(substeps), ps, po, pe, pr, parts.guard_params, pa, pd, float(parts.dissipation_step), pv, high)
@@ -418,13 +442,16 @@ class BatchStep:
         (rotation, pa) = parts.rotation if parts.rotation is not None else (None, ())
         (dissipation, pd) = parts.dissipation if parts.dissipation is not None else (None, ())
         (event, pv) = parts.event if parts.event is not None else (None, ())
+        rhs_event = None
+        if parts.rhs_event is not None:
+            rhs_event, pv = parts.rhs_event
         values = evaluate(pe, tuple(sample), (0.0,) * n_action)
         physical = readouts(pr, tuple(sample), (0.0,) * n_control, False)
         self.n_metrics, self.n_readouts = len(values) - 2, len(physical)
         # each metric's array type from its value on a float state (a bool stays a bool)
         self.metric_dtypes = tuple(np.bool_ if isinstance(v, (bool, np.bool_)) else np.float64 for v in values[2:])
         self.readout_dtypes = tuple(np.bool_ if isinstance(v, (bool, np.bool_)) else (np.int64 if isinstance(v, (int, np.integer)) else np.float64) for v in physical)
-        layout = Layout(step, dim, n_control, n_action, observe, n_obs, evaluate, self.n_metrics, readouts, self.n_readouts, rotation, dissipation, event)
+        layout = Layout(step, dim, n_control, n_action, observe, n_obs, evaluate, self.n_metrics, readouts, self.n_readouts, rotation, dissipation, event, rhs_event)
         self.kernel = batch_kernel(layout)
         self.params = (ps, po, pe, pr, parts.guard_params, pa, pd, float(parts.dissipation_step), pv)
         self.high = np.asarray(obs_high, dtype=np.float64)

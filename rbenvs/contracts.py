@@ -179,6 +179,12 @@ class HybridSystem(System, Protocol):
     inside the internal step by :mod:`rbenvs.core.hybrid` from :meth:`events`) rather than a
     lift-off ending the episode (:meth:`terminal_event`). The system never calls an
     integrator: locating an event is the hybrid layer's job.
+
+    Pure forms of the terminal event, for compiled kernels (``None`` where there is none):
+    ``kernel_event = (fn, P)``, ``fn(P, y, u) -> g``, the event's value (it fires where
+    ``g < 0``: the tippe top's normal force); ``kernel_rhs_event = (fn, P)``, ``fn(P, y, u) ->
+    (dy, g)``, the vector field and that value from one evaluation (one contact solve), so that
+    the check at a new state serves as the next step's first stage.
     """
 
     switches: bool

@@ -308,3 +308,84 @@ def test_jitable_functions_stay_plain_python():
     gym.make(FREE).reset(seed=0)
     assert type(euler_rhs).__name__ == "function"
     assert euler_rhs((1.0, 2.0, 3.0), (1.0, 1.0, 1.0), None) == (1.0, 2.0, 3.0)
+
+
+# ----------------------------------------------------------------- the single env, compiled
+SINGLE = [
+    (FREE, dict(), 40, 90),
+    (FREE, dict(task="detumble", integrator="euler", substeps=3), 40, 90),
+    (FREE, dict(task="reorient"), 30, 90),
+    (FREE, dict(integrator="euler", spin_rate=1.8, perturbation=0.5), 120, 120),  # subdivided periods
+    (FREE, dict(integrator="rk4", max_angular_velocity=1.6, max_torque=5.0), 40, 60),  # observation limit
+    (LAGRANGE, dict(), 40, 90),
+    (LAGRANGE, dict(integrator="rk4", tilt_limit=0.06, max_torque=0.05, spin=0.0), 25, 60),
+    (LAGRANGE, dict(integrator="rk4", task="precess", attitude=True), 30, 90),
+    (LAGRANGE, dict(integrator="euler", axial_torque=True, spin=(5.0, 15.0), attitude=True), 30, 60),
+    (LAGRANGE, dict(integrator="splitting", inertia=(0.5, 0.45, 0.3), com_direction=(0.1, 0.0, 1.0), spin=(0.0, 3.0), spin_friction=0.02), 30, 60),
+]
+
+
+@needs_numba
+@pytest.mark.parametrize("env_id,kwargs,max_steps,steps", SINGLE, ids=_ids_more(SINGLE))
+def test_single_env_compiled_step_equals_the_float_path(env_id, kwargs, max_steps, steps):
+    """``compiled=True`` runs each step as one compiled call; ``compiled=False`` the float path.
+    Observations, rewards, flags, every info value (with its Python type) and the states agree
+    bit for bit, through terminations, truncations and resets."""
+    fast = gym.make(env_id, compiled=True, max_episode_steps=max_steps, **kwargs)
+    slow = gym.make(env_id, compiled=False, max_episode_steps=max_steps, **kwargs)
+    o_f, i_f = fast.reset(seed=4)
+    o_s, i_s = slow.reset(seed=4)
+    assert same(o_f, o_s) and i_f == i_s
+    rng = np.random.default_rng(3)
+    ends = 0
+    for _ in range(steps):
+        a = rng.uniform(-1.5, 1.5, fast.action_space.shape).astype(np.float32)
+        out_f, out_s = fast.step(a), slow.step(a)
+        assert out_f[0].dtype == np.float32 and same(out_f[0], out_s[0])
+        assert type(out_f[1]) is float and out_f[1:4] == out_s[1:4]
+        assert list(out_f[4]) == list(out_s[4])
+        assert all(type(out_f[4][k]) is type(v) and same(out_f[4][k], v) for k, v in out_s[4].items() if k != "terminal_reason")
+        assert out_f[4].get("terminal_reason") == out_s[4].get("terminal_reason")
+        assert fast.unwrapped.state_components == slow.unwrapped.state_components
+        if out_f[2] or out_f[3]:
+            ends += 1
+            assert same(fast.reset()[0], slow.reset()[0])
+    assert ends >= 1
+    assert fast.unwrapped.compiled and not slow.unwrapped.compiled
+
+
+@needs_numba
+def test_single_env_compiled_refusal_and_failure_as_the_float_path():
+    """guard='refuse' raises from the compiled step naming the count, the state unchanged; a
+    state that overflows ends the episode as a numerical failure with the last finite state."""
+    kwargs = dict(integrator="euler", guard="refuse", task="detumble", spin_rate=6.0, max_angular_velocity=20.0)
+    for compiled_ in (True, False):
+        env = gym.make(FREE, compiled=compiled_, **kwargs)
+        env.reset(seed=0)
+        before = env.unwrapped.state_components
+        with pytest.raises(ValueError, match="guard='refuse'.*substeps"):
+            env.step(np.zeros(3, dtype=np.float32))
+        assert env.unwrapped.state_components == before
+    results = []
+    for compiled_ in (True, False):
+        env = gym.make(FREE, compiled=compiled_, max_angular_velocity=3e38, guard="off")
+        env.reset(options={"state": {"angular_momentum": np.array([2e38, 1.5e38, 1e38])}})
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            obs, r, te, tr, info = env.step(np.zeros(3, dtype=np.float32))
+        assert any(issubclass(w.category, NumericalFailureWarning) for w in caught)
+        results.append((obs, r, te, info["terminal_reason"], info["numerical_failure"], env.unwrapped.state_components))
+    assert same(results[0][0], results[1][0]) and results[0][1:] == results[1][1:]
+    assert results[0][1] == 0.0 and results[0][3] == "numerical_failure"
+
+
+def test_single_env_compiled_argument():
+    """``compiled`` takes True, False or 'auto'; True without a compiled step says why."""
+    with pytest.raises(ValueError, match="compiled must be True, False or 'auto'"):
+        gym.make(FREE, compiled="yes")
+    env = gym.make(FREE, compiled=False)
+    env.reset(seed=0)
+    env.step(np.zeros(3, dtype=np.float32))
+    assert not env.unwrapped.compiled
+    with pytest.raises(ValueError, match="compiled=True but .*no compiled step|compiled=True but numba"):
+        gym.make(FREE, integrator="exact", compiled=True)

@@ -472,17 +472,26 @@ class Engine:
         readouts = system.kernel_readouts
         if step is None or task.kernels is None or readouts is None or self.switching is not None:
             return None
-        event = None
+        event = rhs_event = None
         if self.event is not None:
             event = getattr(system, "kernel_event", None)
             if event is None:
                 return None
+            # the event's evaluation shared with the next step's first stage, where both the
+            # system (the vector field and the event from one evaluation) and the scheme allow
+            rhs_event = getattr(system, "kernel_rhs_event", None)
+            first = getattr(self.integrator, "kernel_step_first_stage", None)
+            first = first(system) if rhs_event is not None and first is not None else None
+            if first is not None:
+                step = first
+            else:
+                rhs_event = None
         rule = self.rule
         rotation, dissipation = None, None
-        if rule.active and not self.plain:
+        if rule.active:  # checked only where asked (a period that may not take the plain loop)
             rotation, dissipation = rule.rotation, rule.dissipation
         observe, evaluate = task.kernels(system)
-        return KernelParts(step, observe, evaluate, readouts, rotation, rule.params, dissipation, rule.dissipation_step, event)
+        return KernelParts(step, observe, evaluate, readouts, rotation, rule.params, dissipation, rule.dissipation_step, event, rhs_event)
 
 
 class KernelParts(NamedTuple):
@@ -491,7 +500,9 @@ class KernelParts(NamedTuple):
     (the task's and the system's), the guard's ``rotation`` rate (``None``: no check can be
     needed) with ``guard_params`` (``(dt, bound, growth)`` of
     :func:`rbenvs.core.guard.step_ratio`), its ``dissipation`` rate (or ``None``) with
-    ``dissipation_step`` (``h <= c / lambda_d``), and the terminal ``event`` (or ``None``)."""
+    ``dissipation_step`` (``h <= c / lambda_d``), the terminal ``event`` (or ``None``; it fires
+    where its value is negative) and ``rhs_event``, the vector field and the event's value from
+    one evaluation (then ``step`` takes its first stage: ``step(PS, y, k0, u, h)``), or ``None``."""
 
     step: tuple
     observe: tuple
@@ -502,3 +513,4 @@ class KernelParts(NamedTuple):
     dissipation: tuple | None
     dissipation_step: float
     event: tuple | None
+    rhs_event: tuple | None = None

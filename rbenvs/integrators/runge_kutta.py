@@ -179,6 +179,10 @@ def _generate(tableau: ButcherTableau, label: str, dim: int, project: bool, para
         pure_args = "f, normalize" if project else "f"
         pure_params = "PS" if project else "P"
         src += f"def pure({pure_args}):\n    def step({pure_params}, y, u, h):\n" + unpack + inner + "\n    return step\n"
+        # the same step with its first stage given (k0 = f(P, y, u), evaluated by the caller:
+        # a kernel that needs f at the new state anyway, for an event, passes it on)
+        first = "\n".join("        " + line for line in body).replace(f"= {call}y, u)", "= k0", 1)
+        src += f"def pure_first({pure_args}):\n    def step({pure_params}, y, k0, u, h):\n" + unpack + first + "\n    return step\n"
     else:
         src = "def step(f, normalize, y, u, h):\n" + "\n".join("    " + line for line in body) + "\n"
         src += "def make(f, normalize):\n    def step(y, u, h):\n" + inner + "\n    return step\n"
@@ -193,6 +197,13 @@ def _pure_step(scheme: type, dim: int, f, normalize):
     kernels key on it."""
     ns = _generated(scheme, dim, normalize is not None, True)
     return ns["pure"](f) if normalize is None else ns["pure"](f, normalize)
+
+
+@lru_cache(maxsize=None)
+def _pure_first_step(scheme: type, dim: int, f, normalize):
+    """:func:`_pure_step` with the first stage given: ``step(PS, y, k0, u, h)``."""
+    ns = _generated(scheme, dim, normalize is not None, True)
+    return ns["pure_first"](f) if normalize is None else ns["pure_first"](f, normalize)
 
 
 @dataclass(frozen=True)
@@ -230,6 +241,20 @@ class ExplicitRungeKutta(Integrator):
             return _pure_step(type(self), system.dim, f, None), params
         normalize, n_params = project
         return _pure_step(type(self), system.dim, f, normalize), (params, n_params)
+
+    def kernel_step_first_stage(self, system):
+        """``(step, PS)`` with ``step(PS, y, k0, u, h)`` equal to :meth:`kernel_step`'s step given
+        its first stage ``k0 = f(y, u)`` (every explicit scheme's first stage is the vector field
+        at ``y``), or ``None``."""
+        pure = getattr(system, "kernel_rhs", None)
+        if pure is None or self._overridden():
+            return None
+        f, params = pure
+        project = getattr(system, "kernel_normalize", None)
+        if project is None:
+            return _pure_first_step(type(self), system.dim, f, None), params
+        normalize, n_params = project
+        return _pure_first_step(type(self), system.dim, f, normalize), (params, n_params)
 
 
 @dataclass(frozen=True)
