@@ -312,25 +312,35 @@ class RigidBodyVectorEnv(VectorEnv):
         return y, (out.Y, out.obs, out.over, out.reward, out.terminated, out.metrics, out.readouts), fired, out.h
 
     def _restart(self, which, obs, info):
-        """NEXT_STEP autoreset of the sub-envs in ``which``: new initial states, fresh info."""
+        """NEXT_STEP autoreset of the sub-envs in ``which``: new initial states, and their rows of
+        ``obs`` and ``info`` as after :meth:`reset`. Only those rows are computed and written: a
+        few restarts in a large batch cost a few rows, not another pass over the batch."""
         idx = np.flatnonzero(which)
         self._draw_rows(idx)
         self._steps[which] = 0
-        new_obs, _ = self.engine.observe(self._y)
+        y = tuple(c[idx] for c in self._y)
         obs = obs.copy()
-        obs[which] = new_obs[which]
-        last_h, self._last_h = self._last_h, np.full(self.num_envs, self.engine.h)  # as after reset()
-        last_u, self._u = self._u, None
-        fresh = self._info(self._y, None, self._false, self._false, self._zero_metrics())
-        for key, value in fresh.items():
-            if key.startswith("_"):
-                continue
-            info[key] = np.where(which, value, info[key]) if key in info else value
+        obs[idx] = self.engine.observe(y)[0]
+        for key, value in self._reset_info(y).items():
+            column = np.array(info[key])  # a copy: info's arrays may be shared masks or the env's own
+            column[idx] = value
+            info[key] = column
         if "terminal_reason" in info:
             info["terminal_reason"] = np.where(which, "", info["terminal_reason"])
             info["_terminal_reason"] = info["_terminal_reason"] & ~which
-        self._last_h, self._u = last_h, last_u
         return obs, info
+
+    def _reset_info(self, y) -> dict:
+        """The info values of states ``y`` (a few rows) as after a reset: read-outs with no control
+        acted yet (``u = None``, the single env's rule) and the default internal step, the task's
+        metrics at zero action, no failure."""
+        k = len(y[0])
+        actuator = self.model.actuator
+        zero = actuator.control(tuple(np.zeros(k) for _ in range(actuator.size)))[0]
+        out = self.engine.readouts(y, None, np.zeros(k, dtype=bool), self.engine.h) if self.info_readouts else {}
+        out.update(self.engine.evaluate(y, zero)[2])
+        out["numerical_failure"] = False
+        return out
 
     def _same_step_reset(self, done, obs, info):
         final_obs = obs.copy()
