@@ -855,3 +855,22 @@ def test_batched_starts_equal_single_env_starts_bit_for_bit(env_id, kwargs):
         venv.reset()
         for env in singles:
             env.reset()
+
+
+def test_elapsed_steps_spread_the_time_limits():
+    """``reset(options={"elapsed_steps": k})`` starts each sub-env's episode clock at ``k_i``:
+    sub-env ``i`` is truncated after ``max_episode_steps - k_i`` steps; bad values are refused."""
+    venv = make_vec(FREE, 4, max_episode_steps=5)
+    venv.reset(seed=0, options={"elapsed_steps": np.array([0, 1, 3, 4])})
+    first_truncation = [None] * 4
+    for t in range(1, 7):
+        truncated = venv.step(np.zeros((4, 3), dtype=np.float32))[3]
+        for i in np.flatnonzero(truncated):
+            if first_truncation[i] is None:
+                first_truncation[i] = t
+    assert first_truncation == [5, 4, 2, 1]
+    for bad in (np.array([0, 1, 2, 5]), np.array([-1, 0, 0, 0]), np.array([0.0, 1.0, 2.0, 3.0]), np.array([0, 1])):
+        with pytest.raises(ValueError, match="elapsed_steps"):
+            venv.reset(options={"elapsed_steps": bad})
+    with pytest.raises(ValueError, match="needs a time limit"):
+        make_vec(FREE, 2, max_episode_steps=None).reset(options={"elapsed_steps": np.zeros(2, dtype=int)})

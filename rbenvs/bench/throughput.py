@@ -1,25 +1,69 @@
 """``rbenvs bench throughput``: env-steps per second, with gymnasium's own envs measured beside.
 
-For every system and integrator (default scene of each id, zero action):
+The headline, the **task table** (printed first): one row per registered id and task at the
+env's defaults, and one per named scene (``configs/scenes``, each an id with keyword
+arguments; needs the ``cli`` extra for PyYAML). Every row is measured from what the env
+declares (its tasks, its path, its kernel), nothing listed here by hand:
 
-* ``single``: one ``env.step`` of ``gymnasium.make(id)`` (wrappers included, as users call it)
-  against ``gymnasium.make("Pendulum-v1")`` measured in the same run, interleaved, best of
-  ``repeat``; the ratio ``ours / Pendulum`` is the cost of one of our steps in Pendulum steps.
-* ``vector``: ``gymnasium.make_vec(id, num_envs=N, vectorization_mode="vector_entry_point")``
-  for N = 1, 16, 256, 4096 against CartPole-v1's own native vector env at the same N; the
-  ratio is ours / CartPole in env-steps per second, and ``ns/env`` the time per env-step.
-  ``path`` says whether the step ran compiled (:mod:`rbenvs.compiled`, where numba is
-  installed and the setting has pure forms) or on numpy arrays. Extra lines: the free body
-  with rk4 on the numpy path (with the compiled/numpy ratio per N: what the compiler buys),
-  and with ``info_readouts=False`` ("lean info").
+* ``single us`` and ``/Pend``: one ``env.step`` of ``gymnasium.make(id, **kwargs)`` (wrappers
+  included, as users call it; zero action, resets included) against ``Pendulum-v1`` measured
+  interleaved in the same run; the ratio is the cost of one of our steps in Pendulum steps.
+* ``N``, ``path``: the vector env (``gymnasium.make_vec(..., vectorization_mode=
+  "vector_entry_point")``) at ``num_envs = N`` (``--num-envs``, 4096 by default) and whether
+  its step runs compiled (:mod:`rbenvs.compiled`) or on numpy arrays.
+* ``zero/s``: env-steps per second with zero action from a fresh reset (every episode clock
+  at 0: an episode ends in the window only where the window reaches the time limit).
+* ``random/s``, ``ends``, ``/Cart``: env-steps per second with actions drawn uniformly in
+  [-1, 1] from a seeded generator beforehand (a pool of batches, cycled), so episodes end by
+  termination and truncation and sub-envs restart inside the timed window; ``ends`` counts the
+  episode ends the reported window crossed. The sub-envs' episode clocks are first spread
+  uniformly over ``max_episode_steps`` (the steady state of a long run whose sub-envs have
+  drifted apart, as termination makes them: every step truncates and restarts about
+  ``N / max_episode_steps`` of them besides those that terminate). ``/Cart`` is this rate over
+  CartPole-v1's native vector env at the same N, stepped the same way (random actions from a
+  seeded pool, its own resets included: its episodes end every few dozen steps), in the same run.
+* ``sync/s``, ``/Cart``: the same random actions from ``reset(seed)`` with every clock at 0,
+  as a run whose episodes only end at the time limit keeps them: all sub-envs restart together
+  once an episode (the window holds such a step only where it reaches the time limit;
+  ``sync_episode_ends`` in the JSON).
+* ``numpy/s``, ``c/np``: for a setting that runs compiled, the same env with
+  ``compiled=False`` under the same actions and clocks, and the compiled/numpy ratio.
+* ``kernel ns``, ``gap``: the compiled :class:`rbenvs.compiled.BatchStep` alone (the
+  practical limit of a step: the physics, observation, reward and read-outs in one compiled
+  call, without the Python around it), called on the env's current states with the controls
+  of a fixed random action batch, the env's internal step and substeps, and the guard checked
+  per sub-env where the env's periods are not plain (as the env calls it), in ns per
+  env-step; ``gap`` is the env's random-action time per env-step over it (``gap_zero`` in the
+  JSON: the zero-action time over it). The kernel writes new arrays only: the env's state is
+  checked unchanged after it (a ``!`` and a line say otherwise). A setting with no compiled
+  step shows ``-`` and a footnote with the env's own reason (the ``ValueError`` of
+  ``compiled=True``).
+
+``--only SUBSTRING`` keeps the rows whose label, id, task, scene name (or, in the integrator
+tables, integrator) contains it, in any case; ``--tables`` picks the tables (below).
+
+Slow settings (a vector step longer than the timing window, such as the stiff tippe top at
+about 0.3 s per step at 4096) are timed with fewer calls: at least one full call per round,
+best of as many rounds as fit a per-figure budget (one second). ``--quick`` is a smoke run
+(rough figures, well under a minute here, most of it compiling kernels): the task table at
+N = 64 with short windows, a setting whose single step costs over a millisecond (the tippe
+top) at N = 8, and the SB3 rows.
+
+The earlier tables follow (not with ``--quick`` unless ``--tables`` names them):
+
+* ``integrators``: for every system and integrator (default scene, zero action), the single
+  env against Pendulum-v1 as above, and the vector env for N = 1, 16, 256, 4096 against
+  CartPole-v1's native vector env (constant action) at the same N; ``ns/env`` the time per
+  env-step. Extra lines: the free body with rk4 on the numpy path (with the compiled/numpy
+  ratio per N: what the compiler buys), and with ``info_readouts=False`` ("lean info").
 * ``scaling`` (not with ``--quick``): the free body with rk4 on each path from 1 to 65536
   sub-envs, with the bytes of arrays one step moves per env.
 * ``sb3`` (when stable-baselines3 is installed): SB3's ``VecEnv.step`` through the native
   adapter against ``DummyVecEnv`` of single envs, at N = 16 and 256.
 
-Every timing covers whole episodes' worth of steps, resets included (``min_time`` spans
-several episode ends at the larger N): the time limit ends all sub-envs of the default scene
-together, so a step's true cost includes 1/400 of resetting every sub-env.
+In the integrator table the time limit ends all sub-envs of the default scene together, so a
+step's true cost includes 1/400 of resetting every sub-env; ``min_time`` spans several episode
+ends at the larger N there.
 
 Throughput per env grows with N while the fixed cost per call dominates (Python glue, and on
 the numpy path about a microsecond of dispatch per array operation, some 150 of them per
@@ -27,8 +71,8 @@ free-body step), and flattens once the arrays a step moves stop fitting in the c
 scaling table prints those bytes per env beside the time, to read against the machine's L2
 and L3 sizes.
 
-Slow combinations (``dop853`` on large batches, the stiff tippe top) are measured with fewer
-calls; each figure is the best of ``repeat`` timings of at least ``min_time`` seconds or one call.
+Each figure is the best of ``repeat`` timings of at least ``min_time`` seconds or one call.
+``--json PATH`` writes every row of every table.
 """
 
 from __future__ import annotations
@@ -43,7 +87,10 @@ import numpy as np
 from ..compiled import available
 from ..progress import Progress
 
-__all__ = ["run_single", "run_vector", "run_scaling", "timed", "episode_stepper", "main"]
+__all__ = [
+    "run_tasks", "task_settings", "measure_setting", "kernel_time", "stagger_clocks", "random_actions", "counting_stepper", "print_tasks",
+    "run_single", "run_vector", "run_scaling", "run_sb3", "timed", "timed_budget", "episode_stepper", "main",
+]
 
 SIZES = (1, 16, 256, 4096)
 # (id, integrators, largest N measured per integrator: the reference solver is slow in bulk)
@@ -70,6 +117,34 @@ def timed(fn, min_time: float, repeat: int) -> float:
     return best
 
 
+def timed_budget(fn, min_time: float, repeat: int, budget: float | None = None) -> float:
+    """:func:`timed`, but where one call alone outlasts ``min_time``, as many one-call rounds
+    as fit ``budget`` seconds (at least one; the probing call is the first round). Without
+    ``budget``, :func:`timed` itself."""
+    if budget is None:
+        return timed(fn, min_time, repeat)
+    t = _time_once(fn)
+    if t <= min_time:
+        return timed(fn, min_time, repeat)
+    for _ in range(_rounds(t, min_time, repeat, budget) - 1):
+        t = min(t, _time_once(fn))
+    return t
+
+
+def _rounds(t_call: float, min_time: float, repeat: int, budget: float) -> int:
+    """Rounds for a figure whose call takes ``t_call`` seconds: ``repeat``, or as many as fit
+    ``budget`` where one call alone outlasts ``min_time`` (at least one)."""
+    if t_call <= min_time:
+        return repeat
+    return max(1, min(repeat, int(budget // t_call)))
+
+
+def _time_once(fn) -> float:
+    start = time.perf_counter()
+    fn()
+    return time.perf_counter() - start
+
+
 def episode_stepper(env, action):
     """A step function that resets the env when its episode ends (not timed separately)."""
     state = {"done": False}
@@ -83,7 +158,9 @@ def episode_stepper(env, action):
     return step
 
 
-def run_single(systems=SYSTEMS, min_time=0.2, repeat=5, progress=None) -> list[dict]:
+def run_single(systems=SYSTEMS, min_time=0.2, repeat=5, progress=None, budget=None) -> list[dict]:
+    """One step of ``gymnasium.make(id, integrator=...)`` against Pendulum-v1, interleaved.
+    ``budget`` (seconds): where one step outlasts a round, fewer rounds (:func:`timed_budget`)."""
     import gymnasium as gym
 
     import rbenvs  # noqa: F401
@@ -97,9 +174,14 @@ def run_single(systems=SYSTEMS, min_time=0.2, repeat=5, progress=None) -> list[d
             env = gym.make(env_id, integrator=integ)
             env.reset(seed=0)
             ours = episode_stepper(env, np.zeros(env.action_space.shape, dtype=np.float32))
-            t_ours, t_pend = float("inf"), float("inf")
-            for _ in range(repeat):  # interleaved, so that machine load hits both alike
-                t_ours = min(t_ours, timed(ours, min_time / repeat, 1))
+            t_ours, t_pend, rounds = float("inf"), float("inf"), repeat
+            if budget is not None:  # a probing call; a slow one is the first round
+                t1 = _time_once(ours)
+                if t1 > min_time / repeat:
+                    t_ours, rounds = t1, _rounds(t1, min_time / repeat, repeat, budget) - 1
+            for k in range(max(rounds, 1)):  # interleaved, so that machine load hits both alike
+                if k < rounds:
+                    t_ours = min(t_ours, timed(ours, min_time / repeat, 1))
                 t_pend = min(t_pend, timed(p_step, min_time / repeat, 1))
             rows.append({"id": env_id, "integrator": integ, "step_us": t_ours * 1e6, "pendulum_step_us": t_pend * 1e6, "ratio_to_pendulum": t_ours / t_pend})
             if progress:
@@ -107,7 +189,9 @@ def run_single(systems=SYSTEMS, min_time=0.2, repeat=5, progress=None) -> list[d
     return rows
 
 
-def run_vector(systems=SYSTEMS, sizes=SIZES, min_time=0.2, repeat=3, progress=None) -> list[dict]:
+def run_vector(systems=SYSTEMS, sizes=SIZES, min_time=0.2, repeat=3, progress=None, budget=None) -> list[dict]:
+    """The vector env per system, integrator and N against CartPole-v1's (constant action).
+    ``budget`` (seconds): where one step outlasts ``min_time``, fewer rounds (:func:`timed_budget`)."""
     import gymnasium as gym
 
     import rbenvs  # noqa: F401
@@ -124,8 +208,8 @@ def run_vector(systems=SYSTEMS, sizes=SIZES, min_time=0.2, repeat=3, progress=No
     # default; the free body with rk4 also on the numpy path (the compiled kernel's
     # justification, measured) and without info's physical read-outs
     combos = [(env_id, integ, True, "auto") for env_id, integrators in systems for integ in integrators]
-    for env_id, integrators in systems[:1]:
-        if "rk4" in integrators:
+    for env_id, integrators in systems:
+        if env_id == SYSTEMS[0][0] and "rk4" in integrators:
             # (without numba the default rows are the numpy path already)
             combos += [(env_id, "rk4", True, False)] if available() else []
             combos += [(env_id, "rk4", False, "auto")]
@@ -140,7 +224,7 @@ def run_vector(systems=SYSTEMS, sizes=SIZES, min_time=0.2, repeat=3, progress=No
             venv.step(a)  # a kernel compiles on its first call: not timed
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")
-                t = timed(lambda: venv.step(a), min_time, repeat)
+                t = timed_budget(lambda: venv.step(a), min_time, repeat, budget)
             rate = n / t
             label = integ if readouts else f"{integ}, lean info"
             rows.append({"id": env_id, "integrator": label, "path": path, "num_envs": n, "env_steps_per_s": rate, "ns_per_env_step": 1e9 * t / n,
@@ -214,31 +298,442 @@ def compiled_speedup(vector_rows) -> list[tuple[int, float]]:
     return [(n, by_path[("compiled", n)] / by_path[("numpy", n)]) for (p, n) in sorted(by_path) if p == "compiled" and ("numpy", n) in by_path]
 
 
+# ------------------------------------------------------------------------------ task table
+TASK_NUM_ENVS = 4096
+QUICK_NUM_ENVS = 64
+# --quick: a setting whose single step costs more than this runs its vector figures at
+# QUICK_SLOW_NUM_ENVS (the tippe top today: about 3 ms a step)
+QUICK_SLOW_STEP_S = 1e-3
+QUICK_SLOW_NUM_ENVS = 8
+ACTION_POOL = 16  # random action batches drawn beforehand, cycled
+
+
+def env_class(env_id: str) -> type:
+    """The single env class registered for ``env_id``."""
+    import gymnasium as gym
+
+    cls = gym.spec(env_id).entry_point
+    if isinstance(cls, str):
+        module, name = cls.split(":")
+        cls = getattr(__import__(module, fromlist=[name]), name)
+    return cls
+
+
+def _short(env_id: str) -> str:
+    return env_id.split("/", 1)[-1]
+
+
+def _matches(only, *fields) -> bool:
+    return not only or any(only.lower() in str(f).lower() for f in fields if f)
+
+
+def task_settings(only: str | None = None, scenes: bool = True) -> tuple[list[dict], list[str]]:
+    """The task table's settings and notes: every registered id with every task of its env
+    class (``tasks``) at the defaults, then every named scene (its id and keyword arguments).
+    ``only`` keeps the settings whose label, id, task or scene name contains it (any case).
+    Each setting: ``{"setting": label, "id", "task", "scene", "kwargs"}``."""
+    import rbenvs
+
+    notes, out = [], []
+    for env_id in rbenvs.ENVIRONMENTS:
+        for task in env_class(env_id).tasks:
+            out.append({"setting": f"{_short(env_id)} {task}", "id": env_id, "task": task, "scene": None, "kwargs": {"task": task}})
+    if scenes:
+        from ..extras import MissingExtra
+        from ..scenes import list_scenes, load_scene
+
+        try:
+            names = list_scenes()
+            loaded = [load_scene(name) for name in names]
+        except MissingExtra as exc:
+            notes.append(f"named scenes skipped: {exc}")
+            loaded = []
+        if scenes and not loaded and not notes:
+            notes.append("named scenes skipped: none found")
+        for s in loaded:
+            out.append({"setting": f"scene {s.name}", "id": s.env_id, "task": s.kwargs.get("task"), "scene": s.name, "kwargs": dict(s.kwargs)})
+    out = [s for s in out if _matches(only, s["setting"], s["id"], s["task"], s["scene"])]
+    return out, notes
+
+
+def random_actions(space, seed: int = 0, pool: int = ACTION_POOL) -> list[np.ndarray]:
+    """``pool`` batches of actions uniform in [-1, 1] (the normalised actions), drawn now from
+    a generator seeded ``seed``."""
+    rng = np.random.default_rng(seed)
+    return [rng.uniform(-1.0, 1.0, space.shape).astype(space.dtype) for _ in range(pool)]
+
+
+def counting_stepper(venv, actions):
+    """A step function cycling through ``actions`` and a counter of its calls and of the
+    episode ends (terminated or truncated sub-envs) its steps returned."""
+    count = {"calls": 0, "ends": 0}
+
+    def step():
+        _, _, terminated, truncated, _ = venv.step(actions[count["calls"] % len(actions)])
+        count["calls"] += 1
+        count["ends"] += int(np.count_nonzero(terminated | truncated))
+
+    return step, count
+
+
+def timed_counting(fn, count, min_time: float, repeat: int, budget: float | None = None) -> dict:
+    """:func:`timed_budget` of a :func:`counting_stepper`: the best seconds per call and, for
+    that round, the calls and episode ends; ``ends_total`` over every round."""
+    best = {"seconds": float("inf"), "calls": 0, "ends": 0}
+    ends0 = count["ends"]
+    rounds = repeat
+    if budget is not None:  # a probing call: where it outlasts min_time, the first round
+        t = _time_once(fn)
+        if t > min_time:
+            best = {"seconds": t, "calls": 1, "ends": count["ends"] - ends0}
+            rounds = _rounds(t, min_time, repeat, budget) - 1
+    for _ in range(rounds):
+        calls, ends = count["calls"], count["ends"]
+        t = timed(fn, min_time, 1)
+        if t < best["seconds"]:
+            best = {"seconds": t, "calls": count["calls"] - calls, "ends": count["ends"] - ends}
+    best["ends_total"] = count["ends"] - ends0
+    return best
+
+
+def stagger_clocks(venv, seed: int = 0) -> bool:
+    """Reset with the sub-envs' episode clocks spread uniformly over ``max_episode_steps``
+    (``reset(options={"elapsed_steps": k})``, sub-env ``i`` as if ``k_i`` steps into its
+    episode): the steady state of a long run whose sub-envs have drifted apart. False (a plain
+    reset) where the env has no time limit."""
+    limit = getattr(venv.unwrapped, "max_episode_steps", None)
+    if not limit:
+        venv.reset(seed=seed)
+        return False
+    venv.reset(seed=seed, options={"elapsed_steps": np.random.default_rng(seed).integers(0, limit, venv.num_envs)})
+    return True
+
+
+def no_kernel_reason(env_id: str, kwargs: dict) -> str:
+    """Why ``env_id`` with ``kwargs`` has no compiled step: the vector env's own ``ValueError``
+    for ``compiled=True``."""
+    import gymnasium as gym
+
+    try:
+        venv = gym.make_vec(env_id, num_envs=1, vectorization_mode="vector_entry_point", **(kwargs | {"compiled": True}))
+    except ValueError as exc:
+        return str(exc).removeprefix("compiled=True but ")
+    venv.close()
+    return "compiled=True works, but the default ('auto') does not take it"
+
+
+def kernel_time(venv, action, min_time: float, repeat: int, budget: float | None = None) -> dict:
+    """The compiled :class:`rbenvs.compiled.BatchStep` of ``venv`` alone, on the env's current
+    states (``Y = np.stack(state_components)``) under the controls of ``action`` (one batch,
+    mapped by ``model.actuator.control``; unactuated axes as arrays of 0.0), with the env's
+    internal step and substeps, the guard checked per sub-env where the env's periods are not
+    plain (as the env calls it): ``{"seconds", "ns_per_env_step", "bad", "check", "state_unchanged"}``.
+    ``state_unchanged``: the env's states (and ``Y``) equal what they were before the calls,
+    and the kernel's new states share no memory with them."""
+    env = venv.unwrapped
+    batch_step = env.batch_step
+    if batch_step is None:
+        raise ValueError("the env runs on the numpy path: it has no compiled step")
+    n = venv.num_envs
+    before = tuple(env.state_components)
+    saved = [np.array(c, copy=True) for c in before]
+    Y = np.stack(before)
+    Y_saved = Y.copy()
+    columns = tuple(np.ascontiguousarray(np.clip(np.asarray(action, dtype=np.float64), -1.0, 1.0).T))
+    u_norm, u = env.model.actuator.control(columns)
+
+    def full(cs):  # (n,) float64 arrays, as the env hands the kernel
+        return tuple(np.ascontiguousarray(np.broadcast_to(np.asarray(c, dtype=np.float64), (n,))) for c in cs)
+
+    u, u_norm = full(u), full(u_norm)
+    h, substeps = env.engine.h, env.engine.substeps
+    check = not getattr(env.engine, "plain", True)  # the guard per sub-env where the env runs one, as the env calls it
+
+    def call():
+        return batch_step(Y, u, u_norm, h, substeps, check)
+
+    out = call()  # compiled already by the env's first step; not timed
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        t = timed_budget(call, min_time, repeat, budget)
+    after = tuple(env.state_components)
+    unchanged = (
+        len(after) == len(saved)
+        and all(np.array_equal(a, b) for a, b in zip(after, saved))
+        and np.array_equal(Y, Y_saved)
+        and not any(np.shares_memory(out[0], c) for c in (Y, *after))
+    )
+    return {"seconds": t, "ns_per_env_step": 1e9 * t / n, "bad": int(out[1]), "check": check, "state_unchanged": bool(unchanged)}
+
+
+class Peers:
+    """Pendulum-v1's single env (one step function, zero action) and CartPole-v1's native
+    vector env per N (random actions from a seeded pool, its resets included), measured once
+    per N in the run that measures ours."""
+
+    def __init__(self, min_time: float, repeat: int, seed: int = 0):
+        import gymnasium as gym
+
+        self.pendulum = gym.make("Pendulum-v1")
+        self.pendulum.reset(seed=seed)
+        self.pendulum_step = episode_stepper(self.pendulum, np.zeros(1, dtype=np.float32))
+        self.min_time, self.repeat, self.seed = min_time, repeat, seed
+        self.cartpole = {}
+
+    def cartpole_rate(self, n: int) -> dict:
+        if n not in self.cartpole:
+            import gymnasium as gym
+
+            cart = gym.make_vec("CartPole-v1", num_envs=n, vectorization_mode="vector_entry_point")
+            cart.reset(seed=self.seed)
+            rng = np.random.default_rng(self.seed)
+            actions = [rng.integers(0, 2, n).astype(np.int64) for _ in range(ACTION_POOL)]
+            step, count = counting_stepper(cart, actions)
+            for _ in range(100):  # past the first episode ends, into the steady state
+                step()
+            best = timed_counting(step, count, self.min_time, self.repeat)
+            self.cartpole[n] = {"env_steps_per_s": n / best["seconds"], "episode_ends": best["ends"]}
+            cart.close()
+        return self.cartpole[n]
+
+
+def measure_setting(setting: dict, peers: Peers, num_envs: int, min_time: float, repeat: int, budget: float, stagger: bool = True,
+                    slow_step_s: float | None = None, slow_num_envs: int | None = None, seed: int = 0, progress=None) -> dict:
+    """One row of the task table (see the module docstring); ``progress()`` is called four
+    times (single env, zero action, random actions, then the kernel and numpy path).
+    ``stagger=False`` leaves the headline random-action run's clocks together too."""
+    import gymnasium as gym
+
+    env_id, kwargs = setting["id"], dict(setting["kwargs"])
+    row = {k: setting[k] for k in ("setting", "id", "task", "scene")}
+    row["kwargs"] = kwargs
+    tick = progress or (lambda: None)
+    # -- single env, interleaved with Pendulum
+    env = gym.make(env_id, **kwargs)
+    env.reset(seed=seed)
+    row["task"] = row["task"] or getattr(getattr(env.unwrapped, "task", None), "name", None)
+    ours = episode_stepper(env, np.zeros(env.action_space.shape, dtype=env.action_space.dtype))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        ours()  # the first step may generate code: not timed
+        t_ours = _time_once(ours)  # a probe; where one step outlasts a round, the first round
+        rounds = max(repeat, 2)
+        if t_ours > min_time / rounds:
+            rounds = _rounds(t_ours, min_time / rounds, rounds, budget) - 1
+        else:
+            t_ours = float("inf")
+        t_pend = float("inf")
+        for k in range(max(rounds, 1)):  # interleaved, so that machine load hits both alike
+            if k < rounds:
+                t_ours = min(t_ours, timed(ours, min_time / max(repeat, 2), 1))
+            t_pend = min(t_pend, timed(peers.pendulum_step, min_time / max(repeat, 2), 1))
+    env.close()
+    row.update(single_step_us=t_ours * 1e6, pendulum_step_us=t_pend * 1e6, single_ratio_to_pendulum=t_ours / t_pend)
+    tick()
+    # -- vector env: zero action from a fresh reset, then random actions with ends
+    n = num_envs
+    if slow_step_s is not None and slow_num_envs is not None and t_ours > slow_step_s:
+        n = min(n, slow_num_envs)
+    row["num_envs"] = n
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        venv = gym.make_vec(env_id, num_envs=n, vectorization_mode="vector_entry_point", **kwargs)
+        compiled = bool(venv.unwrapped.compiled)
+        row["path"] = "compiled" if compiled else "numpy"
+        row["max_episode_steps"] = getattr(venv.unwrapped, "max_episode_steps", None)
+        venv.reset(seed=seed)
+        zero = np.zeros(venv.action_space.shape, dtype=venv.action_space.dtype)
+        venv.step(zero)  # a kernel compiles on its first call: not timed
+        t = timed_budget(lambda: venv.step(zero), min_time, repeat, budget)
+        row["zero_env_steps_per_s"] = n / t
+        row["zero_ns_per_env_step"] = 1e9 * t / n
+        tick()
+        actions = random_actions(venv.action_space, seed)
+        sync = _random_rate(venv, actions, min_time, repeat, budget, False, seed)
+        random = _random_rate(venv, actions, min_time, repeat, budget, stagger, seed)
+        cart = peers.cartpole_rate(n)
+        rate = cart["env_steps_per_s"]
+        row.update(
+            random_env_steps_per_s=random["rate"], random_ns_per_env_step=1e9 / random["rate"], episode_ends=random["ends"],
+            episode_ends_total=random["ends_total"], random_calls_timed=random["calls"], clocks_staggered=random["staggered"],
+            cartpole_env_steps_per_s=rate, cartpole_episode_ends=cart["episode_ends"], ratio_to_cartpole=random["rate"] / rate,
+            zero_ratio_to_cartpole=row["zero_env_steps_per_s"] / rate, sync_random_env_steps_per_s=sync["rate"], sync_episode_ends=sync["ends"],
+            sync_random_calls_timed=sync["calls"], sync_ratio_to_cartpole=sync["rate"] / rate,
+        )
+        tick()
+        # -- the kernel alone on the states the random run left, then the numpy path
+        row.update(kernel_ns_per_env_step=None, gap=None, gap_zero=None, kernel_state_unchanged=None, kernel_bad=None, kernel_guard_checked=None, no_kernel_reason=None,
+                   numpy_random_env_steps_per_s=None, numpy_episode_ends=None, compiled_over_numpy=None)
+        if compiled:
+            k = kernel_time(venv, actions[0], min_time, repeat, budget)
+            row.update(kernel_ns_per_env_step=k["ns_per_env_step"], gap=row["random_ns_per_env_step"] / k["ns_per_env_step"],
+                       gap_zero=row["zero_ns_per_env_step"] / k["ns_per_env_step"], kernel_state_unchanged=k["state_unchanged"], kernel_bad=k["bad"],
+                       kernel_guard_checked=k["check"])
+            venv.close()
+            numpy_env = gym.make_vec(env_id, num_envs=n, vectorization_mode="vector_entry_point", **(kwargs | {"compiled": False}))
+            numpy_random = _random_rate(numpy_env, actions, min_time, repeat, budget, stagger, seed)
+            numpy_env.close()
+            row.update(numpy_random_env_steps_per_s=numpy_random["rate"], numpy_episode_ends=numpy_random["ends"],
+                       compiled_over_numpy=random["rate"] / numpy_random["rate"])
+        else:
+            venv.close()
+            row["no_kernel_reason"] = no_kernel_reason(env_id, kwargs)
+    tick()
+    return row
+
+
+def _random_rate(venv, actions, min_time, repeat, budget, stagger, seed) -> dict:
+    """Env-steps per second of ``venv`` under ``actions`` (cycled) from ``reset(seed)``, clocks
+    staggered if asked, with the episode ends of the timed window."""
+    n = venv.num_envs
+    if stagger:
+        staggered = stagger_clocks(venv, seed)
+    else:
+        venv.reset(seed=seed)
+        staggered = False
+    step, count = counting_stepper(venv, actions)
+    step()  # a kernel compiles on its first call: not timed
+    best = timed_counting(step, count, min_time, repeat, budget)
+    return {"rate": n / best["seconds"], "ends": best["ends"], "ends_total": best["ends_total"], "calls": best["calls"], "staggered": staggered}
+
+
+def run_tasks(settings=None, num_envs: int = TASK_NUM_ENVS, min_time: float = 0.2, repeat: int = 3, budget: float = 1.0, only: str | None = None,
+              stagger: bool = True, slow_step_s: float | None = None, slow_num_envs: int | None = None, seed: int = 0, progress=None) -> tuple[list[dict], list[str]]:
+    """The task table: ``(rows, notes)``, one row per setting (default: :func:`task_settings`
+    with ``only``), each measured by :func:`measure_setting` against the same peers."""
+    import rbenvs  # noqa: F401  (registers the ids)
+
+    notes = []
+    if settings is None:
+        settings, notes = task_settings(only)
+    peers = Peers(min_time, repeat, seed)
+    rows = [measure_setting(s, peers, num_envs, min_time, repeat, budget, stagger, slow_step_s, slow_num_envs, seed, progress) for s in settings]
+    peers.pendulum.close()
+    return rows, notes
+
+
+def _g(x, fmt=".3g"):
+    return "-" if x is None else format(x, fmt)
+
+
+def print_tasks(rows, notes) -> None:
+    """The task table, its footnotes (why a setting has no kernel) and the scenes' arguments."""
+    ns = sorted({r["num_envs"] for r in rows})
+    clocks = "episode clocks spread over max_episode_steps" if all(r["clocks_staggered"] for r in rows) else "episode clocks NOT spread: see the note below"
+    print("tasks: every (id, task) at its defaults and every named scene")
+    print("  single: one step of gymnasium.make against Pendulum-v1 (zero action; us, interleaved, same run)")
+    print(f"  vector: make_vec at N = {', '.join(map(str, ns)) or '-'}; env-steps/s with zero action, and with seeded random actions in [-1, 1]")
+    print(f"          ({clocks}; 'ends': episode ends in the timed window, resets included),")
+    print("          that rate over CartPole-v1's native vector env (random actions) at the same N, same run;")
+    print("          sync/s: the same actions from reset, every episode clock together (restarts all at once, at the limit);")
+    print("          numpy/s and c/np: the same env with compiled=False; kernel: the compiled BatchStep alone")
+    print("          (ns per env-step), gap = env time per env-step (random actions) / kernel time")
+    w = max([25] + [len(r["setting"]) + 1 for r in rows])
+    print(f"{'setting':<{w}} {'single us':>9} {'/Pend':>6} {'N':>5} {'path':<8} {'zero/s':>9} {'random/s':>9} {'ends':>6} {'/Cart':>6} {'sync/s':>9} {'/Cart':>6} {'numpy/s':>9} {'c/np':>5} {'kernel ns':>9} {'gap':>6}")
+    reasons = {}
+    for r in rows:
+        kernel, gap = _g(r["kernel_ns_per_env_step"], ".2f"), _g(r["gap"], ".2f")
+        if r["no_kernel_reason"] is not None:
+            mark = reasons.setdefault(r["no_kernel_reason"], len(reasons) + 1)
+            kernel = f"-[{mark}]"
+        if r["kernel_state_unchanged"] is False:
+            kernel += "!"
+        print(f"{r['setting']:<{w}} {r['single_step_us']:>9.2f} {r['single_ratio_to_pendulum']:>6.3f} {r['num_envs']:>5d} {r['path']:<8} "
+              f"{r['zero_env_steps_per_s']:>9.3g} {r['random_env_steps_per_s']:>9.3g} {r['episode_ends']:>6d} {r['ratio_to_cartpole']:>6.3f} "
+              f"{r['sync_random_env_steps_per_s']:>9.3g} {r['sync_ratio_to_cartpole']:>6.3f} "
+              f"{_g(r['numpy_random_env_steps_per_s']):>9} {_g(r['compiled_over_numpy'], '.2f'):>5} {kernel:>9} {gap:>6}")
+    if rows:
+        pend = min(r["pendulum_step_us"] for r in rows)
+        print(f"peers: Pendulum-v1 step {pend:.2f} us (best of the run); CartPole-v1 vector env " + ", ".join(
+            f"{c:.3g}/s at N = {n}" for n, c in sorted({(r['num_envs'], r['cartpole_env_steps_per_s']) for r in rows})))
+    for reason, mark in reasons.items():
+        which = ", ".join(r["setting"] for r in rows if r["no_kernel_reason"] == reason)
+        print(f"[{mark}] no compiled step ({which}): {reason}")
+    if any(r["kernel_state_unchanged"] is False for r in rows):
+        print("! the kernel call changed the env's state (it must write new arrays only)")
+    if any(r["kernel_bad"] for r in rows if r["kernel_bad"] is not None):
+        print("kernel: non-finite new states in " + ", ".join(r["setting"] for r in rows if r["kernel_bad"]))
+    small = [r["setting"] for r in rows if r["num_envs"] < max(ns)]
+    if small:
+        print(f"at N = {min(ns)} (a slow single step, --quick): " + ", ".join(small))
+    unspread = [r["setting"] for r in rows if not r["clocks_staggered"]]
+    if unspread:
+        print("episode clocks not spread (not asked, or the env keeps no per-sub-env step count or has no time limit): " + ", ".join(unspread))
+    for note in notes:
+        print(note)
+    scenes = [r for r in rows if r["scene"]]
+    if scenes:
+        print("scenes:")
+        for r in scenes:
+            print(f"  {r['scene']}: {r['id']} " + ", ".join(f"{k}={v}" for k, v in r["kwargs"].items()))
+
+
+TABLES = ("tasks", "integrators", "scaling", "sb3")
+QUICK_TABLES = ("tasks", "sb3")  # --quick: a smoke run well under a minute (the kernels' compilation is most of it)
+
+
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(prog="rbenvs bench throughput", description="Env-steps per second against Pendulum-v1 and CartPole-v1's native vector env.")
+    parser = argparse.ArgumentParser(prog="rbenvs bench throughput", description="Env-steps per second against Pendulum-v1 and CartPole-v1's native vector env: "
+                                     "every (id, task) and named scene, with the compiled kernel's time beside (the gap to the limit), then per integrator.")
     parser.add_argument("--json", metavar="PATH", help="also write the figures as JSON")
-    parser.add_argument("--quick", action="store_true", help="shorter timings, sizes 1 and 256 only")
+    parser.add_argument("--quick", action="store_true", help=f"shorter timings: the task table at N = {QUICK_NUM_ENVS} (slow settings at {QUICK_SLOW_NUM_ENVS}) "
+                        "and the SB3 rows by default; an integrator table asked for with --tables at sizes 1 and 256; never the scaling table")
+    parser.add_argument("--num-envs", type=int, metavar="N", help=f"task table: sub-envs of the vector env (default: {TASK_NUM_ENVS}, {QUICK_NUM_ENVS} with --quick)")
+    parser.add_argument("--only", metavar="SUBSTRING", help="only the rows whose id, task, scene name or integrator contains SUBSTRING (any case)")
+    parser.add_argument("--tables", metavar="LIST", help=f"comma-separated tables to run, of {', '.join(TABLES)} (default: all; with --quick: {','.join(QUICK_TABLES)})")
     parser.add_argument("--no-progress", action="store_true")
     args = parser.parse_args(argv)
+    tables = [t.strip() for t in (args.tables or ",".join(QUICK_TABLES if args.quick else TABLES)).split(",") if t.strip()]
+    unknown = [t for t in tables if t not in TABLES]
+    if unknown:
+        raise ValueError(f"--tables: unknown table {unknown[0]!r}; choose from {', '.join(TABLES)}")
+    if args.num_envs is not None and args.num_envs < 1:
+        raise ValueError(f"--num-envs must be >= 1, got {args.num_envs}")
+    only = args.only
+    num_envs = args.num_envs or (QUICK_NUM_ENVS if args.quick else TASK_NUM_ENVS)
     sizes = (1, 256) if args.quick else SIZES
     min_time = 0.05 if args.quick else 0.2
-    n_single = sum(len(i) for _, i in SYSTEMS)
-    n_vector = sum(1 for _, ints in SYSTEMS for i in ints for n in sizes if n <= LARGEST.get(i, max(sizes))) + (2 if available() else 1) * len(sizes)
-    n_scaling = 0 if args.quick else (2 if available() else 1) * len(SCALING_SIZES)
-    bar = Progress(n_single + n_vector + n_scaling, not args.no_progress, "bench throughput")
-    single = run_single(min_time=min_time, progress=bar.update)
-    vector = run_vector(sizes=sizes, min_time=min_time, progress=bar.update)
-    scaling = [] if args.quick else run_scaling(min_time=min_time, progress=bar.update)
-    sb3 = run_sb3(sizes=(16, 256), min_time=min_time)
+    budget = 0.2 if args.quick else 1.0
+    free = SYSTEMS[0][0]
+    # the earlier tables, filtered by --only on id or integrator
+    systems = tuple((i, tuple(x for x in ints if _matches(only, i, x))) for i, ints in SYSTEMS)
+    systems = tuple((i, ints) for i, ints in systems if ints) if "integrators" in tables else ()
+    do_scaling = "scaling" in tables and not args.quick and _matches(only, free, "rk4")
+    do_sb3 = "sb3" in tables and _matches(only, free, "rk4")
+    settings, notes = task_settings(only) if "tasks" in tables else ([], [])
+    if not (settings or systems or do_scaling or do_sb3):
+        raise ValueError(f"--only {only!r} matches no row of the tables {', '.join(tables)}")
+    n_tasks = 4 * len(settings)
+    n_single = sum(len(i) for _, i in systems)
+    combos_extra = (2 if available() else 1) if any(i == free and "rk4" in ints for i, ints in systems) else 0
+    n_vector = sum(1 for _, ints in systems for i in ints for n in sizes if n <= LARGEST.get(i, max(sizes))) + combos_extra * len(sizes)
+    n_scaling = (2 if available() else 1) * len(SCALING_SIZES) if do_scaling else 0
+    bar = Progress(n_tasks + n_single + n_vector + n_scaling, not args.no_progress, "bench throughput")
+    tasks, task_notes = [], notes
+    if settings:
+        # --quick: a smoke run, its figures rough (23 settings, each timed seven ways)
+        tasks, _ = run_tasks(settings, num_envs=num_envs, min_time=0.02 if args.quick else min_time, repeat=2 if args.quick else 3, budget=budget,
+                             slow_step_s=QUICK_SLOW_STEP_S if args.quick else None, slow_num_envs=QUICK_SLOW_NUM_ENVS if args.quick else None, progress=bar.update)
+    legacy_budget = budget if args.quick else None  # the full run times the earlier tables as before
+    single = run_single(systems, min_time=min_time, progress=bar.update, budget=legacy_budget) if systems else []
+    vector = run_vector(systems, sizes=sizes, min_time=min_time, progress=bar.update, budget=legacy_budget) if systems else []
+    scaling = run_scaling(min_time=min_time, progress=bar.update) if do_scaling else []
+    sb3 = run_sb3(sizes=(16, 256), min_time=min_time) if do_sb3 else []
     bar.close()
-    print("single env: one step of gymnasium.make(id) against Pendulum-v1, same run (us)")
-    print(f"{'id':<26} {'integrator':<10} {'ours':>9} {'Pendulum':>9} {'ratio':>7}")
-    for r in single:
-        print(f"{r['id']:<26} {r['integrator']:<10} {r['step_us']:>9.2f} {r['pendulum_step_us']:>9.2f} {r['ratio_to_pendulum']:>7.3f}")
-    print("\nvector env (vector_entry_point) against CartPole-v1's native vector env, same run")
-    print(f"{'id':<26} {'integrator':<16} {'path':<9} {'num_envs':>8} {'env-steps/s':>13} {'ns/env':>9} {'CartPole/s':>13} {'ratio':>8}")
-    for r in vector:
-        print(f"{r['id']:<26} {r['integrator']:<16} {r['path']:<9} {r['num_envs']:>8d} {r['env_steps_per_s']:>13.4g} {r['ns_per_env_step']:>9.1f} {r['cartpole_env_steps_per_s']:>13.4g} {r['ratio_to_cartpole']:>8.3f}")
+    if tasks:
+        print_tasks(tasks, task_notes)
+    elif task_notes:
+        print("\n".join(task_notes))
+    if single:
+        print("\nsingle env: one step of gymnasium.make(id) against Pendulum-v1, same run (us)")
+        print(f"{'id':<26} {'integrator':<10} {'ours':>9} {'Pendulum':>9} {'ratio':>7}")
+        for r in single:
+            print(f"{r['id']:<26} {r['integrator']:<10} {r['step_us']:>9.2f} {r['pendulum_step_us']:>9.2f} {r['ratio_to_pendulum']:>7.3f}")
+    if vector:
+        print("\nvector env (vector_entry_point, zero action) against CartPole-v1's native vector env, same run")
+        print(f"{'id':<26} {'integrator':<16} {'path':<9} {'num_envs':>8} {'env-steps/s':>13} {'ns/env':>9} {'CartPole/s':>13} {'ratio':>8}")
+        for r in vector:
+            print(f"{r['id']:<26} {r['integrator']:<16} {r['path']:<9} {r['num_envs']:>8d} {r['env_steps_per_s']:>13.4g} {r['ns_per_env_step']:>9.1f} {r['cartpole_env_steps_per_s']:>13.4g} {r['ratio_to_cartpole']:>8.3f}")
     paths = compiled_speedup(vector)
     if paths:
         print("\ncompiled step against the numpy path of the same env (free body, rk4), same run")
@@ -256,5 +751,5 @@ def main(argv=None) -> int:
             print(f"{r['id']:<26} {r['num_envs']:>8d} {r['sb3_native_env_steps_per_s']:>12.4g} {r['sb3_dummy_env_steps_per_s']:>12.4g} {r['ratio']:>8.2f}")
     if args.json:
         with open(args.json, "w") as f:
-            json.dump({"single": single, "vector": vector, "scaling": scaling, "sb3": sb3}, f, indent=1)
+            json.dump({"tasks": tasks, "task_notes": task_notes, "single": single, "vector": vector, "scaling": scaling, "sb3": sb3}, f, indent=1)
     return 0

@@ -40,7 +40,11 @@ Conventions (gymnasium 1.x):
 * ``get_state()`` returns the single env's dict with every array batched along a leading
   axis of length ``num_envs``; ``reset(options={"state": d})`` starts every sub-env there
   (each row validated like the single env's). ``reset(options={"reset_mask": m})`` resets only
-  the sub-envs where ``m`` is true.
+  the sub-envs where ``m`` is true. ``reset(options={"elapsed_steps": k})`` starts the reset
+  sub-envs' episode clocks at ``k`` (an int array, ``0 <= k < max_episode_steps``) instead of 0:
+  a batch whose time limits would all end together then restarts a few sub-envs at each step,
+  as a long run does once its episodes have drifted apart (large-batch trainers randomise
+  this to avoid synchronised resets; ``rbenvs bench throughput`` measures that steady state).
 """
 
 from __future__ import annotations
@@ -154,8 +158,11 @@ class RigidBodyVectorEnv(VectorEnv):
         options = {} if options is None else dict(options)
         state = options.pop("state", None)
         mask = options.pop("reset_mask", None)
+        elapsed = options.pop("elapsed_steps", None)
         if options:
-            raise ValueError(f"reset options must be a subset of {{'state', 'reset_mask'}}, got unknown {sorted(options)}")
+            raise ValueError(f"reset options must be a subset of {{'state', 'reset_mask', 'elapsed_steps'}}, got unknown {sorted(options)}")
+        if elapsed is not None:
+            elapsed = self._elapsed_steps(elapsed)
         if mask is None:
             mask = np.ones(n, dtype=bool)
         else:
@@ -169,7 +176,7 @@ class RigidBodyVectorEnv(VectorEnv):
             self._set_rows(self._rows_from_state(state, mask))
         else:
             self._draw_rows(np.flatnonzero(mask))
-        self._steps[mask] = 0
+        self._steps[mask] = 0 if elapsed is None else elapsed[mask]
         self._prev_done = self._prev_done & ~mask
         self._plain = self.engine.plain
         obs, over = self.engine.observe(self._y)
@@ -179,6 +186,18 @@ class RigidBodyVectorEnv(VectorEnv):
         self._last_h = np.full(n, self.engine.h)
         info = self._info(self._y, None, self._false, self._false, self._zero_metrics())
         return obs, info
+
+    def _elapsed_steps(self, elapsed) -> np.ndarray:
+        """``options["elapsed_steps"]`` checked: integers of shape ``(num_envs,)`` in
+        ``[0, max_episode_steps)`` (the env needs a time limit)."""
+        if self.max_episode_steps is None:
+            raise ValueError("options['elapsed_steps'] needs a time limit (max_episode_steps)")
+        k = np.asarray(elapsed)
+        if k.shape != (self.num_envs,) or not np.issubdtype(k.dtype, np.integer):
+            raise ValueError(f"options['elapsed_steps'] must be an integer array of shape ({self.num_envs},), got {k.dtype} {k.shape}")
+        if k.min() < 0 or k.max() >= self.max_episode_steps:
+            raise ValueError(f"options['elapsed_steps'] must lie in [0, max_episode_steps) = [0, {self.max_episode_steps}), got [{k.min()}, {k.max()}]")
+        return k.astype(np.int64)
 
     def _zero_metrics(self):
         """The task's metrics of the current states (as after a reset: no action yet)."""
