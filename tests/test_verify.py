@@ -92,20 +92,19 @@ class FlippedGravity(ht.HeavyTop):
     """A simulator whose gravity pulls up: torque ``-M g l Gamma x chi`` in rhs and kick alike."""
 
     def __init__(self, params, attitude=False):
-        super().__init__(params, attitude)
+        # built on the broken parameters: the pure forms (rhs, kick) take them at construction
         flipped = dataclasses.replace(params)
         object.__setattr__(flipped, "weight", tuple(-w for w in params.weight))
-        self.params = flipped
+        super().__init__(flipped, attitude)
 
 
 class HeavierTop(ht.HeavyTop):
     """A simulator whose gravity torque is 10% too strong (a wrong ``M g l``, say)."""
 
     def __init__(self, params, attitude=False):
-        super().__init__(params, attitude)
         heavier = dataclasses.replace(params)
         object.__setattr__(heavier, "weight", tuple(1.1 * w for w in params.weight))
-        self.params = heavier
+        super().__init__(heavier, attitude)
 
 
 @pytest.mark.parametrize("integrator", ["rk4", "splitting"])

@@ -12,6 +12,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
+import numpy as np
+
 from ..contracts import Actuator, HybridSystem, Integrator, StepRegion, System, Task, require_parts
 from .guard import StepRule
 
@@ -29,7 +31,7 @@ class Model:
     * ``speed_ceiling``: an upper bound of ``|Omega|`` inside those bounds (``inf``: unknown),
       which lets a guard prove it never needs more than ``substeps`` steps;
     * ``step_rule`` (derived): the guard's rule from the system's rates and the integrator's
-      region.
+      region; ``system_draws`` (derived): how many numbers the system adds to a start.
     """
 
     system: object
@@ -42,6 +44,7 @@ class Model:
     observation_high: tuple
     speed_ceiling: float = math.inf
     step_rule: StepRule = field(init=False)
+    system_draws: int = field(init=False)
 
     def __post_init__(self):
         # the contracts, checked once: a missing piece is an error here, not a silent change
@@ -52,6 +55,7 @@ class Model:
         region: StepRegion = self.integrator.region
         rates = self.system.guard_rates(region, self.speed_ceiling)
         object.__setattr__(self, "step_rule", StepRule.build(rates, region, self.dt, self.guard))
+        object.__setattr__(self, "system_draws", len(self.system.start_draws(np.random.default_rng(0))))
 
     @property
     def h(self) -> float:
@@ -62,6 +66,17 @@ class Model:
         """The generator's numbers for one start: ``(the task's, the system's)`` (the heavy top
         adds a heading where it carries the attitude). Only these run per sub-env of a batch."""
         return self.task.initial_draws(rng), self.system.start_draws(rng)
+
+    def batch_draws(self, rngs) -> tuple:
+        """The draws of many starts, one generator each (``initial_draws`` per generator, in its
+        order), stacked along axis 1: ``(the task's, the system's)``. A system that adds no draws
+        is not asked (an empty draw consumes nothing: the streams are the same)."""
+        task = np.stack([self.task.initial_draws(rng) for rng in rngs], axis=1)
+        if self.system_draws:
+            system = np.stack([self.system.start_draws(rng) for rng in rngs], axis=1)
+        else:
+            system = np.empty((0, len(rngs)))
+        return task, system
 
     def initial_from_draws(self, task_draws, system_draws) -> tuple:
         """A start's components from its draws (floats, or rows of a batch: the draws of many

@@ -212,15 +212,16 @@ class RigidBodyVectorEnv(VectorEnv):
         Sub-env ``i`` gets the state a single env draws from the same generator (tested)."""
         if len(idx) == 0:
             return
-        draws = [self.model.initial_draws(self._rngs[i]) for i in idx]
-        task_raw = np.stack([d[0] for d in draws], axis=1)
-        system_raw = np.stack([d[1] for d in draws], axis=1)
+        task_raw, system_raw = self.model.batch_draws([self._rngs[i] for i in idx])
         comps = self.model.initial_from_draws(tuple(task_raw), tuple(system_raw))
+        if self._y2d is not None:  # the rows of the kernel's (dim, n) state, which self._y views
+            for j, v in enumerate(comps):
+                self._y2d[j, idx] = v
+            return
         y = [c.copy() for c in self._y] if self._y is not None else [np.zeros(self.num_envs) for _ in range(self.system.dim)]
         for c, v in zip(y, comps):
             c[idx] = v
         self._y = tuple(y)
-        self._y2d = None
 
     def _rows_from_state(self, state, mask) -> dict:
         if not isinstance(state, dict):
