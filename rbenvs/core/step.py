@@ -87,7 +87,7 @@ def action_columns(actions, shape) -> tuple:
 
 def terminal_reason(failed, fired, over, terminated, event_name):
     """Why an episode ended: ``numerical_failure`` over the event over ``observation_limit``
-    over ``task``; for one env a string or ``None``, for a batch an object array of strings
+    over ``task``; for one env a string or ``None``, for a batch an array of strings
     (``""`` where the episode goes on)."""
     if not isinstance(over, np.ndarray):
         if failed:
@@ -97,7 +97,8 @@ def terminal_reason(failed, fired, over, terminated, event_name):
         if over:
             return "observation_limit"
         return "task" if terminated else None
-    reason = np.full(np.shape(over), "", dtype=object)
+    # a fixed-width string array (its items are str): no Python object per sub-env to make
+    reason = np.full(np.shape(over), "", dtype=f"<U{max(len('numerical_failure'), len(event_name or ''))}")
     reason[terminated] = "task"
     reason[over] = "observation_limit"
     reason[fired] = event_name or ""
