@@ -107,6 +107,7 @@ class Layout(NamedTuple):
     dissipation: Callable | None = None
     event: Callable | None = None
     rhs_event: Callable | None = None
+    switches: tuple = ()
 
 
 def _count_lines(L: Layout, u: str) -> list[str]:
@@ -119,6 +120,63 @@ def _count_lines(L: Layout, u: str) -> list[str]:
         # v > x: Python's max(x, v), the float path's (NaN in x stays NaN)
         lines += [u, "rate = dissipation(PD, y, u)", "if rate > 0.0:", "    v = dt / (CD / rate)", "    if v > x:", "        x = v"]
     return lines + ["if not (x <= substeps):", f"    c = ceil(x) if x <= {MAX_INTERNAL_STEPS} else {MAX_INTERNAL_STEPS + 1}", "    need += 1"]
+
+
+def _locate_lines(k: int) -> list[str]:
+    """Lines of :func:`rbenvs.core.hybrid.locate` for switch ``k``, inline (the same operations
+    in the same order): from ``yp`` (``g >= 0``) to ``y`` (``g = fe < 0``) over ``hi``, the
+    first time ``t`` and state ``ya`` where ``function_k`` turns negative."""
+    from .core.hybrid import EPS, LOCATE_ITERATIONS
+
+    return [
+        "a = 0.0",
+        f"fa = function{k}(PW[{k}][0], yp, u)",
+        "b = hi",
+        "fb = fe",
+        "yb = y",
+        "wa = fa",
+        "wb = fb",
+        "side = 0",
+        f"for it in range({LOCATE_ITERATIONS}):",
+        f"    if fb >= -PW[{k}][1] or b - a <= 4.0 * {EPS!r} * hi:",
+        "        break",
+        "    t = (a * wb - b * wa) / (wb - wa)",
+        "    if not a < t < b:",
+        "        t = 0.5 * (a + b)",
+        "    yt = step(PS, yp, u, t)",
+        f"    ft = function{k}(PW[{k}][0], yt, u)",
+        "    if ft < 0.0:",
+        "        b, fb, yb, wb = t, ft, yt, ft",
+        "        if side == -1:",
+        "            wa *= 0.5",
+        "        side = -1",
+        "    else:",
+        "        a, fa, wa = t, ft, ft",
+        "        if side == 1:",
+        "            wb *= 0.5",
+        "        side = 1",
+        "t, ya = b, yb",
+    ]
+
+
+def _switch_lines(L: Layout) -> list[str]:
+    """Lines after an internal step ``yp -> y`` of length ``hi``: the first switch that applies
+    to ``yp``'s mode, located inside the step where its function turned negative, made, and the
+    rest of the step taken in the new mode (:meth:`rbenvs.core.hybrid.Switching.after_step`)."""
+    lines = []
+    for k in range(len(L.switches)):
+        lines += [
+            f"{'if' if k == 0 else 'elif'} applies{k}(yp):",
+            f"    fe = function{k}(PW[{k}][0], y, u)",
+            "    if fe < 0.0:",
+            f"        if function{k}(PW[{k}][0], yp, u) < 0.0:",
+            "            t, ya = 0.0, yp",
+            "        else:",
+            *("            " + line for line in _locate_lines(k)),
+            f"        ys = switch{k}(PW[{k}][2], ya)",
+            "        y = step(PS, ys, u, hi - t) if t < hi else ys",
+        ]
+    return lines
 
 
 def _period_lines(L: Layout) -> list[str]:
@@ -158,6 +216,8 @@ def _period_lines(L: Layout) -> list[str]:
             "            f = True",
             "            break",
         ]
+    elif L.switches:
+        lines += ["    for k in range(c):", "        yp = y", "        y = step(PS, y, u, hi)", *("        " + line for line in _switch_lines(L))]
     else:
         lines += ["    for k in range(c):", "        y = step(PS, y, u, hi)"]
     return lines
@@ -169,12 +229,16 @@ def _namespace(L: Layout) -> dict:
     from .core.guard import step_ratio
 
     _register_all()
-    for fn in (L.step, L.observe, L.evaluate, L.readouts, L.rotation, L.dissipation, L.event, L.rhs_event):
+    switch_fns = [fn for triple in L.switches for fn in triple]
+    for fn in (L.step, L.observe, L.evaluate, L.readouts, L.rotation, L.dissipation, L.event, L.rhs_event, *switch_fns):
         if fn is not None:
             _register(fn)
-    return {"step": L.step, "observe": L.observe, "evaluate": L.evaluate, "readouts": L.readouts, "rotation": L.rotation,
-            "dissipation": L.dissipation, "event": L.event, "rhs_event": L.rhs_event, "step_ratio": step_ratio, "isfinite": isfinite, "ceil": ceil,
-            "nan": nan}
+    namespace = {"step": L.step, "observe": L.observe, "evaluate": L.evaluate, "readouts": L.readouts, "rotation": L.rotation,
+                 "dissipation": L.dissipation, "event": L.event, "rhs_event": L.rhs_event, "step_ratio": step_ratio, "isfinite": isfinite,
+                 "ceil": ceil, "nan": nan}
+    for k, (applies, function, switch) in enumerate(L.switches):
+        namespace.update({f"applies{k}": applies, f"function{k}": function, f"switch{k}": switch})
+    return namespace
 
 
 @lru_cache(maxsize=None)
@@ -182,7 +246,7 @@ def batch_kernel(layout: Layout):
     """The compiled step of a batch for one :class:`Layout` (cached per process). Signature::
 
         kernel(Y, Ynew, U, UN, h, dt, substeps, check, refuse, skip, PS, PO, PE, PR, PG, PA, PD,
-               CD, PV, HI, counts, hstep, fired, obs, over, reward, terminated, M_1..M_k,
+               CD, PV, PW, HI, counts, hstep, fired, obs, over, reward, terminated, M_1..M_k,
                R_1..R_m) -> status
 
     ``Y``/``Ynew``: ``(dim, n)`` float64 states before/after; ``U``/``UN``: tuples of ``(n,)``
@@ -210,7 +274,7 @@ def batch_kernel(layout: Layout):
     comps, dim = _comps, L.dim
     metrics = [f"M{j}" for j in range(L.n_metrics)]
     reads = [f"R{j}" for j in range(L.n_readouts)]
-    args = ["Y", "Ynew", "U", "UN", "h", "dt", "substeps", "check", "refuse", "skip", "PS", "PO", "PE", "PR", "PG", "PA", "PD", "CD", "PV", "HI",
+    args = ["Y", "Ynew", "U", "UN", "h", "dt", "substeps", "check", "refuse", "skip", "PS", "PO", "PE", "PR", "PG", "PA", "PD", "CD", "PV", "PW", "HI",
             "counts", "hstep", "fired", "obs", "over", "reward", "terminated"] + metrics + reads
     y_old = f"y = ({comps('Y[{j}, i]', dim)})"
     y_new = f"y = ({comps('Ynew[{j}, i]', dim)})"
@@ -228,7 +292,7 @@ def batch_kernel(layout: Layout):
     per_env = ["for i in range(n):", "    " + y_old, "    " + u, "    c = counts[i]", *("    " + line for line in _period_lines(L))]
     per_env += [*("    " + line for line in store), "    hstep[i] = hi", "    fired[i] = f"]
     simd = [line[4:] for line in _physics_lines(dim, L.n_control)] + ["for i in range(n):", "    hstep[i] = h", "    fired[i] = False"]
-    if L.event is None and L.rhs_event is None:
+    if L.event is None and L.rhs_event is None and not L.switches:
         lines += ["    if uniform:", *("        " + line for line in simd), "    else:", *("        " + line for line in per_env)]
     else:
         lines += ["    " + line for line in per_env]
@@ -283,7 +347,7 @@ def state_kernel(layout: Layout):
 
         one(y, u, un, check, refuse, P) -> (status, count, h, fired, y, obs, over, r, q)
 
-    ``P = (h, dt, substeps, PS, PO, PE, PR, PG, PA, PD, CD, PV, HI)`` (:meth:`StateStep`);
+    ``P = (h, dt, substeps, PS, PO, PE, PR, PG, PA, PD, CD, PV, PW, HI)`` (:class:`StateStep`);
     ``status`` 0, 1 (the new state is non-finite: the caller's failure path takes over) or -1
     (``refuse`` and the guard asks for ``count > substeps`` steps: nothing was run); ``obs``
     the observation clipped to ``HI``, ``over`` whether it was outside; ``r`` the task's
@@ -296,7 +360,7 @@ def state_kernel(layout: Layout):
     comps = _comps
     lines = [
         "def one(y, u, un, check, refuse, P):",
-        "    h, dt, substeps, PS, PO, PE, PR, PG, PA, PD, CD, PV, HI = P",
+        "    h, dt, substeps, PS, PO, PE, PR, PG, PA, PD, CD, PV, PW, HI = P",
         "    c = substeps",
         "    need = 0",
     ]
@@ -322,6 +386,14 @@ def state_kernel(layout: Layout):
     return numba.njit(error_model="numpy")(namespace["one"])
 
 
+def _switch_parts(parts) -> tuple:
+    """``(layout triples, PW)`` from :attr:`KernelParts.switches` (``(applies, (function, P),
+    tolerance, (switch, P))`` each)."""
+    triples = tuple((applies, function[0], switch[0]) for applies, function, tolerance, switch in parts.switches)
+    pw = tuple((function[1], float(tolerance), switch[1]) for applies, function, tolerance, switch in parts.switches)
+    return triples, pw
+
+
 class StateStep:
     """One env's compiled single-state step: :func:`state_kernel` of its layout, its
     parameters, and a ``(readouts, metrics, h) -> info`` function. Calling it returns the
@@ -339,10 +411,11 @@ class StateStep:
             rhs_event, pv = parts.rhs_event
         n_metrics = len(evaluate(pe, tuple(sample), (0.0,) * n_action)) - 2
         n_readouts = len(readouts(pr, tuple(sample), (0.0,) * n_control, False))
-        layout = Layout(step, dim, n_control, n_action, observe, n_obs, evaluate, n_metrics, readouts, n_readouts, rotation, dissipation, event, rhs_event)
+        switches, pw = _switch_parts(parts)
+        layout = Layout(step, dim, n_control, n_action, observe, n_obs, evaluate, n_metrics, readouts, n_readouts, rotation, dissipation, event, rhs_event, switches)
         self.kernel = state_kernel(layout)
         high = tuple(float(v) for v in obs_high)
-        self.params = (float(h), float(dt), int(substeps), ps, po, pe, pr, parts.guard_params, pa, pd, float(parts.dissipation_step), pv, high)
+        self.params = (float(h), float(dt), int(substeps), ps, po, pe, pr, parts.guard_params, pa, pd, float(parts.dissipation_step), pv, pw, high)
         self.info = info_function(tuple(readout_names), tuple(metric_names))
         self._call = None
 
@@ -451,9 +524,10 @@ class BatchStep:
         # each metric's array type from its value on a float state (a bool stays a bool)
         self.metric_dtypes = tuple(np.bool_ if isinstance(v, (bool, np.bool_)) else np.float64 for v in values[2:])
         self.readout_dtypes = tuple(np.bool_ if isinstance(v, (bool, np.bool_)) else (np.int64 if isinstance(v, (int, np.integer)) else np.float64) for v in physical)
-        layout = Layout(step, dim, n_control, n_action, observe, n_obs, evaluate, self.n_metrics, readouts, self.n_readouts, rotation, dissipation, event, rhs_event)
+        switches, pw = _switch_parts(parts)
+        layout = Layout(step, dim, n_control, n_action, observe, n_obs, evaluate, self.n_metrics, readouts, self.n_readouts, rotation, dissipation, event, rhs_event, switches)
         self.kernel = batch_kernel(layout)
-        self.params = (ps, po, pe, pr, parts.guard_params, pa, pd, float(parts.dissipation_step), pv)
+        self.params = (ps, po, pe, pr, parts.guard_params, pa, pd, float(parts.dissipation_step), pv, pw)
         self.high = np.asarray(obs_high, dtype=np.float64)
         self.n_obs = n_obs
         self.dt = float(dt) if dt is not None else None
@@ -476,10 +550,10 @@ class BatchStep:
         counts = np.empty(n, dtype=np.int64)
         metrics = tuple(np.empty(n, dtype=t) for t in self.metric_dtypes)
         readouts = tuple(np.empty(n, dtype=t) for t in self.readout_dtypes)
-        ps, po, pe, pr, pg, pa, pd, cd, pv = self.params
+        ps, po, pe, pr, pg, pa, pd, cd, pv, pw = self.params
         if skip is None:
             skip = np.zeros(n, dtype=bool)
         dt = self.dt if self.dt is not None else h * substeps
-        status = self.kernel(Y, Ynew, u, u_norm, h, dt, substeps, check, refuse, skip, ps, po, pe, pr, pg, pa, pd, cd, pv, self.high,
+        status = self.kernel(Y, Ynew, u, u_norm, h, dt, substeps, check, refuse, skip, ps, po, pe, pr, pg, pa, pd, cd, pv, pw, self.high,
                              counts, hstep, fired, obs, over, reward, terminated, *metrics, *readouts)
         return BatchResult(Ynew, status, obs, over, reward, terminated, metrics, readouts, fired, hstep, counts)

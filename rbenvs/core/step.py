@@ -466,13 +466,18 @@ class Engine:
         """What :class:`rbenvs.compiled.BatchStep` needs to run this model's period and finish on
         a batch (:class:`KernelParts`), or ``None`` where a part has no pure form (the batch then
         runs on numpy): the integrator's pure step, the task's observation and evaluation, the
-        system's read-outs, the guard's rates where a check can be needed, and the terminal
-        event of a hybrid system. Hybrid switching (free flight) does not compile (yet)."""
+        system's read-outs, the guard's rates, and a hybrid system's terminal event or switches
+        (free flight)."""
         system, task = self.system, self.task
         step = self.integrator.kernel_step(system)
         readouts = system.kernel_readouts
-        if step is None or task.kernels is None or readouts is None or self.switching is not None:
+        if step is None or task.kernels is None or readouts is None:
             return None
+        switches = ()
+        if self.switching is not None:  # hybrid switching: the system's switches in pure forms
+            switches = getattr(system, "kernel_switches", None)
+            if switches is None:
+                return None
         event = rhs_event = None
         if self.event is not None:
             event = getattr(system, "kernel_event", None)
@@ -492,7 +497,7 @@ class Engine:
         if rule.active:  # checked only where asked (a period that may not take the plain loop)
             rotation, dissipation = rule.rotation, rule.dissipation
         observe, evaluate = task.kernels(system)
-        return KernelParts(step, observe, evaluate, readouts, rotation, rule.params, dissipation, rule.dissipation_step, event, rhs_event)
+        return KernelParts(step, observe, evaluate, readouts, rotation, rule.params, dissipation, rule.dissipation_step, event, rhs_event, tuple(switches))
 
 
 class KernelParts(NamedTuple):
@@ -503,7 +508,10 @@ class KernelParts(NamedTuple):
     :func:`rbenvs.core.guard.step_ratio`), its ``dissipation`` rate (or ``None``) with
     ``dissipation_step`` (``h <= c / lambda_d``), the terminal ``event`` (or ``None``; it fires
     where its value is negative) and ``rhs_event``, the vector field and the event's value from
-    one evaluation (then ``step`` takes its first stage: ``step(PS, y, k0, u, h)``), or ``None``."""
+    one evaluation (then ``step`` takes its first stage: ``step(PS, y, k0, u, h)``), or ``None``;
+    ``switches``: a hybrid system's switches, ``(applies, (function, P), tolerance, (switch, P))``
+    each (``kernel_switches``), made after every internal step as :mod:`rbenvs.core.hybrid`
+    makes them."""
 
     step: tuple
     observe: tuple
@@ -515,3 +523,4 @@ class KernelParts(NamedTuple):
     dissipation_step: float
     event: tuple | None
     rhs_event: tuple | None = None
+    switches: tuple = ()
