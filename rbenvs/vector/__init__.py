@@ -342,9 +342,10 @@ class RigidBodyVectorEnv(VectorEnv):
         obs = obs.copy()
         obs[idx] = self.engine.observe(y)[0]
         for key, value in self._reset_info(y).items():
-            column = np.array(info[key])  # a copy: info's arrays may be shared masks or the env's own
+            column = info[key]
+            if not column.flags.writeable:  # a shared mask (info's other arrays are this step's own)
+                column = info[key] = column.copy()
             column[idx] = value
-            info[key] = column
         if "terminal_reason" in info:
             info["terminal_reason"] = np.where(which, "", info["terminal_reason"])
             info["_terminal_reason"] = info["_terminal_reason"] & ~which
