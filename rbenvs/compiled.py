@@ -166,7 +166,7 @@ def _switch_lines(L: Layout) -> list[str]:
     lines = []
     for k in range(len(L.switches)):
         lines += [
-            f"{'if' if k == 0 else 'elif'} applies{k}(yp):",
+            f"{'if' if k == 0 else 'elif'} applies{k}(PW[{k}][3], yp):",
             f"    fe = function{k}(PW[{k}][0], y, u)",
             "    if fe < 0.0:",
             f"        if function{k}(PW[{k}][0], yp, u) < 0.0:",
@@ -387,10 +387,10 @@ def state_kernel(layout: Layout):
 
 
 def _switch_parts(parts) -> tuple:
-    """``(layout triples, PW)`` from :attr:`KernelParts.switches` (``(applies, (function, P),
+    """``(layout triples, PW)`` from :attr:`KernelParts.switches` (``((applies, P), (function, P),
     tolerance, (switch, P))`` each)."""
-    triples = tuple((applies, function[0], switch[0]) for applies, function, tolerance, switch in parts.switches)
-    pw = tuple((function[1], float(tolerance), switch[1]) for applies, function, tolerance, switch in parts.switches)
+    triples = tuple((applies[0], function[0], switch[0]) for applies, function, tolerance, switch in parts.switches)
+    pw = tuple((function[1], float(tolerance), switch[1], applies[1]) for applies, function, tolerance, switch in parts.switches)
     return triples, pw
 
 

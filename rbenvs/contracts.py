@@ -185,8 +185,8 @@ class HybridSystem(System, Protocol):
     ``g < 0``: the tippe top's normal force); ``kernel_rhs_event = (fn, P)``, ``fn(P, y, u) ->
     (dy, g)``, the vector field and that value from one evaluation (one contact solve), so that
     the check at a new state serves as the next step's first stage; ``kernel_switches``: the
-    switches of :meth:`events` as ``(applies, (function, P), tolerance, (switch, P))`` with
-    ``applies(y) -> bool``, ``function(P, y, u) -> g`` and ``switch(P, y) -> y`` pure (or
+    switches of :meth:`events` as ``((applies, P), (function, P), tolerance, (switch, P))`` with
+    ``applies(P, y) -> bool``, ``function(P, y, u) -> g`` and ``switch(P, y) -> y`` pure (or
     ``None``: switching then runs on numpy).
     """
 

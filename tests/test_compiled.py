@@ -220,6 +220,16 @@ COMPILED_MORE = [
     (LAGRANGE, dict(integrator="splitting", task="precess", spin=(20.0, 30.0), spin_friction=0.01), 5, 17),
     (LAGRANGE, dict(integrator="splitting", inertia=(0.5, 0.45, 0.3), com_direction=(0.1, 0.0, 1.0), spin=(0.0, 3.0), attitude=True), 5, 17),
     (LAGRANGE, dict(integrator="rk4", inertia=(0.5, 0.45, 0.3), com_direction=(0.1, 0.0, 1.0), spin=(0.0, 3.0), spin_friction=0.02), 5, 17),
+    # the tippe top: every fidelity and law, the guard's own count per sub-env, actions on the
+    # friction and a torque, the lift-off ending episodes, free flight with hops
+    (TIPPE, dict(spin=(100.0, 200.0)), 3, 7),
+    (TIPPE, dict(fidelity="frictionless", spin=(100.0, 200.0)), 4, 10),
+    (TIPPE, dict(fidelity="rolling", task="hold", torque_action=True), 4, 10),
+    (TIPPE, dict(friction_law="viscous", integrator="euler"), 4, 10),
+    (TIPPE, dict(spin=(120.0, 160.0), friction_action=True, torque_action=True), 3, 5),
+    (TIPPE, dict(spin=2000.0, max_speed=50.0), 20, 20),  # lift-off ends the episodes
+    (TIPPE, dict(free_flight=True, spin=2000.0, max_speed=50.0), 6, 12),  # hops
+    (TIPPE, dict(free_flight=True, fidelity="frictionless", spin=(1500.0, 2500.0), max_speed=60.0, friction_law="viscous"), 6, 12),
 ]
 
 
@@ -272,7 +282,7 @@ def test_more_compiled_settings_equal_the_numpy_path(env_id, kwargs, max_steps, 
         (FREE, dict(integrator="exact")),  # elliptic functions: no pure form
         (FREE, dict(integrator="dop853")),  # an adaptive solve
         (LAGRANGE, dict(integrator="dop853")),
-        (TIPPE, dict()),
+        (TIPPE, dict(integrator="dop853")),
     ],
 )
 def test_settings_without_a_kernel_run_on_numpy_and_say_why(env_id, kwargs):
@@ -322,6 +332,11 @@ SINGLE = [
     (LAGRANGE, dict(integrator="rk4", task="precess", attitude=True), 30, 90),
     (LAGRANGE, dict(integrator="euler", axial_torque=True, spin=(5.0, 15.0), attitude=True), 30, 60),
     (LAGRANGE, dict(integrator="splitting", inertia=(0.5, 0.45, 0.3), com_direction=(0.1, 0.0, 1.0), spin=(0.0, 3.0), spin_friction=0.02), 30, 60),
+    (TIPPE, dict(), 30, 40),
+    (TIPPE, dict(fidelity="rolling", task="hold", torque_action=True), 10, 30),
+    (TIPPE, dict(friction_law="viscous", integrator="euler", friction_action=True), 10, 30),
+    (TIPPE, dict(spin=2000.0, max_speed=50.0), 30, 40),  # lift-off ends the episodes
+    (TIPPE, dict(free_flight=True, spin=2000.0, max_speed=50.0), 30, 40),  # hops
 ]
 
 
@@ -389,3 +404,27 @@ def test_single_env_compiled_argument():
     assert not env.unwrapped.compiled
     with pytest.raises(ValueError, match="compiled=True but .*no compiled step|compiled=True but numba"):
         gym.make(FREE, integrator="exact", compiled=True)
+
+
+@needs_numba
+def test_compiled_tippe_top_crosses_lift_offs_and_hops():
+    """The tippe-top settings above do exercise the kernel's event and switches: without free
+    flight lift-offs end episodes (``terminal_reason == "lift_off"``, ``lifted_off`` set); with
+    it the tops hop (``hops`` counts, ``airborne`` is seen) and no episode ends at a lift-off."""
+    venv = make_vec(TIPPE, 4, spin=2000.0, max_speed=50.0, max_episode_steps=20, compiled=True)
+    assert venv.unwrapped.compiled
+    venv.reset(seed=0)
+    reasons = set()
+    for _ in range(20):
+        info = venv.step(np.zeros((4, 2), dtype=np.float32))[4]
+        reasons |= set(info.get("terminal_reason", []))
+    assert "lift_off" in reasons
+    venv = make_vec(TIPPE, 4, free_flight=True, spin=2000.0, max_speed=50.0, max_episode_steps=40, compiled=True)
+    venv.reset(seed=0)
+    airborne = hops = 0
+    for _ in range(12):
+        info = venv.step(np.zeros((4, 2), dtype=np.float32))[4]
+        airborne += int(info["airborne"].sum())
+        hops = max(hops, int(info["hops"].max()))
+        assert "lift_off" not in set(info.get("terminal_reason", []))
+    assert airborne > 0 and hops >= 3, (airborne, hops)

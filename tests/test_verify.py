@@ -209,11 +209,25 @@ class WrongImpact(tp.TippeTop):
 
 class FlippedContactArm(tp.TippeTop):
     """A simulator with the centre of mass on the wrong side of the centre: ``r = -h e3 - a Gamma``
-    (``G = O + h k``) in the dynamics, while the read-outs and the oracles keep ``G = O - h k``."""
+    (``G = O + h k``) in the dynamics (the vector field, its contact solve and the lift-off's
+    normal force, floats and compiled alike: their pure forms get ``-h``), while the read-outs and
+    the oracles keep ``G = O - h k``."""
 
-    def _contact_arm(self, g1, g2, g3):
-        a, h = self.params.radius, self.params.height
-        return -a * g1, -a * g2, -h - a * g3
+    @tp.TippeTop.params.setter
+    def params(self, params):
+        tp.TippeTop.params.fset(self, params)
+        i = tp.PURE_PARAMETERS.index("height")
+        flipped = self.form_params[:i] + (-self.form_params[i],) + self.form_params[i + 1 :]
+        for name in ("kernel_rhs", "kernel_rhs_normal", "kernel_normal", "kernel_event", "kernel_rhs_event"):
+            if getattr(self, name) is not None:
+                setattr(self, name, (getattr(self, name)[0], flipped))
+        self._flipped = flipped
+
+    def _contact(self, y, u):  # the methods' solve (the guard's rate, the hybrid layer's events)
+        return self.forms.contact(self._flipped, y, u)
+
+    def rhs(self, y, u):
+        return self.kernel_rhs[0](self._flipped, y, u)
 
 
 def tippe_rows(checks, word):

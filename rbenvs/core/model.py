@@ -57,6 +57,12 @@ class Model:
         object.__setattr__(self, "step_rule", StepRule.build(rates, region, self.dt, self.guard))
         object.__setattr__(self, "system_draws", len(self.system.start_draws(np.random.default_rng(0))))
 
+    def __reduce__(self):
+        """Pickled as its parts and settings; the derived rule is made again on loading (it holds
+        the system's pure forms, which may be functions made at run time)."""
+        return (Model, (self.system, self.task, self.integrator, self.actuator, self.dt, self.substeps, self.guard, self.observation_high,
+                        self.speed_ceiling))
+
     @property
     def h(self) -> float:
         """The internal step of a period of ``substeps`` steps [s]."""

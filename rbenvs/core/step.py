@@ -129,6 +129,16 @@ class Engine:
         self.event = system.terminal_event() if system.hybrid else None
         self.event_name = None if self.event is None else self.event[0]
         self.switching = Switching(system, m.integrator) if system.hybrid and system.switches else None
+        # where the system gives the vector field and the event's value from one evaluation and
+        # the scheme takes its first stage, the check at a new state is the next first stage
+        # (the tippe top's lift-off: one contact solve per stage instead of one more per step)
+        self.shared = None
+        if self.event is not None:
+            rhs_event = getattr(system, "kernel_rhs_event", None)
+            first = getattr(m.integrator, "kernel_step_first_stage", None)
+            first = first(system) if rhs_event is not None and first is not None else None
+            if first is not None:
+                self.shared = (first, rhs_event)
         # the plain loop (substeps equal steps, nothing watched) is exact when no state inside
         # the observation bounds can trip the guard; a step that ends outside them drops to the
         # checked path until the next reset (the single env's and the vector env's rule)
@@ -209,6 +219,17 @@ class Engine:
                 # failure, reported with h = dt / n), at once, never a hang
                 return tuple(math.nan for _ in y), False, self.dt / n
             h = self.h if n == self.substeps else self.dt / n
+            if self.shared is not None:
+                (first, ps), (rhs_event, pv) = self.shared
+                k, g = rhs_event(pv, y, u)
+                for _ in range(n):
+                    y = first(ps, y, k, u, h)
+                    if not all(math.isfinite(c) for c in y):
+                        return y, False, h
+                    k, g = rhs_event(pv, y, u)
+                    if g < 0.0:
+                        return y, True, h
+                return y, False, h
             step = self.bound_step  # integ.step with the system bound (the same bits)
             for _ in range(n):
                 y_prev, y = y, step(y, u, h)
@@ -264,6 +285,22 @@ class Engine:
                     y = post.after_step(y_prev, y, u, h)
             return y, fired
         active = np.ones(n.shape, dtype=bool)
+        if self.shared is not None:  # (the event's evaluation is the next first stage, as above)
+            (first, ps), (rhs_event, pv) = self.shared
+            kk, _ = rhs_event(pv, y, u)
+            for k in range(int(n.max())):
+                y_new = first(ps, y, kk, u, h)
+                kk_new, g = rhs_event(pv, y_new, u)
+                active &= k < n
+                with np.errstate(invalid="ignore"):
+                    hit = active & (g < 0.0)
+                y = tuple(np.where(active, c_new, c) for c_new, c in zip(y_new, y))
+                kk = tuple(np.where(active, c_new, c) for c_new, c in zip(kk_new, kk))
+                fired |= hit
+                active &= ~hit
+                if not np.any(active):
+                    break
+            return y, fired
         for k in range(int(n.max())):
             y_new = step(y, u, h)
             if post is not None:
@@ -509,7 +546,7 @@ class KernelParts(NamedTuple):
     ``dissipation_step`` (``h <= c / lambda_d``), the terminal ``event`` (or ``None``; it fires
     where its value is negative) and ``rhs_event``, the vector field and the event's value from
     one evaluation (then ``step`` takes its first stage: ``step(PS, y, k0, u, h)``), or ``None``;
-    ``switches``: a hybrid system's switches, ``(applies, (function, P), tolerance, (switch, P))``
+    ``switches``: a hybrid system's switches, ``((applies, P), (function, P), tolerance, (switch, P))``
     each (``kernel_switches``), made after every internal step as :mod:`rbenvs.core.hybrid`
     makes them."""
 

@@ -7,6 +7,11 @@ guard must resolve with an explicit scheme. Adding a law is one class here and o
 :data:`FRICTION_LAWS`; the tippe top (:mod:`rbenvs.dynamics.tippe_top`), its env's
 ``friction_law=`` choices and its step guard read them from there.
 
+Each law of the package is written as two pure functions (:func:`rbenvs.jit.jitable`), its
+``kernel_coefficient`` and ``kernel_stiffness``, which its methods call: the tippe top builds its
+own pure forms around them, so a compiled kernel calls the law as the single env does. A law
+defined with the two methods alone (no pure functions) works on floats and arrays, not compiled.
+
 Components are floats (one state) or arrays of one batch shape; the coefficient ``mu`` may be
 either too (a friction coefficient set by the action, per sub-env).
 """
@@ -15,28 +20,90 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from ..jit import jitable
 from ..rotations import sqrt
 
-__all__ = ["FrictionLaw", "Coulomb", "Viscous", "FRICTION_LAWS"]
+__all__ = [
+    "FrictionLaw",
+    "Coulomb",
+    "Viscous",
+    "FRICTION_LAWS",
+    "coulomb_coefficient",
+    "coulomb_stiffness",
+    "viscous_coefficient",
+    "viscous_stiffness",
+    "no_friction",
+]
+
+
+@jitable
+def coulomb_coefficient(mu, s1, s2, s3, eps):
+    """Regularised Coulomb: ``k = -mu / sqrt(|s|^2 + eps^2)`` (seed 2, 3.96)."""
+    return -mu / sqrt(s1 * s1 + s2 * s2 + s3 * s3 + eps * eps)
+
+
+@jitable
+def coulomb_stiffness(mu, normal, mobility, eps):
+    """Regularised Coulomb near zero slip: ``mu N |M| / eps`` [1/s]."""
+    return mu * normal * mobility / eps
+
+
+@jitable
+def viscous_coefficient(mu, s1, s2, s3, eps):
+    """Viscous: ``k = -mu`` (``mu`` in s/m)."""
+    return -mu
+
+
+@jitable
+def viscous_stiffness(mu, normal, mobility, eps):
+    """Viscous: ``mu N |M|`` [1/s]."""
+    return mu * normal * mobility
+
+
+@jitable
+def no_friction(mu, s1, s2, s3, eps):
+    """``k = 0``: a contact without friction (the tippe top's ``frictionless`` level)."""
+    return 0.0
 
 
 @dataclass(frozen=True)
 class FrictionLaw:
-    """Base class: ``name`` (the ``friction_law=`` value) and the two methods below."""
+    """Base class: ``name`` (the ``friction_law=`` value) and the two methods below, which call
+    the law's pure functions ``kernel_coefficient`` and ``kernel_stiffness`` (class attributes,
+    ``staticmethod`` of a :func:`~rbenvs.jit.jitable` function; ``None``: a law given by its
+    methods alone, which compiled code cannot call)."""
 
     name = "base"
+    kernel_coefficient = None
+    kernel_stiffness = None
 
     def coefficient(self, mu, s1, s2, s3, eps):
         """``k`` with ``F = N k (s1, s2, s3)``, ``(s1, s2, s3)`` the slip velocity [m/s] and
         ``eps`` the slip regularisation [m/s]."""
-        raise NotImplementedError
+        if self.kernel_coefficient is None:
+            raise NotImplementedError
+        return self.kernel_coefficient(mu, s1, s2, s3, eps)
 
     def stiffness(self, mu, normal, mobility, eps):
         """``lambda_d`` [1/s]: the slip's relaxation rate near zero slip under normal force
         ``normal`` [N] with contact mobility ``mobility`` [1/kg] (the contact point's
         acceleration per unit force): ``mu normal mobility`` for a law linear in the slip
         there, divided by its slip scale."""
-        raise NotImplementedError
+        if self.kernel_stiffness is None:
+            raise NotImplementedError
+        return self.kernel_stiffness(mu, normal, mobility, eps)
+
+    def pure_forms(self) -> tuple:
+        """``(coefficient, stiffness)`` as functions of the methods' arguments: the pure ones,
+        or the bound methods of a law that has none (floats and arrays only)."""
+        coefficient = self.kernel_coefficient if self.kernel_coefficient is not None else self.coefficient
+        stiffness = self.kernel_stiffness if self.kernel_stiffness is not None else self.stiffness
+        return coefficient, stiffness
+
+    @property
+    def compilable(self) -> bool:
+        """Whether both pure functions exist (compiled code can run the law)."""
+        return self.kernel_coefficient is not None and self.kernel_stiffness is not None
 
 
 @dataclass(frozen=True)
@@ -45,12 +112,8 @@ class Coulomb(FrictionLaw):
     eps^2)``. Near zero slip it is the viscous law ``-mu N v_P / eps``: stiff for small ``eps``."""
 
     name = "coulomb"
-
-    def coefficient(self, mu, s1, s2, s3, eps):
-        return -mu / sqrt(s1 * s1 + s2 * s2 + s3 * s3 + eps * eps)
-
-    def stiffness(self, mu, normal, mobility, eps):
-        return mu * normal * mobility / eps
+    kernel_coefficient = staticmethod(coulomb_coefficient)
+    kernel_stiffness = staticmethod(coulomb_stiffness)
 
 
 @dataclass(frozen=True)
@@ -58,12 +121,8 @@ class Viscous(FrictionLaw):
     """Viscous friction ``F = -mu N v_P`` (``mu`` in s/m): linear in the slip everywhere."""
 
     name = "viscous"
-
-    def coefficient(self, mu, s1, s2, s3, eps):
-        return -mu
-
-    def stiffness(self, mu, normal, mobility, eps):
-        return mu * normal * mobility
+    kernel_coefficient = staticmethod(viscous_coefficient)
+    kernel_stiffness = staticmethod(viscous_stiffness)
 
 
 # friction_law= name -> law (the tippe top's choices)

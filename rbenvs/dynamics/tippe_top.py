@@ -52,6 +52,14 @@ Jellett's integral ``J = L . (a z_hat - h k)`` (3.106) is conserved for any forc
 contact point or at ``G``: with no body torque it holds under every friction law and table
 motion, which the tests and ``rbenvs verify`` check.
 
+**Pure forms.** The whole arithmetic of a control period (vector field, projection, contact
+force, lift-off, the flight switches, read-outs, the guard's friction rate) is written once, as
+pure functions ``fn(P, ...)`` of the parameter tuple ``P`` (:func:`pure_parameters`), marked
+:func:`rbenvs.jit.jitable`: the methods of :class:`TippeTop` call them on floats or arrays, and
+compiled code can call them on floats. The friction law enters as its own pure coefficient
+(:mod:`rbenvs.dynamics.contact`), a compile-time constant of the functions made for it: one set
+per (law, fidelity, flight) combination (:func:`pure_forms`), no branch on the law's name.
+
 Components are floats (one state) or arrays of one batch shape (many states at once).
 """
 
@@ -59,6 +67,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from functools import lru_cache
 from typing import Callable, NamedTuple
 
 import numpy as np
@@ -66,8 +75,9 @@ import numpy as np
 from ..contracts import GuardRates
 from ..jit import jitable
 from ..rotations import atan2, maximum, quat_normalize, sqrt
-from .contact import FRICTION_LAWS
+from .contact import FRICTION_LAWS, no_friction
 from .validation import real_array, require_choice, require_finite_nonnegative, require_finite_positive, require_finite_result, require_real_vector
+
 
 class Event(NamedTuple):
     """A switching event of a hybrid system (:meth:`TippeTop.events`): where it can happen
@@ -81,7 +91,44 @@ class Event(NamedTuple):
     switch: Callable
 
 
-__all__ = ["TippeTopParams", "TippeTop", "Event", "FIDELITIES", "FRICTION_LAWS", "SPIN_STEP", "FRICTION_MARGIN", "tippe_rotation_rate"]
+__all__ = [
+    "TippeTopParams",
+    "TippeTop",
+    "TippeForms",
+    "flight_gap",
+    "Event",
+    "FIDELITIES",
+    "FRICTION_LAWS",
+    "SPIN_STEP",
+    "FRICTION_MARGIN",
+    "PURE_PARAMETERS",
+    "tippe_rotation_rate",
+    "pure_parameters",
+    "pure_forms",
+    "tippe_frame",
+    "to_space",
+    "contact_arm",
+    "constraint_vertical_velocity",
+    "slip_velocity",
+    "rolling_velocity_body",
+    "quaternion_rate",
+    "vertical_tilt",
+    "tippe_energy",
+    "tippe_jellett",
+    "applied_rate",
+    "rolling_contact",
+    "sliding_derivative",
+    "rolling_derivative",
+    "flight_derivative",
+    "sliding_normalize",
+    "rolling_normalize",
+    "flight_normalize",
+    "flight_on_table",
+    "flight_airborne",
+    "flight_take_off",
+    "flight_impact",
+    "flight_touch_down",
+]
 
 FIDELITIES = ("gliding", "frictionless", "rolling")
 # Free flight: the lift-off is located to |N| <= LIFT_OFF_TOL m g and the touchdown to
@@ -168,28 +215,518 @@ class TippeTopParams:
         acceleration per unit contact force [1/kg] (``|r| <= a + h``)."""
         return 1.0 / self.mass + (self.radius + self.height) ** 2 / min(self.inertia)
 
+# ------------------------------------------------------------------------------------------
+# Pure forms: the top's arithmetic as functions of (P, state[, control]); the methods of TippeTop
+# call them on floats or arrays, compiled code on floats. ``P`` is one flat tuple per top.
+PURE_PARAMETERS = ("radius", "height", "mass", "gravity", "A", "C", "friction", "slip_regularization", "contact_mobility")
+
+
+def pure_parameters(params: TippeTopParams) -> tuple:
+    """``P`` of every pure form: the floats named in :data:`PURE_PARAMETERS` (``friction`` is
+    the coefficient a control ``u = None`` means; ``contact_mobility`` the guard's ``|M|``)."""
+    big_a, big_c = params.inertia
+    return (params.radius, params.height, params.mass, params.gravity, big_a, big_c, params.friction, params.slip_regularization,
+            params.contact_mobility())
+
+
+@jitable
+def tippe_frame(qw, qx, qy, qz):
+    """The rotation matrix of ``q`` (body -> space) row by row, ``(R11, R12, ..., R33)``; its last
+    row is ``Gamma = R^T z_hat``, the upward vertical in the body frame. (Each product of two
+    quaternion components is formed once: the same values as forming it per entry.)"""
+    xx, yy, zz = qx * qx, qy * qy, qz * qz
+    xy, xz, yz = qx * qy, qx * qz, qy * qz
+    wx, wy, wz = qw * qx, qw * qy, qw * qz
+    return (
+        1.0 - 2.0 * (yy + zz), 2.0 * (xy - wz), 2.0 * (xz + wy),
+        2.0 * (xy + wz), 1.0 - 2.0 * (xx + zz), 2.0 * (yz - wx),
+        2.0 * (xz - wy), 2.0 * (yz + wx), 1.0 - 2.0 * (xx + yy),
+    )
+
+
+@jitable
+def to_space(rm, v1, v2, v3):
+    """``R v``: a body-frame vector in space."""
+    return (rm[0] * v1 + rm[1] * v2 + rm[2] * v3, rm[3] * v1 + rm[4] * v2 + rm[5] * v3, rm[6] * v1 + rm[7] * v2 + rm[8] * v3)
+
+
+@jitable
+def contact_arm(p, g1, g2, g3):
+    """``r = P - G = h e3 - a Gamma`` in the body frame."""
+    a, h = p[0], p[1]
+    return -a * g1, -a * g2, h - a * g3
+
+
+@jitable
+def constraint_vertical_velocity(p, rm, w1, w2):
+    """``v_z = d/dt (a - h cos(theta)) = -h (Omega2 Gamma1 - Omega1 Gamma2)`` [m/s]: the vertical
+    velocity of ``G`` the contact allows (``rm`` from :func:`tippe_frame`)."""
+    return -p[1] * (w2 * rm[6] - w1 * rm[7])
+
+
+@jitable
+def slip_velocity(rm, r, vx, vy, vz, w1, w2, w3):
+    """``v_P = v_G + Omega x r`` in the body frame [m/s], ``v_G = (vx, vy, vz)`` in space."""
+    v1 = rm[0] * vx + rm[3] * vy + rm[6] * vz
+    v2 = rm[1] * vx + rm[4] * vy + rm[7] * vz
+    v3 = rm[2] * vx + rm[5] * vy + rm[8] * vz
+    return v1 + w2 * r[2] - w3 * r[1], v2 + w3 * r[0] - w1 * r[2], v3 + w1 * r[1] - w2 * r[0]
+
+
+@jitable
+def rolling_velocity_body(p, rm, w1, w2, w3):
+    """``v_G = -Omega x r`` in the body frame: the velocity that puts the contact point at rest."""
+    r = contact_arm(p, rm[6], rm[7], rm[8])
+    return -(w2 * r[2] - w3 * r[1]), -(w3 * r[0] - w1 * r[2]), -(w1 * r[1] - w2 * r[0])
+
+
+@jitable
+def quaternion_rate(qw, qx, qy, qz, w1, w2, w3):
+    """``dq/dt = q * (0, Omega) / 2``."""
+    h1, h2, h3 = 0.5 * w1, 0.5 * w2, 0.5 * w3
+    return (
+        -qx * h1 - qy * h2 - qz * h3,
+        qw * h1 + qy * h3 - qz * h2,
+        qw * h2 - qx * h3 + qz * h1,
+        qw * h3 + qx * h2 - qy * h1,
+    )
+
+
+@jitable
+def vertical_tilt(g1, g2, g3):
+    """``theta`` [rad] between the symmetry axis and the upward vertical ``Gamma``."""
+    return atan2(sqrt(g1 * g1 + g2 * g2), g3)
+
+
+@jitable
+def tippe_energy(p, v1, v2, v3, w1, w2, w3, z):
+    """Kinetic (``G`` at ``v``, rotation about ``G``) plus potential ``m g z`` energy [J]."""
+    m, g, big_a, big_c = p[2], p[3], p[4], p[5]
+    kin = 0.5 * m * (v1 * v1 + v2 * v2 + v3 * v3) + 0.5 * (big_a * (w1 * w1 + w2 * w2) + big_c * w3 * w3)
+    return kin + m * g * z
+
+
+@jitable
+def tippe_jellett(p, rm, w1, w2, w3):
+    """``J = L.(a Gamma - h e3)`` [kg m^2/s] (3.106) in the body frame."""
+    a, h, big_a, big_c = p[0], p[1], p[4], p[5]
+    return big_a * a * (w1 * rm[6] + w2 * rm[7]) + big_c * w3 * (a * rm[8] - h)
+
+
+@jitable
+def applied_rate(p, u, w1, w2, w3):
+    """``(a_x, a_y, mu, dOmega0)`` under ``u = (a_x, a_y, mu, tau1, tau2, tau3)`` (``None``: a table
+    at rest, the parameter's friction coefficient, no torque): ``dOmega0 = I^-1 (L x Omega +
+    tau)`` [rad/s^2] is the angular acceleration before the contact force."""
+    big_a, big_c = p[4], p[5]
+    if u is None:
+        ax, ay, mu, t1, t2, t3 = 0.0, 0.0, p[6], 0.0, 0.0, 0.0
+    else:
+        ax, ay, mu, t1, t2, t3 = u
+    return ax, ay, mu, ((big_a - big_c) * w2 * w3 + t1) / big_a, ((big_c - big_a) * w3 * w1 + t2) / big_a, t3 / big_c
+
+
+@jitable
+def rolling_contact(p, y, u):
+    """Pure rolling (9 components): the contact force ``Lambda`` (body frame) keeps ``dv_P/dt = 0``.
+
+    ``(1/m + [r x]^T I^-1 [r x]) Lambda = g Gamma + a_T - w0 x r - h Omega x (Omega x e3)``
+    (from ``dv_G/dt = Lambda/m - g z_hat - a_T``, Euler's equations about ``G`` and
+    ``dr/dt = h omega x k``); the matrix is symmetric positive definite. Returns the contact
+    tuple of :class:`TippeForms` (``N``, the friction ``F_x, F_y`` in space: the tangential part
+    of ``Lambda``, ``dOmega``, ``a_x, a_y``, and the horizontal part of ``v_G = -omega x r`` in
+    space: the vector field does not use its vertical part).
+    """
+    _, h, m, g, big_a, big_c, _, _, _ = p
+    qw, qx, qy, qz, w1, w2, w3 = y[2], y[3], y[4], y[5], y[6], y[7], y[8]
+    rm = tippe_frame(qw, qx, qy, qz)
+    g1, g2, g3 = rm[6], rm[7], rm[8]
+    r1, r2, r3 = contact_arm(p, g1, g2, g3)
+    ax, ay, _, w01, w02, w03 = applied_rate(p, u, w1, w2, w3)
+    d1, d2, d3 = 1.0 / big_a, 1.0 / big_a, 1.0 / big_c
+    im = 1.0 / m
+    m11 = im + d2 * r3 * r3 + d3 * r2 * r2
+    m22 = im + d1 * r3 * r3 + d3 * r1 * r1
+    m33 = im + d1 * r2 * r2 + d2 * r1 * r1
+    m12, m13, m23 = -d3 * r1 * r2, -d2 * r1 * r3, -d1 * r2 * r3
+    # a_T in the body frame; h Omega x (Omega x e3) = h (Omega Omega3 - e3 |Omega|^2)
+    at1, at2, at3 = rm[0] * ax + rm[3] * ay, rm[1] * ax + rm[4] * ay, rm[2] * ax + rm[5] * ay
+    wsq = w1 * w1 + w2 * w2 + w3 * w3
+    b1 = g * g1 + at1 - (w02 * r3 - w03 * r2) - h * w1 * w3
+    b2 = g * g2 + at2 - (w03 * r1 - w01 * r3) - h * w2 * w3
+    b3 = g * g3 + at3 - (w01 * r2 - w02 * r1) - h * (w3 * w3 - wsq)
+    # symmetric 3x3 solve by cofactors
+    c11 = m22 * m33 - m23 * m23
+    c12 = m13 * m23 - m12 * m33
+    c13 = m12 * m23 - m13 * m22
+    c22 = m11 * m33 - m13 * m13
+    c23 = m12 * m13 - m11 * m23
+    c33 = m11 * m22 - m12 * m12
+    det = m11 * c11 + m12 * c12 + m13 * c13
+    l1 = (c11 * b1 + c12 * b2 + c13 * b3) / det
+    l2 = (c12 * b1 + c22 * b2 + c23 * b3) / det
+    l3 = (c13 * b1 + c23 * b2 + c33 * b3) / det
+    n = l1 * g1 + l2 * g2 + l3 * g3
+    f1, f2, f3 = l1 - n * g1, l2 - n * g2, l3 - n * g3  # the tangential part: friction
+    vb1, vb2, vb3 = -(w2 * r3 - w3 * r2), -(w3 * r1 - w1 * r3), -(w1 * r2 - w2 * r1)  # v_P = 0
+    return (
+        n, rm[0] * f1 + rm[1] * f2 + rm[2] * f3, rm[3] * f1 + rm[4] * f2 + rm[5] * f3,
+        w01 + d1 * (r2 * l3 - r3 * l2), w02 + d2 * (r3 * l1 - r1 * l3), w03 + d3 * (r1 * l2 - r2 * l1),
+        ax, ay, rm[0] * vb1 + rm[1] * vb2 + rm[2] * vb3, rm[3] * vb1 + rm[4] * vb2 + rm[5] * vb3,
+    )
+
+
+@jitable
+def sliding_derivative(p, y, c):
+    """``dy/dt`` (gliding or frictionless, 11 components) from the contact tuple ``c``."""
+    m = p[2]
+    return (c[8], c[9], c[1] / m - c[6], c[2] / m - c[7]) + quaternion_rate(y[4], y[5], y[6], y[7], y[8], y[9], y[10]) + (c[3], c[4], c[5])
+
+
+@jitable
+def rolling_derivative(p, y, c):
+    """``dy/dt`` (rolling, 9 components): ``v_G = -omega x r`` is not integrated."""
+    return (c[8], c[9]) + quaternion_rate(y[2], y[3], y[4], y[5], y[6], y[7], y[8]) + (c[3], c[4], c[5])
+
+
+@jitable
+def flight_derivative(p, y, c):
+    """``dy/dt`` with free flight (15 components). The contact solve has already set the contact
+    force to zero where ``c = 0``; what remains is the height: the constraint's rate on the
+    table, the state's ``v_z`` in flight (a blend ``c X + (1 - c) Y``, exact for ``c`` in {0, 1},
+    so one expression serves floats and batches). The friction force is horizontal: ``N``
+    alone lifts ``G``."""
+    m, g = p[2], p[3]
+    flag = y[13]
+    zero = 0.0 * flag
+    return (
+        c[8], c[9], flag * c[10] + (1.0 - flag) * y[5], c[1] / m - c[6], c[2] / m - c[7], c[0] / m - g,
+    ) + quaternion_rate(y[6], y[7], y[8], y[9], y[10], y[11], y[12]) + (c[3], c[4], c[5], zero, zero)
+
+
+@jitable
+def sliding_normalize(p, y):
+    """The quaternion of an 11-component state projected back onto the unit sphere."""
+    return y[:4] + quat_normalize(y[4:8]) + y[8:]
+
+
+@jitable
+def rolling_normalize(p, y):
+    """The quaternion of a 9-component (rolling) state projected back onto the unit sphere."""
+    return y[:2] + quat_normalize(y[2:6]) + y[6:]
+
+
+@jitable
+def flight_normalize(p, y):
+    """The quaternion projected and, in contact (``c = 1``), the height and vertical velocity
+    put on the constraint (a blend, as :func:`flight_derivative`)."""
+    a, h = p[0], p[1]
+    y = y[:6] + quat_normalize(y[6:10]) + y[10:]
+    c = y[13]
+    f = 1.0 - c
+    rm = tippe_frame(y[6], y[7], y[8], y[9])
+    z = c * (a - h * rm[8]) + f * y[2]
+    vz = c * constraint_vertical_velocity(p, rm, y[10], y[11]) + f * y[5]
+    return y[:2] + (z, y[3], y[4], vz) + y[6:]
+
+
+@jitable
+def flight_on_table(p, y):
+    """Whether a state with flight is on the table (contact flag 1)."""
+    return y[13] == 1.0
+
+
+@jitable
+def flight_airborne(p, y):
+    """Whether a state with flight is in flight."""
+    return y[13] != 1.0
+
+
+@jitable
+def flight_gap(p, y, u):
+    """The touchdown switch's function (:meth:`TippeTop.events`): the gap of a state with flight
+    to the table, ``z_G + h cos(theta) - a`` [m] (``u`` plays no part)."""
+    return y[2] + p[1] * tippe_frame(y[6], y[7], y[8], y[9])[8] - p[0]
+
+
+@jitable
+def flight_take_off(p, y):
+    """The state at a lift-off: in flight, one more hop."""
+    return y[:13] + (0.0, y[14] + 1.0)
+
+
+@jitable
+def flight_impact(p, y):
+    """Touchdown of a state at the table (gap 0, approaching): a plastic, frictionless impact;
+    ``(state in contact, lambda)`` (:meth:`TippeTop.impact`). One state of floats: the impulse
+    is clamped by a float branch."""
+    m, big_a, big_c = p[2], p[4], p[5]
+    rm = tippe_frame(y[6], y[7], y[8], y[9])
+    g1, g2, g3 = rm[6], rm[7], rm[8]
+    w1, w2, w3 = y[10], y[11], y[12]
+    r1, r2, r3 = contact_arm(p, g1, g2, g3)
+    # moment arm of a vertical unit impulse, r x Gamma (body)
+    t1, t2, t3 = r2 * g3 - r3 * g2, r3 * g1 - r1 * g3, r1 * g2 - r2 * g1
+    m_zz = 1.0 / m + t1 * t1 / big_a + t2 * t2 / big_a + t3 * t3 / big_c
+    # vertical velocity of the contact point: v_z + (Omega x r).Gamma = v_z + Omega.(r x Gamma)
+    v_pz = y[5] + (w1 * t1 + w2 * t2 + w3 * t3)
+    lam = -v_pz / m_zz
+    if lam < 0.0:  # separating, not touching down: no impulse
+        lam = 0.0
+    w = (w1 + lam * t1 / big_a, w2 + lam * t2 / big_a, w3 + lam * t3 / big_c)
+    out = y[:5] + (y[5] + lam / m,) + y[6:10] + w + (1.0, y[14])
+    return flight_normalize(p, out), lam
+
+
+@jitable
+def flight_touch_down(p, y):
+    """The state after a touchdown: the plastic impact's (:func:`flight_impact`)."""
+    return flight_impact(p, y)[0]
+
+
+@jitable  # (registered so that compiled code can name it; it only ever runs on arrays)
+def _counts_arrays(x):
+    return x.astype(np.int64)
+
+
+@jitable  # (registered so that compiled code can name it; it only ever runs on arrays)
+def _zero_counts_arrays(x):
+    return np.zeros(np.shape(x), dtype=np.int64)
+
+
+class TippeForms(NamedTuple):
+    """The pure functions of one (law, fidelity, flight) combination (:func:`pure_forms`), each
+    ``fn(P, ...)`` with ``P`` from :func:`pure_parameters`; floats or arrays.
+
+    State functions ``fn(P, y)``: ``frame`` (:func:`tippe_frame` of the state's quaternion),
+    ``angular_velocity``, ``velocity`` (of ``G``, space, vertical part included), ``height``,
+    ``gap``, ``slip_speed``, ``energy``, ``jellett``, ``tilt``, ``spin``, ``normalize``.
+
+    Contact functions ``fn(P, y, u)`` (``u`` the 6 controls or ``None``): ``contact``, the contact
+    tuple ``(N, F_x, F_y, dOmega1, dOmega2, dOmega3, a_x, a_y, v_x, v_y[, v_z])`` (normal force,
+    friction in space, angular acceleration, the table's acceleration and the velocity of ``G``
+    the vector field uses: sliding, the state's horizontal part and the constraint's ``v_z``;
+    rolling, the horizontal part of ``-omega x r``); ``derivative(P, y, contact) -> dy``; ``rhs`` (``dy``), ``rhs_normal``
+    (``(dy, N)`` from one solve), ``normal`` (``N``; 0 in flight), ``friction_rate`` (the guard's
+    ``lambda_d``; ``None`` without friction) and ``readouts(P, y, u, fired)``.
+    """
+
+    frame: Callable
+    angular_velocity: Callable
+    velocity: Callable
+    height: Callable
+    gap: Callable
+    slip_speed: Callable
+    energy: Callable
+    jellett: Callable
+    tilt: Callable
+    spin: Callable
+    normalize: Callable
+    contact: Callable
+    derivative: Callable
+    rhs: Callable
+    rhs_normal: Callable
+    normal: Callable
+    readouts: Callable
+    friction_rate: Callable | None
+
+
+@lru_cache(maxsize=None)
+def _state_forms(rolling: bool, flight: bool) -> tuple:
+    """The state functions of :class:`TippeForms` for one layout (no friction law in them). The
+    layout is a constant of each function (``rolling``, ``flight``, the offsets ``Q`` of the
+    quaternion and ``W`` of ``Omega``): compiled code keeps the one branch that applies."""
+    Q, W = (6, 10) if flight else ((2, 6) if rolling else (4, 8))
+
+    @jitable
+    def frame(p, y):
+        return tippe_frame(y[Q], y[Q + 1], y[Q + 2], y[Q + 3])
+
+    @jitable
+    def angular_velocity(p, y):
+        return (y[W], y[W + 1], y[W + 2])
+
+    @jitable
+    def velocity(p, y):
+        if flight:
+            return (y[3], y[4], y[5])
+        rm = frame(p, y)
+        w1, w2, w3 = y[W], y[W + 1], y[W + 2]
+        if rolling:
+            v1, v2, v3 = rolling_velocity_body(p, rm, w1, w2, w3)
+            return to_space(rm, v1, v2, v3)
+        return (y[2], y[3], constraint_vertical_velocity(p, rm, w1, w2))
+
+    @jitable
+    def height(p, y):
+        if flight:
+            return y[2]
+        return p[0] - p[1] * frame(p, y)[8]
+
+    @jitable
+    def gap(p, y):
+        if not flight:
+            return 0.0 * y[0]
+        return y[2] + p[1] * frame(p, y)[8] - p[0]
+
+    @jitable
+    def slip_speed(p, y):
+        if rolling:
+            return 0.0 * y[0]
+        rm = frame(p, y)
+        w1, w2, w3 = y[W], y[W + 1], y[W + 2]
+        r = contact_arm(p, rm[6], rm[7], rm[8])
+        vx, vy = (y[3], y[4]) if flight else (y[2], y[3])
+        s1, s2, s3 = slip_velocity(rm, r, vx, vy, constraint_vertical_velocity(p, rm, w1, w2), w1, w2, w3)
+        return sqrt(s1 * s1 + s2 * s2 + s3 * s3)
+
+    @jitable
+    def energy(p, y):
+        v1, v2, v3 = velocity(p, y)
+        return tippe_energy(p, v1, v2, v3, y[W], y[W + 1], y[W + 2], height(p, y))
+
+    @jitable
+    def jellett(p, y):
+        return tippe_jellett(p, frame(p, y), y[W], y[W + 1], y[W + 2])
+
+    @jitable
+    def tilt(p, y):
+        rm = frame(p, y)
+        return vertical_tilt(rm[6], rm[7], rm[8])
+
+    @jitable
+    def spin(p, y):
+        return y[W + 2]
+
+    @jitable
+    def state_readouts(p, y, n, fired):
+        """The read-outs with the normal force ``n`` solved (see :meth:`TippeTop.readouts`)."""
+        if flight:
+            hops = y[14]
+            airborne, lifted = y[13] == 0.0, hops > 0.0
+            count = int(hops) if isinstance(hops, float) else _counts_arrays(hops)
+        else:
+            airborne, lifted = 0.0 * y[0] != 0.0, fired
+            count = 0 if isinstance(y[0], float) else _zero_counts_arrays(y[0])
+        return (energy(p, y), jellett(p, y), tilt(p, y), n, slip_speed(p, y), lifted, airborne, count, gap(p, y), spin(p, y))
+
+    normalize = flight_normalize if flight else (rolling_normalize if rolling else sliding_normalize)
+    return (frame, angular_velocity, velocity, height, gap, slip_speed, energy, jellett, tilt, spin, normalize), state_readouts
+
+
+@lru_cache(maxsize=None)
+def pure_forms(coefficient, stiffness, rolling: bool, flight: bool) -> TippeForms:
+    """The :class:`TippeForms` of one combination: the friction law's pure ``coefficient(mu, s1,
+    s2, s3, eps)`` and ``stiffness(mu, N, mobility, eps)`` (:mod:`rbenvs.dynamics.contact`;
+    :func:`~rbenvs.dynamics.contact.no_friction` and ``None`` without friction), ``rolling`` and
+    ``flight``. Made once per combination (the functions close over the law's functions, which
+    compiled code then calls as constants)."""
+    (frame, angular_velocity, velocity, height, gap, slip_speed, energy, jellett, tilt, spin, normalize), state_readouts = _state_forms(rolling, flight)
+    derivative = flight_derivative if flight else (rolling_derivative if rolling else sliding_derivative)
+
+    @jitable
+    def sliding_contact(p, y, u):
+        """The contact while the sphere slides: ``N`` is whatever keeps the second derivative
+        of ``z_G = a - h Gamma.e3`` zero (linear in ``N``: the friction law scales with it)."""
+        _, h, m, g, big_a, big_c, _, eps, _ = p
+        if flight:
+            vx, vy, qw, qx, qy, qz, w1, w2, w3 = y[3], y[4], y[6], y[7], y[8], y[9], y[10], y[11], y[12]
+        else:
+            vx, vy, qw, qx, qy, qz, w1, w2, w3 = y[2], y[3], y[4], y[5], y[6], y[7], y[8], y[9], y[10]
+        rm = tippe_frame(qw, qx, qy, qz)
+        g1, g2, g3 = rm[6], rm[7], rm[8]
+        r = contact_arm(p, g1, g2, g3)
+        r1, r2, r3 = r
+        # with flight the constraint's v_z (normalize keeps it in the state while c = 1)
+        vz = constraint_vertical_velocity(p, rm, w1, w2)
+        s1, s2, s3 = slip_velocity(rm, r, vx, vy, vz, w1, w2, w3)
+        ax, ay, mu, w01, w02, w03 = applied_rate(p, u, w1, w2, w3)
+        sv = s1 * g1 + s2 * g2 + s3 * g3  # zero by the constraint; removed against round-off
+        s1, s2, s3 = s1 - sv * g1, s2 - sv * g2, s3 - sv * g3
+        k = coefficient(mu, s1, s2, s3, eps)
+        f1, f2, f3 = k * s1, k * s2, k * s3  # friction per unit normal force
+        e1, e2, e3 = g1 + f1, g2 + f2, g3 + f3  # contact force per unit N
+        # torque per unit N about G, over the moments: a1 = I^-1 (r x e)
+        a11 = (r2 * e3 - r3 * e2) / big_a
+        a12 = (r3 * e1 - r1 * e3) / big_a
+        a13 = (r1 * e2 - r2 * e1) / big_c
+        # second derivative of z_G = a - h Gamma.e3 = 0 gives N (linear in N)
+        c = w3 * (w1 * g1 + w2 * g2) - (w1 * w1 + w2 * w2) * g3
+        den = 1.0 + m * h * (a12 * g1 - a11 * g2)
+        n = m * (g - h * (w02 * g1 - w01 * g2 + c)) / den
+        if flight:  # in flight (contact flag 0) no contact force: the same lines with N = 0
+            n = y[13] * n
+        fb1, fb2, fb3 = n * f1, n * f2, n * f3
+        return (
+            n, rm[0] * fb1 + rm[1] * fb2 + rm[2] * fb3, rm[3] * fb1 + rm[4] * fb2 + rm[5] * fb3,
+            w01 + n * a11, w02 + n * a12, w03 + n * a13, ax, ay, vx, vy, vz,
+        )
+
+    contact = rolling_contact if rolling else sliding_contact
+
+    @jitable
+    def rhs(p, y, u):
+        return derivative(p, y, contact(p, y, u))
+
+    @jitable
+    def rhs_normal(p, y, u):
+        c = contact(p, y, u)
+        return derivative(p, y, c), c[0]
+
+    @jitable
+    def normal(p, y, u):
+        return contact(p, y, u)[0]
+
+    @jitable
+    def readouts(p, y, u, fired):
+        return state_readouts(p, y, contact(p, y, u)[0], fired)
+
+    friction_rate = None
+    if stiffness is not None:
+
+        @jitable
+        def friction_rate(p, y, u):
+            """The guard's ``lambda_d`` [1/s]: the law's stiffness at twice ``max(m g, N)``
+            (:meth:`TippeTop.friction_stiffness`) and ``u``'s friction coefficient."""
+            m, g, mu0, eps, mobility = p[2], p[3], p[6], p[7], p[8]
+            mu = mu0 if u is None else u[2]
+            # np.maximum on floats too (an IEEE max that keeps a NaN, as on arrays)
+            load = np.maximum(m * g, contact(p, y, u)[0])
+            return stiffness(mu, 2.0 * load, mobility, eps)
+
+    forms = TippeForms(frame, angular_velocity, velocity, height, gap, slip_speed, energy, jellett, tilt, spin, normalize, contact,
+                       derivative, rhs, rhs_normal, normal, readouts, friction_rate)
+    return forms
+
+
 
 class TippeTop:
-    """Vector field, contact forces and read-outs of the tippe top at one fidelity level."""
+    """Vector field, contact forces and read-outs of the tippe top at one fidelity level.
+
+    The arithmetic is in the pure forms (:func:`pure_forms` of this top's law, fidelity and
+    flight, parameters ``P`` = :func:`pure_parameters`): the methods call them, and the
+    ``kernel_*`` attributes expose them as ``(fn, P)`` pairs for generated and compiled steps
+    (:class:`rbenvs.contracts.System`): ``kernel_rhs``, ``kernel_rhs_normal`` (``(dy, N)`` from one
+    contact solve), ``kernel_normalize``, ``kernel_readouts``, ``kernel_normal`` (``N``),
+    ``kernel_gap`` and, with flight, the switches ``kernel_take_off``, ``kernel_touch_down``,
+    ``kernel_on_table``, ``kernel_airborne`` (``None`` without); all ``None`` for a friction law
+    given by its methods alone (which compiled code cannot call; the methods then run it on
+    floats and arrays).
+    """
 
     def __init__(self, params: TippeTopParams, fidelity: str = "gliding", flight: bool = False):
         self._memo = None  # the last contact solve (see _contact)
-        self._v = 2  # index of v_x in the state (not used when rolling)
         if fidelity not in FIDELITIES:
             raise ValueError(f"fidelity must be one of {list(FIDELITIES)}, got {fidelity!r}")
-        self.params = params
         self.fidelity = fidelity
         self.rolling = fidelity == "rolling"
         self.flight = bool(flight)
         if self.flight and self.rolling:
             raise ValueError("flight=True needs fidelity 'gliding' or 'frictionless' (a rolling top has no slip to resume after a touchdown)")
-        self.friction_law = None if fidelity != "gliding" else params.friction_law  # its name
-        self.friction = None if self.friction_law is None else FRICTION_LAWS[self.friction_law]  # the law (dynamics.contact)
         if self.flight:
             self.layout = {"position": (0, 3), "velocity": (3, 6), "attitude": (6, 10), "angular_velocity": (10, 13), "contact": (13, 14), "hops": (14, 15)}
             self.dim = 15
             self._q, self._w = 6, 10
-            self._v = 3  # index of v_x (2 without flight)
         elif self.rolling:
             self.layout = {"position": (0, 2), "attitude": (2, 6), "angular_velocity": (6, 9)}
             self.dim = 9
@@ -198,16 +735,73 @@ class TippeTop:
             self.layout = {"position": (0, 2), "velocity": (2, 4), "attitude": (4, 8), "angular_velocity": (8, 11)}
             self.dim = 11
             self._q, self._w = 4, 8
+        self.params = params  # (sets the law and the pure forms: see the setter)
+
+    @property
+    def params(self) -> TippeTopParams:
+        """The parameters. Setting them sets everything derived from them: the friction law,
+        the pure forms and their ``P`` (:attr:`forms`, :attr:`form_params`) and the ``kernel_*``
+        pairs."""
+        return self._params
+
+    @params.setter
+    def params(self, params: TippeTopParams):
+        self._params = params
+        self._memo = None
+        self.friction_law = None if self.fidelity != "gliding" else params.friction_law  # its name
+        self.friction = None if self.friction_law is None else FRICTION_LAWS[self.friction_law]  # the law (dynamics.contact)
+        coefficient, stiffness = (no_friction, None) if self.friction is None else self.friction.pure_forms()
+        self.forms = forms = pure_forms(coefficient, stiffness, self.rolling, self.flight)
+        self.form_params = p = pure_parameters(params)
+        compilable = self.friction is None or self.friction.compilable
+
+        def pair(fn, offered=True):
+            return (fn, p) if compilable and offered else None
+
+        self.kernel_rhs = pair(forms.rhs)
+        self.kernel_rhs_normal = pair(forms.rhs_normal)
+        self.kernel_normalize = pair(forms.normalize)
+        self.kernel_readouts = pair(forms.readouts)
+        self.kernel_normal = pair(forms.normal)
+        self.kernel_gap = pair(forms.gap)
+        self.kernel_take_off = pair(flight_take_off, self.flight)
+        self.kernel_touch_down = pair(flight_touch_down, self.flight)
+        self.kernel_on_table = pair(flight_on_table, self.flight)
+        self.kernel_airborne = pair(flight_airborne, self.flight)
+        # the hybrid contract's pure forms (rbenvs.contracts.HybridSystem): without flight the
+        # terminal event is the lift-off (N < 0), checked from the contact solve that is also
+        # the next step's first stage; with flight the two switches of events()
+        self.kernel_event = pair(forms.normal, not self.flight)
+        self.kernel_rhs_event = pair(forms.rhs_normal, not self.flight)
+        self.kernel_switches = None
+        if self.flight and compilable:
+            self.kernel_switches = (
+                ((flight_on_table, ()), (forms.normal, p), LIFT_OFF_TOL * params.mass * params.gravity, (flight_take_off, ())),
+                ((flight_airborne, ()), (flight_gap, p), TOUCHDOWN_TOL * params.radius, (flight_touch_down, p)),
+            )
+
+    # what the parameters' setter derives: the pure forms are functions made per combination
+    # (closures, which pickle cannot carry), so a pickle carries the parameters and the setter
+    # makes the rest again on loading
+    _DERIVED = ("friction_law", "friction", "forms", "form_params", "kernel_rhs", "kernel_rhs_normal", "kernel_normalize", "kernel_readouts",
+                "kernel_normal", "kernel_gap", "kernel_take_off", "kernel_touch_down", "kernel_on_table", "kernel_airborne", "kernel_event",
+                "kernel_rhs_event", "kernel_switches")
+
+    def __getstate__(self):
+        state = {k: v for k, v in self.__dict__.items() if k not in self._DERIVED}
+        state["_memo"] = None
+        return state
+
+    def __setstate__(self, state):
+        state = dict(state)
+        params = state.pop("_params")
+        self.__dict__.update(state)
+        self.params = params
 
     # ------------------------------------------------------------------ kinematics
     def frame(self, y):
         """Rotation matrix entries of ``q`` (body -> space) and ``Gamma = R^T z_hat``."""
-        o = self._q
-        w, x, yy, z = y[o], y[o + 1], y[o + 2], y[o + 3]
-        r11, r12, r13 = 1.0 - 2.0 * (yy * yy + z * z), 2.0 * (x * yy - w * z), 2.0 * (x * z + w * yy)
-        r21, r22, r23 = 2.0 * (x * yy + w * z), 1.0 - 2.0 * (x * x + z * z), 2.0 * (yy * z - w * x)
-        r31, r32, r33 = 2.0 * (x * z - w * yy), 2.0 * (yy * z + w * x), 1.0 - 2.0 * (x * x + yy * yy)
-        return (r11, r12, r13, r21, r22, r23, r31, r32, r33)
+        return self.forms.frame(self.form_params, y)
 
     def angular_velocity(self, y):
         o = self._w
@@ -220,47 +814,20 @@ class TippeTop:
 
     def _contact_arm(self, g1, g2, g3):
         """``r = P - G = h e3 - a Gamma`` in the body frame."""
-        a, h = self.params.radius, self.params.height
-        return -a * g1, -a * g2, h - a * g3
-
-    def _g_velocity_body(self, y, rm, w, r):
-        """Velocity of ``G`` relative to the table, in the body frame."""
-        w1, w2, w3 = w
-        if self.rolling:  # v_P = 0: v_G = -Omega x r
-            return -(w2 * r[2] - w3 * r[1]), -(w3 * r[0] - w1 * r[2]), -(w1 * r[1] - w2 * r[0])
-        h = self.params.height
-        vx, vy = y[self._v], y[self._v + 1]
-        # d/dt (a - h cos(theta)), from the constraint (with flight: the contact's value, which
-        # normalize() keeps in the state while c = 1; the flight branch does not use vb)
-        vz = -h * (w2 * rm[6] - w1 * rm[7])
-        return (rm[0] * vx + rm[3] * vy + rm[6] * vz, rm[1] * vx + rm[4] * vy + rm[7] * vz, rm[2] * vx + rm[5] * vy + rm[8] * vz)
+        return contact_arm(self.form_params, g1, g2, g3)
 
     def velocity(self, y):
         """Velocity of ``G`` relative to the table, space frame, vertical part included."""
-        if self.flight:
-            return (y[3], y[4], y[5])
-        rm = self.frame(y)
-        w = self.angular_velocity(y)
-        if not self.rolling:
-            h = self.params.height
-            return (y[2], y[3], -h * (w[1] * rm[6] - w[0] * rm[7]))
-        vb = self._g_velocity_body(y, rm, w, self._contact_arm(rm[6], rm[7], rm[8]))
-        return tuple(rm[3 * i] * vb[0] + rm[3 * i + 1] * vb[1] + rm[3 * i + 2] * vb[2] for i in range(3))
+        return self.forms.velocity(self.form_params, y)
 
     def height(self, y):
         """``z_G`` [m]: ``a - h cos(theta)`` on the table (the constraint); with flight, the state's."""
-        if self.flight:
-            return y[2]
-        rm = self.frame(y)
-        return self.params.radius - self.params.height * rm[8]
+        return self.forms.height(self.form_params, y)
 
     def gap(self, y):
         """Height of the sphere's lowest point above the table [m]: ``z_G + h cos(theta) - a``
         (0 on the table; positive in flight)."""
-        if not self.flight:
-            return 0.0 * y[0]
-        rm = self.frame(y)
-        return y[2] + self.params.height * rm[8] - self.params.radius
+        return self.forms.gap(self.form_params, y)
 
     def gap_rate(self, y):
         """``d gap / dt`` [m/s]: ``v_z + h d(cos theta)/dt``, ``d Gamma/dt = Gamma x Omega``."""
@@ -278,12 +845,15 @@ class TippeTop:
 
     # ------------------------------------------------------------------ contact
     def _contact(self, y, u):
-        """Everything the vector field needs: ``(dOmega, N, F_body, v_G_body, frame)``.
+        """The contact tuple of :class:`TippeForms` (``N``, friction, ``dOmega``, ...) at ``y``
+        under ``u``.
 
-        The last result is kept for the same ``y`` and ``u`` objects: the lift-off check after
-        an internal step solves the contact at the new state, and the next step's first stage
-        asks for the same state (the very tuple the step returned), so one solve serves both
-        (it was a fifth of a tippe-top step). A pure cache: same inputs, same outputs."""
+        The last result is kept for the same ``y`` and ``u`` objects: a look at the contact
+        force at a state (:meth:`contact_forces`, :meth:`constraint_normal_force`) and the
+        vector field there (the next step's first stage of an integrator that calls :meth:`rhs`,
+        as ``Integrator.step`` does) share one solve. A pure cache: same inputs, same outputs.
+        (The envs' bound steps call ``kernel_rhs`` itself, and their lift-off checks
+        ``kernel_normal``.)"""
         memo = self._memo
         if memo is not None and memo[0] is y and memo[1] is u:
             return memo[2]
@@ -292,152 +862,18 @@ class TippeTop:
         return out
 
     def _solve_contact(self, y, u):
-        prm = self.params
-        big_a, big_c = prm.inertia
-        m, g, h = prm.mass, prm.gravity, prm.height
-        rm = self.frame(y)
-        g1, g2, g3 = rm[6], rm[7], rm[8]
-        w1, w2, w3 = self.angular_velocity(y)
-        r = self._contact_arm(g1, g2, g3)
-        vb = self._g_velocity_body(y, rm, (w1, w2, w3), r)
-        if u is None:
-            ax = ay = t1 = t2 = t3 = 0.0
-            mu = prm.friction
-        else:
-            ax, ay, mu, t1, t2, t3 = u
-        # gyroscopic + applied torque, per moment: w0 = I^-1 (L x Omega + tau)
-        w01 = ((big_a - big_c) * w2 * w3 + t1) / big_a
-        w02 = ((big_c - big_a) * w3 * w1 + t2) / big_a
-        w03 = t3 / big_c
-        if self.rolling:
-            return self._rolling_contact(rm, (w1, w2, w3), r, vb, (w01, w02, w03), (ax, ay))
-        # slip velocity of the contact point, body frame, horizontal part
-        s1 = vb[0] + w2 * r[2] - w3 * r[1]
-        s2 = vb[1] + w3 * r[0] - w1 * r[2]
-        s3 = vb[2] + w1 * r[1] - w2 * r[0]
-        sv = s1 * g1 + s2 * g2 + s3 * g3  # zero by the constraint; removed against round-off
-        s1, s2, s3 = s1 - sv * g1, s2 - sv * g2, s3 - sv * g3
-        law = self.friction
-        k = 0.0 if law is None else law.coefficient(mu, s1, s2, s3, prm.slip_regularization)
-        f1, f2, f3 = k * s1, k * s2, k * s3  # friction per unit normal force
-        e1, e2, e3 = g1 + f1, g2 + f2, g3 + f3  # contact force per unit N
-        # torque per unit N about G, over the moments: a1 = I^-1 (r x e)
-        a11 = (r[1] * e3 - r[2] * e2) / big_a
-        a12 = (r[2] * e1 - r[0] * e3) / big_a
-        a13 = (r[0] * e2 - r[1] * e1) / big_c
-        # second derivative of z_G = a - h Gamma.e3 = 0 gives N (linear in N)
-        c = w3 * (w1 * g1 + w2 * g2) - (w1 * w1 + w2 * w2) * g3
-        den = 1.0 + m * h * (a12 * g1 - a11 * g2)
-        n = m * (g - h * (w02 * g1 - w01 * g2 + c)) / den
-        if self.flight:  # in flight (contact flag 0) no contact force: the same lines with N = 0
-            n = y[13] * n
-        dw = (w01 + n * a11, w02 + n * a12, w03 + n * a13)
-        return dw, n, (n * f1, n * f2, n * f3), vb, rm, (ax, ay)
-
-    def _rolling_contact(self, rm, w, r, vb, w0, accel):
-        """Pure rolling: the contact force ``Lambda`` (body frame) keeps ``dv_P/dt = 0``.
-
-        ``(1/m + [r x]^T I^-1 [r x]) Lambda = g Gamma + a_T - w0 x r - h Omega x (Omega x e3)``
-        (from ``dv_G/dt = Lambda/m - g z_hat - a_T``, Euler's equations about ``G`` and
-        ``dr/dt = h omega x k``); the matrix is symmetric positive definite.
-        """
-        prm = self.params
-        big_a, big_c = prm.inertia
-        m, g, h = prm.mass, prm.gravity, prm.height
-        g1, g2, g3 = rm[6], rm[7], rm[8]
-        w1, w2, w3 = w
-        r1, r2, r3 = r
-        d1, d2, d3 = 1.0 / big_a, 1.0 / big_a, 1.0 / big_c
-        im = 1.0 / m
-        m11 = im + d2 * r3 * r3 + d3 * r2 * r2
-        m22 = im + d1 * r3 * r3 + d3 * r1 * r1
-        m33 = im + d1 * r2 * r2 + d2 * r1 * r1
-        m12, m13, m23 = -d3 * r1 * r2, -d2 * r1 * r3, -d1 * r2 * r3
-        ax, ay = accel
-        atb = (rm[0] * ax + rm[3] * ay, rm[1] * ax + rm[4] * ay, rm[2] * ax + rm[5] * ay)  # a_T in body
-        # h Omega x (Omega x e3) = h (Omega Omega3 - e3 |Omega|^2)
-        wsq = w1 * w1 + w2 * w2 + w3 * w3
-        b1 = g * g1 + atb[0] - (w0[1] * r3 - w0[2] * r2) - h * w1 * w3
-        b2 = g * g2 + atb[1] - (w0[2] * r1 - w0[0] * r3) - h * w2 * w3
-        b3 = g * g3 + atb[2] - (w0[0] * r2 - w0[1] * r1) - h * (w3 * w3 - wsq)
-        # symmetric 3x3 solve by cofactors
-        c11 = m22 * m33 - m23 * m23
-        c12 = m13 * m23 - m12 * m33
-        c13 = m12 * m23 - m13 * m22
-        c22 = m11 * m33 - m13 * m13
-        c23 = m12 * m13 - m11 * m23
-        c33 = m11 * m22 - m12 * m12
-        det = m11 * c11 + m12 * c12 + m13 * c13
-        l1 = (c11 * b1 + c12 * b2 + c13 * b3) / det
-        l2 = (c12 * b1 + c22 * b2 + c23 * b3) / det
-        l3 = (c13 * b1 + c23 * b2 + c33 * b3) / det
-        dw = (
-            w0[0] + d1 * (r2 * l3 - r3 * l2),
-            w0[1] + d2 * (r3 * l1 - r1 * l3),
-            w0[2] + d3 * (r1 * l2 - r2 * l1),
-        )
-        n = l1 * g1 + l2 * g2 + l3 * g3
-        return dw, n, (l1 - n * g1, l2 - n * g2, l3 - n * g3), vb, rm, accel
+        return self.forms.contact(self.form_params, y, u)
 
     # ------------------------------------------------------------------ vector field
     def rhs(self, y, u):
-        dw, n, fb, vb, rm, (ax, ay) = self._contact(y, u)
-        o = self._q
-        qw, qx, qy, qz = y[o], y[o + 1], y[o + 2], y[o + 3]
-        h1, h2, h3 = 0.5 * y[self._w], 0.5 * y[self._w + 1], 0.5 * y[self._w + 2]
-        dq = (
-            -qx * h1 - qy * h2 - qz * h3,
-            qw * h1 + qy * h3 - qz * h2,
-            qw * h2 - qx * h3 + qz * h1,
-            qw * h3 + qx * h2 - qy * h1,
-        )
-        if self.flight:
-            return self._flight_rhs(y, dq, dw, n, fb, rm, ax, ay)
-        # horizontal velocity of G in space: from the state, or (rolling) from -Omega x r
-        if self.rolling:
-            dpos = (rm[0] * vb[0] + rm[1] * vb[1] + rm[2] * vb[2], rm[3] * vb[0] + rm[4] * vb[1] + rm[5] * vb[2])
-            return dpos + dq + dw
-        m = self.params.mass
-        fx = rm[0] * fb[0] + rm[1] * fb[1] + rm[2] * fb[2]
-        fy = rm[3] * fb[0] + rm[4] * fb[1] + rm[5] * fb[2]
-        return (y[2], y[3], fx / m - ax, fy / m - ay) + dq + dw
-
-    def _flight_rhs(self, y, dq, dw, n, fb, rm, ax, ay):
-        """Vector field with free flight. ``_contact`` has already set the contact force to zero
-        where ``c = 0``; what remains is the height: the constraint's rate on the table, the
-        state's ``v_z`` in flight (a blend ``c X + (1 - c) Y``, exact for ``c`` in {0, 1}, so one
-        expression serves floats and batches)."""
-        prm = self.params
-        m = prm.mass
-        c = y[13]
-        w1, w2, _ = self.angular_velocity(y)
-        fx = rm[0] * fb[0] + rm[1] * fb[1] + rm[2] * fb[2]
-        fy = rm[3] * fb[0] + rm[4] * fb[1] + rm[5] * fb[2]
-        vz_contact = -prm.height * (w2 * rm[6] - w1 * rm[7])
-        zero = 0.0 * c
-        return (
-            y[3],
-            y[4],
-            c * vz_contact + (1.0 - c) * y[5],
-            fx / m - ax,
-            fy / m - ay,
-            n / m - prm.gravity,  # the friction force is horizontal: N alone lifts G
-        ) + dq + dw + (zero, zero)
+        """``dy/dt`` at ``y`` under ``u`` (``None``: a table at rest, the parameter's friction
+        coefficient, no torque): ``kernel_rhs``, through the shared contact solve."""
+        return self.forms.derivative(self.form_params, y, self._contact(y, u))
 
     def normalize(self, y):
-        o = self._q
-        y = tuple(y[:o]) + quat_normalize(y[o : o + 4]) + tuple(y[o + 4 :])
-        if not self.flight:
-            return y
-        # in contact (c = 1) the height and vertical velocity are the constraint's
-        c = y[13]
-        f = 1.0 - c
-        rm = self.frame(y)
-        w1, w2, _ = self.angular_velocity(y)
-        prm = self.params
-        z = c * (prm.radius - prm.height * rm[8]) + f * y[2]
-        vz = c * (-prm.height * (w2 * rm[6] - w1 * rm[7])) + f * y[5]
-        return y[:2] + (z, y[3], y[4], vz) + y[6:]
+        """The quaternion projected back onto the unit sphere; with flight, in contact, also
+        ``(z, v_z)`` put on the constraint (``kernel_normalize``)."""
+        return self.forms.normalize(self.form_params, y)
 
     # ------------------------------------------------------------------ free flight: switches
     def impact(self, y):
@@ -445,32 +881,14 @@ class TippeTop:
         impact. The normal impulse ``lambda z_hat`` at the contact point ends the vertical motion
         of the contact point, ``lambda = -v_Pz / M_zz``, ``M_zz = 1/m + (r x Gamma).I^-1(r x Gamma)``;
         the energy drops by ``lambda^2 M_zz / 2`` and Jellett's integral ``-L.r`` is unchanged
-        (``(r x Gamma).r = 0``). Returns the state in contact (``c = 1``) and ``lambda`` [N s]."""
-        prm = self.params
-        big_a, big_c = prm.inertia
-        rm = self.frame(y)
-        g1, g2, g3 = rm[6], rm[7], rm[8]
-        w1, w2, w3 = self.angular_velocity(y)
-        r1, r2, r3 = self._contact_arm(g1, g2, g3)
-        # moment arm of a vertical unit impulse, r x Gamma (body)
-        t1, t2, t3 = r2 * g3 - r3 * g2, r3 * g1 - r1 * g3, r1 * g2 - r2 * g1
-        m_zz = 1.0 / prm.mass + t1 * t1 / big_a + t2 * t2 / big_a + t3 * t3 / big_c
-        # vertical velocity of the contact point: v_z + (Omega x r).Gamma = v_z + Omega.(r x Gamma)
-        v_pz = y[5] + (w1 * t1 + w2 * t2 + w3 * t3)
-        lam = -v_pz / m_zz
-        if lam < 0.0:  # separating, not touching down: no impulse
-            lam = 0.0
-        w = (w1 + lam * t1 / big_a, w2 + lam * t2 / big_a, w3 + lam * t3 / big_c)
-        out = y[:5] + (y[5] + lam / prm.mass,) + y[6:10] + w + (1.0, y[14])
-        return self.normalize(out), lam
+        (``(r x Gamma).r = 0``). Returns the state in contact (``c = 1``) and ``lambda`` [N s]
+        (:func:`flight_impact`; one state of floats)."""
+        return flight_impact(self.form_params, y)
 
     # ------------------------------------------------------------------ hybrid system
     # (rbenvs.contracts.HybridSystem) A contact that can open: without free flight a lift-off
     # ends the episode (the terminal event); with it the top flies and lands (the switches).
     hybrid = True
-    kernel_rhs = None  # no pure forms (yet)
-    kernel_normalize = None
-    kernel_readouts = None
 
     @property
     def switches(self) -> bool:
@@ -483,8 +901,9 @@ class TippeTop:
         return None if self.flight else ("lift_off", self.lifts_off)
 
     def lifts_off(self, y, u):
-        """Lift-off: the contact would have to pull (``N < 0``); a bool or a mask."""
-        return self.contact_forces(y, u)[0] < 0.0
+        """Lift-off: the contact would have to pull (``N < 0``); a bool or a mask
+        (``kernel_normal``, called directly: the step after it does not go through :meth:`rhs`)."""
+        return self.forms.normal(self.form_params, y, u) < 0.0
 
     readout_names = ("energy", "jellett", "tilt", "normal_force", "slip_speed", "lifted_off", "airborne", "hops", "gap", "spin")
 
@@ -493,16 +912,9 @@ class TippeTop:
         (``None``: a table at rest; the normal force depends on it): energy, Jellett's
         integral, tilt, normal force, slip speed, ``lifted_off`` (with free flight: a hop so
         far; without: the lift-off that ended this period, ``fired``), ``airborne``, ``hops``,
-        the gap to the table and the spin. Floats or arrays."""
-        normal, _, slip = self.contact_forces(y, u)
-        if self.flight:
-            hops, airborne = y[14], y[13] == 0.0
-            lifted = hops > 0.0
-            hops = int(hops) if isinstance(hops, float) else hops.astype(np.int64)
-        else:
-            airborne, lifted = 0.0 * y[0] != 0.0, fired
-            hops = 0 if isinstance(y[0], float) else np.zeros(np.shape(y[0]), dtype=np.int64)
-        return (self.energy(y), self.jellett(y), self.tilt(y), normal, slip, lifted, airborne, hops, self.gap(y), self.spin(y))
+        the gap to the table and the spin. Floats (``hops`` an int, the flags bools) or arrays
+        (``kernel_readouts``)."""
+        return self.forms.readouts(self.form_params, y, u, fired)
 
     def start_draws(self, rng):
         """The generator's numbers the system adds to a task's start: none."""
@@ -527,9 +939,10 @@ class TippeTop:
         if not self.flight:
             return ()
         prm = self.params
+        forms_normal, p = self.forms.normal, self.form_params
 
-        def normal(z):
-            return self.constraint_normal_force(z, u)
+        def normal(z):  # (the pure normal force: after every internal step, no method between)
+            return forms_normal(p, z, u)
 
         lift_off = Event("lift_off", self.on_table, normal, LIFT_OFF_TOL * prm.mass * prm.gravity, self.take_off)
         touchdown = Event("touchdown", self.airborne, self.gap, TOUCHDOWN_TOL * prm.radius, self.touch_down)
@@ -537,16 +950,16 @@ class TippeTop:
 
     @staticmethod
     def on_table(y) -> bool:
-        return y[13] == 1.0
+        return flight_on_table((), y)
 
     @staticmethod
     def airborne(y) -> bool:
-        return y[13] != 1.0
+        return flight_airborne((), y)
 
     @staticmethod
     def take_off(y):
         """The state at a lift-off: in flight, one more hop."""
-        return y[:13] + (0.0, y[14] + 1.0)
+        return flight_take_off((), y)
 
     def touch_down(self, y):
         """The state after a touchdown: the plastic impact's."""
@@ -554,54 +967,32 @@ class TippeTop:
 
     def constraint_normal_force(self, y, u):
         """``N`` [N] the contact constraint asks for at ``y`` under ``u`` (negative: the table
-        would have to pull; lift-off); 0 in flight."""
-        return self._contact(y, u)[1]
+        would have to pull; lift-off); 0 in flight (``kernel_normal``)."""
+        return self._contact(y, u)[0]
 
     # ------------------------------------------------------------------ read-outs
     def contact_forces(self, y, u=None):
         """``(N, (Fx, Fy), slip_speed)``: normal force [N], friction in space [N] and the slip
         speed ``|v_P|`` [m/s] (0 when rolling)."""
-        dw, n, fb, vb, rm, _ = self._contact(y, u)
-        fx = rm[0] * fb[0] + rm[1] * fb[1] + rm[2] * fb[2]
-        fy = rm[3] * fb[0] + rm[4] * fb[1] + rm[5] * fb[2]
-        return n, (fx, fy), self.slip_speed(y)
+        c = self._contact(y, u)
+        return c[0], (c[1], c[2]), self.slip_speed(y)
 
     def slip_speed(self, y):
         """``|v_P|`` [m/s], the speed of the material point at the contact."""
-        if self.rolling:
-            return 0.0 * y[0]
-        rm = self.frame(y)
-        w1, w2, w3 = self.angular_velocity(y)
-        r = self._contact_arm(rm[6], rm[7], rm[8])
-        vb = self._g_velocity_body(y, rm, (w1, w2, w3), r)
-        s1 = vb[0] + w2 * r[2] - w3 * r[1]
-        s2 = vb[1] + w3 * r[0] - w1 * r[2]
-        s3 = vb[2] + w1 * r[1] - w2 * r[0]
-        return sqrt(s1 * s1 + s2 * s2 + s3 * s3)
+        return self.forms.slip_speed(self.form_params, y)
 
     def energy(self, y):
         """Kinetic (translation + rotation about ``G``) plus potential ``m g z_G`` [J], table frame."""
-        prm = self.params
-        big_a, big_c = prm.inertia
-        w1, w2, w3 = self.angular_velocity(y)
-        v = self.velocity(y)
-        kin = 0.5 * prm.mass * (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]) + 0.5 * (big_a * (w1 * w1 + w2 * w2) + big_c * w3 * w3)
-        return kin + prm.mass * prm.gravity * self.height(y)
+        return self.forms.energy(self.form_params, y)
 
     def jellett(self, y):
         """``J = L . (a z_hat - h k)`` [kg m^2/s] (3.106), in the body frame ``L.(a Gamma - h e3)``."""
-        prm = self.params
-        big_a, big_c = prm.inertia
-        a, h = prm.radius, prm.height
-        rm = self.frame(y)
-        w1, w2, w3 = self.angular_velocity(y)
-        return big_a * a * (w1 * rm[6] + w2 * rm[7]) + big_c * w3 * (a * rm[8] - h)
+        return self.forms.jellett(self.form_params, y)
 
     def tilt(self, y):
         """``theta`` [rad] between the symmetry axis and the upward vertical (0 upright, pi
         inverted on the stem)."""
-        rm = self.frame(y)
-        return atan2(sqrt(rm[6] * rm[6] + rm[7] * rm[7]), rm[8])
+        return self.forms.tilt(self.form_params, y)
 
     def spin(self, y):
         """``Omega3`` [rad/s], the angular velocity about the symmetry axis."""
@@ -628,12 +1019,11 @@ class TippeTop:
 
     def no_slip_velocity(self, attitude, angular_velocity):
         """``v_G = -omega x r`` in space [m/s]: the velocity that puts the contact point at rest."""
-        y = (0.0 * attitude[0],) * self._q + tuple(attitude) + tuple(angular_velocity)
-        rm = self.frame(y)  # (reads only the attitude)
-        w = tuple(angular_velocity)
-        r = self._contact_arm(rm[6], rm[7], rm[8])
-        vb = (-(w[1] * r[2] - w[2] * r[1]), -(w[2] * r[0] - w[0] * r[2]), -(w[0] * r[1] - w[1] * r[0]))
-        return tuple(rm[3 * i] * vb[0] + rm[3 * i + 1] * vb[1] + rm[3 * i + 2] * vb[2] for i in range(3))
+        qw, qx, qy, qz = attitude
+        w1, w2, w3 = angular_velocity
+        rm = tippe_frame(qw, qx, qy, qz)
+        v1, v2, v3 = rolling_velocity_body(self.form_params, rm, w1, w2, w3)
+        return to_space(rm, v1, v2, v3)
 
     def export_state(self, y) -> dict:
         """Named arrays: ``position`` (3, with ``z_G`` from the constraint), ``velocity`` (3,
@@ -723,11 +1113,6 @@ class TippeTop:
         load = weight if normal_force is None else np.maximum(weight, normal_force)
         return self.friction.stiffness(mu, 2.0 * load, prm.contact_mobility(), prm.slip_regularization)
 
-    def friction_rate(self, _p, y, u):
-        """The guard's ``lambda_d`` at ``y`` under ``u`` (``(fn, P)`` form: ``P`` unused)."""
-        mu = self.params.friction if u is None else u[2]
-        return self.friction_stiffness(mu, self.contact_forces(y, u)[0])
-
     def guard_rates(self, region, speed_ceiling: float = math.inf) -> GuardRates:
         """The contact geometry turns with the body: ``max(|Omega|, omega_g) h <= SPIN_STEP``
         (0.1 rad, an accuracy bound of this system for every scheme; ``omega_g`` from
@@ -735,7 +1120,7 @@ class TippeTop:
         (:meth:`friction_stiffness`) with ``c`` half the scheme's real-axis interval (euler
         1.0, rk4 1.39; none for dop853)."""
         omega_g = self.params.gravity_rate()
-        dissipation = (self.friction_rate, ()) if self.friction_law is not None else None
+        dissipation = (self.forms.friction_rate, self.form_params) if self.friction_law is not None else None
         text = f"lambda = max(|Omega|, omega_g) (omega_g = {omega_g:.6g} rad/s)"
         if dissipation is not None:
             text += f", lambda_d = the {self.friction_law} law's stiffness at 2 max(m g, N)"

@@ -6,19 +6,26 @@ velocity of the centre of mass [m/s]: 8 numbers. The table's acceleration, the a
 space-frame vector, so the observation is too. With the position (irrelevant: the table is
 uniform) and the turn about ``k`` (irrelevant: the body is symmetric) left out, this is the
 Markov state.
+
+Observation and reward are pure functions of the system's pure forms (:func:`observation_form`,
+:func:`invert_form`, :func:`hold_form`): the tasks' methods call them on floats or arrays, and
+compiled code can call them on floats (:meth:`InvertTask.kernels`).
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 
+from ..dynamics.tippe_top import vertical_tilt
+from ..jit import jitable
 from ..rotations import quat_multiply
 from .common import TwoStageStart, effort
 
-__all__ = ["InvertTask", "HoldTask", "tilted_spin_state"]
+__all__ = ["InvertTask", "HoldTask", "tilted_spin_state", "unit_component", "observation_form", "invert_form", "hold_form"]
 
 
 def tilted_spin_state(system, d, spin_low, spin_high, tilt_low, tilt_high):
@@ -37,22 +44,77 @@ def tilted_spin_state(system, d, spin_low, spin_high, tilt_low, tilt_high):
     return system.state((zero, zero), q, (zero, zero, n))
 
 
-def _unit_component(c):
+@jitable
+def unit_component(c):
     """A component of a unit vector, clamped to [-1, 1]: ``1 - 2 (x^2 + y^2)`` from a
     quaternion normalised to round-off can be ``-1 - 4e-16`` at tilt pi, which the observation
-    bound of exactly 1 would report as an observation limit."""
-    if isinstance(c, np.ndarray):
-        return np.clip(c, -1.0, 1.0)
-    return 1.0 if c > 1.0 else (-1.0 if c < -1.0 else c)
+    bound of exactly 1 would report as an observation limit. (A NaN stays NaN.)"""
+    if isinstance(c, float):
+        return 1.0 if c > 1.0 else (-1.0 if c < -1.0 else c)
+    return _unit_component_arrays(c)
+
+
+@jitable  # (registered so that compiled code can name it; it only ever runs on arrays)
+def _unit_component_arrays(c):
+    return np.clip(c, -1.0, 1.0)
+
+
+# The tasks' arithmetic as pure functions of (parameters, state[, action]), made once per layout
+# of the system (its pure ``frame``, ``angular_velocity`` and ``velocity``: constants of the
+# functions, as compiled code needs them). ``P`` is the system's (TippeTop.form_params).
+@lru_cache(maxsize=None)
+def observation_form(frame, angular_velocity, velocity):
+    """``observe(P, y)``: the symmetry axis ``k`` (clamped), ``omega`` in space and the horizontal
+    velocity of ``G`` (8 components), from the system's pure state functions."""
+
+    @jitable
+    def observe(p, y):
+        rm = frame(p, y)
+        w1, w2, w3 = angular_velocity(p, y)
+        v = velocity(p, y)
+        return (
+            unit_component(rm[2]), unit_component(rm[5]), unit_component(rm[8]),
+            rm[0] * w1 + rm[1] * w2 + rm[2] * w3, rm[3] * w1 + rm[4] * w2 + rm[5] * w3, rm[6] * w1 + rm[7] * w2 + rm[8] * w3,
+            v[0], v[1],
+        )
+
+    return observe
+
+
+@lru_cache(maxsize=None)
+def invert_form(frame):
+    """``evaluate(PE, y, u_norm) -> (reward, terminated, is_success)`` of :class:`InvertTask`,
+    ``PE = (P, control_cost, goal_tilt)``."""
+
+    @jitable
+    def evaluate(pe, y, u):
+        p, control_cost, goal_tilt = pe
+        rm = frame(p, y)
+        done = vertical_tilt(rm[6], rm[7], rm[8]) > goal_tilt
+        return -0.5 * (1.0 + rm[8]) - control_cost * effort(u), done, done
+
+    return evaluate
+
+
+@lru_cache(maxsize=None)
+def hold_form(frame):
+    """``evaluate(PE, y, u_norm) -> (reward, terminated, is_success)`` of :class:`HoldTask`,
+    ``PE = (P, control_cost, fall_tilt, success_tilt)``."""
+
+    @jitable
+    def evaluate(pe, y, u):
+        p, control_cost, fall_tilt, success_tilt = pe
+        rm = frame(p, y)
+        tilt = vertical_tilt(rm[6], rm[7], rm[8])
+        return 0.5 * (1.0 + rm[8]) - control_cost * effort(u), tilt > fall_tilt, tilt < success_tilt
+
+    return evaluate
 
 
 def observe(system, y):
-    rm = system.frame(y)
-    w = system.angular_velocity(y)
-    k = (_unit_component(rm[2]), _unit_component(rm[5]), _unit_component(rm[8]))
-    omega = tuple(rm[3 * i] * w[0] + rm[3 * i + 1] * w[1] + rm[3 * i + 2] * w[2] for i in range(3))
-    v = system.velocity(y)
-    return k + omega + (v[0], v[1])
+    """The observation of the tippe-top tasks at ``y`` (floats or arrays)."""
+    forms = system.forms
+    return observation_form(forms.frame, forms.angular_velocity, forms.velocity)(system.form_params, y)
 
 
 class _SpunTop(TwoStageStart):
@@ -64,7 +126,6 @@ class _SpunTop(TwoStageStart):
     observation_units = ("1",) * 3 + ("rad/s",) * 3 + ("m/s",) * 2
     metric_names = ("is_success",)
     final_measure = "tilt"
-    kernels = None  # no pure forms (yet): the batch runs on numpy
 
     def initial_draws(self, rng):
         return rng.random(4)  # tilt, azimuth, heading, spin
@@ -74,6 +135,18 @@ class _SpunTop(TwoStageStart):
 
     def observe(self, system, y):
         return observe(system, y)
+
+    def kernels(self, system):
+        """``((observe, P), (evaluate, PE))``: the pure forms of :meth:`observe` and
+        :meth:`evaluate` for this system (:class:`rbenvs.contracts.Task`)."""
+        forms = system.forms
+        observe_fn = observation_form(forms.frame, forms.angular_velocity, forms.velocity)
+        return (observe_fn, system.form_params), (self._form(forms.frame), self._evaluate_params(system))
+
+    def evaluate(self, system, y, u):
+        """``(reward, terminated, metrics)`` with the tilt computed once."""
+        reward, terminated, success = self._form(system.forms.frame)(self._evaluate_params(system), y, u)
+        return reward, terminated, {"is_success": success}
 
 
 @dataclass(frozen=True)
@@ -104,10 +177,10 @@ class InvertTask(_SpunTop):
     # faster is an open problem here)
     controller = "ZeroController"
 
-    def evaluate(self, system, y, u):
-        """``(reward, terminated, metrics)`` with the tilt computed once."""
-        done = system.tilt(y) > self.goal_tilt
-        return -0.5 * (1.0 + system.frame(y)[8]) - self.control_cost * effort(u), done, {"is_success": done}
+    _form = staticmethod(invert_form)
+
+    def _evaluate_params(self, system):
+        return (system.form_params, float(self.control_cost), float(self.goal_tilt))
 
 
 @dataclass(frozen=True)
@@ -131,7 +204,7 @@ class HoldTask(_SpunTop):
     name = "hold"
     controller = "SlipCancelling"
 
-    def evaluate(self, system, y, u):
-        """``(reward, terminated, metrics)`` with the tilt computed once."""
-        tilt = system.tilt(y)
-        return 0.5 * (1.0 + system.frame(y)[8]) - self.control_cost * effort(u), tilt > self.fall_tilt, {"is_success": tilt < self.success_tilt}
+    _form = staticmethod(hold_form)
+
+    def _evaluate_params(self, system):
+        return (system.form_params, float(self.control_cost), float(self.fall_tilt), float(self.success_tilt))
