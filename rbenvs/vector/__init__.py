@@ -179,12 +179,12 @@ class RigidBodyVectorEnv(VectorEnv):
         self._steps[mask] = 0 if elapsed is None else elapsed[mask]
         self._prev_done = self._prev_done & ~mask
         self._plain = self.engine.plain
-        obs, over = self.engine.observe(self._y)
+        obs, over, metrics, physical = self._fresh(self._y)
         if np.any(over & mask):
             raise ValueError("an initial state lies outside the observation bounds; raise the limit parameters")
         self._u = None  # as the single env after reset: nothing acted yet (a table at rest)
         self._last_h = np.full(n, self.engine.h)
-        info = self._info(self._y, None, self._false, self._false, self._zero_metrics())
+        info = self._info(self._y, None, self._false, self._false, metrics, physical)
         return obs, info
 
     def _elapsed_steps(self, elapsed) -> np.ndarray:
@@ -199,11 +199,19 @@ class RigidBodyVectorEnv(VectorEnv):
             raise ValueError(f"options['elapsed_steps'] must lie in [0, max_episode_steps) = [0, {self.max_episode_steps}), got [{k.min()}, {k.max()}]")
         return k.astype(np.int64)
 
-    def _zero_metrics(self):
-        """The task's metrics of the current states (as after a reset: no action yet)."""
+    def _fresh(self, y):
+        """``(obs, over, metrics, physical)`` of states ``y`` that have just been reset: no control
+        acted yet (read-outs under ``u = None``, the single env's rule), the task's metrics at zero
+        action. Compiled where the step is (:meth:`rbenvs.compiled.BatchStep.finish`); on numpy
+        ``physical`` is ``None`` (the engine's read-outs are taken where needed)."""
+        if self._batch_step is not None:
+            obs, over, _, _, metrics, physical = self._batch_step.finish(np.stack(y))
+            return obs, over, dict(zip(self.task.metric_names, metrics)), physical
+        k = len(y[0])
         actuator = self.model.actuator
-        zero = actuator.control(tuple(np.zeros(self.num_envs) for _ in range(actuator.size)))[0]
-        return self.engine.evaluate(self._y, zero)[2]
+        zero = actuator.control(tuple(np.zeros(k) for _ in range(actuator.size)))[0]
+        obs, over = self.engine.observe(y)
+        return obs, over, self.engine.evaluate(y, zero)[2], None
 
     def _draw_rows(self, idx) -> None:
         """New initial states for the sub-envs ``idx``, each from its own generator: only the
@@ -339,9 +347,18 @@ class RigidBodyVectorEnv(VectorEnv):
         self._draw_rows(idx)
         self._steps[which] = 0
         y = tuple(c[idx] for c in self._y)
+        new_obs, _, metrics, physical = self._fresh(y)
         obs = obs.copy()
-        obs[idx] = self.engine.observe(y)[0]
-        for key, value in self._reset_info(y).items():
+        obs[idx] = new_obs
+        values = {}
+        if self.info_readouts:
+            if physical is None:
+                values = self.engine.readouts(y, None, np.zeros(len(idx), dtype=bool), self.engine.h)
+            else:
+                values = dict(zip(self.engine.readout_names, physical), internal_step=self.engine.h)
+        values.update(metrics)
+        values["numerical_failure"] = False
+        for key, value in values.items():
             column = info[key]
             if not column.flags.writeable:  # a shared mask (info's other arrays are this step's own)
                 column = info[key] = column.copy()
@@ -350,18 +367,6 @@ class RigidBodyVectorEnv(VectorEnv):
             info["terminal_reason"] = np.where(which, "", info["terminal_reason"])
             info["_terminal_reason"] = info["_terminal_reason"] & ~which
         return obs, info
-
-    def _reset_info(self, y) -> dict:
-        """The info values of states ``y`` (a few rows) as after a reset: read-outs with no control
-        acted yet (``u = None``, the single env's rule) and the default internal step, the task's
-        metrics at zero action, no failure."""
-        k = len(y[0])
-        actuator = self.model.actuator
-        zero = actuator.control(tuple(np.zeros(k) for _ in range(actuator.size)))[0]
-        out = self.engine.readouts(y, None, np.zeros(k, dtype=bool), self.engine.h) if self.info_readouts else {}
-        out.update(self.engine.evaluate(y, zero)[2])
-        out["numerical_failure"] = False
-        return out
 
     def _same_step_reset(self, done, obs, info):
         final_obs = obs.copy()
