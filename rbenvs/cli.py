@@ -11,8 +11,9 @@
   simulator against the oracles (:mod:`rbenvs.verify`); exits non-zero on any failure.
 * ``rbenvs bench kernels``: the layout measurement behind the component kernels.
 * ``rbenvs bench fidelity``: the tippe top's fidelity levels, each against gliding friction.
-* ``rbenvs bench throughput [--quick] [--json PATH]``: env-steps per second, single and vector,
-  against Pendulum-v1 and CartPole-v1's native vector env in the same run.
+* ``rbenvs bench throughput [--quick] [--json PATH] [--num-envs N] [--only TEXT] [--tables LIST]``: env-steps per
+  second of every task and scene, single and vector (random actions, restarts included), against Pendulum-v1
+  and CartPole-v1's native vector env, with the compiled kernel's own time.
 * ``rbenvs bench accuracy [--quick] [--json PATH] [--plot PNG] [--system NAME]``: error, order,
   invariant drift and cost of every integrator on every system, and a recommended integrator
   per scene (:mod:`rbenvs.bench.accuracy`).
