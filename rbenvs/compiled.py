@@ -422,6 +422,27 @@ def _switch_parts(parts) -> tuple:
     return triples, pw
 
 
+def _layout(parts, dim: int, n_obs: int, n_control: int, n_action: int, sample) -> tuple:
+    """``(layout, kernel parameters, sample evaluation, sample read-outs)`` of
+    :class:`rbenvs.core.step.KernelParts`: the functions for :class:`Layout`, their parameters
+    ``(PS, PO, PE, PR, PG, PA, PD, CD, PV, PW)`` in the kernels' order, and the task's evaluation
+    and the system's read-outs of the float state ``sample`` (their sizes and types)."""
+    (step, ps), (observe, po), (evaluate, pe), (readouts, pr) = parts.step, parts.observe, parts.evaluate, parts.readouts
+    (rotation, pa) = parts.rotation if parts.rotation is not None else (None, ())
+    (dissipation, pd) = parts.dissipation if parts.dissipation is not None else (None, ())
+    (event, pv) = parts.event if parts.event is not None else (None, ())
+    rhs_event = None
+    if parts.rhs_event is not None:  # (its parameters take the event's place)
+        rhs_event, pv = parts.rhs_event
+    switches, pw = _switch_parts(parts)
+    values = evaluate(pe, tuple(sample), (0.0,) * n_action)
+    physical = readouts(pr, tuple(sample), (0.0,) * n_control, False)
+    layout = Layout(step, dim, n_control, n_action, observe, n_obs, evaluate, len(values) - 2, readouts, len(physical), rotation, dissipation, event,
+                    rhs_event, switches)
+    params = (ps, po, pe, pr, parts.guard_params, pa, pd, float(parts.dissipation_step), pv, pw)
+    return layout, params, values, physical
+
+
 class StateStep:
     """One env's compiled single-state step: :func:`state_kernel` of its layout, its
     parameters, and a ``(readouts, metrics, h) -> info`` function. Calling it returns the
@@ -430,20 +451,10 @@ class StateStep:
     type dispatch (about 0.9 us of a call's 1.7 with the parameter tuples)."""
 
     def __init__(self, parts, dim: int, n_obs: int, n_control: int, n_action: int, sample, obs_high, h: float, dt: float, substeps: int, metric_names, readout_names):
-        (step, ps), (observe, po), (evaluate, pe), (readouts, pr) = parts.step, parts.observe, parts.evaluate, parts.readouts
-        (rotation, pa) = parts.rotation if parts.rotation is not None else (None, ())
-        (dissipation, pd) = parts.dissipation if parts.dissipation is not None else (None, ())
-        (event, pv) = parts.event if parts.event is not None else (None, ())
-        rhs_event = None
-        if parts.rhs_event is not None:
-            rhs_event, pv = parts.rhs_event
-        n_metrics = len(evaluate(pe, tuple(sample), (0.0,) * n_action)) - 2
-        n_readouts = len(readouts(pr, tuple(sample), (0.0,) * n_control, False))
-        switches, pw = _switch_parts(parts)
-        layout = Layout(step, dim, n_control, n_action, observe, n_obs, evaluate, n_metrics, readouts, n_readouts, rotation, dissipation, event, rhs_event, switches)
+        layout, params, _, _ = _layout(parts, dim, n_obs, n_control, n_action, sample)
         self.kernel = state_kernel(layout)
         high = tuple(float(v) for v in obs_high)
-        self.params = (float(h), float(dt), int(substeps), ps, po, pe, pr, parts.guard_params, pa, pd, float(parts.dissipation_step), pv, pw, high)
+        self.params = (float(h), float(dt), int(substeps)) + params + (high,)
         self.info = info_function(tuple(readout_names), tuple(metric_names))
         self._call = None
 
@@ -539,24 +550,14 @@ class BatchStep:
         import numpy as np
 
         n_action = n_control if n_action is None else n_action
-        (step, ps), (observe, po), (evaluate, pe), (readouts, pr) = parts.step, parts.observe, parts.evaluate, parts.readouts
-        (rotation, pa) = parts.rotation if parts.rotation is not None else (None, ())
-        (dissipation, pd) = parts.dissipation if parts.dissipation is not None else (None, ())
-        (event, pv) = parts.event if parts.event is not None else (None, ())
-        rhs_event = None
-        if parts.rhs_event is not None:
-            rhs_event, pv = parts.rhs_event
-        values = evaluate(pe, tuple(sample), (0.0,) * n_action)
-        physical = readouts(pr, tuple(sample), (0.0,) * n_control, False)
-        self.n_metrics, self.n_readouts = len(values) - 2, len(physical)
-        # each metric's array type from its value on a float state (a bool stays a bool)
+        layout, self.params, values, physical = _layout(parts, dim, n_obs, n_control, n_action, sample)
+        self.n_metrics, self.n_readouts = layout.n_metrics, layout.n_readouts
+        # each metric's and read-out's array type from its value on a float state (a bool stays a
+        # bool, a count an int)
         self.metric_dtypes = tuple(np.bool_ if isinstance(v, (bool, np.bool_)) else np.float64 for v in values[2:])
         self.readout_dtypes = tuple(np.bool_ if isinstance(v, (bool, np.bool_)) else (np.int64 if isinstance(v, (int, np.integer)) else np.float64) for v in physical)
-        switches, pw = _switch_parts(parts)
-        layout = Layout(step, dim, n_control, n_action, observe, n_obs, evaluate, self.n_metrics, readouts, self.n_readouts, rotation, dissipation, event, rhs_event, switches)
         self.layout = layout
         self.kernel = batch_kernel(layout)
-        self.params = (ps, po, pe, pr, parts.guard_params, pa, pd, float(parts.dissipation_step), pv, pw)
         self.high = np.asarray(obs_high, dtype=np.float64)
         self.n_obs = n_obs
         self.dt = float(dt) if dt is not None else None

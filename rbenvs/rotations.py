@@ -23,6 +23,7 @@ __all__ = [
     "atan2",
     "atan_kernel",
     "quat_multiply",
+    "quat_rate",
     "quat_conjugate",
     "quat_normalize",
     "quat_rotate",
@@ -175,6 +176,20 @@ def quat_multiply(p, q):
         pw * qx + px * qw + py * qz - pz * qy,
         pw * qy - px * qz + py * qw + pz * qx,
         pw * qz + px * qy - py * qx + pz * qw,
+    )
+
+
+@jitable
+def quat_rate(q, w):
+    """``dq/dt = q * (0, Omega) / 2``: the attitude's rate under the body angular velocity
+    ``w = Omega`` (the kinematics of every system that carries a quaternion)."""
+    qw, qx, qy, qz = q
+    h1, h2, h3 = 0.5 * w[0], 0.5 * w[1], 0.5 * w[2]
+    return (
+        -qx * h1 - qy * h2 - qz * h3,
+        qw * h1 + qy * h3 - qz * h2,
+        qw * h2 - qx * h3 + qz * h1,
+        qw * h3 + qx * h2 - qy * h1,
     )
 
 

@@ -22,7 +22,7 @@ import numpy as np
 from ..contracts import GuardRates
 from ..elliptic import elliptic_f_sc, elliptic_k, jacobi_sn_cn_dn
 from ..jit import jitable
-from ..rotations import quat_multiply, quat_normalize, sqrt
+from ..rotations import quat_multiply, quat_normalize, quat_rate, sqrt
 from .flows import AxisRotation
 from .state import export_layout, import_layout
 from .validation import require_inertia
@@ -114,19 +114,7 @@ def attitude_rhs(p, y, u):
     """Euler's equations and ``dq/dt = q * (0, Omega) / 2`` for ``y = (Pi, q)``; ``p = (c, inv)``,
     the coefficients and inverse moments of :class:`FreeBodyParams`."""
     c, inv = p
-    d1, d2, d3 = euler_rhs(c, y, u)
-    j1, j2, j3 = inv
-    w1, w2, w3 = 0.5 * j1 * y[0], 0.5 * j2 * y[1], 0.5 * j3 * y[2]
-    qw, qx, qy, qz = y[3], y[4], y[5], y[6]
-    return (
-        d1,
-        d2,
-        d3,
-        -qx * w1 - qy * w2 - qz * w3,
-        qw * w1 + qy * w3 - qz * w2,
-        qw * w2 - qx * w3 + qz * w1,
-        qw * w3 + qx * w2 - qy * w1,
-    )
+    return euler_rhs(c, y, u) + quat_rate((y[3], y[4], y[5], y[6]), angular_velocity(inv, y))
 
 
 @jitable

@@ -27,7 +27,7 @@ import numpy as np
 
 from ..contracts import GuardRates
 from ..jit import jitable
-from ..rotations import atan2, expm1, quat_conjugate, quat_from_two_vectors, quat_multiply, quat_normalize, quat_rotate, quat_to_euler_zxz, sqrt
+from ..rotations import atan2, expm1, quat_conjugate, quat_from_two_vectors, quat_multiply, quat_normalize, quat_rate, quat_rotate, quat_to_euler_zxz, sqrt
 from .free_body import angular_velocity, rotation_rate
 from .state import export_layout, import_layout
 from .flows import AxisRotation, SymmetricFreeRotation
@@ -83,15 +83,7 @@ def heavy_top_rhs(p, y, u):
 @jitable
 def heavy_top_attitude_rhs(p, y, u):
     """:func:`heavy_top_rhs` and ``dq/dt = q * (0, Omega) / 2`` for ``y = (Pi, Gamma, q)``."""
-    j1, j2, j3 = p[1]
-    h1, h2, h3 = 0.5 * (j1 * y[0]), 0.5 * (j2 * y[1]), 0.5 * (j3 * y[2])
-    qw, qx, qy, qz = y[6], y[7], y[8], y[9]
-    return heavy_top_rhs(p, y, u) + (
-        -qx * h1 - qy * h2 - qz * h3,
-        qw * h1 + qy * h3 - qz * h2,
-        qw * h2 - qx * h3 + qz * h1,
-        qw * h3 + qx * h2 - qy * h1,
-    )
+    return heavy_top_rhs(p, y, u) + quat_rate((y[6], y[7], y[8], y[9]), angular_velocity(p[1], y))
 
 
 @jitable

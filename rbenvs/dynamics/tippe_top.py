@@ -74,7 +74,7 @@ import numpy as np
 
 from ..contracts import GuardRates
 from ..jit import jitable
-from ..rotations import atan2, maximum, quat_normalize, sqrt
+from ..rotations import atan2, maximum, quat_normalize, quat_rate, sqrt
 from .contact import FRICTION_LAWS, no_friction
 from .validation import real_array, require_choice, require_finite_nonnegative, require_finite_positive, require_finite_result, require_real_vector
 
@@ -111,7 +111,6 @@ __all__ = [
     "constraint_vertical_velocity",
     "slip_velocity",
     "rolling_velocity_body",
-    "quaternion_rate",
     "vertical_tilt",
     "tippe_energy",
     "tippe_jellett",
@@ -281,18 +280,6 @@ def rolling_velocity_body(p, rm, w1, w2, w3):
 
 
 @jitable
-def quaternion_rate(qw, qx, qy, qz, w1, w2, w3):
-    """``dq/dt = q * (0, Omega) / 2``."""
-    h1, h2, h3 = 0.5 * w1, 0.5 * w2, 0.5 * w3
-    return (
-        -qx * h1 - qy * h2 - qz * h3,
-        qw * h1 + qy * h3 - qz * h2,
-        qw * h2 - qx * h3 + qz * h1,
-        qw * h3 + qx * h2 - qy * h1,
-    )
-
-
-@jitable
 def vertical_tilt(g1, g2, g3):
     """``theta`` [rad] between the symmetry axis and the upward vertical ``Gamma``."""
     return atan2(sqrt(g1 * g1 + g2 * g2), g3)
@@ -380,13 +367,13 @@ def rolling_contact(p, y, u):
 def sliding_derivative(p, y, c):
     """``dy/dt`` (gliding or frictionless, 11 components) from the contact tuple ``c``."""
     m = p[2]
-    return (c[8], c[9], c[1] / m - c[6], c[2] / m - c[7]) + quaternion_rate(y[4], y[5], y[6], y[7], y[8], y[9], y[10]) + (c[3], c[4], c[5])
+    return (c[8], c[9], c[1] / m - c[6], c[2] / m - c[7]) + quat_rate((y[4], y[5], y[6], y[7]), (y[8], y[9], y[10])) + (c[3], c[4], c[5])
 
 
 @jitable
 def rolling_derivative(p, y, c):
     """``dy/dt`` (rolling, 9 components): ``v_G = -omega x r`` is not integrated."""
-    return (c[8], c[9]) + quaternion_rate(y[2], y[3], y[4], y[5], y[6], y[7], y[8]) + (c[3], c[4], c[5])
+    return (c[8], c[9]) + quat_rate((y[2], y[3], y[4], y[5]), (y[6], y[7], y[8])) + (c[3], c[4], c[5])
 
 
 @jitable
@@ -401,7 +388,7 @@ def flight_derivative(p, y, c):
     zero = 0.0 * flag
     return (
         c[8], c[9], flag * c[10] + (1.0 - flag) * y[5], c[1] / m - c[6], c[2] / m - c[7], c[0] / m - g,
-    ) + quaternion_rate(y[6], y[7], y[8], y[9], y[10], y[11], y[12]) + (c[3], c[4], c[5], zero, zero)
+    ) + quat_rate((y[6], y[7], y[8], y[9]), (y[10], y[11], y[12])) + (c[3], c[4], c[5], zero, zero)
 
 
 @jitable

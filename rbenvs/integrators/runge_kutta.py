@@ -232,29 +232,25 @@ class ExplicitRungeKutta(Integrator):
         return _generated(type(self), dim, getattr(system, "needs_projection", True), False)["make"](system.rhs, system.normalize)
 
     def kernel_step(self, system):
-        pure = getattr(system, "kernel_rhs", None)
-        if pure is None or self._overridden():
-            return None
-        f, params = pure
-        project = getattr(system, "kernel_normalize", None)
-        if project is None:
-            return _pure_step(type(self), system.dim, f, None), params
-        normalize, n_params = project
-        return _pure_step(type(self), system.dim, f, normalize), (params, n_params)
+        return self._pure(system, _pure_step)
 
     def kernel_step_first_stage(self, system):
         """``(step, PS)`` with ``step(PS, y, k0, u, h)`` equal to :meth:`kernel_step`'s step given
         its first stage ``k0 = f(y, u)`` (every explicit scheme's first stage is the vector field
         at ``y``), or ``None``."""
+        return self._pure(system, _pure_first_step)
+
+    def _pure(self, system, flavour):
+        """``(flavour's step of the system's pure parts, PS)``, or ``None`` without them."""
         pure = getattr(system, "kernel_rhs", None)
         if pure is None or self._overridden():
             return None
         f, params = pure
         project = getattr(system, "kernel_normalize", None)
         if project is None:
-            return _pure_first_step(type(self), system.dim, f, None), params
+            return flavour(type(self), system.dim, f, None), params
         normalize, n_params = project
-        return _pure_first_step(type(self), system.dim, f, normalize), (params, n_params)
+        return flavour(type(self), system.dim, f, normalize), (params, n_params)
 
 
 @dataclass(frozen=True)
