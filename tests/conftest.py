@@ -1,9 +1,12 @@
+from dataclasses import dataclass
+
 import gymnasium as gym
 import numpy as np
 import pytest
 
 import rbenvs
 from rbenvs import vector
+from rbenvs.dynamics.contact import FrictionLaw
 
 ENV_IDS = sorted(rbenvs.ENVIRONMENTS)
 
@@ -136,3 +139,17 @@ def rotation(q):
             [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
         ]
     )
+
+
+@dataclass(frozen=True)
+class HalfViscous(FrictionLaw):
+    """A friction law defined outside the package, by its methods alone (no pure functions):
+    viscous at half the coefficient (tests/test_contact.py, tests/test_tippe_top_pure.py)."""
+
+    name = "half_viscous"
+
+    def coefficient(self, mu, s1, s2, s3, eps):
+        return -0.5 * mu
+
+    def stiffness(self, mu, normal, mobility, eps):
+        return 0.5 * mu * normal * mobility

@@ -2,16 +2,17 @@
 top's vector field, its env's choices and its step guard."""
 
 import math
-from dataclasses import dataclass
 
 import numpy as np
 import pytest
 
 from rbenvs.dynamics import contact
-from rbenvs.dynamics.contact import FRICTION_LAWS, Coulomb, FrictionLaw, Viscous
+from rbenvs.dynamics.contact import FRICTION_LAWS, Coulomb, Viscous
 from rbenvs.dynamics.tippe_top import TippeTop, TippeTopParams
 from rbenvs.envs import TippeTopEnv
 from rbenvs.integrators import get_integrator
+
+from conftest import HalfViscous
 
 
 def test_coulomb_and_viscous_coefficients_and_stiffness():
@@ -27,18 +28,6 @@ def test_coulomb_and_viscous_coefficients_and_stiffness():
     assert np.allclose(c.coefficient(0.3, s, 0.0 * s, 0.0 * s, 1e-3) * s, [-0.3e-3, -0.3], rtol=1e-6)
     assert set(FRICTION_LAWS) == {"coulomb", "viscous"}
 
-
-@dataclass(frozen=True)
-class HalfViscous(FrictionLaw):
-    """A law defined outside the package: viscous at half the coefficient."""
-
-    name = "half_viscous"
-
-    def coefficient(self, mu, s1, s2, s3, eps):
-        return -0.5 * mu
-
-    def stiffness(self, mu, normal, mobility, eps):
-        return 0.5 * mu * normal * mobility
 
 
 def test_a_new_law_is_one_class_and_one_registry_entry(monkeypatch):

@@ -3,17 +3,18 @@ reward forms): one implementation for the methods (floats), the numpy batch (arr
 compiled code, bit for bit, for every friction law, fidelity and free flight."""
 
 import math
-from dataclasses import dataclass
 
 import numpy as np
 import pytest
 
 from rbenvs import compiled
 from rbenvs.dynamics import contact
-from rbenvs.dynamics.contact import FRICTION_LAWS, Coulomb, FrictionLaw, Viscous, coulomb_coefficient, coulomb_stiffness, viscous_coefficient, viscous_stiffness
+from rbenvs.dynamics.contact import FRICTION_LAWS, Coulomb, Viscous, coulomb_coefficient, coulomb_stiffness, viscous_coefficient, viscous_stiffness
 from rbenvs.dynamics.tippe_top import TippeTop, TippeTopParams, pure_forms
 from rbenvs.integrators import get_integrator
 from rbenvs.tasks import HoldTask, InvertTask
+
+from conftest import HalfViscous
 
 needs_numba = pytest.mark.skipif(not compiled.available(), reason="the compiled path needs the 'fast' extra (numba) and RBENVS_COMPILED unset")
 
@@ -139,18 +140,6 @@ def test_each_law_is_its_pure_functions():
     assert a.forms is b.forms and a.forms is pure_forms(coulomb_coefficient, coulomb_stiffness, False, True)
     assert make_system("gliding", "viscous", True).forms is not a.forms
 
-
-@dataclass(frozen=True)
-class HalfViscous(FrictionLaw):
-    """A law given by its methods alone (no pure functions)."""
-
-    name = "half_viscous"
-
-    def coefficient(self, mu, s1, s2, s3, eps):
-        return -0.5 * mu
-
-    def stiffness(self, mu, normal, mobility, eps):
-        return 0.5 * mu * normal * mobility
 
 
 def test_a_law_without_pure_functions_runs_on_floats_and_arrays_with_no_kernels(monkeypatch):
