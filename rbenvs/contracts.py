@@ -157,8 +157,11 @@ class System(Protocol):
         """The rates the internal step must resolve with an integrator of ``region``;
         ``speed_ceiling`` bounds ``|Omega|`` inside the observation bounds."""
 
+    start_draw_kinds: str  # the kinds of the numbers the system adds to a start (rbenvs.draws)
+
     def start_draws(self, rng):
-        """The generator's numbers the system adds to a start (an array, maybe empty)."""
+        """The generator's numbers the system adds to a start (an array, maybe empty), in the
+        order of :attr:`start_draw_kinds`."""
 
     def complete_initial_state(self, y, d):
         """A task's start ``y`` completed from the system's draws ``d`` (or ``y``); floats or
@@ -222,8 +225,11 @@ class Task(Protocol):
     controller: str
     kernels: Any
 
+    draw_kinds: str  # the kinds of one start's raw numbers, in order (rbenvs.draws)
+
     def initial_draws(self, rng):
-        """The generator's raw numbers for one start (an array)."""
+        """The generator's raw numbers for one start (an array), in the order of
+        :attr:`draw_kinds`."""
 
     def initial_from_draws(self, system, d):
         """A start's components from its draws (floats, or rows of a batch)."""

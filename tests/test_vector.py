@@ -17,6 +17,7 @@ from gymnasium.vector.utils import batch_space
 
 import rbenvs
 from rbenvs.envs import NumericalFailureWarning
+from rbenvs.jit import available as compiled_available
 
 from conftest import ENV_IDS, FREE, LAGRANGE, TIPPE, TIPPE_CONTROL_READOUTS, VECTOR_CLASS, check_info_row, lockstep, make_singles, make_vec, random_actions, same, same_state
 
@@ -837,14 +838,17 @@ START_CASES = [
 ]
 
 
+@pytest.mark.parametrize("compiled", ["auto", False], ids=["draws-auto", "draws-python"])
 @pytest.mark.parametrize("env_id,kwargs", START_CASES, ids=lambda v: v if isinstance(v, str) else ",".join(f"{k}={x}" for k, x in v.items()))
-def test_batched_starts_equal_single_env_starts_bit_for_bit(env_id, kwargs):
+def test_batched_starts_equal_single_env_starts_bit_for_bit(env_id, kwargs, compiled):
     """Every task and system draws its starts in two stages: 64 sub-envs reset at once (the
-    arithmetic on the batch) equal 64 single envs seeded alike, bit for bit, twice in a row."""
+    arithmetic on the batch) equal 64 single envs seeded alike, bit for bit, twice in a row;
+    the generator calls compiled (``GeneratorTable``, where numba is installed) or in Python."""
     n = 64
-    venv = make_vec(env_id, n, **kwargs)
+    venv = make_vec(env_id, n, compiled=compiled, **kwargs)
     singles = make_singles(env_id, n, **kwargs)
     venv.reset(seed=7)
+    assert (venv.unwrapped._table is not None) == (compiled == "auto" and compiled_available())
     for i, env in enumerate(singles):
         env.reset(seed=7 + i)
     for _ in range(2):

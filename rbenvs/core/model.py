@@ -12,9 +12,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
-import numpy as np
-
 from ..contracts import Actuator, HybridSystem, Integrator, StepRegion, System, Task, require_parts
+from ..draws import batch_draws
 from .guard import StepRule
 
 __all__ = ["Model", "observation_bounds"]
@@ -31,7 +30,8 @@ class Model:
     * ``speed_ceiling``: an upper bound of ``|Omega|`` inside those bounds (``inf``: unknown),
       which lets a guard prove it never needs more than ``substeps`` steps;
     * ``step_rule`` (derived): the guard's rule from the system's rates and the integrator's
-      region; ``system_draws`` (derived): how many numbers the system adds to a start.
+      region; ``draw_kinds`` (derived): the kinds of a start's numbers, the task's then the
+      system's (:mod:`rbenvs.draws`); ``system_draws``: how many of them the system adds.
     """
 
     system: object
@@ -44,6 +44,7 @@ class Model:
     observation_high: tuple
     speed_ceiling: float = math.inf
     step_rule: StepRule = field(init=False)
+    draw_kinds: str = field(init=False)
     system_draws: int = field(init=False)
 
     def __post_init__(self):
@@ -55,7 +56,8 @@ class Model:
         region: StepRegion = self.integrator.region
         rates = self.system.guard_rates(region, self.speed_ceiling)
         object.__setattr__(self, "step_rule", StepRule.build(rates, region, self.dt, self.guard))
-        object.__setattr__(self, "system_draws", len(self.system.start_draws(np.random.default_rng(0))))
+        object.__setattr__(self, "draw_kinds", self.task.draw_kinds + self.system.start_draw_kinds)
+        object.__setattr__(self, "system_draws", len(self.system.start_draw_kinds))
 
     def __reduce__(self):
         """Pickled as its parts and settings; the derived rule is made again on loading (it holds
@@ -74,15 +76,15 @@ class Model:
         return self.task.initial_draws(rng), self.system.start_draws(rng)
 
     def batch_draws(self, rngs) -> tuple:
-        """The draws of many starts, one generator each (``initial_draws`` per generator, in its
-        order), stacked along axis 1: ``(the task's, the system's)``. A system that adds no draws
-        is not asked (an empty draw consumes nothing: the streams are the same)."""
-        task = np.stack([self.task.initial_draws(rng) for rng in rngs], axis=1)
-        if self.system_draws:
-            system = np.stack([self.system.start_draws(rng) for rng in rngs], axis=1)
-        else:
-            system = np.empty((0, len(rngs)))
-        return task, system
+        """The draws of many starts, one generator each (:attr:`draw_kinds` per generator, in its
+        order), stacked along axis 1: ``(the task's, the system's)`` (:meth:`split_draws`)."""
+        return self.split_draws(batch_draws(rngs, self.draw_kinds))
+
+    def split_draws(self, d) -> tuple:
+        """``(the task's, the system's)`` rows of draws ``d`` made in :attr:`draw_kinds` order
+        (one start's array, or a batch's ``(len(draw_kinds), n)`` rows)."""
+        k = len(self.draw_kinds) - self.system_draws
+        return d[:k], d[k:]
 
     def initial_from_draws(self, task_draws, system_draws) -> tuple:
         """A start's components from its draws (floats, or rows of a batch: the draws of many

@@ -20,6 +20,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..contracts import GuardRates
+from ..draws import draw
 from ..elliptic import elliptic_f_sc, elliptic_k, jacobi_sn_cn_dn
 from ..jit import jitable
 from ..rotations import quat_multiply, quat_normalize, quat_rate, sqrt
@@ -180,9 +181,10 @@ class FreeBody:
         """``(energy, momentum_norm)`` (:attr:`readout_names`); the control plays no part."""
         return free_body_readouts(self._inverse, y, u, fired)
 
+    start_draw_kinds = ""  # the system adds no numbers to a task's start (rbenvs.draws)
+
     def start_draws(self, rng):
-        """The generator's numbers the system adds to a task's start: none."""
-        return rng.random(0)
+        return draw(rng, self.start_draw_kinds)
 
     def complete_initial_state(self, y, d):
         """A task's start as it is (the task draws the attitude where it needs one)."""

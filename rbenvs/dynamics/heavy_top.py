@@ -26,6 +26,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..contracts import GuardRates
+from ..draws import draw
 from ..jit import jitable
 from ..rotations import atan2, expm1, quat_conjugate, quat_from_two_vectors, quat_multiply, quat_normalize, quat_rate, quat_rotate, quat_to_euler_zxz, sqrt
 from .free_body import angular_velocity, rotation_rate
@@ -363,10 +364,14 @@ class HeavyTop:
         fn, p = self.kernel_readouts
         return fn(p, tuple(y), u, fired)
 
+    @property
+    def start_draw_kinds(self) -> str:
+        """The kinds of the numbers the system adds to a task's start (:mod:`rbenvs.draws`): the
+        heading where it carries the attitude (one uniform), else none."""
+        return "u" if self.attitude else ""
+
     def start_draws(self, rng):
-        """The generator's numbers the system adds to a task's start: the heading where it
-        carries the attitude (one uniform), else none."""
-        return rng.random(1 if self.attitude else 0)
+        return draw(rng, self.start_draw_kinds)
 
     def complete_initial_state(self, y, d):
         """A task's start ``(Pi, Gamma)``, with the attitude appended where the system carries

@@ -73,6 +73,7 @@ from typing import Callable, NamedTuple
 import numpy as np
 
 from ..contracts import GuardRates
+from ..draws import draw
 from ..jit import jitable
 from ..rotations import atan2, maximum, quat_normalize, quat_rate, sqrt
 from .contact import FRICTION_LAWS, no_friction
@@ -903,9 +904,10 @@ class TippeTop:
         (``kernel_readouts``)."""
         return self.forms.readouts(self.form_params, y, u, fired)
 
+    start_draw_kinds = ""  # the system adds no numbers to a task's start (rbenvs.draws)
+
     def start_draws(self, rng):
-        """The generator's numbers the system adds to a task's start: none."""
-        return rng.random(0)
+        return draw(rng, self.start_draw_kinds)
 
     def complete_initial_state(self, y, d):
         """A task's start as it is."""

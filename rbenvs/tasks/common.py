@@ -9,19 +9,27 @@ A task (:class:`rbenvs.contracts.Task`) also declares, as class attributes, its 
 
 from __future__ import annotations
 
+from ..draws import draw
 from ..jit import jitable
 
 __all__ = ["effort", "TwoStageStart"]
 
 
 class TwoStageStart:
-    """Starts drawn in two parts (every task): ``initial_draws(rng)``, the generator's raw numbers
-    for one start (a few calls on one sub-env's generator), and ``initial_from_draws(system,
-    d)``, the arithmetic that turns them into components, on floats or on rows of a batch. A
-    vector env restarting thousands of sub-envs then makes only the generator calls per sub-env
-    and the arithmetic once (:mod:`rbenvs.vector`); :meth:`initial_state` is the two in a row
-    (the single env). A uniform on ``[a, b)`` is ``a + (b - a) U`` (numpy's own formula), so
-    ``rng.random`` draws give the same numbers as ``rng.uniform``."""
+    """Starts drawn in two parts (every task): ``draw_kinds``, the kinds of the generator's raw
+    numbers for one start (:mod:`rbenvs.draws`: ``"u"`` uniform, ``"n"`` normal, in order), and
+    ``initial_from_draws(system, d)``, the arithmetic that turns them into components, on floats
+    or on rows of a batch. A vector env restarting thousands of sub-envs then makes only the
+    generator calls per sub-env (compiled, where numba is installed) and the arithmetic once
+    (:mod:`rbenvs.vector`); :meth:`initial_state` is the two in a row (the single env). A
+    uniform on ``[a, b)`` is ``a + (b - a) U`` (numpy's own formula), so ``rng.random`` draws
+    give the same numbers as ``rng.uniform``."""
+
+    draw_kinds: str = ""
+
+    def initial_draws(self, rng):
+        """The generator's numbers for one start, in the order of :attr:`draw_kinds`."""
+        return draw(rng, self.draw_kinds)
 
     def initial_state(self, system, rng, shape=()):
         if tuple(shape) != ():

@@ -111,8 +111,7 @@ class SpinTask(TwoStageStart):
     final_measure = "alignment"
     controller = "SpinLQR"
 
-    def initial_draws(self, rng):
-        return rng.random(2)  # tilt and azimuth of the spin direction
+    draw_kinds = "uu"  # tilt and azimuth of the spin direction
 
     def initial_from_draws(self, system, d):
         p = system.params.inertia[self.axis] * self.spin_rate
@@ -166,11 +165,7 @@ class DetumbleTask(TwoStageStart):
     final_measure = "angular_speed"
     controller = "DetumbleDamping"
 
-    def initial_draws(self, rng):
-        d = np.empty(4)
-        d[:3] = rng.standard_normal(3)  # direction
-        d[3] = rng.random()  # speed
-        return d
+    draw_kinds = "nnnu"  # direction, speed
 
     def initial_from_draws(self, system, d):
         n = _directions(d[0], d[1], d[2])
@@ -225,12 +220,7 @@ class ReorientTask(TwoStageStart):
     final_measure = "attitude_error"
     controller = "ReorientPD"
 
-    def initial_draws(self, rng):
-        d = np.empty(7)
-        d[:3] = rng.random(3)  # attitude
-        d[3:6] = rng.standard_normal(3)  # direction of Omega
-        d[6] = rng.random()  # speed
-        return d
+    draw_kinds = "uuunnnu"  # attitude, direction of Omega, speed
 
     def initial_from_draws(self, system, d):
         q = quat_from_uniforms(d[0], d[1], d[2])

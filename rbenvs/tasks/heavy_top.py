@@ -12,6 +12,7 @@ top (``Pi = I Omega``); the heading about the vertical does not enter the dynami
 from __future__ import annotations
 
 import math
+from functools import lru_cache
 from dataclasses import dataclass
 
 import numpy as np
@@ -29,8 +30,14 @@ def transverse_basis(chi) -> tuple[tuple[float, float, float], tuple[float, floa
     """Unit vectors ``(t1, t2)`` with ``(t1, t2, chi)`` right-handed and orthonormal.
 
     For ``chi = +-e_k`` they are the other two body axes (``e_i``, ``+-e_j``, ``(i, j, k)``
-    cyclic), so a Lagrange top's transverse torques act on body axes 1 and 2.
+    cyclic), so a Lagrange top's transverse torques act on body axes 1 and 2. Made once per
+    ``chi`` (every restart of a batch asks).
     """
+    return _transverse_basis(tuple(float(c) for c in chi))
+
+
+@lru_cache(maxsize=64)
+def _transverse_basis(chi: tuple):
     x = np.asarray(chi, dtype=float)
     k = int(np.argmax(np.abs(x)))
     e = np.zeros(3)
@@ -156,8 +163,7 @@ class UprightTask(TwoStageStart):
     final_measure = "tilt"
     controller = "UprightLQR"
 
-    def initial_draws(self, rng):
-        return rng.random(3)  # tilt, azimuth, spin
+    draw_kinds = "uuu"  # tilt, azimuth, spin
 
     def initial_from_draws(self, system, d):
         prm = system.params
@@ -223,8 +229,7 @@ class PrecessTask(TwoStageStart):
             return self.target_rate
         return slow_precession_rate(system, system.spin(y), self.target_tilt)
 
-    def initial_draws(self, rng):
-        return rng.random(3)  # tilt, azimuth, spin
+    draw_kinds = "uuu"  # tilt, azimuth, spin
 
     def initial_from_draws(self, system, d):
         prm = system.params

@@ -127,8 +127,7 @@ class _SpunTop(TwoStageStart):
     metric_names = ("is_success",)
     final_measure = "tilt"
 
-    def initial_draws(self, rng):
-        return rng.random(4)  # tilt, azimuth, heading, spin
+    draw_kinds = "uuuu"  # tilt, azimuth, heading, spin
 
     def initial_from_draws(self, system, d):
         return tilted_spin_state(system, d, self.spin_low, self.spin_high, self.tilt_low, self.tilt_high)

@@ -58,6 +58,7 @@ from gymnasium.vector.utils import batch_space
 
 from .. import compiled as _compiled
 from ..core.step import action_columns, terminal_reason
+from ..draws import GeneratorTable, kind_codes
 from ..envs.base import require_compiled
 from ..dynamics.validation import real_array, require_bool, require_int_at_least
 
@@ -103,6 +104,11 @@ class RigidBodyVectorEnv(VectorEnv):
         self._steps = np.zeros(self.num_envs, dtype=np.int64)
         self._prev_done = np.zeros(self.num_envs, dtype=bool)
         self._rngs = [None] * self.num_envs
+        # the generators as one compiled table (rbenvs.draws), made once every sub-env has one:
+        # restarts then draw with no Python per sub-env
+        self._table = None
+        self._use_table = compiled is not False and _compiled.available()
+        self._codes = kind_codes(self.model.draw_kinds)
         # shared read-only masks: every step's info reuses them instead of allocating
         self._true = np.ones(self.num_envs, dtype=bool)
         self._false = np.zeros(self.num_envs, dtype=bool)
@@ -172,6 +178,10 @@ class RigidBodyVectorEnv(VectorEnv):
         for i in np.flatnonzero(mask):
             if seeds[i] is not None or self._rngs[i] is None:
                 self._rngs[i] = seeding.np_random(seeds[i])[0]
+                if self._table is not None:
+                    self._table[i] = self._rngs[i]
+        if self._use_table and self._table is None and all(r is not None for r in self._rngs):
+            self._table = GeneratorTable(self._rngs)
         if state is not None:
             self._set_rows(self._rows_from_state(state, mask))
         else:
@@ -215,12 +225,16 @@ class RigidBodyVectorEnv(VectorEnv):
 
     def _draw_rows(self, idx) -> None:
         """New initial states for the sub-envs ``idx``, each from its own generator: only the
-        generator calls run per sub-env (``Model.initial_draws``), the arithmetic once on the
-        batch (``Model.initial_from_draws``; 4096 free-body resets: about 5 ms instead of 22).
-        Sub-env ``i`` gets the state a single env draws from the same generator (tested)."""
+        generator calls run per sub-env (the model's ``draw_kinds``; one compiled loop over the
+        sub-envs where numba is installed, :class:`rbenvs.draws.GeneratorTable`), the
+        arithmetic once on the batch (``Model.initial_from_draws``). Sub-env ``i`` gets the
+        state a single env draws from the same generator (tested)."""
         if len(idx) == 0:
             return
-        task_raw, system_raw = self.model.batch_draws([self._rngs[i] for i in idx])
+        if self._table is not None:
+            task_raw, system_raw = self.model.split_draws(self._table.draws(idx, self._codes))
+        else:
+            task_raw, system_raw = self.model.batch_draws([self._rngs[i] for i in idx])
         comps = self.model.initial_from_draws(tuple(task_raw), tuple(system_raw))
         if self._y2d is not None:  # the rows of the kernel's (dim, n) state, which self._y views
             for j, v in enumerate(comps):
