@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import os
 
-__all__ = ["jitable", "available", "register_all", "register", "DISABLE_VARIABLE"]
+__all__ = ["jitable", "compiled_form", "available", "register_all", "register", "DISABLE_VARIABLE"]
 
 # set to "0" to keep the numpy path even where numba is installed (comparisons, debugging)
 DISABLE_VARIABLE = "RBENVS_COMPILED"
@@ -36,6 +36,26 @@ def jitable(fn):
     return fn
 
 
+def compiled_form(of):
+    """Decorator: the decorated function is what compiled code runs for the jitable ``of``.
+
+    For functions whose float form branches on the data (which interval an argument lies in,
+    whether a norm vanished): compiled, a branch per element keeps a batch loop out of SIMD
+    registers and mispredicts on random data. The compiled form computes the same operations
+    for each outcome and selects (a ``select`` per branch), so it returns the same bits as the
+    float form for every argument (each such pair is tested on floats, arrays and compiled).
+    Python floats keep the branches: they cannot divide by zero, and one path costs less
+    there."""
+
+    def mark(alt):
+        if id(of) in _done:
+            raise RuntimeError(f"{of.__name__} was registered with numba before its compiled form was declared")
+        of.__compiled_form__ = alt
+        return alt
+
+    return mark
+
+
 def available() -> bool:
     """Whether compiled kernels can be used: numba importable and not disabled."""
     if os.environ.get(DISABLE_VARIABLE, "1") == "0":
@@ -50,9 +70,11 @@ def available() -> bool:
 def register(fn) -> None:
     if id(fn) in _done:
         return
-    from numba.extending import register_jitable
+    from numba.extending import overload
 
-    register_jitable(fn)
+    # what numba.extending.register_jitable does, with the compiled form where one is declared
+    impl = getattr(fn, "__compiled_form__", fn)
+    overload(fn, inline="never", strict=False)(lambda *args, **kwargs: impl)
     _done.add(id(fn))
 
 
@@ -62,3 +84,4 @@ def register_all() -> None:
         for fn in _JITABLE:
             register(fn)
         _registered = True
+

@@ -13,7 +13,7 @@ import math
 
 import numpy as np
 
-from .jit import jitable
+from .jit import compiled_form, jitable
 
 __all__ = [
     "sqrt",
@@ -146,6 +146,31 @@ def atan2(y, x):
         return _atan2_arrays(y, x)
 
 
+@compiled_form(atan2)
+def _atan2_selects(y, x):
+    """:func:`atan2` compiled: every branch a selection (the same operations per argument, so
+    the same bits; one division for the reduction, its numerator and denominator selected),
+    which keeps a batch loop in SIMD registers and never mispredicts."""
+    ay = select(y < 0.0, -y, y)  # (not abs: -0.0 stays -0.0, as in the float form)
+    ax = select(x < 0.0, -x, x)
+    t = select(ax == 0.0, select(ay > 0.0, math.inf, 0.0), select((ay == math.inf) & (ax == math.inf), 1.0, ay / ax))
+    small = t < 0.4375
+    k0 = t < 0.6875
+    k1 = t < 1.1875
+    k2 = t < 2.4375
+    # the reduced argument r = num / den on the interval of t (fdlibm's four, or t itself)
+    num = select(small, t, select(k0, 2.0 * t - 1.0, select(k1, t - 1.0, select(k2, t - 1.5, -1.0))))
+    den = select(small, 1.0, select(k0, 2.0 + t, select(k1, t + 1.0, select(k2, 1.0 + 1.5 * t, t))))
+    r = select(small, t, num / den)
+    hi = select(k0, _ATAN_HI[0], select(k1, _ATAN_HI[1], select(k2, _ATAN_HI[2], _ATAN_HI[3])))
+    lo = select(k0, _ATAN_LO[0], select(k1, _ATAN_LO[1], select(k2, _ATAN_LO[2], _ATAN_LO[3])))
+    poly = atan_kernel(r)
+    z = select(small, r - poly, hi - ((poly - lo) - r))
+    z = select(t > _HUGE, _PIO2, select(math.copysign(1.0, x) < 0.0, _PI - (z - _PI_LO), z))
+    z = select(math.copysign(1.0, y) < 0.0, -z, z)
+    return select((x != x) | (y != y), x + y, z)
+
+
 @jitable  # (registered so that compiled code can name it; it only ever runs on arrays)
 def _atan2_arrays(y, x):
     """:func:`atan2`'s branches as selections on arrays (the same operations per element)."""
@@ -215,6 +240,16 @@ def quat_normalize(q):
         inv = 1.0 / math.sqrt(n2)
     else:
         inv = _inverse_norm_arrays(n2)
+    return (w * inv, x * inv, y * inv, z * inv)
+
+
+@compiled_form(quat_normalize)
+def _quat_normalize_selects(q):
+    """:func:`quat_normalize` compiled: the NaN of a collapsed quaternion selected, not branched
+    to (the same bits)."""
+    w, x, y, z = q
+    n2 = w * w + x * x + y * y + z * z
+    inv = select((0.0 < n2) & (n2 < math.inf), 1.0 / math.sqrt(n2), math.nan)
     return (w * inv, x * inv, y * inv, z * inv)
 
 

@@ -140,6 +140,40 @@ def test_normalize(shape):
         np.testing.assert_allclose(a, b, atol=4 * EPS)
 
 
+def test_normalize_floats_arrays_and_compiled_give_the_same_bits():
+    """One projection for the three paths (the compiled one selects instead of branching):
+    the same bits on random quaternions over 600 decades of scale and on the degenerate ones
+    (zero, subnormal, overflowing, infinite, NaN), which give NaN everywhere."""
+    rng = np.random.default_rng(6)
+    n = 20_000
+    q = rng.standard_normal((4, n)) * np.exp(rng.uniform(-700.0, 700.0, n))
+    special = np.array([[0.0, 0.0, 0.0, 0.0], [5e-324, 0.0, 0.0, 0.0], [1e-170, 1e-170, 0.0, 0.0], [1e200, 1e200, 0.0, 0.0],
+                        [np.inf, 0.0, 0.0, 0.0], [np.nan, 1.0, 0.0, 0.0], [-0.0, -1.0, 0.0, 0.0]]).T
+    q = np.concatenate([q, special], axis=1)
+    floats = np.array([quat_normalize(tuple(float(c) for c in q[:, i])) for i in range(q.shape[1])]).T
+    assert all(_same_bits(a, b) for a, b in zip(floats, quat_normalize(tuple(q))))
+    assert np.isnan(floats[:, -7:-1]).all() and not np.isnan(floats[:, -1]).any()
+    from rbenvs import compiled
+
+    if compiled.available():
+        import numba
+
+        from rbenvs.jit import register_all
+
+        register_all()
+
+        @numba.njit(error_model="numpy")
+        def kernel(q, out):
+            for i in range(q.shape[1]):
+                r = quat_normalize((q[0, i], q[1, i], q[2, i], q[3, i]))
+                for j in range(4):
+                    out[j, i] = r[j]
+
+        out = np.empty_like(q)
+        kernel(q, out)
+        assert all(_same_bits(a, b) for a, b in zip(floats, out))
+
+
 @SHAPES
 def test_angle_near_zero_and_pi(shape):
     rng = np.random.default_rng(5)
