@@ -31,12 +31,12 @@ Conventions (gymnasium 1.x):
   out of ``info``, keeping the task's metrics: on the numpy path at thousands of sub-envs
   they cost a good part of the step (``rbenvs bench throughput`` measures both).
 * ``compiled="auto"`` (default): where numba is installed (the ``fast`` extra) and the model's
-  integrator, system and task all have pure forms (today: the free body without attitude,
-  spin and detumble, ``euler``/``rk4``; a guarded period that needs more than ``substeps``
-  steps runs on numpy), the step runs as one compiled kernel of the same functions
-  (:mod:`rbenvs.compiled`), bit for bit the numpy path's result; elsewhere, and with
-  ``compiled=False``, the numpy path. ``compiled=True`` demands the kernel (``ValueError``
-  saying why it cannot be had). ``self.compiled`` tells which path runs.
+  integrator, system and task all have pure forms (every system and task with ``euler``,
+  ``rk4`` or ``splitting``; not ``exact`` or ``dop853``), the step runs as one compiled kernel
+  of the same functions (:mod:`rbenvs.compiled`), bit for bit the numpy path's result, and
+  restarting sub-envs draw their starts in one compiled call (:mod:`rbenvs.draws`); elsewhere,
+  and with ``compiled=False``, the numpy path. ``compiled=True`` demands the kernel
+  (``ValueError`` saying why it cannot be had). ``self.compiled`` tells which path runs.
 * ``get_state()`` returns the single env's dict with every array batched along a leading
   axis of length ``num_envs``; ``reset(options={"state": d})`` starts every sub-env there
   (each row validated like the single env's). ``reset(options={"reset_mask": m})`` resets only
