@@ -52,10 +52,21 @@ def _comps(fmt, k):
     return ", ".join(fmt.format(j=j) for j in range(k)) + ("," if k == 1 else "")
 
 
-def _physics_lines(dim: int, n_control: int) -> list[str]:
-    """The body of the physics loops: ``Ynew`` = ``substeps`` steps of ``step`` from ``Y``."""
+def _controls(L, rows: bool = False) -> tuple[str, str]:
+    """The lines that set sub-env ``i``'s controls ``u`` and normalised action ``un``: read from
+    tuples of ``(n,)`` arrays ``U`` and ``UN`` (the batch kernel's arguments) or, with ``rows``,
+    from the rows of ``(k, n)`` arrays (the vector step's, filled from the actions once: a loop
+    reading unit-stride rows stays in SIMD registers, one reading each sub-env's actions from
+    the ``(n, k)`` batch would not; measured: 76 against 123 us a 4096 free-body step)."""
+    access = "{name}[{j}, i]" if rows else "{name}[{j}][i]"
+    return (f"u = ({_comps(access.format(name='U', j='{j}'), L.n_control)})",
+            f"un = ({_comps(access.format(name='UN', j='{j}'), L.n_action)})")
+
+
+def _physics_lines(dim: int, u: str) -> list[str]:
+    """The body of the physics loops: ``Ynew`` = ``substeps`` steps of ``step`` from ``Y``
+    (``u``: the line that sets the controls ``u`` of sub-env ``i``)."""
     y_new = f"y = ({_comps('Ynew[{j}, i]', dim)})"
-    u = f"u = ({_comps('U[{j}][i]', n_control)})"
     return [
         "    n = Y.shape[1]",
         # substeps as passes over the batch: a runtime-length loop inside the element loop
@@ -83,7 +94,8 @@ def physics_kernel(step, dim: int, n_control: int):
 
     _register_all()
     _register(step)
-    src = "def advance(Y, Ynew, U, h, substeps, PS):\n" + "\n".join(_physics_lines(dim, n_control)) + "\n"
+    u = f"u = ({_comps('U[{j}][i]', n_control)})"
+    src = "def advance(Y, Ynew, U, h, substeps, PS):\n" + "\n".join(_physics_lines(dim, u)) + "\n"
     namespace = generate(src, f"physics kernel dim={dim}", {"step": step})
     return numba.njit(**KERNEL_OPTIONS)(namespace["advance"])
 
@@ -334,27 +346,39 @@ def batch_kernel(layout: Layout):
     import numba
 
     L = layout
-    comps, dim = _comps, L.dim
     metrics = [f"M{j}" for j in range(L.n_metrics)]
     reads = [f"R{j}" for j in range(L.n_readouts)]
     args = ["Y", "Ynew", "U", "UN", "h", "dt", "substeps", "check", "refuse", "skip", "PS", "PO", "PE", "PR", "PG", "PA", "PD", "CD", "PV", "PW", "HI",
             "counts", "hstep", "fired", "obs", "over", "reward", "terminated"] + metrics + reads
+    lines = [f"def kernel({', '.join(args)}):", "    n = Y.shape[1]"]
+    lines += _period_and_finish(L, *_controls(L), "")
+    lines += ["    return 0"]
+    namespace = _namespace(L)
+    generate("\n".join(lines), f"batch kernel dim={L.dim} n_obs={L.n_obs}", namespace)
+    return numba.njit(**KERNEL_OPTIONS)(namespace["kernel"])
+
+
+def _period_and_finish(L: Layout, u: str, un: str, more: str) -> list[str]:
+    """The batch kernel's body (see :func:`batch_kernel`): the guard's counts (a refusal returns
+    -1), the period per sub-env or as SIMD passes, the non-finite check (returns ``bad``, the
+    count) and the finish loops; ``u`` and ``un`` the lines that set sub-env ``i``'s controls
+    and normalised action (:func:`_controls`); ``more``: further values the early returns
+    append (``", 0"``)."""
+    comps, dim = _comps, L.dim
     y_old = f"y = ({comps('Y[{j}, i]', dim)})"
     y_new = f"y = ({comps('Ynew[{j}, i]', dim)})"
-    u = f"u = ({comps('U[{j}][i]', L.n_control)})"
-    un = f"un = ({comps('UN[{j}][i]', L.n_action)})"
     store = [f"Ynew[{j}, i] = y[{j}]" for j in range(dim)]
-    lines = [f"def kernel({', '.join(args)}):", "    n = Y.shape[1]", "    uniform = True"]
+    lines = ["    uniform = True"]
     # 1. the guard's counts, before anything is written
     count = ["for i in range(n):", "    c = substeps"]
     if L.rotation is not None:
         count += ["    if check and not skip[i]:", "        " + y_old, *("        " + line for line in _count_lines(L, u))]
     count += ["    counts[i] = c", "    if c != substeps:", "        uniform = False"]
-    lines += ["    need = 0", *("    " + line for line in count), "    if refuse and need:", "        return -1"]
+    lines += ["    need = 0", *("    " + line for line in count), "    if refuse and need:", f"        return -1{more}"]
     # 2. the physics: passes over the batch where every count is substeps, else per sub-env
     per_env = ["for i in range(n):", "    " + y_old, "    " + u, "    c = counts[i]", *("    " + line for line in _period_lines(L))]
     per_env += [*("    " + line for line in store), "    hstep[i] = hi", "    fired[i] = f"]
-    simd = [line[4:] for line in _physics_lines(dim, L.n_control)] + ["for i in range(n):", "    hstep[i] = h", "    fired[i] = False"]
+    simd = [line[4:] for line in _physics_lines(dim, u)] + ["for i in range(n):", "    hstep[i] = h", "    fired[i] = False"]
     if L.event is None and L.rhs_event is None and not L.switches:
         lines += ["    if uniform:", *("        " + line for line in simd), "    else:", *("        " + line for line in per_env)]
     else:
@@ -366,14 +390,177 @@ def batch_kernel(layout: Layout):
         "        if not (" + " and ".join(f"isfinite(Ynew[{j}, i])" for j in range(dim)) + "):",
         "            bad += 1",
         "    if bad:",
-        "        return bad",
+        f"        return bad{more}",
     ]
     # 4. observation, evaluation, read-outs
-    lines += _finish_lines(L, y_new, un, u, "fired[i]")
-    lines += ["    return 0"]
-    namespace = _namespace(L)
-    generate("\n".join(lines), f"batch kernel dim={dim} n_obs={L.n_obs}", namespace)
-    return numba.njit(**KERNEL_OPTIONS)(namespace["kernel"])
+    return lines + _finish_lines(L, y_new, un, u, "fired[i]")
+
+
+class VectorLayout(NamedTuple):
+    """What the compiled vector step (:func:`vector_kernel`) is generated for, beyond its
+    :class:`Layout`: the actuator's pure ``control(PC, a) -> (u_norm, u)`` for ``n_in`` action
+    entries, the model's pure ``start(PI, d) -> y`` (or ``None``: restarts run in Python) and
+    the kinds of a start's draws (:mod:`rbenvs.draws`), made in order from each sub-env's own
+    generator."""
+
+    batch: Layout
+    control: Callable
+    n_in: int
+    start: Callable | None
+    kinds: str
+
+
+# what a sub-env's generator call is, per draw kind (rbenvs.draws: the same streams as numpy's)
+_DRAW_CALLS = {"u": "g.random()", "n": "g.standard_normal()"}
+
+
+def _restart_row_lines(V: VectorLayout) -> list[str]:
+    """Lines that restart sub-env ``i`` (the single env's reset): its start from its own
+    generator ``GEN[i]``, written into ``Ynew``, and its row of the observation (clipped),
+    metrics (at zero action) and read-outs (no control acted, no event)."""
+    L = V.batch
+    draws = [f"d{k} = {_DRAW_CALLS[kind]}" for k, kind in enumerate(V.kinds)]  # one statement each: in order
+    lines = ["g = GEN[i]", *draws, f"y = start(PI, ({''.join(f'd{k}, ' for k in range(len(V.kinds)))}))"]
+    lines += [f"Ynew[{j}, i] = y[{j}]" for j in range(L.dim)]
+    lines += ["o = observe(PO, y)"]
+    for j in range(L.n_obs):
+        lines += [f"v = o[{j}]", f"if not (-HI[{j}] <= v <= HI[{j}]):", f"    v = min(max(v, -HI[{j}]), HI[{j}])", f"obs[i, {j}] = v"]
+    lines += [f"r = evaluate(PE, y, ({_comps('0.0', L.n_action)}))", *[f"M{j}[i] = r[{j + 2}]" for j in range(L.n_metrics)]]
+    lines += ["q = readouts(PR, y, None, False)", *[f"R{j}[i] = q[{j}]" for j in range(L.n_readouts)]]
+    return lines + ["hstep[i] = h", "steps[i] = 0"]
+
+
+@lru_cache(maxsize=None)
+def _act(control, n_in: int):
+    """``act(PC, A, i) -> (un, u)``: sub-env ``i``'s action, clipped to ``[-1, 1]`` (the single
+    env's rule, :func:`rbenvs.core.step.action_values`), through the actuator's pure form."""
+    items = [f"a{j}" for j in range(n_in)]
+    lines = ["def act(PC, A, i):", *(f"    a{j} = float(A[i, {j}])" for j in range(n_in))]
+    # max/min, not a branch per entry (random actions mispredict); the same value for every
+    # finite entry (the only ones that reach it)
+    lines += [f"    {a} = max(-1.0, min(1.0, {a}))" for a in items]
+    lines += [f"    return control(PC, ({''.join(a + ', ' for a in items)}))"]
+    return jitable(generate("\n".join(lines), f"act n_in={n_in}", {"control": control})["act"])
+
+
+def _vector_namespace(V: VectorLayout) -> dict:
+    import numpy as np
+
+    from .core.step import end_code
+
+    namespace = _namespace(V.batch)
+    act = _act(V.control, V.n_in)
+    for fn in (V.control, act, V.start, end_code):
+        if fn is not None:
+            _register(fn)
+    namespace.update(act=act, start=V.start, end_code=end_code, np=np)
+    return namespace
+
+
+def _vector_args(L: Layout) -> list[str]:
+    metrics = [f"M{j}" for j in range(L.n_metrics)]
+    reads = [f"R{j}" for j in range(L.n_readouts)]
+    return ["A", "Y", "Ynew", "h", "dt", "substeps", "check", "refuse", "next_step", "max_steps", "steps", "done", "skip", "GEN", "PC", "PI",
+            "PS", "PO", "PE", "PR", "PG", "PA", "PD", "CD", "PV", "PW", "HI", "counts", "hstep", "fired", "obs", "over", "reward", "terminated",
+            "truncated", "reason", "ends"] + metrics + reads
+
+
+@lru_cache(maxsize=None)
+def vector_kernel(V: VectorLayout):
+    """A vector env's whole step, compiled: one call per step with no Python per sub-env.
+    Signature (arrays ``(n,)`` unless said; see :func:`batch_kernel` for the period's)::
+
+        vstep(A, Y, Ynew, U, UN, h, dt, substeps, check, refuse, next_step, max_steps, steps,
+              done, skip, GEN, PC, PI, PS, PO, PE, PR, PG, PA, PD, CD, PV, PW, HI, counts, hstep,
+              fired, obs, over, reward, terminated, truncated, reason, ends, M_1..M_k,
+              R_1..R_m) -> (status, k, m)
+
+    1. the actions ``A`` ``(n, n_in)`` (float32 or float64): every entry finite (else ``(-2,
+       i)`` for the first bad sub-env ``i``, nothing else written), clipped to ``[-1, 1]`` (the
+       single env's rule), mapped by the actuator's pure form into the rows of ``UN`` and ``U``;
+    2. the period and finish of :func:`batch_kernel` (``(-1, 0)``: refused; ``(bad, 0)``:
+       ``bad`` new states non-finite, the caller's failure path takes over; sub-envs in
+       ``skip`` take ``substeps``);
+    3. the episode's bookkeeping per sub-env: ``steps += 1``; ``ended`` (the
+       ``_terminal_reason`` mask) where the task, the observation bounds or the event ended it
+       or ``steps >= max_steps`` (``max_steps < 0``: no limit) truncated it; ``reason`` its
+       code (:func:`rbenvs.core.step.end_code`); ``terminated`` the end, ``truncated`` the
+       limit; ``done`` their union (the next step's restarts);
+    4. with ``next_step`` (autoreset NEXT_STEP), the sub-envs in ``skip`` (those whose previous
+       step ended) are restarted instead (:func:`_restart_row_lines`): reward 0, not terminated
+       or truncated, their episode clock 0.
+
+    ``k``: the number of sub-envs whose rows of step 3 had an end or a truncation (restarting
+    ones counted on their discarded period, as the numpy path's ``ended.any()``); ``ends[:m]``
+    the sub-envs whose ``reason`` code may be set (every other one's is 0).
+    """
+    import numba
+
+    L = V.batch
+    args = _vector_args(L)
+    a_items = [f"a{j}" for j in range(V.n_in)]
+    lines = [f"def vstep({', '.join(args)}):", "    n = Y.shape[1]"]
+    # 1. the actions: every entry finite (counted: a loop without an exit stays in SIMD
+    # registers), then clipped and mapped once into the rows of U and UN (scratch)
+    read = [f"a{j} = A[i, {j}]" for j in range(V.n_in)]
+    finite = "        if not (" + " & ".join(f"isfinite({a})" for a in a_items) + "):"
+    lines += ["    bad = 0", "    for i in range(n):", *("        " + line for line in read), finite, "            bad += 1"]
+    lines += ["    if bad:", "        for i in range(n):", *("            " + line for line in read), "    " + finite, "                return -2, i, 0"]
+    lines += [f"    U = np.empty(({L.n_control}, n))", f"    UN = np.empty(({L.n_action}, n))", "    for i in range(n):", "        un, u = act(PC, A, i)"]
+    lines += [f"        UN[{j}, i] = un[{j}]" for j in range(L.n_action)] + [f"        U[{j}, i] = u[{j}]" for j in range(L.n_control)]
+    # 2. the period and finish
+    lines += _period_and_finish(L, *_controls(L, rows=True), ", 0, 0")
+    # 3. the episode's bookkeeping (restarting sub-envs counted on their discarded period, as
+    # the numpy path's ended.any() counts them), then 4. the restarts (skip: the sub-envs that
+    # restart, read-only here; with next_step they are those whose previous step ended)
+    lines += [
+        "    k = 0",
+        "    m = 0",
+        "    for i in range(n):",
+        "        s = steps[i] + 1",
+        "        e = terminated[i] | over[i] | fired[i]",
+        "        t = (max_steps >= 0) & (s >= max_steps)",
+        "        k += e | t",
+        "        steps[i] = s",
+        "        c = end_code(False, fired[i], over[i], terminated[i])",
+        "        reason[i] = c",
+        "        if c != 0:",  # (the rows whose reason the caller names; a restart's is cleared below)
+        "            ends[m] = i",
+        "            m += 1",
+        "        terminated[i] = e",
+        "        truncated[i] = t",
+        "        done[i] = e | t",
+        "    if next_step:",
+        "        for i in range(n):",
+        "            if skip[i]:",
+    ]
+    # (without a pure start the caller draws the restarting sub-envs' states and rows)
+    restart = _restart_row_lines(V) if V.start is not None else ["steps[i] = 0"]
+    lines += ["                " + line for line in restart]
+    lines += ["                reward[i] = 0.0", "                terminated[i] = False", "                truncated[i] = False",
+              "                reason[i] = 0", "                fired[i] = False", "                done[i] = False"]
+    lines += ["    return 0, k, m"]
+    namespace = _vector_namespace(V)
+    generate("\n".join(lines), f"vector step dim={L.dim} n_obs={L.n_obs}", namespace)
+    return numba.njit(**KERNEL_OPTIONS)(namespace["vstep"])
+
+
+@lru_cache(maxsize=None)
+def restart_kernel(V: VectorLayout):
+    """Restarts of the sub-envs ``idx`` (:func:`_restart_row_lines`), written into a step's
+    arrays: ``restart(idx, Ynew, GEN, PI, PO, PE, PR, HI, h, obs, hstep, steps, M_1..M_k,
+    R_1..R_m)`` (autoreset SAME_STEP, and after a numerical failure)."""
+    import numba
+
+    L = V.batch
+    metrics = [f"M{j}" for j in range(L.n_metrics)]
+    reads = [f"R{j}" for j in range(L.n_readouts)]
+    args = ["idx", "Ynew", "GEN", "PI", "PO", "PE", "PR", "HI", "h", "obs", "hstep", "steps"] + metrics + reads
+    lines = [f"def restart({', '.join(args)}):", "    for m in range(idx.shape[0]):", "        i = idx[m]"]
+    lines += ["        " + line for line in _restart_row_lines(V)]
+    namespace = _vector_namespace(V)
+    generate("\n".join(lines), f"restart kernel dim={L.dim} n_obs={L.n_obs}", namespace)
+    return numba.njit(**KERNEL_OPTIONS)(namespace["restart"])
 
 
 @lru_cache(maxsize=None)
@@ -611,3 +798,104 @@ class BatchStep:
         ps, po, pe, pr, pg, pa, pd, cd, pv, pw = self.params
         finish_kernel(self.layout)(Y, po, pe, pr, self.high, obs, over, reward, terminated, *metrics, *readouts)
         return obs, over, reward, terminated, metrics, readouts
+
+
+class VectorResult(NamedTuple):
+    """What :class:`VectorStep` returns: ``status`` (0; ``-2``: a non-finite action; ``-1``:
+    refused, ``counts`` holds the counts; or the number of non-finite new states: the task
+    outputs are unset), ``n_ended`` (the sub-envs whose step had an end or a truncation), the
+    step's arrays (see :func:`vector_kernel`) and ``coded``, the sub-envs whose ``reason`` code
+    may be set (every other one's is 0)."""
+
+    status: int
+    n_ended: int
+    Y: object
+    obs: object
+    over: object
+    reward: object
+    terminated: object
+    truncated: object
+    reason: object
+    coded: object
+    metrics: tuple
+    readouts: tuple
+    fired: object
+    h: object
+    counts: object
+
+
+class VectorStep:
+    """One vector env's compiled step (:func:`vector_kernel`) with its parameters, and its
+    restarts (:func:`restart_kernel`).
+
+    ``parts``: :meth:`rbenvs.core.step.Engine.kernel_parts`; ``model``: the env's
+    :class:`rbenvs.core.model.Model` (its actuator's and start's pure forms, its draw kinds);
+    ``n_obs``: the observation size, ``obs_high`` its bounds; ``max_steps``: the time limit
+    (``None``: none). The call goes through the compiled overload's entry point after the
+    first (numba's per-call typing of forty arguments costs more than a small batch's step);
+    the actions must then be C-contiguous float32 or float64 (the caller converts)."""
+
+    def __init__(self, parts, model, n_obs: int, obs_high, max_steps: int | None):
+        import numpy as np
+
+        control, pc = model.kernel_control
+        u_norm, u = control(pc, (0.0,) * model.actuator.size)
+        sample = tuple(float(c) for c in model.initial_state(np.random.default_rng(0)))
+        dim = model.system.dim
+        layout, params, values, physical = _layout(parts, dim, n_obs, len(u), len(u_norm), sample)
+        start = model.kernel_start()
+        self.restarts = start is not None  # restarts inside the kernel (else the caller's)
+        self.layout = VectorLayout(layout, control, model.actuator.size, start[0] if start else None, model.draw_kinds)
+        self.kernel = vector_kernel(self.layout)
+        self._restart = restart_kernel(self.layout) if self.restarts else None
+        self.metric_dtypes = tuple(np.bool_ if isinstance(v, (bool, np.bool_)) else np.float64 for v in values[2:])
+        self.readout_dtypes = tuple(np.bool_ if isinstance(v, (bool, np.bool_)) else (np.int64 if isinstance(v, (int, np.integer)) else np.float64) for v in physical)
+        self.high = np.asarray(obs_high, dtype=np.float64)
+        self.h, self.dt, self.substeps = float(model.h), float(model.dt), int(model.substeps)
+        self.max_steps = -1 if max_steps is None else int(max_steps)
+        self.n_obs, self.dim = n_obs, dim
+        ps, po, pe, pr, pg, pa, pd, cd, pv, pw = params
+        self.params = (pc, start[1] if start else (), ps, po, pe, pr, pg, pa, pd, cd, pv, pw, self.high)
+        self._calls = {}
+
+    def __call__(self, A, Y, steps, done, skip, GEN, check: bool, refuse: bool, next_step: bool) -> VectorResult:
+        """One step of the states ``Y`` ``(dim, n)`` under the actions ``A`` ``(n, n_in)``
+        (float32 or float64, C-contiguous); ``steps`` and ``done`` (the episode clocks and the
+        sub-envs whose episode ended) are updated in place; ``skip``: the sub-envs to restart
+        (with ``next_step``); ``GEN`` the sub-envs' generators (a numba typed list,
+        :class:`rbenvs.draws.GeneratorTable`)."""
+        import numpy as np
+
+        n = Y.shape[1]
+        Ynew = np.empty_like(Y)
+        counts = np.empty(n, dtype=np.int64)
+        hstep = np.empty(n)
+        fired = np.empty(n, dtype=bool)
+        obs = np.empty((n, self.n_obs), dtype=np.float32)
+        over = np.empty(n, dtype=bool)
+        reward = np.empty(n)
+        terminated = np.empty(n, dtype=bool)
+        truncated = np.empty(n, dtype=bool)
+        reason = np.empty(n, dtype=np.int8)
+        ends = np.empty(n, dtype=np.int64)
+        metrics = tuple(np.empty(n, dtype=t) for t in self.metric_dtypes)
+        readouts = tuple(np.empty(n, dtype=t) for t in self.readout_dtypes)
+        args = (A, Y, Ynew, self.h, self.dt, self.substeps, check, refuse, next_step, self.max_steps, steps, done, skip, GEN, *self.params, counts,
+                hstep, fired, obs, over, reward, terminated, truncated, reason, ends, *metrics, *readouts)
+        call = self._calls.get(A.dtype)
+        if call is None:
+            import numba
+
+            status, k, m = self.kernel(*args)  # compiles
+            overload = self.kernel.overloads.get(tuple(numba.typeof(a) for a in args))
+            self._calls[A.dtype] = overload.entry_point if overload is not None else self.kernel
+        else:
+            status, k, m = call(*args)
+        return VectorResult(status, k, Ynew, obs, over, reward, terminated, truncated, reason, ends[:m], metrics, readouts, fired, hstep, counts)
+
+    def restart(self, idx, Ynew, GEN, obs, hstep, steps, metrics, readouts) -> None:
+        """Restart the sub-envs ``idx`` into a step's arrays (:func:`restart_kernel`)."""
+        import numpy as np
+
+        pi, po, pe, pr, hi = self.params[1], self.params[3], self.params[4], self.params[5], self.high
+        self._restart(np.asarray(idx, dtype=np.int64), Ynew, GEN, pi, po, pe, pr, hi, self.h, obs, hstep, steps, *metrics, *readouts)

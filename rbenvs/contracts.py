@@ -167,6 +167,8 @@ class System(Protocol):
         """A task's start ``y`` completed from the system's draws ``d`` (or ``y``); floats or
         rows of a batch."""
 
+    kernel_complete: Any  # (fn, P): fn(P, y, d) -> y, the pure form of complete_initial_state
+
     def export_state(self, y) -> dict:
         """The named state (float64 copies)."""
 
@@ -234,6 +236,10 @@ class Task(Protocol):
     def initial_from_draws(self, system, d):
         """A start's components from its draws (floats, or rows of a batch)."""
 
+    def kernel_start(self, system):
+        """``(fn, P)`` with ``fn(P, d) -> y``: the pure form of :meth:`initial_from_draws` (the
+        arithmetic of compiled restarts), or ``None``."""
+
     def observe(self, system, y) -> tuple:
         """The observation components at ``y``."""
 
@@ -278,10 +284,12 @@ class Actuator(Protocol):
 
     ``size``: the action size. ``control(a) -> (u_norm, u)``: the normalised action on every
     input (0 where none acts; for the reward's effort term) and the physical control, on
-    floats or arrays alike.
+    floats or arrays alike; ``kernel_control``: its pure form (what ``control`` runs, and what
+    the compiled vector step calls).
     """
 
     size: int
+    kernel_control: Any  # (fn, P): fn(P, a) -> (u_norm, u), the pure form of control
 
     def control(self, a) -> tuple:
         """``(u_norm, u)`` for the action components ``a``."""

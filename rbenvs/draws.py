@@ -97,6 +97,11 @@ class GeneratorTable:
     def __setitem__(self, i: int, rng) -> None:
         self._list[i] = rng
 
+    @property
+    def list(self):
+        """The typed list itself (compiled code draws from it: :mod:`rbenvs.compiled`)."""
+        return self._list
+
     def draws(self, idx: np.ndarray, codes: np.ndarray) -> np.ndarray:
         """``(len(codes), len(idx))``: column ``j`` the numbers of sub-env ``idx[j]``'s start."""
         out = np.empty((len(codes), len(idx)))

@@ -22,6 +22,12 @@ __all__ = [
     "expm1",
     "atan2",
     "atan_kernel",
+    "sincos",
+    "two_sum",
+    "reduce_pio2",
+    "sin_kernel",
+    "cos_kernel",
+    "SINCOS_LIMIT",
     "quat_multiply",
     "quat_rate",
     "quat_conjugate",
@@ -191,6 +197,130 @@ def _atan2_arrays(y, x):
         return np.where(np.isnan(x) | np.isnan(y), x + y, z)
 
 
+# sin and cos of one argument together, from IEEE arithmetic alone: FreeBSD's/musl's algorithm
+# (msun k_sin.c, k_cos.c, e_rem_pio2.c; Sun Microsystems, 1993; the rewrite of __kernel_cos by
+# Bruce Evans, 2008). pi/2 in 33-bit pieces and their tails, 2/pi, and the kernels'
+# polynomial coefficients (|error| < 1 ulp on [-pi/4, pi/4]).
+_INVPIO2 = 6.36619772367581382433e-01
+_PIO2_1, _PIO2_1T = 1.57079632673412561417e00, 6.07710050650619224932e-11
+_PIO2_2, _PIO2_2T = 6.07710050630396597660e-11, 2.02226624879595063154e-21
+_PIO2_3, _PIO2_3T = 2.02226624871116645580e-21, 8.47842766036889956997e-32
+_TOINT = 6755399441055744.0  # 1.5 * 2^52: x + _TOINT - _TOINT rounds x to an integer
+_S = (-1.66666666666666324348e-01, 8.33333333332248946124e-03, -1.98412698298579493134e-04, 2.75573137070700676789e-06,
+      -2.50507602534068634195e-08, 1.58969099521155010221e-10)
+_C = (4.16666666666666019037e-02, -1.38888888888741095749e-03, 2.48015872894767294178e-05, -2.75573143513906633035e-07,
+      2.08757232129817482790e-09, -1.13596475577881948265e-11)
+SINCOS_LIMIT = 1647099.0  # |x| < 2^20 pi/2: the reduction's n fits 20 bits (exact products)
+
+
+@jitable
+def two_sum(a, b):
+    """``(s, e)`` with ``s = fl(a + b)`` and ``a + b = s + e`` exactly (Knuth's TwoSum: no
+    condition on the magnitudes, no branch)."""
+    s = a + b
+    bb = s - a
+    return s, (a - (s - bb)) + (b - bb)
+
+
+@jitable
+def reduce_pio2(x):
+    """``(n, y0, y1)``: ``x = n pi/2 + y0 + y1`` with ``|y0 + y1| <= pi/4`` and ``y1`` the tail
+    of ``y0`` (``n`` a float), for ``|x| < SINCOS_LIMIT``: Cody and Waite's reduction with
+    pi/2 in three 33-bit pieces (each product ``n p_k`` exact for ``n < 2^20``) and a tail, the
+    differences' rounding errors kept (TwoSum), so ``y0 + y1`` carries about 100 bits of the
+    reduced argument whatever the cancellation (msun takes its second and third rounds only
+    where the first cancels; here every argument takes the same operations)."""
+    fn = x * _INVPIO2 + _TOINT - _TOINT
+    r = x - fn * _PIO2_1  # exact: fn < 2^20, _PIO2_1 has 33 bits, and Sterbenz
+    r, e2 = two_sum(r, -(fn * _PIO2_2))
+    r, e3 = two_sum(r, -(fn * _PIO2_3))
+    c = (e2 + e3) - fn * _PIO2_3T
+    y0 = r + c
+    return fn, y0, (r - y0) + c
+
+
+@jitable
+def sin_kernel(x, y):
+    """``sin(x + y)`` for ``|x + y| <= pi/4``, ``y`` the tail of ``x`` (msun ``__kernel_sin``)."""
+    z = x * x
+    w = z * z
+    r = _S[1] + z * (_S[2] + z * _S[3]) + z * w * (_S[4] + z * _S[5])
+    v = z * x
+    return x - ((z * (0.5 * y - v * r) - y) - v * _S[0])
+
+
+@jitable
+def cos_kernel(x, y):
+    """``cos(x + y)`` for ``|x + y| <= pi/4``, ``y`` the tail of ``x`` (msun ``__kernel_cos``)."""
+    z = x * x
+    w = z * z
+    r = z * (_C[0] + z * (_C[1] + z * _C[2])) + w * w * (_C[3] + z * (_C[4] + z * _C[5]))
+    hz = 0.5 * z
+    w = 1.0 - hz
+    return w + (((1.0 - w) - hz) + (z * r - x * y))
+
+
+@jitable
+def sincos(x):
+    """``(sin x, cos x)`` of a float or an array, from IEEE arithmetic alone.
+
+    Why not libm or numpy: compiled code can keep a loop of arithmetic in SIMD registers but
+    not a loop that calls libm, and a batch loop must give the bits the single env computes on
+    floats; this is msun's algorithm (:func:`reduce_pio2`, :func:`sin_kernel`,
+    :func:`cos_kernel`, then the quadrant), so floats, arrays and compiled code give the same
+    bits, within 1 ulp of the exact values (tested against mpmath; equal to glibc's correctly
+    rounded results for most arguments). ``|x| >= SINCOS_LIMIT`` (about 1.6e6 rad, a rotation
+    far beyond any step of these systems), infinities and NaN give NaN: the step then reports
+    a numerical failure, never a wrong angle.
+    """
+    if isinstance(x, float):
+        if not (-SINCOS_LIMIT < x < SINCOS_LIMIT):
+            return math.nan, math.nan
+        if x == 0.0:  # sin keeps the sign of zero (the reduction's sum would not)
+            return x, 1.0
+        fn, y0, y1 = reduce_pio2(x)
+        s, c = sin_kernel(y0, y1), cos_kernel(y0, y1)
+        n = int(fn) & 3
+        if n == 0:
+            return s, c
+        if n == 1:
+            return c, -s
+        if n == 2:
+            return -s, -c
+        return -c, s
+    return _sincos_arrays(x)
+
+
+@compiled_form(sincos)
+def _sincos_selects(x):
+    """:func:`sincos` compiled: the quadrant and the range check as selections (the same
+    operations per argument, so the same bits), which keeps a batch loop in SIMD registers."""
+    ok = (x > -SINCOS_LIMIT) & (x < SINCOS_LIMIT)
+    fn, y0, y1 = reduce_pio2(select(ok, x, 0.0))
+    s, c = sin_kernel(y0, y1), cos_kernel(y0, y1)
+    n = int(fn) & 3
+    odd = (n & 1) != 0
+    sa = select(odd, c, s)
+    ca = select(odd, s, c)
+    sa = select((n & 2) != 0, -sa, sa)
+    ca = select(((n + 1) & 2) != 0, -ca, ca)
+    return select(ok, select(x == 0.0, x, sa), math.nan), select(ok, ca, math.nan)
+
+
+@jitable  # (registered so that compiled code can name it; it only ever runs on arrays)
+def _sincos_arrays(x):
+    """:func:`sincos`'s branches as selections on arrays (the same operations per element)."""
+    ok = (x > -SINCOS_LIMIT) & (x < SINCOS_LIMIT)
+    fn, y0, y1 = reduce_pio2(np.where(ok, x, 0.0))
+    s, c = sin_kernel(y0, y1), cos_kernel(y0, y1)
+    n = fn.astype(np.int64) & 3
+    odd = (n & 1) != 0
+    sa, ca = np.where(odd, c, s), np.where(odd, s, c)
+    sa = np.where((n & 2) != 0, -sa, sa)
+    ca = np.where(((n + 1) & 2) != 0, -ca, ca)
+    return np.where(ok, np.where(x == 0.0, x, sa), np.nan), np.where(ok, ca, np.nan)
+
+
 @jitable
 def quat_multiply(p, q):
     """Hamilton product ``p * q`` of two quaternions given as ``(w, x, y, z)`` components."""
@@ -293,6 +423,7 @@ def quat_angle(q):
     return 2.0 * atan2(sqrt(x * x + y * y + z * z), abs(w))
 
 
+@jitable
 def quat_from_two_vectors(a, b):
     """A rotation taking the unit vector ``a`` to the unit vector ``b`` (the shortest one when
     ``a . b >= 0``).
@@ -308,12 +439,19 @@ def quat_from_two_vectors(a, b):
         if dot >= 0.0:
             return _short_turn(a, b, dot)
         return quat_multiply((0.0,) + _normal_axis(b), _short_turn(a, (-bx, -by, -bz), -dot))
+    return _two_vectors_arrays(a, b, dot)
+
+
+@jitable  # (registered so that compiled code can name it; it only ever runs on arrays)
+def _two_vectors_arrays(a, b, dot):
+    bx, by, bz = b
     with np.errstate(divide="ignore", invalid="ignore"):  # each branch is kept only where it is valid
         direct = _short_turn(a, b, dot)
         flipped = quat_multiply((0.0 * dot,) + _normal_axis(b), _short_turn(a, (-bx, -by, -bz), -dot))
     return tuple(np.where(dot >= 0.0, d, f) for d, f in zip(direct, flipped))
 
 
+@jitable
 def _short_turn(a, b, dot):
     """``normalize(1 + a.b, a x b)`` for ``a . b >= 0`` (no cancellation there)."""
     ax, ay, az = a
@@ -321,6 +459,7 @@ def _short_turn(a, b, dot):
     return quat_normalize((1.0 + dot, ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx))
 
 
+@jitable
 def _normal_axis(b):
     """A unit vector normal to the unit vector ``b``: ``b x e``, ``e`` the axis least aligned."""
     bx, by, bz = b
@@ -330,10 +469,16 @@ def _normal_axis(b):
         else:
             v = (-bz, 0.0, bx)  # b x e_y
     else:
-        use_x = np.abs(bx) < 0.9
-        v = (np.where(use_x, 0.0, -bz), np.where(use_x, bz, 0.0), np.where(use_x, -by, bx))
+        v = _normal_axis_arrays(b)
     n = sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
     return (v[0] / n, v[1] / n, v[2] / n)
+
+
+@jitable  # (registered so that compiled code can name it; it only ever runs on arrays)
+def _normal_axis_arrays(b):
+    bx, by, bz = b
+    use_x = np.abs(bx) < 0.9
+    return np.where(use_x, 0.0, -bz), np.where(use_x, bz, 0.0), np.where(use_x, -by, bx)
 
 
 @jitable
@@ -367,6 +512,7 @@ def quat_random(rng: np.random.Generator, shape=()):
     return quat_from_uniforms(*rng.random((3,) + tuple(shape)))
 
 
+@jitable
 def quat_from_uniforms(u1, u2, u3):
     """Shoemake's map from three uniforms on [0, 1) to a uniformly distributed unit quaternion."""
     a = np.sqrt(1.0 - u1)

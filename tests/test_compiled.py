@@ -428,3 +428,103 @@ def test_compiled_tippe_top_crosses_lift_offs_and_hops():
         hops = max(hops, int(info["hops"].max()))
         assert "lift_off" not in set(info.get("terminal_reason", []))
     assert airborne > 0 and hops >= 3, (airborne, hops)
+
+
+# ------------------------------------------------------------------ the whole vector step compiled
+# settings whose vector step is one compiled call with the restarts inside it (every system's
+# tasks, attitude, partial actuation, the tippe top's fidelities, free flight)
+WHOLE_STEP = [
+    (FREE, dict()),
+    (FREE, dict(task="reorient")),
+    (FREE, dict(actuated=(True, False, True))),
+    (LAGRANGE, dict(attitude=True)),
+    (LAGRANGE, dict(task="precess")),
+    (TIPPE, dict()),
+    (TIPPE, dict(task="hold", fidelity="rolling", substeps=32)),
+    (TIPPE, dict(free_flight=True, max_torque=1e-4, friction_range=(0.1, 0.4))),
+]
+
+
+def _same_outputs(a, b, where):
+    if isinstance(a, dict):
+        assert list(a) == list(b), where
+        for k in a:
+            _same_outputs(a[k], b[k], f"{where} {k}")
+    elif isinstance(a, (tuple, list)):
+        for x, y in zip(a, b):
+            _same_outputs(x, y, where)
+    else:
+        x, y = np.asarray(a), np.asarray(b)
+        if x.dtype == object:
+            for p, q in zip(x.ravel(), y.ravel()):
+                _same_outputs(p, q, where)
+        else:
+            assert x.dtype == y.dtype and x.shape == y.shape and x.tobytes() == y.tobytes(), where
+
+
+@needs_numba
+@pytest.mark.parametrize("mode", ["NextStep", "SameStep"])
+@pytest.mark.parametrize("env_id,kwargs", WHOLE_STEP, ids=[f"{e.split('/')[1]}-{','.join(f'{k}={v}' for k, v in kw.items()) or 'default'}" for e, kw in WHOLE_STEP])
+def test_the_whole_vector_step_compiled_equals_the_numpy_path_through_restarts(env_id, kwargs, mode):
+    """The vector step as one compiled call (actions checked, clipped and mapped; the period;
+    the finish; the episode clocks; restarts drawn from each sub-env's own generator and
+    finished inside the kernel) equals the numpy path bit for bit, every output and info key,
+    with a time limit of 7 steps so that every sub-env restarts three times (actions beyond
+    the bounds: clipping counts)."""
+    envs = [make_vec(env_id, 6, max_episode_steps=7, autoreset_mode=mode, compiled=c, **kwargs) for c in (False, True)]
+    step = envs[1].unwrapped._vector_step
+    assert step is not None and step.restarts
+    _same_outputs(envs[0].reset(seed=5), envs[1].reset(seed=5), "reset")
+    rng = np.random.default_rng(0)
+    for t in range(25):
+        a = rng.uniform(-1.3, 1.3, envs[0].action_space.shape).astype(np.float32 if t % 2 else np.float64)
+        _same_outputs(envs[0].step(a), envs[1].step(a), f"step {t}")
+    _same_outputs(envs[0].unwrapped.get_state(), envs[1].unwrapped.get_state(), "state")
+
+
+@needs_numba
+def test_the_compiled_step_keeps_the_controls_for_rendering():
+    """The compiled step keeps the actions, not the controls: a frame of the tippe top (whose
+    scene draws the table's acceleration) is the same as the numpy path's."""
+    envs = [make_vec(TIPPE, 2, compiled=c, render_mode="rgb_array") for c in (False, True)]
+    for env in envs:
+        env.reset(seed=1)
+        env.step(np.array([[0.7, -0.4], [-2.0, 0.3]], dtype=np.float32))
+    frames = [env.render() for env in envs]
+    assert all(np.array_equal(p, q) for p, q in zip(*frames))
+
+
+@pytest.mark.parametrize(
+    "env_id,kwargs",
+    [(FREE, dict()), (FREE, dict(actuated=(False, True, True))), (LAGRANGE, dict()), (LAGRANGE, dict(axial_torque=True)),
+     (TIPPE, dict()), (TIPPE, dict(friction_range=(0.1, 0.5), max_torque=1e-4))],
+)
+def test_actuators_pure_forms_are_their_formulas(env_id, kwargs):
+    """Each actuator's pure form (what the single env, the numpy batch and the compiled step
+    run) gives its documented controls: the free body's torque ``max_torque a`` on the actuated
+    axes, the heavy top's ``max_torque sum_j a_j d_j``, the tippe top's table acceleration, the
+    friction coefficient affine in its entry and the body torque; floats and arrays alike."""
+    env = gym.make(env_id, **kwargs).unwrapped
+    act = env.model.actuator
+    rng = np.random.default_rng(2)
+    a = tuple(rng.uniform(-1.0, 1.0, act.size).tolist())
+    u_norm, u = act.control(a)
+    if env_id == FREE:
+        full = np.zeros(3)
+        full[list(act.axes)] = a
+        assert np.allclose(u_norm, full, rtol=0, atol=0) and np.allclose(u, act.max_torque * full, rtol=1e-15)
+    elif env_id == LAGRANGE:
+        assert u_norm == a and np.allclose(u, act.max_torque * np.asarray(a) @ np.asarray(act.directions), rtol=1e-14, atol=1e-15)
+    else:
+        acc = act.max_table_acceleration
+        assert u[:2] == (acc * a[0], acc * a[1])
+        if act.friction_range is None:
+            assert u[2] == act.friction and u[3:] == (0.0, 0.0, 0.0)
+        else:
+            lo, hi = act.friction_range
+            assert u[2] == pytest.approx(lo + (a[2] + 1.0) / 2.0 * (hi - lo), rel=1e-15)
+            assert np.allclose(u[3:], act.max_torque * np.asarray(a[3:]), rtol=1e-15)
+    rows = tuple(np.array([x, -x]) for x in a)  # a batch: the same values per row
+    un_b, u_b = act.control(rows)
+    assert all(np.asarray(p)[0] == q for p, q in zip(np.broadcast_arrays(*un_b), u_norm))
+    assert all(np.broadcast_to(p, (2,))[0] == q for p, q in zip(u_b, u))

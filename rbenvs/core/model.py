@@ -11,9 +11,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from functools import lru_cache
 
 from ..contracts import Actuator, HybridSystem, Integrator, StepRegion, System, Task, require_parts
 from ..draws import batch_draws
+from ..jit import jitable
+from .codegen import generate
 from .guard import StepRule
 
 __all__ = ["Model", "observation_bounds"]
@@ -95,6 +98,35 @@ class Model:
     def initial_state(self, rng) -> tuple:
         """A random start from ``rng``: the task's distribution, completed by the system."""
         return self.initial_from_draws(*self.initial_draws(rng))
+
+    def kernel_start(self):
+        """``(start, P)``: :meth:`initial_from_draws` as one pure function of a start's draws in
+        :attr:`draw_kinds` order, ``start(P, d) -> y`` (the task's pure start, completed by the
+        system's), for compiled restarts; ``None`` where the task has no pure start."""
+        task = self.task.kernel_start(self.system)
+        if task is None:
+            return None
+        complete = self.system.kernel_complete
+        k = len(self.draw_kinds) - self.system_draws
+        return _start_form(task[0], complete[0], k, self.system_draws), (task[1], complete[1])
+
+    @property
+    def kernel_control(self):
+        """The actuator's pure ``(control, P)``: ``control(P, a) -> (u_norm, u)``."""
+        return self.actuator.kernel_control
+
+
+@lru_cache(maxsize=None)
+def _start_form(task_start, complete, k: int, m: int):
+    """``start((PT, PC), d) = complete(PC, task_start(PT, d[:k]), d[k:k + m])`` (generated: the
+    draws as tuples of floats in compiled code, rows of a batch on numpy)."""
+
+    def items(a, b):
+        return "(" + "".join(f"d[{j}], " for j in range(a, b)) + ")"
+
+    src = f"def start(P, d):\n    return complete(P[1], task_start(P[0], {items(0, k)}), {items(k, k + m)})\n"
+    namespace = generate(src, f"start k={k} m={m}", {"task_start": task_start, "complete": complete})
+    return jitable(namespace["start"])
 
 
 def observation_bounds(task, limits: dict) -> tuple:

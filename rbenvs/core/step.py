@@ -30,15 +30,17 @@ from __future__ import annotations
 
 import math
 import warnings
+from functools import lru_cache
 from typing import NamedTuple
 
 import numpy as np
 
 from ..dynamics.validation import real_array
+from ..jit import jitable
 from .guard import MAX_INTERNAL_STEPS
 from .hybrid import Switching
 
-__all__ = ["Engine", "KernelParts", "NumericalFailureWarning", "action_values", "action_columns", "terminal_reason"]
+__all__ = ["Engine", "KernelParts", "NumericalFailureWarning", "action_values", "action_columns", "terminal_reason", "end_code", "reason_names", "reason_strings", "REASONS"]
 
 
 class NumericalFailureWarning(RuntimeWarning):
@@ -85,25 +87,61 @@ def action_columns(actions, shape) -> tuple:
     return tuple(np.clip(a.T, -1.0, 1.0).astype(np.float64, order="C"))
 
 
-def terminal_reason(failed, fired, over, terminated, event_name):
-    """Why an episode ended: ``numerical_failure`` over the event over ``observation_limit``
-    over ``task``; for one env a string or ``None``, for a batch an array of strings
-    (``""`` where the episode goes on)."""
-    if not isinstance(over, np.ndarray):
-        if failed:
-            return "numerical_failure"
-        if fired:
-            return event_name
-        if over:
-            return "observation_limit"
-        return "task" if terminated else None
-    # a fixed-width string array (its items are str): no Python object per sub-env to make
-    reason = np.full(np.shape(over), "", dtype=f"<U{max(len('numerical_failure'), len(event_name or ''))}")
-    reason[terminated] = "task"
-    reason[over] = "observation_limit"
-    reason[fired] = event_name or ""
-    reason[failed] = "numerical_failure"
+# Why an episode ended, as a code (what the compiled vector step writes per sub-env) and as the
+# name ``info["terminal_reason"]`` reports: code k is REASONS[k], the system's terminal event's
+# name in place of "event" (:func:`reason_names`).
+REASONS = ("", "task", "observation_limit", "event", "numerical_failure")
+
+
+@jitable
+def end_code(failed, fired, over, terminated):
+    """The code of :data:`REASONS` for one env: ``numerical_failure`` over the event over
+    ``observation_limit`` over ``task``; 0 where the episode goes on."""
+    if failed:
+        return 4
+    if fired:
+        return 3
+    if over:
+        return 2
+    if terminated:
+        return 1
+    return 0
+
+
+def reason_names(event_name) -> tuple:
+    """:data:`REASONS` with the system's event name (``""`` where it has none)."""
+    return REASONS[:3] + (event_name or "",) + REASONS[4:]
+
+
+@lru_cache(maxsize=None)
+def _reason_array(event_name):
+    names = np.array(reason_names(event_name))
+    names.flags.writeable = False
+    return names
+
+
+def reason_strings(codes, event_name, coded=None):
+    """A batch's terminal reasons from their codes: a fixed-width string array (its items are
+    str, ``""`` where the episode goes on), written only where a code may be set (``coded``,
+    the indices, when the caller knows them; a zero-filled array costs no pass over the batch)."""
+    names = _reason_array(event_name)
+    reason = np.zeros(np.shape(codes), dtype=names.dtype)
+    idx = np.flatnonzero(codes) if coded is None else coded
+    reason[idx] = names[codes[idx]]
     return reason
+
+
+def terminal_reason(failed, fired, over, terminated, event_name):
+    """Why an episode ended (:func:`end_code`); for one env a string or ``None``, for a batch
+    an array of strings (``""`` where the episode goes on)."""
+    if not isinstance(over, np.ndarray):
+        return reason_names(event_name)[end_code(failed, fired, over, terminated)] or None
+    codes = np.zeros(np.shape(over), dtype=np.int8)
+    codes[terminated] = 1
+    codes[over] = 2
+    codes[fired] = 3
+    codes[failed] = 4
+    return reason_strings(codes, event_name)
 
 
 def _to_python(v):

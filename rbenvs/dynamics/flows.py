@@ -25,18 +25,9 @@ import numpy as np
 
 from ..core.codegen import generate
 from ..jit import jitable
-from ..rotations import quat_multiply, quat_rotate, sqrt
+from ..rotations import quat_multiply, quat_rotate, sincos, sqrt
 
 __all__ = ["sincos", "half_turn", "AxisRotation", "SymmetricFreeRotation"]
-
-
-@jitable
-def sincos(x):
-    """``(sin x, cos x)`` of a float (libm) or an array (numpy: the same bits as libm here for
-    sin and cos, unlike its atan2 or exp; tested)."""
-    if isinstance(x, float):
-        return math.sin(x), math.cos(x)
-    return np.sin(x), np.cos(x)
 
 
 @jitable

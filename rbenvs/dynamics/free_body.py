@@ -25,7 +25,7 @@ from ..elliptic import elliptic_f_sc, elliptic_k, jacobi_sn_cn_dn
 from ..jit import jitable
 from ..rotations import quat_multiply, quat_normalize, quat_rate, sqrt
 from .flows import AxisRotation
-from .state import export_layout, import_layout
+from .state import export_layout, import_layout, start_as_drawn
 from .validation import require_inertia
 
 __all__ = ["FreeBodyParams", "FreeBody", "FreeBodyOrbit", "euler_rhs", "kinetic_energy", "momentum_norm", "angular_velocity", "rotation_rate", "free_body_readouts", "attitude_rhs", "attitude_normalize", "free_body_kick"]
@@ -189,6 +189,8 @@ class FreeBody:
     def complete_initial_state(self, y, d):
         """A task's start as it is (the task draws the attitude where it needs one)."""
         return y
+
+    kernel_complete = (start_as_drawn, ())  # the pure form of complete_initial_state
 
     def export_state(self, y) -> dict:
         """``{"angular_momentum": Pi (3,), "attitude": q (4,) (reorient only)}``, float64 copies."""

@@ -30,7 +30,7 @@ from ..draws import draw
 from ..jit import jitable
 from ..rotations import atan2, expm1, quat_conjugate, quat_from_two_vectors, quat_multiply, quat_normalize, quat_rate, quat_rotate, quat_to_euler_zxz, sqrt
 from .free_body import angular_velocity, rotation_rate
-from .state import export_layout, import_layout
+from .state import export_layout, import_layout, start_as_drawn
 from .flows import AxisRotation, SymmetricFreeRotation
 from .validation import require_finite_nonnegative, require_finite_positive, require_finite_result, require_inertia, require_real_vector
 
@@ -42,6 +42,7 @@ __all__ = [
     "heavy_top_normalize",
     "heavy_top_attitude_normalize",
     "heavy_top_kick",
+    "torque_kick",
     "heavy_top_readouts",
     "heavy_top_attitude_readouts",
     "top_tilt",
@@ -101,15 +102,32 @@ def heavy_top_attitude_normalize(p, y):
 
 
 @jitable
-def heavy_top_kick(p, y, u, h):
-    """Exact flow for time ``h`` of the torques with ``Gamma`` held fixed (see
-    :meth:`HeavyTop.kick`); ``p = (weight, k, chi, inverse)``."""
-    weight, friction, chi, inv = p
+def kick_torque(weight, y, u):
+    """The torque the kick holds for its step: gravity ``M g l Gamma x chi`` (``weight = M g l
+    chi``) and the control."""
     k1, k2, k3 = weight
     g1, g2, g3 = y[3], y[4], y[5]
     f1, f2, f3 = g2 * k3 - g3 * k2, g3 * k1 - g1 * k3, g1 * k2 - g2 * k1
     if u is not None:
         f1, f2, f3 = f1 + u[0], f2 + u[1], f3 + u[2]
+    return f1, f2, f3
+
+
+@jitable
+def torque_kick(p, y, u, h):
+    """Exact flow for time ``h`` of the torques with ``Gamma`` held fixed and no spin friction:
+    ``Pi += h f`` (:meth:`HeavyTop.kick`; ``p`` as :func:`heavy_top_kick`'s). Arithmetic alone,
+    so that a batch loop of it stays in SIMD registers (the friction's ``expm1`` is a call)."""
+    f1, f2, f3 = kick_torque(p[0], y, u)
+    return (y[0] + h * f1, y[1] + h * f2, y[2] + h * f3) + y[3:]
+
+
+@jitable
+def heavy_top_kick(p, y, u, h):
+    """Exact flow for time ``h`` of the torques with ``Gamma`` held fixed (see
+    :meth:`HeavyTop.kick`); ``p = (weight, k, chi, inverse)``."""
+    weight, friction, chi, inv = p
+    f1, f2, f3 = kick_torque(weight, y, u)
     p1, p2, p3 = y[0] + h * f1, y[1] + h * f2, y[2] + h * f3
     if friction != 0.0:
         x1, x2, x3 = chi
@@ -122,6 +140,25 @@ def heavy_top_kick(p, y, u, h):
         integral = friction * s0 * e1 + b * (h - e1) / c_s  # k int_0^h s dt
         p1, p2, p3 = p1 - integral * x1, p2 - integral * x2, p3 - integral * x3
     return (p1, p2, p3) + y[3:]
+
+
+@jitable
+def attitude_from_vertical(gamma, heading):
+    """A quaternion ``q`` with ``R(q)^T e_z = Gamma`` and the given heading [rad]: the shortest
+    turn taking ``Gamma`` to ``e_z``, then a turn by ``heading`` about ``e_z`` (floats or arrays)."""
+    one = 1.0 + 0.0 * gamma[0]
+    zero = 0.0 * gamma[0]
+    r = quat_from_two_vectors(gamma, (zero, zero, one))
+    half = 0.5 * heading
+    turn = (np.cos(half) * one, zero, zero, np.sin(half) * one)
+    return quat_normalize(quat_multiply(turn, r))
+
+
+@jitable
+def start_with_attitude(p, y, d):
+    """A task's start ``(Pi, Gamma)`` and the attitude with that ``Gamma`` and the heading
+    ``2 pi d[0]`` (uniform in ``[0, 2 pi)``: :func:`attitude_from_vertical`)."""
+    return y + attitude_from_vertical((y[3], y[4], y[5]), 0.0 + 2.0 * np.pi * d[0])
 
 
 @jitable
@@ -343,6 +380,8 @@ class HeavyTop:
             self.kernel_normalize = (heavy_top_normalize, ())
             self.kernel_readouts = (heavy_top_readouts, readout_p)
         self._kick = (params.weight, params.spin_friction, params.com_direction, params.inverse)
+        # without spin friction the kick is arithmetic alone (the same operations otherwise)
+        self._kick_form = heavy_top_kick if params.spin_friction != 0.0 else torque_kick
 
     @property
     def readout_names(self) -> tuple:
@@ -376,10 +415,15 @@ class HeavyTop:
     def complete_initial_state(self, y, d):
         """A task's start ``(Pi, Gamma)``, with the attitude appended where the system carries
         it: the one with this ``Gamma`` and the heading ``2 pi d[0]``, uniform in ``[0, 2 pi)``
-        (floats or rows of a batch)."""
-        if not self.attitude:
-            return y
-        return tuple(y) + tuple(self.attitude_from_vertical(y[3:6], 0.0 + 2.0 * np.pi * d[0]))
+        (floats or rows of a batch; :attr:`kernel_complete`)."""
+        fn, p = self.kernel_complete
+        return fn(p, tuple(y), d)
+
+    @property
+    def kernel_complete(self):
+        """``(complete, P)``: the pure form of :meth:`complete_initial_state`,
+        ``complete(P, y, d) -> y``."""
+        return (start_with_attitude if self.attitude else start_as_drawn), ()
 
     def export_state(self, y) -> dict:
         """``{"angular_momentum": Pi, "vertical": Gamma, "attitude": q (with attitude)}``, float64 copies."""
@@ -481,14 +525,9 @@ class HeavyTop:
         return precession_rate((self.params.inverse, self.params.com_direction), y)
 
     def attitude_from_vertical(self, gamma, heading):
-        """A quaternion ``q`` with ``R(q)^T e_z = Gamma`` and the given heading [rad]: the
-        shortest turn taking ``Gamma`` to ``e_z``, then a turn by ``heading`` about ``e_z``."""
-        one = 1.0 + 0.0 * gamma[0]
-        zero = 0.0 * gamma[0]
-        r = quat_from_two_vectors(gamma, (zero, zero, one))
-        half = 0.5 * np.asarray(heading, dtype=float)
-        turn = (np.cos(half) * one, zero, zero, np.sin(half) * one)
-        return quat_normalize(quat_multiply(turn, r))
+        """A quaternion ``q`` with ``R(q)^T e_z = Gamma`` and the given heading [rad]
+        (:func:`attitude_from_vertical`)."""
+        return attitude_from_vertical(tuple(gamma), heading)
 
     # ------------------------------------------------------------------ exact pieces
     def kick(self, y, u, h):
@@ -500,13 +539,14 @@ class HeavyTop:
         ``kappa = k chi.I^-1 chi``), so ``Pi(h) = Pi + h f - k chi int_0^h s`` in closed form.
         Gravity's part keeps ``Pi.Gamma`` (its torque is normal to ``Gamma``).
         """
-        return heavy_top_kick(self._kick, tuple(y), u, h)
+        return self._kick_form(self._kick, tuple(y), u, h)
 
     @property
     def kernel_split_flows(self) -> tuple:
         """The pure forms of :meth:`split_flows` (generated flows are made on access, not
-        stored: the system pickles)."""
-        return ((heavy_top_kick, self._kick),) + tuple(flow.kernel for flow in self._split[1:])
+        stored: the system pickles); the kick without spin friction where there is none (the
+        same operations, without a branch that holds a call)."""
+        return ((self._kick_form, self._kick),) + tuple(flow.kernel for flow in self._split[1:])
 
     def split_flows(self):
         """Pieces for a symmetric (Strang) splitting: the torque kick, then the free flow.

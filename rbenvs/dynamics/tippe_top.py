@@ -77,6 +77,7 @@ from ..draws import draw
 from ..jit import jitable
 from ..rotations import atan2, maximum, quat_normalize, quat_rate, sqrt
 from .contact import FRICTION_LAWS, no_friction
+from .state import start_as_drawn
 from .validation import real_array, require_choice, require_finite_nonnegative, require_finite_positive, require_finite_result, require_real_vector
 
 
@@ -488,7 +489,8 @@ class TippeForms(NamedTuple):
 
     State functions ``fn(P, y)``: ``frame`` (:func:`tippe_frame` of the state's quaternion),
     ``angular_velocity``, ``velocity`` (of ``G``, space, vertical part included), ``height``,
-    ``gap``, ``slip_speed``, ``energy``, ``jellett``, ``tilt``, ``spin``, ``normalize``.
+    ``gap``, ``slip_speed``, ``energy``, ``jellett``, ``tilt``, ``spin``, ``normalize``; and
+    ``state(P, x, y, q, w)``, the components of a top at rest on its contact point (starts).
 
     Contact functions ``fn(P, y, u)`` (``u`` the 6 controls or ``None``): ``contact``, the contact
     tuple ``(N, F_x, F_y, dOmega1, dOmega2, dOmega3, a_x, a_y, v_x, v_y[, v_z])`` (normal force,
@@ -517,6 +519,7 @@ class TippeForms(NamedTuple):
     normal: Callable
     readouts: Callable
     friction_rate: Callable | None
+    state: Callable
 
 
 @lru_cache(maxsize=None)
@@ -599,7 +602,23 @@ def _state_forms(rolling: bool, flight: bool) -> tuple:
         return (energy(p, y), jellett(p, y), tilt(p, y), n, slip_speed(p, y), lifted, airborne, count, gap(p, y), spin(p, y))
 
     normalize = flight_normalize if flight else (rolling_normalize if rolling else sliding_normalize)
-    return (frame, angular_velocity, velocity, height, gap, slip_speed, energy, jellett, tilt, spin, normalize), state_readouts
+
+    @jitable
+    def state(p, x, y0, q, w):
+        """The components at the horizontal position ``(x, y0)`` [m], attitude ``q`` and body
+        angular velocity ``w`` [rad/s], the contact point at rest (``v_G = -omega x r``); with
+        flight on the table, ``(z, v_z)`` from the constraint."""
+        if rolling:
+            return (x, y0) + q + w
+        rm = tippe_frame(q[0], q[1], q[2], q[3])
+        v1, v2, v3 = rolling_velocity_body(p, rm, w[0], w[1], w[2])
+        vx, vy, _ = to_space(rm, v1, v2, v3)
+        if flight:
+            zero = 0.0 * q[0]
+            return normalize(p, (x, y0, zero, vx, vy, zero) + q + w + (zero + 1.0, zero))
+        return (x, y0, vx, vy) + q + w
+
+    return (frame, angular_velocity, velocity, height, gap, slip_speed, energy, jellett, tilt, spin, normalize, state), state_readouts
 
 
 @lru_cache(maxsize=None)
@@ -609,7 +628,7 @@ def pure_forms(coefficient, stiffness, rolling: bool, flight: bool) -> TippeForm
     :func:`~rbenvs.dynamics.contact.no_friction` and ``None`` without friction), ``rolling`` and
     ``flight``. Made once per combination (the functions close over the law's functions, which
     compiled code then calls as constants)."""
-    (frame, angular_velocity, velocity, height, gap, slip_speed, energy, jellett, tilt, spin, normalize), state_readouts = _state_forms(rolling, flight)
+    (frame, angular_velocity, velocity, height, gap, slip_speed, energy, jellett, tilt, spin, normalize, state), state_readouts = _state_forms(rolling, flight)
     derivative = flight_derivative if flight else (rolling_derivative if rolling else sliding_derivative)
 
     @jitable
@@ -683,7 +702,7 @@ def pure_forms(coefficient, stiffness, rolling: bool, flight: bool) -> TippeForm
             return stiffness(mu, 2.0 * load, mobility, eps)
 
     forms = TippeForms(frame, angular_velocity, velocity, height, gap, slip_speed, energy, jellett, tilt, spin, normalize, contact,
-                       derivative, rhs, rhs_normal, normal, readouts, friction_rate)
+                       derivative, rhs, rhs_normal, normal, readouts, friction_rate, state)
     return forms
 
 
@@ -913,6 +932,8 @@ class TippeTop:
         """A task's start as it is."""
         return y
 
+    kernel_complete = (start_as_drawn, ())  # the pure form of complete_initial_state
+
     def events(self, u):
         """The contact switches to watch after each internal step under control ``u``
         (:class:`rbenvs.contracts.HybridSystem`; located and applied by
@@ -996,10 +1017,8 @@ class TippeTop:
         pos = tuple(position)[:2]
         q = tuple(attitude)
         w = tuple(angular_velocity)
-        if self.rolling:
-            return pos + q + w
-        if velocity is None:
-            velocity = self.no_slip_velocity(q, w)[:2]
+        if velocity is None or self.rolling:
+            return self.forms.state(self.form_params, pos[0], pos[1], q, w)
         if self.flight:  # on the table: z and v_z from the constraint (normalize), no lift-off yet
             zero = 0.0 * q[0]
             y = pos + (zero,) + tuple(velocity)[:2] + (zero,) + q + w + (zero + 1.0, zero)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 
@@ -17,7 +18,9 @@ from ..dynamics.validation import (
     require_real_vector,
 )
 from ..tasks import AXIS_NAMES, DetumbleTask, ReorientTask, SpinTask
+from ..core.codegen import generate
 from ..core.model import observation_bounds
+from ..jit import jitable
 from .base import RigidBodyEnv, require_float32_bound
 
 __all__ = ["FreeRigidBodyEnv", "BodyTorque"]
@@ -257,14 +260,26 @@ class BodyTorque:
 
     def control(self, a):
         """``(u_norm, u)``: the normalised action on all three axes (0 where unactuated; the
-        reward's effort term) and the torque."""
-        tau = self.max_torque
-        if len(self.axes) == 3:  # fully actuated: the action is the normalised torque
-            return tuple(a), (tau * a[0], tau * a[1], tau * a[2])
-        u_norm = [0.0, 0.0, 0.0]
-        for j, i in enumerate(self.axes):
-            u_norm[i] = a[j]
-        return tuple(u_norm), (tau * u_norm[0], tau * u_norm[1], tau * u_norm[2])
+        reward's effort term) and the torque (:attr:`kernel_control`)."""
+        fn, p = self.kernel_control
+        return fn(p, a)
+
+    @property
+    def kernel_control(self):
+        """``(control, max_torque)``: the pure form of :meth:`control`, ``control(P, a) ->
+        (u_norm, u)`` (generated for the actuated axes)."""
+        return _body_torque_form(tuple(int(i) for i in self.axes)), float(self.max_torque)
+
+
+@lru_cache(maxsize=None)
+def _body_torque_form(axes: tuple):
+    """``control(tau, a)`` for the actuated ``axes``: the action on them, 0.0 elsewhere."""
+    items = ["0.0"] * 3
+    for j, i in enumerate(axes):
+        items[i] = f"a[{j}]"
+    un = ", ".join(items)
+    src = f"def control(tau, a):\n    un = ({un})\n    return un, (tau * un[0], tau * un[1], tau * un[2])\n"
+    return jitable(generate(src, f"body torque control axes={axes}")["control"])
 
 
 def _check_axis(axis) -> None:

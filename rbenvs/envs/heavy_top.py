@@ -4,11 +4,14 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import lru_cache
 
 from ..dynamics import HeavyTop, HeavyTopParams
 from ..dynamics.validation import require_bool, require_choice, require_finite, require_finite_nonnegative, require_finite_positive, require_range
 from ..tasks import PrecessTask, UprightTask, slow_precession_rate, transverse_basis
+from ..core.codegen import generate
 from ..core.model import observation_bounds
+from ..jit import jitable
 from .base import RigidBodyEnv, require_float32_bound
 
 __all__ = ["LagrangeTopEnv", "PivotTorque"]
@@ -289,13 +292,27 @@ class PivotTorque:
         return len(self.directions)
 
     def control(self, a):
-        """``(u_norm, u)``: the normalised action and the body torque; floats or arrays."""
-        u_norm = tuple(a)
-        tau = [0.0, 0.0, 0.0]
-        for x, d in zip(u_norm, self.directions):
-            for i in range(3):
-                tau[i] += self.max_torque * x * d[i]
-        return u_norm, (tau[0], tau[1], tau[2])
+        """``(u_norm, u)``: the normalised action and the body torque; floats or arrays
+        (:attr:`kernel_control`)."""
+        fn, p = self.kernel_control
+        return fn(p, a)
+
+    @property
+    def kernel_control(self):
+        """``(control, (max_torque, directions))``: the pure form of :meth:`control`,
+        ``control(P, a) -> (u_norm, u)`` (generated for the number of directions)."""
+        directions = tuple(tuple(float(c) for c in d) for d in self.directions)
+        return _pivot_torque_form(len(directions)), (float(self.max_torque), directions)
+
+
+@lru_cache(maxsize=None)
+def _pivot_torque_form(k: int):
+    """``control((m, d), a)`` for ``k`` directions: ``tau_i = sum_j m a_j d_j[i]``, summed from
+    0.0 in the directions' order."""
+    un = ", ".join(f"a[{j}]" for j in range(k)) + ("," if k == 1 else "")
+    tau = [" + ".join(["0.0"] + [f"m * un[{j}] * d[{j}][{i}]" for j in range(k)]) for i in range(3)]
+    src = f"def control(P, a):\n    m, d = P\n    un = ({un})\n    return un, ({', '.join(tau)})\n"
+    return jitable(generate(src, f"pivot torque control k={k}")["control"])
 
 
 def _spin_range(spin, task, params) -> tuple[float, float]:

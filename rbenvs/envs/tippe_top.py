@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 
@@ -11,7 +12,9 @@ from ..dynamics import TippeTop, TippeTopParams
 from ..dynamics.tippe_top import FIDELITIES
 from ..dynamics.validation import require_bool, require_choice, require_finite_nonnegative, require_range
 from ..tasks import HoldTask, InvertTask
+from ..core.codegen import generate
 from ..core.model import observation_bounds
+from ..jit import jitable
 from .base import RigidBodyEnv, require_float32_bound
 
 __all__ = ["TippeTopEnv", "TableActuator"]
@@ -275,16 +278,32 @@ class TableActuator:
         return 2 + (self.friction_range is not None) + 3 * (self.max_torque is not None)
 
     def control(self, a):
-        u_norm = tuple(a)
-        acc = self.max_table_acceleration
-        ax, ay = acc * u_norm[0], acc * u_norm[1]
-        j = 2
-        mu = self.friction
-        if self.friction_range is not None:
-            lo, hi = self.friction_range
-            mu = lo + 0.5 * (u_norm[j] + 1.0) * (hi - lo)
-            j += 1
-        tau = (0.0, 0.0, 0.0)
-        if self.max_torque is not None:
-            tau = tuple(self.max_torque * x for x in u_norm[j : j + 3])
-        return u_norm, (ax, ay, mu) + tau
+        """``(u_norm, u)``: the normalised action and the controls ``(a_x, a_y, mu, tau1, tau2,
+        tau3)``; floats or arrays (:attr:`kernel_control`)."""
+        fn, p = self.kernel_control
+        return fn(p, a)
+
+    @property
+    def kernel_control(self):
+        """``(control, (acc, mu, lo, hi, max_torque))``: the pure form of :meth:`control`,
+        ``control(P, a) -> (u_norm, u)`` (generated for the action's entries)."""
+        lo, hi = (float(c) for c in self.friction_range) if self.friction_range is not None else (0.0, 0.0)
+        torque = float(self.max_torque) if self.max_torque is not None else 0.0
+        form = _table_form(self.friction_range is not None, self.max_torque is not None)
+        return form, (float(self.max_table_acceleration), float(self.friction), lo, hi, torque)
+
+
+@lru_cache(maxsize=None)
+def _table_form(sets_friction: bool, torque: bool):
+    """``control(P, a)``: the table's acceleration from ``a[0:2]``, the friction coefficient
+    affine in the next entry (``sets_friction``; else the fixed one), the body torque from the
+    next three (``torque``; else zero)."""
+    k = 2 + sets_friction + 3 * torque
+    lines = ["def control(P, a):", "    acc, mu, lo, hi, m = P", f"    un = ({', '.join(f'a[{j}]' for j in range(k))})",
+             "    ax, ay = acc * un[0], acc * un[1]"]
+    if sets_friction:
+        lines.append("    mu = lo + 0.5 * (un[2] + 1.0) * (hi - lo)")
+    j = 2 + sets_friction
+    tau = f"(m * un[{j}], m * un[{j + 1}], m * un[{j + 2}])" if torque else "(0.0, 0.0, 0.0)"
+    lines.append(f"    return un, (ax, ay, mu) + {tau}")
+    return jitable(generate("\n".join(lines), f"table control friction={sets_friction} torque={torque}")["control"])

@@ -27,6 +27,16 @@ class TwoStageStart:
 
     draw_kinds: str = ""
 
+    def kernel_start(self, system):
+        """``(start, P)``: the pure form of :meth:`initial_from_draws`, ``start(P, d) -> y`` on a
+        start's draws ``d`` (floats, rows of a batch, or in compiled code), or ``None``."""
+        return None
+
+    def initial_from_draws(self, system, d):
+        """A start's components from its draws ``d`` (floats, or rows of a batch)."""
+        fn, p = self.kernel_start(system)
+        return fn(p, d)
+
     def initial_draws(self, rng):
         """The generator's numbers for one start, in the order of :attr:`draw_kinds`."""
         return draw(rng, self.draw_kinds)

@@ -22,11 +22,51 @@ __all__ = ["SpinTask", "DetumbleTask", "ReorientTask", "AXIS_NAMES", "spin_evalu
 AXIS_NAMES = ("major", "intermediate", "minor")
 
 
-# Initial states: two stages (rbenvs.tasks.common.TwoStageStart).
+# Initial states: two stages (rbenvs.tasks.common.TwoStageStart). The arithmetic from a start's
+# draws ``d`` as pure functions ``start(P, d)`` (floats, rows of a batch, compiled restarts).
+@jitable
 def _directions(n0, n1, n2):
     """Unit vectors along normal deviates (a uniform direction)."""
     norm = np.sqrt(n0 * n0 + n1 * n1 + n2 * n2)
     return n0 / norm, n1 / norm, n2 / norm
+
+
+@jitable
+def spin_start(p, d):
+    """Spin ``p[1] = I_axis * spin_rate`` about a direction at a polar angle uniform in ``[0,
+    perturbation]`` from body axis ``p[0]``, azimuth uniform; ``d = (tilt, azimuth)`` uniforms."""
+    axis, momentum, perturbation = p
+    theta = 0.0 + perturbation * d[0]  # polar angle uniform in [0, perturbation]
+    phi = 0.0 + 2.0 * np.pi * d[1]  # azimuth uniform
+    st = np.sin(theta)
+    x, y, z = st * np.cos(phi), st * np.sin(phi), np.cos(theta)
+    # the spin axis gets z, the next two axes (cyclically) x and y
+    if axis == 0:
+        return momentum * z, momentum * x, momentum * y
+    if axis == 1:
+        return momentum * y, momentum * z, momentum * x
+    return momentum * x, momentum * y, momentum * z
+
+
+@jitable
+def detumble_start(p, d):
+    """``Pi = I Omega``, ``Omega = spin_rate (0.5 + 0.5 d[3]) n``, ``n`` along the normals
+    ``d[0:3]``; ``p = (inertia, spin_rate)``."""
+    inertia, spin_rate = p
+    n = _directions(d[0], d[1], d[2])
+    s = spin_rate * (0.5 + 0.5 * d[3])
+    return inertia[0] * s * n[0], inertia[1] * s * n[1], inertia[2] * s * n[2]
+
+
+@jitable
+def reorient_start(p, d):
+    """A uniform attitude from ``d[0:3]`` (Shoemake) and ``Omega = spin_rate (0.1 d[6]) n``,
+    ``n`` along the normals ``d[3:6]``; ``p = (inertia, spin_rate)``."""
+    inertia, spin_rate = p
+    q = quat_from_uniforms(d[0], d[1], d[2])
+    n = _directions(d[3], d[4], d[5])
+    s = spin_rate * (0.0 + 0.1 * d[6])
+    return inertia[0] * s * n[0], inertia[1] * s * n[1], inertia[2] * s * n[2], q[0], q[1], q[2], q[3]
 
 
 # The tasks' arithmetic as pure functions of (parameters, state, action): the methods below
@@ -113,16 +153,9 @@ class SpinTask(TwoStageStart):
 
     draw_kinds = "uu"  # tilt and azimuth of the spin direction
 
-    def initial_from_draws(self, system, d):
-        p = system.params.inertia[self.axis] * self.spin_rate
-        theta = 0.0 + self.perturbation * d[0]  # polar angle uniform in [0, perturbation]
-        phi = 0.0 + 2.0 * np.pi * d[1]  # azimuth uniform
-        st = np.sin(theta)
-        x, y, z = st * np.cos(phi), st * np.sin(phi), np.cos(theta)
-        comps = [None, None, None]
-        j, k = (self.axis + 1) % 3, (self.axis + 2) % 3
-        comps[self.axis], comps[j], comps[k] = p * z, p * x, p * y
-        return tuple(comps)
+    def kernel_start(self, system):
+        """``(spin_start, P)``: the pure form of :meth:`initial_from_draws`."""
+        return spin_start, (int(self.axis), system.params.inertia[self.axis] * self.spin_rate, float(self.perturbation))
 
     metric_names = ("alignment", "is_success")
 
@@ -167,11 +200,9 @@ class DetumbleTask(TwoStageStart):
 
     draw_kinds = "nnnu"  # direction, speed
 
-    def initial_from_draws(self, system, d):
-        n = _directions(d[0], d[1], d[2])
-        s = self.spin_rate * (0.5 + 0.5 * d[3])
-        inertia = system.params.inertia
-        return tuple(inertia[i] * s * n[i] for i in range(3))
+    def kernel_start(self, system):
+        """``(detumble_start, P)``: the pure form of :meth:`initial_from_draws`."""
+        return detumble_start, (tuple(float(c) for c in system.params.inertia), float(self.spin_rate))
 
     metric_names = ("angular_speed", "is_success")
 
@@ -222,12 +253,9 @@ class ReorientTask(TwoStageStart):
 
     draw_kinds = "uuunnnu"  # attitude, direction of Omega, speed
 
-    def initial_from_draws(self, system, d):
-        q = quat_from_uniforms(d[0], d[1], d[2])
-        n = _directions(d[3], d[4], d[5])
-        s = self.spin_rate * (0.0 + 0.1 * d[6])
-        inertia = system.params.inertia
-        return tuple(inertia[i] * s * n[i] for i in range(3)) + tuple(q)
+    def kernel_start(self, system):
+        """``(reorient_start, P)``: the pure form of :meth:`initial_from_draws`."""
+        return reorient_start, (tuple(float(c) for c in system.params.inertia), float(self.spin_rate))
 
     def error(self, y):
         """The error quaternion (:func:`attitude_error`)."""

@@ -65,14 +65,50 @@ def _clip_unit_arrays(x):
     return np.clip(x, -1.0, 1.0)
 
 
-def _vertical_in_cone(chi, u_tilt, u_azimuth, low, high):
+@jitable
+def vertical_in_cone(p, u_tilt, u_azimuth):
     """Unit vectors at an angle uniform in ``[low, high]`` from ``chi``, azimuth uniform, from two
-    uniforms on [0, 1) (floats or rows of a batch); ``(vector, angle)``."""
-    t1, t2 = transverse_basis(chi)
+    uniforms on [0, 1) (floats or rows of a batch); ``(vector, angle)``; ``p = (chi, t1, t2,
+    low, high)`` with ``(t1, t2)`` the :func:`transverse_basis` of ``chi``."""
+    chi, t1, t2, low, high = p
     theta = low + (high - low) * u_tilt
     phi = 0.0 + 2.0 * np.pi * u_azimuth
     a, b, c = np.sin(theta) * np.cos(phi), np.sin(theta) * np.sin(phi), np.cos(theta)
-    return tuple(a * t1[i] + b * t2[i] + c * chi[i] for i in range(3)), theta
+    return (a * t1[0] + b * t2[0] + c * chi[0], a * t1[1] + b * t2[1] + c * chi[1], a * t1[2] + b * t2[2] + c * chi[2]), theta
+
+
+def _cone_params(chi, low, high) -> tuple:
+    chi = tuple(float(c) for c in chi)
+    t1, t2 = transverse_basis(chi)
+    return chi, t1, t2, float(low), float(high)
+
+
+@jitable
+def upright_start(p, d):
+    """``Gamma`` in the cone of :func:`vertical_in_cone` (``d[0:2]``), spin ``n ~ U(spin_low,
+    spin_high)`` (``d[2]``) about ``chi``: ``Pi = n I chi``; ``p = (cone, spin_low, spin_high,
+    inertia)``."""
+    cone, spin_low, spin_high, inertia = p
+    chi = cone[0]
+    gamma, _ = vertical_in_cone(cone, d[0], d[1])
+    n = spin_low + (spin_high - spin_low) * d[2]
+    return (inertia[0] * n * chi[0], inertia[1] * n * chi[1], inertia[2] * n * chi[2]) + gamma
+
+
+@jitable
+def precess_start(p, d):
+    """The regular precession's start (:class:`PrecessTask`): ``Gamma`` in the cone about the
+    target tilt (``d[0:2]``), spin ``n`` (``d[2]``), ``Omega = r Gamma + (n - r cos(tilt)) chi``
+    at the target rate ``r`` (given, or the slow root of (3.82) at ``n``); ``p = (cone, spin_low,
+    spin_high, fixed, target_rate, root, inertia)``."""
+    cone, spin_low, spin_high, fixed, target_rate, root, inertia = p
+    chi = cone[0]
+    gamma, tilt = vertical_in_cone(cone, d[0], d[1])
+    n = spin_low + (spin_high - spin_low) * d[2]
+    rate = target_rate if fixed else slow_precession_root(root, n)
+    axial = n - rate * np.cos(tilt)
+    w1, w2, w3 = rate * gamma[0] + axial * chi[0], rate * gamma[1] + axial * chi[1], rate * gamma[2] + axial * chi[2]
+    return (inertia[0] * w1, inertia[1] * w2, inertia[2] * w3) + gamma
 
 
 # The tasks' arithmetic as pure functions of (parameters, state, action): the methods below call
@@ -165,13 +201,11 @@ class UprightTask(TwoStageStart):
 
     draw_kinds = "uuu"  # tilt, azimuth, spin
 
-    def initial_from_draws(self, system, d):
+    def kernel_start(self, system):
+        """``(upright_start, P)``: the pure form of :meth:`initial_from_draws`."""
         prm = system.params
-        chi = prm.com_direction
-        gamma, _ = _vertical_in_cone(chi, d[0], d[1], 0.0, self.perturbation)
-        n = self.spin_low + (self.spin_high - self.spin_low) * d[2]
-        pi = tuple(prm.inertia[i] * n * chi[i] for i in range(3))
-        return pi + gamma
+        cone = _cone_params(prm.com_direction, 0.0, self.perturbation)
+        return upright_start, (cone, float(self.spin_low), float(self.spin_high), tuple(float(c) for c in prm.inertia))
 
     def observe(self, system, y):
         return top_observe(system.params.inverse, tuple(y))
@@ -231,16 +265,14 @@ class PrecessTask(TwoStageStart):
 
     draw_kinds = "uuu"  # tilt, azimuth, spin
 
-    def initial_from_draws(self, system, d):
+    def kernel_start(self, system):
+        """``(precess_start, P)``: the pure form of :meth:`initial_from_draws`."""
         prm = system.params
-        chi = prm.com_direction
-        lo, hi = self.target_tilt - self.perturbation, self.target_tilt + self.perturbation
-        gamma, tilt = _vertical_in_cone(chi, d[0], d[1], lo, hi)
-        n = self.spin_low + (self.spin_high - self.spin_low) * d[2]
-        p = self.target_rate if self.target_rate is not None else slow_precession_rate(system, n, self.target_tilt)
-        axial = n - p * np.cos(tilt)
-        omega = tuple(p * gamma[i] + axial * chi[i] for i in range(3))
-        return tuple(prm.inertia[i] * omega[i] for i in range(3)) + gamma
+        cone = _cone_params(prm.com_direction, self.target_tilt - self.perturbation, self.target_tilt + self.perturbation)
+        fixed = self.target_rate is not None
+        rate = float(self.target_rate) if fixed else 0.0
+        return precess_start, (cone, float(self.spin_low), float(self.spin_high), fixed, rate, _root_params(system, self.target_tilt),
+                               tuple(float(c) for c in prm.inertia))
 
     def observe(self, system, y):
         return top_observe(system.params.inverse, tuple(y))

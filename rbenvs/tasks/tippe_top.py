@@ -32,16 +32,34 @@ def tilted_spin_state(system, d, spin_low, spin_high, tilt_low, tilt_high):
     """Spin ``n ~ U(spin)`` about the symmetry axis, tilted by ``theta ~ U(tilt)`` at a uniform
     azimuth and heading, at the origin, the contact point at rest (no initial slip), from four
     uniforms ``d`` on [0, 1) (floats or rows of a batch: tilt, azimuth, heading, spin)."""
-    theta = tilt_low + (tilt_high - tilt_low) * d[0]
-    phi = 0.0 + 2.0 * np.pi * d[1]
-    psi = 0.0 + 2.0 * np.pi * d[2]
-    n = spin_low + (spin_high - spin_low) * d[3]
-    zero = 0.0 * theta
-    qz1 = (np.cos(0.5 * phi), zero, zero, np.sin(0.5 * phi))
-    qx = (np.cos(0.5 * theta), np.sin(0.5 * theta), zero, zero)
-    qz2 = (np.cos(0.5 * psi), zero, zero, np.sin(0.5 * psi))
-    q = quat_multiply(quat_multiply(qz1, qx), qz2)  # R = Rz(phi) Rx(theta) Rz(psi)
-    return system.state((zero, zero), q, (zero, zero, n))
+    fn, p = spun_start(system, spin_low, spin_high, tilt_low, tilt_high)
+    return fn(p, d)
+
+
+def spun_start(system, spin_low, spin_high, tilt_low, tilt_high) -> tuple:
+    """``(start, P)``: the pure form of :func:`tilted_spin_state` for ``system``'s layout."""
+    return spun_start_form(system.forms.state), (system.form_params, float(spin_low), float(spin_high), float(tilt_low), float(tilt_high))
+
+
+@lru_cache(maxsize=None)
+def spun_start_form(state):
+    """``start(P, d)`` of :func:`tilted_spin_state` on the system's pure ``state`` builder."""
+
+    @jitable
+    def start(p, d):
+        form_params, spin_low, spin_high, tilt_low, tilt_high = p
+        theta = tilt_low + (tilt_high - tilt_low) * d[0]
+        phi = 0.0 + 2.0 * np.pi * d[1]
+        psi = 0.0 + 2.0 * np.pi * d[2]
+        n = spin_low + (spin_high - spin_low) * d[3]
+        zero = 0.0 * theta
+        qz1 = (np.cos(0.5 * phi), zero, zero, np.sin(0.5 * phi))
+        qx = (np.cos(0.5 * theta), np.sin(0.5 * theta), zero, zero)
+        qz2 = (np.cos(0.5 * psi), zero, zero, np.sin(0.5 * psi))
+        q = quat_multiply(quat_multiply(qz1, qx), qz2)  # R = Rz(phi) Rx(theta) Rz(psi)
+        return state(form_params, zero, zero, q, (zero, zero, n))
+
+    return start
 
 
 @jitable
@@ -129,8 +147,9 @@ class _SpunTop(TwoStageStart):
 
     draw_kinds = "uuuu"  # tilt, azimuth, heading, spin
 
-    def initial_from_draws(self, system, d):
-        return tilted_spin_state(system, d, self.spin_low, self.spin_high, self.tilt_low, self.tilt_high)
+    def kernel_start(self, system):
+        """``(start, P)``: the pure form of :meth:`initial_from_draws` (:func:`tilted_spin_state`)."""
+        return spun_start(system, self.spin_low, self.spin_high, self.tilt_low, self.tilt_high)
 
     def observe(self, system, y):
         return observe(system, y)

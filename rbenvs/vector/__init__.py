@@ -57,7 +57,7 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
 from .. import compiled as _compiled
-from ..core.step import action_columns, terminal_reason
+from ..core.step import _REAL_FLOATS, action_columns, reason_strings, terminal_reason
 from ..draws import GeneratorTable, kind_codes
 from ..envs.base import require_compiled
 from ..dynamics.validation import real_array, require_bool, require_int_at_least
@@ -99,6 +99,7 @@ class RigidBodyVectorEnv(VectorEnv):
         self._y = None  # the states: a tuple of (n,) arrays, one per component
         self._y2d = None  # the (dim, n) array whose rows are self._y, when the kernel made it
         self._u = None  # the controls of the last step (None after a reset)
+        self._action = None  # the compiled step's last actions, from which render makes them
         self._last_h = None  # the internal step of the last period, per sub-env
         self._plain = self.engine.plain
         self._steps = np.zeros(self.num_envs, dtype=np.int64)
@@ -116,6 +117,12 @@ class RigidBodyVectorEnv(VectorEnv):
         self._false.flags.writeable = False
         self._batch_step = self._compiled_step(compiled)
         self.compiled = self._batch_step is not None
+        # the whole step compiled (actions, period, finish, episode clocks, restarts): one call
+        # per step where the generators can be handed to compiled code
+        self._vector_step = None
+        if self._batch_step is not None and self._use_table:
+            self._vector_step = _compiled.VectorStep(self.engine.kernel_parts(), self.model, self.single_observation_space.shape[0], self.engine.high,
+                                                     self.max_episode_steps)
 
     def _compiled_step(self, compiled):
         """The model's :class:`rbenvs.compiled.BatchStep`, or ``None`` for the numpy path."""
@@ -193,6 +200,7 @@ class RigidBodyVectorEnv(VectorEnv):
         if np.any(over & mask):
             raise ValueError("an initial state lies outside the observation bounds; raise the limit parameters")
         self._u = None  # as the single env after reset: nothing acted yet (a table at rest)
+        self._action = None
         self._last_h = np.full(n, self.engine.h)
         info = self._info(self._y, None, self._false, self._false, metrics, physical)
         return obs, info
@@ -272,6 +280,8 @@ class RigidBodyVectorEnv(VectorEnv):
     def step(self, actions):
         if self._y is None:
             raise RuntimeError("call reset() before step()")
+        if self._vector_step is not None and self._table is not None:
+            return self._compiled_step_all(actions)
         engine = self.engine
         cols = action_columns(actions, self.action_space.shape)
         # NEXT_STEP: the sub-envs whose episode ended last step are reset, not stepped.
@@ -296,6 +306,12 @@ class RigidBodyVectorEnv(VectorEnv):
                 over = self._false
             metrics = dict(zip(self.task.metric_names, metrics))
             return self._finish(obs, over, reward, terminated, fired, None, metrics, restart, any_restart, physical)
+        return self._numpy_finish(y0, y, u_norm, fired, restart, any_restart)
+
+    def _numpy_finish(self, y0, y, u_norm, fired, restart, any_restart):
+        """The rest of a step on numpy from the period's new states ``y``: numerical failure,
+        observation, evaluation, then :meth:`_finish`."""
+        engine = self.engine
         self._y2d = None
         y, failed = engine.settle(y0, y, restart)
         self._y = y
@@ -305,6 +321,74 @@ class RigidBodyVectorEnv(VectorEnv):
             reward = np.where(failed, 0.0, reward)
             terminated = terminated | failed
         return self._finish(obs, over, reward, terminated, fired, failed, metrics, restart, any_restart)
+
+    def _compiled_step_all(self, actions):
+        """:meth:`step` as one compiled call (:class:`rbenvs.compiled.VectorStep`): the same
+        actions' checks, period, finish, episode clocks and NEXT_STEP restarts as the numpy
+        path, bit for bit; Python builds ``info`` from its arrays. A non-finite new state goes
+        to the numpy path's failure handling, a refusal or a bad action raises as there."""
+        shape = self.action_space.shape
+        a = actions
+        if not (type(a) is np.ndarray and a.dtype in _REAL_FLOATS and a.shape == shape and a.flags.c_contiguous):
+            a = real_array("actions", actions, dtype=None)
+            if a.shape != shape:
+                raise ValueError(f"actions must have shape {shape}, got {a.shape}")
+            a = np.ascontiguousarray(a, dtype=a.dtype if a.dtype in _REAL_FLOATS else np.float64)
+        next_step = self.autoreset_mode is AutoresetMode.NEXT_STEP
+        vstep, engine = self._vector_step, self.engine
+        Y = self._y2d if self._y2d is not None else np.stack(self._y)
+        if next_step:
+            if not self._prev_done.flags.writeable:
+                self._prev_done = self._prev_done.copy()
+            done = self._prev_done  # in: the sub-envs to restart; out: those whose episode ended
+            restart = done.copy()
+            skip = restart
+        else:
+            done, restart, skip = np.empty(self.num_envs, dtype=bool), self._false, self._false
+        with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+            r = vstep(a, Y, self._steps, done, skip, self._table.list, not self._plain, engine.guard == "refuse", next_step)
+        if r.status == -2:  # a non-finite action: the numpy path's check raises, naming the sub-envs
+            action_columns(actions, shape)
+            raise AssertionError("the compiled step found a non-finite action that action_columns accepted")
+        if r.status == -1:
+            over = (r.counts > engine.substeps) & ~restart
+            raise engine.refusal(int(r.counts[over].max()), f" of sub-envs {np.flatnonzero(over).tolist()}")
+        # the controls that acted, made from the actions where needed (rendering, a failure)
+        self._u, self._last_h = None, r.h
+        self._action = None if self.render_mode is None else a.copy()
+        if r.status > 0:  # non-finite new states: the numpy path's failure handling
+            fired = r.fired if r.fired.any() else self._false
+            u_norm, self._u = self.model.actuator.control(action_columns(a, shape))
+            return self._numpy_finish(self._y, tuple(r.Y), u_norm, fired, restart, bool(restart.any()))
+        self._y2d, self._y = r.Y, tuple(r.Y)
+        info = self._kernel_info(r, done)
+        obs = r.obs
+        if next_step:
+            if not vstep.restarts and restart.any():  # (no pure start: restarted here)
+                obs, info = self._restart(restart, obs, info)
+        elif r.n_ended:
+            obs, info = self._same_step_reset(done, obs, info, r)
+        return obs, r.reward, r.terminated, r.truncated, info
+
+    def _kernel_info(self, r, done) -> dict:
+        """``info`` from a compiled step's arrays (the order and keys of :meth:`_info`)."""
+        every = self._true
+        info = {}
+        if self.info_readouts:
+            for name, value in zip(self.engine.readout_names, r.readouts):
+                info[name] = value
+                info["_" + name] = every
+            info["internal_step"] = r.h
+            info["_internal_step"] = every
+        for name, value in zip(self.task.metric_names, r.metrics):
+            info[name] = value
+            info["_" + name] = every
+        info["numerical_failure"] = self._false
+        info["_numerical_failure"] = every
+        if r.n_ended:
+            info["terminal_reason"] = reason_strings(r.reason, self.engine.event_name, r.coded)
+            info["_terminal_reason"] = done.copy()
+        return info
 
     def _finish(self, obs, over, reward, terminated, fired, failed, metrics, restart, any_restart, physical=None):
         """Info, truncation, terminal reasons and autoreset: the rest of :meth:`step`."""
@@ -382,10 +466,20 @@ class RigidBodyVectorEnv(VectorEnv):
             info["_terminal_reason"] = info["_terminal_reason"] & ~which
         return obs, info
 
-    def _same_step_reset(self, done, obs, info):
+    def _same_step_reset(self, done, obs, info, compiled=None):
+        """SAME_STEP autoreset of the sub-envs in ``done``: the last observation and info kept in
+        ``final_obs`` and ``final_info``, then :meth:`_restart` (or, after a compiled step
+        ``compiled``, the compiled restarts written into its arrays)."""
         final_obs = obs.copy()
         final_info = {k: (v.copy() if isinstance(v, np.ndarray) else v) for k, v in info.items()}
-        obs, info = self._restart(done, obs, info)
+        if compiled is not None and self._vector_step.restarts:
+            r = compiled
+            self._vector_step.restart(np.flatnonzero(done), r.Y, self._table.list, obs, r.h, self._steps, r.metrics, r.readouts)
+            if "terminal_reason" in info:  # (every ended sub-env restarts)
+                info["terminal_reason"] = np.where(done, "", info["terminal_reason"])
+                info["_terminal_reason"] = info["_terminal_reason"] & ~done
+        else:
+            obs, info = self._restart(done, obs, info)
         final = np.empty(self.num_envs, dtype=object)  # one float32 observation per ended sub-env
         for i in np.flatnonzero(done):
             final[i] = final_obs[i]
@@ -458,13 +552,21 @@ class RigidBodyVectorEnv(VectorEnv):
         frames = []
         for i in rows:
             y = tuple(float(c[i]) for c in self._y)
-            u = None if self._u is None else tuple(float(c[i]) if np.ndim(c) else float(c) for c in self._u)
+            controls = self._controls()
+            u = None if controls is None else tuple(float(c[i]) if np.ndim(c) else float(c) for c in controls)
             frames.append(self._renderer.frame(self.env_class.scene(self.system, y, u)))
         if self.render_mode == "human":
             if self._renderer.can_show():
                 self._renderer.show(frames[0], self.metadata["render_fps"])
             return None
         return tuple(frames)
+
+    def _controls(self):
+        """The controls of the last step (``None`` after a reset): the numpy path keeps them, the
+        compiled step keeps its actions and they are made here on demand."""
+        if self._u is None and self._action is not None:
+            self._u = self.model.actuator.control(action_columns(self._action, self.action_space.shape))[1]
+        return self._u
 
     def close_extras(self, **kwargs):
         if self._renderer is not None:
