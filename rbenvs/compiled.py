@@ -47,6 +47,26 @@ __all__ = ["jitable", "available", "Layout", "batch_kernel", "finish_kernel", "s
 # state with the calls, 4 without).
 KERNEL_OPTIONS = {"error_model": "numpy", "forceinline": True}
 
+# LLVM vectorises a loop whose stores may overlap its loads only behind run-time checks that the
+# arrays' ranges are disjoint, and gives up past a number of such checks (8 by default): a loop
+# that reads and writes the eleven rows of the tippe top's state and of its next first stage
+# needs more, and stays scalar (measured: 277 against 68 ns per sub-env and internal step with
+# the limit raised). The limits are process-wide LLVM options; raising them lets more loops be
+# vectorised and changes no result (the checks fall back to the scalar loop where ranges
+# overlap). Set once, before rbenvs compiles its first kernel.
+LLVM_OPTIONS = ("-runtime-memory-check-threshold=512", "-vectorize-memory-check-threshold=512")
+_llvm_tuned = False
+
+
+def _tune_llvm() -> None:
+    global _llvm_tuned
+    if not _llvm_tuned:
+        import llvmlite.binding as llvm
+
+        for option in LLVM_OPTIONS:
+            llvm.set_option("rbenvs", option)
+        _llvm_tuned = True
+
 
 def _comps(fmt, k):
     return ", ".join(fmt.format(j=j) for j in range(k)) + ("," if k == 1 else "")
@@ -92,6 +112,7 @@ def physics_kernel(step, dim: int, n_control: int):
     kernel's first part; ``rbenvs bench kernels`` times it)."""
     import numba
 
+    _tune_llvm()
     _register_all()
     _register(step)
     u = f"u = ({_comps('U[{j}][i]', n_control)})"
@@ -252,14 +273,14 @@ def _finish_lines(L: Layout, y: str, un: str, u: str, fired: str) -> list[str]:
     flag ``fired``. One loop per stage: a loop of arithmetic and unit-stride loads and stores
     runs in SIMD registers, one fused loop would not (measured: 56 us against 15 us at 4096
     free bodies)."""
+    # the clip without a branch (min/max return v itself inside the bounds; a NaN counts as
+    # outside, as the float path's test): a loop without branches stays in SIMD registers
     lines = ["    for i in range(n):", "        " + y, "        o = observe(PO, y)", "        out = False"]
     for j in range(L.n_obs):
         lines += [
             f"        v = o[{j}]",
-            f"        if not (-HI[{j}] <= v <= HI[{j}]):",
-            "            out = True",
-            f"            v = min(max(v, -HI[{j}]), HI[{j}])",
-            f"        obs[i, {j}] = v",
+            f"        out = out | (not ((v >= -HI[{j}]) & (v <= HI[{j}])))",
+            f"        obs[i, {j}] = min(max(v, -HI[{j}]), HI[{j}])",
         ]
     return lines + [
         "        over[i] = out",
@@ -301,8 +322,11 @@ def finish_kernel(layout: Layout):
 def _namespace(L: Layout) -> dict:
     from math import ceil, isfinite, nan
 
+    import numpy as np
+
     from .core.guard import step_ratio
 
+    _tune_llvm()
     _register_all()
     switch_fns = [fn for triple in L.switches for fn in triple]
     for fn in (L.step, L.observe, L.evaluate, L.readouts, L.rotation, L.dissipation, L.event, L.rhs_event, *switch_fns):
@@ -310,7 +334,7 @@ def _namespace(L: Layout) -> dict:
             _register(fn)
     namespace = {"step": L.step, "observe": L.observe, "evaluate": L.evaluate, "readouts": L.readouts, "rotation": L.rotation,
                  "dissipation": L.dissipation, "event": L.event, "rhs_event": L.rhs_event, "step_ratio": step_ratio, "isfinite": isfinite,
-                 "ceil": ceil, "nan": nan}
+                 "ceil": ceil, "nan": nan, "np": np}
     for k, (applies, function, switch) in enumerate(L.switches):
         namespace.update({f"applies{k}": applies, f"function{k}": function, f"switch{k}": switch})
     return namespace
@@ -358,6 +382,63 @@ def batch_kernel(layout: Layout):
     return numba.njit(**KERNEL_OPTIONS)(namespace["kernel"])
 
 
+def _lockstep_lines(L: Layout, u: str) -> list[str]:
+    """The period of every sub-env with a terminal event shared with the next first stage
+    (:func:`_period_lines`' ``rhs_event`` branch, the tippe top's lift-off), as passes over the
+    batch: pass ``k`` takes internal step ``k`` of every sub-env that has one left and has
+    neither fired nor gone non-finite, and leaves the others as they are (the same operations
+    per sub-env as its own loop, so the same bits; a loop of arithmetic and selections stays
+    in SIMD registers, and a period of some 160 steps per sub-env is where the time goes).
+    ``K`` holds each sub-env's next first stage, ``live`` whether it goes on."""
+    from .core.guard import MAX_INTERNAL_STEPS
+
+    dim = L.dim
+    y = f"y = ({_comps('Ynew[{j}, i]', dim)})"
+    kk = f"kk = ({_comps('K[{j}, i]', dim)})"
+    finite = " & ".join(f"isfinite(yn[{j}])" for j in range(dim))
+    return [
+        f"K = np.empty(({dim}, n))",
+        "live = np.empty(n, dtype=np.bool_)",
+        "cmax = 0",
+        "for i in range(n):",
+        f"    y = ({_comps('Y[{j}, i]', dim)})",
+        "    " + u,
+        "    c = counts[i]",
+        f"    if c > {MAX_INTERNAL_STEPS}:",  # refused: a numerical failure, reported with dt / c
+        "        hstep[i] = dt / c",
+        f"        y = ({_comps('nan', dim)})",
+        "        live[i] = False",
+        "    else:",
+        "        hstep[i] = h if c == substeps else dt / c",
+        "        live[i] = True",
+        "        if c > cmax:",
+        "            cmax = c",
+        "    kk, g = rhs_event(PV, y, u)",
+        *(f"    Ynew[{j}, i] = y[{j}]" for j in range(dim)),
+        *(f"    K[{j}, i] = kk[{j}]" for j in range(dim)),
+        "    fired[i] = False",
+        "for k in range(cmax):",
+        "    going = 0",
+        "    for i in range(n):",
+        "        " + y,
+        "        " + kk,
+        "        " + u,
+        "        a = live[i] & (k < counts[i])",
+        "        yn = step(PS, y, kk, u, hstep[i])",
+        "        kn, g = rhs_event(PV, yn, u)",
+        f"        fin = {finite}",
+        "        hit = fin & (g < 0.0)",
+        *(f"        Ynew[{j}, i] = yn[{j}] if a else y[{j}]" for j in range(dim)),
+        *(f"        K[{j}, i] = kn[{j}] if a else kk[{j}]" for j in range(dim)),
+        "        fired[i] = fired[i] | (a & hit)",
+        "        on = live[i] & (not (a & (hit | (not fin))))",
+        "        live[i] = on",
+        "        going += on",
+        "    if going == 0:",
+        "        break",
+    ]
+
+
 def _period_and_finish(L: Layout, u: str, un: str, more: str) -> list[str]:
     """The batch kernel's body (see :func:`batch_kernel`): the guard's counts (a refusal returns
     -1), the period per sub-env or as SIMD passes, the non-finite check (returns ``bad``, the
@@ -381,6 +462,8 @@ def _period_and_finish(L: Layout, u: str, un: str, more: str) -> list[str]:
     simd = [line[4:] for line in _physics_lines(dim, u)] + ["for i in range(n):", "    hstep[i] = h", "    fired[i] = False"]
     if L.event is None and L.rhs_event is None and not L.switches:
         lines += ["    if uniform:", *("        " + line for line in simd), "    else:", *("        " + line for line in per_env)]
+    elif L.rhs_event is not None and not L.switches:
+        lines += ["    " + line for line in _lockstep_lines(L, u)]
     else:
         lines += ["    " + line for line in per_env]
     # 3. non-finite states go back to the caller's failure path
@@ -462,7 +545,7 @@ def _vector_args(L: Layout) -> list[str]:
     reads = [f"R{j}" for j in range(L.n_readouts)]
     return ["A", "Y", "Ynew", "h", "dt", "substeps", "check", "refuse", "next_step", "max_steps", "steps", "done", "skip", "GEN", "PC", "PI",
             "PS", "PO", "PE", "PR", "PG", "PA", "PD", "CD", "PV", "PW", "HI", "counts", "hstep", "fired", "obs", "over", "reward", "terminated",
-            "truncated", "reason", "ends"] + metrics + reads
+            "truncated", "RZ", "RN", "clear", "ends", "codes"] + metrics + reads
 
 
 @lru_cache(maxsize=None)
@@ -472,8 +555,8 @@ def vector_kernel(V: VectorLayout):
 
         vstep(A, Y, Ynew, U, UN, h, dt, substeps, check, refuse, next_step, max_steps, steps,
               done, skip, GEN, PC, PI, PS, PO, PE, PR, PG, PA, PD, CD, PV, PW, HI, counts, hstep,
-              fired, obs, over, reward, terminated, truncated, reason, ends, M_1..M_k,
-              R_1..R_m) -> (status, k, m)
+              fired, obs, over, reward, terminated, truncated, RZ, RN, clear, ends, codes,
+              M_1..M_k, R_1..R_m) -> (status, k, m)
 
     1. the actions ``A`` ``(n, n_in)`` (float32 or float64): every entry finite (else ``(-2,
        i)`` for the first bad sub-env ``i``, nothing else written), clipped to ``[-1, 1]`` (the
@@ -481,18 +564,20 @@ def vector_kernel(V: VectorLayout):
     2. the period and finish of :func:`batch_kernel` (``(-1, 0)``: refused; ``(bad, 0)``:
        ``bad`` new states non-finite, the caller's failure path takes over; sub-envs in
        ``skip`` take ``substeps``);
-    3. the episode's bookkeeping per sub-env: ``steps += 1``; ``ended`` (the
-       ``_terminal_reason`` mask) where the task, the observation bounds or the event ended it
-       or ``steps >= max_steps`` (``max_steps < 0``: no limit) truncated it; ``reason`` its
-       code (:func:`rbenvs.core.step.end_code`); ``terminated`` the end, ``truncated`` the
-       limit; ``done`` their union (the next step's restarts);
+    3. the episode's bookkeeping per sub-env: ``steps += 1``; ``terminated`` where the task,
+       the observation bounds or the event ended it, ``truncated`` where ``steps >= max_steps``
+       (``max_steps < 0``: no limit); ``done`` their union (the ``_terminal_reason`` mask, and
+       the next step's restarts); the reason's name (:func:`rbenvs.core.step.end_code`, row
+       ``RN[code]`` of code points) written into the row of ``RZ``, a zero-filled reason
+       array's ``(n, width)`` uint32 view whose rows ``clear`` are zeroed first
+       (:class:`rbenvs.core.step.ReasonPool`);
     4. with ``next_step`` (autoreset NEXT_STEP), the sub-envs in ``skip`` (those whose previous
        step ended) are restarted instead (:func:`_restart_row_lines`): reward 0, not terminated
        or truncated, their episode clock 0.
 
     ``k``: the number of sub-envs whose rows of step 3 had an end or a truncation (restarting
     ones counted on their discarded period, as the numpy path's ``ended.any()``); ``ends[:m]``
-    the sub-envs whose ``reason`` code may be set (every other one's is 0).
+    the sub-envs whose row of ``RZ`` may have been written (``codes[:m]`` their codes).
     """
     import numba
 
@@ -516,6 +601,9 @@ def vector_kernel(V: VectorLayout):
     lines += [
         "    k = 0",
         "    m = 0",
+        "    for j in range(clear.shape[0]):",  # the pooled reason array's last rows
+        "        for w in range(RZ.shape[1]):",
+        "            RZ[clear[j], w] = 0",
         "    for i in range(n):",
         "        s = steps[i] + 1",
         "        e = terminated[i] | over[i] | fired[i]",
@@ -523,13 +611,18 @@ def vector_kernel(V: VectorLayout):
         "        k += e | t",
         "        steps[i] = s",
         "        c = end_code(False, fired[i], over[i], terminated[i])",
-        "        reason[i] = c",
-        "        if c != 0:",  # (the rows whose reason the caller names; a restart's is cleared below)
-        "            ends[m] = i",
-        "            m += 1",
+        "        ends[m] = i",  # (compacted without a branch: the next row overwrites it if c == 0)
+        "        codes[m] = c",
+        "        m += c != 0",
         "        terminated[i] = e",
         "        truncated[i] = t",
         "        done[i] = e | t",
+        # the reasons' names, UCS-4 code points into the rows of the (zero-filled) array
+        "    for j in range(m):",
+        "        i = ends[j]",
+        "        if not (next_step and skip[i]):",
+        "            for w in range(RZ.shape[1]):",
+        "                RZ[i, w] = RN[codes[j], w]",
         "    if next_step:",
         "        for i in range(n):",
         "            if skip[i]:",
@@ -538,7 +631,7 @@ def vector_kernel(V: VectorLayout):
     restart = _restart_row_lines(V) if V.start is not None else ["steps[i] = 0"]
     lines += ["                " + line for line in restart]
     lines += ["                reward[i] = 0.0", "                terminated[i] = False", "                truncated[i] = False",
-              "                reason[i] = 0", "                fired[i] = False", "                done[i] = False"]
+              "                fired[i] = False", "                done[i] = False"]
     lines += ["    return 0, k, m"]
     namespace = _vector_namespace(V)
     generate("\n".join(lines), f"vector step dim={L.dim} n_obs={L.n_obs}", namespace)
@@ -804,8 +897,8 @@ class VectorResult(NamedTuple):
     """What :class:`VectorStep` returns: ``status`` (0; ``-2``: a non-finite action; ``-1``:
     refused, ``counts`` holds the counts; or the number of non-finite new states: the task
     outputs are unset), ``n_ended`` (the sub-envs whose step had an end or a truncation), the
-    step's arrays (see :func:`vector_kernel`) and ``coded``, the sub-envs whose ``reason`` code
-    may be set (every other one's is 0)."""
+    step's arrays (see :func:`vector_kernel`) and ``written``, the sub-envs whose row of the
+    reason array may have been written."""
 
     status: int
     n_ended: int
@@ -815,8 +908,7 @@ class VectorResult(NamedTuple):
     reward: object
     terminated: object
     truncated: object
-    reason: object
-    coded: object
+    written: object
     metrics: tuple
     readouts: tuple
     fired: object
@@ -858,12 +950,13 @@ class VectorStep:
         self.params = (pc, start[1] if start else (), ps, po, pe, pr, pg, pa, pd, cd, pv, pw, self.high)
         self._calls = {}
 
-    def __call__(self, A, Y, steps, done, skip, GEN, check: bool, refuse: bool, next_step: bool) -> VectorResult:
+    def __call__(self, A, Y, steps, done, skip, GEN, check: bool, refuse: bool, next_step: bool, reasons) -> VectorResult:
         """One step of the states ``Y`` ``(dim, n)`` under the actions ``A`` ``(n, n_in)``
         (float32 or float64, C-contiguous); ``steps`` and ``done`` (the episode clocks and the
         sub-envs whose episode ended) are updated in place; ``skip``: the sub-envs to restart
         (with ``next_step``); ``GEN`` the sub-envs' generators (a numba typed list,
-        :class:`rbenvs.draws.GeneratorTable`)."""
+        :class:`rbenvs.draws.GeneratorTable`); ``reasons``: ``(RZ, RN, clear)`` of a
+        :class:`rbenvs.core.step.ReasonPool` array."""
         import numpy as np
 
         n = Y.shape[1]
@@ -876,12 +969,12 @@ class VectorStep:
         reward = np.empty(n)
         terminated = np.empty(n, dtype=bool)
         truncated = np.empty(n, dtype=bool)
-        reason = np.empty(n, dtype=np.int8)
         ends = np.empty(n, dtype=np.int64)
+        codes = np.empty(n, dtype=np.int64)
         metrics = tuple(np.empty(n, dtype=t) for t in self.metric_dtypes)
         readouts = tuple(np.empty(n, dtype=t) for t in self.readout_dtypes)
         args = (A, Y, Ynew, self.h, self.dt, self.substeps, check, refuse, next_step, self.max_steps, steps, done, skip, GEN, *self.params, counts,
-                hstep, fired, obs, over, reward, terminated, truncated, reason, ends, *metrics, *readouts)
+                hstep, fired, obs, over, reward, terminated, truncated, *reasons, ends, codes, *metrics, *readouts)
         call = self._calls.get(A.dtype)
         if call is None:
             import numba
@@ -891,7 +984,7 @@ class VectorStep:
             self._calls[A.dtype] = overload.entry_point if overload is not None else self.kernel
         else:
             status, k, m = call(*args)
-        return VectorResult(status, k, Ynew, obs, over, reward, terminated, truncated, reason, ends[:m], metrics, readouts, fired, hstep, counts)
+        return VectorResult(status, k, Ynew, obs, over, reward, terminated, truncated, ends[:m], metrics, readouts, fired, hstep, counts)
 
     def restart(self, idx, Ynew, GEN, obs, hstep, steps, metrics, readouts) -> None:
         """Restart the sub-envs ``idx`` into a step's arrays (:func:`restart_kernel`)."""

@@ -30,9 +30,8 @@ def jitable(fn):
     arrays by the batched numpy path): ``math``/``numpy`` scalar functions, ``if`` on ``is
     None`` and ``isinstance`` (resolved at compile time), calls to other jitable functions.
     """
-    _JITABLE.append(fn)
-    if _registered:
-        register(fn)
+    _JITABLE.append(fn)  # registered with numba by the next register_all (a kernel's build), so
+    # that a compiled form declared after the function is the one registered
     return fn
 
 
@@ -79,9 +78,11 @@ def register(fn) -> None:
 
 
 def register_all() -> None:
+    """Register every jitable function not yet registered (those of modules imported since the
+    last call included); every kernel build calls it."""
     global _registered
-    if not _registered:
-        for fn in _JITABLE:
+    for fn in _JITABLE:
+        if id(fn) not in _done:
             register(fn)
-        _registered = True
+    _registered = True
 

@@ -29,6 +29,7 @@ parts, specialised, not other implementations.
 from __future__ import annotations
 
 import math
+import sys
 import warnings
 from functools import lru_cache
 from typing import NamedTuple
@@ -36,11 +37,12 @@ from typing import NamedTuple
 import numpy as np
 
 from ..dynamics.validation import real_array
-from ..jit import jitable
+from ..jit import compiled_form, jitable
+from ..rotations import select
 from .guard import MAX_INTERNAL_STEPS
 from .hybrid import Switching
 
-__all__ = ["Engine", "KernelParts", "NumericalFailureWarning", "action_values", "action_columns", "terminal_reason", "end_code", "reason_names", "reason_strings", "REASONS"]
+__all__ = ["Engine", "KernelParts", "NumericalFailureWarning", "action_values", "action_columns", "terminal_reason", "end_code", "reason_names", "reason_strings", "reason_code_points", "ReasonPool", "REASONS"]
 
 
 class NumericalFailureWarning(RuntimeWarning):
@@ -108,6 +110,13 @@ def end_code(failed, fired, over, terminated):
     return 0
 
 
+@compiled_form(end_code)
+def _end_code_selects(failed, fired, over, terminated):
+    """:func:`end_code` compiled: selections, not branches (a batch loop of it stays free of
+    mispredictions)."""
+    return select(failed, 4, select(fired, 3, select(over, 2, select(terminated, 1, 0))))
+
+
 def reason_names(event_name) -> tuple:
     """:data:`REASONS` with the system's event name (``""`` where it has none)."""
     return REASONS[:3] + (event_name or "",) + REASONS[4:]
@@ -120,15 +129,60 @@ def _reason_array(event_name):
     return names
 
 
-def reason_strings(codes, event_name, coded=None):
+def reason_strings(codes, event_name):
     """A batch's terminal reasons from their codes: a fixed-width string array (its items are
-    str, ``""`` where the episode goes on), written only where a code may be set (``coded``,
-    the indices, when the caller knows them; a zero-filled array costs no pass over the batch)."""
+    str, ``""`` where the episode goes on), written only where a code is set (a zero-filled
+    array costs no pass over the batch)."""
     names = _reason_array(event_name)
     reason = np.zeros(np.shape(codes), dtype=names.dtype)
-    idx = np.flatnonzero(codes) if coded is None else coded
+    idx = np.flatnonzero(codes)
     reason[idx] = names[codes[idx]]
     return reason
+
+
+def reason_code_points(event_name) -> np.ndarray:
+    """The names of :func:`reason_names` as rows of UCS-4 code points, ``(5, width)`` uint32:
+    what compiled code writes into a reason array's rows (:class:`ReasonPool`)."""
+    names = _reason_array(event_name)
+    return np.ascontiguousarray(names).view(np.uint32).reshape(len(names), -1)
+
+
+class ReasonPool:
+    """Zero-filled reason arrays (:func:`reason_strings`' type) for a compiled step to write
+    into, handed out again once nothing else refers to them.
+
+    Why: a batch's reason array is wide (17 UCS-4 characters a sub-env: 280 KB at 4096) and
+    mostly empty; a fresh one costs a page fault for every page a reason is written to, and
+    naming the reasons with numpy's fancy indexing costs about 10 us for a hundred ends (at
+    4096 heavy tops, both together were a quarter of a step). An array is taken again only
+    when CPython's reference count says that the pool alone holds it (the caller let go of
+    that step's ``info``; a view of it keeps it out), after the rows it last held are cleared
+    (by the step itself: :meth:`take` returns them). At most ``size`` arrays are kept;
+    otherwise a fresh one is made."""
+
+    def __init__(self, n: int, event_name, size: int = 2):
+        self.n, self.size = n, size
+        self.names = reason_code_points(event_name)
+        self.dtype = _reason_array(event_name).dtype
+        self.entries = []  # [array, the rows written into it]
+        self._none = np.zeros(0, dtype=np.int64)
+
+    def take(self) -> tuple:
+        """``(array, its (n, width) uint32 view, the rows to clear, entry)``."""
+        for entry in self.entries:
+            if sys.getrefcount(entry[0]) == 2:  # the pool's list and getrefcount's argument
+                return entry[0], entry[0].view(np.uint32).reshape(self.n, -1), entry[1], entry
+        array = np.zeros(self.n, dtype=self.dtype)
+        entry = None
+        if len(self.entries) < self.size:
+            entry = [array, self._none]
+            self.entries.append(entry)
+        return array, array.view(np.uint32).reshape(self.n, -1), self._none, entry
+
+    def written(self, entry, rows) -> None:
+        """Record the rows a step wrote into ``entry``'s array (cleared when it is next taken)."""
+        if entry is not None:
+            entry[1] = rows.copy()
 
 
 def terminal_reason(failed, fired, over, terminated, event_name):

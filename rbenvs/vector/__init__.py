@@ -57,7 +57,7 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
 from .. import compiled as _compiled
-from ..core.step import _REAL_FLOATS, action_columns, reason_strings, terminal_reason
+from ..core.step import _REAL_FLOATS, ReasonPool, action_columns, terminal_reason
 from ..draws import GeneratorTable, kind_codes
 from ..envs.base import require_compiled
 from ..dynamics.validation import real_array, require_bool, require_int_at_least
@@ -120,6 +120,7 @@ class RigidBodyVectorEnv(VectorEnv):
         # the whole step compiled (actions, period, finish, episode clocks, restarts): one call
         # per step where the generators can be handed to compiled code
         self._vector_step = None
+        self._reasons = ReasonPool(self.num_envs, self.engine.event_name)
         if self._batch_step is not None and self._use_table:
             self._vector_step = _compiled.VectorStep(self.engine.kernel_parts(), self.model, self.single_observation_space.shape[0], self.engine.high,
                                                      self.max_episode_steps)
@@ -345,8 +346,9 @@ class RigidBodyVectorEnv(VectorEnv):
             skip = restart
         else:
             done, restart, skip = np.empty(self.num_envs, dtype=bool), self._false, self._false
+        reasons, rz, clear, entry = self._reasons.take()
         with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
-            r = vstep(a, Y, self._steps, done, skip, self._table.list, not self._plain, engine.guard == "refuse", next_step)
+            r = vstep(a, Y, self._steps, done, skip, self._table.list, not self._plain, engine.guard == "refuse", next_step, (rz, self._reasons.names, clear))
         if r.status == -2:  # a non-finite action: the numpy path's check raises, naming the sub-envs
             action_columns(actions, shape)
             raise AssertionError("the compiled step found a non-finite action that action_columns accepted")
@@ -360,8 +362,9 @@ class RigidBodyVectorEnv(VectorEnv):
             fired = r.fired if r.fired.any() else self._false
             u_norm, self._u = self.model.actuator.control(action_columns(a, shape))
             return self._numpy_finish(self._y, tuple(r.Y), u_norm, fired, restart, bool(restart.any()))
+        self._reasons.written(entry, r.written)
         self._y2d, self._y = r.Y, tuple(r.Y)
-        info = self._kernel_info(r, done)
+        info = self._kernel_info(r, done, reasons)
         obs = r.obs
         if next_step:
             if not vstep.restarts and restart.any():  # (no pure start: restarted here)
@@ -370,7 +373,7 @@ class RigidBodyVectorEnv(VectorEnv):
             obs, info = self._same_step_reset(done, obs, info, r)
         return obs, r.reward, r.terminated, r.truncated, info
 
-    def _kernel_info(self, r, done) -> dict:
+    def _kernel_info(self, r, done, reasons) -> dict:
         """``info`` from a compiled step's arrays (the order and keys of :meth:`_info`)."""
         every = self._true
         info = {}
@@ -386,7 +389,7 @@ class RigidBodyVectorEnv(VectorEnv):
         info["numerical_failure"] = self._false
         info["_numerical_failure"] = every
         if r.n_ended:
-            info["terminal_reason"] = reason_strings(r.reason, self.engine.event_name, r.coded)
+            info["terminal_reason"] = reasons
             info["_terminal_reason"] = done.copy()
         return info
 
