@@ -274,16 +274,19 @@ def _finish_lines(L: Layout, y: str, un: str, u: str, fired: str) -> list[str]:
     runs in SIMD registers, one fused loop would not (measured: 56 us against 15 us at 4096
     free bodies)."""
     # the clip without a branch (min/max return v itself inside the bounds; a NaN counts as
-    # outside, as the float path's test): a loop without branches stays in SIMD registers
-    lines = ["    for i in range(n):", "        " + y, "        o = observe(PO, y)", "        out = False"]
+    # outside, as the float path's test): a loop without branches stays in SIMD registers. It
+    # writes the components as rows of a scratch array (unit-stride stores), then one loop
+    # interleaves them into the (n, n_obs) observation (measured at 4096 reorients: 14 ns a
+    # sub-env storing into obs directly, 5 + 4 this way)
+    lines = [f"    OT = np.empty(({L.n_obs}, n), dtype=np.float32)", "    for i in range(n):", "        " + y, "        o = observe(PO, y)", "        out = False"]
     for j in range(L.n_obs):
         lines += [
             f"        v = o[{j}]",
             f"        out = out | (not ((v >= -HI[{j}]) & (v <= HI[{j}])))",
-            f"        obs[i, {j}] = min(max(v, -HI[{j}]), HI[{j}])",
+            f"        OT[{j}, i] = min(max(v, -HI[{j}]), HI[{j}])",
         ]
+    lines += ["        over[i] = out", "    for i in range(n):", *(f"        obs[i, {j}] = OT[{j}, i]" for j in range(L.n_obs))]
     return lines + [
-        "        over[i] = out",
         "    for i in range(n):",
         "        " + y,
         "        " + un,

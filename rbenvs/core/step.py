@@ -164,25 +164,27 @@ class ReasonPool:
         self.n, self.size = n, size
         self.names = reason_code_points(event_name)
         self.dtype = _reason_array(event_name).dtype
-        self.entries = []  # [array, the rows written into it]
+        self.entries = []  # [array, its uint32 view, the rows written into it]
         self._none = np.zeros(0, dtype=np.int64)
 
     def take(self) -> tuple:
         """``(array, its (n, width) uint32 view, the rows to clear, entry)``."""
         for entry in self.entries:
-            if sys.getrefcount(entry[0]) == 2:  # the pool's list and getrefcount's argument
-                return entry[0], entry[0].view(np.uint32).reshape(self.n, -1), entry[1], entry
+            # 3: the pool's list, the view's base and getrefcount's argument
+            if sys.getrefcount(entry[0]) == 3:
+                return entry[0], entry[1], entry[2], entry
         array = np.zeros(self.n, dtype=self.dtype)
+        view = array.view(np.uint32).reshape(self.n, -1)
         entry = None
         if len(self.entries) < self.size:
-            entry = [array, self._none]
+            entry = [array, view, self._none]
             self.entries.append(entry)
-        return array, array.view(np.uint32).reshape(self.n, -1), self._none, entry
+        return array, view, self._none, entry
 
     def written(self, entry, rows) -> None:
         """Record the rows a step wrote into ``entry``'s array (cleared when it is next taken)."""
         if entry is not None:
-            entry[1] = rows.copy()
+            entry[2] = rows.copy()
 
 
 def terminal_reason(failed, fired, over, terminated, event_name):

@@ -347,8 +347,8 @@ class RigidBodyVectorEnv(VectorEnv):
         else:
             done, restart, skip = np.empty(self.num_envs, dtype=bool), self._false, self._false
         reasons, rz, clear, entry = self._reasons.take()
-        with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
-            r = vstep(a, Y, self._steps, done, skip, self._table.list, not self._plain, engine.guard == "refuse", next_step, (rz, self._reasons.names, clear))
+        # (compiled arithmetic raises no floating-point warnings: no errstate needed here)
+        r = vstep(a, Y, self._steps, done, skip, self._table.list, not self._plain, engine.guard == "refuse", next_step, (rz, self._reasons.names, clear))
         if r.status == -2:  # a non-finite action: the numpy path's check raises, naming the sub-envs
             action_columns(actions, shape)
             raise AssertionError("the compiled step found a non-finite action that action_columns accepted")
@@ -361,7 +361,8 @@ class RigidBodyVectorEnv(VectorEnv):
         if r.status > 0:  # non-finite new states: the numpy path's failure handling
             fired = r.fired if r.fired.any() else self._false
             u_norm, self._u = self.model.actuator.control(action_columns(a, shape))
-            return self._numpy_finish(self._y, tuple(r.Y), u_norm, fired, restart, bool(restart.any()))
+            with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+                return self._numpy_finish(self._y, tuple(r.Y), u_norm, fired, restart, bool(restart.any()))
         self._reasons.written(entry, r.written)
         self._y2d, self._y = r.Y, tuple(r.Y)
         info = self._kernel_info(r, done, reasons)
