@@ -211,6 +211,7 @@ _S = (-1.66666666666666324348e-01, 8.33333333332248946124e-03, -1.98412698298579
 _C = (4.16666666666666019037e-02, -1.38888888888741095749e-03, 2.48015872894767294178e-05, -2.75573143513906633035e-07,
       2.08757232129817482790e-09, -1.13596475577881948265e-11)
 SINCOS_LIMIT = 1647099.0  # |x| < 2^20 pi/2: the reduction's n fits 20 bits (exact products)
+_NO_REDUCTION = 0.785  # below pi/4 the reduction gives (0, x, 0.0) exactly: floats skip it
 
 
 @jitable
@@ -278,6 +279,8 @@ def sincos(x):
             return math.nan, math.nan
         if x == 0.0:  # sin keeps the sign of zero (the reduction's sum would not)
             return x, 1.0
+        if -_NO_REDUCTION < x < _NO_REDUCTION:  # n = 0, y0 = x, y1 = 0: the reduction's own result
+            return sin_kernel(x, 0.0), cos_kernel(x, 0.0)
         fn, y0, y1 = reduce_pio2(x)
         s, c = sin_kernel(y0, y1), cos_kernel(y0, y1)
         n = int(fn) & 3
