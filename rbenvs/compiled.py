@@ -3,9 +3,19 @@
 Why: a numpy step of a batch is one array operation per arithmetic line. At 4096 states each
 costs about 1 us, almost all of it dispatch, and a free-body RK4 step alone is about 65 of
 them; the reward, observation and read-outs as many again (``rbenvs bench throughput`` prints
-both paths). Compiled, the whole step is one call: the guard's check where the env has one,
-the physics loop in SIMD registers (about 1.3 ns per state, ``rbenvs bench kernels``), then
-one loop per read-out stage.
+both paths). Compiled, a vector env's whole step is one call (:func:`vector_kernel`): the
+actions checked, clipped and mapped by the actuator, the guard's check where the env has
+one, the period (the physics as passes over the batch, in SIMD registers: a few ns per
+state), one loop per read-out stage, the episode clocks and end reasons, and the restarts of
+the sub-envs whose episodes ended, drawn from their own generators. :func:`batch_kernel` is
+the period and finish alone (what ``rbenvs bench throughput`` times as the kernel),
+:func:`state_kernel` the same for one state (the single env's compiled step).
+
+Every loop is written so that LLVM keeps it in SIMD registers: no call inside (libm's
+``sin``/``cos`` replaced by :func:`rbenvs.rotations.sincos`, branches that hold a call
+specialised away), selections instead of branches (the compiled forms of
+:mod:`rbenvs.jit`), unit-stride loads and stores (the observation goes through scratch
+rows), and the same run-time alias checks LLVM needs allowed (:data:`LLVM_OPTIONS`).
 
 The same pure parts also make the single env's read-out function (:func:`state_finish`):
 plain Python, generated per layout, one call instead of a method per part.
@@ -36,7 +46,8 @@ from .jit import DISABLE_VARIABLE, available, jitable
 from .jit import register as _register
 from .jit import register_all as _register_all
 
-__all__ = ["jitable", "available", "Layout", "batch_kernel", "finish_kernel", "state_kernel", "physics_kernel", "state_finish", "info_function", "BatchStep", "BatchResult", "StateStep", "DISABLE_VARIABLE"]
+__all__ = ["jitable", "available", "Layout", "VectorLayout", "batch_kernel", "vector_kernel", "rows_kernel", "finish_kernel", "state_kernel", "physics_kernel",
+           "state_finish", "info_function", "BatchStep", "BatchResult", "VectorStep", "VectorResult", "StateStep", "DISABLE_VARIABLE", "LLVM_OPTIONS"]
 
 # How every kernel is compiled. error_model="numpy": a float division by zero gives inf/nan as
 # on arrays (and needs no per-element check, which would keep the loops out of SIMD
@@ -500,20 +511,37 @@ class VectorLayout(NamedTuple):
 _DRAW_CALLS = {"u": "g.random()", "n": "g.standard_normal()"}
 
 
-def _restart_row_lines(V: VectorLayout) -> list[str]:
-    """Lines that restart sub-env ``i`` (the single env's reset): its start from its own
-    generator ``GEN[i]``, written into ``Ynew``, and its row of the observation (clipped),
-    metrics (at zero action) and read-outs (no control acted, no event)."""
+@lru_cache(maxsize=None)
+def rows_kernel(V: VectorLayout):
+    """Rows of a batch started or finished outside a step: ``rows(idx, draw, Y, GEN, PI, PO, PE,
+    PR, HI, h, obs, over, hstep, steps, M_1..M_k, R_1..R_m)``. For each sub-env ``i = idx[m]``:
+    where ``draw[m]``, its start from its own generator ``GEN[i]`` (the draws' kinds made as
+    calls, in order; the model's pure start) written into ``Y`` and its episode clock set to 0
+    (the single env's reset; a layout without a pure start never draws here); then its row of
+    the observation (clipped; ``over`` where outside), the metrics at zero action and the
+    read-outs with no control acted and no event (the single env's rules after a reset), and
+    ``hstep = h``: the restarts of a vector step (autoreset) and a reset's finish."""
+    import numba
+
     L = V.batch
-    draws = [f"d{k} = {_DRAW_CALLS[kind]}" for k, kind in enumerate(V.kinds)]  # one statement each: in order
-    lines = ["g = GEN[i]", *draws, f"y = start(PI, ({''.join(f'd{k}, ' for k in range(len(V.kinds)))}))"]
-    lines += [f"Ynew[{j}, i] = y[{j}]" for j in range(L.dim)]
-    lines += ["o = observe(PO, y)"]
+    metrics = [f"M{j}" for j in range(L.n_metrics)]
+    reads = [f"R{j}" for j in range(L.n_readouts)]
+    args = ["idx", "draw", "Y", "GEN", "PI", "PO", "PE", "PR", "HI", "h", "obs", "over", "hstep", "steps"] + metrics + reads
+    lines = [f"def rows({', '.join(args)}):", "    for m in range(idx.shape[0]):", "        i = idx[m]"]
+    if V.start is not None:
+        draws = [f"d{k} = {_DRAW_CALLS[kind]}" for k, kind in enumerate(V.kinds)]  # one statement each: in order
+        lines += ["        if draw[m]:", "            g = GEN[i]", *("            " + d for d in draws)]
+        lines += [f"            y = start(PI, ({''.join(f'd{k}, ' for k in range(len(V.kinds)))}))", *(f"            Y[{j}, i] = y[{j}]" for j in range(L.dim))]
+        lines += ["            steps[i] = 0"]
+    lines += [f"        y = ({_comps('Y[{j}, i]', L.dim)})", "        o = observe(PO, y)", "        out = False"]
     for j in range(L.n_obs):
-        lines += [f"v = o[{j}]", f"if not (-HI[{j}] <= v <= HI[{j}]):", f"    v = min(max(v, -HI[{j}]), HI[{j}])", f"obs[i, {j}] = v"]
-    lines += [f"r = evaluate(PE, y, ({_comps('0.0', L.n_action)}))", *[f"M{j}[i] = r[{j + 2}]" for j in range(L.n_metrics)]]
-    lines += ["q = readouts(PR, y, None, False)", *[f"R{j}[i] = q[{j}]" for j in range(L.n_readouts)]]
-    return lines + ["hstep[i] = h", "steps[i] = 0"]
+        lines += [f"        v = o[{j}]", f"        if not (-HI[{j}] <= v <= HI[{j}]):", "            out = True", f"            v = min(max(v, -HI[{j}]), HI[{j}])",
+                  f"        obs[i, {j}] = v"]
+    lines += ["        over[i] = out", f"        r = evaluate(PE, y, ({_comps('0.0', L.n_action)}))", *[f"        M{j}[i] = r[{j + 2}]" for j in range(L.n_metrics)]]
+    lines += ["        q = readouts(PR, y, None, False)", *[f"        R{j}[i] = q[{j}]" for j in range(L.n_readouts)], "        hstep[i] = h"]
+    namespace = _vector_namespace(V)
+    generate("\n".join(lines), f"rows kernel dim={L.dim} n_obs={L.n_obs}", namespace)
+    return numba.njit(error_model="numpy")(namespace["rows"])
 
 
 @lru_cache(maxsize=None)
@@ -575,8 +603,8 @@ def vector_kernel(V: VectorLayout):
        array's ``(n, width)`` uint32 view whose rows ``clear`` are zeroed first
        (:class:`rbenvs.core.step.ReasonPool`);
     4. with ``next_step`` (autoreset NEXT_STEP), the sub-envs in ``skip`` (those whose previous
-       step ended) are restarted instead (:func:`_restart_row_lines`): reward 0, not terminated
-       or truncated, their episode clock 0.
+       step ended) restart instead: reward 0, not terminated or truncated, their episode clock
+       0; the caller then draws their starts and fills their rows (:func:`rows_kernel`).
 
     ``k``: the number of sub-envs whose rows of step 3 had an end or a truncation (restarting
     ones counted on their discarded period, as the numpy path's ``ended.any()``); ``ends[:m]``
@@ -630,33 +658,14 @@ def vector_kernel(V: VectorLayout):
         "        for i in range(n):",
         "            if skip[i]:",
     ]
-    # (without a pure start the caller draws the restarting sub-envs' states and rows)
-    restart = _restart_row_lines(V) if V.start is not None else ["steps[i] = 0"]
-    lines += ["                " + line for line in restart]
-    lines += ["                reward[i] = 0.0", "                terminated[i] = False", "                truncated[i] = False",
+    # (their new states and rows are the caller's rows_kernel call: kept out of this function,
+    # whose compilation it would lengthen by a third)
+    lines += ["                steps[i] = 0", "                reward[i] = 0.0", "                terminated[i] = False", "                truncated[i] = False",
               "                fired[i] = False", "                done[i] = False"]
     lines += ["    return 0, k, m"]
     namespace = _vector_namespace(V)
     generate("\n".join(lines), f"vector step dim={L.dim} n_obs={L.n_obs}", namespace)
     return numba.njit(**KERNEL_OPTIONS)(namespace["vstep"])
-
-
-@lru_cache(maxsize=None)
-def restart_kernel(V: VectorLayout):
-    """Restarts of the sub-envs ``idx`` (:func:`_restart_row_lines`), written into a step's
-    arrays: ``restart(idx, Ynew, GEN, PI, PO, PE, PR, HI, h, obs, hstep, steps, M_1..M_k,
-    R_1..R_m)`` (autoreset SAME_STEP, and after a numerical failure)."""
-    import numba
-
-    L = V.batch
-    metrics = [f"M{j}" for j in range(L.n_metrics)]
-    reads = [f"R{j}" for j in range(L.n_readouts)]
-    args = ["idx", "Ynew", "GEN", "PI", "PO", "PE", "PR", "HI", "h", "obs", "hstep", "steps"] + metrics + reads
-    lines = [f"def restart({', '.join(args)}):", "    for m in range(idx.shape[0]):", "        i = idx[m]"]
-    lines += ["        " + line for line in _restart_row_lines(V)]
-    namespace = _vector_namespace(V)
-    generate("\n".join(lines), f"restart kernel dim={L.dim} n_obs={L.n_obs}", namespace)
-    return numba.njit(**KERNEL_OPTIONS)(namespace["restart"])
 
 
 @lru_cache(maxsize=None)
@@ -921,7 +930,7 @@ class VectorResult(NamedTuple):
 
 class VectorStep:
     """One vector env's compiled step (:func:`vector_kernel`) with its parameters, and its
-    restarts (:func:`restart_kernel`).
+    rows outside a step (:func:`rows_kernel`: restarts, a reset's finish).
 
     ``parts``: :meth:`rbenvs.core.step.Engine.kernel_parts`; ``model``: the env's
     :class:`rbenvs.core.model.Model` (its actuator's and start's pure forms, its draw kinds);
@@ -942,7 +951,7 @@ class VectorStep:
         self.restarts = start is not None  # restarts inside the kernel (else the caller's)
         self.layout = VectorLayout(layout, control, model.actuator.size, start[0] if start else None, model.draw_kinds)
         self.kernel = vector_kernel(self.layout)
-        self._restart = restart_kernel(self.layout) if self.restarts else None
+        self._rows = rows_kernel(self.layout)
         self.metric_dtypes = tuple(np.bool_ if isinstance(v, (bool, np.bool_)) else np.float64 for v in values[2:])
         self.readout_dtypes = tuple(np.bool_ if isinstance(v, (bool, np.bool_)) else (np.int64 if isinstance(v, (int, np.integer)) else np.float64) for v in physical)
         self.high = np.asarray(obs_high, dtype=np.float64)
@@ -989,9 +998,26 @@ class VectorStep:
             status, k, m = call(*args)
         return VectorResult(status, k, Ynew, obs, over, reward, terminated, truncated, ends[:m], metrics, readouts, fired, hstep, counts)
 
-    def restart(self, idx, Ynew, GEN, obs, hstep, steps, metrics, readouts) -> None:
-        """Restart the sub-envs ``idx`` into a step's arrays (:func:`restart_kernel`)."""
+    def rows(self, idx, draw, Y, GEN, obs, over, hstep, steps, metrics, readouts) -> None:
+        """:func:`rows_kernel` on the sub-envs ``idx`` of a step's (or a reset's) arrays: their
+        starts drawn where ``draw``, their rows of the observation, metrics and read-outs
+        filled."""
         import numpy as np
 
-        pi, po, pe, pr, hi = self.params[1], self.params[3], self.params[4], self.params[5], self.high
-        self._restart(np.asarray(idx, dtype=np.int64), Ynew, GEN, pi, po, pe, pr, hi, self.h, obs, hstep, steps, *metrics, *readouts)
+        pi, po, pe, pr = self.params[1], self.params[3], self.params[4], self.params[5]
+        self._rows(np.asarray(idx, dtype=np.int64), np.asarray(draw, dtype=np.bool_), Y, GEN, pi, po, pe, pr, self.high, self.h, obs, over, hstep, steps,
+                   *metrics, *readouts)
+
+    def finish(self, Y, GEN) -> tuple:
+        """``(obs, over, metrics, readouts)`` of the states ``Y`` ``(dim, k)`` as after a reset (no
+        control acted, zero action): :func:`rows_kernel` without draws (``GEN``: the env's
+        generators, only for the kernel's one signature)."""
+        import numpy as np
+
+        k = Y.shape[1]
+        obs = np.empty((k, self.n_obs), dtype=np.float32)
+        over = np.empty(k, dtype=bool)
+        metrics = tuple(np.empty(k, dtype=t) for t in self.metric_dtypes)
+        readouts = tuple(np.empty(k, dtype=t) for t in self.readout_dtypes)
+        self.rows(np.arange(k), np.zeros(k, dtype=bool), Y, GEN, obs, over, np.empty(k), np.zeros(k, dtype=np.int64), metrics, readouts)
+        return obs, over, metrics, readouts

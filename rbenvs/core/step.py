@@ -38,7 +38,6 @@ import numpy as np
 
 from ..dynamics.validation import real_array
 from ..jit import compiled_form, jitable
-from ..rotations import select
 from .guard import MAX_INTERNAL_STEPS
 from .hybrid import Switching
 
@@ -112,9 +111,9 @@ def end_code(failed, fired, over, terminated):
 
 @compiled_form(end_code)
 def _end_code_selects(failed, fired, over, terminated):
-    """:func:`end_code` compiled: selections, not branches (a batch loop of it stays free of
-    mispredictions)."""
-    return select(failed, 4, select(fired, 3, select(over, 2, select(terminated, 1, 0))))
+    """:func:`end_code` compiled: one expression of conditional values, which LLVM turns into
+    selections (a batch loop of it stays free of mispredictions)."""
+    return 4 if failed else (3 if fired else (2 if over else (1 if terminated else 0)))
 
 
 def reason_names(event_name) -> tuple:

@@ -32,11 +32,16 @@ Conventions (gymnasium 1.x):
   they cost a good part of the step (``rbenvs bench throughput`` measures both).
 * ``compiled="auto"`` (default): where numba is installed (the ``fast`` extra) and the model's
   integrator, system and task all have pure forms (every system and task with ``euler``,
-  ``rk4`` or ``splitting``; not ``exact`` or ``dop853``), the step runs as one compiled kernel
-  of the same functions (:mod:`rbenvs.compiled`), bit for bit the numpy path's result, and
-  restarting sub-envs draw their starts in one compiled call (:mod:`rbenvs.draws`); elsewhere,
-  and with ``compiled=False``, the numpy path. ``compiled=True`` demands the kernel
+  ``rk4`` or ``splitting``; not ``exact`` or ``dop853``), the whole step runs as one compiled
+  call of the same functions (:func:`rbenvs.compiled.vector_kernel`: actions, period,
+  finish, episode clocks, end reasons and the restarts, drawn from each sub-env's own
+  generator), bit for bit the numpy path's result; Python only assembles ``info`` from its
+  arrays. A non-finite state, a refusal and a bad action take the numpy path's handling.
+  Elsewhere, and with ``compiled=False``, the numpy path. ``compiled=True`` demands the kernel
   (``ValueError`` saying why it cannot be had). ``self.compiled`` tells which path runs.
+* The arrays a step returns are the caller's (fresh each step), except ``terminal_reason``'s,
+  which comes from a small pool and is reused only once nothing else refers to it (CPython's
+  reference count; :class:`rbenvs.core.step.ReasonPool`).
 * ``get_state()`` returns the single env's dict with every array batched along a leading
   axis of length ``num_envs``; ``reset(options={"state": d})`` starts every sub-env there
   (each row validated like the single env's). ``reset(options={"reset_mask": m})`` resets only
@@ -221,8 +226,11 @@ class RigidBodyVectorEnv(VectorEnv):
     def _fresh(self, y):
         """``(obs, over, metrics, physical)`` of states ``y`` that have just been reset: no control
         acted yet (read-outs under ``u = None``, the single env's rule), the task's metrics at zero
-        action. Compiled where the step is (:meth:`rbenvs.compiled.BatchStep.finish`); on numpy
+        action. Compiled where the step is (:meth:`rbenvs.compiled.VectorStep.finish`); on numpy
         ``physical`` is ``None`` (the engine's read-outs are taken where needed)."""
+        if self._vector_step is not None and self._table is not None:
+            obs, over, metrics, physical = self._vector_step.finish(np.stack(y), self._table.list)
+            return obs, over, dict(zip(self.task.metric_names, metrics)), physical
         if self._batch_step is not None:
             obs, over, _, _, metrics, physical = self._batch_step.finish(np.stack(y))
             return obs, over, dict(zip(self.task.metric_names, metrics)), physical
@@ -368,8 +376,12 @@ class RigidBodyVectorEnv(VectorEnv):
         info = self._kernel_info(r, done, reasons)
         obs = r.obs
         if next_step:
-            if not vstep.restarts and restart.any():  # (no pure start: restarted here)
-                obs, info = self._restart(restart, obs, info)
+            if restart.any():  # their starts drawn and rows filled (a separate compiled call)
+                if vstep.restarts:
+                    idx = np.flatnonzero(restart)
+                    vstep.rows(idx, np.ones(len(idx), dtype=bool), r.Y, self._table.list, obs, r.over, r.h, self._steps, r.metrics, r.readouts)
+                else:  # (no pure start: restarted here)
+                    obs, info = self._restart(restart, obs, info)
         elif r.n_ended:
             obs, info = self._same_step_reset(done, obs, info, r)
         return obs, r.reward, r.terminated, r.truncated, info
@@ -478,7 +490,8 @@ class RigidBodyVectorEnv(VectorEnv):
         final_info = {k: (v.copy() if isinstance(v, np.ndarray) else v) for k, v in info.items()}
         if compiled is not None and self._vector_step.restarts:
             r = compiled
-            self._vector_step.restart(np.flatnonzero(done), r.Y, self._table.list, obs, r.h, self._steps, r.metrics, r.readouts)
+            idx = np.flatnonzero(done)
+            self._vector_step.rows(idx, np.ones(len(idx), dtype=bool), r.Y, self._table.list, obs, r.over, r.h, self._steps, r.metrics, r.readouts)
             if "terminal_reason" in info:  # (every ended sub-env restarts)
                 info["terminal_reason"] = np.where(done, "", info["terminal_reason"])
                 info["_terminal_reason"] = info["_terminal_reason"] & ~done
