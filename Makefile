@@ -22,6 +22,7 @@ $(STAMP): pyproject.toml
 run: $(STAMP)
 	$(BIN)/rbenvs-train --algo ppo --scene default --seed 0
 
+# The tests on every core, at most 8 (one worker per core; each compiles the kernels it uses).
 test: $(STAMP)
-	$(BIN)/python -m pytest -q
+	$(BIN)/python -m pytest -q -n auto --maxprocesses 8
 	$(BIN)/rbenvs verify --quick --no-progress

@@ -13,7 +13,7 @@ import math
 
 import numpy as np
 
-from .jit import compiled_form, jitable
+from .jit import compiled_form, elementwise, jitable
 
 __all__ = [
     "sqrt",
@@ -148,8 +148,11 @@ def atan2(y, x):
         if y < 0.0 or (y == 0.0 and math.copysign(1.0, y) < 0.0):
             return -z
         return z
-    else:
-        return _atan2_arrays(y, x)
+    out = _atan2_loop(y, x)  # one compiled pass where numba runs (the same bits)
+    return _atan2_arrays(y, x) if out is None else out[0]
+
+
+_atan2_loop = elementwise(atan2, 2, 1)
 
 
 @compiled_form(atan2)
@@ -291,7 +294,8 @@ def sincos(x):
         if n == 2:
             return -s, -c
         return -c, s
-    return _sincos_arrays(x)
+    out = _sincos_loop(x)  # one compiled pass where numba runs (the same bits)
+    return _sincos_arrays(x) if out is None else out
 
 
 @compiled_form(sincos)
@@ -308,6 +312,9 @@ def _sincos_selects(x):
     sa = select((n & 2) != 0, -sa, sa)
     ca = select(((n + 1) & 2) != 0, -ca, ca)
     return select(ok, select(x == 0.0, x, sa), math.nan), select(ok, ca, math.nan)
+
+
+_sincos_loop = elementwise(sincos, 1, 2)
 
 
 @jitable  # (registered so that compiled code can name it; it only ever runs on arrays)

@@ -431,18 +431,33 @@ def test_compiled_tippe_top_crosses_lift_offs_and_hops():
 
 
 # ------------------------------------------------------------------ the whole vector step compiled
-# settings whose vector step is one compiled call with the restarts inside it (every system's
-# tasks, attitude, partial actuation, the tippe top's fidelities, free flight)
+# settings whose whole vector step is compiled, restarts drawn by the rows kernel (the lockstep
+# tests above cover every system through restarts; these add float64 and float32 actions in
+# turn and the state after, against the numpy path)
 WHOLE_STEP = [
-    (FREE, dict()),
     (FREE, dict(task="reorient")),
-    (FREE, dict(actuated=(True, False, True))),
     (LAGRANGE, dict(attitude=True)),
-    (LAGRANGE, dict(task="precess")),
-    (TIPPE, dict()),
-    (TIPPE, dict(task="hold", fidelity="rolling", substeps=32)),
     (TIPPE, dict(free_flight=True, max_torque=1e-4, friction_range=(0.1, 0.4))),
 ]
+
+
+@pytest.mark.parametrize("env_id,tasks", [(FREE, ("spin", "detumble", "reorient")), (LAGRANGE, ("upright", "precess")), (TIPPE, ("invert", "hold"))])
+def test_every_task_has_pure_starts_and_actuators(env_id, tasks):
+    """Every (system, task) declares the pure start and actuator the compiled restarts need, and
+    they give the methods' values (a start drawn from one generator, floats and a batch)."""
+    for task in tasks:
+        for extra in ({}, {"attitude": True} if env_id == LAGRANGE else {}):
+            env = gym.make(env_id, task=task, **extra).unwrapped
+            model = env.model
+            start, p = model.kernel_start()
+            d = model.split_draws(np.random.default_rng(4).random(len(model.draw_kinds)))
+            assert start(p, tuple(np.concatenate(d))) == model.initial_from_draws(*d)
+            rows = np.random.default_rng(5).random((len(model.draw_kinds), 3))
+            batch = start(p, tuple(rows))
+            for i in range(3):
+                one = start(p, tuple(rows[:, i].tolist()))
+                assert all(np.float64(b[i]) == o for b, o in zip(batch, one))
+            assert model.kernel_control[0](model.kernel_control[1], (0.0,) * model.actuator.size) == model.actuator.control((0.0,) * model.actuator.size)
 
 
 def _same_outputs(a, b, where):

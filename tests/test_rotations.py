@@ -254,11 +254,13 @@ def _same_bits(a, b):
 def test_atan2_floats_arrays_and_compiled_give_the_same_bits():
     """One atan2 for the single env (floats), the numpy batch (arrays) and compiled kernels:
     the same bits on every argument, special values included."""
-    from rbenvs.rotations import atan2
+    from rbenvs.rotations import _atan2_arrays, atan2
 
     ys, xs = _atan2_arguments()
     floats = np.array([atan2(float(a), float(b)) for a, b in zip(ys, xs)])
-    assert _same_bits(floats, atan2(ys, xs))
+    assert _same_bits(floats, atan2(ys, xs))  # (where numba runs: one compiled pass)
+    assert _same_bits(floats, _atan2_arrays(ys, xs))  # the numpy form
+    assert _same_bits(floats[::2], atan2(ys[::2], xs[::2]))  # strided arrays
     from rbenvs import compiled
 
     if compiled.available():
@@ -334,13 +336,18 @@ def test_sincos_floats_arrays_and_compiled_give_the_same_bits():
     (where a loop of it stays in SIMD registers): the same bits on every argument, signed
     zeros included, and NaN outside the range."""
     from rbenvs import compiled
-    from rbenvs.rotations import SINCOS_LIMIT, sincos
+    from rbenvs.rotations import SINCOS_LIMIT, _sincos_arrays, sincos
 
     xs = np.concatenate([_sincos_arguments(), [SINCOS_LIMIT, -SINCOS_LIMIT, 1e300, np.inf, -np.inf, np.nan]])
     floats = [sincos(float(x)) for x in xs]
     fs, fc = np.array([a for a, _ in floats]), np.array([b for _, b in floats])
-    s, c = sincos(xs)
+    s, c = sincos(xs)  # (where numba runs: one compiled pass, rbenvs.jit.elementwise)
     assert _same_bits(fs, s) and _same_bits(fc, c)
+    ns, nc = _sincos_arrays(xs)  # the numpy form (no numba, or RBENVS_COMPILED=0)
+    assert _same_bits(fs, ns) and _same_bits(fc, nc)
+    grid = xs[: 6 * (len(xs) // 12)].reshape(6, -1)[:, ::2]  # any shape, any strides
+    gs, gc = sincos(grid)
+    assert gs.shape == grid.shape and _same_bits(gs, _sincos_arrays(grid)[0]) and _same_bits(gc, _sincos_arrays(grid)[1])
     assert np.isnan(fs[-6:]).all() and np.isnan(fc[-6:]).all()
     assert np.array_equal(np.signbit(fs[np.isin(xs, [0.0])]), np.signbit(xs[np.isin(xs, [0.0])]))  # sin(-0) = -0
     if compiled.available():
