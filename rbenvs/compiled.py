@@ -576,7 +576,7 @@ def _vector_args(L: Layout) -> list[str]:
     reads = [f"R{j}" for j in range(L.n_readouts)]
     return ["A", "Y", "Ynew", "h", "dt", "substeps", "check", "refuse", "next_step", "max_steps", "steps", "done", "skip", "GEN", "PC", "PI",
             "PS", "PO", "PE", "PR", "PG", "PA", "PD", "CD", "PV", "PW", "HI", "counts", "hstep", "fired", "obs", "over", "reward", "terminated",
-            "truncated", "RZ", "RN", "clear", "ends", "codes"] + metrics + reads
+            "truncated", "RZ", "RN", "clear", "ends", "codes", "restarted"] + metrics + reads
 
 
 @lru_cache(maxsize=None)
@@ -584,16 +584,16 @@ def vector_kernel(V: VectorLayout):
     """A vector env's whole step, compiled: one call per step with no Python per sub-env.
     Signature (arrays ``(n,)`` unless said; see :func:`batch_kernel` for the period's)::
 
-        vstep(A, Y, Ynew, U, UN, h, dt, substeps, check, refuse, next_step, max_steps, steps,
-              done, skip, GEN, PC, PI, PS, PO, PE, PR, PG, PA, PD, CD, PV, PW, HI, counts, hstep,
-              fired, obs, over, reward, terminated, truncated, RZ, RN, clear, ends, codes,
-              M_1..M_k, R_1..R_m) -> (status, k, m)
+        vstep(A, Y, Ynew, h, dt, substeps, check, refuse, next_step, max_steps, steps, done,
+              skip, GEN, PC, PI, PS, PO, PE, PR, PG, PA, PD, CD, PV, PW, HI, counts, hstep, fired,
+              obs, over, reward, terminated, truncated, RZ, RN, clear, ends, codes, restarted,
+              M_1..M_k, R_1..R_m) -> (status, k, m, r)
 
     1. the actions ``A`` ``(n, n_in)`` (float32 or float64): every entry finite (else ``(-2,
-       i)`` for the first bad sub-env ``i``, nothing else written), clipped to ``[-1, 1]`` (the
+       i, 0, 0)`` for the first bad sub-env ``i``, nothing else written), clipped to ``[-1, 1]`` (the
        single env's rule), mapped by the actuator's pure form into the rows of ``UN`` and ``U``;
-    2. the period and finish of :func:`batch_kernel` (``(-1, 0)``: refused; ``(bad, 0)``:
-       ``bad`` new states non-finite, the caller's failure path takes over; sub-envs in
+    2. the period and finish of :func:`batch_kernel` (``(-1, 0, 0, 0)``: refused; ``(bad, 0,
+       0, 0)``: ``bad`` new states non-finite, the caller's failure path takes over; sub-envs in
        ``skip`` take ``substeps``);
     3. the episode's bookkeeping per sub-env: ``steps += 1``; ``terminated`` where the task,
        the observation bounds or the event ended it, ``truncated`` where ``steps >= max_steps``
@@ -604,7 +604,8 @@ def vector_kernel(V: VectorLayout):
        (:class:`rbenvs.core.step.ReasonPool`);
     4. with ``next_step`` (autoreset NEXT_STEP), the sub-envs in ``skip`` (those whose previous
        step ended) restart instead: reward 0, not terminated or truncated, their episode clock
-       0; the caller then draws their starts and fills their rows (:func:`rows_kernel`).
+       0, listed in ``restarted[:r]``; the caller then draws their starts and fills their rows
+       (:func:`rows_kernel`).
 
     ``k``: the number of sub-envs whose rows of step 3 had an end or a truncation (restarting
     ones counted on their discarded period, as the numpy path's ``ended.any()``); ``ends[:m]``
@@ -621,11 +622,11 @@ def vector_kernel(V: VectorLayout):
     read = [f"a{j} = A[i, {j}]" for j in range(V.n_in)]
     finite = "        if not (" + " & ".join(f"isfinite({a})" for a in a_items) + "):"
     lines += ["    bad = 0", "    for i in range(n):", *("        " + line for line in read), finite, "            bad += 1"]
-    lines += ["    if bad:", "        for i in range(n):", *("            " + line for line in read), "    " + finite, "                return -2, i, 0"]
+    lines += ["    if bad:", "        for i in range(n):", *("            " + line for line in read), "    " + finite, "                return -2, i, 0, 0"]
     lines += [f"    U = np.empty(({L.n_control}, n))", f"    UN = np.empty(({L.n_action}, n))", "    for i in range(n):", "        un, u = act(PC, A, i)"]
     lines += [f"        UN[{j}, i] = un[{j}]" for j in range(L.n_action)] + [f"        U[{j}, i] = u[{j}]" for j in range(L.n_control)]
     # 2. the period and finish
-    lines += _period_and_finish(L, *_controls(L, rows=True), ", 0, 0")
+    lines += _period_and_finish(L, *_controls(L, rows=True), ", 0, 0, 0")
     # 3. the episode's bookkeeping (restarting sub-envs counted on their discarded period, as
     # the numpy path's ended.any() counts them), then 4. the restarts (skip: the sub-envs that
     # restart, read-only here; with next_step they are those whose previous step ended)
@@ -654,6 +655,7 @@ def vector_kernel(V: VectorLayout):
         "        if not (next_step and skip[i]):",
         "            for w in range(RZ.shape[1]):",
         "                RZ[i, w] = RN[codes[j], w]",
+        "    r = 0",
         "    if next_step:",
         "        for i in range(n):",
         "            if skip[i]:",
@@ -661,8 +663,8 @@ def vector_kernel(V: VectorLayout):
     # (their new states and rows are the caller's rows_kernel call: kept out of this function,
     # whose compilation it would lengthen by a third)
     lines += ["                steps[i] = 0", "                reward[i] = 0.0", "                terminated[i] = False", "                truncated[i] = False",
-              "                fired[i] = False", "                done[i] = False"]
-    lines += ["    return 0, k, m"]
+              "                fired[i] = False", "                done[i] = False", "                restarted[r] = i", "                r += 1"]
+    lines += ["    return 0, k, m, r"]
     namespace = _vector_namespace(V)
     generate("\n".join(lines), f"vector step dim={L.dim} n_obs={L.n_obs}", namespace)
     return numba.njit(**KERNEL_OPTIONS)(namespace["vstep"])
@@ -835,6 +837,7 @@ class BatchResult(NamedTuple):
     fired: object
     h: object
     counts: object
+    restarted: object
 
 
 class BatchStep:
@@ -909,8 +912,9 @@ class VectorResult(NamedTuple):
     """What :class:`VectorStep` returns: ``status`` (0; ``-2``: a non-finite action; ``-1``:
     refused, ``counts`` holds the counts; or the number of non-finite new states: the task
     outputs are unset), ``n_ended`` (the sub-envs whose step had an end or a truncation), the
-    step's arrays (see :func:`vector_kernel`) and ``written``, the sub-envs whose row of the
-    reason array may have been written."""
+    step's arrays (see :func:`vector_kernel`), ``written``, the sub-envs whose row of the
+    reason array may have been written, and ``restarted``, the sub-envs that restart (NEXT_STEP:
+    their starts are :meth:`VectorStep.restart_rows`' to draw)."""
 
     status: int
     n_ended: int
@@ -926,6 +930,17 @@ class VectorResult(NamedTuple):
     fired: object
     h: object
     counts: object
+    restarted: object
+
+
+def _entry_point(dispatcher, args):
+    """The compiled overload of ``dispatcher`` for ``args``' types, called without numba's
+    per-call typing (which costs several microseconds for forty arguments); the caller then
+    passes arguments of those types only. The dispatcher itself where none is found."""
+    import numba
+
+    overload = dispatcher.overloads.get(tuple(numba.typeof(a) for a in args))
+    return overload.entry_point if overload is not None else dispatcher
 
 
 class VectorStep:
@@ -961,6 +976,7 @@ class VectorStep:
         ps, po, pe, pr, pg, pa, pd, cd, pv, pw = params
         self.params = (pc, start[1] if start else (), ps, po, pe, pr, pg, pa, pd, cd, pv, pw, self.high)
         self._calls = {}
+        self._rows_call, self._draw_all = None, None
 
     def __call__(self, A, Y, steps, done, skip, GEN, check: bool, refuse: bool, next_step: bool, reasons) -> VectorResult:
         """One step of the states ``Y`` ``(dim, n)`` under the actions ``A`` ``(n, n_in)``
@@ -983,20 +999,35 @@ class VectorStep:
         truncated = np.empty(n, dtype=bool)
         ends = np.empty(n, dtype=np.int64)
         codes = np.empty(n, dtype=np.int64)
-        metrics = tuple(np.empty(n, dtype=t) for t in self.metric_dtypes)
-        readouts = tuple(np.empty(n, dtype=t) for t in self.readout_dtypes)
+        restarted = np.empty(n, dtype=np.int64)
+        metrics = [np.empty(n, dtype=t) for t in self.metric_dtypes]
+        readouts = [np.empty(n, dtype=t) for t in self.readout_dtypes]
         args = (A, Y, Ynew, self.h, self.dt, self.substeps, check, refuse, next_step, self.max_steps, steps, done, skip, GEN, *self.params, counts,
-                hstep, fired, obs, over, reward, terminated, truncated, *reasons, ends, codes, *metrics, *readouts)
+                hstep, fired, obs, over, reward, terminated, truncated, *reasons, ends, codes, restarted, *metrics, *readouts)
         call = self._calls.get(A.dtype)
         if call is None:
-            import numba
-
-            status, k, m = self.kernel(*args)  # compiles
-            overload = self.kernel.overloads.get(tuple(numba.typeof(a) for a in args))
-            self._calls[A.dtype] = overload.entry_point if overload is not None else self.kernel
+            status, k, m, r = self.kernel(*args)  # compiles
+            self._calls[A.dtype] = _entry_point(self.kernel, args)
         else:
-            status, k, m = call(*args)
-        return VectorResult(status, k, Ynew, obs, over, reward, terminated, truncated, ends[:m], metrics, readouts, fired, hstep, counts)
+            status, k, m, r = call(*args)
+        return VectorResult(status, k, Ynew, obs, over, reward, terminated, truncated, ends[:m], metrics, readouts, fired, hstep, counts, restarted[:r])
+
+    def restart_rows(self, r: VectorResult, GEN, steps) -> None:
+        """The restarts of a step (``r.restarted``): their starts drawn and their rows of ``r``'s
+        arrays filled (:meth:`rows` on arrays this class made, whose types are known: the
+        compiled overload's entry point is called directly, as in :meth:`__call__`)."""
+        import numpy as np
+
+        n = r.restarted.shape[0]
+        if self._draw_all is None or self._draw_all.shape[0] < r.Y.shape[1]:
+            self._draw_all = np.ones(r.Y.shape[1], dtype=np.bool_)
+        pi, po, pe, pr = self.params[1], self.params[3], self.params[4], self.params[5]
+        args = (r.restarted, self._draw_all[:n], r.Y, GEN, pi, po, pe, pr, self.high, self.h, r.obs, r.over, r.h, steps, *r.metrics, *r.readouts)
+        if self._rows_call is None:
+            self._rows(*args)  # compiles
+            self._rows_call = _entry_point(self._rows, args)
+        else:
+            self._rows_call(*args)
 
     def rows(self, idx, draw, Y, GEN, obs, over, hstep, steps, metrics, readouts) -> None:
         """:func:`rows_kernel` on the sub-envs ``idx`` of a step's (or a reset's) arrays: their

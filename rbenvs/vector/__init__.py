@@ -108,6 +108,7 @@ class RigidBodyVectorEnv(VectorEnv):
         self._last_h = None  # the internal step of the last period, per sub-env
         self._plain = self.engine.plain
         self._steps = np.zeros(self.num_envs, dtype=np.int64)
+        self._info_keys = None
         self._prev_done = np.zeros(self.num_envs, dtype=bool)
         self._rngs = [None] * self.num_envs
         # the generators as one compiled table (rbenvs.draws), made once every sub-env has one:
@@ -376,10 +377,9 @@ class RigidBodyVectorEnv(VectorEnv):
         info = self._kernel_info(r, done, reasons)
         obs = r.obs
         if next_step:
-            if restart.any():  # their starts drawn and rows filled (a separate compiled call)
+            if r.restarted.shape[0]:  # their starts drawn and rows filled (a separate compiled call)
                 if vstep.restarts:
-                    idx = np.flatnonzero(restart)
-                    vstep.rows(idx, np.ones(len(idx), dtype=bool), r.Y, self._table.list, obs, r.over, r.h, self._steps, r.metrics, r.readouts)
+                    vstep.restart_rows(r, self._table.list, self._steps)
                 else:  # (no pure start: restarted here)
                     obs, info = self._restart(restart, obs, info)
         elif r.n_ended:
@@ -390,15 +390,18 @@ class RigidBodyVectorEnv(VectorEnv):
         """``info`` from a compiled step's arrays (the order and keys of :meth:`_info`)."""
         every = self._true
         info = {}
+        keys = self._info_keys
+        if keys is None:  # (the keys and their masks' keys, made once)
+            keys = self._info_keys = ([(k, "_" + k) for k in self.engine.readout_names], [(k, "_" + k) for k in self.task.metric_names])
         if self.info_readouts:
-            for name, value in zip(self.engine.readout_names, r.readouts):
+            for (name, mask), value in zip(keys[0], r.readouts):
                 info[name] = value
-                info["_" + name] = every
+                info[mask] = every
             info["internal_step"] = r.h
             info["_internal_step"] = every
-        for name, value in zip(self.task.metric_names, r.metrics):
+        for (name, mask), value in zip(keys[1], r.metrics):
             info[name] = value
-            info["_" + name] = every
+            info[mask] = every
         info["numerical_failure"] = self._false
         info["_numerical_failure"] = every
         if r.n_ended:
