@@ -837,7 +837,6 @@ class BatchResult(NamedTuple):
     fired: object
     h: object
     counts: object
-    restarted: object
 
 
 class BatchStep:
