@@ -17,7 +17,7 @@ $(STAMP): pyproject.toml
 	$(BIN)/python -m pip install --quiet -e ".[agents,dev]"
 	touch $(STAMP)
 
-# The main job: PPO on the default scene (the intermediate-axis spin; about 2 minutes here),
+# The main job: PPO on the default scene (the intermediate-axis spin; see the README for its time),
 # then the learned agent against the analytic controller and zero action.
 run: $(STAMP)
 	$(BIN)/rbenvs-train --algo ppo --scene default --seed 0

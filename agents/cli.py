@@ -119,7 +119,7 @@ def eval_main(argv=None) -> int:
 def _eval(argv) -> int:
     p = argparse.ArgumentParser(prog="rbenvs-eval", description="Evaluate agents and analytic controllers on a scene.")
     p.add_argument("--scene", default="default")
-    p.add_argument("--agent", action="append", required=True, help="'analytic', 'zero' or a model.zip path; repeatable")
+    p.add_argument("--agent", action="extend", nargs="+", required=True, help="'analytic', 'zero' or model.zip paths, several or repeated")
     p.add_argument("--algo", default=None, help="algorithm of a model.zip without run.json")
     p.add_argument("--episodes", type=int, default=10)
     p.add_argument("--seeds", type=int, nargs="+", default=[100, 101, 102])

@@ -44,3 +44,21 @@ ENVIRONMENTS = {
 for _env_id, _spec in ENVIRONMENTS.items():
     if _env_id not in registry:
         register(id=_env_id, **_spec)
+
+# The subpackages and modules, reachable as attributes after ``import rbenvs`` alone
+# (``help(rbenvs.envs.FreeRigidBodyEnv)``) and imported on first access (PEP 562): importing
+# rbenvs stays a registration, without the physics, scipy or numba behind it.
+_SUBMODULES = ("bench", "cli", "compiled", "contracts", "controllers", "core", "draws", "dynamics", "elliptic", "envs", "extras", "integrators",
+               "jit", "oracles", "plotting", "progress", "render", "rotations", "scenes", "tasks", "vector", "verify")
+
+
+def __getattr__(name):
+    if name in _SUBMODULES:
+        import importlib
+
+        return importlib.import_module(f"{__name__}.{name}")
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def __dir__():
+    return sorted(set(globals()) | set(_SUBMODULES))

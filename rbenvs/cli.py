@@ -182,7 +182,7 @@ def build_parser() -> argparse.ArgumentParser:
     sub.add_parser("list", help="registered environment ids").set_defaults(func=_cmd_list)
     sub.add_parser("scenes", help="named scenes in configs/scenes").set_defaults(func=_cmd_scenes)
     run = sub.add_parser("run", help="main job: scenes with their analytic controller and with no control")
-    run.add_argument("--scene", action="append", help=f"scene name or YAML path, repeatable (default: {' and '.join(MAIN_SCENES)})")
+    run.add_argument("--scene", action="extend", nargs="+", metavar="NAME", help=f"scene names or YAML paths, several or repeated (default: {' and '.join(MAIN_SCENES)})")
     run.add_argument("--episodes", type=int, default=3, help="episodes per controller (default: %(default)s)")
     run.add_argument("--seed", type=int, default=0, help="seed of the first episode (default: %(default)s)")
     run.set_defaults(func=_cmd_run)

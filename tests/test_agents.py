@@ -81,6 +81,9 @@ def test_train_and_eval_commands(tmp_path, capsys):
     assert eval_main(["--scene", "top_upright", "--agent", str(out / "model.zip"), "--agent", "zero", "--episodes", "1", "--seeds", "0", "--json"]) == 0
     records = json.loads(capsys.readouterr().out)["results"]
     assert [r["agent"] for r in records] == [str(out / "model.zip"), "zero"]
+    # several agents after one flag, as the synopsis shows them
+    assert eval_main(["--scene", "top_upright", "--agent", "analytic", "zero", "--episodes", "1", "--seeds", "0", "--json"]) == 0
+    assert [r["agent"] for r in json.loads(capsys.readouterr().out)["results"]] == ["analytic", "zero"]
     # a bad agent is one line and exit status 2, like an unknown scene (rbenvs.extras.run_command)
     assert eval_main(["--scene", "top_upright", "--agent", str(tmp_path / "missing.zip")]) == 2
     err = capsys.readouterr().err

@@ -36,6 +36,13 @@ def test_run_selected_scenes(capsys):
     assert "PrecessionTracking" in out and "DetumbleDamping" in out and "SpinLQR" not in out
 
 
+def test_run_takes_several_scenes_after_one_flag(capsys):
+    """``--scene a b`` (the synopsis' form) and ``--scene a --scene b`` select the same scenes."""
+    assert main(["run", "--episodes", "1", "--scene", "top_precess", "detumble"]) == 0
+    out = capsys.readouterr().out
+    assert "PrecessionTracking" in out and "DetumbleDamping" in out and "SpinLQR" not in out
+
+
 def test_unknown_scene_is_a_clear_error(capsys):
     assert main(["run", "--scene", "nope"]) == 2
     assert "not found" in capsys.readouterr().err

@@ -105,3 +105,19 @@ def test_an_empty_configs_folder_is_an_error_saying_where_it_looked(wheel_venv, 
     out = _run([bindir / "rbenvs", "scenes"], cwd=work, env=env | {"RBENVS_CONFIGS": str(tmp_path)})
     assert out.returncode == 2 and out.stdout == ""
     assert out.stderr.splitlines() == [f"rbenvs: error: no scenes found in {tmp_path / 'scenes'} ($RBENVS_CONFIGS is set: unset it or point it at a folder with scenes/*.yml)"]
+
+
+def test_subpackages_are_attributes_after_import_rbenvs_alone(tmp_path):
+    """``import rbenvs`` then ``rbenvs.envs.FreeRigidBodyEnv`` (as ``help`` reaches it) works in a
+    fresh interpreter, every listed subpackage imports, and an unknown name still raises."""
+    code = (
+        "import rbenvs, sys\n"
+        "assert 'rbenvs.envs' not in sys.modules\n"
+        "assert rbenvs.envs.FreeRigidBodyEnv.__doc__\n"
+        "assert all(getattr(rbenvs, n).__name__ == 'rbenvs.' + n for n in rbenvs._SUBMODULES)\n"
+        "assert 'envs' in dir(rbenvs)\n"
+        "try:\n    rbenvs.no_such_thing\nexcept AttributeError as e:\n    print('refused', e)\n"
+    )
+    out = _run([sys.executable, "-c", code], cwd=tmp_path)
+    assert out.returncode == 0, out.stderr
+    assert "refused module 'rbenvs' has no attribute 'no_such_thing'" in out.stdout
