@@ -277,6 +277,14 @@ def _period_lines(L: Layout) -> list[str]:
     return lines
 
 
+def _clip_lines(j: int, v: str, dest: str) -> list[str]:
+    """The observation bound of component ``j`` (``HI[j]``), the single env's rule, written once
+    for every kernel: ``out`` set where ``v`` lies outside (a NaN counts as outside), ``dest``
+    the value clipped. Without a branch (min/max return ``v`` itself inside the bounds): a loop
+    without branches stays in SIMD registers."""
+    return [f"out = out | (not (({v} >= -HI[{j}]) & ({v} <= HI[{j}])))", f"{dest} = min(max({v}, -HI[{j}]), HI[{j}])"]
+
+
 def _finish_lines(L: Layout, y: str, un: str, u: str, fired: str) -> list[str]:
     """The loops over a batch's states (``y`` reads state ``i``) that fill ``obs`` (clipped to
     ``HI``) and ``over``, the evaluation's ``reward``, ``terminated`` and metrics ``M_j`` under the
@@ -284,18 +292,12 @@ def _finish_lines(L: Layout, y: str, un: str, u: str, fired: str) -> list[str]:
     flag ``fired``. One loop per stage: a loop of arithmetic and unit-stride loads and stores
     runs in SIMD registers, one fused loop would not (measured: 56 us against 15 us at 4096
     free bodies)."""
-    # the clip without a branch (min/max return v itself inside the bounds; a NaN counts as
-    # outside, as the float path's test): a loop without branches stays in SIMD registers. It
-    # writes the components as rows of a scratch array (unit-stride stores), then one loop
-    # interleaves them into the (n, n_obs) observation (measured at 4096 reorients: 14 ns a
-    # sub-env storing into obs directly, 5 + 4 this way)
+    # the clip (:func:`_clip_lines`) writes the components as rows of a scratch array
+    # (unit-stride stores), then one loop interleaves them into the (n, n_obs) observation
+    # (measured at 4096 reorients: 14 ns a sub-env storing into obs directly, 5 + 4 this way)
     lines = [f"    OT = np.empty(({L.n_obs}, n), dtype=np.float32)", "    for i in range(n):", "        " + y, "        o = observe(PO, y)", "        out = False"]
     for j in range(L.n_obs):
-        lines += [
-            f"        v = o[{j}]",
-            f"        out = out | (not ((v >= -HI[{j}]) & (v <= HI[{j}])))",
-            f"        OT[{j}, i] = min(max(v, -HI[{j}]), HI[{j}])",
-        ]
+        lines += [f"        v = o[{j}]", *("        " + line for line in _clip_lines(j, "v", f"OT[{j}, i]"))]
     lines += ["        over[i] = out", "    for i in range(n):", *(f"        obs[i, {j}] = OT[{j}, i]" for j in range(L.n_obs))]
     return lines + [
         "    for i in range(n):",
@@ -535,8 +537,7 @@ def rows_kernel(V: VectorLayout):
         lines += ["            steps[i] = 0"]
     lines += [f"        y = ({_comps('Y[{j}, i]', L.dim)})", "        o = observe(PO, y)", "        out = False"]
     for j in range(L.n_obs):
-        lines += [f"        v = o[{j}]", f"        if not (-HI[{j}] <= v <= HI[{j}]):", "            out = True", f"            v = min(max(v, -HI[{j}]), HI[{j}])",
-                  f"        obs[i, {j}] = v"]
+        lines += [f"        v = o[{j}]", *("        " + line for line in _clip_lines(j, "v", f"obs[i, {j}]"))]
     lines += ["        over[i] = out", f"        r = evaluate(PE, y, ({_comps('0.0', L.n_action)}))", *[f"        M{j}[i] = r[{j + 2}]" for j in range(L.n_metrics)]]
     lines += ["        q = readouts(PR, y, None, False)", *[f"        R{j}[i] = q[{j}]" for j in range(L.n_readouts)], "        hstep[i] = h"]
     namespace = _vector_namespace(V)
@@ -705,7 +706,7 @@ def state_kernel(layout: Layout):
         "    out = False",
     ]
     for j in range(L.n_obs):
-        lines += [f"    v{j} = o[{j}]", f"    if not (-HI[{j}] <= v{j} <= HI[{j}]):", "        out = True", f"        v{j} = min(max(v{j}, -HI[{j}]), HI[{j}])"]
+        lines += [f"    v{j} = o[{j}]", *("    " + line for line in _clip_lines(j, f"v{j}", f"v{j}"))]
     lines += [
         "    r = evaluate(PE, y, un)",
         "    q = readouts(PR, y, u, f)",
@@ -1020,8 +1021,7 @@ class VectorStep:
         n = r.restarted.shape[0]
         if self._draw_all is None or self._draw_all.shape[0] < r.Y.shape[1]:
             self._draw_all = np.ones(r.Y.shape[1], dtype=np.bool_)
-        pi, po, pe, pr = self.params[1], self.params[3], self.params[4], self.params[5]
-        args = (r.restarted, self._draw_all[:n], r.Y, GEN, pi, po, pe, pr, self.high, self.h, r.obs, r.over, r.h, steps, *r.metrics, *r.readouts)
+        args = self._rows_args(r.restarted, self._draw_all[:n], r.Y, GEN, r.obs, r.over, r.h, steps, r.metrics, r.readouts)
         if self._rows_call is None:
             self._rows(*args)  # compiles
             self._rows_call = _entry_point(self._rows, args)
@@ -1034,9 +1034,12 @@ class VectorStep:
         filled."""
         import numpy as np
 
+        self._rows(*self._rows_args(np.asarray(idx, dtype=np.int64), np.asarray(draw, dtype=np.bool_), Y, GEN, obs, over, hstep, steps, metrics, readouts))
+
+    def _rows_args(self, idx, draw, Y, GEN, obs, over, hstep, steps, metrics, readouts) -> tuple:
+        """:func:`rows_kernel`'s arguments, the start's, task's and read-outs' parameters in place."""
         pi, po, pe, pr = self.params[1], self.params[3], self.params[4], self.params[5]
-        self._rows(np.asarray(idx, dtype=np.int64), np.asarray(draw, dtype=np.bool_), Y, GEN, pi, po, pe, pr, self.high, self.h, obs, over, hstep, steps,
-                   *metrics, *readouts)
+        return (idx, draw, Y, GEN, pi, po, pe, pr, self.high, self.h, obs, over, hstep, steps, *metrics, *readouts)
 
     def finish(self, Y, GEN) -> tuple:
         """``(obs, over, metrics, readouts)`` of the states ``Y`` ``(dim, k)`` as after a reset (no

@@ -19,7 +19,6 @@ __all__ = ["jitable", "compiled_form", "available", "register_all", "register", 
 DISABLE_VARIABLE = "RBENVS_COMPILED"
 
 _JITABLE: list = []  # pure functions compiled code may call, in definition order
-_registered = False
 _done: set = set()  # ids of the functions registered with numba (each once)
 
 
@@ -80,12 +79,9 @@ def register(fn) -> None:
 def register_all() -> None:
     """Register every jitable function not yet registered (those of modules imported since the
     last call included); every kernel build calls it."""
-    global _registered
     for fn in _JITABLE:
         if id(fn) not in _done:
             register(fn)
-    _registered = True
-
 
 
 def elementwise(fn, n_in: int, n_out: int):

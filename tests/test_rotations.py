@@ -261,6 +261,11 @@ def test_atan2_floats_arrays_and_compiled_give_the_same_bits():
     assert _same_bits(floats, atan2(ys, xs))  # (where numba runs: one compiled pass)
     assert _same_bits(floats, _atan2_arrays(ys, xs))  # the numpy form
     assert _same_bits(floats[::2], atan2(ys[::2], xs[::2]))  # strided arrays
+    # arguments the compiled pass does not take (an array with a float, float32): the numpy form
+    assert _same_bits(np.array([atan2(float(a), 1.0) for a in ys]), atan2(ys, 1.0))
+    small = (np.abs(ys) < 1e30) & (np.abs(xs) < 1e30)  # (float32's range)
+    y32, x32 = ys[small].astype(np.float32), xs[small].astype(np.float32)
+    assert _same_bits(_atan2_arrays(y32, x32), atan2(y32, x32))
     from rbenvs import compiled
 
     if compiled.available():
