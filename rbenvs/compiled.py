@@ -285,13 +285,15 @@ def _clip_lines(j: int, v: str, dest: str) -> list[str]:
     return [f"out = out | (not (({v} >= -HI[{j}]) & ({v} <= HI[{j}])))", f"{dest} = min(max({v}, -HI[{j}]), HI[{j}])"]
 
 
-def _finish_lines(L: Layout, y: str, un: str, u: str, fired: str) -> list[str]:
+def _finish_lines(L: Layout, y: str, un: str, u: str, fired: str, fresh: str | None = None) -> list[str]:
     """The loops over a batch's states (``y`` reads state ``i``) that fill ``obs`` (clipped to
     ``HI``) and ``over``, the evaluation's ``reward``, ``terminated`` and metrics ``M_j`` under the
     normalised action ``un``, and the read-outs ``R_j`` under the control ``u`` with the event
     flag ``fired``. One loop per stage: a loop of arithmetic and unit-stride loads and stores
     runs in SIMD registers, one fused loop would not (measured: 56 us against 15 us at 4096
-    free bodies)."""
+    free bodies). ``fresh`` (an expression in ``i``): the states that are new starts, finished
+    as after a reset instead (zero action; read-outs with no control acted and no event),
+    selected per component, so that the loops keep no branch."""
     # the clip (:func:`_clip_lines`) writes the components as rows of a scratch array
     # (unit-stride stores), then one loop interleaves them into the (n, n_obs) observation
     # (measured at 4096 reorients: 14 ns a sub-env storing into obs directly, 5 + 4 this way)
@@ -299,10 +301,17 @@ def _finish_lines(L: Layout, y: str, un: str, u: str, fired: str) -> list[str]:
     for j in range(L.n_obs):
         lines += [f"        v = o[{j}]", *("        " + line for line in _clip_lines(j, "v", f"OT[{j}, i]"))]
     lines += ["        over[i] = out", "    for i in range(n):", *(f"        obs[i, {j}] = OT[{j}, i]" for j in range(L.n_obs))]
+    if fresh is None:
+        action, reads = [], [f"        R{j}[i] = q[{j}]" for j in range(L.n_readouts)]
+    else:
+        # (where the read-outs ignore u, LLVM computes the two calls' common arithmetic once)
+        action = ["        z = " + fresh, f"        un = ({_comps('0.0 if z else un[{j}]', L.n_action)})"]
+        reads = ["        z = " + fresh, "        q0 = readouts(PR, y, None, False)", *[f"        R{j}[i] = q0[{j}] if z else q[{j}]" for j in range(L.n_readouts)]]
     return lines + [
         "    for i in range(n):",
         "        " + y,
         "        " + un,
+        *action,
         "        r = evaluate(PE, y, un)",
         "        reward[i] = r[0]",
         "        terminated[i] = r[1]",
@@ -311,7 +320,7 @@ def _finish_lines(L: Layout, y: str, un: str, u: str, fired: str) -> list[str]:
         "        " + y,
         "        " + u,
         f"        q = readouts(PR, y, u, {fired})",
-        *[f"        R{j}[i] = q[{j}]" for j in range(L.n_readouts)],
+        *reads,
     ]
 
 
@@ -455,12 +464,13 @@ def _lockstep_lines(L: Layout, u: str) -> list[str]:
     ]
 
 
-def _period_and_finish(L: Layout, u: str, un: str, more: str) -> list[str]:
+def _period_and_finish(L: Layout, u: str, un: str, more: str, starts: list[str] = (), fresh: str | None = None) -> list[str]:
     """The batch kernel's body (see :func:`batch_kernel`): the guard's counts (a refusal returns
     -1), the period per sub-env or as SIMD passes, the non-finite check (returns ``bad``, the
-    count) and the finish loops; ``u`` and ``un`` the lines that set sub-env ``i``'s controls
-    and normalised action (:func:`_controls`); ``more``: further values the early returns
-    append (``", 0"``)."""
+    count), the lines ``starts`` (the vector step's restarts: new starts written into ``Ynew``)
+    and the finish loops (``fresh``: the states finished as new starts, :func:`_finish_lines`);
+    ``u`` and ``un`` the lines that set sub-env ``i``'s controls and normalised action
+    (:func:`_controls`); ``more``: further values the early returns append (``", 0"``)."""
     comps, dim = _comps, L.dim
     y_old = f"y = ({comps('Y[{j}, i]', dim)})"
     y_new = f"y = ({comps('Ynew[{j}, i]', dim)})"
@@ -492,7 +502,7 @@ def _period_and_finish(L: Layout, u: str, un: str, more: str) -> list[str]:
         f"        return bad{more}",
     ]
     # 4. observation, evaluation, read-outs
-    return lines + _finish_lines(L, y_new, un, u, "fired[i]")
+    return lines + list(starts) + _finish_lines(L, y_new, un, u, "fired[i]", fresh)
 
 
 class VectorLayout(NamedTuple):
@@ -513,6 +523,15 @@ class VectorLayout(NamedTuple):
 _DRAW_CALLS = {"u": "g.random()", "n": "g.standard_normal()"}
 
 
+def _start_lines(V: VectorLayout, dest: str) -> list[str]:
+    """Sub-env ``i``'s start, drawn from its own generator ``GEN[i]`` (the draws' kinds made as
+    calls, one statement each: in order) through the model's pure start, written into column
+    ``i`` of ``dest``: a restart, written once for the rows kernel and the vector step."""
+    draws = [f"d{k} = {_DRAW_CALLS[kind]}" for k, kind in enumerate(V.kinds)]
+    return ["g = GEN[i]", *draws, f"y = start(PI, ({''.join(f'd{k}, ' for k in range(len(V.kinds)))}))",
+            *(f"{dest}[{j}, i] = y[{j}]" for j in range(V.batch.dim))]
+
+
 @lru_cache(maxsize=None)
 def rows_kernel(V: VectorLayout):
     """Rows of a batch started or finished outside a step: ``rows(idx, draw, Y, GEN, PI, PO, PE,
@@ -531,10 +550,7 @@ def rows_kernel(V: VectorLayout):
     args = ["idx", "draw", "Y", "GEN", "PI", "PO", "PE", "PR", "HI", "h", "obs", "over", "hstep", "steps"] + metrics + reads
     lines = [f"def rows({', '.join(args)}):", "    for m in range(idx.shape[0]):", "        i = idx[m]"]
     if V.start is not None:
-        draws = [f"d{k} = {_DRAW_CALLS[kind]}" for k, kind in enumerate(V.kinds)]  # one statement each: in order
-        lines += ["        if draw[m]:", "            g = GEN[i]", *("            " + d for d in draws)]
-        lines += [f"            y = start(PI, ({''.join(f'd{k}, ' for k in range(len(V.kinds)))}))", *(f"            Y[{j}, i] = y[{j}]" for j in range(L.dim))]
-        lines += ["            steps[i] = 0"]
+        lines += ["        if draw[m]:", *("            " + line for line in _start_lines(V, "Y")), "            steps[i] = 0"]
     lines += [f"        y = ({_comps('Y[{j}, i]', L.dim)})", "        o = observe(PO, y)", "        out = False"]
     for j in range(L.n_obs):
         lines += [f"        v = o[{j}]", *("        " + line for line in _clip_lines(j, "v", f"obs[i, {j}]"))]
@@ -577,7 +593,7 @@ def _vector_args(L: Layout) -> list[str]:
     reads = [f"R{j}" for j in range(L.n_readouts)]
     return ["A", "Y", "Ynew", "h", "dt", "substeps", "check", "refuse", "next_step", "max_steps", "steps", "done", "skip", "GEN", "PC", "PI",
             "PS", "PO", "PE", "PR", "PG", "PA", "PD", "CD", "PV", "PW", "HI", "counts", "hstep", "fired", "obs", "over", "reward", "terminated",
-            "truncated", "RZ", "RN", "clear", "ends", "codes", "restarted"] + metrics + reads
+            "truncated", "RZ", "RN", "clear", "ends", "codes"] + metrics + reads
 
 
 @lru_cache(maxsize=None)
@@ -587,15 +603,18 @@ def vector_kernel(V: VectorLayout):
 
         vstep(A, Y, Ynew, h, dt, substeps, check, refuse, next_step, max_steps, steps, done,
               skip, GEN, PC, PI, PS, PO, PE, PR, PG, PA, PD, CD, PV, PW, HI, counts, hstep, fired,
-              obs, over, reward, terminated, truncated, RZ, RN, clear, ends, codes, restarted,
-              M_1..M_k, R_1..R_m) -> (status, k, m, r)
+              obs, over, reward, terminated, truncated, RZ, RN, clear, ends, codes, M_1..M_k,
+              R_1..R_m) -> (status, k, m, r)
 
     1. the actions ``A`` ``(n, n_in)`` (float32 or float64): every entry finite (else ``(-2,
        i, 0, 0)`` for the first bad sub-env ``i``, nothing else written), clipped to ``[-1, 1]`` (the
        single env's rule), mapped by the actuator's pure form into the rows of ``UN`` and ``U``;
     2. the period and finish of :func:`batch_kernel` (``(-1, 0, 0, 0)``: refused; ``(bad, 0,
-       0, 0)``: ``bad`` new states non-finite, the caller's failure path takes over; sub-envs in
-       ``skip`` take ``substeps``);
+       0, 0)``: ``bad`` new states non-finite, the caller's failure path takes over, nothing
+       drawn; sub-envs in ``skip`` take ``substeps``); with ``next_step`` and a pure start, the
+       sub-envs in ``skip`` (those whose previous step ended) restart between the period and
+       the finish: their starts drawn from their own generators ``GEN[i]`` into ``Ynew``, their
+       rows finished as after a reset (zero action, no control acted, no event, ``hstep = h``);
     3. the episode's bookkeeping per sub-env: ``steps += 1``; ``terminated`` where the task,
        the observation bounds or the event ended it, ``truncated`` where ``steps >= max_steps``
        (``max_steps < 0``: no limit); ``done`` their union (the ``_terminal_reason`` mask, and
@@ -603,14 +622,13 @@ def vector_kernel(V: VectorLayout):
        ``RN[code]`` of code points) written into the row of ``RZ``, a zero-filled reason
        array's ``(n, width)`` uint32 view whose rows ``clear`` are zeroed first
        (:class:`rbenvs.core.step.ReasonPool`);
-    4. with ``next_step`` (autoreset NEXT_STEP), the sub-envs in ``skip`` (those whose previous
-       step ended) restart instead: reward 0, not terminated or truncated, their episode clock
-       0, listed in ``restarted[:r]``; the caller then draws their starts and fills their rows
-       (:func:`rows_kernel`).
+    4. with ``next_step`` (autoreset NEXT_STEP), the restarting sub-envs' step: reward 0, not
+       terminated or truncated, their episode clock 0 (a layout without a pure start leaves
+       their states and rows to the caller).
 
-    ``k``: the number of sub-envs whose rows of step 3 had an end or a truncation (restarting
-    ones counted on their discarded period, as the numpy path's ``ended.any()``); ``ends[:m]``
-    the sub-envs whose row of ``RZ`` may have been written (``codes[:m]`` their codes).
+    ``k``: the number of sub-envs whose step had an end or a truncation (restarting ones never:
+    their period is discarded); ``ends[:m]`` the sub-envs whose row of ``RZ`` may have been
+    written (``codes[:m]`` their codes); ``r`` the number of restarting sub-envs.
     """
     import numba
 
@@ -626,11 +644,18 @@ def vector_kernel(V: VectorLayout):
     lines += ["    if bad:", "        for i in range(n):", *("            " + line for line in read), "    " + finite, "                return -2, i, 0, 0"]
     lines += [f"    U = np.empty(({L.n_control}, n))", f"    UN = np.empty(({L.n_action}, n))", "    for i in range(n):", "        un, u = act(PC, A, i)"]
     lines += [f"        UN[{j}, i] = un[{j}]" for j in range(L.n_action)] + [f"        U[{j}, i] = u[{j}]" for j in range(L.n_control)]
-    # 2. the period and finish
-    lines += _period_and_finish(L, *_controls(L, rows=True), ", 0, 0, 0")
-    # 3. the episode's bookkeeping (restarting sub-envs counted on their discarded period, as
-    # the numpy path's ended.any() counts them), then 4. the restarts (skip: the sub-envs that
-    # restart, read-only here; with next_step they are those whose previous step ended)
+    # 2. the period, then (NEXT_STEP) the restarting sub-envs' starts drawn into their columns
+    # of Ynew, so that the finish loops fill their rows as after a reset (per-row selections:
+    # no second pass, no scattered writes into the step's arrays); a layout without a pure start
+    # restarts in the caller
+    starts, fresh = [], None
+    if V.start is not None:
+        starts = ["    if next_step:", "        for i in range(n):", "            if skip[i]:", *("                " + line for line in _start_lines(V, "Ynew"))]
+        starts += ["                hstep[i] = h", "                fired[i] = False"]
+        fresh = "next_step & skip[i]"
+    lines += _period_and_finish(L, *_controls(L, rows=True), ", 0, 0, 0", starts, fresh)
+    # 3. the episode's bookkeeping, then 4. the restarts' step (skip: the sub-envs that restart,
+    # read-only here; with next_step they are those whose previous step ended)
     lines += [
         "    k = 0",
         "    m = 0",
@@ -641,7 +666,7 @@ def vector_kernel(V: VectorLayout):
         "        s = steps[i] + 1",
         "        e = terminated[i] | over[i] | fired[i]",
         "        t = (max_steps >= 0) & (s >= max_steps)",
-        "        k += e | t",
+        "        k += (e | t) & (not (next_step & skip[i]))",  # (a restart's discarded period ends nothing)
         "        steps[i] = s",
         "        c = end_code(False, fired[i], over[i], terminated[i])",
         "        ends[m] = i",  # (compacted without a branch: the next row overwrites it if c == 0)
@@ -661,10 +686,8 @@ def vector_kernel(V: VectorLayout):
         "        for i in range(n):",
         "            if skip[i]:",
     ]
-    # (their new states and rows are the caller's rows_kernel call: kept out of this function,
-    # whose compilation it would lengthen by a third)
     lines += ["                steps[i] = 0", "                reward[i] = 0.0", "                terminated[i] = False", "                truncated[i] = False",
-              "                fired[i] = False", "                done[i] = False", "                restarted[r] = i", "                r += 1"]
+              "                fired[i] = False", "                done[i] = False", "                r += 1"]
     lines += ["    return 0, k, m, r"]
     namespace = _vector_namespace(V)
     generate("\n".join(lines), f"vector step dim={L.dim} n_obs={L.n_obs}", namespace)
@@ -913,8 +936,8 @@ class VectorResult(NamedTuple):
     refused, ``counts`` holds the counts; or the number of non-finite new states: the task
     outputs are unset), ``n_ended`` (the sub-envs whose step had an end or a truncation), the
     step's arrays (see :func:`vector_kernel`), ``written``, the sub-envs whose row of the
-    reason array may have been written, and ``restarted``, the sub-envs that restart (NEXT_STEP:
-    their starts are :meth:`VectorStep.restart_rows`' to draw)."""
+    reason array may have been written, and ``n_restarted``, the number of sub-envs that
+    restarted (NEXT_STEP; drawn inside the step where the model has a pure start)."""
 
     status: int
     n_ended: int
@@ -930,7 +953,7 @@ class VectorResult(NamedTuple):
     fired: object
     h: object
     counts: object
-    restarted: object
+    n_restarted: int
 
 
 def _entry_point(dispatcher, args):
@@ -945,7 +968,7 @@ def _entry_point(dispatcher, args):
 
 class VectorStep:
     """One vector env's compiled step (:func:`vector_kernel`) with its parameters, and its
-    rows outside a step (:func:`rows_kernel`: restarts, a reset's finish).
+    rows outside a step (:func:`rows_kernel`: a reset's finish, SAME_STEP restarts).
 
     ``parts``: :meth:`rbenvs.core.step.Engine.kernel_parts`; ``model``: the env's
     :class:`rbenvs.core.model.Model` (its actuator's and start's pure forms, its draw kinds);
@@ -976,7 +999,6 @@ class VectorStep:
         ps, po, pe, pr, pg, pa, pd, cd, pv, pw = params
         self.params = (pc, start[1] if start else (), ps, po, pe, pr, pg, pa, pd, cd, pv, pw, self.high)
         self._calls = {}
-        self._rows_call, self._draw_all = None, None
 
     def __call__(self, A, Y, steps, done, skip, GEN, check: bool, refuse: bool, next_step: bool, reasons) -> VectorResult:
         """One step of the states ``Y`` ``(dim, n)`` under the actions ``A`` ``(n, n_in)``
@@ -999,34 +1021,17 @@ class VectorStep:
         truncated = np.empty(n, dtype=bool)
         ends = np.empty(n, dtype=np.int64)
         codes = np.empty(n, dtype=np.int64)
-        restarted = np.empty(n, dtype=np.int64)
         metrics = [np.empty(n, dtype=t) for t in self.metric_dtypes]
         readouts = [np.empty(n, dtype=t) for t in self.readout_dtypes]
         args = (A, Y, Ynew, self.h, self.dt, self.substeps, check, refuse, next_step, self.max_steps, steps, done, skip, GEN, *self.params, counts,
-                hstep, fired, obs, over, reward, terminated, truncated, *reasons, ends, codes, restarted, *metrics, *readouts)
+                hstep, fired, obs, over, reward, terminated, truncated, *reasons, ends, codes, *metrics, *readouts)
         call = self._calls.get(A.dtype)
         if call is None:
             status, k, m, r = self.kernel(*args)  # compiles
             self._calls[A.dtype] = _entry_point(self.kernel, args)
         else:
             status, k, m, r = call(*args)
-        return VectorResult(status, k, Ynew, obs, over, reward, terminated, truncated, ends[:m], metrics, readouts, fired, hstep, counts, restarted[:r])
-
-    def restart_rows(self, r: VectorResult, GEN, steps) -> None:
-        """The restarts of a step (``r.restarted``): their starts drawn and their rows of ``r``'s
-        arrays filled (:meth:`rows` on arrays this class made, whose types are known: the
-        compiled overload's entry point is called directly, as in :meth:`__call__`)."""
-        import numpy as np
-
-        n = r.restarted.shape[0]
-        if self._draw_all is None or self._draw_all.shape[0] < r.Y.shape[1]:
-            self._draw_all = np.ones(r.Y.shape[1], dtype=np.bool_)
-        args = self._rows_args(r.restarted, self._draw_all[:n], r.Y, GEN, r.obs, r.over, r.h, steps, r.metrics, r.readouts)
-        if self._rows_call is None:
-            self._rows(*args)  # compiles
-            self._rows_call = _entry_point(self._rows, args)
-        else:
-            self._rows_call(*args)
+        return VectorResult(status, k, Ynew, obs, over, reward, terminated, truncated, ends[:m], metrics, readouts, fired, hstep, counts, r)
 
     def rows(self, idx, draw, Y, GEN, obs, over, hstep, steps, metrics, readouts) -> None:
         """:func:`rows_kernel` on the sub-envs ``idx`` of a step's (or a reset's) arrays: their

@@ -24,7 +24,8 @@ Conventions (gymnasium 1.x):
   seeded ``s + i`` and reset without a seed after each episode.
 * ``info``: a dict of arrays of length ``num_envs`` plus a boolean mask ``"_key"`` per key
   (gymnasium's vector convention). ``terminal_reason`` is a string array ("" where the episode
-  goes on).
+  goes on), present in the steps where some sub-env's episode ended or was truncated (under
+  NEXT_STEP a restarting sub-env's step, whose period is discarded, ends nothing).
 * Truncation at ``max_episode_steps`` (from the registration) is done here: a vector env is
   not wrapped in ``TimeLimit``.
 * ``info_readouts=False`` leaves the physical read-outs (energy, invariants, contact forces)
@@ -377,11 +378,8 @@ class RigidBodyVectorEnv(VectorEnv):
         info = self._kernel_info(r, done, reasons)
         obs = r.obs
         if next_step:
-            if r.restarted.shape[0]:  # their starts drawn and rows filled (a separate compiled call)
-                if vstep.restarts:
-                    vstep.restart_rows(r, self._table.list, self._steps)
-                else:  # (no pure start: restarted here)
-                    obs, info = self._restart(restart, obs, info)
+            if r.n_restarted and not vstep.restarts:  # (no pure start: restarted here; else in the step)
+                obs, info = self._restart(restart, obs, info)
         elif r.n_ended:
             obs, info = self._same_step_reset(done, obs, info, r)
         return obs, r.reward, r.terminated, r.truncated, info
@@ -419,7 +417,10 @@ class RigidBodyVectorEnv(VectorEnv):
         self._steps += 1
         truncated = self._false.copy() if self.max_episode_steps is None else self._steps >= self.max_episode_steps  # as TimeLimit
         ended = terminated | over | lifted
-        if ended.any() or truncated.any():
+        stopped = ended | truncated
+        if any_restart:  # (NEXT_STEP: a restarting sub-env's period is discarded; it ends nothing)
+            stopped = stopped & ~restart
+        if stopped.any():
             info["terminal_reason"] = terminal_reason(failed_mask, lifted, over, terminated, self.engine.event_name)
             info["_terminal_reason"] = ended | truncated
             terminated = ended
