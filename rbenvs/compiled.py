@@ -937,7 +937,8 @@ class VectorResult(NamedTuple):
     outputs are unset), ``n_ended`` (the sub-envs whose step had an end or a truncation), the
     step's arrays (see :func:`vector_kernel`), ``written``, the sub-envs whose row of the
     reason array may have been written, and ``n_restarted``, the number of sub-envs that
-    restarted (NEXT_STEP; drawn inside the step where the model has a pure start)."""
+    restarted (NEXT_STEP; drawn inside the step where the model has a pure start). ``over``,
+    ``fired``, ``counts`` and ``written`` are scratch, valid until the next step."""
 
     status: int
     n_ended: int
@@ -999,6 +1000,7 @@ class VectorStep:
         ps, po, pe, pr, pg, pa, pd, cd, pv, pw = params
         self.params = (pc, start[1] if start else (), ps, po, pe, pr, pg, pa, pd, cd, pv, pw, self.high)
         self._calls = {}
+        self._scratch = None
 
     def __call__(self, A, Y, steps, done, skip, GEN, check: bool, refuse: bool, next_step: bool, reasons) -> VectorResult:
         """One step of the states ``Y`` ``(dim, n)`` under the actions ``A`` ``(n, n_in)``
@@ -1010,17 +1012,17 @@ class VectorStep:
         import numpy as np
 
         n = Y.shape[1]
+        scratch = self._scratch  # (the arrays no caller keeps past the step: reused)
+        if scratch is None or scratch[0].shape[0] != n:
+            scratch = self._scratch = (np.empty(n, dtype=np.int64), np.empty(n, dtype=bool), np.empty(n, dtype=bool), np.empty(n, dtype=np.int64),
+                                       np.empty(n, dtype=np.int64))
+        counts, fired, over, ends, codes = scratch
         Ynew = np.empty_like(Y)
-        counts = np.empty(n, dtype=np.int64)
         hstep = np.empty(n)
-        fired = np.empty(n, dtype=bool)
         obs = np.empty((n, self.n_obs), dtype=np.float32)
-        over = np.empty(n, dtype=bool)
         reward = np.empty(n)
         terminated = np.empty(n, dtype=bool)
         truncated = np.empty(n, dtype=bool)
-        ends = np.empty(n, dtype=np.int64)
-        codes = np.empty(n, dtype=np.int64)
         metrics = [np.empty(n, dtype=t) for t in self.metric_dtypes]
         readouts = [np.empty(n, dtype=t) for t in self.readout_dtypes]
         args = (A, Y, Ynew, self.h, self.dt, self.substeps, check, refuse, next_step, self.max_steps, steps, done, skip, GEN, *self.params, counts,

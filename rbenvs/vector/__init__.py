@@ -109,7 +109,7 @@ class RigidBodyVectorEnv(VectorEnv):
         self._last_h = None  # the internal step of the last period, per sub-env
         self._plain = self.engine.plain
         self._steps = np.zeros(self.num_envs, dtype=np.int64)
-        self._info_keys = None
+        self._info_template = None  # the compiled step's info: its keys in order, masks set
         self._prev_done = np.zeros(self.num_envs, dtype=bool)
         self._rngs = [None] * self.num_envs
         # the generators as one compiled table (rbenvs.draws), made once every sub-env has one:
@@ -385,23 +385,20 @@ class RigidBodyVectorEnv(VectorEnv):
         return obs, r.reward, r.terminated, r.truncated, info
 
     def _kernel_info(self, r, done, reasons) -> dict:
-        """``info`` from a compiled step's arrays (the order and keys of :meth:`_info`)."""
-        every = self._true
-        info = {}
-        keys = self._info_keys
-        if keys is None:  # (the keys and their masks' keys, made once)
-            keys = self._info_keys = ([(k, "_" + k) for k in self.engine.readout_names], [(k, "_" + k) for k in self.task.metric_names])
-        if self.info_readouts:
-            for (name, mask), value in zip(keys[0], r.readouts):
-                info[name] = value
-                info[mask] = every
-            info["internal_step"] = r.h
-            info["_internal_step"] = every
-        for (name, mask), value in zip(keys[1], r.metrics):
-            info[name] = value
-            info[mask] = every
-        info["numerical_failure"] = self._false
-        info["_numerical_failure"] = every
+        """``info`` from a compiled step's arrays (the order and keys of :meth:`_info`): a copy of
+        a template holding the keys in order with their masks, the step's arrays put in."""
+        template = self._info_template
+        if template is None:  # (made once: the keys, their masks and the constant entries)
+            names = (*self.engine.readout_names, "internal_step") if self.info_readouts else ()
+            names += tuple(self.task.metric_names)
+            template = {}
+            for name in names:
+                template[name] = None
+                template["_" + name] = self._true
+            template.update(numerical_failure=self._false, _numerical_failure=self._true)
+            self._info_template, self._info_names = template, names
+        info = template.copy()
+        info.update(zip(self._info_names, (*r.readouts, r.h, *r.metrics) if self.info_readouts else r.metrics))
         if r.n_ended:
             info["terminal_reason"] = reasons
             info["_terminal_reason"] = done.copy()
