@@ -2,7 +2,7 @@
 
 ``scipy.special.ellipj(u, m)`` takes the parameter ``m`` and forms ``1 - m`` itself, so it
 loses the complementary parameter ``m1 = 1 - m`` to cancellation as ``m -> 1`` (about 1e-8
-error at ``m1 = 1e-8``, wrong below 1e-10; physics.md §4). Near the free rigid body's
+error at ``m1 = 1e-8``, wrong below 1e-10; docs/physics.md §4). Near the free rigid body's
 separatrix ``m1`` is small but *known accurately* from the separatrix distance, so these
 routines take ``m`` and ``m1`` separately and never form ``1 - m``:
 

@@ -3,13 +3,13 @@ the analytic results over them (``rbenvs plot``; PNG files; matplotlib, the ``pl
 imported only here and only when a figure is drawn).
 
 * :func:`plot_free_body`: trajectories of ``Pi`` on one momentum sphere, with the intersections
-  of the sphere and the energy ellipsoids (physics.md §1, seed Fig. 15.3.1) and the
+  of the sphere and the energy ellipsoids (docs/physics.md §1, [MR Fig. 15.3.1]) and the
   intermediate-axis separatrix.
 * :func:`plot_heavy_top`: tilt and precession rate of a fast top released without precession,
-  with the fast-top nutation bounds and mean rate (seed 2, 3.76-3.78), and of a top started on
-  its regular precession, with the slow root of (3.82).
+  with the fast-top nutation bounds and mean rate ([T 3.76-3.78]), and of a top started on
+  its regular precession, with the slow root of [T 3.82].
 * :func:`plot_tippe_top`: tilt, energy and Jellett's integral of the inverting tippe top, with
-  the final tilt and the least energy ``E*`` that Jellett's integral allows (physics.md §3).
+  the final tilt and the least energy ``E*`` that Jellett's integral allows (docs/physics.md §3).
 * :func:`render_frames`: one ``render_mode="rgb_array"`` frame per system.
 """
 
@@ -163,9 +163,9 @@ def plot_free_body(path, inertia=(2.0, 1.5, 1.0), dt=0.02, max_time=60.0, integr
 def plot_heavy_top(path, spin_factor=4.0, tilt=0.5, duration=3.0, dt=0.002):
     """Tilt and precession rate of the default Lagrange top (:class:`rbenvs.envs.LagrangeTopEnv`,
     zero torque, splitting) spun at ``spin_factor`` times the critical spin, (a) released at
-    ``tilt`` with no precession: it nods between ``tilt`` and the fast-top bound ``beta`` (3.76)
-    and drifts at the mean rate ``m g l/(C n)`` (3.78); (b) started on its slow regular
-    precession (3.82): tilt and rate stay put. Returns ``path``."""
+    ``tilt`` with no precession: it nods between ``tilt`` and the fast-top bound ``beta`` [T 3.76]
+    and drifts at the mean rate ``m g l/(C n)`` [T 3.78]; (b) started on its slow regular
+    precession [T 3.82]: tilt and rate stay put. Returns ``path``."""
     from .envs import LagrangeTopEnv
     from .oracles import fast_top_nutation, regular_precession_rates
 
@@ -196,10 +196,10 @@ def plot_heavy_top(path, spin_factor=4.0, tilt=0.5, duration=3.0, dt=0.002):
         ax1.plot(t, np.degrees(th), color=c, lw=1.2, label=f"simulated, {label}")
         ax2.plot(t, rate, color=c, lw=1.2, label=f"simulated, {label}")
     ax1.axhline(math.degrees(tilt), color="k", ls=":", lw=1, label="release tilt alpha (upper turning point)")
-    ax1.axhline(math.degrees(tilt + nut.angle_amplitude), color="k", ls="--", lw=1, label="fast-top bound beta = alpha + 2 A m g l sin(alpha)/(C n)^2 (3.79)")
-    ax1.axhline(math.degrees(nut.mean_tilt), color="#2ca02c", ls="-.", lw=1, label="mean tilt (3.77)")
-    ax2.axhline(nut.mean_precession_rate, color="k", ls="--", lw=1, label="fast-top mean rate m g l/(C n) (3.78)")
-    ax2.axhline(p_slow, color="#ff7f0e", ls=":", lw=1.5, label="slow root of A p^2 cos(alpha) - C n p + m g l = 0 (3.82)")
+    ax1.axhline(math.degrees(tilt + nut.angle_amplitude), color="k", ls="--", lw=1, label="fast-top bound beta = alpha + 2 A m g l sin(alpha)/(C n)^2 [T 3.79]")
+    ax1.axhline(math.degrees(nut.mean_tilt), color="#2ca02c", ls="-.", lw=1, label="mean tilt [T 3.77]")
+    ax2.axhline(nut.mean_precession_rate, color="k", ls="--", lw=1, label="fast-top mean rate m g l/(C n) [T 3.78]")
+    ax2.axhline(p_slow, color="#ff7f0e", ls=":", lw=1.5, label="slow root of A p^2 cos(alpha) - C n p + m g l = 0 [T 3.82]")
     ax1.set_ylabel("tilt [deg]")
     ax2.set_ylabel("precession rate [rad/s]")
     ax2.set_xlabel("time [s]")
@@ -222,7 +222,7 @@ def plot_tippe_top(path, duration=25.0, **env_kwargs):
     with ``env_kwargs``; default: the Leine-Glocker top at 150 rad/s, Coulomb friction) under
     zero action for ``duration`` s (on past the task's end at 150 deg, until lift-off or a
     numerical failure), with the final tilt and the least energy ``E*`` at that tilt allowed by
-    the initial Jellett's integral (physics.md §3). Returns ``path``."""
+    the initial Jellett's integral (docs/physics.md §3). Returns ``path``."""
     from .envs import TippeTopEnv
     from .oracles import energy_star, final_tilt
 

@@ -367,7 +367,7 @@ def quat_conjugate(q):
 
 @jitable
 def quat_normalize(q):
-    """Project onto the unit sphere (non-geometric integrators drift off it, physics.md §4).
+    """Project onto the unit sphere (non-geometric integrators drift off it, docs/physics.md §4).
 
     A quaternion whose squared norm overflowed or vanished has no direction left: the result
     is NaN, so the environment's non-finite check ends the episode instead of carrying on
@@ -495,7 +495,7 @@ def _normal_axis_arrays(b):
 def quat_to_euler_zxz(q):
     """Euler angles ``(phi, theta, psi)`` [rad] of ``R(q) = Rz(phi) Rx(theta) Rz(psi)``.
 
-    The classical angles of the top (precession, nutation, spin; seed 2, 3.62; seed 1, 15.6).
+    The classical angles of the top (precession, nutation, spin; [T 3.62]; [MR 15.6]).
     ``theta`` in ``[0, pi]`` comes from ``atan2`` (accurate near the poles); at ``theta = 0`` or
     ``pi`` only ``phi + psi`` (or ``phi - psi``) is defined and ``psi`` is set to 0 there.
     For output only: never integrate them.

@@ -1,7 +1,7 @@
 """Jacobi elliptic functions and F(phi|m) with the parameter split as (m, m1 = 1 - m).
 
 References: scipy.special (moderate m) and mpmath at 60 digits (m -> 1, where scipy's ellipj
-forms 1 - m itself and is useless, physics.md §4).
+forms 1 - m itself and is useless, docs/physics.md §4).
 """
 
 from __future__ import annotations

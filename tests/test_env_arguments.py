@@ -44,9 +44,9 @@ VALID = {
     (FreeRigidBodyEnv, "control_cost"): {"zero", "huge", "huge_int"},  # any finite weight >= 0
     (FreeRigidBodyEnv, "max_angular_velocity"): {"huge_int"},  # any bound up to float32's
     (FreeRigidBodyEnv, "render_mode"): {"none"},
-    (LagrangeTopEnv, "spin"): {"upright": {"negative", "zero", "none"}, "precess": {"none"}},  # precess needs (3.82) real
+    (LagrangeTopEnv, "spin"): {"upright": {"negative", "zero", "none"}, "precess": {"none"}},  # precess needs [T 3.82] real
     (LagrangeTopEnv, "perturbation"): {"zero"},
-    (LagrangeTopEnv, "target_rate"): {"negative", "none"},  # a retrograde forced precession; None: (3.82)
+    (LagrangeTopEnv, "target_rate"): {"negative", "none"},  # a retrograde forced precession; None: [T 3.82]
     (LagrangeTopEnv, "tilt_limit"): {"none"},
     (LagrangeTopEnv, "max_torque"): {"zero"},
     (LagrangeTopEnv, "spin_friction"): {"zero", "huge", "huge_int"},  # splitting solves it exactly

@@ -1,4 +1,4 @@
-"""Extremes (physics.md §4) and guarded stepping for all three environments.
+"""Extremes (docs/physics.md §4) and guarded stepping for all three environments.
 
 Requirement everywhere: no NaN or inf ever reaches an observation, the invariants stay within
 the bound stated (and justified) at each test, and every refusal is a ``ValueError`` naming the
@@ -48,7 +48,7 @@ def step_all(env, steps, action=None, through_task_end=False):
 # ----------------------------------------------------------------- 1. the documented bounds
 def rotation_factor(name, x):
     """One step of ``name`` on the symmetric free body ``I = (1, 1, 1/2)``, ``Pi3 = x / h``:
-    ``(Pi1, Pi2)`` turns at exactly ``lambda = (I1 - I3)/(I1 I3) Pi3 = x / h`` (physics.md §1),
+    ``(Pi1, Pi2)`` turns at exactly ``lambda = (I1 - I3)/(I1 I3) Pi3 = x / h`` (docs/physics.md §1),
     a linear rotation with eigenvalues ``+-i lambda``. Returns the complex step factor."""
     system = FreeBody(FreeBodyParams((1.0, 1.0, 0.5)))
     h = 0.01
@@ -327,7 +327,7 @@ def test_euler_at_1e4_rad_per_s_is_a_numerical_failure_or_within_its_growth_boun
 def test_equal_and_nearly_equal_moments(inertia, integrator):
     """Moments equal to 1e-12 relative and exactly equal (elliptic modulus 0 or 1): every
     integrator against DOP853 at rtol 1e-12 over 1 s (20 periods of 0.05 s, spin 3 rad/s,
-    tilted 0.3 rad from axis 0). Bounds: exact 1e-10 relative (round-off, physics.md §4);
+    tilted 0.3 rad from axis 0). Bounds: exact 1e-10 relative (round-off, docs/physics.md §4);
     splitting and rk4 their global error at |Omega| h = 0.15: C (|Omega| h)^p |Omega| t with
     p = 2 and 4, i.e. 5e-2 and 1e-3."""
     env = FreeRigidBodyEnv(inertia=inertia, integrator=integrator, axis=0, spin_rate=3.0, perturbation=0.3, max_angular_velocity=20.0)
@@ -409,7 +409,7 @@ def test_free_body_dt_range(integrator, dt):
 def test_a_million_steps_of_the_free_body():
     """1e6 control periods of the default intermediate-axis scene with the splitting (50 000 s,
     about 8 000 flips): |Pi| to round-off (a random walk of about 1e3 eps) and the energy error
-    bounded, never above its largest value in the first 1e4 steps times 1.5 (physics.md §4:
+    bounded, never above its largest value in the first 1e4 steps times 1.5 (docs/physics.md §4:
     the symmetric Lie-Poisson splitting keeps the energy error bounded forever)."""
     env = FreeRigidBodyEnv(integrator="splitting")
     _, info0 = env.reset(seed=0)
@@ -532,7 +532,7 @@ def inverted_state(spin):
 @pytest.mark.parametrize("fidelity", ["gliding", "frictionless", "rolling"])
 def test_tippe_top_at_tilt_pi(fidelity):
     """The inverted top spinning on its stem, reached through reset(options={"state"}): an
-    equilibrium (stable for J large, physics.md §3): 20 periods, tilt within 1e-9 of pi,
+    equilibrium (stable for J large, docs/physics.md §3): 20 periods, tilt within 1e-9 of pi,
     Jellett to 1e-12, positive normal force m g (no acceleration of G: N = m g to 1e-9)."""
     env = TippeTopEnv(task="hold", fidelity=fidelity)
     _, info0 = env.reset(options={"state": inverted_state(150.0)})

@@ -1,4 +1,4 @@
-"""The free rigid body (physics.md §1): vector field, parameters, exact elliptic flow, attitude.
+"""The free rigid body (docs/physics.md §1): vector field, parameters, exact elliptic flow, attitude.
 
 References are independent of the code under test: the DOP853 reference integrates a
 numpy-cross-product form of Euler's equations, not ``FreeBody.rhs``.
@@ -38,7 +38,7 @@ def random_momentum(rng, inertia, omega):
 
 
 def euler_cross(inertia, pi):
-    """dPi/dt = Pi x Omega (physics.md §1) written with np.cross, independent of FreeBody.rhs."""
+    """dPi/dt = Pi x Omega (docs/physics.md §1) written with np.cross, independent of FreeBody.rhs."""
     return np.cross(pi, pi / np.asarray(inertia))
 
 
@@ -449,7 +449,7 @@ def test_exact_flow_from_near_middle_axis(eps):
 
 
 def _check_near_middle_axis(eps):
-    """Start eps |Pi| off the unstable middle axis and follow the flip (physics.md §1).
+    """Start eps |Pi| off the unstable middle axis and follow the flip (docs/physics.md §1).
 
     The true solution is well conditioned in the relative size of eps (the flip time moves by
     ~ulp/lambda), so DOP853 with a tiny atol (relative accuracy on the small components while

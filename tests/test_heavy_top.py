@@ -1,7 +1,7 @@
-"""The heavy top (physics.md §2) with the integrators, checked against oracles.
+"""The heavy top (docs/physics.md §2) with the integrators, checked against oracles.
 
 * References are independent of the code under test: the DOP853 reference integrates a
-  numpy-cross-product form of (15.10.1-2) written again below, not ``HeavyTop.rhs``; rotation
+  numpy-cross-product form of [MR 15.10.1-2] written again below, not ``HeavyTop.rhs``; rotation
   matrices are built from quaternions here, not with ``rbenvs.rotations``.
 * Every top is physical: the inertia about the pivot is built from a random inertia about the
   centre of mass ``I_G`` (a real body) by the parallel-axis theorem
@@ -121,7 +121,7 @@ def random_states(rng, params, n, attitude, omega, spin=0.0):
 
 # ---------------------------------------------------------------------------- independent model
 def field(params, y, tau=None):
-    """(15.10.1-2) with spin friction, in np.cross form; ``y`` of shape (6 or 10, ...)."""
+    """[MR 15.10.1-2] with spin friction, in np.cross form; ``y`` of shape (6 or 10, ...)."""
     y = np.asarray(y, dtype=float)
     shape = (3,) + (1,) * (y.ndim - 1)
     inertia = np.reshape(params.inertia, shape)
@@ -719,7 +719,7 @@ def test_upright_growth_rate_matches_eigenvalues():
 # ---------------------------------------------------------------------------- regular precession
 @pytest.mark.parametrize("root", ["slow", "fast"])
 def test_regular_precession_keeps_tilt_and_precesses_at_the_root(root):
-    """(3.82): Omega = p Gamma + (n - p cos(alpha)) chi keeps the tilt alpha and precesses at p.
+    """[T 3.82]: Omega = p Gamma + (n - p cos(alpha)) chi keeps the tilt alpha and precesses at p.
 
     Batch per top: three tilts (two above, one below the horizontal) at the root, and the same
     three at a rate off by 1e-4 (relative), which must visibly nod (the tolerances have teeth).
@@ -832,7 +832,7 @@ FAST_TOP_COEFFICIENTS = {"angle_amplitude": 3.0, "period": 2.0, "mean_precession
 
 
 def test_fast_top_nutation_asymptotics():
-    """(3.76-3.80) at eps = A m g h/(C n)^2 = 1e-2 and 1e-3, random tops and tilts in [0.5, 1.2]."""
+    """[T 3.76-3.80] at eps = A m g h/(C n)^2 = 1e-2 and 1e-3, random tops and tilts in [0.5, 1.2]."""
     rng = np.random.default_rng(900)
     for _ in range(2):
         params = lagrange_params(rng)

@@ -1,5 +1,5 @@
 """Integrators on the free rigid body: convergence order, geometric properties, batch/single
-equivalence, and the intermediate-axis theorem (physics.md §1, §4)."""
+equivalence, and the intermediate-axis theorem (docs/physics.md §1, §4)."""
 
 from __future__ import annotations
 
@@ -214,7 +214,7 @@ def test_intermediate_axis_instability_rate(seed):
     i1, i2, i3 = inertia
     body = FreeBody(FreeBodyParams(inertia))
     p = float(rng.uniform(0.5, 2.0)) * rng.choice([-1.0, 1.0])
-    lam = abs(p / i2) * math.sqrt((i1 - i2) * (i2 - i3) / (i1 * i3))  # physics.md §1
+    lam = abs(p / i2) * math.sqrt((i1 - i2) * (i2 - i3) / (i1 * i3))  # docs/physics.md §1
     eps = 1e-8 * abs(p)
     rk4 = get_integrator("rk4")
     h = 0.02 / lam  # rk4 error per unit time ~ (lam h)^4 ~ 1e-7: the growth rate to ~1e-7

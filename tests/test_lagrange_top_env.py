@@ -21,7 +21,7 @@ NAN, INF = float("nan"), float("inf")
 
 # The documented defaults (class docstring, "Arguments"): a Lagrange top, moments about the pivot.
 A0, C0, M0, L0, G0 = 0.45, 0.3, 1.0, 0.5, 9.81
-CRIT0 = 2.0 * math.sqrt(M0 * G0 * L0 * A0) / C0  # 15.10.1; 9.90 rad/s, as documented
+CRIT0 = 2.0 * math.sqrt(M0 * G0 * L0 * A0) / C0  # [MR 15.10.1]; 9.90 rad/s, as documented
 
 # A general (non-Lagrange) top with its centre of mass off every principal axis. Physical: the
 # inertia about the centre of mass, inertia - M l^2 (1 - chi chi^T), is checked by the env.
@@ -410,7 +410,7 @@ def test_critical_spin_of_lagrange_tops(inertia, mass, length, gravity, com, axi
 
 @pytest.mark.parametrize("kwargs", [GENERAL, dict(inertia=(0.45, 0.45, 0.3), com_direction=(0.1, 0.0, 1.0)), dict(inertia=(0.5, 0.45, 0.3))])
 def test_critical_spin_is_absent_for_a_general_top(kwargs):
-    # 15.10.1 gives a threshold for a Lagrange top only: no key rather than a NaN in info
+    # [MR 15.10.1] gives a threshold for a Lagrange top only: no key rather than a NaN in info
     env = LagrangeTopEnv(**kwargs)
     _, info = env.reset(seed=0)
     assert "critical_spin" not in info and math.isnan(env.critical_spin)
@@ -621,7 +621,7 @@ def test_precess_start_on_target_is_the_slow_regular_precession(target_tilt, spi
         assert info["spin"] == pytest.approx(n, rel=1e-14)
         assert info["precession_rate"] == pytest.approx(slow, rel=1e-12)
         assert info["target_precession_rate"] == pytest.approx(slow, rel=1e-13)
-        # the slow root of A cos(a) p^2 - C n p + M g l = 0 (3.82), and the smaller in size
+        # the slow root of A cos(a) p^2 - C n p + M g l = 0 [T 3.82], and the smaller in size
         resid = A0 * math.cos(target_tilt) * slow**2 - C0 * n * slow + M0 * G0 * L0
         assert abs(resid) < 1e-12 * (C0 * abs(n * slow) + M0 * G0 * L0)
         assert abs(slow) < abs(fast)

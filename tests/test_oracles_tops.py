@@ -1,6 +1,6 @@
 """The heavy-top and tippe-top oracles, each against an independent computation.
 
-Heavy top: the vector field (15.10.1-2) is written again here, its Jacobian taken by central
+Heavy top: the vector field [MR 15.10.1-2] is written again here, its Jacobian taken by central
 differences and integrated with DOP853; nothing below reuses the oracle's formulas.
 Tippe top: E* against a constrained minimization of the kinetic energy (KKT system), its
 stability thresholds against numerical second derivatives, Jellett against the geometry.
@@ -25,7 +25,7 @@ E3 = np.array([0.0, 0.0, 1.0])
 
 
 def heavy_top_field(y, inertia, mgl):
-    """(15.10.1-2) with chi = e3: y = (Pi, Gamma), body frame."""
+    """[MR 15.10.1-2] with chi = e3: y = (Pi, Gamma), body frame."""
     Pi, Gam = y[:3], y[3:]
     Om = Pi / inertia
     return np.concatenate([np.cross(Pi, Om) + mgl * np.cross(Gam, E3), np.cross(Gam, Om)])
@@ -192,7 +192,7 @@ def test_regular_precession_minimum_spin_boundary():
 
 
 def fast_top_measurement(A, C, m, g, h, spin, tilt, periods):
-    """Integrate the release of (3.71) and read nutation amplitude, period, mean precession."""
+    """Integrate the release of [T 3.71] and read nutation amplitude, period, mean precession."""
     rhs = lagrange_top_rhs(A, C, m * g * h)
     t_nut = 2.0 * math.pi * A / (C * abs(spin))  # only to size the run
 
@@ -224,8 +224,8 @@ def fast_top_measurement(A, C, m, g, h, spin, tilt, periods):
 
 
 def test_fast_top_nutation_asymptotics():
-    """Release (3.71) at C n / sqrt(A m g h) = 25 and 50, i.e. eps = A m g h/(C n)^2 = 1/625
-    and 1/2500, the expansion parameter of (3.76)-(3.80). The formulas are leading order, so
+    """Release [T 3.71] at C n / sqrt(A m g h) = 25 and 50, i.e. eps = A m g h/(C n)^2 = 1/625
+    and 1/2500, the expansion parameter of [T 3.76]-[T 3.80]. The formulas are leading order, so
     every measured quantity (amplitude in cos and in angle, nutation period, mean precession)
     must agree to a relative error O(eps). Tolerance 6 eps (1% at eps = 1/625); the measured
     errors are about (4, 3, 2, 1) eps cos(alpha). And the error must shrink by more than 2.5x
@@ -238,7 +238,7 @@ def test_fast_top_nutation_asymptotics():
         oracle = ht.fast_top_nutation(A, C, m, g, h, spin, tilt)
         eps = oracle.expansion_parameter
         assert eps == pytest.approx(1.0 / ratio**2)
-        assert oracle.mean_tilt == pytest.approx(tilt + 0.5 * oracle.angle_amplitude)  # (3.77)
+        assert oracle.mean_tilt == pytest.approx(tilt + 0.5 * oracle.angle_amplitude)  # [T 3.77]
         measured = fast_top_measurement(A, C, m, g, h, spin, tilt, periods=12)
         err = {key: abs(measured[key] / getattr(oracle, key) - 1.0) for key in measured}
         for key, e in err.items():
@@ -325,8 +325,8 @@ def test_energy_star_thresholds_from_numerical_second_derivatives(alpha, gamma):
 
 
 def test_upright_instability_boundary_tends_to_A_equals_one_minus_alpha_C():
-    """physics.md: theta = 0 unstable iff A > (1 - alpha) C. Numerically the sign change of
-    E*''(0) in A sits at (1 - alpha) C + m g R^3 alpha C^2 (1 - alpha)^4 / J^2: physics.md's
+    """docs/physics.md: theta = 0 unstable iff A > (1 - alpha) C. Numerically the sign change of
+    E*''(0) in A sits at (1 - alpha) C + m g R^3 alpha C^2 (1 - alpha)^4 / J^2: docs/physics.md's
     statement is the large-J limit."""
     m, g, R, alpha, C = 0.8, 9.81, 0.1, 0.3, 0.01
     for J in (0.05, 0.2, 10.0):
@@ -344,7 +344,7 @@ def test_inversion_criterion_classifications():
     assert tt.inversion_criterion(1.5, C, alpha).classification == "partial inversion"
     c = tt.inversion_criterion(1.1, C, alpha)
     assert c.upright_unstable and c.inverted_can_be_stable and c.J_min is None and c.J_upright is None
-    # the Leine-Glocker top at 180 rad/s inverts fully; physics.md's numbers
+    # the Leine-Glocker top at 180 rad/s inverts fully; docs/physics.md's numbers
     J = tt.jellett_upright(LEINE["C"], LEINE["R"], LEINE["alpha"], 180.0)
     crit = tt.inversion_criterion(LEINE["A"], LEINE["C"], LEINE["alpha"], m=LEINE["m"], g=LEINE["g"], R=LEINE["R"], J=J)
     assert crit.classification == "full inversion" and crit.J == J
@@ -377,7 +377,7 @@ def test_inversion_spin_threshold_gives_J_min():
     n = tt.inversion_spin_threshold(LEINE["A"], LEINE["C"], LEINE["alpha"], LEINE["m"], LEINE["g"], LEINE["R"])
     crit = tt.inversion_criterion(LEINE["A"], LEINE["C"], LEINE["alpha"], m=LEINE["m"], g=LEINE["g"], R=LEINE["R"])
     assert tt.jellett_upright(LEINE["C"], LEINE["R"], LEINE["alpha"], n) == pytest.approx(crit.J_min, rel=1e-14)
-    assert 100.0 < n < 180.0  # the physics.md spin of 180 rad/s is above it
+    assert 100.0 < n < 180.0  # the docs/physics.md spin of 180 rad/s is above it
 
 
 def test_final_tilt_matches_brute_force_grid():

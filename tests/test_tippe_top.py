@@ -1,11 +1,11 @@
-"""The tippe top (physics.md §3) with the integrators, checked against oracles.
+"""The tippe top (docs/physics.md §3) with the integrators, checked against oracles.
 
 * Independent of the code under test: the vector field is checked against a space-frame
   Newton-Euler model written again below (the contact constraint as a 7x7 or 9x9 linear system
   solved with numpy, not the closed form of ``TippeTop``); rotation matrices and the Euler-angle
   quaternions ``Rz(phi) Rx(theta) Rz(psi)`` are built here, not with ``rbenvs.rotations``; the
   friction power and the contact point's velocity are computed here from the state.
-* Oracles: Jellett's integral (3.106) under every friction law and table motion, the energy
+* Oracles: Jellett's integral [T 3.106] under every friction law and table motion, the energy
   balance ``dE/dt = F . v_P``, the conservation laws of the frictionless and rolling limits, the
   normal force against the second derivative of the height of ``G`` it produces, and the energy
   criterion of ``rbenvs.oracles.tippe_top`` (``E >= E*(theta)``, inversion classes, final tilt).

@@ -160,7 +160,7 @@ def test_a_dropped_top_lands_plastically_and_stays_on_the_table(integrator):
 @pytest.mark.parametrize(
     "spin, friction, tilt, steps, min_hops",
     [
-        (180.0, 0.3, 0.1, 900, 1),  # physics.md's Leine-Glocker scene: hops near 80 deg, inverts
+        (180.0, 0.3, 0.1, 900, 1),  # docs/physics.md's Leine-Glocker scene: hops near 80 deg, inverts
         (1000.0, 1.0, 0.01, 300, 10),
         (2000.0, 0.3, 0.1, 200, 100),
         (5000.0, 1.0, 0.1, 150, 100),

@@ -38,7 +38,7 @@ class _Actuated:
 class SpinLQR(_Actuated):
     """LQR on Euler's equations linearised about the target spin ``Pi* = I_j spin_rate e_j``.
 
-    The linearisation (physics.md §1) couples only the two transverse components:
+    The linearisation (docs/physics.md §1) couples only the two transverse components:
     ``d(dPi_k)/dt = c_k Pi*_j dPi_i`` and ``d(dPi_i)/dt = c_i Pi*_j dPi_k`` (``(i, j, k)`` cyclic),
     unstable with rate ``lambda`` for the intermediate axis. The transverse gain comes from the
     continuous Riccati equation with ``Q = 1/p^2``, ``R = r / max_torque^2`` on the actuated

@@ -47,7 +47,7 @@ class UprightLQR:
 
     Equilibrium: ``Gamma = chi``, ``Pi = I n chi`` (``chi`` on a principal axis). The transverse
     coordinates ``z = (t1.Pi, t2.Pi, t1.Gamma, t2.Gamma)`` span an invariant subspace of the
-    linearised flow (its eigenvalues are those of 15.10.16 for a Lagrange top; the axial
+    linearised flow (its eigenvalues are those of [MR 15.10.16] for a Lagrange top; the axial
     components decouple), so the 4x4 model ``dz/dt = A(n) z + B a`` with the transverse torques
     is exact to first order. ``Q = diag(1/p0^2, 1/p0^2, 1/theta0^2, 1/theta0^2)`` with
     ``theta0 = tilt_scale`` rad and ``p0 = I_t omega0 theta0`` (``omega0 = sqrt(M g l / I_t)``,
@@ -137,7 +137,7 @@ class PrecessionTracking:
     lags the rotating demand by half a period and leaves a steady tilt and rate offset. On the torque-free precession
     it is exactly zero; off it, the tracking error decays at rate ``damping`` and the axis walks
     back to the target tilt at rate ``tilt_rate``; a forced rate (``target_rate`` not a root of
-    3.82) gets the torque it needs, as far as ``max_torque`` allows.
+    [T 3.82]) gets the torque it needs, as far as ``max_torque`` allows.
     """
 
     def __init__(self, env, tilt_rate: float = 2.0, damping: float = 10.0):

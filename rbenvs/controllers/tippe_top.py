@@ -2,7 +2,7 @@
 
 The top inverts because its contact point slides: friction, the only horizontal force,
 dissipates energy at fixed Jellett's integral and so drives the top toward the minimum of
-``E*(theta)`` at ``theta = pi`` (physics.md §3). A table that moves with the contact point
+``E*(theta)`` at ``theta = pi`` (docs/physics.md §3). A table that moves with the contact point
 removes the slip, and with it the dissipation: the top then keeps its energy, like a rolling
 top, and stays on its broad end.
 """

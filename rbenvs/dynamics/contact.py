@@ -38,7 +38,7 @@ __all__ = [
 
 @jitable
 def coulomb_coefficient(mu, s1, s2, s3, eps):
-    """Regularised Coulomb: ``k = -mu / sqrt(|s|^2 + eps^2)`` (seed 2, 3.96)."""
+    """Regularised Coulomb: ``k = -mu / sqrt(|s|^2 + eps^2)`` ([T 3.96])."""
     return -mu / sqrt(s1 * s1 + s2 * s2 + s3 * s3 + eps * eps)
 
 
@@ -108,7 +108,7 @@ class FrictionLaw:
 
 @dataclass(frozen=True)
 class Coulomb(FrictionLaw):
-    """Coulomb's law (seed 2, 3.96) regularised below ``eps``: ``F = -mu N v_P / sqrt(|v_P|^2 +
+    """Coulomb's law ([T 3.96]) regularised below ``eps``: ``F = -mu N v_P / sqrt(|v_P|^2 +
     eps^2)``. Near zero slip it is the viscous law ``-mu N v_P / eps``: stiff for small ``eps``."""
 
     name = "coulomb"

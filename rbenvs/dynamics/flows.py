@@ -118,7 +118,7 @@ class AxisRotation:
     """Exact flow ``flow(y, u, h)`` of ``H_i = rate * Pi_i^2 / 2``: a rotation about body axis ``i``.
 
     ``Pi_i`` is constant, so ``Omega = rate * Pi_i e_i`` is too (``rate = 1 / I_i`` for the
-    Lie-Poisson splitting of physics.md §4; a difference of inverse moments for a symmetric
+    Lie-Poisson splitting of docs/physics.md §4; a difference of inverse moments for a symmetric
     body). The control is ignored (it acts in the kick). :attr:`kernel` is the pure form
     (generated for the state's layout); calling the object runs it.
     """
@@ -149,7 +149,7 @@ class SymmetricFreeRotation:
     * ``|Pi|^2 / (2 I_t)``: ``Omega = Pi / I_t``; ``Pi`` stays put, the other vectors turn about it;
     * ``(1/I_k - 1/I_t) Pi_k^2 / 2``: an :class:`AxisRotation` about ``e_k``.
 
-    Together: the free symmetric top, exact for any step (seed 1, 15.8 with ``I1 = I2``).
+    Together: the free symmetric top, exact for any step ([MR 15.8] with ``I1 = I2``).
     :attr:`kernel` is the pure form; calling the object runs it.
     """
 

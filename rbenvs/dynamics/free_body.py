@@ -1,4 +1,4 @@
-"""The free rigid body: Euler's equations with a body-frame torque (physics.md §1).
+"""The free rigid body: Euler's equations with a body-frame torque (docs/physics.md §1).
 
 State layout (components, see :mod:`rbenvs.rotations` for the convention):
 
@@ -42,7 +42,7 @@ class FreeBodyParams:
     """
 
     inertia: tuple[float, float, float]
-    # Derived coefficients of Euler's equations, dPi1/dt = c1 Pi2 Pi3 + tau1 etc. (physics.md §1)
+    # Derived coefficients of Euler's equations, dPi1/dt = c1 Pi2 Pi3 + tau1 etc. (docs/physics.md §1)
     coefficients: tuple[float, float, float] = field(init=False, repr=False)
     inverse: tuple[float, float, float] = field(init=False, repr=False)
 
@@ -63,7 +63,7 @@ class FreeBodyParams:
 # rbenvs.compiled for the batch kernel). The methods of FreeBody call them.
 @jitable
 def euler_rhs(c, y, u):
-    """``dPi/dt = Pi x Omega + tau`` (15.3.9-10) with ``c`` the coefficients of
+    """``dPi/dt = Pi x Omega + tau`` [MR 15.3.9-10] with ``c`` the coefficients of
     :class:`FreeBodyParams`: ``dPi1/dt = c1 Pi2 Pi3 + tau1`` etc."""
     c1, c2, c3 = c
     p1, p2, p3 = y[0], y[1], y[2]
@@ -208,14 +208,14 @@ class FreeBody:
 
     def guard_rates(self, region, speed_ceiling: float = math.inf) -> GuardRates:
         """In the body frame ``Pi`` turns about ``Omega`` at ``|Omega|`` (at a steady spin the
-        linearisation's eigenvalues have modulus ``<= |Omega|``, 15.9.1): one oscillatory rate,
+        linearisation's eigenvalues have modulus ``<= |Omega|``, [MR 15.9.1]): one oscillatory rate,
         ``lambda = |Omega|``, for every scheme (the splitting's pieces are exact rotations,
         but their composition follows the motion only below about a radian per step)."""
         return GuardRates(rotation=(rotation_rate, (self._inverse, 1.0, 0.0)), ceiling=speed_ceiling, text="lambda = |Omega|")
 
     # ------------------------------------------------------------------ vector field
     def rhs(self, y, u):
-        """``dy/dt``: ``dPi/dt = Pi x Omega + tau`` (15.3.9-10), ``dq/dt = q * (0, Omega) / 2``."""
+        """``dy/dt``: ``dPi/dt = Pi x Omega + tau`` [MR 15.3.9-10], ``dq/dt = q * (0, Omega) / 2``."""
         return self.kernel_rhs[0](self.kernel_rhs[1], y, u)
 
     def normalize(self, y):
@@ -256,13 +256,13 @@ class FreeBody:
     def split_flows(self):
         """Pieces for a symmetric (Strang) splitting: torque kick, then the three axis rotations.
 
-        Lie-Poisson splitting of ``H = sum Pi_i^2/(2 I_i)`` (physics.md §4): explicit,
+        Lie-Poisson splitting of ``H = sum Pi_i^2/(2 I_i)`` (docs/physics.md §4): explicit,
         second order, ``|Pi|`` exact, energy error bounded.
         """
         return self._split
 
     def free_flow(self, y, h):
-        """Exact torque-free flow for time ``h`` (elliptic functions, 15.8)."""
+        """Exact torque-free flow for time ``h`` (elliptic functions, [MR 15.8])."""
         orbit = FreeBodyOrbit(self.params, y[0:3])
         out = orbit.momentum_at(h)
         if self.attitude:
@@ -273,7 +273,7 @@ class FreeBody:
 
 
 class FreeBodyOrbit:
-    """The exact torque-free motion through a given ``Pi`` (physics.md §1, seed 15.8).
+    """The exact torque-free motion through a given ``Pi`` (docs/physics.md §1, [MR 15.8]).
 
     The orbit circulates the major or the minor axis ("c"); "b" is the intermediate axis and
     "a" the remaining extreme one. With ``Omega_i = Pi_i / I_i``:
@@ -290,7 +290,7 @@ class FreeBodyOrbit:
     parameter ``m1 = (I_c - I_a)(|Pi|^2 - 2 H I_b) / ((I_c - I_b)(|Pi|^2 - 2 H I_a))`` carries the
     separatrix distance exactly as far as that distance itself is known. Equal moments give
     ``m = 0`` (uniform precession); states on the separatrix give ``m = 1`` (sech/tanh
-    heteroclinic orbits, 15.8.10); equilibria (a principal-axis spin, any ``Pi`` when all
+    heteroclinic orbits, [MR 15.8.10]); equilibria (a principal-axis spin, any ``Pi`` when all
     moments are equal) stay put.
 
     Components may be floats or arrays of one batch shape; the inertia is shared.

@@ -1,4 +1,4 @@
-"""The heavy top on a fixed pivot under gravity, in Lie-Poisson form (physics.md §2).
+"""The heavy top on a fixed pivot under gravity, in Lie-Poisson form (docs/physics.md §2).
 
 State layout (components, see :mod:`rbenvs.rotations` for the convention):
 
@@ -9,7 +9,7 @@ State layout (components, see :mod:`rbenvs.rotations` for the convention):
 
 ``(Pi, Gamma)`` is integrated, never Euler angles: they are singular at the upright state,
 exactly where the sleeping top lives. ``dPi/dt = Pi x Omega + M g l Gamma x chi + tau``,
-``dGamma/dt = Gamma x Omega`` (15.10.1-2), ``chi`` the unit vector from the pivot to the centre
+``dGamma/dt = Gamma x Omega`` [MR 15.10.1-2], ``chi`` the unit vector from the pivot to the centre
 of mass in the body. An optional viscous spin friction at the pivot adds
 ``-k (Omega . chi) chi``: it slows the spin about the centre-of-mass axis (and lets a top that
 started above the critical spin fall).
@@ -60,7 +60,7 @@ __all__ = [
 @jitable
 def heavy_top_rhs(p, y, u):
     """``dPi/dt = Pi x Omega + M g l Gamma x chi + tau - k (Omega.chi) chi``,
-    ``dGamma/dt = Gamma x Omega`` (15.10.1-2); ``p = (coefficients, inverse, weight, k, chi)``
+    ``dGamma/dt = Gamma x Omega`` [MR 15.10.1-2]; ``p = (coefficients, inverse, weight, k, chi)``
     (:class:`HeavyTopParams`: ``weight = M g l chi``, ``k`` the spin friction)."""
     c, inv, weight, friction, chi = p
     c1, c2, c3 = c
@@ -323,7 +323,7 @@ class HeavyTopParams:
 
     @property
     def critical_spin(self) -> float:
-        """``2 sqrt(M g l I1) / I3`` [rad/s] (15.10.1) for a Lagrange top; ``nan`` otherwise."""
+        """``2 sqrt(M g l I1) / I3`` [rad/s] [MR 15.10.1] for a Lagrange top; ``nan`` otherwise."""
         if not self.is_lagrange:
             return math.nan
         return 2.0 * math.sqrt(self.mgl * self.transverse_inertia) / self.axial_inertia
@@ -386,7 +386,7 @@ class HeavyTop:
     @property
     def readout_names(self) -> tuple:
         """The ``info`` keys of :meth:`readouts`: energy, the Casimirs, tilt and spin; the
-        critical spin for a Lagrange top only (15.10.1 gives no threshold for another top, so
+        critical spin for a Lagrange top only ([MR 15.10.1] gives no threshold for another top, so
         the key is absent rather than NaN); the Euler angles with the attitude."""
         names = ("energy", "pi_dot_gamma", "vertical_norm", "tilt", "spin")
         if self.params.is_lagrange:
@@ -477,7 +477,7 @@ class HeavyTop:
 
     def normalize(self, y):
         """Project ``Gamma`` back onto the unit sphere, and the quaternion (the projection
-        method for the non-geometric integrators, physics.md §4). ``Gamma`` is a direction: its
+        method for the non-geometric integrators, docs/physics.md §4). ``Gamma`` is a direction: its
         length carries no physics, but a drifted length would scale the gravity torque. The
         other Casimir ``Pi.Gamma`` and the energy are not projected: their drift is the
         integrator's error, measured. (The splitting never needs this: its pieces are exact

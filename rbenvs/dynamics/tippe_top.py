@@ -1,6 +1,6 @@
-"""The tippe top: a sphere with an offset centre of mass on a table (physics.md §3).
+"""The tippe top: a sphere with an offset centre of mass on a table (docs/physics.md §3).
 
-Geometry (seed 2, 3.92-3.114): sphere radius ``a``; centre of mass ``G`` at ``h = alpha a``
+Geometry ([T 3.92-3.114]): sphere radius ``a``; centre of mass ``G`` at ``h = alpha a``
 from the centre ``O`` along the symmetry axis ``k`` (body ``e3``), ``G = O - h k``; moments
 about ``G``: ``A = I1 = I2``, ``C = I3``; the table is ``z = 0`` with ``z_hat`` up. ``theta`` is
 the angle between ``k`` and ``z_hat``: 0 = on the broad end, centre of mass low; ``pi`` =
@@ -48,7 +48,7 @@ plate: in its frame a fictitious force ``-m a_T`` acts at ``G``, so it reaches t
 through friction), the friction coefficient, and an optional body torque [N m] about ``G``.
 ``u = None`` means a table at rest, the parameter's friction coefficient and no torque.
 
-Jellett's integral ``J = L . (a z_hat - h k)`` (3.106) is conserved for any force at the
+Jellett's integral ``J = L . (a z_hat - h k)`` [T 3.106] is conserved for any force at the
 contact point or at ``G``: with no body torque it holds under every friction law and table
 motion, which the tests and ``rbenvs verify`` check.
 
@@ -153,7 +153,7 @@ def tippe_rotation_rate(p, y):
 
 @dataclass(frozen=True)
 class TippeTopParams:
-    """Physical parameters. Defaults: the tippe top of Leine and Glocker (2003), physics.md §3.
+    """Physical parameters. Defaults: the tippe top of Leine and Glocker (2003), docs/physics.md §3.
 
     * ``radius`` ``a`` [m]; ``offset`` ``alpha = h / a`` in (0, 1); ``mass`` [kg]; ``gravity``.
     * ``inertia = (A, C)`` about the centre of mass [kg m^2], ``C <= 2 A`` (a real symmetric
@@ -161,7 +161,7 @@ class TippeTopParams:
     * ``friction``: the coefficient ``mu`` (>= 0): dimensionless for Coulomb, [s/m] for the
       viscous law ``F = -mu N v_P``.
     * ``friction_law``: ``"coulomb"``: ``F = -mu N v_P / sqrt(|v_P|^2 + slip_regularization^2)``
-      (Coulomb's law, 3.96, smoothed for slips below ``slip_regularization`` [m/s]) or
+      (Coulomb's law, [T 3.96], smoothed for slips below ``slip_regularization`` [m/s]) or
       ``"viscous"``.
     """
 
@@ -201,7 +201,7 @@ class TippeTopParams:
 
     @property
     def gamma(self) -> float:
-        """``A / C``: inversion needs ``1 - alpha < gamma < 1 + alpha`` (physics.md §3)."""
+        """``A / C``: inversion needs ``1 - alpha < gamma < 1 + alpha`` (docs/physics.md §3)."""
         return self.inertia[0] / self.inertia[1]
 
     def gravity_rate(self) -> float:
@@ -297,7 +297,7 @@ def tippe_energy(p, v1, v2, v3, w1, w2, w3, z):
 
 @jitable
 def tippe_jellett(p, rm, w1, w2, w3):
-    """``J = L.(a Gamma - h e3)`` [kg m^2/s] (3.106) in the body frame."""
+    """``J = L.(a Gamma - h e3)`` [kg m^2/s] [T 3.106] in the body frame."""
     a, h, big_a, big_c = p[0], p[1], p[4], p[5]
     return big_a * a * (w1 * rm[6] + w2 * rm[7]) + big_c * w3 * (a * rm[8] - h)
 
@@ -996,7 +996,7 @@ class TippeTop:
         return self.forms.energy(self.form_params, y)
 
     def jellett(self, y):
-        """``J = L . (a z_hat - h k)`` [kg m^2/s] (3.106), in the body frame ``L.(a Gamma - h e3)``."""
+        """``J = L . (a z_hat - h k)`` [kg m^2/s] [T 3.106], in the body frame ``L.(a Gamma - h e3)``."""
         return self.forms.jellett(self.form_params, y)
 
     def tilt(self, y):

@@ -181,7 +181,7 @@ def real_array(name: str, value, dtype=np.float64) -> np.ndarray:
 
 def require_inertia(name: str, value) -> tuple[float, float, float]:
     """Principal moments ``(I1, I2, I3)``: three finite positive numbers obeying the triangle
-    inequalities ``Ii + Ij >= Ik`` (equality allowed: a flat plate), as physics.md §1 requires
+    inequalities ``Ii + Ij >= Ik`` (equality allowed: a flat plate), as docs/physics.md §1 requires
     of a real body."""
     i1, i2, i3 = require_real_vector(name, value, 3, " (the principal moments I1, I2, I3)")
     if not (i1 > 0.0 and i2 > 0.0 and i3 > 0.0):

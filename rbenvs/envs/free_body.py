@@ -30,9 +30,9 @@ class FreeRigidBodyEnv(RigidBodyEnv):
     """A rigid body turning freely about its centre of mass, driven by bounded body torques.
 
     ## Description
-    Euler's equations ``dPi/dt = Pi x Omega + tau`` in the principal body frame (physics.md §1,
-    seed 15.3). Without torque, spins about the major and minor axes are stable and the
-    intermediate-axis spin is unstable (the rigid body stability theorem, 15.9.1): a small
+    Euler's equations ``dPi/dt = Pi x Omega + tau`` in the principal body frame (docs/physics.md §1,
+    [MR 15.3]). Without torque, spins about the major and minor axes are stable and the
+    intermediate-axis spin is unstable (the rigid body stability theorem, [MR 15.9.1]): a small
     perturbation grows like ``exp(lambda t)``, ``lambda = |Omega2| sqrt((I1-I2)(I2-I3)/(I1 I3))``,
     and the body flips. The attitude quaternion is integrated only for the ``reorient`` task.
 
@@ -77,7 +77,7 @@ class FreeRigidBodyEnv(RigidBodyEnv):
 
     ## Guarded stepping (``guard``)
     In the body frame ``Pi`` turns about ``Omega`` at the rate ``|Omega|`` (``dPi/dt = -Omega x
-    Pi``; at a steady spin the linearisation's eigenvalues have modulus ``<= |Omega|``, 15.9.1
+    Pi``; at a steady spin the linearisation's eigenvalues have modulus ``<= |Omega|``, [MR 15.9.1]
     with the triangle inequality; the quaternion turns at ``|Omega|/2``): the fastest rate of
     the dynamics is ``|Omega|``, a rotation with eigenvalues ``+-i|Omega|``. Bounds on
     ``|Omega| h`` (``h`` the internal step), from the state at the start of each period:

@@ -23,13 +23,13 @@ class LagrangeTopEnv(RigidBodyEnv):
     """A spinning top on a fixed pivot under gravity, kept upright or precessing by body torques.
 
     ## Description
-    The heavy top in Lie-Poisson form (physics.md §2, seed 1 15.10): body angular momentum about
+    The heavy top in Lie-Poisson form (docs/physics.md §2, [MR 15.10]): body angular momentum about
     the pivot ``Pi`` and the upward vertical seen from the body ``Gamma = R^T e_z``, with
     ``dPi/dt = Pi x Omega + M g l Gamma x chi + tau``, ``dGamma/dt = Gamma x Omega``. The default
     is the Lagrange top (``I1 = I2``, centre of mass on the symmetry axis ``chi = e3``); any
     inertia and centre-of-mass direction are allowed. Without torque the upright ("sleeping") top
     is stable only above the critical spin ``2 sqrt(M g l I1) / I3`` (heavy top stability
-    theorem, 15.10.1); below it, it falls. Euler angles are never integrated (singular upright).
+    theorem, [MR 15.10.1]); below it, it falls. Euler angles are never integrated (singular upright).
 
     ## Action space
     ``Box(-1, 1, (2,) or (3,), float32)``: body torque ``max_torque * (a0 t1 + a1 t2 [+ a2 chi])``
@@ -68,7 +68,7 @@ class LagrangeTopEnv(RigidBodyEnv):
     ## Info (after every reset and step)
     ``energy`` [J], ``pi_dot_gamma`` (Casimir ``Pi.Gamma`` [kg m^2/s]), ``vertical_norm``
     (Casimir ``|Gamma|``), ``tilt`` [rad] between ``chi`` and the upward vertical, ``spin``
-    ``Omega.chi`` [rad/s], ``critical_spin`` [rad/s] (a Lagrange top only: 15.10.1 gives no
+    ``Omega.chi`` [rad/s], ``critical_spin`` [rad/s] (a Lagrange top only: [MR 15.10.1] gives no
     threshold for another top, so the key is absent there; every ``info`` value is finite),
     ``numerical_failure``, ``is_success``; ``precess`` adds ``precession_rate``,
     ``target_precession_rate`` [rad/s] and ``tilt_error`` [rad]; ``attitude=True`` adds the Euler
@@ -127,7 +127,7 @@ class LagrangeTopEnv(RigidBodyEnv):
       ``precess``; 0 for an upright top that is not a Lagrange top.
     * ``perturbation=0.05``: rad, initial tilt (upright) or tilt offset (precess) bound.
     * ``target_tilt=0.5`` rad, ``target_rate=None`` rad/s (precess; ``None``: the slow root of
-      (3.82), torque-free).
+      [T 3.82], torque-free).
     * ``tilt_limit=None``: rad, see Episode end.
     * ``dt=0.02``: control period [s]; ``substeps=1``: integrator steps per control period.
     * ``integrator="splitting"``: ``euler``, ``rk4``, ``splitting`` or ``dop853`` (``exact`` does
@@ -244,7 +244,7 @@ class LagrangeTopEnv(RigidBodyEnv):
             system = HeavyTop(params)
             rates = [abs(task_obj.target_rate if target_rate is not None else slow_precession_rate(system, n, alpha)) for n in (low, high)]
             peak = max(2.0 * r + abs(n) for r, n in zip(rates, (low, high)))
-            source += " and the precession rate (target_rate, or the torque-free rate of (3.82))"
+            source += " and the precession rate (target_rate, or the torque-free rate of [T 3.82])"
         if not peak < max_w:
             raise ValueError(f"max_angular_velocity ({max_w!r} rad/s) must exceed the initial angular speed ({peak:.6g} rad/s, from {source}); lower it or raise max_angular_velocity")
         system = HeavyTop(params, attitude=attitude)
@@ -326,7 +326,7 @@ def _spin_range(spin, task, params) -> tuple[float, float]:
 
 
 def _require_real_precession(params, low, high, alpha):
-    """The torque-free regular precession (3.82) exists at tilt ``alpha`` for every spin drawn."""
+    """The torque-free regular precession [T 3.82] exists at tilt ``alpha`` for every spin drawn."""
     a, c, mgl = params.transverse_inertia, params.axial_inertia, params.mgl
     need = 4.0 * a * mgl * math.cos(alpha)
     n_min = math.sqrt(max(need, 0.0)) / c

@@ -23,7 +23,7 @@ class TippeTopEnv(RigidBodyEnv):
     """A sphere with an offset centre of mass spinning on a table that the agent can move.
 
     ## Description
-    The tippe top of physics.md §3 (seed 2, 3.92-3.114): a sphere of radius ``a`` whose centre
+    The tippe top of docs/physics.md §3 ([T 3.92-3.114]): a sphere of radius ``a`` whose centre
     of mass sits ``h = alpha a`` below its centre along the symmetry axis, moments ``A``
     (transverse) and ``C`` (axial) about the centre of mass. Spun fast on its broad end it
     climbs onto its stem when ``1 - alpha < A/C < 1 + alpha`` and Jellett's integral is large
@@ -64,7 +64,7 @@ class TippeTopEnv(RigidBodyEnv):
 
     ## Episode end
     * Terminated: ``invert`` when ``theta > 150 deg`` (success; past it the climb slows with the
-      slip speed under regularised Coulomb friction, physics.md §3); ``hold`` when
+      slip speed under regularised Coulomb friction, docs/physics.md §3); ``hold`` when
       ``theta > 90 deg``; lift-off (``N < 0`` at any internal step; not with ``free_flight``);
       an observation bound; a non-finite state (``NumericalFailureWarning``, last finite state
       kept).

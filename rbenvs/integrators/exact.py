@@ -14,7 +14,7 @@ class Exact(Integrator):
     """``kick(h/2) free(h) kick(h/2)``; with ``u = None`` simply ``free(h)``.
 
     Without control the step is the exact solution (for the free body, the elliptic-function
-    flow of 15.8): error at round-off for any ``h``. With a control it is a second-order
+    flow of [MR 15.8]): error at round-off for any ``h``. With a control it is a second-order
     Strang splitting whose free part is exact.
     """
 

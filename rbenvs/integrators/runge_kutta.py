@@ -256,7 +256,7 @@ class ExplicitRungeKutta(Integrator):
 @dataclass(frozen=True)
 class Euler(ExplicitRungeKutta):
     """Forward Euler: first order, one rhs call; drifts in every invariant and is unstable
-    for large ``|Omega| h`` (physics.md §4). The cheapest baseline, not a recommendation."""
+    for large ``|Omega| h`` (docs/physics.md §4). The cheapest baseline, not a recommendation."""
 
     name = "euler"
     tableau = ButcherTableau(a=((),), b=(1,), c=(0,))

@@ -1,7 +1,7 @@
 """Analytic results as code: what the simulator is checked against (``rbenvs verify``).
 
 Pure functions with no dependency on the environments; each names its source (an equation of
-the seeds in ``physics.md`` or a paper) and raises ``ValueError`` outside its domain.
+the seeds in ``docs/physics.md`` or a paper) and raises ``ValueError`` outside its domain.
 """
 
 from . import free_body, heavy_top, tippe_top

@@ -1,7 +1,7 @@
-"""Oracles for the free rigid body (physics.md §1): the exact solution and the stability theorem.
+"""Oracles for the free rigid body (docs/physics.md §1): the exact solution and the stability theorem.
 
 Pure functions of the moments of inertia and the angular momentum, no dependency on the
-environments. The exact solution is the elliptic-function motion of seed §15.8 (implemented
+environments. The exact solution is the elliptic-function motion of [MR 15.8] (implemented
 once, in :class:`rbenvs.dynamics.FreeBodyOrbit`, which the ``exact`` integrator also uses);
 tests check it against DOP853 so that the integrator and the oracle are not only checked
 against each other.
@@ -37,7 +37,7 @@ def _momentum(pi) -> tuple:
 
 
 def exact_solution(inertia, pi0, t):
-    """Body angular momentum ``Pi(t)`` of the torque-free body (seed 15.8).
+    """Body angular momentum ``Pi(t)`` of the torque-free body ([MR 15.8]).
 
     Args:
         inertia: principal moments ``(I1, I2, I3)`` (any order; equal moments allowed).
@@ -46,7 +46,7 @@ def exact_solution(inertia, pi0, t):
 
     Returns:
         ``(3, ...)`` array. Both orbit families, the symmetric case (``m = 0``), the separatrix
-        (``m = 1``: sech/tanh, 15.8.10) and the equilibria are covered.
+        (``m = 1``: sech/tanh, [MR 15.8.10]) and the equilibria are covered.
     """
     orbit = FreeBodyOrbit(_params(inertia), _momentum(pi0))
     return np.array(np.broadcast_arrays(*orbit.momentum_at(np.asarray(t, dtype=float))))
@@ -71,7 +71,7 @@ def linearization(inertia, pi_star):
 
 
 def linearization_eigenvalues(inertia, axis: int, p: float):
-    """Eigenvalues of the linearisation at the steady spin ``Pi = p e_axis`` (15.9).
+    """Eigenvalues of the linearisation at the steady spin ``Pi = p e_axis`` [MR 15.9].
 
     ``lambda^2 = p^2 (I_j - I_i)(I_k - I_j) / (I_i I_j^2 I_k)`` for the two transverse modes and
     0 for the axial one (``j = axis``): real ``+-lambda`` (unstable) only about the middle axis.
@@ -87,7 +87,7 @@ def linearization_eigenvalues(inertia, axis: int, p: float):
 
 
 def axis_stability(inertia) -> tuple[str, str, str]:
-    """Rigid body stability theorem (15.9.1), per axis: ``"stable"`` (largest or smallest
+    """Rigid body stability theorem [MR 15.9.1], per axis: ``"stable"`` (largest or smallest
     moment: Lyapunov stable), ``"unstable"`` (the intermediate one) or ``"neutral"`` (a
     moment equal to another: the linearisation is degenerate; with two equal moments every
     axis in their plane is an equilibrium, neutrally stable, and the distinct axis is stable).
@@ -107,7 +107,7 @@ def axis_stability(inertia) -> tuple[str, str, str]:
 
 def intermediate_axis_growth_rate(inertia, p: float) -> float:
     """Growth rate [1/s] of a perturbation of the spin ``Pi = p e_mid`` about the middle axis:
-    ``lambda = (|p| / I2) sqrt((I1 - I2)(I2 - I3) / (I1 I3))`` with ``I1 > I2 > I3`` (physics.md §1).
+    ``lambda = (|p| / I2) sqrt((I1 - I2)(I2 - I3) / (I1 I3))`` with ``I1 > I2 > I3`` (docs/physics.md §1).
     Raises ``ValueError`` when the moments are not distinct (no intermediate axis)."""
     ii = sorted(_params(inertia).inertia, reverse=True)
     i1, i2, i3 = ii

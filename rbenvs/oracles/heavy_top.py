@@ -1,19 +1,19 @@
-"""Analytic results for the heavy (Lagrange) top on a fixed pivot (physics.md §2).
+"""Analytic results for the heavy (Lagrange) top on a fixed pivot (docs/physics.md §2).
 
 Pure numpy/math functions of scalar parameters; nothing here knows about environments.
 
-Conventions (shared by every function below, and by seed 2's treatment of the top, 3.62-3.83):
+Conventions (shared by every function below, and by the treatment of the top in [T 3.62-3.83]):
 
 * ``z`` is the upward vertical; gravity ``g`` acts along ``-z``.
 * The symmetry axis ``k`` points from the pivot ``O`` to the centre of mass ``G`` (body axis
-  ``chi = e3``); ``length`` (``l`` in physics.md, ``h`` in seed 2) is ``|OG|``.
+  ``chi = e3``); ``length`` (``l`` in docs/physics.md, ``h`` in [T]) is ``|OG|``.
 * ``I1 = I2 = A`` and ``I3 = C`` are the principal moments **about the pivot** (not about the
   centre of mass: ``A = A_G + mass * length**2``).
 * ``tilt`` (``alpha``, the Euler angle ``theta``) is the angle from ``+z`` to ``k``: 0 is the
   upright ("sleeping") top, ``pi/2`` horizontal, ``pi`` hanging straight down.
-* ``spin`` (``n`` in seed 2, ``Omega3`` in the Marsden-Ratiu chapter) is the body angular velocity
+* ``spin`` (``n`` in [T], ``Omega3`` in [MR]) is the body angular velocity
   component along ``k``: ``spin > 0`` is a right-handed (counter-clockwise seen from the tip of
-  ``k``) rotation about the pivot-to-centre-of-mass axis. It is conserved (3.66).
+  ``k``) rotation about the pivot-to-centre-of-mass axis. It is conserved [T 3.66].
 * A precession rate ``p`` is ``d(phi)/dt`` with ``phi`` the azimuth of ``k`` about ``+z``:
   ``p > 0`` is counter-clockwise seen from above. With these conventions ``spin > 0`` gives a
   slow precession ``p ~ m g h/(C n) > 0``: the top precesses in the same sense as it spins.
@@ -62,13 +62,13 @@ def _require_nonzero(name: str, value) -> float:
 
 
 # --------------------------------------------------------------------------------------------
-# upright (sleeping) top: Marsden & Ratiu §15.10
+# upright (sleeping) top: [MR 15.10]
 
 
 def critical_spin(I1, I3, mass, length, gravity) -> float:
     """Spin rate ``Omega3`` above which the upright spinning Lagrange top is stable.
 
-    ``Omega_c = 2 sqrt(M g l I1) / I3`` (Heavy Top Stability Theorem 15.10.1; equivalently
+    ``Omega_c = 2 sqrt(M g l I1) / I3`` (Heavy Top Stability Theorem [MR 15.10.1]; equivalently
     ``Pi3^2 > 4 M g l I1`` with ``Pi3 = I3 Omega3``). ``I1`` is the transverse moment **about the
     pivot**, ``I3`` the axial moment [kg m^2]; ``mass`` [kg], ``length`` = pivot to centre of mass
     [m], ``gravity`` [m/s^2]. Above ``Omega_c`` (either sense of spin: the condition is on
@@ -82,18 +82,18 @@ def critical_spin(I1, I3, mass, length, gravity) -> float:
 def upright_eigenvalues(I1, I3, mass, length, gravity, spin) -> np.ndarray:
     """Eigenvalues of the heavy top linearized about the upright spinning state.
 
-    System (15.10.1-2): ``dPi/dt = Pi x Omega + M g l Gamma x chi``, ``dGamma/dt = Gamma x Omega``
+    System [MR 15.10.1-2]: ``dPi/dt = Pi x Omega + M g l Gamma x chi``, ``dGamma/dt = Gamma x Omega``
     with ``I = diag(I1, I1, I3)`` about the pivot and ``chi = e3``; equilibrium
     ``Gamma = e3``, ``Pi = (0, 0, I3 spin)``. On the 4-dimensional tangent space to the coadjoint
-    orbit (15.10.14; the linearized flow leaves ``dPi3`` and ``dGamma3`` fixed, so the full 6x6
+    orbit ([MR 15.10.14]; the linearized flow leaves ``dPi3`` and ``dGamma3`` fixed, so the full 6x6
     Jacobian has these four eigenvalues plus two zeros) the characteristic polynomial is
-    (15.10.16), with ``w = Pi3/I3 = spin``:
+    [MR 15.10.16], with ``w = Pi3/I3 = spin``:
 
         lambda^4 + [(I1^2 + (I1 - I3)^2) w^2 - 2 M g l I1] / I1^2 * lambda^2
                  + [(I1 - I3) w^2 + M g l]^2 / I1^2 = 0,
 
     a quadratic in ``x = lambda^2`` with discriminant
-    ``(2 I1 - I3)^2 w^2 (I3^2 w^2 - 4 M g l I1) / I1^4`` (printed after 15.10.16): for
+    ``(2 I1 - I3)^2 w^2 (I3^2 w^2 - 4 M g l I1) / I1^4`` (printed after [MR 15.10.16]): for
     ``|spin| >`` :func:`critical_spin` both roots ``x`` are real and non-positive, so every
     ``lambda`` is imaginary (spectrally stable); below it ``x`` is a complex pair and the four
     ``lambda`` are ``+-lambda0, +-conj(lambda0)`` with ``Re lambda0 != 0`` (unstable).
@@ -130,7 +130,7 @@ def _quadratic_roots(b: complex, c: complex, disc: complex) -> tuple[complex, co
 
 
 # --------------------------------------------------------------------------------------------
-# regular and pseudo-regular precession: seed 2, 3.71-3.83
+# regular and pseudo-regular precession: [T 3.71-3.83]
 
 
 # |cos(tilt)| at or below this is a horizontal axis: cos(pi/2) evaluates to 6.1e-17, not 0.
@@ -147,7 +147,7 @@ class RegularPrecession(NamedTuple):
 def regular_precession_rates(A, C, mass, length, gravity, spin, tilt) -> RegularPrecession:
     """Precession rates ``p`` of the regular (steady) precession at constant ``tilt``.
 
-    For ``theta = alpha`` constant, ``theta' = theta'' = 0`` in (3.74) gives (3.82)
+    For ``theta = alpha`` constant, ``theta' = theta'' = 0`` in [T 3.74] gives [T 3.82]
     ``sin(alpha) (A p^2 cos(alpha) - C n p + m g h) = 0``; for ``sin(alpha) != 0``:
 
         A cos(alpha) p^2 - C n p + m g h = 0,
@@ -158,7 +158,7 @@ def regular_precession_rates(A, C, mass, length, gravity, spin, tilt) -> Regular
     built with each root). The roots are computed without cancellation:
     ``q = (C n + sgn(C n) sqrt(D)) / 2``, ``slow = m g h / q``, ``fast = q / (A cos(alpha))``,
     with ``D = (C n)^2 - 4 A m g h cos(alpha)``; ``|slow| <= |fast|`` always. For large spin
-    (3.83) ``slow ~ m g h/(C n)`` and ``fast ~ C n/(A cos(alpha))``, both in the sense of ``n``
+    [T 3.83] ``slow ~ m g h/(C n)`` and ``fast ~ C n/(A cos(alpha))``, both in the sense of ``n``
     when ``cos(alpha) > 0``. For ``cos(alpha) < 0`` (centre of mass below the pivot) the roots
     have opposite signs and always exist; at ``spin = 0`` they are the conical-pendulum rates
     ``+-sqrt(m g h/(A |cos(alpha)|))``, returned as ``(positive, negative)``.
@@ -166,7 +166,7 @@ def regular_precession_rates(A, C, mass, length, gravity, spin, tilt) -> Regular
     ``cos(alpha) = 0`` (horizontal axis, ``tilt = pi/2`` up to rounding: ``|cos| <= 4 eps``):
     the equation is linear, the single root is ``slow = m g h/(C n)`` and ``fast`` is ``nan``
     (it escapes to infinity); ``spin = 0`` is then impossible. At ``tilt = 0`` or ``pi`` the
-    factor ``sin(alpha)`` of (3.82) vanishes and any ``p`` is a (trivial) steady state; the
+    factor ``sin(alpha)`` of [T 3.82] vanishes and any ``p`` is a (trivial) steady state; the
     returned roots are then the limits of the tilted ones.
 
     Raises ``ValueError`` (naming ``spin``) when ``(C n)^2 < 4 A m g h cos(alpha)``: the top
@@ -202,13 +202,13 @@ class FastTopNutation:
 
     Fields (SI units, angles in rad):
 
-    * ``cos_amplitude``: ``cos(beta) - cos(alpha) ~ -2 A m g h sin^2(alpha)/(C n)^2`` (3.76),
+    * ``cos_amplitude``: ``cos(beta) - cos(alpha) ~ -2 A m g h sin^2(alpha)/(C n)^2`` [T 3.76],
       ``beta`` the lowest tilt reached (``beta >= alpha``);
-    * ``angle_amplitude``: ``beta - alpha ~ 2 A m g h sin(alpha)/(C n)^2`` (3.79);
-    * ``period``: nutation period ``T_n = 2 pi A/(C |n|)`` (after 3.79);
-    * ``mean_precession_rate``: ``<phi'> ~ m g h/(C n)`` (3.78), signed like ``n``;
-    * ``mean_tilt``: ``<theta> ~ alpha + A m g h sin(alpha)/(C n)^2`` (3.77);
-    * ``expansion_parameter``: ``eps = A m g h/(C n)^2 = T_n/T_p`` (3.80). The formulas are the
+    * ``angle_amplitude``: ``beta - alpha ~ 2 A m g h sin(alpha)/(C n)^2`` [T 3.79];
+    * ``period``: nutation period ``T_n = 2 pi A/(C |n|)`` (after [T 3.79]);
+    * ``mean_precession_rate``: ``<phi'> ~ m g h/(C n)`` [T 3.78], signed like ``n``;
+    * ``mean_tilt``: ``<theta> ~ alpha + A m g h sin(alpha)/(C n)^2`` [T 3.77];
+    * ``expansion_parameter``: ``eps = A m g h/(C n)^2 = T_n/T_p`` [T 3.80]. The formulas are the
       leading terms of an expansion in ``eps``: their relative errors are ``O(eps)``, so they are
       meaningful only for ``eps << 1``.
     """
@@ -222,9 +222,9 @@ class FastTopNutation:
 
 
 def fast_top_nutation(A, C, mass, length, gravity, spin, tilt) -> FastTopNutation:
-    """Nutation of a fast top released at ``tilt`` with spin ``n`` and no precession (3.71-3.81).
+    """Nutation of a fast top released at ``tilt`` with spin ``n`` and no precession [T 3.71-3.81].
 
-    Initial conditions (3.71): ``theta = alpha``, ``theta' = phi' = 0``, ``omega3 = n``. The axis
+    Initial conditions [T 3.71]: ``theta = alpha``, ``theta' = phi' = 0``, ``omega3 = n``. The axis
     first falls, then nods between ``alpha`` and ``beta > alpha`` (cusps at ``alpha``) while
     drifting around ``+z`` in the sense of the spin. ``A``, ``C`` about the pivot, ``h = length``;
     conventions as in the module docstring. The results are asymptotic for large spin, with

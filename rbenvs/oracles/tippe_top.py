@@ -1,19 +1,19 @@
 """Analytic results for the tippe top: Jellett's integral and the energy criterion for inversion.
 
-Pure functions; conventions of physics.md §3 (seed 2, 3.92-3.114):
+Pure functions; conventions of docs/physics.md §3 ([T 3.92-3.114]):
 
-* a sphere of radius ``R`` (``a`` in seed 2) on the table ``z = 0``, ``z_hat`` up;
+* a sphere of radius ``R`` (``a`` in [T]) on the table ``z = 0``, ``z_hat`` up;
 * symmetry axis ``k`` (unit vector, space frame); centre of mass ``G = centre - h k`` with
   ``h = alpha R``, ``0 < alpha < 1``;
 * ``A = I1 = I2``, ``C = I3``: principal moments **about the centre of mass** [kg m^2];
   ``gamma = A / C``;
 * ``theta`` = angle between ``k`` and ``z_hat``: ``theta = 0`` is the top on its broad end with
   the centre of mass low (height ``R - h``), ``theta = pi`` the inverted top on its stem (centre
-  of mass high, ``R + h``); the height of ``G`` is ``R - h cos(theta)`` (3.93);
+  of mass high, ``R + h``); the height of ``G`` is ``R - h cos(theta)`` [T 3.93];
 * contact point ``P = centre - R z_hat``; ``L`` = angular momentum about ``G`` (space frame);
 * ``spin`` is the angular velocity about ``k`` (right-handed about ``k``).
 
-The energy argument (physics.md §3; Rauch-Wojciechowski, Sköldstam and Glad 2005): at fixed
+The energy argument (docs/physics.md §3; Rauch-Wojciechowski, Sköldstam and Glad 2005): at fixed
 Jellett integral ``J`` and tilt ``theta`` the least total energy is
 
     E*(theta) = J^2 / (2 R^2 D(theta)) + m g R (1 - alpha cos(theta)),
@@ -30,10 +30,10 @@ numerically in the tests):
 * ``theta = pi`` is a local minimum (stable) iff ``gamma < 1 + alpha`` **and**
   ``|J| > J_min = sqrt(m g R^3 C alpha) (1 + alpha)^2 / sqrt(1 + alpha - gamma)``.
 
-physics.md states the first condition as ``A > (1 - alpha) C`` alone; that is its large-``J``
+docs/physics.md states the first condition as ``A > (1 - alpha) C`` alone; that is its large-``J``
 limit (the sign of ``d^2E*/dtheta^2`` at ``theta = 0`` changes at
 ``A = (1 - alpha) C + m g R^3 alpha C^2 (1 - alpha)^4 / J^2``). The second condition agrees
-with physics.md exactly.
+with docs/physics.md exactly.
 """
 
 from __future__ import annotations
@@ -98,12 +98,12 @@ def _vector_array(name: str, value) -> np.ndarray:
 
 
 def jellett(L, k, R, alpha):
-    """Jellett's integral ``J = L . (R z_hat - h k) = -L . (P - G)`` (3.106), ``h = alpha R``.
+    """Jellett's integral ``J = L . (R z_hat - h k) = -L . (P - G)`` [T 3.106], ``h = alpha R``.
 
     ``L``: ``(..., 3)`` angular momentum about the centre of mass [kg m^2/s], space frame;
     ``k``: ``(..., 3)`` unit symmetry axis, space frame (not renormalized here); the leading axes
     broadcast. Returns ``(...)`` [kg m^3/s] (a float for single vectors). In Euler angles this is
-    seed 2's ``R A phi' sin^2(theta) + (R cos(theta) - h) C omega3``. Conserved under any friction
+    [T]'s ``R A phi' sin^2(theta) + (R cos(theta) - h) C omega3``. Conserved under any friction
     law at the contact point.
     """
     (R,) = require_all_positive(R=R)
@@ -159,7 +159,7 @@ def energy_star(theta, J, m, g, R, alpha, A, C):
     """Least energy [J] at tilt ``theta`` [rad] and Jellett integral ``J`` [kg m^3/s]:
 
     ``E*(theta) = J^2/(2 R^2 D(theta)) + m g R (1 - alpha cos(theta))``,
-    ``D = A sin^2(theta) + C (alpha - cos(theta))^2`` (physics.md §3; see the module docstring).
+    ``D = A sin^2(theta) + C (alpha - cos(theta))^2`` (docs/physics.md §3; see the module docstring).
 
     ``theta`` and ``J`` broadcast (any shapes); a float comes back for scalar inputs. Energy zero:
     the centre of mass at the table (potential ``m g (R - h cos(theta))``).

@@ -1,9 +1,9 @@
 """The free rigid body's picture: a box with the body's principal moments, its principal axes,
-the angular momentum ``Pi`` and angular velocity ``Omega`` (physics.md §1).
+the angular momentum ``Pi`` and angular velocity ``Omega`` (docs/physics.md §1).
 
 Without an attitude in the state (tasks ``spin``, ``detumble``) the picture is drawn in the
 **body frame**: the box stands still and ``Pi`` wanders over its orbit, the intersection of the
-momentum sphere with the energy ellipsoid (Fig. 15.3.1), drawn as a thin curve. With an
+momentum sphere with the energy ellipsoid ([MR Fig. 15.3.1]), drawn as a thin curve. With an
 attitude (``reorient``) it is drawn in **space**: the box turns and, without torque, ``R Pi``
 stays fixed.
 """
@@ -33,8 +33,8 @@ def box_half_sides(inertia) -> np.ndarray:
 
 def momentum_orbit(inertia, pi, n: int = 240):
     """The torque-free orbit of ``Pi`` through ``pi``: points (n, 3) of the intersection of the
-    sphere ``|Pi| = |pi|`` with the energy ellipsoid ``sum Pi_i^2 / I_i = 2 H`` (physics.md §1,
-    Fig. 15.3.1), on the side of ``pi``; ``None`` for a fixed point or equal moments.
+    sphere ``|Pi| = |pi|`` with the energy ellipsoid ``sum Pi_i^2 / I_i = 2 H`` (docs/physics.md §1,
+    [MR Fig. 15.3.1]), on the side of ``pi``; ``None`` for a fixed point or equal moments.
 
     The orbit encircles the axis ``k`` of the largest moment when ``2 H < |pi|^2 / I_mid`` and
     the smallest otherwise; projected on the other two axes ``(i, j)`` it is the ellipse

@@ -1,7 +1,7 @@
 """The heavy top's picture: a cone on its pivot (the origin) whose axis runs to the centre of
 mass along ``chi``, a disc there in alternating sectors (so the spin shows), the vertical
 through the pivot, gravity at the centre of mass, and the angular momentum ``Pi`` and angular
-velocity ``Omega`` about the pivot (physics.md §2).
+velocity ``Omega`` about the pivot (docs/physics.md §2).
 
 The state ``(Pi, Gamma)`` fixes the attitude only up to a turn about the vertical. With an
 attitude quaternion in the state (``attitude=True``) the picture is in space. Without one it is

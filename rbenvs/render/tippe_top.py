@@ -2,7 +2,7 @@
 sliding shows), its broad half (where the centre of mass ``G`` sits, ``G = O - h k``) and stem
 half in two colours with alternating longitudes (so the spin shows), the stem end ``O + a k``,
 the centre of mass, the contact point ``P = O - a z_hat``, and the angular momentum about ``G``
-and the angular velocity (physics.md §3). The view follows the top across the table.
+and the angular velocity (docs/physics.md §3). The view follows the top across the table.
 """
 
 from __future__ import annotations

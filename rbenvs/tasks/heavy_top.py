@@ -99,7 +99,7 @@ def upright_start(p, d):
 def precess_start(p, d):
     """The regular precession's start (:class:`PrecessTask`): ``Gamma`` in the cone about the
     target tilt (``d[0:2]``), spin ``n`` (``d[2]``), ``Omega = r Gamma + (n - r cos(tilt)) chi``
-    at the target rate ``r`` (given, or the slow root of (3.82) at ``n``); ``p = (cone, spin_low,
+    at the target rate ``r`` (given, or the slow root of [T 3.82] at ``n``); ``p = (cone, spin_low,
     spin_high, fixed, target_rate, root, inertia)``."""
     cone, spin_low, spin_high, fixed, target_rate, root, inertia = p
     chi = cone[0]
@@ -131,7 +131,7 @@ def upright_evaluate(p, y, u):
 
 @jitable
 def slow_precession_root(p, spin):
-    """Slow root of (3.82) ``A cos(a) p^2 - C n p + M g l = 0`` at spin ``n``; ``p = (C, M g l,
+    """Slow root of [T 3.82] ``A cos(a) p^2 - C n p + M g l = 0`` at spin ``n``; ``p = (C, M g l,
     4 A M g l cos(a))``. Without cancellation: ``q = (C n + sgn(C n) sqrt(D)) / 2``,
     ``p = M g l / q``, the discriminant ``D`` clamped at 0 (a spin too slow for a real root,
     reached only if friction has slowed the top, gives the double root's rate) and ``|q|``
@@ -168,7 +168,7 @@ def _root_params(system, tilt):
 
 
 def slow_precession_rate(system, spin, tilt):
-    """Slow root of (3.82) ``A cos(a) p^2 - C n p + M g l = 0`` for arrays/floats of ``spin``
+    """Slow root of [T 3.82] ``A cos(a) p^2 - C n p + M g l = 0`` for arrays/floats of ``spin``
     (:func:`slow_precession_root`)."""
     p = slow_precession_root(_root_params(system, tilt), float(spin) if np.ndim(spin) == 0 else np.asarray(spin, dtype=np.float64))
     return float(p) if np.ndim(p) == 0 else p
@@ -228,8 +228,8 @@ class PrecessTask(TwoStageStart):
     """Hold a regular precession at tilt ``target_tilt`` (Lagrange tops only).
 
     The target rate is ``target_rate`` [rad/s] if given (a forced precession: it needs torque
-    unless it solves (3.82)), else the slow root of (3.82) at the current spin, the torque-free
-    steady precession (seed 2, 3.82-3.83).
+    unless it solves [T 3.82]), else the slow root of [T 3.82] at the current spin, the torque-free
+    steady precession ([T 3.82-3.83]).
 
     * Start: spin ``n ~ U(spin_low, spin_high)``, tilt ``target_tilt + U(-perturbation,
       perturbation)`` at a uniform azimuth, and the angular velocity of the regular precession

@@ -178,9 +178,9 @@ class InvertTask(_SpunTop):
       far from inverted). Time, not dissipated energy, because the energy left at the end is
       fixed by Jellett's integral (the top ends near the minimum ``E*(pi)`` whatever the path),
       so the least dissipated energy is nearly the same for every policy; the time to invert is
-      what varies, and what is measured in the literature (physics.md §3).
+      what varies, and what is measured in the literature (docs/physics.md §3).
     * Terminates (success) when ``theta > goal_tilt`` (150 degrees: the last part of the climb
-      slows with the slip speed under regularised Coulomb friction, physics.md §3).
+      slows with the slip speed under regularised Coulomb friction, docs/physics.md §3).
     """
 
     spin_low: float

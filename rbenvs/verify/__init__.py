@@ -8,12 +8,12 @@ measured comes from the simulation.
 
 Systems (``--system``, repeatable; default all):
 
-* ``free_body``: :mod:`rbenvs.verify.free_body` (physics.md §1): exact solution, invariants,
+* ``free_body``: :mod:`rbenvs.verify.free_body` (docs/physics.md §1): exact solution, invariants,
   axis stability and growth rate, torque balance;
-* ``heavy_top``: :mod:`rbenvs.verify.heavy_top` (physics.md §2): critical spin by bisection,
+* ``heavy_top``: :mod:`rbenvs.verify.heavy_top` (docs/physics.md §2): critical spin by bisection,
   upright stable above / unstable below with the growth rate, regular precession held, fast
   top nutation, invariants. Not for ``exact`` (the heavy top has no exact flow).
-* ``tippe_top``: :mod:`rbenvs.verify.tippe_top` (physics.md §3): Jellett's integral held under
+* ``tippe_top``: :mod:`rbenvs.verify.tippe_top` (docs/physics.md §3): Jellett's integral held under
   Coulomb and viscous friction, without friction, rolling and on a moving table; the energy
   non-increasing under friction and conserved without; inversion where the criterion says and
   the final tilt at the minimum of ``E*``, for tops below, inside and above the window

@@ -1,4 +1,4 @@
-"""Free rigid body checks of ``rbenvs verify`` (physics.md §1), per integrator, on a batch of
+"""Free rigid body checks of ``rbenvs verify`` (docs/physics.md §1), per integrator, on a batch of
 random bodies:
 
 * ``exact solution``: max ``|Pi - Pi_exact| / |Pi0|`` over ``[0, T]`` against

@@ -1,4 +1,4 @@
-"""Heavy-top checks of ``rbenvs verify`` (physics.md §2), per integrator, on random Lagrange tops.
+"""Heavy-top checks of ``rbenvs verify`` (docs/physics.md §2), per integrator, on random Lagrange tops.
 
 Every top is a Lagrange top (``I1 = I2 = A`` and ``I3 = C`` about the pivot, centre of mass on
 the symmetry axis ``chi = e3``) drawn from these ranges (``--seed``):
@@ -29,7 +29,7 @@ Checks:
   ``1`` and ``3 sqrt(M g l A)/C`` until the bracket is 0.1% of the spin; predicted:
   :func:`~rbenvs.oracles.critical_spin`, tolerance 1% relative. The horizon: just below the
   threshold, ``n = n_c (1 - delta)``, the tilt grows like ``exp(sigma t)`` with
-  ``sigma t_g = sqrt(1 - (n/n_c)^2) ~ sqrt(2 delta)`` (the roots of 15.10.16: the same for
+  ``sigma t_g = sqrt(1 - (n/n_c)^2) ~ sqrt(2 delta)`` (the roots of [MR 15.10.16]: the same for
   every ``C/A``), so from ``1e-3`` to ``0.1`` rad it needs ``ln(100)/sigma`` plus
   the slower nonlinear part: 31 t_g at ``delta = 0.5%``, 43 t_g at ``0.2%``, 49 t_g at
   ``0.15%``. And a top with ``delta < 0.125%`` never passes ``0.1`` rad at all: its orbit from
@@ -128,7 +128,7 @@ class TopSetting:
     casimir: float | None  # None: kept to round-off
 
 
-# Steps and tolerances, from the orders (physics.md §4) at the worst of the ranges above (the
+# Steps and tolerances, from the orders (docs/physics.md §4) at the worst of the ranges above (the
 # measured worsts over 100 random tops, seeds 1, 11 and 12, in brackets):
 #
 # * euler (order 1) turns every rotation outward by sqrt(1 + (omega h)^2) per step: over omega T

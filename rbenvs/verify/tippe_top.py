@@ -1,4 +1,4 @@
-"""Tippe-top checks of ``rbenvs verify`` (physics.md §3), per integrator (euler, rk4, dop853),
+"""Tippe-top checks of ``rbenvs verify`` (docs/physics.md §3), per integrator (euler, rk4, dop853),
 on random tops, and the ``--sweep`` of the final tilt over ``A/C`` and ``alpha``.
 
 Random tops (``--seed``), every quantity from these ranges:
@@ -62,7 +62,7 @@ Checks (one row per integrator and check: the worst of the cases, with its param
   no more); euler one / two inside the window with ``alpha <= 0.3`` (at its affordable step
   euler's outward drift outruns the slow frictional damping of an upright or a partially
   inverted top: see :data:`TIPPE_TOP_SETTINGS`).
-* ``time to pass 90 deg`` (rk4): the default Leine-Glocker top (physics.md §3, spin 150 rad/s,
+* ``time to pass 90 deg`` (rk4): the default Leine-Glocker top (docs/physics.md §3, spin 150 rad/s,
   tilt 0.1 rad, Coulomb ``mu = 0.3``), ``t90`` (about 6.99 s) at ``h = max_stable_step`` and
   ``h/2``, linear interpolation between steps. rk4 at ``|Omega| h < 0.01`` commits a relative
   error ``(|Omega| h)^5/120 < 1e-12`` per step, ``< 1e-7`` over the ``1.1e5`` steps; the climb
