@@ -104,11 +104,15 @@ def _train(argv) -> int:
                         checkpoint_every=args.checkpoint_every)
     print(f"trained {args.algo} on '{scene.name}' for {info['timesteps']} steps in {info['wall_time_s']:.1f} s -> {out / 'model.zip'}")
     if not args.no_compare:
-        rows, _ = _eval_rows(scene, [(f"{args.algo} (seed {args.seed})", lambda env: sb3_policy(model)),
-                                     ("analytic", analytic_policy), ("zero action", zero_policy)],
-                             args.eval_episodes, args.eval_seeds)
+        rows, records = _eval_rows(scene, [(f"{args.algo} (seed {args.seed})", lambda env: sb3_policy(model)),
+                                           ("analytic", analytic_policy), ("zero action", zero_policy)],
+                                   args.eval_episodes, args.eval_seeds)
         print(f"\nevaluation on '{scene.name}' ({scene.description}), {args.eval_episodes} episodes x seeds {args.eval_seeds}:")
         print(_table(rows, ("agent", "return (mean +- std over seeds)", "success")))
+        # the run's record keeps its evaluation: a finished run can be compared without rerunning
+        info["evaluation"] = {"episodes": args.eval_episodes, "seeds": list(args.eval_seeds), "results": records}
+        (out / "run.json").write_text(json.dumps(info, indent=2, default=str))
+        print(f"evaluation written to {out / 'run.json'}")
     return 0
 
 

@@ -2,6 +2,7 @@
 env (CI's smoke run), evaluation of learned and analytic policies, the command line."""
 
 import json
+import math
 
 import numpy as np
 import pytest
@@ -78,6 +79,12 @@ def test_train_and_eval_commands(tmp_path, capsys):
     assert train_main(["--algo", "ppo", "--scene", "top_upright", "--timesteps", "512", "--out", str(out), "--eval-episodes", "1", "--no-progress"]) == 0
     text = capsys.readouterr().out
     assert "analytic" in text and "zero action" in text and "ppo (seed 0)" in text
+    # the evaluation is kept in run.json, and the command says where
+    assert f"evaluation written to {out / 'run.json'}" in text
+    run = json.loads((out / "run.json").read_text())
+    assert run["algo"] == "ppo" and run["evaluation"]["seeds"] == [100, 101, 102] and run["evaluation"]["episodes"] == 1
+    assert [r["agent"] for r in run["evaluation"]["results"]] == ["ppo (seed 0)", "analytic", "zero action"]
+    assert all(len(r["per_seed"]) == 3 and math.isfinite(r["return_mean"]) for r in run["evaluation"]["results"])
     assert eval_main(["--scene", "top_upright", "--agent", str(out / "model.zip"), "--agent", "zero", "--episodes", "1", "--seeds", "0", "--json"]) == 0
     records = json.loads(capsys.readouterr().out)["results"]
     assert [r["agent"] for r in records] == [str(out / "model.zip"), "zero"]
