@@ -86,18 +86,21 @@ MAIN_SCENES = ("default", "top_upright", "tippe_hold")
 
 def _cmd_run(args) -> int:
     from .extras import require
+    from .progress import Progress
     from .scenes import load_scene
 
     require("cli")
     scenes = [load_scene(name) for name in (args.scene or MAIN_SCENES)]  # fail before running any
+    progress = Progress(2 * args.episodes * len(scenes), enabled=not args.no_progress, desc="rbenvs run: episodes")
     for n, scene in enumerate(scenes):
         if n:
             print()
-        _run_scene(scene, args)
+        _run_scene(scene, args, progress)
+    progress.close()
     return 0
 
 
-def _run_scene(scene, args) -> None:
+def _run_scene(scene, args, progress) -> None:
     from .controllers import ZeroController, controller_for
 
     env = scene.make()
@@ -110,7 +113,10 @@ def _run_scene(scene, args) -> None:
     # With zero torque the invariants must hold (up to the integrator's drift): a quick check.
     for label, make in (("analytic", controller_for), ("zero torque", ZeroController)):
         policy = make(env)
-        results = [run_episode(env, policy, args.seed + k) for k in range(args.episodes)]
+        results = []
+        for k in range(args.episodes):
+            results.append(run_episode(env, policy, args.seed + k))
+            progress.update()
         ret = np.array([r[0] for r in results])
         succ = np.mean([r[2]["is_success"] for r in results])
         fin = np.mean([r[2][measure] for r in results])
@@ -129,13 +135,13 @@ def _run_scene(scene, args) -> None:
 def _cmd_bench_kernels(args) -> int:
     from .bench.kernels import main as bench_main
 
-    return bench_main()
+    return bench_main(progress=not args.no_progress)
 
 
 def _cmd_bench_fidelity(args) -> int:
     from .bench.fidelity import main as bench_main
 
-    return bench_main()
+    return bench_main(progress=not args.no_progress)
 
 
 PLOT_CHOICES = ("free_body", "heavy_top", "tippe_top", "frames", "all")
@@ -185,13 +191,18 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--scene", action="extend", nargs="+", metavar="NAME", help=f"scene names or YAML paths, several or repeated (default: {' and '.join(MAIN_SCENES)})")
     run.add_argument("--episodes", type=int, default=3, help="episodes per controller (default: %(default)s)")
     run.add_argument("--seed", type=int, default=0, help="seed of the first episode (default: %(default)s)")
+    run.add_argument("--no-progress", action="store_true", help="no progress bar")
     run.set_defaults(func=_cmd_run)
     # `verify` has its own parser (rbenvs.verify.main); main() hands it the rest of the line.
     sub.add_parser("verify", help="check the simulator against the analytic oracles (see rbenvs verify --help)")
     bench = sub.add_parser("bench", help="benchmarks (each prints the peer measured in the same run)")
     bench_sub = bench.add_subparsers(dest="bench", required=True)
-    bench_sub.add_parser("kernels", help="RK4 kernel: our (3, n) components vs np.cross on (n, 3)").set_defaults(func=_cmd_bench_kernels)
-    bench_sub.add_parser("fidelity", help="tippe top: cost of each fidelity level against gliding").set_defaults(func=_cmd_bench_fidelity)
+    kernels = bench_sub.add_parser("kernels", help="RK4 kernel: our (3, n) components vs np.cross on (n, 3)")
+    kernels.add_argument("--no-progress", action="store_true", help="no progress bar")
+    kernels.set_defaults(func=_cmd_bench_kernels)
+    fidelity = bench_sub.add_parser("fidelity", help="tippe top: cost of each fidelity level against gliding")
+    fidelity.add_argument("--no-progress", action="store_true", help="no progress bar")
+    fidelity.set_defaults(func=_cmd_bench_fidelity)
     # `bench throughput` has its own parser (rbenvs.bench.throughput.main); main() hands it the rest.
     bench_sub.add_parser("throughput", help="env-steps/s against Pendulum-v1 and CartPole-v1's vector env (see its --help)")
     # `bench accuracy` too (rbenvs.bench.accuracy.main).

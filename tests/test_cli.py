@@ -110,3 +110,24 @@ def test_progress_bar_counts_and_is_silent_when_off(capsys):
     off.update()
     off.close()
     assert off.bar is None
+
+
+def test_long_commands_show_progress_unless_asked_not_to(capsys):
+    """`rbenvs run`, `bench kernels` and `bench fidelity` take tens of seconds: each shows a bar
+    (on stderr, its total the work it will do) and `--no-progress` silences it."""
+    assert main(["run", "--episodes", "1", "--scene", "detumble"]) == 0
+    err = capsys.readouterr().err
+    assert "rbenvs run: episodes" in err and "0/2" in err  # (two controllers, one episode each)
+    assert main(["run", "--episodes", "1", "--scene", "detumble", "--no-progress"]) == 0
+    assert capsys.readouterr().err == ""
+    from rbenvs.bench.fidelity import run as fidelity
+    from rbenvs.bench.kernels import run as kernels
+
+    kernels(sizes=(1, 8), progress=True)
+    assert "bench kernels: sizes" in capsys.readouterr().err
+    fidelity(levels=(("gliding, coulomb", {}),), repeat=1, progress=True)
+    assert "bench fidelity: levels" in capsys.readouterr().err
+    from rbenvs.cli import build_parser
+
+    for argv in (["bench", "kernels", "--no-progress"], ["bench", "fidelity", "--no-progress"]):
+        assert build_parser().parse_args(argv).no_progress

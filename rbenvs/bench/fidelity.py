@@ -34,10 +34,12 @@ def _best(fn, repeat=5):
     return min(timeit.repeat(fn, number=number, repeat=repeat)) / number
 
 
-def run(levels=LEVELS, repeat=5) -> list[dict]:
+def run(levels=LEVELS, repeat=5, progress: bool = False) -> list[dict]:
     from ..envs import TippeTopEnv
+    from ..progress import Progress
 
     rows = []
+    bar = Progress(len(levels), enabled=progress, desc="bench fidelity: levels")
     for label, kwargs in levels:
         env = TippeTopEnv(**kwargs)
         env.reset(seed=0)
@@ -54,14 +56,16 @@ def run(levels=LEVELS, repeat=5) -> list[dict]:
         reset_s = _best(lambda: env.reset(seed=0), repeat)
         step_s = _best(one_step, repeat) - reset_s
         rows.append({"level": label, "components": system.dim, "rhs_us": rhs_s * 1e6, "internal_steps": substeps, "env_step_us": step_s * 1e6})
+        bar.update()
+    bar.close()
     peer = rows[0]["env_step_us"]
     for r in rows:
         r["vs_gliding"] = r["env_step_us"] / peer
     return rows
 
 
-def main() -> int:
-    rows = run()
+def main(progress: bool = True) -> int:
+    rows = run(progress=progress)
     print(f"{'level':<18} {'components':>10} {'rhs us':>8} {'internal steps':>15} {'env step us':>12} {'vs gliding':>11}")
     for r in rows:
         print(f"{r['level']:<18} {r['components']:>10d} {r['rhs_us']:>8.2f} {r['internal_steps']:>15d} {r['env_step_us']:>12.1f} {r['vs_gliding']:>11.3f}")

@@ -45,7 +45,10 @@ def _time(fn, repeat=5):
     return min(timeit.Timer(fn).repeat(repeat=repeat, number=number)) / number
 
 
-def run(sizes=(1, 16, 256, 4096), seed=0) -> list[dict]:
+def run(sizes=(1, 16, 256, 4096), seed=0, progress: bool = False) -> list[dict]:
+    from ..progress import Progress
+
+    bar = Progress(len(sizes), enabled=progress, desc="bench kernels: sizes")
     rng = np.random.default_rng(seed)
     inertia = (2.0, 1.5, 1.0)
     system = FreeBody(FreeBodyParams(inertia))
@@ -76,11 +79,13 @@ def run(sizes=(1, 16, 256, 4096), seed=0) -> list[dict]:
             want = np.array(rk4.step(system, tuple(Y), U, h)).reshape(3, -1)
             row["compiled_equals_components"] = bool(np.array_equal(Ynew, want))
         rows.append(row)
+        bar.update()
+    bar.close()
     return rows
 
 
-def main(args=None) -> int:
-    rows = run()
+def main(args=None, progress: bool = True) -> int:
+    rows = run(progress=progress)
     print("RK4 step of Euler's equations with torque, microseconds per call (best of 5)")
     compiled = "compiled_us" in rows[0]
     head = f"{'n':>6}  {'components (ours)':>18}  {'np.cross on (n,3)':>18}  {'peer/ours':>9}  {'max |diff|':>10}"
