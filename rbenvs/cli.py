@@ -209,7 +209,7 @@ def build_parser() -> argparse.ArgumentParser:
     bench_sub.add_parser("accuracy", help="error, order, drift and cost per integrator and system; a step per scene (see its --help)")
     plot = sub.add_parser("plot", help="PNG figures of the three systems against their oracles, and rendered frames (plot extra)")
     plot.add_argument("what", nargs="*", metavar="WHAT", help=f"figures to draw, of {', '.join(PLOT_CHOICES)} (default: all)")
-    plot.add_argument("--out", default="docs", help="output folder (default: %(default)s)")
+    plot.add_argument("--out", default="plots", help="output folder (default: %(default)s in the current folder; the figures of docs/ come from --out docs)")
     plot.add_argument("--quick", action="store_true", help="short simulations (a smoke test; not the committed pictures)")
     plot.set_defaults(func=_cmd_plot)
     return parser

@@ -131,3 +131,10 @@ def test_long_commands_show_progress_unless_asked_not_to(capsys):
 
     for argv in (["bench", "kernels", "--no-progress"], ["bench", "fidelity", "--no-progress"]):
         assert build_parser().parse_args(argv).no_progress
+
+
+def test_plot_writes_into_docs_only_when_asked():
+    from rbenvs.cli import build_parser
+
+    assert build_parser().parse_args(["plot"]).out == "plots"
+    assert build_parser().parse_args(["plot", "--out", "docs"]).out == "docs"
