@@ -851,3 +851,35 @@ def test_euler_blow_up_ends_episode_with_last_finite_state():
     assert all(np.array_equal(now[k], last[k]) and np.all(np.isfinite(now[k])) for k in now)
     assert np.isfinite(info["energy"]) and info["energy"] == pytest.approx(env.system.energy(flat(now)), rel=1e-15)
     assert np.max(np.abs(last["angular_momentum"])) > 1e3  # it had blown up before failing: not the start
+
+
+@pytest.mark.parametrize("limit", [0.06, 0.3, math.pi / 4, 1.5, 3.0, math.pi])
+def test_upright_decisions_equal_the_tilt_comparisons(limit):
+    """The upright task decides ``tilt > tilt_limit`` and ``tilt < success_tilt`` from the tilt's
+    sides (no atan2): the same decisions as comparing the angle (top_tilt), from random
+    verticals, starts 1e-9 rad either side of each boundary, exactly upright and hanging."""
+    from rbenvs.dynamics.heavy_top import top_tilt
+    from rbenvs.tasks.heavy_top import UprightTask
+
+    env = LagrangeTopEnv(tilt_limit=limit, perturbation=min(0.05, limit / 2))
+    task, system = env.unwrapped.task, env.unwrapped.system
+    chi = system.params.com_direction
+    rng = np.random.default_rng(7)
+    success = task.success_tilt
+    checked = 0
+
+    def vertical(theta, phi):  # the vertical at tilt theta from chi = e3
+        return (math.sin(theta) * math.cos(phi), math.sin(theta) * math.sin(phi), math.cos(theta))
+
+    gammas = [tuple(g / np.linalg.norm(g)) for g in rng.standard_normal((3000, 3))]
+    gammas += [vertical(b + d, rng.uniform(0, 2 * math.pi)) for b in (limit, success) for d in (-1e-9, 1e-9) if 0 < b + d < math.pi]
+    for g in gammas:
+        y = (0.3, -0.2, 0.5, *map(float, g))
+        _, terminated, metrics = task.evaluate(system, y, (0.0, 0.0))
+        tilt = top_tilt(chi, y)
+        assert terminated == (tilt > limit) and metrics["is_success"] == (tilt < success), (tilt, limit)
+        checked += 1
+    assert checked > 3000 and isinstance(task, UprightTask)
+    up, down = (0.0, 0.0, 1.0, 0.0, 0.0, 1.0), (0.0, 0.0, 1.0, 0.0, 0.0, -1.0)
+    assert task.evaluate(system, up, (0.0, 0.0))[1:] == (False, {"is_success": True})
+    assert task.evaluate(system, down, (0.0, 0.0))[1:] == (limit < math.pi, {"is_success": False})

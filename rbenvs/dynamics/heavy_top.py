@@ -45,6 +45,7 @@ __all__ = [
     "torque_kick",
     "heavy_top_readouts",
     "heavy_top_attitude_readouts",
+    "tilt_sides",
     "top_tilt",
     "top_spin",
     "heavy_top_energy",
@@ -168,12 +169,20 @@ def vertical_norm(y):
 
 
 @jitable
-def top_tilt(chi, y):
-    """Angle [rad] between ``chi`` and the upward vertical: ``atan2(|Gamma x chi|, Gamma.chi)``."""
+def tilt_sides(chi, y):
+    """``(|Gamma x chi|, Gamma . chi)``: the tilt's sine and cosine sides, ``|Gamma|`` times
+    ``(sin, cos)`` of the angle between ``chi`` and the upward vertical."""
     x1, x2, x3 = chi
     g1, g2, g3 = y[3], y[4], y[5]
     c1, c2, c3 = g2 * x3 - g3 * x2, g3 * x1 - g1 * x3, g1 * x2 - g2 * x1
-    return atan2(sqrt(c1 * c1 + c2 * c2 + c3 * c3), g1 * x1 + g2 * x2 + g3 * x3)
+    return sqrt(c1 * c1 + c2 * c2 + c3 * c3), g1 * x1 + g2 * x2 + g3 * x3
+
+
+@jitable
+def top_tilt(chi, y):
+    """Angle [rad] between ``chi`` and the upward vertical: ``atan2(|Gamma x chi|, Gamma.chi)``."""
+    s, c = tilt_sides(chi, y)
+    return atan2(s, c)
 
 
 @jitable
