@@ -651,7 +651,7 @@ def vector_kernel(V: VectorLayout):
     starts, fresh = [], None
     if V.start is not None:
         starts = ["    if next_step:", "        for i in range(n):", "            if skip[i]:", *("                " + line for line in _start_lines(V, "Ynew"))]
-        starts += ["                hstep[i] = h", "                fired[i] = False"]
+        starts += ["                hstep[i] = h"]  # (their event flag is cleared with their step, below)
         fresh = "next_step & skip[i]"
     lines += _period_and_finish(L, *_controls(L, rows=True), ", 0, 0, 0", starts, fresh)
     # 3. the episode's bookkeeping, then 4. the restarts' step (skip: the sub-envs that restart,

@@ -134,7 +134,7 @@ def upright_evaluate(p, y, u):
     about 7% of a 4096-sub-env vector step)."""
     chi, control_cost, limit, success = p
     s, c = tilt_sides(chi, y)
-    cos_tilt = (y[3] * chi[0] + y[4] * chi[1] + y[5] * chi[2]) / vertical_norm(y)
+    cos_tilt = c / vertical_norm(y)  # (c is Gamma . chi, summed in the same order)
     terminated = limit[2] & (s * limit[0] - c * limit[1] > 0.0)
     return cos_tilt - control_cost * effort(u), terminated, s * success[0] - c * success[1] < 0.0
 

@@ -110,6 +110,7 @@ class RigidBodyVectorEnv(VectorEnv):
         self._plain = self.engine.plain
         self._steps = np.zeros(self.num_envs, dtype=np.int64)
         self._info_template = None  # the compiled step's info: its keys in order, masks set
+        self._info_names = ()  # (the template's value keys, in the order of the kernel's arrays)
         self._prev_done = np.zeros(self.num_envs, dtype=bool)
         self._rngs = [None] * self.num_envs
         # the generators as one compiled table (rbenvs.draws), made once every sub-env has one:
@@ -415,11 +416,10 @@ class RigidBodyVectorEnv(VectorEnv):
         truncated = self._false.copy() if self.max_episode_steps is None else self._steps >= self.max_episode_steps  # as TimeLimit
         ended = terminated | over | lifted
         stopped = ended | truncated
-        if any_restart:  # (NEXT_STEP: a restarting sub-env's period is discarded; it ends nothing)
-            stopped = stopped & ~restart
-        if stopped.any():
+        # (NEXT_STEP: a restarting sub-env's period is discarded; it ends nothing)
+        if (stopped & ~restart if any_restart else stopped).any():
             info["terminal_reason"] = terminal_reason(failed_mask, lifted, over, terminated, self.engine.event_name)
-            info["_terminal_reason"] = ended | truncated
+            info["_terminal_reason"] = stopped
             terminated = ended
         if any_restart:
             obs, info = self._restart(restart, obs, info)
