@@ -92,17 +92,23 @@ def _train(argv) -> int:
     p.add_argument("--eval-episodes", type=int, default=10)
     p.add_argument("--eval-seeds", type=int, nargs="+", default=[100, 101, 102], help="evaluation seeds (default: %(default)s)")
     p.add_argument("--no-compare", action="store_true", help="skip the evaluation")
+    p.add_argument("--tensorboard", type=Path, default=None, metavar="DIR",
+                   help="also write TensorBoard logs into DIR (the tensorboard extra; view with: tensorboard --logdir DIR)")
     p.add_argument("--no-progress", action="store_true")
     args = p.parse_args(argv)
     require("agents")
+    if args.tensorboard is not None:
+        require("tensorboard")
     scene = _scene(args.scene)
     out = args.out or Path("runs") / f"{args.algo}-{scene.name}-seed{args.seed}"
     from .evaluate import analytic_policy, sb3_policy, zero_policy
     from .train import train
 
     model, info = train(args.algo, scene, seed=args.seed, timesteps=args.timesteps, out_dir=out, progress=not args.no_progress,
-                        checkpoint_every=args.checkpoint_every)
+                        checkpoint_every=args.checkpoint_every, tensorboard=args.tensorboard)
     print(f"trained {args.algo} on '{scene.name}' for {info['timesteps']} steps in {info['wall_time_s']:.1f} s -> {out / 'model.zip'}")
+    if "tensorboard" in info:
+        print(f"TensorBoard logs in {info['tensorboard']} (tensorboard --logdir {args.tensorboard})")
     if not args.no_compare:
         rows, records = _eval_rows(scene, [(f"{args.algo} (seed {args.seed})", lambda env: sb3_policy(model)),
                                            ("analytic", analytic_policy), ("zero action", zero_policy)],

@@ -1,17 +1,22 @@
 """Agent hyperparameters: ``configs/agents/<algo>.yml``, the rl-baselines3-zoo layout.
 
-One file per algorithm; top-level keys are env ids plus a ``default:`` block; a scene may
-override its env's block under ``scenes: {<scene>: {...}}``. Values are structured (numbers,
-strings naming SB3 things, lists, mappings), never code. Reserved keys:
+One file per algorithm, in the zoo's own format so that ``python -m rl_zoo3.train --conf-file``
+reads it unchanged: top-level keys are env ids, each a complete block (the files merge their
+``default:`` block into each through a YAML anchor, ``<<: *default``); an env id without a block
+takes ``default:``. A scene may override its env's block under a top-level
+``scenes: {<scene>: {...}}`` (an rbenvs extension: the zoo looks up env ids only, so it never
+sees it). Values are structured (numbers, strings naming SB3 things, lists, mappings), never
+code. Reserved keys:
 
 * ``n_timesteps``: the training budget (env steps over all sub-envs);
 * ``n_envs``: sub-environments of the native vector env (SB3 adapter);
 * ``policy``: SB3 policy name (``MlpPolicy``);
 * ``policy_kwargs``: a mapping (``net_arch: [64, 64]``);
-* ``eval_episodes``: episodes per evaluation seed.
+* ``eval_episodes``: episodes per evaluation seed (rbenvs only: the zoo would pass it to the
+  algorithm, so the shipped files leave it out).
 
 Every other key goes to the algorithm's constructor (``learning_rate``, ``gamma``, ...).
-Precedence: ``default`` < env id < scene < explicit overrides.
+Precedence: ``default`` (when the env id has no block) < env id < scene < explicit overrides.
 
 The files ship with the package (``rbenvs.configs``); ``$RBENVS_CONFIGS`` replaces them with a
 folder of your own (see :func:`rbenvs.configs.configs_root`).
@@ -62,12 +67,11 @@ def agent_config(algo: str, env_id: str, scene: str | None = None, **overrides) 
     if not isinstance(data, dict) or not isinstance(data.get("default", {}), dict):
         raise ValueError(f"{path} must be a mapping with a 'default:' block")
     merged: dict = {}
-    env_block = data.get(env_id, {}) or {}
-    scene_block = (env_block.get("scenes", {}) or {}).get(scene, {}) if scene else {}
-    for block in (data.get("default", {}) or {}, env_block, scene_block, overrides):
+    # as the zoo reads it: the env's block if there is one, else default's
+    env_block = data.get(env_id) or data.get("default", {}) or {}
+    scene_block = (data.get("scenes", {}) or {}).get(scene, {}) if scene else {}
+    for block in (env_block, scene_block, overrides):
         for key, value in block.items():
-            if key == "scenes":
-                continue
             if key == "policy_kwargs":
                 merged[key] = dict(merged.get(key, {})) | dict(value or {})
             else:

@@ -15,6 +15,8 @@ import time
 from dataclasses import asdict
 from pathlib import Path
 
+from rbenvs.extras import require
+
 from .config import agent_config
 
 __all__ = ["train", "algorithm_class"]
@@ -51,14 +53,18 @@ def _progress_callback(total: int, label: str, enabled: bool):
 
 
 def train(algo: str, scene, seed: int = 0, timesteps: int | None = None, out_dir=None, progress: bool = True,
-          checkpoint_every: int | None = None, device: str = "cpu", **overrides):
+          checkpoint_every: int | None = None, device: str = "cpu", tensorboard=None, **overrides):
     """Train ``algo`` on ``scene`` (an :class:`rbenvs.scenes.Scene`); returns ``(model, info)``
-    with ``info`` the run record (also written to ``out_dir/run.json`` with ``model.zip``)."""
+    with ``info`` the run record (also written to ``out_dir/run.json`` with ``model.zip``).
+    ``tensorboard``: a folder for SB3's TensorBoard logs (the ``tensorboard`` extra), one run
+    folder ``<algo>-<scene>-seed<seed>_N`` inside it."""
     import torch
     from stable_baselines3.common.callbacks import CallbackList, CheckpointCallback
 
     from rbenvs.vector.sb3 import make_sb3_vec_env
 
+    if tensorboard is not None:
+        require("tensorboard")  # before the envs are built, not after
     cfg = agent_config(algo, scene.env_id, scene.name, **overrides)
     total = int(timesteps if timesteps is not None else cfg.n_timesteps)
     torch.set_num_threads(1)  # small MLPs: threads cost more than they give on 2 cores
@@ -72,7 +78,7 @@ def train(algo: str, scene, seed: int = 0, timesteps: int | None = None, out_dir
         venv = make_sb3_vec_env(scene.env_id, cfg.n_envs, seed=seed, **scene.kwargs)
     cls = algorithm_class(algo)
     model = cls(cfg.policy, venv, seed=seed, device=device, policy_kwargs=cfg.policy_kwargs or None, verbose=0,
-                **cfg.hyperparams)
+                tensorboard_log=None if tensorboard is None else str(tensorboard), **cfg.hyperparams)
     callbacks = [_progress_callback(total, f"{algo} {scene.name} seed {seed}", progress)]
     out = Path(out_dir) if out_dir is not None else None
     if out is not None:
@@ -80,7 +86,7 @@ def train(algo: str, scene, seed: int = 0, timesteps: int | None = None, out_dir
         if checkpoint_every:
             callbacks.append(CheckpointCallback(max(1, checkpoint_every // cfg.n_envs), str(out / "checkpoints"), name_prefix=algo))
     start = time.perf_counter()
-    model.learn(total, callback=CallbackList(callbacks))
+    model.learn(total, callback=CallbackList(callbacks), tb_log_name=f"{algo}-{scene.name}-seed{seed}")
     wall = time.perf_counter() - start
     info = {
         "algo": algo,
@@ -92,6 +98,8 @@ def train(algo: str, scene, seed: int = 0, timesteps: int | None = None, out_dir
         "wall_time_s": wall,
         "config": asdict(cfg),
     }
+    if tensorboard is not None:
+        info["tensorboard"] = model.logger.dir  # the run's own folder of event files
     if out is not None:
         model.save(out / "model.zip")
         (out / "run.json").write_text(json.dumps(info, indent=2, default=str))

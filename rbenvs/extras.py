@@ -23,6 +23,10 @@ EXTRAS = {
     "cli": (("yaml", "PyYAML"),),
     # The agents: stable-baselines3 on torch; their scenes and hyperparameters are YAML too.
     "agents": (("stable_baselines3", "stable-baselines3"), ("torch", "torch"), ("yaml", "PyYAML")),
+    # rbenvs-train --tensorboard: SB3 writes its logs through tensorboard's SummaryWriter.
+    "tensorboard": (("tensorboard", "tensorboard"),),
+    # gymnasium's RecordVideo writes its files through moviepy.
+    "video": (("moviepy", "moviepy"),),
 }
 
 
