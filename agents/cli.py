@@ -154,8 +154,15 @@ def _results(argv) -> int:
     p.add_argument("--seeds", type=int, default=3)
     p.add_argument("--quick", action="store_true", help="1/20 of each budget, 1 seed, 2 episodes: a smoke run of the whole grid")
     p.add_argument("--json", type=Path, default=None, help="also write the records here")
+    p.add_argument("--from-json", type=Path, default=None, metavar="PATH",
+                   help="print the table of a finished run's records (its --json) without training: the docs' table is written this way")
     p.add_argument("--no-progress", action="store_true")
     args = p.parse_args(argv)
+    if args.from_json is not None:
+        if args.json or args.quick:
+            p.error("--from-json prints a finished run's table: leave out --json and --quick")
+        print_results(json.loads(args.from_json.read_text()))
+        return 0
     require("agents")
     import yaml
 
@@ -192,20 +199,26 @@ def _results(argv) -> int:
             evaluated.append((algo.upper(), steps, sum(walls) / len(walls), evals))
         task = scene.kwargs.get("task", "")
         for label, steps, wall, evals in evaluated:
-            summary = summarize(evals)
             records.append({"scene": scene.name, "env_id": scene.env_id, "task": task, "agent": label, "timesteps": steps,
-                            "wall_time_s": wall} | summary)
-            rows.append((scene.env_id.split("/")[-1], f"{task} ({scene.name})", label, f"{steps:,}" if steps else "-",
-                         f"{wall:.0f} s" if wall else "-", f"{summary['return_mean']:.1f} +- {summary['return_std']:.1f}",
-                         f"{summary['success_mean']:.0%}"))
-    header = ("env", "task (scene)", "agent", "training steps", "wall time / seed", f"return (mean +- std, {len(seeds)} seeds)", "success")
-    print("| " + " | ".join(header) + " |")
-    print("|" + "---|" * len(header))
-    for r in rows:
-        print("| " + " | ".join(r) + " |")
+                            "wall_time_s": wall} | summarize(evals))
+    print_results(records)
     if args.json:
         args.json.write_text(json.dumps(records, indent=2))
     return 0
+
+
+def print_results(records) -> None:
+    """The results table (Markdown), one row per record of ``rbenvs-results``."""
+    seeds = sorted({r["seeds"] for r in records})
+    header = ("env", "task (scene)", "agent", "training steps", "wall time / seed",
+              f"return (mean +- std, {'/'.join(map(str, seeds))} seeds)", "success")
+    print("| " + " | ".join(header) + " |")
+    print("|" + "---|" * len(header))
+    for r in records:
+        steps, wall = r["timesteps"], r["wall_time_s"]
+        row = (r["env_id"].split("/")[-1], f"{r['task']} ({r['scene']})", r["agent"], f"{steps:,}" if steps else "-",
+               f"{wall:.0f} s" if wall else "-", f"{r['return_mean']:.1f} +- {r['return_std']:.1f}", f"{r['success_mean']:.0%}")
+        print("| " + " | ".join(row) + " |")
 
 
 if __name__ == "__main__":

@@ -54,11 +54,14 @@ def require(extra: str) -> None:
             raise MissingExtra(extra, distribution)
 
 
-def run_command(prog: str, body, *args) -> int:
-    """``body(*args)``, its exit status; a missing extra or a ``ValueError`` or ``ImportError``
-    becomes one line on stderr (``prog: ...``) and exit status 2."""
+def run_command(prog: str, body, argv) -> int:
+    """``body(argv)``, its exit status; a missing extra or a ``ValueError`` or ``ImportError``
+    becomes one line on stderr (``prog: ...``) and exit status 2. ``--docs PAGE`` in ``argv``
+    writes the command's output into PAGE (:mod:`rbenvs.docblocks`)."""
+    from .docblocks import run_with_docs
+
     try:
-        return body(*args)
+        return run_with_docs(prog, body, argv)
     except MissingExtra as exc:
         print(f"{prog}: {exc}", file=sys.stderr)
     except (ValueError, ImportError) as exc:

@@ -87,3 +87,174 @@ def test_every_python_block_of_the_readme_and_docs_runs(page):
     namespace = {"__name__": "__docs__"}
     for block in _python_blocks(page):
         exec(compile(block, str(page), "exec"), namespace)
+
+
+# --- figures written by the commands (rbenvs.docblocks), commands that parse ---------------------
+
+FENCE = re.compile(r"^\s*(`{3,})(\S*)\s*$")
+
+
+def _fenced_blocks(text: str) -> list[tuple[str, int]]:
+    """``(language, offset)`` of every fenced block's opening line."""
+    found, open_fence, offset = [], None, 0
+    for line in text.splitlines(keepends=True):
+        m = FENCE.match(line)
+        if m:
+            if open_fence is None:
+                open_fence = m.group(1)
+                found.append((m.group(2), offset))
+            elif not m.group(2) and len(m.group(1)) >= len(open_fence):
+                open_fence = None
+        offset += len(line)
+    return found
+
+
+def test_every_figure_block_is_written_by_a_command():
+    """A fenced block without a language (a figure, a command's output) lies inside an
+    ``rbenvs:output`` block, which only ``--docs`` writes; illustrations say ``text``."""
+    from rbenvs.docblocks import _BLOCK
+
+    loose = []
+    for page in PAGES:
+        text = page.read_text()
+        spans = [(m.start(), m.end()) for m in _BLOCK.finditer(text)]
+        for lang, at in _fenced_blocks(text):
+            if lang == "" and not any(a <= at < b for a, b in spans):
+                loose.append(f"{page.relative_to(ROOT)}:{text[:at].count(chr(10)) + 1}")
+    assert not loose, f"figure blocks not written by a command (wrap them in <!-- rbenvs:output CMD --> ... <!-- rbenvs:end -->): {loose}"
+
+
+def _written_blocks():
+    from rbenvs.docblocks import blocks
+
+    return [(page, key, body) for page in PAGES for key, body in blocks(page.read_text())]
+
+
+def test_the_written_blocks_name_their_command_date_and_machine():
+    written = _written_blocks()
+    assert len(written) >= 8
+    for page, key, body in written:
+        assert re.match(rf"`{re.escape(key)}` \(20\d\d-\d\d-\d\d, \d+ cores, .+\):\n\n", body), (page.name, key, body[:200])
+
+
+class _Parsed(Exception):
+    """Raised by argparse's parse_args once the arguments parsed: the command line is valid."""
+
+
+def _parses(command: str, monkeypatch) -> None:
+    """Parse ``command`` with the command's own parser, stopping before it runs."""
+    import argparse
+    import shlex
+
+    argv = shlex.split(command)
+    prog, args = argv[0], argv[1:]
+    original = argparse.ArgumentParser.parse_args
+
+    def parse_only(self, args=None, namespace=None):
+        original(self, args, namespace)
+        raise _Parsed
+
+    monkeypatch.setattr(argparse.ArgumentParser, "parse_args", parse_only)
+    from rbenvs.cli import main as rbenvs_main
+
+    mains = {"rbenvs": rbenvs_main}
+    if prog.startswith("rbenvs-"):
+        pytest.importorskip("stable_baselines3")
+        from rbenvs_agents import cli
+
+        mains |= {"rbenvs-train": cli.train_main, "rbenvs-eval": cli.eval_main, "rbenvs-results": cli.results_main}
+    assert prog in mains, f"unknown command {prog!r} in {command!r}"
+    with pytest.raises(_Parsed):
+        mains[prog](args)
+
+
+def _commands_in_text():
+    """Every complete command of the README and docs: the written blocks' command lines, the
+    lines of ``bash`` blocks and inline code spans that start with a command (synopses with
+    ``[...]``, ``{...}`` or ``...`` are templates, not commands)."""
+    found = []
+    for page in PAGES:
+        text = page.read_text()
+        for block in re.findall(r"^ *```bash\n(.*?)^ *```", text, flags=re.M | re.S):
+            for line in block.splitlines():
+                command = line.split("#")[0].strip()
+                if command:
+                    found.append((page.name, command))
+        for span in re.findall(r"`([^`\n]+)`", text):
+            if span.startswith("pip install ") or (re.match(r"(rbenvs|rbenvs-train|rbenvs-eval|rbenvs-results|make|python -m rl_zoo3) ", span)
+                                                   and not re.search(r"[\[\]{}]|\.\.\.|PATH|NAME|DIR\b", span)):
+                found.append((page.name, span))
+    for page, key, _ in _written_blocks():
+        found.append((page.name, key))
+    return sorted(set(found))
+
+
+def test_the_pages_name_commands():
+    commands = [c for _, c in _commands_in_text()]
+    assert len(commands) >= 20 and any(c.startswith("rbenvs-results") for c in commands)
+
+
+@pytest.mark.parametrize("where,command", _commands_in_text(), ids=lambda x: x[:60] if isinstance(x, str) else x)
+def test_every_command_in_the_docs_is_one_the_project_accepts(where, command, monkeypatch):
+    """Each command of the pages, as written: ``make`` targets exist, ``pip install`` asks for
+    extras that exist (and the pinned torch), and every ``rbenvs`` command line parses with its
+    own parser (the cheap ones run in their own tests; the long ones by their authors with
+    ``--docs``)."""
+    import shlex
+
+    argv = shlex.split(command)
+    if argv[0] == "make":
+        targets = set(re.findall(r"^([a-z]+):", (ROOT / "Makefile").read_text(), flags=re.M))
+        assert set(argv[1:]) <= targets, command
+    elif argv[:2] == ["pip", "install"]:
+        import tomllib
+
+        extras = set(tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]["optional-dependencies"])
+        for spec in argv[2:]:
+            if spec == "-e":
+                continue
+            m = re.match(r"^(?:\.|rbenvs)(?:\[([a-z,]+)\])?$", spec)
+            if m:
+                assert set((m.group(1) or "").split(",")) - {""} <= extras, command
+            else:
+                assert spec == "torch==2.13.0", command
+    elif argv[:3] == ["python", "-m", "rl_zoo3.train"]:
+        # the zoo's own command line: tests/test_ecosystem.py runs it; here its env and file exist
+        import rbenvs
+
+        options = dict(zip(argv[3::2], argv[4::2]))
+        assert options["--env"] in rbenvs.ENVIRONMENTS and options["--gym-packages"] == "rbenvs", command
+        assert (ROOT / options["--conf-file"]).is_file(), command
+    else:
+        _parses(command, monkeypatch)
+
+
+def test_docs_flag_writes_the_output_into_the_named_block(tmp_path, capsys):
+    from rbenvs.docblocks import run_with_docs, split_docs_flag
+
+    assert split_docs_flag(["a", "--docs", "p.md", "b"]) == (["a", "b"], "p.md")
+    assert split_docs_flag(["--docs=p.md"]) == ([], "p.md")
+    page = tmp_path / "page.md"
+    page.write_text("before\n<!-- rbenvs:output prog x 'a b' -->\nold\n<!-- rbenvs:end -->\nafter\n"
+                    "<!-- rbenvs:output prog table -->\n<!-- rbenvs:end -->\n")
+
+    def body(argv):
+        print("figures of", argv)
+        return 0
+
+    assert run_with_docs("prog", body, ["x", "a b", "--no-progress", "--docs", str(page)]) == 0
+    text = page.read_text()
+    assert "old" not in text and text.startswith("before\n") and text.endswith("<!-- rbenvs:end -->\n")
+    assert re.search(r"`prog x 'a b'` \(20\d\d-\d\d-\d\d, \d+ cores, .*\):\n\n```\nfigures of \['x', 'a b', '--no-progress'\]\n```\n", text)
+
+    def table(argv):
+        print("| a | b |\n|---|---|\n| 1 | 2 |")
+        return 0
+
+    assert run_with_docs("prog", table, ["table", "--docs", str(page)]) == 0
+    assert "\n| a | b |\n|---|---|\n| 1 | 2 |\n<!-- rbenvs:end -->" in page.read_text()  # Markdown stays Markdown
+    before = page.read_text()
+    with pytest.raises(ValueError, match="no block for `prog other`"):
+        run_with_docs("prog", body, ["other", "--docs", str(page)])  # refused before it runs
+    assert run_with_docs("prog", lambda argv: 1, ["table", "--docs", str(page)]) == 1
+    assert page.read_text() == before  # a failed run writes nothing
