@@ -23,6 +23,8 @@ EXTRAS = {
     "cli": (("yaml", "PyYAML"),),
     # The agents: stable-baselines3 on torch; their scenes and hyperparameters are YAML too.
     "agents": (("stable_baselines3", "stable-baselines3"), ("torch", "torch"), ("yaml", "PyYAML")),
+    # `rbenvs verify --simulator mujoco`: MuJoCo's models beside ours (rbenvs.verify.mujoco_adapter)
+    "mujoco": (("mujoco", "mujoco"),),
 }
 
 

@@ -33,11 +33,13 @@ import argparse
 import json
 import math
 import sys
+import time
 from dataclasses import asdict
 
 from ..integrators import INTEGRATORS, get_integrator
 from ..progress import Progress
 from .common import ROUND_OFF, Check, reference_scheme
+from .simulator import parse_simulator
 from .free_body import FREE_BODY_SETTINGS, free_body_checks
 from .heavy_top import HEAVY_TOP_SETTINGS, heavy_top_checks
 from . import tippe_top as _tippe
@@ -176,6 +178,11 @@ def main(argv=None) -> int:
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--system", action="append", choices=SYSTEMS, help="restrict to these systems (repeatable; default all)")
     parser.add_argument("--integrator", action="append", help="restrict to these integrators (repeatable)")
+    parser.add_argument("--simulator", action="append", metavar="SPEC",
+                        help="run the checks on another simulator at its own step (repeatable): mujoco[:integrator=RK4+implicitfast,dt=1e-3,...], "
+                             "rbenvs[:integrator=rk4,dt=1e-3] or module:function[,dt=1e-3,order=1] (docs/verification.md)")
+    parser.add_argument("--docs", metavar="PAGE", help="with --simulator: also write the rows as the comparison table between the "
+                                                       "markers of this page (docs/verification.md)")
     parser.add_argument("--json", metavar="PATH", help="also write a machine-readable report")
     parser.add_argument("--no-progress", action="store_true")
     parser.add_argument("--sweep", action="store_true",
@@ -190,12 +197,23 @@ def main(argv=None) -> int:
         if args.integrator:
             parser.error("--sweep runs rk4 only: leave out --integrator")
         return _sweep_main(args)
+    if args.docs and not args.simulator:
+        parser.error("--docs needs --simulator")
+    if args.simulator and args.integrator:
+        parser.error("--integrator picks rbenvs' integrators: with --simulator name them as rbenvs:integrator=NAME")
+    sims = [sim for spec in args.simulator for sim in parse_simulator(spec)] if args.simulator else None
+    started = time.time()
     checks = run_checks(systems=tuple(args.system or SYSTEMS), integrators=args.integrator, quick=args.quick, seed=args.seed,
-                        show_progress=not args.no_progress)
+                        show_progress=not args.no_progress, simulators=sims)
     print_table(checks)
     if args.json:
         with open(args.json, "w") as f:
-            json.dump([asdict(c) | {"passed": c.passed} for c in checks], f, indent=1)
+            json.dump([asdict(c) | {"passed": c.passed, "result": c.result} for c in checks], f, indent=1)
+    if args.docs:
+        from .comparison import write_comparison
+
+        write_comparison(args.docs, checks, argv if argv is not None else sys.argv[1:], time.time() - started)
+        print(f"comparison written to {args.docs}")
     return 0 if all(c.passed for c in checks) else 1
 
 

@@ -1,6 +1,6 @@
 """The simulator under test: the contract ``rbenvs verify`` runs its checks through, and the
 adapters for rbenvs' own integrators and for a plain Python step function (docs/verification.md,
-"Any simulator"). MuJoCo's adapter is :mod:`rbenvs.verify.mujoco`, imported only when named.
+"Any simulator"). MuJoCo's adapter is :mod:`rbenvs.verify.mujoco_adapter`, imported only when named.
 
 A :class:`Simulator` is told a :class:`Problem` (which system, its physical parameters, the
 tippe top's fidelity) and a start state, and returns a :class:`Run` that advances by a step
@@ -38,7 +38,7 @@ import numpy as np
 from ..integrators import Integrator, get_integrator
 
 __all__ = ["Problem", "Run", "Simulator", "IntegratorSimulator", "CallableSimulator", "problem_of", "advance", "start",
-           "as_simulators", "parse_simulator", "ADAPTERS"]
+           "as_simulators", "parse_simulator", "take_option", "no_more_options", "ADAPTERS"]
 
 
 @dataclass(frozen=True)
@@ -217,7 +217,7 @@ def _options(text: str) -> dict[str, str]:
     return out
 
 
-def _take(options, key, kind, default):
+def take_option(options, key, kind, default):
     if key not in options:
         return default
     value = options.pop(key)
@@ -228,21 +228,23 @@ def _take(options, key, kind, default):
 
 
 def _rbenvs(options) -> list:
-    names = _take(options, "integrator", str, None)
-    dt = _take(options, "dt", float, None)
-    _no_more(options, "rbenvs")
+    names = take_option(options, "integrator", str, None)
+    dt = take_option(options, "dt", float, None)
+    no_more_options(options, "rbenvs")
     from ..integrators import INTEGRATORS
 
     return [IntegratorSimulator(name, dt) for name in (names.split("+") if names else INTEGRATORS)]
 
 
 def _mujoco(options) -> list:
-    from .mujoco import mujoco_simulators  # the only import of the mujoco adapter (and of mujoco)
+    from ..extras import require
+    require("mujoco")
+    from .mujoco_adapter import mujoco_simulators  # the only import of the mujoco adapter (and of mujoco)
 
     return mujoco_simulators(options)
 
 
-def _no_more(options, what):
+def no_more_options(options, what):
     if options:
         raise ValueError(f"unknown {what} simulator option(s): {sorted(options)}")
 
@@ -255,7 +257,7 @@ def parse_simulator(spec: str) -> list:
 
     * ``rbenvs[:integrator=rk4+euler,dt=1e-3]``: rbenvs' own integrators (all by default; without
       ``dt`` at their verify settings, as the default table);
-    * ``mujoco[:integrator=RK4+implicitfast,dt=1e-3,...]``: MuJoCo (:mod:`rbenvs.verify.mujoco`);
+    * ``mujoco[:integrator=RK4+implicitfast,dt=1e-3,...]``: MuJoCo (:mod:`rbenvs.verify.mujoco_adapter`);
     * ``module:function[,dt=1e-3,order=1,name=...]``: a step function ``f(problem, y, u, dt)``
       (:class:`CallableSimulator`), or an object that already is a :class:`Simulator`.
     """
@@ -276,9 +278,9 @@ def parse_simulator(spec: str) -> list:
             raise ValueError(f"simulator {spec!r}: {head!r} has no attribute {attr!r}")
         obj = getattr(obj, part)
     if isinstance(obj, Simulator):
-        _no_more(options, spec)
+        no_more_options(options, spec)
         return [obj]
-    sim = CallableSimulator(obj, dt=_take(options, "dt", float, 1e-3), order=_take(options, "order", int, 1),
-                            name=_take(options, "name", str, None))
-    _no_more(options, spec)
+    sim = CallableSimulator(obj, dt=take_option(options, "dt", float, 1e-3), order=take_option(options, "order", int, 1),
+                            name=take_option(options, "name", str, None))
+    no_more_options(options, spec)
     return [sim]
