@@ -49,7 +49,7 @@ for _env_id, _spec in ENVIRONMENTS.items():
 # (``help(rbenvs.envs.FreeRigidBodyEnv)``) and imported on first access (PEP 562): importing
 # rbenvs stays a registration, without the physics, scipy or numba behind it.
 _SUBMODULES = ("bench", "cli", "compiled", "contracts", "controllers", "core", "docblocks", "draws", "dynamics", "elliptic", "envs", "extras", "integrators",
-               "jit", "oracles", "plotting", "progress", "render", "rotations", "scenes", "tasks", "vector", "verify")
+               "jit", "oracles", "plotting", "progress", "render", "rotations", "scenes", "tasks", "testing", "vector", "verify")
 
 
 def __getattr__(name):

@@ -27,6 +27,8 @@ EXTRAS = {
     "tensorboard": (("tensorboard", "tensorboard"),),
     # gymnasium's RecordVideo writes its files through moviepy.
     "video": (("moviepy", "moviepy"),),
+    # `rbenvs verify --simulator mujoco`: MuJoCo's models beside ours (rbenvs.verify.mujoco_adapter)
+    "mujoco": (("mujoco", "mujoco"),),
 }
 
 

@@ -37,7 +37,8 @@ from dataclasses import asdict
 
 from ..integrators import INTEGRATORS, get_integrator
 from ..progress import Progress
-from .common import ROUND_OFF, Check
+from .common import ROUND_OFF, Check, reference_scheme
+from .simulator import parse_simulator
 from .free_body import FREE_BODY_SETTINGS, free_body_checks
 from .heavy_top import HEAVY_TOP_SETTINGS, heavy_top_checks
 from . import tippe_top as _tippe
@@ -67,8 +68,12 @@ FREE_BODY_CASES = (2, 8)
 HEAVY_TOP_CASES = (1, 6)
 
 
-def run_checks(systems=SYSTEMS, integrators=None, quick=False, seed=0, show_progress=True) -> list[Check]:
-    """Every check of ``systems`` for ``integrators`` (default: all registered), in that order."""
+def run_checks(systems=SYSTEMS, integrators=None, quick=False, seed=0, show_progress=True, simulators=None) -> list[Check]:
+    """Every check of ``systems`` for ``integrators`` (default: all registered), in that order;
+    or, given ``simulators`` (:class:`~rbenvs.verify.simulator.Simulator` objects), for those:
+    each at its own step, the rows it cannot run reading n/a."""
+    if simulators is not None:
+        return _run_simulators(systems, list(simulators), quick, seed, show_progress)
     integrators = list(integrators or INTEGRATORS)
     for name in integrators:
         get_integrator(name)  # ValueError naming the integrator if unknown
@@ -90,6 +95,29 @@ def run_checks(systems=SYSTEMS, integrators=None, quick=False, seed=0, show_prog
         checks += heavy_top_checks(ht, seed=seed, n_tops=n_ht, progress=progress.update)
     if tt:
         checks += tippe_top_checks(tt, seed=seed, quick=quick, progress=progress.update)
+    progress.close()
+    return checks
+
+
+def _run_simulators(systems, sims, quick, seed, show_progress) -> list[Check]:
+    unknown = [s for s in systems if s not in SYSTEMS]
+    if unknown:
+        raise ValueError(f"system must be one of {list(SYSTEMS)}, got {unknown[0]!r}")
+    n_fb = FREE_BODY_CASES[0 if quick else 1]
+    n_ht = HEAVY_TOP_CASES[0 if quick else 1]
+    own = [s.integrator.name if s.dt is None else reference_scheme(s.order) for s in sims]
+    total = len(sims) * ((n_fb + 1) * ("free_body" in systems) + n_ht * ("heavy_top" in systems))
+    total += _tippe.progress_total(own, quick=quick) if "tippe_top" in systems else 0
+    progress = Progress(total=total, enabled=show_progress, desc="verify")
+    checks: list[Check] = []
+    # one simulator at a time, each from the same seed: every simulator meets the same random
+    # bodies and starts, so that a comparison's columns are the same cases
+    for system, family in (("free_body", lambda sim: free_body_checks([sim], seed=seed, n_cases=n_fb, progress=progress.update)),
+                           ("heavy_top", lambda sim: heavy_top_checks([sim], seed=seed, n_tops=n_ht, progress=progress.update)),
+                           ("tippe_top", lambda sim: tippe_top_checks([sim], seed=seed, quick=quick, progress=progress.update))):
+        if system in systems:
+            for sim in sims:
+                checks += family(sim)
     progress.close()
     return checks
 
@@ -128,15 +156,19 @@ def print_table(checks, file=None):
     file = sys.stdout if file is None else file
     rows = [("system", "integrator", "check", "predicted", "measured", "tolerance", "result")]
     for c in checks:
+        if not c.applies:
+            rows.append((c.system, c.integrator, c.check, "-", "-", "-", f"n/a ({c.reason})"))
+            continue
         tol = f"{c.tolerance:.0e}" + (" rel" if c.relative else "")
-        rows.append((c.system, c.integrator, c.check, _fmt(c.predicted), _fmt(c.measured), tol, "PASS" if c.passed else "FAIL"))
+        rows.append((c.system, c.integrator, c.check, _fmt(c.predicted), _fmt(c.measured), tol, c.result))
     widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
     for n, r in enumerate(rows):
         print("  ".join(x.ljust(w) for x, w in zip(r, widths)).rstrip(), file=file)
         if n == 0:
             print("  ".join("-" * w for w in widths), file=file)
     failed = [c for c in checks if not c.passed]
-    print(f"\n{len(checks) - len(failed)} passed, {len(failed)} failed", file=file)
+    na = sum(not c.applies for c in checks)
+    print(f"\n{len(checks) - len(failed) - na} passed, {len(failed)} failed" + (f", {na} n/a" if na else ""), file=file)
     for c in failed:
         print(f"FAILED {c.system}/{c.integrator}/{c.check}: replay with {c.case}", file=file)
 
@@ -147,6 +179,12 @@ def main(argv=None) -> int:
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--system", action="append", choices=SYSTEMS, help="restrict to these systems (repeatable; default all)")
     parser.add_argument("--integrator", action="append", help="restrict to these integrators (repeatable)")
+    parser.add_argument("--simulator", action="append", metavar="SPEC",
+                        help="run the checks on another simulator at its own step (repeatable): mujoco[:integrator=RK4+implicitfast,dt=1e-3,...], "
+                             "rbenvs[:integrator=rk4,dt=1e-3] or module:function[,dt=1e-3,order=1] (docs/verification.md)")
+    parser.add_argument("--comparison", action="store_true",
+                        help="with --simulator: print, instead of the rows, one Markdown table (a row per check, a column per simulator) "
+                             "and exit 0 whatever it shows: a report, not a gate (--docs PAGE writes it into the page)")
     parser.add_argument("--json", metavar="PATH", help="also write a machine-readable report")
     parser.add_argument("--no-progress", action="store_true")
     parser.add_argument("--sweep", action="store_true",
@@ -161,12 +199,22 @@ def main(argv=None) -> int:
         if args.integrator:
             parser.error("--sweep runs rk4 only: leave out --integrator")
         return _sweep_main(args)
+    if args.comparison and not args.simulator:
+        parser.error("--comparison needs --simulator")
+    if args.simulator and args.integrator:
+        parser.error("--integrator picks rbenvs' integrators: with --simulator name them as rbenvs:integrator=NAME")
+    sims = [sim for spec in args.simulator for sim in parse_simulator(spec)] if args.simulator else None
     checks = run_checks(systems=tuple(args.system or SYSTEMS), integrators=args.integrator, quick=args.quick, seed=args.seed,
-                        show_progress=not args.no_progress)
-    print_table(checks)
+                        show_progress=not args.no_progress, simulators=sims)
     if args.json:
         with open(args.json, "w") as f:
-            json.dump([asdict(c) | {"passed": c.passed} for c in checks], f, indent=1)
+            json.dump([asdict(c) | {"passed": c.passed, "result": c.result} for c in checks], f, indent=1)
+    if args.comparison:
+        from .comparison import comparison_table
+
+        print("\n".join(comparison_table(checks)))
+        return 0
+    print_table(checks)
     return 0 if all(c.passed for c in checks) else 1
 
 

@@ -25,9 +25,9 @@ import math
 import numpy as np
 
 from ..dynamics import FreeBody, FreeBodyParams
-from ..integrators import get_integrator
 from ..oracles import exact_solution, intermediate_axis_growth_rate, orbit_period
-from .common import ROUND_OFF, Check
+from .common import ROUND_OFF, Check, not_applicable, reference_scheme, scaled_tolerance
+from .simulator import advance, as_simulators, start
 
 __all__ = ["FREE_BODY_SETTINGS", "free_body_checks"]
 
@@ -58,52 +58,99 @@ def _random_inertia(rng, n, distinct=0.0):
 
 
 def free_body_checks(integrators, seed=0, n_cases=6, horizon=10.0, progress=None) -> list[Check]:
+    """The free-body rows of each of ``integrators``: rbenvs integrator names or
+    :class:`~rbenvs.verify.simulator.Simulator` objects (at their own step, the tolerance rule of
+    :func:`~rbenvs.verify.common.scaled_tolerance`)."""
     rng = np.random.default_rng(seed)
     checks: list[Check] = []
     inertias = _random_inertia(rng, n_cases)
     axis_inertias = _random_inertia(rng, max(2, n_cases // 2), distinct=0.05)
-    for name in integrators:
-        integ = get_integrator(name)
-        h, tol_exact, tol_inv = FREE_BODY_SETTINGS[name]
-        steps = int(round(horizon / h))
-        worst_err, worst_e, worst_p = 0.0, 0.0, 0.0
-        worst_case = {}
-        for inertia in inertias:
-            system = FreeBody(FreeBodyParams(tuple(inertia)))
-            # uniform directions of Omega, scaled to |Omega| = 1 rad/s (the tolerances assume it)
-            omega = rng.standard_normal((3, 4))
-            pi0 = omega / np.linalg.norm(omega, axis=0) * inertia[:, None]
-            y = tuple(pi0)
-            n_rec = 10
-            every = max(1, steps // n_rec)
-            err = 0.0
-            for k in range(1, steps + 1):
-                y = integ.step(system, y, None, h)
-                if k % every == 0 or k == steps:
-                    ref = exact_solution(inertia, pi0, k * h)
-                    err = max(err, float(np.max(np.abs(np.array(y) - ref) / np.linalg.norm(pi0, axis=0))))
-            e0, e1 = system.energy(tuple(pi0)), system.energy(y)
-            p0, p1 = system.momentum_norm(tuple(pi0)), system.momentum_norm(y)
-            de = float(np.max(np.abs(e1 - e0) / e0))
-            dp = float(np.max(np.abs(p1 - p0) / p0))
-            if err > worst_err:
-                worst_case = {"inertia": inertia.tolist(), "pi0": pi0.T.tolist(), "h": h, "T": horizon}
-            worst_err, worst_e, worst_p = max(worst_err, err), max(worst_e, de), max(worst_p, dp)
+    for sim in as_simulators(integrators):
+        try:
+            checks.extend(_checks_of(sim, inertias, axis_inertias, rng, horizon, progress))
+        except NotImplementedError as exc:
+            names = [EXACT_ROW.format(horizon=horizon), ENERGY_ROW, MOMENTUM_ROW, TORQUE_ROW]
+            names += [AXIS_ROWS[label] for _ in axis_inertias for label in ("major", "intermediate", "minor")]
+            checks.extend(not_applicable("free_body", sim.name, names, str(exc)))
             if progress:
-                progress()
-        checks.append(Check("free_body", name, f"exact solution over {horizon:g} s (max rel. error)", 0.0, worst_err, tol_exact, case=worst_case))
-        tol_e = ROUND_OFF * steps**0.5 if "energy" in integ.conserves else tol_inv
-        tol_p = ROUND_OFF * steps**0.5 if "casimirs" in integ.conserves else tol_inv  # |Pi|: the free body's Casimir
-        checks.append(Check("free_body", name, "energy drift (rel.)", 0.0, worst_e, tol_e))
-        checks.append(Check("free_body", name, "|Pi| drift (rel.)", 0.0, worst_p, tol_p))
-        checks.append(_torque_balance_check(integ, inertias[0], h, rng))
-        checks.extend(_axis_checks(integ, axis_inertias, h))
-        if progress:
-            progress()
+                progress(len(inertias) + 1)
     return checks
 
 
-def _torque_balance_check(integ, inertia, h, rng) -> Check:
+EXACT_ROW = "exact solution over {horizon:g} s (max rel. error)"
+ENERGY_ROW = "energy drift (rel.)"
+MOMENTUM_ROW = "|Pi| drift (rel.)"
+TORQUE_ROW = "torque: d|Pi|^2 = 2 Pi.tau dt over 2 s"
+AXIS_ROWS = {"major": "major axis: max transverse |Pi| / initial (stable)", "intermediate": "intermediate axis: growth rate [1/s]",
+             "minor": "minor axis: max transverse |Pi| / initial (stable)"}
+
+
+def _sampled(run, steps, every, u, h, last=False):
+    """``(k, y)`` after every ``every``-th of ``steps`` steps (and after the last with ``last``)."""
+    k = 0
+    while k + every <= steps:
+        y = advance(run, every, u, h)
+        k += every
+        yield k, y
+    if k < steps:
+        y = advance(run, steps - k, u, h)
+        if last:
+            yield steps, y
+
+
+def _checks_of(sim, inertias, axis_inertias, rng, horizon, progress) -> list[Check]:
+    name = sim.name
+    own = sim.dt is None  # rbenvs' integrator at its verify settings
+    if own:
+        h, tol_exact, tol_inv = FREE_BODY_SETTINGS[name]
+    else:
+        ref_h, ref_exact, ref_inv = FREE_BODY_SETTINGS[reference_scheme(sim.order)]
+        h = sim.dt
+    steps = int(round(horizon / h))
+    if not own:  # |Omega| = 1 rad/s: omega h is h
+        tol_exact = scaled_tolerance(ref_exact, h, ref_h, sim.order, steps)
+        tol_inv = scaled_tolerance(ref_inv, h, ref_h, sim.order, steps)
+    worst_err, worst_e, worst_p = 0.0, 0.0, 0.0
+    worst_case = {}
+    for inertia in inertias:
+        system = FreeBody(FreeBodyParams(tuple(inertia)))
+        # uniform directions of Omega, scaled to |Omega| = 1 rad/s (the tolerances assume it)
+        omega = rng.standard_normal((3, 4))
+        pi0 = omega / np.linalg.norm(omega, axis=0) * inertia[:, None]
+        y = tuple(pi0)
+        run = start(sim, system, y)
+        n_rec = 10
+        every = max(1, steps // n_rec)
+        err = 0.0
+        for k, y in _sampled(run, steps, every, None, h, last=True):
+            ref = exact_solution(inertia, pi0, k * h)
+            err = max(err, float(np.max(np.abs(np.array(y) - ref) / np.linalg.norm(pi0, axis=0))))
+        e0, e1 = system.energy(tuple(pi0)), system.energy(y)
+        p0, p1 = system.momentum_norm(tuple(pi0)), system.momentum_norm(y)
+        de = float(np.max(np.abs(e1 - e0) / e0))
+        dp = float(np.max(np.abs(p1 - p0) / p0))
+        if err > worst_err:
+            worst_case = {"inertia": inertia.tolist(), "pi0": pi0.T.tolist(), "h": h, "T": horizon}
+        worst_err, worst_e, worst_p = max(worst_err, err), max(worst_e, de), max(worst_p, dp)
+        if progress:
+            progress()
+    checks = [Check("free_body", name, EXACT_ROW.format(horizon=horizon), 0.0, worst_err, tol_exact, case=worst_case)]
+    conserves = sim.integrator.conserves if own else ()
+    tol_e = ROUND_OFF * steps**0.5 if "energy" in conserves else tol_inv
+    tol_p = ROUND_OFF * steps**0.5 if "casimirs" in conserves else tol_inv  # |Pi|: the free body's Casimir
+    checks.append(Check("free_body", name, ENERGY_ROW, 0.0, worst_e, tol_e))
+    checks.append(Check("free_body", name, MOMENTUM_ROW, 0.0, worst_p, tol_p))
+    try:
+        checks.append(_torque_balance_check(sim, inertias[0], h, rng))
+    except NotImplementedError as exc:
+        checks.extend(not_applicable("free_body", name, [TORQUE_ROW], str(exc)))
+    checks.extend(_axis_checks(sim, axis_inertias, h))
+    if progress:
+        progress()
+    return checks
+
+
+def _torque_balance_check(sim, inertia, h, rng) -> Check:
     """With a constant body torque, ``d|Pi|^2/dt = 2 Pi . tau`` (the gyroscopic term is normal
     to ``Pi``). Predicted: the integral of ``2 Pi . tau`` along the simulated path (composite
     Simpson on every step, error O(h^4)); measured: the change of ``|Pi|^2``. A torque applied
@@ -111,13 +158,15 @@ def _torque_balance_check(integ, inertia, h, rng) -> Check:
     system = FreeBody(FreeBodyParams(tuple(inertia)))
     pi0 = rng.standard_normal(3) * inertia
     tau = 0.5 * rng.standard_normal(3)
-    h = min(h, 0.01)  # the quadrature needs fine samples whatever the scheme's own step
+    if sim.dt is None:
+        h = min(h, 0.01)  # the quadrature needs fine samples whatever the scheme's own step
     horizon = 2.0
     steps = 2 * int(math.ceil(horizon / (2 * h)))  # even, for Simpson
     y = tuple(pi0)
+    run = start(sim, system, y)
     power = [2.0 * float(np.dot(pi0, tau))]
     for _ in range(steps):
-        y = integ.step(system, y, tuple(tau), h)
+        y = run.step(tuple(tau), h)
         power.append(2.0 * float(np.dot(y, tau)))
     w = np.ones(steps + 1)
     w[1:-1:2], w[2:-1:2] = 4.0, 2.0
@@ -126,11 +175,11 @@ def _torque_balance_check(integ, inertia, h, rng) -> Check:
     # Tolerance relative to the scale of the balance, 2 |Pi| |tau| T, not to its value (which a
     # random draw can make nearly zero).
     scale = 2.0 * max(np.linalg.norm(pi0), float(np.linalg.norm(y))) * float(np.linalg.norm(tau)) * horizon
-    return Check("free_body", integ.name, "torque: d|Pi|^2 = 2 Pi.tau dt over 2 s", predicted, measured, 1e-3 * scale,
+    return Check("free_body", sim.name, TORQUE_ROW, predicted, measured, 1e-3 * scale,
                  case={"inertia": inertia.tolist(), "pi0": pi0.tolist(), "tau": tau.tolist(), "h": h})
 
 
-def _axis_checks(integ, inertias, h) -> list[Check]:
+def _axis_checks(sim, inertias, h) -> list[Check]:
     out = []
     names = ("major", "intermediate", "minor")
     for inertia in inertias:
@@ -148,38 +197,34 @@ def _axis_checks(integ, inertias, h) -> list[Check]:
                 t_end = math.log(1e-3 / eps) / lam  # until the perturbation is ~1e-3 p
                 steps = int(math.ceil(t_end / h))
                 ts, amp = [], []
-                y = tuple(pi0)
+                run = start(sim, system, tuple(pi0))
                 every = max(1, steps // 200)
-                for k in range(1, steps + 1):
-                    y = integ.step(system, y, None, h)
-                    if k % every == 0:
-                        ts.append(k * h)
-                        amp.append(math.hypot(y[a], y[b]) / p)
+                for k, y in _sampled(run, steps, every, None, h):
+                    ts.append(k * h)
+                    amp.append(math.hypot(y[a], y[b]) / p)
                 ts, amp = np.array(ts), np.array(amp)
                 # fit after 2/lambda (the decaying mode has died out) while still linear
                 sel = (ts > 2.0 / lam) & (amp < 1e-4)
                 rate = float(np.polyfit(ts[sel], np.log(amp[sel]), 1)[0]) if sel.sum() >= 5 else float("nan")
-                out.append(Check("free_body", integ.name, "intermediate axis: growth rate [1/s]", lam, rate, 0.02, relative=True,
+                out.append(Check("free_body", sim.name, AXIS_ROWS[label], lam, rate, 0.02, relative=True,
                                  case={"inertia": inertia.tolist(), "axis": int(j), "h": h}))
             else:
                 eps = 1e-3
                 pi0 = np.zeros(3)
                 pi0[j], pi0[a], pi0[b] = p, eps * p, eps * p
                 steps = int(math.ceil(50 * 2 * math.pi / h))  # 50 rotation periods at |Omega| = 1
-                y = tuple(pi0)
+                run = start(sim, system, tuple(pi0))
                 worst = 0.0
                 every = max(1, steps // 500)
-                for k in range(1, steps + 1):
-                    y = integ.step(system, y, None, h)
-                    if k % every == 0:
-                        worst = max(worst, math.hypot(y[a], y[b]))
+                for _, y in _sampled(run, steps, every, None, h):
+                    worst = max(worst, math.hypot(y[a], y[b]))
                 # The theorem says bounded; the exact orbit says by how much (an ellipse around
                 # the axis whose size ratio grows as the moments approach each other).
                 period = float(orbit_period(inertia, pi0))
                 ref = exact_solution(inertia, pi0, np.linspace(0.0, period, 4001))
                 predicted = float(np.max(np.hypot(ref[a], ref[b])))
                 measured_max = worst
-                out.append(Check("free_body", integ.name, f"{label} axis: max transverse |Pi| / initial (stable)",
+                out.append(Check("free_body", sim.name, AXIS_ROWS[label],
                                  predicted / (math.sqrt(2) * eps * p), measured_max / (math.sqrt(2) * eps * p), 0.02, relative=True,
                                  case={"inertia": inertia.tolist(), "axis": int(j), "h": h}))
     return out

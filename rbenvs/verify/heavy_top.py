@@ -81,9 +81,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..dynamics import HeavyTop, HeavyTopParams
-from ..integrators import get_integrator
 from ..oracles import critical_spin, fast_top_nutation, regular_precession_rates, upright_eigenvalues
-from .common import ROUND_OFF, Check, worst
+from .common import ROUND_OFF, Check, not_applicable, reference_scheme, scaled_tolerance, worst
+from .simulator import advance, as_simulators, start
 
 __all__ = ["HEAVY_TOP_SETTINGS", "TopSetting", "heavy_top_checks", "random_tops"]
 
@@ -250,26 +250,39 @@ def _lagrange_state(top: _Top, tilt, spin, precession=0.0):
 # running
 
 
-def _run(system, integ, y, horizon, omega, omega_h, sample, observe):
-    """Integrate ``y`` over ``horizon`` [s] with ``h = omega_h/omega`` (for dop853: the sampling
-    interval), calling ``observe(t, y)`` at ``t = 0`` and every ``sample/omega_h`` steps (a whole
-    number of samples: their spacing is uniform). ``observe`` returns True to stop early.
+def _run(system, sim, y, horizon, omega, omega_h, sample, observe):
+    """Simulate ``y`` over ``horizon`` [s] with ``h = omega_h/omega`` (for dop853: the sampling
+    interval; a simulator with its own ``dt``: that step, over whole samples past ``horizon``),
+    calling ``observe(t, y)`` at ``t = 0`` and every ``sample/(omega h)`` steps (a whole number of
+    samples: their spacing is uniform). ``observe`` returns True to stop early.
     Returns ``(h, steps)``."""
-    if integ.name == "dop853":
-        every = 1
+    if sim.dt is not None:
+        h = sim.dt
+        every = max(1, int(round(sample / (omega * h))))
+        steps = max(1, int(math.ceil(horizon / (h * every)))) * every
     else:
-        every = max(1, int(round(sample / omega_h)))
-    h = omega_h / omega
-    n_samples = max(1, int(math.ceil(horizon / (h * every))))
-    steps = n_samples * every
-    h = horizon / steps
+        every = 1 if sim.integrator.name == "dop853" else max(1, int(round(sample / omega_h)))
+        h = omega_h / omega
+        n_samples = max(1, int(math.ceil(horizon / (h * every))))
+        steps = n_samples * every
+        h = horizon / steps
     if observe(0.0, y):
         return h, 0
-    for k in range(1, steps + 1):
-        y = integ.step(system, y, None, h)
-        if k % every == 0 and observe(k * h, y):
+    run = start(sim, system, y)
+    for k in range(every, steps + 1, every):
+        y = advance(run, every, None, h)
+        if observe(k * h, y):
             return h, k
     return h, steps
+
+
+def _tolerance(sim, tolerance, reference_step, omega, h, steps):
+    """A row's scheme tolerance: the setting's for rbenvs' own integrator at its step; for a
+    simulator at its own ``dt``, the reference scheme's scaled to ``omega dt``
+    (:func:`~rbenvs.verify.common.scaled_tolerance`)."""
+    if sim.dt is None:
+        return tolerance
+    return scaled_tolerance(tolerance, omega * h, reference_step, sim.order, steps)
 
 
 def _refined_extrema(t, x, sign=1.0):
@@ -291,7 +304,7 @@ def _refined_extrema(t, x, sign=1.0):
 # the checks
 
 
-def _falls(system, integ, setting, top, spins):
+def _falls(system, sim, setting, top, spins):
     """Whether the upright top, tilted by START_TILT, passes FALL_TILT within HORIZON t_g, for
     each spin (a float, or an array run as one batch)."""
     y = _lagrange_state(top, START_TILT, spins)
@@ -303,31 +316,32 @@ def _falls(system, integ, setting, top, spins):
         return bool(np.all(fell))
 
     omega = float(np.max(spins)) + 2.0 / top.t_g
-    _run(system, integ, y, HORIZON * top.t_g, omega, setting.upright_step, SAMPLE["upright"], observe)
+    _run(system, sim, y, HORIZON * top.t_g, omega, setting.upright_step, SAMPLE["upright"], observe)
     return fell
 
 
-def _bisect_critical_spin(system, integ, setting, top):
+def _bisect_critical_spin(system, sim, setting, top):
     """The spin where the upright top stops falling, bracketed to BISECTION_WIDTH; nan if the
     first bracket does not hold it (the low end stands or the high end falls)."""
     lo, hi = (f * top.spin_scale for f in BRACKET)
-    k = setting.batch
-    ends = _falls(system, integ, setting, top, np.array([lo, hi])) if k > 1 else \
-        np.array([_falls(system, integ, setting, top, lo), _falls(system, integ, setting, top, hi)])
+    k = setting.batch if getattr(sim, "batched", False) else 1
+    ends = _falls(system, sim, setting, top, np.array([lo, hi])) if k > 1 else \
+        np.array([_falls(system, sim, setting, top, lo), _falls(system, sim, setting, top, hi)])
     if not ends[0] or ends[1]:
         return math.nan, {"bracket": [lo, hi], "low end falls": bool(ends[0]), "high end falls": bool(ends[1])}
     runs = 2
     while hi - lo > BISECTION_WIDTH * lo:
         grid = lo + (hi - lo) * np.arange(1, k + 1) / (k + 1)
-        fell = np.atleast_1d(_falls(system, integ, setting, top, grid if k > 1 else float(grid[0])))
+        fell = np.atleast_1d(_falls(system, sim, setting, top, grid if k > 1 else float(grid[0])))
         runs += 1
         stands = np.nonzero(~fell)[0]
         first = int(stands[0]) if len(stands) else k  # the first spin that does not fall
         lo, hi = (grid[first - 1] if first > 0 else lo), (grid[first] if first < k else hi)
-    return 0.5 * (lo + hi), {"bracket": [float(lo), float(hi)], "runs": runs, "omega h": setting.upright_step}
+    omega_h = setting.upright_step if sim.dt is None else (hi + 2.0 / top.t_g) * sim.dt
+    return 0.5 * (lo + hi), {"bracket": [float(lo), float(hi)], "runs": runs, "omega h": omega_h}
 
 
-def _upright_max_tilt(system, integ, setting, top, spin):
+def _upright_max_tilt(system, sim, setting, top, spin):
     y = _lagrange_state(top, START_TILT, spin)
     worst = 0.0
 
@@ -336,11 +350,11 @@ def _upright_max_tilt(system, integ, setting, top, spin):
         worst = max(worst, float(system.tilt(y)))
         return False
 
-    h, _ = _run(system, integ, y, HORIZON * top.t_g, spin + 2.0 / top.t_g, setting.upright_step, SAMPLE["upright"], observe)
+    h, _ = _run(system, sim, y, HORIZON * top.t_g, spin + 2.0 / top.t_g, setting.upright_step, SAMPLE["upright"], observe)
     return worst, h
 
 
-def _upright_growth_rate(system, integ, setting, top, spin):
+def _upright_growth_rate(system, sim, setting, top, spin):
     """Rate of exp growth of the tilt from 1e-8 rad, fitted between 1e-6 and 1e-4 rad."""
     y = _lagrange_state(top, 1e-8, spin)
     ts, tilts = [], []
@@ -353,8 +367,8 @@ def _upright_growth_rate(system, integ, setting, top, spin):
 
     # the fit window lasts ln(100)/sigma ~ 5 t_g: dop853, sampled at its call interval, is
     # called 4x as often here as in the other upright runs (~30 samples in the window)
-    omega_h = setting.upright_step / 4.0 if integ.name == "dop853" else setting.upright_step
-    h, _ = _run(system, integ, y, HORIZON * top.t_g, spin + 2.0 / top.t_g, omega_h, SAMPLE["upright"], observe)
+    omega_h = setting.upright_step / 4.0 if sim.dt is None and sim.integrator.name == "dop853" else setting.upright_step
+    h, _ = _run(system, sim, y, HORIZON * top.t_g, spin + 2.0 / top.t_g, omega_h, SAMPLE["upright"], observe)
     ts, tilts = np.array(ts), np.array(tilts)
     sel = (tilts >= 1e-6) & (tilts <= 1e-4)
     if sel.sum() < 5:
@@ -375,7 +389,7 @@ def _recorder(system):
     return ts, tilts, rates, observe
 
 
-def _regular_precession(system, integ, setting, top):
+def _regular_precession(system, sim, setting, top):
     alpha = top.precession_tilt
     A, C = top.A, top.C
     mgl = top.params.mgl
@@ -386,15 +400,16 @@ def _regular_precession(system, integ, setting, top):
 
     horizon = setting.periods * 2.0 * math.pi / abs(p)
     omega = math.hypot(n, p * math.sin(alpha))
-    h, steps = _run(system, integ, y, horizon, omega, setting.precession_step, SAMPLE["precession"], observe)
+    h, steps = _run(system, sim, y, horizon, omega, setting.precession_step, SAMPLE["precession"], observe)
     ts, tilts, rates = np.array(ts), np.array(tilts), np.array(rates)
     held = float(np.max(np.abs(tilts - alpha)))
     mean_rate = float(np.trapezoid(rates, ts) / ts[-1])
     case = top.describe() | {"tilt": alpha, "spin": n, "precession_rate": p, "periods": setting.periods, "h": h, "T": horizon}
-    return p, held, mean_rate, case
+    tolerances = tuple(_tolerance(sim, tol, setting.precession_step, omega, h, steps) for tol in (setting.held, setting.rate))
+    return p, held, mean_rate, case, tolerances
 
 
-def _fast_top(system, integ, setting, top):
+def _fast_top(system, sim, setting, top):
     alpha, eps = top.nutation_tilt, top.nutation_eps
     A, C = top.A, top.C
     n = math.sqrt(A * top.params.mgl / eps) / C
@@ -404,7 +419,7 @@ def _fast_top(system, integ, setting, top):
 
     nod = 2.0 * math.pi * A / (C * n)  # the nutation time scale C n / A of the top
     horizon = (setting.nods + 0.25) * nod
-    h, steps = _run(system, integ, y, horizon, n, setting.nutation_step, SAMPLE["nutation"], observe)
+    h, steps = _run(system, sim, y, horizon, n, setting.nutation_step, SAMPLE["nutation"], observe)
     ts, tilts, rates = np.array(ts), np.array(tilts), np.array(rates)
     t_max, v_max = _refined_extrema(ts, tilts)
     t_min, v_min = _refined_extrema(ts, tilts, -1.0)
@@ -425,7 +440,7 @@ def _fast_top(system, integ, setting, top):
     return oracle, (amplitude, period, mean_rate), case
 
 
-def _invariants(system, integ, setting, top):
+def _invariants(system, sim, setting, top):
     gamma = np.array(top.gamma0)
     omega0 = np.array(top.omega_dir) * top.omega_scale * top.spin_scale
     pi0 = np.array(top.params.inertia) * omega0
@@ -444,72 +459,87 @@ def _invariants(system, integ, setting, top):
 
     horizon = INVARIANT_HORIZON * top.t_g
     omega = float(np.linalg.norm(omega0)) + 2.0 / top.t_g
-    h, steps = _run(system, integ, y, horizon, omega, setting.invariant_step, SAMPLE["invariants"], observe)
+    h, steps = _run(system, sim, y, horizon, omega, setting.invariant_step, SAMPLE["invariants"], observe)
     case = top.describe() | {"pi0": pi0.tolist(), "gamma0": gamma.tolist(), "h": h, "T": horizon}
-    return worst, steps, case
+    return worst, steps, case, omega
 
 
 def heavy_top_checks(integrators, seed=0, n_tops=3, system_class=HeavyTop, progress=None) -> list[Check]:
-    """The heavy-top rows for each integrator (those without the pieces the top offers, such
-    as ``exact``, are left out). ``system_class`` builds the simulated system from the
-    parameters (tests pass a deliberately broken one)."""
+    """The heavy-top rows for each of ``integrators``: rbenvs integrator names (left out where
+    the top does not offer what they need, as for ``exact``) or
+    :class:`~rbenvs.verify.simulator.Simulator` objects at their own step, held to the settings
+    of :func:`~rbenvs.verify.common.reference_scheme` scaled to it. ``system_class`` builds the
+    system from the parameters (tests pass a deliberately broken one)."""
     tops = _random_cases(np.random.default_rng([seed, 2]), n_tops)
     checks: list[Check] = []
-    for name in integrators:
-        integ = get_integrator(name)
-        if name not in HEAVY_TOP_SETTINGS or not integ.supports(system_class(tops[0].params)):
-            continue
-        setting = HEAVY_TOP_SETTINGS[name]
+    for sim in as_simulators(integrators):
+        if sim.dt is None:
+            integ = sim.integrator
+            if integ.name not in HEAVY_TOP_SETTINGS or not integ.supports(system_class(tops[0].params)):
+                continue
+            setting = HEAVY_TOP_SETTINGS[integ.name]
+        else:
+            setting = HEAVY_TOP_SETTINGS[reference_scheme(sim.order)]
         rows: dict[str, list[Check]] = {}
 
         def add(check):
             rows.setdefault(check.check, []).append(check)
 
-        for top in tops:
-            checks_for_top(system_class(top.params), integ, setting, top, add)
-            if progress:
-                progress()
+        try:
+            for top in tops:
+                checks_for_top(system_class(top.params), sim, setting, top, add)
+                if progress:
+                    progress()
+        except NotImplementedError as exc:
+            checks.extend(not_applicable(SYSTEM, sim.name, ROWS, str(exc)))
+            continue
         checks.extend(worst(c) for c in rows.values())
     return checks
 
 
-def checks_for_top(system, integ, setting, top, add):
-    name = integ.name
+ROWS = ("critical spin by bisection [rad/s]", "upright at 1.2 x critical: max tilt [rad] from 1e-3",
+        "upright at 0.5 x critical: growth rate [1/s]", "regular precession held: max |tilt - alpha| [rad]",
+        "regular precession: mean rate [rad/s]", "fast top: nutation amplitude [rad]", "fast top: nutation period [s]",
+        "fast top: mean precession rate [rad/s]", "energy drift (rel.)", "Pi.Gamma drift (rel. to |Pi|)", "| |Gamma| - 1 |")
+
+
+def checks_for_top(system, sim, setting, top, add):
+    name = sim.name
     base = top.describe()
     n_c = critical_spin(*top.oracle_args())
 
-    measured, info = _bisect_critical_spin(system, integ, setting, top)
-    add(Check(SYSTEM, name, "critical spin by bisection [rad/s]", n_c, measured, 0.01, relative=True,
+    measured, info = _bisect_critical_spin(system, sim, setting, top)
+    add(Check(SYSTEM, name, ROWS[0], n_c, measured, 0.01, relative=True,
               case=base | info | {"start tilt": START_TILT, "fall tilt": FALL_TILT, "T": HORIZON * top.t_g}))
 
     spin = 1.2 * n_c
-    worst, h = _upright_max_tilt(system, integ, setting, top, spin)
-    add(Check(SYSTEM, name, "upright at 1.2 x critical: max tilt [rad] from 1e-3", 0.0, worst, STABLE_BOUND,
-              case=base | {"spin": spin, "h": h, "T": HORIZON * top.t_g}))
+    worst, h = _upright_max_tilt(system, sim, setting, top, spin)
+    add(Check(SYSTEM, name, ROWS[1], 0.0, worst, STABLE_BOUND, case=base | {"spin": spin, "h": h, "T": HORIZON * top.t_g}))
 
     spin = 0.5 * n_c
     sigma = float(np.max(upright_eigenvalues(*top.oracle_args(), spin).real))
-    rate, h = _upright_growth_rate(system, integ, setting, top, spin)
-    add(Check(SYSTEM, name, "upright at 0.5 x critical: growth rate [1/s]", sigma, rate, 0.02, relative=True,
-              case=base | {"spin": spin, "h": h}))
+    rate, h = _upright_growth_rate(system, sim, setting, top, spin)
+    add(Check(SYSTEM, name, ROWS[2], sigma, rate, 0.02, relative=True, case=base | {"spin": spin, "h": h}))
 
-    p, held, mean_rate, case = _regular_precession(system, integ, setting, top)
-    add(Check(SYSTEM, name, "regular precession held: max |tilt - alpha| [rad]", 0.0, held, setting.held, case=case))
-    add(Check(SYSTEM, name, "regular precession: mean rate [rad/s]", p, mean_rate, setting.rate, relative=True, case=case))
+    p, held, mean_rate, case, (tol_held, tol_rate) = _regular_precession(system, sim, setting, top)
+    add(Check(SYSTEM, name, ROWS[3], 0.0, held, tol_held, case=case))
+    add(Check(SYSTEM, name, ROWS[4], p, mean_rate, tol_rate, relative=True, case=case))
 
-    oracle, (amplitude, period, rate), case = _fast_top(system, integ, setting, top)
+    oracle, (amplitude, period, rate), case = _fast_top(system, sim, setting, top)
     eps, n, h = oracle.expansion_parameter, case["spin"], case["h"]
     drift = (n * h) * (n * oracle.period) * math.cos(case["tilt"]) / (4.0 * eps)
     tol = NUTATION_TOL * eps + setting.nutation_drift * drift
-    add(Check(SYSTEM, name, "fast top: nutation amplitude [rad]", oracle.angle_amplitude, amplitude, tol, relative=True, case=case))
-    add(Check(SYSTEM, name, "fast top: nutation period [s]", oracle.period, period, tol, relative=True, case=case))
-    add(Check(SYSTEM, name, "fast top: mean precession rate [rad/s]", oracle.mean_precession_rate, rate, tol, relative=True, case=case))
+    add(Check(SYSTEM, name, ROWS[5], oracle.angle_amplitude, amplitude, tol, relative=True, case=case))
+    add(Check(SYSTEM, name, ROWS[6], oracle.period, period, tol, relative=True, case=case))
+    add(Check(SYSTEM, name, ROWS[7], oracle.mean_precession_rate, rate, tol, relative=True, case=case))
 
-    (d_energy, d_casimir, d_norm), steps, case = _invariants(system, integ, setting, top)
+    (d_energy, d_casimir, d_norm), steps, case, omega = _invariants(system, sim, setting, top)
     round_off = ROUND_OFF * steps**0.5
-    add(Check(SYSTEM, name, "energy drift (rel.)", 0.0, d_energy, setting.energy, case=case))
-    add(Check(SYSTEM, name, "Pi.Gamma drift (rel. to |Pi|)", 0.0, d_casimir,
-              round_off if setting.casimir is None else setting.casimir, case=case))
-    add(Check(SYSTEM, name, "| |Gamma| - 1 |", 0.0, d_norm, round_off, case=case))
-
-
+    tol_energy = _tolerance(sim, setting.energy, setting.invariant_step, omega, case["h"], steps)
+    if sim.dt is None:
+        tol_casimir, tol_norm = (round_off if setting.casimir is None else setting.casimir), round_off
+    else:  # |Gamma| is a Casimir as Pi.Gamma is: a simulator that does not keep it is held alike
+        tol_casimir = tol_norm = _tolerance(sim, setting.casimir, setting.invariant_step, omega, case["h"], steps)
+    add(Check(SYSTEM, name, ROWS[8], 0.0, d_energy, tol_energy, case=case))
+    add(Check(SYSTEM, name, ROWS[9], 0.0, d_casimir, tol_casimir, case=case))
+    add(Check(SYSTEM, name, ROWS[10], 0.0, d_norm, tol_norm, case=case))

@@ -1,0 +1,286 @@
+"""The simulator under test: the contract ``rbenvs verify`` runs its checks through, and the
+adapters for rbenvs' own integrators and for a plain Python step function (docs/verification.md,
+"Any simulator"). MuJoCo's adapter is :mod:`rbenvs.verify.mujoco_adapter`, imported only when named.
+
+A :class:`Simulator` is told a :class:`Problem` (which system, its physical parameters, the
+tippe top's fidelity) and a start state, and returns a :class:`Run` that advances by a step
+``h`` under a control held over the step. States are tuples of floats in rbenvs' layouts
+(docs/physics.md §1-§3); converting to and from an engine's own coordinates is the adapter's job:
+
+* ``free_body``: ``y = Pi``, the body angular momentum in the principal body frame
+  (``Omega = Pi / params.inertia``); ``u``: a body-frame torque [N m] or ``None``.
+* ``heavy_top``: ``y = (Pi, Gamma)``: ``Pi`` about the pivot in the principal body frame
+  (``params.inertia`` are the moments about the pivot), ``Gamma = R^T e_z`` the upward vertical
+  seen from the body; the centre of mass at ``params.length`` along ``params.com_direction``;
+  gravity ``-params.gravity e_z``; ``u`` is ``None``.
+* ``tippe_top`` (a sphere of ``params.radius`` whose centre of mass ``G`` lies ``h = offset R``
+  below its centre along the body axis ``e3``; moments ``(A, A, C)`` about ``G``): fidelity
+  ``gliding`` (friction ``params.friction_law``, coefficient ``params.friction``) and
+  ``frictionless``: ``y = (x, y, vx, vy, qw, qx, qy, qz, W1, W2, W3)``: horizontal position and
+  velocity of ``G`` on the table ``z = 0``, the attitude body -> space, the body angular
+  velocity; ``rolling`` (no slip): ``y = (x, y, q, W)``. ``u``: ``None``, or the moving
+  table's ``(a_x, a_y, mu, tau1, tau2, tau3)``.
+
+A system, fidelity or control an engine does not model is declined by raising
+``NotImplementedError`` (from :meth:`Simulator.start` or :meth:`Run.step`) with the reason: its
+rows read ``n/a`` with that reason, never silently dropped.
+"""
+
+from __future__ import annotations
+
+import importlib
+import math
+from dataclasses import dataclass
+from typing import Any, Callable, Protocol, runtime_checkable
+
+import numpy as np
+
+from ..integrators import Integrator, get_integrator
+
+__all__ = ["Problem", "Run", "Simulator", "IntegratorSimulator", "CallableSimulator", "problem_of", "advance", "start",
+           "as_simulators", "parse_simulator", "take_option", "no_more_options", "ADAPTERS"]
+
+
+@dataclass(frozen=True)
+class Problem:
+    """What to simulate: ``system`` (``"free_body"``, ``"heavy_top"`` or ``"tippe_top"``), its
+    ``params`` (:class:`~rbenvs.dynamics.FreeBodyParams`, :class:`~rbenvs.dynamics.HeavyTopParams`,
+    :class:`~rbenvs.dynamics.TippeTopParams`), the tippe top's ``fidelity`` (``None`` for the
+    others) and ``model``: rbenvs' own system object for them (its ``layout``, read-outs and
+    ``rhs``, for an adapter that wants them)."""
+
+    system: str
+    params: Any
+    fidelity: str | None
+    model: Any
+
+
+class Run(Protocol):
+    """One trajectory in an engine, from the start state it was given."""
+
+    def step(self, u, h: float) -> tuple:
+        """Advance by ``h`` [s] under the control ``u`` (``None``: none) held over the step; the
+        new state in rbenvs' layout. ``NotImplementedError`` for a control not modelled."""
+        ...
+
+
+@runtime_checkable
+class Simulator(Protocol):
+    """An engine under test. ``name`` labels its rows; ``dt`` is its fixed step [s] (``None``:
+    the checks choose each run's step, as for rbenvs' integrators at their verify settings);
+    ``order`` is its declared order of accuracy, which scales the tolerances of the accuracy rows
+    to ``dt`` (docs/verification.md). An adapter may set ``batched = True`` when it steps
+    components that are arrays (many states) at once."""
+
+    name: str
+    dt: float | None
+    order: int
+
+    def start(self, problem: Problem, y0: tuple) -> Run:
+        """A run from ``y0``; ``NotImplementedError`` (with the reason) for a problem not modelled."""
+        ...
+
+
+def problem_of(model) -> Problem:
+    """The :class:`Problem` of an rbenvs system object (a subclass of one, as the tests' broken
+    simulators are, or one wrapped for dop853 with its ``system`` attribute)."""
+    from ..dynamics import FreeBody, HeavyTop, TippeTop
+
+    base = getattr(model, "system", model)
+    for name, cls in (("free_body", FreeBody), ("heavy_top", HeavyTop), ("tippe_top", TippeTop)):
+        if isinstance(base, cls):
+            return Problem(name, base.params, getattr(base, "fidelity", None), model)
+    raise TypeError(f"not an rbenvs system: {type(base).__name__}")
+
+
+def advance(run, n: int, u, h: float):
+    """``n`` steps of ``h`` under ``u``; the last state (a run's own ``advance`` when it has one:
+    an engine may step many times per call)."""
+    many = getattr(run, "advance", None)
+    if many is not None:
+        return many(n, u, h)
+    y = None
+    for _ in range(n):
+        y = run.step(u, h)
+    return y
+
+
+def start(sim: Simulator, model, y0) -> Run:
+    """``sim``'s run of the system ``model`` from ``y0``; components that are arrays (a batch) go
+    to an adapter that is not ``batched`` column by column."""
+    problem = problem_of(model)
+    if getattr(sim, "batched", False) or all(isinstance(c, float) for c in y0):
+        return sim.start(problem, tuple(y0))
+    columns = np.broadcast_arrays(*(np.asarray(c, dtype=float) for c in y0))
+    shape = columns[0].shape
+    runs = [sim.start(problem, tuple(float(c[i]) for c in columns)) for i in np.ndindex(shape)]
+    return _Columns(runs, shape)
+
+
+class _Columns:
+    """Runs of single states stepped together, their states returned as arrays."""
+
+    def __init__(self, runs, shape):
+        self.runs, self.shape = runs, shape
+
+    def step(self, u, h):
+        return self._stack([r.step(u, h) for r in self.runs])
+
+    def advance(self, n, u, h):
+        return self._stack([advance(r, n, u, h) for r in self.runs])
+
+    def _stack(self, states):
+        return tuple(np.array(c).reshape(self.shape) for c in zip(*states))
+
+
+# ------------------------------------------------------------------------------------------
+# rbenvs' own integrators
+
+
+class _IntegratorRun:
+    def __init__(self, integrator, model, y0):
+        self.integrator, self.model, self.y = integrator, model, y0
+
+    def step(self, u, h):
+        self.y = self.integrator.step(self.model, self.y, u, h)
+        return self.y
+
+
+class IntegratorSimulator:
+    """rbenvs' own ``integrator`` (a name or an :class:`~rbenvs.integrators.Integrator`) on
+    rbenvs' own system objects: ``integrator.step(model, y, u, h)``, the arithmetic ``rbenvs
+    verify`` always ran. ``dt=None``: the checks choose the steps and hold it to its settings'
+    tolerances (the default table); a ``dt`` runs it like any other engine at that step."""
+
+    batched = True
+
+    def __init__(self, integrator, dt: float | None = None):
+        self.integrator: Integrator = get_integrator(integrator)
+        self.dt = None if dt is None else float(dt)
+        self.order = self.integrator.order
+        self.name = self.integrator.name if dt is None else f"rbenvs {self.integrator.name} dt={dt:g}"
+
+    def start(self, problem: Problem, y0) -> Run:
+        model = problem.model
+        if not self.integrator.supports(model):
+            raise NotImplementedError(f"{self.integrator.name} needs {list(self.integrator.requires)}, which this system lacks")
+        return _IntegratorRun(self.integrator, model, y0)
+
+
+# ------------------------------------------------------------------------------------------
+# a plain step function
+
+
+class _CallableRun:
+    def __init__(self, fn, problem, y0):
+        self.fn, self.problem, self.y = fn, problem, tuple(float(c) for c in y0)
+
+    def step(self, u, h):
+        self.y = tuple(float(c) for c in self.fn(self.problem, self.y, u, h))
+        return self.y
+
+
+class CallableSimulator:
+    """A user's engine as one function ``step(problem, y, u, dt) -> y`` (a :class:`Problem`, a
+    state tuple in rbenvs' layout, the control, the step), at a fixed ``dt`` with a declared
+    ``order``. The function raises ``NotImplementedError`` for what it does not model (its rows
+    read ``n/a``). It keeps no state between calls: each call gets the state it returned last."""
+
+    def __init__(self, fn: Callable, dt: float = 1e-3, order: int = 1, name: str | None = None):
+        if not callable(fn):
+            raise ValueError(f"a simulator function must be callable, got {fn!r}")
+        if not (dt > 0.0 and math.isfinite(dt)):
+            raise ValueError(f"dt must be a positive number of seconds, got {dt!r}")
+        self.fn, self.dt, self.order = fn, float(dt), int(order)
+        self.name = name or f"{getattr(fn, '__name__', 'callable')} dt={dt:g}"
+
+    def start(self, problem: Problem, y0) -> Run:
+        return _CallableRun(self.fn, problem, y0)
+
+
+# ------------------------------------------------------------------------------------------
+# by name
+
+
+def as_simulators(items) -> list:
+    """Integrator names, :class:`~rbenvs.integrators.Integrator` objects and simulators, as simulators."""
+    return [item if isinstance(item, Simulator) else IntegratorSimulator(item) for item in items]
+
+
+def _options(text: str) -> dict[str, str]:
+    out = {}
+    for part in filter(None, text.split(",")):
+        key, sep, value = part.partition("=")
+        if not sep or not key.strip():
+            raise ValueError(f"simulator options are key=value pairs separated by commas, got {part!r}")
+        out[key.strip()] = value.strip()
+    return out
+
+
+def take_option(options, key, kind, default):
+    if key not in options:
+        return default
+    value = options.pop(key)
+    try:
+        return kind(value)
+    except ValueError:
+        raise ValueError(f"simulator option {key}={value!r}: not a {kind.__name__}") from None
+
+
+def _rbenvs(options) -> list:
+    names = take_option(options, "integrator", str, None)
+    dt = take_option(options, "dt", float, None)
+    no_more_options(options, "rbenvs")
+    from ..integrators import INTEGRATORS
+
+    return [IntegratorSimulator(name, dt) for name in (names.split("+") if names else INTEGRATORS)]
+
+
+def _mujoco(options) -> list:
+    from ..extras import require
+    require("mujoco")
+    from .mujoco_adapter import mujoco_simulators  # the only import of the mujoco adapter (and of mujoco)
+
+    return mujoco_simulators(options)
+
+
+def no_more_options(options, what):
+    if options:
+        raise ValueError(f"unknown {what} simulator option(s): {sorted(options)}")
+
+
+ADAPTERS: dict[str, Callable[[dict], list]] = {"rbenvs": _rbenvs, "mujoco": _mujoco}
+
+
+def parse_simulator(spec: str) -> list:
+    """The simulators a ``--simulator`` argument names:
+
+    * ``rbenvs[:integrator=rk4+euler,dt=1e-3]``: rbenvs' own integrators (all by default; without
+      ``dt`` at their verify settings, as the default table);
+    * ``mujoco[:integrator=RK4+implicitfast,dt=1e-3,...]``: MuJoCo (:mod:`rbenvs.verify.mujoco_adapter`);
+    * ``module:function[,dt=1e-3,order=1,name=...]``: a step function ``f(problem, y, u, dt)``
+      (:class:`CallableSimulator`), or an object that already is a :class:`Simulator`.
+    """
+    head, _, tail = spec.partition(":")
+    if head in ADAPTERS:
+        return ADAPTERS[head](_options(tail))
+    if not tail:
+        raise ValueError(f"simulator must be one of {sorted(ADAPTERS)} or module:function, got {spec!r}")
+    attr, _, rest = tail.partition(",")
+    options = _options(rest)
+    try:
+        target = importlib.import_module(head)
+    except ImportError as exc:
+        raise ValueError(f"simulator {spec!r}: cannot import {head!r} ({exc})") from None
+    obj = target
+    for part in attr.split("."):
+        if not hasattr(obj, part):
+            raise ValueError(f"simulator {spec!r}: {head!r} has no attribute {attr!r}")
+        obj = getattr(obj, part)
+    if isinstance(obj, Simulator):
+        no_more_options(options, spec)
+        return [obj]
+    sim = CallableSimulator(obj, dt=take_option(options, "dt", float, 1e-3), order=take_option(options, "order", int, 1),
+                            name=take_option(options, "name", str, None))
+    no_more_options(options, spec)
+    return [sim]

@@ -1,0 +1,148 @@
+"""rbenvs verify on other simulators (issue 23): the contract, a user's step function, MuJoCo."""
+
+import json
+
+import numpy as np
+import pytest
+
+from rbenvs import testing, verify
+from rbenvs.verify.simulator import IntegratorSimulator, parse_simulator
+
+INTERMEDIATE = "intermediate axis: growth rate [1/s]"
+
+
+def euler_equations_rk4(problem, y, u, dt):
+    """An engine written apart from rbenvs: classical RK4 on Euler's equations, on floats."""
+    if problem.system != "free_body":
+        raise NotImplementedError("this engine has the free body only")
+    i1, i2, i3 = problem.params.inertia
+    t1, t2, t3 = (0.0, 0.0, 0.0) if u is None else u
+
+    def f(p1, p2, p3):  # dPi/dt = Pi x Omega + tau
+        w1, w2, w3 = p1 / i1, p2 / i2, p3 / i3
+        return p2 * w3 - p3 * w2 + t1, p3 * w1 - p1 * w3 + t2, p1 * w2 - p2 * w1 + t3
+
+    k1 = f(*y)
+    k2 = f(*(a + 0.5 * dt * k for a, k in zip(y, k1)))
+    k3 = f(*(a + 0.5 * dt * k for a, k in zip(y, k2)))
+    k4 = f(*(a + dt * k for a, k in zip(y, k3)))
+    return tuple(a + dt / 6.0 * (b + 2.0 * c + 2.0 * d + e) for a, b, c, d, e in zip(y, k1, k2, k3, k4))
+
+
+def without_gyroscopic_term(problem, y, u, dt):
+    """The Brax bug: Euler's equations without ``Pi x Omega`` (dPi/dt = tau)."""
+    if problem.system != "free_body":
+        raise NotImplementedError("this engine has the free body only")
+    return tuple(np.array(y) + dt * (np.zeros(3) if u is None else np.array(u)))
+
+
+# dt = 0.02 s is rbenvs' own rk4 verify step on the free body (|Omega| = 1 rad/s): the checks
+# cost 1/20 of what they cost at 1e-3, and the tolerances scale to it by the declared order
+def test_a_correct_step_function_passes_and_what_it_lacks_reads_n_a():
+    rows = testing.verify(euler_equations_rk4, dt=0.02, order=4)
+    free = [r for r in rows if r.system == "free_body"]
+    assert free and all(r.applies and r.passed for r in free), testing.failures(free)
+    assert any(r.check == INTERMEDIATE for r in free)
+    others = [r for r in rows if r.system != "free_body"]
+    assert others and all(not r.applies and r.passed and r.result == "n/a" for r in others)
+    # declined by the engine, but for the rows of rbenvs' own tippe-top model (hops, t90)
+    assert all("free body only" in r.reason or "rbenvs' own model" in r.reason for r in others)
+    assert sum("free body only" in r.reason for r in others) >= 11 + 8
+    # the scaled tolerances: rk4's at its own step (1e-6 on the exact solution), plus round-off
+    exact = next(r for r in free if r.check.startswith("exact solution"))
+    assert 1e-6 <= exact.tolerance < 1.1e-6
+
+
+def test_dropping_the_gyroscopic_term_fails_the_intermediate_axis():
+    rows = testing.verify(without_gyroscopic_term, systems=("free_body",), dt=0.02, order=4)
+    bad = {r.check for r in rows if not r.passed}
+    assert INTERMEDIATE in bad
+    assert any(c.startswith("exact solution") for c in bad)
+    # it conserves what a missing term cannot change: those rows are no test of it
+    assert "energy drift (rel.)" not in bad and "|Pi| drift (rel.)" not in bad
+
+
+def test_rbenvs_through_the_adapter_at_a_fixed_step_matches_its_own_step():
+    """The adapter for rbenvs' own rk4 at dt = 0.02 (its verify step) gives the default rows'
+    numbers (but the torque balance's, which rbenvs' own run samples at 0.01 s)."""
+    own = verify.free_body_checks(["rk4"], n_cases=1)
+    fixed = verify.free_body_checks([IntegratorSimulator("rk4", dt=0.02)], n_cases=1)
+    assert [(r.check, r.measured) for r in own if "torque" not in r.check] == \
+        [(r.check, r.measured) for r in fixed if "torque" not in r.check]
+    assert all(r.passed for r in fixed)
+
+
+def test_simulator_specs(tmp_path, monkeypatch):
+    (sim,) = parse_simulator("rbenvs:integrator=rk4,dt=0.02")
+    assert sim.dt == 0.02 and sim.order == 4
+    assert [s.name for s in parse_simulator("rbenvs:integrator=euler+rk4")] == ["euler", "rk4"]
+    (tmp_path / "my_engine.py").write_text("import numpy as np\n\ndef step(problem, y, u, dt):\n    raise NotImplementedError('nothing')\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    (sim,) = parse_simulator("my_engine:step,dt=0.5,order=2,name=mine")
+    assert (sim.dt, sim.order, sim.name) == (0.5, 2, "mine")
+    for bad in ("nosuchmodule_xyz:f", "my_engine:nope", "my_engine:step,dt", "my_engine:step,colour=red", "rbenvs:dt=x", "bogus"):
+        with pytest.raises(ValueError):
+            parse_simulator(bad)
+
+
+def test_cli_with_a_step_function_writes_json_and_fails_on_failure(tmp_path, monkeypatch, capsys):
+    module = tmp_path / "broken_engine.py"
+    module.write_text("import numpy as np\n\ndef step(problem, y, u, dt):\n"
+                      "    if problem.system != 'free_body':\n        raise NotImplementedError('free body only')\n"
+                      "    return tuple(np.array(y) + dt * (np.zeros(3) if u is None else np.array(u)))\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    path = tmp_path / "report.json"
+    status = verify.main(["--quick", "--no-progress", "--system", "free_body", "--system", "heavy_top",
+                          "--simulator", "broken_engine:step,dt=0.02,order=4", "--json", str(path)])
+    assert status == 1
+    out = capsys.readouterr().out
+    assert "n/a (free body only)" in out and "FAIL" in out
+    report = json.loads(path.read_text())
+    assert {r["result"] for r in report} == {"PASS", "FAIL", "n/a"}
+    assert any(r["check"] == INTERMEDIATE and r["result"] == "FAIL" for r in report)
+
+
+def test_cli_refuses_mixing_integrator_and_simulator():
+    with pytest.raises(SystemExit):
+        verify.main(["--simulator", "rbenvs", "--integrator", "rk4"])
+    with pytest.raises(SystemExit):
+        verify.main(["--comparison"])
+
+
+def test_comparison_is_one_markdown_table_a_column_per_simulator():
+    from rbenvs.verify.comparison import comparison_table
+
+    rows = [verify.Check("free_body", "a", "x", 0.0, 1e-3, 1e-2), verify.Check("free_body", "b", "x", 0.0, 1.0, 1e-2),
+            verify.Check("free_body", "a", "y", 0.0, 0.0, 1e-2)]
+    lines = comparison_table(rows)
+    assert lines[0] == "| system | check | `a` | `b` |" and all(line.startswith("|") for line in lines)
+    assert "| free_body | x | PASS 0.001 | FAIL 1 |" in lines and "| free_body | y | PASS 0 | - |" in lines
+    assert lines[-1] == "| all | passed / failed / n/a | 2 / 0 / 0 | 0 / 1 / 0 |"
+
+
+# ---------------------------------------------------------------------------------------------
+# MuJoCo (the `mujoco` extra)
+
+
+def test_mujoco_at_a_coarse_step_finds_what_is_known():
+    """At dt = 0.01 s (|Omega| dt = 0.01 on the free body): RK4's free body passes every row;
+    Euler's stable-axis orbits grow (its outward drift) beyond the 2% of the exact orbit over
+    50 turns; both find the heavy top's threshold."""
+    pytest.importorskip("mujoco")
+    rows = testing.verify("mujoco:integrator=Euler+RK4,dt=0.01", systems=("free_body", "heavy_top"))
+    by = {}
+    for r in rows:
+        by.setdefault((r.integrator.split()[1], r.system), []).append(r)
+    assert all(r.passed for r in by[("RK4", "free_body")]), testing.failures(by[("RK4", "free_body")])
+    assert any("axis: max transverse" in r.check and not r.passed for r in by[("Euler", "free_body")])
+    for name in ("Euler", "RK4"):
+        assert any(r.check.startswith("critical spin") and r.passed for r in by[(name, "heavy_top")])
+
+
+def test_mujoco_tippe_top_rows_and_what_it_does_not_model():
+    pytest.importorskip("mujoco")
+    rows = testing.verify("mujoco:integrator=RK4+implicitfast,dt=1e-3", systems=("tippe_top",))
+    jellett = [r for r in rows if r.check.startswith("Jellett held (coulomb)")]
+    assert len(jellett) == 2 and all(r.applies and np.isfinite(r.measured) for r in jellett)
+    na = {r.check.split(":")[0] for r in rows if not r.applies}
+    assert {"Jellett held (viscous)", "Jellett held (rolling)", "Jellett held (moving table)"} <= na
