@@ -9,6 +9,8 @@
   measure, and the invariants at start and end).
 * ``rbenvs verify [--quick] [--json PATH] [--seed S] [--system NAME] [--sweep [--plot PNG]]``:
   simulator against the oracles (:mod:`rbenvs.verify`); exits non-zero on any failure.
+  ``--simulator SPEC`` (repeatable) runs the same checks on another engine (``mujoco[:...]``,
+  ``rbenvs[:...]`` or a user's ``module:function``), ``--comparison`` prints them as one table.
 * ``rbenvs bench kernels``: the layout measurement behind the component kernels.
 * ``rbenvs bench fidelity``: the tippe top's fidelity levels, each against gliding friction.
 * ``rbenvs bench throughput [--quick] [--json PATH] [--num-envs N] [--only TEXT] [--tables LIST]``: env-steps per
@@ -21,7 +23,8 @@
   the ``plot`` extra): ``free_body``, ``heavy_top``, ``tippe_top``, ``frames`` (one rendered
   frame per system) or ``all`` (the default; the pictures under ``docs/``).
 
-A command that needs an extra it lacks (``scenes``, ``run`` and the scenes of ``bench accuracy``
+Every command takes ``--docs PAGE``: its output is written into the page's block for the same
+command line (:mod:`rbenvs.docblocks`). A command that needs an extra it lacks (``scenes``, ``run`` and the scenes of ``bench accuracy``
 need ``cli``, for PyYAML; ``plot`` needs ``plot``) says which in one line and exits with status 2,
 as does bad input such as an unknown scene (:func:`rbenvs.extras.run_command`).
 """

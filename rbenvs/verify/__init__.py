@@ -20,6 +20,14 @@ Systems (``--system``, repeatable; default all):
   ``1 - alpha < A/C < 1 + alpha``; the time to pass 90 degrees converged in the step (rk4).
   For euler, rk4 and dop853 (the tippe top has no splitting or exact flow).
 
+``--simulator SPEC`` (repeatable) runs the same checks on another engine through the
+:class:`~rbenvs.verify.simulator.Simulator` contract: ``mujoco[:integrator=RK4+implicitfast,dt=1e-3,...]``
+(:mod:`rbenvs.verify.mujoco_adapter`, the ``mujoco`` extra), ``rbenvs[:integrator=rk4,dt=...]`` or
+a user's step function ``module:function[,dt=...,order=...]``; rows an engine cannot run read
+n/a, tolerances are scaled to its step (docs/verification.md, "Any simulator"), and
+``--comparison`` prints one table with a column per simulator. :func:`rbenvs.testing.verify` is
+the same for a user's test suite.
+
 ``--sweep`` (with ``--system tippe_top`` or alone) runs, instead of the checks, the sweep of the
 tippe top's final tilt over a grid of ``A/C`` (below, inside and above the window) and
 ``alpha`` (:func:`rbenvs.verify.tippe_top.sweep`): a table of the predicted class and final tilt
