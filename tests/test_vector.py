@@ -836,6 +836,8 @@ START_CASES = [
     (TIPPE, dict(task="invert", spin=(100.0, 200.0), tilt=(0.0, 0.5))),
     (TIPPE, dict(task="hold", fidelity="rolling", spin=(100.0, 200.0))),
     (TIPPE, dict(free_flight=True, spin=(100.0, 200.0))),
+    (TIPPE, dict(start="rest", spin=(100.0, 200.0), tilt=(0.0, 0.5))),
+    (TIPPE, dict(start="vertical", free_flight=True, spin=(100.0, 200.0))),
 ]
 
 

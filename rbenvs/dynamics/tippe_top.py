@@ -490,7 +490,9 @@ class TippeForms(NamedTuple):
     State functions ``fn(P, y)``: ``frame`` (:func:`tippe_frame` of the state's quaternion),
     ``angular_velocity``, ``velocity`` (of ``G``, space, vertical part included), ``height``,
     ``gap``, ``slip_speed``, ``energy``, ``jellett``, ``tilt``, ``spin``, ``normalize``; and
-    ``state(P, x, y, q, w)``, the components of a top at rest on its contact point (starts).
+    ``state(P, x, y, q, w, v=None)``, the components of a top from its position, attitude,
+    angular velocity and the horizontal velocity of ``G`` (``None``: the contact point at rest)
+    (starts).
 
     Contact functions ``fn(P, y, u)`` (``u`` the 6 controls or ``None``): ``contact``, the contact
     tuple ``(N, F_x, F_y, dOmega1, dOmega2, dOmega3, a_x, a_y, v_x, v_y[, v_z])`` (normal force,
@@ -604,15 +606,19 @@ def _state_forms(rolling: bool, flight: bool) -> tuple:
     normalize = flight_normalize if flight else (rolling_normalize if rolling else sliding_normalize)
 
     @jitable
-    def state(p, x, y0, q, w):
-        """The components at the horizontal position ``(x, y0)`` [m], attitude ``q`` and body
-        angular velocity ``w`` [rad/s], the contact point at rest (``v_G = -omega x r``); with
-        flight on the table, ``(z, v_z)`` from the constraint."""
+    def state(p, x, y0, q, w, v=None):
+        """The components at the horizontal position ``(x, y0)`` [m], attitude ``q``, body
+        angular velocity ``w`` [rad/s] and horizontal velocity of ``G`` ``v = (v_x, v_y)`` [m/s]
+        in space (``None``: the contact point at rest, ``v_G = -omega x r``; a rolling top
+        always has that one); with flight on the table, ``(z, v_z)`` from the constraint."""
         if rolling:
             return (x, y0) + q + w
-        rm = tippe_frame(q[0], q[1], q[2], q[3])
-        v1, v2, v3 = rolling_velocity_body(p, rm, w[0], w[1], w[2])
-        vx, vy, _ = to_space(rm, v1, v2, v3)
+        if v is None:
+            rm = tippe_frame(q[0], q[1], q[2], q[3])
+            v1, v2, v3 = rolling_velocity_body(p, rm, w[0], w[1], w[2])
+            vx, vy, _ = to_space(rm, v1, v2, v3)
+        else:
+            vx, vy = v[0], v[1]
         if flight:
             zero = 0.0 * q[0]
             return normalize(p, (x, y0, zero, vx, vy, zero) + q + w + (zero + 1.0, zero))
@@ -1015,15 +1021,8 @@ class TippeTop:
         contact point at rest, ``v_G = -omega x r``; ignored when rolling, where it is always
         that)."""
         pos = tuple(position)[:2]
-        q = tuple(attitude)
-        w = tuple(angular_velocity)
-        if velocity is None or self.rolling:
-            return self.forms.state(self.form_params, pos[0], pos[1], q, w)
-        if self.flight:  # on the table: z and v_z from the constraint (normalize), no lift-off yet
-            zero = 0.0 * q[0]
-            y = pos + (zero,) + tuple(velocity)[:2] + (zero,) + q + w + (zero + 1.0, zero)
-            return self.normalize(y)
-        return pos + tuple(velocity)[:2] + q + w
+        v = None if velocity is None else tuple(velocity)[:2]
+        return self.forms.state(self.form_params, pos[0], pos[1], tuple(attitude), tuple(angular_velocity), v)
 
     def no_slip_velocity(self, attitude, angular_velocity):
         """``v_G = -omega x r`` in space [m/s]: the velocity that puts the contact point at rest."""

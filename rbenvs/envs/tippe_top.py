@@ -12,6 +12,7 @@ from ..dynamics import TippeTop, TippeTopParams
 from ..dynamics.tippe_top import FIDELITIES
 from ..dynamics.validation import require_bool, require_choice, require_finite_nonnegative, require_range
 from ..tasks import HoldTask, InvertTask
+from ..tasks.tippe_top import STARTS
 from ..core.codegen import generate
 from ..core.model import observation_bounds
 from ..jit import jitable
@@ -59,8 +60,13 @@ class TippeTopEnv(RigidBodyEnv):
     * ``hold``: ``(1 + cos(theta))/2 - control_cost * mean(u^2)``.
 
     ## Starting state (seeded)
-    Spin ``n ~ U(spin)`` about the symmetry axis at tilt ``theta ~ U(tilt)``, uniform azimuth
-    and heading, at the origin, the contact point at rest.
+    Spin ``n ~ U(spin)`` at tilt ``theta ~ U(tilt)``, uniform azimuth and heading, at the
+    origin; ``start`` says how it was spun (docs/physics.md §3): ``"rolling"`` (the default of
+    ``-v0``): about the symmetry axis with the contact point at rest (``v_G = -omega x r``);
+    ``"rest"``: about the symmetry axis with the centre of mass at rest, so the contact point
+    slips at first (a top spun by hand; Leine and Glocker's start); ``"vertical"``: the centre of
+    mass at rest and the spin about the space vertical. ``"rest"`` and ``"vertical"`` need a
+    fidelity with slip (not ``"rolling"``).
 
     ## Episode end
     * Terminated: ``invert`` when ``theta > 150 deg`` (success; past it the climb slows with the
@@ -116,9 +122,12 @@ class TippeTopEnv(RigidBodyEnv):
       flag is carried and the switch tested at every internal step; ``rbenvs bench fidelity``).
     * ``task="invert"`` or ``"hold"``; ``spin=150.0`` rad/s and ``tilt=0.1`` rad (numbers or
       ``(low, high)`` ranges). Not Leine and Glocker's 180 rad/s: with this model (gliding
-      friction, regularised Coulomb, no drilling friction) their top's normal force dips just
-      below zero near 80 degrees of tilt at 180 rad/s (a hop, which ends the episode), while at
-      150 rad/s it stays positive through the inversion (tests/test_tippe_top_env.py).
+      friction, regularised Coulomb, no drilling friction) and the rolling start, their top's
+      normal force dips just below zero near 80 degrees of tilt at 180 rad/s (a hop, which ends
+      the episode), while at 150 rad/s it stays positive through the inversion
+      (tests/test_tippe_top_env.py); from their own start (``start="rest"``) at 180 rad/s it
+      stays above 0.55 m g and passes 90 degrees at 2.71 s (tests/test_tippe_starts.py).
+    * ``start="rolling"``: how the top was spun (Starting state).
     * ``dt=0.01`` s, ``substeps=1`` (a minimum), ``integrator="rk4"`` (``euler``, ``rk4``, ``dop853``).
     * ``guard="subdivide"``: ``"subdivide"``, ``"refuse"`` or ``"off"`` (Internal step).
     * ``compiled="auto"``: run each step as one compiled call of the same functions (numba, the
@@ -175,6 +184,7 @@ class TippeTopEnv(RigidBodyEnv):
         task: str = "invert",
         spin=150.0,
         tilt=0.1,
+        start: str = "rolling",
         dt: float = 0.01,
         substeps: int = 1,
         integrator: str = "rk4",
@@ -197,6 +207,9 @@ class TippeTopEnv(RigidBodyEnv):
         params = TippeTopParams(radius, mass, offset, inertia, gravity, friction, friction_law, slip_regularization)
         spin_lo, spin_hi = require_range("spin", spin)
         tilt_lo, tilt_hi = require_range("tilt", tilt)
+        start = require_choice("start", start, STARTS)
+        if start != "rolling" and fidelity == "rolling":
+            raise ValueError(f"start={start!r} needs fidelity 'gliding' or 'frictionless': a rolling top's contact point never slips, so it starts rolling (start='rolling')")
         if tilt_lo < 0.0 or tilt_hi >= math.pi / 2:
             raise ValueError(f"tilt must lie in [0, pi/2) rad (a start on the broad end), got {tilt!r}")
         self.max_table_acceleration = require_finite_nonnegative("max_table_acceleration", max_table_acceleration)
@@ -226,7 +239,7 @@ class TippeTopEnv(RigidBodyEnv):
         if not params.radius * peak < max_v:
             raise ValueError(f"max_speed must exceed the initial speed of the centre of mass (radius * spin = {params.radius * peak!r} m/s), got {max_speed!r}")
         task_cls = InvertTask if task == "invert" else HoldTask
-        task_obj = task_cls(spin_lo, spin_hi, tilt_lo, tilt_hi, control_cost)
+        task_obj = task_cls(spin_lo, spin_hi, tilt_lo, tilt_hi, control_cost, start=start)
         system = TippeTop(params, fidelity, flight=self.free_flight)
         actuator = TableActuator(self.max_table_acceleration, params.friction, self.friction_range if self.friction_action else None,
                                  self.max_torque if self.torque_action else None)

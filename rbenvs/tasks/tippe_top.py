@@ -20,30 +20,44 @@ from functools import lru_cache
 
 import numpy as np
 
-from ..dynamics.tippe_top import vertical_tilt
+from ..dynamics.tippe_top import tippe_frame, vertical_tilt
 from ..jit import jitable
 from ..rotations import quat_multiply
 from .common import TwoStageStart, effort
 
-__all__ = ["InvertTask", "HoldTask", "tilted_spin_state", "unit_component", "observation_form", "invert_form", "hold_form"]
+__all__ = ["InvertTask", "HoldTask", "STARTS", "tilted_spin_state", "unit_component", "observation_form", "invert_form", "hold_form"]
 
 
-def tilted_spin_state(system, d, spin_low, spin_high, tilt_low, tilt_high):
-    """Spin ``n ~ U(spin)`` about the symmetry axis, tilted by ``theta ~ U(tilt)`` at a uniform
-    azimuth and heading, at the origin, the contact point at rest (no initial slip), from four
-    uniforms ``d`` on [0, 1) (floats or rows of a batch: tilt, azimuth, heading, spin)."""
-    fn, p = spun_start(system, spin_low, spin_high, tilt_low, tilt_high)
+# The starts (docs/physics.md §3, "Starts"): how a top is spun before it is let go.
+# "rolling": the contact point at rest (v_G = -omega x r), spin about the symmetry axis;
+# "rest": the centre of mass at rest, spin about the symmetry axis, so the contact point slips
+# at first: a top spun by hand, the start of Leine and Glocker (2003) and most numerical studies;
+# "vertical": the centre of mass at rest, spin about the space vertical.
+STARTS = ("rolling", "rest", "vertical")
+
+
+def tilted_spin_state(system, d, spin_low, spin_high, tilt_low, tilt_high, start="rolling"):
+    """Spin ``n ~ U(spin)`` at tilt ``theta ~ U(tilt)`` at a uniform azimuth and heading, as
+    ``start`` says (:data:`STARTS`), from the uniforms ``d`` on [0, 1) (floats or rows of a
+    batch: tilt, azimuth, heading, spin)."""
+    fn, p = spun_start(system, spin_low, spin_high, tilt_low, tilt_high, start)
     return fn(p, d)
 
 
-def spun_start(system, spin_low, spin_high, tilt_low, tilt_high) -> tuple:
+def spun_start(system, spin_low, spin_high, tilt_low, tilt_high, start="rolling") -> tuple:
     """``(start, P)``: the pure form of :func:`tilted_spin_state` for ``system``'s layout."""
-    return spun_start_form(system.forms.state), (system.form_params, float(spin_low), float(spin_high), float(tilt_low), float(tilt_high))
+    if start not in STARTS:
+        raise ValueError(f"start must be one of {list(STARTS)}, got {start!r}")
+    form = spun_start_form(system.forms.state, start != "rolling", start == "vertical")
+    return form, (system.form_params, float(spin_low), float(spin_high), float(tilt_low), float(tilt_high))
 
 
 @lru_cache(maxsize=None)
-def spun_start_form(state):
-    """``start(P, d)`` of :func:`tilted_spin_state` on the system's pure ``state`` builder."""
+def spun_start_form(state, at_rest: bool = False, about_vertical: bool = False):
+    """``start(P, d)`` of :func:`tilted_spin_state` on the system's pure ``state`` builder:
+    ``at_rest``, the centre of mass at rest (else the contact point); ``about_vertical``, the
+    angular velocity along the space vertical (else the symmetry axis). Both are constants of
+    the function (compiled code keeps the branch that applies)."""
 
     @jitable
     def start(p, d):
@@ -57,7 +71,14 @@ def spun_start_form(state):
         qx = (np.cos(0.5 * theta), np.sin(0.5 * theta), zero, zero)
         qz2 = (np.cos(0.5 * psi), zero, zero, np.sin(0.5 * psi))
         q = quat_multiply(quat_multiply(qz1, qx), qz2)  # R = Rz(phi) Rx(theta) Rz(psi)
-        return state(form_params, zero, zero, q, (zero, zero, n))
+        if about_vertical:
+            rm = tippe_frame(q[0], q[1], q[2], q[3])
+            w = (n * rm[6], n * rm[7], n * rm[8])  # R^T e3 n: the vertical in the body
+        else:
+            w = (zero, zero, n)
+        if at_rest:
+            return state(form_params, zero, zero, q, w, (zero, zero))
+        return state(form_params, zero, zero, q, w)
 
     return start
 
@@ -149,7 +170,7 @@ class _SpunTop(TwoStageStart):
 
     def kernel_start(self, system):
         """``(start, P)``: the pure form of :meth:`initial_from_draws` (:func:`tilted_spin_state`)."""
-        return spun_start(system, self.spin_low, self.spin_high, self.tilt_low, self.tilt_high)
+        return spun_start(system, self.spin_low, self.spin_high, self.tilt_low, self.tilt_high, self.start)
 
     def observe(self, system, y):
         return observe(system, y)
@@ -171,8 +192,10 @@ class _SpunTop(TwoStageStart):
 class InvertTask(_SpunTop):
     """Turn the top onto its stem as fast as possible.
 
-    * Start: spin ``n ~ U(spin_low, spin_high)`` about the symmetry axis at tilt
-      ``U(tilt_low, tilt_high)``, no slip.
+    * Start: spin ``n ~ U(spin_low, spin_high)`` at tilt ``U(tilt_low, tilt_high)``, as
+      ``start`` says (:data:`STARTS`: ``"rolling"``, the contact point at rest, spin about the
+      symmetry axis; ``"rest"``, the centre of mass at rest; ``"vertical"``, the centre of mass
+      at rest and the spin about the space vertical).
     * Reward: ``-(1 + cos(theta)) / 2 - control_cost * mean(u^2)`` per step, in [-1, 0]: 0
       only once inverted, so the return counts the time spent getting there (weighted by how
       far from inverted). Time, not dissipated energy, because the energy left at the end is
@@ -189,6 +212,7 @@ class InvertTask(_SpunTop):
     tilt_high: float
     control_cost: float
     goal_tilt: float = math.radians(150.0)
+    start: str = "rolling"
 
     name = "invert"
     # the top inverts by itself: no action is the reference (an analytic law that inverts
@@ -218,6 +242,7 @@ class HoldTask(_SpunTop):
     control_cost: float
     fall_tilt: float = math.pi / 2
     success_tilt: float = 0.2
+    start: str = "rolling"
 
     name = "hold"
     controller = "SlipCancelling"
