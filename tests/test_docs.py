@@ -172,9 +172,11 @@ def _commands_in_text():
     """Every complete command of the README and docs: the written blocks' command lines, the
     lines of ``bash`` blocks and inline code spans that start with a command (synopses with
     ``[...]``, ``{...}`` or ``...`` are templates, not commands)."""
+    from rbenvs.docblocks import _BLOCK
+
     found = []
     for page in PAGES:
-        text = page.read_text()
+        text = _BLOCK.sub("", page.read_text())  # (a command's output names no commands to run)
         for block in re.findall(r"^ *```bash\n(.*?)^ *```", text, flags=re.M | re.S):
             for line in block.splitlines():
                 command = line.split("#")[0].strip()
