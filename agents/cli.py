@@ -5,10 +5,12 @@
 * ``rbenvs-eval --scene default --agent runs/ppo/model.zip --agent analytic --agent zero``.
 * ``rbenvs-results``: the README's results table: every (scene, algorithm) of
   ``configs/agents/results.yml`` trained on several seeds, with the analytic controller and
-  zero action evaluated the same way.
+  zero action evaluated the same way (:mod:`rbenvs_agents.grid`); ``--backend ray`` runs its
+  cells as Ray tasks (:mod:`rbenvs_agents.backends`).
 
 Each needs the ``agents`` extra (stable-baselines3, torch; ``rbenvs-eval`` of ``analytic`` and
-``zero`` alone needs only ``cli``). A missing extra, an unknown scene or another bad input is one
+``zero`` alone needs only ``cli``); ``rbenvs-results --backend ray`` needs the ``ray`` extra
+too. A missing extra, an unknown scene or another bad input is one
 line on stderr and exit status 2, as for ``rbenvs`` (:func:`rbenvs.extras.run_command`).
 """
 
@@ -17,7 +19,6 @@ from __future__ import annotations
 import argparse
 import json
 import sys
-import time
 from pathlib import Path
 
 from rbenvs.extras import require, run_command
@@ -155,54 +156,24 @@ def _results(argv) -> int:
     p.add_argument("--quick", action="store_true", help="1/20 of each budget, 1 seed, 2 episodes: a smoke run of the whole grid")
     p.add_argument("--json", type=Path, default=None, help="also write the records here")
     p.add_argument("--no-progress", action="store_true")
+    p.add_argument("--backend", choices=("serial", "ray"), default="serial",
+                   help="serial: one cell after another here (default); ray: one Ray task per (scene, agent, seed), the ray extra")
+    p.add_argument("--address", default=None, help="--backend ray: join this Ray cluster (default: start a local one for the command)")
+    p.add_argument("--num-cpus", type=int, default=None, help="--backend ray: CPUs of the local cluster (default: every core)")
     args = p.parse_args(argv)
     require("agents")
-    import yaml
+    if args.backend == "ray":
+        require("ray")
+    elif args.address is not None or args.num_cpus is not None:
+        raise ValueError("--address and --num-cpus need --backend ray")
+    from .backends import RayBackend, SerialBackend
+    from .grid import grid_cells, grid_records, grid_table
 
-    from .config import agent_config, configs_dir
-    from .evaluate import analytic_policy, evaluate, sb3_policy, summarize, zero_policy
-    from .train import train
-
-    grid = yaml.safe_load((configs_dir() / "results.yml").read_text())
     seeds = [0] if args.quick else list(range(args.seeds))
-    rows, records = [], []
-    # every scene and algorithm of the grid checked before the first (long) training run
-    scenes = [_scene(entry["scene"]) for entry in grid["runs"]]
-    for entry, scene in zip(grid["runs"], scenes):
-        for algo in entry["algos"]:
-            agent_config(algo, scene.env_id, scene.name)
-    for entry, scene in zip(grid["runs"], scenes):
-        episodes = 2 if args.quick else int(entry.get("eval_episodes", 10))
-        agents = [("zero action", zero_policy, 0, 0.0), ("analytic", analytic_policy, 0, 0.0)]
-        evaluated = []
-        for label, factory, steps, wall in agents:
-            evals = [evaluate(factory, scene, episodes=episodes, seed=100 + s) for s in seeds]
-            evaluated.append((label, steps, wall, evals))
-        for algo in entry["algos"]:
-            evals, walls, steps = [], [], 0
-            for s in seeds:
-                budget = None
-                if args.quick:
-                    budget = max(1000, agent_config(algo, scene.env_id, scene.name).n_timesteps // 20)
-                t0 = time.perf_counter()
-                model, info = train(algo, scene, seed=s, timesteps=budget, progress=not args.no_progress)
-                walls.append(time.perf_counter() - t0)
-                steps = info["timesteps"]
-                evals.append(evaluate(lambda env, m=model: sb3_policy(m), scene, episodes=episodes, seed=100 + s))
-            evaluated.append((algo.upper(), steps, sum(walls) / len(walls), evals))
-        task = scene.kwargs.get("task", "")
-        for label, steps, wall, evals in evaluated:
-            summary = summarize(evals)
-            records.append({"scene": scene.name, "env_id": scene.env_id, "task": task, "agent": label, "timesteps": steps,
-                            "wall_time_s": wall} | summary)
-            rows.append((scene.env_id.split("/")[-1], f"{task} ({scene.name})", label, f"{steps:,}" if steps else "-",
-                         f"{wall:.0f} s" if wall else "-", f"{summary['return_mean']:.1f} +- {summary['return_std']:.1f}",
-                         f"{summary['success_mean']:.0%}"))
-    header = ("env", "task (scene)", "agent", "training steps", "wall time / seed", f"return (mean +- std, {len(seeds)} seeds)", "success")
-    print("| " + " | ".join(header) + " |")
-    print("|" + "---|" * len(header))
-    for r in rows:
-        print("| " + " | ".join(r) + " |")
+    cells = grid_cells(seeds, quick=args.quick)
+    backend = RayBackend(args.address, args.num_cpus) if args.backend == "ray" else SerialBackend(progress=not args.no_progress)
+    records = grid_records(backend.run(cells))
+    print(grid_table(records, len(seeds)))
     if args.json:
         args.json.write_text(json.dumps(records, indent=2))
     return 0

@@ -1,0 +1,98 @@
+"""Scale-out on Ray (the ``ray`` extra): the results grid as Ray tasks gives the serial run's
+numbers.
+
+Each test starts an embedded local cluster of 2 CPUs and stops it. Skipped where Ray is not
+installed: the ``ray`` extra is not in ``dev`` (RLlib pins an older gymnasium), so the main test
+run skips this module and ``make test-ray`` (.ci/run's second job) runs it in a venv of its own,
+with ``pytest -m ray``. About 3 minutes on 2 cores, most of it numba compiling the kernels again
+in every Ray worker."""
+
+import json
+import os
+import re
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+pytestmark = pytest.mark.ray
+pytest.importorskip("ray", reason="the ray extra is not installed: pip install 'rbenvs[ray]' (make test-ray)")
+pytest.importorskip("optuna", reason="the ray extra is not installed: pip install 'rbenvs[ray]' (make test-ray)")
+pytest.importorskip("stable_baselines3")
+
+import yaml  # noqa: E402
+
+from rbenvs.configs import configs_root  # noqa: E402
+from rbenvs.scenes import load_scene  # noqa: E402
+
+SCENE = "top_upright"  # the heavy top below its critical spin: a cheap step and a learnable task
+
+
+@pytest.fixture
+def tiny_configs(tmp_path, monkeypatch):
+    """$RBENVS_CONFIGS at a copy of the shipped configs with a one-scene grid, PPO's budget on the
+    heavy top cut to one rollout (8 sub-envs x 256 steps)."""
+    root = tmp_path / "configs"
+    shutil.copytree(configs_root(), root, ignore=shutil.ignore_patterns("*.py", "__pycache__"))
+    ppo = yaml.safe_load((root / "agents" / "ppo.yml").read_text())
+    ppo["rbenvs/LagrangeTop-v0"]["n_timesteps"] = 2048
+    (root / "agents" / "ppo.yml").write_text(yaml.safe_dump(ppo))
+    (root / "agents" / "results.yml").write_text(f"runs:\n  - scene: {SCENE}\n    algos: [ppo]\n    eval_episodes: 2\n")
+    monkeypatch.setenv("RBENVS_CONFIGS", str(root))
+    return root
+
+
+def _without_wall_times(records):
+    return [{k: v for k, v in r.items() if k != "wall_time_s"} for r in records]
+
+
+def test_the_ray_backend_prints_the_serial_table(tiny_configs, tmp_path, capsys):
+    """rbenvs-results --backend ray (its own embedded cluster, started and stopped by the command)
+    gives the serial backend's records and table: the same numbers, wall times aside."""
+    from rbenvs_agents.cli import results_main
+
+    assert results_main(["--seeds", "2", "--no-progress", "--json", str(tmp_path / "serial.json")]) == 0
+    serial_table = capsys.readouterr().out
+    command = Path(sys.executable).with_name("rbenvs-results")
+    out = subprocess.run([command, "--seeds", "2", "--backend", "ray", "--num-cpus", "2", "--json", tmp_path / "ray.json"],
+                         capture_output=True, text=True, timeout=600, cwd=tmp_path, env=os.environ | {"RBENVS_CONFIGS": str(tiny_configs)})
+    assert out.returncode == 0, out.stderr
+    serial, parallel = (json.loads((tmp_path / f"{name}.json").read_text()) for name in ("serial", "ray"))
+    assert [r["agent"] for r in serial] == ["zero action", "analytic", "PPO"] and serial[2]["seeds"] == 2
+    assert _without_wall_times(parallel) == _without_wall_times(serial)
+    assert parallel[2]["wall_time_s"] > 0
+
+    def masked(table):
+        return re.sub(r"\| \d+ s \|", "| (wall) |", table)
+
+    assert masked(out.stdout) == masked(serial_table)
+    # the command stopped its cluster: no Ray session is left in this process either
+    import ray
+
+    assert not ray.is_initialized()
+
+
+def test_the_ray_backend_gives_workers_one_numba_thread_and_the_configs(tiny_configs):
+    from rbenvs_agents.cluster import ray_cluster
+
+    def worker_view():
+        import numba
+
+        from rbenvs.configs import configs_root
+
+        return os.environ.get("NUMBA_NUM_THREADS"), numba.config.NUMBA_NUM_THREADS, str(configs_root())
+
+    with ray_cluster(num_cpus=2) as ray:
+        assert ray.get(ray.remote(num_cpus=1)(worker_view).remote()) == ("1", 1, str(tiny_configs))
+    assert not ray.is_initialized()
+
+
+def test_bad_cluster_arguments_are_one_line(capsys):
+    from rbenvs_agents.cli import results_main
+
+    assert results_main(["--quick", "--address", "auto"]) == 2
+    assert capsys.readouterr().err == "rbenvs-results: error: --address and --num-cpus need --backend ray\n"
+    assert results_main(["--quick", "--backend", "ray", "--address", "auto", "--num-cpus", "2"]) == 2
+    assert "--num-cpus sizes the embedded local cluster" in capsys.readouterr().err
