@@ -3,14 +3,17 @@
 * ``rbenvs-train --algo ppo --scene default``: train (progress bar, seed, checkpoints), then
   evaluate the agent beside the scene's analytic controller and zero action.
 * ``rbenvs-eval --scene default --agent runs/ppo/model.zip --agent analytic --agent zero``.
+* ``rbenvs-sweep --algo ppo --scene default``: a hyperparameter search on Ray Tune (search space
+  ``configs/agents/sweeps/<algo>.yml``, :mod:`rbenvs_agents.sweep`), the best configuration
+  per scene printed and written in the zoo's format.
 * ``rbenvs-results``: the README's results table: every (scene, algorithm) of
   ``configs/agents/results.yml`` trained on several seeds, with the analytic controller and
   zero action evaluated the same way (:mod:`rbenvs_agents.grid`); ``--backend ray`` runs its
   cells as Ray tasks (:mod:`rbenvs_agents.backends`).
 
 Each needs the ``agents`` extra (stable-baselines3, torch; ``rbenvs-eval`` of ``analytic`` and
-``zero`` alone needs only ``cli``); ``rbenvs-results --backend ray`` needs the ``ray`` extra
-too. A missing extra, an unknown scene or another bad input is one
+``zero`` alone needs only ``cli``); ``rbenvs-sweep`` and ``rbenvs-results --backend ray`` need
+the ``ray`` extra too. A missing extra, an unknown scene or another bad input is one
 line on stderr and exit status 2, as for ``rbenvs`` (:func:`rbenvs.extras.run_command`).
 """
 
@@ -23,7 +26,7 @@ from pathlib import Path
 
 from rbenvs.extras import require, run_command
 
-__all__ = ["train_main", "eval_main", "results_main"]
+__all__ = ["train_main", "eval_main", "results_main", "sweep_main"]
 
 BASELINES = ("analytic", "zero")  # the agents that are not SB3 models
 
@@ -177,6 +180,53 @@ def _results(argv) -> int:
     if args.json:
         args.json.write_text(json.dumps(records, indent=2))
     return 0
+
+
+def sweep_main(argv=None) -> int:
+    return run_command("rbenvs-sweep", _sweep, argv)
+
+
+def _sweep(argv) -> int:
+    from .config import ALGORITHMS
+
+    p = argparse.ArgumentParser(prog="rbenvs-sweep", description="Hyperparameter search on Ray Tune (Optuna's sampler): the best configuration per scene, in the zoo's format.")
+    p.add_argument("--algo", choices=ALGORITHMS, default="ppo")
+    p.add_argument("--scene", action="append", default=None, help="scene to search on, repeatable (default: default)")
+    p.add_argument("--trials", type=int, default=None, help="trials per scene (default: configs/agents/sweeps/<algo>.yml)")
+    p.add_argument("--timesteps", type=int, default=None, help="training budget of a trial (default: the sweep file's)")
+    p.add_argument("--out", type=Path, default=None, help="the zoo-format file of the best configurations (default: runs/sweep-<algo>.yml)")
+    p.add_argument("--seed", type=int, default=0, help="seed of Optuna's sampler (default: %(default)s)")
+    p.add_argument("--address", default=None, help="join this Ray cluster (default: start a local one for the command)")
+    p.add_argument("--num-cpus", type=int, default=None, help="CPUs of the local cluster (default: every core)")
+    p.add_argument("--storage", default=None, help="Tune's folder for its records: one every node reaches, on a cluster of several machines (default: a temporary folder)")
+    args = p.parse_args(argv)
+    require("agents")
+    require("ray")
+    from .sweep import load_sweep, run_sweep, zoo_config
+
+    spec = load_sweep(args.algo, trials=args.trials, timesteps=args.timesteps)
+    scenes = [_scene(name) for name in (args.scene or ["default"])]
+    out = args.out or Path("runs") / f"sweep-{args.algo}.yml"
+    results = []
+    for scene in scenes:
+        result = run_sweep(spec, scene, address=args.address, num_cpus=args.num_cpus, storage=args.storage, seed=args.seed)
+        results.append(result)
+        names = list(spec.space)
+        rows = [(*(_flat(t.hyperparams, n) for n in names), f"{t.return_mean:.1f}", f"{t.success_mean:.0%}", f"{t.wall_time_s:.0f} s")
+                for t in sorted(result.trials, key=lambda t: -t.return_mean)]
+        print(f"\n{args.algo.upper()} on '{scene.name}': {len(result.trials)} trials, best first")
+        print(_table(rows, (*names, "return", "success", "training")))
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(zoo_config(results))
+    print(f"\nbest configuration per scene written to {out} (rl-baselines3-zoo format)")
+    return 0
+
+
+def _flat(hyperparams: dict, name: str):
+    """A searched value by its sweep name (``policy_kwargs.net_arch``)."""
+    outer, _, inner = name.partition(".")
+    value = hyperparams[outer][inner] if inner else hyperparams[outer]
+    return f"{value:.3g}" if isinstance(value, float) else value
 
 
 if __name__ == "__main__":

@@ -18,6 +18,8 @@ CASES = [
     ("rbenvs-eval", "rbenvs_agents.cli:eval_main", ["--agent", "analytic", "--agent", "zero"], ["yaml"], "cli"),
     ("rbenvs-results", "rbenvs_agents.cli:results_main", ["--quick"], ["stable_baselines3", "torch"], "agents"),
     ("rbenvs-results", "rbenvs_agents.cli:results_main", ["--quick", "--backend", "ray"], ["ray"], "ray"),  # before the grid runs
+    ("rbenvs-sweep", "rbenvs_agents.cli:sweep_main", ["--scene", "top_upright"], ["ray"], "ray"),
+    ("rbenvs-sweep", "rbenvs_agents.cli:sweep_main", [], ["optuna"], "ray"),
     ("rbenvs", "rbenvs.cli:main", ["scenes"], ["yaml"], "cli"),
     ("rbenvs", "rbenvs.cli:main", ["run", "--episodes", "1"], ["yaml"], "cli"),
     ("rbenvs", "rbenvs.cli:main", ["bench", "accuracy", "--system", "free_body"], ["yaml"], "cli"),  # before its long run

@@ -1,5 +1,5 @@
 """Scale-out on Ray (the ``ray`` extra): the results grid as Ray tasks gives the serial run's
-numbers.
+numbers, and a sweep of 8 trials on Tune writes a zoo-format best configuration.
 
 Each test starts an embedded local cluster of 2 CPUs and stops it. Skipped where Ray is not
 installed: the ``ray`` extra is not in ``dev`` (RLlib pins an older gymnasium), so the main test
@@ -8,6 +8,7 @@ with ``pytest -m ray``. About 3 minutes on 2 cores, most of it numba compiling t
 in every Ray worker."""
 
 import json
+import math
 import os
 import re
 import shutil
@@ -33,13 +34,15 @@ SCENE = "top_upright"  # the heavy top below its critical spin: a cheap step and
 @pytest.fixture
 def tiny_configs(tmp_path, monkeypatch):
     """$RBENVS_CONFIGS at a copy of the shipped configs with a one-scene grid, PPO's budget on the
-    heavy top cut to one rollout (8 sub-envs x 256 steps)."""
+    heavy top cut to one rollout (8 sub-envs x 256 steps) and an 8-trial sweep of that budget."""
     root = tmp_path / "configs"
     shutil.copytree(configs_root(), root, ignore=shutil.ignore_patterns("*.py", "__pycache__"))
     ppo = yaml.safe_load((root / "agents" / "ppo.yml").read_text())
     ppo["rbenvs/LagrangeTop-v0"]["n_timesteps"] = 2048
     (root / "agents" / "ppo.yml").write_text(yaml.safe_dump(ppo))
     (root / "agents" / "results.yml").write_text(f"runs:\n  - scene: {SCENE}\n    algos: [ppo]\n    eval_episodes: 2\n")
+    sweep = yaml.safe_load((root / "agents" / "sweeps" / "ppo.yml").read_text())
+    (root / "agents" / "sweeps" / "ppo.yml").write_text(yaml.safe_dump(sweep | {"trials": 8, "timesteps": 2048, "eval_episodes": 1}))
     monkeypatch.setenv("RBENVS_CONFIGS", str(root))
     return root
 
@@ -96,3 +99,30 @@ def test_bad_cluster_arguments_are_one_line(capsys):
     assert capsys.readouterr().err == "rbenvs-results: error: --address and --num-cpus need --backend ray\n"
     assert results_main(["--quick", "--backend", "ray", "--address", "auto", "--num-cpus", "2"]) == 2
     assert "--num-cpus sizes the embedded local cluster" in capsys.readouterr().err
+
+
+def test_a_sweep_of_8_trials_writes_the_best_configuration_in_the_zoo_format(tiny_configs, tmp_path, capsys):
+    from rbenvs_agents.cli import sweep_main
+    from rbenvs_agents.config import agent_config
+
+    out = tmp_path / "best.yml"
+    assert sweep_main(["--algo", "ppo", "--scene", SCENE, "--num-cpus", "2", "--out", str(out)]) == 0
+    text = capsys.readouterr().out
+    table = text[text.index(f"PPO on '{SCENE}': 8 trials, best first"):].split("\n\n")[0].splitlines()
+    assert len(table) == 1 + 2 + 8  # title, header, rule, a row per trial
+    returns = [float(line.split()[-4]) for line in table[3:]]
+    assert returns == sorted(returns, reverse=True) and all(math.isfinite(r) for r in returns)
+    assert f"best configuration per scene written to {out}" in text
+
+    best = yaml.safe_load(out.read_text())
+    block, found = best["rbenvs/LagrangeTop-v0"], best["scenes"][SCENE]
+    # the env's complete block (as the zoo reads it), the best trial's values in it
+    assert {"policy", "n_timesteps", "n_envs", "policy_kwargs", "n_steps", "gamma", "learning_rate", "batch_size"} <= set(block)
+    assert set(found) == {"learning_rate", "gamma", "n_steps", "batch_size", "policy_kwargs"}
+    assert all(block[k] == v for k, v in found.items())
+    assert 1e-4 <= found["learning_rate"] <= 3e-3 and found["policy_kwargs"]["net_arch"] in ([64, 64], [128, 128])
+    assert f"# {SCENE} (rbenvs/LagrangeTop-v0): return {returns[0]:.1f}" in out.read_text()
+    # rbenvs reads the written file as it reads its own: the scene's values win
+    (tiny_configs / "agents" / "ppo.yml").write_text(out.read_text())
+    config = agent_config("ppo", "rbenvs/LagrangeTop-v0", SCENE)
+    assert config.hyperparams["learning_rate"] == found["learning_rate"] and config.policy_kwargs == found["policy_kwargs"]
