@@ -198,7 +198,8 @@ def _sweep(argv) -> int:
     p.add_argument("--seed", type=int, default=0, help="seed of Optuna's sampler (default: %(default)s)")
     p.add_argument("--address", default=None, help="join this Ray cluster (default: start a local one for the command)")
     p.add_argument("--num-cpus", type=int, default=None, help="CPUs of the local cluster (default: every core)")
-    p.add_argument("--storage", default=None, help="Tune's folder for its records: one every node reaches, on a cluster of several machines (default: a temporary folder)")
+    p.add_argument("--storage", type=Path, default=None,
+                   help="Tune's folder for its records: one every node reaches, on a cluster of several machines (default: tune/ beside --out)")
     args = p.parse_args(argv)
     require("agents")
     require("ray")
@@ -209,7 +210,7 @@ def _sweep(argv) -> int:
     out = args.out or Path("runs") / f"sweep-{args.algo}.yml"
     results = []
     for scene in scenes:
-        result = run_sweep(spec, scene, address=args.address, num_cpus=args.num_cpus, storage=args.storage, seed=args.seed)
+        result = run_sweep(spec, scene, args.storage or out.parent / "tune", address=args.address, num_cpus=args.num_cpus, seed=args.seed)
         results.append(result)
         names = list(spec.space)
         rows = [(*(_flat(t.hyperparams, n) for n in names), f"{t.return_mean:.1f}", f"{t.success_mean:.0%}", f"{t.wall_time_s:.0f} s")

@@ -30,8 +30,8 @@ best trial of each scene in the zoo's format: the env id's complete block (what
 from __future__ import annotations
 
 import math
-import tempfile
 from dataclasses import asdict, dataclass
+from pathlib import Path
 
 from .grid import Cell, run_cell
 
@@ -158,15 +158,15 @@ def _trial(point, scene, spec: SweepSpec):
                  "wall_time_s": sum(r.wall_time_s for r in results)})
 
 
-def run_sweep(spec: SweepSpec, scene, address: str | None = None, num_cpus: int | None = None, storage: str | None = None,
-              seed: int = 0) -> SweepResult:
+def run_sweep(spec: SweepSpec, scene, storage, address: str | None = None, num_cpus: int | None = None, seed: int = 0) -> SweepResult:
     """``spec.trials`` trials of ``spec.algo`` on ``scene``, one CPU each, on the cluster of
     :func:`rbenvs_agents.cluster.ray_cluster`; Optuna's TPE sampler (seeded ``seed``) proposes
-    each point from the trials finished before it. ``storage``: Tune's folder for its records
-    (a path every node reaches, on a cluster of several machines; default: a temporary folder)."""
+    each point from the trials finished before it. ``storage``: the folder where Tune keeps its
+    records, ``<storage>/<algo>-<scene>`` (on a cluster of several machines, one every node
+    reaches)."""
     from .cluster import ray_cluster
 
-    with ray_cluster(address, num_cpus), tempfile.TemporaryDirectory(prefix="rbenvs-sweep-") as tmp:
+    with ray_cluster(address, num_cpus):
         import optuna
         from ray import tune
         from ray.tune.search.optuna import OptunaSearch
@@ -182,7 +182,7 @@ def run_sweep(spec: SweepSpec, scene, address: str | None = None, num_cpus: int 
             # small trial's time)
             tune_config=tune.TuneConfig(search_alg=OptunaSearch(seed=seed), metric="return_mean", mode="max", num_samples=spec.trials,
                                         reuse_actors=True),
-            run_config=tune.RunConfig(name=f"{spec.algo}-{scene.name}", storage_path=storage or tmp, verbose=0),
+            run_config=tune.RunConfig(name=f"{spec.algo}-{scene.name}", storage_path=str(Path(storage).resolve()), verbose=0),
         )
         grid = tuner.fit()
         trials = []

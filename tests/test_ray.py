@@ -78,7 +78,7 @@ def test_the_ray_backend_prints_the_serial_table(tiny_configs, tmp_path, capsys)
     assert not ray.is_initialized()
 
 
-def test_the_ray_backend_gives_workers_one_numba_thread_and_the_configs(tiny_configs):
+def test_the_workers_get_one_numba_thread_the_configs_and_the_commands_priority(tiny_configs):
     from rbenvs_agents.cluster import ray_cluster
 
     def worker_view():
@@ -86,10 +86,10 @@ def test_the_ray_backend_gives_workers_one_numba_thread_and_the_configs(tiny_con
 
         from rbenvs.configs import configs_root
 
-        return os.environ.get("NUMBA_NUM_THREADS"), numba.config.NUMBA_NUM_THREADS, str(configs_root())
+        return os.environ.get("NUMBA_NUM_THREADS"), numba.config.NUMBA_NUM_THREADS, str(configs_root()), os.nice(0)
 
     with ray_cluster(num_cpus=2) as ray:
-        assert ray.get(ray.remote(num_cpus=1)(worker_view).remote()) == ("1", 1, str(tiny_configs))
+        assert ray.get(ray.remote(num_cpus=1)(worker_view).remote()) == ("1", 1, str(tiny_configs), os.nice(0))
     assert not ray.is_initialized()
 
 
@@ -114,6 +114,7 @@ def test_a_sweep_of_8_trials_writes_the_best_configuration_in_the_zoo_format(tin
     returns = [float(line.split()[-4]) for line in table[3:]]
     assert returns == sorted(returns, reverse=True) and all(math.isfinite(r) for r in returns)
     assert f"best configuration per scene written to {out}" in text
+    assert (tmp_path / "tune" / f"ppo-{SCENE}").is_dir()  # Tune's records, beside the file
 
     best = yaml.safe_load(out.read_text())
     block, found = best["rbenvs/LagrangeTop-v0"], best["scenes"][SCENE]
