@@ -3,12 +3,17 @@
 * ``rbenvs-train --algo ppo --scene default``: train (progress bar, seed, checkpoints), then
   evaluate the agent beside the scene's analytic controller and zero action.
 * ``rbenvs-eval --scene default --agent runs/ppo/model.zip --agent analytic --agent zero``.
+* ``rbenvs-sweep --algo ppo --scene default``: a hyperparameter search on Ray Tune (search space
+  ``configs/agents/sweeps/<algo>.yml``, :mod:`rbenvs_agents.sweep`), the best configuration
+  per scene printed and written in the zoo's format.
 * ``rbenvs-results``: the README's results table: every (scene, algorithm) of
   ``configs/agents/results.yml`` trained on several seeds, with the analytic controller and
-  zero action evaluated the same way.
+  zero action evaluated the same way (:mod:`rbenvs_agents.grid`); ``--backend ray`` runs its
+  cells as Ray tasks (:mod:`rbenvs_agents.backends`).
 
 Each needs the ``agents`` extra (stable-baselines3, torch; ``rbenvs-eval`` of ``analytic`` and
-``zero`` alone needs only ``cli``). A missing extra, an unknown scene or another bad input is one
+``zero`` alone needs only ``cli``); ``rbenvs-sweep`` and ``rbenvs-results --backend ray`` need
+the ``ray`` extra too. A missing extra, an unknown scene or another bad input is one
 line on stderr and exit status 2, as for ``rbenvs`` (:func:`rbenvs.extras.run_command`).
 """
 
@@ -17,12 +22,11 @@ from __future__ import annotations
 import argparse
 import json
 import sys
-import time
 from pathlib import Path
 
 from rbenvs.extras import require, run_command
 
-__all__ = ["train_main", "eval_main", "results_main"]
+__all__ = ["train_main", "eval_main", "results_main", "sweep_main"]
 
 BASELINES = ("analytic", "zero")  # the agents that are not SB3 models
 
@@ -157,68 +161,83 @@ def _results(argv) -> int:
     p.add_argument("--from-json", type=Path, default=None, metavar="PATH",
                    help="print the table of a finished run's records (its --json) without training: the docs' table is written this way")
     p.add_argument("--no-progress", action="store_true")
+    p.add_argument("--backend", choices=("serial", "ray"), default="serial",
+                   help="serial: one cell after another here (default); ray: one Ray task per (scene, agent, seed), the ray extra")
+    p.add_argument("--address", default=None, help="--backend ray: join this Ray cluster (default: start a local one for the command)")
+    p.add_argument("--num-cpus", type=int, default=None, help="--backend ray: CPUs of the local cluster (default: every core)")
     args = p.parse_args(argv)
     if args.from_json is not None:
         if args.json or args.quick:
             p.error("--from-json prints a finished run's table: leave out --json and --quick")
-        print_results(json.loads(args.from_json.read_text()))
+        from .grid import grid_table
+
+        records = json.loads(args.from_json.read_text())
+        print(grid_table(records, max(r["seeds"] for r in records)))
         return 0
     require("agents")
-    import yaml
+    if args.backend == "ray":
+        require("ray")
+    elif args.address is not None or args.num_cpus is not None:
+        raise ValueError("--address and --num-cpus need --backend ray")
+    from .backends import RayBackend, SerialBackend
+    from .grid import grid_cells, grid_records, grid_table
 
-    from .config import agent_config, configs_dir
-    from .evaluate import analytic_policy, evaluate, sb3_policy, summarize, zero_policy
-    from .train import train
-
-    grid = yaml.safe_load((configs_dir() / "results.yml").read_text())
     seeds = [0] if args.quick else list(range(args.seeds))
-    rows, records = [], []
-    # every scene and algorithm of the grid checked before the first (long) training run
-    scenes = [_scene(entry["scene"]) for entry in grid["runs"]]
-    for entry, scene in zip(grid["runs"], scenes):
-        for algo in entry["algos"]:
-            agent_config(algo, scene.env_id, scene.name)
-    for entry, scene in zip(grid["runs"], scenes):
-        episodes = 2 if args.quick else int(entry.get("eval_episodes", 10))
-        agents = [("zero action", zero_policy, 0, 0.0), ("analytic", analytic_policy, 0, 0.0)]
-        evaluated = []
-        for label, factory, steps, wall in agents:
-            evals = [evaluate(factory, scene, episodes=episodes, seed=100 + s) for s in seeds]
-            evaluated.append((label, steps, wall, evals))
-        for algo in entry["algos"]:
-            evals, walls, steps = [], [], 0
-            for s in seeds:
-                budget = None
-                if args.quick:
-                    budget = max(1000, agent_config(algo, scene.env_id, scene.name).n_timesteps // 20)
-                t0 = time.perf_counter()
-                model, info = train(algo, scene, seed=s, timesteps=budget, progress=not args.no_progress)
-                walls.append(time.perf_counter() - t0)
-                steps = info["timesteps"]
-                evals.append(evaluate(lambda env, m=model: sb3_policy(m), scene, episodes=episodes, seed=100 + s))
-            evaluated.append((algo.upper(), steps, sum(walls) / len(walls), evals))
-        task = scene.kwargs.get("task", "")
-        for label, steps, wall, evals in evaluated:
-            records.append({"scene": scene.name, "env_id": scene.env_id, "task": task, "agent": label, "timesteps": steps,
-                            "wall_time_s": wall} | summarize(evals))
-    print_results(records)
+    cells = grid_cells(seeds, quick=args.quick)
+    backend = RayBackend(args.address, args.num_cpus) if args.backend == "ray" else SerialBackend(progress=not args.no_progress)
+    records = grid_records(backend.run(cells))
+    print(grid_table(records, len(seeds)))
     if args.json:
         args.json.write_text(json.dumps(records, indent=2))
     return 0
 
 
-def print_results(records) -> None:
-    """The results table (Markdown), one row per record of ``rbenvs-results``."""
-    seeds = sorted({r["seeds"] for r in records})
-    header = ("env", "task (scene)", "agent", "training steps", "wall time / seed",
-              f"return (mean +- std, {'/'.join(map(str, seeds))} seeds)", "success")
-    print("| " + " | ".join(header) + " |")
-    print("|" + "---|" * len(header))
-    for r in records:
-        steps, wall = r["timesteps"], r["wall_time_s"]
-        row = (r["env_id"].split("/")[-1], f"{r['task']} ({r['scene']})", r["agent"], f"{steps:,}" if steps else "-",
-               f"{wall:.0f} s" if wall else "-", f"{r['return_mean']:.1f} +- {r['return_std']:.1f}", f"{r['success_mean']:.0%}")
-        print("| " + " | ".join(row) + " |")
+def sweep_main(argv=None) -> int:
+    return run_command("rbenvs-sweep", _sweep, argv)
+
+
+def _sweep(argv) -> int:
+    from .config import ALGORITHMS
+
+    p = argparse.ArgumentParser(prog="rbenvs-sweep", description="Hyperparameter search on Ray Tune (Optuna's sampler): the best configuration per scene, in the zoo's format.")
+    p.add_argument("--algo", choices=ALGORITHMS, default="ppo")
+    p.add_argument("--scene", action="append", default=None, help="scene to search on, repeatable (default: default)")
+    p.add_argument("--trials", type=int, default=None, help="trials per scene (default: configs/agents/sweeps/<algo>.yml)")
+    p.add_argument("--timesteps", type=int, default=None, help="training budget of a trial (default: the sweep file's)")
+    p.add_argument("--out", type=Path, default=None, help="the zoo-format file of the best configurations (default: runs/sweep-<algo>.yml)")
+    p.add_argument("--seed", type=int, default=0, help="seed of Optuna's sampler (default: %(default)s)")
+    p.add_argument("--address", default=None, help="join this Ray cluster (default: start a local one for the command)")
+    p.add_argument("--num-cpus", type=int, default=None, help="CPUs of the local cluster (default: every core)")
+    p.add_argument("--storage", type=Path, default=None,
+                   help="Tune's folder for its records: one every node reaches, on a cluster of several machines (default: tune/ beside --out)")
+    args = p.parse_args(argv)
+    require("agents")
+    require("ray")
+    from .sweep import load_sweep, run_sweep, zoo_config
+
+    spec = load_sweep(args.algo, trials=args.trials, timesteps=args.timesteps)
+    scenes = [_scene(name) for name in (args.scene or ["default"])]
+    out = args.out or Path("runs") / f"sweep-{args.algo}.yml"
+    results = []
+    for scene in scenes:
+        result = run_sweep(spec, scene, args.storage or out.parent / "tune", address=args.address, num_cpus=args.num_cpus, seed=args.seed)
+        results.append(result)
+        names = list(spec.space)
+        rows = [(*(_flat(t.hyperparams, n) for n in names), f"{t.return_mean:.1f}", f"{t.success_mean:.0%}", f"{t.wall_time_s:.0f} s")
+                for t in sorted(result.trials, key=lambda t: -t.return_mean)]
+        print(f"\n{args.algo.upper()} on '{scene.name}': {len(result.trials)} trials, best first")
+        print(_table(rows, (*names, "return", "success", "training")))
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(zoo_config(results))
+    print(f"\nbest configuration per scene written to {out} (rl-baselines3-zoo format)")
+    return 0
+
+
+def _flat(hyperparams: dict, name: str):
+    """A searched value by its sweep name (``policy_kwargs.net_arch``)."""
+    outer, _, inner = name.partition(".")
+    value = hyperparams[outer][inner] if inner else hyperparams[outer]
+    return f"{value:.3g}" if isinstance(value, float) else value
 
 
 if __name__ == "__main__":

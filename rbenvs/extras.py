@@ -6,7 +6,7 @@ long work): a missing module raises :class:`MissingExtra`, an ``ImportError`` wh
 the extra and its ``pip install`` line. :func:`run_command` runs a command line's body and turns
 that, and a ``ValueError`` of bad input (an unknown scene, a bad value), into one line on stderr
 and exit status 2, no traceback. ``rbenvs`` (:mod:`rbenvs.cli`) and ``rbenvs-train``,
-``rbenvs-eval``, ``rbenvs-results`` (:mod:`rbenvs_agents.cli`) all go through it.
+``rbenvs-eval``, ``rbenvs-results``, ``rbenvs-sweep`` (:mod:`rbenvs_agents.cli`) all go through it.
 """
 
 from __future__ import annotations
@@ -29,6 +29,9 @@ EXTRAS = {
     "video": (("moviepy", "moviepy"),),
     # `rbenvs verify --simulator mujoco`: MuJoCo's models beside ours (rbenvs.verify.mujoco_adapter)
     "mujoco": (("mujoco", "mujoco"),),
+    # rbenvs-results --backend ray, rbenvs-sweep (Ray Tune with Optuna) and RLlib on the vector
+    # envs. Not part of `dev`: RLlib pins an older gymnasium (see .ci/run's Ray job).
+    "ray": (("ray", "ray[tune,rllib]"), ("optuna", "optuna")),
 }
 
 

@@ -66,6 +66,8 @@ def test_rbenvs_comes_from_the_wheel(wheel_venv):
         "from rbenvs.scenes import scenes_dir\n"
         "from rbenvs_agents.config import agent_config\n"
         "print(rbenvs.__file__); print(rbenvs.configs.__file__); print(rbenvs_agents.__file__); print(scenes_dir())\n"
+        "from rbenvs_agents.sweep import load_sweep\n"
+        "assert load_sweep('ppo').space\n"  # the sweeps' search spaces shipped too
         "print(agent_config('ppo', 'rbenvs/FreeRigidBody-v0', 'default').n_timesteps)\n"  # the hyperparameters shipped too
     )
     out = _run([bindir / "python", "-c", code], cwd=work, env=env)
