@@ -100,9 +100,7 @@ def _train(argv) -> int:
                    help="also write TensorBoard logs into DIR (the tensorboard extra; view with: tensorboard --logdir DIR)")
     p.add_argument("--no-progress", action="store_true")
     args = p.parse_args(argv)
-    require("agents")
-    if args.tensorboard is not None:
-        require("tensorboard")
+    require("agents")  # (train() asks for the tensorboard extra itself, before it builds anything)
     scene = _scene(args.scene)
     out = args.out or Path("runs") / f"{args.algo}-{scene.name}-seed{args.seed}"
     from .evaluate import analytic_policy, sb3_policy, zero_policy

@@ -148,3 +148,25 @@ def test_scene_overrides_are_a_top_level_block_the_zoo_never_reads(tmp_path, mon
     assert (plain.n_timesteps, plain.hyperparams["gamma"]) == (200, 0.9)
     assert (scene.n_timesteps, scene.hyperparams["gamma"]) == (200, 0.5)
     assert (other.n_timesteps, other.hyperparams["gamma"], other.policy_kwargs) == (100, 0.9, {"net_arch": [8]})
+
+
+def test_rbenvs_results_prints_a_finished_runs_table_from_its_json(tmp_path, capsys):
+    """``--from-json``: the table of a run's records (``--json``) without training, as the
+    docs' block is written; each record one row, in order."""
+    import json
+
+    from rbenvs_agents.cli import results_main
+
+    records = [{"scene": "default", "env_id": "rbenvs/FreeRigidBody-v0", "task": "spin", "agent": "zero action", "timesteps": 0,
+                "wall_time_s": 0.0, "seeds": 3, "return_mean": 150.14, "return_std": 42.04, "success_mean": 1 / 30, "success_std": 0.05},
+               {"scene": "top_upright", "env_id": "rbenvs/LagrangeTop-v0", "task": "upright", "agent": "PPO", "timesteps": 100000,
+                "wall_time_s": 17.2, "seeds": 3, "return_mean": 499.93, "return_std": 0.01, "success_mean": 1.0, "success_std": 0.0}]
+    path = tmp_path / "results.json"
+    path.write_text(json.dumps(records))
+    assert results_main(["--from-json", str(path)]) == 0
+    lines = capsys.readouterr().out.strip().splitlines()
+    assert lines[0].endswith("| return (mean +- std, 3 seeds) | success |") and len(lines) == 4
+    assert lines[2] == "| FreeRigidBody-v0 | spin (default) | zero action | - | - | 150.1 +- 42.0 | 3% |"
+    assert lines[3] == "| LagrangeTop-v0 | upright (top_upright) | PPO | 100,000 | 17 s | 499.9 +- 0.0 | 100% |"
+    with pytest.raises(SystemExit):
+        results_main(["--from-json", str(path), "--quick"])

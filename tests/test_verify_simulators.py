@@ -100,6 +100,14 @@ def test_cli_with_a_step_function_writes_json_and_fails_on_failure(tmp_path, mon
     report = json.loads(path.read_text())
     assert {r["result"] for r in report} == {"PASS", "FAIL", "n/a"}
     assert any(r["check"] == INTERMEDIATE and r["result"] == "FAIL" for r in report)
+    # --comparison: the same rows as one Markdown table, a report: exit 0 though a row fails
+    status = verify.main(["--quick", "--no-progress", "--system", "free_body", "--simulator", "broken_engine:step,dt=0.02,order=4",
+                          "--simulator", "rbenvs:integrator=rk4,dt=0.02", "--comparison"])
+    lines = capsys.readouterr().out.strip().splitlines()
+    assert status == 0 and all(line.startswith("|") for line in lines)
+    assert lines[0].count("`") == 4  # a column per simulator
+    row = next(line for line in lines if INTERMEDIATE.replace("|", "&#124;") in line)
+    assert row.count("FAIL") == 1 and row.count("PASS") == 1  # the broken engine fails, rk4 passes
 
 
 def test_cli_refuses_mixing_integrator_and_simulator():
