@@ -153,7 +153,7 @@ def results_main(argv=None) -> int:
 
 def _results(argv) -> int:
     p = argparse.ArgumentParser(prog="rbenvs-results", description="The README's results table: train and evaluate every (scene, algorithm) of configs/agents/results.yml.")
-    p.add_argument("--seeds", type=int, default=3)
+    p.add_argument("--seeds", type=int, default=None, help="seeds per (scene, agent) (default: 3)")
     p.add_argument("--quick", action="store_true", help="1/20 of each budget, 1 seed, 2 episodes: a smoke run of the whole grid")
     p.add_argument("--json", type=Path, default=None, help="also write the records here")
     p.add_argument("--from-json", type=Path, default=None, metavar="PATH",
@@ -165,8 +165,11 @@ def _results(argv) -> int:
     p.add_argument("--num-cpus", type=int, default=None, help="--backend ray: CPUs of the local cluster (default: every core)")
     args = p.parse_args(argv)
     if args.from_json is not None:
-        if args.json or args.quick:
-            p.error("--from-json prints a finished run's table: leave out --json and --quick")
+        # (a finished run's table: nothing runs, so an option of a run would be silently ignored)
+        given = [flag for flag, on in (("--json", args.json), ("--quick", args.quick), ("--seeds", args.seeds is not None), ("--backend", args.backend != "serial"),
+                                       ("--address", args.address is not None), ("--num-cpus", args.num_cpus is not None)) if on]
+        if given:
+            p.error(f"--from-json prints a finished run's table: leave out {', '.join(given)}")
         from .grid import grid_table
 
         records = json.loads(args.from_json.read_text())
@@ -180,7 +183,7 @@ def _results(argv) -> int:
     from .backends import RayBackend, SerialBackend
     from .grid import grid_cells, grid_records, grid_table
 
-    seeds = [0] if args.quick else list(range(args.seeds))
+    seeds = [0] if args.quick else list(range(3 if args.seeds is None else args.seeds))
     cells = grid_cells(seeds, quick=args.quick)
     backend = RayBackend(args.address, args.num_cpus) if args.backend == "ray" else SerialBackend(progress=not args.no_progress)
     records = grid_records(backend.run(cells))

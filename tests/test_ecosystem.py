@@ -168,5 +168,8 @@ def test_rbenvs_results_prints_a_finished_runs_table_from_its_json(tmp_path, cap
     assert lines[0].endswith("| return (mean +- std, 3 seeds) | success |") and len(lines) == 4
     assert lines[2] == "| FreeRigidBody-v0 | spin (default) | zero action | - | - | 150.1 +- 42.0 | 3% |"
     assert lines[3] == "| LagrangeTop-v0 | upright (top_upright) | PPO | 100,000 | 17 s | 499.9 +- 0.0 | 100% |"
-    with pytest.raises(SystemExit):
-        results_main(["--from-json", str(path), "--quick"])
+    # an option of a run is refused, naming it, not silently ignored (nothing runs)
+    for extra in (["--quick"], ["--seeds", "3"], ["--backend", "ray"], ["--num-cpus", "2"], ["--address", "auto"]):
+        with pytest.raises(SystemExit):
+            results_main(["--from-json", str(path), *extra])
+        assert f"leave out {extra[0]}" in capsys.readouterr().err
