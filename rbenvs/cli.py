@@ -198,6 +198,8 @@ def build_parser() -> argparse.ArgumentParser:
     run.set_defaults(func=_cmd_run)
     # `verify` has its own parser (rbenvs.verify.main); main() hands it the rest of the line.
     sub.add_parser("verify", help="check the simulator against the analytic oracles (see rbenvs verify --help)")
+    # `headline` too (rbenvs.headline.main).
+    sub.add_parser("headline", help="the README's headline figures from the measuring commands' records (see rbenvs headline --help)")
     bench = sub.add_parser("bench", help="benchmarks (each prints the peer measured in the same run)")
     bench_sub = bench.add_subparsers(dest="bench", required=True)
     kernels = bench_sub.add_parser("kernels", help="RK4 kernel: our (3, n) components vs np.cross on (n, 3)")
@@ -232,6 +234,10 @@ def _main(argv) -> int:
         from .verify import main as verify_main
 
         return verify_main(argv[1:])
+    if argv[:1] == ["headline"]:
+        from .headline import main as headline_main
+
+        return headline_main(argv[1:])
     if argv[:2] == ["bench", "throughput"]:
         from .bench.throughput import main as throughput_main
 

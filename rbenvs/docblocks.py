@@ -7,7 +7,7 @@ that names the same command line::
 
     <!-- rbenvs:output rbenvs bench fidelity -->
     (written here by the command: a line with the command, date, machine and wall time, then
-    the output in a fenced block, or as it is when it is a Markdown table)
+    the output in a fenced block, or as it is when it is a Markdown table or list)
     <!-- rbenvs:end -->
 
 The command line in the marker is the one run, without ``--docs`` and ``--no-progress``. A page
@@ -36,7 +36,7 @@ __all__ = ["BEGIN", "END", "split_docs_flag", "command_key", "find_block", "writ
 
 BEGIN = "<!-- rbenvs:output {} -->"
 END = "<!-- rbenvs:end -->"
-_BLOCK = re.compile(r"<!-- rbenvs:output (.+?) -->\n(.*?)<!-- rbenvs:end -->", re.S)
+_BLOCK = re.compile(r"<!-- rbenvs:output ([^\n]+?) -->\n(.*?)<!-- rbenvs:end -->", re.S)  # (a command line is one line)
 # flags that change how a command shows itself, not what it measures
 _NOT_PART_OF_THE_KEY = ("--no-progress",)
 
@@ -101,8 +101,8 @@ def write_block(page: str | Path, key: str, output: str, seconds: float | None =
     when = when or datetime.date.today()
     took = f", {_duration(seconds)}" if seconds is not None else ""
     lines = [line for line in output.strip().splitlines() if line.strip()]
-    if lines and all(line.startswith("|") for line in lines):
-        shown = output.strip() + "\n"  # a Markdown table: the page renders it as one
+    if lines and (all(line.startswith("|") for line in lines) or all(line.startswith("- ") for line in lines)):
+        shown = output.strip() + "\n"  # a Markdown table or list: the page renders it as one
     else:
         fence = "````" if "```" in output else "```"
         shown = f"{fence}\n{output.rstrip()}\n{fence}\n"

@@ -264,8 +264,51 @@ def test_docs_flag_writes_the_output_into_the_named_block(tmp_path, capsys):
 
     assert run_with_docs("prog", table, ["table", "--docs", str(page)]) == 0
     assert "\n| a | b |\n|---|---|\n| 1 | 2 |\n<!-- rbenvs:end -->" in page.read_text()  # Markdown stays Markdown
+
+    def bullets(argv):
+        print("- one\n- two")
+        return 0
+
+    assert run_with_docs("prog", bullets, ["table", "--docs", str(page)]) == 0
+    assert "):\n\n- one\n- two\n<!-- rbenvs:end -->" in page.read_text()  # a Markdown list too
     before = page.read_text()
     with pytest.raises(ValueError, match="no block for `prog other`"):
         run_with_docs("prog", body, ["other", "--docs", str(page)])  # refused before it runs
     assert run_with_docs("prog", lambda argv: 1, ["table", "--docs", str(page)]) == 1
     assert page.read_text() == before  # a failed run writes nothing
+
+
+def test_the_readme_headline_is_made_from_the_records():
+    """The README's headline figures are `rbenvs headline`'s output from the records the
+    measuring commands wrote: a measuring command run again without the headline made anew
+    fails here, naming the command that mends it."""
+    from rbenvs.docblocks import find_block
+    from rbenvs.headline import headline
+
+    m = find_block((ROOT / "README.md").read_text(), "rbenvs headline")
+    assert m is not None, "README.md has no `rbenvs headline` block"
+    shown = m.group(2).split("\n\n", 1)[1].strip()
+    assert shown == headline(ROOT), "README.md's headline is stale: run `rbenvs headline --docs README.md`"
+
+
+def test_headline_counts_what_the_records_say(tmp_path):
+    import json
+
+    from rbenvs.headline import headline
+
+    with pytest.raises(ValueError, match="docs/verify.json is missing: it is written by `rbenvs verify --json docs/verify.json`"):
+        headline(tmp_path)
+    docs = tmp_path / "docs"
+    docs.mkdir()
+    check = {"system": "free_body", "passed": True}
+    (docs / "verify.json").write_text(json.dumps([check, check | {"passed": False}, check | {"system": "tippe_top", "passed": False, "applies": False}]))
+    row = {"scene": None, "num_envs": 64, "single_ratio_to_pendulum": 0.4, "ratio_to_cartpole": 2.0, "compiled_over_numpy": 5.0}
+    (docs / "throughput.json").write_text(json.dumps({"tasks": [row | {"id": "rbenvs/FreeRigidBody-v0", "task": "spin"},
+                                                                row | {"id": "rbenvs/TippeTop-v0", "task": "invert", "single_ratio_to_pendulum": 3.0}]}))
+    rec = {"task": "spin", "seeds": 3, "success_mean": 1.0}
+    (docs / "results.json").write_text(json.dumps([rec | {"scene": "default", "agent": "analytic"}, rec | {"scene": "default", "agent": "PPO"},
+                                                   rec | {"scene": "tippe_hold", "task": "hold", "agent": "zero action", "success_mean": 0.0}]))
+    lines = headline(tmp_path).splitlines()
+    assert "1 of 2 checks pass, on free_body " in lines[0]  # (a row that does not apply is not counted)
+    assert "free body 0.40; tippe top 3.00." in lines[1] and "free body spin 2.00x" in lines[1] and "tippe top 5.0-5.0x" in lines[1]
+    assert "of 3 seeds: PPO on `default` (spin)" in lines[2] and "no learned agent yet on `tippe_hold` (hold)" in lines[2]
