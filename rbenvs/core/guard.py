@@ -13,9 +13,28 @@ bound (or the system's own accuracy bound, which then replaces ``b`` and ``growt
 interval the system allows. An integrator with no bound and a system with no dissipation give
 no term. More than ``MAX_INTERNAL_STEPS`` is a numerical failure (reported, never a hang).
 
+**Accuracy** (``tolerance=``, a relative error per episode of ``N`` control periods): a scheme
+of order ``p`` and error constant ``C`` (declared by the integrator, measured by
+:func:`rbenvs.integrators.error.measure_error_constant`) commits, over a period of ``n`` steps
+``h = dt / n`` at rate ``lambda``, the relative error
+
+    e = C lambda dt (lambda h)^p                                  (:func:`error_estimate`)
+
+(``n`` local errors ``C (lambda h)^(p+1)``; a rotation carries an error on without amplifying
+it). Errors of successive periods compound at worst as ``prod(1 + e_k) - 1 <=
+exp(sum e_k) - 1``, which stays within the tolerance when every period meets
+``e <= b = log(1 + tolerance) / N``. With ``z = lambda dt`` that asks for ``n^p >= (C / b)
+z^(p+1)``: the fewest such whole ``n`` (:func:`accuracy_steps`) is a fourth term of ``x``,
+and ``info["error_estimate"]`` reports ``e`` of the steps taken. The estimate assumes the motion
+does not amplify errors (a stable spin, a precession); near an unstable equilibrium (the
+intermediate axis, an upright top below its critical spin) an error grows with the motion and
+no step bounds it for long.
+
 Everything here works on floats (one state) and arrays (a batch) with the same IEEE
 operations, so a sub-env of a vector env takes exactly its single env's steps; the pure
-:func:`step_ratio` is what the compiled batch step calls.
+:func:`step_ratio` is what the compiled batch step calls (the accuracy term's fractional power
+is corrected to the exact whole count by integer powers, so a last-bit difference between
+libm's ``pow`` and numpy's cannot change a count).
 """
 
 from __future__ import annotations
@@ -26,9 +45,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..jit import jitable
-from ..rotations import maximum
+from ..rotations import maximum, select
 
-__all__ = ["MAX_INTERNAL_STEPS", "GUARDS", "StepRule", "step_ratio", "require_guard"]
+__all__ = ["MAX_INTERNAL_STEPS", "GUARDS", "StepRule", "step_ratio", "accuracy_steps", "error_estimate", "require_guard", "require_tolerance"]
 
 # More internal steps than this in one control period is treated as a numerical failure.
 MAX_INTERNAL_STEPS = 1_000_000
@@ -46,15 +65,78 @@ def require_guard(guard) -> str:
     return guard
 
 
+def require_tolerance(tolerance):
+    """``tolerance=``: ``None`` (no accuracy bound) or a finite number with ``0 < tolerance < 1``
+    (a relative error per episode)."""
+    if tolerance is None:
+        return None
+    rule = "None or a finite number with 0 < tolerance < 1 (the relative error allowed over an episode)"
+    if isinstance(tolerance, (bool, np.bool_)) or not isinstance(tolerance, (int, float, np.integer, np.floating)):
+        raise TypeError(f"tolerance must be {rule}, got {tolerance!r} ({type(tolerance).__name__})")
+    tol = float(tolerance)
+    if not (math.isfinite(tol) and 0.0 < tol < 1.0):
+        raise ValueError(f"tolerance must be {rule}, got {tolerance!r}")
+    return tol
+
+
+@jitable
+def power(x, p):
+    """``x^p`` for a whole ``p >= 1`` (a float) by repeated products: the same bits on floats,
+    arrays and in compiled code (``**`` may differ in the last bit between libm and numpy)."""
+    r = x
+    k = 1.0
+    while k < p:
+        r = r * x
+        k += 1.0
+    return r
+
+
+@jitable
+def ceiling(x):
+    """``ceil(x)`` as a float (``inf`` and NaN pass through; floats or arrays)."""
+    if isinstance(x, float):
+        return float(math.ceil(x)) if x <= 9.0e15 else x
+    return _ceil_arrays(x)
+
+
+@jitable  # (registered so that compiled code can name it; it only ever runs on arrays)
+def _ceil_arrays(x):
+    return np.ceil(x)
+
+
+@jitable
+def accuracy_steps(k, p, z):
+    """The fewest whole ``n`` with ``n^p >= k z^(p+1)``: the steps a period of ``z = lambda dt``
+    needs for an error ``C z (z / n)^p <= b`` (``k = C / b``, ``p`` the order; floats or arrays).
+    The root's guess is moved to the exact answer of the integer-power test, so every path
+    gives the same count."""
+    y = k * power(z, p + 1.0)
+    n = ceiling(y ** (1.0 / p))
+    m = n - 1.0
+    n = select(m >= 1.0, select(power(m, p) >= y, m, n), n)
+    return select(power(n, p) < y, n + 1.0, n)
+
+
+@jitable
+def error_estimate(e, lam, h):
+    """The relative error a period commits, ``C lambda dt (lambda h)^p``: ``e = (C, p, dt)``,
+    ``lam`` the rate at its start, ``h`` its internal step (floats or arrays)."""
+    c, p, dt = e
+    return c * lam * dt * power(lam * h, p)
+
+
 @jitable
 def step_ratio(g, lam):
     """``x`` (a period needs ``ceil(x)`` steps) from the oscillatory rate ``lam`` alone:
-    ``g = (dt, bound, growth)`` (pure; floats or arrays)."""
-    dt, bound, growth = g
+    ``g = (dt, bound, growth, k, p)``; ``k = C / b > 0`` adds the accuracy term
+    (:func:`accuracy_steps`), ``k = 0`` none (pure; floats or arrays)."""
+    dt, bound, growth, k, p = g
     x = dt * lam / bound
     if growth != math.inf:
         z = dt * lam
         x = maximum(x, z * z / growth)
+    if k != 0.0:
+        x = maximum(x, accuracy_steps(k, p, dt * lam))
     return x
 
 
@@ -63,34 +145,71 @@ class StepRule:
     """The guard of one env: its system's rates, its integrator's region and its ``dt``.
 
     ``active`` is false where nothing bounds the step (``guard="off"``, or an integrator with
-    no bound for this system): the period then always takes ``substeps`` steps.
+    no bound for this system): the period then always takes ``substeps`` steps. ``error``:
+    ``(C, p, dt)`` of :func:`error_estimate` where a tolerance is set, else ``None``.
     """
 
     rotation: tuple  # (fn, P): lambda(P, y)
-    params: tuple  # (dt, bound, growth) for step_ratio
+    params: tuple  # (dt, bound, growth, k, p) for step_ratio
     dissipation: tuple | None  # (fn, P): lambda_d(P, y, u), and below its c
     dissipation_step: float  # c: h <= c / lambda_d
     ceiling: float  # upper bound of lambda inside the observation bounds
     text: str
     active: bool
+    error: tuple | None = None  # (C, p, dt) of error_estimate, with a tolerance
+    accuracy_text: str = ""  # the accuracy bound in words ("" without a tolerance)
 
     @classmethod
-    def build(cls, rates, region, dt: float, guard: str) -> "StepRule":
+    def build(cls, rates, region, dt: float, guard: str, integrator=None, tolerance=None, horizon=None) -> "StepRule":
         """The rule for ``rates`` (the system's :class:`~rbenvs.contracts.GuardRates` for
-        ``region``) at control period ``dt`` under ``guard``."""
+        ``region``) at control period ``dt`` under ``guard``; with ``tolerance`` (a relative
+        error over ``horizon`` periods) also the accuracy bound of ``integrator`` (its
+        ``order`` and ``error_constant``)."""
         if rates.rotation_bound is not None:  # the system's accuracy bound replaces the scheme's
             bound, growth = rates.rotation_bound, math.inf
         else:
             bound, growth = region.rotation, region.growth
         step_d = rates.dissipation_margin * region.dissipation if rates.dissipation is not None else math.inf
         dissipation = rates.dissipation if step_d != math.inf else None
-        active = guard != "off" and (bound != math.inf or growth != math.inf or dissipation is not None)
+        k, p, error, accuracy = 0.0, 1.0, None, ""
+        if tolerance is not None:
+            c, p = float(integrator.error_constant), float(integrator.order)
+            budget = math.log1p(tolerance) / horizon
+            k, error = c / budget, (c, p, float(dt))
+            accuracy = (f"error C lambda dt (lambda h)^{integrator.order} <= log(1 + tolerance) / {horizon} per period "
+                        f"(tolerance={tolerance!r} over tolerance_horizon={horizon} periods; {integrator.name}: order {integrator.order}, "
+                        f"error constant C = {c:g})")
+        active = guard != "off" and (bound != math.inf or growth != math.inf or dissipation is not None or error is not None)
         text = rates.text
         if bound != math.inf:
             text = f"lambda h <= {bound}" + (f" and lambda^2 h dt <= {growth}" if growth != math.inf else "") + f", {text}"
         if dissipation is not None:
             text += f"; h <= {step_d:.6g} / lambda_d"
-        return cls(rates.rotation, (float(dt), float(bound), float(growth)), dissipation, step_d, rates.ceiling, text, active)
+        if accuracy:
+            text += f"; {accuracy}"
+        return cls(rates.rotation, (float(dt), float(bound), float(growth), float(k), float(p)), dissipation, step_d, rates.ceiling, text, active, error, accuracy)
+
+    def rate(self, y):
+        """``lambda`` at ``y`` (the rate both the bounds and the error estimate use)."""
+        fn, p = self.rotation
+        return fn(p, y)
+
+    def estimate(self, lam, h):
+        """The relative error of a period started at rate ``lam`` with internal step ``h``
+        (:func:`error_estimate`; ``None`` without a tolerance)."""
+        return None if self.error is None else error_estimate(self.error, lam, h)
+
+    def binding(self, y, u) -> str:
+        """Which bound asks for the most steps at ``y`` under ``u``, in words: the accuracy
+        bound (with a tolerance) or the stability bound."""
+        if self.error is None:
+            return f"the step bound ({self.text})"
+        dt, bound, growth, k, p = self.params
+        lam = self.rate(y)
+        stability = step_ratio((dt, bound, growth, 0.0, 1.0), lam)
+        if not accuracy_steps(k, p, dt * lam) > stability:
+            return f"the stability bound ({self.text})"
+        return f"the tolerance ({self.accuracy_text})"
 
     def ratio(self, y, u):
         """``x`` at ``y`` under ``u`` (the period needs ``ceil(x)`` steps); floats or arrays."""

@@ -185,6 +185,8 @@ class FreeRigidBodyEnv(RigidBodyEnv):
         render_mode=None,
         guard: str = "subdivide",
         compiled="auto",
+        tolerance=None,
+        tolerance_horizon=None,
     ):
         # every keyword is checked, whatever the task (a keyword the task ignores must still be
         # a valid value: a typo is reported, not silently kept)
@@ -224,7 +226,7 @@ class FreeRigidBodyEnv(RigidBodyEnv):
         self._max_w = max_w
         self._start_speed = start_speed
         high = observation_bounds(task_obj, {"rad/s": max_w})
-        self._setup(system, task_obj, actuator, integrator, dt, substeps, high, render_mode, guard, compiled)
+        self._setup(system, task_obj, actuator, integrator, dt, substeps, high, render_mode, guard, compiled, tolerance, tolerance_horizon)
         self.action_size = actuator.size
         # |Delta Omega| <= max_torque sqrt(k) dt / I_min over a period of full torque on k axes
         change = max_torque * math.sqrt(actuator.size) * self.dt / min(params.inertia)

@@ -201,6 +201,8 @@ class LagrangeTopEnv(RigidBodyEnv):
         render_mode=None,
         guard: str = "subdivide",
         compiled="auto",
+        tolerance=None,
+        tolerance_horizon=None,
     ):
         # every keyword is checked, whatever the task (one the task ignores must still be valid)
         task = require_choice("task", task, self.tasks)
@@ -254,7 +256,7 @@ class LagrangeTopEnv(RigidBodyEnv):
         self._max_w = max_w
         self._start_speed = peak
         high = observation_bounds(task_obj, {"rad/s": max_w})
-        self._setup(system, task_obj, actuator, integrator, dt, substeps, high, render_mode, guard, compiled)
+        self._setup(system, task_obj, actuator, integrator, dt, substeps, high, render_mode, guard, compiled, tolerance, tolerance_horizon)
         # orthonormal torque directions: |tau| <= max_torque sqrt(k), |Delta Omega| <= |tau| dt / I_min
         change = self.max_torque * math.sqrt(len(self.torque_directions)) * self.dt / min(params.inertia)
         self._require_authority("max_torque", change, "max_angular_velocity", max_w, "angular velocity [rad/s]")

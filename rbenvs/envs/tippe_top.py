@@ -200,6 +200,8 @@ class TippeTopEnv(RigidBodyEnv):
         render_mode=None,
         guard: str = "subdivide",
         compiled="auto",
+        tolerance=None,
+        tolerance_horizon=None,
     ):
         # every keyword is checked, whatever the task and options (an unused one must still be valid)
         task = require_choice("task", task, self.tasks)
@@ -246,7 +248,7 @@ class TippeTopEnv(RigidBodyEnv):
         self._start_speed = peak
         self._max_w = max_w
         high = observation_bounds(task_obj, {"rad/s": max_w, "m/s": max_v})
-        self._setup(system, task_obj, actuator, integrator, dt, substeps, high, render_mode, guard, compiled)
+        self._setup(system, task_obj, actuator, integrator, dt, substeps, high, render_mode, guard, compiled, tolerance, tolerance_horizon)
         # the table's acceleration moves v_G (relative to the table) by at most |a_T| dt per period;
         # a body torque moves Omega by at most |tau| dt / min(A, C)
         self._require_authority("max_table_acceleration", self.max_table_acceleration * math.sqrt(2.0) * self.dt, "max_speed", max_v, "velocity of the centre of mass [m/s]")

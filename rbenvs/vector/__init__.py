@@ -212,6 +212,9 @@ class RigidBodyVectorEnv(VectorEnv):
         self._action = None
         self._last_h = np.full(n, self.engine.h)
         info = self._info(self._y, None, self._false, self._false, metrics, physical)
+        if self.engine.tolerance is not None:
+            info["error_estimate"] = np.zeros(n)  # no period yet (the single env's reset)
+            info["_error_estimate"] = self._true
         return obs, info
 
     def _elapsed_steps(self, elapsed) -> np.ndarray:
@@ -290,6 +293,25 @@ class RigidBodyVectorEnv(VectorEnv):
 
     # ------------------------------------------------------------------ step
     def step(self, actions):
+        if self.engine.tolerance is None or self._y is None:
+            return self._step(actions)
+        # with a tolerance: each period's estimated error, from the rate at its start and the
+        # step it took (the single env's rule); 0 where no period ran (a sub-env restarted)
+        rule = self.engine.rule
+        lam = np.array(rule.rate(self._y), dtype=np.float64)
+        restart = self._prev_done.copy() if self.autoreset_mode is AutoresetMode.NEXT_STEP else self._false
+        obs, reward, terminated, truncated, info = self._step(actions)
+        estimate = np.broadcast_to(rule.estimate(lam, np.asarray(self._last_h, dtype=np.float64)), (self.num_envs,)).astype(np.float64)
+        estimate[restart] = 0.0
+        if "final_info" in info:  # SAME_STEP: the ended periods' estimates go with their final info
+            info["final_info"]["error_estimate"] = estimate.copy()
+            info["final_info"]["_error_estimate"] = self._true
+            estimate[info["_final_info"]] = 0.0
+        info["error_estimate"] = estimate
+        info["_error_estimate"] = self._true
+        return obs, reward, terminated, truncated, info
+
+    def _step(self, actions):
         if self._y is None:
             raise RuntimeError("call reset() before step()")
         if self._vector_step is not None and self._table is not None:
@@ -325,7 +347,7 @@ class RigidBodyVectorEnv(VectorEnv):
         observation, evaluation, then :meth:`_finish`."""
         engine = self.engine
         self._y2d = None
-        y, failed = engine.settle(y0, y, restart)
+        y, failed = engine.settle(y0, y, restart, self._last_h)
         self._y = y
         obs, over = engine.observe(y)
         reward, terminated, metrics = engine.evaluate(y, u_norm)
