@@ -239,8 +239,8 @@ def test_a_period_past_the_cap_is_a_numerical_failure_naming_the_tolerance():
     assert term and info["numerical_failure"] and info["internal_step"] < env.dt / MAX_INTERNAL_STEPS
 
 
-@pytest.mark.parametrize("compiled", [False, True])
-def test_vector_env_reports_the_single_envs_estimates_bit_for_bit(compiled):
+def test_vector_env_reports_the_single_envs_estimates_bit_for_bit(compiled=False):
+    """(The compiled vector step: the lockstep tests below.)"""
     import gymnasium as gym
 
     kw = dict(task="detumble", spin_rate=300.0, max_angular_velocity=1e3, integrator="rk4", tolerance=1e-6, tolerance_horizon=50)
@@ -264,12 +264,69 @@ def test_vector_env_reports_the_single_envs_estimates_bit_for_bit(compiled):
 def test_tippe_top_takes_the_generic_rule():
     """The tippe top keeps its own rates (its contact bound, its friction); the tolerance adds
     the accuracy term on top, and every period reports its estimate within the budget."""
-    env = TippeTopEnv(integrator="rk4", tolerance=1e-6, tolerance_horizon=20)
+    env = TippeTopEnv(integrator="rk4", tolerance=1e-6, tolerance_horizon=20, compiled=False)
     env.reset(seed=0)
-    plain = TippeTopEnv(integrator="rk4")
+    plain = TippeTopEnv(integrator="rk4", compiled=False)
     plain.reset(seed=0)
     for _ in range(3):
         _, _, _, _, info = env.step(np.zeros(env.action_space.shape, np.float32))
         _, _, _, _, base = plain.step(np.zeros(env.action_space.shape, np.float32))
         assert 0.0 < info["error_estimate"] <= math.log1p(1e-6) / 20 * (1 + 1e-12)
         assert info["internal_step"] <= base["internal_step"]
+
+
+# ----------------------------------------------------------------- every path takes the same steps
+LOCKSTEP = [
+    ("rbenvs/FreeRigidBody-v0", dict(task="detumble", spin_rate=30.0, max_angular_velocity=60.0, integrator="rk4", tolerance=1e-6, tolerance_horizon=50), 6, 14),
+    ("rbenvs/FreeRigidBody-v0", dict(integrator="euler", spin_rate=2.0, tolerance=0.05, tolerance_horizon=20), 5, 11),
+    ("rbenvs/LagrangeTop-v0", dict(integrator="rk4", spin=(20.0, 60.0), tolerance=1e-5), 5, 11),
+    ("rbenvs/TippeTop-v0", dict(integrator="rk4", tolerance=1e-4, tolerance_horizon=100), 3, 7),
+]
+
+
+# the numpy path in both modes for every setting; the compiled vector step (a kernel build each,
+# ~10-30 s) for two: SAME_STEP, whose restarts rewrite the period's steps in the kernel, and NEXT_STEP
+VECTOR_PATHS = [(i, mode, False) for i in range(len(LOCKSTEP)) for mode in ("NextStep", "SameStep")] + [(0, "SameStep", True), (2, "NextStep", True)]
+
+
+@pytest.mark.parametrize("case,mode,vector_compiled", VECTOR_PATHS,
+                         ids=[f"{LOCKSTEP[i][0].split('/')[1]}-{LOCKSTEP[i][1]['integrator']}-{m}-{'compiled' if c else 'numpy'}" for i, m, c in VECTOR_PATHS])
+def test_tolerance_lockstep_vector_equals_single_envs_bit_for_bit(case, mode, vector_compiled):
+    """The vector env (numpy path and, where numba is installed, compiled) takes each sub-env's
+    own count and reports its single env's ``error_estimate`` and every other info value bit
+    for bit, through episode ends (conftest.lockstep: the single envs on the float path)."""
+    from rbenvs import compiled
+
+    env_id, kwargs, max_steps, steps = LOCKSTEP[case]
+    if vector_compiled and not compiled.available():
+        pytest.skip("the compiled path needs numba")
+    from conftest import lockstep
+
+    n_term, n_trunc, infos = lockstep(env_id, 3, 11, steps, mode, max_steps, kwargs, vector_kwargs=dict(compiled=vector_compiled))
+    assert n_term + n_trunc >= 3
+    counts = {round(float(v)) for info in infos[1:] for v in 1.0 / np.asarray(info["internal_step"])}
+    assert len(counts) > 1  # the counts differ between sub-envs or periods: the rule acted per state
+
+
+@pytest.mark.parametrize("env_id,kwargs,max_steps,steps", LOCKSTEP, ids=[e.split("/")[1] + "-" + kw["integrator"] for e, kw, _, _ in LOCKSTEP])
+def test_tolerance_single_env_compiled_equals_the_float_path(env_id, kwargs, max_steps, steps):
+    import gymnasium as gym
+
+    from rbenvs import compiled
+
+    if not compiled.available():
+        pytest.skip("the compiled path needs numba")
+    fast = gym.make(env_id, compiled=True, max_episode_steps=max_steps, **kwargs)
+    slow = gym.make(env_id, compiled=False, max_episode_steps=max_steps, **kwargs)
+    fast.reset(seed=4)
+    slow.reset(seed=4)
+    rng = np.random.default_rng(3)
+    for _ in range(steps):
+        a = rng.uniform(-1.0, 1.0, fast.action_space.shape).astype(np.float32)
+        of, rf, tf, uf, i_f = fast.step(a)
+        os_, rs, ts, us, i_s = slow.step(a)
+        assert np.array_equal(of, os_) and rf == rs and tf == ts and uf == us and i_f == i_s
+        if tf or uf:
+            fast.reset()
+            slow.reset()
+    assert fast.unwrapped.compiled

@@ -301,7 +301,7 @@ class RigidBodyVectorEnv(VectorEnv):
         lam = np.array(rule.rate(self._y), dtype=np.float64)
         restart = self._prev_done.copy() if self.autoreset_mode is AutoresetMode.NEXT_STEP else self._false
         obs, reward, terminated, truncated, info = self._step(actions)
-        estimate = np.broadcast_to(rule.estimate(lam, np.asarray(self._last_h, dtype=np.float64)), (self.num_envs,)).astype(np.float64)
+        estimate = np.broadcast_to(rule.estimate(lam, self._period_h), (self.num_envs,)).astype(np.float64)
         estimate[restart] = 0.0
         if "final_info" in info:  # SAME_STEP: the ended periods' estimates go with their final info
             info["final_info"]["error_estimate"] = estimate.copy()
@@ -333,6 +333,8 @@ class RigidBodyVectorEnv(VectorEnv):
                 if fired is False:
                     fired = self._false
         self._u, self._last_h = u, h
+        if engine.tolerance is not None:
+            self._period_h = np.array(h, dtype=np.float64)
         if fast is not None:  # the kernel's read-outs: every new state finite
             self._y, self._y2d = y, fast[0]
             obs, over, reward, terminated, metrics, physical = fast[1:]
@@ -390,6 +392,8 @@ class RigidBodyVectorEnv(VectorEnv):
             raise engine.refusal(int(r.counts[over].max()), f" of sub-envs {np.flatnonzero(over).tolist()}")
         # the controls that acted, made from the actions where needed (rendering, a failure)
         self._u, self._last_h = None, r.h
+        if engine.tolerance is not None:  # (a SAME_STEP restart below rewrites the restarted rows of r.h)
+            self._period_h = np.array(r.h, dtype=np.float64)
         self._action = None if self.render_mode is None else a.copy()
         if r.status > 0:  # non-finite new states: the numpy path's failure handling
             fired = r.fired if r.fired.any() else self._false
