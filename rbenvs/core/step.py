@@ -661,7 +661,7 @@ class KernelParts(NamedTuple):
     """A model's step in pure forms, each ``(function, parameters)`` (:meth:`Engine.kernel_parts`):
     ``step`` (the integrator's, ``step(PS, y, u, h)``), ``observe``, ``evaluate``, ``readouts``
     (the task's and the system's), the guard's ``rotation`` rate (``None``: no check can be
-    needed) with ``guard_params`` (``(dt, bound, growth)`` of
+    needed) with ``guard_params`` (``(dt, bound, growth, k, p)`` of
     :func:`rbenvs.core.guard.step_ratio`), its ``dissipation`` rate (or ``None``) with
     ``dissipation_step`` (``h <= c / lambda_d``), the terminal ``event`` (or ``None``; it fires
     where its value is negative) and ``rhs_event``, the vector field and the event's value from
