@@ -172,7 +172,9 @@ def _count_lines(L: Layout, u: str) -> list[str]:
     lines = ["x = step_ratio(PG, rotation(PA, y))"]
     if L.dissipation is not None:
         # v > x: Python's max(x, v), the float path's (NaN in x stays NaN)
-        lines += [u, "rate = dissipation(PD, y, u)", "if rate > 0.0:", "    v = dt / (CD / rate)", "    if v > x:", "        x = v"]
+        lines += [u, "rate = dissipation(PD, y, u)", "if rate > 0.0:", "    v = dt / (CD / rate)", "    if v > x:", "        x = v",
+                  # a tolerance's share for the decaying mode (0 without one)
+                  "    v = relaxation_steps(PG, rate)", "    if v > x:", "        x = v"]
     return lines + ["if not (x <= substeps):", f"    c = ceil(x) if x <= {MAX_INTERNAL_STEPS} else {MAX_INTERNAL_STEPS + 1}", "    need += 1"]
 
 
@@ -349,7 +351,7 @@ def _namespace(L: Layout) -> dict:
 
     import numpy as np
 
-    from .core.guard import step_ratio
+    from .core.guard import relaxation_steps, step_ratio
 
     _tune_llvm()
     _register_all()
@@ -358,7 +360,7 @@ def _namespace(L: Layout) -> dict:
         if fn is not None:
             _register(fn)
     namespace = {"step": L.step, "observe": L.observe, "evaluate": L.evaluate, "readouts": L.readouts, "rotation": L.rotation,
-                 "dissipation": L.dissipation, "event": L.event, "rhs_event": L.rhs_event, "step_ratio": step_ratio, "isfinite": isfinite,
+                 "dissipation": L.dissipation, "event": L.event, "rhs_event": L.rhs_event, "step_ratio": step_ratio, "relaxation_steps": relaxation_steps, "isfinite": isfinite,
                  "ceil": ceil, "nan": nan, "np": np}
     for k, (applies, function, switch) in enumerate(L.switches):
         namespace.update({f"applies{k}": applies, f"function{k}": function, f"switch{k}": switch})

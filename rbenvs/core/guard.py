@@ -47,7 +47,8 @@ import numpy as np
 from ..jit import jitable
 from ..rotations import maximum, select
 
-__all__ = ["MAX_INTERNAL_STEPS", "GUARDS", "StepRule", "step_ratio", "accuracy_steps", "error_estimate", "require_guard", "require_tolerance"]
+__all__ = ["MAX_INTERNAL_STEPS", "GUARDS", "StepRule", "step_ratio", "accuracy_steps", "relaxation_steps", "whole_root", "error_estimate", "require_guard",
+           "require_tolerance"]
 
 # More internal steps than this in one control period is treated as a numerical failure.
 MAX_INTERNAL_STEPS = 1_000_000
@@ -105,16 +106,32 @@ def _ceil_arrays(x):
 
 
 @jitable
-def accuracy_steps(k, p, z):
-    """The fewest whole ``n`` with ``n^p >= k z^(p+1)``: the steps a period of ``z = lambda dt``
-    needs for an error ``C z (z / n)^p <= b`` (``k = C / b``, ``p`` the order; floats or arrays).
-    The root's guess is moved to the exact answer of the integer-power test, so every path
-    gives the same count."""
-    y = k * power(z, p + 1.0)
+def whole_root(y, p):
+    """The fewest whole ``n >= 0`` with ``n^p >= y`` (floats or arrays): the root's guess moved to
+    the exact answer of the integer-power test, so every path gives the same count."""
     n = ceiling(y ** (1.0 / p))
     m = n - 1.0
     n = select(m >= 1.0, select(power(m, p) >= y, m, n), n)
     return select(power(n, p) < y, n + 1.0, n)
+
+
+@jitable
+def accuracy_steps(k, p, z):
+    """The fewest whole ``n`` with ``n^p >= k z^(p+1)``: the steps a period of ``z = lambda dt``
+    needs for an error ``C z (z / n)^p <= b`` (``k = C / b``, ``p`` the order; floats or arrays)."""
+    return whole_root(k * power(z, p + 1.0), p)
+
+
+@jitable
+def relaxation_steps(g, rate):
+    """The fewest whole ``n`` whose steps ``h = dt / n`` keep a decaying mode of rate ``rate``
+    within its share of the tolerance, ``C (rate h)^p <= b_d`` (``g[5] = C / b_d``; 0 without a
+    tolerance): a decaying mode forgets its error within ``1 / rate``, so its error does not
+    add up over the periods (floats; :meth:`StepRule.ratio` writes the array form)."""
+    dt, bound, growth, k, p, kd = g
+    if kd == 0.0:
+        return 0.0
+    return whole_root(kd * power(dt * rate, p), p)
 
 
 @jitable
@@ -128,9 +145,10 @@ def error_estimate(e, lam, h):
 @jitable
 def step_ratio(g, lam):
     """``x`` (a period needs ``ceil(x)`` steps) from the oscillatory rate ``lam`` alone:
-    ``g = (dt, bound, growth, k, p)``; ``k = C / b > 0`` adds the accuracy term
-    (:func:`accuracy_steps`), ``k = 0`` none (pure; floats or arrays)."""
-    dt, bound, growth, k, p = g
+    ``g = (dt, bound, growth, k, p, kd)``; ``k = C / b > 0`` adds the accuracy term
+    (:func:`accuracy_steps`), ``k = 0`` none (``kd``: :func:`relaxation_steps`; pure, floats
+    or arrays)."""
+    dt, bound, growth, k, p, kd = g
     x = dt * lam / bound
     if growth != math.inf:
         z = dt * lam
@@ -150,7 +168,7 @@ class StepRule:
     """
 
     rotation: tuple  # (fn, P): lambda(P, y)
-    params: tuple  # (dt, bound, growth, k, p) for step_ratio
+    params: tuple  # (dt, bound, growth, k, p, kd) for step_ratio
     dissipation: tuple | None  # (fn, P): lambda_d(P, y, u), and below its c
     dissipation_step: float  # c: h <= c / lambda_d
     ceiling: float  # upper bound of lambda inside the observation bounds
@@ -171,13 +189,20 @@ class StepRule:
             bound, growth = region.rotation, region.growth
         step_d = rates.dissipation_margin * region.dissipation if rates.dissipation is not None else math.inf
         dissipation = rates.dissipation if step_d != math.inf else None
-        k, p, error, accuracy = 0.0, 1.0, None, ""
+        k, p, kd, error, accuracy = 0.0, 1.0, 0.0, None, ""
         if tolerance is not None:
             c, p = float(integrator.error_constant), float(integrator.order)
-            budget = math.log1p(tolerance) / horizon
+            # with a decaying rate the budget is shared: half for the rotation's error, which adds
+            # up over the periods, half for the decaying mode's, which relaxes
+            share = 0.5 if dissipation is not None else 1.0
+            budget = share * math.log1p(tolerance) / horizon
             k, error = c / budget, (c, p, float(dt))
-            accuracy = (f"error C lambda dt (lambda h)^{integrator.order} <= log(1 + tolerance) / {horizon} per period "
-                        f"(tolerance={tolerance!r} over tolerance_horizon={horizon} periods; {integrator.name}: order {integrator.order}, "
+            if dissipation is not None:
+                kd = c / (share * math.log1p(tolerance))
+            half = "half of " if dissipation is not None else ""
+            accuracy = (f"error C lambda dt (lambda h)^{integrator.order} <= {half}log(1 + tolerance) / {horizon} per period"
+                        + (f" and C (lambda_d h)^{integrator.order} <= half of log(1 + tolerance)" if dissipation is not None else "")
+                        + f" (tolerance={tolerance!r} over tolerance_horizon={horizon} periods; {integrator.name}: order {integrator.order}, "
                         f"error constant C = {c:g})")
         active = guard != "off" and (bound != math.inf or growth != math.inf or dissipation is not None or error is not None)
         text = rates.text
@@ -187,27 +212,52 @@ class StepRule:
             text += f"; h <= {step_d:.6g} / lambda_d"
         if accuracy:
             text += f"; {accuracy}"
-        return cls(rates.rotation, (float(dt), float(bound), float(growth), float(k), float(p)), dissipation, step_d, rates.ceiling, text, active, error, accuracy)
+        return cls(rates.rotation, (float(dt), float(bound), float(growth), float(k), float(p), float(kd)), dissipation, step_d, rates.ceiling, text, active, error,
+                   accuracy)
 
     def rate(self, y):
         """``lambda`` at ``y`` (the rate both the bounds and the error estimate use)."""
         fn, p = self.rotation
         return fn(p, y)
 
-    def estimate(self, lam, h):
-        """The relative error of a period started at rate ``lam`` with internal step ``h``
-        (:func:`error_estimate`; ``None`` without a tolerance)."""
-        return None if self.error is None else error_estimate(self.error, lam, h)
+    def dissipation_rate(self, y, u):
+        """``lambda_d`` at ``y`` under ``u`` (0 where the system has none, or where it is not
+        positive); floats or arrays."""
+        if self.dissipation is None:
+            return 0.0
+        fd, pd = self.dissipation
+        rate = fd(pd, y, u)
+        if type(rate) is float:
+            return rate if rate > 0.0 else 0.0
+        with np.errstate(invalid="ignore"):
+            return np.where(rate > 0.0, rate, 0.0)
+
+    def estimate(self, lam, h, lam_d=0.0):
+        """The relative error of a period started at rates ``lam`` (and ``lam_d``, a decaying
+        one) with internal step ``h``: :func:`error_estimate` plus ``C (lam_d h)^p`` where the
+        system has a decaying rate (``None`` without a tolerance)."""
+        if self.error is None:
+            return None
+        e = error_estimate(self.error, lam, h)
+        if self.dissipation is None:
+            return e
+        c, p, _ = self.error
+        return e + c * power(lam_d * h, p)
 
     def binding(self, y, u) -> str:
         """Which bound asks for the most steps at ``y`` under ``u``, in words: the accuracy
         bound (with a tolerance) or the stability bound."""
         if self.error is None:
             return f"the step bound ({self.text})"
-        dt, bound, growth, k, p = self.params
+        dt, bound, growth, k, p, kd = self.params
         lam = self.rate(y)
-        stability = step_ratio((dt, bound, growth, 0.0, 1.0), lam)
-        if not accuracy_steps(k, p, dt * lam) > stability:
+        stability = step_ratio((dt, bound, growth, 0.0, 1.0, 0.0), lam)
+        accuracy = accuracy_steps(k, p, dt * lam)
+        rate = self.dissipation_rate(y, u) if u is not None else 0.0
+        if rate > 0.0:
+            stability = max(stability, dt / (self.dissipation_step / rate))
+            accuracy = max(accuracy, relaxation_steps(self.params, rate))
+        if not accuracy > stability:
             return f"the stability bound ({self.text})"
         return f"the tolerance ({self.accuracy_text})"
 
@@ -220,11 +270,19 @@ class StepRule:
             rate = fd(pd, y, u)
             dt = self.params[0]
             if type(rate) is float:
-                x = max(x, dt / (self.dissipation_step / rate)) if rate > 0.0 else x
+                if rate > 0.0:
+                    x = max(x, dt / (self.dissipation_step / rate))
+                    if self.params[5] != 0.0:
+                        x = max(x, relaxation_steps(self.params, rate))
             else:
                 with np.errstate(divide="ignore", invalid="ignore"):
                     h_d = np.where(rate > 0.0, self.dissipation_step / np.where(rate > 0.0, rate, 1.0), np.inf)
                     x = np.maximum(x, dt / h_d)
+                    if self.params[5] != 0.0:
+                        _, _, _, _, p, kd = self.params
+                        positive = rate > 0.0
+                        r = np.where(positive, rate, 0.0)
+                        x = np.maximum(x, np.where(positive, whole_root(kd * power(dt * r, p), p), 0.0))
         return x
 
     def idle(self, substeps: int) -> bool:

@@ -551,10 +551,12 @@ class Engine:
     def _step_one_estimated(self, y0, a, plain):
         """:meth:`step_one` with ``info["error_estimate"]``: the period's estimated relative error
         (:func:`rbenvs.core.guard.error_estimate`, from the rate at ``y0`` and the step taken)."""
-        lam = self.rule.rate(y0)
+        rule = self.rule
+        lam = rule.rate(y0)
+        lam_d = rule.dissipation_rate(y0, self.control(a)[1]) if rule.dissipation is not None else 0.0
         out = Engine.step_one(self, y0, a, plain)
         info = out[4]
-        info["error_estimate"] = float(self.rule.estimate(lam, info["internal_step"]))
+        info["error_estimate"] = float(rule.estimate(lam, info["internal_step"], lam_d))
         return out
 
     def _cap_text(self, h, y0=None) -> str:

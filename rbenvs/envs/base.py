@@ -16,7 +16,7 @@ import math
 import gymnasium as gym
 import numpy as np
 
-from ..core.guard import GUARDS, MAX_INTERNAL_STEPS, StepRule, require_guard, require_tolerance, step_ratio
+from ..core.guard import GUARDS, MAX_INTERNAL_STEPS, StepRule, relaxation_steps, require_guard, require_tolerance, step_ratio
 from ..core.model import Model
 from ..core.step import Engine, NumericalFailureWarning, action_values
 from ..dynamics.validation import require_finite_positive, require_int_in
@@ -185,11 +185,15 @@ class RigidBodyEnv(gym.Env):
         rule = StepRule.build(rates, region, self.dt, "subdivide", self.integrator, m.tolerance, m.horizon)
         x = step_ratio(rule.params, rates.ceiling)
         lam_d = self._start_dissipation()
+        d_stable = 0.0
         if rule.dissipation is not None and lam_d > 0.0:
-            x = max(x, self.dt / (rule.dissipation_step / lam_d))
+            d_stable = self.dt / (rule.dissipation_step / lam_d)
+            x = max(x, d_stable)
+            x = max(x, relaxation_steps(rule.params, lam_d))  # (0 without a tolerance)
         if rule.error is not None:
-            dt, bound, growth, _, _ = rule.params
-            if not step_ratio((dt, bound, growth, 0.0, 1.0), rates.ceiling) <= MAX_INTERNAL_STEPS or (lam_d > 0.0 and rule.dissipation is not None):
+            dt, bound, growth = rule.params[:3]
+            stable = max(step_ratio((dt, bound, growth, 0.0, 1.0, 0.0), rates.ceiling), d_stable)
+            if not stable <= MAX_INTERNAL_STEPS:
                 return x, rule.text
             # only the tolerance asks for more: say so, with the reason
             p, c = self.integrator.order, self.integrator.error_constant

@@ -299,9 +299,12 @@ class RigidBodyVectorEnv(VectorEnv):
         # step it took (the single env's rule); 0 where no period ran (a sub-env restarted)
         rule = self.engine.rule
         lam = np.array(rule.rate(self._y), dtype=np.float64)
+        lam_d = 0.0
+        if rule.dissipation is not None:  # (the controls of the actions, as the step makes them)
+            lam_d = np.array(rule.dissipation_rate(self._y, self.model.actuator.control(action_columns(actions, self.action_space.shape))[1]), dtype=np.float64)
         restart = self._prev_done.copy() if self.autoreset_mode is AutoresetMode.NEXT_STEP else self._false
         obs, reward, terminated, truncated, info = self._step(actions)
-        estimate = np.broadcast_to(rule.estimate(lam, self._period_h), (self.num_envs,)).astype(np.float64)
+        estimate = np.broadcast_to(rule.estimate(lam, self._period_h, lam_d), (self.num_envs,)).astype(np.float64)
         estimate[restart] = 0.0
         if "final_info" in info:  # SAME_STEP: the ended periods' estimates go with their final info
             info["final_info"]["error_estimate"] = estimate.copy()
