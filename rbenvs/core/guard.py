@@ -25,7 +25,10 @@ it). Errors of successive periods compound at worst as ``prod(1 + e_k) - 1 <=
 exp(sum e_k) - 1``, which stays within the tolerance when every period meets
 ``e <= b = log(1 + tolerance) / N``. With ``z = lambda dt`` that asks for ``n^p >= (C / b)
 z^(p+1)``: the fewest such whole ``n`` (:func:`accuracy_steps`) is a fourth term of ``x``,
-and ``info["error_estimate"]`` reports ``e`` of the steps taken. The estimate assumes the motion
+and ``info["error_estimate"]`` reports ``e`` of the steps taken. Where the system also declares
+a decaying rate ``lambda_d`` the budget is shared: half for the rotation (per period, as above),
+half for the decaying mode, ``C (lambda_d h)^p <= log(1 + tolerance) / 2`` (its error relaxes
+within ``1 / lambda_d`` instead of adding up: :func:`relaxation_steps`). The estimate assumes the motion
 does not amplify errors (a stable spin, a precession); near an unstable equilibrium (the
 intermediate axis, an upright top below its critical spin) an error grows with the motion and
 no step bounds it for long.

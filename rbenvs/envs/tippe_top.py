@@ -134,8 +134,9 @@ class TippeTopEnv(RigidBodyEnv):
       (``None``: none, the steps the guard and ``substeps`` give; else a finite number with
       ``0 < tolerance < 1``): each period takes the fewest internal steps whose estimated error
       ``C lambda dt (lambda h)^p`` (the scheme's order ``p`` and measured error constant ``C``,
-      ``lambda`` the guard's rate at the period's start) is at most ``log(1 + tolerance) /
-      tolerance_horizon``, ``info["error_estimate"]`` reports it, ``guard="refuse"`` raises
+      ``lambda`` the guard's rate at the period's start) is at most half of ``log(1 +
+      tolerance) / tolerance_horizon`` and the friction's decaying mode's ``C (lambda_d h)^p``
+      at most half of ``log(1 + tolerance)``, ``info["error_estimate"]`` reports it, ``guard="refuse"`` raises
       naming the steps needed, and a period past ``MAX_INTERNAL_STEPS`` ends the episode as a
       numerical failure naming the tolerance. For ``euler`` and ``rk4`` (the schemes that declare
       ``error_constant``; others are refused, as is ``guard="off"``); a tolerance no start can
