@@ -44,13 +44,15 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 
 from ..jit import jitable
-from ..rotations import maximum, select
+from ..rotations import maximum, select, sqrt
+from .codegen import generate
 
-__all__ = ["MAX_INTERNAL_STEPS", "GUARDS", "StepRule", "step_ratio", "accuracy_steps", "relaxation_steps", "whole_root", "error_estimate", "require_guard",
+__all__ = ["MAX_INTERNAL_STEPS", "GUARDS", "StepRule", "step_ratio", "step_ratio_motion", "motion_rates", "accuracy_steps", "relaxation_steps", "whole_root", "error_estimate", "require_guard",
            "require_tolerance"]
 
 # More internal steps than this in one control period is treated as a numerical failure.
@@ -146,6 +148,47 @@ def error_estimate(e, lam, h):
 
 
 @jitable
+def step_ratio_motion(g, rates):
+    """:func:`step_ratio` with the state's own rate: ``rates = (lambda, mu)``, ``mu <= lambda``
+    the relative speed of the state (:func:`motion_rates`); the accuracy term asks for the
+    fewest whole ``n`` with ``C mu dt (lambda dt / n)^p <= b`` (pure; floats or arrays)."""
+    lam, mu = rates
+    dt, bound, growth, k, p, kd = g
+    x = dt * lam / bound
+    if growth != math.inf:
+        z = dt * lam
+        x = maximum(x, z * z / growth)
+    if k != 0.0:
+        x = maximum(x, whole_root(k * (power(dt * lam, p) * (mu * dt)), p))
+    return x
+
+
+@lru_cache(maxsize=None)
+def motion_rates(rotation, rhs, blocks: tuple):
+    """``rates(P, y, u) -> (lambda, mu)`` (generated, pure), ``P = (P_rotation, P_rhs)``:
+    the guard's rate ``lambda = rotation(P_rotation, y)`` and the state's own relative speed
+    ``mu = min(lambda, max_b |f_b(y, u)| / |y_b|)`` over the named blocks ``b`` of the state
+    (``blocks``: ``(start, stop)`` slices), ``f`` the system's pure vector field under the
+    control ``u``.
+
+    Why ``mu``: a scheme's local error on ``dy/dt = A y`` is ``C h^(p+1) A^p (A y)`` to leading
+    order, at most ``C h^(p+1) lambda^p |dy/dt|`` with ``lambda >= |A|``: relative to ``|y|``,
+    ``C (lambda h)^p h mu``. A state that moves slower than its fastest rate (a body spinning
+    near a principal axis, a fast top whose axis barely moves) commits less error than a
+    rotation at ``lambda`` would, and a steady spin (``mu = 0``) none."""
+    lines = ["def rates(P, y, u):", "    lam = rotation(P[0], y)", "    f = rhs(P[1], y, u)"]
+    for j, (a, b) in enumerate(blocks):
+        ny = " + ".join(f"y[{i}] * y[{i}]" for i in range(a, b))
+        nf = " + ".join(f"f[{i}] * f[{i}]" for i in range(a, b))
+        r = f"sqrt({nf}) / maximum(sqrt({ny}), 1e-300)"
+        lines.append(f"    mu = {r}" if j == 0 else f"    mu = maximum(mu, {r})")
+    lines += ["    return (lam, select(mu < lam, mu, lam))"]
+    namespace = generate("\n".join(lines) + "\n", f"motion rates of {len(blocks)} blocks",
+                         {"rotation": rotation, "rhs": rhs, "sqrt": sqrt, "maximum": maximum, "select": select})
+    return jitable(namespace["rates"])
+
+
+@jitable
 def step_ratio(g, lam):
     """``x`` (a period needs ``ceil(x)`` steps) from the oscillatory rate ``lam`` alone:
     ``g = (dt, bound, growth, k, p, kd)``; ``k = C / b > 0`` adds the accuracy term
@@ -179,9 +222,13 @@ class StepRule:
     active: bool
     error: tuple | None = None  # (C, p, dt) of error_estimate, with a tolerance
     accuracy_text: str = ""  # the accuracy bound in words ("" without a tolerance)
+    # with a tolerance on a system with a pure vector field: rotation is motion_rates' (fn, P),
+    # fn(P, y, u) -> (lambda, mu), and zero_control the u of internal_steps(y, None)
+    motion: bool = False
+    zero_control: tuple = ()
 
     @classmethod
-    def build(cls, rates, region, dt: float, guard: str, integrator=None, tolerance=None, horizon=None) -> "StepRule":
+    def build(cls, rates, region, dt: float, guard: str, integrator=None, tolerance=None, horizon=None, system=None, zero_control=()) -> "StepRule":
         """The rule for ``rates`` (the system's :class:`~rbenvs.contracts.GuardRates` for
         ``region``) at control period ``dt`` under ``guard``; with ``tolerance`` (a relative
         error over ``horizon`` periods) also the accuracy bound of ``integrator`` (its
@@ -215,12 +262,24 @@ class StepRule:
             text += f"; h <= {step_d:.6g} / lambda_d"
         if accuracy:
             text += f"; {accuracy}"
-        return cls(rates.rotation, (float(dt), float(bound), float(growth), float(k), float(p), float(kd)), dissipation, step_d, rates.ceiling, text, active, error,
-                   accuracy)
+        rotation, motion = rates.rotation, False
+        rhs = getattr(system, "kernel_rhs", None)
+        if error is not None and rhs is not None and not system.hybrid:
+            # the state's own speed in the estimate (motion_rates); a hybrid system's contact
+            # keeps the rate alone
+            blocks = tuple(tuple(v) for v in system.layout.values())
+            rotation, motion = (motion_rates(rates.rotation[0], rhs[0], blocks), (rates.rotation[1], rhs[1])), True
+            accuracy = accuracy.replace("error C lambda dt", "error C mu dt") + "; mu = min(lambda, max over the state's blocks of |dy_b/dt| / |y_b|)"
+            text = text.replace("error C lambda dt", "error C mu dt") + "; mu = min(lambda, max over the state's blocks of |dy_b/dt| / |y_b|)"
+        return cls(rotation, (float(dt), float(bound), float(growth), float(k), float(p), float(kd)), dissipation, step_d, rates.ceiling, text, active, error,
+                   accuracy, motion, tuple(zero_control))
 
-    def rate(self, y):
-        """``lambda`` at ``y`` (the rate both the bounds and the error estimate use)."""
+    def rate(self, y, u=None):
+        """``lambda`` at ``y`` (the rate both the bounds and the error estimate use); with
+        :attr:`motion` ``(lambda, mu)`` under the control ``u`` (``None``: none)."""
         fn, p = self.rotation
+        if self.motion:
+            return fn(p, y, self.zero_control if u is None else u)
         return fn(p, y)
 
     def dissipation_rate(self, y, u):
@@ -241,7 +300,12 @@ class StepRule:
         system has a decaying rate (``None`` without a tolerance)."""
         if self.error is None:
             return None
-        e = error_estimate(self.error, lam, h)
+        if self.motion:  # C mu dt (lambda h)^p
+            c, p, dt = self.error
+            lam, mu = lam
+            e = c * mu * dt * power(lam * h, p)
+        else:
+            e = error_estimate(self.error, lam, h)
         if self.dissipation is None:
             return e
         c, p, _ = self.error
@@ -253,9 +317,13 @@ class StepRule:
         if self.error is None:
             return f"the step bound ({self.text})"
         dt, bound, growth, k, p, kd = self.params
-        lam = self.rate(y)
+        lam = self.rate(y, u)
+        if self.motion:
+            lam, mu = lam
+            accuracy = whole_root(k * (power(dt * lam, p) * (mu * dt)), p)
+        else:
+            accuracy = accuracy_steps(k, p, dt * lam)
         stability = step_ratio((dt, bound, growth, 0.0, 1.0, 0.0), lam)
-        accuracy = accuracy_steps(k, p, dt * lam)
         rate = self.dissipation_rate(y, u) if u is not None else 0.0
         if rate > 0.0:
             stability = max(stability, dt / (self.dissipation_step / rate))
@@ -267,7 +335,10 @@ class StepRule:
     def ratio(self, y, u):
         """``x`` at ``y`` under ``u`` (the period needs ``ceil(x)`` steps); floats or arrays."""
         fn, p = self.rotation
-        x = step_ratio(self.params, fn(p, y))
+        if self.motion:
+            x = step_ratio_motion(self.params, fn(p, y, self.zero_control if u is None else u))
+        else:
+            x = step_ratio(self.params, fn(p, y))
         if self.dissipation is not None:
             fd, pd = self.dissipation
             rate = fd(pd, y, u)

@@ -62,7 +62,8 @@ class Model:
         require_parts(self.actuator, Actuator, "actuator")
         region: StepRegion = self.integrator.region
         rates = self.system.guard_rates(region, self.speed_ceiling)
-        object.__setattr__(self, "step_rule", StepRule.build(rates, region, self.dt, self.guard, self.integrator, self.tolerance, self.horizon))
+        zero = self.actuator.control((0.0,) * self.actuator.size)[1] if self.tolerance is not None else ()
+        object.__setattr__(self, "step_rule", StepRule.build(rates, region, self.dt, self.guard, self.integrator, self.tolerance, self.horizon, self.system, zero))
         object.__setattr__(self, "draw_kinds", self.task.draw_kinds + self.system.start_draw_kinds)
         object.__setattr__(self, "system_draws", len(self.system.start_draw_kinds))
 

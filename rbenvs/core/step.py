@@ -552,23 +552,24 @@ class Engine:
         """:meth:`step_one` with ``info["error_estimate"]``: the period's estimated relative error
         (:func:`rbenvs.core.guard.error_estimate`, from the rate at ``y0`` and the step taken)."""
         rule = self.rule
-        lam = rule.rate(y0)
-        lam_d = rule.dissipation_rate(y0, self.control(a)[1]) if rule.dissipation is not None else 0.0
+        u = self.control(a)[1]
+        lam = rule.rate(y0, u)
+        lam_d = rule.dissipation_rate(y0, u) if rule.dissipation is not None else 0.0
         out = Engine.step_one(self, y0, a, plain)
         info = out[4]
         info["error_estimate"] = float(rule.estimate(lam, info["internal_step"], lam_d))
         return out
 
-    def _cap_text(self, h, y0=None) -> str:
+    def _cap_text(self, h, y0=None, u=None) -> str:
         """Why a period failed when it was refused past the cap (``h < dt / MAX_INTERNAL_STEPS``):
         which bound asked for the steps; ``""`` otherwise."""
         if not float(np.min(h)) * MAX_INTERNAL_STEPS < self.dt:
             return ""
-        bound = self.rule.binding(y0, None) if y0 is not None else f"the step bound ({self.rule.text})"
+        bound = self.rule.binding(y0, u) if y0 is not None else f"the step bound ({self.rule.text})"
         return f": the period needs more than MAX_INTERNAL_STEPS = {MAX_INTERNAL_STEPS} internal steps to meet {bound}"
 
     def _failed_one(self, y0, u_norm, u, h, plain):
-        cap = self._cap_text(h, y0)
+        cap = self._cap_text(h, y0, u)
         what = "the period was refused" + cap if cap else "the state became non-finite"
         warnings.warn(
             f"{what} with integrator {self.integrator.name!r} (internal step h = {float(np.max(h)):g} s); "
@@ -656,7 +657,8 @@ class Engine:
         if rule.active:  # checked only where asked (a period that may not take the plain loop)
             rotation, dissipation = rule.rotation, rule.dissipation
         observe, evaluate = task.kernels(system)
-        return KernelParts(step, observe, evaluate, readouts, rotation, rule.params, dissipation, rule.dissipation_step, event, rhs_event, tuple(switches))
+        return KernelParts(step, observe, evaluate, readouts, rotation, rule.params, dissipation, rule.dissipation_step, event, rhs_event, tuple(switches),
+                           rule.motion and rotation is not None)
 
 
 class KernelParts(NamedTuple):
@@ -683,3 +685,4 @@ class KernelParts(NamedTuple):
     event: tuple | None
     rhs_event: tuple | None = None
     switches: tuple = ()
+    motion: bool = False  # rotation is (fn, P) with fn(P, y, u) -> (lambda, mu): step_ratio_motion

@@ -298,10 +298,14 @@ class RigidBodyVectorEnv(VectorEnv):
         # with a tolerance: each period's estimated error, from the rate at its start and the
         # step it took (the single env's rule); 0 where no period ran (a sub-env restarted)
         rule = self.engine.rule
-        lam = np.array(rule.rate(self._y), dtype=np.float64)
+        u = None  # (the controls of the actions, as the step makes them)
+        if rule.motion or rule.dissipation is not None:
+            u = self.model.actuator.control(action_columns(actions, self.action_space.shape))[1]
+        lam = rule.rate(self._y, u)
+        lam = tuple(np.array(v, dtype=np.float64) for v in lam) if rule.motion else np.array(lam, dtype=np.float64)
         lam_d = 0.0
-        if rule.dissipation is not None:  # (the controls of the actions, as the step makes them)
-            lam_d = np.array(rule.dissipation_rate(self._y, self.model.actuator.control(action_columns(actions, self.action_space.shape))[1]), dtype=np.float64)
+        if rule.dissipation is not None:
+            lam_d = np.array(rule.dissipation_rate(self._y, u), dtype=np.float64)
         restart = self._prev_done.copy() if self.autoreset_mode is AutoresetMode.NEXT_STEP else self._false
         obs, reward, terminated, truncated, info = self._step(actions)
         estimate = np.broadcast_to(rule.estimate(lam, self._period_h, lam_d), (self.num_envs,)).astype(np.float64)
