@@ -28,7 +28,10 @@ z^(p+1)``: the fewest such whole ``n`` (:func:`accuracy_steps`) is a fourth term
 and ``info["error_estimate"]`` reports ``e`` of the steps taken. Where the system also declares
 a decaying rate ``lambda_d`` the budget is shared: half for the rotation (per period, as above),
 half for the decaying mode, ``C (lambda_d h)^p <= log(1 + tolerance) / 2`` (its error relaxes
-within ``1 / lambda_d`` instead of adding up: :func:`relaxation_steps`). The estimate assumes the motion
+within ``1 / lambda_d`` instead of adding up: :func:`relaxation_steps`). For a scheme whose
+leading error is in the phase (rk4) on a system with a pure vector field, ``lambda dt`` in front
+becomes ``mu dt``, the state's own relative speed (:func:`motion_rates`, :func:`step_ratio_motion`).
+The estimate assumes the motion
 does not amplify errors (a stable spin, a precession); near an unstable equilibrium (the
 intermediate axis, an upright top below its critical spin) an error grows with the motion and
 no step bounds it for long.
