@@ -162,6 +162,7 @@ class Layout(NamedTuple):
     event: Callable | None = None
     rhs_event: Callable | None = None
     switches: tuple = ()
+    motion: bool = False  # rotation(PA, y, u) -> (lambda, mu): the accuracy term with the state's speed
 
 
 def _count_lines(L: Layout, u: str) -> list[str]:
@@ -170,9 +171,13 @@ def _count_lines(L: Layout, u: str) -> list[str]:
     from .core.guard import MAX_INTERNAL_STEPS
 
     lines = ["x = step_ratio(PG, rotation(PA, y))"]
+    if L.motion:  # the state's own speed in the accuracy term: rotation(PA, y, u) -> (lambda, mu)
+        lines = [u, "x = step_ratio_motion(PG, rotation(PA, y, u))"]
     if L.dissipation is not None:
         # v > x: Python's max(x, v), the float path's (NaN in x stays NaN)
-        lines += [u, "rate = dissipation(PD, y, u)", "if rate > 0.0:", "    v = dt / (CD / rate)", "    if v > x:", "        x = v"]
+        lines += [u, "rate = dissipation(PD, y, u)", "if rate > 0.0:", "    v = dt / (CD / rate)", "    if v > x:", "        x = v",
+                  # a tolerance's share for the decaying mode (0 without one)
+                  "    v = relaxation_steps(PG, rate)", "    if v > x:", "        x = v"]
     return lines + ["if not (x <= substeps):", f"    c = ceil(x) if x <= {MAX_INTERNAL_STEPS} else {MAX_INTERNAL_STEPS + 1}", "    need += 1"]
 
 
@@ -349,7 +354,7 @@ def _namespace(L: Layout) -> dict:
 
     import numpy as np
 
-    from .core.guard import step_ratio
+    from .core.guard import relaxation_steps, step_ratio, step_ratio_motion
 
     _tune_llvm()
     _register_all()
@@ -358,7 +363,7 @@ def _namespace(L: Layout) -> dict:
         if fn is not None:
             _register(fn)
     namespace = {"step": L.step, "observe": L.observe, "evaluate": L.evaluate, "readouts": L.readouts, "rotation": L.rotation,
-                 "dissipation": L.dissipation, "event": L.event, "rhs_event": L.rhs_event, "step_ratio": step_ratio, "isfinite": isfinite,
+                 "dissipation": L.dissipation, "event": L.event, "rhs_event": L.rhs_event, "step_ratio": step_ratio, "step_ratio_motion": step_ratio_motion, "relaxation_steps": relaxation_steps, "isfinite": isfinite,
                  "ceil": ceil, "nan": nan, "np": np}
     for k, (applies, function, switch) in enumerate(L.switches):
         namespace.update({f"applies{k}": applies, f"function{k}": function, f"switch{k}": switch})
@@ -764,7 +769,7 @@ def _layout(parts, dim: int, n_obs: int, n_control: int, n_action: int, sample) 
     values = evaluate(pe, tuple(sample), (0.0,) * n_action)
     physical = readouts(pr, tuple(sample), (0.0,) * n_control, False)
     layout = Layout(step, dim, n_control, n_action, observe, n_obs, evaluate, len(values) - 2, readouts, len(physical), rotation, dissipation, event,
-                    rhs_event, switches)
+                    rhs_event, switches, bool(getattr(parts, "motion", False)))
     params = (ps, po, pe, pr, parts.guard_params, pa, pd, float(parts.dissipation_step), pv, pw)
     return layout, params, values, physical
 

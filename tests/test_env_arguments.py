@@ -65,6 +65,11 @@ VALID = {
     (TippeTopEnv, "max_speed"): {"huge_int"},
     (TippeTopEnv, "render_mode"): {"none"},
 }
+# tolerance: None (no accuracy bound) or in (0, 1); tolerance_horizon: None (the registered
+# episode) or any whole number of periods >= 1, for every env
+for _cls in TASKS:
+    VALID[(_cls, "tolerance")] = {"none"}
+    VALID[(_cls, "tolerance_horizon")] = {"none", "huge_int"}
 
 
 def keywords(cls):

@@ -45,6 +45,7 @@ free-floating body with the same principal moments and zero gravity, under MuJoC
 (:func:`mujoco_free_body`; its long run is 1e5 steps, state by state).
 
 ``--quick`` runs shorter grids and long runs (CI); ``--json PATH`` writes every figure;
+``--tolerance`` runs only the table of ``tolerance=`` (:mod:`rbenvs.bench.tolerance`);
 ``--plot PATH.png`` draws the work-precision figure (needs matplotlib, the ``plot`` extra).
 
 Scenes (``--scenes``, on by default, off with ``--quick``): for every scene in
@@ -649,8 +650,22 @@ def main(argv=None) -> int:
     parser.add_argument("--scenes", action=argparse.BooleanOptionalAction, default=None, help="the per-scene recommendation (default: on, off with --quick)")
     parser.add_argument("--mujoco", action=argparse.BooleanOptionalAction, default=True,
                         help="MuJoCo's integrators on the free body when mujoco is installed (the mujoco extra; default: on)")
+    parser.add_argument("--tolerance", action="store_true",
+                        help="only the tolerance= table (rbenvs.bench.tolerance): per extreme and requested tolerance 1e-3, 1e-6, 1e-9, the error "
+                             "achieved against the reference, the steps taken, and the cheapest fixed substeps meeting it")
     parser.add_argument("--no-progress", action="store_true")
     args = parser.parse_args(argv)
+    if args.tolerance:
+        from .tolerance import TOLERANCE_CASES, run_tolerance, print_tolerance
+
+        bar = Progress(sum(len(c.tolerances) for c in TOLERANCE_CASES), not args.no_progress, "bench accuracy --tolerance")
+        result = run_tolerance(progress=bar.update)
+        bar.close()
+        print_tolerance(result)
+        if args.json:
+            with open(args.json, "w") as f:
+                json.dump(result, f, indent=1, default=float)
+        return 0
     if args.plot and plot_unavailable("rbenvs bench accuracy"):  # fail before the long run, not after it
         return 2
     scenes = (not args.quick) if args.scenes is None else args.scenes

@@ -13,22 +13,50 @@ bound (or the system's own accuracy bound, which then replaces ``b`` and ``growt
 interval the system allows. An integrator with no bound and a system with no dissipation give
 no term. More than ``MAX_INTERNAL_STEPS`` is a numerical failure (reported, never a hang).
 
+**Accuracy** (``tolerance=``, a relative error per episode of ``N`` control periods): a scheme
+of order ``p`` and error constant ``C`` (declared by the integrator, measured by
+:func:`rbenvs.integrators.error.measure_error_constant`) commits, over a period of ``n`` steps
+``h = dt / n`` at rate ``lambda``, the relative error
+
+    e = C lambda dt (lambda h)^p                                  (:func:`error_estimate`)
+
+(``n`` local errors ``C (lambda h)^(p+1)``; a rotation carries an error on without amplifying
+it). Errors of successive periods compound at worst as ``prod(1 + e_k) - 1 <=
+exp(sum e_k) - 1``, which stays within the tolerance when every period meets
+``e <= b = log(1 + tolerance) / N``. With ``z = lambda dt`` that asks for ``n^p >= (C / b)
+z^(p+1)``: the fewest such whole ``n`` (:func:`accuracy_steps`) is a fourth term of ``x``,
+and ``info["error_estimate"]`` reports ``e`` of the steps taken. Where the system also declares
+a decaying rate ``lambda_d`` the budget is shared: half for the rotation (per period, as above),
+half for the decaying mode, ``C (lambda_d h)^p <= log(1 + tolerance) / 2`` (its error relaxes
+within ``1 / lambda_d`` instead of adding up: :func:`relaxation_steps`). For a scheme whose
+leading error is in the phase (rk4) on a system with a pure vector field, ``lambda dt`` in front
+becomes ``mu dt``, the state's own relative speed (:func:`motion_rates`, :func:`step_ratio_motion`).
+The estimate assumes the motion
+does not amplify errors (a stable spin, a precession); near an unstable equilibrium (the
+intermediate axis, an upright top below its critical spin) an error grows with the motion and
+no step bounds it for long.
+
 Everything here works on floats (one state) and arrays (a batch) with the same IEEE
 operations, so a sub-env of a vector env takes exactly its single env's steps; the pure
-:func:`step_ratio` is what the compiled batch step calls.
+:func:`step_ratio` is what the compiled batch step calls (the accuracy term's fractional power
+is corrected to the exact whole count by integer powers, so a last-bit difference between
+libm's ``pow`` and numpy's cannot change a count).
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 
 from ..jit import jitable
-from ..rotations import maximum
+from ..rotations import maximum, select, sqrt
+from .codegen import generate
 
-__all__ = ["MAX_INTERNAL_STEPS", "GUARDS", "StepRule", "step_ratio", "require_guard"]
+__all__ = ["MAX_INTERNAL_STEPS", "GUARDS", "StepRule", "step_ratio", "step_ratio_motion", "motion_rates", "accuracy_steps", "relaxation_steps", "whole_root", "error_estimate", "require_guard",
+           "require_tolerance"]
 
 # More internal steps than this in one control period is treated as a numerical failure.
 MAX_INTERNAL_STEPS = 1_000_000
@@ -46,15 +74,140 @@ def require_guard(guard) -> str:
     return guard
 
 
+def require_tolerance(tolerance):
+    """``tolerance=``: ``None`` (no accuracy bound) or a finite number with ``0 < tolerance < 1``
+    (a relative error per episode)."""
+    if tolerance is None:
+        return None
+    rule = "None or a finite number with 0 < tolerance < 1 (the relative error allowed over an episode)"
+    if isinstance(tolerance, (bool, np.bool_)) or not isinstance(tolerance, (int, float, np.integer, np.floating)):
+        raise TypeError(f"tolerance must be {rule}, got {tolerance!r} ({type(tolerance).__name__})")
+    tol = float(tolerance)
+    if not (math.isfinite(tol) and 0.0 < tol < 1.0):
+        raise ValueError(f"tolerance must be {rule}, got {tolerance!r}")
+    return tol
+
+
 @jitable
-def step_ratio(g, lam):
-    """``x`` (a period needs ``ceil(x)`` steps) from the oscillatory rate ``lam`` alone:
-    ``g = (dt, bound, growth)`` (pure; floats or arrays)."""
-    dt, bound, growth = g
+def power(x, p):
+    """``x^p`` for a whole ``p >= 1`` (a float) by repeated products: the same bits on floats,
+    arrays and in compiled code (``**`` may differ in the last bit between libm and numpy)."""
+    r = x
+    k = 1.0
+    while k < p:
+        r = r * x
+        k += 1.0
+    return r
+
+
+@jitable
+def ceiling(x):
+    """``ceil(x)`` as a float (``inf`` and NaN pass through; floats or arrays)."""
+    if isinstance(x, float):
+        return float(math.ceil(x)) if x <= 9.0e15 else x
+    return _ceil_arrays(x)
+
+
+@jitable  # (registered so that compiled code can name it; it only ever runs on arrays)
+def _ceil_arrays(x):
+    return np.ceil(x)
+
+
+@jitable
+def whole_root(y, p):
+    """The fewest whole ``n >= 0`` with ``n^p >= y`` (floats or arrays): the root's guess moved to
+    the exact answer of the integer-power test, so every path gives the same count."""
+    n = ceiling(y ** (1.0 / p))
+    m = n - 1.0
+    n = select(m >= 1.0, select(power(m, p) >= y, m, n), n)
+    return select(power(n, p) < y, n + 1.0, n)
+
+
+@jitable
+def accuracy_steps(k, p, z):
+    """The fewest whole ``n`` with ``n^p >= k z^(p+1)``: the steps a period of ``z = lambda dt``
+    needs for an error ``C z (z / n)^p <= b`` (``k = C / b``, ``p`` the order; floats or arrays)."""
+    return whole_root(k * power(z, p + 1.0), p)
+
+
+@jitable
+def relaxation_steps(g, rate):
+    """The fewest whole ``n`` whose steps ``h = dt / n`` keep a decaying mode of rate ``rate``
+    within its share of the tolerance, ``C (rate h)^p <= b_d`` (``g[5] = C / b_d``; 0 without a
+    tolerance): a decaying mode forgets its error within ``1 / rate``, so its error does not
+    add up over the periods (floats; :meth:`StepRule.ratio` writes the array form)."""
+    dt, bound, growth, k, p, kd = g
+    if kd == 0.0:
+        return 0.0
+    return whole_root(kd * power(dt * rate, p), p)
+
+
+@jitable
+def error_estimate(e, lam, h):
+    """The relative error a period commits, ``C lambda dt (lambda h)^p``: ``e = (C, p, dt)``,
+    ``lam`` the rate at its start, ``h`` its internal step (floats or arrays)."""
+    c, p, dt = e
+    return c * lam * dt * power(lam * h, p)
+
+
+@jitable
+def step_ratio_motion(g, rates):
+    """:func:`step_ratio` with the state's own rate: ``rates = (lambda, mu)``, ``mu <= lambda``
+    the relative speed of the state (:func:`motion_rates`); the accuracy term asks for the
+    fewest whole ``n`` with ``C mu dt (lambda dt / n)^p <= b`` (pure; floats or arrays)."""
+    lam, mu = rates
+    dt, bound, growth, k, p, kd = g
     x = dt * lam / bound
     if growth != math.inf:
         z = dt * lam
         x = maximum(x, z * z / growth)
+    if k != 0.0:
+        x = maximum(x, whole_root(k * (power(dt * lam, p) * (mu * dt)), p))
+    return x
+
+
+@lru_cache(maxsize=None)
+def motion_rates(rotation, rhs, blocks: tuple):
+    """``rates(P, y, u) -> (lambda, mu)`` (generated, pure), ``P = (P_rotation, P_rhs)``:
+    the guard's rate ``lambda = rotation(P_rotation, y)`` and the state's own relative speed
+    ``mu = min(lambda, max_b |f_b(y, u)| / |y_b|)`` over the named blocks ``b`` of the state
+    (``blocks``: ``(start, stop)`` slices), ``f`` the system's pure vector field under the
+    control ``u``.
+
+    Why ``mu``: a scheme's local error on ``dy/dt = A y`` is ``C h^(p+1) A^p (A y)`` to leading
+    order, at most ``C h^(p+1) lambda^p |dy/dt|`` with ``lambda >= |A|``: relative to ``|y|``,
+    ``C (lambda h)^p h mu``. A state that moves slower than its fastest rate (a body spinning
+    near a principal axis, a fast top whose axis barely moves) commits less error than a
+    rotation at ``lambda`` would, and a steady spin (``mu = 0``) none. Used for schemes whose
+    leading error on a rotation is in the phase (``error_in_phase``: rk4): a scheme whose leading
+    error changes the amplitude (euler) changes a nonlinear motion's frequency with it, and the
+    phase then drifts over the whole episode (measured: euler on the free body at 1 rad/s ended
+    2.7 times its tolerance with ``mu``); it keeps ``lambda``."""
+    lines = ["def rates(P, y, u):", "    lam = rotation(P[0], y)", "    f = rhs(P[1], y, u)"]
+    for j, (a, b) in enumerate(blocks):
+        ny = " + ".join(f"y[{i}] * y[{i}]" for i in range(a, b))
+        nf = " + ".join(f"f[{i}] * f[{i}]" for i in range(a, b))
+        r = f"sqrt({nf}) / maximum(sqrt({ny}), 1e-300)"
+        lines.append(f"    mu = {r}" if j == 0 else f"    mu = maximum(mu, {r})")
+    lines += ["    return (lam, select(mu < lam, mu, lam))"]
+    namespace = generate("\n".join(lines) + "\n", f"motion rates of {len(blocks)} blocks",
+                         {"rotation": rotation, "rhs": rhs, "sqrt": sqrt, "maximum": maximum, "select": select})
+    return jitable(namespace["rates"])
+
+
+@jitable
+def step_ratio(g, lam):
+    """``x`` (a period needs ``ceil(x)`` steps) from the oscillatory rate ``lam`` alone:
+    ``g = (dt, bound, growth, k, p, kd)``; ``k = C / b > 0`` adds the accuracy term
+    (:func:`accuracy_steps`), ``k = 0`` none (``kd``: :func:`relaxation_steps`; pure, floats
+    or arrays)."""
+    dt, bound, growth, k, p, kd = g
+    x = dt * lam / bound
+    if growth != math.inf:
+        z = dt * lam
+        x = maximum(x, z * z / growth)
+    if k != 0.0:
+        x = maximum(x, accuracy_steps(k, p, dt * lam))
     return x
 
 
@@ -63,49 +216,154 @@ class StepRule:
     """The guard of one env: its system's rates, its integrator's region and its ``dt``.
 
     ``active`` is false where nothing bounds the step (``guard="off"``, or an integrator with
-    no bound for this system): the period then always takes ``substeps`` steps.
+    no bound for this system): the period then always takes ``substeps`` steps. ``error``:
+    ``(C, p, dt)`` of :func:`error_estimate` where a tolerance is set, else ``None``.
     """
 
     rotation: tuple  # (fn, P): lambda(P, y)
-    params: tuple  # (dt, bound, growth) for step_ratio
+    params: tuple  # (dt, bound, growth, k, p, kd) for step_ratio
     dissipation: tuple | None  # (fn, P): lambda_d(P, y, u), and below its c
     dissipation_step: float  # c: h <= c / lambda_d
     ceiling: float  # upper bound of lambda inside the observation bounds
     text: str
     active: bool
+    error: tuple | None = None  # (C, p, dt) of error_estimate, with a tolerance
+    accuracy_text: str = ""  # the accuracy bound in words ("" without a tolerance)
+    # with a tolerance on a system with a pure vector field: rotation is motion_rates' (fn, P),
+    # fn(P, y, u) -> (lambda, mu), and zero_control the u of internal_steps(y, None)
+    motion: bool = False
+    zero_control: tuple = ()
 
     @classmethod
-    def build(cls, rates, region, dt: float, guard: str) -> "StepRule":
+    def build(cls, rates, region, dt: float, guard: str, integrator=None, tolerance=None, horizon=None, system=None, zero_control=()) -> "StepRule":
         """The rule for ``rates`` (the system's :class:`~rbenvs.contracts.GuardRates` for
-        ``region``) at control period ``dt`` under ``guard``."""
+        ``region``) at control period ``dt`` under ``guard``; with ``tolerance`` (a relative
+        error over ``horizon`` periods) also the accuracy bound of ``integrator`` (its
+        ``order`` and ``error_constant``)."""
         if rates.rotation_bound is not None:  # the system's accuracy bound replaces the scheme's
             bound, growth = rates.rotation_bound, math.inf
         else:
             bound, growth = region.rotation, region.growth
         step_d = rates.dissipation_margin * region.dissipation if rates.dissipation is not None else math.inf
         dissipation = rates.dissipation if step_d != math.inf else None
-        active = guard != "off" and (bound != math.inf or growth != math.inf or dissipation is not None)
+        k, p, kd, error, accuracy = 0.0, 1.0, 0.0, None, ""
+        if tolerance is not None:
+            c, p = float(integrator.error_constant), float(integrator.order)
+            # with a decaying rate the budget is shared: half for the rotation's error, which adds
+            # up over the periods, half for the decaying mode's, which relaxes
+            share = 0.5 if dissipation is not None else 1.0
+            budget = share * math.log1p(tolerance) / horizon
+            k, error = c / budget, (c, p, float(dt))
+            if dissipation is not None:
+                kd = c / (share * math.log1p(tolerance))
+            half = "half of " if dissipation is not None else ""
+            accuracy = (f"error C lambda dt (lambda h)^{integrator.order} <= {half}log(1 + tolerance) / {horizon} per period"
+                        + (f" and C (lambda_d h)^{integrator.order} <= half of log(1 + tolerance)" if dissipation is not None else "")
+                        + f" (tolerance={tolerance!r} over tolerance_horizon={horizon} periods; {integrator.name}: order {integrator.order}, "
+                        f"error constant C = {c:g})")
+        active = guard != "off" and (bound != math.inf or growth != math.inf or dissipation is not None or error is not None)
         text = rates.text
         if bound != math.inf:
             text = f"lambda h <= {bound}" + (f" and lambda^2 h dt <= {growth}" if growth != math.inf else "") + f", {text}"
         if dissipation is not None:
             text += f"; h <= {step_d:.6g} / lambda_d"
-        return cls(rates.rotation, (float(dt), float(bound), float(growth)), dissipation, step_d, rates.ceiling, text, active)
+        if accuracy:
+            text += f"; {accuracy}"
+        rotation, motion = rates.rotation, False
+        rhs = getattr(system, "kernel_rhs", None)
+        if error is not None and rhs is not None and not system.hybrid and getattr(integrator, "error_in_phase", False):
+            # the state's own speed in the estimate (motion_rates), for a scheme whose leading
+            # error is in the phase; a hybrid system's contact keeps the rate alone
+            blocks = tuple(tuple(v) for v in system.layout.values())
+            rotation, motion = (motion_rates(rates.rotation[0], rhs[0], blocks), (rates.rotation[1], rhs[1])), True
+            accuracy = accuracy.replace("error C lambda dt", "error C mu dt") + "; mu = min(lambda, max over the state's blocks of |dy_b/dt| / |y_b|)"
+            text = text.replace("error C lambda dt", "error C mu dt") + "; mu = min(lambda, max over the state's blocks of |dy_b/dt| / |y_b|)"
+        return cls(rotation, (float(dt), float(bound), float(growth), float(k), float(p), float(kd)), dissipation, step_d, rates.ceiling, text, active, error,
+                   accuracy, motion, tuple(zero_control))
+
+    def rate(self, y, u=None):
+        """``lambda`` at ``y`` (the rate both the bounds and the error estimate use); with
+        :attr:`motion` ``(lambda, mu)`` under the control ``u`` (``None``: none)."""
+        fn, p = self.rotation
+        if self.motion:
+            return fn(p, y, self.zero_control if u is None else u)
+        return fn(p, y)
+
+    def dissipation_rate(self, y, u):
+        """``lambda_d`` at ``y`` under ``u`` (0 where the system has none, or where it is not
+        positive); floats or arrays."""
+        if self.dissipation is None:
+            return 0.0
+        fd, pd = self.dissipation
+        rate = fd(pd, y, u)
+        if type(rate) is float:
+            return rate if rate > 0.0 else 0.0
+        with np.errstate(invalid="ignore"):
+            return np.where(rate > 0.0, rate, 0.0)
+
+    def estimate(self, lam, h, lam_d=0.0):
+        """The relative error of a period started at rates ``lam`` (and ``lam_d``, a decaying
+        one) with internal step ``h``: :func:`error_estimate` plus ``C (lam_d h)^p`` where the
+        system has a decaying rate (``None`` without a tolerance)."""
+        if self.error is None:
+            return None
+        if self.motion:  # C mu dt (lambda h)^p
+            c, p, dt = self.error
+            lam, mu = lam
+            e = c * mu * dt * power(lam * h, p)
+        else:
+            e = error_estimate(self.error, lam, h)
+        if self.dissipation is None:
+            return e
+        c, p, _ = self.error
+        return e + c * power(lam_d * h, p)
+
+    def binding(self, y, u) -> str:
+        """Which bound asks for the most steps at ``y`` under ``u``, in words: the accuracy
+        bound (with a tolerance) or the stability bound."""
+        if self.error is None:
+            return f"the step bound ({self.text})"
+        dt, bound, growth, k, p, kd = self.params
+        lam = self.rate(y, u)
+        if self.motion:
+            lam, mu = lam
+            accuracy = whole_root(k * (power(dt * lam, p) * (mu * dt)), p)
+        else:
+            accuracy = accuracy_steps(k, p, dt * lam)
+        stability = step_ratio((dt, bound, growth, 0.0, 1.0, 0.0), lam)
+        rate = self.dissipation_rate(y, u) if u is not None else 0.0
+        if rate > 0.0:
+            stability = max(stability, dt / (self.dissipation_step / rate))
+            accuracy = max(accuracy, relaxation_steps(self.params, rate))
+        if not accuracy > stability:
+            return f"the stability bound ({self.text})"
+        return f"the tolerance ({self.accuracy_text})"
 
     def ratio(self, y, u):
         """``x`` at ``y`` under ``u`` (the period needs ``ceil(x)`` steps); floats or arrays."""
         fn, p = self.rotation
-        x = step_ratio(self.params, fn(p, y))
+        if self.motion:
+            x = step_ratio_motion(self.params, fn(p, y, self.zero_control if u is None else u))
+        else:
+            x = step_ratio(self.params, fn(p, y))
         if self.dissipation is not None:
             fd, pd = self.dissipation
             rate = fd(pd, y, u)
             dt = self.params[0]
             if type(rate) is float:
-                x = max(x, dt / (self.dissipation_step / rate)) if rate > 0.0 else x
+                if rate > 0.0:
+                    x = max(x, dt / (self.dissipation_step / rate))
+                    if self.params[5] != 0.0:
+                        x = max(x, relaxation_steps(self.params, rate))
             else:
                 with np.errstate(divide="ignore", invalid="ignore"):
                     h_d = np.where(rate > 0.0, self.dissipation_step / np.where(rate > 0.0, rate, 1.0), np.inf)
                     x = np.maximum(x, dt / h_d)
+                    if self.params[5] != 0.0:
+                        _, _, _, _, p, kd = self.params
+                        positive = rate > 0.0
+                        r = np.where(positive, rate, 0.0)
+                        x = np.maximum(x, np.where(positive, whole_root(kd * power(dt * r, p), p), 0.0))
         return x
 
     def idle(self, substeps: int) -> bool:

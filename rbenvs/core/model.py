@@ -32,6 +32,8 @@ class Model:
     * ``observation_high``: the bound of each observation component (the box ``[-high, high]``);
     * ``speed_ceiling``: an upper bound of ``|Omega|`` inside those bounds (``inf``: unknown),
       which lets a guard prove it never needs more than ``substeps`` steps;
+    * ``tolerance``: the relative error allowed over ``horizon`` control periods (``None``: no
+      accuracy bound; :mod:`rbenvs.core.guard`);
     * ``step_rule`` (derived): the guard's rule from the system's rates and the integrator's
       region; ``draw_kinds`` (derived): the kinds of a start's numbers, the task's then the
       system's (:mod:`rbenvs.draws`); ``system_draws``: how many of them the system adds.
@@ -46,6 +48,8 @@ class Model:
     guard: str
     observation_high: tuple
     speed_ceiling: float = math.inf
+    tolerance: float | None = None
+    horizon: int | None = None
     step_rule: StepRule = field(init=False)
     draw_kinds: str = field(init=False)
     system_draws: int = field(init=False)
@@ -58,7 +62,8 @@ class Model:
         require_parts(self.actuator, Actuator, "actuator")
         region: StepRegion = self.integrator.region
         rates = self.system.guard_rates(region, self.speed_ceiling)
-        object.__setattr__(self, "step_rule", StepRule.build(rates, region, self.dt, self.guard))
+        zero = self.actuator.control((0.0,) * self.actuator.size)[1] if self.tolerance is not None else ()
+        object.__setattr__(self, "step_rule", StepRule.build(rates, region, self.dt, self.guard, self.integrator, self.tolerance, self.horizon, self.system, zero))
         object.__setattr__(self, "draw_kinds", self.task.draw_kinds + self.system.start_draw_kinds)
         object.__setattr__(self, "system_draws", len(self.system.start_draw_kinds))
 
@@ -66,7 +71,7 @@ class Model:
         """Pickled as its parts and settings; the derived rule is made again on loading (it holds
         the system's pure forms, which may be functions made at run time)."""
         return (Model, (self.system, self.task, self.integrator, self.actuator, self.dt, self.substeps, self.guard, self.observation_high,
-                        self.speed_ceiling))
+                        self.speed_ceiling, self.tolerance, self.horizon))
 
     @property
     def h(self) -> float:

@@ -252,6 +252,11 @@ class Engine:
         self._state_step_tried = compiled is False
         if compiled is True:
             self._state_step = self._build_state_step(required=True)
+        # with a tolerance every period reports its estimated error (info["error_estimate"]): the
+        # rate at its start and the step it took; without one the step is untouched
+        self.tolerance = m.tolerance
+        if m.tolerance is not None:
+            self.step_one = self._step_one_estimated
 
     def __reduce__(self):  # generated and compiled functions are made again, not pickled
         return (Engine, (self.model, self.compiled))
@@ -543,9 +548,31 @@ class Engine:
                 plain = False  # outside the bounds the guard's static proof is void
         return y, obs, reward, terminated, info, u, plain
 
+    def _step_one_estimated(self, y0, a, plain):
+        """:meth:`step_one` with ``info["error_estimate"]``: the period's estimated relative error
+        (:func:`rbenvs.core.guard.error_estimate`, from the rate at ``y0`` and the step taken)."""
+        rule = self.rule
+        u = self.control(a)[1]
+        lam = rule.rate(y0, u)
+        lam_d = rule.dissipation_rate(y0, u) if rule.dissipation is not None else 0.0
+        out = Engine.step_one(self, y0, a, plain)
+        info = out[4]
+        info["error_estimate"] = float(rule.estimate(lam, info["internal_step"], lam_d))
+        return out
+
+    def _cap_text(self, h, y0=None, u=None) -> str:
+        """Why a period failed when it was refused past the cap (``h < dt / MAX_INTERNAL_STEPS``):
+        which bound asked for the steps; ``""`` otherwise."""
+        if not float(np.min(h)) * MAX_INTERNAL_STEPS < self.dt:
+            return ""
+        bound = self.rule.binding(y0, u) if y0 is not None else f"the step bound ({self.rule.text})"
+        return f": the period needs more than MAX_INTERNAL_STEPS = {MAX_INTERNAL_STEPS} internal steps to meet {bound}"
+
     def _failed_one(self, y0, u_norm, u, h, plain):
+        cap = self._cap_text(h, y0, u)
+        what = "the period was refused" + cap if cap else "the state became non-finite"
         warnings.warn(
-            f"the state became non-finite with integrator {self.integrator.name!r} (internal step h = {float(np.max(h)):g} s); "
+            f"{what} with integrator {self.integrator.name!r} (internal step h = {float(np.max(h)):g} s); "
             "the episode ends and the last finite state is kept",
             NumericalFailureWarning,
             stacklevel=5,
@@ -557,7 +584,7 @@ class Engine:
         return y0, obs, 0.0, True, info, u, plain
 
     # ------------------------------------------------------------------ a batch (arrays)
-    def settle(self, y0, y, skip):
+    def settle(self, y0, y, skip, h=None):
         """``(y, failed)`` after a batch's period: elements that went non-finite keep their
         last finite state; ``failed`` marks them (not those in ``skip``, about to restart);
         one ``NumericalFailureWarning`` names them. ``failed`` is ``None`` when none failed."""
@@ -568,8 +595,11 @@ class Engine:
             finite &= np.isfinite(c)
         failed = ~finite & ~skip
         if failed.any():
+            cap = ""
+            if np.ndim(h) and (np.asarray(h)[failed] * MAX_INTERNAL_STEPS < self.dt).any():
+                cap = f" (periods refused: they need more than MAX_INTERNAL_STEPS = {MAX_INTERNAL_STEPS} internal steps to meet the step rule: {self.rule.text})"
             warnings.warn(
-                f"sub-envs {np.flatnonzero(failed).tolist()} became non-finite with integrator {self.integrator.name!r}; "
+                f"sub-envs {np.flatnonzero(failed).tolist()} became non-finite with integrator {self.integrator.name!r}{cap}; "
                 "their episodes end and their last finite states are kept",
                 NumericalFailureWarning,
                 stacklevel=3,
@@ -627,14 +657,15 @@ class Engine:
         if rule.active:  # checked only where asked (a period that may not take the plain loop)
             rotation, dissipation = rule.rotation, rule.dissipation
         observe, evaluate = task.kernels(system)
-        return KernelParts(step, observe, evaluate, readouts, rotation, rule.params, dissipation, rule.dissipation_step, event, rhs_event, tuple(switches))
+        return KernelParts(step, observe, evaluate, readouts, rotation, rule.params, dissipation, rule.dissipation_step, event, rhs_event, tuple(switches),
+                           rule.motion and rotation is not None)
 
 
 class KernelParts(NamedTuple):
     """A model's step in pure forms, each ``(function, parameters)`` (:meth:`Engine.kernel_parts`):
     ``step`` (the integrator's, ``step(PS, y, u, h)``), ``observe``, ``evaluate``, ``readouts``
     (the task's and the system's), the guard's ``rotation`` rate (``None``: no check can be
-    needed) with ``guard_params`` (``(dt, bound, growth)`` of
+    needed) with ``guard_params`` (``(dt, bound, growth, k, p)`` of
     :func:`rbenvs.core.guard.step_ratio`), its ``dissipation`` rate (or ``None``) with
     ``dissipation_step`` (``h <= c / lambda_d``), the terminal ``event`` (or ``None``; it fires
     where its value is negative) and ``rhs_event``, the vector field and the event's value from
@@ -654,3 +685,4 @@ class KernelParts(NamedTuple):
     event: tuple | None
     rhs_event: tuple | None = None
     switches: tuple = ()
+    motion: bool = False  # rotation is (fn, P) with fn(P, y, u) -> (lambda, mu): step_ratio_motion

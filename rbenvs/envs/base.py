@@ -16,7 +16,7 @@ import math
 import gymnasium as gym
 import numpy as np
 
-from ..core.guard import GUARDS, MAX_INTERNAL_STEPS, StepRule, require_guard, step_ratio
+from ..core.guard import GUARDS, MAX_INTERNAL_STEPS, StepRule, relaxation_steps, require_guard, require_tolerance, step_ratio
 from ..core.model import Model
 from ..core.step import Engine, NumericalFailureWarning, action_values
 from ..dynamics.validation import require_finite_positive, require_int_in
@@ -45,6 +45,12 @@ def require_compiled(compiled):
     raise ValueError(f"compiled must be True, False or 'auto', got {compiled!r}")
 
 
+def _registry() -> dict:
+    from ..integrators import INTEGRATORS
+
+    return INTEGRATORS
+
+
 class _SupportedSchemes:
     """``cls.integrators``: the registered integrators whose declared needs (``requires``) the
     env's ``system_class`` meets, in registry order (a scheme registered later appears too)."""
@@ -66,8 +72,11 @@ class RigidBodyEnv(gym.Env):
     system_class: type = None  # the system the env builds (its capabilities pick the integrators)
     integrators = _SupportedSchemes()
 
-    def _setup(self, system, task, actuator, integrator, dt, substeps, observation_high, render_mode, guard="subdivide", compiled="auto"):
+    def _setup(self, system, task, actuator, integrator, dt, substeps, observation_high, render_mode, guard="subdivide", compiled="auto",
+               tolerance=None, tolerance_horizon=None):
         guard = require_guard(guard)
+        tolerance = require_tolerance(tolerance)
+        horizon = self._tolerance_horizon(tolerance_horizon)
         compiled = require_compiled(compiled)
         dt = require_finite_positive("dt", dt)
         substeps = require_int_in("substeps", substeps, 1, MAX_INTERNAL_STEPS, " (more internal steps in a control period is a numerical failure)")
@@ -78,8 +87,10 @@ class RigidBodyEnv(gym.Env):
             raise ValueError(f"integrator {integrator.name!r} declares no step region (StepRegion, rbenvs.contracts): it cannot be guarded")
         if render_mode is not None and (not isinstance(render_mode, str) or render_mode not in self.metadata["render_modes"]):
             raise ValueError(f"render_mode must be None or one of {self.metadata['render_modes']}, got {render_mode!r}")
+        if tolerance is not None:
+            self._require_accuracy(integrator, guard, tolerance)
         high = tuple(float(v) for v in observation_high)
-        self.model = Model(system, task, integrator, actuator, dt, substeps, guard, high, self._speed_ceiling())
+        self.model = Model(system, task, integrator, actuator, dt, substeps, guard, high, self._speed_ceiling(), tolerance, horizon if tolerance is not None else None)
         self.engine = Engine(self.model, compiled)
         self.render_mode = render_mode
         self._renderer = None  # built by the first render(): matplotlib is imported only then
@@ -103,6 +114,7 @@ class RigidBodyEnv(gym.Env):
     actuator = property(lambda self: self.model.actuator)
     substeps = property(lambda self: self.model.substeps)
     guard = property(lambda self: self.model.guard)
+    tolerance = property(lambda self: self.model.tolerance)
     step_rule = property(lambda self: self.model.step_rule)
 
     @property
@@ -125,6 +137,38 @@ class RigidBodyEnv(gym.Env):
         none known); a guard whose ceiling fits in ``substeps`` needs no check."""
         return math.inf
 
+    @classmethod
+    def registered_episode_steps(cls) -> int | None:
+        """``max_episode_steps`` of the id registered with this class (``None``: none)."""
+        from .. import ENVIRONMENTS
+
+        entry = f"{cls.__module__}:{cls.__name__}"
+        for spec in ENVIRONMENTS.values():
+            if spec["entry_point"] == entry:
+                return spec["max_episode_steps"]
+        return None
+
+    def _tolerance_horizon(self, value) -> int:
+        """``tolerance_horizon=``: the control periods ``tolerance`` covers; ``None``: the
+        registered ``max_episode_steps`` (an episode)."""
+        if value is None:
+            value = self.registered_episode_steps()
+            return 1000 if value is None else value
+        return require_int_in("tolerance_horizon", value, 1, 10**12, " (control periods over which tolerance holds)")
+
+    @staticmethod
+    def _require_accuracy(integrator, guard, tolerance) -> None:
+        """``tolerance=`` needs a guard that acts on it and a scheme whose error it can estimate."""
+        if guard == "off":
+            raise ValueError(f"tolerance={tolerance!r} needs guard='subdivide' or 'refuse': guard='off' takes substeps steps whatever the error")
+        if getattr(integrator, "error_constant", None) is None:
+            with_constant = sorted(name for name, cls in _registry().items() if getattr(cls, "error_constant", None) is not None)
+            raise ValueError(
+                f"tolerance={tolerance!r} needs an integrator that declares an error constant (its error C lambda T (lambda h)^order "
+                f"on a rotation, rbenvs.integrators.error): {with_constant}; integrator {integrator.name!r} declares none "
+                f"(exact sub-flows err by the system's commutators, not by one rate; an adaptive scheme controls its own error)"
+            )
+
     def _start_dissipation(self) -> float:
         """The stiffest decaying rate at the start (0 where none): the tippe top's friction."""
         return 0.0
@@ -137,11 +181,25 @@ class RigidBodyEnv(gym.Env):
         if not region.bounded:
             region = dataclasses.replace(region, rotation=1.0, reason="one radian of the fastest rate per step")
         rates = self.system.guard_rates(region, self._start_speed)
-        rule = StepRule.build(rates, region, self.dt, "subdivide")
+        m = self.model
+        rule = StepRule.build(rates, region, self.dt, "subdivide", self.integrator, m.tolerance, m.horizon)
         x = step_ratio(rule.params, rates.ceiling)
         lam_d = self._start_dissipation()
+        d_stable = 0.0
         if rule.dissipation is not None and lam_d > 0.0:
-            x = max(x, self.dt / (rule.dissipation_step / lam_d))
+            d_stable = self.dt / (rule.dissipation_step / lam_d)
+            x = max(x, d_stable)
+            x = max(x, relaxation_steps(rule.params, lam_d))  # (0 without a tolerance)
+        if rule.error is not None:
+            dt, bound, growth = rule.params[:3]
+            stable = max(step_ratio((dt, bound, growth, 0.0, 1.0, 0.0), rates.ceiling), d_stable)
+            if not stable <= MAX_INTERNAL_STEPS:
+                return x, rule.text
+            # only the tolerance asks for more: say so, with the reason
+            p, c = self.integrator.order, self.integrator.error_constant
+            return x, (f"to keep the error of {m.horizon} periods within it ({rule.accuracy_text}): at a fixed step an order-{p} scheme's error "
+                       f"grows without bound, like lambda T (lambda h)^{p}, so the steps a tolerance costs grow like "
+                       f"(lambda T)^{(p + 1) / p:.3g} / tolerance^{1 / p:.3g}; raise tolerance, lower tolerance_horizon, or use a higher-order integrator")
         return x, rule.text
 
     def _require_resolvable(self) -> None:
@@ -155,6 +213,11 @@ class RigidBodyEnv(gym.Env):
             return
         x, rule = self._start_steps()
         if not x <= MAX_INTERNAL_STEPS:
+            if rule.startswith("to keep the error"):
+                raise ValueError(
+                    f"tolerance={self.model.tolerance!r} cannot be met: at the start the integrator {self.integrator.name!r} needs "
+                    f"{x:.3g} internal steps per control period, more than MAX_INTERNAL_STEPS = {MAX_INTERNAL_STEPS}, {rule}"
+                )
             raise ValueError(
                 f"dt={self.dt!r} s cannot be resolved: at the start the integrator {self.integrator.name!r} needs "
                 f"{x:.3g} internal steps per control period ({rule}), more than MAX_INTERNAL_STEPS = {MAX_INTERNAL_STEPS}; "

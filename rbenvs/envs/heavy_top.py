@@ -137,6 +137,19 @@ class LagrangeTopEnv(RigidBodyEnv):
       each step; their energy and ``Pi.Gamma`` drift (``task="precess"`` with zero torque,
       seed 0, one 10 s episode: rk4 1.6e-4 and 2.1e-3 relative, splitting 7e-8 and 1e-15).
     * ``guard="subdivide"``: ``"subdivide"``, ``"refuse"`` or ``"off"`` (Guarded stepping).
+    * ``tolerance=None``: the relative error allowed over ``tolerance_horizon`` control periods
+      (``None``: none, the steps the guard and ``substeps`` give; else a finite number with
+      ``0 < tolerance < 1``): each period takes the fewest internal steps whose estimated error
+      ``C lambda dt (lambda h)^p`` (the scheme's order ``p`` and measured error constant ``C``,
+      ``lambda`` the guard's rate at the period's start) is at most ``log(1 + tolerance) /
+      tolerance_horizon``, ``info["error_estimate"]`` reports it, ``guard="refuse"`` raises
+      naming the steps needed, and a period past ``MAX_INTERNAL_STEPS`` ends the episode as a
+      numerical failure naming the tolerance. For ``euler`` and ``rk4`` (the schemes that declare
+      ``error_constant``; others are refused, as is ``guard="off"``); a tolerance no start can
+      meet within ``MAX_INTERNAL_STEPS`` is refused at construction with the reason
+      (docs/integrators.md, "Accuracy: tolerance=").
+    * ``tolerance_horizon=None``: control periods the tolerance covers (an integer >= 1;
+      ``None``: the registered ``max_episode_steps``, one episode).
     * ``compiled="auto"``: run each step as one compiled call of the same functions (numba, the
       ``fast`` extra; built on the first step, about a second per setting and process), bit
       for bit the float path, where numba is installed and the setting has pure forms (the
@@ -201,6 +214,8 @@ class LagrangeTopEnv(RigidBodyEnv):
         render_mode=None,
         guard: str = "subdivide",
         compiled="auto",
+        tolerance=None,
+        tolerance_horizon=None,
     ):
         # every keyword is checked, whatever the task (one the task ignores must still be valid)
         task = require_choice("task", task, self.tasks)
@@ -254,7 +269,7 @@ class LagrangeTopEnv(RigidBodyEnv):
         self._max_w = max_w
         self._start_speed = peak
         high = observation_bounds(task_obj, {"rad/s": max_w})
-        self._setup(system, task_obj, actuator, integrator, dt, substeps, high, render_mode, guard, compiled)
+        self._setup(system, task_obj, actuator, integrator, dt, substeps, high, render_mode, guard, compiled, tolerance, tolerance_horizon)
         # orthonormal torque directions: |tau| <= max_torque sqrt(k), |Delta Omega| <= |tau| dt / I_min
         change = self.max_torque * math.sqrt(len(self.torque_directions)) * self.dt / min(params.inertia)
         self._require_authority("max_torque", change, "max_angular_velocity", max_w, "angular velocity [rad/s]")

@@ -130,6 +130,20 @@ class TippeTopEnv(RigidBodyEnv):
     * ``start="rolling"``: how the top was spun (Starting state).
     * ``dt=0.01`` s, ``substeps=1`` (a minimum), ``integrator="rk4"`` (``euler``, ``rk4``, ``dop853``).
     * ``guard="subdivide"``: ``"subdivide"``, ``"refuse"`` or ``"off"`` (Internal step).
+    * ``tolerance=None``: the relative error allowed over ``tolerance_horizon`` control periods
+      (``None``: none, the steps the guard and ``substeps`` give; else a finite number with
+      ``0 < tolerance < 1``): each period takes the fewest internal steps whose estimated error
+      ``C lambda dt (lambda h)^p`` (the scheme's order ``p`` and measured error constant ``C``,
+      ``lambda`` the guard's rate at the period's start) is at most half of ``log(1 +
+      tolerance) / tolerance_horizon`` and the friction's decaying mode's ``C (lambda_d h)^p``
+      at most half of ``log(1 + tolerance)``, ``info["error_estimate"]`` reports it, ``guard="refuse"`` raises
+      naming the steps needed, and a period past ``MAX_INTERNAL_STEPS`` ends the episode as a
+      numerical failure naming the tolerance. For ``euler`` and ``rk4`` (the schemes that declare
+      ``error_constant``; others are refused, as is ``guard="off"``); a tolerance no start can
+      meet within ``MAX_INTERNAL_STEPS`` is refused at construction with the reason
+      (docs/integrators.md, "Accuracy: tolerance=").
+    * ``tolerance_horizon=None``: control periods the tolerance covers (an integer >= 1;
+      ``None``: the registered ``max_episode_steps``, one episode).
     * ``compiled="auto"``: run each step as one compiled call of the same functions (numba, the
       ``fast`` extra; built on the first step, about a second per setting and process), bit
       for bit the float path, where numba is installed and the setting has pure forms (the
@@ -200,6 +214,8 @@ class TippeTopEnv(RigidBodyEnv):
         render_mode=None,
         guard: str = "subdivide",
         compiled="auto",
+        tolerance=None,
+        tolerance_horizon=None,
     ):
         # every keyword is checked, whatever the task and options (an unused one must still be valid)
         task = require_choice("task", task, self.tasks)
@@ -246,7 +262,7 @@ class TippeTopEnv(RigidBodyEnv):
         self._start_speed = peak
         self._max_w = max_w
         high = observation_bounds(task_obj, {"rad/s": max_w, "m/s": max_v})
-        self._setup(system, task_obj, actuator, integrator, dt, substeps, high, render_mode, guard, compiled)
+        self._setup(system, task_obj, actuator, integrator, dt, substeps, high, render_mode, guard, compiled, tolerance, tolerance_horizon)
         # the table's acceleration moves v_G (relative to the table) by at most |a_T| dt per period;
         # a body torque moves Omega by at most |tau| dt / min(A, C)
         self._require_authority("max_table_acceleration", self.max_table_acceleration * math.sqrt(2.0) * self.dt, "max_speed", max_v, "velocity of the centre of mass [m/s]")

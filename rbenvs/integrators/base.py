@@ -41,6 +41,11 @@ class Integrator:
             the free body, ``|Gamma|`` and ``Pi.Gamma`` for the heavy top) and/or ``"energy"``.
         region: where its step can be trusted (:class:`~rbenvs.contracts.StepRegion`): what the
             step guard reads. A scheme without one cannot be guarded: the envs refuse it.
+        error_constant: ``C`` of its global error ``C lambda T (lambda h)^order`` on a rotation
+            at rate ``lambda`` (measured by :func:`rbenvs.integrators.error.measure_error_constant`):
+            what ``tolerance=`` turns into a step count. ``None``: no such constant (exact
+            sub-flows, whose error comes from the system's commutators rather than one rate;
+            adaptive schemes, which control their own): ``tolerance=`` is refused.
     """
 
     # Class-level constants, not dataclass fields: a field's default would be stamped onto
@@ -51,6 +56,10 @@ class Integrator:
     conserves: ClassVar[tuple[str, ...]] = ()
     requires: ClassVar[tuple[str, ...]] = ("rhs",)
     region: ClassVar[StepRegion | None] = None
+    error_constant: ClassVar[float | None] = None
+    # whether the leading error on a rotation is in the phase (|R(i z)| = 1 + O(z^(p+2))): then
+    # tolerance= may count the state's own speed (rbenvs.core.guard.motion_rates)
+    error_in_phase: ClassVar[bool] = False
     # one scalar step for a whole batch (an adaptive solve whose step follows all members): a
     # batch whose members need different step counts runs in groups of equal counts
     uniform_step_only: ClassVar[bool] = False

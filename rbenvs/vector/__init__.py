@@ -212,6 +212,9 @@ class RigidBodyVectorEnv(VectorEnv):
         self._action = None
         self._last_h = np.full(n, self.engine.h)
         info = self._info(self._y, None, self._false, self._false, metrics, physical)
+        if self.engine.tolerance is not None:
+            info["error_estimate"] = np.zeros(n)  # no period yet (the single env's reset)
+            info["_error_estimate"] = self._true
         return obs, info
 
     def _elapsed_steps(self, elapsed) -> np.ndarray:
@@ -290,6 +293,32 @@ class RigidBodyVectorEnv(VectorEnv):
 
     # ------------------------------------------------------------------ step
     def step(self, actions):
+        if self.engine.tolerance is None or self._y is None:
+            return self._step(actions)
+        # with a tolerance: each period's estimated error, from the rate at its start and the
+        # step it took (the single env's rule); 0 where no period ran (a sub-env restarted)
+        rule = self.engine.rule
+        u = None  # (the controls of the actions, as the step makes them)
+        if rule.motion or rule.dissipation is not None:
+            u = self.model.actuator.control(action_columns(actions, self.action_space.shape))[1]
+        lam = rule.rate(self._y, u)
+        lam = tuple(np.array(v, dtype=np.float64) for v in lam) if rule.motion else np.array(lam, dtype=np.float64)
+        lam_d = 0.0
+        if rule.dissipation is not None:
+            lam_d = np.array(rule.dissipation_rate(self._y, u), dtype=np.float64)
+        restart = self._prev_done.copy() if self.autoreset_mode is AutoresetMode.NEXT_STEP else self._false
+        obs, reward, terminated, truncated, info = self._step(actions)
+        estimate = np.broadcast_to(rule.estimate(lam, self._period_h, lam_d), (self.num_envs,)).astype(np.float64)
+        estimate[restart] = 0.0
+        if "final_info" in info:  # SAME_STEP: the ended periods' estimates go with their final info
+            info["final_info"]["error_estimate"] = estimate.copy()
+            info["final_info"]["_error_estimate"] = self._true
+            estimate[info["_final_info"]] = 0.0
+        info["error_estimate"] = estimate
+        info["_error_estimate"] = self._true
+        return obs, reward, terminated, truncated, info
+
+    def _step(self, actions):
         if self._y is None:
             raise RuntimeError("call reset() before step()")
         if self._vector_step is not None and self._table is not None:
@@ -311,6 +340,8 @@ class RigidBodyVectorEnv(VectorEnv):
                 if fired is False:
                     fired = self._false
         self._u, self._last_h = u, h
+        if engine.tolerance is not None:
+            self._period_h = np.array(h, dtype=np.float64)
         if fast is not None:  # the kernel's read-outs: every new state finite
             self._y, self._y2d = y, fast[0]
             obs, over, reward, terminated, metrics, physical = fast[1:]
@@ -325,7 +356,7 @@ class RigidBodyVectorEnv(VectorEnv):
         observation, evaluation, then :meth:`_finish`."""
         engine = self.engine
         self._y2d = None
-        y, failed = engine.settle(y0, y, restart)
+        y, failed = engine.settle(y0, y, restart, self._last_h)
         self._y = y
         obs, over = engine.observe(y)
         reward, terminated, metrics = engine.evaluate(y, u_norm)
@@ -368,6 +399,8 @@ class RigidBodyVectorEnv(VectorEnv):
             raise engine.refusal(int(r.counts[over].max()), f" of sub-envs {np.flatnonzero(over).tolist()}")
         # the controls that acted, made from the actions where needed (rendering, a failure)
         self._u, self._last_h = None, r.h
+        if engine.tolerance is not None:  # (a SAME_STEP restart below rewrites the restarted rows of r.h)
+            self._period_h = np.array(r.h, dtype=np.float64)
         self._action = None if self.render_mode is None else a.copy()
         if r.status > 0:  # non-finite new states: the numpy path's failure handling
             fired = r.fired if r.fired.any() else self._false

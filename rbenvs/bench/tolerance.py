@@ -1,0 +1,246 @@
+"""``rbenvs bench accuracy --tolerance``: what ``tolerance=`` achieves and what it costs.
+
+For each extreme of issue 19 (fast spins to 1e4 rad/s, the separatrix, nearly equal moments,
+heavy tops above and below the critical spin, euler where its error grows without bound, the
+tippe top from several starts) and each requested tolerance (1e-3, 1e-6, 1e-9), the env is
+built with ``tolerance=tol`` and ``tolerance_horizon`` = the case's periods, run without
+control from the case's starts, and compared period by period with the reference (the free
+body: the exact elliptic solution; the others: DOP853 at ``rtol = 1e-13``, as
+:mod:`rbenvs.bench.accuracy`). Printed per row:
+
+* ``error``: the worst over the periods, the starts and the named blocks of the state of
+  ``|y_b - ref_b| / |ref_b|`` (the tippe top's horizontal position left out, as in the accuracy
+  bench); ``<= tol`` is what the tolerance promises;
+* ``estimate``: the largest over the starts of the episode's summed ``info["error_estimate"]``;
+* ``steps``: the internal steps the env took (all starts), the cost (one scheme: steps are rhs
+  evaluations over a constant);
+* ``fixed``: the fewest equal ``substeps`` (the same env without a tolerance, its stability
+  guard still on) whose error meets ``tol`` on every start, found by bisection, and its steps;
+  ``cost x``: ``steps / fixed steps`` (issue 19 asks for at most 1.5);
+* a construction refusal (``refused``: the tolerance cannot be met within ``MAX_INTERNAL_STEPS``)
+  or an episode ended as a numerical failure is printed as such.
+
+The error constants are measured here too (:func:`rbenvs.integrators.error.measure_error_constant`)
+against each scheme's declared one.
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+import time
+import warnings
+from dataclasses import dataclass, field
+
+import numpy as np
+
+__all__ = ["TOLERANCES", "TOLERANCE_CASES", "ToleranceCase", "run_tolerance", "print_tolerance"]
+
+TOLERANCES = (1e-3, 1e-6, 1e-9)
+MAX_FIXED = 2**20  # the bisection's largest substeps
+
+
+@dataclass(frozen=True)
+class ToleranceCase:
+    key: str
+    label: str
+    env: str  # "free_body", "heavy_top", "tippe_top"
+    kwargs: dict
+    starts: tuple  # named states for reset(options={"state": ...}), or seeds (ints)
+    periods: int
+    tolerances: tuple = TOLERANCES
+    skip_fixed: tuple = field(default_factory=tuple)  # tolerances whose fixed search is too costly
+
+
+def _top(spin, tilt, side=0.0):
+    inertia = np.array([0.45, 0.45, 0.3])
+    return {"angular_momentum": np.array([side, 0.0, spin]) * inertia, "vertical": np.array([math.sin(tilt), 0.0, math.cos(tilt)])}
+
+
+def _body(inertia, omega):
+    return {"angular_momentum": np.array(inertia) * np.array(omega)}
+
+
+TOLERANCE_CASES = (
+    ToleranceCase("fb_fast", "free body, rk4, |Omega| 5e3-1e4 rad/s (random)", "free_body",
+                  dict(task="detumble", spin_rate=1e4, max_angular_velocity=2e4, max_torque=0.0, integrator="rk4"), (0, 1, 2), 4),
+    ToleranceCase("fb_separatrix", "free body, rk4, 1e-6 off the separatrix, 1 rad/s", "free_body",
+                  dict(max_torque=0.0, integrator="rk4"), (_body((2.0, 1.5, 1.0), (1e-6, 1.0, 1e-6)), _body((2.0, 1.5, 1.0), (0.05, 1.0, 0.0))), 400),
+    ToleranceCase("fb_equal", "free body, rk4, moments equal to 1e-9, 10 rad/s", "free_body",
+                  dict(inertia=(1.5, 1.5 * (1 + 1e-9), 1.0), axis=0, max_torque=0.0, integrator="rk4", max_angular_velocity=20.0),
+                  (_body((1.5, 1.5 * (1 + 1e-9), 1.0), (6.0, 6.0, 5.0)),), 400),
+    ToleranceCase("fb_euler", "free body, euler, 1 rad/s", "free_body", dict(max_torque=0.0, integrator="euler"), (0, 1), 400,
+                  skip_fixed=(1e-6, 1e-9)),
+    ToleranceCase("top_100", "Lagrange top, rk4, 100 rad/s, tilt 0.1", "heavy_top", dict(integrator="rk4", max_torque=0.0, max_angular_velocity=300.0),
+                  (_top(100.0, 0.1), _top(100.0, 0.1, 3.0)), 50),
+    ToleranceCase("top_1e4", "Lagrange top, rk4, 1e4 rad/s, tilt 0.1", "heavy_top", dict(integrator="rk4", max_torque=0.0, max_angular_velocity=2.1e4),
+                  (_top(1e4, 0.1),), 2),
+    ToleranceCase("top_below", "Lagrange top, rk4, 5 rad/s (below the critical 9.9), tilt 0.05", "heavy_top", dict(integrator="rk4", max_torque=0.0),
+                  (_top(5.0, 0.05),), 50),
+    ToleranceCase("top_euler", "Lagrange top, euler, 20 rad/s (twice the critical), tilt 0.1", "heavy_top", dict(integrator="euler", max_torque=0.0),
+                  (_top(20.0, 0.1),), 50, skip_fixed=(1e-6, 1e-9)),
+    ToleranceCase("tippe", "tippe top, rk4, Coulomb friction, seeds 0-2", "tippe_top", dict(integrator="rk4", max_torque=0.0), (0, 1, 2), 10),
+    ToleranceCase("tippe_viscous", "tippe top, rk4, viscous friction 3 s/m, seeds 0-2", "tippe_top",
+                  dict(integrator="rk4", max_torque=0.0, friction_law="viscous", friction=3.0), (0, 1, 2), 10),
+)
+
+
+def _env(case, **kw):
+    from ..envs import FreeRigidBodyEnv, LagrangeTopEnv, TippeTopEnv
+
+    cls = {"free_body": FreeRigidBodyEnv, "heavy_top": LagrangeTopEnv, "tippe_top": TippeTopEnv}[case.env]
+    return cls(**case.kwargs, **kw)
+
+
+def _reset(env, start):
+    if isinstance(start, int):
+        env.reset(seed=start)
+    else:
+        env.reset(seed=0, options={"state": start})
+    return env.state_components
+
+
+def _blocks(env):
+    return [(a, b) for name, (a, b) in env.system.layout.items() if not (name == "position" and env.system.hybrid)]
+
+
+def _references(case, env, starts):
+    """Per start, the reference state after each period."""
+    from ..oracles import exact_solution
+    from .accuracy import REFERENCE
+
+    refs = []
+    for start in starts:
+        y0 = _reset(env, start)
+        if case.env == "free_body" and not env.system.attitude:
+            pi0 = np.array(y0)
+            refs.append([tuple(exact_solution(env.system.params.inertia, pi0, k * env.dt)) for k in range(1, case.periods + 1)])
+            continue
+        y, out = y0, []
+        for _ in range(case.periods):
+            y = REFERENCE.step(env.system, y, None, env.dt)
+            out.append(y)
+        refs.append(out)
+    return refs
+
+
+def _episode(case, env, starts, refs):
+    """``(error, summed estimate, internal steps, failure)`` over the starts."""
+    err = est_max = 0.0
+    steps = 0
+    failure = None
+    a = np.zeros(env.action_space.shape, np.float32)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        for start, ref in zip(starts, refs):
+            _reset(env, start)
+            est = 0.0
+            for r in ref:
+                _, _, term, _, info = env.step(a)
+                steps += int(round(env.dt / info["internal_step"]))
+                est += info.get("error_estimate", 0.0)
+                if info["numerical_failure"]:
+                    return math.inf, est_max, steps, "numerical failure"
+                y = env.state_components
+                for lo, hi in _blocks(env):
+                    scale = float(np.linalg.norm(r[lo:hi]))
+                    err = max(err, float(np.linalg.norm(np.subtract(y[lo:hi], r[lo:hi]))) / scale)
+                if term and info.get("terminal_reason") not in (None, "task"):
+                    failure = info["terminal_reason"]
+                    break
+            est_max = max(est_max, est)
+    return err, est_max, steps, failure
+
+
+def _cheapest_fixed(case, tol, starts, refs, hint):
+    """The fewest ``substeps`` (no tolerance) whose error meets ``tol`` on every start, and its
+    steps (bisection between 1 and a count that meets it; ``None`` past MAX_FIXED)."""
+    from ..core.guard import MAX_INTERNAL_STEPS
+
+    def run(n):
+        env = _env(case, substeps=n)
+        err, _, steps, failure = _episode(case, env, starts, refs)
+        return (err <= tol and failure is None), steps
+
+    hi = max(1, hint)
+    ok, steps_hi = run(hi)
+    while not ok:
+        if hi >= min(MAX_FIXED, MAX_INTERNAL_STEPS):
+            return None
+        hi = min(2 * hi, MAX_FIXED)
+        ok, steps_hi = run(hi)
+    lo = 0  # fails (or none)
+    while hi - lo > 1:
+        mid = (lo + hi) // 2
+        ok, steps_mid = run(mid)
+        if ok:
+            hi, steps_hi = mid, steps_mid
+        else:
+            lo = mid
+    return hi, steps_hi
+
+
+def run_tolerance(keys=None, progress=None) -> dict:
+    """Every case of :data:`TOLERANCE_CASES` (``keys``: a subset) at each of its tolerances."""
+    from ..integrators import INTEGRATORS, get_integrator
+    from ..integrators.error import measure_error_constant
+
+    constants = {name: {"declared": cls.error_constant, "measured": measure_error_constant(name)}
+                 for name, cls in INTEGRATORS.items() if cls.error_constant is not None}
+    rows = []
+    for case in TOLERANCE_CASES:
+        if keys is not None and case.key not in keys:
+            continue
+        base = _env(case)
+        refs = _references(case, base, case.starts)
+        base_err, _, base_steps, base_fail = _episode(case, base, case.starts, refs)
+        rows.append({"case": case.key, "label": case.label, "periods": case.periods, "tolerance": None, "error": base_err, "steps": base_steps,
+                     "failure": base_fail})
+        for tol in case.tolerances:
+            t0 = time.perf_counter()
+            try:
+                env = _env(case, tolerance=tol, tolerance_horizon=case.periods)
+            except ValueError as e:
+                rows.append({"case": case.key, "label": case.label, "periods": case.periods, "tolerance": tol, "refused": str(e)})
+                continue
+            err, est, steps, failure = _episode(case, env, case.starts, refs)
+            row = {"case": case.key, "label": case.label, "periods": case.periods, "tolerance": tol, "error": err, "estimate": est, "steps": steps,
+                   "failure": failure, "seconds": time.perf_counter() - t0, "integrator": get_integrator(case.kwargs.get("integrator")).name}
+            if tol not in case.skip_fixed:
+                per_period = max(1, steps // (case.periods * len(case.starts)))
+                fixed = _cheapest_fixed(case, tol, case.starts, refs, max(1, per_period // 4))
+                if fixed is not None:
+                    row["fixed_substeps"], row["fixed_steps"] = fixed
+                    row["cost_ratio"] = steps / fixed[1]
+            rows.append(row)
+            if progress:
+                progress()
+    return {"constants": constants, "rows": rows}
+
+
+def _g(x, fmt=".1e"):
+    return "-" if x is None else format(x, fmt)
+
+
+def print_tolerance(result, file=None):
+    file = sys.stdout if file is None else file
+    print("error constants C (global error C lambda T (lambda h)^p on a rotation), measured against declared:", file=file)
+    for name, c in result["constants"].items():
+        print(f"  {name:<6} measured {c['measured']:.6g}  declared {c['declared']:g}", file=file)
+    print("\ntolerance=: worst relative error of the state over the horizon against the reference, summed estimate, internal steps;", file=file)
+    print("fixed: the fewest equal substeps (no tolerance) that meet the same tolerance on every start; cost x = steps / fixed steps", file=file)
+    print(f"{'case':<14} {'periods':>7} {'tolerance':>9} {'error':>8} {'estimate':>8} {'steps':>10} {'fixed':>7} {'fixed steps':>11} {'cost x':>6}  note", file=file)
+    for r in result["rows"]:
+        tol = "none" if r["tolerance"] is None else f"{r['tolerance']:.0e}"
+        if "refused" in r:
+            reason = r["refused"]
+            short = reason.split(" internal steps")[0].replace(f"tolerance={r['tolerance']!r} cannot be met: at the start the integrator ", "")
+            print(f"{r['case']:<14} {r['periods']:>7} {tol:>9} {'refused':>8} {'':>8} {'':>10} {'':>7} {'':>11} {'':>6}  {short} internal steps a period", file=file)
+            continue
+        note = r.get("failure") or ""
+        if r["tolerance"] is not None and not note:
+            note = "within" if r["error"] <= r["tolerance"] else "OUTSIDE the tolerance"
+        fixed = r.get("fixed_substeps")
+        print(f"{r['case']:<14} {r['periods']:>7} {tol:>9} {_g(r['error']):>8} {_g(r.get('estimate')):>8} {r['steps']:>10} {_g(fixed, 'd'):>7} "
+              f"{_g(r.get('fixed_steps'), 'd'):>11} {_g(r.get('cost_ratio'), '.2f'):>6}  {note}", file=file)
+    print("\ncases: " + "; ".join(f"{c.key}: {c.label}" for c in TOLERANCE_CASES), file=file)
