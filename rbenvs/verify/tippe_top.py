@@ -90,7 +90,7 @@ from ..dynamics import TippeTop, TippeTopParams
 from ..integrators import get_integrator
 from ..oracles import final_tilt, inversion_criterion, jellett
 from ..rotations import quat_multiply, quat_rotate
-from .common import Check, not_applicable, reference_scheme, scaled_tolerance, worst
+from .common import ENERGY_BOUND, MOMENTUM_BOUND, Check, not_applicable, reference_scheme, scaled_tolerance, worst
 from .simulator import as_simulators, start
 
 __all__ = [
@@ -481,9 +481,9 @@ def _invariant_rows(sim, setting, tops, rng, n_states, system_class, progress):
     def add(check):
         rows.setdefault(check.check, []).append(check)
 
-    def tolerance(tol, run):
-        """The setting's tolerance; for a simulator at its own step, scaled to it."""
-        return tol if sim.dt is None else scaled_tolerance(tol, run[0], setting.invariant_step, sim.order, run[1])
+    def tolerance(tol, run, bound):
+        """The setting's tolerance; for a simulator at its own step, scaled to it, at most ``bound``."""
+        return tol if sim.dt is None else scaled_tolerance(tol, run[0], setting.invariant_step, sim.order, run[1], bound)
 
     for top in tops:
         for variant in VARIANTS:
@@ -519,13 +519,13 @@ def _invariant_rows(sim, setting, tops, rng, n_states, system_class, progress):
                     js = scales = energies = np.full(2, math.nan)
                 drift = float(np.max(np.abs(js - js[0])) / scales[0])
                 jellett_row, energy_row = _variant_rows(variant) + ((None,) if variant.moving else ())
-                add(Check(SYSTEM, name, jellett_row, 0.0, drift, tolerance(setting.jellett, run), case=case))
+                add(Check(SYSTEM, name, jellett_row, 0.0, drift, tolerance(setting.jellett, run, MOMENTUM_BOUND), case=case))
                 if variant.dissipative:
                     rise = float(np.max(np.append(np.diff(energies), 0.0)) / energies[0])  # nan stays nan
-                    add(Check(SYSTEM, name, energy_row, 0.0, rise, tolerance(setting.rise, run), case=case))
+                    add(Check(SYSTEM, name, energy_row, 0.0, rise, tolerance(setting.rise, run, ENERGY_BOUND), case=case))
                 elif not variant.moving:
                     add(Check(SYSTEM, name, energy_row, 0.0, float(np.max(np.abs(energies - energies[0])) / energies[0]),
-                              tolerance(setting.energy, run), case=case))
+                              tolerance(setting.energy, run, ENERGY_BOUND), case=case))
         if progress:
             progress()
     return rows
