@@ -9,10 +9,11 @@ measured comes from the simulation.
 Systems (``--system``, repeatable; default all):
 
 * ``free_body``: :mod:`rbenvs.verify.free_body` (docs/physics.md §1): exact solution, invariants,
-  axis stability and growth rate, torque balance;
+  axis stability and growth rate, torque balance; a fast tumble (30 rad/s) against the exact
+  solution and its invariants;
 * ``heavy_top``: :mod:`rbenvs.verify.heavy_top` (docs/physics.md §2): critical spin by bisection,
   upright stable above / unstable below with the growth rate, regular precession held, fast
-  top nutation, invariants. Not for ``exact`` (the heavy top has no exact flow).
+  top nutation, invariants; the threshold of small fast tops (critical spin ~100 rad/s). Not for ``exact`` (the heavy top has no exact flow).
 * ``tippe_top``: :mod:`rbenvs.verify.tippe_top` (docs/physics.md §3): Jellett's integral held under
   Coulomb and viscous friction, without friction, rolling and on a moving table; the energy
   non-increasing under friction and conserved without; inversion where the criterion says and

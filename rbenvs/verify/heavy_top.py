@@ -15,6 +15,19 @@ alone), but the body-frame rates, which set the step, are the spin ``n ~ 2/(r t_
 threshold: a slender top (``r << 1``) needs ``1/r`` times more steps, ``1/r^2`` with Euler. The
 range keeps every integrator within the time of the command.
 
+Small fast tops (``n_small`` of them; ``--quick`` 1, full 3, :data:`SMALL_TOP_CASES`), toy tops
+at whose rates a step of 1e-3 s matters: a thin disc of radius ``rho = s l``, ``s ~ U(0.9,
+1.1)``, on a stem, the pivot at its tip ``l ~ U(1.5, 2.5)`` cm below the disc's centre, mass
+``M ~ U(20, 100)`` g, ``A_G = M rho^2/4``, ``C_G = c M rho^2/2`` with ``c ~ U(0.9, 0.98)`` (the
+stem's share of the axial moment neglected, and kept below a flat disc's ``2 A_G``). So ``C/A``
+lies in ``(0.3, 0.46)`` and the critical spin ``4 sqrt(g/l) sqrt(s^2/4 + 1)/(c s^2)`` in
+``(75, 155)`` rad/s. Rows: the critical spin by bisection, the tilt at 1.2 x critical and the
+growth rate at 0.8 x critical, as for the tops above (:func:`threshold_checks`). At 1.2 x
+critical the transverse components of ``Omega`` turn in the body at ``(1 - C/A) n ~ 80`` rad/s:
+a scheme that turns rotating vectors outward by ``sqrt(1 + (w h)^2)`` per step (explicit
+Euler) makes a stable top fall at ``h = 1e-3`` s (the tilt grows by ``exp((w h)^2 T/(2 h))``,
+``e^4`` to ``e^18`` over ``50 t_g``: past the 1e-2 rad bound from 1e-3), where the tops above, slower in the body, do not show it.
+
 Each run's step is ``h = (omega h)/omega`` with ``omega`` the run's fastest body rate (the
 initial ``|Omega|``, plus ``2/t_g`` where the top may fall) and ``omega h`` from
 :data:`HEAVY_TOP_SETTINGS`; ``dop853`` is adaptive (``rtol = 1e-12``) and is only sampled.
