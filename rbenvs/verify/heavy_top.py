@@ -26,7 +26,8 @@ growth rate at 0.8 x critical, as for the tops above (:func:`threshold_checks`).
 critical the transverse components of ``Omega`` turn in the body at ``(1 - C/A) n ~ 80`` rad/s:
 a scheme that turns rotating vectors outward by ``sqrt(1 + (w h)^2)`` per step (explicit
 Euler) makes a stable top fall at ``h = 1e-3`` s (the tilt grows by ``exp((w h)^2 T/(2 h))``,
-``e^4`` to ``e^18`` over ``50 t_g``: past the 1e-2 rad bound from 1e-3), where the tops above, slower in the body, do not show it.
+``e^4`` to ``e^18`` over ``50 t_g``: past the 1e-2 rad bound from 1e-3), where the tops above,
+slower in the body, do not show it.
 
 Each run's step is ``h = (omega h)/omega`` with ``omega`` the run's fastest body rate (the
 initial ``|Omega|``, plus ``2/t_g`` where the top may fall) and ``omega h`` from
