@@ -876,7 +876,8 @@ def tippe_top_checks(integrators, seed=0, quick=False, system_class=TippeTop, pr
     their step (rows of rbenvs' own models, the hops and ``t90``, read n/a for them).
     ``system_class(params, fidelity)`` builds the simulated system (tests pass broken ones);
     ``regimes`` overrides the settings' regimes of the inversion rows; ``t90``: whether rk4 runs
-    the time-to-90-degrees row (full runs only, unless asked)."""
+    the default top's long runs, the time-to-90-degrees row and Jellett's integral through an
+    inversion (a simulator at its own step runs the latter whatever ``t90``)."""
     checks: list[Check] = []
     mode = 0 if quick else 1
     for sim in as_simulators(integrators):
@@ -897,7 +898,7 @@ def tippe_top_checks(integrators, seed=0, quick=False, system_class=TippeTop, pr
                                setting.alpha_max)
             rows |= _inversion_rows(sim, setting, tops, system_class, progress)
         checks.extend(worst(c) for c in rows.values())
-        if sim.dt is not None or name == "rk4":
+        if sim.dt is not None or (name == "rk4" and t90):
             try:
                 checks.append(_inversion_jellett_row(sim, system_class))
             except NotImplementedError as exc:
