@@ -154,3 +154,100 @@ def test_mujoco_tippe_top_rows_and_what_it_does_not_model():
     assert len(jellett) == 2 and all(r.applies and np.isfinite(r.measured) for r in jellett)
     na = {r.check.split(":")[0] for r in rows if not r.applies}
     assert {"Jellett held (viscous)", "Jellett held (rolling)", "Jellett held (moving table)"} <= na
+
+
+# ---------------------------------------------------------------------------------------------
+# rows at rates where a step of 1e-3 matters; the physical bound on the step-scaled tolerances
+
+from rbenvs.verify import free_body as fb, heavy_top as ht  # noqa: E402
+from rbenvs.verify.common import ENERGY_BOUND, MOMENTUM_BOUND, ROUND_OFF, scaled_tolerance  # noqa: E402
+from rbenvs.verify.simulator import CallableSimulator, as_simulators  # noqa: E402
+
+FAST_ROWS = set(fb.FAST_ROWS.values())
+
+
+def _fast_tumble(sim, seed=0):
+    return fb._fast_tumble_checks(sim, fb._fast_tumble_cases(np.random.default_rng([seed, 1]), 1), None)
+
+
+def _small_top(sim, seed=0):
+    (top,) = ht._random_small_tops(np.random.default_rng([seed, 3]), 1)
+    setting = ht.HEAVY_TOP_SETTINGS[sim.integrator.name if sim.dt is None else verify.common.reference_scheme(sim.order)]
+    rows = []
+    ht.threshold_checks(ht.HeavyTop(top.params), sim, setting, top, rows.append)
+    return rows
+
+
+def test_the_fast_rows_pass_on_rbenvs_own_integrators():
+    """The fast tumble (30 rad/s, 5 s) and the small fast top (critical spin ~100 rad/s) pass on
+    rbenvs' own schemes at their verify steps: rk4 on the tumble, rk4 and the splitting on the
+    top, rk4 from two seeds (the others run in `rbenvs verify --quick`)."""
+    for seed in (0, 1):
+        rows = _fast_tumble(as_simulators(["rk4"])[0], seed)
+        assert {r.check for r in rows} == FAST_ROWS and all(r.passed for r in rows), testing.failures(rows)
+        assert max(r.measured for r in rows) < 1e-7  # rk4 at its step
+    for seed, names in ((0, ("rk4", "splitting")), (1, ("rk4",))):
+        rows = [r for name in names for r in _small_top(as_simulators([name])[0], seed)]
+        assert len(rows) == 3 * len(names) and all(r.passed for r in rows), testing.failures(rows)
+        assert 70.0 < rows[0].predicted < 160.0  # a small fast top: the critical spin ~100 rad/s
+
+
+def test_dropping_the_gyroscopic_term_fails_the_fast_tumble_but_keeps_its_invariants():
+    rows = {r.check: r for r in _fast_tumble(CallableSimulator(without_gyroscopic_term, dt=1e-3, order=4))}
+    assert not rows[fb.FAST_ROWS["exact"]].passed and rows[fb.FAST_ROWS["exact"]].measured > 0.5
+    assert rows[fb.FAST_ROWS["energy"]].passed and rows[fb.FAST_ROWS["momentum"]].passed
+    # and a correct engine at the same step passes all three
+    assert all(r.passed for r in _fast_tumble(CallableSimulator(euler_equations_rk4, dt=1e-3, order=4)))
+
+
+def test_a_first_order_tolerance_is_bounded_by_the_physics():
+    """A first-order engine at a step 100x Euler's verify step was held to 100x Euler's
+    tolerance (2 = 200% on the free body's energy); the bound holds it to 2% of |Pi| and 4% of
+    the energy. An engine that damps |Pi| by 3% in 10 s (energy 6%) now fails both rows."""
+    h_ref, _, tol_ref = fb.FREE_BODY_SETTINGS["euler"]
+    assert scaled_tolerance(tol_ref, 100 * h_ref, h_ref, 1, 1, ENERGY_BOUND) == ENERGY_BOUND + ROUND_OFF
+    assert scaled_tolerance(tol_ref, 0.1 * h_ref, h_ref, 1, 1, ENERGY_BOUND) == pytest.approx(0.1 * tol_ref + ROUND_OFF)
+    from rbenvs.integrators import get_integrator
+
+    rk4 = get_integrator("rk4")
+
+    def damped(problem, y, u, dt):
+        if problem.system != "free_body":
+            raise NotImplementedError("free body only")
+        return tuple(np.array(rk4.step(problem.model, y, u, dt)) * (1.0 - 0.003 * dt))
+
+    rows = {r.check: r for r in testing.verify(damped, systems=("free_body",), dt=0.02, order=1) if "fast" not in r.check}
+    for check, bound in (("energy drift (rel.)", ENERGY_BOUND), ("|Pi| drift (rel.)", MOMENTUM_BOUND)):
+        assert not rows[check].passed and rows[check].tolerance == pytest.approx(bound, abs=1e-9)
+
+
+def test_mujoco_at_1e_3_damps_the_fast_tumble_and_its_euler_family_misses_the_threshold():
+    """What is known of MuJoCo at dt = 1e-3 (docs/verification.md): implicitfast damps the fast
+    tumble (energy and |Pi| lost beyond the physical bound) and lets Jellett's integral drift
+    through a tippe top's inversion; Euler, implicit and implicitfast miss the small fast top's
+    threshold; RK4 passes all three."""
+    pytest.importorskip("mujoco")
+    from rbenvs.verify.mujoco_adapter import MujocoSimulator
+
+    sims = {name: MujocoSimulator(name, 1e-3) for name in ("RK4", "implicitfast", "implicit", "Euler")}
+    rows = {r.check: r for r in _fast_tumble(sims["implicitfast"])}
+    energy = rows[fb.FAST_ROWS["energy"]]
+    assert not energy.passed and energy.measured > 0.1 and energy.tolerance == pytest.approx(ENERGY_BOUND, abs=1e-9)
+    assert max(energy.case["energy change at T (rel.)"]) < -0.05  # every start loses energy: damping
+    assert all(not r.passed for r in rows.values())
+    rk4 = _fast_tumble(sims["RK4"])
+    assert all(r.passed for r in rk4) and max(r.measured for r in rk4) < 1e-7, testing.failures(rk4)
+    assert all(r.passed for r in _small_top(sims["RK4"]))
+    # Jellett's integral through a whole inversion of the default top: the Euler family drifts
+    # beyond the 2% bound, RK4 keeps it
+    from rbenvs.verify.tippe_top import _inversion_jellett_row
+
+    row = _inversion_jellett_row(sims["implicitfast"])
+    assert not row.passed and row.measured > 0.03 and row.tolerance == pytest.approx(MOMENTUM_BOUND, abs=1e-9)
+    assert row.case["max tilt [deg]"] > 150.0  # it did invert
+    row = _inversion_jellett_row(sims["RK4"])
+    assert row.passed and row.measured < 1e-4
+    for name in ("Euler", "implicitfast", "implicit"):
+        bisection, above, below = _small_top(sims[name])
+        assert not bisection.passed and not above.passed, name  # the threshold missed
+        assert above.measured > 0.1 or name == "implicit"  # Euler's family: the stable top falls

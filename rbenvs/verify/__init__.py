@@ -9,10 +9,11 @@ measured comes from the simulation.
 Systems (``--system``, repeatable; default all):
 
 * ``free_body``: :mod:`rbenvs.verify.free_body` (docs/physics.md §1): exact solution, invariants,
-  axis stability and growth rate, torque balance;
+  axis stability and growth rate, torque balance; a fast tumble (30 rad/s) against the exact
+  solution and its invariants;
 * ``heavy_top``: :mod:`rbenvs.verify.heavy_top` (docs/physics.md §2): critical spin by bisection,
   upright stable above / unstable below with the growth rate, regular precession held, fast
-  top nutation, invariants. Not for ``exact`` (the heavy top has no exact flow).
+  top nutation, invariants; the threshold of small fast tops (critical spin ~100 rad/s). Not for ``exact`` (the heavy top has no exact flow).
 * ``tippe_top``: :mod:`rbenvs.verify.tippe_top` (docs/physics.md §3): Jellett's integral held under
   Coulomb and viscous friction, without friction, rolling and on a moving table; the energy
   non-increasing under friction and conserved without; inversion where the criterion says and
@@ -47,8 +48,8 @@ from ..integrators import INTEGRATORS, get_integrator
 from ..progress import Progress
 from .common import ROUND_OFF, Check, reference_scheme
 from .simulator import parse_simulator
-from .free_body import FREE_BODY_SETTINGS, free_body_checks
-from .heavy_top import HEAVY_TOP_SETTINGS, heavy_top_checks
+from .free_body import FAST_TUMBLE_BODIES, FREE_BODY_SETTINGS, free_body_checks
+from .heavy_top import HEAVY_TOP_SETTINGS, SMALL_TOP_CASES, heavy_top_checks
 from . import tippe_top as _tippe
 from .tippe_top import TIPPE_TOP_SETTINGS, tippe_top_checks
 from ..render.common import plot_unavailable
@@ -92,15 +93,15 @@ def run_checks(systems=SYSTEMS, integrators=None, quick=False, seed=0, show_prog
     ht = [n for n in integrators if n in HEAVY_TOP_SETTINGS] if "heavy_top" in systems else []
     tt = [n for n in integrators if n in TIPPE_TOP_SETTINGS] if "tippe_top" in systems else []
     unverified = _unverified(systems, integrators)
-    n_fb = FREE_BODY_CASES[0 if quick else 1]
-    n_ht = HEAVY_TOP_CASES[0 if quick else 1]
-    total = len(fb) * (n_fb + 1) + len(ht) * n_ht + _tippe.progress_total(tt, quick=quick)
+    n_fb, n_fast = FREE_BODY_CASES[0 if quick else 1], FAST_TUMBLE_BODIES[0 if quick else 1]
+    n_ht, n_small = HEAVY_TOP_CASES[0 if quick else 1], SMALL_TOP_CASES[0 if quick else 1]
+    total = len(fb) * (n_fb + 1 + n_fast) + len(ht) * (n_ht + n_small) + _tippe.progress_total(tt, quick=quick)
     progress = Progress(total=total, enabled=show_progress, desc="verify")
     checks = list(unverified)
     if fb:
-        checks += free_body_checks(fb, seed=seed, n_cases=n_fb, progress=progress.update)
+        checks += free_body_checks(fb, seed=seed, n_cases=n_fb, progress=progress.update, n_fast=n_fast)
     if ht:
-        checks += heavy_top_checks(ht, seed=seed, n_tops=n_ht, progress=progress.update)
+        checks += heavy_top_checks(ht, seed=seed, n_tops=n_ht, progress=progress.update, n_small=n_small)
     if tt:
         checks += tippe_top_checks(tt, seed=seed, quick=quick, progress=progress.update)
     progress.close()
@@ -111,17 +112,17 @@ def _run_simulators(systems, sims, quick, seed, show_progress) -> list[Check]:
     unknown = [s for s in systems if s not in SYSTEMS]
     if unknown:
         raise ValueError(f"system must be one of {list(SYSTEMS)}, got {unknown[0]!r}")
-    n_fb = FREE_BODY_CASES[0 if quick else 1]
-    n_ht = HEAVY_TOP_CASES[0 if quick else 1]
+    n_fb, n_fast = FREE_BODY_CASES[0 if quick else 1], FAST_TUMBLE_BODIES[0 if quick else 1]
+    n_ht, n_small = HEAVY_TOP_CASES[0 if quick else 1], SMALL_TOP_CASES[0 if quick else 1]
     own = [s.integrator.name if s.dt is None else reference_scheme(s.order) for s in sims]
-    total = len(sims) * ((n_fb + 1) * ("free_body" in systems) + n_ht * ("heavy_top" in systems))
+    total = len(sims) * ((n_fb + 1 + n_fast) * ("free_body" in systems) + (n_ht + n_small) * ("heavy_top" in systems))
     total += _tippe.progress_total(own, quick=quick) if "tippe_top" in systems else 0
     progress = Progress(total=total, enabled=show_progress, desc="verify")
     checks: list[Check] = []
     # one simulator at a time, each from the same seed: every simulator meets the same random
     # bodies and starts, so that a comparison's columns are the same cases
-    for system, family in (("free_body", lambda sim: free_body_checks([sim], seed=seed, n_cases=n_fb, progress=progress.update)),
-                           ("heavy_top", lambda sim: heavy_top_checks([sim], seed=seed, n_tops=n_ht, progress=progress.update)),
+    for system, family in (("free_body", lambda sim: free_body_checks([sim], seed=seed, n_cases=n_fb, progress=progress.update, n_fast=n_fast)),
+                           ("heavy_top", lambda sim: heavy_top_checks([sim], seed=seed, n_tops=n_ht, progress=progress.update, n_small=n_small)),
                            ("tippe_top", lambda sim: tippe_top_checks([sim], seed=seed, quick=quick, progress=progress.update))):
         if system in systems:
             for sim in sims:

@@ -6,7 +6,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
-__all__ = ["Check", "ROUND_OFF", "worst", "not_applicable", "reference_scheme", "scaled_tolerance"]
+__all__ = ["Check", "ROUND_OFF", "RATE_TOL", "MOMENTUM_BOUND", "ENERGY_BOUND", "ANGLE_BOUND", "worst", "not_applicable",
+           "reference_scheme", "scaled_tolerance"]
 
 ROUND_OFF = 1e-13  # relative; for the invariants an integrator declares it conserves
 
@@ -77,16 +78,33 @@ def worst(candidates: list[Check]) -> Check:
 # tolerance whatever the step; the accuracy rows (an exact solution, an invariant's drift), which
 # rbenvs' integrators meet at their verify steps with tolerances set from their order, take the
 # tolerance of rbenvs' scheme of the simulator's declared order, scaled from that scheme's step to
-# the simulator's by the order, (omega dt / omega h)^p, plus round-off.
+# the simulator's by the order, (omega dt / omega h)^p, and never above the row's physical bound
+# (below), plus round-off.
+#
+# The physical bounds. The behaviour rows hold a rate (a growth rate, a precession rate, the size
+# of an orbit) to RATE_TOL relative. The rates of a rotating body scale with its momenta (|Omega|
+# = |Pi|/I) and with the square root of its energy: an engine whose momentum-like invariant (|Pi|,
+# Pi.Gamma, Jellett's J, an error of the state relative to its momentum) drifts by more than
+# RATE_TOL, or whose energy drifts by more than 2 RATE_TOL, has moved the body's rates by more than
+# the theorems' rows allow, whatever its order promises at its step. A tilt that should be held is
+# held to the bound of a bounded tilt, ANGLE_BOUND. So an order-1 engine at a step far beyond
+# Euler's verify step, whose order-scaled bound would promise nothing, is held to these.
+RATE_TOL = 0.02  # relative: the behaviour rows' tolerance on a rate
+MOMENTUM_BOUND = RATE_TOL  # relative drift of |Pi|, Pi.Gamma, J; a state error relative to |Pi|
+ENERGY_BOUND = 2.0 * RATE_TOL  # relative drift of an energy (quadratic in the rates)
+ANGLE_BOUND = 1e-2  # rad: a tilt held (the upright heavy top's bound of a bounded tilt)
+
+
 def reference_scheme(order: int) -> str:
     """rbenvs' integrator whose verify tolerances stand for a simulator of declared ``order``:
     ``rk4`` from order 4, else ``euler`` (a second-order engine is held to first order)."""
     return "rk4" if order >= 4 else "euler"
 
 
-def scaled_tolerance(tolerance: float, step: float, reference_step: float, order: int, steps: int) -> float:
+def scaled_tolerance(tolerance: float, step: float, reference_step: float, order: int, steps: int, bound: float) -> float:
     """``tolerance`` (the reference scheme's at ``reference_step``) at ``step``, both as ``omega h``
-    of the same run: ``tolerance (step / reference_step)^p`` with ``p`` the reference scheme's
-    order, plus ``ROUND_OFF sqrt(steps)``."""
+    of the same run: ``min(tolerance (step / reference_step)^p, bound)`` with ``p`` the reference
+    scheme's order and ``bound`` the row's physical bound (:data:`MOMENTUM_BOUND`,
+    :data:`ENERGY_BOUND`, :data:`ANGLE_BOUND`, :data:`RATE_TOL`), plus ``ROUND_OFF sqrt(steps)``."""
     p = 4 if reference_scheme(order) == "rk4" else 1
-    return tolerance * (step / reference_step) ** p + ROUND_OFF * math.sqrt(max(steps, 1))
+    return min(tolerance * (step / reference_step) ** p, bound) + ROUND_OFF * math.sqrt(max(steps, 1))

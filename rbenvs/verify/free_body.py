@@ -11,11 +11,24 @@ random bodies:
   of the sampled power and the scheme's own error are both below 1e-4 at these steps);
 * ``<major|minor> axis: max transverse |Pi|``: about the stable axes a ``1e-3`` perturbation
   stays bounded over 50 rotations (Lyapunov stability), and its largest size matches that of
-  the exact orbit through the same state within 2%.
+  the exact orbit through the same state within 2%;
+* ``fast tumble``: a body thrown tumbling at ``|Omega| = 30`` rad/s (about five turns a second)
+  for 5 s (150 radians): two starts near the intermediate axis (``Omega`` along it, plus a
+  transverse part ``U(0.05, 0.2)`` of it: the body flips over and back every half period, the
+  Dzhanibekov effect) and two of uniformly random direction, on random bodies whose moments
+  differ by at least 20% (``FAST_DISTINCT``: in a nearly symmetric body ``Pi`` turns slowly in
+  the body whatever ``|Omega|``, and a step error with it), :data:`FAST_TUMBLE_BODIES` of them:
+  the largest error against the exact solution (relative to
+  ``|Pi0|``) and the largest relative drifts of the energy and ``|Pi|`` over the run. Here a step
+  of ``1e-3`` s is ``|Omega| dt = 0.03``: a first-order engine's error is then no longer small,
+  and its tolerance is the physical bound of :mod:`rbenvs.verify.common` (2% of ``|Pi|``, 4% of
+  the energy), not what its order would promise.
 
 Parameter ranges: moments ``I_i ~ U(0.5, 2)`` kg m^2 (triangle inequality enforced by
 rejection, distinct by at least 5% for the axis checks), body angular velocity of uniformly
-random direction and ``|Omega| = 1`` rad/s (fast spins belong to the extremes tests).
+random direction and ``|Omega| = 1`` rad/s but for the fast tumble (faster spins belong to the
+extremes tests). The fast tumble's bodies and starts come from a generator of their own
+(``[seed, 1]``), so that the other rows' draws do not depend on it.
 """
 
 from __future__ import annotations
@@ -26,10 +39,10 @@ import numpy as np
 
 from ..dynamics import FreeBody, FreeBodyParams
 from ..oracles import exact_solution, intermediate_axis_growth_rate, orbit_period
-from .common import ROUND_OFF, Check, not_applicable, reference_scheme, scaled_tolerance
+from .common import ENERGY_BOUND, MOMENTUM_BOUND, ROUND_OFF, Check, not_applicable, reference_scheme, scaled_tolerance
 from .simulator import advance, as_simulators, start
 
-__all__ = ["FREE_BODY_SETTINGS", "free_body_checks"]
+__all__ = ["FREE_BODY_SETTINGS", "FAST_TUMBLE_SETTINGS", "FAST_TUMBLE_BODIES", "free_body_checks"]
 
 
 # Step sizes per integrator (s) for |Omega| ~ 1 rad/s, and the accuracy each is held to over
@@ -41,6 +54,29 @@ FREE_BODY_SETTINGS = {
     "splitting": (5e-3, 1e-3, 1e-4),  # (|Omega| h)^2 |Omega| T ~ 2.5e-4; |Pi| exact
     "exact": (0.1, 1e-11, 1e-12),  # round-off
     "dop853": (1.0, 1e-9, 1e-10),  # rtol 1e-12 per unit time
+}
+
+
+# The fast tumble (module docstring): |Omega| [rad/s], horizon [s], bodies (quick, full), and per
+# integrator ``omega h`` (for dop853 the sampling interval), the exact-solution and invariant
+# tolerances over its 150 radians. Measured worst over 3 seeds x 3 bodies x 4 starts in brackets:
+# euler at omega h = 5e-4: exact [7.4e-3], energy [9.8e-3], |Pi| [6.1e-3]: the error of a
+# first-order scheme grows with the rate Pi turns at in the body, below |Omega|, and 2e-2 is the
+# physical bound (rbenvs.verify.common); rk4 at 2e-2: exact [2.3e-8], energy [2.4e-10];
+# splitting at 1e-2: exact [1.8e-3], energy [1.3e-5] (bounded: symplectic), |Pi| round-off;
+# exact: [4.5e-11] near the separatrix (the elliptic functions' conditioning), invariants
+# round-off; dop853 (seed 0): exact [1.0e-11], energy [1.0e-12].
+FAST_SPIN = 30.0
+FAST_HORIZON = 5.0
+FAST_TUMBLE_BODIES = (1, 3)
+FAST_DISTINCT = 0.2  # each moment at least 1.2 times the next smaller: a tumbling body, not a near-symmetric spinner
+FAST_TUMBLE_SETTINGS = {
+    #            omega h  exact tol  invariant tol
+    "euler": (5e-4, 2e-2, 2e-2),
+    "rk4": (2e-2, 1e-7, 1e-8),
+    "splitting": (1e-2, 1e-2, 1e-4),
+    "exact": (0.1, 1e-9, 1e-12),
+    "dop853": (1.0, 1e-9, 1e-10),
 }
 
 
@@ -57,14 +93,16 @@ def _random_inertia(rng, n, distinct=0.0):
     return np.array(out)
 
 
-def free_body_checks(integrators, seed=0, n_cases=6, horizon=10.0, progress=None) -> list[Check]:
+def free_body_checks(integrators, seed=0, n_cases=6, horizon=10.0, progress=None, n_fast=0) -> list[Check]:
     """The free-body rows of each of ``integrators``: rbenvs integrator names or
     :class:`~rbenvs.verify.simulator.Simulator` objects (at their own step, the tolerance rule of
-    :func:`~rbenvs.verify.common.scaled_tolerance`)."""
+    :func:`~rbenvs.verify.common.scaled_tolerance`); ``n_fast`` bodies tumble fast (``rbenvs verify``:
+    :data:`FAST_TUMBLE_BODIES`)."""
     rng = np.random.default_rng(seed)
     checks: list[Check] = []
     inertias = _random_inertia(rng, n_cases)
     axis_inertias = _random_inertia(rng, max(2, n_cases // 2), distinct=0.05)
+    fast = _fast_tumble_cases(np.random.default_rng([seed, 1]), n_fast)
     for sim in as_simulators(integrators):
         try:
             checks.extend(_checks_of(sim, inertias, axis_inertias, rng, horizon, progress))
@@ -74,6 +112,12 @@ def free_body_checks(integrators, seed=0, n_cases=6, horizon=10.0, progress=None
             checks.extend(not_applicable("free_body", sim.name, names, str(exc)))
             if progress:
                 progress(len(inertias) + 1)
+        try:
+            checks.extend(_fast_tumble_checks(sim, fast, progress))
+        except NotImplementedError as exc:
+            checks.extend(not_applicable("free_body", sim.name, list(FAST_ROWS.values()), str(exc)))
+            if progress:
+                progress(len(fast))
     return checks
 
 
@@ -83,6 +127,9 @@ MOMENTUM_ROW = "|Pi| drift (rel.)"
 TORQUE_ROW = "torque: d|Pi|^2 = 2 Pi.tau dt over 2 s"
 AXIS_ROWS = {"major": "major axis: max transverse |Pi| / initial (stable)", "intermediate": "intermediate axis: growth rate [1/s]",
              "minor": "minor axis: max transverse |Pi| / initial (stable)"}
+_FAST = f"fast tumble ({FAST_SPIN:g} rad/s, {FAST_HORIZON:g} s)"
+FAST_ROWS = {"exact": f"{_FAST}: exact solution (max rel. error)", "energy": f"{_FAST}: energy drift (rel.)",
+             "momentum": f"{_FAST}: |Pi| drift (rel.)"}
 
 
 def _sampled(run, steps, every, u, h, last=False):
@@ -108,8 +155,11 @@ def _checks_of(sim, inertias, axis_inertias, rng, horizon, progress) -> list[Che
         h = sim.dt
     steps = int(round(horizon / h))
     if not own:  # |Omega| = 1 rad/s: omega h is h
-        tol_exact = scaled_tolerance(ref_exact, h, ref_h, sim.order, steps)
-        tol_inv = scaled_tolerance(ref_inv, h, ref_h, sim.order, steps)
+        tol_exact = scaled_tolerance(ref_exact, h, ref_h, sim.order, steps, MOMENTUM_BOUND)
+        tol_inv = scaled_tolerance(ref_inv, h, ref_h, sim.order, steps, ENERGY_BOUND)
+        tol_inv_p = scaled_tolerance(ref_inv, h, ref_h, sim.order, steps, MOMENTUM_BOUND)
+    else:
+        tol_inv_p = tol_inv
     worst_err, worst_e, worst_p = 0.0, 0.0, 0.0
     worst_case = {}
     for inertia in inertias:
@@ -137,7 +187,7 @@ def _checks_of(sim, inertias, axis_inertias, rng, horizon, progress) -> list[Che
     checks = [Check("free_body", name, EXACT_ROW.format(horizon=horizon), 0.0, worst_err, tol_exact, case=worst_case)]
     conserves = sim.integrator.conserves if own else ()
     tol_e = ROUND_OFF * steps**0.5 if "energy" in conserves else tol_inv
-    tol_p = ROUND_OFF * steps**0.5 if "casimirs" in conserves else tol_inv  # |Pi|: the free body's Casimir
+    tol_p = ROUND_OFF * steps**0.5 if "casimirs" in conserves else tol_inv_p  # |Pi|: the free body's Casimir
     checks.append(Check("free_body", name, ENERGY_ROW, 0.0, worst_e, tol_e))
     checks.append(Check("free_body", name, MOMENTUM_ROW, 0.0, worst_p, tol_p))
     try:
@@ -228,3 +278,64 @@ def _axis_checks(sim, inertias, h) -> list[Check]:
                                  predicted / (math.sqrt(2) * eps * p), measured_max / (math.sqrt(2) * eps * p), 0.02, relative=True,
                                  case={"inertia": inertia.tolist(), "axis": int(j), "h": h}))
     return out
+
+
+def _fast_tumble_cases(rng, n) -> list[tuple[np.ndarray, np.ndarray]]:
+    """``n`` (inertia, ``Pi0`` of shape (3, 4)) of the fast tumble (module docstring)."""
+    cases = []
+    for inertia in _random_inertia(rng, n, distinct=FAST_DISTINCT):
+        j = int(np.argsort(inertia)[1])  # the intermediate axis
+        directions = []
+        for _ in range(2):
+            transverse = rng.standard_normal(3)
+            transverse[j] = 0.0
+            d = np.zeros(3)
+            d[j] = 1.0
+            directions.append(d + rng.uniform(0.05, 0.2) * transverse / np.linalg.norm(transverse))
+        directions += [rng.standard_normal(3) for _ in range(2)]
+        omega = np.array(directions).T
+        omega *= FAST_SPIN / np.linalg.norm(omega, axis=0)
+        cases.append((inertia, omega * inertia[:, None]))
+    return cases
+
+
+def _fast_tumble_checks(sim, cases, progress) -> list[Check]:
+    """The fast tumble's rows: the worst over ``cases`` of the exact-solution error and the
+    energy and ``|Pi|`` drifts (the largest over the run, sampled 50 times)."""
+    own = sim.dt is None
+    name = sim.name
+    ref = sim.integrator.name if own else reference_scheme(sim.order)
+    omega_h, tol_exact, tol_inv = FAST_TUMBLE_SETTINGS[ref]
+    h = omega_h / FAST_SPIN if own else sim.dt
+    steps = int(round(FAST_HORIZON / h))
+    worst = {"exact": (0.0, {}), "energy": (0.0, {}), "momentum": (0.0, {})}
+    for inertia, pi0 in cases:
+        system = FreeBody(FreeBodyParams(tuple(inertia)))
+        run = start(sim, system, tuple(pi0))
+        e0, p0 = system.energy(tuple(pi0)), np.linalg.norm(pi0, axis=0)
+        errors = {"exact": 0.0, "energy": 0.0, "momentum": 0.0}
+        for k, y in _sampled(run, steps, max(1, steps // 50), None, h, last=True):
+            exact = exact_solution(inertia, pi0, k * h)
+            errors["exact"] = max(errors["exact"], float(np.max(np.abs(np.array(y) - exact) / p0)))
+            errors["energy"] = max(errors["energy"], float(np.max(np.abs(system.energy(y) - e0) / e0)))
+            errors["momentum"] = max(errors["momentum"], float(np.max(np.abs(system.momentum_norm(y) - p0) / p0)))
+        # the signed changes over the run (a loss is damping, a gain Euler's outward drift)
+        case = {"inertia": inertia.tolist(), "pi0": pi0.T.tolist(), "h": h, "T": FAST_HORIZON,
+                "energy change at T (rel.)": (np.asarray(system.energy(y)) / e0 - 1.0).tolist(),
+                "|Pi| change at T (rel.)": (np.asarray(system.momentum_norm(y)) / p0 - 1.0).tolist()}
+        for key, err in errors.items():
+            if not err <= worst[key][0]:  # a nan is kept
+                worst[key] = (err, case)
+        if progress:
+            progress()
+    conserves = sim.integrator.conserves if own else ()
+    round_off = ROUND_OFF * steps**0.5
+    if own:
+        tols = {"exact": tol_exact, "energy": round_off if "energy" in conserves else tol_inv,
+                "momentum": round_off if "casimirs" in conserves else tol_inv}
+    else:
+        omega_dt = FAST_SPIN * h
+        tols = {"exact": scaled_tolerance(tol_exact, omega_dt, omega_h, sim.order, steps, MOMENTUM_BOUND),
+                "energy": scaled_tolerance(tol_inv, omega_dt, omega_h, sim.order, steps, ENERGY_BOUND),
+                "momentum": scaled_tolerance(tol_inv, omega_dt, omega_h, sim.order, steps, MOMENTUM_BOUND)}
+    return [Check("free_body", name, FAST_ROWS[key], 0.0, worst[key][0], tols[key], case=worst[key][1]) for key in FAST_ROWS]
