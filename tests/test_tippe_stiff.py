@@ -267,3 +267,24 @@ def test_rosenbrock_w_compiled_step_is_the_float_step_bit_for_bit(scheme, free_f
     y_c, _, _ = _run(25, "rest", periods=10, integrator=scheme, compiled=True, free_flight=free_flight)
     y_f, _, _ = _run(25, "rest", periods=10, integrator=scheme, compiled=False, free_flight=free_flight)
     assert np.array_equal(y_c, y_f)
+
+
+def test_steps_bench_measures_an_inversion_and_the_tight_count():
+    """``python -m rbenvs.bench.tippe_steps``' pieces: the tight count is rk4's real-axis interval
+    over the tight rate at the start (recomputed here from the dense mobility), and a row from
+    the vertical start (which passes 90 degrees while still sliding) agrees with the converged
+    value of the same model (rk4 at 160 steps) and keeps the energy from rising."""
+    from rbenvs.bench import tippe_steps
+
+    env = gym.make(ID, start="rolling", spin=150.0, tilt=0.1).unwrapped
+    env.reset(seed=0)
+    y, p = env.state_components, env.system.form_params
+    rm = tippe_frame(*y[4:8])
+    mob, proj = _mobility(p, np.array(rm[6:9]))
+    rate = p[6] * env.system.constraint_normal_force(y, None) * np.linalg.eigvalsh(proj @ mob @ proj).max() / p[7]
+    assert tippe_steps.tight_count("rolling", 150.0) == math.ceil(env.dt * rate / 2.785)
+    fine = tippe_steps.inversion("vertical", 180.0, 160, compiled=False)
+    coarse = tippe_steps.inversion("vertical", 180.0, 20, compiled=False)
+    assert fine["ended"] is None and coarse["ended"] is None and coarse["steps"] == 20.0
+    assert abs(coarse["t90"] - fine["t90"]) < 1e-6 and coarse["rise"] <= 0.0 and coarse["drift"] < 1e-6
+    assert "| vertical | 180 |" in tippe_steps.table([dict(coarse, start="vertical", spin=180.0, law="coulomb", scheme="rk4", count=20, error=0.0)])
