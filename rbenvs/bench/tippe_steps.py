@@ -7,9 +7,10 @@ tests/test_tippe_starts.py measures it), its error against the converged value o
 largest relative drift, the largest energy rise between periods, the least normal force over
 ``m g``, the internal steps a period and the wall time per simulated 10 ms of a single env
 (compiled where numba is installed). Counts are fixed (``guard="off"``), ``guard`` (the env's
-default guard) or ``tight`` (the count the friction's tight stability bound gives at the start,
-``dt lambda_d / 2.785`` with ``lambda_d`` at the actual normal force and mobility:
-:func:`rbenvs.dynamics.tippe_top.implicit_forms`' ``rate``; rk4's real-axis interval, no margin).
+default guard) or ``tight`` (the count a guard with the friction's tight stability bound would
+take at the start: ``dt lambda_d / 2.785`` with ``lambda_d`` at the actual normal force and
+mobility, :func:`rbenvs.dynamics.tippe_top.implicit_forms`' ``rate``, rk4's whole real-axis
+interval, no margin; and at least the guard's spin bound).
 
 It measures what the guard's bound is for: near zero slip the regularised friction relaxes the
 slip at ``lambda_d`` (about 6000/s for the default top) and the slow motion depends on how the
@@ -48,11 +49,17 @@ def _make(start, spin, law, integrator, substeps, guard, compiled, max_periods):
 
 
 def tight_count(start, spin, law="coulomb") -> int:
-    """The count rk4's real-axis interval needs at the start for the tight friction rate."""
+    """The count a guard with the tight friction bound would take at the start: rk4's whole
+    real-axis interval over the tight rate, and the spin bound (``SPIN_STEP`` rad of ``max(|Omega|,
+    omega_g)`` a step) the guard keeps for every scheme."""
+    from ..dynamics.tippe_top import SPIN_STEP, tippe_rotation_rate
+
     env = _make(start, spin, law, "rk4", 1, "off", False, 1)
     env.reset(seed=0)
-    rate = env.system.implicit.rate(env.system.form_params, env.state_components, None)
-    return max(1, math.ceil(env.dt * rate / RK4_REAL_INTERVAL))
+    system, y = env.system, env.state_components
+    rate = system.implicit.rate(system.form_params, y, None)
+    spin_rate = tippe_rotation_rate((system._w, env.params.gravity_rate()), y)
+    return max(1, math.ceil(env.dt * rate / RK4_REAL_INTERVAL), math.ceil(env.dt * spin_rate / SPIN_STEP))
 
 
 def inversion(start="rest", spin=180.0, substeps=None, integrator="rk4", law="coulomb", compiled="auto", max_periods=2000) -> dict:
