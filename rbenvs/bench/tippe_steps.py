@@ -10,7 +10,8 @@ largest relative drift, the largest energy rise between periods, the least norma
 default guard) or ``tight`` (the count a guard with the friction's tight stability bound would
 take at the start: ``dt lambda_d / 2.785`` with ``lambda_d`` at the actual normal force and
 mobility, :func:`rbenvs.dynamics.tippe_top.implicit_forms`' ``rate``, rk4's whole real-axis
-interval, no margin; and at least the guard's spin bound).
+interval, no margin; and at least the guard's spin bound) or ``accuracy`` (the env's guard with
+``friction_bound="accuracy"``).
 
 It measures what the guard's bound is for: near zero slip the regularised friction relaxes the
 slip at ``lambda_d`` (about 6000/s for the default top) and the slow motion depends on how the
@@ -38,14 +39,14 @@ def _scheme(name):
     return {"ros2": Ros2(), "ros34pw2": Ros34pw2()}.get(name, name)
 
 
-def _make(start, spin, law, integrator, substeps, guard, compiled, max_periods):
+def _make(start, spin, law, integrator, substeps, guard, compiled, max_periods, friction_bound="stability"):
     import gymnasium as gym
 
     import rbenvs  # noqa: F401  (registers the ids)
 
     friction = {"coulomb": 0.3, "viscous": 30.0}[law]
     return gym.make(ID, start=start, spin=spin, tilt=0.1, friction_law=law, friction=friction, integrator=_scheme(integrator),
-                    substeps=substeps, guard=guard, compiled=compiled, max_episode_steps=max_periods + 1).unwrapped
+                    substeps=substeps, guard=guard, compiled=compiled, max_episode_steps=max_periods + 1, friction_bound=friction_bound).unwrapped
 
 
 def tight_count(start, spin, law="coulomb") -> int:
@@ -62,15 +63,19 @@ def tight_count(start, spin, law="coulomb") -> int:
     return max(1, math.ceil(env.dt * rate / RK4_REAL_INTERVAL), math.ceil(env.dt * spin_rate / SPIN_STEP))
 
 
-def inversion(start="rest", spin=180.0, substeps=None, integrator="rk4", law="coulomb", compiled="auto", max_periods=2000) -> dict:
+def inversion(start="rest", spin=180.0, substeps=None, integrator="rk4", law="coulomb", compiled="auto", max_periods=2000,
+              friction_bound="stability") -> dict:
     """One inversion: ``substeps`` a count (fixed, guard off), ``None`` (the env's guard) or
-    ``"tight"`` (:func:`tight_count`). Returns ``t90`` [s] (``nan``: no inversion, with
+    ``"tight"`` (:func:`tight_count`); ``"accuracy"``: the env's guard with
+    ``friction_bound="accuracy"``. Returns ``t90`` [s] (``nan``: no inversion, with
     ``ended`` saying why), ``drift``, ``rise`` [J], ``least_normal`` [m g], ``steps`` (mean
     internal steps a period) and ``us_per_period`` (wall time per control period)."""
     if substeps == "tight":
         substeps = tight_count(start, spin, law)
+    if substeps == "accuracy":
+        substeps, friction_bound = None, "accuracy"
     guard = "subdivide" if substeps is None else "off"
-    env = _make(start, spin, law, integrator, substeps or 1, guard, compiled, max_periods)
+    env = _make(start, spin, law, integrator, substeps or 1, guard, compiled, max_periods, friction_bound)
     action = np.zeros(env.action_space.shape, dtype=np.float32)
     env.reset(seed=0)
     env.step(action)  # (builds the compiled step outside the timing)
@@ -127,8 +132,8 @@ def table(results) -> str:
 
 
 def _count(text):
-    if text in ("guard", "tight"):
-        return None if text == "guard" else "tight"
+    if text in ("guard", "tight", "accuracy"):
+        return None if text == "guard" else text
     return int(text)
 
 
@@ -136,7 +141,7 @@ def main(argv=None) -> int:
     parser = argparse.ArgumentParser(prog="python -m rbenvs.bench.tippe_steps", description=__doc__.splitlines()[0])
     parser.add_argument("--starts", default="rest:180,rolling:150,vertical:180", help="start:spin,... (a negative spin turns the other way)")
     parser.add_argument("--laws", default="coulomb", help="coulomb,viscous")
-    parser.add_argument("--counts", default="guard,tight,40,80,160", help="internal steps a period: numbers, guard, tight")
+    parser.add_argument("--counts", default="guard,tight,40,80,160", help="internal steps a period: numbers, guard, tight, accuracy (the guard with friction_bound='accuracy')")
     parser.add_argument("--schemes", default="rk4", help="rk4,euler,ros2,ros34pw2")
     parser.add_argument("--reference", default="640", help="rk4 steps a period of the converged value, or dop853")
     a = parser.parse_args(argv)

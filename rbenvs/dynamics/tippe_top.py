@@ -103,6 +103,8 @@ __all__ = [
     "FRICTION_LAWS",
     "SPIN_STEP",
     "FRICTION_MARGIN",
+    "FRICTION_BOUNDS",
+    "ACCURACY_MARGIN",
     "PURE_PARAMETERS",
     "tippe_rotation_rate",
     "pure_parameters",
@@ -144,6 +146,13 @@ TOUCHDOWN_TOL = 1e-13
 # FRICTION_MARGIN of its real-axis stability interval of the friction's stiffness.
 SPIN_STEP = 0.1
 FRICTION_MARGIN = 0.5
+# friction_bound="accuracy": the tight rate (actual N, mobility along the table) at ACCURACY_MARGIN
+# of the real-axis interval (rk4: lambda_d h <= 0.78). Measured (python -m rbenvs.bench.tippe_steps,
+# tests/test_tippe_stiff.py): rk4's time to 90 degrees within 1e-4 s of the converged value from
+# the rest, rolling and vertical starts, both spin signs, both laws; inside a period the tight rate
+# grows up to about twice its value at the start, which stays inside rk4's interval (2 x 0.78 < 2.78).
+FRICTION_BOUNDS = ("stability", "accuracy")
+ACCURACY_MARGIN = 0.28
 
 
 @jitable
@@ -910,10 +919,13 @@ class TippeTop:
     floats and arrays).
     """
 
-    def __init__(self, params: TippeTopParams, fidelity: str = "gliding", flight: bool = False):
+    def __init__(self, params: TippeTopParams, fidelity: str = "gliding", flight: bool = False, friction_bound: str = "stability"):
         self._memo = None  # the last contact solve (see _contact)
         if fidelity not in FIDELITIES:
             raise ValueError(f"fidelity must be one of {list(FIDELITIES)}, got {fidelity!r}")
+        if friction_bound not in FRICTION_BOUNDS:
+            raise ValueError(f"friction_bound must be one of {list(FRICTION_BOUNDS)}, got {friction_bound!r}")
+        self.friction_bound = friction_bound
         self.fidelity = fidelity
         self.rolling = fidelity == "rolling"
         self.flight = bool(flight)
@@ -1315,14 +1327,21 @@ class TippeTop:
         (0.1 rad, an accuracy bound of this system for every scheme; ``omega_g`` from
         :meth:`TippeTopParams.gravity_rate`), and, with friction, ``h <= c / lambda_d``
         (:meth:`friction_stiffness`) with ``c`` half the scheme's real-axis interval (euler
-        1.0, rk4 1.39; none for dop853)."""
+        1.0, rk4 1.39; none for dop853). With ``friction_bound="accuracy"``: ``lambda_d`` the
+        tight rate (:func:`implicit_forms`' ``rate``: the law's stiffness at the actual ``N`` and
+        the largest mobility along the table) and ``c`` ``ACCURACY_MARGIN`` of the interval
+        (rk4 0.78); a law without a slope (no ``implicit``) keeps the stability bound."""
         omega_g = self.params.gravity_rate()
         dissipation = (self.forms.friction_rate, self.form_params) if self.friction_law is not None else None
+        margin = FRICTION_MARGIN
         text = f"lambda = max(|Omega|, omega_g) (omega_g = {omega_g:.6g} rad/s)"
-        if dissipation is not None:
+        if dissipation is not None and self.friction_bound == "accuracy" and self.implicit is not None and self.implicit.rate is not None:
+            dissipation, margin = (self.implicit.rate, self.form_params), ACCURACY_MARGIN
+            text += f", lambda_d = the {self.friction_law} law's stiffness at N and the mobility along the table (friction_bound='accuracy')"
+        elif dissipation is not None:
             text += f", lambda_d = the {self.friction_law} law's stiffness at 2 max(m g, N)"
         return GuardRates(rotation=(tippe_rotation_rate, (self._w, omega_g)), rotation_bound=SPIN_STEP, dissipation=dissipation,
-                          dissipation_margin=FRICTION_MARGIN, ceiling=max(speed_ceiling, omega_g), text=text)
+                          dissipation_margin=margin, ceiling=max(speed_ceiling, omega_g), text=text)
 
     def max_stable_step(self, region, mu: float | None = None, normal_force: float | None = None) -> float:
         """The largest internal step [s] at which the friction law is stable for a scheme of
