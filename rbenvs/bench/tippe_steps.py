@@ -39,14 +39,14 @@ def _scheme(name):
     return {"ros2": Ros2(), "ros34pw2": Ros34pw2()}.get(name, name)
 
 
-def _make(start, spin, law, integrator, substeps, guard, compiled, max_periods, friction_bound="stability"):
+def _make(start, spin, law, integrator, substeps, guard, compiled, max_periods, friction_bound="stability", **options):
     import gymnasium as gym
 
     import rbenvs  # noqa: F401  (registers the ids)
 
-    friction = {"coulomb": 0.3, "viscous": 30.0}[law]
-    return gym.make(ID, start=start, spin=spin, tilt=0.1, friction_law=law, friction=friction, integrator=_scheme(integrator),
-                    substeps=substeps, guard=guard, compiled=compiled, max_episode_steps=max_periods + 1, friction_bound=friction_bound).unwrapped
+    options.setdefault("friction", {"coulomb": 0.3, "viscous": 30.0}[law])
+    return gym.make(ID, start=start, spin=spin, tilt=0.1, friction_law=law, integrator=_scheme(integrator), substeps=substeps, guard=guard,
+                    compiled=compiled, max_episode_steps=max_periods + 1, friction_bound=friction_bound, **options).unwrapped
 
 
 def tight_count(start, spin, law="coulomb") -> int:
@@ -64,10 +64,10 @@ def tight_count(start, spin, law="coulomb") -> int:
 
 
 def inversion(start="rest", spin=180.0, substeps=None, integrator="rk4", law="coulomb", compiled="auto", max_periods=2000,
-              friction_bound="stability") -> dict:
+              friction_bound="stability", **options) -> dict:
     """One inversion: ``substeps`` a count (fixed, guard off), ``None`` (the env's guard) or
     ``"tight"`` (:func:`tight_count`); ``"accuracy"``: the env's guard with
-    ``friction_bound="accuracy"``. Returns ``t90`` [s] (``nan``: no inversion, with
+    ``friction_bound="accuracy"``; ``options``: more env keywords (``friction``, ...). Returns ``t90`` [s] (``nan``: no inversion, with
     ``ended`` saying why), ``drift``, ``rise`` [J], ``least_normal`` [m g], ``steps`` (mean
     internal steps a period) and ``us_per_period`` (wall time per control period)."""
     if substeps == "tight":
@@ -75,7 +75,7 @@ def inversion(start="rest", spin=180.0, substeps=None, integrator="rk4", law="co
     if substeps == "accuracy":
         substeps, friction_bound = None, "accuracy"
     guard = "subdivide" if substeps is None else "off"
-    env = _make(start, spin, law, integrator, substeps or 1, guard, compiled, max_periods, friction_bound)
+    env = _make(start, spin, law, integrator, substeps or 1, guard, compiled, max_periods, friction_bound, **options)
     action = np.zeros(env.action_space.shape, dtype=np.float32)
     env.reset(seed=0)
     env.step(action)  # (builds the compiled step outside the timing)

@@ -105,6 +105,7 @@ __all__ = [
     "FRICTION_MARGIN",
     "FRICTION_BOUNDS",
     "ACCURACY_MARGIN",
+    "ACCURACY_SCALE",
     "PURE_PARAMETERS",
     "tippe_rotation_rate",
     "pure_parameters",
@@ -146,13 +147,20 @@ TOUCHDOWN_TOL = 1e-13
 # FRICTION_MARGIN of its real-axis stability interval of the friction's stiffness.
 SPIN_STEP = 0.1
 FRICTION_MARGIN = 0.5
-# friction_bound="accuracy": the tight rate (actual N, mobility along the table) at ACCURACY_MARGIN
-# of the real-axis interval (rk4: lambda_d h <= 0.78). Measured (python -m rbenvs.bench.tippe_steps,
-# tests/test_tippe_stiff.py): rk4's time to 90 degrees within 1e-4 s of the converged value from
-# the rest, rolling and vertical starts, both spin signs, both laws; inside a period the tight rate
-# grows up to about twice its value at the start, which stays inside rk4's interval (2 x 0.78 < 2.78).
+# friction_bound="accuracy": h <= ACCURACY_MARGIN of the scheme's real-axis interval over
+# lambda_a = max(lambda_d, ACCURACY_SCALE sqrt(lambda_d w)), lambda_d the tight rate (actual N,
+# mobility along the table), w = max(|Omega|, omega_g). For rk4: h <= 1.25 / lambda_d (stable with
+# the tight rate's growth within a period, measured up to about twice: 2.5 < 2.78) and h <= 0.12 /
+# sqrt(lambda_d w): near zero slip the slip relaxes at lambda_d while the contact geometry that
+# drives it turns at w, and rk4's error in the time to 90 degrees was measured to follow h^2 lambda_d
+# w there (the count for 1e-4 s from the rolling start scales as sqrt(lambda_d w) between friction
+# 0.1 and 0.3). Measured (python -m rbenvs.bench.tippe_steps, tests/test_tippe_stiff.py): within
+# 3.3e-5 s of the stability bound's time to 90 degrees for the default top from the rest, rolling
+# and vertical starts, both spin signs, and at friction 0.1 and 0.6, slip regularisation 1e-4 and
+# 1e-2, 300 rad/s with free flight.
 FRICTION_BOUNDS = ("stability", "accuracy")
-ACCURACY_MARGIN = 0.28
+ACCURACY_MARGIN = 0.45
+ACCURACY_SCALE = 10.4
 
 
 @jitable
@@ -817,7 +825,8 @@ class ImplicitForms(NamedTuple):
     * ``solve(P, W, x) -> W^-1 x``: ``x + B G C x`` on the state's velocities, ``x`` a derivative
       (tuple of components);
     * ``rate(P, y, u) -> lambda_d``: the tight stiffness, the law's at the actual normal force
-      and the largest tangential mobility (:func:`tangential_mobility`), at zero slip.
+      and the largest tangential mobility (:func:`tangential_mobility`), at zero slip;
+    * ``accuracy_rate((P, K, omega_g), y, u)``: the guard's rate with ``friction_bound="accuracy"``.
 
     Without friction (frictionless, rolling, in flight ``N = 0``) ``W = I``.
     """
@@ -825,6 +834,7 @@ class ImplicitForms(NamedTuple):
     factor: Callable
     solve: Callable
     rate: Callable | None
+    accuracy_rate: Callable | None
 
 
 @lru_cache(maxsize=None)
@@ -902,7 +912,21 @@ def implicit_forms(coefficient, stiffness, slope, rolling: bool, flight: bool) -
             _, top = tangential_mobility(p, rm[6], rm[7], rm[8])
             return stiffness(mu, maximum(contact(p, y, u)[0], 0.0 * mu), top, p[7])
 
-    return ImplicitForms(factor, solve, rate)
+    accuracy_rate = None
+    if rate is not None:
+
+        @jitable
+        def accuracy_rate(q, y, u):
+            """``max(lambda_d, K sqrt(lambda_d w))``, ``q = (P, K, omega_g)``, ``w = max(|Omega|,
+            omega_g)``: the friction guard's rate with ``friction_bound="accuracy"`` (see
+            ``ACCURACY_SCALE``)."""
+            p, k, omega_g = q
+            lam = rate(p, y, u)
+            w = sqrt(y[W] * y[W] + y[W + 1] * y[W + 1] + y[W + 2] * y[W + 2])
+            w = maximum(w, 0.0 * w + omega_g)
+            return maximum(lam, k * sqrt(lam * w))
+
+    return ImplicitForms(factor, solve, rate, accuracy_rate)
 
 
 class TippeTop:
@@ -1327,16 +1351,19 @@ class TippeTop:
         (0.1 rad, an accuracy bound of this system for every scheme; ``omega_g`` from
         :meth:`TippeTopParams.gravity_rate`), and, with friction, ``h <= c / lambda_d``
         (:meth:`friction_stiffness`) with ``c`` half the scheme's real-axis interval (euler
-        1.0, rk4 1.39; none for dop853). With ``friction_bound="accuracy"``: ``lambda_d`` the
-        tight rate (:func:`implicit_forms`' ``rate``: the law's stiffness at the actual ``N`` and
-        the largest mobility along the table) and ``c`` ``ACCURACY_MARGIN`` of the interval
-        (rk4 0.78); a law without a slope (no ``implicit``) keeps the stability bound."""
+        1.0, rk4 1.39; none for dop853). With ``friction_bound="accuracy"``: ``lambda_a =
+        max(lambda_d, ACCURACY_SCALE sqrt(lambda_d w))`` (:func:`implicit_forms`'
+        ``accuracy_rate``; ``lambda_d`` the tight rate: the law's stiffness at the actual ``N`` and
+        the largest mobility along the table; ``w = max(|Omega|, omega_g)``) and ``c``
+        ``ACCURACY_MARGIN`` of the interval (rk4 1.25); a law without a slope (no ``implicit``)
+        keeps the stability bound."""
         omega_g = self.params.gravity_rate()
         dissipation = (self.forms.friction_rate, self.form_params) if self.friction_law is not None else None
         margin = FRICTION_MARGIN
         text = f"lambda = max(|Omega|, omega_g) (omega_g = {omega_g:.6g} rad/s)"
-        if dissipation is not None and self.friction_bound == "accuracy" and self.implicit is not None and self.implicit.rate is not None:
-            dissipation, margin = (self.implicit.rate, self.form_params), ACCURACY_MARGIN
+        if dissipation is not None and self.friction_bound == "accuracy" and self.implicit is not None and self.implicit.accuracy_rate is not None:
+            dissipation = (self.implicit.accuracy_rate, (self.form_params, ACCURACY_SCALE, omega_g))
+            margin = ACCURACY_MARGIN
             text += f", lambda_d = the {self.friction_law} law's stiffness at N and the mobility along the table (friction_bound='accuracy')"
         elif dissipation is not None:
             text += f", lambda_d = the {self.friction_law} law's stiffness at 2 max(m g, N)"

@@ -106,11 +106,14 @@ class TippeTopEnv(RigidBodyEnv):
     ``|h lambda| <= 2``, and ``1.39 / lambda`` for rk4, interval 2.78: half the margin, with
     ``N`` taken as twice the larger of ``m g`` and its current value; ``inf`` without friction,
     when rolling, and for dop853). ``friction_bound="accuracy"`` (opt-in) sizes ``h_f`` from
-    accuracy instead: ``lambda`` at the actual ``N`` and the largest mobility of the contact
-    point along the table (the tight rate, within 1 % of the vector field's stiffest decay rate
-    near zero slip), ``h_f = 0.78 / lambda`` for rk4 (``ACCURACY_MARGIN`` = 0.28 of the
-    interval): about half the steps near zero slip, the time to 90 degrees within 1e-4 s of the
-    converged value (``python -m rbenvs.bench.tippe_steps``; tests/test_tippe_stiff.py). ``n`` is set from the state at the start of each period;
+    accuracy instead, from the tight rate ``lambda_d`` (the law's stiffness at the actual ``N``
+    and the largest mobility of the contact point along the table: within 1 % of the vector
+    field's stiffest decay rate near zero slip): for rk4 ``h_f = min(1.25 / lambda_d, 0.12 /
+    sqrt(lambda_d w))``, ``w = max(|Omega|, omega_g)`` (``ACCURACY_MARGIN``, ``ACCURACY_SCALE``
+    of :mod:`rbenvs.dynamics.tippe_top`): about half the steps near zero slip for the default
+    top (a third at friction 0.6 or slip regularisation 1e-4), the time to 90 degrees within
+    1e-4 s of the converged value (``python -m rbenvs.bench.tippe_steps``;
+    tests/test_tippe_stiff.py). ``n`` is set from the state at the start of each period;
     ``info["internal_step"]`` reports ``dt / n``. ``guard="refuse"`` raises ``ValueError`` from
     ``step`` (naming ``substeps`` and the ``n`` needed) when ``n > substeps``, leaving the state
     unchanged; ``guard="off"`` always takes ``substeps`` steps (an explicit scheme may then
