@@ -32,6 +32,8 @@ __all__ = [
     "coulomb_stiffness",
     "viscous_coefficient",
     "viscous_stiffness",
+    "coulomb_slope",
+    "viscous_slope",
     "no_friction",
 ]
 
@@ -61,6 +63,21 @@ def viscous_stiffness(mu, normal, mobility, eps):
 
 
 @jitable
+def coulomb_slope(mu, s1, s2, s3, eps):
+    """``2 dk/d|s|^2`` of regularised Coulomb: ``mu / (|s|^2 + eps^2)^(3/2)``, so that the
+    slope of the force per unit normal force is ``dF/ds = k I + slope s s^T`` (negative
+    semidefinite: ``-mu / rho (I - s s^T / rho^2)``, ``rho^2 = |s|^2 + eps^2``)."""
+    rho2 = s1 * s1 + s2 * s2 + s3 * s3 + eps * eps
+    return mu / (rho2 * sqrt(rho2))
+
+
+@jitable
+def viscous_slope(mu, s1, s2, s3, eps):
+    """Viscous: ``k`` does not depend on the slip, ``0``."""
+    return 0.0 * mu
+
+
+@jitable
 def no_friction(mu, s1, s2, s3, eps):
     """``k = 0``: a contact without friction (the tippe top's ``frictionless`` level)."""
     return 0.0
@@ -76,6 +93,7 @@ class FrictionLaw:
     name = "base"
     kernel_coefficient = None
     kernel_stiffness = None
+    kernel_slope = None  # optional: 2 dk/d|s|^2, for schemes that treat the friction implicitly
 
     def coefficient(self, mu, s1, s2, s3, eps):
         """``k`` with ``F = N k (s1, s2, s3)``, ``(s1, s2, s3)`` the slip velocity [m/s] and
@@ -92,6 +110,13 @@ class FrictionLaw:
         if self.kernel_stiffness is None:
             raise NotImplementedError
         return self.kernel_stiffness(mu, normal, mobility, eps)
+
+    def slope(self, mu, s1, s2, s3, eps):
+        """``2 dk/d|s|^2``: the slope of the force per unit normal force is ``dF/ds = k I +
+        slope s s^T`` (what a linearly implicit scheme needs, :mod:`rbenvs.integrators.rosenbrock`)."""
+        if self.kernel_slope is None:
+            raise NotImplementedError
+        return self.kernel_slope(mu, s1, s2, s3, eps)
 
     def pure_forms(self) -> tuple:
         """``(coefficient, stiffness)`` as functions of the methods' arguments: the pure ones,
@@ -114,6 +139,7 @@ class Coulomb(FrictionLaw):
     name = "coulomb"
     kernel_coefficient = staticmethod(coulomb_coefficient)
     kernel_stiffness = staticmethod(coulomb_stiffness)
+    kernel_slope = staticmethod(coulomb_slope)
 
 
 @dataclass(frozen=True)
@@ -123,6 +149,7 @@ class Viscous(FrictionLaw):
     name = "viscous"
     kernel_coefficient = staticmethod(viscous_coefficient)
     kernel_stiffness = staticmethod(viscous_stiffness)
+    kernel_slope = staticmethod(viscous_slope)
 
 
 # friction_law= name -> law (the tippe top's choices)

@@ -103,6 +103,9 @@ __all__ = [
     "FRICTION_LAWS",
     "SPIN_STEP",
     "FRICTION_MARGIN",
+    "FRICTION_BOUNDS",
+    "ACCURACY_MARGIN",
+    "ACCURACY_SCALE",
     "PURE_PARAMETERS",
     "tippe_rotation_rate",
     "pure_parameters",
@@ -118,6 +121,9 @@ __all__ = [
     "tippe_jellett",
     "applied_rate",
     "rolling_contact",
+    "tangential_mobility",
+    "ImplicitForms",
+    "implicit_forms",
     "sliding_derivative",
     "rolling_derivative",
     "flight_derivative",
@@ -141,6 +147,20 @@ TOUCHDOWN_TOL = 1e-13
 # FRICTION_MARGIN of its real-axis stability interval of the friction's stiffness.
 SPIN_STEP = 0.1
 FRICTION_MARGIN = 0.5
+# friction_bound="accuracy": h <= ACCURACY_MARGIN of the scheme's real-axis interval over
+# lambda_a = max(lambda_d, ACCURACY_SCALE sqrt(lambda_d w)), lambda_d the tight rate (actual N,
+# mobility along the table), w = max(|Omega|, omega_g). For rk4: h <= 1.25 / lambda_d (stable with
+# the tight rate's growth within a period, measured up to about twice: 2.5 < 2.78) and h <= 0.12 /
+# sqrt(lambda_d w): near zero slip the slip relaxes at lambda_d while the contact geometry that
+# drives it turns at w, and rk4's error in the time to 90 degrees was measured to follow h^2 lambda_d
+# w there (the count for 1e-4 s from the rolling start scales as sqrt(lambda_d w) between friction
+# 0.1 and 0.3). Measured (python -m rbenvs.bench.tippe_steps, tests/test_tippe_stiff.py): within
+# 3.3e-5 s of the stability bound's time to 90 degrees for the default top from the rest, rolling
+# and vertical starts, both spin signs, and at friction 0.1 and 0.6, slip regularisation 1e-4 and
+# 1e-2, 300 rad/s with free flight.
+FRICTION_BOUNDS = ("stability", "accuracy")
+ACCURACY_MARGIN = 0.45
+ACCURACY_SCALE = 10.4
 
 
 @jitable
@@ -713,6 +733,202 @@ def pure_forms(coefficient, stiffness, rolling: bool, flight: bool) -> TippeForm
 
 
 
+# ------------------------------------------------------------------------------------------
+# The friction's linearisation: what a linearly implicit scheme (rbenvs.integrators.rosenbrock)
+# and the tight stiffness rate need. Near zero slip the friction relaxes the slip at a rate far
+# above every other rate of the top: the stiff part. Its Jacobian is low rank: a state increment
+# x changes the slip by sigma = C x (C: the tangential part of R^T dv_G + dOmega x r), the slip
+# changes the force per unit N by D sigma (D = k I + slope s s^T: the law's slope) and a force F
+# at the contact changes the state's velocities by B F (dv_G = R F / m, dOmega = I^-1 (r x F));
+# C B = P M P with M = 1/m + [r x]^T I^-1 [r x] the contact mobility and P = I - Gamma Gamma^T.
+# The W-matrix of a Rosenbrock-W step, W = I - g N B D C (g = gamma h; N, the geometry and the
+# slip frozen at the step's start: a W-method keeps its order with any such approximation), is
+# inverted by Woodbury through a 3x3 solve: W^-1 x = x + B G C x, G = g N D (I - g N P M D)^-1.
+
+
+@jitable
+def _mat_mul(a, b):
+    """The product of two 3x3 matrices given row by row (9-tuples)."""
+    return (
+        a[0] * b[0] + a[1] * b[3] + a[2] * b[6], a[0] * b[1] + a[1] * b[4] + a[2] * b[7], a[0] * b[2] + a[1] * b[5] + a[2] * b[8],
+        a[3] * b[0] + a[4] * b[3] + a[5] * b[6], a[3] * b[1] + a[4] * b[4] + a[5] * b[7], a[3] * b[2] + a[4] * b[5] + a[5] * b[8],
+        a[6] * b[0] + a[7] * b[3] + a[8] * b[6], a[6] * b[1] + a[7] * b[4] + a[8] * b[7], a[6] * b[2] + a[7] * b[5] + a[8] * b[8],
+    )
+
+
+@jitable
+def _mat_inverse(a):
+    """The inverse of a 3x3 matrix given row by row, by its adjugate."""
+    c00, c01, c02 = a[4] * a[8] - a[5] * a[7], a[5] * a[6] - a[3] * a[8], a[3] * a[7] - a[4] * a[6]
+    det = a[0] * c00 + a[1] * c01 + a[2] * c02
+    inv = 1.0 / det
+    return (
+        c00 * inv, (a[2] * a[7] - a[1] * a[8]) * inv, (a[1] * a[5] - a[2] * a[4]) * inv,
+        c01 * inv, (a[0] * a[8] - a[2] * a[6]) * inv, (a[2] * a[3] - a[0] * a[5]) * inv,
+        c02 * inv, (a[1] * a[6] - a[0] * a[7]) * inv, (a[0] * a[4] - a[1] * a[3]) * inv,
+    )
+
+
+@jitable
+def tangential_mobility(p, g1, g2, g3):
+    """``P M P`` (row by row) and its largest eigenvalue [1/kg]: the contact mobility ``M = 1/m +
+    [r x]^T I^-1 [r x]`` restricted to the table's plane (``P = I - Gamma Gamma^T``), i.e. the
+    acceleration of the contact point along the slip per unit friction force. Its eigenvalues
+    are 0 (along ``Gamma``) and ``l1, l2``: from its trace ``l1 + l2`` and the sum of its principal
+    2x2 minors ``l1 l2``."""
+    m, big_a, big_c = p[2], p[4], p[5]
+    r1, r2, r3 = contact_arm(p, g1, g2, g3)
+    d1, d3 = 1.0 / big_a, 1.0 / big_c
+    im = 1.0 / m
+    m11 = im + d1 * r3 * r3 + d3 * r2 * r2
+    m22 = im + d1 * r3 * r3 + d3 * r1 * r1
+    m33 = im + d1 * r2 * r2 + d1 * r1 * r1
+    m12, m13, m23 = -d3 * r1 * r2, -d1 * r1 * r3, -d1 * r2 * r3
+    # M Gamma and Gamma.M Gamma; P M P = M - G (M G)^T - (M G) G^T + (G.M G) G G^T
+    n1 = m11 * g1 + m12 * g2 + m13 * g3
+    n2 = m12 * g1 + m22 * g2 + m23 * g3
+    n3 = m13 * g1 + m23 * g2 + m33 * g3
+    gg = g1 * n1 + g2 * n2 + g3 * n3
+    q11 = m11 - 2.0 * g1 * n1 + gg * g1 * g1
+    q22 = m22 - 2.0 * g2 * n2 + gg * g2 * g2
+    q33 = m33 - 2.0 * g3 * n3 + gg * g3 * g3
+    q12 = m12 - g1 * n2 - n1 * g2 + gg * g1 * g2
+    q13 = m13 - g1 * n3 - n1 * g3 + gg * g1 * g3
+    q23 = m23 - g2 * n3 - n2 * g3 + gg * g2 * g3
+    trace = q11 + q22 + q33
+    minors = q11 * q22 - q12 * q12 + q11 * q33 - q13 * q13 + q22 * q33 - q23 * q23
+    half = 0.5 * trace
+    top = half + sqrt(maximum(half * half - minors, 0.0 * half))
+    return (q11, q12, q13, q12, q22, q23, q13, q23, q33), top
+
+
+@jitable
+def frame_derivative(qw, qx, qy, qz, dw, dx, dy, dz):
+    """The derivative of :func:`tippe_frame` at ``q`` in the direction ``dq`` (row by row; the
+    frame is quadratic in ``q``, so this is its exact bilinear part, twice)."""
+    xx, yy, zz = 2.0 * qx * dx, 2.0 * qy * dy, 2.0 * qz * dz
+    xy, xz, yz = dx * qy + qx * dy, dx * qz + qx * dz, dy * qz + qy * dz
+    wx, wy, wz = dw * qx + qw * dx, dw * qy + qw * dy, dw * qz + qw * dz
+    return (
+        -2.0 * (yy + zz), 2.0 * (xy - wz), 2.0 * (xz + wy),
+        2.0 * (xy + wz), -2.0 * (xx + zz), 2.0 * (yz - wx),
+        2.0 * (xz - wy), 2.0 * (yz + wx), -2.0 * (xx + yy),
+    )
+
+
+class ImplicitForms(NamedTuple):
+    """The friction's linearisation for one (law, fidelity, flight) combination
+    (:func:`implicit_forms`), pure ``fn(P, ...)`` with ``P`` from :func:`pure_parameters`:
+
+    * ``factor(P, y, u, g) -> W``: what ``W^-1`` needs at ``y`` (``g = gamma h``): the frame, the
+      contact arm and ``G = g N D (I - g N P M D)^-1`` (a tuple of floats);
+    * ``solve(P, W, x) -> W^-1 x``: ``x + B G C x`` on the state's velocities, ``x`` a derivative
+      (tuple of components);
+    * ``rate(P, y, u) -> lambda_d``: the tight stiffness, the law's at the actual normal force
+      and the largest tangential mobility (:func:`tangential_mobility`), at zero slip;
+    * ``accuracy_rate((P, K, omega_g), y, u)``: the guard's rate with ``friction_bound="accuracy"``.
+
+    Without friction (frictionless, rolling, in flight ``N = 0``) ``W = I``.
+    """
+
+    factor: Callable
+    solve: Callable
+    rate: Callable | None
+    accuracy_rate: Callable | None
+
+
+@lru_cache(maxsize=None)
+def implicit_forms(coefficient, stiffness, slope, rolling: bool, flight: bool) -> ImplicitForms:
+    """The :class:`ImplicitForms` of a law's pure ``coefficient``, ``stiffness`` and ``slope``
+    (:mod:`rbenvs.dynamics.contact`; ``slope is None``: no friction, ``W = I``)."""
+    contact = pure_forms(coefficient, stiffness, rolling, flight).contact
+    Q, W, V = (6, 10, 3) if flight else ((2, 6, 0) if rolling else (4, 8, 2))
+    frictionless = slope is None or rolling
+
+    @jitable
+    def factor(p, y, u, gam):
+        if frictionless:
+            return ()
+        eps = p[7]
+        mu = p[6] if u is None else u[2]
+        rm = tippe_frame(y[Q], y[Q + 1], y[Q + 2], y[Q + 3])
+        g1, g2, g3 = rm[6], rm[7], rm[8]
+        w1, w2, w3 = y[W], y[W + 1], y[W + 2]
+        r = contact_arm(p, g1, g2, g3)
+        s1, s2, s3 = slip_velocity(rm, r, y[V], y[V + 1], constraint_vertical_velocity(p, rm, w1, w2), w1, w2, w3)
+        sv = s1 * g1 + s2 * g2 + s3 * g3
+        s1, s2, s3 = s1 - sv * g1, s2 - sv * g2, s3 - sv * g3
+        k = coefficient(mu, s1, s2, s3, eps)
+        sl = slope(mu, s1, s2, s3, eps)
+        # D = k P + sl s s^T (per unit N; on the table's plane), scaled by g N
+        c = gam * contact(p, y, u)[0]
+        ck, cs = c * k, c * sl
+        dm = (
+            ck * (1.0 - g1 * g1) + cs * s1 * s1, -ck * g1 * g2 + cs * s1 * s2, -ck * g1 * g3 + cs * s1 * s3,
+            -ck * g2 * g1 + cs * s2 * s1, ck * (1.0 - g2 * g2) + cs * s2 * s2, -ck * g2 * g3 + cs * s2 * s3,
+            -ck * g3 * g1 + cs * s3 * s1, -ck * g3 * g2 + cs * s3 * s2, ck * (1.0 - g3 * g3) + cs * s3 * s3,
+        )
+        pmp, _ = tangential_mobility(p, g1, g2, g3)
+        e = _mat_mul(pmp, dm)
+        e = (1.0 - e[0], -e[1], -e[2], -e[3], 1.0 - e[4], -e[5], -e[6], -e[7], 1.0 - e[8])
+        vz = constraint_vertical_velocity(p, rm, w1, w2)
+        return rm + r + _mat_mul(dm, _mat_inverse(e)) + (y[Q], y[Q + 1], y[Q + 2], y[Q + 3], y[V], y[V + 1], vz, w1, w2, w3)
+
+    @jitable
+    def solve(p, wf, x):
+        if frictionless:
+            return x
+        m, big_a, big_c = p[2], p[4], p[5]
+        a = p[0]
+        rm, r1, r2, r3, gm = wf[:9], wf[9], wf[10], wf[11], wf[12:21]
+        qw, qx, qy, qz, v1, v2, v3, w1, w2, w3 = wf[21:]
+        xv1, xv2, o1, o2, o3 = x[V], x[V + 1], x[W], x[W + 1], x[W + 2]
+        # sigma = C x, the slip's change: R^T (xv1, xv2, 0) + dOmega x r, and through the
+        # attitude dR^T v_G + Omega x dr (dr = -a dGamma); its normal part is removed by G's D
+        dr = frame_derivative(qw, qx, qy, qz, x[Q], x[Q + 1], x[Q + 2], x[Q + 3])
+        e1, e2, e3 = -a * dr[6], -a * dr[7], -a * dr[8]
+        t1 = rm[0] * xv1 + rm[3] * xv2 + o2 * r3 - o3 * r2 + dr[0] * v1 + dr[3] * v2 + dr[6] * v3 + w2 * e3 - w3 * e2
+        t2 = rm[1] * xv1 + rm[4] * xv2 + o3 * r1 - o1 * r3 + dr[1] * v1 + dr[4] * v2 + dr[7] * v3 + w3 * e1 - w1 * e3
+        t3 = rm[2] * xv1 + rm[5] * xv2 + o1 * r2 - o2 * r1 + dr[2] * v1 + dr[5] * v2 + dr[8] * v3 + w1 * e2 - w2 * e1
+        f1 = gm[0] * t1 + gm[1] * t2 + gm[2] * t3
+        f2 = gm[3] * t1 + gm[4] * t2 + gm[5] * t3
+        f3 = gm[6] * t1 + gm[7] * t2 + gm[8] * t3
+        # B F: dv_G = R F / m (horizontal: F is in the table's plane), dOmega = I^-1 (r x F)
+        dv1 = (rm[0] * f1 + rm[1] * f2 + rm[2] * f3) / m
+        dv2 = (rm[3] * f1 + rm[4] * f2 + rm[5] * f3) / m
+        dw1, dw2, dw3 = (r2 * f3 - r3 * f2) / big_a, (r3 * f1 - r1 * f3) / big_a, (r1 * f2 - r2 * f1) / big_c
+        v1, v2, w1, w2, w3 = xv1 + dv1, xv2 + dv2, o1 + dw1, o2 + dw2, o3 + dw3
+        if flight:  # (each layout written out: compiled code slices tuples by literals only)
+            return (x[0], x[1], x[2], v1, v2, x[5], x[6], x[7], x[8], x[9], w1, w2, w3, x[13], x[14])
+        return (x[0], x[1], v1, v2, x[4], x[5], x[6], x[7], w1, w2, w3)
+
+    rate = None
+    if stiffness is not None and not rolling:
+
+        @jitable
+        def rate(p, y, u):
+            mu = p[6] if u is None else u[2]
+            rm = tippe_frame(y[Q], y[Q + 1], y[Q + 2], y[Q + 3])
+            _, top = tangential_mobility(p, rm[6], rm[7], rm[8])
+            return stiffness(mu, maximum(contact(p, y, u)[0], 0.0 * mu), top, p[7])
+
+    accuracy_rate = None
+    if rate is not None:
+
+        @jitable
+        def accuracy_rate(q, y, u):
+            """``max(lambda_d, K sqrt(lambda_d w))``, ``q = (P, K, omega_g)``, ``w = max(|Omega|,
+            omega_g)``: the friction guard's rate with ``friction_bound="accuracy"`` (see
+            ``ACCURACY_SCALE``)."""
+            p, k, omega_g = q
+            lam = rate(p, y, u)
+            w = sqrt(y[W] * y[W] + y[W + 1] * y[W + 1] + y[W + 2] * y[W + 2])
+            w = maximum(w, 0.0 * w + omega_g)
+            return maximum(lam, k * sqrt(lam * w))
+
+    return ImplicitForms(factor, solve, rate, accuracy_rate)
+
+
 class TippeTop:
     """Vector field, contact forces and read-outs of the tippe top at one fidelity level.
 
@@ -727,10 +943,13 @@ class TippeTop:
     floats and arrays).
     """
 
-    def __init__(self, params: TippeTopParams, fidelity: str = "gliding", flight: bool = False):
+    def __init__(self, params: TippeTopParams, fidelity: str = "gliding", flight: bool = False, friction_bound: str = "stability"):
         self._memo = None  # the last contact solve (see _contact)
         if fidelity not in FIDELITIES:
             raise ValueError(f"fidelity must be one of {list(FIDELITIES)}, got {fidelity!r}")
+        if friction_bound not in FRICTION_BOUNDS:
+            raise ValueError(f"friction_bound must be one of {list(FRICTION_BOUNDS)}, got {friction_bound!r}")
+        self.friction_bound = friction_bound
         self.fidelity = fidelity
         self.rolling = fidelity == "rolling"
         self.flight = bool(flight)
@@ -786,6 +1005,13 @@ class TippeTop:
         # the next step's first stage; with flight the two switches of events()
         self.kernel_event = pair(forms.normal, not self.flight)
         self.kernel_rhs_event = pair(forms.rhs_normal, not self.flight)
+        # the friction's linearisation (ImplicitForms): the W-matrix of a linearly implicit
+        # scheme, (factor, solve, P); the tight stiffness rate; None for a law with no slope
+        slope = None if self.friction is None else self.friction.kernel_slope
+        self.implicit = None
+        if self.friction is None or (slope is not None and compilable):
+            self.implicit = implicit_forms(coefficient, stiffness, slope, self.rolling, self.flight)
+        self.kernel_implicit = None if self.implicit is None else (self.implicit.factor, self.implicit.solve, p)
         self.kernel_switches = None
         if self.flight and compilable:
             self.kernel_switches = (
@@ -798,7 +1024,7 @@ class TippeTop:
     # makes the rest again on loading
     _DERIVED = ("friction_law", "friction", "forms", "form_params", "kernel_rhs", "kernel_rhs_normal", "kernel_normalize", "kernel_readouts",
                 "kernel_normal", "kernel_gap", "kernel_take_off", "kernel_touch_down", "kernel_on_table", "kernel_airborne", "kernel_event",
-                "kernel_rhs_event", "kernel_switches")
+                "kernel_rhs_event", "kernel_switches", "implicit", "kernel_implicit")
 
     def __getstate__(self):
         state = {k: v for k, v in self.__dict__.items() if k not in self._DERIVED}
@@ -1125,14 +1351,24 @@ class TippeTop:
         (0.1 rad, an accuracy bound of this system for every scheme; ``omega_g`` from
         :meth:`TippeTopParams.gravity_rate`), and, with friction, ``h <= c / lambda_d``
         (:meth:`friction_stiffness`) with ``c`` half the scheme's real-axis interval (euler
-        1.0, rk4 1.39; none for dop853)."""
+        1.0, rk4 1.39; none for dop853). With ``friction_bound="accuracy"``: ``lambda_a =
+        max(lambda_d, ACCURACY_SCALE sqrt(lambda_d w))`` (:func:`implicit_forms`'
+        ``accuracy_rate``; ``lambda_d`` the tight rate: the law's stiffness at the actual ``N`` and
+        the largest mobility along the table; ``w = max(|Omega|, omega_g)``) and ``c``
+        ``ACCURACY_MARGIN`` of the interval (rk4 1.25); a law without a slope (no ``implicit``)
+        keeps the stability bound."""
         omega_g = self.params.gravity_rate()
         dissipation = (self.forms.friction_rate, self.form_params) if self.friction_law is not None else None
+        margin = FRICTION_MARGIN
         text = f"lambda = max(|Omega|, omega_g) (omega_g = {omega_g:.6g} rad/s)"
-        if dissipation is not None:
+        if dissipation is not None and self.friction_bound == "accuracy" and self.implicit is not None and self.implicit.accuracy_rate is not None:
+            dissipation = (self.implicit.accuracy_rate, (self.form_params, ACCURACY_SCALE, omega_g))
+            margin = ACCURACY_MARGIN
+            text += f", lambda_d = the {self.friction_law} law's stiffness at N and the mobility along the table (friction_bound='accuracy')"
+        elif dissipation is not None:
             text += f", lambda_d = the {self.friction_law} law's stiffness at 2 max(m g, N)"
         return GuardRates(rotation=(tippe_rotation_rate, (self._w, omega_g)), rotation_bound=SPIN_STEP, dissipation=dissipation,
-                          dissipation_margin=FRICTION_MARGIN, ceiling=max(speed_ceiling, omega_g), text=text)
+                          dissipation_margin=margin, ceiling=max(speed_ceiling, omega_g), text=text)
 
     def max_stable_step(self, region, mu: float | None = None, normal_force: float | None = None) -> float:
         """The largest internal step [s] at which the friction law is stable for a scheme of

@@ -9,6 +9,11 @@ splitting   2      Strang composition of exact sub-flows: |Pi| exact, energy bou
 exact       exact  exact uncontrolled flow (+ torque kicks, 2nd order, with control)
 dop853      8      scipy adaptive DOP853 at rtol 1e-12: the accuracy reference
 ==========  =====  ===========================================================
+
+Not registered by name (pass an instance, ``integrator=Ros2()``): ``Ros2``, order 2, the
+Rosenbrock-W method of Verwer et al. (1999), L-stable, linearly implicit in the tippe top's
+friction and explicit elsewhere (:mod:`.rosenbrock`): an experiment on the stiff friction, not
+accurate enough near zero slip at the step counts where it would pay (docs/integrators.md).
 """
 
 from __future__ import annotations
@@ -17,9 +22,10 @@ from .base import Integrator
 from .exact import Exact
 from .runge_kutta import RK4, ButcherTableau, Euler, ExplicitRungeKutta
 from .reference import Dop853
+from .rosenbrock import Ros2
 from .splitting import Splitting
 
-__all__ = ["Integrator", "ButcherTableau", "ExplicitRungeKutta", "Euler", "RK4", "Splitting", "Exact", "Dop853", "INTEGRATORS", "get_integrator"]
+__all__ = ["Integrator", "ButcherTableau", "ExplicitRungeKutta", "Euler", "RK4", "Splitting", "Exact", "Dop853", "Ros2", "INTEGRATORS", "get_integrator"]
 
 INTEGRATORS: dict[str, type[Integrator]] = {cls.name: cls for cls in (Euler, RK4, Splitting, Exact, Dop853)}
 

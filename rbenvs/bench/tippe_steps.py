@@ -1,0 +1,155 @@
+"""``python -m rbenvs.bench.tippe_steps``: what the tippe top's internal step count buys.
+
+One inversion per row, from a named start (``start=``, docs/physics.md §3) at tilt 0.1 rad: the
+time to pass 90 degrees (linear in the tilt within the period that crosses, as
+tests/test_tippe_starts.py measures it), its error against the converged value of the same model
+(rk4 at ``--reference`` steps a period; ``--reference dop853``: the env's dop853, slow), Jellett's
+largest relative drift, the largest energy rise between periods, the least normal force over
+``m g``, the internal steps a period and the wall time per simulated 10 ms of a single env
+(compiled where numba is installed). Counts are fixed (``guard="off"``), ``guard`` (the env's
+default guard) or ``tight`` (the count a guard with the friction's tight stability bound would
+take at the start: ``dt lambda_d / 2.785`` with ``lambda_d`` at the actual normal force and
+mobility, :func:`rbenvs.dynamics.tippe_top.implicit_forms`' ``rate``, rk4's whole real-axis
+interval, no margin; and at least the guard's spin bound) or ``accuracy`` (the env's guard with
+``friction_bound="accuracy"``).
+
+It measures what the guard's bound is for: near zero slip the regularised friction relaxes the
+slip at ``lambda_d`` (about 6000/s for the default top) and the slow motion depends on how the
+slip lags the forcing; the count at which a scheme reproduces the converged time to 90 degrees
+is what the table shows, per start, spin sign and friction law.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import time
+
+import numpy as np
+
+__all__ = ["inversion", "rows", "table", "main"]
+
+ID = "rbenvs/TippeTop-v0"
+RK4_REAL_INTERVAL = 2.785  # rk4's stability interval on the negative real axis
+
+
+def _scheme(name):
+    from ..integrators.rosenbrock import Ros2, Ros34pw2
+
+    return {"ros2": Ros2(), "ros34pw2": Ros34pw2()}.get(name, name)
+
+
+def _make(start, spin, law, integrator, substeps, guard, compiled, max_periods, friction_bound="stability", **options):
+    import gymnasium as gym
+
+    import rbenvs  # noqa: F401  (registers the ids)
+
+    options.setdefault("friction", {"coulomb": 0.3, "viscous": 30.0}[law])
+    return gym.make(ID, start=start, spin=spin, tilt=0.1, friction_law=law, integrator=_scheme(integrator), substeps=substeps, guard=guard,
+                    compiled=compiled, max_episode_steps=max_periods + 1, friction_bound=friction_bound, **options).unwrapped
+
+
+def tight_count(start, spin, law="coulomb") -> int:
+    """The count a guard with the tight friction bound would take at the start: rk4's whole
+    real-axis interval over the tight rate, and the spin bound (``SPIN_STEP`` rad of ``max(|Omega|,
+    omega_g)`` a step) the guard keeps for every scheme."""
+    from ..dynamics.tippe_top import SPIN_STEP, tippe_rotation_rate
+
+    env = _make(start, spin, law, "rk4", 1, "off", False, 1)
+    env.reset(seed=0)
+    system, y = env.system, env.state_components
+    rate = system.implicit.rate(system.form_params, y, None)
+    spin_rate = tippe_rotation_rate((system._w, env.params.gravity_rate()), y)
+    return max(1, math.ceil(env.dt * rate / RK4_REAL_INTERVAL), math.ceil(env.dt * spin_rate / SPIN_STEP))
+
+
+def inversion(start="rest", spin=180.0, substeps=None, integrator="rk4", law="coulomb", compiled="auto", max_periods=2000,
+              friction_bound="stability", **options) -> dict:
+    """One inversion: ``substeps`` a count (fixed, guard off), ``None`` (the env's guard) or
+    ``"tight"`` (:func:`tight_count`); ``"accuracy"``: the env's guard with
+    ``friction_bound="accuracy"``; ``options``: more env keywords (``friction``, ...). Returns ``t90`` [s] (``nan``: no inversion, with
+    ``ended`` saying why), ``drift``, ``rise`` [J], ``least_normal`` [m g], ``steps`` (mean
+    internal steps a period) and ``us_per_period`` (wall time per control period)."""
+    if substeps == "tight":
+        substeps = tight_count(start, spin, law)
+    if substeps == "accuracy":
+        substeps, friction_bound = None, "accuracy"
+    guard = "subdivide" if substeps is None else "off"
+    env = _make(start, spin, law, integrator, substeps or 1, guard, compiled, max_periods, friction_bound, **options)
+    action = np.zeros(env.action_space.shape, dtype=np.float32)
+    env.reset(seed=0)
+    env.step(action)  # (builds the compiled step outside the timing)
+    _, info = env.reset(seed=0)
+    j0, e_prev, prev = info["jellett"], info["energy"], info["tilt"]
+    drift = rise = 0.0
+    least = math.inf
+    steps = 0
+    t90, ended = math.nan, "no inversion"
+    weight = env.params.mass * env.params.gravity
+    clock = time.perf_counter()
+    k = 0
+    for k in range(1, max_periods + 1):
+        _, _, terminated, truncated, info = env.step(action)
+        steps += round(env.dt / info["internal_step"])
+        if terminated or truncated or info["numerical_failure"]:
+            ended = info.get("terminal_reason") or ("numerical failure" if info["numerical_failure"] else "truncated")
+            break
+        drift = max(drift, abs(info["jellett"] - j0) / abs(j0))
+        rise = max(rise, info["energy"] - e_prev)
+        e_prev = info["energy"]
+        least = min(least, info["normal_force"] / weight)
+        if info["tilt"] > math.pi / 2:
+            t90, ended = (k - 1 + (math.pi / 2 - prev) / (info["tilt"] - prev)) * env.dt, None
+            break
+        prev = info["tilt"]
+    wall = time.perf_counter() - clock
+    return {"t90": t90, "ended": ended, "drift": drift, "rise": rise, "least_normal": least, "steps": steps / k, "us_per_period": 1e6 * wall / k}
+
+
+def rows(starts, laws, counts, schemes, reference=640) -> list[dict]:
+    """Every (start, spin, law) with its converged time to 90 degrees and each (scheme, count)."""
+    out = []
+    for start, spin in starts:
+        for law in laws:
+            ref = inversion(start, spin, reference if reference != "dop853" else 1, "rk4" if reference != "dop853" else "dop853", law)
+            for scheme in schemes:
+                for count in counts:
+                    r = inversion(start, spin, count, scheme, law)
+                    r.update(start=start, spin=spin, law=law, scheme=scheme, count=count, error=abs(r["t90"] - ref["t90"]), reference=ref["t90"])
+                    out.append(r)
+    return out
+
+
+def table(results) -> str:
+    lines = ["| start | spin [rad/s] | law | scheme | count | steps/period | t90 [s] | error [s] | Jellett drift | energy rise [J] | min N / mg | us / 10 ms |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|"]
+    for r in results:
+        t90 = f"{r['t90']:.9f}" if r["ended"] is None else f"n/a ({r['ended']})"
+        err = f"{r['error']:.1e}" if r["ended"] is None else "n/a"
+        lines.append(f"| {r['start']} | {r['spin']:g} | {r['law']} | {r['scheme']} | {r['count'] if r['count'] is not None else 'guard'} | {r['steps']:.1f} | "
+                     f"{t90} | {err} | {r['drift']:.1e} | {r['rise']:.1e} | {r['least_normal']:.3f} | {r['us_per_period']:.0f} |")
+    return "\n".join(lines)
+
+
+def _count(text):
+    if text in ("guard", "tight", "accuracy"):
+        return None if text == "guard" else text
+    return int(text)
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m rbenvs.bench.tippe_steps", description=__doc__.splitlines()[0])
+    parser.add_argument("--starts", default="rest:180,rolling:150,vertical:180", help="start:spin,... (a negative spin turns the other way)")
+    parser.add_argument("--laws", default="coulomb", help="coulomb,viscous")
+    parser.add_argument("--counts", default="guard,tight,40,80,160", help="internal steps a period: numbers, guard, tight, accuracy (the guard with friction_bound='accuracy')")
+    parser.add_argument("--schemes", default="rk4", help="rk4,euler,ros2,ros34pw2")
+    parser.add_argument("--reference", default="640", help="rk4 steps a period of the converged value, or dop853")
+    a = parser.parse_args(argv)
+    starts = [(s.split(":")[0], float(s.split(":")[1])) for s in a.starts.split(",")]
+    reference = a.reference if a.reference == "dop853" else int(a.reference)
+    print(table(rows(starts, a.laws.split(","), [_count(c) for c in a.counts.split(",")], a.schemes.split(","), reference)))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
