@@ -166,6 +166,7 @@ class FreeRigidBodyEnv(RigidBodyEnv):
     # info keys of the quantities the uncontrolled motion conserves (summaries, checks)
     invariants = ("energy", "momentum_norm")
     system_class = FreeBody
+    randomizable = ("inertia", "max_torque")  # param_ranges keywords
 
     def __init__(
         self,
@@ -185,6 +186,10 @@ class FreeRigidBodyEnv(RigidBodyEnv):
         render_mode=None,
         guard: str = "subdivide",
         compiled="auto",
+        param_ranges=None,
+        observation_noise=None,
+        observation_bias=None,
+        action_delay: int = 0,
     ):
         # every keyword is checked, whatever the task (a keyword the task ignores must still be
         # a valid value: a typo is reported, not silently kept)
@@ -229,6 +234,7 @@ class FreeRigidBodyEnv(RigidBodyEnv):
         # |Delta Omega| <= max_torque sqrt(k) dt / I_min over a period of full torque on k axes
         change = max_torque * math.sqrt(actuator.size) * self.dt / min(params.inertia)
         self._require_authority("max_torque", change, "max_angular_velocity", max_w, "angular velocity [rad/s]")
+        self._setup_options(param_ranges, observation_noise, observation_bias, action_delay)
 
     _rate_sources = "spin_rate and inertia"
 

@@ -175,6 +175,7 @@ class LagrangeTopEnv(RigidBodyEnv):
     # info keys of the quantities the uncontrolled, frictionless motion conserves
     invariants = ("energy", "pi_dot_gamma", "vertical_norm")
     system_class = HeavyTop
+    randomizable = ("inertia", "mass", "length", "gravity", "spin_friction", "max_torque")  # param_ranges keywords
 
     def __init__(
         self,
@@ -201,6 +202,10 @@ class LagrangeTopEnv(RigidBodyEnv):
         render_mode=None,
         guard: str = "subdivide",
         compiled="auto",
+        param_ranges=None,
+        observation_noise=None,
+        observation_bias=None,
+        action_delay: int = 0,
     ):
         # every keyword is checked, whatever the task (one the task ignores must still be valid)
         task = require_choice("task", task, self.tasks)
@@ -258,6 +263,7 @@ class LagrangeTopEnv(RigidBodyEnv):
         # orthonormal torque directions: |tau| <= max_torque sqrt(k), |Delta Omega| <= |tau| dt / I_min
         change = self.max_torque * math.sqrt(len(self.torque_directions)) * self.dt / min(params.inertia)
         self._require_authority("max_torque", change, "max_angular_velocity", max_w, "angular velocity [rad/s]")
+        self._setup_options(param_ranges, observation_noise, observation_bias, action_delay)
 
     _rate_sources = "mass, length, gravity, inertia, spin_friction and spin"
 

@@ -165,6 +165,7 @@ class TippeTopEnv(RigidBodyEnv):
 
     tasks = ("invert", "hold")
     system_class = TippeTop
+    randomizable = ("radius", "mass", "offset", "inertia", "gravity", "friction", "max_table_acceleration", "max_torque")  # param_ranges keywords
     fidelities = FIDELITIES
     # info keys of the quantities the motion keeps: Jellett always (no body torque), the energy
     # without friction
@@ -200,6 +201,10 @@ class TippeTopEnv(RigidBodyEnv):
         render_mode=None,
         guard: str = "subdivide",
         compiled="auto",
+        param_ranges=None,
+        observation_noise=None,
+        observation_bias=None,
+        action_delay: int = 0,
     ):
         # every keyword is checked, whatever the task and options (an unused one must still be valid)
         task = require_choice("task", task, self.tasks)
@@ -252,6 +257,7 @@ class TippeTopEnv(RigidBodyEnv):
         self._require_authority("max_table_acceleration", self.max_table_acceleration * math.sqrt(2.0) * self.dt, "max_speed", max_v, "velocity of the centre of mass [m/s]")
         change = self.max_torque * math.sqrt(3.0) * self.dt / min(params.inertia)
         self._require_authority("max_torque", change, "max_angular_velocity", max_w, "angular velocity [rad/s]")
+        self._setup_options(param_ranges, observation_noise, observation_bias, action_delay)
 
     @property
     def params(self) -> TippeTopParams:
