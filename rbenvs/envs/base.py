@@ -151,6 +151,20 @@ class RigidBodyEnv(gym.Env):
             if self.render_mode != "human":
                 self.step = self._step_options  # (the class's step stays the plain hot path)
 
+    @property
+    def param_ranges(self):
+        """The validated ``param_ranges`` (:class:`rbenvs.envs.options.ParamRanges`), or ``None``."""
+        return self._ranges
+
+    @property
+    def realism(self):
+        """The validated noise, bias and delay (:class:`rbenvs.envs.options.Realism`)."""
+        return self._realism
+
+    def episode_env(self, values: dict):
+        """The env of one episode's drawn parameters ``values`` (see :meth:`_episode_env`)."""
+        return self._episode_env(values)
+
     def _structure(self) -> tuple:
         """What a drawn parameter setting must leave unchanged: spaces, read-outs, metrics, the
         start's draws, the event and the env's named axis (the free body's)."""
