@@ -239,7 +239,7 @@ def test_an_action_first_acts_k_periods_later(k):
     env equals the undelayed one fed ``k`` zero actions first, bit for bit."""
     rng = np.random.default_rng(1)
     actions = [np.ones(2, dtype=np.float32)] + [np.zeros(2, dtype=np.float32)] * 10
-    delayed, free, ref = LagrangeTopEnv(action_delay=k), LagrangeTopEnv(), LagrangeTopEnv()
+    delayed, free, ref = (LagrangeTopEnv(action_delay=k, compiled=False), LagrangeTopEnv(compiled=False), LagrangeTopEnv(compiled=False))
     delayed.reset(seed=0)
     free.reset(seed=0)
     for t, a in enumerate(actions):
@@ -259,12 +259,12 @@ def test_an_action_first_acts_k_periods_later(k):
 
 
 def test_a_reset_empties_the_queue():
-    env = LagrangeTopEnv(action_delay=2)
+    env = LagrangeTopEnv(action_delay=2, compiled=False)
     env.reset(seed=0)
     env.step(np.ones(2, dtype=np.float32))
     env.step(np.ones(2, dtype=np.float32))
     env.reset(seed=0)
-    ref = LagrangeTopEnv()
+    ref = LagrangeTopEnv(compiled=False)
     ref.reset(seed=0)
     env.step(np.ones(2, dtype=np.float32))
     ref.step(np.zeros(2, dtype=np.float32))
@@ -324,3 +324,13 @@ def test_vector_noise_and_delay_on_the_batched_paths(env_id, compiled):
     for bit the single env."""
     kwargs = {k: v for k, v in ALL_OPTIONS[env_id].items() if k != "param_ranges"}
     lockstep(env_id, 3, 11, 90, "NextStep", 70, kwargs, vector_kwargs={"compiled": compiled})
+
+
+def test_vector_noise_without_numba_draws_blocks(monkeypatch):
+    """Without numba (RBENVS_COMPILED=0) each sub-env draws its noise in blocks of NOISE_BLOCK
+    observations; episodes longer than a block refill it: still the single env's numbers."""
+    monkeypatch.setenv("RBENVS_COMPILED", "0")
+    kwargs = dict(observation_noise=(0.01, 0.05, 0.1), observation_bias=0.01, action_delay=2)
+    venv = make_vec(FREE, 2, **kwargs)
+    assert venv.unwrapped._noise_table is None and not venv.unwrapped.compiled
+    lockstep(FREE, 3, 5, 2 * NOISE_BLOCK + 20, "SameStep", NOISE_BLOCK + 30, kwargs)

@@ -24,7 +24,7 @@ from ..core.model import Model
 from ..core.step import Engine, NumericalFailureWarning, action_values
 from ..dynamics.validation import require_finite_positive, require_int_in
 from ..integrators import get_integrator
-from .options import ParamRanges, Realism, noise_stream, noisy_observation
+from .options import ParamRanges, Realism, noise_generator, noisy_observation, rekey
 
 __all__ = ["RigidBodyEnv", "NumericalFailureWarning", "MAX_INTERNAL_STEPS", "GUARDS", "FLOAT32_MAX", "require_float32_bound", "require_guard", "require_compiled"]
 
@@ -74,6 +74,7 @@ class RigidBodyEnv(gym.Env):
     _ranges = None  # the validated param_ranges (None: every episode has the constructor's parameters)
     _realism = Realism(None, None, 0, 0)  # noise, bias, delay: none
     noiseless_observation = None  # with observation noise or bias: the last observation without them
+    _noise_rng = None  # the noise stream's generator (rbenvs.envs.options.rekey at each reset)
 
     def __init_subclass__(cls, **kwargs):
         """Each env records its constructor's keyword arguments (defaults applied) in
@@ -294,7 +295,9 @@ class RigidBodyEnv(gym.Env):
         if r.delay:
             self._queue = collections.deque([[0.0] * self._action_shape[0] for _ in range(r.delay)])
         if r.stream:
-            self._noise_rng = noise_stream(self.np_random)
+            if self._noise_rng is None:
+                self._noise_rng = noise_generator()
+            rekey(self._noise_rng, self.np_random)
             self._bias = None if r.bias is None else r.bias * self._noise_rng.standard_normal(len(r.bias))
             obs = self._noisy(obs)
         return obs

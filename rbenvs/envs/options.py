@@ -11,10 +11,11 @@ random number comes from the env's own seeded generator, in a fixed order at eac
 3. one 63-bit integer, the key of the episode's *noise stream* (only with noise or bias): a
    ``numpy.random.Philox`` generator of its own, from which the bias (``observation_bias``
    standard deviations, one normal per component) and then one normal per component and
-   observation are drawn. A stream of its own lets a vector env draw a block of many steps'
-   noise per sub-env at once (numpy's ``standard_normal`` gives the same numbers in blocks as
-   one at a time), so it pays a Python call per sub-env every :data:`NOISE_BLOCK` steps, not
-   every step.
+   observation are drawn. A stream of its own, apart from the env's generator, lets a vector
+   env draw every sub-env's noise in one compiled call per step (numba draws the very numbers
+   numpy's ``Generator.standard_normal`` draws: :class:`rbenvs.draws.GeneratorTable`), or,
+   without numba, a block of :data:`NOISE_BLOCK` observations per sub-env and Python call
+   (numpy gives the same numbers in blocks as one at a time).
 
 ``param_ranges`` maps a physical keyword of the env (its :attr:`randomizable`) to either
 
@@ -47,7 +48,7 @@ import numpy as np
 
 from ..dynamics.validation import ParameterTypeError, _as_real, real_array, require_int_in
 
-__all__ = ["ParamRanges", "Realism", "NOISE_BLOCK", "MAX_ACTION_DELAY", "noise_stream", "noisy_observation"]
+__all__ = ["ParamRanges", "Realism", "NOISE_BLOCK", "MAX_ACTION_DELAY", "noise_generator", "rekey", "noisy_observation"]
 
 NOISE_BLOCK = 64  # observations' noise a vector env draws per sub-env and Python call
 MAX_ACTION_DELAY = 10_000  # control periods
@@ -192,10 +193,25 @@ class Realism:
         return self.stream or self.delay > 0
 
 
-def noise_stream(rng):
-    """An episode's noise generator, keyed by one integer drawn from the env's generator."""
+def noise_generator():
+    """A generator for noise streams (``numpy.random.Philox``), made once per env or sub-env and
+    given each episode's key by :func:`rekey` (a key set costs microseconds; a new generator
+    tens of them)."""
+    return np.random.Generator(np.random.Philox(key=0))
+
+
+def rekey(gen, rng) -> None:
+    """Start ``gen``'s stream afresh at a key drawn from the env's generator ``rng`` (one
+    ``integers(0, 2**63)``): the stream of ``Generator(Philox(key=key))``, from counter 0."""
     key = int(rng.integers(0, 2**63))
-    return np.random.Generator(np.random.Philox(key=key))
+    gen.bit_generator.state = {
+        "bit_generator": "Philox",
+        "state": {"counter": np.zeros(4, dtype=np.uint64), "key": np.array([key, 0], dtype=np.uint64)},
+        "buffer": np.zeros(4, dtype=np.uint64),
+        "buffer_pos": 4,
+        "has_uint32": 0,
+        "uinteger": 0,
+    }
 
 
 def noisy_observation(obs, bias, std, z, high):

@@ -66,7 +66,7 @@ from .. import compiled as _compiled
 from ..core.step import _REAL_FLOATS, ReasonPool, action_columns, terminal_reason
 from ..draws import GeneratorTable, kind_codes
 from ..envs.base import require_compiled
-from ..envs.options import NOISE_BLOCK, noise_stream, noisy_observation
+from ..envs.options import NOISE_BLOCK, noise_generator, noisy_observation, rekey
 from ..dynamics.validation import real_array, require_bool, require_int_at_least
 
 __all__ = ["RigidBodyVectorEnv", "vector_class", "FreeRigidBodyVectorEnv", "LagrangeTopVectorEnv", "TippeTopVectorEnv"]
@@ -159,11 +159,16 @@ class RigidBodyVectorEnv(VectorEnv):
             self._head = 0
         if r.stream:
             k = self.single_observation_space.shape[0]
-            self._noise_gen = [None] * n
+            self._noise_gen = [noise_generator() for _ in range(n)]  # rekeyed per episode
             self._bias = None if r.bias is None else np.zeros((n, k))
+            self._noise_table = None
             if r.noise is not None:
-                self._zbuf = np.zeros((n, NOISE_BLOCK, k))
-                self._zpos = np.full(n, NOISE_BLOCK, dtype=np.int64)
+                if _compiled.available():  # one compiled call draws every sub-env's noise
+                    self._noise_table = GeneratorTable(self._noise_gen)
+                    self._noise_codes = kind_codes("n" * k)
+                else:  # blocks of NOISE_BLOCK observations per sub-env and Python call
+                    self._zbuf = np.zeros((n, NOISE_BLOCK, k))
+                    self._zpos = np.full(n, NOISE_BLOCK, dtype=np.int64)
         self.noiseless_observation = None
 
     def _compiled_step(self, compiled):
@@ -681,10 +686,11 @@ class RigidBodyVectorEnv(VectorEnv):
                     final[i] = noisy[j]
                 info["final_obs"] = final
             for i in idx:  # the new episodes' streams, keyed from their generators after their starts
-                g = self._noise_gen[i] = noise_stream(self._rngs[i])
+                g = self._noise_gen[i]
+                rekey(g, self._rngs[i])
                 if self._bias is not None:
                     self._bias[i] = r.bias * g.standard_normal(len(r.bias))
-                if r.noise is not None:
+                if r.noise is not None and self._noise_table is None:
                     self._zpos[i] = NOISE_BLOCK
             self.noiseless_observation = obs
             obs = noisy_observation(obs, self._bias, r.noise, self._noise_rows(np.arange(self.num_envs)), high)
@@ -699,9 +705,12 @@ class RigidBodyVectorEnv(VectorEnv):
 
     def _noise_rows(self, idx):
         """The next observation's noise ``(len(idx), k)`` of the sub-envs ``idx`` (``None``
-        without observation noise): from each one's block, refilled from its stream when used up."""
+        without observation noise): one compiled call over their streams, or from each one's
+        block, refilled from its stream when used up."""
         if self._realism.noise is None:
             return None
+        if self._noise_table is not None:
+            return self._noise_table.draws(idx, self._noise_codes).T
         pos = self._zpos[idx]
         for i in idx[pos == NOISE_BLOCK]:
             self._zbuf[i] = self._noise_gen[i].standard_normal(self._zbuf.shape[1:])
