@@ -197,7 +197,7 @@ def noise_generator():
     """A generator for noise streams (``numpy.random.Philox``), made once per env or sub-env and
     given each episode's key by :func:`rekey` (a key set costs microseconds; a new generator
     tens of them)."""
-    return np.random.Generator(np.random.Philox(key=0))
+    return np.random.Generator(np.random.Philox(0))  # (a seed, not a key: no entropy read from the OS)
 
 
 def rekey(gen, rng) -> None:

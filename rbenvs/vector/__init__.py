@@ -40,6 +40,14 @@ Conventions (gymnasium 1.x):
   arrays. A non-finite state, a refusal and a bad action take the numpy path's handling.
   Elsewhere, and with ``compiled=False``, the numpy path. ``compiled=True`` demands the kernel
   (``ValueError`` saying why it cannot be had). ``self.compiled`` tells which path runs.
+* The robustness options (``param_ranges``, ``observation_noise``, ``observation_bias``,
+  ``action_delay``; :mod:`rbenvs.envs.options`) keep sub-env ``i`` the single env seeded
+  ``s + i``, bit for bit: noise and delay keep the batched (or compiled) step, the actions
+  queued in one ``(delay, n, k)`` ring and each sub-env's noise drawn from its own stream (one
+  compiled call per step for the batch, :class:`rbenvs.draws.GeneratorTable`); with
+  ``param_ranges`` each sub-env's episode has a model of its own, stepped on the float path one
+  sub-env at a time (no batched or compiled step: ``compiled=True`` is refused), and
+  ``info["params"]`` holds the drawn values of the sub-envs that started an episode.
 * The arrays a step returns are the caller's (fresh each step), except ``terminal_reason``'s,
   which comes from a small pool and is reused only once nothing else refers to it (CPython's
   reference count; :class:`rbenvs.core.step.ReasonPool`).
