@@ -112,6 +112,22 @@ def test_zero_action_keeps_a_top_up_exactly_above_its_drawn_critical_spin():
     assert sum(outcomes) >= 5 and len(outcomes) - sum(outcomes) >= 5
 
 
+def test_the_tippe_tops_jellett_integral_follows_its_drawn_parameters():
+    """Upright at the start (tilt 0): Jellett's integral is R C spin (1 - alpha) [T 3.106] of
+    the episode's drawn radius, axial moment and offset (rbenvs.oracles), not the keywords'."""
+    from rbenvs.oracles.tippe_top import jellett_upright
+
+    env = TippeTopEnv(param_ranges={"radius": 0.1, "offset": (0.15, 0.25), "inertia": 0.05}, tilt=0.0, spin=150.0, compiled=False)
+    values = set()
+    for seed in range(5):
+        info = env.reset(seed=seed)[1]
+        p = info["params"]
+        want = jellett_upright(p["inertia"][1], p["radius"], p["offset"], 150.0)
+        assert info["jellett"] == pytest.approx(want, rel=1e-12)
+        values.add(info["jellett"])
+    assert len(values) == 5
+
+
 @pytest.mark.parametrize(
     "cls,ranges,match",
     [
