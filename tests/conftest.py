@@ -69,6 +69,10 @@ def check_info_row(vinfo, i, single_info, skip=()):
         if key == "terminal_reason":
             assert vinfo["_terminal_reason"][i] and vinfo["terminal_reason"][i] == value, (key, i)
             continue
+        if isinstance(value, dict):  # a nested dict (the drawn "params"): gymnasium's nested masks
+            assert key in vinfo and vinfo["_" + key][i], (key, i)
+            check_info_row(vinfo[key], i, value)
+            continue
         assert key in vinfo and vinfo["_" + key][i], (key, i)
         assert same(vinfo[key][i], value), (key, i, vinfo[key][i], value)
     if "terminal_reason" not in single_info and "terminal_reason" in vinfo:

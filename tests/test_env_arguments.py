@@ -70,6 +70,12 @@ VALID = {
 for _cls in TASKS:
     VALID[(_cls, "tolerance")] = {"none"}
     VALID[(_cls, "tolerance_horizon")] = {"none", "huge_int"}
+# the robustness options (rbenvs.envs.options), the same on every env: None (the default) for
+# each; a standard deviation of noise or bias is any finite number >= 0
+for _cls in TASKS:
+    VALID[(_cls, "param_ranges")] = {"none"}
+    VALID[(_cls, "observation_noise")] = {"zero", "huge", "huge_int", "none"}
+    VALID[(_cls, "observation_bias")] = {"zero", "huge", "huge_int", "none"}
 
 
 def keywords(cls):

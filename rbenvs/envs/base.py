@@ -10,7 +10,10 @@ overhead inside the integrator.
 
 from __future__ import annotations
 
+import collections
 import dataclasses
+import functools
+import inspect
 import math
 
 import gymnasium as gym
@@ -21,6 +24,7 @@ from ..core.model import Model
 from ..core.step import Engine, NumericalFailureWarning, action_values
 from ..dynamics.validation import require_finite_positive, require_int_in
 from ..integrators import get_integrator
+from .options import ParamRanges, Realism, noise_generator, noisy_observation, rekey
 
 __all__ = ["RigidBodyEnv", "NumericalFailureWarning", "MAX_INTERNAL_STEPS", "GUARDS", "FLOAT32_MAX", "require_float32_bound", "require_guard", "require_compiled"]
 
@@ -71,6 +75,34 @@ class RigidBodyEnv(gym.Env):
     metadata = {"render_modes": ["human", "rgb_array"]}
     system_class: type = None  # the system the env builds (its capabilities pick the integrators)
     integrators = _SupportedSchemes()
+    # the physical keywords ``param_ranges`` may randomize (rbenvs.envs.options), in draw order
+    randomizable: tuple = ()
+    _ranges = None  # the validated param_ranges (None: every episode has the constructor's parameters)
+    _realism = Realism(None, None, 0, 0)  # noise, bias, delay: none
+    noiseless_observation = None  # with observation noise or bias: the last observation without them
+    _noise_rng = None  # the noise stream's generator (rbenvs.envs.options.rekey at each reset)
+
+    def __init_subclass__(cls, **kwargs):
+        """Each env records its constructor's keyword arguments (defaults applied) in
+        ``_kwargs``: ``param_ranges`` builds an episode's env from them with drawn values."""
+        super().__init_subclass__(**kwargs)
+        init = cls.__dict__.get("__init__")
+        if init is None:
+            return
+        sig = inspect.signature(init)
+        first = next(iter(sig.parameters))
+
+        @functools.wraps(init)
+        def __init__(self, *args, **kw):
+            if "_kwargs" not in self.__dict__:  # (the outermost class's keywords)
+                bound = sig.bind(self, *args, **kw)
+                bound.apply_defaults()
+                arguments = dict(bound.arguments)
+                arguments.pop(first)
+                self._kwargs = arguments
+            init(self, *args, **kw)
+
+        cls.__init__ = __init__
 
     def _setup(self, system, task, actuator, integrator, dt, substeps, observation_high, render_mode, guard="subdivide", compiled="auto",
                tolerance=None, tolerance_horizon=None):
@@ -106,6 +138,57 @@ class RigidBodyEnv(gym.Env):
         self._u = None  # the control of the last step (None after a reset: nothing acted yet)
         self._plain = self.engine.plain
         self._require_resolvable()
+
+    def _setup_options(self, param_ranges=None, observation_noise=None, observation_bias=None, action_delay=0):
+        """Validate the robustness options (:mod:`rbenvs.envs.options`); with ``param_ranges``
+        build the env at every corner of the ranges' box and its centre, each of which must pass
+        every check of the constructor and keep the env's structure."""
+        self._realism = realism = Realism(observation_noise, observation_bias, action_delay, self.observation_space.shape[0])
+        if param_ranges is not None:
+            ranges = ParamRanges(type(self), self._kwargs, param_ranges)
+            if self.engine.compiled is True:
+                raise ValueError("compiled=True cannot be had with param_ranges: each episode builds its model from drawn parameters and "
+                                 "a compiled step is built per parameter setting (about a second each); pass compiled='auto' or False")
+            structure = self._structure()
+            for label, values in ranges.corners():
+                try:
+                    env = self._episode_env(values)
+                except (ValueError, TypeError) as err:
+                    raise type(err)(f"param_ranges: at the range's {label}: {err} (every value in each range must be valid)") from err
+                if env._structure() != structure:
+                    raise ValueError(f"param_ranges: at the range's {label} the env's structure changes (its spaces, read-outs or "
+                                     f"named axis differ from the keywords' values); narrow the ranges of {list(ranges.names)}")
+            self._ranges = ranges
+        if realism.active:
+            if self.render_mode != "human":
+                self.step = self._step_options  # (the class's step stays the plain hot path)
+
+    @property
+    def param_ranges(self):
+        """The validated ``param_ranges`` (:class:`rbenvs.envs.options.ParamRanges`), or ``None``."""
+        return self._ranges
+
+    @property
+    def realism(self):
+        """The validated noise, bias and delay (:class:`rbenvs.envs.options.Realism`)."""
+        return self._realism
+
+    def episode_env(self, values: dict):
+        """The env of one episode's drawn parameters ``values`` (see :meth:`_episode_env`)."""
+        return self._episode_env(values)
+
+    def _structure(self) -> tuple:
+        """What a drawn parameter setting must leave unchanged: spaces, read-outs, metrics, the
+        start's draws, the event and the env's named axis (the free body's)."""
+        return (tuple(self.observation_space.high.tolist()), self.action_space.shape, self.engine.readout_names, self.engine.metric_names,
+                self.model.draw_kinds, self.system.dim, self.engine.event_name, getattr(self, "axis", None))
+
+    def _episode_env(self, values: dict):
+        """The env of one episode's drawn parameters: the constructor's keywords with ``values``,
+        on the float path (its model and engine are what the episode runs)."""
+        kw = dict(self._kwargs, **values)
+        kw.update(param_ranges=None, observation_noise=None, observation_bias=None, action_delay=0, render_mode=None, compiled=False)
+        return type(self)(**kw)
 
     # The parts, read from the model (one place).
     system = property(lambda self: self.model.system)
@@ -249,13 +332,61 @@ class RigidBodyEnv(gym.Env):
         state = options.pop("state", None)
         if options:
             raise ValueError(f"reset options must be a subset of {{'state'}}, got unknown {sorted(options)}")
+        params = None
+        if self._ranges is not None:  # this episode's parameters, first from the generator
+            values = self._ranges.draw(self.np_random)
+            episode = self._episode_env(values)
+            self.model, self.engine, self._step_one = episode.model, episode.engine, episode.engine.step_one
+            params = self._ranges.info(values)
         self._plain = self.engine.plain
         self._u = None
         if state is None:
             self._y = tuple(float(c) for c in self.model.initial_state(self.np_random))
         else:
             self._y = self.system.import_state(state)
-        return self.engine.reset_one(self._y)
+        obs, info = self.engine.reset_one(self._y)
+        if self._realism.active:
+            obs = self._reset_realism(obs)
+        if params is not None:
+            info["params"] = params
+        return obs, info
+
+    def _reset_realism(self, obs):
+        """A new episode's actuator queue (``action_delay`` zero actions) and noise stream (its
+        key drawn from the env's generator after the start; the bias, then the observation's noise)."""
+        r = self._realism
+        if r.delay:
+            self._queue = collections.deque([[0.0] * self._action_shape[0] for _ in range(r.delay)])
+        if r.stream:
+            if self._noise_rng is None:
+                self._noise_rng = noise_generator()
+            rekey(self._noise_rng, self.np_random)
+            self._bias = None if r.bias is None else r.bias * self._noise_rng.standard_normal(len(r.bias))
+            obs = self._noisy(obs)
+        return obs
+
+    def _noisy(self, obs):
+        """The observation the agent sees: ``obs`` plus the episode's bias and fresh noise."""
+        r = self._realism
+        self.noiseless_observation = obs
+        z = None if r.noise is None else self._noise_rng.standard_normal(len(r.noise))
+        return noisy_observation(obs, self._bias, r.noise, z, self.engine.high)
+
+    def _step_options(self, action):
+        """:meth:`step` with action delay (the action acts ``action_delay`` periods later; the
+        queue starts with zero actions) and observation noise; the physics, the reward and
+        ``info`` come from the true state and the action that acted."""
+        if self._y is None:
+            raise RuntimeError("call reset() before step()")
+        a = action_values(action, self._action_shape)
+        r = self._realism
+        if r.delay:
+            self._queue.append(a)
+            a = self._queue.popleft()
+        self._y, obs, reward, terminated, info, self._u, self._plain = self._step_one(self._y, a, self._plain)
+        if r.stream:
+            obs = self._noisy(obs)
+        return obs, reward, terminated, False, info
 
     def step(self, action):
         if self._y is None:
@@ -318,7 +449,7 @@ class RigidBodyEnv(gym.Env):
         raise NotImplementedError
 
     def _step_human(self, action):
-        out = type(self).step(self, action)
+        out = self._step_options(action) if self._realism.active else type(self).step(self, action)
         self.render()
         return out
 

@@ -146,6 +146,15 @@ class FreeRigidBodyEnv(RigidBodyEnv):
       for bit the float path, where numba is installed and the setting has pure forms (the
       explicit schemes ``euler``, ``rk4``, ``splitting``); ``False``: the float path; ``True``:
       demand it (``ValueError`` saying why it cannot be had). ``env.unwrapped.compiled`` tells.
+    * ``param_ranges=None``: domain randomization, ``{keyword: spread or (lo, hi)}`` over
+      ``inertia``, ``max_torque``, drawn at each reset from the env's generator and reported in
+      ``info["params"]``; each range is checked at construction (every corner of the box must be
+      a valid env). ``observation_noise=None``, ``observation_bias=None``: Gaussian standard
+      deviations in the observation's units (a number or one per component; the bias is drawn
+      once per episode), the noisy observation clipped to the bounds; the state, reward and
+      ``info`` stay noiseless (``env.unwrapped.noiseless_observation``). ``action_delay=0``: an
+      action first acts ``action_delay`` control periods later (zero actions before). See
+      docs/environments.md, "Robustness options", and :mod:`rbenvs.envs.options`.
     * ``max_torque=0.2``: N m per actuated axis (``>= 0``).
     * ``actuated=(True, True, True)``: which body axes take torque (at least one).
     * ``control_cost=0.01``: weight of ``mean(u^2)`` in the reward (``>= 0``).
@@ -179,6 +188,7 @@ class FreeRigidBodyEnv(RigidBodyEnv):
     # info keys of the quantities the uncontrolled motion conserves (summaries, checks)
     invariants = ("energy", "momentum_norm")
     system_class = FreeBody
+    randomizable = ("inertia", "max_torque")  # param_ranges keywords
 
     def __init__(
         self,
@@ -200,6 +210,10 @@ class FreeRigidBodyEnv(RigidBodyEnv):
         compiled="auto",
         tolerance=None,
         tolerance_horizon=None,
+        param_ranges=None,
+        observation_noise=None,
+        observation_bias=None,
+        action_delay: int = 0,
     ):
         # every keyword is checked, whatever the task (a keyword the task ignores must still be
         # a valid value: a typo is reported, not silently kept)
@@ -244,6 +258,7 @@ class FreeRigidBodyEnv(RigidBodyEnv):
         # |Delta Omega| <= max_torque sqrt(k) dt / I_min over a period of full torque on k axes
         change = max_torque * math.sqrt(actuator.size) * self.dt / min(params.inertia)
         self._require_authority("max_torque", change, "max_angular_velocity", max_w, "angular velocity [rad/s]")
+        self._setup_options(param_ranges, observation_noise, observation_bias, action_delay)
 
     _rate_sources = "spin_rate and inertia"
 

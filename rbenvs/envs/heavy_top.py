@@ -155,6 +155,15 @@ class LagrangeTopEnv(RigidBodyEnv):
       for bit the float path, where numba is installed and the setting has pure forms (the
       explicit schemes ``euler``, ``rk4``, ``splitting``); ``False``: the float path; ``True``:
       demand it (``ValueError`` saying why it cannot be had). ``env.unwrapped.compiled`` tells.
+    * ``param_ranges=None``: domain randomization, ``{keyword: spread or (lo, hi)}`` over
+      ``inertia``, ``mass``, ``length``, ``gravity``, ``spin_friction``, ``max_torque``, drawn at each reset from the env's generator and reported in
+      ``info["params"]``; each range is checked at construction (every corner of the box must be
+      a valid env). ``observation_noise=None``, ``observation_bias=None``: Gaussian standard
+      deviations in the observation's units (a number or one per component; the bias is drawn
+      once per episode), the noisy observation clipped to the bounds; the state, reward and
+      ``info`` stay noiseless (``env.unwrapped.noiseless_observation``). ``action_delay=0``: an
+      action first acts ``action_delay`` control periods later (zero actions before). See
+      docs/environments.md, "Robustness options", and :mod:`rbenvs.envs.options`.
     * ``max_torque=2.0``: N m per torque direction (``>= 0``); ``axial_torque=False``.
     * ``spin_friction=0.0``: N m s, viscous pivot torque ``-k (Omega.chi) chi``.
     * ``control_cost=0.01``; ``max_angular_velocity=100.0`` rad/s (observation bound);
@@ -188,6 +197,7 @@ class LagrangeTopEnv(RigidBodyEnv):
     # info keys of the quantities the uncontrolled, frictionless motion conserves
     invariants = ("energy", "pi_dot_gamma", "vertical_norm")
     system_class = HeavyTop
+    randomizable = ("inertia", "mass", "length", "gravity", "spin_friction", "max_torque")  # param_ranges keywords
 
     def __init__(
         self,
@@ -216,6 +226,10 @@ class LagrangeTopEnv(RigidBodyEnv):
         compiled="auto",
         tolerance=None,
         tolerance_horizon=None,
+        param_ranges=None,
+        observation_noise=None,
+        observation_bias=None,
+        action_delay: int = 0,
     ):
         # every keyword is checked, whatever the task (one the task ignores must still be valid)
         task = require_choice("task", task, self.tasks)
@@ -273,6 +287,7 @@ class LagrangeTopEnv(RigidBodyEnv):
         # orthonormal torque directions: |tau| <= max_torque sqrt(k), |Delta Omega| <= |tau| dt / I_min
         change = self.max_torque * math.sqrt(len(self.torque_directions)) * self.dt / min(params.inertia)
         self._require_authority("max_torque", change, "max_angular_velocity", max_w, "angular velocity [rad/s]")
+        self._setup_options(param_ranges, observation_noise, observation_bias, action_delay)
 
     _rate_sources = "mass, length, gravity, inertia, spin_friction and spin"
 

@@ -158,6 +158,15 @@ class TippeTopEnv(RigidBodyEnv):
       for bit the float path, where numba is installed and the setting has pure forms (the
       explicit schemes ``euler``, ``rk4``, ``splitting``); ``False``: the float path; ``True``:
       demand it (``ValueError`` saying why it cannot be had). ``env.unwrapped.compiled`` tells.
+    * ``param_ranges=None``: domain randomization, ``{keyword: spread or (lo, hi)}`` over
+      ``radius``, ``mass``, ``offset``, ``inertia``, ``gravity``, ``friction``, ``max_table_acceleration``, ``max_torque``, drawn at each reset from the env's generator and reported in
+      ``info["params"]``; each range is checked at construction (every corner of the box must be
+      a valid env). ``observation_noise=None``, ``observation_bias=None``: Gaussian standard
+      deviations in the observation's units (a number or one per component; the bias is drawn
+      once per episode), the noisy observation clipped to the bounds; the state, reward and
+      ``info`` stay noiseless (``env.unwrapped.noiseless_observation``). ``action_delay=0``: an
+      action first acts ``action_delay`` control periods later (zero actions before). See
+      docs/environments.md, "Robustness options", and :mod:`rbenvs.envs.options`.
     * ``max_table_acceleration=2.0`` m/s^2; ``friction_action=False``, ``friction_range=(0.0, 0.6)``;
       ``torque_action=False``, ``max_torque=1e-4`` N m; ``control_cost=0.01``.
     * ``max_angular_velocity=None`` (``2 max|spin| + 50``) rad/s, ``max_speed=5.0`` m/s.
@@ -188,6 +197,7 @@ class TippeTopEnv(RigidBodyEnv):
 
     tasks = ("invert", "hold")
     system_class = TippeTop
+    randomizable = ("radius", "mass", "offset", "inertia", "gravity", "friction", "max_table_acceleration", "max_torque")  # param_ranges keywords
     fidelities = FIDELITIES
     # info keys of the quantities the motion keeps: Jellett always (no body torque), the energy
     # without friction
@@ -226,6 +236,10 @@ class TippeTopEnv(RigidBodyEnv):
         tolerance=None,
         tolerance_horizon=None,
         friction_bound: str = "stability",
+        param_ranges=None,
+        observation_noise=None,
+        observation_bias=None,
+        action_delay: int = 0,
     ):
         # every keyword is checked, whatever the task and options (an unused one must still be valid)
         task = require_choice("task", task, self.tasks)
@@ -279,6 +293,7 @@ class TippeTopEnv(RigidBodyEnv):
         self._require_authority("max_table_acceleration", self.max_table_acceleration * math.sqrt(2.0) * self.dt, "max_speed", max_v, "velocity of the centre of mass [m/s]")
         change = self.max_torque * math.sqrt(3.0) * self.dt / min(params.inertia)
         self._require_authority("max_torque", change, "max_angular_velocity", max_w, "angular velocity [rad/s]")
+        self._setup_options(param_ranges, observation_noise, observation_bias, action_delay)
 
     @property
     def params(self) -> TippeTopParams:

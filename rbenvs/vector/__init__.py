@@ -40,6 +40,14 @@ Conventions (gymnasium 1.x):
   arrays. A non-finite state, a refusal and a bad action take the numpy path's handling.
   Elsewhere, and with ``compiled=False``, the numpy path. ``compiled=True`` demands the kernel
   (``ValueError`` saying why it cannot be had). ``self.compiled`` tells which path runs.
+* The robustness options (``param_ranges``, ``observation_noise``, ``observation_bias``,
+  ``action_delay``; :mod:`rbenvs.envs.options`) keep sub-env ``i`` the single env seeded
+  ``s + i``, bit for bit: noise and delay keep the batched (or compiled) step, the actions
+  queued in one ``(delay, n, k)`` ring and each sub-env's noise drawn from its own stream (one
+  compiled call per step for the batch, :class:`rbenvs.draws.GeneratorTable`); with
+  ``param_ranges`` each sub-env's episode has a model of its own, stepped on the float path one
+  sub-env at a time (no batched or compiled step: ``compiled=True`` is refused), and
+  ``info["params"]`` holds the drawn values of the sub-envs that started an episode.
 * The arrays a step returns are the caller's (fresh each step), except ``terminal_reason``'s,
   which comes from a small pool and is reused only once nothing else refers to it (CPython's
   reference count; :class:`rbenvs.core.step.ReasonPool`).
@@ -66,6 +74,7 @@ from .. import compiled as _compiled
 from ..core.step import _REAL_FLOATS, ReasonPool, action_columns, terminal_reason
 from ..draws import GeneratorTable, kind_codes
 from ..envs.base import require_compiled
+from ..envs.options import NOISE_BLOCK, noise_generator, noisy_observation, rekey
 from ..dynamics.validation import real_array, require_bool, require_int_at_least
 
 __all__ = ["RigidBodyVectorEnv", "vector_class", "FreeRigidBodyVectorEnv", "LagrangeTopVectorEnv", "TippeTopVectorEnv"]
@@ -101,6 +110,24 @@ class RigidBodyVectorEnv(VectorEnv):
         self.observation_space = batch_space(env.observation_space, self.num_envs)
         self.action_space = batch_space(env.action_space, self.num_envs)
         self.system, self.task, self.integrator = self.model.system, self.model.task, self.model.integrator
+        # the robustness options (rbenvs.envs.options), validated by the single env
+        self._template, self._ranges, self._realism = env, env.param_ranges, env.realism
+        self._options = self._ranges is not None or self._realism.active
+        if self._ranges is not None:
+            # each sub-env's episode has its own model (its drawn parameters), stepped on the float
+            # path: no batched or compiled step of a model per row exists
+            if compiled is True:
+                raise ValueError("compiled=True cannot be had with param_ranges: each sub-env's episode has its own model (drawn "
+                                 "parameters), stepped one sub-env at a time on the float path; pass compiled='auto' or False")
+            if self.engine.tolerance is not None:
+                raise ValueError("tolerance= with param_ranges is not supported by the vector env yet: its error estimate is the "
+                                 "nominal model's, while each sub-env's episode steps a model of its own (the single env supports both)")
+            compiled = False
+            self._episodes = [None] * self.num_envs  # each sub-env's episode engine
+            self._plains = np.ones(self.num_envs, dtype=bool)
+            self._param_values = {}
+            self._metric_dtypes = None
+        self._init_realism()
         self._renderer = None
         self._y = None  # the states: a tuple of (n,) arrays, one per component
         self._y2d = None  # the (dim, n) array whose rows are self._y, when the kernel made it
@@ -132,6 +159,28 @@ class RigidBodyVectorEnv(VectorEnv):
         if self._batch_step is not None and self._use_table:
             self._vector_step = _compiled.VectorStep(self.engine.kernel_parts(), self.model, self.single_observation_space.shape[0], self.engine.high,
                                                      self.max_episode_steps)
+
+    def _init_realism(self) -> None:
+        """The action queue (``(delay, n, k)``, a ring with one head for every sub-env) and the
+        noise streams: per sub-env a generator, a block of ``NOISE_BLOCK`` observations' noise
+        and the position in it, and the episode's bias."""
+        r, n = self._realism, self.num_envs
+        if r.delay:
+            self._queue = np.zeros((r.delay, n) + self.single_action_space.shape)
+            self._head = 0
+        if r.stream:
+            k = self.single_observation_space.shape[0]
+            self._noise_gen = [noise_generator() for _ in range(n)]  # rekeyed per episode
+            self._bias = None if r.bias is None else np.zeros((n, k))
+            self._noise_table = None
+            if r.noise is not None:
+                if _compiled.available():  # one compiled call draws every sub-env's noise
+                    self._noise_table = GeneratorTable(self._noise_gen)
+                    self._noise_codes = kind_codes("n" * k)
+                else:  # blocks of NOISE_BLOCK observations per sub-env and Python call
+                    self._zbuf = np.zeros((n, NOISE_BLOCK, k))
+                    self._zpos = np.full(n, NOISE_BLOCK, dtype=np.int64)
+        self.noiseless_observation = None
 
     def _compiled_step(self, compiled):
         """The model's :class:`rbenvs.compiled.BatchStep`, or ``None`` for the numpy path."""
@@ -199,13 +248,15 @@ class RigidBodyVectorEnv(VectorEnv):
         if self._use_table and self._table is None and all(r is not None for r in self._rngs):
             self._table = GeneratorTable(self._rngs)
         if state is not None:
+            if self._ranges is not None:  # the episodes' parameters first, as the single env draws them
+                self._new_episodes(np.flatnonzero(mask))
             self._set_rows(self._rows_from_state(state, mask))
         else:
             self._draw_rows(np.flatnonzero(mask))
         self._steps[mask] = 0 if elapsed is None else elapsed[mask]
         self._prev_done = self._prev_done & ~mask
         self._plain = self.engine.plain
-        obs, over, metrics, physical = self._fresh(self._y)
+        obs, over, metrics, physical = self._fresh(self._y, np.arange(n))
         if np.any(over & mask):
             raise ValueError("an initial state lies outside the observation bounds; raise the limit parameters")
         self._u = None  # as the single env after reset: nothing acted yet (a table at rest)
@@ -215,6 +266,8 @@ class RigidBodyVectorEnv(VectorEnv):
         if self.engine.tolerance is not None:
             info["error_estimate"] = np.zeros(n)  # no period yet (the single env's reset)
             info["_error_estimate"] = self._true
+        if self._options:
+            obs, info = self._realism_after(obs, info, mask, reset=True)
         return obs, info
 
     def _elapsed_steps(self, elapsed) -> np.ndarray:
@@ -229,11 +282,14 @@ class RigidBodyVectorEnv(VectorEnv):
             raise ValueError(f"options['elapsed_steps'] must lie in [0, max_episode_steps) = [0, {self.max_episode_steps}), got [{k.min()}, {k.max()}]")
         return k.astype(np.int64)
 
-    def _fresh(self, y):
+    def _fresh(self, y, idx):
         """``(obs, over, metrics, physical)`` of states ``y`` that have just been reset: no control
         acted yet (read-outs under ``u = None``, the single env's rule), the task's metrics at zero
         action. Compiled where the step is (:meth:`rbenvs.compiled.VectorStep.finish`); on numpy
-        ``physical`` is ``None`` (the engine's read-outs are taken where needed)."""
+        ``physical`` is ``None`` (the engine's read-outs are taken where needed). ``y``: the rows
+        ``idx`` of the batch."""
+        if self._ranges is not None:
+            return self._fresh_episodes(y, idx)
         if self._vector_step is not None and self._table is not None:
             obs, over, metrics, physical = self._vector_step.finish(np.stack(y), self._table.list)
             return obs, over, dict(zip(self.task.metric_names, metrics)), physical
@@ -254,11 +310,16 @@ class RigidBodyVectorEnv(VectorEnv):
         state a single env draws from the same generator (tested)."""
         if len(idx) == 0:
             return
-        if self._table is not None:
+        if self._ranges is not None:
+            self._new_episodes(idx)
+            starts = [self._episodes[i].model.initial_state(self._rngs[i]) for i in idx]  # (the single env's draws)
+            comps = tuple(np.array([float(c) for c in col]) for col in zip(*starts))
+        elif self._table is not None:
             task_raw, system_raw = self.model.split_draws(self._table.draws(idx, self._codes))
         else:
             task_raw, system_raw = self.model.batch_draws([self._rngs[i] for i in idx])
-        comps = self.model.initial_from_draws(tuple(task_raw), tuple(system_raw))
+        if self._ranges is None:
+            comps = self.model.initial_from_draws(tuple(task_raw), tuple(system_raw))
         if self._y2d is not None:  # the rows of the kernel's (dim, n) state, which self._y views
             for j, v in enumerate(comps):
                 self._y2d[j, idx] = v
@@ -278,8 +339,9 @@ class RigidBodyVectorEnv(VectorEnv):
             if arr.ndim < 1 or arr.shape[0] != n:
                 raise ValueError(f"state[{name!r}] must be batched along a leading axis of length num_envs = {n}, got shape {arr.shape}")
             arrays[name] = arr
-        # each row validated by the system's own checks, as the single env's
-        return {i: self.system.import_state({k: v[i] for k, v in arrays.items()}) for i in np.flatnonzero(mask)}
+        # each row validated by the system's own checks (its episode's system), as the single env's
+        system = (lambda i: self._episodes[i].system) if self._ranges is not None else (lambda i: self.system)
+        return {i: system(i).import_state({k: v[i] for k, v in arrays.items()}) for i in np.flatnonzero(mask)}
 
     def _set_rows(self, rows: dict) -> None:
         if self._y is None:
@@ -293,6 +355,12 @@ class RigidBodyVectorEnv(VectorEnv):
 
     # ------------------------------------------------------------------ step
     def step(self, actions):
+        if self._options:  # (the delayed actions, then the estimate below, then the noise)
+            return self._step_options(actions)
+        return self._step_estimated(actions)
+
+    def _step_estimated(self, actions):
+        """The step of ``actions`` (those that act) with, under a tolerance, each period's error estimate."""
         if self.engine.tolerance is None or self._y is None:
             return self._step(actions)
         # with a tolerance: each period's estimated error, from the rate at its start and the
@@ -321,6 +389,8 @@ class RigidBodyVectorEnv(VectorEnv):
     def _step(self, actions):
         if self._y is None:
             raise RuntimeError("call reset() before step()")
+        if self._ranges is not None:
+            return self._step_episodes(actions)
         if self._vector_step is not None and self._table is not None:
             return self._compiled_step_all(actions)
         engine = self.engine
@@ -495,7 +565,7 @@ class RigidBodyVectorEnv(VectorEnv):
         self._draw_rows(idx)
         self._steps[which] = 0
         y = tuple(c[idx] for c in self._y)
-        new_obs, _, metrics, physical = self._fresh(y)
+        new_obs, _, metrics, physical = self._fresh(y, idx)
         obs = obs.copy()
         obs[idx] = new_obs
         values = {}
@@ -539,6 +609,161 @@ class RigidBodyVectorEnv(VectorEnv):
         info["final_info"] = final_info
         info["_final_info"] = done.copy()
         return obs, info
+
+    # ------------------------------------------------------------------ robustness options
+    def _new_episodes(self, idx) -> None:
+        """Each sub-env in ``idx`` draws its episode's parameters from its own generator (the
+        single env's first draws) and gets that episode's engine."""
+        for i in idx:
+            values = self._ranges.draw(self._rngs[i])
+            self._episodes[i] = self._template.episode_env(values).engine
+            self._plains[i] = self._episodes[i].plain
+            for name, v in self._ranges.info(values).items():
+                column = self._param_values.get(name)
+                if column is None:
+                    column = self._param_values[name] = np.zeros((self.num_envs,) + np.shape(v))
+                column[i] = v
+
+    def _fresh_episodes(self, y, idx):
+        """:meth:`_fresh` with each sub-env's episode engine (its own parameters)."""
+        k = self.single_observation_space.shape[0]
+        obs, over = np.zeros((len(idx), k), dtype=np.float32), np.zeros(len(idx), dtype=bool)
+        infos = []
+        for j, i in enumerate(idx):
+            o, info = self._episodes[i].reset_one(tuple(float(c[j]) for c in y))
+            obs[j] = o
+            infos.append(info)
+        metrics = {name: self._column(name, [info[name] for info in infos]) for name in self.task.metric_names}
+        physical = [np.array([info[name] for info in infos], dtype=np.float64) for name in self.engine.readout_names]
+        return obs, over, metrics, physical
+
+    def _column(self, name, values):
+        """A metric's values as an array of its type in the single env's info (bool, int or float)."""
+        if self._metric_dtypes is None:
+            self._metric_dtypes = {}
+        dtype = self._metric_dtypes.get(name)
+        if dtype is None:
+            v = next((x for x in values if x is not None), 0.0)
+            dtype = self._metric_dtypes[name] = np.bool_ if isinstance(v, bool) else (np.int64 if isinstance(v, int) else np.float64)
+        return np.array([dtype(0) if x is None else x for x in values], dtype=dtype)
+
+    def _step_episodes(self, actions):
+        """A step of a batch whose sub-envs have their own parameters: each sub-env's period
+        and finish by its episode engine on floats (the single env's very step, so bit for bit),
+        then the batch's info, clocks and autoreset (:meth:`_finish`)."""
+        n, k = self.num_envs, self.single_observation_space.shape[0]
+        cols = action_columns(actions, self.action_space.shape)
+        rows = np.stack(cols, axis=1).tolist()
+        restart = self._prev_done if self.autoreset_mode is AutoresetMode.NEXT_STEP else self._false
+        any_restart = bool(restart.any())
+        obs = np.zeros((n, k), dtype=np.float32)
+        reward = np.zeros(n)
+        terminated, over, fired, failed = (np.zeros(n, dtype=bool) for _ in range(4))
+        h = np.full(n, self.engine.h)
+        names, readouts = self.task.metric_names, self.engine.readout_names
+        metric_rows, physical = {name: [None] * n for name in names}, [np.zeros(n) for _ in readouts]
+        y_new = [c.copy() for c in self._y]
+        us = [None] * n
+        event = self.engine.event_name
+        for i in range(n):
+            if restart[i]:  # (NEXT_STEP: reset below, the period discarded)
+                continue
+            yi = tuple(float(c[i]) for c in self._y)
+            y, o, r, _, info, u, plain = self._episodes[i].step_one(yi, rows[i], bool(self._plains[i]))
+            self._plains[i] = plain
+            for c, v in zip(y_new, y):
+                c[i] = v
+            obs[i], reward[i], us[i], h[i] = o, r, u, info["internal_step"]
+            reason = info.get("terminal_reason")
+            failed[i] = info["numerical_failure"]
+            over[i] = reason == "observation_limit"
+            fired[i] = event is not None and reason == event
+            terminated[i] = reason == "task" or failed[i]
+            for name in names:
+                metric_rows[name][i] = info[name]
+            for column, name in zip(physical, readouts):
+                column[i] = info[name]
+        self._y, self._y2d = tuple(y_new), None
+        size = next((len(u) for u in us if u is not None), None)
+        self._u = None if size is None else tuple(np.array([0.0 if u is None else u[j] for u in us]) for j in range(size))
+        self._action = None
+        self._last_h = h
+        metrics = {name: self._column(name, metric_rows[name]) for name in names}
+        return self._finish(obs, over, reward, terminated, fired if fired.any() else self._false, failed if failed.any() else None, metrics, restart,
+                            any_restart, physical)
+
+    def _step_options(self, actions):
+        """:meth:`step` with the robustness options: the action queue (``action_delay``) gives the
+        actions that act; after the step the sub-envs that started a new episode get their
+        zero-action queue, noise stream and ``info["params"]``, and every observation its noise
+        (:meth:`_realism_after`). The same numbers, in the same order from the same generators,
+        as the single env."""
+        if self._y is None:
+            raise RuntimeError("call reset() before step()")
+        r = self._realism
+        next_step = self.autoreset_mode is AutoresetMode.NEXT_STEP
+        restart = self._prev_done.copy() if next_step else None
+        if r.delay:
+            a = np.stack(action_columns(actions, self.action_space.shape), axis=1)  # checked and clipped, as the single env's
+            actions = self._queue[self._head].copy()
+            self._queue[self._head] = a
+            self._head = (self._head + 1) % r.delay
+        obs, reward, terminated, truncated, info = self._step_estimated(actions)
+        started = restart if next_step else (terminated | truncated)
+        obs, info = self._realism_after(obs, info, started, reset=False, same_step=not next_step)
+        return obs, reward, terminated, truncated, info
+
+    def _realism_after(self, obs, info, started, reset: bool, same_step: bool = False):
+        """The options' part of a reset or step: ``started`` marks the sub-envs whose episode
+        began here. SAME_STEP: the ended episodes' last observations (``final_obs``) take their
+        noise from their old streams first. Returns ``(obs, info)``; ``info`` is updated."""
+        r = self._realism
+        idx = np.flatnonzero(started)
+        if r.delay and len(idx):
+            self._queue[:, idx] = 0.0
+        if r.stream:
+            high = self.engine.high
+            if same_step and len(idx):
+                final = info["final_obs"].copy()
+                last = np.stack([final[i] for i in idx])
+                noisy = noisy_observation(last, None if self._bias is None else self._bias[idx], r.noise, self._noise_rows(idx), high)
+                for j, i in enumerate(idx):
+                    final[i] = noisy[j]
+                info["final_obs"] = final
+            for i in idx:  # the new episodes' streams, keyed from their generators after their starts
+                g = self._noise_gen[i]
+                rekey(g, self._rngs[i])
+                if self._bias is not None:
+                    self._bias[i] = r.bias * g.standard_normal(len(r.bias))
+                if r.noise is not None and self._noise_table is None:
+                    self._zpos[i] = NOISE_BLOCK
+            self.noiseless_observation = obs
+            obs = noisy_observation(obs, self._bias, r.noise, self._noise_rows(np.arange(self.num_envs)), high)
+        if self._ranges is not None and len(idx):
+            params = {}
+            for name, column in self._param_values.items():
+                params[name] = column.copy()
+                params["_" + name] = started.copy()
+            info["params"] = params
+            info["_params"] = started.copy()
+        return obs, info
+
+    def _noise_rows(self, idx):
+        """The next observation's noise ``(len(idx), k)`` of the sub-envs ``idx`` (``None``
+        without observation noise): one compiled call over their streams, or from each one's
+        block, refilled from its stream when used up."""
+        if self._realism.noise is None:
+            return None
+        if self._noise_table is not None:
+            return self._noise_table.draws(idx, self._noise_codes).T
+        pos = self._zpos[idx]
+        for i in idx[pos == NOISE_BLOCK]:
+            self._zbuf[i] = self._noise_gen[i].standard_normal(self._zbuf.shape[1:])
+            self._zpos[i] = 0
+        pos = self._zpos[idx]
+        z = self._zbuf[idx, pos]
+        self._zpos[idx] = pos + 1
+        return z
 
     # ------------------------------------------------------------------ info
     def _info(self, y, failed, lifted, over, metrics, physical=None) -> dict:
@@ -605,7 +830,8 @@ class RigidBodyVectorEnv(VectorEnv):
             y = tuple(float(c[i]) for c in self._y)
             controls = self._controls()
             u = None if controls is None else tuple(float(c[i]) if np.ndim(c) else float(c) for c in controls)
-            frames.append(self._renderer.frame(self.env_class.scene(self.system, y, u)))
+            system = self.system if self._ranges is None else self._episodes[i].system
+            frames.append(self._renderer.frame(self.env_class.scene(system, y, u)))
         if self.render_mode == "human":
             if self._renderer.can_show():
                 self._renderer.show(frames[0], self.metadata["render_fps"])
