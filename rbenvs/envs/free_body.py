@@ -140,7 +140,8 @@ class FreeRigidBodyEnv(RigidBodyEnv):
       meet within ``MAX_INTERNAL_STEPS`` is refused at construction with the reason
       (docs/integrators.md, "Accuracy: tolerance=").
     * ``tolerance_horizon=None``: control periods the tolerance covers (an integer >= 1;
-      ``None``: the registered ``max_episode_steps``, one episode).
+      ``None``: the registered ``max_episode_steps``, one episode; a ``max_episode_steps``
+      given to ``gymnasium.make`` is not seen by the env: pass ``tolerance_horizon`` with it).
     * ``compiled="auto"``: run each step as one compiled call of the same functions (numba, the
       ``fast`` extra; built on the first step, about a second per setting and process), bit
       for bit the float path, where numba is installed and the setting has pure forms (the
