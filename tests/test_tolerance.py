@@ -396,3 +396,20 @@ def test_the_benchs_other_extremes_are_within_the_tolerance(key):
     assert len(rows) == 3
     for r in rows:
         assert "refused" not in r and r["failure"] is None and r["error"] <= r["tolerance"], r
+
+
+def test_integrator_auto_takes_the_cheapest_scheme_meeting_the_tolerance():
+    """``integrator="auto"`` with a tolerance: the scheme with an error constant whose steps at the
+    fastest start times its rhs evaluations cost least; rk4 for a tight tolerance, euler where a
+    loose one over a short horizon needs no more than one step either way; refused without a
+    tolerance."""
+    assert LagrangeTopEnv(integrator="auto", tolerance=1e-6).integrator.name == "rk4"
+    assert FreeRigidBodyEnv(integrator="auto", tolerance=1e-6).integrator.name == "rk4"
+    assert TippeTopEnv(integrator="auto", tolerance=1e-3).integrator.name == "rk4"
+    loose = FreeRigidBodyEnv(integrator="auto", spin_rate=0.01, tolerance=0.5, tolerance_horizon=1)
+    assert loose.integrator.name == "euler"
+    for name in ("euler", "rk4"):  # the choice is the cheaper of the two, measured by their own counts
+        env = FreeRigidBodyEnv(integrator=name, spin_rate=0.01, tolerance=0.5, tolerance_horizon=1)
+        assert env.internal_steps(env.reset(seed=0) and env.state_components, (0.0, 0.0, 0.0)) == 1
+    with pytest.raises(ValueError, match=r"integrator='auto' chooses the scheme that meets tolerance= at the least cost: pass tolerance="):
+        FreeRigidBodyEnv(integrator="auto")

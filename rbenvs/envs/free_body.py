@@ -126,7 +126,9 @@ class FreeRigidBodyEnv(RigidBodyEnv):
     * ``spin_rate=1.0``: rad/s, the initial spin (spin) or angular-speed scale (detumble, reorient).
     * ``perturbation=0.05``: rad, largest initial tilt of the spin from its axis, in [0, pi).
     * ``dt=0.05``: control period [s]; ``substeps=1``: integrator steps per control period.
-    * ``integrator="rk4"``: ``euler``, ``rk4``, ``splitting``, ``exact`` or ``dop853``.
+    * ``integrator="rk4"``: ``euler``, ``rk4``, ``splitting``, ``exact`` or ``dop853``; ``"auto"``
+      with ``tolerance``: the scheme with an error constant whose steps at the fastest start,
+      times its rhs evaluations, cost least.
     * ``guard="subdivide"``: ``"subdivide"``, ``"refuse"`` or ``"off"`` (Guarded stepping).
     * ``tolerance=None``: the relative error allowed over ``tolerance_horizon`` control periods
       (``None``: none, the steps the guard and ``substeps`` give; else a finite number with

@@ -131,7 +131,8 @@ class LagrangeTopEnv(RigidBodyEnv):
     * ``tilt_limit=None``: rad, see Episode end.
     * ``dt=0.02``: control period [s]; ``substeps=1``: integrator steps per control period.
     * ``integrator="splitting"``: ``euler``, ``rk4``, ``splitting`` or ``dop853`` (``exact`` does
-      not exist for the heavy top). The default splitting applies the free flow of a Lagrange
+      not exist for the heavy top); ``"auto"`` with ``tolerance``: the scheme with an error
+      constant whose steps at the fastest start, times its rhs evaluations, cost least. The default splitting applies the free flow of a Lagrange
       top exactly (fast spin costs nothing in accuracy) and keeps both Casimirs to round-off;
       ``euler``, ``rk4`` and ``dop853`` project ``Gamma`` (and ``q``) back to unit length after
       each step; their energy and ``Pi.Gamma`` drift (``task="precess"`` with zero torque,
