@@ -413,3 +413,17 @@ def test_integrator_auto_takes_the_cheapest_scheme_meeting_the_tolerance():
         assert env.internal_steps(env.reset(seed=0) and env.state_components, (0.0, 0.0, 0.0)) == 1
     with pytest.raises(ValueError, match=r"integrator='auto' chooses the scheme that meets tolerance= at the least cost: pass tolerance="):
         FreeRigidBodyEnv(integrator="auto")
+
+
+def test_an_env_with_a_tolerance_pickles_and_steps_the_same():
+    import pickle
+
+    env = LagrangeTopEnv(integrator="rk4", spin=(20.0, 40.0), tolerance=1e-6, compiled=False)
+    env.reset(seed=3)
+    copy = pickle.loads(pickle.dumps(env))
+    assert copy.model.tolerance == 1e-6 and copy.model.horizon == 500 and copy.step_rule.motion
+    a = np.array([0.3, -0.2], np.float32)[: env.action_space.shape[0]]
+    for _ in range(3):
+        o1, r1, _, _, i1 = env.step(a)
+        o2, r2, _, _, i2 = copy.step(a)
+        assert np.array_equal(o1, o2) and r1 == r2 and i1 == i2 and i1["error_estimate"] > 0.0
