@@ -382,3 +382,48 @@ def test_free_body_with_euler_within_the_tolerance_over_the_episode():
         assert err <= 1e-3 and est <= math.log1p(1e-3) * (1 + 1e-9), (seed, err)
     err, _, _ = _free_body_run(FreeRigidBodyEnv(max_torque=0.0, integrator="euler"), 0, 400)
     assert err > 1e-2
+
+
+@pytest.mark.parametrize("key", ["fb_separatrix", "fb_equal", "top_below", "tippe_viscous"])
+def test_the_benchs_other_extremes_are_within_the_tolerance(key):
+    """The extremes of ``rbenvs bench accuracy --tolerance`` not covered above (1e-6 off the
+    separatrix, moments equal to 1e-9, a top below its critical spin, the viscous tippe top
+    from three seeds), at 1e-3, 1e-6 and 1e-9 against the references: every row within its
+    tolerance, none refused or failed."""
+    from rbenvs.bench.tolerance import run_tolerance
+
+    rows = [r for r in run_tolerance(keys=[key], fixed=False)["rows"] if r["tolerance"] is not None]
+    assert len(rows) == 3
+    for r in rows:
+        assert "refused" not in r and r["failure"] is None and r["error"] <= r["tolerance"], r
+
+
+def test_integrator_auto_takes_the_cheapest_scheme_meeting_the_tolerance():
+    """``integrator="auto"`` with a tolerance: the scheme with an error constant whose steps at the
+    fastest start times its rhs evaluations cost least; rk4 for a tight tolerance, euler where a
+    loose one over a short horizon needs no more than one step either way; refused without a
+    tolerance."""
+    assert LagrangeTopEnv(integrator="auto", tolerance=1e-6).integrator.name == "rk4"
+    assert FreeRigidBodyEnv(integrator="auto", tolerance=1e-6).integrator.name == "rk4"
+    assert TippeTopEnv(integrator="auto", tolerance=1e-3).integrator.name == "rk4"
+    loose = FreeRigidBodyEnv(integrator="auto", spin_rate=0.01, tolerance=0.5, tolerance_horizon=1)
+    assert loose.integrator.name == "euler"
+    for name in ("euler", "rk4"):  # the choice is the cheaper of the two, measured by their own counts
+        env = FreeRigidBodyEnv(integrator=name, spin_rate=0.01, tolerance=0.5, tolerance_horizon=1)
+        assert env.internal_steps(env.reset(seed=0) and env.state_components, (0.0, 0.0, 0.0)) == 1
+    with pytest.raises(ValueError, match=r"integrator='auto' chooses the scheme that meets tolerance= at the least cost: pass tolerance="):
+        FreeRigidBodyEnv(integrator="auto")
+
+
+def test_an_env_with_a_tolerance_pickles_and_steps_the_same():
+    import pickle
+
+    env = LagrangeTopEnv(integrator="rk4", spin=(20.0, 40.0), tolerance=1e-6, compiled=False)
+    env.reset(seed=3)
+    copy = pickle.loads(pickle.dumps(env))
+    assert copy.model.tolerance == 1e-6 and copy.model.horizon == 500 and copy.step_rule.motion
+    a = np.array([0.3, -0.2], np.float32)[: env.action_space.shape[0]]
+    for _ in range(3):
+        o1, r1, _, _, i1 = env.step(a)
+        o2, r2, _, _, i2 = copy.step(a)
+        assert np.array_equal(o1, o2) and r1 == r2 and i1 == i2 and i1["error_estimate"] > 0.0

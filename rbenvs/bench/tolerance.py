@@ -180,8 +180,9 @@ def _cheapest_fixed(case, tol, starts, refs, hint):
     return hi, steps_hi
 
 
-def run_tolerance(keys=None, progress=None) -> dict:
-    """Every case of :data:`TOLERANCE_CASES` (``keys``: a subset) at each of its tolerances."""
+def run_tolerance(keys=None, progress=None, fixed=True) -> dict:
+    """Every case of :data:`TOLERANCE_CASES` (``keys``: a subset) at each of its tolerances;
+    ``fixed=False`` skips the search for the cheapest fixed substeps (the tests' run)."""
     from ..integrators import INTEGRATORS, get_integrator
     from ..integrators.error import measure_error_constant
 
@@ -206,7 +207,7 @@ def run_tolerance(keys=None, progress=None) -> dict:
             err, est, steps, failure = _episode(case, env, case.starts, refs)
             row = {"case": case.key, "label": case.label, "periods": case.periods, "tolerance": tol, "error": err, "estimate": est, "steps": steps,
                    "failure": failure, "seconds": time.perf_counter() - t0, "integrator": get_integrator(case.kwargs.get("integrator")).name}
-            if tol not in case.skip_fixed:
+            if fixed and tol not in case.skip_fixed:
                 per_period = max(1, steps // (case.periods * len(case.starts)))
                 fixed = _cheapest_fixed(case, tol, case.starts, refs, max(1, per_period // 4))
                 if fixed is not None:

@@ -112,6 +112,8 @@ class RigidBodyEnv(gym.Env):
         compiled = require_compiled(compiled)
         dt = require_finite_positive("dt", dt)
         substeps = require_int_in("substeps", substeps, 1, MAX_INTERNAL_STEPS, " (more internal steps in a control period is a numerical failure)")
+        if isinstance(integrator, str) and integrator == "auto":
+            integrator = self._cheapest_integrator(system, task, actuator, dt, substeps, guard, observation_high, tolerance, horizon)
         integrator = get_integrator(integrator)
         if not integrator.supports(system):
             raise ValueError(f"integrator {integrator.name!r} is not available for {type(system).__name__}")
@@ -238,6 +240,30 @@ class RigidBodyEnv(gym.Env):
             value = self.registered_episode_steps()
             return 1000 if value is None else value
         return require_int_in("tolerance_horizon", value, 1, 10**12, " (control periods over which tolerance holds)")
+
+    def _cheapest_integrator(self, system, task, actuator, dt, substeps, guard, observation_high, tolerance, horizon):
+        """``integrator="auto"``: of the schemes that declare an error constant and take this
+        system, the one whose internal steps at the fastest start, times its rhs evaluations a
+        step, cost the least (ties: the first registered)."""
+        from ..integrators import INTEGRATORS
+
+        if tolerance is None:
+            raise ValueError("integrator='auto' chooses the scheme that meets tolerance= at the least cost: pass tolerance= (a relative error per episode)")
+        best = None
+        high = tuple(float(v) for v in observation_high)
+        for cls in INTEGRATORS.values():
+            scheme = cls()
+            if getattr(scheme, "error_constant", None) is None or not scheme.evaluations or not scheme.supports(system):
+                continue
+            self.model = Model(system, task, scheme, actuator, dt, substeps, guard, high, self._speed_ceiling(), tolerance, horizon)
+            x, _ = self._start_steps()
+            cost = max(substeps, math.ceil(x)) * scheme.evaluations if x <= MAX_INTERNAL_STEPS else math.inf
+            if best is None or cost < best[0]:
+                best = (cost, scheme)
+        self.model = None
+        if best is None:
+            raise ValueError(f"integrator='auto' found no scheme with an error constant for {type(system).__name__}")
+        return best[1]
 
     @staticmethod
     def _require_accuracy(integrator, guard, tolerance) -> None:

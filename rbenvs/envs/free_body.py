@@ -126,7 +126,9 @@ class FreeRigidBodyEnv(RigidBodyEnv):
     * ``spin_rate=1.0``: rad/s, the initial spin (spin) or angular-speed scale (detumble, reorient).
     * ``perturbation=0.05``: rad, largest initial tilt of the spin from its axis, in [0, pi).
     * ``dt=0.05``: control period [s]; ``substeps=1``: integrator steps per control period.
-    * ``integrator="rk4"``: ``euler``, ``rk4``, ``splitting``, ``exact`` or ``dop853``.
+    * ``integrator="rk4"``: ``euler``, ``rk4``, ``splitting``, ``exact`` or ``dop853``; ``"auto"``
+      with ``tolerance``: the scheme with an error constant whose steps at the fastest start,
+      times its rhs evaluations, cost least.
     * ``guard="subdivide"``: ``"subdivide"``, ``"refuse"`` or ``"off"`` (Guarded stepping).
     * ``tolerance=None``: the relative error allowed over ``tolerance_horizon`` control periods
       (``None``: none, the steps the guard and ``substeps`` give; else a finite number with
@@ -140,7 +142,8 @@ class FreeRigidBodyEnv(RigidBodyEnv):
       meet within ``MAX_INTERNAL_STEPS`` is refused at construction with the reason
       (docs/integrators.md, "Accuracy: tolerance=").
     * ``tolerance_horizon=None``: control periods the tolerance covers (an integer >= 1;
-      ``None``: the registered ``max_episode_steps``, one episode).
+      ``None``: the registered ``max_episode_steps``, one episode; a ``max_episode_steps``
+      given to ``gymnasium.make`` is not seen by the env: pass ``tolerance_horizon`` with it).
     * ``compiled="auto"``: run each step as one compiled call of the same functions (numba, the
       ``fast`` extra; built on the first step, about a second per setting and process), bit
       for bit the float path, where numba is installed and the setting has pure forms (the

@@ -131,7 +131,8 @@ class LagrangeTopEnv(RigidBodyEnv):
     * ``tilt_limit=None``: rad, see Episode end.
     * ``dt=0.02``: control period [s]; ``substeps=1``: integrator steps per control period.
     * ``integrator="splitting"``: ``euler``, ``rk4``, ``splitting`` or ``dop853`` (``exact`` does
-      not exist for the heavy top). The default splitting applies the free flow of a Lagrange
+      not exist for the heavy top); ``"auto"`` with ``tolerance``: the scheme with an error
+      constant whose steps at the fastest start, times its rhs evaluations, cost least. The default splitting applies the free flow of a Lagrange
       top exactly (fast spin costs nothing in accuracy) and keeps both Casimirs to round-off;
       ``euler``, ``rk4`` and ``dop853`` project ``Gamma`` (and ``q``) back to unit length after
       each step; their energy and ``Pi.Gamma`` drift (``task="precess"`` with zero torque,
@@ -149,7 +150,8 @@ class LagrangeTopEnv(RigidBodyEnv):
       meet within ``MAX_INTERNAL_STEPS`` is refused at construction with the reason
       (docs/integrators.md, "Accuracy: tolerance=").
     * ``tolerance_horizon=None``: control periods the tolerance covers (an integer >= 1;
-      ``None``: the registered ``max_episode_steps``, one episode).
+      ``None``: the registered ``max_episode_steps``, one episode; a ``max_episode_steps``
+      given to ``gymnasium.make`` is not seen by the env: pass ``tolerance_horizon`` with it).
     * ``compiled="auto"``: run each step as one compiled call of the same functions (numba, the
       ``fast`` extra; built on the first step, about a second per setting and process), bit
       for bit the float path, where numba is installed and the setting has pure forms (the

@@ -136,7 +136,8 @@ class TippeTopEnv(RigidBodyEnv):
       (tests/test_tippe_top_env.py); from their own start (``start="rest"``) at 180 rad/s it
       stays above 0.55 m g and passes 90 degrees at 2.71 s (tests/test_tippe_starts.py).
     * ``start="rolling"``: how the top was spun (Starting state).
-    * ``dt=0.01`` s, ``substeps=1`` (a minimum), ``integrator="rk4"`` (``euler``, ``rk4``, ``dop853``).
+    * ``dt=0.01`` s, ``substeps=1`` (a minimum), ``integrator="rk4"`` (``euler``, ``rk4``, ``dop853``;
+      ``"auto"`` with ``tolerance``: the cheaper of ``euler`` and ``rk4`` at the fastest start).
     * ``guard="subdivide"``: ``"subdivide"``, ``"refuse"`` or ``"off"`` (Internal step).
     * ``tolerance=None``: the relative error allowed over ``tolerance_horizon`` control periods
       (``None``: none, the steps the guard and ``substeps`` give; else a finite number with
@@ -151,7 +152,8 @@ class TippeTopEnv(RigidBodyEnv):
       meet within ``MAX_INTERNAL_STEPS`` is refused at construction with the reason
       (docs/integrators.md, "Accuracy: tolerance=").
     * ``tolerance_horizon=None``: control periods the tolerance covers (an integer >= 1;
-      ``None``: the registered ``max_episode_steps``, one episode).
+      ``None``: the registered ``max_episode_steps``, one episode; a ``max_episode_steps``
+      given to ``gymnasium.make`` is not seen by the env: pass ``tolerance_horizon`` with it).
     * ``friction_bound="stability"``: or ``"accuracy"``, what sizes the step under friction (Internal step).
     * ``compiled="auto"``: run each step as one compiled call of the same functions (numba, the
       ``fast`` extra; built on the first step, about a second per setting and process), bit
