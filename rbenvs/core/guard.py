@@ -151,16 +151,24 @@ def error_estimate(e, lam, h):
 
 
 @jitable
+def stability_ratio(dt, bound, growth, lam):
+    """The stability bound's ``x``: ``dt lambda / b``, and ``(dt lambda)^2 / growth`` where the
+    region bounds growth (pure; floats or arrays): the part both step ratios share."""
+    x = dt * lam / bound
+    if growth != math.inf:
+        z = dt * lam
+        x = maximum(x, z * z / growth)
+    return x
+
+
+@jitable
 def step_ratio_motion(g, rates):
     """:func:`step_ratio` with the state's own rate: ``rates = (lambda, mu)``, ``mu <= lambda``
     the relative speed of the state (:func:`motion_rates`); the accuracy term asks for the
     fewest whole ``n`` with ``C mu dt (lambda dt / n)^p <= b`` (pure; floats or arrays)."""
     lam, mu = rates
     dt, bound, growth, k, p, kd = g
-    x = dt * lam / bound
-    if growth != math.inf:
-        z = dt * lam
-        x = maximum(x, z * z / growth)
+    x = stability_ratio(dt, bound, growth, lam)
     if k != 0.0:
         x = maximum(x, whole_root(k * (power(dt * lam, p) * (mu * dt)), p))
     return x
@@ -202,10 +210,7 @@ def step_ratio(g, lam):
     (:func:`accuracy_steps`), ``k = 0`` none (``kd``: :func:`relaxation_steps`; pure, floats
     or arrays)."""
     dt, bound, growth, k, p, kd = g
-    x = dt * lam / bound
-    if growth != math.inf:
-        z = dt * lam
-        x = maximum(x, z * z / growth)
+    x = stability_ratio(dt, bound, growth, lam)
     if k != 0.0:
         x = maximum(x, accuracy_steps(k, p, dt * lam))
     return x
