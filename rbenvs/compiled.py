@@ -769,7 +769,7 @@ def _layout(parts, dim: int, n_obs: int, n_control: int, n_action: int, sample) 
     values = evaluate(pe, tuple(sample), (0.0,) * n_action)
     physical = readouts(pr, tuple(sample), (0.0,) * n_control, False)
     layout = Layout(step, dim, n_control, n_action, observe, n_obs, evaluate, len(values) - 2, readouts, len(physical), rotation, dissipation, event,
-                    rhs_event, switches, bool(getattr(parts, "motion", False)))
+                    rhs_event, switches, parts.motion)
     params = (ps, po, pe, pr, parts.guard_params, pa, pd, float(parts.dissipation_step), pv, pw)
     return layout, params, values, physical
 

@@ -595,9 +595,8 @@ class Engine:
             finite &= np.isfinite(c)
         failed = ~finite & ~skip
         if failed.any():
-            cap = ""
-            if np.ndim(h) and (np.asarray(h)[failed] * MAX_INTERNAL_STEPS < self.dt).any():
-                cap = f" (periods refused: they need more than MAX_INTERNAL_STEPS = {MAX_INTERNAL_STEPS} internal steps to meet the step rule: {self.rule.text})"
+            cap = self._cap_text(np.asarray(h)[failed]) if np.ndim(h) else ""  # (the single env's words)
+            cap = f" (periods refused{cap})" if cap else ""
             warnings.warn(
                 f"sub-envs {np.flatnonzero(failed).tolist()} became non-finite with integrator {self.integrator.name!r}{cap}; "
                 "their episodes end and their last finite states are kept",
@@ -665,7 +664,7 @@ class KernelParts(NamedTuple):
     """A model's step in pure forms, each ``(function, parameters)`` (:meth:`Engine.kernel_parts`):
     ``step`` (the integrator's, ``step(PS, y, u, h)``), ``observe``, ``evaluate``, ``readouts``
     (the task's and the system's), the guard's ``rotation`` rate (``None``: no check can be
-    needed) with ``guard_params`` (``(dt, bound, growth, k, p)`` of
+    needed) with ``guard_params`` (``(dt, bound, growth, k, p, kd)`` of
     :func:`rbenvs.core.guard.step_ratio`), its ``dissipation`` rate (or ``None``) with
     ``dissipation_step`` (``h <= c / lambda_d``), the terminal ``event`` (or ``None``; it fires
     where its value is negative) and ``rhs_event``, the vector field and the event's value from

@@ -19,7 +19,7 @@ import math
 import gymnasium as gym
 import numpy as np
 
-from ..core.guard import GUARDS, MAX_INTERNAL_STEPS, StepRule, relaxation_steps, require_guard, require_tolerance, step_ratio
+from ..core.guard import GUARDS, MAX_INTERNAL_STEPS, StepRule, relaxation_steps, require_guard, require_tolerance, stability_ratio, step_ratio
 from ..core.model import Model
 from ..core.step import Engine, NumericalFailureWarning, action_values
 from ..dynamics.validation import require_finite_positive, require_int_in
@@ -245,18 +245,16 @@ class RigidBodyEnv(gym.Env):
         """``integrator="auto"``: of the schemes that declare an error constant and take this
         system, the one whose internal steps at the fastest start, times its rhs evaluations a
         step, cost the least (ties: the first registered)."""
-        from ..integrators import INTEGRATORS
-
         if tolerance is None:
             raise ValueError("integrator='auto' chooses the scheme that meets tolerance= at the least cost: pass tolerance= (a relative error per episode)")
         best = None
         high = tuple(float(v) for v in observation_high)
-        for cls in INTEGRATORS.values():
+        for cls in _registry().values():
             scheme = cls()
             if getattr(scheme, "error_constant", None) is None or not scheme.evaluations or not scheme.supports(system):
                 continue
             self.model = Model(system, task, scheme, actuator, dt, substeps, guard, high, self._speed_ceiling(), tolerance, horizon)
-            x, _ = self._start_steps()
+            x = self._start_steps()[0]
             cost = max(substeps, math.ceil(x)) * scheme.evaluations if x <= MAX_INTERNAL_STEPS else math.inf
             if best is None or cost < best[0]:
                 best = (cost, scheme)
@@ -282,9 +280,10 @@ class RigidBodyEnv(gym.Env):
         """The stiffest decaying rate at the start (0 where none): the tippe top's friction."""
         return 0.0
 
-    def _start_steps(self) -> tuple[float, str]:
-        """``(x, rule)``: the internal steps per control period (``ceil(x)``) that the step rule
-        asks for at the fastest start, and the rule in words. Integrators without a bound of
+    def _start_steps(self) -> tuple[float, str, bool]:
+        """``(x, rule, by_tolerance)``: the internal steps per control period (``ceil(x)``) that
+        the step rule asks for at the fastest start, the rule in words, and whether only the
+        tolerance asks for more than ``MAX_INTERNAL_STEPS``. Integrators without a bound of
         their own (exact flows, adaptive schemes) count one radian of the fastest rate per step."""
         region = self.integrator.region
         if not region.bounded:
@@ -300,16 +299,15 @@ class RigidBodyEnv(gym.Env):
             x = max(x, d_stable)
             x = max(x, relaxation_steps(rule.params, lam_d))  # (0 without a tolerance)
         if rule.error is not None:
-            dt, bound, growth = rule.params[:3]
-            stable = max(step_ratio((dt, bound, growth, 0.0, 1.0, 0.0), rates.ceiling), d_stable)
+            stable = max(stability_ratio(*rule.params[:3], rates.ceiling), d_stable)
             if not stable <= MAX_INTERNAL_STEPS:
-                return x, rule.text
+                return x, rule.text, False
             # only the tolerance asks for more: say so, with the reason
-            p, c = self.integrator.order, self.integrator.error_constant
+            p = self.integrator.order
             return x, (f"to keep the error of {m.horizon} periods within it ({rule.accuracy_text}): at a fixed step an order-{p} scheme's error "
                        f"grows without bound, like lambda T (lambda h)^{p}, so the steps a tolerance costs grow like "
-                       f"(lambda T)^{(p + 1) / p:.3g} / tolerance^{1 / p:.3g}; raise tolerance, lower tolerance_horizon, or use a higher-order integrator")
-        return x, rule.text
+                       f"(lambda T)^{(p + 1) / p:.3g} / tolerance^{1 / p:.3g}; raise tolerance, lower tolerance_horizon, or use a higher-order integrator"), True
+        return x, rule.text, False
 
     def _require_resolvable(self) -> None:
         """Refuse, at construction, a control period that no run could resolve: more than
@@ -320,9 +318,9 @@ class RigidBodyEnv(gym.Env):
         then reported as a numerical failure, as documented)."""
         if self.guard == "off":
             return
-        x, rule = self._start_steps()
+        x, rule, by_tolerance = self._start_steps()
         if not x <= MAX_INTERNAL_STEPS:
-            if rule.startswith("to keep the error"):
+            if by_tolerance:
                 raise ValueError(
                     f"tolerance={self.model.tolerance!r} cannot be met: at the start the integrator {self.integrator.name!r} needs "
                     f"{x:.3g} internal steps per control period, more than MAX_INTERNAL_STEPS = {MAX_INTERNAL_STEPS}, {rule}"

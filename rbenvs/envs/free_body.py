@@ -131,16 +131,9 @@ class FreeRigidBodyEnv(RigidBodyEnv):
       times its rhs evaluations, cost least.
     * ``guard="subdivide"``: ``"subdivide"``, ``"refuse"`` or ``"off"`` (Guarded stepping).
     * ``tolerance=None``: the relative error allowed over ``tolerance_horizon`` control periods
-      (``None``: none, the steps the guard and ``substeps`` give; else a finite number with
-      ``0 < tolerance < 1``): each period takes the fewest internal steps whose estimated error
-      ``C lambda dt (lambda h)^p`` (the scheme's order ``p`` and measured error constant ``C``,
-      ``lambda`` the guard's rate at the period's start) is at most ``log(1 + tolerance) /
-      tolerance_horizon``, ``info["error_estimate"]`` reports it, ``guard="refuse"`` raises
-      naming the steps needed, and a period past ``MAX_INTERNAL_STEPS`` ends the episode as a
-      numerical failure naming the tolerance. For ``euler`` and ``rk4`` (the schemes that declare
-      ``error_constant``; others are refused, as is ``guard="off"``); a tolerance no start can
-      meet within ``MAX_INTERNAL_STEPS`` is refused at construction with the reason
-      (docs/integrators.md, "Accuracy: tolerance=").
+      (a finite number with ``0 < tolerance < 1``; ``None``: no accuracy bound), for the schemes
+      that declare ``error_constant`` (``euler``, ``rk4``); the rule, the refusals and
+      ``info["error_estimate"]``: :mod:`rbenvs.core.guard` and docs/integrators.md ("Accuracy: tolerance=").
     * ``tolerance_horizon=None``: control periods the tolerance covers (an integer >= 1;
       ``None``: the registered ``max_episode_steps``, one episode; a ``max_episode_steps``
       given to ``gymnasium.make`` is not seen by the env: pass ``tolerance_horizon`` with it).
