@@ -246,6 +246,11 @@ class Task(Protocol):
     def evaluate(self, system, y, u_norm):
         """``(reward, terminated, metrics)``: metrics a dict in ``metric_names`` order."""
 
+    def reward_floor(self, system, observation_high) -> float:
+        """The least reward one step can have while the state is inside the observation bounds
+        ``observation_high`` (at full effort): what an episode that ends without success is
+        charged per step it skipped (:attr:`rbenvs.core.model.Model.failure_charge`)."""
+
 
 @runtime_checkable
 class Integrator(Protocol):

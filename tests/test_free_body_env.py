@@ -158,7 +158,7 @@ def test_numerical_failure_ends_episode_with_last_finite_state():
     with pytest.warns(NumericalFailureWarning, match="non-finite"):
         obs, r, te, tr, info = env.step(zero)
     assert info["numerical_failure"] is True and te and info["terminal_reason"] == "numerical_failure"
-    assert r == 0.0 and np.array_equal(obs, obs_ok)
+    assert r == env.model.failure_charge == -404.0 and np.array_equal(obs, obs_ok)  # reward 0 and the failure charge
     assert np.array_equal(env.get_state()["angular_momentum"], last["angular_momentum"])
     assert np.isfinite(info["energy"])
 

@@ -846,7 +846,7 @@ def test_euler_blow_up_ends_episode_with_last_finite_state():
     assert [w.category for w in caught] == [NumericalFailureWarning]
     assert "non-finite" in str(caught[0].message)
     assert te and not tr and info["numerical_failure"] is True and info["terminal_reason"] == "numerical_failure"
-    assert r == 0.0 and np.array_equal(obs, last_obs)
+    assert r == env.model.failure_charge == -505.0 and np.array_equal(obs, last_obs)  # reward 0 and the failure charge
     now = env.get_state()
     assert all(np.array_equal(now[k], last[k]) and np.all(np.isfinite(now[k])) for k in now)
     assert np.isfinite(info["energy"]) and info["energy"] == pytest.approx(env.system.energy(flat(now)), rel=1e-15)

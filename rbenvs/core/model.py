@@ -34,6 +34,15 @@ class Model:
       which lets a guard prove it never needs more than ``substeps`` steps;
     * ``tolerance``: the relative error allowed over ``horizon`` control periods (``None``: no
       accuracy bound; :mod:`rbenvs.core.guard`);
+    * ``episode_steps``: the episode's length in control periods (the registered
+      ``max_episode_steps``; ``None``: none);
+    * ``failure_charge`` (derived): what the last reward of an episode that ends without success
+      carries on top of its own (the task's failure, the system's event such as the tippe top's
+      lift-off, the observation limit, a numerical failure): ``episode_steps`` times the task's
+      least reward (:meth:`~rbenvs.contracts.Task.reward_floor`) where that is negative, else 0.
+      Ending early then never pays: a failed episode's return is at most the worst return a
+      whole episode can have, whatever steps it skipped (without it an agent on a task whose
+      rewards are negative learns to end its episode, e.g. to lift the tippe top off);
     * ``step_rule`` (derived): the guard's rule from the system's rates and the integrator's
       region; ``draw_kinds`` (derived): the kinds of a start's numbers, the task's then the
       system's (:mod:`rbenvs.draws`); ``system_draws``: how many of them the system adds.
@@ -50,6 +59,8 @@ class Model:
     speed_ceiling: float = math.inf
     tolerance: float | None = None
     horizon: int | None = None
+    episode_steps: int | None = None
+    failure_charge: float = field(init=False)
     step_rule: StepRule = field(init=False)
     draw_kinds: str = field(init=False)
     system_draws: int = field(init=False)
@@ -64,6 +75,10 @@ class Model:
         rates = self.system.guard_rates(region, self.speed_ceiling)
         zero = self.actuator.control((0.0,) * self.actuator.size)[1] if self.tolerance is not None else ()
         object.__setattr__(self, "step_rule", StepRule.build(rates, region, self.dt, self.guard, self.integrator, self.tolerance, self.horizon, self.system, zero))
+        floor = float(self.task.reward_floor(self.system, self.observation_high))
+        if not math.isfinite(floor):
+            raise ValueError(f"the task's reward floor must be finite, got {floor} (task {type(self.task).__name__})")
+        object.__setattr__(self, "failure_charge", min(floor, 0.0) * self.episode_steps if self.episode_steps else 0.0)
         object.__setattr__(self, "draw_kinds", self.task.draw_kinds + self.system.start_draw_kinds)
         object.__setattr__(self, "system_draws", len(self.system.start_draw_kinds))
 
@@ -71,7 +86,7 @@ class Model:
         """Pickled as its parts and settings; the derived rule is made again on loading (it holds
         the system's pure forms, which may be functions made at run time)."""
         return (Model, (self.system, self.task, self.integrator, self.actuator, self.dt, self.substeps, self.guard, self.observation_high,
-                        self.speed_ceiling, self.tolerance, self.horizon))
+                        self.speed_ceiling, self.tolerance, self.horizon, self.episode_steps))
 
     @property
     def h(self) -> float:

@@ -12,13 +12,16 @@ on a tuple of arrays, one per component. Each part of the step is here once:
    step (:mod:`rbenvs.core.hybrid`) and the system's terminal event (the tippe top's lift-off
    without free flight) ending a period early;
 3. numerical failure: a state that went non-finite ends its episode; the last finite state is
-   kept and reported (reward 0, ``NumericalFailureWarning``), never passed on;
+   kept and reported (reward 0 and the failure charge, ``NumericalFailureWarning``), never
+   passed on;
 4. the observation (:meth:`Engine.observe`): the task's components, clipped to the bounds, and
    whether the state left them (``observation_limit``);
 5. reward, termination and metrics (the task's ``evaluate``), the read-outs (the system's
    ``readouts`` under the control that acted, and ``internal_step``), assembled into ``info``;
 6. the terminal reason (:func:`terminal_reason`): ``numerical_failure`` over the event over
-   ``observation_limit`` over ``task``.
+   ``observation_limit`` over ``task``; an episode that ends without success (``is_success``
+   false) carries the model's ``failure_charge`` in its last reward
+   (:class:`~rbenvs.core.model.Model`), so ending early never pays.
 
 Where a model's parts have pure forms, the single env's step 4-5 runs as one function generated
 from them (:meth:`Engine.finish_one`; tested equal to the methods) and the vector env's steps 2-5
@@ -242,6 +245,7 @@ class Engine:
         self.high_list = self.high.tolist()
         self.high_uniform = self.high_list[0] if len(set(self.high_list)) == 1 else None
         self.metric_names = tuple(m.task.metric_names)
+        self.failure_charge = m.failure_charge  # added to the last reward of an episode that fails
         self.readout_names = tuple(system.readout_names)
         self.finish_one = self._generated_finish()
         # the compiled single-state step (rbenvs.compiled.StateStep): "auto" uses it where numba
@@ -518,6 +522,8 @@ class Engine:
             if fired or over or terminated:
                 info["terminal_reason"] = terminal_reason(False, fired, over, terminated, self.event_name)
                 terminated = True
+                if not info["is_success"]:
+                    reward += self.failure_charge
                 if over:
                     plain = False
             return y, obs, reward, terminated, info, u, plain
@@ -544,6 +550,8 @@ class Engine:
         if fired or over or terminated:  # (the common case tests three bools and goes on)
             info["terminal_reason"] = terminal_reason(False, fired, over, terminated, self.event_name)
             terminated = True
+            if not info["is_success"]:  # an end without success: ending early never pays
+                reward += self.failure_charge
             if over:
                 plain = False  # outside the bounds the guard's static proof is void
         return y, obs, reward, terminated, info, u, plain
@@ -581,7 +589,7 @@ class Engine:
         _, _, metrics = self.evaluate(y0, u_norm)
         info = self.info_one(y0, u, False, h, metrics, failed=True)
         info["terminal_reason"] = terminal_reason(True, False, False, True, self.event_name)
-        return y0, obs, 0.0, True, info, u, plain
+        return y0, obs, 0.0 + self.failure_charge, True, info, u, plain
 
     # ------------------------------------------------------------------ a batch (arrays)
     def settle(self, y0, y, skip, h=None):

@@ -124,7 +124,8 @@ class RigidBodyEnv(gym.Env):
         if tolerance is not None:
             self._require_accuracy(integrator, guard, tolerance)
         high = tuple(float(v) for v in observation_high)
-        self.model = Model(system, task, integrator, actuator, dt, substeps, guard, high, self._speed_ceiling(), tolerance, horizon if tolerance is not None else None)
+        self.model = Model(system, task, integrator, actuator, dt, substeps, guard, high, self._speed_ceiling(), tolerance, horizon if tolerance is not None else None,
+                           self.registered_episode_steps())
         self.engine = Engine(self.model, compiled)
         self.render_mode = render_mode
         self._renderer = None  # built by the first render(): matplotlib is imported only then
@@ -253,7 +254,8 @@ class RigidBodyEnv(gym.Env):
             scheme = cls()
             if getattr(scheme, "error_constant", None) is None or not scheme.evaluations or not scheme.supports(system):
                 continue
-            self.model = Model(system, task, scheme, actuator, dt, substeps, guard, high, self._speed_ceiling(), tolerance, horizon)
+            self.model = Model(system, task, scheme, actuator, dt, substeps, guard, high, self._speed_ceiling(), tolerance, horizon,
+                               self.registered_episode_steps())
             x = self._start_steps()[0]
             cost = max(substeps, math.ceil(x)) * scheme.evaluations if x <= MAX_INTERNAL_STEPS else math.inf
             if best is None or cost < best[0]:

@@ -9,10 +9,12 @@ A task (:class:`rbenvs.contracts.Task`) also declares, as class attributes, its 
 
 from __future__ import annotations
 
+import math
+
 from ..draws import draw
 from ..jit import jitable
 
-__all__ = ["effort", "TwoStageStart"]
+__all__ = ["effort", "TwoStageStart", "speed_bound"]
 
 
 class TwoStageStart:
@@ -45,6 +47,13 @@ class TwoStageStart:
         if tuple(shape) != ():
             raise ValueError("initial_state draws one state; a batch draws per sub-env (initial_draws) and converts at once (initial_from_draws)")
         return self.initial_from_draws(system, self.initial_draws(rng))
+
+
+def speed_bound(task, observation_high) -> float:
+    """An upper bound of ``|Omega|`` [rad/s] over the states inside the observation bounds: the
+    norm of the bounds of the task's ``rad/s`` components (the episode ends, at the observation
+    limit, once one leaves its bound)."""
+    return math.sqrt(sum(float(h) ** 2 for h, unit in zip(observation_high, task.observation_units) if unit == "rad/s"))
 
 
 @jitable

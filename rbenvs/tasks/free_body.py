@@ -13,7 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..jit import jitable
-from .common import TwoStageStart, effort
+from .common import TwoStageStart, effort, speed_bound
 from ..dynamics.free_body import angular_velocity, momentum_norm
 from ..rotations import quat_angle, quat_conjugate, quat_from_uniforms, quat_multiply, select, sqrt
 
@@ -171,6 +171,10 @@ class SpinTask(TwoStageStart):
         """``((observe, P), (evaluate, P))`` for :mod:`rbenvs.compiled`."""
         return (angular_velocity, system.params.inverse), (spin_evaluate, self._params)
 
+    def reward_floor(self, system, observation_high) -> float:
+        """The least reward of a step: alignment -1 at full effort."""
+        return -1.0 - float(self.control_cost)
+
     def __post_init__(self):
         object.__setattr__(self, "cos_success", math.cos(self.success_angle))
         object.__setattr__(self, "_params", (int(self.axis), float(self.control_cost), self.cos_success))
@@ -217,6 +221,10 @@ class DetumbleTask(TwoStageStart):
     def kernels(self, system):
         """``((observe, P), (evaluate, P))`` for :mod:`rbenvs.compiled`."""
         return (angular_velocity, system.params.inverse), (detumble_evaluate, self._params(system))
+
+    def reward_floor(self, system, observation_high) -> float:
+        """The least reward of a step inside the observation bounds, at full effort."""
+        return -speed_bound(self, observation_high) / float(self.spin_rate) - float(self.control_cost)
 
     def _params(self, system):
         return (system.params.inverse, float(self.spin_rate), float(self.control_cost), float(self.tolerance))
@@ -272,6 +280,11 @@ class ReorientTask(TwoStageStart):
     def kernels(self, system):
         """``((observe, P), (evaluate, P))`` for :mod:`rbenvs.compiled`."""
         return (reorient_observe, (system.params.inverse, self._target)), (reorient_evaluate, self._params(system))
+
+    def reward_floor(self, system, observation_high) -> float:
+        """The least reward of a step inside the observation bounds: upside down (angle pi) at
+        the bound's speed, at full effort."""
+        return -1.0 - float(self.rate_cost) * speed_bound(self, observation_high) / float(self.spin_rate) - float(self.control_cost)
 
     def _params(self, system):
         return (system.params.inverse, self._target, float(self.spin_rate), float(self.rate_cost), float(self.control_cost), float(self.success_angle))

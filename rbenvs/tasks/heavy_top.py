@@ -229,6 +229,11 @@ class UprightTask(TwoStageStart):
         """``((observe, P), (evaluate, P))`` for :mod:`rbenvs.compiled`."""
         return (top_observe, system.params.inverse), (upright_evaluate, self._params(system))
 
+    def reward_floor(self, system, observation_high) -> float:
+        """The least reward of a step: the tilt at its limit (upside down when the limit is pi),
+        at full effort."""
+        return math.cos(min(float(self.tilt_limit), math.pi)) - float(self.control_cost)
+
     def _params(self, system):
         limit, success = float(self.tilt_limit), float(self.success_tilt)
         return (system.params.com_direction, float(self.control_cost), (math.cos(limit), math.sin(limit), limit < math.pi),
@@ -298,6 +303,11 @@ class PrecessTask(TwoStageStart):
     def kernels(self, system):
         """``((observe, P), (evaluate, P))`` for :mod:`rbenvs.compiled`."""
         return (top_observe, system.params.inverse), (precess_evaluate, self._params(system))
+
+    def reward_floor(self, system, observation_high) -> float:
+        """The least reward of a step: the tilt error at its limit and the rate error at its cap
+        of 1, at full effort."""
+        return -1.0 - float(self.control_cost)
 
     def _params(self, system):
         prm = system.params

@@ -224,6 +224,10 @@ class InvertTask(_SpunTop):
     def _evaluate_params(self, system):
         return (system.form_params, float(self.control_cost), float(self.goal_tilt))
 
+    def reward_floor(self, system, observation_high) -> float:
+        """The least reward of a step: upright (on the broad end) at full effort."""
+        return -1.0 - float(self.control_cost)
+
 
 @dataclass(frozen=True)
 class HoldTask(_SpunTop):
@@ -251,3 +255,7 @@ class HoldTask(_SpunTop):
 
     def _evaluate_params(self, system):
         return (system.form_params, float(self.control_cost), float(self.fall_tilt), float(self.success_tilt))
+
+    def reward_floor(self, system, observation_high) -> float:
+        """The least reward of a step: inverted at full effort."""
+        return -float(self.control_cost)

@@ -480,13 +480,15 @@ class RigidBodyVectorEnv(VectorEnv):
         self._reasons.written(entry, r.written)
         self._y2d, self._y = r.Y, tuple(r.Y)
         info = self._kernel_info(r, done, reasons)
-        obs = r.obs
+        obs, reward = r.obs, r.reward
+        if r.n_ended:
+            reward = self._charged(reward, r.terminated, r.metrics[-1])
         if next_step:
             if r.n_restarted and not vstep.restarts:  # (no pure start: restarted here; else in the step)
                 obs, info = self._restart(restart, obs, info)
         elif r.n_ended:
             obs, info = self._same_step_reset(done, obs, info, r)
-        return obs, r.reward, r.terminated, r.truncated, info
+        return obs, reward, r.terminated, r.truncated, info
 
     def _kernel_info(self, r, done, reasons) -> dict:
         """``info`` from a compiled step's arrays (the order and keys of :meth:`_info`): a copy of
@@ -508,8 +510,9 @@ class RigidBodyVectorEnv(VectorEnv):
             info["_terminal_reason"] = done.copy()
         return info
 
-    def _finish(self, obs, over, reward, terminated, fired, failed, metrics, restart, any_restart, physical=None):
-        """Info, truncation, terminal reasons and autoreset: the rest of :meth:`step`."""
+    def _finish(self, obs, over, reward, terminated, fired, failed, metrics, restart, any_restart, physical=None, charged=False):
+        """Info, truncation, terminal reasons, the failure charge (unless the rewards are
+        ``charged`` already) and autoreset: the rest of :meth:`step`."""
         # (a sub-env that left the observation bounds restarts before it is stepped again, so
         # the guard's static proof holds for every state this env steps: it stays plain)
         failed_mask = self._false if failed is None else failed
@@ -524,6 +527,8 @@ class RigidBodyVectorEnv(VectorEnv):
             info["terminal_reason"] = terminal_reason(failed_mask, lifted, over, terminated, self.engine.event_name)
             info["_terminal_reason"] = stopped
             terminated = ended
+            if not charged:
+                reward = self._charged(reward, ended & ~restart if any_restart else ended, metrics["is_success"])
         if any_restart:
             obs, info = self._restart(restart, obs, info)
             reward = np.where(restart, 0.0, reward)
@@ -535,6 +540,15 @@ class RigidBodyVectorEnv(VectorEnv):
         elif done.any():
             obs, info = self._same_step_reset(done, obs, info)
         return obs, reward, terminated, truncated, info
+
+    def _charged(self, reward, ended, success):
+        """``reward`` with the model's failure charge added where an episode ``ended`` without
+        ``success`` (the single env's rule, :class:`rbenvs.core.model.Model`)."""
+        charge = self.engine.failure_charge
+        if charge == 0.0:
+            return reward
+        fail = ended & ~np.asarray(success, dtype=bool)
+        return np.where(fail, reward + charge, reward) if fail.any() else reward
 
     def _compiled_advance(self, y, u, u_norm, restart):
         """The compiled period: ``(y, fast, fired, h)``; ``fast`` is ``(Y, obs, over, reward,
@@ -690,7 +704,7 @@ class RigidBodyVectorEnv(VectorEnv):
         self._last_h = h
         metrics = {name: self._column(name, metric_rows[name]) for name in names}
         return self._finish(obs, over, reward, terminated, fired if fired.any() else self._false, failed if failed.any() else None, metrics, restart,
-                            any_restart, physical)
+                            any_restart, physical, charged=True)
 
     def _step_options(self, actions):
         """:meth:`step` with the robustness options: the action queue (``action_delay``) gives the
