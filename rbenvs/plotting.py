@@ -283,7 +283,7 @@ def render_frames(directory, prefix="render_"):
     scenes = (
         ("free_body", FreeRigidBodyEnv(render_mode="rgb_array"), 200),
         ("heavy_top", LagrangeTopEnv(task="precess", attitude=True, render_mode="rgb_array"), 40),
-        ("tippe_top", TippeTopEnv(render_mode="rgb_array"), 700),
+        ("tippe_top", TippeTopEnv(render_mode="rgb_array"), 161),  # at 90 deg (1.61 s)
     )
     paths = []
     for name, env, steps in scenes:

@@ -166,7 +166,8 @@ def test_non_finite_states_take_the_numerical_failure_path():
     """Sub-env 1 reset to a spin of 1e38 rad/s (inside bounds raised to float32's; a torque
     large enough to get there in a step is refused at construction) overflows inside the
     kernel with the guard off (the gyroscopic term squares 1e38 twice per RK4 step): the step
-    falls back to the numpy failure path (one warning, last finite state kept, reward 0) and
+    falls back to the numpy failure path (one warning, last finite state kept, reward 0 and the
+    failure charge) and
     every sub-env still equals its single env."""
     n = 3
     kwargs = dict(max_angular_velocity=3e38, guard="off")
@@ -190,7 +191,8 @@ def test_non_finite_states_take_the_numerical_failure_path():
         warnings.simplefilter("always")
         obs, r, te, tr, info = venv.step(a)
     assert len([w for w in caught if issubclass(w.category, NumericalFailureWarning)]) == 1
-    assert np.array_equal(te, [False, True, False]) and r[1] == 0.0
+    # reward 0 and the failure charge (rbenvs.core.model.Model)
+    assert np.array_equal(te, [False, True, False]) and r[1] == venv.unwrapped.engine.failure_charge == -404.0
     assert list(info["terminal_reason"]) == ["", "numerical_failure", ""]
     now = venv.get_state()
     assert np.array_equal(now["angular_momentum"][1], last["angular_momentum"][1])
@@ -222,14 +224,14 @@ COMPILED_MORE = [
     (LAGRANGE, dict(integrator="rk4", inertia=(0.5, 0.45, 0.3), com_direction=(0.1, 0.0, 1.0), spin=(0.0, 3.0), spin_friction=0.02), 5, 17),
     # the tippe top: every fidelity and law, the guard's own count per sub-env, actions on the
     # friction and a torque, the lift-off ending episodes, free flight with hops
-    (TIPPE, dict(spin=(100.0, 200.0)), 3, 7),
+    (TIPPE, dict(spin=(100.0, 200.0), start="rolling", friction_bound="stability"), 3, 7),  # -v0's defaults before issue 18
     (TIPPE, dict(fidelity="frictionless", spin=(100.0, 200.0)), 4, 10),
     (TIPPE, dict(fidelity="rolling", task="hold", torque_action=True), 4, 10),
     (TIPPE, dict(friction_law="viscous", integrator="euler"), 4, 10),
     (TIPPE, dict(spin=(120.0, 160.0), friction_action=True, torque_action=True), 3, 5),
-    (TIPPE, dict(spin=2000.0, max_speed=50.0), 20, 20),  # lift-off ends the episodes
-    (TIPPE, dict(free_flight=True, spin=2000.0, max_speed=50.0), 6, 12),  # hops
-    (TIPPE, dict(free_flight=True, fidelity="frictionless", spin=(1500.0, 2500.0), max_speed=60.0, friction_law="viscous"), 6, 12),
+    (TIPPE, dict(spin=2000.0, max_speed=50.0, start="rolling"), 20, 20),  # lift-off ends the episodes
+    (TIPPE, dict(free_flight=True, spin=2000.0, max_speed=50.0, start="rolling"), 6, 12),  # hops
+    (TIPPE, dict(free_flight=True, fidelity="frictionless", spin=(1500.0, 2500.0), max_speed=60.0, friction_law="viscous", start="rolling"), 6, 12),
     (TIPPE, dict(start="vertical", free_flight=True, spin=(150.0, 180.0)), 4, 10),  # both start flags, restarts in the kernel
 ]
 
@@ -336,8 +338,8 @@ SINGLE = [
     (TIPPE, dict(), 30, 40),
     (TIPPE, dict(fidelity="rolling", task="hold", torque_action=True), 10, 30),
     (TIPPE, dict(friction_law="viscous", integrator="euler", friction_action=True), 10, 30),
-    (TIPPE, dict(spin=2000.0, max_speed=50.0), 30, 40),  # lift-off ends the episodes
-    (TIPPE, dict(free_flight=True, spin=2000.0, max_speed=50.0), 30, 40),  # hops
+    (TIPPE, dict(spin=2000.0, max_speed=50.0, start="rolling"), 30, 40),  # lift-off ends the episodes
+    (TIPPE, dict(free_flight=True, spin=2000.0, max_speed=50.0, start="rolling"), 30, 40),  # hops
     (TIPPE, dict(start="rest", spin=180.0), 30, 40),
     (TIPPE, dict(start="vertical", free_flight=True), 30, 40),
 ]
@@ -394,7 +396,7 @@ def test_single_env_compiled_refusal_and_failure_as_the_float_path():
         assert any(issubclass(w.category, NumericalFailureWarning) for w in caught)
         results.append((obs, r, te, info["terminal_reason"], info["numerical_failure"], env.unwrapped.state_components))
     assert same(results[0][0], results[1][0]) and results[0][1:] == results[1][1:]
-    assert results[0][1] == 0.0 and results[0][3] == "numerical_failure"
+    assert results[0][1] == env.unwrapped.model.failure_charge == -404.0 and results[0][3] == "numerical_failure"  # 0 + the charge
 
 
 def test_single_env_compiled_argument():
@@ -414,7 +416,7 @@ def test_compiled_tippe_top_crosses_lift_offs_and_hops():
     """The tippe-top settings above do exercise the kernel's event and switches: without free
     flight lift-offs end episodes (``terminal_reason == "lift_off"``, ``lifted_off`` set); with
     it the tops hop (``hops`` counts, ``airborne`` is seen) and no episode ends at a lift-off."""
-    venv = make_vec(TIPPE, 4, spin=2000.0, max_speed=50.0, max_episode_steps=20, compiled=True)
+    venv = make_vec(TIPPE, 4, spin=2000.0, max_speed=50.0, max_episode_steps=20, compiled=True, start="rolling")
     assert venv.unwrapped.compiled
     venv.reset(seed=0)
     reasons = set()
@@ -422,7 +424,7 @@ def test_compiled_tippe_top_crosses_lift_offs_and_hops():
         info = venv.step(np.zeros((4, 2), dtype=np.float32))[4]
         reasons |= set(info.get("terminal_reason", []))
     assert "lift_off" in reasons
-    venv = make_vec(TIPPE, 4, free_flight=True, spin=2000.0, max_speed=50.0, max_episode_steps=40, compiled=True)
+    venv = make_vec(TIPPE, 4, free_flight=True, spin=2000.0, max_speed=50.0, max_episode_steps=40, compiled=True, start="rolling")
     venv.reset(seed=0)
     airborne = hops = 0
     for _ in range(12):

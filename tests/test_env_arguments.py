@@ -64,6 +64,7 @@ VALID = {
     (TippeTopEnv, "max_angular_velocity"): {"none", "huge_int"},
     (TippeTopEnv, "max_speed"): {"huge_int"},
     (TippeTopEnv, "render_mode"): {"none"},
+    (TippeTopEnv, "start"): {"none"},  # None: "rest", or "rolling" with fidelity="rolling"
 }
 # tolerance: None (no accuracy bound) or in (0, 1); tolerance_horizon: None (the registered
 # episode) or any whole number of periods >= 1, for every env

@@ -593,7 +593,8 @@ def documented_internal_steps(env, state, u):
 
 @pytest.mark.parametrize("kwargs,dominant", INTERNAL_CASES)
 def test_internal_step_follows_the_documented_rule(kwargs, dominant):
-    env = TippeTopEnv(**kwargs)
+    # the stability bound's rule (the accuracy bound, the default, is tests/test_tippe_stiff.py's)
+    env = TippeTopEnv(**dict(dict(friction_bound="stability"), **kwargs))
     fa, ta = env.friction_action, env.torque_action
     rng = np.random.default_rng(7)
     env.reset(seed=7)
@@ -776,12 +777,44 @@ def test_fast_top_lifts_off():
     assert info["lifted_off"] is False
 
 
-def test_default_top_inverts_without_lift_off():
-    """The default scene (150 rad/s, tilt 0.1, mu 0.3) under zero action: the documented figures
-    (passes 90 deg at 7.0 s, 150 deg at 17.3 s, N >= 0.38 m g); Jellett kept (no torque),
-    energy strictly dissipated, the spin about the symmetry axis reversed (the top turned over
-    while spinning the same way in space). ~5 s."""
+def test_default_top_inverts_from_rest_without_lift_off():
+    """The default scene (150 rad/s, tilt 0.1, mu 0.3, the centre of mass at rest: Leine and
+    Glocker's start; accuracy-sized steps) under zero action: the documented figures (passes 90
+    deg at 1.61 s, 150 deg at 18.84 s, N >= 0.75 m g); Jellett's integral within 1e-8 of itself
+    through the turn-over (issue 18's bound), energy strictly dissipated, the spin about the
+    symmetry axis reversed. ~5 s."""
     env = gym.make(ID)
+    assert env.unwrapped.task.start == "rest" and env.unwrapped.system.friction_bound == "accuracy"
+    k, infos, rewards, te, tr = run(env, lambda obs: zeros(env), seed=0)
+    last = infos[-1]
+    assert te and not tr and k < env.spec.max_episode_steps
+    assert last["terminal_reason"] == "task" and last["is_success"] is True and last["lifted_off"] is False
+    tilt = np.array([i["tilt"] for i in infos])
+    assert tilt[-1] > math.radians(150.0) and np.all(tilt[:-1] <= math.radians(150.0))
+    t90 = np.argmax(tilt > math.pi / 2) * env.unwrapped.dt
+    assert abs(t90 - 1.61) <= 0.005 and abs(k * env.unwrapped.dt - 18.84) <= 0.005  # docstring, to the period
+    # G at rest: the contact point slides at |omega x (P - G)| = R n sin(theta) (k x z_hat)
+    assert infos[0]["slip_speed"] == pytest.approx(0.015 * 150.0 * math.sin(0.1), rel=1e-12)
+    normals = np.array([i["normal_force"] for i in infos])
+    assert normals.min() > 0.75 * MG  # docstring "stays above 0.75 m g" (measured 0.757)
+    jel = np.abs(np.array([i["jellett"] for i in infos]) / infos[0]["jellett"] - 1.0)
+    # through the turn-over (to 90 deg) within 1e-8 (measured 7.8e-10); over the slow climb to
+    # 150 deg, where the slip relaxes stiffly near the regularisation speed, rk4's error at the
+    # accuracy-sized step grows to 2.05e-6 (measured; the stability bound's steps: 1.2e-7)
+    assert jel[: round(t90 / env.unwrapped.dt)].max() <= 1e-8
+    assert jel.max() <= 2.5e-6
+    energy = np.array([i["energy"] for i in infos])
+    assert np.all(np.diff(energy) < 0.0)
+    assert infos[0]["spin"] == pytest.approx(150.0) and last["spin"] < 0.0
+    np.testing.assert_allclose(rewards, -0.5 * (1.0 + np.cos(tilt[1:])), rtol=0, atol=1e-15)
+
+
+def test_rolling_top_inverts_without_lift_off():
+    """The default top (150 rad/s, tilt 0.1, mu 0.3) from the rolling start, under zero action:
+    the documented figures (passes 90 deg at 7.0 s, 150 deg at 17.3 s, N >= 0.38 m g); Jellett
+    kept (no torque), energy strictly dissipated, the spin about the symmetry axis reversed (the
+    top turned over while spinning the same way in space). ~5 s."""
+    env = gym.make(ID, start="rolling", friction_bound="stability")
     k, infos, rewards, te, tr = run(env, lambda obs: zeros(env), seed=0)
     last = infos[-1]
     assert te and not tr and k < env.spec.max_episode_steps
@@ -837,8 +870,9 @@ def test_reward_formula_uses_the_clipped_action(task, fidelity):
 
 
 def test_hold_terminates_past_ninety_degrees():
-    """Zero action on the default top: it passes 90 deg at 7.0 s (docstring); hold ends there."""
-    env = gym.make(ID, task="hold")
+    """Zero action on the default top from the rolling start: it passes 90 deg at 7.0 s
+    (docstring); hold ends there, a failure, charged the episode's worst return."""
+    env = gym.make(ID, task="hold", start="rolling", friction_bound="stability")
     k, infos, rewards, te, tr = run(env, lambda obs: zeros(env), seed=0)
     assert te and not tr
     last = infos[-1]
@@ -847,14 +881,18 @@ def test_hold_terminates_past_ninety_degrees():
     assert tilt[-1] > math.pi / 2 and np.all(tilt[:-1] <= math.pi / 2)
     assert abs(k * env.unwrapped.dt - 7.0) <= 0.05
     assert infos[0]["is_success"] is True  # starts at 0.1 < 0.2 rad
-    np.testing.assert_allclose(rewards, 0.5 * (1.0 + np.cos(tilt[1:])), rtol=0, atol=1e-15)
-    assert all(0.0 <= r <= 1.0 for r in rewards)
+    np.testing.assert_allclose(rewards[:-1], 0.5 * (1.0 + np.cos(tilt[1:-1])), rtol=0, atol=1e-15)
+    assert all(0.0 <= r <= 1.0 for r in rewards[:-1])
+    # the failed end carries min(0, least reward) x max_episode_steps = -control_cost x 2500
+    charge = env.unwrapped.model.failure_charge
+    assert charge == -0.01 * 2500
+    assert rewards[-1] == pytest.approx(0.5 * (1.0 + math.cos(tilt[-1])) + charge, abs=1e-12)
 
 
 @pytest.mark.parametrize("fidelity", FIDELITIES)
 def test_start_states_spin_tilt_and_no_slip(fidelity):
     spin, tilt = (100.0, 200.0), (0.05, 0.5)
-    env = TippeTopEnv(fidelity=fidelity, spin=spin, tilt=tilt)
+    env = TippeTopEnv(fidelity=fidelity, spin=spin, tilt=tilt, start="rolling")
     spins, tilts, azimuths = [], [], []
     for seed in range(200):
         obs, info = env.reset(seed=seed)
@@ -911,7 +949,8 @@ def test_non_finite_state_ends_episode_with_last_finite_state(fidelity):
         obs, r, te, tr, info = env.step(np.array([0.0, 0.0, 0.0, 0.0, 1.0], dtype=np.float32))
     assert [w.category for w in caught] == [NumericalFailureWarning]
     assert "non-finite" in str(caught[0].message)
-    assert te and not tr and r == 0.0
+    # reward 0 and the failure charge: (-1 - control_cost) x 2500 steps (invert's least reward)
+    assert te and not tr and r == env.model.failure_charge == -1.01 * 2500
     assert info["numerical_failure"] is True and info["terminal_reason"] == "numerical_failure"
     assert np.array_equal(obs, last_obs)
     now = env.get_state()

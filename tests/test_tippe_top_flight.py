@@ -21,6 +21,12 @@ from conftest import rotation  # the body-to-space matrix, the tests' own formul
 
 ZERO = np.zeros(2, dtype=np.float32)
 
+# The hops these tests exercise come from the rolling start (the contact point at rest, so the
+# centre of mass moves at about R n sin(theta)); they were measured with the stability bound's
+# steps (the order test counts substeps against it). The defaults (start="rest",
+# friction_bound="accuracy") have their own tests (tests/test_tippe_starts.py, test_tippe_stiff.py).
+ROLLING = dict(start="rolling", friction_bound="stability")
+
 
 def run(env, steps, seed=1):
     """Zero-action run from a seeded reset: lists of infos (reset included) and observations."""
@@ -168,7 +174,7 @@ def test_a_dropped_top_lands_plastically_and_stays_on_the_table(integrator):
 )
 def test_fast_tops_hop_without_nan_penetration_or_energy_gain(spin, friction, tilt, steps, min_hops):
     """The issue's must-show, with hops modelled: thousands of rad/s, mu up to 1, default dt."""
-    env = TippeTopEnv(spin=spin, friction=friction, tilt=tilt, free_flight=True, max_speed=max(5.0, 0.02 * spin))
+    env = TippeTopEnv(spin=spin, friction=friction, tilt=tilt, free_flight=True, max_speed=max(5.0, 0.02 * spin), **ROLLING)
     infos, observations = run(env, steps)
     assert all(np.all(np.isfinite(o)) for o in observations)
     assert not any(i["numerical_failure"] for i in infos)
@@ -187,7 +193,7 @@ def test_fast_tops_hop_without_nan_penetration_or_energy_gain(spin, friction, ti
 def test_jellett_error_through_hops_converges_at_fourth_order():
     drifts, steps = [], []
     for substeps in (1, 1000, 2000):  # the automatic rule asks for 534 at this spin and friction
-        env = TippeTopEnv(spin=2000.0, friction=1.0, tilt=0.1, free_flight=True, substeps=substeps, max_speed=40.0)
+        env = TippeTopEnv(spin=2000.0, friction=1.0, tilt=0.1, free_flight=True, substeps=substeps, max_speed=40.0, **ROLLING)
         infos, _ = run(env, 40)
         assert infos[-1]["hops"] >= 50
         drifts.append(abs(infos[-1]["jellett"] - infos[0]["jellett"]))
@@ -201,7 +207,7 @@ def test_hopping_model_follows_the_contact_model_until_its_lift_off():
     (its state carries z and v_z): the two differ by no more than the contact model differs
     from itself when its initial spin is changed by 4 ulp (a round-off-seeded reference, since
     the rising top amplifies round-off)."""
-    kwargs = dict(spin=1000.0, friction=1.0, tilt=0.01, max_speed=40.0)
+    kwargs = dict(spin=1000.0, friction=1.0, tilt=0.01, max_speed=40.0, **ROLLING)
     plain, flying, nudged = TippeTopEnv(**kwargs), TippeTopEnv(free_flight=True, **kwargs), TippeTopEnv(**kwargs)
     plain.reset(seed=1)
     flying.reset(seed=1)
@@ -228,7 +234,7 @@ def test_hopping_model_follows_the_contact_model_until_its_lift_off():
 
 # ---------------------------------------------------------------------------- API
 def test_vector_env_matches_single_envs_through_hops():
-    kwargs = dict(spin=2000.0, friction=0.3, tilt=(0.01, 0.1), free_flight=True, max_speed=40.0)
+    kwargs = dict(spin=2000.0, friction=0.3, tilt=(0.01, 0.1), free_flight=True, max_speed=40.0, **ROLLING)
     venv = gym.make_vec("rbenvs/TippeTop-v0", num_envs=3, vectorization_mode="vector_entry_point", **kwargs)
     singles = [TippeTopEnv(**kwargs) for _ in range(3)]
     venv.reset(seed=5)
@@ -289,7 +295,7 @@ def test_check_env_with_free_flight(task, integrator):
 
 
 def test_euler_hops_too():
-    env = TippeTopEnv(spin=2000.0, friction=0.3, tilt=0.1, free_flight=True, integrator="euler", max_speed=40.0)
+    env = TippeTopEnv(spin=2000.0, friction=0.3, tilt=0.1, free_flight=True, integrator="euler", max_speed=40.0, **ROLLING)
     infos, observations = run(env, 20)
     assert all(np.all(np.isfinite(o)) for o in observations)
     assert infos[-1]["hops"] > 0

@@ -482,10 +482,10 @@ def test_terminal_reason_observation_limit_clips_the_observation():
 
 
 def test_terminal_reason_lift_off():
-    """At 300 rad/s the default top lifts off around 1.95 s (step ~195): started a few steps
-    before (from a single env's run), sub-env 0 lifts off exactly when the single env does;
-    sub-env 1 (an ordinary start) goes on."""
-    single = gym.make(TIPPE, spin=300.0).unwrapped
+    """At 300 rad/s the default top from the rolling start lifts off around 1.95 s (step ~195):
+    started a few steps before (from a single env's run), sub-env 0 lifts off exactly when the
+    single env does; sub-env 1 (an ordinary start) goes on."""
+    single = gym.make(TIPPE, spin=300.0, start="rolling").unwrapped
     single.reset(seed=0)
     zero = np.zeros(2, dtype=np.float32)
     states, outs = [], []
@@ -497,7 +497,7 @@ def test_terminal_reason_lift_off():
     k = len(outs)
     assert 150 < k < 250 and outs[-1][4]["terminal_reason"] == "lift_off"
     back = 3
-    venv = make_vec(TIPPE, 2, spin=300.0, autoreset_mode="SameStep")
+    venv = make_vec(TIPPE, 2, spin=300.0, autoreset_mode="SameStep", start="rolling")
     venv.reset(seed=5)
     start = {key: np.stack([states[k - back][key], venv.get_state()[key][1]]) for key in states[0]}
     venv.reset(options={"state": start})
@@ -552,7 +552,8 @@ def test_numerical_failure_ends_only_the_failing_sub_env(kwargs):
         obs, r, te, tr, info = venv.step(a)
     failures = [w for w in caught if issubclass(w.category, NumericalFailureWarning)]
     assert len(failures) == 1 and "[1]" in str(failures[0].message) and "non-finite" in str(failures[0].message)
-    assert np.array_equal(te, [False, True, False]) and not tr.any() and r[1] == 0.0
+    # reward 0 and the failure charge (rbenvs.core.model.Model)
+    assert np.array_equal(te, [False, True, False]) and not tr.any() and r[1] == singles[1].unwrapped.model.failure_charge < 0.0
     assert np.array_equal(info["numerical_failure"], [False, True, False]) and info["_numerical_failure"].all()
     assert list(info["terminal_reason"]) == ["", "numerical_failure", ""]
     assert same(obs[1], last_obs[1])
@@ -605,7 +606,7 @@ def test_numerical_failure_of_euler_with_a_huge_dt():
         failed = info["numerical_failure"]
         if failed.any():
             assert len(fails) == 1
-            assert np.all(te[failed]) and np.all(r[failed] == 0.0) and not tr.any()
+            assert np.all(te[failed]) and np.all(r[failed] == venv.unwrapped.engine.failure_charge) and not tr.any()  # 0 + the charge
             assert all(info["terminal_reason"][i] == "numerical_failure" for i in np.flatnonzero(failed))
             now = venv.get_state()
             for k in now:

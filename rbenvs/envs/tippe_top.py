@@ -61,12 +61,13 @@ class TippeTopEnv(RigidBodyEnv):
 
     ## Starting state (seeded)
     Spin ``n ~ U(spin)`` at tilt ``theta ~ U(tilt)``, uniform azimuth and heading, at the
-    origin; ``start`` says how it was spun (docs/physics.md §3): ``"rolling"`` (the default of
-    ``-v0``): about the symmetry axis with the contact point at rest (``v_G = -omega x r``);
-    ``"rest"``: about the symmetry axis with the centre of mass at rest, so the contact point
-    slips at first (a top spun by hand; Leine and Glocker's start); ``"vertical"``: the centre of
-    mass at rest and the spin about the space vertical. ``"rest"`` and ``"vertical"`` need a
-    fidelity with slip (not ``"rolling"``).
+    origin; ``start`` says how it was spun (docs/physics.md §3): ``"rest"`` (the default, but
+    for ``fidelity="rolling"``): about the symmetry axis with the centre of mass at rest, so the
+    contact point slips at first (a top spun by hand; Leine and Glocker's start and that of most
+    numerical studies); ``"rolling"`` (the default of ``fidelity="rolling"``, and of ``-v0``
+    before issue 18): about the symmetry axis with the contact point at rest (``v_G = -omega x
+    r``); ``"vertical"``: the centre of mass at rest and the spin about the space vertical.
+    ``"rest"`` and ``"vertical"`` need a fidelity with slip (not ``"rolling"``).
 
     ## Episode end
     * Terminated: ``invert`` when ``theta > 150 deg`` (success; past it the climb slows with the
@@ -75,7 +76,13 @@ class TippeTopEnv(RigidBodyEnv):
       an observation bound; a non-finite state (``NumericalFailureWarning``, last finite state
       kept).
     * Truncated: after ``max_episode_steps`` (2500 steps = 25 s at the default ``dt``; without
-      action the default top passes 90 deg at 7.0 s and 150 deg at 17.3 s).
+      action the default top passes 90 deg at 1.61 s and 150 deg at 18.84 s, its normal force
+      above 0.75 m g; from ``start="rolling"`` at 7.0 s and 17.3 s).
+    * An episode that ends without success (``hold`` past 90 deg, lift-off, an observation
+      bound, a numerical failure) carries in its last reward the failure charge,
+      ``max_episode_steps`` times the task's least reward where negative (``invert``: ``-(1 +
+      control_cost)``; ``hold``: ``-control_cost``; :class:`rbenvs.core.model.Model`): ending
+      early never pays.
 
     ## Info
     ``energy`` [J] (table frame), ``jellett`` ``J = L.(a z_hat - h k)`` [kg m^2/s], ``tilt``
@@ -105,7 +112,8 @@ class TippeTopEnv(RigidBodyEnv):
     ``h_f = 1 / lambda`` for euler, whose interval on the negative real axis is
     ``|h lambda| <= 2``, and ``1.39 / lambda`` for rk4, interval 2.78: half the margin, with
     ``N`` taken as twice the larger of ``m g`` and its current value; ``inf`` without friction,
-    when rolling, and for dop853). ``friction_bound="accuracy"`` (opt-in) sizes ``h_f`` from
+    when rolling, and for dop853): ``friction_bound="stability"``. ``friction_bound="accuracy"``
+    (the default) sizes ``h_f`` from
     accuracy instead, from the tight rate ``lambda_d`` (the law's stiffness at the actual ``N``
     and the largest mobility of the contact point along the table: within 1 % of the vector
     field's stiffest decay rate near zero slip): for rk4 ``h_f = min(1.25 / lambda_d, 0.12 /
@@ -135,7 +143,8 @@ class TippeTopEnv(RigidBodyEnv):
       the episode), while at 150 rad/s it stays positive through the inversion
       (tests/test_tippe_top_env.py); from their own start (``start="rest"``) at 180 rad/s it
       stays above 0.55 m g and passes 90 degrees at 2.71 s (tests/test_tippe_starts.py).
-    * ``start="rolling"``: how the top was spun (Starting state).
+    * ``start=None``: how the top was spun, ``"rest"``, ``"rolling"`` or ``"vertical"``
+      (``None``: ``"rest"``, or ``"rolling"`` with ``fidelity="rolling"``; Starting state).
     * ``dt=0.01`` s, ``substeps=1`` (a minimum), ``integrator="rk4"`` (``euler``, ``rk4``, ``dop853``;
       ``"auto"`` with ``tolerance``: the cheaper of ``euler`` and ``rk4`` at the fastest start).
     * ``guard="subdivide"``: ``"subdivide"``, ``"refuse"`` or ``"off"`` (Internal step).
@@ -146,7 +155,7 @@ class TippeTopEnv(RigidBodyEnv):
     * ``tolerance_horizon=None``: control periods the tolerance covers (an integer >= 1;
       ``None``: the registered ``max_episode_steps``, one episode; a ``max_episode_steps``
       given to ``gymnasium.make`` is not seen by the env: pass ``tolerance_horizon`` with it).
-    * ``friction_bound="stability"``: or ``"accuracy"``, what sizes the step under friction (Internal step).
+    * ``friction_bound="accuracy"``: or ``"stability"``, what sizes the step under friction (Internal step).
     * ``compiled="auto"``: run each step as one compiled call of the same functions (numba, the
       ``fast`` extra; built on the first step, about a second per setting and process), bit
       for bit the float path, where numba is installed and the setting has pure forms (the
@@ -211,7 +220,7 @@ class TippeTopEnv(RigidBodyEnv):
         task: str = "invert",
         spin=150.0,
         tilt=0.1,
-        start: str = "rolling",
+        start=None,
         dt: float = 0.01,
         substeps: int = 1,
         integrator: str = "rk4",
@@ -229,7 +238,7 @@ class TippeTopEnv(RigidBodyEnv):
         compiled="auto",
         tolerance=None,
         tolerance_horizon=None,
-        friction_bound: str = "stability",
+        friction_bound: str = "accuracy",
         param_ranges=None,
         observation_noise=None,
         observation_bias=None,
@@ -241,6 +250,8 @@ class TippeTopEnv(RigidBodyEnv):
         params = TippeTopParams(radius, mass, offset, inertia, gravity, friction, friction_law, slip_regularization)
         spin_lo, spin_hi = require_range("spin", spin)
         tilt_lo, tilt_hi = require_range("tilt", tilt)
+        if start is None:  # the literature's start; a rolling top's contact point never slips
+            start = "rolling" if fidelity == "rolling" else "rest"
         start = require_choice("start", start, STARTS)
         if start != "rolling" and fidelity == "rolling":
             raise ValueError(f"start={start!r} needs fidelity 'gliding' or 'frictionless': a rolling top's contact point never slips, so it starts rolling (start='rolling')")
