@@ -520,3 +520,18 @@ def test_bench_case_option_is_refused_without_tolerance_or_for_an_unknown_key(ca
     with pytest.raises(SystemExit) as e:
         main(["--tolerance", "--case", "nope"])
     assert e.value.code == 2 and "'fb_fast'" in capsys.readouterr().err
+
+
+def test_the_jacobian_rate_is_the_free_bodys_without_attitude_only():
+    """With attitude (``reorient``) the quaternion turns at ``|Omega| / 2`` and the error keeps
+    ``lambda = |Omega|``; without, ``lambda_e = s |Pi|`` (here ``s = 1 - 1/2``); the stability
+    bound takes ``|Omega|`` in both."""
+    pi = (2.0, 1.5, 0.5)  # Omega = (1, 1, 0.5)
+    for task, attitude in (("spin", False), ("reorient", True)):
+        env = FreeRigidBodyEnv(task=task, integrator="rk4", max_torque=0.0, tolerance=1e-6)
+        env.reset(seed=0)
+        y = (*pi, *env.state_components[3:])
+        lam, mu, lam_e = env.step_rule.rate(y)
+        assert lam == pytest.approx(1.5, rel=1e-15)
+        assert lam_e == (lam if attitude else pytest.approx(0.5 * math.sqrt(2.0**2 + 1.5**2 + 0.5**2), rel=1e-15))
+        assert 0.0 < mu <= lam_e
