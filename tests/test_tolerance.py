@@ -535,3 +535,21 @@ def test_the_jacobian_rate_is_the_free_bodys_without_attitude_only():
         assert lam == pytest.approx(1.5, rel=1e-15)
         assert lam_e == (lam if attitude else pytest.approx(0.5 * math.sqrt(2.0**2 + 1.5**2 + 0.5**2), rel=1e-15))
         assert 0.0 < mu <= lam_e
+
+
+@pytest.mark.parametrize("key", ["fb_auto", "top_auto"])
+def test_integrator_auto_costs_at_most_1_5_times_the_cheapest_fixed_setting_of_any_scheme(key):
+    """Where tolerance= chooses the scheme too (``integrator="auto"``), issue 19's comparison is
+    against the cheapest fixed setting of any scheme with an error constant (euler or rk4, each
+    at its fewest substeps meeting the tolerance against the reference), in rhs evaluations: on
+    euler's rows' starts (the default free body at 1 rad/s, a top at twice its critical spin) it
+    picks rk4, within the tolerance at no more than 1.5 times that cost (euler named by the user
+    costs 15 times fixed euler: its first-order steps grow like the estimate's overestimate)."""
+    from rbenvs.bench.tolerance import run_tolerance
+
+    rows = [r for r in run_tolerance(keys=[key])["rows"] if r["tolerance"] is not None]
+    assert len(rows) == 3
+    for r in rows:
+        assert r["failure"] is None and r["error"] <= r["tolerance"], r
+        assert r["integrator"] == "rk4" and r["fixed_integrator"] in ("euler", "rk4")
+        assert r["cost_ratio"] <= 1.5, r
