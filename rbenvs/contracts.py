@@ -92,7 +92,11 @@ class GuardRates:
       ``None``; resolved within ``dissipation_margin`` of the region's ``dissipation``;
     * ``ceiling``: an upper bound of ``lambda`` over every state inside the observation bounds
       (``inf``: none known; a guard whose ceiling fits in ``substeps`` never needs checking);
-    * ``text``: the rule in words, with the parameters that set the rates.
+    * ``text``: the rule in words, with the parameters that set the rates;
+    * ``accuracy``: pure ``fn(P, y) -> lambda_e`` [1/s], a bound of the vector field's Jacobian
+      at ``y`` (and of its higher derivatives' share, :func:`rbenvs.core.guard.motion_rates`),
+      sharper than ``rotation`` for the error ``tolerance=`` estimates; used only there, never
+      for the stability bound; ``None``: ``rotation``'s rate.
     """
 
     rotation: PureFunction
@@ -101,6 +105,7 @@ class GuardRates:
     dissipation: PureFunction | None = None
     dissipation_margin: float = 1.0
     ceiling: float = math.inf
+    accuracy: PureFunction | None = None
 
 
 @runtime_checkable

@@ -640,6 +640,12 @@ def plot(result, path):
     plt.close(fig)
 
 
+def _tolerance_cases():
+    from .tolerance import TOLERANCE_CASES
+
+    return TOLERANCE_CASES
+
+
 def main(argv=None) -> int:
     keys = [c.key for c in CASES]
     parser = argparse.ArgumentParser(prog="rbenvs bench accuracy", description="Error, invariant drift, cost and order of every integrator on every system; a recommended integrator per scene.")
@@ -653,13 +659,22 @@ def main(argv=None) -> int:
     parser.add_argument("--tolerance", action="store_true",
                         help="only the tolerance= table (rbenvs.bench.tolerance): per extreme and requested tolerance 1e-3, 1e-6, 1e-9, the error "
                              "achieved against the reference, the steps taken, and the cheapest fixed substeps meeting it")
+    parser.add_argument("--case", action="append", metavar="KEY",
+                        help="with --tolerance: only these cases' rows (repeatable; default all): " + ", ".join(c.key for c in _tolerance_cases()))
     parser.add_argument("--no-progress", action="store_true")
     args = parser.parse_args(argv)
+    if args.case and not args.tolerance:
+        parser.error("--case selects rows of the --tolerance table: pass --tolerance")
     if args.tolerance:
         from .tolerance import TOLERANCE_CASES, run_tolerance, print_tolerance
 
-        bar = Progress(sum(len(c.tolerances) for c in TOLERANCE_CASES), not args.no_progress, "bench accuracy --tolerance")
-        result = run_tolerance(progress=bar.update)
+        known = [c.key for c in TOLERANCE_CASES]
+        for key in args.case or ():
+            if key not in known:
+                parser.error(f"--case {key!r}: not a case of the --tolerance table; one of {known}")
+        cases = [c for c in TOLERANCE_CASES if not args.case or c.key in args.case]
+        bar = Progress(sum(len(c.tolerances) for c in cases), not args.no_progress, "bench accuracy --tolerance")
+        result = run_tolerance(keys=args.case, progress=bar.update)
         bar.close()
         print_tolerance(result)
         if args.json:

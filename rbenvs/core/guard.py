@@ -163,24 +163,28 @@ def stability_ratio(dt, bound, growth, lam):
 
 @jitable
 def step_ratio_motion(g, rates):
-    """:func:`step_ratio` with the state's own rate: ``rates = (lambda, mu)``, ``mu <= lambda``
-    the relative speed of the state (:func:`motion_rates`); the accuracy term asks for the
-    fewest whole ``n`` with ``C mu dt (lambda dt / n)^p <= b`` (pure; floats or arrays)."""
-    lam, mu = rates
+    """:func:`step_ratio` with the state's own rate: ``rates = (lambda, mu, lambda_e)``,
+    ``lambda_e`` the error's rate (the system's Jacobian bound, or ``lambda``) and ``mu <=
+    lambda_e`` the relative speed of the state (:func:`motion_rates`); the stability bound takes
+    ``lambda``, the accuracy term the fewest whole ``n`` with ``C mu dt (lambda_e dt / n)^p <= b``
+    (pure; floats or arrays)."""
+    lam, mu, lam_e = rates
     dt, bound, growth, k, p, kd = g
     x = stability_ratio(dt, bound, growth, lam)
     if k != 0.0:
-        x = maximum(x, whole_root(k * (power(dt * lam, p) * (mu * dt)), p))
+        x = maximum(x, whole_root(k * (power(dt * lam_e, p) * (mu * dt)), p))
     return x
 
 
 @lru_cache(maxsize=None)
-def motion_rates(rotation, rhs, blocks: tuple):
-    """``rates(P, y, u) -> (lambda, mu)`` (generated, pure), ``P = (P_rotation, P_rhs)``:
-    the guard's rate ``lambda = rotation(P_rotation, y)`` and the state's own relative speed
-    ``mu = min(lambda, max_b |f_b(y, u)| / |y_b|)`` over the named blocks ``b`` of the state
-    (``blocks``: ``(start, stop)`` slices), ``f`` the system's pure vector field under the
-    control ``u``.
+def motion_rates(rotation, rhs, blocks: tuple, accuracy=None):
+    """``rates(P, y, u) -> (lambda, mu, lambda_e)`` (generated, pure), ``P = (P_rotation, P_rhs)``
+    (``(P_rotation, P_rhs, P_accuracy)`` with ``accuracy``): the guard's rate ``lambda =
+    rotation(P_rotation, y)``, the error's rate ``lambda_e = accuracy(P_accuracy, y)`` (a bound
+    of the vector field's Jacobian the system declares, :class:`~rbenvs.contracts.GuardRates`;
+    without one ``lambda_e = lambda``) and the state's own relative speed ``mu = min(lambda_e,
+    max_b |f_b(y, u)| / |y_b|)`` over the named blocks ``b`` of the state (``blocks``: ``(start,
+    stop)`` slices), ``f`` the system's pure vector field under the control ``u``.
 
     Why ``mu``: a scheme's local error on ``dy/dt = A y`` is ``C h^(p+1) A^p (A y)`` to leading
     order, at most ``C h^(p+1) lambda^p |dy/dt|`` with ``lambda >= |A|``: relative to ``|y|``,
@@ -190,16 +194,24 @@ def motion_rates(rotation, rhs, blocks: tuple):
     leading error on a rotation is in the phase (``error_in_phase``: rk4): a scheme whose leading
     error changes the amplitude (euler) changes a nonlinear motion's frequency with it, and the
     phase then drifts over the whole episode (measured: euler on the free body at 1 rad/s ended
-    2.7 times its tolerance with ``mu``); it keeps ``lambda``."""
-    lines = ["def rates(P, y, u):", "    lam = rotation(P[0], y)", "    f = rhs(P[1], y, u)"]
+    2.7 times its tolerance with ``mu``); it keeps ``lambda``.
+
+    Why ``lambda_e``: the bound ``|A| <= lambda`` is loose where the vector field's Jacobian is
+    far smaller than the fastest rotation rate (a free body's ``Pi`` moves in the body frame at
+    a rate set by the spread of its moments, not by ``|Omega|``: nearly equal moments, a fast
+    tumble); where the system bounds its Jacobian and its second derivative's share by
+    ``lambda_e`` (:func:`rbenvs.dynamics.free_body.jacobian_rate`), the local error is at most
+    ``C h^(p+1) lambda_e^p |dy/dt|`` to the same order."""
+    lines = ["def rates(P, y, u):", "    lam = rotation(P[0], y)", "    f = rhs(P[1], y, u)",
+             "    lam_e = accuracy(P[2], y)" if accuracy is not None else "    lam_e = lam"]
     for j, (a, b) in enumerate(blocks):
         ny = " + ".join(f"y[{i}] * y[{i}]" for i in range(a, b))
         nf = " + ".join(f"f[{i}] * f[{i}]" for i in range(a, b))
         r = f"sqrt({nf}) / maximum(sqrt({ny}), 1e-300)"
         lines.append(f"    mu = {r}" if j == 0 else f"    mu = maximum(mu, {r})")
-    lines += ["    return (lam, select(mu < lam, mu, lam))"]
+    lines += ["    return (lam, select(mu < lam_e, mu, lam_e), lam_e)"]
     namespace = generate("\n".join(lines) + "\n", f"motion rates of {len(blocks)} blocks",
-                         {"rotation": rotation, "rhs": rhs, "sqrt": sqrt, "maximum": maximum, "select": select})
+                         {"rotation": rotation, "rhs": rhs, "accuracy": accuracy, "sqrt": sqrt, "maximum": maximum, "select": select})
     return jitable(namespace["rates"])
 
 
@@ -280,15 +292,23 @@ class StepRule:
             # the state's own speed in the estimate (motion_rates), for a scheme whose leading
             # error is in the phase; a hybrid system's contact keeps the rate alone
             blocks = tuple(tuple(v) for v in system.layout.values())
-            rotation, motion = (motion_rates(rates.rotation[0], rhs[0], blocks), (rates.rotation[1], rhs[1])), True
-            accuracy = accuracy.replace("error C lambda dt", "error C mu dt") + "; mu = min(lambda, max over the state's blocks of |dy_b/dt| / |y_b|)"
-            text = text.replace("error C lambda dt", "error C mu dt") + "; mu = min(lambda, max over the state's blocks of |dy_b/dt| / |y_b|)"
+            mu_text = "; mu = min(lambda, max over the state's blocks of |dy_b/dt| / |y_b|)"
+            if rates.accuracy is not None:  # the system's sharper rate of the error (lambda_e)
+                rotation = (motion_rates(rates.rotation[0], rhs[0], blocks, rates.accuracy[0]), (rates.rotation[1], rhs[1], rates.accuracy[1]))
+                accuracy, text = (t.replace("(lambda h)^", "(lambda_e h)^") for t in (accuracy, text))
+                mu_text = ("; lambda_e = the system's bound of its Jacobian (" + rates.accuracy[0].__name__ + ")"
+                           + mu_text.replace("min(lambda,", "min(lambda_e,"))
+            else:
+                rotation = (motion_rates(rates.rotation[0], rhs[0], blocks), (rates.rotation[1], rhs[1]))
+            motion = True
+            accuracy = accuracy.replace("error C lambda dt", "error C mu dt") + mu_text
+            text = text.replace("error C lambda dt", "error C mu dt") + mu_text
         return cls(rotation, (float(dt), float(bound), float(growth), float(k), float(p), float(kd)), dissipation, step_d, rates.ceiling, text, active, error,
                    accuracy, motion, tuple(zero_control))
 
     def rate(self, y, u=None):
         """``lambda`` at ``y`` (the rate both the bounds and the error estimate use); with
-        :attr:`motion` ``(lambda, mu)`` under the control ``u`` (``None``: none)."""
+        :attr:`motion` ``(lambda, mu, lambda_e)`` under the control ``u`` (``None``: none)."""
         fn, p = self.rotation
         if self.motion:
             return fn(p, y, self.zero_control if u is None else u)
@@ -312,10 +332,10 @@ class StepRule:
         system has a decaying rate (``None`` without a tolerance)."""
         if self.error is None:
             return None
-        if self.motion:  # C mu dt (lambda h)^p
+        if self.motion:  # C mu dt (lambda_e h)^p
             c, p, dt = self.error
-            lam, mu = lam
-            e = c * mu * dt * power(lam * h, p)
+            lam, mu, lam_e = lam
+            e = c * mu * dt * power(lam_e * h, p)
         else:
             e = error_estimate(self.error, lam, h)
         if self.dissipation is None:
@@ -331,8 +351,8 @@ class StepRule:
         dt, bound, growth, k, p, kd = self.params
         lam = self.rate(y, u)
         if self.motion:
-            lam, mu = lam
-            accuracy = whole_root(k * (power(dt * lam, p) * (mu * dt)), p)
+            lam, mu, lam_e = lam
+            accuracy = whole_root(k * (power(dt * lam_e, p) * (mu * dt)), p)
         else:
             accuracy = accuracy_steps(k, p, dt * lam)
         stability = step_ratio((dt, bound, growth, 0.0, 1.0, 0.0), lam)

@@ -28,7 +28,7 @@ from .flows import AxisRotation
 from .state import export_layout, import_layout, start_as_drawn
 from .validation import require_inertia
 
-__all__ = ["FreeBodyParams", "FreeBody", "FreeBodyOrbit", "euler_rhs", "kinetic_energy", "momentum_norm", "angular_velocity", "rotation_rate", "free_body_readouts", "attitude_rhs", "attitude_normalize", "free_body_kick"]
+__all__ = ["FreeBodyParams", "FreeBody", "FreeBodyOrbit", "euler_rhs", "kinetic_energy", "momentum_norm", "angular_velocity", "rotation_rate", "jacobian_rate", "free_body_readouts", "attitude_rhs", "attitude_normalize", "free_body_kick"]
 
 _CYCLIC = {(0, 1, 2), (1, 2, 0), (2, 0, 1)}
 
@@ -108,6 +108,23 @@ def rotation_rate(p, y):
         speed = sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2])
         return weight * speed + fixed
     return fixed
+
+
+@jitable
+def jacobian_rate(p, y):
+    """``lambda_e = s |Pi|`` [1/s], ``p = (s,)`` with ``s = max_i 1/I_i - min_i 1/I_i``: a bound of
+    the Jacobian of Euler's equations and of their second derivative's share, the rate of the
+    error ``tolerance=`` estimates (:func:`rbenvs.core.guard.motion_rates`).
+
+    Why: ``Pi x (a Pi) = 0`` for any ``a``, so ``dPi/dt = Pi x D Pi + tau`` with ``D = I^-1 - a``;
+    with ``a`` the midpoint of the inverse moments ``|D| = s / 2``. Then ``f'(Pi) v = v x D Pi +
+    Pi x D v`` has norm ``<= s |Pi|``, ``f''(v, w) = v x D w + w x D v`` norm ``<= s`` and the
+    third derivative is 0: every elementary differential of a scheme's local error is bounded by
+    powers of ``s |Pi|`` times ``|dPi/dt|``. The moments' spread sets how fast ``Pi`` moves in the
+    body frame, not ``|Omega|`` (``s |Pi| <= |Omega|`` where ``I_max <= 2 I_min``; nearly equal
+    moments: ``s -> 0``, ``Pi`` barely moves whatever the spin)."""
+    (spread,) = p
+    return spread * sqrt(y[0] * y[0] + y[1] * y[1] + y[2] * y[2])
 
 
 @jitable
@@ -210,8 +227,14 @@ class FreeBody:
         """In the body frame ``Pi`` turns about ``Omega`` at ``|Omega|`` (at a steady spin the
         linearisation's eigenvalues have modulus ``<= |Omega|``, [MR 15.9.1]): one oscillatory rate,
         ``lambda = |Omega|``, for every scheme (the splitting's pieces are exact rotations,
-        but their composition follows the motion only below about a radian per step)."""
-        return GuardRates(rotation=(rotation_rate, (self._inverse, 1.0, 0.0)), ceiling=speed_ceiling, text="lambda = |Omega|")
+        but their composition follows the motion only below about a radian per step). Without
+        attitude the error ``tolerance=`` estimates takes the sharper :func:`jacobian_rate`
+        (the attitude itself turns at ``|Omega| / 2``: with it, ``lambda`` stays)."""
+        accuracy = None
+        if not self.attitude:
+            inv = self._inverse
+            accuracy = (jacobian_rate, (float(max(inv) - min(inv)),))
+        return GuardRates(rotation=(rotation_rate, (self._inverse, 1.0, 0.0)), ceiling=speed_ceiling, text="lambda = |Omega|", accuracy=accuracy)
 
     # ------------------------------------------------------------------ vector field
     def rhs(self, y, u):
