@@ -271,12 +271,16 @@ def test_vector_env_steps_as_the_single_env_through_the_touchdown(compiled):
         single.step(zero)
     state = single.get_state()
     single.reset(options={"state": state})
+    floats = load_scene("tippe_leine_glocker").make(compiled=False).unwrapped  # the single env's float path
+    floats.reset(options={"state": state})
     venv = gym.make_vec(ID, num_envs=2, vectorization_mode="vector_entry_point", compiled=compiled, stem=(B, D), **LG)
     assert venv.unwrapped.compiled is compiled
     venv.reset(seed=0, options={"state": {k: np.stack([v, v]) for k, v in state.items()}})
     flags = set()
     for _ in range(60):
         obs1, rew1, term1, _, info1 = single.step(zero)
+        obs2, rew2, _, _, info2 = floats.step(zero)
+        assert floats._y == single._y and np.array_equal(obs2, obs1) and rew2 == rew1 and info2["normal_force"] == info1["normal_force"]
         obs, rew, term, _, info = venv.step(np.zeros((2, 2)))
         flags.add(single._y[11])
         for i in range(2):
