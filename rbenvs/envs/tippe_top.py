@@ -142,7 +142,9 @@ class TippeTopEnv(RigidBodyEnv):
       top lands on it (located touchdown, plastic impact; the sphere lifts) and spins on it
       (docs/physics.md §3, "The stem"). Gliding or frictionless, without ``free_flight``; a
       lift-off from either contact ends the episode. The state carries a contact flag (0 on the
-      sphere, 1 on the stem); ``gap`` is the sphere's, ``jellett`` the sphere's integral.
+      sphere, 1 on the stem); ``gap`` is the sphere's, ``jellett`` the sphere's integral. Both
+      contacts pressing at once is not modelled: a top that settles at the touch tilt alternates
+      between them by impacts (an approximation; docs/physics.md §3).
     * ``task="invert"`` or ``"hold"``; ``spin=150.0`` rad/s and ``tilt=0.1`` rad (numbers or
       ``(low, high)`` ranges). Not Leine and Glocker's 180 rad/s: with this model (gliding
       friction, regularised Coulomb, no drilling friction) and the rolling start, their top's
