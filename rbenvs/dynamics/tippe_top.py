@@ -192,7 +192,7 @@ class TippeTopParams:
       ``"viscous"``.
     * ``stem``: ``None`` (the sphere alone) or ``(b, d)`` [m]: a second contact, the stem's tip, a
       sphere of radius ``b`` whose centre ``S = G + d k`` lies on the symmetry axis beyond the
-      sphere's centre (``d > h``), protruding past the sphere (``d - h + b > a``) and not
+      sphere's centre (``d > h``), protruding past the sphere (``d - h + b > a``) and
       smaller than the sphere (``b < a``): the inverted top ends on it (Leine and Glocker 2003:
       ``(0.005, 0.016)``; docs/physics.md §3, "The stem").
     """
