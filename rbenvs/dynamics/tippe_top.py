@@ -135,6 +135,13 @@ __all__ = [
     "flight_take_off",
     "flight_impact",
     "flight_touch_down",
+    "STEM_TOL",
+    "stem_params",
+    "stem_other_gap",
+    "stem_impact",
+    "stem_switch",
+    "stem_forms",
+    "stem_jellett",
 ]
 
 FIDELITIES = ("gliding", "frictionless", "rolling")
@@ -183,6 +190,11 @@ class TippeTopParams:
     * ``friction_law``: ``"coulomb"``: ``F = -mu N v_P / sqrt(|v_P|^2 + slip_regularization^2)``
       (Coulomb's law, [T 3.96], smoothed for slips below ``slip_regularization`` [m/s]) or
       ``"viscous"``.
+    * ``stem``: ``None`` (the sphere alone) or ``(b, d)`` [m]: a second contact, the stem's tip, a
+      sphere of radius ``b`` whose centre ``S = G + d k`` lies on the symmetry axis beyond the
+      sphere's centre (``d > h``), protruding past the sphere (``d - h + b > a``) and
+      smaller than the sphere (``b < a``): the inverted top ends on it (Leine and Glocker 2003:
+      ``(0.005, 0.016)``; docs/physics.md §3, "The stem").
     """
 
     radius: float = 0.015
@@ -193,6 +205,7 @@ class TippeTopParams:
     friction: float = 0.3
     friction_law: str = "coulomb"
     slip_regularization: float = 1e-3
+    stem: tuple[float, float] | None = None
     height: float = field(init=False, repr=False)  # h = alpha a [m]
 
     def __post_init__(self):
@@ -214,9 +227,23 @@ class TippeTopParams:
         require_finite_result("mass, radius and inertia", m * a * a + big_a + big_c, "m a^2 + A + C [kg m^2]")
         require_finite_result("radius and inertia", (a + alpha * a) * (a + alpha * a) / min(big_a, big_c), "(a + h)^2 / min(A, C) [1/kg]")
         require_finite_result("mass and gravity", m * g * a, "m g a [J]")
+        stem = self.stem
+        if stem is not None:
+            b, d = require_real_vector("stem", stem, 2, " (b, d): the stem tip's radius and the distance of its centre from the centre of mass [m]")
+            b = require_finite_positive("stem[0] (b)", b)
+            d = require_finite_positive("stem[1] (d)", d)
+            h = alpha * a
+            if not b < a:
+                raise ValueError(f"stem radius b must be below the sphere's radius a = {a!r} m, got {b!r}")
+            if not d > h:
+                raise ValueError(f"stem distance d must exceed h = alpha a = {h!r} m (the stem's centre lies beyond the sphere's centre), got {d!r}")
+            if not d - h + b > a:
+                raise ValueError(f"the stem must protrude past the sphere (d - h + b > a): d - h + b = {d - h + b!r} m, a = {a!r} m")
+            require_finite_result("stem", (b + d) * (b + d) / min(big_a, big_c), "(b + d)^2 / min(A, C) [1/kg]")
+            stem = (b, d)
         set_ = object.__setattr__
         for name, value in (("radius", a), ("mass", m), ("gravity", g), ("offset", alpha), ("inertia", (big_a, big_c)),
-                            ("friction", mu), ("slip_regularization", eps), ("height", alpha * a)):
+                            ("friction", mu), ("slip_regularization", eps), ("stem", stem), ("height", alpha * a)):
             set_(self, name, value)
 
     @property
@@ -229,12 +256,30 @@ class TippeTopParams:
         through the contact (the weight at the longest arm ``|r| <= a + h`` over the smallest
         moment; the rocking frequency ``sqrt(m g h / (A + m (a - h)^2))`` of a top at rest is
         below it). The guard resolves it as it does the spin (``rbenvs.envs.tippe_top``)."""
-        return math.sqrt(self.mass * self.gravity * (self.radius + self.height) / min(self.inertia))
+        return math.sqrt(self.mass * self.gravity * self.longest_arm() / min(self.inertia))
+
+    def longest_arm(self) -> float:
+        """``a + h``, the longest arm ``|r|`` of the sphere's contact; with the stem, the larger
+        of it and the stem's ``b + d``."""
+        arm = self.radius + self.height
+        if self.stem is not None:
+            arm = max(arm, self.stem[0] + self.stem[1])
+        return arm
 
     def contact_mobility(self) -> float:
         """An upper bound of ``|M|``, ``M = 1/m + [r x]^T I^-1 [r x]``: the contact point's
-        acceleration per unit contact force [1/kg] (``|r| <= a + h``)."""
-        return 1.0 / self.mass + (self.radius + self.height) ** 2 / min(self.inertia)
+        acceleration per unit contact force [1/kg] (``|r| <= a + h``; with the stem ``|r| <=
+        max(a + h, b + d)``)."""
+        return 1.0 / self.mass + self.longest_arm() ** 2 / min(self.inertia)
+
+    def stem_touch_tilt(self) -> float:
+        """The tilt [rad] at which the stem first touches the table while the sphere does:
+        ``cos(theta*) = -(a - b)/(d - h)`` (both contacts' heights of ``G`` agree, ``a - h cos =
+        b - d cos``); ``nan`` without a stem."""
+        if self.stem is None:
+            return math.nan
+        b, d = self.stem
+        return math.acos(-(self.radius - b) / (d - self.height))
 
 # ------------------------------------------------------------------------------------------
 # Pure forms: the top's arithmetic as functions of (P, state[, control]); the methods of TippeTop
@@ -246,8 +291,11 @@ def pure_parameters(params: TippeTopParams) -> tuple:
     """``P`` of every pure form: the floats named in :data:`PURE_PARAMETERS` (``friction`` is
     the coefficient a control ``u = None`` means; ``contact_mobility`` the guard's ``|M|``)."""
     big_a, big_c = params.inertia
-    return (params.radius, params.height, params.mass, params.gravity, big_a, big_c, params.friction, params.slip_regularization,
-            params.contact_mobility())
+    p = (params.radius, params.height, params.mass, params.gravity, big_a, big_c, params.friction, params.slip_regularization,
+         params.contact_mobility())
+    if params.stem is not None:  # (b, d) after the nine: the stem's layout (stem_forms) reads them
+        p = p + (params.stem[0], params.stem[1])
+    return p
 
 
 @jitable
@@ -734,6 +782,178 @@ def pure_forms(coefficient, stiffness, rolling: bool, flight: bool) -> TippeForm
 
 
 # ------------------------------------------------------------------------------------------
+# The stem (docs/physics.md §3, "The stem"): a second sphere, radius b, centre S = G + d k. On
+# the stem alone the top is the same system as on the sphere with (a, h) replaced by (b, d)
+# (G = S - d k as G = O - h k): the same contact arm, constraint, friction law and Jellett
+# integral, so the stem's contact is the sphere's pure forms at the parameters stem_params gives.
+# The state is the gliding one (11 components) and a contact flag s (0 on the sphere, 1 on the
+# stem; zero derivative). The switches (events of TippeTop) are the other contact's touchdown,
+# located as the free flight's are, with a plastic frictionless impact there; since the coupling
+# mobility of the two contacts' vertical motions, 1/m + h d sin^2(theta)/A, is positive, the
+# impulse that stops the touching contact lifts the other one: one contact presses at a time.
+STEM_TOL = 1e-13  # the other contact's touchdown is located to |gap| <= STEM_TOL a
+
+
+@jitable
+def stem_params(p, s):
+    """The nine parameters of the contact of flag ``s`` (0: the sphere's ``(a, h)``, 1: the
+    stem's ``(b, d)``, from ``P = (nine, b, d)``); a blend, exact for ``s`` in {0, 1}."""
+    f = 1.0 - s
+    return (f * p[0] + s * p[9], f * p[1] + s * p[10], p[2], p[3], p[4], p[5], p[6], p[7], p[8])
+
+
+@jitable
+def stem_other_gap(p, y, u):
+    """The switch's function: the gap [m] to the table of the contact that does not press (the
+    stem on the sphere, the sphere on the stem), ``z_G + h_o cos(theta) - r_o`` with ``z_G =
+    r - h_ cos(theta)`` from the pressing one's constraint (``u`` plays no part)."""
+    s = y[11]
+    pa, po = stem_params(p, s), stem_params(p, 1.0 - s)
+    g3 = tippe_frame(y[4], y[5], y[6], y[7])[8]
+    return (pa[0] - pa[1] * g3) + po[1] * g3 - po[0]
+
+
+@jitable
+def stem_on_sphere(p, y):
+    """Whether a state with the stem presses on the sphere (flag 0)."""
+    return y[11] == 0.0
+
+
+@jitable
+def stem_on_stem(p, y):
+    """Whether a state with the stem presses on the stem (flag 1)."""
+    return y[11] == 1.0
+
+
+@jitable
+def stem_impact(p, y):
+    """The other contact's touchdown (gap 0, approaching): a plastic, frictionless impact there,
+    ``lambda = -v_Pz / M_zz`` with ``M_zz = 1/m + (r_o x Gamma).I^-1(r_o x Gamma)`` (as
+    :func:`flight_impact`); the velocity of ``G`` stays horizontal-wise, its vertical part is the
+    new contact's constraint's. Returns ``(state pressing on the other contact, lambda)``. One
+    state of floats (the impulse is clamped by a float branch)."""
+    m, big_a, big_c = p[2], p[4], p[5]
+    s = y[11]
+    o = 1.0 - s
+    pa, po = stem_params(p, s), stem_params(p, o)
+    rm = tippe_frame(y[4], y[5], y[6], y[7])
+    g1, g2, g3 = rm[6], rm[7], rm[8]
+    w1, w2, w3 = y[8], y[9], y[10]
+    r1, r2, r3 = contact_arm(po, g1, g2, g3)
+    t1, t2, t3 = r2 * g3 - r3 * g2, r3 * g1 - r1 * g3, r1 * g2 - r2 * g1
+    m_zz = 1.0 / m + t1 * t1 / big_a + t2 * t2 / big_a + t3 * t3 / big_c
+    v_pz = constraint_vertical_velocity(pa, rm, w1, w2) + (w1 * t1 + w2 * t2 + w3 * t3)
+    lam = -v_pz / m_zz
+    if lam < 0.0:  # separating, not touching down: no impulse
+        lam = 0.0
+    w = (w1 + lam * t1 / big_a, w2 + lam * t2 / big_a, w3 + lam * t3 / big_c)
+    return sliding_normalize(p, y[:8] + w + (o,)), lam
+
+
+@jitable
+def stem_switch(p, y):
+    """The state after the other contact's touchdown: :func:`stem_impact`'s."""
+    return stem_impact(p, y)[0]
+
+
+@jitable
+def stem_derivative(p, y, c):
+    """``dy/dt`` with the stem (12 components): the gliding one and the flag's zero."""
+    return sliding_derivative(p, y, c) + (0.0 * y[11],)
+
+
+@lru_cache(maxsize=None)
+def stem_forms(coefficient, stiffness) -> TippeForms:
+    """The :class:`TippeForms` of a gliding or frictionless top with the stem (``P`` of
+    :func:`pure_parameters` with ``(b, d)``; state: the gliding one and the contact flag): the
+    sphere's forms at :func:`stem_params` of the flag. The read-outs: the energy, the normal
+    force and the slip of the pressing contact, Jellett's integral of the sphere ``L.(a z_hat - h
+    k)`` (:func:`stem_jellett` gives the stem's), and as ``gap`` the sphere's gap (0 while it
+    presses)."""
+    base = pure_forms(coefficient, stiffness, False, False)
+    (frame, angular_velocity, velocity0, height0, _, slip0, energy0, jellett, tilt, spin, normalize, state0), _ = _state_forms(False, False)
+    contact0, friction_rate0 = base.contact, base.friction_rate
+
+    @jitable
+    def velocity(p, y):
+        return velocity0(stem_params(p, y[11]), y)
+
+    @jitable
+    def height(p, y):
+        return height0(stem_params(p, y[11]), y)
+
+    @jitable
+    def gap(p, y):
+        return y[11] * stem_other_gap(p, y, None)
+
+    @jitable
+    def slip_speed(p, y):
+        return slip0(stem_params(p, y[11]), y)
+
+    @jitable
+    def energy(p, y):
+        return energy0(stem_params(p, y[11]), y)
+
+    @jitable
+    def state(p, x, y0, q, w, v=None):
+        """On the sphere (flag 0), as the gliding top's state."""
+        z = state0(p, x, y0, q, w, v)
+        return z + (0.0 * z[0],)
+
+    @jitable
+    def contact(p, y, u):
+        return contact0(stem_params(p, y[11]), y, u)
+
+    @jitable
+    def rhs(p, y, u):
+        return stem_derivative(p, y, contact(p, y, u))
+
+    @jitable
+    def rhs_normal(p, y, u):
+        c = contact(p, y, u)
+        return stem_derivative(p, y, c), c[0]
+
+    @jitable
+    def normal(p, y, u):
+        return contact(p, y, u)[0]
+
+    @jitable
+    def readouts(p, y, u, fired):
+        count = 0 if isinstance(y[0], float) else _zero_counts_arrays(y[0])
+        return (energy(p, y), jellett(p, y), tilt(p, y), contact(p, y, u)[0], slip_speed(p, y), fired, 0.0 * y[0] != 0.0, count,
+                gap(p, y), spin(p, y))
+
+    friction_rate = None
+    if friction_rate0 is not None:
+
+        @jitable
+        def friction_rate(p, y, u):
+            return friction_rate0(stem_params(p, y[11]), y, u)
+
+    return TippeForms(frame, angular_velocity, velocity, height, gap, slip_speed, energy, jellett, tilt, spin, normalize, contact,
+                      stem_derivative, rhs, rhs_normal, normal, readouts, friction_rate, state)
+
+
+@jitable
+def stem_jellett(p, y):
+    """The stem's Jellett integral ``L.(b z_hat - d k)`` [kg m^2/s] (conserved while the stem
+    alone presses, as the sphere's while the sphere does)."""
+    return tippe_jellett((p[9], p[10], p[2], p[3], p[4], p[5]), tippe_frame(y[4], y[5], y[6], y[7]), y[8], y[9], y[10])
+
+
+@lru_cache(maxsize=None)
+def stem_accuracy_rate(accuracy_rate0):
+    """The guard's rate with ``friction_bound="accuracy"`` with the stem: the sphere's
+    (:func:`implicit_forms`' ``accuracy_rate``) at the pressing contact's parameters."""
+
+    @jitable
+    def accuracy_rate(q, y, u):
+        return accuracy_rate0((stem_params(q[0], y[11]), q[1], q[2]), y, u)
+
+    return accuracy_rate
+
+
+# ------------------------------------------------------------------------------------------
 # The friction's linearisation: what a linearly implicit scheme (rbenvs.integrators.rosenbrock)
 # and the tight stiffness rate need. Near zero slip the friction relaxes the slip at a rate far
 # above every other rate of the top: the stiff part. Its Jacobian is low rank: a state increment
@@ -955,7 +1175,17 @@ class TippeTop:
         self.flight = bool(flight)
         if self.flight and self.rolling:
             raise ValueError("flight=True needs fidelity 'gliding' or 'frictionless' (a rolling top has no slip to resume after a touchdown)")
-        if self.flight:
+        self.stem = params.stem is not None
+        if self.stem and self.rolling:
+            raise ValueError("stem needs fidelity 'gliding' or 'frictionless' (the rolling limit has no slip to resume after the stem's touchdown)")
+        if self.stem and self.flight:
+            raise ValueError("stem with flight=True is not modelled: a touchdown from flight could meet both contacts at once, "
+                             "which needs a two-contact impact law (docs/physics.md §3, 'The stem')")
+        if self.stem:
+            self.layout = {"position": (0, 2), "velocity": (2, 4), "attitude": (4, 8), "angular_velocity": (8, 11), "contact": (11, 12)}
+            self.dim = 12
+            self._q, self._w = 4, 8
+        elif self.flight:
             self.layout = {"position": (0, 3), "velocity": (3, 6), "attitude": (6, 10), "angular_velocity": (10, 13), "contact": (13, 14), "hops": (14, 15)}
             self.dim = 15
             self._q, self._w = 6, 10
@@ -978,12 +1208,17 @@ class TippeTop:
 
     @params.setter
     def params(self, params: TippeTopParams):
+        if (params.stem is not None) != getattr(self, "stem", params.stem is not None):
+            raise ValueError("params must keep the stem as it is (a stem changes the state's layout)")
         self._params = params
         self._memo = None
         self.friction_law = None if self.fidelity != "gliding" else params.friction_law  # its name
         self.friction = None if self.friction_law is None else FRICTION_LAWS[self.friction_law]  # the law (dynamics.contact)
         coefficient, stiffness = (no_friction, None) if self.friction is None else self.friction.pure_forms()
-        self.forms = forms = pure_forms(coefficient, stiffness, self.rolling, self.flight)
+        if self.stem:
+            self.forms = forms = stem_forms(coefficient, stiffness)
+        else:
+            self.forms = forms = pure_forms(coefficient, stiffness, self.rolling, self.flight)
         self.form_params = p = pure_parameters(params)
         compilable = self.friction is None or self.friction.compilable
 
@@ -1004,7 +1239,8 @@ class TippeTop:
         # terminal event is the lift-off (N < 0), checked from the contact solve that is also
         # the next step's first stage; with flight the two switches of events()
         self.kernel_event = pair(forms.normal, not self.flight)
-        self.kernel_rhs_event = pair(forms.rhs_normal, not self.flight)
+        # (with the stem the switches come between a step and the check: no shared first stage)
+        self.kernel_rhs_event = pair(forms.rhs_normal, not self.flight and not self.stem)
         # the friction's linearisation (ImplicitForms): the W-matrix of a linearly implicit
         # scheme, (factor, solve, P); the tight stiffness rate; None for a law with no slope
         slope = None if self.friction is None else self.friction.kernel_slope
@@ -1012,7 +1248,19 @@ class TippeTop:
         if self.friction is None or (slope is not None and compilable):
             self.implicit = implicit_forms(coefficient, stiffness, slope, self.rolling, self.flight)
         self.kernel_implicit = None if self.implicit is None else (self.implicit.factor, self.implicit.solve, p)
+        if self.stem and self.implicit is not None:
+            # with the stem: the accuracy rate at the pressing contact; no W-matrix (the linearly
+            # implicit schemes are not offered: their solve is written for the 11 components)
+            rate = self.implicit.accuracy_rate
+            self.implicit = ImplicitForms(None, None, None, None if rate is None else stem_accuracy_rate(rate))
+            self.kernel_implicit = None
         self.kernel_switches = None
+        if self.stem and compilable:
+            tol = STEM_TOL * min(params.radius, params.stem[0])
+            self.kernel_switches = (
+                ((stem_on_sphere, ()), (stem_other_gap, p), tol, (stem_switch, p)),
+                ((stem_on_stem, ()), (stem_other_gap, p), tol, (stem_switch, p)),
+            )
         if self.flight and compilable:
             self.kernel_switches = (
                 ((flight_on_table, ()), (forms.normal, p), LIFT_OFF_TOL * params.mass * params.gravity, (flight_take_off, ())),
@@ -1131,8 +1379,9 @@ class TippeTop:
 
     @property
     def switches(self) -> bool:
-        """Whether the contact switches (free flight) rather than ending the episode."""
-        return self.flight
+        """Whether the contact switches (free flight; the stem's and sphere's touchdowns) rather
+        than ending the episode (with the stem a lift-off still ends it)."""
+        return self.flight or self.stem
 
     def terminal_event(self):
         """``("lift_off", fn)``: the event that ends an episode, ``fn(y, u)`` true where the
@@ -1178,6 +1427,18 @@ class TippeTop:
         * touchdown, in flight: the sphere's gap to the table turns negative (located to
           ``|gap| <= TOUCHDOWN_TOL a``); the state after the plastic :meth:`impact`.
         """
+        if self.stem:
+            p = self.form_params
+            tol = STEM_TOL * min(self.params.radius, self.params.stem[0])
+
+            def other_gap(z):
+                return stem_other_gap(p, z, u)
+
+            def switch(z):
+                return stem_switch(p, z)
+
+            return (Event("stem_touchdown", self.on_sphere, other_gap, tol, switch),
+                    Event("sphere_touchdown", self.on_stem, other_gap, tol, switch))
         if not self.flight:
             return ()
         prm = self.params
@@ -1189,6 +1450,32 @@ class TippeTop:
         lift_off = Event("lift_off", self.on_table, normal, LIFT_OFF_TOL * prm.mass * prm.gravity, self.take_off)
         touchdown = Event("touchdown", self.airborne, self.gap, TOUCHDOWN_TOL * prm.radius, self.touch_down)
         return (lift_off, touchdown)
+
+    @staticmethod
+    def on_sphere(y) -> bool:
+        """With the stem: whether the sphere presses (contact flag 0)."""
+        return stem_on_sphere((), y)
+
+    @staticmethod
+    def on_stem(y) -> bool:
+        """With the stem: whether the stem presses (contact flag 1)."""
+        return stem_on_stem((), y)
+
+    def stem_impact(self, y):
+        """With the stem: the other contact's touchdown at ``y`` (its gap 0, approaching), a
+        plastic frictionless impact: ``(state pressing on it, lambda [N s])``
+        (:func:`stem_impact`; one state of floats)."""
+        return stem_impact(self.form_params, y)
+
+    def stem_jellett(self, y):
+        """With the stem: its Jellett integral ``L.(b z_hat - d k)`` [kg m^2/s] (conserved while
+        the stem alone presses)."""
+        return stem_jellett(self.form_params, y)
+
+    def other_gap(self, y):
+        """With the stem: the gap [m] of the contact that does not press (the stem's while the
+        sphere presses, the sphere's while the stem does)."""
+        return stem_other_gap(self.form_params, y, None)
 
     @staticmethod
     def on_table(y) -> bool:
@@ -1298,6 +1585,10 @@ class TippeTop:
         prm = self.params
         if self.flight:
             return self._place_flight_state(y, pos, vel)
+        if self.stem:  # on the stem where its constraint's height is the one given
+            on_stem = y[:11] + (1.0,)
+            if abs(pos[2] - self.height(on_stem)) <= 1e-9 * prm.radius + 1e-12 and self.other_gap(on_stem) >= 0.0:
+                y = on_stem
         z = self.height(y)
         if abs(pos[2] - z) > 1e-9 * prm.radius + 1e-12:
             raise ValueError(f"state['position'][2] must be the contact height a - h cos(theta) = {z!r} m for this attitude (the sphere touches the table), got {pos[2]!r}")

@@ -136,6 +136,15 @@ class TippeTopEnv(RigidBodyEnv):
     * ``free_flight=False``: model hops (gliding or frictionless) instead of ending the episode
       at lift-off; about 1.15x the gliding level's cost per step on the table (the contact
       flag is carried and the switch tested at every internal step; ``rbenvs bench fidelity``).
+    * ``stem=None``: or ``(b, d)`` [m], the stem's tip as a second contact, a sphere of radius
+      ``b`` centred ``d`` from the centre of mass on the symmetry axis beyond the sphere's centre
+      (Leine and Glocker's top: ``(0.005, 0.016)``, scene ``tippe_leine_glocker``): the inverted
+      top lands on it (located touchdown, plastic impact; the sphere lifts) and spins on it
+      (docs/physics.md §3, "The stem"). Gliding or frictionless, without ``free_flight``; a
+      lift-off from either contact ends the episode. The state carries a contact flag (0 on the
+      sphere, 1 on the stem); ``gap`` is the sphere's, ``jellett`` the sphere's integral. Both
+      contacts pressing at once is not modelled: a top that settles at the touch tilt alternates
+      between them by impacts (an approximation; docs/physics.md §3).
     * ``task="invert"`` or ``"hold"``; ``spin=150.0`` rad/s and ``tilt=0.1`` rad (numbers or
       ``(low, high)`` ranges). Not Leine and Glocker's 180 rad/s: with this model (gliding
       friction, regularised Coulomb, no drilling friction) and the rolling start, their top's
@@ -243,11 +252,12 @@ class TippeTopEnv(RigidBodyEnv):
         observation_noise=None,
         observation_bias=None,
         action_delay: int = 0,
+        stem=None,
     ):
         # every keyword is checked, whatever the task and options (an unused one must still be valid)
         task = require_choice("task", task, self.tasks)
         fidelity = require_choice("fidelity", fidelity, FIDELITIES)
-        params = TippeTopParams(radius, mass, offset, inertia, gravity, friction, friction_law, slip_regularization)
+        params = TippeTopParams(radius, mass, offset, inertia, gravity, friction, friction_law, slip_regularization, stem)
         spin_lo, spin_hi = require_range("spin", spin)
         tilt_lo, tilt_hi = require_range("tilt", tilt)
         if start is None:  # the literature's start; a rolling top's contact point never slips
@@ -269,6 +279,9 @@ class TippeTopEnv(RigidBodyEnv):
         self.free_flight = require_bool("free_flight", free_flight)
         if self.free_flight and fidelity == "rolling":
             raise ValueError("free_flight needs fidelity 'gliding' or 'frictionless' (a rolling top has no slip to resume after a touchdown)")
+        if stem is not None and (self.free_flight or fidelity == "rolling"):
+            raise ValueError("stem needs fidelity 'gliding' or 'frictionless' and free_flight=False (a touchdown from flight could meet "
+                             "both contacts at once, which needs a two-contact impact law; a rolling top has no slip to resume)")
         if self.friction_action and fidelity != "gliding":
             raise ValueError(f"friction_action needs fidelity='gliding' (there is no friction coefficient to set when {fidelity!r})")
         peak = max(abs(spin_lo), abs(spin_hi))
