@@ -80,6 +80,11 @@ def train(algo: str, scene, seed: int = 0, timesteps: int | None = None, out_dir
         venv = make_vec_env(lambda: scene.make(**dict(env_overrides or {})), n_envs=1, seed=seed)
     else:
         venv = make_sb3_vec_env(scene.env_id, cfg.n_envs, seed=seed, **env_kwargs)
+    if cfg.normalize_reward:
+        from stable_baselines3.common.vec_env import VecNormalize
+
+        # rewards only: the policy sees the env's own observations, in training and after
+        venv = VecNormalize(venv, norm_obs=False, norm_reward=True, gamma=float(cfg.hyperparams.get("gamma", 0.99)))
     cls = algorithm_class(algo)
     model = cls(cfg.policy, venv, seed=seed, device=device, policy_kwargs=cfg.policy_kwargs or None, verbose=0,
                 tensorboard_log=None if tensorboard is None else str(tensorboard), **cfg.hyperparams)
