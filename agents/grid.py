@@ -167,12 +167,13 @@ def in_box(params: dict, box: dict) -> bool:
     return True
 
 
-def grid_cells(seeds, quick: bool = False) -> list[Cell]:
+def grid_cells(seeds, quick: bool = False, only=None) -> list[Cell]:
     """The cells of ``configs/agents/results.yml`` for training seeds ``seeds``, scene by scene:
     the baselines, then each algorithm, each on every seed, then (with ``robustness:``) each
     algorithm trained with randomization. ``quick``: 1/20 of each budget (at least 1000 steps)
-    and 2 evaluation episodes. Every scene, configuration and range is loaded and checked here,
-    so a bad one is reported before anything runs."""
+    and 2 evaluation episodes. ``only``: the scenes of the grid to run (None: all). Every scene,
+    configuration and range is loaded and checked here, so a bad one is reported before
+    anything runs."""
     import yaml
 
     from rbenvs.scenes import load_scene
@@ -180,9 +181,15 @@ def grid_cells(seeds, quick: bool = False) -> list[Cell]:
     from .config import agent_config, configs_dir
 
     grid = yaml.safe_load((configs_dir() / "results.yml").read_text())
-    scenes = [load_scene(entry["scene"]) for entry in grid["runs"]]
+    runs = grid["runs"]
+    if only:
+        unknown = sorted(set(only) - {entry["scene"] for entry in runs})
+        if unknown:
+            raise ValueError(f"--scene: not in results.yml: {unknown} (its scenes: {[entry['scene'] for entry in runs]})")
+        runs = [entry for entry in runs if entry["scene"] in set(only)]
+    scenes = [load_scene(entry["scene"]) for entry in runs]
     cells = []
-    for entry, scene in zip(grid["runs"], scenes):
+    for entry, scene in zip(runs, scenes):
         episodes = 2 if quick else int(entry.get("eval_episodes", 10))
         robust = entry.get("robustness") or {}
         if robust and set(robust) != {"train", "heldout"}:

@@ -179,3 +179,16 @@ def test_every_block_of_the_hyperparameter_files_builds_its_algorithm(algo):
         model = cls(cfg.policy, venv, policy_kwargs=cfg.policy_kwargs or None, **hyper)
         assert model.gamma == cfg.hyperparams.get("gamma", model.gamma)
         venv.close()
+
+
+def test_results_command_runs_only_the_named_scenes(tmp_path, monkeypatch, capsys):
+    from rbenvs_agents.cli import results_main
+
+    _grid(tmp_path, monkeypatch, "runs:\n  - scene: spin_major\n    algos: []\n  - scene: top_sleeping\n    algos: []\n")
+    assert results_main(["--quick", "--no-progress", "--scene", "top_sleeping", "--json", str(tmp_path / "r.json")]) == 0
+    records = json.loads((tmp_path / "r.json").read_text())
+    assert [(r["scene"], r["agent"]) for r in records] == [("top_sleeping", "zero action"), ("top_sleeping", "analytic")]
+    assert all(r["env_steps_per_s"] > 0 and r["policy_steps_per_s"] > 0 and r["train_steps_per_s"] == 0 for r in records)
+    capsys.readouterr()
+    assert results_main(["--quick", "--scene", "nowhere"]) == 2
+    assert "--scene: not in results.yml: ['nowhere']" in capsys.readouterr().err
