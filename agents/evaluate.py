@@ -47,9 +47,14 @@ class Evaluation:
 
     def as_dict(self) -> dict:
         out = asdict(self) | {"return_mean": self.return_mean, "success_rate": self.success_rate}
-        out["params"] = [{k: np.asarray(v).tolist() for k, v in p.items()} for p in self.params]
+        out["params"] = [dict(p) for p in self.params]
         out["starts"] = [list(s) for s in self.starts]
         return out
+
+
+def _plain(params: dict) -> dict:
+    """``info["params"]`` as plain numbers (vector keywords as tuples): comparable and JSON-ready."""
+    return {k: tuple(float(c) for c in np.atleast_1d(v)) if np.ndim(v) else float(v) for k, v in params.items()}
 
 
 class _Controller:
@@ -96,7 +101,7 @@ def evaluate(policy_factory, scene, episodes: int = 10, seed: int = 0, env_overr
     start = time.perf_counter()
     for episode in range(episodes):
         obs, info = env.reset(seed=seed * 1000 + episode)
-        params.append(dict(info.get("params", {})))
+        params.append(_plain(info.get("params", {})))
         starts.append(tuple(float(x) for x in obs))
         total, steps, done = 0.0, 0, False
         while not done:
