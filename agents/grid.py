@@ -25,9 +25,12 @@ learned agents and the analytic controller (built, like the agent, knowing only 
 parameters) are compared on the very same held-out episodes.
 
 **Throughput.** Each cell measures three rates: the scene's env alone
-(:func:`rbenvs_agents.evaluate.env_throughput`, random actions), the evaluation loop with the
-policy's inference, and training (env steps over ``learn``'s wall time; learned agents only).
-They are measured on whatever machine runs the cell, with whatever else runs there.
+(:func:`rbenvs_agents.evaluate.env_throughput`, random actions, after an untimed warm-up that
+also builds the compiled step the evaluations use), the evaluation loop with the policy's
+inference, and training (env steps over ``learn``'s wall time; learned agents only; the first
+training of a scene in a process includes building the vector env's compiled step, seconds,
+which a full budget amortizes). They are measured on whatever machine runs the cell, with
+whatever else runs there.
 """
 
 from __future__ import annotations
@@ -118,11 +121,14 @@ def run_cell(cell: Cell, progress: bool = False) -> CellResult:
         def factory(env):
             return sb3_policy(model)
 
+    # the env alone first: its untimed warm-up builds the compiled step the evaluations then use,
+    # so that no compilation lands in the timed loops
+    env_rate = env_throughput(cell.scene, seed=cell.eval_seed)
     nominal = evaluate(factory, cell.scene, episodes=cell.episodes, seed=cell.eval_seed)
     heldout = None
     if cell.heldout is not None:
         heldout = evaluate(factory, cell.scene, episodes=cell.episodes, seed=cell.eval_seed, env_overrides={"param_ranges": cell.heldout})
-    return CellResult(cell, nominal, timesteps, wall, heldout, env_throughput(cell.scene, seed=cell.eval_seed), train_rate)
+    return CellResult(cell, nominal, timesteps, wall, heldout, env_rate, train_rate)
 
 
 def ranges_box(scene, ranges: dict | None) -> dict:
@@ -170,8 +176,8 @@ def in_box(params: dict, box: dict) -> bool:
 def grid_cells(seeds, quick: bool = False, only=None) -> list[Cell]:
     """The cells of ``configs/agents/results.yml`` for training seeds ``seeds``, scene by scene:
     the baselines, then each algorithm, each on every seed, then (with ``robustness:``) each
-    algorithm trained with randomization. ``quick``: 1/20 of each budget (at least 1000 steps)
-    and 2 evaluation episodes. ``only``: the scenes of the grid to run (None: all). Every scene,
+    algorithm trained with randomization. ``quick``: 1/20 of each budget (at least 1000 steps,
+    and 1000 past ``learning_starts``) and 2 evaluation episodes. ``only``: the scenes of the grid to run (None: all). Every scene,
     configuration and range is loaded and checked here, so a bad one is reported before
     anything runs."""
     import yaml
@@ -200,7 +206,9 @@ def grid_cells(seeds, quick: bool = False, only=None) -> list[Cell]:
         budgets = {}
         for agent in entry["algos"]:
             config = agent_config(agent, scene.env_id, scene.name)
-            budgets[agent] = max(1000, config.n_timesteps // 20) if quick else None
+            # (quick: past learning_starts, so that an off-policy algorithm makes some updates)
+            starts = int(config.hyperparams.get("learning_starts", 0))
+            budgets[agent] = max(1000, config.n_timesteps // 20, starts + 1000 if starts else 0) if quick else None
         for agent in (*BASELINES, *entry["algos"]):
             cells += [Cell(scene, agent, s, episodes, EVAL_SEED_OFFSET + s, budgets.get(agent), heldout=heldout) for s in seeds]
         if robust:
