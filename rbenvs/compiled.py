@@ -596,7 +596,7 @@ def _vector_namespace(V: VectorLayout) -> dict:
 def _vector_args(L: Layout) -> list[str]:
     metrics = [f"M{j}" for j in range(L.n_metrics)]
     reads = [f"R{j}" for j in range(L.n_readouts)]
-    return ["A", "Y", "Ynew", "h", "dt", "substeps", "check", "refuse", "next_step", "max_steps", "steps", "done", "skip", "GEN", "PC", "PI",
+    return ["A", "Y", "Ynew", "h", "dt", "substeps", "check", "refuse", "next_step", "max_steps", "FC", "steps", "done", "skip", "GEN", "PC", "PI",
             "PS", "PO", "PE", "PR", "PG", "PA", "PD", "CD", "PV", "PW", "HI", "counts", "hstep", "fired", "obs", "over", "reward", "terminated",
             "truncated", "RZ", "RN", "clear", "ends", "codes"] + metrics + reads
 
@@ -606,7 +606,7 @@ def vector_kernel(V: VectorLayout):
     """A vector env's whole step, compiled: one call per step with no Python per sub-env.
     Signature (arrays ``(n,)`` unless said; see :func:`batch_kernel` for the period's)::
 
-        vstep(A, Y, Ynew, h, dt, substeps, check, refuse, next_step, max_steps, steps, done,
+        vstep(A, Y, Ynew, h, dt, substeps, check, refuse, next_step, max_steps, FC, steps, done,
               skip, GEN, PC, PI, PS, PO, PE, PR, PG, PA, PD, CD, PV, PW, HI, counts, hstep, fired,
               obs, over, reward, terminated, truncated, RZ, RN, clear, ends, codes, M_1..M_k,
               R_1..R_m) -> (status, k, m, r)
@@ -626,7 +626,9 @@ def vector_kernel(V: VectorLayout):
        the next step's restarts); the reason's name (:func:`rbenvs.core.step.end_code`, row
        ``RN[code]`` of code points) written into the row of ``RZ``, a zero-filled reason
        array's ``(n, width)`` uint32 view whose rows ``clear`` are zeroed first
-       (:class:`rbenvs.core.step.ReasonPool`);
+       (:class:`rbenvs.core.step.ReasonPool`); the failure charge ``FC`` added to the reward of
+       every end without success (the last metric, ``is_success``; the single env's rule,
+       :class:`rbenvs.core.model.Model`);
     4. with ``next_step`` (autoreset NEXT_STEP), the restarting sub-envs' step: reward 0, not
        terminated or truncated, their episode clock 0 (a layout without a pure start leaves
        their states and rows to the caller).
@@ -686,6 +688,8 @@ def vector_kernel(V: VectorLayout):
         "        if not (next_step and skip[i]):",
         "            for w in range(RZ.shape[1]):",
         "                RZ[i, w] = RN[codes[j], w]",
+        f"            if not M{L.n_metrics - 1}[i]:",  # an end without success: the failure charge
+        "                reward[i] += FC",
         "    r = 0",
         "    if next_step:",
         "        for i in range(n):",
@@ -1001,6 +1005,7 @@ class VectorStep:
         self.high = np.asarray(obs_high, dtype=np.float64)
         self.h, self.dt, self.substeps = float(model.h), float(model.dt), int(model.substeps)
         self.max_steps = -1 if max_steps is None else int(max_steps)
+        self.charge = float(model.failure_charge)
         self.n_obs, self.dim = n_obs, dim
         ps, po, pe, pr, pg, pa, pd, cd, pv, pw = params
         self.params = (pc, start[1] if start else (), ps, po, pe, pr, pg, pa, pd, cd, pv, pw, self.high)
@@ -1030,7 +1035,7 @@ class VectorStep:
         truncated = np.empty(n, dtype=bool)
         metrics = [np.empty(n, dtype=t) for t in self.metric_dtypes]
         readouts = [np.empty(n, dtype=t) for t in self.readout_dtypes]
-        args = (A, Y, Ynew, self.h, self.dt, self.substeps, check, refuse, next_step, self.max_steps, steps, done, skip, GEN, *self.params, counts,
+        args = (A, Y, Ynew, self.h, self.dt, self.substeps, check, refuse, next_step, self.max_steps, self.charge, steps, done, skip, GEN, *self.params, counts,
                 hstep, fired, obs, over, reward, terminated, truncated, *reasons, ends, codes, *metrics, *readouts)
         call = self._calls.get(A.dtype)
         if call is None:

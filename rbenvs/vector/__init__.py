@@ -480,9 +480,7 @@ class RigidBodyVectorEnv(VectorEnv):
         self._reasons.written(entry, r.written)
         self._y2d, self._y = r.Y, tuple(r.Y)
         info = self._kernel_info(r, done, reasons)
-        obs, reward = r.obs, r.reward
-        if r.n_ended:
-            reward = self._charged(reward, r.terminated, r.metrics[-1])
+        obs, reward = r.obs, r.reward  # (the failure charge is in: the kernel adds it)
         if next_step:
             if r.n_restarted and not vstep.restarts:  # (no pure start: restarted here; else in the step)
                 obs, info = self._restart(restart, obs, info)
@@ -543,7 +541,8 @@ class RigidBodyVectorEnv(VectorEnv):
 
     def _charged(self, reward, ended, success):
         """``reward`` with the model's failure charge added where an episode ``ended`` without
-        ``success`` (the single env's rule, :class:`rbenvs.core.model.Model`)."""
+        ``success`` (the single env's rule, :class:`rbenvs.core.model.Model`; the compiled step
+        adds it in its kernel)."""
         charge = self.engine.failure_charge
         if charge == 0.0:
             return reward
