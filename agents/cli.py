@@ -158,6 +158,8 @@ def _results(argv) -> int:
     p.add_argument("--json", type=Path, default=None, help="also write the records here")
     p.add_argument("--from-json", type=Path, default=None, metavar="PATH",
                    help="print the table of a finished run's records (its --json) without training: the docs' table is written this way")
+    p.add_argument("--scene", action="append", default=None, metavar="NAME",
+                   help="run only this scene of results.yml, repeatable (default: every scene); the grid's other rows are left out")
     p.add_argument("--no-progress", action="store_true")
     p.add_argument("--backend", choices=("serial", "ray"), default="serial",
                    help="serial: one cell after another here (default); ray: one Ray task per (scene, agent, seed), the ray extra")
@@ -166,7 +168,7 @@ def _results(argv) -> int:
     args = p.parse_args(argv)
     if args.from_json is not None:
         # (a finished run's table: nothing runs, so an option of a run would be silently ignored)
-        given = [flag for flag, on in (("--json", args.json), ("--quick", args.quick), ("--seeds", args.seeds is not None), ("--backend", args.backend != "serial"),
+        given = [flag for flag, on in (("--json", args.json), ("--quick", args.quick), ("--seeds", args.seeds is not None), ("--scene", args.scene is not None), ("--backend", args.backend != "serial"),
                                        ("--address", args.address is not None), ("--num-cpus", args.num_cpus is not None)) if on]
         if given:
             p.error(f"--from-json prints a finished run's table: leave out {', '.join(given)}")
@@ -184,7 +186,7 @@ def _results(argv) -> int:
     from .grid import grid_cells, grid_records, grid_table
 
     seeds = [0] if args.quick else list(range(3 if args.seeds is None else args.seeds))
-    cells = grid_cells(seeds, quick=args.quick)
+    cells = grid_cells(seeds, quick=args.quick, only=args.scene)
     backend = RayBackend(args.address, args.num_cpus) if args.backend == "ray" else SerialBackend(progress=not args.no_progress)
     records = grid_records(backend.run(cells))
     print(grid_table(records, len(seeds)))

@@ -13,7 +13,11 @@ code. Reserved keys:
 * ``policy``: SB3 policy name (``MlpPolicy``);
 * ``policy_kwargs``: a mapping (``net_arch: [64, 64]``);
 * ``eval_episodes``: episodes per evaluation seed (rbenvs only: the zoo would pass it to the
-  algorithm, so the shipped files leave it out).
+  algorithm, so the shipped files leave it out);
+* ``normalize_reward``: train on rewards scaled by SB3's ``VecNormalize`` (``norm_obs=False``,
+  the running standard deviation of the discounted return; observations stay raw, so the
+  trained policy acts on the env as it is, with no statistics to carry). rbenvs only, like
+  ``eval_episodes``: the shipped files set it in ``scenes:`` blocks, which the zoo never reads.
 
 Every other key goes to the algorithm's constructor (``learning_rate``, ``gamma``, ...).
 Precedence: ``default`` (when the env id has no block) < env id < scene < explicit overrides.
@@ -32,7 +36,7 @@ from rbenvs.extras import require
 __all__ = ["ALGORITHMS", "AgentConfig", "agent_config", "configs_dir"]
 
 ALGORITHMS = ("ppo", "sac", "td3")
-RESERVED = ("n_timesteps", "n_envs", "policy", "policy_kwargs", "eval_episodes")
+RESERVED = ("n_timesteps", "n_envs", "policy", "policy_kwargs", "eval_episodes", "normalize_reward")
 
 
 def configs_dir():
@@ -51,6 +55,7 @@ class AgentConfig:
     policy_kwargs: dict = field(default_factory=dict)
     eval_episodes: int = 10
     hyperparams: dict = field(default_factory=dict)
+    normalize_reward: bool = False
 
 
 def agent_config(algo: str, env_id: str, scene: str | None = None, **overrides) -> AgentConfig:
@@ -93,5 +98,12 @@ def agent_config(algo: str, env_id: str, scene: str | None = None, **overrides) 
         policy=str(merged.pop("policy", "MlpPolicy")),
         policy_kwargs=dict(merged.pop("policy_kwargs", {}) or {}),
         eval_episodes=int(merged.pop("eval_episodes", 10)),
+        normalize_reward=_flag("normalize_reward", merged.pop("normalize_reward", False)),
         hyperparams=merged,
     )
+
+
+def _flag(name: str, value) -> bool:
+    if not isinstance(value, bool):
+        raise ValueError(f"{name} must be true or false, got {value!r}")
+    return value

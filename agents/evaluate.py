@@ -5,15 +5,23 @@ A *policy* is anything with ``predict(obs) -> action`` (numpy in, numpy out). Le
 (``rbenvs.controllers.controller_for``) and zero action are evaluated the same way: episodes
 on a single env of the scene, seeded ``seed * 1000 + episode``, reporting the return and the
 task's success measure (``info["is_success"]`` at the episode's end).
+
+Each evaluation also keeps what makes two evaluations comparable episode by episode: the
+drawn parameters of each episode (``info["params"]`` at reset, with ``param_ranges``) and its
+first observation; two policies evaluated with the same scene, options and seed see the same
+episodes (the env draws parameters and start before any action). ``steps_per_s`` is the
+measured throughput of the evaluation loop, env steps with the policy's inference in the loop;
+:func:`env_throughput` measures the env alone.
 """
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass
+import time
+from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
-__all__ = ["Evaluation", "evaluate", "analytic_policy", "zero_policy", "sb3_policy", "summarize"]
+__all__ = ["Evaluation", "evaluate", "env_throughput", "analytic_policy", "zero_policy", "sb3_policy", "summarize"]
 
 
 @dataclass(frozen=True)
@@ -23,6 +31,11 @@ class Evaluation:
     returns: tuple[float, ...]
     successes: tuple[bool, ...]
     lengths: tuple[int, ...]
+    # per episode: the drawn parameters ({} without param_ranges) and the first observation
+    params: tuple[dict, ...] = ()
+    starts: tuple[tuple[float, ...], ...] = ()
+    # env steps per second of the loop, the policy's inference included (measured: not compared)
+    steps_per_s: float = field(default=0.0, compare=False)
 
     @property
     def return_mean(self) -> float:
@@ -33,7 +46,15 @@ class Evaluation:
         return float(np.mean(self.successes))
 
     def as_dict(self) -> dict:
-        return asdict(self) | {"return_mean": self.return_mean, "success_rate": self.success_rate}
+        out = asdict(self) | {"return_mean": self.return_mean, "success_rate": self.success_rate}
+        out["params"] = [dict(p) for p in self.params]
+        out["starts"] = [list(s) for s in self.starts]
+        return out
+
+
+def _plain(params: dict) -> dict:
+    """``info["params"]`` as plain numbers (vector keywords as tuples): comparable and JSON-ready."""
+    return {k: tuple(float(c) for c in np.atleast_1d(v)) if np.ndim(v) else float(v) for k, v in params.items()}
 
 
 class _Controller:
@@ -76,9 +97,12 @@ def evaluate(policy_factory, scene, episodes: int = 10, seed: int = 0, env_overr
     ``policy_factory(env)`` builds."""
     env = scene.make(**(env_overrides or {}))
     policy = policy_factory(env)
-    returns, successes, lengths = [], [], []
+    returns, successes, lengths, params, starts = [], [], [], [], []
+    start = time.perf_counter()
     for episode in range(episodes):
         obs, info = env.reset(seed=seed * 1000 + episode)
+        params.append(_plain(info.get("params", {})))
+        starts.append(tuple(float(x) for x in obs))
         total, steps, done = 0.0, 0, False
         while not done:
             obs, reward, terminated, truncated, info = env.step(policy.predict(obs))
@@ -88,8 +112,39 @@ def evaluate(policy_factory, scene, episodes: int = 10, seed: int = 0, env_overr
         returns.append(total)
         successes.append(bool(info.get("is_success", False)))
         lengths.append(steps)
+    wall = time.perf_counter() - start
     env.close()
-    return Evaluation(tuple(returns), tuple(successes), tuple(lengths))
+    return Evaluation(tuple(returns), tuple(successes), tuple(lengths), tuple(params), tuple(starts), sum(lengths) / wall)
+
+
+def env_throughput(scene, seconds: float = 0.5, max_steps: int = 20000, seed: int = 0, env_overrides=None) -> float:
+    """Env steps per second of the single env of ``scene`` alone: uniform random actions drawn
+    beforehand (no policy in the loop), restarts included, for about ``seconds`` (or
+    ``max_steps`` steps), after 64 untimed steps."""
+    env = scene.make(**(env_overrides or {}))
+    env.action_space.seed(seed)
+    rng = np.random.default_rng(seed)
+    actions = rng.uniform(-1.0, 1.0, (1024, *env.action_space.shape)).astype(np.float32)
+    env.reset(seed=seed)
+    for a in actions[:64]:  # warm-up, not timed: a compiled step is built on the first steps
+        _, _, terminated, truncated, _ = env.step(a)
+        if terminated or truncated:
+            env.reset(seed=seed)
+    env.reset(seed=seed)
+    steps, episode = 0, 0
+    start = time.perf_counter()
+    while True:
+        for _ in range(64):
+            _, _, terminated, truncated, _ = env.step(actions[steps % len(actions)])
+            steps += 1
+            if terminated or truncated:
+                episode += 1
+                env.reset(seed=seed + episode)
+        wall = time.perf_counter() - start
+        if wall >= seconds or steps >= max_steps:
+            break
+    env.close()
+    return steps / wall
 
 
 def summarize(evaluations) -> dict:

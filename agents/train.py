@@ -53,9 +53,12 @@ def _progress_callback(total: int, label: str, enabled: bool):
 
 
 def train(algo: str, scene, seed: int = 0, timesteps: int | None = None, out_dir=None, progress: bool = True,
-          checkpoint_every: int | None = None, device: str = "cpu", tensorboard=None, **overrides):
+          checkpoint_every: int | None = None, device: str = "cpu", tensorboard=None, env_overrides=None, **overrides):
     """Train ``algo`` on ``scene`` (an :class:`rbenvs.scenes.Scene`); returns ``(model, info)``
     with ``info`` the run record (also written to ``out_dir/run.json`` with ``model.zip``).
+    ``env_overrides``: env keywords over the scene's (``{"param_ranges": {...}}`` trains with
+    domain randomization). ``info["steps_per_s"]`` is the measured training throughput: env
+    steps over the wall time of ``learn`` (rollouts, updates and all).
     ``tensorboard``: a folder for SB3's TensorBoard logs (the ``tensorboard`` extra), one run
     folder ``<algo>-<scene>-seed<seed>_N`` inside it."""
     import torch
@@ -68,14 +71,20 @@ def train(algo: str, scene, seed: int = 0, timesteps: int | None = None, out_dir
     cfg = agent_config(algo, scene.env_id, scene.name, **overrides)
     total = int(timesteps if timesteps is not None else cfg.n_timesteps)
     torch.set_num_threads(1)  # small MLPs: threads cost more than they give on 2 cores
+    env_kwargs = dict(scene.kwargs) | dict(env_overrides or {})
     if cfg.n_envs == 1:
         # one env: the single env's float path beats a batch of one (numpy's per-call cost
         # dominates arrays of length 1; about 10x on the tippe top)
         from stable_baselines3.common.env_util import make_vec_env
 
-        venv = make_vec_env(lambda: scene.make(), n_envs=1, seed=seed)
+        venv = make_vec_env(lambda: scene.make(**dict(env_overrides or {})), n_envs=1, seed=seed)
     else:
-        venv = make_sb3_vec_env(scene.env_id, cfg.n_envs, seed=seed, **scene.kwargs)
+        venv = make_sb3_vec_env(scene.env_id, cfg.n_envs, seed=seed, **env_kwargs)
+    if cfg.normalize_reward:
+        from stable_baselines3.common.vec_env import VecNormalize
+
+        # rewards only: the policy sees the env's own observations, in training and after
+        venv = VecNormalize(venv, norm_obs=False, norm_reward=True, gamma=float(cfg.hyperparams.get("gamma", 0.99)))
     cls = algorithm_class(algo)
     model = cls(cfg.policy, venv, seed=seed, device=device, policy_kwargs=cfg.policy_kwargs or None, verbose=0,
                 tensorboard_log=None if tensorboard is None else str(tensorboard), **cfg.hyperparams)
@@ -92,10 +101,11 @@ def train(algo: str, scene, seed: int = 0, timesteps: int | None = None, out_dir
         "algo": algo,
         "scene": scene.name,
         "env_id": scene.env_id,
-        "env_kwargs": scene.kwargs,
+        "env_kwargs": env_kwargs,
         "seed": seed,
         "timesteps": total,
         "wall_time_s": wall,
+        "steps_per_s": model.num_timesteps / wall,  # (a rollout may overshoot the budget: the steps taken)
         "config": asdict(cfg),
     }
     if tensorboard is not None:

@@ -113,3 +113,20 @@ def test_results_command_prints_the_table_of_its_grid(tmp_path, monkeypatch, cap
     records = json.loads((tmp_path / "r.json").read_text())
     assert [r["agent"] for r in records] == ["zero action", "analytic", "PPO"]
     assert records[2]["timesteps"] == 5000 and records[0]["success_mean"] == 1.0  # zero action: a sleeping top
+
+
+def test_normalize_reward_scales_rewards_only(tmp_path):
+    """``normalize_reward: true`` trains on VecNormalize's scaled rewards; the observations stay
+    the env's own, so the saved policy acts on the plain env with no statistics."""
+    from stable_baselines3.common.vec_env import VecNormalize
+
+    cfg = agent_config("ppo", "rbenvs/FreeRigidBody-v0", "default", normalize_reward=True)
+    assert cfg.normalize_reward is True and "normalize_reward" not in cfg.hyperparams
+    assert agent_config("ppo", "rbenvs/FreeRigidBody-v0", "default").normalize_reward is False
+    with pytest.raises(ValueError, match="normalize_reward must be true or false"):
+        agent_config("ppo", "rbenvs/FreeRigidBody-v0", normalize_reward="yes")
+    model, _ = train("ppo", load_scene("default"), seed=0, timesteps=512, progress=False, normalize_reward=True, n_steps=64, batch_size=64)
+    venv = model.get_env()
+    assert isinstance(venv, VecNormalize) and venv.norm_reward and not venv.norm_obs and venv.gamma == 0.98
+    obs = venv.reset()
+    assert np.array_equal(obs, venv.get_original_obs())  # observations pass through unchanged
