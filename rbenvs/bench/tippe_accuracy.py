@@ -49,7 +49,7 @@ import numpy as np
 
 from . import tippe_steps
 
-__all__ = ["equivalent_eps", "STARTS", "COUNTS", "MUJOCO_DTS", "REPEATS", "reference", "rbenvs_rows", "mujoco_rows", "run", "print_report", "plot", "headline"]
+__all__ = ["limit_of", "equivalent_eps", "STARTS", "COUNTS", "MUJOCO_DTS", "REPEATS", "reference", "rbenvs_rows", "mujoco_rows", "run", "print_report", "plot", "headline"]
 
 PERIOD = 0.01  # s, the env's control period: every run is read at this rate
 STARTS = {"default": ("rest", 150.0), "leine_glocker": ("rest", 180.0), "rolling": ("rolling", 150.0)}
@@ -87,18 +87,28 @@ def reference(start="default", ks=range(5), progress=None) -> dict:
             progress()
         if a["ended"] is not None:
             break  # no inversion within 40 s: smaller eps only take longer
-    t = [s["t90"] for s in seq]
-    diffs = [b - a for a, b in zip(t, t[1:])]
+    out = {"start": start, "spin": spin, "kind": kind, "sequence": seq, "t90_same": seq[0]["t90"]}
+    out.update(limit_of([s["eps"] for s in seq], [s["t90"] for s in seq]))
+    return out
+
+
+def limit_of(eps, t90) -> dict:
+    """What a sequence ``t90(eps)`` at halving ``eps`` says of ``eps -> 0``: the successive
+    ``differences`` and their ``ratios``; ``converges`` where every ratio is below 0.75 in
+    size (then ``limit``, Richardson first order in ``eps``, and ``limit_error``, the difference
+    of the last two extrapolants or, with one, the last difference), else the least-squares fit
+    ``t90 = fit_t0 + fit_c / eps`` of the finite points."""
+    diffs = [b - a for a, b in zip(t90, t90[1:])]
     ratios = [b / a for a, b in zip(diffs, diffs[1:]) if a != 0.0]
-    out = {"start": start, "spin": spin, "kind": kind, "sequence": seq, "differences": diffs, "ratios": ratios, "t90_same": t[0]}
-    finite = all(math.isfinite(x) for x in t)
+    out = {"differences": diffs, "ratios": ratios}
+    finite = all(math.isfinite(x) for x in t90)
     if finite and len(ratios) >= 1 and all(abs(r) < 0.75 for r in ratios):
-        rich = [2.0 * b - a for a, b in zip(t, t[1:])]  # first order in eps, halving
+        rich = [2.0 * b - a for a, b in zip(t90, t90[1:])]
         out.update(converges=True, limit=rich[-1], limit_error=abs(rich[-1] - rich[-2]) if len(rich) > 1 else abs(diffs[-1]))
     else:
         out.update(converges=False, limit=None, limit_error=None)
-        pts = [(s["eps"], s["t90"]) for s in seq if math.isfinite(s["t90"])]
-        if len(pts) >= 2:  # t90 = t0 + c / eps, least squares
+        pts = [(e, x) for e, x in zip(eps, t90) if math.isfinite(x)]
+        if len(pts) >= 2:
             c, t0 = np.polyfit([1.0 / e for e, _ in pts], [x for _, x in pts], 1)
             out.update(fit_t0=float(t0), fit_c=float(c))
     return out
