@@ -304,6 +304,7 @@ def plot(result, path):
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    import matplotlib.ticker
 
     starts = list(result["starts"])
     fig, axes = plt.subplots(len(starts), 2, figsize=(11, 4.0 * len(starts)), squeeze=False)
@@ -311,22 +312,21 @@ def plot(result, path):
         rows = [r for r in result["rows"] if r["start"] == start and r["fidelity"] in ("gliding", "soft contact")]
         groups = {}
         for r in rows:
-            guard = r["setting"] in ("accuracy", "stability")
-            groups.setdefault((r["scheme"], guard), []).append(r)
-        for i, ((name, guard), grp) in enumerate(sorted(groups.items())):
+            kind = r["setting"] if r["setting"] in ("accuracy", "stability") else "fixed"
+            groups.setdefault((r["scheme"], kind), []).append(r)
+        names = sorted({n for n, _ in groups})
+        for (name, kind), grp in sorted(groups.items()):
             grp = sorted(grp, key=lambda r: r["cost"])
-            mujoco = name.startswith("mujoco")
-            color = f"C{sorted({n for n, _ in groups}).index(name) % 10}"
+            color = f"C{names.index(name) % 10}"
+            style = {"accuracy": "*", "stability": "^"}.get(kind, "s--" if name.startswith("mujoco") else "o-")
+            label = name if kind == "fixed" else f"{name} guard, {kind} bound"
             for ax, key, floor in ((row[0], "jellett", 1e-16), (row[1], "t90_error", 1e-12)):
                 pts = [(r["cost"], max(r[key], floor)) for r in grp if r[key] is not None and math.isfinite(r[key])]
-                if not pts:
-                    continue
-                x, y = zip(*pts)
-                if guard:
-                    ax.loglog(x, y, "*", color=color, ms=9, label=f"{name} guard ({'/'.join(r['setting'] for r in grp)})")
-                else:
-                    ax.loglog(x, y, "s--" if mujoco else "o-", color=color, ms=3, label=name)
+                if pts:
+                    x, y = zip(*pts)
+                    ax.loglog(x, y, style, color=color, ms=9 if kind != "fixed" else 3, label=label)
         for ax, what in zip(row, ("Jellett drift up to 90 deg (relative)", "|t90 - t90_same| [s]")):
+            ax.xaxis.set_minor_formatter(matplotlib.ticker.NullFormatter())
             ax.set_xlabel("CPU seconds per simulated second (single env / one MjData)")
             ax.set_ylabel(what)
             ax.set_title(f"{start} start", fontsize=9)
