@@ -317,7 +317,7 @@ def plot(result, path):
         names = sorted({n for n, _ in groups})
         for (name, kind), grp in sorted(groups.items()):
             grp = sorted(grp, key=lambda r: r["cost"])
-            color = f"C{names.index(name) % 10}"
+            color = matplotlib.colormaps["tab20"](names.index(name) % 20)  # (14 names: C0-C9 repeated colours)
             style = {"accuracy": "*", "stability": "^"}.get(kind, "s--" if name.startswith("mujoco") else "o-")
             label = name if kind == "fixed" else f"{name} guard, {kind} bound"
             for ax, key, floor in ((row[0], "jellett", 1e-16), (row[1], "t90_error", 1e-12)):
