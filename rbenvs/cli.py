@@ -16,7 +16,7 @@
 * ``rbenvs bench throughput [--quick] [--json PATH] [--num-envs N] [--only TEXT] [--tables LIST]``: env-steps per
   second of every task and scene, single and vector (random actions, restarts included), against Pendulum-v1
   and CartPole-v1's native vector env, with the compiled kernel's own time.
-* ``rbenvs bench accuracy [--quick] [--json PATH] [--plot PNG] [--system NAME]``: error, order,
+* ``rbenvs bench accuracy [--quick] [--json PATH] [--plot PNG] [--system NAME] [--tippe]``: error, order,
   invariant drift and cost of every integrator on every system, and a recommended integrator
   per scene (:mod:`rbenvs.bench.accuracy`).
 * ``rbenvs plot [WHAT ...] [--out DIR] [--quick]``: PNG figures (:mod:`rbenvs.plotting`; needs

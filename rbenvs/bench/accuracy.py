@@ -527,6 +527,26 @@ def run_scenes(names=None, target=TARGET, seeds=SCENE_SEEDS, min_time=0.1, progr
     return rows
 
 
+def _tippe_main(args) -> int:
+    """``--tippe``: :mod:`rbenvs.bench.tippe_accuracy` (``--quick``, ``--json``, ``--plot`` and
+    ``--mujoco`` as for the other cases)."""
+    from . import tippe_accuracy
+
+    if args.plot and plot_unavailable("rbenvs bench accuracy"):
+        return 2
+    bar = Progress(tippe_accuracy.progress_total(args.quick), not args.no_progress, "bench accuracy --tippe")
+    result = tippe_accuracy.run(quick=args.quick, progress=bar.update, mujoco=args.mujoco)
+    bar.close()
+    tippe_accuracy.print_report(result)
+    if args.plot:
+        tippe_accuracy.plot(result, args.plot)
+        print(f"\nplot written to {args.plot}")
+    if args.json:
+        with open(args.json, "w") as f:
+            json.dump(result, f, indent=1, default=float)
+    return 0
+
+
 # ------------------------------------------------------------------------------------ output
 def _g(x, fmt=".1e"):
     return "-" if x is None else format(x, fmt)
@@ -661,10 +681,16 @@ def main(argv=None) -> int:
                              "achieved against the reference, the steps taken, and the cheapest fixed substeps meeting it")
     parser.add_argument("--case", action="append", metavar="KEY",
                         help="with --tolerance: only these cases' rows (repeatable; default all): " + ", ".join(c.key for c in _tolerance_cases()))
+    parser.add_argument("--tippe", action="store_true",
+                        help="only the tippe top's work-precision against MuJoCo (rbenvs.bench.tippe_accuracy): t90 against the slip regularisation, "
+                             "every scheme, step and fidelity level and MuJoCo's integrators and cones at several dt, cost per simulated second "
+                             "against Jellett drift and the t90 error")
     parser.add_argument("--no-progress", action="store_true")
     args = parser.parse_args(argv)
     if args.case and not args.tolerance:
         parser.error("--case selects rows of the --tolerance table: pass --tolerance")
+    if args.tippe:
+        return _tippe_main(args)
     if args.tolerance:
         from .tolerance import TOLERANCE_CASES, run_tolerance, print_tolerance
 
