@@ -65,6 +65,7 @@ VALID = {
     (TippeTopEnv, "max_speed"): {"huge_int"},
     (TippeTopEnv, "render_mode"): {"none"},
     (TippeTopEnv, "start"): {"none"},  # None: "rest", or "rolling" with fidelity="rolling"
+    (TippeTopEnv, "stem"): {"none"},  # None: no stem (the sphere alone)
 }
 # tolerance: None (no accuracy bound) or in (0, 1); tolerance_horizon: None (the registered
 # episode) or any whole number of periods >= 1, for every env
