@@ -265,22 +265,14 @@ def _period_lines(L: Layout) -> list[str]:
             "            f = True",
             "            break",
         ]
-    elif L.event is not None and L.switches:  # switches, then the terminal event (the stem)
-        lines += [
-            "    for k in range(c):",
-            "        yp = y",
-            "        y = step(PS, y, u, hi)",
-            *("        " + line for line in _switch_lines(L)),
-            finite,
-            "            break",
-            "        if event(PV, y, u) < 0.0:",
-            "            f = True",
-            "            break",
-        ]
     elif L.event is not None:  # the step core's rule: a non-finite state stops, an event freezes
+        # (with switches, the stem's: the switches after each step, then the terminal event)
+        switches = ["        " + line for line in _switch_lines(L)] if L.switches else []
         lines += [
             "    for k in range(c):",
+            *(["        yp = y"] if L.switches else []),
             "        y = step(PS, y, u, hi)",
+            *switches,
             finite,
             "            break",
             "        if event(PV, y, u) < 0.0:",
