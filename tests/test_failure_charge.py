@@ -105,3 +105,22 @@ def test_success_is_not_charged():
             break
     assert te and info["is_success"] is True and info["terminal_reason"] == "task"
     assert -0.02 < r <= 0.0
+
+
+def test_failed_end_is_charged_once_with_param_ranges():
+    """With ``param_ranges`` the vector env steps each sub-env by its episode's own engine (the
+    single env's step, charged there): the batch's bookkeeping must not charge it again."""
+    kwargs = dict(task="upright", tilt_limit=2.0, param_ranges={"gravity": (9.7, 9.9)})
+    single = gym.make(HT, **kwargs)
+    single.reset(seed=3)
+    rewards = []
+    while True:
+        _, r, te, tr, _ = single.step(np.zeros(single.action_space.shape, np.float32))
+        rewards.append(r)
+        if te or tr:
+            break
+    assert te and rewards[-1] < -200.0  # charged (about (cos 2 - 0.01) x 500)
+    venv = vector_class(type(single.unwrapped))(num_envs=2, **kwargs)
+    venv.reset(seed=[3, 4])
+    vector_rewards = [venv.step(np.zeros(venv.action_space.shape, np.float32))[1][0] for _ in rewards]
+    assert vector_rewards == rewards
