@@ -673,19 +673,26 @@ def vector_kernel(V: VectorLayout):
         "    for j in range(clear.shape[0]):",  # the pooled reason array's last rows
         "        for w in range(RZ.shape[1]):",
         "            RZ[clear[j], w] = 0",
+        # a loop of selections and unit-stride stores (SIMD), then the ends compacted in a
+        # second loop whose branch is rarely taken (an end): one loop that compacted as it went
+        # carried m from sub-env to sub-env and stayed scalar (measured at 4096 reorients: 4.2
+        # against 2.3 ns a sub-env for both loops)
         "    for i in range(n):",
         "        s = steps[i] + 1",
         "        e = terminated[i] | over[i] | fired[i]",
         "        t = (max_steps >= 0) & (s >= max_steps)",
         "        k += (e | t) & (not (next_step & skip[i]))",  # (a restart's discarded period ends nothing)
         "        steps[i] = s",
-        "        c = end_code(False, fired[i], over[i], terminated[i])",
-        "        ends[m] = i",  # (compacted without a branch: the next row overwrites it if c == 0)
-        "        codes[m] = c",
-        "        m += c != 0",
+        "        codes[i] = end_code(False, fired[i], over[i], terminated[i])",
         "        terminated[i] = e",
         "        truncated[i] = t",
         "        done[i] = e | t",
+        "    for i in range(n):",
+        "        c = codes[i]",
+        "        if c != 0:",  # (m <= i: the compaction overwrites only rows it has read)
+        "            ends[m] = i",
+        "            codes[m] = c",
+        "            m += 1",
         # the reasons' names, UCS-4 code points into the rows of the (zero-filled) array
         "    for j in range(m):",
         "        i = ends[j]",
