@@ -11,7 +11,7 @@ command, or a running one joined by its address.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Protocol, Sequence
+from typing import Callable, Protocol, Sequence
 
 from .grid import Cell, CellResult, run_cell
 
@@ -19,8 +19,9 @@ __all__ = ["Backend", "SerialBackend", "RayBackend"]
 
 
 class Backend(Protocol):
-    def run(self, cells: Sequence[Cell]) -> list[CellResult]:
-        """The results of ``cells``, in their order."""
+    def run(self, cells: Sequence[Cell], on_result: Callable[[CellResult], None] | None = None) -> list[CellResult]:
+        """The results of ``cells``, in their order; ``on_result`` is called with each result as
+        soon as it is in (in the order the cells finish: ``rbenvs-results --records`` keeps them)."""
 
 
 @dataclass(frozen=True)
@@ -29,8 +30,13 @@ class SerialBackend:
 
     progress: bool = True
 
-    def run(self, cells):
-        return [run_cell(cell, progress=self.progress) for cell in cells]
+    def run(self, cells, on_result=None):
+        results = []
+        for cell in cells:
+            results.append(run_cell(cell, progress=self.progress))
+            if on_result is not None:
+                on_result(results[-1])
+        return results
 
 
 @dataclass(frozen=True)
@@ -42,13 +48,21 @@ class RayBackend:
     address: str | None = None
     num_cpus: int | None = None
 
-    def run(self, cells):
+    def run(self, cells, on_result=None):
         from .cluster import ray_cluster
 
         with ray_cluster(self.address, self.num_cpus) as ray:
             remote_cell = ray.remote(num_cpus=1)(run_cell)
             # the trained cells first: the long tasks start while the CPUs are free and the short
-            # baseline evaluations fill the gaps after them; results come back in the cells' order
+            # baseline evaluations fill the gaps after them; each result is taken as it finishes
+            # (on_result), and they are returned in the cells' order
             order = sorted(range(len(cells)), key=lambda i: not cells[i].learned)
-            futures = {i: remote_cell.remote(cells[i]) for i in order}
-            return [ray.get(futures[i]) for i in range(len(cells))]
+            index = {remote_cell.remote(cells[i]): i for i in order}
+            results, pending = [None] * len(cells), list(index)
+            while pending:
+                ready, pending = ray.wait(pending, num_returns=1)
+                for future in ready:
+                    results[index[future]] = ray.get(future)
+                    if on_result is not None:
+                        on_result(results[index[future]])
+            return results

@@ -160,6 +160,9 @@ def _results(argv) -> int:
                    help="print the table of a finished run's records (its --json) without training: the docs' table is written this way")
     p.add_argument("--scene", action="append", default=None, metavar="NAME",
                    help="run only this scene of results.yml, repeatable (default: every scene); the grid's other rows are left out")
+    p.add_argument("--records", type=Path, default=None, metavar="PATH",
+                   help="keep every finished cell in this JSON Lines file as it finishes, and run only the cells it does not hold yet: "
+                        "a stopped run resumes where it stopped (rbenvs_agents.records)")
     p.add_argument("--no-progress", action="store_true")
     p.add_argument("--backend", choices=("serial", "ray"), default="serial",
                    help="serial: one cell after another here (default); ray: one Ray task per (scene, agent, seed), the ray extra")
@@ -168,7 +171,8 @@ def _results(argv) -> int:
     args = p.parse_args(argv)
     if args.from_json is not None:
         # (a finished run's table: nothing runs, so an option of a run would be silently ignored)
-        given = [flag for flag, on in (("--json", args.json), ("--quick", args.quick), ("--seeds", args.seeds is not None), ("--scene", args.scene is not None), ("--backend", args.backend != "serial"),
+        given = [flag for flag, on in (("--json", args.json), ("--quick", args.quick), ("--seeds", args.seeds is not None), ("--scene", args.scene is not None), ("--records", args.records is not None),
+                                       ("--backend", args.backend != "serial"),
                                        ("--address", args.address is not None), ("--num-cpus", args.num_cpus is not None)) if on]
         if given:
             p.error(f"--from-json prints a finished run's table: leave out {', '.join(given)}")
@@ -188,7 +192,18 @@ def _results(argv) -> int:
     seeds = [0] if args.quick else list(range(3 if args.seeds is None else args.seeds))
     cells = grid_cells(seeds, quick=args.quick, only=args.scene)
     backend = RayBackend(args.address, args.num_cpus) if args.backend == "ray" else SerialBackend(progress=not args.no_progress)
-    records = grid_records(backend.run(cells))
+    if args.records is None:
+        results = backend.run(cells)
+    else:
+        from .records import CellRecords
+
+        kept = CellRecords(args.records)
+        results = [kept.get(cell) for cell in cells]
+        todo = [cell for cell, result in zip(cells, results) if result is None]
+        print(f"rbenvs-results: {len(cells) - len(todo)} of {len(cells)} cells from {args.records}; running {len(todo)}", file=sys.stderr)
+        ran = iter(backend.run(todo, on_result=kept.add))
+        results = [result if result is not None else next(ran) for result in results]
+    records = grid_records(results)
     print(grid_table(records, len(seeds)))
     if args.json:
         args.json.write_text(json.dumps(records, indent=2))

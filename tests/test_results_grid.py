@@ -192,3 +192,58 @@ def test_results_command_runs_only_the_named_scenes(tmp_path, monkeypatch, capsy
     capsys.readouterr()
     assert results_main(["--quick", "--scene", "nowhere"]) == 2
     assert "--scene: not in results.yml: ['nowhere']" in capsys.readouterr().err
+
+
+def test_cell_records_keep_a_result_as_it_was(robust_results, tmp_path):
+    """``--records``: every result written and read back gives the same records and table
+    (returns, successes, drawn parameters, starts, throughputs)."""
+    from rbenvs_agents.records import CellRecords, result_data
+
+    store = CellRecords(tmp_path / "cells.jsonl")
+    for result in robust_results:
+        store.add(result)
+    again = CellRecords(tmp_path / "cells.jsonl")
+    loaded = [again.get(result.cell) for result in robust_results]
+    assert len(again) == len(robust_results) and all(r is not None for r in loaded)
+    assert [result_data(r) for r in loaded] == json.loads(json.dumps([result_data(r) for r in robust_results]))
+    assert grid_records(loaded) == grid_records(robust_results)
+
+
+def test_results_command_resumes_from_its_records(tmp_path, monkeypatch, capsys):
+    """A run with ``--records`` keeps each finished cell; a second run over the same file runs
+    nothing and prints the same table; a file cut short (its last line half written) runs
+    only the cells it lacks."""
+    import rbenvs_agents.backends as backends
+    from rbenvs_agents.cli import results_main
+
+    _grid(tmp_path, monkeypatch, "runs:\n  - scene: spin_major\n    algos: []\n")
+    ran, real = [], backends.run_cell
+    monkeypatch.setattr(backends, "run_cell", lambda cell, progress=False: ran.append(cell) or real(cell, progress))
+    path = tmp_path / "cells.jsonl"
+    args = ["--quick", "--no-progress", "--records", str(path)]
+    assert results_main(args + ["--json", str(tmp_path / "a.json")]) == 0
+    assert [c.agent for c in ran] == ["zero action", "analytic"] and len(path.read_text().splitlines()) == 2
+    ran.clear()
+    assert results_main(args + ["--json", str(tmp_path / "b.json")]) == 0
+    assert ran == []
+    first, second = (json.loads((tmp_path / name).read_text()) for name in ("a.json", "b.json"))
+    assert first == second
+    lines = path.read_text().splitlines()
+    path.write_text(lines[0] + "\n" + lines[1][: len(lines[1]) // 2])  # stopped while writing the second
+    assert results_main(args + ["--json", str(tmp_path / "c.json")]) == 0
+    assert [c.agent for c in ran] == ["analytic"]
+    assert json.loads((tmp_path / "c.json").read_text())[0] == first[0]
+    assert "1 of 2 cells from" in capsys.readouterr().err
+
+
+def test_a_changed_configuration_is_a_new_cell_key(tmp_path, monkeypatch):
+    from rbenvs_agents.records import cell_key
+
+    cell = Cell(load_scene("default"), "ppo", 0, 2, 100)
+    before = cell_key(cell)
+    _grid(tmp_path, monkeypatch, "runs: []\n")
+    assert cell_key(cell) == before  # the same files: the same key
+    text = (tmp_path / "ppo.yml").read_text().replace("n_timesteps: 500000", "n_timesteps: 400000")
+    (tmp_path / "ppo.yml").write_text(text)
+    assert cell_key(cell) != before
+    assert cell_key(Cell(load_scene("default"), "zero action", 0, 2, 100)) != cell_key(Cell(load_scene("default"), "zero action", 1, 2, 101))
