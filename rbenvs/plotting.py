@@ -217,12 +217,15 @@ def plot_heavy_top(path, spin_factor=4.0, tilt=0.5, duration=3.0, dt=0.002):
 
 
 # ---------------------------------------------------------------------------------- tippe top
-def plot_tippe_top(path, duration=25.0, **env_kwargs):
+def plot_tippe_top(path, duration=25.0, figures=None, **env_kwargs):
     """Tilt, energy and Jellett's integral of the tippe top (:class:`rbenvs.envs.TippeTopEnv`
     with ``env_kwargs``; default: the Leine-Glocker top at 150 rad/s, Coulomb friction) under
     zero action for ``duration`` s (on past the task's end at 150 deg, until lift-off or a
     numerical failure), with the final tilt and the least energy ``E*`` at that tilt allowed by
-    the initial Jellett's integral (docs/physics.md §3). Returns ``path``."""
+    the initial Jellett's integral (docs/physics.md §3). Returns ``path``; ``figures`` (a dict)
+    receives the figures the caption states: the times the tilt first reaches 90 and 150
+    degrees (None if it does not), Jellett's largest relative change through the turn-over (to
+    120 degrees) and over the whole run, the simulated time and the predicted final tilt."""
     from .envs import TippeTopEnv
     from .oracles import energy_star, final_tilt
 
@@ -238,6 +241,17 @@ def plot_tippe_top(path, duration=25.0, **env_kwargs):
     args = (prm.mass, prm.gravity, prm.radius, prm.offset, A, C)
     theta_f = final_tilt(jell[0], *args)
     e_min = energy_star(theta_f, jell[0], *args)
+
+    if figures is not None:
+        drift = np.abs(jell / jell[0] - 1.0)
+        turn = tilt <= 120.0
+
+        def first(deg):
+            cross = np.flatnonzero(tilt >= deg)
+            return float(t[cross[0]]) if cross.size else None
+
+        figures.update(t90=first(90.0), t150=first(150.0), jellett_turn_over=float(drift[turn].max()) if turn.any() else None,
+                       jellett_run=float(drift.max()), duration=float(t[-1]), final_tilt=math.degrees(theta_f))
 
     fig = _figure((8.0, 8.0))
     ax1, ax2, ax3 = (fig.add_subplot(3, 1, k) for k in (1, 2, 3))

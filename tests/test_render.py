@@ -237,3 +237,17 @@ def test_vector_env_renders_one_frame_per_sub_env_as_the_single_env_does(env_id)
         single.close()
     assert not np.array_equal(frames[0], frames[1])  # different states, different pictures
     venv.close()
+
+
+def test_tippe_plot_reports_the_figures_of_its_caption(tmp_path):
+    """``rbenvs plot tippe_top`` prints the times and drifts the docs' caption refers to; they
+    come from the plotted run itself (the default top passes 90 degrees at 1.61 s)."""
+    from rbenvs import plotting
+
+    figures = {}
+    plotting.plot_tippe_top(tmp_path / "tt.png", duration=2.0, figures=figures)
+    assert set(figures) == {"t90", "t150", "jellett_turn_over", "jellett_run", "duration", "final_tilt"}
+    assert abs(figures["t90"] - 1.61) < 0.01 and figures["t150"] is None and figures["duration"] == pytest.approx(2.0, abs=0.011)
+    # through the turn-over within issue 18's 1e-8 (1.1e-9); past 120 degrees the slow climb adds rk4's drift (1.2e-8 by 2 s)
+    assert 0.0 < figures["jellett_turn_over"] < 1e-8 and figures["jellett_turn_over"] <= figures["jellett_run"] < 1e-7
+    assert 90.0 < figures["final_tilt"] <= 180.0
