@@ -171,16 +171,12 @@ def _cmd_plot(args) -> int:
             for path in plotting.render_frames(args.out):
                 print(f"wrote {path}")
             continue
-        func, filename = plotting.PLOTS[name]
-        figures = {} if name == "tippe_top" else None  # (the figures its caption in docs/rendering.md states)
+        func, filename, describe = plotting.PLOTS[name]
+        figures = {} if describe is not None else None  # (what the docs' captions state)
         path = func(os.path.join(args.out, filename), **(quick[name] if args.quick else {}), **({"figures": figures} if figures is not None else {}))
         print(f"wrote {path}")
-        if figures:
-            def at(x):
-                return "-" if x is None else f"{x:.2f} s"
-            print(f"tippe top, zero action, {figures['duration']:.2f} s: 90 deg at {at(figures['t90'])}, 150 deg at {at(figures['t150'])}; "
-                  f"Jellett's largest relative change {figures['jellett_turn_over']:.2g} through the turn-over (to 120 deg), "
-                  f"{figures['jellett_run']:.2g} over the run; predicted final tilt {figures['final_tilt']:.1f} deg")
+        if describe is not None:
+            print(describe(figures))
     return 0
 
 

@@ -242,26 +242,22 @@ def plot_tippe_top(path, duration=25.0, figures=None, **env_kwargs):
     theta_f = final_tilt(jell[0], *args)
     e_min = energy_star(theta_f, jell[0], *args)
 
+    # the first time the tilt reaches 90 and 150 degrees (None: not in this run), drawn and reported
+    reached = {deg: next((float(t[k]) for k in np.flatnonzero(tilt >= deg)[:1]), None) for deg in (90.0, 150.0)}
     if figures is not None:
         drift = np.abs(jell / jell[0] - 1.0)
-        turn = tilt <= 120.0
-
-        def first(deg):
-            cross = np.flatnonzero(tilt >= deg)
-            return float(t[cross[0]]) if cross.size else None
-
-        figures.update(t90=first(90.0), t150=first(150.0), jellett_turn_over=float(drift[turn].max()) if turn.any() else None,
-                       jellett_run=float(drift.max()), duration=float(t[-1]), final_tilt=math.degrees(theta_f))
+        turn = tilt <= 120.0  # (the start, 0.1 rad, is always in it)
+        figures.update(t90=reached[90.0], t150=reached[150.0], jellett_turn_over=float(drift[turn].max()), jellett_run=float(drift.max()),
+                       duration=float(t[-1]), final_tilt=math.degrees(theta_f))
 
     fig = _figure((8.0, 8.0))
     ax1, ax2, ax3 = (fig.add_subplot(3, 1, k) for k in (1, 2, 3))
     ax1.plot(t, tilt, color="#1f77b4", lw=1.3, label="simulated tilt")
     ax1.axhline(math.degrees(theta_f), color="k", ls="--", lw=1, label="final tilt predicted from J (minimum of E*)")
-    for deg in (90.0, 150.0):
-        cross = np.flatnonzero(tilt >= deg)
-        if cross.size:
-            ax1.axvline(t[cross[0]], color="#888888", ls=":", lw=1)
-            ax1.annotate(f"{deg:.0f} deg at {t[cross[0]]:.2f} s", (t[cross[0]], deg), fontsize=7, xytext=(4, -12), textcoords="offset points")
+    for deg, when in reached.items():
+        if when is not None:
+            ax1.axvline(when, color="#888888", ls=":", lw=1)
+            ax1.annotate(f"{deg:.0f} deg at {when:.2f} s", (when, deg), fontsize=7, xytext=(4, -12), textcoords="offset points")
     ax1.set_ylabel("tilt theta [deg]")
     ax2.plot(t, energy * 1e3, color="#d62728", lw=1.3, label="simulated energy")
     ax2.axhline(e_min * 1e3, color="k", ls="--", lw=1, label="E*(final tilt): least energy at this J")
@@ -314,8 +310,21 @@ def render_frames(directory, prefix="render_"):
 
 
 # name -> (function, file name) for ``rbenvs plot``
+def describe_tippe_top(figures: dict) -> str:
+    """The line ``rbenvs plot tippe_top`` prints: the figures :func:`plot_tippe_top` reports (its
+    caption in docs/rendering.md states them)."""
+
+    def at(x):
+        return "-" if x is None else f"{x:.2f} s"
+
+    return (f"tippe top, zero action, {figures['duration']:.2f} s: 90 deg at {at(figures['t90'])}, 150 deg at {at(figures['t150'])}; "
+            f"Jellett's largest relative change {figures['jellett_turn_over']:.2g} through the turn-over (to 120 deg), "
+            f"{figures['jellett_run']:.2g} over the run; predicted final tilt {figures['final_tilt']:.1f} deg")
+
+
+# name -> (function, file, what its run reports: a function of the figures it fills, or None)
 PLOTS = {
-    "free_body": (plot_free_body, "plot_free_body.png"),
-    "heavy_top": (plot_heavy_top, "plot_heavy_top.png"),
-    "tippe_top": (plot_tippe_top, "plot_tippe_top.png"),
+    "free_body": (plot_free_body, "plot_free_body.png", None),
+    "heavy_top": (plot_heavy_top, "plot_heavy_top.png", None),
+    "tippe_top": (plot_tippe_top, "plot_tippe_top.png", describe_tippe_top),
 }
