@@ -139,7 +139,9 @@ class Layout(NamedTuple):
     ``step(PS, y, u, h) -> y``; ``observe(PO, y) -> o`` (``n_obs``); ``evaluate(PE, y, u_norm)
     -> (reward, terminated, m_1..m_k)`` (``k = n_metrics``); ``readouts(PR, y, u, fired) ->
     (r_1..r_m)`` (``m = n_readouts``); the guard's ``rotation(PA, y) -> lambda`` and
-    ``dissipation(PD, y, u) -> lambda_d`` (or ``None``: no such rate); the terminal ``event(PV,
+    ``dissipation(PD, y, u) -> lambda_d`` (or ``None``: no such rate; with ``share``, the
+    tolerance's share ``share(PD[1], y, u, dt, p, lambda_d) -> a`` of that mode's error, ``PD = (P_d,
+    P_a)``); the terminal ``event(PV,
     y, u) -> g`` checked after every internal step, firing where ``g < 0`` (or ``None``); and
     ``rhs_event(PV, y, u) -> (dy, g)``: the vector field and the event from one evaluation (or
     ``None``), with which ``step`` is the integrator's step given its first stage,
@@ -163,6 +165,7 @@ class Layout(NamedTuple):
     rhs_event: Callable | None = None
     switches: tuple = ()
     motion: bool = False  # rotation(PA, y, u) -> (lambda, mu): the accuracy term with the state's speed
+    share: Callable | None = None
 
 
 def _count_lines(L: Layout, u: str) -> list[str]:
@@ -174,10 +177,11 @@ def _count_lines(L: Layout, u: str) -> list[str]:
     if L.motion:  # the state's own speed in the accuracy term: rotation(PA, y, u) -> (lambda, mu)
         lines = [u, "x = step_ratio_motion(PG, rotation(PA, y, u))"]
     if L.dissipation is not None:
-        # v > x: Python's max(x, v), the float path's (NaN in x stays NaN)
-        lines += [u, "rate = dissipation(PD, y, u)", "if rate > 0.0:", "    v = dt / (CD / rate)", "    if v > x:", "        x = v",
-                  # a tolerance's share for the decaying mode (0 without one)
-                  "    v = relaxation_steps(PG, rate)", "    if v > x:", "        x = v"]
+        # v > x: Python's max(x, v), the float path's (NaN in x stays NaN); a tolerance's share
+        # for the decaying mode (0 without one), of its relative share where declared
+        pd, a = ("PD[0]", "share(PD[1], y, u, dt, PG[4], rate)") if L.share is not None else ("PD", "1.0")
+        lines += [u, f"rate = dissipation({pd}, y, u)", "if rate > 0.0:", "    v = dt / (CD / rate)", "    if v > x:", "        x = v",
+                  f"    v = relaxation_steps(PG, rate, {a})", "    if v > x:", "        x = v"]
     return lines + ["if not (x <= substeps):", f"    c = ceil(x) if x <= {MAX_INTERNAL_STEPS} else {MAX_INTERNAL_STEPS + 1}", "    need += 1"]
 
 
@@ -363,11 +367,11 @@ def _namespace(L: Layout) -> dict:
     _tune_llvm()
     _register_all()
     switch_fns = [fn for triple in L.switches for fn in triple]
-    for fn in (L.step, L.observe, L.evaluate, L.readouts, L.rotation, L.dissipation, L.event, L.rhs_event, *switch_fns):
+    for fn in (L.step, L.observe, L.evaluate, L.readouts, L.rotation, L.dissipation, L.share, L.event, L.rhs_event, *switch_fns):
         if fn is not None:
             _register(fn)
     namespace = {"step": L.step, "observe": L.observe, "evaluate": L.evaluate, "readouts": L.readouts, "rotation": L.rotation,
-                 "dissipation": L.dissipation, "event": L.event, "rhs_event": L.rhs_event, "step_ratio": step_ratio, "step_ratio_motion": step_ratio_motion, "relaxation_steps": relaxation_steps, "isfinite": isfinite,
+                 "dissipation": L.dissipation, "share": L.share, "event": L.event, "rhs_event": L.rhs_event, "step_ratio": step_ratio, "step_ratio_motion": step_ratio_motion, "relaxation_steps": relaxation_steps, "isfinite": isfinite,
                  "ceil": ceil, "nan": nan, "np": np}
     for k, (applies, function, switch) in enumerate(L.switches):
         namespace.update({f"applies{k}": applies, f"function{k}": function, f"switch{k}": switch})
@@ -776,6 +780,10 @@ def _layout(parts, dim: int, n_obs: int, n_control: int, n_action: int, sample) 
     (step, ps), (observe, po), (evaluate, pe), (readouts, pr) = parts.step, parts.observe, parts.evaluate, parts.readouts
     (rotation, pa) = parts.rotation if parts.rotation is not None else (None, ())
     (dissipation, pd) = parts.dissipation if parts.dissipation is not None else (None, ())
+    share = None
+    if dissipation is not None and parts.share is not None:
+        share, pa_d = parts.share
+        pd = (pd, pa_d)
     (event, pv) = parts.event if parts.event is not None else (None, ())
     rhs_event = None
     if parts.rhs_event is not None:  # (its parameters take the event's place)
@@ -784,7 +792,7 @@ def _layout(parts, dim: int, n_obs: int, n_control: int, n_action: int, sample) 
     values = evaluate(pe, tuple(sample), (0.0,) * n_action)
     physical = readouts(pr, tuple(sample), (0.0,) * n_control, False)
     layout = Layout(step, dim, n_control, n_action, observe, n_obs, evaluate, len(values) - 2, readouts, len(physical), rotation, dissipation, event,
-                    rhs_event, switches, parts.motion)
+                    rhs_event, switches, parts.motion, share)
     params = (ps, po, pe, pr, parts.guard_params, pa, pd, float(parts.dissipation_step), pv, pw)
     return layout, params, values, physical
 

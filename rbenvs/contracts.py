@@ -96,7 +96,16 @@ class GuardRates:
     * ``accuracy``: pure ``fn(P, y) -> lambda_e`` [1/s], a bound of the vector field's Jacobian
       at ``y`` (and of its higher derivatives' share, :func:`rbenvs.core.guard.motion_rates`),
       sharper than ``rotation`` for the error ``tolerance=`` estimates; used only there, never
-      for the stability bound; ``None``: ``rotation``'s rate.
+      for the stability bound; ``None``: ``rotation``'s rate;
+    * ``dissipation_share``: pure ``fn((P, r), y, u, dt, p, lambda_d) -> a`` in ``[0, 1]`` (``r``:
+      the scheme's ``forced_error_constant`` over its ``error_constant``, 0 where it declares
+      none, put in by the guard): the share
+      of ``C (lambda_d h)^p`` (``lambda_d`` the ``dissipation`` rate at ``y``, ``C`` the
+      scheme's error constant) that the decaying mode's error is in a period of ``dt`` from
+      ``y`` under ``u`` with a scheme of order ``p``: less where the mode is less stiff than
+      ``lambda_d`` in that period (a saturated friction), near its slow manifold (only its
+      distance from it errs), or driven slower than it relaxes; used only by ``tolerance=``
+      (:func:`rbenvs.core.guard.relaxation_steps`); ``None``: 1.
     """
 
     rotation: PureFunction
@@ -106,6 +115,7 @@ class GuardRates:
     dissipation_margin: float = 1.0
     ceiling: float = math.inf
     accuracy: PureFunction | None = None
+    dissipation_share: PureFunction | None = None
 
 
 @runtime_checkable

@@ -19,6 +19,7 @@ __all__ = [
     "sqrt",
     "maximum",
     "select",
+    "power",
     "expm1",
     "atan2",
     "atan_kernel",
@@ -46,6 +47,18 @@ __all__ = [
 def maximum(a, b):
     """The larger of two floats (``max``) or the elementwise larger of arrays (``np.maximum``)."""
     return max(a, b) if isinstance(a, float) else np.maximum(a, b)
+
+
+@jitable
+def power(x, p):
+    """``x^p`` for a whole ``p >= 1`` (a float) by repeated products: the same bits on floats,
+    arrays and in compiled code (``**`` may differ in the last bit between libm and numpy)."""
+    r = x
+    k = 1.0
+    while k < p:
+        r = r * x
+        k += 1.0
+    return r
 
 
 @jitable

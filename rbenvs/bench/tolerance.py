@@ -91,9 +91,14 @@ TOLERANCE_CASES = (
                   (_top(20.0, 0.1),), 50, skip_fixed=(1e-6, 1e-9)),
     ToleranceCase("top_auto", "Lagrange top, integrator='auto', 20 rad/s, tilt 0.1 (top_euler's start)", "heavy_top", dict(integrator="auto", max_torque=0.0),
                   (_top(20.0, 0.1),), 50, fixed_integrators=("euler", "rk4")),
-    ToleranceCase("tippe", "tippe top, rk4, Coulomb friction, seeds 0-2", "tippe_top", dict(integrator="rk4", max_torque=0.0), (0, 1, 2), 10),
-    ToleranceCase("tippe_viscous", "tippe top, rk4, viscous friction 3 s/m, seeds 0-2", "tippe_top",
-                  dict(integrator="rk4", max_torque=0.0, friction_law="viscous", friction=3.0), (0, 1, 2), 10),
+    # the tippe top: each seed its own spin and tilt (the scene's 150 rad/s at tilt 0.1 is inside);
+    # from rest (sliding into rolling within the horizon) and rolling
+    ToleranceCase("tippe", "tippe top, rk4, Coulomb friction, from rest, 100-200 rad/s, tilt 0.05-0.6, seeds 0-2", "tippe_top",
+                  dict(integrator="rk4", max_torque=0.0, spin=(100.0, 200.0), tilt=(0.05, 0.6)), (0, 1, 2), 10),
+    ToleranceCase("tippe_rolling", "tippe top, rk4, Coulomb friction, rolling start, 100-200 rad/s, tilt 0.05-0.6, seeds 0-1", "tippe_top",
+                  dict(integrator="rk4", max_torque=0.0, spin=(100.0, 200.0), tilt=(0.05, 0.6), start="rolling"), (0, 1), 10),
+    ToleranceCase("tippe_viscous", "tippe top, rk4, viscous friction 3 s/m, from rest, 100-200 rad/s, tilt 0.05-0.6, seeds 0-2", "tippe_top",
+                  dict(integrator="rk4", max_torque=0.0, friction_law="viscous", friction=3.0, spin=(100.0, 200.0), tilt=(0.05, 0.6)), (0, 1, 2), 10),
 )
 
 

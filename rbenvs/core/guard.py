@@ -27,8 +27,10 @@ exp(sum e_k) - 1``, which stays within the tolerance when every period meets
 z^(p+1)``: the fewest such whole ``n`` (:func:`accuracy_steps`) is a fourth term of ``x``,
 and ``info["error_estimate"]`` reports ``e`` of the steps taken. Where the system also declares
 a decaying rate ``lambda_d`` the budget is shared: half for the rotation (per period, as above),
-half for the decaying mode, ``C (lambda_d h)^p <= log(1 + tolerance) / 2`` (its error relaxes
-within ``1 / lambda_d`` instead of adding up: :func:`relaxation_steps`). For a scheme whose
+half for the decaying mode, ``C a (lambda_d h)^p <= log(1 + tolerance) / 2`` (its error relaxes
+within ``1 / lambda_d`` instead of adding up: :func:`relaxation_steps`; ``a <= 1`` the share of
+it the mode's error is, where the system declares it: a saturated friction is not stiff). For a
+scheme whose
 leading error is in the phase (rk4) on a system with a pure vector field, ``lambda dt`` in front
 becomes ``mu dt``, the state's own relative speed (:func:`motion_rates`, :func:`step_ratio_motion`).
 The estimate assumes the motion
@@ -52,7 +54,7 @@ from functools import lru_cache
 import numpy as np
 
 from ..jit import jitable
-from ..rotations import maximum, select, sqrt
+from ..rotations import maximum, power, select, sqrt
 from .codegen import generate
 
 __all__ = ["MAX_INTERNAL_STEPS", "GUARDS", "StepRule", "step_ratio", "step_ratio_motion", "motion_rates", "accuracy_steps", "relaxation_steps", "whole_root", "error_estimate", "require_guard",
@@ -89,18 +91,6 @@ def require_tolerance(tolerance):
 
 
 @jitable
-def power(x, p):
-    """``x^p`` for a whole ``p >= 1`` (a float) by repeated products: the same bits on floats,
-    arrays and in compiled code (``**`` may differ in the last bit between libm and numpy)."""
-    r = x
-    k = 1.0
-    while k < p:
-        r = r * x
-        k += 1.0
-    return r
-
-
-@jitable
 def ceiling(x):
     """``ceil(x)`` as a float (``inf`` and NaN pass through; floats or arrays)."""
     if isinstance(x, float):
@@ -131,15 +121,18 @@ def accuracy_steps(k, p, z):
 
 
 @jitable
-def relaxation_steps(g, rate):
+def relaxation_steps(g, rate, a):
     """The fewest whole ``n`` whose steps ``h = dt / n`` keep a decaying mode of rate ``rate``
-    within its share of the tolerance, ``C (rate h)^p <= b_d`` (``g[5] = C / b_d``; 0 without a
-    tolerance): a decaying mode forgets its error within ``1 / rate``, so its error does not
-    add up over the periods (floats; :meth:`StepRule.ratio` writes the array form)."""
+    within its share of the tolerance, ``C a (rate h)^p <= b_d`` (``g[5] = C / b_d``; 0 without
+    a tolerance): a decaying mode forgets its error within ``1 / rate``, so its error does not
+    add up over the periods. ``a <= 1``: the system's ``dissipation_share`` (1 where it declares
+    none), the share of ``C (rate h)^p`` the mode's error is in this period: less where the mode
+    is less stiff than ``rate`` says (a saturated friction), near its slow manifold, or driven
+    slowly. Floats; :meth:`StepRule.ratio` writes the array form."""
     dt, bound, growth, k, p, kd = g
     if kd == 0.0:
         return 0.0
-    return whole_root(kd * power(dt * rate, p), p)
+    return whole_root(kd * (a * power(dt * rate, p)), p)
 
 
 @jitable
@@ -250,6 +243,10 @@ class StepRule:
     # fn(P, y, u) -> (lambda, mu), and zero_control the u of internal_steps(y, None)
     motion: bool = False
     zero_control: tuple = ()
+    # with a tolerance and a decaying rate: the system's (fn, Q), Q = (P, c_f / C) (c_f the scheme's
+    # forced_error_constant, 0 if none), fn(Q, y, u, dt, p, lambda_d) -> a in [0, 1], the share of
+    # C (lambda_d h)^p its decaying mode's error is (relaxation_steps); None: a = 1
+    share: tuple | None = None
 
     @classmethod
     def build(cls, rates, region, dt: float, guard: str, integrator=None, tolerance=None, horizon=None, system=None, zero_control=()) -> "StepRule":
@@ -303,8 +300,15 @@ class StepRule:
             motion = True
             accuracy = accuracy.replace("error C lambda dt", "error C mu dt") + mu_text
             text = text.replace("error C lambda dt", "error C mu dt") + mu_text
+        mode_share = rates.dissipation_share if error is not None and dissipation is not None else None
+        if mode_share is not None:
+            # the system's parameters with the scheme's forced-mode error constant (over C; 0: none)
+            forced = getattr(integrator, "forced_error_constant", None)
+            mode_share = (mode_share[0], (mode_share[1], 0.0 if forced is None else float(forced) / c))
+            accuracy, text = (t.replace("C (lambda_d h)^", "C a (lambda_d h)^") + " (a = the decaying mode's share of it, "
+                              + mode_share[0].__name__ + ")" for t in (accuracy, text))
         return cls(rotation, (float(dt), float(bound), float(growth), float(k), float(p), float(kd)), dissipation, step_d, rates.ceiling, text, active, error,
-                   accuracy, motion, tuple(zero_control))
+                   accuracy, motion, tuple(zero_control), mode_share)
 
     def rate(self, y, u=None):
         """``lambda`` at ``y`` (the rate both the bounds and the error estimate use); with
@@ -326,10 +330,19 @@ class StepRule:
         with np.errstate(invalid="ignore"):
             return np.where(rate > 0.0, rate, 0.0)
 
-    def estimate(self, lam, h, lam_d=0.0):
+    def dissipation_share(self, y, u, rate):
+        """``a`` of :func:`relaxation_steps` at ``y`` under ``u`` with the guard's decaying rate
+        ``rate`` there: the system's declared share of its decaying mode, 1.0 where it declares
+        none; floats or arrays."""
+        if self.share is None:
+            return 1.0
+        fa, pa = self.share
+        return fa(pa, y, u, self.params[0], self.params[4], rate)
+
+    def estimate(self, lam, h, lam_d=0.0, a=1.0):
         """The relative error of a period started at rates ``lam`` (and ``lam_d``, a decaying
-        one) with internal step ``h``: :func:`error_estimate` plus ``C (lam_d h)^p`` where the
-        system has a decaying rate (``None`` without a tolerance)."""
+        one, its error's share ``a``) with internal step ``h``: :func:`error_estimate` plus
+        ``C a (lam_d h)^p`` where the system has a decaying rate (``None`` without a tolerance)."""
         if self.error is None:
             return None
         if self.motion:  # C mu dt (lambda_e h)^p
@@ -341,7 +354,7 @@ class StepRule:
         if self.dissipation is None:
             return e
         c, p, _ = self.error
-        return e + c * power(lam_d * h, p)
+        return e + c * (a * power(lam_d * h, p))
 
     def binding(self, y, u) -> str:
         """Which bound asks for the most steps at ``y`` under ``u``, in words: the accuracy
@@ -359,7 +372,7 @@ class StepRule:
         rate = self.dissipation_rate(y, u) if u is not None else 0.0
         if rate > 0.0:
             stability = max(stability, dt / (self.dissipation_step / rate))
-            accuracy = max(accuracy, relaxation_steps(self.params, rate))
+            accuracy = max(accuracy, relaxation_steps(self.params, rate, self.dissipation_share(y, u, rate)))
         if not accuracy > stability:
             return f"the stability bound ({self.text})"
         return f"the tolerance ({self.accuracy_text})"
@@ -379,7 +392,7 @@ class StepRule:
                 if rate > 0.0:
                     x = max(x, dt / (self.dissipation_step / rate))
                     if self.params[5] != 0.0:
-                        x = max(x, relaxation_steps(self.params, rate))
+                        x = max(x, relaxation_steps(self.params, rate, self.dissipation_share(y, u, rate)))
             else:
                 with np.errstate(divide="ignore", invalid="ignore"):
                     h_d = np.where(rate > 0.0, self.dissipation_step / np.where(rate > 0.0, rate, 1.0), np.inf)
@@ -388,7 +401,8 @@ class StepRule:
                         _, _, _, _, p, kd = self.params
                         positive = rate > 0.0
                         r = np.where(positive, rate, 0.0)
-                        x = np.maximum(x, np.where(positive, whole_root(kd * power(dt * r, p), p), 0.0))
+                        a = self.dissipation_share(y, u, r)
+                        x = np.maximum(x, np.where(positive, whole_root(kd * (a * power(dt * r, p)), p), 0.0))
         return x
 
     def idle(self, substeps: int) -> bool:

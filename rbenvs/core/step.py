@@ -563,9 +563,10 @@ class Engine:
         u = self.control(a)[1]
         lam = rule.rate(y0, u)
         lam_d = rule.dissipation_rate(y0, u) if rule.dissipation is not None else 0.0
+        share = rule.dissipation_share(y0, u, lam_d) if rule.dissipation is not None else 1.0
         out = Engine.step_one(self, y0, a, plain)
         info = out[4]
-        info["error_estimate"] = float(rule.estimate(lam, info["internal_step"], lam_d))
+        info["error_estimate"] = float(rule.estimate(lam, info["internal_step"], lam_d, share))
         return out
 
     def _cap_text(self, h, y0=None, u=None) -> str:
@@ -665,7 +666,7 @@ class Engine:
             rotation, dissipation = rule.rotation, rule.dissipation
         observe, evaluate = task.kernels(system)
         return KernelParts(step, observe, evaluate, readouts, rotation, rule.params, dissipation, rule.dissipation_step, event, rhs_event, tuple(switches),
-                           rule.motion and rotation is not None)
+                           rule.motion and rotation is not None, rule.share if dissipation is not None else None)
 
 
 class KernelParts(NamedTuple):
@@ -693,3 +694,4 @@ class KernelParts(NamedTuple):
     rhs_event: tuple | None = None
     switches: tuple = ()
     motion: bool = False  # rotation is (fn, P) with fn(P, y, u) -> (lambda, mu): step_ratio_motion
+    share: tuple | None = None  # (fn, P): the decaying mode's relative share (StepRule.share)

@@ -75,7 +75,7 @@ import numpy as np
 from ..contracts import GuardRates
 from ..draws import draw
 from ..jit import jitable
-from ..rotations import atan2, maximum, quat_normalize, quat_rate, sqrt
+from ..rotations import atan2, maximum, power, quat_normalize, quat_rate, select, sqrt
 from .contact import FRICTION_LAWS, no_friction
 from .state import start_as_drawn
 from .validation import real_array, require_choice, require_finite_nonnegative, require_finite_positive, require_finite_result, require_real_vector
@@ -1046,7 +1046,21 @@ class ImplicitForms(NamedTuple):
       (tuple of components);
     * ``rate(P, y, u) -> lambda_d``: the tight stiffness, the law's at the actual normal force
       and the largest tangential mobility (:func:`tangential_mobility`), at zero slip;
-    * ``accuracy_rate((P, K, omega_g), y, u)``: the guard's rate with ``friction_bound="accuracy"``.
+    * ``accuracy_rate((P, K, omega_g), y, u)``: the guard's rate with ``friction_bound="accuracy"``;
+    * ``share(((P, omega_g), c_f / C), y, u, dt, p, lambda_g) -> a``: the share of ``C (lambda_g h)^p``
+      (``lambda_g`` the friction guard's rate at ``y``) that the slip relaxation's error is in a
+      period ``dt`` from ``y`` under ``u``, for a scheme of order ``p`` (docs/integrators.md):
+      at most ``(kappa lambda_d / lambda_g)^p``, ``kappa = k(s_min) / k(0)`` the law's
+      coefficient at the smallest slip the period can reach (``|s|`` closing at twice its
+      present rate) over its value at zero slip: the law's stiffness there is ``kappa
+      lambda_d``, and a sliding top's saturated Coulomb friction (``|s| >> eps``) is not stiff
+      until its slip reaches the band ``|s| ~ eps`` (viscous: ``kappa = 1``). With rk4 (``p =
+      4``, a scheme declaring ``c_f``) the transient, that bound times the slip's distance from its slow manifold
+      ``|ds/dt + Omega x s| / lambda_d`` against ``|v_G|`` (``eps`` at least), plus the forced
+      part, ``c_f (kappa lambda_d h)^2 (w h)^2`` (the contact turning at ``w = max(|Omega|,
+      omega_g)`` drives the stiff mode; the whole velocity counted as the drive; ``c_f`` the
+      scheme's ``forced_error_constant``, ``q``'s second item ``c_f / C``, given by the guard).
+      The tolerance's relaxation term (:func:`rbenvs.core.guard.relaxation_steps`) takes it.
 
     Without friction (frictionless, rolling, in flight ``N = 0``) ``W = I``.
     """
@@ -1055,13 +1069,15 @@ class ImplicitForms(NamedTuple):
     solve: Callable
     rate: Callable | None
     accuracy_rate: Callable | None
+    share: Callable | None = None
 
 
 @lru_cache(maxsize=None)
 def implicit_forms(coefficient, stiffness, slope, rolling: bool, flight: bool) -> ImplicitForms:
     """The :class:`ImplicitForms` of a law's pure ``coefficient``, ``stiffness`` and ``slope``
     (:mod:`rbenvs.dynamics.contact`; ``slope is None``: no friction, ``W = I``)."""
-    contact = pure_forms(coefficient, stiffness, rolling, flight).contact
+    forms = pure_forms(coefficient, stiffness, rolling, flight)
+    contact, vector_field = forms.contact, forms.rhs
     Q, W, V = (6, 10, 3) if flight else ((2, 6, 0) if rolling else (4, 8, 2))
     frictionless = slope is None or rolling
 
@@ -1095,21 +1111,30 @@ def implicit_forms(coefficient, stiffness, slope, rolling: bool, flight: bool) -
         return rm + r + _mat_mul(dm, _mat_inverse(e)) + (y[Q], y[Q + 1], y[Q + 2], y[Q + 3], y[V], y[V + 1], vz, w1, w2, w3)
 
     @jitable
-    def solve(p, wf, x):
-        if frictionless:
-            return x
-        m, big_a, big_c = p[2], p[4], p[5]
+    def slip_change(p, rm, r1, r2, r3, qw, qx, qy, qz, v1, v2, v3, w1, w2, w3, x):
+        """``sigma = C x``: the slip's change (body frame) along a state derivative ``x`` at the
+        state of frame ``rm``, contact arm ``r``, attitude ``q``, ``v_G`` (space) and ``Omega``:
+        ``R^T (xv1, xv2, 0) + dOmega x r``, and through the attitude ``dR^T v_G + Omega x dr``
+        (``dr = -a dGamma``); its normal part included."""
         a = p[0]
-        rm, r1, r2, r3, gm = wf[:9], wf[9], wf[10], wf[11], wf[12:21]
-        qw, qx, qy, qz, v1, v2, v3, w1, w2, w3 = wf[21:]
         xv1, xv2, o1, o2, o3 = x[V], x[V + 1], x[W], x[W + 1], x[W + 2]
-        # sigma = C x, the slip's change: R^T (xv1, xv2, 0) + dOmega x r, and through the
-        # attitude dR^T v_G + Omega x dr (dr = -a dGamma); its normal part is removed by G's D
         dr = frame_derivative(qw, qx, qy, qz, x[Q], x[Q + 1], x[Q + 2], x[Q + 3])
         e1, e2, e3 = -a * dr[6], -a * dr[7], -a * dr[8]
         t1 = rm[0] * xv1 + rm[3] * xv2 + o2 * r3 - o3 * r2 + dr[0] * v1 + dr[3] * v2 + dr[6] * v3 + w2 * e3 - w3 * e2
         t2 = rm[1] * xv1 + rm[4] * xv2 + o3 * r1 - o1 * r3 + dr[1] * v1 + dr[4] * v2 + dr[7] * v3 + w3 * e1 - w1 * e3
         t3 = rm[2] * xv1 + rm[5] * xv2 + o1 * r2 - o2 * r1 + dr[2] * v1 + dr[5] * v2 + dr[8] * v3 + w1 * e2 - w2 * e1
+        return t1, t2, t3
+
+    @jitable
+    def solve(p, wf, x):
+        if frictionless:
+            return x
+        m, big_a, big_c = p[2], p[4], p[5]
+        rm, r1, r2, r3, gm = wf[:9], wf[9], wf[10], wf[11], wf[12:21]
+        qw, qx, qy, qz, v1, v2, v3, w1, w2, w3 = wf[21:]
+        xv1, xv2, o1, o2, o3 = x[V], x[V + 1], x[W], x[W + 1], x[W + 2]
+        # sigma = C x (its normal part is removed by G's D)
+        t1, t2, t3 = slip_change(p, rm, r1, r2, r3, qw, qx, qy, qz, v1, v2, v3, w1, w2, w3, x)
         f1 = gm[0] * t1 + gm[1] * t2 + gm[2] * t3
         f2 = gm[3] * t1 + gm[4] * t2 + gm[5] * t3
         f3 = gm[6] * t1 + gm[7] * t2 + gm[8] * t3
@@ -1146,7 +1171,58 @@ def implicit_forms(coefficient, stiffness, slope, rolling: bool, flight: bool) -
             w = maximum(w, 0.0 * w + omega_g)
             return maximum(lam, k * sqrt(lam * w))
 
-    return ImplicitForms(factor, solve, rate, accuracy_rate)
+    share = None
+    if rate is not None:
+
+        @jitable
+        def share(q, y, u, dt, order, guard):
+            (p, omega_g), forced_ratio = q
+            mu = p[6] if u is None else u[2]
+            eps = p[7]
+            rm = tippe_frame(y[Q], y[Q + 1], y[Q + 2], y[Q + 3])
+            g1, g2, g3 = rm[6], rm[7], rm[8]
+            w1, w2, w3 = y[W], y[W + 1], y[W + 2]
+            r1, r2, r3 = contact_arm(p, g1, g2, g3)
+            vz = constraint_vertical_velocity(p, rm, w1, w2)
+            s1, s2, s3 = slip_velocity(rm, (r1, r2, r3), y[V], y[V + 1], vz, w1, w2, w3)
+            sn = s1 * g1 + s2 * g2 + s3 * g3
+            s1, s2, s3 = s1 - sn * g1, s2 - sn * g2, s3 - sn * g3
+            f = vector_field(p, y, u)
+            t1, t2, t3 = slip_change(p, rm, r1, r2, r3, y[Q], y[Q + 1], y[Q + 2], y[Q + 3], y[V], y[V + 1], vz, w1, w2, w3, f)
+            tn = t1 * g1 + t2 * g2 + t3 * g3
+            t1, t2, t3 = t1 - tn * g1, t2 - tn * g2, t3 - tn * g3
+            # kappa: the law's stiffness at the smallest slip the period can reach, over its value
+            # at zero slip (|s| closing at twice its present rate: a sliding slip's closing speeds
+            # up as the top's motion turns, measured 1.8x from one period to the next from rest)
+            ns = sqrt(s1 * s1 + s2 * s2 + s3 * s3)
+            closing = (s1 * t1 + s2 * t2 + s3 * t3) / maximum(ns, 0.0 * ns + 1e-300)
+            reach = ns + 2.0 * dt * select(closing < 0.0, closing, 0.0 * closing)
+            reach = select(reach > 0.0, reach, 0.0 * reach)
+            k0 = coefficient(mu, 0.0 * ns, 0.0 * ns, 0.0 * ns, eps)
+            kappa = coefficient(mu, reach, 0.0 * ns, 0.0 * ns, eps) / select(k0 < 0.0, k0, 0.0 * k0 - 1.0)
+            # the mode at its local stiffness kappa lambda_d (lambda_d the law's at zero slip, the
+            # guard's rate at least), as large as the state
+            lam = rate(p, y, u)
+            full = power(kappa * lam / maximum(guard, 0.0 * guard + 1e-300), order)
+            if forced_ratio == 0.0:  # (a scheme without a forced-mode error constant)
+                return select(full < 1.0, full, 0.0 * full + 1.0)
+            # the transient, |s - s*| = |ds/dt| / lambda_d (the slip's rate in the table's
+            # frame, ds/dt + Omega x s) against the velocity it perturbs, v_G (eps at least) ...
+            c1, c2, c3 = t1 + w2 * s3 - w3 * s2, t2 + w3 * s1 - w1 * s3, t3 + w1 * s2 - w2 * s1
+            speed = sqrt(y[V] * y[V] + y[V + 1] * y[V + 1])
+            scale = lam * maximum(speed, 0.0 * speed + eps)
+            transient = full * (sqrt(c1 * c1 + c2 * c2 + c3 * c3) / maximum(scale, 0.0 * scale + 1e-300))
+            # ... and the forced part: the contact turning at w drives the stiff mode; the scheme's
+            # error in following it is c_f (kappa lambda_d h)^2 (w h)^2 of the velocity (rk4's
+            # forced_error_constant), counted in units of C (forced_ratio = c_f / C)
+            w = maximum(sqrt(w1 * w1 + w2 * w2 + w3 * w3), 0.0 * w1 + omega_g)
+            m = kappa * lam * w
+            forced = forced_ratio * (m * m) / maximum(power(guard, 4.0), 0.0 * guard + 1e-300)
+            a = transient + forced
+            a = select(a < full, a, full)
+            return select(a < 1.0, a, 0.0 * a + 1.0)
+
+    return ImplicitForms(factor, solve, rate, accuracy_rate, share)
 
 
 class TippeTop:
@@ -1658,8 +1734,11 @@ class TippeTop:
             text += f", lambda_d = the {self.friction_law} law's stiffness at N and the mobility along the table (friction_bound='accuracy')"
         elif dissipation is not None:
             text += f", lambda_d = the {self.friction_law} law's stiffness at 2 max(m g, N)"
+        share = None
+        if dissipation is not None and self.implicit is not None and self.implicit.share is not None:
+            share = (self.implicit.share, (self.form_params, omega_g))  # (the tolerance's relaxation share)
         return GuardRates(rotation=(tippe_rotation_rate, (self._w, omega_g)), rotation_bound=SPIN_STEP, dissipation=dissipation,
-                          dissipation_margin=margin, ceiling=max(speed_ceiling, omega_g), text=text)
+                          dissipation_margin=margin, ceiling=max(speed_ceiling, omega_g), text=text, dissipation_share=share)
 
     def max_stable_step(self, region, mu: float | None = None, normal_force: float | None = None) -> float:
         """The largest internal step [s] at which the friction law is stable for a scheme of

@@ -299,7 +299,7 @@ class RigidBodyEnv(gym.Env):
         if rule.dissipation is not None and lam_d > 0.0:
             d_stable = self.dt / (rule.dissipation_step / lam_d)
             x = max(x, d_stable)
-            x = max(x, relaxation_steps(rule.params, lam_d))  # (0 without a tolerance)
+            x = max(x, relaxation_steps(rule.params, lam_d, 1.0))  # (0 without a tolerance; the mode's full share: no state yet)
         if rule.error is not None:
             stable = max(stability_ratio(*rule.params[:3], rates.ceiling), d_stable)
             if not stable <= MAX_INTERNAL_STEPS:
