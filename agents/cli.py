@@ -176,10 +176,13 @@ def _results(argv) -> int:
                                        ("--address", args.address is not None), ("--num-cpus", args.num_cpus is not None)) if on]
         if given:
             p.error(f"--from-json prints a finished run's table: leave out {', '.join(given)}")
-        from .grid import grid_table
+        from .grid import grid_cost, grid_table
 
         records = json.loads(args.from_json.read_text())
-        print(grid_table(records, max(r["seeds"] for r in records)))
+        n_seeds = max(r["seeds"] for r in records)
+        print(grid_table(records, n_seeds))
+        print()
+        print(grid_cost(records, n_seeds))
         return 0
     require("agents")
     if args.backend == "ray":
@@ -187,7 +190,7 @@ def _results(argv) -> int:
     elif args.address is not None or args.num_cpus is not None:
         raise ValueError("--address and --num-cpus need --backend ray")
     from .backends import RayBackend, SerialBackend
-    from .grid import grid_cells, grid_records, grid_table
+    from .grid import grid_cells, grid_cost, grid_records, grid_table
 
     seeds = [0] if args.quick else list(range(3 if args.seeds is None else args.seeds))
     cells = grid_cells(seeds, quick=args.quick, only=args.scene)
@@ -205,6 +208,8 @@ def _results(argv) -> int:
         results = [result if result is not None else next(ran) for result in results]
     records = grid_records(results)
     print(grid_table(records, len(seeds)))
+    print()
+    print(grid_cost(records, len(seeds)))
     if args.json:
         args.json.write_text(json.dumps(records, indent=2))
     return 0

@@ -41,7 +41,7 @@ from dataclasses import dataclass, field
 
 from .evaluate import Evaluation
 
-__all__ = ["BASELINES", "Cell", "CellResult", "run_cell", "grid_cells", "grid_records", "grid_table", "heldout_outside", "ranges_box"]
+__all__ = ["BASELINES", "Cell", "CellResult", "run_cell", "grid_cells", "grid_records", "grid_table", "grid_cost", "heldout_outside", "ranges_box"]
 
 # the agents that are evaluated without training, by their label in the table
 BASELINES = ("zero action", "analytic")
@@ -290,3 +290,31 @@ def grid_table(records: list[dict], n_seeds: int) -> str:
                    f"{r['return_mean']:.1f} +- {r['return_std']:.1f}", f"{r['success_mean']:.0%}")
             lines.append("| " + " | ".join(row) + " |")
     return "\n".join(lines)
+
+
+COST_CPUS = (1, 2, 4, 16)  # the free CPUs grid_cost spreads the run's training time over
+
+
+def grid_cost(records: list[dict], n_seeds: int) -> str:
+    """What the run's training cost, from its records (:func:`grid_records`): the trained
+    rows' wall time per seed times ``n_seeds``, in all, the longest row's seed, and that work
+    spread over ``COST_CPUS`` free CPUs (``max(total / k, longest)``: no cluster start, no
+    compilation, no evaluation counted; a lower bound of a run's wall time). The wall times are
+    the run's own, under whatever load it met."""
+    trained = [r for r in records if r.get("evaluation", NOMINAL) == NOMINAL and r.get("timesteps") and r.get("wall_time_s")]
+    if not trained:
+        return "Training cost: no trained rows in these records."
+    total = sum(r["wall_time_s"] for r in trained) * n_seeds
+    longest = max(trained, key=lambda r: r["wall_time_s"])
+    spread = ", ".join(f"{k} CPU{'s' if k > 1 else ''} {_duration(max(total / k, longest['wall_time_s']))}" for k in COST_CPUS)
+    return (f"Training cost (this run's wall times): {len(trained) * n_seeds} trained cells ({len(trained)} rows x {n_seeds} seeds), "
+            f"{_duration(total)} in all; the longest, {longest['agent']} on {longest['scene']}, {longest['wall_time_s']:.0f} s a seed. "
+            f"Spread over free CPUs (training only, a lower bound): {spread}.")
+
+
+def _duration(seconds: float) -> str:
+    if seconds < 120:
+        return f"{seconds:.0f} s"
+    if seconds < 7200:
+        return f"{seconds / 60:.0f} min"
+    return f"{seconds / 3600:.1f} h"

@@ -111,6 +111,23 @@ def test_throughput_columns_are_measured_and_positive(robust_results):
     assert len(held_rows) == 4 and any("inertia: 0.1, max_torque: 0.25" in line and "PPO (randomized)" in line for line in held_rows)
 
 
+def test_grid_cost_sums_the_trained_rows_and_spreads_them_over_cpus():
+    """The cost line: trained rows on the scene's parameters only (a held-out evaluation of the
+    same agent is no second training, a baseline none), mean seed times the seeds, the longest
+    row named, and ``max(total / k, longest)`` over k free CPUs."""
+    from rbenvs_agents.grid import grid_cost
+
+    def rec(agent, wall, steps=1000, evaluation=NOMINAL):
+        return {"scene": "s", "agent": agent, "timesteps": steps, "wall_time_s": wall, "evaluation": evaluation}
+
+    records = [rec("zero action", 0.0, steps=0), rec("PPO", 100.0), rec("SAC", 300.0), rec("SAC", 300.0, evaluation=HELDOUT)]
+    line = grid_cost(records, 3)
+    assert "6 trained cells (2 rows x 3 seeds), 20 min in all" in line  # (100 + 300) x 3 = 1200 s
+    assert "the longest, SAC on s, 300 s a seed" in line
+    assert "1 CPU 20 min, 2 CPUs 10 min, 4 CPUs 5 min, 16 CPUs 5 min" in line  # (300 s: the longest)
+    assert grid_cost([rec("zero action", 0.0, steps=0)], 3) == "Training cost: no trained rows in these records."
+
+
 def test_grid_cells_train_each_algorithm_twice_with_robustness(tmp_path, monkeypatch):
     _grid(tmp_path, monkeypatch, "runs:\n  - scene: default\n    algos: [ppo]\n    robustness:\n"
                                  f"      train: {json.dumps(TRAIN)}\n      heldout: {json.dumps(HELD)}\n  - scene: spin_major\n    algos: []\n")
