@@ -307,7 +307,8 @@ def grid_cost(records: list[dict], n_seeds: int) -> str:
     total = sum(r["wall_time_s"] for r in trained) * n_seeds
     longest = max(trained, key=lambda r: r["wall_time_s"])
     spread = ", ".join(f"{k} CPU{'s' if k > 1 else ''} {_duration(max(total / k, longest['wall_time_s']))}" for k in COST_CPUS)
-    return (f"Training cost (this run's wall times): {len(trained) * n_seeds} trained cells ({len(trained)} rows x {n_seeds} seeds), "
+    rows = f"{len(trained)} row{'s' if len(trained) > 1 else ''} x {n_seeds} seed{'s' if n_seeds > 1 else ''}"
+    return (f"Training cost (this run's wall times): {len(trained) * n_seeds} trained cells ({rows}), "
             f"{_duration(total)} in all; the longest, {longest['agent']} on {longest['scene']}, {longest['wall_time_s']:.0f} s a seed. "
             f"Spread over free CPUs (training only, a lower bound): {spread}.")
 

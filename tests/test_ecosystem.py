@@ -165,10 +165,12 @@ def test_rbenvs_results_prints_a_finished_runs_table_from_its_json(tmp_path, cap
     path.write_text(json.dumps(records))
     assert results_main(["--from-json", str(path)]) == 0
     lines = capsys.readouterr().out.strip().splitlines()
-    assert lines[0].endswith("| return (mean +- std, 3 seeds) | success | env steps/s | with policy steps/s | training steps/s |") and len(lines) == 4
+    assert lines[0].endswith("| return (mean +- std, 3 seeds) | success | env steps/s | with policy steps/s | training steps/s |") and len(lines) == 6
     # (records of a run from before the throughput columns show "-" there)
     assert lines[2] == "| FreeRigidBody-v0 | spin (default) | zero action | - | - | 150.1 +- 42.0 | 3% | - | - | - |"
     assert lines[3] == "| LagrangeTop-v0 | upright (top_upright) | PPO | 100,000 | 17 s | 499.9 +- 0.0 | 100% | - | - | - |"
+    # under the table, the run's training cost (the trained row's seeds)
+    assert lines[4] == "" and lines[5].startswith("Training cost (this run's wall times): 3 trained cells (1 row x 3 seeds), 52 s in all;")
     # an option of a run is refused, naming it, not silently ignored (nothing runs)
     for extra in (["--quick"], ["--seeds", "3"], ["--backend", "ray"], ["--num-cpus", "2"], ["--address", "auto"]):
         with pytest.raises(SystemExit):
