@@ -177,8 +177,8 @@ def _count_lines(L: Layout, u: str) -> list[str]:
     if L.motion:  # the state's own speed in the accuracy term: rotation(PA, y, u) -> (lambda, mu)
         lines = [u, "x = step_ratio_motion(PG, rotation(PA, y, u))"]
     if L.dissipation is not None:
-        # v > x: Python's max(x, v), the float path's (NaN in x stays NaN); a tolerance's share
-        # for the decaying mode (0 without one), of its relative share where declared
+        # v > x: Python's max(x, v), the float path's (NaN in x stays NaN); a tolerance's term for
+        # the decaying mode (0 without one), times the mode's share where the system declares one
         pd, a = ("PD[0]", "share(PD[1], y, u, dt, PG[4], rate)") if L.share is not None else ("PD", "1.0")
         lines += [u, f"rate = dissipation({pd}, y, u)", "if rate > 0.0:", "    v = dt / (CD / rate)", "    if v > x:", "        x = v",
                   f"    v = relaxation_steps(PG, rate, {a})", "    if v > x:", "        x = v"]

@@ -694,4 +694,4 @@ class KernelParts(NamedTuple):
     rhs_event: tuple | None = None
     switches: tuple = ()
     motion: bool = False  # rotation is (fn, P) with fn(P, y, u) -> (lambda, mu): step_ratio_motion
-    share: tuple | None = None  # (fn, P): the decaying mode's relative share (StepRule.share)
+    share: tuple | None = None  # (fn, P): the decaying mode's share of its error term (StepRule.share)

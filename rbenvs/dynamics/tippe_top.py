@@ -1082,18 +1082,27 @@ def implicit_forms(coefficient, stiffness, slope, rolling: bool, flight: bool) -
     frictionless = slope is None or rolling
 
     @jitable
+    def table_slip(p, y):
+        """``(frame, contact arm, v_z, slip)`` at ``y``: the slip velocity's part along the table
+        (body frame), with the frame, the arm and the constraint's vertical velocity it took."""
+        rm = tippe_frame(y[Q], y[Q + 1], y[Q + 2], y[Q + 3])
+        g1, g2, g3 = rm[6], rm[7], rm[8]
+        w1, w2, w3 = y[W], y[W + 1], y[W + 2]
+        r = contact_arm(p, g1, g2, g3)
+        vz = constraint_vertical_velocity(p, rm, w1, w2)
+        s1, s2, s3 = slip_velocity(rm, r, y[V], y[V + 1], vz, w1, w2, w3)
+        sv = s1 * g1 + s2 * g2 + s3 * g3
+        return rm, r, vz, (s1 - sv * g1, s2 - sv * g2, s3 - sv * g3)
+
+    @jitable
     def factor(p, y, u, gam):
         if frictionless:
             return ()
         eps = p[7]
         mu = p[6] if u is None else u[2]
-        rm = tippe_frame(y[Q], y[Q + 1], y[Q + 2], y[Q + 3])
+        rm, r, vz, (s1, s2, s3) = table_slip(p, y)
         g1, g2, g3 = rm[6], rm[7], rm[8]
         w1, w2, w3 = y[W], y[W + 1], y[W + 2]
-        r = contact_arm(p, g1, g2, g3)
-        s1, s2, s3 = slip_velocity(rm, r, y[V], y[V + 1], constraint_vertical_velocity(p, rm, w1, w2), w1, w2, w3)
-        sv = s1 * g1 + s2 * g2 + s3 * g3
-        s1, s2, s3 = s1 - sv * g1, s2 - sv * g2, s3 - sv * g3
         k = coefficient(mu, s1, s2, s3, eps)
         sl = slope(mu, s1, s2, s3, eps)
         # D = k P + sl s s^T (per unit N; on the table's plane), scaled by g N
@@ -1107,7 +1116,6 @@ def implicit_forms(coefficient, stiffness, slope, rolling: bool, flight: bool) -
         pmp, _ = tangential_mobility(p, g1, g2, g3)
         e = _mat_mul(pmp, dm)
         e = (1.0 - e[0], -e[1], -e[2], -e[3], 1.0 - e[4], -e[5], -e[6], -e[7], 1.0 - e[8])
-        vz = constraint_vertical_velocity(p, rm, w1, w2)
         return rm + r + _mat_mul(dm, _mat_inverse(e)) + (y[Q], y[Q + 1], y[Q + 2], y[Q + 3], y[V], y[V + 1], vz, w1, w2, w3)
 
     @jitable
@@ -1179,14 +1187,9 @@ def implicit_forms(coefficient, stiffness, slope, rolling: bool, flight: bool) -
             (p, omega_g), forced_ratio = q
             mu = p[6] if u is None else u[2]
             eps = p[7]
-            rm = tippe_frame(y[Q], y[Q + 1], y[Q + 2], y[Q + 3])
+            rm, (r1, r2, r3), vz, (s1, s2, s3) = table_slip(p, y)
             g1, g2, g3 = rm[6], rm[7], rm[8]
             w1, w2, w3 = y[W], y[W + 1], y[W + 2]
-            r1, r2, r3 = contact_arm(p, g1, g2, g3)
-            vz = constraint_vertical_velocity(p, rm, w1, w2)
-            s1, s2, s3 = slip_velocity(rm, (r1, r2, r3), y[V], y[V + 1], vz, w1, w2, w3)
-            sn = s1 * g1 + s2 * g2 + s3 * g3
-            s1, s2, s3 = s1 - sn * g1, s2 - sn * g2, s3 - sn * g3
             f = vector_field(p, y, u)
             t1, t2, t3 = slip_change(p, rm, r1, r2, r3, y[Q], y[Q + 1], y[Q + 2], y[Q + 3], y[V], y[V + 1], vz, w1, w2, w3, f)
             tn = t1 * g1 + t2 * g2 + t3 * g3
