@@ -308,7 +308,7 @@ def grid_cost(records: list[dict], n_seeds: int) -> str:
     longest = max(trained, key=lambda r: r["wall_time_s"])
     spread = ", ".join(f"{k} CPU{'s' if k > 1 else ''} {_duration(max(total / k, longest['wall_time_s']))}" for k in COST_CPUS)
     rows = f"{len(trained)} row{'s' if len(trained) > 1 else ''} x {n_seeds} seed{'s' if n_seeds > 1 else ''}"
-    return (f"Training cost (this run's wall times): {len(trained) * n_seeds} trained cells ({rows}), "
+    return (f"Training cost (this run's wall times): {len(trained) * n_seeds} trained cell{'s' if len(trained) * n_seeds > 1 else ''} ({rows}), "
             f"{_duration(total)} in all; the longest, {longest['agent']} on {longest['scene']}, {longest['wall_time_s']:.0f} s a seed. "
             f"Spread over free CPUs (training only, a lower bound): {spread}.")
 

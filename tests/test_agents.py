@@ -108,8 +108,10 @@ def test_results_command_prints_the_table_of_its_grid(tmp_path, monkeypatch, cap
     (tmp_path / "results.yml").write_text("runs:\n  - scene: top_sleeping\n    algos: [ppo]\n")
     monkeypatch.setattr(config, "configs_dir", lambda: tmp_path)
     assert results_main(["--quick", "--no-progress", "--json", str(tmp_path / "r.json")]) == 0
-    lines = capsys.readouterr().out.strip().splitlines()
+    table, cost = capsys.readouterr().out.strip().split("\n\n")
+    lines = table.splitlines()
     assert lines[0].startswith("| env | task (scene) | agent |") and len(lines) == 2 + 3  # header, rule, 3 agents
+    assert cost.startswith("Training cost") and "1 trained cell" in cost  # the run's cost line under its table
     records = json.loads((tmp_path / "r.json").read_text())
     assert [r["agent"] for r in records] == ["zero action", "analytic", "PPO"]
     assert records[2]["timesteps"] == 5000 and records[0]["success_mean"] == 1.0  # zero action: a sleeping top
