@@ -51,6 +51,12 @@ def _span(values) -> str:
     return f"{lo:.2f}" if f"{lo:.2f}" == f"{hi:.2f}" else f"{lo:.2f}-{hi:.2f}"
 
 
+def _outcome(record) -> str:
+    """``success / return`` of a results row (the return where the record has it)."""
+    out = f"{record['success_mean']:.0%}"
+    return out + (f" / {record['return_mean']:.1f}" if record.get("return_mean") is not None else "")
+
+
 def headline(root: str | Path = ".") -> str:
     """The headline bullets (Markdown) from the records under ``root`` (the repository)."""
     root = Path(root)
@@ -77,13 +83,20 @@ def headline(root: str | Path = ".") -> str:
     # the evaluations on each scene's own parameters (the held-out ones are the robustness table's)
     results = [r for r in _record(root, "results") if r.get("evaluation", "nominal") == "nominal"]
     learned = [r for r in results if r["agent"] not in _BASELINES]
-    every = [f"{r['agent']} on `{r['scene']}` ({r['task']})" for r in learned if r["success_mean"] >= 1.0]
-    some = [f"{r['agent']} on `{r['scene']}` {r['success_mean']:.0%}" for r in learned if r["success_mean"] < 1.0]
     seeds = max((r["seeds"] for r in results), default=0)
-    text = f"- **Agents** (`rbenvs-results`, {_date(root, 'results')}; [baseline agents](docs/agents.md)): succeed in every episode of {seeds} seeds: "
-    text += ", ".join(every) if every else "none"
-    if some:
-        text += f"; in part: {', '.join(some)}"
+    scenes = list(dict.fromkeys(r["scene"] for r in results))  # (the table's order)
+    covered = [s for s in scenes if any(r["scene"] == s for r in learned)]
+    text = (f"- **Agents** (`rbenvs-results`, {_date(root, 'results')}; [baseline agents](docs/agents.md)): learned agents on "
+            f"{len(covered)} of {len(scenes)} scenes, {seeds} seeds each; per scene the best learned agent's success and return "
+            f"against the analytic controller's: ")
+    best = []
+    for scene in covered:
+        # the best: most success, then most return (a tie in success is told apart by the return)
+        top = max((r for r in learned if r["scene"] == scene), key=lambda r: (r["success_mean"], r.get("return_mean", 0.0)))
+        ref = [r for r in results if r["scene"] == scene and r["agent"] == "analytic"]
+        entry = f"`{scene}` {top['agent']} {_outcome(top)}"
+        best.append(entry + (f" (analytic {_outcome(ref[0])})" if ref else ""))
+    text += ", ".join(best) if best else "none"
     missing = sorted({(r["scene"], r["task"]) for r in results} - {(r["scene"], r["task"]) for r in learned})
     if missing:
         text += f"; no learned agent yet on {', '.join(f'`{s}` ({t})' for s, t in missing)}"

@@ -311,4 +311,5 @@ def test_headline_counts_what_the_records_say(tmp_path):
     lines = headline(tmp_path).splitlines()
     assert "1 of 2 checks pass, on free_body " in lines[0]  # (a row that does not apply is not counted)
     assert "free body 0.40; tippe top 3.00." in lines[1] and "free body spin 2.00x" in lines[1] and "tippe top 5.0-5.0x" in lines[1]
-    assert "of 3 seeds: PPO on `default` (spin)" in lines[2] and "no learned agent yet on `tippe_hold` (hold)" in lines[2]
+    assert "learned agents on 1 of 2 scenes, 3 seeds each" in lines[2] and "`default` PPO 100% (analytic 100%)" in lines[2]
+    assert "no learned agent yet on `tippe_hold` (hold)" in lines[2]
