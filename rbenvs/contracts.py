@@ -93,9 +93,10 @@ class GuardRates:
     * ``ceiling``: an upper bound of ``lambda`` over every state inside the observation bounds
       (``inf``: none known; a guard whose ceiling fits in ``substeps`` never needs checking);
     * ``text``: the rule in words, with the parameters that set the rates;
-    * ``accuracy``: pure ``fn(P, y) -> lambda_e`` [1/s], a bound of the vector field's Jacobian
-      at ``y`` (and of its higher derivatives' share, :func:`rbenvs.core.guard.motion_rates`),
-      sharper than ``rotation`` for the error ``tolerance=`` estimates; used only there, never
+    * ``accuracy``: pure ``fn(P, y) -> lambda_e`` [1/s], the rate of the error at ``y`` (a bound
+      of the vector field's Jacobian and of its higher derivatives' share, or the motion's own
+      frequency within it, :func:`rbenvs.core.guard.motion_rates`), sharper than ``rotation``
+      for the error ``tolerance=`` estimates; used only there, never
       for the stability bound; ``None``: ``rotation``'s rate;
     * ``dissipation_share``: pure ``fn((P, r), y, u, dt, p, lambda_d) -> a`` in ``[0, 1]`` (``r``:
       the scheme's ``forced_error_constant`` over its ``error_constant``, 0 where it declares

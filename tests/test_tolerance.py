@@ -557,13 +557,14 @@ def test_nearly_equal_moments_within_the_tolerance_from_several_starts(tol):
         assert err <= tol and err <= est <= math.log1p(tol) * (1 + 1e-9), (omega, err, est)
 
 
-@pytest.mark.parametrize("key", ["fb_fast", "fb_separatrix"])
+@pytest.mark.parametrize("key", ["fb_fast", "fb_separatrix", "fb_equal"])
 def test_free_body_tolerance_costs_at_most_1_5_times_the_cheapest_fixed_substeps(key):
     """Issue 19's cost requirement where it is met (``rbenvs bench accuracy --tolerance``'s rows,
     the cheapest fixed substeps found by bisection against the exact solution): the fast tumble
-    at 5e3-1e4 rad/s and the separatrix, at 1e-3, 1e-6 and 1e-9, within the tolerance at no more
-    than 1.5 times the cheapest fixed setting's internal steps (before the Jacobian's rate the
-    fast tumble took 1.39, 1.76 and 1.97 times)."""
+    at 5e3-1e4 rad/s, the separatrix and moments equal to 1e-9, at 1e-3, 1e-6 and 1e-9, within
+    the tolerance at no more than 1.5 times the cheapest fixed setting's internal steps (before
+    the Jacobian's rate the fast tumble took 1.39, 1.76 and 1.97 times; with the Jacobian's
+    bound, before the motion's own frequency, the nearly equal moments took 3.00 and 2.64)."""
     from rbenvs.bench.tolerance import run_tolerance
 
     rows = [r for r in run_tolerance(keys=[key])["rows"] if r["tolerance"] is not None]
@@ -586,10 +587,13 @@ def test_bench_case_option_is_refused_without_tolerance_or_for_an_unknown_key(ca
     assert e.value.code == 2 and "'fb_fast'" in capsys.readouterr().err
 
 
-def test_the_jacobian_rate_is_the_free_bodys_without_attitude_only():
+def test_the_error_rate_is_the_free_bodys_without_attitude_only():
     """With attitude (``reorient``) the quaternion turns at ``|Omega| / 2`` and the error keeps
-    ``lambda = |Omega|``; without, ``lambda_e = s |Pi|`` (here ``s = 1 - 1/2``); the stability
-    bound takes ``|Omega|`` in both."""
+    ``lambda = |Omega|``; without, ``lambda_e`` is :func:`error_rate` (at most the Jacobian's
+    bound ``s |Pi|``, ``s = 1 - 1/2``, which caps it: here it is the bound); the stability bound
+    takes ``|Omega|`` in both."""
+    from rbenvs.dynamics.free_body import error_rate, error_rate_params
+
     pi = (2.0, 1.5, 0.5)  # Omega = (1, 1, 0.5)
     for task, attitude in (("spin", False), ("reorient", True)):
         env = FreeRigidBodyEnv(task=task, integrator="rk4", max_torque=0.0, tolerance=1e-6)
@@ -597,8 +601,71 @@ def test_the_jacobian_rate_is_the_free_bodys_without_attitude_only():
         y = (*pi, *env.state_components[3:])
         lam, mu, lam_e = env.step_rule.rate(y)
         assert lam == pytest.approx(1.5, rel=1e-15)
-        assert lam_e == (lam if attitude else pytest.approx(0.5 * math.sqrt(2.0**2 + 1.5**2 + 0.5**2), rel=1e-15))
+        bound = 0.5 * math.sqrt(2.0**2 + 1.5**2 + 0.5**2)
+        if attitude:
+            assert lam_e == lam
+        else:
+            assert lam_e == error_rate(error_rate_params((0.5, 1.0 / 1.5, 1.0)), pi) and lam_e <= bound
         assert 0.0 < mu <= lam_e
+
+
+def test_the_error_rate_is_a_symmetric_bodys_precession_frequency_within_the_jacobians_bound():
+    """:func:`error_rate` on a body with two equal moments ``(A, A, C)`` is the frequency at which
+    ``Pi`` precesses about the symmetry axis, ``|Pi3 (1/C - 1/A)|``, on every state (the motion is
+    a circle: ``dddPi = -w^2 dPi``); on any body it is at most the Jacobian's bound ``s |Pi|``
+    (:func:`jacobian_rate`), which it returns at a steady spin (``dPi = 0``); floats and arrays
+    give the same bits."""
+    from rbenvs.dynamics.free_body import error_rate, error_rate_params, jacobian_rate
+
+    rng = np.random.default_rng(11)
+    for a, c in [(1.5, 1.0), (1.0, 1.9), (2.0, 1.2)]:
+        p = error_rate_params((1.0 / a, 1.0 / a, 1.0 / c))
+        assert p[2] == 0.0  # no intermediate axis: no separatrix
+        for _ in range(50):
+            pi = tuple(rng.normal(size=3) * 10.0 ** rng.uniform(-2, 3))
+            assert error_rate(p, pi) == pytest.approx(abs(pi[2] * (1.0 / c - 1.0 / a)), rel=1e-12)
+    bodies = [(2.0, 1.5, 1.0), (1.5, 1.5 * (1 + 1e-9), 1.0), (3.0, 1.0, 2.5)] + [tuple(rng.uniform(0.5, 2.0, 3)) for _ in range(10)]
+    for inertia in bodies:
+        inv = tuple(1.0 / np.asarray(inertia))
+        p = error_rate_params(inv)
+        pis = rng.normal(size=(3, 40)) * 10.0 ** rng.uniform(-2, 3, 40)
+        rates = error_rate(p, tuple(pis))
+        for k in range(40):
+            pi = tuple(float(v) for v in pis[:, k])
+            r = error_rate(p, pi)
+            assert r == rates[k] and 0.0 < r <= jacobian_rate((p[1],), pi)
+        axis = int(np.argmax(inertia))
+        spin = tuple(3.0 if i == axis else 0.0 for i in range(3))
+        assert error_rate(p, spin) == jacobian_rate((p[1],), spin)  # at rest in the body frame: the bound
+
+
+# triaxial and nearly symmetric bodies, starts near a stable axis, near the separatrix, in between
+BODIES = [((1.5, 1.45, 1.0), [(5.0, 1.0, 0.5), (0.01, 5.0, 0.01), (3.0, 3.0, 3.0)]),
+          ((3.0, 2.9, 1.2), [(1.0, 4.0, 2.0), (0.02, 5.0, 0.01)]),
+          ((2.0, 1.5, 1.0), [(5.0, 3.0, 0.05), (0.01, 5.0, 0.01), (-2.0, 4.0, 6.0)]),
+          ((1.5, 1.5 * (1 + 1e-3), 1.0), [(5.0, 3.0, 0.05), (3.0, 3.0, 3.0)])]
+
+
+@pytest.mark.parametrize("inertia,starts", BODIES, ids=["%g-%g-%g" % b for b, _ in BODIES])
+@pytest.mark.parametrize("tol", (1e-6, 1e-9))
+def test_triaxial_and_nearly_symmetric_bodies_within_the_tolerance_from_several_starts(inertia, starts, tol):
+    """The motion's own frequency as the error's rate (:func:`error_rate`) on bodies beside the
+    bench's: rk4, 200 periods (10 s) from starts near a stable axis, 0.002-0.004 off the
+    separatrix and in between, against the exact solution: within the tolerance, the summed
+    estimate within ``log(1 + tol)``."""
+    for omega in starts:
+        env = FreeRigidBodyEnv(inertia=inertia, axis=0, max_torque=0.0, integrator="rk4", max_angular_velocity=50.0, tolerance=tol,
+                               tolerance_horizon=200)
+        pi0 = np.array(inertia) * np.array(omega)
+        env.reset(seed=0, options={"state": {"angular_momentum": pi0}})
+        err = est = 0.0
+        for k in range(1, 201):
+            _, _, _, _, info = env.step(np.zeros(3, np.float32))
+            assert not info["numerical_failure"]
+            ref = np.array(exact_solution(inertia, pi0, k * env.dt))
+            err = max(err, float(np.linalg.norm(np.array(env.state_components[:3]) - ref) / np.linalg.norm(ref)))
+            est += info["error_estimate"]
+        assert err <= tol and est <= math.log1p(tol) * (1 + 1e-9), (omega, err, est)
 
 
 @pytest.mark.parametrize("key", ["fb_auto", "top_auto"])

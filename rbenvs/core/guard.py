@@ -194,7 +194,9 @@ def motion_rates(rotation, rhs, blocks: tuple, accuracy=None):
     a rate set by the spread of its moments, not by ``|Omega|``: nearly equal moments, a fast
     tumble); where the system bounds its Jacobian and its second derivative's share by
     ``lambda_e`` (:func:`rbenvs.dynamics.free_body.jacobian_rate`), the local error is at most
-    ``C h^(p+1) lambda_e^p |dy/dt|`` to the same order."""
+    ``C h^(p+1) lambda_e^p |dy/dt|`` to the same order; where the system knows its motion's own
+    frequency (:func:`rbenvs.dynamics.free_body.error_rate`: ``Pi`` on its polhode), that
+    frequency, within the bound."""
     lines = ["def rates(P, y, u):", "    lam = rotation(P[0], y)", "    f = rhs(P[1], y, u)",
              "    lam_e = accuracy(P[2], y)" if accuracy is not None else "    lam_e = lam"]
     for j, (a, b) in enumerate(blocks):
