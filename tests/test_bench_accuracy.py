@@ -125,3 +125,29 @@ def test_cheapest_picks_the_least_cost_point_within_the_tolerance():
     assert cheapest(rows, 1e-6) == ("b", 3.0)
     assert cheapest(rows, 1e-9) == ("b", 9.0)
     assert cheapest(rows, 1e-12) is None
+
+
+def test_a_block_zero_in_start_and_reference_is_no_error_unless_the_state_leaves_zero():
+    """The accuracy bench's relative error per block (``max(|ref_b|, |y0_b|)`` as the scale): a
+    frictionless tippe top spun from rest keeps ``v_G = 0`` exactly, and that block is no error
+    (it was 0/0, reported as an infinite reference error); a state that leaves zero there is an
+    infinite error, and a block with a scale keeps its relative error."""
+    import math
+
+    from rbenvs.bench.accuracy import _block_error
+    from rbenvs.dynamics.tippe_top import TippeTop, TippeTopParams
+
+    system = TippeTop(TippeTopParams(), fidelity="frictionless")
+    layout = system.layout
+    (va, vb), (wa, _) = layout["velocity"], layout["angular_velocity"]
+    y0 = [[0.0] for _ in range(system.dim)]
+    y0[layout["attitude"][0]] = [1.0]
+    y0[wa + 2] = [150.0]
+    ref = [list(c) for c in y0]
+    assert _block_error(system, "tippe_frictionless", y0, ref, y0) == 0.0
+    moved = [list(c) for c in y0]
+    moved[va] = [1e-12]
+    assert _block_error(system, "tippe_frictionless", moved, ref, y0) == math.inf
+    spun = [list(c) for c in y0]
+    spun[wa + 2] = [150.0 * (1 + 1e-9)]
+    assert _block_error(system, "tippe_frictionless", spun, ref, y0) == pytest.approx(1e-9, rel=1e-6)
