@@ -48,16 +48,18 @@ def _policy_factory(agent: str, algo_hint: str | None = None):
     path = Path(agent)
     if not path.is_file():
         raise ValueError(f"agent must be 'analytic', 'zero' or a path to a model.zip, got {agent!r}")
-    algo = algo_hint
+    algo, normalization = algo_hint, None
     meta = path.with_name("run.json")
-    if algo is None and meta.is_file():
-        algo = json.loads(meta.read_text())["algo"]
+    if meta.is_file():
+        run = json.loads(meta.read_text())
+        algo = algo or run["algo"]
+        normalization = run.get("obs_normalization")  # (normalize_obs: the policy's frozen statistics)
     if algo is None:
         raise ValueError(f"cannot tell the algorithm of {agent}: no run.json beside it; pass --algo")
     from .train import algorithm_class
 
     model = algorithm_class(algo).load(path, device="cpu")
-    return lambda env: sb3_policy(model)
+    return lambda env: sb3_policy(model, normalization)
 
 
 def _table(rows, header):
@@ -112,7 +114,7 @@ def _train(argv) -> int:
     if "tensorboard" in info:
         print(f"TensorBoard logs in {info['tensorboard']} (tensorboard --logdir {args.tensorboard})")
     if not args.no_compare:
-        rows, records = _eval_rows(scene, [(f"{args.algo} (seed {args.seed})", lambda env: sb3_policy(model)),
+        rows, records = _eval_rows(scene, [(f"{args.algo} (seed {args.seed})", lambda env: sb3_policy(model, info.get("obs_normalization"))),
                                            ("analytic", analytic_policy), ("zero action", zero_policy)],
                                    args.eval_episodes, args.eval_seeds)
         print(f"\nevaluation on '{scene.name}' ({scene.description}), {args.eval_episodes} episodes x seeds {args.eval_seeds}:")

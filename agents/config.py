@@ -18,6 +18,11 @@ code. Reserved keys:
   the running standard deviation of the discounted return; observations stay raw, so the
   trained policy acts on the env as it is, with no statistics to carry). rbenvs only, like
   ``eval_episodes``: the shipped files set it in ``scenes:`` blocks, which the zoo never reads.
+* ``normalize_obs``: train on observations standardised by ``VecNormalize``'s running mean and
+  variance (clipped at 10 standard deviations); the statistics at the end of training are kept
+  with the policy (``run.json``'s ``obs_normalization``; :func:`rbenvs_agents.evaluate.sb3_policy`)
+  and applied, frozen, wherever it acts. For observations of very different scales (a top's
+  spin of 20 rad/s beside the unit vertical). rbenvs only, like ``normalize_reward``.
 
 Every other key goes to the algorithm's constructor (``learning_rate``, ``gamma``, ...).
 Precedence: ``default`` (when the env id has no block) < env id < scene < explicit overrides.
@@ -36,7 +41,7 @@ from rbenvs.extras import require
 __all__ = ["ALGORITHMS", "AgentConfig", "agent_config", "configs_dir"]
 
 ALGORITHMS = ("ppo", "sac", "td3")
-RESERVED = ("n_timesteps", "n_envs", "policy", "policy_kwargs", "eval_episodes", "normalize_reward")
+RESERVED = ("n_timesteps", "n_envs", "policy", "policy_kwargs", "eval_episodes", "normalize_reward", "normalize_obs")
 
 
 def configs_dir():
@@ -56,6 +61,7 @@ class AgentConfig:
     eval_episodes: int = 10
     hyperparams: dict = field(default_factory=dict)
     normalize_reward: bool = False
+    normalize_obs: bool = False
 
 
 def agent_config(algo: str, env_id: str, scene: str | None = None, **overrides) -> AgentConfig:
@@ -99,6 +105,7 @@ def agent_config(algo: str, env_id: str, scene: str | None = None, **overrides) 
         policy_kwargs=dict(merged.pop("policy_kwargs", {}) or {}),
         eval_episodes=int(merged.pop("eval_episodes", 10)),
         normalize_reward=_flag("normalize_reward", merged.pop("normalize_reward", False)),
+        normalize_obs=_flag("normalize_obs", merged.pop("normalize_obs", False)),
         hyperparams=merged,
     )
 

@@ -80,16 +80,26 @@ def zero_policy(env):
 
 
 class _SB3:
-    def __init__(self, model):
+    def __init__(self, model, normalization=None):
         self.model = model
+        self.scale = None
+        if normalization is not None:  # VecNormalize's standardisation, frozen at the end of training
+            self.mean = np.asarray(normalization["mean"], dtype=np.float64)
+            self.scale = np.sqrt(np.asarray(normalization["var"], dtype=np.float64) + float(normalization["epsilon"]))
+            self.clip = float(normalization["clip"])
 
     def predict(self, obs):
+        if self.scale is not None:
+            obs = np.clip((np.asarray(obs, dtype=np.float64) - self.mean) / self.scale, -self.clip, self.clip).astype(np.float32)
         action, _ = self.model.predict(obs, deterministic=True)
         return action
 
 
-def sb3_policy(model):
-    return _SB3(model)
+def sb3_policy(model, normalization=None):
+    """A trained SB3 model as a policy (deterministic actions); ``normalization``: the
+    ``obs_normalization`` its training recorded (``normalize_obs``), applied to every
+    observation as ``VecNormalize`` did, or ``None``."""
+    return _SB3(model, normalization)
 
 
 def evaluate(policy_factory, scene, episodes: int = 10, seed: int = 0, env_overrides=None) -> Evaluation:

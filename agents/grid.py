@@ -119,7 +119,7 @@ def run_cell(cell: Cell, progress: bool = False) -> CellResult:
         timesteps, train_rate = info["timesteps"], info["steps_per_s"]
 
         def factory(env):
-            return sb3_policy(model)
+            return sb3_policy(model, info.get("obs_normalization"))
 
     # the env alone first: its untimed warm-up builds the compiled step the evaluations then use,
     # so that no compilation lands in the timed loops

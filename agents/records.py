@@ -47,6 +47,8 @@ def cell_key(cell: Cell) -> str:
         from .config import agent_config
 
         key["config"] = dataclasses.asdict(agent_config(cell.agent, scene.env_id, scene.name, **cell.hyperparams))
+        if not key["config"]["normalize_obs"]:  # (absent when off: the keys written before the flag stay valid)
+            del key["config"]["normalize_obs"]
     return json.dumps(key, sort_keys=True, default=_plain)
 
 

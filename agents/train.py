@@ -80,11 +80,12 @@ def train(algo: str, scene, seed: int = 0, timesteps: int | None = None, out_dir
         venv = make_vec_env(lambda: scene.make(**dict(env_overrides or {})), n_envs=1, seed=seed)
     else:
         venv = make_sb3_vec_env(scene.env_id, cfg.n_envs, seed=seed, **env_kwargs)
-    if cfg.normalize_reward:
+    if cfg.normalize_reward or cfg.normalize_obs:
         from stable_baselines3.common.vec_env import VecNormalize
 
-        # rewards only: the policy sees the env's own observations, in training and after
-        venv = VecNormalize(venv, norm_obs=False, norm_reward=True, gamma=float(cfg.hyperparams.get("gamma", 0.99)))
+        # without normalize_obs the policy sees the env's own observations, in training and after;
+        # with it, the final statistics go with the policy (info["obs_normalization"])
+        venv = VecNormalize(venv, norm_obs=cfg.normalize_obs, norm_reward=cfg.normalize_reward, gamma=float(cfg.hyperparams.get("gamma", 0.99)))
     cls = algorithm_class(algo)
     model = cls(cfg.policy, venv, seed=seed, device=device, policy_kwargs=cfg.policy_kwargs or None, verbose=0,
                 tensorboard_log=None if tensorboard is None else str(tensorboard), **cfg.hyperparams)
@@ -108,6 +109,9 @@ def train(algo: str, scene, seed: int = 0, timesteps: int | None = None, out_dir
         "steps_per_s": model.num_timesteps / wall,  # (a rollout may overshoot the budget: the steps taken)
         "config": asdict(cfg),
     }
+    if cfg.normalize_obs:
+        info["obs_normalization"] = {"mean": venv.obs_rms.mean.tolist(), "var": venv.obs_rms.var.tolist(), "epsilon": float(venv.epsilon),
+                                     "clip": float(venv.clip_obs)}
     if tensorboard is not None:
         info["tensorboard"] = model.logger.dir  # the run's own folder of event files
     if out is not None:

@@ -132,3 +132,33 @@ def test_normalize_reward_scales_rewards_only(tmp_path):
     assert isinstance(venv, VecNormalize) and venv.norm_reward and not venv.norm_obs and venv.gamma == 0.98
     obs = venv.reset()
     assert np.array_equal(obs, venv.get_original_obs())  # observations pass through unchanged
+
+
+def test_normalize_obs_standardises_observations_and_the_policy_carries_the_statistics(tmp_path):
+    """``normalize_obs: true`` trains on VecNormalize's standardised observations; the statistics
+    at the end of training are recorded (``info`` and ``run.json``: ``obs_normalization``) and the
+    policy applies them, frozen: its action on a raw observation is the model's action on that
+    observation standardised as VecNormalize does (here and after loading from disk)."""
+    from stable_baselines3.common.vec_env import VecNormalize
+
+    from rbenvs_agents.cli import _policy_factory
+    from rbenvs_agents.evaluate import sb3_policy
+
+    assert agent_config("ppo", "rbenvs/LagrangeTop-v0", "top_precess").normalize_obs is True
+    assert agent_config("ppo", "rbenvs/FreeRigidBody-v0", "default").normalize_obs is False
+    with pytest.raises(ValueError, match="normalize_obs must be true or false"):
+        agent_config("ppo", "rbenvs/FreeRigidBody-v0", normalize_obs=1)
+    model, info = train("ppo", load_scene("top_upright"), seed=0, timesteps=512, progress=False, normalize_obs=True, n_steps=64, batch_size=64,
+                        out_dir=tmp_path / "run")
+    venv = model.get_env()
+    assert isinstance(venv, VecNormalize) and venv.norm_obs and not venv.norm_reward
+    norm = info["obs_normalization"]
+    assert np.array_equal(norm["mean"], venv.obs_rms.mean) and np.array_equal(norm["var"], venv.obs_rms.var)
+    assert json.loads((tmp_path / "run" / "run.json").read_text())["obs_normalization"] == norm
+    env = load_scene("top_upright").make()
+    obs, _ = env.reset(seed=3)
+    expected, _ = model.predict(venv.normalize_obs(obs[None].astype(np.float64))[0].astype(np.float32), deterministic=True)
+    assert np.array_equal(sb3_policy(model, norm).predict(obs), expected)
+    loaded = _policy_factory(str(tmp_path / "run" / "model.zip"))(env)
+    assert np.array_equal(loaded.predict(obs), expected)
+    assert not np.array_equal(sb3_policy(model).predict(obs), expected)  # (raw observations act otherwise)

@@ -182,7 +182,7 @@ def test_every_block_of_the_hyperparameter_files_builds_its_algorithm(algo):
         assert set(block) <= zoo_reserved | takes, (key, set(block) - zoo_reserved - takes)
     for scene_name, block in (data.get("scenes") or {}).items():
         scene = load_scene(scene_name)
-        assert set(block) <= zoo_reserved | takes | {"eval_episodes", "normalize_reward"}, (scene_name, set(block) - zoo_reserved - takes)
+        assert set(block) <= zoo_reserved | takes | {"eval_episodes", "normalize_reward", "normalize_obs"}, (scene_name, set(block) - zoo_reserved - takes)
     grid = yaml.safe_load((config.configs_dir() / "results.yml").read_text())
     from stable_baselines3.common.env_util import make_vec_env
 
