@@ -97,7 +97,7 @@ def headline(root: str | Path = ".") -> str:
         entry = f"`{scene}` {top['agent']} {_outcome(top)}"
         best.append(entry + (f" (analytic {_outcome(ref[0])})" if ref else ""))
     text += ", ".join(best) if best else "none"
-    missing = sorted({(r["scene"], r["task"]) for r in results} - {(r["scene"], r["task"]) for r in learned})
+    missing = sorted({(r["scene"], r["task"]) for r in results if r["scene"] not in covered})
     if missing:
         text += f"; no learned agent yet on {', '.join(f'`{s}` ({t})' for s, t in missing)}"
     lines.append(text + ".")

@@ -264,3 +264,25 @@ def test_a_changed_configuration_is_a_new_cell_key(tmp_path, monkeypatch):
     (tmp_path / "ppo.yml").write_text(text)
     assert cell_key(cell) != before
     assert cell_key(Cell(load_scene("default"), "zero action", 0, 2, 100)) != cell_key(Cell(load_scene("default"), "zero action", 1, 2, 101))
+
+
+def test_normalize_obs_enters_the_cell_key_only_when_on():
+    """``normalize_obs`` is in a learned cell's key where it is on (the top_precess and tippe_hold
+    PPO cells) and absent where it is off, so the keys written before the flag existed, those of
+    the published records (docs/results.cells.jsonl), still name their cells."""
+    from rbenvs_agents.records import cell_key
+
+    off = json.loads(cell_key(Cell(load_scene("default"), "ppo", 0, 2, 100)))["config"]
+    on = json.loads(cell_key(Cell(load_scene("top_precess"), "ppo", 0, 2, 100)))["config"]
+    assert "normalize_obs" not in off and off["normalize_reward"] is False
+    assert on["normalize_obs"] is True
+
+    from pathlib import Path
+
+    from rbenvs_agents.grid import grid_cells
+
+    # the published records hold every cell of the grid as configured now (docs/agents.md's
+    # table is made from them): 180 cells, 3 seeds
+    published = {json.loads(line)["key"] for line in (Path(__file__).resolve().parents[1] / "docs" / "results.cells.jsonl").read_text().splitlines()}
+    cells = grid_cells([0, 1, 2])
+    assert len(cells) == 180 and all(cell_key(c) in published for c in cells)

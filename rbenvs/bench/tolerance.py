@@ -77,6 +77,14 @@ TOLERANCE_CASES = (
     ToleranceCase("fb_equal", "free body, rk4, moments equal to 1e-9, 10 rad/s", "free_body",
                   dict(inertia=(1.5, 1.5 * (1 + 1e-9), 1.0), axis=0, max_torque=0.0, integrator="rk4", max_angular_velocity=20.0),
                   (_body((1.5, 1.5 * (1 + 1e-9), 1.0), (6.0, 6.0, 5.0)),), 400),
+    # beside the bench's: a nearly symmetric body and the default body at 5 rad/s, from near a
+    # stable axis, 0.002-0.004 off the separatrix and in between (error_rate's sigma term)
+    ToleranceCase("fb_near_symmetric", "free body, rk4, moments (1.5, 1.45, 1), 5 rad/s, 3 starts", "free_body",
+                  dict(inertia=(1.5, 1.45, 1.0), axis=0, max_torque=0.0, integrator="rk4", max_angular_velocity=50.0),
+                  tuple(_body((1.5, 1.45, 1.0), w) for w in ((5.0, 1.0, 0.5), (0.01, 5.0, 0.01), (3.0, 3.0, 3.0))), 200),
+    ToleranceCase("fb_triaxial", "free body, rk4, moments (2, 1.5, 1), 5 rad/s, 3 starts (one 0.002 off the separatrix)", "free_body",
+                  dict(inertia=(2.0, 1.5, 1.0), axis=0, max_torque=0.0, integrator="rk4", max_angular_velocity=50.0),
+                  tuple(_body((2.0, 1.5, 1.0), w) for w in ((5.0, 3.0, 0.05), (0.01, 5.0, 0.01), (-2.0, 4.0, 6.0))), 200),
     ToleranceCase("fb_euler", "free body, euler, 1 rad/s", "free_body", dict(max_torque=0.0, integrator="euler"), (0, 1), 400,
                   skip_fixed=(1e-6, 1e-9)),
     ToleranceCase("fb_auto", "free body, integrator='auto', 1 rad/s (fb_euler's starts)", "free_body", dict(max_torque=0.0, integrator="auto"), (0, 1), 400,

@@ -1159,11 +1159,16 @@ def implicit_forms(coefficient, stiffness, slope, rolling: bool, flight: bool) -
     if stiffness is not None and not rolling:
 
         @jitable
-        def rate(p, y, u):
+        def rate_at(p, y, u, top):
+            """The law's stiffness at the actual ``N`` and the mobility ``top`` along the table."""
             mu = p[6] if u is None else u[2]
+            return stiffness(mu, maximum(contact(p, y, u)[0], 0.0 * mu), top, p[7])
+
+        @jitable
+        def rate(p, y, u):
             rm = tippe_frame(y[Q], y[Q + 1], y[Q + 2], y[Q + 3])
             _, top = tangential_mobility(p, rm[6], rm[7], rm[8])
-            return stiffness(mu, maximum(contact(p, y, u)[0], 0.0 * mu), top, p[7])
+            return rate_at(p, y, u, top)
 
     accuracy_rate = None
     if rate is not None:
@@ -1205,7 +1210,8 @@ def implicit_forms(coefficient, stiffness, slope, rolling: bool, flight: bool) -
             kappa = coefficient(mu, reach, 0.0 * ns, 0.0 * ns, eps) / select(k0 < 0.0, k0, 0.0 * k0 - 1.0)
             # the mode at its local stiffness kappa lambda_d (lambda_d the law's at zero slip, the
             # guard's rate at least), as large as the state
-            lam = rate(p, y, u)
+            _, top = tangential_mobility(p, g1, g2, g3)
+            lam = rate_at(p, y, u, top)
             full = power(kappa * lam / maximum(guard, 0.0 * guard + 1e-300), order)
             if forced_ratio == 0.0:  # (a scheme without a forced-mode error constant)
                 return select(full < 1.0, full, 0.0 * full + 1.0)
@@ -1228,7 +1234,6 @@ def implicit_forms(coefficient, stiffness, slope, rolling: bool, flight: bool) -
             # 0.17-0.32 of the forced term). The slower mode (l_min = r l_max) relaxes r times
             # slower, so its forced error is r^2 of this one's and reaches v_G 1 / r more
             # strongly: at most as much again (its transient, r^4 less, no more)
-            _, top = tangential_mobility(p, g1, g2, g3)
             a = (transient + forced) / (p[2] * top)
             a = select(a < full, a, full)
             return select(a < 1.0, a, 0.0 * a + 1.0)
