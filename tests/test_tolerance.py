@@ -212,23 +212,35 @@ def test_fast_heavy_top_with_rk4_keeps_its_tilt(spin, periods):
 
 def test_heavy_top_with_euler_above_the_critical_spin_stays_up_or_is_refused():
     """euler on a top spun at twice the critical spin (20 rad/s, tilt 0.1): at the default step
-    it falls within the episode (the issue); with tolerance=1e-2 it is subdivided and stays
-    within 1e-2 of the reference for the whole episode (500 periods, 10 s); at 1e-6 it is
-    refused at construction, with the reason."""
+    it falls within the episode (the issue); with a tolerance it is refused at construction, with
+    the reason (its amplitude error: it cannot be made right at a cost a per-period estimate
+    can bound), and the scheme the message names, rk4, stays within the tolerance of the
+    reference for the whole episode (500 periods, 10 s) at 1e-2 and 1e-6."""
     periods = 500
-    env = LagrangeTopEnv(integrator="euler", max_torque=0.0, tolerance=1e-2)
-    err, tilt_err, _, refs = _top_run(env, _top_start(20.0), periods)
-    assert tilt_err <= err <= 1e-2
     fallen = LagrangeTopEnv(integrator="euler", max_torque=0.0)
+    refs = None
+    for tol in (1e-2, 1e-6):
+        with pytest.raises(ValueError, match=rf"tolerance={tol!r} needs an integrator whose leading error on a rotation is in the phase, \['rk4'\].*"
+                                             r"'euler' errs in the amplitude.*grows like T\^2"):
+            LagrangeTopEnv(integrator="euler", max_torque=0.0, tolerance=tol)
+        env = LagrangeTopEnv(integrator="rk4", max_torque=0.0, tolerance=tol)
+        err, tilt_err, _, refs = _top_run(env, _top_start(20.0), periods, refs)
+        assert tilt_err <= err <= tol, (tol, err)
     err, tilt_err, _, _ = _top_run(fallen, _top_start(20.0), periods, refs)
     assert not tilt_err <= 0.1  # fell (or left the tilt limit) without the tolerance
-    with pytest.raises(ValueError, match=r"tolerance=1e-06 cannot be met.*'euler' needs .* more than MAX_INTERNAL_STEPS.*grows without bound"):
-        LagrangeTopEnv(integrator="euler", max_torque=0.0, tolerance=1e-6)
 
 
-def test_free_body_with_euler_at_fast_spin_is_refused_with_the_reason():
-    with pytest.raises(ValueError, match=r"tolerance=0.001 cannot be met.*'euler'.*grows without bound"):
-        FreeRigidBodyEnv(task="detumble", spin_rate=1e3, max_angular_velocity=2e3, integrator="euler", tolerance=1e-3)
+def test_free_body_with_euler_is_refused_with_the_reason():
+    """euler with any tolerance, slow or fast spin, every task: refused, naming why and the
+    schemes that take a tolerance; integrator='auto' never picks it."""
+    for kwargs in (dict(), dict(task="detumble", spin_rate=1e3, max_angular_velocity=2e3), dict(task="reorient")):
+        for tol in (0.5, 1e-3, 1e-9):
+            with pytest.raises(ValueError, match=rf"tolerance={tol!r} needs an integrator whose leading error on a rotation is in the phase.*"
+                                                 r"'euler' errs in the amplitude"):
+                FreeRigidBodyEnv(integrator="euler", tolerance=tol, **kwargs)
+    with pytest.raises(ValueError, match=r"'euler' errs in the amplitude"):
+        TippeTopEnv(integrator="euler", tolerance=1e-3)
+    FreeRigidBodyEnv(integrator="euler")  # without a tolerance: the stability guard alone, as before
 
 
 # ----------------------------------------------------------------- refuse, the cap, info
@@ -292,7 +304,7 @@ def test_tippe_top_takes_the_generic_rule():
 # ----------------------------------------------------------------- every path takes the same steps
 LOCKSTEP = [
     ("rbenvs/FreeRigidBody-v0", dict(task="detumble", spin_rate=30.0, max_angular_velocity=60.0, integrator="rk4", tolerance=1e-6, tolerance_horizon=50), 6, 14),
-    ("rbenvs/FreeRigidBody-v0", dict(integrator="euler", spin_rate=2.0, tolerance=0.05, tolerance_horizon=20), 5, 11),
+    ("rbenvs/FreeRigidBody-v0", dict(task="reorient", integrator="rk4", spin_rate=10.0, max_angular_velocity=30.0, tolerance=1e-10, tolerance_horizon=20), 5, 11),
     ("rbenvs/LagrangeTop-v0", dict(integrator="rk4", spin=(20.0, 60.0), tolerance=1e-5), 5, 11),
     ("rbenvs/TippeTop-v0", dict(integrator="rk4", tolerance=1e-4, tolerance_horizon=100), 3, 7),
 ]
@@ -436,18 +448,6 @@ def test_tippe_tops_relaxation_share_is_its_local_stiffness():
     assert np.array_equal(rule.dissipation_share(batch, None, lam_b), np.array(shares))
 
 
-def test_free_body_with_euler_within_the_tolerance_over_the_episode():
-    """euler (whose leading error changes the amplitude, so it keeps the rate lambda in the
-    estimate) on the default body, spin task, 400 periods, two seeds: within 1e-3 of the exact
-    solution; without the tolerance 3e-2 off."""
-    for seed in (0, 1):
-        env = FreeRigidBodyEnv(max_torque=0.0, integrator="euler", tolerance=1e-3)
-        err, _, est = _free_body_run(env, seed, 400)
-        assert err <= 1e-3 and est <= math.log1p(1e-3) * (1 + 1e-9), (seed, err)
-    err, _, _ = _free_body_run(FreeRigidBodyEnv(max_torque=0.0, integrator="euler"), 0, 400)
-    assert err > 1e-2
-
-
 @pytest.mark.parametrize("key", ["fb_separatrix", "fb_equal", "top_below", "tippe", "tippe_rolling", "tippe_viscous"])
 def test_the_benchs_other_extremes_are_within_the_tolerance(key):
     """The extremes of ``rbenvs bench accuracy --tolerance`` not covered above (1e-6 off the
@@ -465,17 +465,15 @@ def test_the_benchs_other_extremes_are_within_the_tolerance(key):
 
 def test_integrator_auto_takes_the_cheapest_scheme_meeting_the_tolerance():
     """``integrator="auto"`` with a tolerance: the scheme with an error constant whose steps at the
-    fastest start times its rhs evaluations cost least; rk4 for a tight tolerance, euler where a
-    loose one over a short horizon needs no more than one step either way; refused without a
-    tolerance."""
+    fastest start times its rhs evaluations cost least, of the schemes a tolerance takes (rk4
+    today: euler is refused, even where a loose tolerance over a short horizon needs one step of
+    either); refused without a tolerance."""
     assert LagrangeTopEnv(integrator="auto", tolerance=1e-6).integrator.name == "rk4"
     assert FreeRigidBodyEnv(integrator="auto", tolerance=1e-6).integrator.name == "rk4"
     assert TippeTopEnv(integrator="auto", tolerance=1e-3).integrator.name == "rk4"
     loose = FreeRigidBodyEnv(integrator="auto", spin_rate=0.01, tolerance=0.5, tolerance_horizon=1)
-    assert loose.integrator.name == "euler"
-    for name in ("euler", "rk4"):  # the choice is the cheaper of the two, measured by their own counts
-        env = FreeRigidBodyEnv(integrator=name, spin_rate=0.01, tolerance=0.5, tolerance_horizon=1)
-        assert env.internal_steps(env.reset(seed=0) and env.state_components, (0.0, 0.0, 0.0)) == 1
+    assert loose.integrator.name == "rk4"
+    assert loose.internal_steps(loose.reset(seed=0) and loose.state_components, (0.0, 0.0, 0.0)) == 1
     with pytest.raises(ValueError, match=r"integrator='auto' chooses the scheme that meets tolerance= at the least cost: pass tolerance="):
         FreeRigidBodyEnv(integrator="auto")
 
@@ -687,7 +685,7 @@ def test_integrator_auto_costs_at_most_1_5_times_the_cheapest_fixed_setting_of_a
     at its fewest substeps meeting the tolerance against the reference), in rhs evaluations: on
     euler's rows' starts (the default free body at 1 rad/s, a top at twice its critical spin) it
     picks rk4, within the tolerance at no more than 1.5 times that cost (euler named by the user
-    costs 15 times fixed euler: its first-order steps grow like the estimate's overestimate)."""
+    is refused with a tolerance: fb_euler, top_euler)."""
     from rbenvs.bench.tolerance import run_tolerance
 
     rows = [r for r in run_tolerance(keys=[key])["rows"] if r["tolerance"] is not None]
@@ -696,3 +694,24 @@ def test_integrator_auto_costs_at_most_1_5_times_the_cheapest_fixed_setting_of_a
         assert r["failure"] is None and r["error"] <= r["tolerance"], r
         assert r["integrator"] == "rk4" and r["fixed_integrator"] in ("euler", "rk4")
         assert r["cost_ratio"] <= 1.5, r
+
+
+def test_the_bench_prints_euler_refused_at_every_tolerance():
+    """Issue 19's third point in the bench: euler named with a tolerance (fb_euler, top_euler) is
+    refused at 1e-3, 1e-6 and 1e-9 with the reason; its row without a tolerance runs (the
+    default step's error)."""
+    import io
+
+    from rbenvs.bench.tolerance import print_tolerance, run_tolerance
+
+    result = run_tolerance(keys=["fb_euler", "top_euler"], fixed=False)
+    rows = result["rows"]
+    assert [r["tolerance"] for r in rows] == [None, 1e-3, 1e-6, 1e-9] * 2
+    for r in rows:
+        if r["tolerance"] is None:
+            assert r["error"] > 1e-2  # the default step is far off (the issue's point)
+        else:
+            assert "errs in the amplitude" in r["refused"], r
+    out = io.StringIO()
+    print_tolerance(result, out)
+    assert out.getvalue().count("refused  ") == 6 and "integrator 'euler' errs in the amplitude" in out.getvalue()

@@ -1,8 +1,8 @@
 """``rbenvs bench accuracy --tolerance``: what ``tolerance=`` achieves and what it costs.
 
 For each extreme of issue 19 (fast spins to 1e4 rad/s, the separatrix, nearly equal moments,
-heavy tops above and below the critical spin, euler where its error grows without bound, the
-tippe top from several starts) and each requested tolerance (1e-3, 1e-6, 1e-9), the env is
+heavy tops above and below the critical spin, euler where its error grows without bound (refused
+with a tolerance), the tippe top from several starts) and each requested tolerance (1e-3, 1e-6, 1e-9), the env is
 built with ``tolerance=tol`` and ``tolerance_horizon`` = the case's periods, run without
 control from the case's starts, and compared period by period with the reference (the free
 body: the exact elliptic solution; the others: DOP853 at ``rtol = 1e-13``, as
@@ -22,8 +22,9 @@ body: the exact elliptic solution; the others: DOP853 at ``rtol = 1e-13``, as
   too, and the fixed setting is the cheapest of every scheme with an error constant (each one's
   fewest substeps), compared in rhs evaluations (``steps x`` the scheme's evaluations a step:
   the ``fixed`` column names the scheme);
-* a construction refusal (``refused``: the tolerance cannot be met within ``MAX_INTERNAL_STEPS``)
-  or an episode ended as a numerical failure is printed as such.
+* a construction refusal (``refused``: the tolerance cannot be met within ``MAX_INTERNAL_STEPS``,
+  or the scheme's leading error is in the amplitude: euler, whose rows show it) or an episode
+  ended as a numerical failure is printed as such.
 
 The error constants are measured here too (:func:`rbenvs.integrators.error.measure_error_constant`)
 against each scheme's declared one.
@@ -279,8 +280,12 @@ def print_tolerance(result, file=None):
         tol = "none" if r["tolerance"] is None else f"{r['tolerance']:.0e}"
         if "refused" in r:
             reason = r["refused"]
-            short = reason.split(" internal steps")[0].replace(f"tolerance={r['tolerance']!r} cannot be met: at the start the integrator ", "")
-            print(f"{r['case']:<14} {r['periods']:>7} {tol:>9} {'refused':>8} {'':>8} {'':>10} {'':>7} {'':>11} {'':>6}  {short} internal steps a period", file=file)
+            if "cannot be met" in reason:
+                short = reason.split(" internal steps")[0].replace(f"tolerance={r['tolerance']!r} cannot be met: at the start the integrator ", "")
+                short += " internal steps a period"
+            else:  # a scheme tolerance= does not take (its error in the amplitude)
+                short = reason.split("(or integrator='auto'): ")[-1].split(", which")[0]
+            print(f"{r['case']:<14} {r['periods']:>7} {tol:>9} {'refused':>8} {'':>8} {'':>10} {'':>7} {'':>11} {'':>6}  {short}", file=file)
             continue
         note = r.get("failure") or ""
         if r["tolerance"] is not None and not note:

@@ -243,16 +243,17 @@ class RigidBodyEnv(gym.Env):
         return require_int_in("tolerance_horizon", value, 1, 10**12, " (control periods over which tolerance holds)")
 
     def _cheapest_integrator(self, system, task, actuator, dt, substeps, guard, observation_high, tolerance, horizon):
-        """``integrator="auto"``: of the schemes that declare an error constant and take this
-        system, the one whose internal steps at the fastest start, times its rhs evaluations a
-        step, cost the least (ties: the first registered)."""
+        """``integrator="auto"``: of the schemes that ``tolerance=`` takes (an error constant, the
+        leading error in the phase: :meth:`_require_accuracy`) and that take this system, the one
+        whose internal steps at the fastest start, times its rhs evaluations a step, cost the least
+        (ties: the first registered)."""
         if tolerance is None:
             raise ValueError("integrator='auto' chooses the scheme that meets tolerance= at the least cost: pass tolerance= (a relative error per episode)")
         best = None
         high = tuple(float(v) for v in observation_high)
         for cls in _registry().values():
             scheme = cls()
-            if getattr(scheme, "error_constant", None) is None or not scheme.evaluations or not scheme.supports(system):
+            if getattr(scheme, "error_constant", None) is None or not scheme.error_in_phase or not scheme.evaluations or not scheme.supports(system):
                 continue
             self.model = Model(system, task, scheme, actuator, dt, substeps, guard, high, self._speed_ceiling(), tolerance, horizon,
                                self.registered_episode_steps())
@@ -276,6 +277,20 @@ class RigidBodyEnv(gym.Env):
                 f"tolerance={tolerance!r} needs an integrator that declares an error constant (its error C lambda T (lambda h)^order "
                 f"on a rotation, rbenvs.integrators.error): {with_constant}; integrator {integrator.name!r} declares none "
                 f"(exact sub-flows err by the system's commutators, not by one rate; an adaptive scheme controls its own error)"
+            )
+        if not integrator.error_in_phase:
+            # euler: its leading error grows a rotation's amplitude (by sqrt(1 + (lambda h)^2) a
+            # step); on a nonlinear rotation the amplitude sets the frequency, so the phase error
+            # grows like T^2 and a per-period sum either misses it (with the state's own rate:
+            # 2.7 times the tolerance) or overestimates it (with lambda: 16 times the error, 15
+            # times the steps of the cheapest fixed substeps; docs/integrators.md)
+            in_phase = sorted(name for name, cls in _registry().items() if getattr(cls, "error_constant", None) is not None and cls.error_in_phase)
+            raise ValueError(
+                f"tolerance={tolerance!r} needs an integrator whose leading error on a rotation is in the phase, {in_phase} "
+                f"(or integrator='auto'): integrator {integrator.name!r} errs in the amplitude (each step grows a rotation by "
+                f"sqrt(1 + (lambda h)^2)), which on a nonlinear rotation moves the frequency, so its phase error grows like T^2 and no "
+                f"per-period estimate bounds it without overestimating it many times (measured: 15 times the steps of its cheapest fixed "
+                f"substeps meeting the same tolerance); without tolerance= it runs at the guard's stability bound"
             )
 
     def _start_dissipation(self) -> float:

@@ -132,7 +132,8 @@ class FreeRigidBodyEnv(RigidBodyEnv):
     * ``guard="subdivide"``: ``"subdivide"``, ``"refuse"`` or ``"off"`` (Guarded stepping).
     * ``tolerance=None``: the relative error allowed over ``tolerance_horizon`` control periods
       (a finite number with ``0 < tolerance < 1``; ``None``: no accuracy bound), for the schemes
-      that declare ``error_constant`` (``euler``, ``rk4``); the rule, the refusals and
+      that declare ``error_constant`` with their leading error in the phase (``rk4``; ``euler``
+      errs in the amplitude and is refused with a tolerance); the rule, the refusals and
       ``info["error_estimate"]``: :mod:`rbenvs.core.guard` and docs/integrators.md ("Accuracy: tolerance=").
     * ``tolerance_horizon=None``: control periods the tolerance covers (an integer >= 1;
       ``None``: the registered ``max_episode_steps``, one episode; a ``max_episode_steps``

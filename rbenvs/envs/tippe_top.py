@@ -155,11 +155,12 @@ class TippeTopEnv(RigidBodyEnv):
     * ``start=None``: how the top was spun, ``"rest"``, ``"rolling"`` or ``"vertical"``
       (``None``: ``"rest"``, or ``"rolling"`` with ``fidelity="rolling"``; Starting state).
     * ``dt=0.01`` s, ``substeps=1`` (a minimum), ``integrator="rk4"`` (``euler``, ``rk4``, ``dop853``;
-      ``"auto"`` with ``tolerance``: the cheaper of ``euler`` and ``rk4`` at the fastest start).
+      ``"auto"`` with ``tolerance``: the cheapest scheme a tolerance takes, ``rk4`` today).
     * ``guard="subdivide"``: ``"subdivide"``, ``"refuse"`` or ``"off"`` (Internal step).
     * ``tolerance=None``: the relative error allowed over ``tolerance_horizon`` control periods
       (a finite number with ``0 < tolerance < 1``; ``None``: no accuracy bound), for the schemes
-      that declare ``error_constant`` (``euler``, ``rk4``); the rule, the refusals and
+      that declare ``error_constant`` with their leading error in the phase (``rk4``; ``euler``
+      errs in the amplitude and is refused with a tolerance); the rule, the refusals and
       ``info["error_estimate"]``: :mod:`rbenvs.core.guard` and docs/integrators.md ("Accuracy: tolerance=").
     * ``tolerance_horizon=None``: control periods the tolerance covers (an integer >= 1;
       ``None``: the registered ``max_episode_steps``, one episode; a ``max_episode_steps``
