@@ -715,3 +715,63 @@ def test_the_bench_prints_euler_refused_at_every_tolerance():
     out = io.StringIO()
     print_tolerance(result, out)
     assert out.getvalue().count("refused  ") == 6 and "integrator 'euler' errs in the amplitude" in out.getvalue()
+
+
+def test_a_tolerance_on_an_unstable_motion_warns_with_the_theorem():
+    """tolerance= holds the error the steps commit; a motion unstable by the system's own theorem
+    amplifies errors already made, so the env says so at construction (UnstableMotionWarning):
+    an upright top whose spin reaches below the critical spin, a spin about the intermediate
+    axis, a tippe top spun above its inversion threshold. Stable starts, and no tolerance, are
+    silent."""
+    from rbenvs.envs import UnstableMotionWarning
+    from rbenvs.oracles.tippe_top import inversion_spin_threshold
+
+    crit = LagrangeTopEnv().critical_spin
+    with pytest.warns(UnstableMotionWarning, match=rf"critical spin {crit:.6g} rad/s.*spin reaches 4\.95227 rad/s.*amplifies errors already made"):
+        LagrangeTopEnv(integrator="rk4", tolerance=1e-6)  # the default upright start: half the critical spin
+    with pytest.warns(UnstableMotionWarning, match=r"intermediate axis \(axis 1\)"):
+        FreeRigidBodyEnv(tolerance=1e-6)
+    top = TippeTopEnv()
+    p = top.params
+    threshold = inversion_spin_threshold(p.inertia[0], p.inertia[1], p.offset, p.mass, p.gravity, p.radius)
+    with pytest.warns(UnstableMotionWarning, match=rf"the top inverts \(the inversion criterion: spin above {threshold:.6g} rad/s"):
+        TippeTopEnv(tolerance=1e-6)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", UnstableMotionWarning)
+        LagrangeTopEnv(integrator="rk4", spin=(2 * crit, 3 * crit), tolerance=1e-6)
+        LagrangeTopEnv(integrator="rk4", task="precess", tolerance=1e-6)
+        LagrangeTopEnv(integrator="rk4")
+        FreeRigidBodyEnv(axis="major", tolerance=1e-6)
+        FreeRigidBodyEnv(task="detumble", tolerance=1e-6)
+        FreeRigidBodyEnv()
+        TippeTopEnv(spin=0.5 * threshold, tolerance=1e-6)
+        TippeTopEnv(fidelity="frictionless", tolerance=1e-6)
+        TippeTopEnv()
+
+
+def test_the_bench_has_a_row_for_every_shipped_scene():
+    """``rbenvs bench accuracy --tolerance`` runs every shipped scene too (``scene:NAME``), each
+    over its own episode (the tippe top: SCENE_TIPPE_HORIZON s, through the inversion) with rk4."""
+    from rbenvs.bench.tolerance import SCENE_TIPPE_HORIZON, scene_cases
+    from rbenvs.scenes import list_scenes
+
+    cases = scene_cases()
+    assert [c.key for c in cases] == ["scene:" + n for n in list_scenes()]
+    for c in cases:
+        assert c.kwargs["integrator"] == "rk4" and "substeps" not in c.kwargs
+        assert c.periods == (round(SCENE_TIPPE_HORIZON / 0.01) if c.env == "tippe_top" else {"free_body": 400, "heavy_top": 500}[c.env])
+
+
+@pytest.mark.parametrize("key", ["scene:detumble", "scene:spin_major", "scene:top_sleeping"])
+def test_stable_scenes_meet_the_tolerance_over_their_episode_within_1_5_times_the_fixed_cost(key):
+    """Issue 19 on the scenes themselves, over their own episode (400 and 500 periods, 3 seeds,
+    uncontrolled): a detumbling body, a spin about the major axis and a sleeping top above its
+    critical spin, at 1e-3, 1e-6 and 1e-9, within the tolerance at no more than 1.5 times the
+    cheapest fixed substeps."""
+    from rbenvs.bench.tolerance import run_tolerance
+
+    rows = [r for r in run_tolerance(keys=[key])["rows"] if r["tolerance"] is not None]
+    assert len(rows) == 3
+    for r in rows:
+        assert r["failure"] is None and r["error"] <= r["tolerance"], r
+        assert r["cost_ratio"] <= 1.5, r

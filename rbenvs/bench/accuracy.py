@@ -684,7 +684,8 @@ def main(argv=None) -> int:
                         help="only the tolerance= table (rbenvs.bench.tolerance): per extreme and requested tolerance 1e-3, 1e-6, 1e-9, the error "
                              "achieved against the reference, the steps taken, and the cheapest fixed substeps meeting it")
     parser.add_argument("--case", action="append", metavar="KEY",
-                        help="with --tolerance: only these cases' rows (repeatable; default all): " + ", ".join(c.key for c in _tolerance_cases()))
+                        help="with --tolerance: only these cases' rows (repeatable; default all): " + ", ".join(c.key for c in _tolerance_cases())
+                        + ", and scene:NAME for each shipped scene")
     parser.add_argument("--tippe", action="store_true",
                         help="only the tippe top's work-precision against MuJoCo (rbenvs.bench.tippe_accuracy): t90 against the slip regularisation, "
                              "every scheme, step and fidelity level and MuJoCo's integrators and cones at several dt, cost per simulated second "
@@ -696,13 +697,15 @@ def main(argv=None) -> int:
     if args.tippe:
         return _tippe_main(args)
     if args.tolerance:
-        from .tolerance import TOLERANCE_CASES, run_tolerance, print_tolerance
+        from .tolerance import all_cases, run_tolerance, print_tolerance
 
-        known = [c.key for c in TOLERANCE_CASES]
+        require("cli")  # the scenes' rows read the scenes' YAML
+        everything = all_cases()
+        known = [c.key for c in everything]
         for key in args.case or ():
             if key not in known:
                 parser.error(f"--case {key!r}: not a case of the --tolerance table; one of {known}")
-        cases = [c for c in TOLERANCE_CASES if not args.case or c.key in args.case]
+        cases = [c for c in everything if not args.case or c.key in args.case]
         bar = Progress(sum(len(c.tolerances) for c in cases), not args.no_progress, "bench accuracy --tolerance")
         result = run_tolerance(keys=args.case, progress=bar.update)
         bar.close()

@@ -41,7 +41,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-__all__ = ["TOLERANCES", "TOLERANCE_CASES", "ToleranceCase", "run_tolerance", "print_tolerance"]
+__all__ = ["TOLERANCES", "TOLERANCE_CASES", "ToleranceCase", "scene_cases", "all_cases", "run_tolerance", "print_tolerance"]
 
 TOLERANCES = (1e-3, 1e-6, 1e-9)
 MAX_FIXED = 2**20  # the bisection's largest substeps
@@ -111,6 +111,49 @@ TOLERANCE_CASES = (
 )
 
 
+# the scenes' rows: each shipped scene (configs/scenes) uncontrolled from seeds 0-2 (the tippe top: seed
+# 0) over its own episode (the tippe top: SCENE_TIPPE_HORIZON s, through the inversion of the
+# inverting scenes, whose default top passes 90 degrees near 2.7 s); the scene's scheme where a
+# tolerance takes it, rk4 where not (the tops' default splitting), its substeps left to the rule
+SCENE_TIPPE_HORIZON = 4.0
+SCENE_PREFIX = "scene:"
+_SCENE_ENVS = {"rbenvs/FreeRigidBody-v0": "free_body", "rbenvs/LagrangeTop-v0": "heavy_top", "rbenvs/TippeTop-v0": "tippe_top"}
+
+
+def scene_cases(names=None) -> tuple:
+    """:class:`ToleranceCase` rows for the shipped scenes (``names``: a subset), keyed
+    ``scene:<name>`` (needs PyYAML, the ``cli`` extra, as every scene does)."""
+    from ..scenes import list_scenes, load_scene
+
+    cases = []
+    for name in names or list_scenes():
+        scene = load_scene(name)
+        env = _SCENE_ENVS[scene.env_id]
+        kwargs = {k: v for k, v in scene.kwargs.items() if k not in ("substeps", "integrator")}
+        kwargs["integrator"] = "rk4"
+        if env != "tippe_top":
+            kwargs["max_torque"] = 0.0
+        probe = scene.make(**kwargs)
+        episode = probe.spec.max_episode_steps
+        dt = probe.unwrapped.dt
+        probe.close()
+        periods = min(episode, int(round(SCENE_TIPPE_HORIZON / dt))) if env == "tippe_top" else episode
+        starts = (0,) if env == "tippe_top" else (0, 1, 2)
+        label = f"scene {name}, rk4, uncontrolled, {periods} periods ({periods * dt:g} s{', its episode' if periods == episode else ''}), seeds {starts[0]}-{starts[-1]}"
+        cases.append(ToleranceCase(SCENE_PREFIX + name, label, env, kwargs, starts, periods))
+    return tuple(cases)
+
+
+def all_cases(keys=None) -> tuple:
+    """:data:`TOLERANCE_CASES` and, where ``keys`` asks for them (or is ``None``: all), the scenes'
+    rows (:func:`scene_cases`)."""
+    cases = tuple(c for c in TOLERANCE_CASES if keys is None or c.key in keys)
+    scenes = None if keys is None else [k[len(SCENE_PREFIX):] for k in keys if k.startswith(SCENE_PREFIX)]
+    if scenes is None or scenes:
+        cases += scene_cases(scenes)
+    return cases
+
+
 def _env(case, **kw):
     from ..envs import FreeRigidBodyEnv, LagrangeTopEnv, TippeTopEnv
 
@@ -127,7 +170,9 @@ def _reset(env, start):
 
 
 def _blocks(env):
-    return [(a, b) for name, (a, b) in env.system.layout.items() if not (name == "position" and env.system.hybrid)]
+    """The measured blocks: the tippe top's horizontal position (it drifts) and its contact flags
+    (``contact``, ``hops``: counts, not quantities) left out."""
+    return [(a, b) for name, (a, b) in env.system.layout.items() if not (env.system.hybrid and name in ("position", "contact", "hops"))]
 
 
 def _references(case, env, starts):
@@ -141,6 +186,20 @@ def _references(case, env, starts):
         if case.env == "free_body" and not env.system.attitude:
             pi0 = np.array(y0)
             refs.append([tuple(exact_solution(env.system.params.inertia, pi0, k * env.dt)) for k in range(1, case.periods + 1)])
+            continue
+        if env.system.hybrid:
+            # through the env's own switching layer (lift-off, touchdown, the stem's contact), as
+            # every run compared with it: REFERENCE.step alone would integrate across a switch
+            ref_env = _env(dataclasses.replace(case, kwargs=dict(case.kwargs, integrator=REFERENCE)))
+            _reset(ref_env, start)
+            a = np.zeros(ref_env.action_space.shape, np.float32)
+            out = []
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                for _ in range(case.periods):
+                    ref_env.step(a)
+                    out.append(ref_env.state_components)
+            refs.append(out)
             continue
         y, out = y0, []
         for _ in range(case.periods):
@@ -170,7 +229,9 @@ def _episode(case, env, starts, refs):
                 y = env.state_components
                 for lo, hi in _blocks(env):
                     scale = float(np.linalg.norm(r[lo:hi]))
-                    err = max(err, float(np.linalg.norm(np.subtract(y[lo:hi], r[lo:hi]))) / scale)
+                    diff = float(np.linalg.norm(np.subtract(y[lo:hi], r[lo:hi])))
+                    # (a block the reference keeps at zero, a top at rest: 0 where the state does too)
+                    err = max(err, diff / scale if scale > 0.0 else (0.0 if diff == 0.0 else math.inf))
                 if term and info.get("terminal_reason") not in (None, "task"):
                     failure = info["terminal_reason"]
                     break
@@ -208,18 +269,18 @@ def _cheapest_fixed(case, tol, starts, refs, hint, limit=None):
     return hi, steps_hi
 
 
-def run_tolerance(keys=None, progress=None, fixed=True) -> dict:
-    """Every case of :data:`TOLERANCE_CASES` (``keys``: a subset) at each of its tolerances;
-    ``fixed=False`` skips the search for the cheapest fixed substeps (the tests' run)."""
+def run_tolerance(keys=None, progress=None, fixed=True, scenes=True) -> dict:
+    """Every case of :data:`TOLERANCE_CASES` and every scene (:func:`scene_cases`; ``keys``: a
+    subset, ``scenes=False``: none) at each of its tolerances; ``fixed=False`` skips the search
+    for the cheapest fixed substeps (the tests' run)."""
     from ..integrators import INTEGRATORS, get_integrator
     from ..integrators.error import measure_error_constant
 
     constants = {name: {"declared": cls.error_constant, "measured": measure_error_constant(name)}
                  for name, cls in INTEGRATORS.items() if cls.error_constant is not None}
     rows = []
-    for case in TOLERANCE_CASES:
-        if keys is not None and case.key not in keys:
-            continue
+    cases = all_cases(keys) if scenes else tuple(c for c in TOLERANCE_CASES if keys is None or c.key in keys)
+    for case in cases:
         # (integrator="auto" needs a tolerance: the row without one runs the last of the fixed schemes, rk4)
         base = _env(case if not case.fixed_integrators else dataclasses.replace(case, kwargs=dict(case.kwargs, integrator=case.fixed_integrators[-1])))
         refs = _references(case, base, case.starts)
@@ -275,7 +336,8 @@ def print_tolerance(result, file=None):
         print(f"  {name:<6} measured {c['measured']:.6g}  declared {c['declared']:g}", file=file)
     print("\ntolerance=: worst relative error of the state over the horizon against the reference, summed estimate, internal steps;", file=file)
     print("fixed: the fewest equal substeps (no tolerance) that meet the same tolerance on every start; cost x = steps / fixed steps", file=file)
-    print(f"{'case':<14} {'periods':>7} {'tolerance':>9} {'error':>8} {'estimate':>8} {'steps':>10} {'fixed':>7} {'fixed steps':>11} {'cost x':>6}  note", file=file)
+    w = max([14] + [len(r["case"]) for r in result["rows"]])
+    print(f"{'case':<{w}} {'periods':>7} {'tolerance':>9} {'error':>8} {'estimate':>8} {'steps':>10} {'fixed':>7} {'fixed steps':>11} {'cost x':>6}  note", file=file)
     for r in result["rows"]:
         tol = "none" if r["tolerance"] is None else f"{r['tolerance']:.0e}"
         if "refused" in r:
@@ -285,7 +347,7 @@ def print_tolerance(result, file=None):
                 short += " internal steps a period"
             else:  # a scheme tolerance= does not take (its error in the amplitude)
                 short = reason.split("(or integrator='auto'): ")[-1].split(", which")[0]
-            print(f"{r['case']:<14} {r['periods']:>7} {tol:>9} {'refused':>8} {'':>8} {'':>10} {'':>7} {'':>11} {'':>6}  {short}", file=file)
+            print(f"{r['case']:<{w}} {r['periods']:>7} {tol:>9} {'refused':>8} {'':>8} {'':>10} {'':>7} {'':>11} {'':>6}  {short}", file=file)
             continue
         note = r.get("failure") or ""
         if r["tolerance"] is not None and not note:
@@ -293,6 +355,7 @@ def print_tolerance(result, file=None):
         if r.get("fixed_integrator"):  # integrator="auto": both sides' schemes, cost in rhs evaluations
             note += f" (auto: {r['integrator']}; fixed: {r['fixed_integrator']}; cost x in rhs evaluations)"
         fixed = r.get("fixed_substeps")
-        print(f"{r['case']:<14} {r['periods']:>7} {tol:>9} {_g(r['error']):>8} {_g(r.get('estimate')):>8} {r['steps']:>10} {_g(fixed, 'd'):>7} "
+        print(f"{r['case']:<{w}} {r['periods']:>7} {tol:>9} {_g(r['error']):>8} {_g(r.get('estimate')):>8} {r['steps']:>10} {_g(fixed, 'd'):>7} "
               f"{_g(r.get('fixed_steps'), 'd'):>11} {_g(r.get('cost_ratio'), '.2f'):>6}  {note}", file=file)
-    print("\ncases: " + "; ".join(f"{c.key}: {c.label}" for c in TOLERANCE_CASES), file=file)
+    shown = {r["case"]: r["label"] for r in result["rows"]}
+    print("\ncases: " + "; ".join(f"{k}: {label}" for k, label in shown.items()), file=file)

@@ -57,7 +57,7 @@ from ..jit import jitable
 from ..rotations import maximum, power, select, sqrt
 from .codegen import generate
 
-__all__ = ["MAX_INTERNAL_STEPS", "GUARDS", "StepRule", "step_ratio", "step_ratio_motion", "motion_rates", "accuracy_steps", "relaxation_steps", "whole_root", "error_estimate", "require_guard",
+__all__ = ["MAX_INTERNAL_STEPS", "GUARDS", "UnstableMotionWarning", "StepRule", "step_ratio", "step_ratio_motion", "motion_rates", "accuracy_steps", "relaxation_steps", "whole_root", "error_estimate", "require_guard",
            "require_tolerance"]
 
 # More internal steps than this in one control period is treated as a numerical failure.
@@ -68,6 +68,13 @@ MAX_INTERNAL_STEPS = 1_000_000
 # into more equal steps, ``"refuse"`` raises ``ValueError`` from ``step``, ``"off"`` takes
 # ``substeps`` steps regardless (a blow-up then ends the episode as a numerical failure).
 GUARDS = ("subdivide", "refuse", "off")
+
+
+class UnstableMotionWarning(UserWarning):
+    """``tolerance=`` on a motion that is unstable by the system's own theorem (an upright top
+    below its critical spin, a spin about the intermediate axis, a tippe top that inverts): the
+    steps hold the error they commit within the tolerance, but the motion amplifies errors
+    already made, so over a horizon that spans the instability the error can end above it."""
 
 
 def require_guard(guard) -> str:

@@ -15,18 +15,19 @@ import dataclasses
 import functools
 import inspect
 import math
+import warnings
 
 import gymnasium as gym
 import numpy as np
 
-from ..core.guard import GUARDS, MAX_INTERNAL_STEPS, StepRule, relaxation_steps, require_guard, require_tolerance, stability_ratio, step_ratio
+from ..core.guard import GUARDS, MAX_INTERNAL_STEPS, StepRule, UnstableMotionWarning, relaxation_steps, require_guard, require_tolerance, stability_ratio, step_ratio
 from ..core.model import Model
 from ..core.step import Engine, NumericalFailureWarning, action_values
 from ..dynamics.validation import require_finite_positive, require_int_in
 from ..integrators import get_integrator
 from .options import ParamRanges, Realism, noise_generator, noisy_observation, rekey
 
-__all__ = ["RigidBodyEnv", "NumericalFailureWarning", "MAX_INTERNAL_STEPS", "GUARDS", "FLOAT32_MAX", "require_float32_bound", "require_guard", "require_compiled"]
+__all__ = ["RigidBodyEnv", "NumericalFailureWarning", "UnstableMotionWarning", "MAX_INTERNAL_STEPS", "GUARDS", "FLOAT32_MAX", "require_float32_bound", "require_guard", "require_compiled"]
 
 
 FLOAT32_MAX = float(np.finfo(np.float32).max)  # the largest observation value
@@ -123,6 +124,12 @@ class RigidBodyEnv(gym.Env):
             raise ValueError(f"render_mode must be None or one of {self.metadata['render_modes']}, got {render_mode!r}")
         if tolerance is not None:
             self._require_accuracy(integrator, guard, tolerance)
+            unstable = self._unstable_motion(system, task)
+            if unstable:
+                warnings.warn(UnstableMotionWarning(
+                    f"tolerance={tolerance!r}: {unstable}. The steps hold the error they commit within the tolerance, but an unstable "
+                    f"motion amplifies errors already made, and over a horizon that spans it the error can end above the tolerance "
+                    f"('rbenvs bench accuracy --tolerance' measures it per scene; docs/integrators.md, 'Unstable motions')"), stacklevel=4)
         high = tuple(float(v) for v in observation_high)
         self.model = Model(system, task, integrator, actuator, dt, substeps, guard, high, self._speed_ceiling(), tolerance, horizon if tolerance is not None else None,
                            self.registered_episode_steps())
@@ -292,6 +299,11 @@ class RigidBodyEnv(gym.Env):
                 f"per-period estimate bounds it without overestimating it many times (measured: 15 times the steps of its cheapest fixed "
                 f"substeps meeting the same tolerance); without tolerance= it runs at the guard's stability bound"
             )
+
+    def _unstable_motion(self, system, task) -> str | None:
+        """With ``tolerance=``: why the starts this env draws are unstable by the system's own
+        theorem (an :class:`UnstableMotionWarning` says so at construction), or ``None``."""
+        return None
 
     def _start_dissipation(self) -> float:
         """The stiffest decaying rate at the start (0 where none): the tippe top's friction."""

@@ -263,6 +263,15 @@ class FreeRigidBodyEnv(RigidBodyEnv):
     def params(self) -> FreeBodyParams:
         return self.system.params
 
+    def _unstable_motion(self, system, task):
+        """A spin about the intermediate axis: unstable (the rigid body stability theorem,
+        :func:`rbenvs.oracles.free_body.axis_stability`); its motion runs near the separatrix."""
+        from ..oracles.free_body import axis_stability
+
+        if self.axis is None or axis_stability(system.params.inertia)[self.axis] != "unstable":
+            return None
+        return f"a spin about the intermediate axis (axis {self.axis}) is unstable and runs near the separatrix"
+
     def _speed_ceiling(self):
         return math.sqrt(3.0) * self._max_w  # every Omega_i within +-max_angular_velocity
 

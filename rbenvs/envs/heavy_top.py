@@ -278,6 +278,7 @@ class LagrangeTopEnv(RigidBodyEnv):
         actuator = PivotTorque(self.max_torque, self.torque_directions)
         self._max_w = max_w
         self._start_speed = peak
+        self._spin_bounds = (low, high)
         high = observation_bounds(task_obj, {"rad/s": max_w})
         self._setup(system, task_obj, actuator, integrator, dt, substeps, high, render_mode, guard, compiled, tolerance, tolerance_horizon)
         # orthonormal torque directions: |tau| <= max_torque sqrt(k), |Delta Omega| <= |tau| dt / I_min
@@ -286,6 +287,20 @@ class LagrangeTopEnv(RigidBodyEnv):
         self._setup_options(param_ranges, observation_noise, observation_bias, action_delay)
 
     _rate_sources = "mass, length, gravity, inertia, spin_friction and spin"
+
+    def _unstable_motion(self, system, task):
+        """An upright Lagrange top whose spin range reaches below the critical spin: unstable
+        there (the stability theorem, :func:`rbenvs.oracles.heavy_top.critical_spin`)."""
+        params = system.params
+        if not isinstance(task, UprightTask) or not params.is_lagrange:
+            return None
+        low, high = self._spin_bounds
+        slowest = 0.0 if low * high <= 0.0 else min(abs(low), abs(high))
+        crit = params.critical_spin
+        if not slowest < crit:
+            return None
+        return (f"the upright top is unstable below its critical spin {crit:.6g} rad/s (I3^2 spin^2 < 4 I1 M g l), "
+                f"and spin reaches {slowest:.6g} rad/s")
 
     @property
     def params(self) -> HeavyTopParams:

@@ -304,6 +304,7 @@ class TippeTopEnv(RigidBodyEnv):
         actuator = TableActuator(self.max_table_acceleration, params.friction, self.friction_range if self.friction_action else None,
                                  self.max_torque if self.torque_action else None)
         self._start_speed = peak
+        self._spin_bounds = (spin_lo, spin_hi)
         self._max_w = max_w
         high = observation_bounds(task_obj, {"rad/s": max_w, "m/s": max_v})
         self._setup(system, task_obj, actuator, integrator, dt, substeps, high, render_mode, guard, compiled, tolerance, tolerance_horizon)
@@ -319,6 +320,24 @@ class TippeTopEnv(RigidBodyEnv):
         return self.system.params
 
     _rate_sources = "spin, gravity, mass, inertia, radius, offset, friction, friction_range and slip_regularization"
+
+    def _unstable_motion(self, system, task):
+        """A top with friction spun above the inversion threshold: its upright start is left and
+        the top inverts (the inversion criterion, :func:`rbenvs.oracles.tippe_top.inversion_spin_threshold`)."""
+        from ..oracles.tippe_top import inversion_spin_threshold
+
+        p = system.params
+        if system.friction_law is None or p.friction == 0.0:
+            return None
+        try:
+            threshold = inversion_spin_threshold(p.inertia[0], p.inertia[1], p.offset, p.mass, p.gravity, p.radius)
+        except ValueError:  # no full inversion for these moments
+            return None
+        fastest = max(abs(v) for v in self._spin_bounds)
+        if not fastest > threshold:
+            return None
+        return (f"the top inverts (the inversion criterion: spin above {threshold:.6g} rad/s, and spin reaches {fastest:.6g} rad/s), "
+                "and the inversion amplifies errors")
 
     def _speed_ceiling(self):
         return math.sqrt(3.0) * self._max_w
