@@ -107,6 +107,16 @@ class GuardRates:
       ``lambda_d`` in that period (a saturated friction), near its slow manifold (only its
       distance from it errs), or driven slower than it relaxes; used only by ``tolerance=``
       (:func:`rbenvs.core.guard.relaxation_steps`); ``None``: 1.
+    * ``error_blocks``: the names of the state's blocks (``layout``) whose relative speed counts
+      in the state's own rate ``mu`` of ``tolerance=`` (:func:`rbenvs.core.guard.motion_rates`):
+      those the error is measured on. ``None``: every block, and a hybrid system then keeps the
+      rate alone; a hybrid system that names them takes ``mu`` too (the tippe top: its velocity
+      and angular velocity; the horizontal position drifts, the contact flags are not measured);
+    * ``rotating_blocks``: pairs ``(block, driver)`` of names: a block that turns as a rotation of
+      itself at its own speed, ``dy_b/dt = A(y_d) y_b`` with ``A`` skew and ``|A| = |dy_b/dt| /
+      |y_b|`` (a unit quaternion, at half the angular speed, driven by the angular velocity): its
+      own local error is ``C (mu_b h)^(p+1)``, and it carries the driver's error to the end of the
+      horizon (:func:`rbenvs.core.guard.motion_rates`).
     """
 
     rotation: PureFunction
@@ -117,6 +127,8 @@ class GuardRates:
     ceiling: float = math.inf
     accuracy: PureFunction | None = None
     dissipation_share: PureFunction | None = None
+    error_blocks: tuple | None = None
+    rotating_blocks: tuple = ()
 
 
 @runtime_checkable

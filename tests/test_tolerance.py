@@ -579,12 +579,14 @@ def test_free_body_tolerance_costs_at_most_1_5_times_the_cheapest_fixed_substeps
         assert r["cost_ratio"] <= 1.5, r
 
 
-@pytest.mark.parametrize("key", ["tippe", "tippe_rolling"])
+@pytest.mark.parametrize("key", ["tippe", "tippe_rolling", "tippe_viscous"])
 def test_tippe_top_tolerance_costs_at_most_1_5_times_the_cheapest_fixed_substeps(key):
     """The same requirement for the tippe top under Coulomb friction, from rest and rolling at
-    100-200 rad/s and tilts 0.05-0.6 against DOP853: within the tolerance at no more than 1.5
-    times the cheapest fixed substeps at 1e-3, 1e-6 and 1e-9 (before the slip's error was
-    carried into v_G by the mobility split, 1 / (m l_max), the rolling top took 1.70 and 1.68)."""
+    100-200 rad/s and tilts 0.05-0.6, and under viscous friction from rest, against DOP853: within
+    the tolerance at no more than 1.5 times the cheapest fixed substeps at 1e-3, 1e-6 and 1e-9
+    (before the slip's error was carried into v_G by the mobility split, 1 / (m l_max), the
+    rolling top took 1.70 and 1.68; before the attitude counted its own speed, the viscous top
+    2.13 and 1.69)."""
     from rbenvs.bench.tolerance import run_tolerance
 
     rows = [r for r in run_tolerance(keys=[key])["rows"] if r["tolerance"] is not None]
@@ -775,3 +777,51 @@ def test_stable_scenes_meet_the_tolerance_over_their_episode_within_1_5_times_th
     for r in rows:
         assert r["failure"] is None and r["error"] <= r["tolerance"], r
         assert r["cost_ratio"] <= 1.5, r
+
+
+def test_the_tippe_tops_attitude_counts_its_own_speed_and_carries_the_angular_velocitys_error():
+    """The tippe top's state rate for tolerance= (motion_rates with a rotating block): the
+    attitude turns at m = |dq/dt| / |q| = |Omega| / 2 and integrates Omega, so
+    mu = max(mu_v, mu_Omega (1 + m span) + m (m / lambda)^4), span = tolerance_horizon dt, each
+    speed capped at lambda = max(|Omega|, omega_g); the horizontal position and the contact
+    flag do not count. Checked against the rhs by hand on a sliding and a rolling state."""
+    for kwargs, horizon in ((dict(), 10), (dict(friction_law="viscous", friction=3.0), 400)):
+        env = TippeTopEnv(integrator="rk4", tolerance=1e-6, tolerance_horizon=horizon, **kwargs)
+        rule, system = env.step_rule, env.system
+        assert rule.motion
+        fn, p = system.kernel_rhs
+        for seed in (0, 1):
+            env.reset(seed=seed)
+            for _ in range(3):
+                env.step(np.zeros(env.action_space.shape, np.float32))
+            y = env.state_components
+            lam, mu, lam_e = rule.rate(y)
+            f = fn(p, y, rule.zero_control)
+
+            def speed(name):
+                a, b = system.layout[name]
+                return min(math.sqrt(sum(f[i] ** 2 for i in range(a, b))) / math.sqrt(sum(y[i] ** 2 for i in range(a, b))), lam)
+
+            o = system.layout["angular_velocity"][0]
+            assert lam == lam_e == max(math.sqrt(sum(y[i] ** 2 for i in range(o, o + 3))), system.params.gravity_rate())
+            m = speed("attitude")
+            assert m == pytest.approx(math.sqrt(sum(y[i] ** 2 for i in range(o, o + 3))) / 2, rel=1e-9)
+            expected = max(speed("velocity"), speed("angular_velocity") * (1 + m * horizon * env.dt) + m * (m / lam) ** 4)
+            assert mu == pytest.approx(expected, rel=1e-12)
+
+
+def test_the_viscous_tippe_top_stays_within_the_tolerance_over_4_s():
+    """The attitude integrates Omega's error, a phase error growing like the horizon squared:
+    counted (the rotating block's (1 + m span)), a viscous top (3 s/m, tilt up to 1, 100-200 rad/s)
+    over 400 periods (4 s) stays within 1e-6 of DOP853 (with lambda alone for every block it ended
+    2.4 times outside: 2.4e-6)."""
+    from rbenvs.bench.tolerance import ToleranceCase, _env, _episode, _references
+
+    case = ToleranceCase("v400", "", "tippe_top", dict(integrator="rk4", max_torque=0.0, friction_law="viscous", friction=3.0, spin=(100.0, 200.0),
+                                                       tilt=(0.05, 1.0)), (6,), 400)
+    refs = _references(case, _env(case), case.starts)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        env = _env(case, tolerance=1e-6, tolerance_horizon=400)
+    err, est, _, failure = _episode(case, env, case.starts, refs)
+    assert failure is None and err <= 1e-6, err

@@ -177,7 +177,7 @@ def step_ratio_motion(g, rates):
 
 
 @lru_cache(maxsize=None)
-def motion_rates(rotation, rhs, blocks: tuple, accuracy=None):
+def motion_rates(rotation, rhs, blocks: tuple, accuracy=None, rotating: tuple = (), order: float = 1.0, span: float = 0.0):
     """``rates(P, y, u) -> (lambda, mu, lambda_e)`` (generated, pure), ``P = (P_rotation, P_rhs)``
     (``(P_rotation, P_rhs, P_accuracy)`` with ``accuracy``): the guard's rate ``lambda =
     rotation(P_rotation, y)``, the error's rate ``lambda_e = accuracy(P_accuracy, y)`` (a bound
@@ -204,17 +204,45 @@ def motion_rates(rotation, rhs, blocks: tuple, accuracy=None):
     ``lambda_e`` (:func:`rbenvs.dynamics.free_body.jacobian_rate`), the local error is at most
     ``C h^(p+1) lambda_e^p |dy/dt|`` to the same order; where the system knows its motion's own
     frequency (:func:`rbenvs.dynamics.free_body.error_rate`: ``Pi`` on its polhode), that
-    frequency, within the bound."""
+    frequency, within the bound.
+
+    Why ``rotating`` (pairs of ``(start, stop)`` slices, a block and the block that drives it,
+    with the scheme's ``order`` ``p`` and the horizon's duration ``span``): a block that turns as a
+    rotation of itself at its own speed ``m`` (``dy_q/dt = A(y_d) y_q``, ``A`` skew, ``|A| = m``:
+    a unit quaternion at half the angular speed) errs by ``C (m h)^(p+1)`` a step, not at
+    ``lambda_e``; but it integrates its driver: a relative error ``eps`` of ``y_d`` turns it at a
+    rate off by ``m eps``, which it carries to the end of the horizon, ``m eps span`` at most. So
+    the driver's term ``mu_d`` counts ``(1 + m span)`` times, and the block's own error ``C m dt (m
+    h)^p`` is written as ``C mu dt (lambda_e h)^p`` with ``mu = m (m / lambda_e)^p``:
+
+        mu = max(mu over the other blocks, mu_d (1 + m span) + m (m / lambda_e)^p)
+
+    (the estimate and the step count keep their one form). Over a long horizon the driver's term
+    can pass ``lambda_e`` (the phase error of an integrated rate grows like the horizon squared):
+    it is not capped there. The tippe top's attitude turns at ``|Omega| / 2``, driven by
+    ``Omega``, while ``Omega`` and ``v_G`` move slowly."""
     lines = ["def rates(P, y, u):", "    lam = rotation(P[0], y)", "    f = rhs(P[1], y, u)",
              "    lam_e = accuracy(P[2], y)" if accuracy is not None else "    lam_e = lam"]
-    for j, (a, b) in enumerate(blocks):
+
+    def speed(a, b):
         ny = " + ".join(f"y[{i}] * y[{i}]" for i in range(a, b))
         nf = " + ".join(f"f[{i}] * f[{i}]" for i in range(a, b))
-        r = f"sqrt({nf}) / maximum(sqrt({ny}), 1e-300)"
-        lines.append(f"    mu = {r}" if j == 0 else f"    mu = maximum(mu, {r})")
-    lines += ["    return (lam, select(mu < lam_e, mu, lam_e), lam_e)"]
-    namespace = generate("\n".join(lines) + "\n", f"motion rates of {len(blocks)} blocks",
-                         {"rotation": rotation, "rhs": rhs, "accuracy": accuracy, "sqrt": sqrt, "maximum": maximum, "select": select})
+        return f"sqrt({nf}) / maximum(sqrt({ny}), 1e-300)"
+
+    drivers = {tuple(d) for _, d in rotating}
+    others = [blk for blk in blocks if tuple(blk) not in drivers]
+    for j, (a, b) in enumerate(others):
+        lines.append(f"    mu = {speed(a, b)}" if j == 0 else f"    mu = maximum(mu, {speed(a, b)})")
+    if not others:
+        lines.append("    mu = 0.0 * lam")
+    lines.append("    mu = select(mu < lam_e, mu, lam_e)")
+    for (a, b), (c, d) in rotating:
+        lines += [f"    m = {speed(a, b)}", "    m = select(m < lam_e, m, lam_e)", f"    md = {speed(c, d)}", "    md = select(md < lam_e, md, lam_e)",
+                  f"    mq = md * (1.0 + m * {float(span)!r}) + m * power(m / maximum(lam_e, 1e-300), {float(order)!r})",
+                  "    mu = maximum(mu, mq)"]
+    lines += ["    return (lam, mu, lam_e)"]
+    namespace = generate("\n".join(lines) + "\n", f"motion rates of {len(blocks)} blocks" + (f" and {len(rotating)} rotating" if rotating else ""),
+                         {"rotation": rotation, "rhs": rhs, "accuracy": accuracy, "sqrt": sqrt, "maximum": maximum, "select": select, "power": power})
     return jitable(namespace["rates"])
 
 
@@ -295,18 +323,27 @@ class StepRule:
             text += f"; {accuracy}"
         rotation, motion = rates.rotation, False
         rhs = getattr(system, "kernel_rhs", None)
-        if error is not None and rhs is not None and not system.hybrid and getattr(integrator, "error_in_phase", False):
+        named = rates.error_blocks is not None
+        if error is not None and rhs is not None and (named or not system.hybrid) and getattr(integrator, "error_in_phase", False):
             # the state's own speed in the estimate (motion_rates), for a scheme whose leading
-            # error is in the phase; a hybrid system's contact keeps the rate alone
-            blocks = tuple(tuple(v) for v in system.layout.values())
-            mu_text = "; mu = min(lambda, max over the state's blocks of |dy_b/dt| / |y_b|)"
+            # error is in the phase; a hybrid system keeps the rate alone unless it names the
+            # blocks its error is measured on (its contact flags are not)
+            names = rates.error_blocks if named else tuple(system.layout)
+            blocks = tuple(tuple(system.layout[n]) for n in names)
+            rotating = tuple((tuple(system.layout[q]), tuple(system.layout[d])) for q, d in rates.rotating_blocks)
+            span = float(horizon) * float(dt)
+            mu_text = f"; mu = min(lambda, max over the state's blocks{' ' + ', '.join(names) if named else ''} of |dy_b/dt| / |y_b|)"
+            for q, d in rates.rotating_blocks:
+                mu_text += (f", with {q} (turning at its own speed m, driven by {d}): max(mu over the others, mu_{d} (1 + m {span:g} s) "
+                            f"+ m (m / lambda)^{integrator.order})")
+            extra = (rotating, float(integrator.order), span) if rotating else ()
             if rates.accuracy is not None:  # the system's sharper rate of the error (lambda_e)
-                rotation = (motion_rates(rates.rotation[0], rhs[0], blocks, rates.accuracy[0]), (rates.rotation[1], rhs[1], rates.accuracy[1]))
+                rotation = (motion_rates(rates.rotation[0], rhs[0], blocks, rates.accuracy[0], *extra), (rates.rotation[1], rhs[1], rates.accuracy[1]))
                 accuracy, text = (t.replace("(lambda h)^", "(lambda_e h)^") for t in (accuracy, text))
                 mu_text = ("; lambda_e = the system's bound of its Jacobian (" + rates.accuracy[0].__name__ + ")"
-                           + mu_text.replace("min(lambda,", "min(lambda_e,"))
+                           + mu_text.replace("min(lambda,", "min(lambda_e,").replace("/ lambda)^", "/ lambda_e)^"))
             else:
-                rotation = (motion_rates(rates.rotation[0], rhs[0], blocks), (rates.rotation[1], rhs[1]))
+                rotation = (motion_rates(rates.rotation[0], rhs[0], blocks, None, *extra), (rates.rotation[1], rhs[1]))
             motion = True
             accuracy = accuracy.replace("error C lambda dt", "error C mu dt") + mu_text
             text = text.replace("error C lambda dt", "error C mu dt") + mu_text

@@ -1753,8 +1753,13 @@ class TippeTop:
         share = None
         if dissipation is not None and self.implicit is not None and self.implicit.share is not None:
             share = (self.implicit.share, (self.form_params, omega_g))  # (the tolerance's relaxation share)
+        # tolerance=: the error is measured on v_G and Omega (the horizontal position drifts, the
+        # contact flags are not measured), and the attitude turns at |Omega| / 2, integrating Omega
+        # (motion_rates)
+        measured = tuple(n for n in ("velocity", "angular_velocity") if n in self.layout)
         return GuardRates(rotation=(tippe_rotation_rate, (self._w, omega_g)), rotation_bound=SPIN_STEP, dissipation=dissipation,
-                          dissipation_margin=margin, ceiling=max(speed_ceiling, omega_g), text=text, dissipation_share=share)
+                          dissipation_margin=margin, ceiling=max(speed_ceiling, omega_g), text=text, dissipation_share=share,
+                          error_blocks=measured, rotating_blocks=(("attitude", "angular_velocity"),))
 
     def max_stable_step(self, region, mu: float | None = None, normal_force: float | None = None) -> float:
         """The largest internal step [s] at which the friction law is stable for a scheme of
