@@ -723,15 +723,16 @@ def test_a_tolerance_on_an_unstable_motion_warns_with_the_theorem():
     """tolerance= holds the error the steps commit; a motion unstable by the system's own theorem
     amplifies errors already made, so the env says so at construction (UnstableMotionWarning):
     an upright top whose spin reaches below the critical spin, a spin about the intermediate
-    axis, a tippe top spun above its inversion threshold. Stable starts, and no tolerance, are
-    silent."""
+    axis (each where the theorem's growth rate makes at least one e-fold over the tolerance's
+    horizon), a tippe top spun above its inversion threshold. Stable starts, an instability too
+    slow to matter over the horizon, and no tolerance, are silent."""
     from rbenvs.envs import UnstableMotionWarning
     from rbenvs.oracles.tippe_top import inversion_spin_threshold
 
     crit = LagrangeTopEnv().critical_spin
     with pytest.warns(UnstableMotionWarning, match=rf"critical spin {crit:.6g} rad/s.*spin reaches 4\.95227 rad/s.*amplifies errors already made"):
         LagrangeTopEnv(integrator="rk4", tolerance=1e-6)  # the default upright start: half the critical spin
-    with pytest.warns(UnstableMotionWarning, match=r"intermediate axis \(axis 1\)"):
+    with pytest.warns(UnstableMotionWarning, match=r"intermediate axis \(axis 1\) is unstable: a perturbation grows at 0\.354 1/s \(7\.07 e-folds"):
         FreeRigidBodyEnv(tolerance=1e-6)
     top = TippeTopEnv()
     p = top.params
@@ -744,6 +745,9 @@ def test_a_tolerance_on_an_unstable_motion_warns_with_the_theorem():
         LagrangeTopEnv(integrator="rk4", task="precess", tolerance=1e-6)
         LagrangeTopEnv(integrator="rk4")
         FreeRigidBodyEnv(axis="major", tolerance=1e-6)
+        # moments equal to 1e-9: the middle axis is unstable, at ~1e-5 |Pi| 1/s: not one e-fold in an episode
+        FreeRigidBodyEnv(inertia=(1.5, 1.5 * (1 + 1e-9), 1.0), axis=0, max_angular_velocity=20.0, tolerance=1e-6)
+        FreeRigidBodyEnv(tolerance=1e-6, tolerance_horizon=2)  # 0.1 s: 0.035 e-folds
         FreeRigidBodyEnv(task="detumble", tolerance=1e-6)
         FreeRigidBodyEnv()
         TippeTopEnv(spin=0.5 * threshold, tolerance=1e-6)

@@ -124,7 +124,7 @@ class RigidBodyEnv(gym.Env):
             raise ValueError(f"render_mode must be None or one of {self.metadata['render_modes']}, got {render_mode!r}")
         if tolerance is not None:
             self._require_accuracy(integrator, guard, tolerance)
-            unstable = self._unstable_motion(system, task)
+            unstable = self._unstable_motion(system, task, horizon * dt)
             if unstable:
                 warnings.warn(UnstableMotionWarning(
                     f"tolerance={tolerance!r}: {unstable}. The steps hold the error they commit within the tolerance, but an unstable "
@@ -300,9 +300,10 @@ class RigidBodyEnv(gym.Env):
                 f"substeps meeting the same tolerance); without tolerance= it runs at the guard's stability bound"
             )
 
-    def _unstable_motion(self, system, task) -> str | None:
+    def _unstable_motion(self, system, task, span: float) -> str | None:
         """With ``tolerance=``: why the starts this env draws are unstable by the system's own
-        theorem (an :class:`UnstableMotionWarning` says so at construction), or ``None``."""
+        theorem, enough to matter over the tolerance's horizon of ``span`` seconds (an
+        :class:`UnstableMotionWarning` says so at construction), or ``None``."""
         return None
 
     def _start_dissipation(self) -> float:

@@ -263,14 +263,21 @@ class FreeRigidBodyEnv(RigidBodyEnv):
     def params(self) -> FreeBodyParams:
         return self.system.params
 
-    def _unstable_motion(self, system, task):
+    def _unstable_motion(self, system, task, span):
         """A spin about the intermediate axis: unstable (the rigid body stability theorem,
-        :func:`rbenvs.oracles.free_body.axis_stability`); its motion runs near the separatrix."""
-        from ..oracles.free_body import axis_stability
+        :func:`rbenvs.oracles.free_body.axis_stability`), a perturbation growing at
+        :func:`~rbenvs.oracles.free_body.intermediate_axis_growth_rate`; said where that is at
+        least one e-fold over the horizon (not for moments equal to 1e-9, whose rate is ~1e-5 |Pi|)."""
+        from ..oracles.free_body import axis_stability, intermediate_axis_growth_rate
 
-        if self.axis is None or axis_stability(system.params.inertia)[self.axis] != "unstable":
+        inertia = system.params.inertia
+        if self.axis is None or axis_stability(inertia)[self.axis] != "unstable":
             return None
-        return f"a spin about the intermediate axis (axis {self.axis}) is unstable and runs near the separatrix"
+        growth = intermediate_axis_growth_rate(inertia, inertia[self.axis] * task.spin_rate)
+        if not growth * span >= 1.0:
+            return None
+        return (f"a spin about the intermediate axis (axis {self.axis}) is unstable: a perturbation grows at {growth:.3g} 1/s "
+                f"({growth * span:.3g} e-folds over the tolerance's horizon of {span:g} s) and the motion runs near the separatrix")
 
     def _speed_ceiling(self):
         return math.sqrt(3.0) * self._max_w  # every Omega_i within +-max_angular_velocity

@@ -6,6 +6,8 @@ import math
 from dataclasses import dataclass
 from functools import lru_cache
 
+import numpy as np
+
 from ..dynamics import HeavyTop, HeavyTopParams
 from ..dynamics.validation import require_bool, require_choice, require_finite, require_finite_nonnegative, require_finite_positive, require_range
 from ..tasks import PrecessTask, UprightTask, slow_precession_rate, transverse_basis
@@ -288,9 +290,13 @@ class LagrangeTopEnv(RigidBodyEnv):
 
     _rate_sources = "mass, length, gravity, inertia, spin_friction and spin"
 
-    def _unstable_motion(self, system, task):
+    def _unstable_motion(self, system, task, span):
         """An upright Lagrange top whose spin range reaches below the critical spin: unstable
-        there (the stability theorem, :func:`rbenvs.oracles.heavy_top.critical_spin`)."""
+        there (the stability theorem, :func:`rbenvs.oracles.heavy_top.critical_spin`), its tilt
+        growing at the largest real part of :func:`~rbenvs.oracles.heavy_top.upright_eigenvalues`;
+        said where that is at least one e-fold over the horizon."""
+        from ..oracles.heavy_top import upright_eigenvalues
+
         params = system.params
         if not isinstance(task, UprightTask) or not params.is_lagrange:
             return None
@@ -299,8 +305,13 @@ class LagrangeTopEnv(RigidBodyEnv):
         crit = params.critical_spin
         if not slowest < crit:
             return None
+        i1, i3 = params.transverse_inertia, params.axial_inertia
+        growth = float(max(np.real(upright_eigenvalues(i1, i3, params.mass, params.length, params.gravity, slowest))))
+        if not growth * span >= 1.0:
+            return None
         return (f"the upright top is unstable below its critical spin {crit:.6g} rad/s (I3^2 spin^2 < 4 I1 M g l), "
-                f"and spin reaches {slowest:.6g} rad/s")
+                f"and spin reaches {slowest:.6g} rad/s, where a tilt grows at {growth:.3g} 1/s ({growth * span:.3g} e-folds over the "
+                f"tolerance's horizon of {span:g} s)")
 
     @property
     def params(self) -> HeavyTopParams:

@@ -321,7 +321,7 @@ class TippeTopEnv(RigidBodyEnv):
 
     _rate_sources = "spin, gravity, mass, inertia, radius, offset, friction, friction_range and slip_regularization"
 
-    def _unstable_motion(self, system, task):
+    def _unstable_motion(self, system, task, span):
         """A top with friction spun above the inversion threshold: its upright start is left and
         the top inverts (the inversion criterion, :func:`rbenvs.oracles.tippe_top.inversion_spin_threshold`)."""
         from ..oracles.tippe_top import inversion_spin_threshold
