@@ -141,7 +141,8 @@ def scene_cases(names=None) -> tuple:
         probe.close()
         periods = min(episode, int(round(SCENE_TIPPE_HORIZON / dt))) if env == "tippe_top" else episode
         starts = (0,) if env == "tippe_top" else (0, 1, 2)
-        label = f"scene {name}, rk4, uncontrolled, {periods} periods ({periods * dt:g} s{', its episode' if periods == episode else ''}), seeds {starts[0]}-{starts[-1]}"
+        seeds = f"seeds {starts[0]}-{starts[-1]}" if len(starts) > 1 else f"seed {starts[0]}"
+        label = f"scene {name}, rk4, uncontrolled, {periods} periods ({periods * dt:g} s{', its episode' if periods == episode else ''}), {seeds}"
         cases.append(ToleranceCase(SCENE_PREFIX + name, label, env, kwargs, starts, periods))
     return tuple(cases)
 
