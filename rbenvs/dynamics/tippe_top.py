@@ -1233,7 +1233,11 @@ def implicit_forms(coefficient, stiffness, slope, rolling: bool, flight: bool) -
             # default top: 0.29; measured before this split, the rolling top's v_G error was
             # 0.17-0.32 of the forced term). The slower mode (l_min = r l_max) relaxes r times
             # slower, so its forced error is r^2 of this one's and reaches v_G 1 / r more
-            # strongly: at most as much again (its transient, r^4 less, no more)
+            # strongly: r times as much again (r = 0.94-1 for the default top; its transient r^3).
+            # It is NOT counted here: with (1 + r) the rolling rows of the tolerance bench cost 1.67
+            # times the cheapest fixed steps, while at small tilts the estimate is already ~2x the
+            # error measured period by period; after an inversion (tilt ~125 deg) it is 3-5x under
+            # the error even so (docs/integrators.md, "Unstable motions": not yet understood)
             a = (transient + forced) / (p[2] * top)
             a = select(a < full, a, full)
             return select(a < 1.0, a, 0.0 * a + 1.0)
