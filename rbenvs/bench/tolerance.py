@@ -275,18 +275,17 @@ def _cheapest_fixed(case, tol, starts, refs, hint, limit=None):
     return hi, steps_hi
 
 
-def run_tolerance(keys=None, progress=None, fixed=True, scenes=True) -> dict:
+def run_tolerance(keys=None, progress=None, fixed=True) -> dict:
     """Every case of :data:`TOLERANCE_CASES` and every scene (:func:`scene_cases`; ``keys``: a
-    subset, ``scenes=False``: none) at each of its tolerances; ``fixed=False`` skips the search
-    for the cheapest fixed substeps (the tests' run)."""
+    subset) at each of its tolerances; ``fixed=False`` skips the search for the cheapest fixed
+    substeps (the tests' run)."""
     from ..integrators import INTEGRATORS, get_integrator
     from ..integrators.error import measure_error_constant
 
     constants = {name: {"declared": cls.error_constant, "measured": measure_error_constant(name)}
                  for name, cls in INTEGRATORS.items() if cls.error_constant is not None}
     rows = []
-    cases = all_cases(keys) if scenes else tuple(c for c in TOLERANCE_CASES if keys is None or c.key in keys)
-    for case in cases:
+    for case in all_cases(keys):
         # (integrator="auto" needs a tolerance: the row without one runs the last of the fixed schemes, rk4)
         base = _env(case if not case.fixed_integrators else dataclasses.replace(case, kwargs=dict(case.kwargs, integrator=case.fixed_integrators[-1])))
         refs = _references(case, base, case.starts)

@@ -56,6 +56,12 @@ def _registry() -> dict:
     return INTEGRATORS
 
 
+def _takes_tolerance(cls) -> bool:
+    """Whether ``tolerance=`` takes the scheme ``cls``: an error constant, and its leading error on
+    a rotation in the phase (:meth:`RigidBodyEnv._require_accuracy` says why)."""
+    return getattr(cls, "error_constant", None) is not None and cls.error_in_phase
+
+
 class _SupportedSchemes:
     """``cls.integrators``: the registered integrators whose declared needs (``requires``) the
     env's ``system_class`` meets, in registry order (a scheme registered later appears too)."""
@@ -260,7 +266,7 @@ class RigidBodyEnv(gym.Env):
         high = tuple(float(v) for v in observation_high)
         for cls in _registry().values():
             scheme = cls()
-            if getattr(scheme, "error_constant", None) is None or not scheme.error_in_phase or not scheme.evaluations or not scheme.supports(system):
+            if not _takes_tolerance(cls) or not scheme.evaluations or not scheme.supports(system):
                 continue
             self.model = Model(system, task, scheme, actuator, dt, substeps, guard, high, self._speed_ceiling(), tolerance, horizon,
                                self.registered_episode_steps())
@@ -291,7 +297,7 @@ class RigidBodyEnv(gym.Env):
             # grows like T^2 and a per-period sum either misses it (with the state's own rate:
             # 2.7 times the tolerance) or overestimates it (with lambda: 16 times the error, 15
             # times the steps of the cheapest fixed substeps; docs/integrators.md)
-            in_phase = sorted(name for name, cls in _registry().items() if getattr(cls, "error_constant", None) is not None and cls.error_in_phase)
+            in_phase = sorted(name for name, cls in _registry().items() if _takes_tolerance(cls))
             raise ValueError(
                 f"tolerance={tolerance!r} needs an integrator whose leading error on a rotation is in the phase, {in_phase} "
                 f"(or integrator='auto'): integrator {integrator.name!r} errs in the amplitude (each step grows a rotation by "

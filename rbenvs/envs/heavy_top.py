@@ -280,7 +280,6 @@ class LagrangeTopEnv(RigidBodyEnv):
         actuator = PivotTorque(self.max_torque, self.torque_directions)
         self._max_w = max_w
         self._start_speed = peak
-        self._spin_bounds = (low, high)
         high = observation_bounds(task_obj, {"rad/s": max_w})
         self._setup(system, task_obj, actuator, integrator, dt, substeps, high, render_mode, guard, compiled, tolerance, tolerance_horizon)
         # orthonormal torque directions: |tau| <= max_torque sqrt(k), |Delta Omega| <= |tau| dt / I_min
@@ -300,7 +299,7 @@ class LagrangeTopEnv(RigidBodyEnv):
         params = system.params
         if not isinstance(task, UprightTask) or not params.is_lagrange:
             return None
-        low, high = self._spin_bounds
+        low, high = task.spin_low, task.spin_high
         slowest = 0.0 if low * high <= 0.0 else min(abs(low), abs(high))
         crit = params.critical_spin
         if not slowest < crit:

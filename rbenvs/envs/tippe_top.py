@@ -304,7 +304,6 @@ class TippeTopEnv(RigidBodyEnv):
         actuator = TableActuator(self.max_table_acceleration, params.friction, self.friction_range if self.friction_action else None,
                                  self.max_torque if self.torque_action else None)
         self._start_speed = peak
-        self._spin_bounds = (spin_lo, spin_hi)
         self._max_w = max_w
         high = observation_bounds(task_obj, {"rad/s": max_w, "m/s": max_v})
         self._setup(system, task_obj, actuator, integrator, dt, substeps, high, render_mode, guard, compiled, tolerance, tolerance_horizon)
@@ -333,7 +332,7 @@ class TippeTopEnv(RigidBodyEnv):
             threshold = inversion_spin_threshold(p.inertia[0], p.inertia[1], p.offset, p.mass, p.gravity, p.radius)
         except ValueError:  # no full inversion for these moments
             return None
-        fastest = max(abs(v) for v in self._spin_bounds)
+        fastest = max(abs(task.spin_low), abs(task.spin_high))
         if not fastest > threshold:
             return None
         return (f"the top inverts (the inversion criterion: spin above {threshold:.6g} rad/s, and spin reaches {fastest:.6g} rad/s), "
