@@ -337,7 +337,7 @@ class TippeTopEnv(RigidBodyEnv):
             return None
         return (f"the top inverts (the inversion criterion: spin above {threshold:.6g} rad/s, and spin reaches {fastest:.6g} rad/s), "
                 "and the inversion amplifies errors (after it, back in the friction band at a large tilt, the estimate of the slip "
-                "relaxation's error is not a bound either: measured 3-5 times under)")
+                "relaxation's error is not a bound either)")
 
     def _speed_ceiling(self):
         return math.sqrt(3.0) * self._max_w
