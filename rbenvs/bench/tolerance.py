@@ -26,7 +26,10 @@ body: the exact elliptic solution; the others: DOP853 at ``rtol = 1e-13``, as
   the ``fixed`` column names the scheme);
 * a construction refusal (``refused``: the tolerance cannot be met within ``MAX_INTERNAL_STEPS``,
   or the scheme's leading error is in the amplitude: euler, whose rows show it) or an episode
-  ended as a numerical failure is printed as such.
+  ended as a numerical failure is printed as such; an episode ended where the global error
+  estimate passed the tolerance (``tolerance_check=True``: the ``<key>+check`` rows of
+  :data:`CHECKED`) shows the error up to the state it kept, the period where it ended, the
+  companion's steps counted in ``steps`` and no fixed search (it ran fewer periods).
 
 The error constants are measured here too (:func:`rbenvs.integrators.error.measure_error_constant`)
 against each scheme's declared one.
@@ -61,6 +64,7 @@ class ToleranceCase:
     skip_fixed: tuple = field(default_factory=tuple)  # tolerances whose fixed search is too costly
     # with integrator="auto": the schemes the fixed setting is chosen from (cost in rhs evaluations)
     fixed_integrators: tuple = ()
+    check: bool = False  # tolerance_check=True with each tolerance (the companion run's global error estimate)
 
 
 def _top(spin, tilt, side=0.0):
@@ -152,14 +156,28 @@ def scene_cases(names=None) -> tuple:
     return tuple(cases)
 
 
+# the rows whose motion amplifies errors beyond the tolerance (docs/integrators.md, "Unstable
+# motions") run again with tolerance_check=True, keyed "<key>+check": within the tolerance, or ended
+# as a numerical failure where the global error estimate passes it
+CHECKED = ("fb_triaxial_episode", "scene:tippe_hold", "scene:tippe_hop", "scene:tippe_invert")
+CHECK_SUFFIX = "+check"
+
+
+def _checked(case):
+    return dataclasses.replace(case, key=case.key + CHECK_SUFFIX, label=case.label + ", tolerance_check=True", check=True)
+
+
 def all_cases(keys=None) -> tuple:
     """:data:`TOLERANCE_CASES` and, where ``keys`` asks for them (or is ``None``: all), the scenes'
-    rows (:func:`scene_cases`)."""
-    cases = tuple(c for c in TOLERANCE_CASES if keys is None or c.key in keys)
-    scenes = None if keys is None else [k[len(SCENE_PREFIX):] for k in keys if k.startswith(SCENE_PREFIX)]
+    rows (:func:`scene_cases`), then the :data:`CHECKED` rows with ``tolerance_check=True``
+    (``<key>+check``)."""
+    plain = None if keys is None else {k[: -len(CHECK_SUFFIX)] if k.endswith(CHECK_SUFFIX) else k for k in keys}
+    cases = tuple(c for c in TOLERANCE_CASES if plain is None or c.key in plain)
+    scenes = None if plain is None else [k[len(SCENE_PREFIX):] for k in plain if k.startswith(SCENE_PREFIX)]
     if scenes is None or scenes:
         cases += scene_cases(scenes)
-    return cases
+    checked = tuple(_checked(c) for c in cases if c.key in CHECKED and (keys is None or c.key + CHECK_SUFFIX in keys))
+    return tuple(c for c in cases if keys is None or c.key in keys) + checked
 
 
 def _env(case, **kw):
@@ -180,9 +198,12 @@ def _reset(env, start):
 
 
 def _blocks(env):
-    """The measured blocks: the tippe top's horizontal position (it drifts) and its contact flags
-    (``contact``, ``hops``: counts, not quantities) left out."""
-    return [(a, b) for name, (a, b) in env.system.layout.items() if not (env.system.hybrid and name in ("position", "contact", "hops"))]
+    """The measured blocks (:func:`rbenvs.core.global_error.tolerance_blocks`, those the
+    companion run measures too): the tippe top's horizontal position (it drifts) and its contact
+    flags (``contact``, ``hops``: counts, not quantities) left out."""
+    from ..core.global_error import tolerance_blocks
+
+    return tolerance_blocks(env.system)
 
 
 def _references(case, env, starts):
@@ -220,22 +241,32 @@ def _references(case, env, starts):
 
 
 def _episode(case, env, starts, refs):
-    """``(error, summed estimate, internal steps, failure)`` over the starts."""
+    """``(error, summed estimate, internal steps, failure)`` over the starts; ``error`` up to the
+    end of each episode (where a numerical failure ends one: up to the state it keeps, the last
+    one within; ``failure`` then says where), the companion's steps (``tolerance_check``) counted
+    in ``steps``."""
     err = est_max = 0.0
     steps = 0
     failure = None
     a = np.zeros(env.action_space.shape, np.float32)
+    checked = getattr(env, "_check", None) is not None
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        for start, ref in zip(starts, refs):
+        for i, (start, ref) in enumerate(zip(starts, refs)):
             _reset(env, start)
             est = 0.0
-            for r in ref:
+            for k, r in enumerate(ref):
                 _, _, term, _, info = env.step(a)
-                steps += int(round(env.dt / info["internal_step"]))
+                n = int(round(env.dt / info["internal_step"]))
+                steps += n + (n // 2 if checked else 0)  # (the companion: n / 2 steps of 2 h)
                 est += info.get("error_estimate", 0.0)
                 if info["numerical_failure"]:
-                    return math.inf, est_max, steps, "numerical failure"
+                    if failure is None:
+                        by = "the global error estimate passed the tolerance" if "global_error_estimate" in info else "a numerical failure"
+                        failure = f"ended: {by} at period {k + 1} of start {i}"
+                    if "global_error_estimate" not in info:
+                        err = math.inf
+                    break
                 y = env.state_components
                 for lo, hi in _blocks(env):
                     scale = float(np.linalg.norm(r[lo:hi]))
@@ -243,7 +274,7 @@ def _episode(case, env, starts, refs):
                     # (a block the reference keeps at zero, a top at rest: 0 where the state does too)
                     err = max(err, diff / scale if scale > 0.0 else (0.0 if diff == 0.0 else math.inf))
                 if term:  # the episode ends here: the tolerance is per episode (a task's end is no failure)
-                    if info.get("terminal_reason") not in (None, "task"):
+                    if info.get("terminal_reason") not in (None, "task") and failure is None:
                         failure = info["terminal_reason"]
                     break
             est_max = max(est_max, est)
@@ -300,14 +331,15 @@ def run_tolerance(keys=None, progress=None, fixed=True) -> dict:
         for tol in case.tolerances:
             t0 = time.perf_counter()
             try:
-                env = _env(case, tolerance=tol, tolerance_horizon=case.periods)
+                env = _env(case, tolerance=tol, tolerance_horizon=case.periods, **({"tolerance_check": True} if case.check else {}))
             except ValueError as e:
                 rows.append({"case": case.key, "label": case.label, "periods": case.periods, "tolerance": tol, "refused": str(e)})
                 continue
             err, est, steps, failure = _episode(case, env, case.starts, refs)
             row = {"case": case.key, "label": case.label, "periods": case.periods, "tolerance": tol, "error": err, "estimate": est, "steps": steps,
                    "failure": failure, "seconds": time.perf_counter() - t0, "integrator": env.integrator.name}
-            if fixed and tol not in case.skip_fixed:
+            # (an episode ended by a numerical failure ran fewer periods: no cost to compare)
+            if fixed and tol not in case.skip_fixed and not (failure or "").startswith("ended"):
                 per_period = max(1, steps // (case.periods * len(case.starts)))
                 if case.fixed_integrators:  # the cheapest scheme too, in rhs evaluations
                     chosen = get_integrator(row["integrator"]).evaluations
@@ -360,8 +392,8 @@ def print_tolerance(result, file=None):
             print(f"{r['case']:<{w}} {r['periods']:>7} {tol:>9} {'refused':>8} {'':>8} {'':>10} {'':>7} {'':>11} {'':>6}  {short}", file=file)
             continue
         note = r.get("failure") or ""
-        if r["tolerance"] is not None and not note:
-            note = "within" if r["error"] <= r["tolerance"] else "OUTSIDE the tolerance"
+        if r["tolerance"] is not None and (not note or note.startswith("ended")):
+            note = ("within" if r["error"] <= r["tolerance"] else "OUTSIDE the tolerance") + (f" until {note}" if note else "")
         if r.get("fixed_integrator"):  # integrator="auto": both sides' schemes, cost in rhs evaluations
             note += f" (auto: {r['integrator']}; fixed: {r['fixed_integrator']}; cost x in rhs evaluations)"
         fixed = r.get("fixed_substeps")

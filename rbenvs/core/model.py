@@ -34,6 +34,8 @@ class Model:
       which lets a guard prove it never needs more than ``substeps`` steps;
     * ``tolerance``: the relative error allowed over ``horizon`` control periods (``None``: no
       accuracy bound; :mod:`rbenvs.core.guard`);
+    * ``check``: with a tolerance, whether a companion run estimates the episode's global error
+      (``tolerance_check``; :mod:`rbenvs.core.global_error`);
     * ``episode_steps``: the episode's length in control periods (the registered
       ``max_episode_steps``; ``None``: none);
     * ``failure_charge`` (derived): what the last reward of an episode that ends without success
@@ -60,6 +62,7 @@ class Model:
     tolerance: float | None = None
     horizon: int | None = None
     episode_steps: int | None = None
+    check: bool = False
     failure_charge: float = field(init=False)
     step_rule: StepRule = field(init=False)
     draw_kinds: str = field(init=False)
@@ -86,7 +89,7 @@ class Model:
         """Pickled as its parts and settings; the derived rule is made again on loading (it holds
         the system's pure forms, which may be functions made at run time)."""
         return (Model, (self.system, self.task, self.integrator, self.actuator, self.dt, self.substeps, self.guard, self.observation_high,
-                        self.speed_ceiling, self.tolerance, self.horizon, self.episode_steps))
+                        self.speed_ceiling, self.tolerance, self.horizon, self.episode_steps, self.check))
 
     @property
     def h(self) -> float:

@@ -261,6 +261,15 @@ class Engine:
         self.tolerance = m.tolerance
         if m.tolerance is not None:
             self.step_one = self._step_one_estimated
+        # tolerance_check: every period takes an even count (its companion half as many steps of
+        # twice the size: rbenvs.core.global_error), so neither the plain loop (substeps steps) nor
+        # the compiled single-state step (the guard's count) runs
+        self.check = m.check
+        if m.check:
+            if compiled is True:
+                raise ValueError("compiled=True cannot be had with tolerance_check=True: the checked period (an even count of steps "
+                                 "and the companion run) runs on the float path; pass compiled='auto' or False")
+            self.plain, self._state_step, self._state_step_tried = False, None, True
 
     def __reduce__(self):  # generated and compiled functions are made again, not pickled
         return (Engine, (self.model, self.compiled))
@@ -312,39 +321,23 @@ class Engine:
                 y = step(y, u, h)
             return y, False, h
         n = self.rule.steps(y, u, self.substeps)
-        post, event = self.switching, self.event
+        event = self.event
         if not isinstance(y[0], np.ndarray):  # one state: plain Python (no numpy call per period)
             if n > self.substeps and self.guard == "refuse":
                 raise self.refusal(n)
+            if self.check:  # an even count: the companion takes half as many steps of twice the size
+                n += n & 1
             if n > MAX_INTERNAL_STEPS:
                 # a state beyond what the scheme can resolve in a period: NaN (a numerical
                 # failure, reported with h = dt / n), at once, never a hang
                 return tuple(math.nan for _ in y), False, self.dt / n
             h = self.h if n == self.substeps else self.dt / n
-            if self.shared is not None:
-                (first, ps), (rhs_event, pv) = self.shared
-                k, g = rhs_event(pv, y, u)
-                for _ in range(n):
-                    y = first(ps, y, k, u, h)
-                    if not all(math.isfinite(c) for c in y):
-                        return y, False, h
-                    k, g = rhs_event(pv, y, u)
-                    if g < 0.0:
-                        return y, True, h
-                return y, False, h
-            step = self.bound_step  # integ.step with the system bound (the same bits)
-            for _ in range(n):
-                y_prev, y = y, step(y, u, h)
-                if post is not None:
-                    y = post.after_step(y_prev, y, u, h)
-                if event is not None:
-                    if not all(math.isfinite(c) for c in y):
-                        return y, False, h
-                    if event[1](y, u):
-                        return y, True, h
-            return y, False, h
+            y, fired = self._run_one(y, u, n, h)
+            return y, fired, h
         # a batch: the same rules per element (each takes its own count, then is frozen)
         n = np.broadcast_to(np.asarray(n), np.shape(y[0]))
+        if self.check:
+            n = n + (n & 1)
         if skip is not None:
             n = np.where(skip, self.substeps, n)
         over = n > self.substeps
@@ -374,6 +367,42 @@ class Engine:
         if uniform and event is None:
             return y, fired, h
         return y, fired, np.broadcast_to(np.asarray(h, dtype=float), n.shape).copy()
+
+    def _run_one(self, y, u, n: int, h: float):
+        """One state's ``n`` internal steps of ``h``, the switches after each and the terminal
+        event ending them early: ``(y, fired)``."""
+        post, event = self.switching, self.event
+        if self.shared is not None:  # (the event's evaluation is the next first stage)
+            (first, ps), (rhs_event, pv) = self.shared
+            k, g = rhs_event(pv, y, u)
+            for _ in range(n):
+                y = first(ps, y, k, u, h)
+                if not all(math.isfinite(c) for c in y):
+                    return y, False
+                k, g = rhs_event(pv, y, u)
+                if g < 0.0:
+                    return y, True
+            return y, False
+        step = self.bound_step  # integ.step with the system bound (the same bits)
+        for _ in range(n):
+            y_prev, y = y, step(y, u, h)
+            if post is not None:
+                y = post.after_step(y_prev, y, u, h)
+            if event is not None:
+                if not all(math.isfinite(c) for c in y):
+                    return y, False
+                if event[1](y, u):
+                    return y, True
+        return y, False
+
+    def companion(self, y, u, n):
+        """The companion run's period (:mod:`rbenvs.core.global_error`) from ``y`` under ``u``,
+        where the main run took ``n`` (even, with ``tolerance_check``) steps of ``h = dt / n``:
+        ``n / 2`` steps of ``2 h`` (one state: ``n`` an int; a batch: an int array)."""
+        if not isinstance(y[0], np.ndarray):
+            return self._run_one(y, u, n // 2, 2.0 * self.dt / n)[0]
+        n = np.broadcast_to(np.asarray(n, dtype=np.int64), np.shape(y[0]))
+        return self._loop(y, u, n // 2, 2.0 * self.dt / n)[0]
 
     def _loop(self, y, u, n, h):
         """A batch's internal steps: element ``i`` takes ``n[i]`` steps of ``h`` (``h[i]``) and is
@@ -577,12 +606,30 @@ class Engine:
         bound = self.rule.binding(y0, u) if y0 is not None else f"the step bound ({self.rule.text})"
         return f": the period needs more than MAX_INTERNAL_STEPS = {MAX_INTERNAL_STEPS} internal steps to meet {bound}"
 
-    def _failed_one(self, y0, u_norm, u, h, plain):
-        cap = self._cap_text(h, y0, u)
-        what = "the period was refused" + cap if cap else "the state became non-finite"
+    def inaccurate_one(self, y0, a, h, plain, estimate, check):
+        """The end of an episode whose global error estimate (``tolerance_check``) passed the
+        tolerance in the period from ``y0``: a numerical failure at ``y0``, the last state
+        within it, with a warning that says when."""
+        what = self._inaccurate_text(estimate, check.periods)
+        u_norm, u = self.control(a)
+        out = self._failed_one(y0, u_norm, u, h, plain, what, "the last state within the tolerance")
+        out[4]["global_error_estimate"] = estimate
+        return out
+
+    def _inaccurate_text(self, estimate, periods) -> str:
+        return (f"the global error estimate {float(estimate):.3g} passed tolerance={self.tolerance!r} after {int(periods)} periods "
+                f"({int(periods) * self.dt:.6g} s; tolerance_check: a companion run at twice the step measures the error the state "
+                f"carries, errors the motion amplified included, which the steps' estimate does not budget for; more steps per period "
+                f"hold it longer: substeps= sets the least count, and 'rbenvs bench accuracy --tolerance' shows the counts that hold "
+                f"each shipped scene)")
+
+    def _failed_one(self, y0, u_norm, u, h, plain, what=None, kept="the last finite state"):
+        if what is None:
+            cap = self._cap_text(h, y0, u)
+            what = "the period was refused" + cap if cap else "the state became non-finite"
         warnings.warn(
             f"{what} with integrator {self.integrator.name!r} (internal step h = {float(np.max(h)):g} s); "
-            "the episode ends and the last finite state is kept",
+            f"the episode ends and {kept} is kept",
             NumericalFailureWarning,
             stacklevel=5,
         )
@@ -593,11 +640,13 @@ class Engine:
         return y0, obs, 0.0 + self.failure_charge, True, info, u, plain
 
     # ------------------------------------------------------------------ a batch (arrays)
-    def settle(self, y0, y, skip, h=None):
+    def settle(self, y0, y, skip, h=None, inaccurate=None, estimate=None, check=None):
         """``(y, failed)`` after a batch's period: elements that went non-finite keep their
-        last finite state; ``failed`` marks them (not those in ``skip``, about to restart);
-        one ``NumericalFailureWarning`` names them. ``failed`` is ``None`` when none failed."""
-        if np.isfinite(sum(y)).all():
+        last finite state, and those ``inaccurate`` (``tolerance_check``: the global error
+        ``estimate`` passed the tolerance) their last state within it; ``failed`` marks them (not
+        those in ``skip``, about to restart); a ``NumericalFailureWarning`` names them (the
+        single env's words). ``failed`` is ``None`` when none failed."""
+        if inaccurate is None and np.isfinite(sum(y)).all():
             return y, None
         finite = np.ones(np.shape(y[0]), dtype=bool)
         for c in y:
@@ -612,7 +661,20 @@ class Engine:
                 NumericalFailureWarning,
                 stacklevel=3,
             )
-        return tuple(np.where(finite, c, c0) for c, c0 in zip(y, y0)), (failed if failed.any() else None)
+        kept = finite
+        if inaccurate is not None:
+            late = inaccurate & finite & ~skip
+            if late.any():
+                idx = np.flatnonzero(late)
+                warnings.warn(
+                    f"sub-envs {idx.tolist()}: {self._inaccurate_text(np.max(estimate[late]), np.min(check.periods[late]))}; their episodes end "
+                    "and their last states within the tolerance are kept",
+                    NumericalFailureWarning,
+                    stacklevel=3,
+                )
+                failed = failed | late
+                kept = finite & ~late
+        return tuple(np.where(kept, c, c0) for c, c0 in zip(y, y0)), (failed if failed.any() else None)
 
     # ------------------------------------------------------------------ pure forms
     def _generated_finish(self):

@@ -20,7 +20,8 @@ import warnings
 import gymnasium as gym
 import numpy as np
 
-from ..core.guard import GUARDS, MAX_INTERNAL_STEPS, StepRule, UnstableMotionWarning, relaxation_steps, require_guard, require_tolerance, stability_ratio, step_ratio
+from ..core.global_error import GlobalErrorCheck
+from ..core.guard import GUARDS, MAX_INTERNAL_STEPS, StepRule, UnstableMotionWarning, relaxation_steps, require_guard, require_tolerance, require_tolerance_check, stability_ratio, step_ratio
 from ..core.model import Model
 from ..core.step import Engine, NumericalFailureWarning, action_values
 from ..dynamics.validation import require_finite_positive, require_int_in
@@ -112,9 +113,10 @@ class RigidBodyEnv(gym.Env):
         cls.__init__ = __init__
 
     def _setup(self, system, task, actuator, integrator, dt, substeps, observation_high, render_mode, guard="subdivide", compiled="auto",
-               tolerance=None, tolerance_horizon=None):
+               tolerance=None, tolerance_horizon=None, tolerance_check=False):
         guard = require_guard(guard)
         tolerance = require_tolerance(tolerance)
+        check = require_tolerance_check(tolerance_check, tolerance)
         horizon = self._tolerance_horizon(tolerance_horizon)
         compiled = require_compiled(compiled)
         dt = require_finite_positive("dt", dt)
@@ -132,13 +134,17 @@ class RigidBodyEnv(gym.Env):
             self._require_accuracy(integrator, guard, tolerance)
             unstable = self._unstable_motion(system, task, horizon * dt)
             if unstable:
+                then = ("tolerance_check=True: a companion run estimates the episode's global error (info['global_error_estimate']) "
+                        "and the episode ends as a numerical failure where it passes the tolerance" if check else
+                        "over a horizon that spans it the error can end above the tolerance (tolerance_check=True estimates it and ends "
+                        "the episode as a numerical failure where it passes the tolerance)")
                 warnings.warn(UnstableMotionWarning(
                     f"tolerance={tolerance!r}: {unstable}. The steps hold the error they commit within the tolerance, but an unstable "
-                    f"motion amplifies errors already made, and over a horizon that spans it the error can end above the tolerance "
-                    f"('rbenvs bench accuracy --tolerance' measures it per scene; docs/integrators.md, 'Unstable motions')"), stacklevel=4)
+                    f"motion amplifies errors already made; {then} ('rbenvs bench accuracy --tolerance' measures it per scene; "
+                    f"docs/integrators.md, 'Unstable motions')"), stacklevel=4)
         high = tuple(float(v) for v in observation_high)
         self.model = Model(system, task, integrator, actuator, dt, substeps, guard, high, self._speed_ceiling(), tolerance, horizon if tolerance is not None else None,
-                           self.registered_episode_steps())
+                           self.registered_episode_steps(), check)
         self.engine = Engine(self.model, compiled)
         self.render_mode = render_mode
         self._renderer = None  # built by the first render(): matplotlib is imported only then
@@ -150,6 +156,10 @@ class RigidBodyEnv(gym.Env):
         self.action_space = gym.spaces.Box(-1.0, 1.0, (actuator.size,), dtype=np.float32)
         self._action_shape = self.action_space.shape  # read on every step
         self._step_one = self.engine.step_one
+        # tolerance_check: the companion run beside the state (rbenvs.core.global_error)
+        self._check = GlobalErrorCheck(self.engine) if check else None
+        if check:
+            self._step_one = self._step_checked
         self._y = None  # the state: a tuple of floats
         self._u = None  # the control of the last step (None after a reset: nothing acted yet)
         self._plain = self.engine.plain
@@ -405,6 +415,10 @@ class RigidBodyEnv(gym.Env):
         else:
             self._y = self.system.import_state(state)
         obs, info = self.engine.reset_one(self._y)
+        if self._check is not None:
+            self._check.engine, self._step_one = self.engine, self._step_checked  # (param_ranges: this episode's engine)
+            self._check.restart(self._y)
+            info["global_error_estimate"] = 0.0
         if self._realism.active:
             obs = self._reset_realism(obs)
         if params is not None:
@@ -447,6 +461,22 @@ class RigidBodyEnv(gym.Env):
         if r.stream:
             obs = self._noisy(obs)
         return obs, reward, terminated, False, info
+
+    def _step_checked(self, y0, a, plain):
+        """The engine's step with the companion's period after it (``tolerance_check``):
+        ``info["global_error_estimate"]``, and the episode ended as a numerical failure at
+        ``y0`` where the estimate passes the tolerance."""
+        engine = self.engine
+        out = engine.step_one(y0, a, plain)
+        info = out[4]
+        if info["numerical_failure"]:
+            return out
+        n = int(round(engine.dt / info["internal_step"]))
+        e = self._check.period(out[0], out[5], n)
+        info["global_error_estimate"] = e
+        if e > engine.tolerance:
+            return engine.inaccurate_one(y0, a, info["internal_step"], plain, e, self._check)
+        return out
 
     def step(self, action):
         if self._y is None:

@@ -138,6 +138,12 @@ class FreeRigidBodyEnv(RigidBodyEnv):
     * ``tolerance_horizon=None``: control periods the tolerance covers (an integer >= 1;
       ``None``: the registered ``max_episode_steps``, one episode; a ``max_episode_steps``
       given to ``gymnasium.make`` is not seen by the env: pass ``tolerance_horizon`` with it).
+    * ``tolerance_check=False``: with ``tolerance``, ``True`` estimates the episode's global error
+      with a companion run (the same periods at twice the step: about half the steps again;
+      :mod:`rbenvs.core.global_error`), reports it as ``info["global_error_estimate"]`` and ends
+      the episode as a numerical failure, at the last state within it, where it passes the
+      tolerance: for motions that amplify errors (the ``UnstableMotionWarning``'s;
+      docs/integrators.md, "Unstable motions").
     * ``compiled="auto"``: run each step as one compiled call of the same functions (numba, the
       ``fast`` extra; built on the first step, about a second per setting and process), bit
       for bit the float path, where numba is installed and the setting has pure forms (the
@@ -207,6 +213,7 @@ class FreeRigidBodyEnv(RigidBodyEnv):
         compiled="auto",
         tolerance=None,
         tolerance_horizon=None,
+        tolerance_check: bool = False,
         param_ranges=None,
         observation_noise=None,
         observation_bias=None,
@@ -250,7 +257,7 @@ class FreeRigidBodyEnv(RigidBodyEnv):
         self._max_w = max_w
         self._start_speed = start_speed
         high = observation_bounds(task_obj, {"rad/s": max_w})
-        self._setup(system, task_obj, actuator, integrator, dt, substeps, high, render_mode, guard, compiled, tolerance, tolerance_horizon)
+        self._setup(system, task_obj, actuator, integrator, dt, substeps, high, render_mode, guard, compiled, tolerance, tolerance_horizon, tolerance_check)
         self.action_size = actuator.size
         # |Delta Omega| <= max_torque sqrt(k) dt / I_min over a period of full torque on k axes
         change = max_torque * math.sqrt(actuator.size) * self.dt / min(params.inertia)

@@ -148,6 +148,12 @@ class LagrangeTopEnv(RigidBodyEnv):
     * ``tolerance_horizon=None``: control periods the tolerance covers (an integer >= 1;
       ``None``: the registered ``max_episode_steps``, one episode; a ``max_episode_steps``
       given to ``gymnasium.make`` is not seen by the env: pass ``tolerance_horizon`` with it).
+    * ``tolerance_check=False``: with ``tolerance``, ``True`` estimates the episode's global error
+      with a companion run (the same periods at twice the step: about half the steps again;
+      :mod:`rbenvs.core.global_error`), reports it as ``info["global_error_estimate"]`` and ends
+      the episode as a numerical failure, at the last state within it, where it passes the
+      tolerance: for motions that amplify errors (the ``UnstableMotionWarning``'s;
+      docs/integrators.md, "Unstable motions").
     * ``compiled="auto"``: run each step as one compiled call of the same functions (numba, the
       ``fast`` extra; built on the first step, about a second per setting and process), bit
       for bit the float path, where numba is installed and the setting has pure forms (the
@@ -224,6 +230,7 @@ class LagrangeTopEnv(RigidBodyEnv):
         compiled="auto",
         tolerance=None,
         tolerance_horizon=None,
+        tolerance_check: bool = False,
         param_ranges=None,
         observation_noise=None,
         observation_bias=None,
@@ -281,7 +288,7 @@ class LagrangeTopEnv(RigidBodyEnv):
         self._max_w = max_w
         self._start_speed = peak
         high = observation_bounds(task_obj, {"rad/s": max_w})
-        self._setup(system, task_obj, actuator, integrator, dt, substeps, high, render_mode, guard, compiled, tolerance, tolerance_horizon)
+        self._setup(system, task_obj, actuator, integrator, dt, substeps, high, render_mode, guard, compiled, tolerance, tolerance_horizon, tolerance_check)
         # orthonormal torque directions: |tau| <= max_torque sqrt(k), |Delta Omega| <= |tau| dt / I_min
         change = self.max_torque * math.sqrt(len(self.torque_directions)) * self.dt / min(params.inertia)
         self._require_authority("max_torque", change, "max_angular_velocity", max_w, "angular velocity [rad/s]")

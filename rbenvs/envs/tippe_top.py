@@ -166,6 +166,12 @@ class TippeTopEnv(RigidBodyEnv):
       ``None``: the registered ``max_episode_steps``, one episode; a ``max_episode_steps``
       given to ``gymnasium.make`` is not seen by the env: pass ``tolerance_horizon`` with it).
     * ``friction_bound="accuracy"``: or ``"stability"``, what sizes the step under friction (Internal step).
+    * ``tolerance_check=False``: with ``tolerance``, ``True`` estimates the episode's global error
+      with a companion run (the same periods at twice the step: about half the steps again;
+      :mod:`rbenvs.core.global_error`), reports it as ``info["global_error_estimate"]`` and ends
+      the episode as a numerical failure, at the last state within it, where it passes the
+      tolerance: for motions that amplify errors (the ``UnstableMotionWarning``'s;
+      docs/integrators.md, "Unstable motions").
     * ``compiled="auto"``: run each step as one compiled call of the same functions (numba, the
       ``fast`` extra; built on the first step, about a second per setting and process), bit
       for bit the float path, where numba is installed and the setting has pure forms (the
@@ -248,6 +254,7 @@ class TippeTopEnv(RigidBodyEnv):
         compiled="auto",
         tolerance=None,
         tolerance_horizon=None,
+        tolerance_check: bool = False,
         friction_bound: str = "accuracy",
         param_ranges=None,
         observation_noise=None,
@@ -306,7 +313,7 @@ class TippeTopEnv(RigidBodyEnv):
         self._start_speed = peak
         self._max_w = max_w
         high = observation_bounds(task_obj, {"rad/s": max_w, "m/s": max_v})
-        self._setup(system, task_obj, actuator, integrator, dt, substeps, high, render_mode, guard, compiled, tolerance, tolerance_horizon)
+        self._setup(system, task_obj, actuator, integrator, dt, substeps, high, render_mode, guard, compiled, tolerance, tolerance_horizon, tolerance_check)
         # the table's acceleration moves v_G (relative to the table) by at most |a_T| dt per period;
         # a body torque moves Omega by at most |tau| dt / min(A, C)
         self._require_authority("max_table_acceleration", self.max_table_acceleration * math.sqrt(2.0) * self.dt, "max_speed", max_v, "velocity of the centre of mass [m/s]")

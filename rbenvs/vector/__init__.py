@@ -71,6 +71,7 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
 from .. import compiled as _compiled
+from ..core.global_error import GlobalErrorCheck
 from ..core.step import _REAL_FLOATS, ReasonPool, action_columns, terminal_reason
 from ..draws import GeneratorTable, kind_codes
 from ..envs.base import require_compiled
@@ -112,6 +113,15 @@ class RigidBodyVectorEnv(VectorEnv):
         self.system, self.task, self.integrator = self.model.system, self.model.task, self.model.integrator
         # the robustness options (rbenvs.envs.options), validated by the single env
         self._template, self._ranges, self._realism = env, env.param_ranges, env.realism
+        # tolerance_check: the companion run of every sub-env (rbenvs.core.global_error), on the
+        # numpy path (the checked period's even counts and the companion have no compiled form)
+        self._check = GlobalErrorCheck(self.engine) if env.model.check else None
+        self._global = None  # the last step's global error estimates
+        if self._check is not None:
+            if compiled is True:
+                raise ValueError("compiled=True cannot be had with tolerance_check=True: the checked period (an even count of steps "
+                                 "and the companion run) runs on numpy; pass compiled='auto' or False")
+            compiled = False
         self._options = self._ranges is not None or self._realism.active
         if self._ranges is not None:
             # each sub-env's episode has its own model (its drawn parameters), stepped on the float
@@ -266,6 +276,9 @@ class RigidBodyVectorEnv(VectorEnv):
         if self.engine.tolerance is not None:
             info["error_estimate"] = np.zeros(n)  # no period yet (the single env's reset)
             info["_error_estimate"] = self._true
+        if self._check is not None:
+            info["global_error_estimate"] = np.zeros(n)
+            info["_global_error_estimate"] = self._true
         if self._options:
             obs, info = self._realism_after(obs, info, mask, reset=True)
         return obs, info
@@ -328,6 +341,14 @@ class RigidBodyVectorEnv(VectorEnv):
         for c, v in zip(y, comps):
             c[idx] = v
         self._y = tuple(y)
+        self._restart_companion(idx)
+
+    def _restart_companion(self, idx) -> None:
+        """The companions of the sub-envs ``idx`` start at their new states (``tolerance_check``)."""
+        if self._check is not None:
+            mask = np.zeros(self.num_envs, dtype=bool)
+            mask[idx] = True
+            self._check.restart(self._y, mask)
 
     def _rows_from_state(self, state, mask) -> dict:
         if not isinstance(state, dict):
@@ -352,6 +373,7 @@ class RigidBodyVectorEnv(VectorEnv):
                 c[i] = v
         self._y = tuple(comps)
         self._y2d = None
+        self._restart_companion(list(rows))
 
     # ------------------------------------------------------------------ step
     def step(self, actions):
@@ -386,6 +408,14 @@ class RigidBodyVectorEnv(VectorEnv):
             estimate[info["_final_info"]] = 0.0
         info["error_estimate"] = estimate
         info["_error_estimate"] = self._true
+        if self._check is not None:  # (0 where no period ran, as the estimate's; SAME_STEP: the ended ones' go with their final info)
+            global_ = np.where(restart, 0.0, self._global)
+            if "final_info" in info:
+                info["final_info"]["global_error_estimate"] = global_.copy()
+                info["final_info"]["_global_error_estimate"] = self._true
+                global_[info["_final_info"]] = 0.0
+            info["global_error_estimate"] = global_
+            info["_global_error_estimate"] = self._true
         return obs, reward, terminated, truncated, info
 
     def _step(self, actions):
@@ -411,6 +441,14 @@ class RigidBodyVectorEnv(VectorEnv):
                 y, fired, h = engine.advance(y0, u, self._plain, restart if any_restart else None)
                 if fired is False:
                     fired = self._false
+        inaccurate = None
+        if self._check is not None:  # the companions' period; a restarting sub-env's is discarded (it restarts below)
+            n = np.rint(engine.dt / np.broadcast_to(h, (self.num_envs,))).astype(np.int64)
+            with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+                self._global = np.where(restart, 0.0, self._check.period(y, u, n))
+                inaccurate = self._global > engine.tolerance
+            if not inaccurate.any():
+                inaccurate = None
         self._u, self._last_h = u, h
         if engine.tolerance is not None:
             self._period_h = np.array(h, dtype=np.float64)
@@ -421,14 +459,15 @@ class RigidBodyVectorEnv(VectorEnv):
                 over = self._false
             metrics = dict(zip(self.task.metric_names, metrics))
             return self._finish(obs, over, reward, terminated, fired, None, metrics, restart, any_restart, physical)
-        return self._numpy_finish(y0, y, u_norm, fired, restart, any_restart)
+        return self._numpy_finish(y0, y, u_norm, fired, restart, any_restart, inaccurate)
 
-    def _numpy_finish(self, y0, y, u_norm, fired, restart, any_restart):
-        """The rest of a step on numpy from the period's new states ``y``: numerical failure,
+    def _numpy_finish(self, y0, y, u_norm, fired, restart, any_restart, inaccurate=None):
+        """The rest of a step on numpy from the period's new states ``y``: numerical failure
+        (``inaccurate``: the sub-envs whose global error estimate passed the tolerance),
         observation, evaluation, then :meth:`_finish`."""
         engine = self.engine
         self._y2d = None
-        y, failed = engine.settle(y0, y, restart, self._last_h)
+        y, failed = engine.settle(y0, y, restart, self._last_h, inaccurate, self._global, self._check)
         self._y = y
         obs, over = engine.observe(y)
         reward, terminated, metrics = engine.evaluate(y, u_norm)

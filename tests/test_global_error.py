@@ -1,0 +1,248 @@
+"""``tolerance_check=True``: the companion run's estimate of an episode's global error
+(:mod:`rbenvs.core.global_error`), checked against the free body's exact solution and the tippe
+top's DOP853 reference, and the episode it ends."""
+
+import copy
+import dataclasses
+import math
+import pickle
+import warnings
+
+import numpy as np
+import pytest
+from gymnasium.utils.env_checker import check_env
+
+from rbenvs.core.global_error import MARGIN, companion_ratio, relative_difference, tolerance_blocks
+from rbenvs.core.step import NumericalFailureWarning
+from rbenvs.envs import FreeRigidBodyEnv, TippeTopEnv, UnstableMotionWarning
+from rbenvs.oracles import exact_solution
+
+INERTIA = (2.0, 1.5, 1.0)
+# fb_triaxial's starts (rbenvs bench accuracy --tolerance): near the major axis, 0.002 off the
+# separatrix (the one whose error the motion amplifies), and in between
+STARTS = ((5.0, 3.0, 0.05), (0.01, 5.0, 0.01), (-2.0, 4.0, 6.0))
+
+
+def _body(tol, check=True, **kw):
+    return FreeRigidBodyEnv(inertia=INERTIA, axis=0, max_torque=0.0, integrator="rk4", max_angular_velocity=50.0, tolerance=tol,
+                            tolerance_horizon=400, tolerance_check=check, **kw)
+
+
+def _relative(y, ref):
+    return float(np.linalg.norm(np.subtract(y, ref)) / np.linalg.norm(ref))
+
+
+def test_the_ratio_and_the_difference_by_hand():
+    assert companion_ratio(4) == 15.0 and companion_ratio(1) == 1.0
+    blocks = ((0, 2), (2, 3))
+    y, yc = (3.0, 4.0, 0.0), (3.0, 4.5, 0.0)
+    assert relative_difference(blocks, y, yc) == pytest.approx(0.1)  # |(0, 0.5)| / 5; the zero block: 0
+    assert relative_difference(blocks, y, (3.0, 4.0, 1e-3)) == math.inf  # a block of norm 0 that differs
+    batch = tuple(np.array([a, b]) for a, b in zip(y, (1.0, 0.0, 2.0)))
+    batch_c = tuple(np.array([a, b]) for a, b in zip(yc, (1.0, 0.0, 1.0)))
+    assert np.array_equal(relative_difference(blocks, batch, batch_c), [relative_difference(blocks, y, yc), 0.5])
+
+
+def test_the_measured_blocks_leave_out_the_tippe_tops_position_and_flags():
+    env = TippeTopEnv()
+    names = [n for n, span in env.system.layout.items() if tuple(span) in tolerance_blocks(env.system)]
+    assert "position" not in names and "contact" not in names and "velocity" in names and "attitude" in names
+    assert tolerance_blocks(FreeRigidBodyEnv().system) == tuple(tuple(s) for s in FreeRigidBodyEnv().system.layout.values())
+
+
+@pytest.mark.parametrize("start", STARTS)
+@pytest.mark.parametrize("tol", [1e-3, 1e-6, 1e-9])
+def test_the_estimate_bounds_the_free_bodys_error_and_ends_the_episode_where_it_passes(start, tol):
+    """Against the exact solution over the free body's 400-period episode: on every period whose
+    error is above roundoff the estimate is at least the error and at most 3 times it; the
+    episode ends (a numerical failure, with a warning saying so) exactly where the estimate
+    passes the tolerance, keeping the last state within it, whose error is within it too."""
+    env = _body(tol)
+    pi0 = np.array(INERTIA) * np.array(start)
+    _, info = env.reset(seed=0, options={"state": {"angular_momentum": pi0}})
+    assert info["global_error_estimate"] == 0.0
+    a = np.zeros(env.action_space.shape, np.float32)
+    ended = None
+    for k in range(1, 401):
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            _, _, terminated, _, info = env.step(a)
+        assert round(env.dt / info["internal_step"]) % 2 == 0  # an even count: the companion takes half
+        if info["numerical_failure"]:
+            assert terminated and info["terminal_reason"] == "numerical_failure"
+            assert info["global_error_estimate"] > tol
+            assert any(issubclass(w.category, NumericalFailureWarning) and "global error estimate" in str(w.message) for w in caught)
+            ended = k
+            break
+        err = _relative(env.state_components, exact_solution(INERTIA, pi0, k * env.dt))
+        est = info["global_error_estimate"]
+        assert est <= tol
+        if err > 1e-11:
+            assert err <= est <= 3.0 * err, (k, err, est)
+    if ended is not None:  # the state kept: the last one within, after ended - 1 periods
+        assert _relative(env.state_components, exact_solution(INERTIA, pi0, (ended - 1) * env.dt)) <= tol
+    if start == (0.01, 5.0, 0.01) and tol == 1e-9:
+        assert ended is not None  # the near-separatrix start passes 1e-9 (2.3e-9 without the check: the bench's row)
+
+
+def test_reset_restarts_the_companion_and_the_env_copies_and_pickles():
+    env = _body(1e-9)
+    pi0 = np.array(INERTIA) * np.array(STARTS[1])
+    a = np.zeros(env.action_space.shape, np.float32)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", NumericalFailureWarning)
+        runs = []
+        for _ in range(2):
+            env.reset(seed=0, options={"state": {"angular_momentum": pi0}})
+            estimates = []
+            for _ in range(400):
+                _, _, terminated, _, info = env.step(a)
+                estimates.append(info["global_error_estimate"])
+                if terminated:
+                    break
+            assert info["numerical_failure"]
+            runs.append(estimates)
+        assert runs[0] == runs[1]  # the same episode again: the companion restarted with the state
+        env.reset(seed=0, options={"state": {"angular_momentum": pi0}})
+        for _ in range(50):
+            env.step(a)
+        twin, loaded = copy.deepcopy(env), pickle.loads(pickle.dumps(env))
+        for _ in range(50):
+            out = [e.step(a)[4]["global_error_estimate"] for e in (env, twin, loaded)]
+            assert out[0] == out[1] == out[2]
+            assert env.state_components == twin.state_components == loaded.state_components
+
+
+def test_the_checked_env_passes_gymnasiums_checker():
+    check_env(_body(1e-6), skip_render_check=True)
+
+
+def test_tolerance_check_is_validated():
+    with pytest.raises(ValueError, match="tolerance_check must be True or False"):
+        _body(1e-6, check="auto")
+    with pytest.raises(ValueError, match="tolerance_check=True needs tolerance="):
+        FreeRigidBodyEnv(tolerance_check=True)
+    with pytest.raises(ValueError, match="compiled=True cannot be had with tolerance_check=True"):
+        _body(1e-6, compiled=True)
+    from rbenvs.vector import FreeRigidBodyVectorEnv
+
+    with pytest.raises(ValueError, match="tolerance_check=True is not supported by the vector env"):
+        FreeRigidBodyVectorEnv(2, tolerance=1e-6, tolerance_check=True)
+
+
+def test_the_unstable_motion_warning_names_the_check():
+    with pytest.warns(UnstableMotionWarning, match="tolerance_check=True estimates it"):
+        TippeTopEnv(tolerance=1e-6)
+    with pytest.warns(UnstableMotionWarning, match="tolerance_check=True: a companion run"):
+        TippeTopEnv(tolerance=1e-6, tolerance_check=True)
+
+
+def test_the_inverting_tippe_top_is_ended_within_the_tolerance():
+    """The tippe top that inverts from rest (scene tippe_invert, 1e-6 over 4 s: 89 times outside
+    without the check, rbenvs bench accuracy --tolerance) against DOP853 at rtol 1e-13 through
+    the env's switching layer: the estimate is at least the error on every period above
+    roundoff, and the episode ends where it passes 1e-6, the state kept within it."""
+    from rbenvs.bench.accuracy import REFERENCE
+    from rbenvs.bench.tolerance import _blocks, _env, scene_cases
+
+    case = scene_cases(["tippe_invert"])[0]
+    ref = _env(dataclasses.replace(case, kwargs=dict(case.kwargs, integrator=REFERENCE)))
+    env = _env(case, tolerance=1e-6, tolerance_horizon=case.periods, tolerance_check=True)
+    ref.reset(seed=0)
+    env.reset(seed=0)
+    a = np.zeros(env.action_space.shape, np.float32)
+
+    def error(y, r):
+        return max(float(np.linalg.norm(np.subtract(y[lo:hi], r[lo:hi])) / np.linalg.norm(r[lo:hi])) for lo, hi in _blocks(env))
+
+    ended, previous = None, ref.state_components
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        for k in range(1, case.periods + 1):
+            _, _, terminated, _, info = env.step(a)
+            if info["numerical_failure"]:
+                ended = k
+                assert error(env.state_components, previous) <= 1e-6  # the state kept: the last period's
+                break
+            ref.step(a)
+            previous = ref.state_components
+            err = error(env.state_components, previous)
+            if err > 1e-11:
+                assert err <= info["global_error_estimate"] <= 3.0 * err, (k, err, info["global_error_estimate"])
+            assert not terminated
+    assert ended is not None and ended < case.periods
+
+
+@pytest.mark.parametrize("mode", ["next", "same"])
+def test_the_vector_env_checks_each_sub_env_as_its_single_env(mode):
+    """The vector env's companions (one per sub-env, on numpy) give each sub-env its single env's
+    global error estimates, bit for bit, and end the same episodes at the same period (the
+    near-separatrix start at 1e-9), restarting their companions with the sub-envs."""
+    from gymnasium.vector import AutoresetMode
+
+    from rbenvs.vector import FreeRigidBodyVectorEnv
+
+    kw = dict(inertia=INERTIA, axis=0, max_torque=0.0, integrator="rk4", max_angular_velocity=50.0, tolerance=1e-9, tolerance_horizon=400,
+              tolerance_check=True)
+    autoreset = AutoresetMode.NEXT_STEP if mode == "next" else AutoresetMode.SAME_STEP
+    vec = FreeRigidBodyVectorEnv(len(STARTS), max_episode_steps=400, autoreset_mode=autoreset, **kw)
+    singles = [FreeRigidBodyEnv(**kw) for _ in STARTS]
+    pis = np.array([np.array(INERTIA) * np.array(w) for w in STARTS])
+    _, vinfo = vec.reset(seed=0, options={"state": {"angular_momentum": pis}})
+    assert np.array_equal(vinfo["global_error_estimate"], np.zeros(len(STARTS)))
+    for env, pi0 in zip(singles, pis):
+        env.reset(seed=0, options={"state": {"angular_momentum": pi0}})
+    a = np.zeros(vec.action_space.shape, np.float32)
+    ended, at = [], None
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", NumericalFailureWarning)
+        for k in range(300):
+            obs, reward, terminated, _, info = vec.step(a)
+            if ended:  # after the end: NEXT_STEP restarts the sub-env on the next step; the others go on
+                rows = [j for j in range(len(STARTS)) if j != ended[0]]
+                since = k - at
+                if mode == "next" and since == 1:  # the restart: no period ran
+                    assert info["global_error_estimate"][ended[0]] == 0.0
+                elif since >= 1:  # the restarted companion measures the new episode alone (a start drawn from the seed)
+                    assert 0.0 < info["global_error_estimate"][ended[0]] < 1e-9
+            else:
+                rows = range(len(STARTS))
+            final = info.get("final_info")
+            for i in rows:
+                o, r, t, _, single = singles[i].step(a[i])
+                source = final if final is not None and info["_final_info"][i] else info
+                assert source["global_error_estimate"][i] == single["global_error_estimate"], (k, i)
+                assert bool(terminated[i]) == t and reward[i] == r
+                if final is None or not info["_final_info"][i]:
+                    assert np.array_equal(obs[i], o)
+                if t:
+                    assert single["numerical_failure"] and source["numerical_failure"][i]
+                    ended.append(i)
+                    at = k
+                    if mode == "same":  # restarted in this step: its new episode's estimate is 0
+                        assert info["global_error_estimate"][i] == 0.0
+            if len(ended) and k > 240:
+                break
+    assert ended == [1]  # the near-separatrix start, alone
+
+
+def test_the_vector_tippe_top_checks_as_its_single_envs():
+    """The hybrid system (the contact's switches and the lift-off event in the companion's
+    steps too): two sub-envs' estimates equal their single envs' over 60 periods."""
+    from rbenvs.vector import TippeTopVectorEnv
+
+    kw = dict(tolerance=1e-6, tolerance_horizon=400, tolerance_check=True)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UnstableMotionWarning)
+        vec = TippeTopVectorEnv(2, **kw)
+        singles = [TippeTopEnv(**kw) for _ in range(2)]
+    vec.reset(seed=3)
+    for i, env in enumerate(singles):
+        env.reset(seed=3 + i)
+    a = np.zeros(vec.action_space.shape, np.float32)
+    for _ in range(60):
+        _, _, _, _, info = vec.step(a)
+        for i, env in enumerate(singles):
+            single = env.step(a[i])[4]
+            assert info["global_error_estimate"][i] == single["global_error_estimate"] > 0.0
+            assert info["internal_step"][i] == single["internal_step"]
