@@ -130,11 +130,17 @@ def test_tolerance_check_is_validated():
         FreeRigidBodyVectorEnv(2, tolerance=1e-6, tolerance_check=True)
 
 
-def test_the_unstable_motion_warning_names_the_check():
-    with pytest.warns(UnstableMotionWarning, match="tolerance_check=True estimates it"):
+def test_the_unstable_motion_warning_names_the_check_and_the_callers_line():
+    from rbenvs.vector import TippeTopVectorEnv
+
+    with pytest.warns(UnstableMotionWarning, match="tolerance_check=True estimates it") as caught:
         TippeTopEnv(tolerance=1e-6)
     with pytest.warns(UnstableMotionWarning, match="tolerance_check=True: a companion run"):
         TippeTopEnv(tolerance=1e-6, tolerance_check=True)
+    with pytest.warns(UnstableMotionWarning) as caught_vector:
+        TippeTopVectorEnv(2, tolerance=1e-6)
+    # the line that built the env, not a line of the package (the vector env builds a single env)
+    assert {w.filename for w in [*caught, *caught_vector] if w.category is UnstableMotionWarning} == {__file__}
 
 
 def test_the_inverting_tippe_top_is_ended_within_the_tolerance():

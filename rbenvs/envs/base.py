@@ -15,6 +15,8 @@ import dataclasses
 import functools
 import inspect
 import math
+import os
+import sys
 import warnings
 
 import gymnasium as gym
@@ -55,6 +57,17 @@ def _registry() -> dict:
     from ..integrators import INTEGRATORS
 
     return INTEGRATORS
+
+
+def _caller_level() -> int:
+    """The ``stacklevel`` of the first frame outside this package, seen from the function that
+    calls this one: a construction warning names the user's line, whether the env was built
+    directly, by a vector env or by a wrapper of ours."""
+    package = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    frame, level = sys._getframe(1), 1
+    while frame is not None and os.path.abspath(frame.f_code.co_filename).startswith(package + os.sep):
+        frame, level = frame.f_back, level + 1
+    return level
 
 
 def _takes_tolerance(cls) -> bool:
@@ -141,7 +154,7 @@ class RigidBodyEnv(gym.Env):
                 warnings.warn(UnstableMotionWarning(
                     f"tolerance={tolerance!r}: {unstable}. The steps hold the error they commit within the tolerance, but an unstable "
                     f"motion amplifies errors already made; {then} ('rbenvs bench accuracy --tolerance' measures it per scene; "
-                    f"docs/integrators.md, 'Unstable motions')"), stacklevel=4)
+                    f"docs/integrators.md, 'Unstable motions')"), stacklevel=_caller_level())
         high = tuple(float(v) for v in observation_high)
         self.model = Model(system, task, integrator, actuator, dt, substeps, guard, high, self._speed_ceiling(), tolerance, horizon if tolerance is not None else None,
                            self.registered_episode_steps(), check)
