@@ -217,12 +217,16 @@ def motion_rates(rotation, rhs, blocks: tuple, accuracy=None, rotating: tuple = 
     frequency, within the bound.
 
     Why ``rotating`` (pairs of ``(start, stop)`` slices, a block and the block that drives it,
-    with the scheme's ``order`` ``p`` and the horizon's duration ``span``): a block that turns as a
-    rotation of itself at its own speed ``m`` (``dy_q/dt = A(y_d) y_q``, ``A`` skew, ``|A| = m``:
-    a unit quaternion at half the angular speed) errs by ``C (m h)^(p+1)`` a step, not at
-    ``lambda_e``; but it integrates its driver: a relative error ``eps`` of ``y_d`` turns it at a
-    rate off by ``m eps``, which it carries to the end of the horizon, ``m eps span`` at most. So
-    the driver's term ``mu_d`` counts ``(1 + m span)`` times, and the block's own error ``C m dt (m
+    with the scheme's ``order`` ``p`` and ``span``, the time an error of the horizon's periods is
+    carried to its end, on average): a block that turns as a rotation of itself at its own speed
+    ``m`` (``dy_q/dt = A(y_d) y_q``, ``A`` skew, ``|A| = m``: a unit quaternion at half the
+    angular speed) errs by ``C (m h)^(p+1)`` a step, not at ``lambda_e``; but it integrates its
+    driver: a relative error ``eps`` of ``y_d`` made in period ``k`` turns it at a rate off by
+    ``m eps``, which it carries to the end of the horizon, ``m eps (N - k) dt``. Summed over the
+    ``N`` periods of the horizon, each within the same budget, those weights ``1 + m (N - k) dt``
+    add up to ``N (1 + m span)`` with ``span = (N + 1) dt / 2``: exact where ``m`` is steady, and
+    where it varies off by a share ``O(1 / (m span))``, small where the term matters. So the
+    driver's term ``mu_d`` counts ``(1 + m span)`` times, and the block's own error ``C m dt (m
     h)^p`` is written as ``C mu dt (lambda_e h)^p`` with ``mu = m (m / lambda_e)^p``:
 
         mu = max(mu over the other blocks, mu_d (1 + m span) + m (m / lambda_e)^p)
@@ -341,7 +345,7 @@ class StepRule:
             names = rates.error_blocks if named else tuple(system.layout)
             blocks = tuple(tuple(system.layout[n]) for n in names)
             rotating = tuple((tuple(system.layout[q]), tuple(system.layout[d])) for q, d in rates.rotating_blocks)
-            span = float(horizon) * float(dt)
+            span = (float(horizon) + 1.0) * float(dt) / 2.0  # (the mean time to the horizon's end: motion_rates)
             mu_text = f"; mu = min(lambda, max over the state's blocks{' ' + ', '.join(names) if named else ''} of |dy_b/dt| / |y_b|)"
             for q, d in rates.rotating_blocks:
                 mu_text += (f", with {q} (turning at its own speed m, driven by {d}): max(mu over the others, mu_{d} (1 + m {span:g} s) "
