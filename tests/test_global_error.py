@@ -252,3 +252,21 @@ def test_the_vector_tippe_top_checks_as_its_single_envs():
             single = env.step(a[i])[4]
             assert info["global_error_estimate"][i] == single["global_error_estimate"] > 0.0
             assert info["internal_step"][i] == single["internal_step"]
+
+
+def test_the_benchs_checked_rows_are_within_or_ended_with_the_message():
+    """``rbenvs bench accuracy --tolerance``'s ``fb_triaxial_episode+check`` rows (its unchecked
+    rows end 1.3 and 2.3 times outside 1e-6 and 1e-9): at every tolerance within it, up to the
+    end of each episode or up to the state kept where the global error estimate ended one; the
+    companion's steps counted."""
+    from rbenvs.bench.tolerance import CHECK_SUFFIX, all_cases, run_tolerance
+
+    key = "fb_triaxial_episode" + CHECK_SUFFIX
+    assert [c.key for c in all_cases([key])] == [key] and all_cases([key])[0].check
+    rows = [r for r in run_tolerance(keys=[key], fixed=False)["rows"] if r["tolerance"] is not None]
+    assert len(rows) == 3
+    for r in rows:
+        assert r["error"] <= r["tolerance"], r
+        assert r["failure"] is None or r["failure"].startswith("ended: the global error estimate passed the tolerance"), r
+    plain = [r for r in run_tolerance(keys=["fb_triaxial_episode"], fixed=False)["rows"] if r["tolerance"] is not None]
+    assert all(c["steps"] > p["steps"] for c, p in zip(rows, plain))  # the companion's steps and the even counts
