@@ -91,6 +91,10 @@ class FrictionLaw:
     methods alone, which compiled code cannot call)."""
 
     name = "base"
+    # whether the force saturates beyond the slip scale eps (Coulomb: at mu N): a slip can then
+    # leave the stiff band and grow to a sliding speed, carrying the error it had relative to
+    # itself (tolerance='s share of the slip relaxation, rbenvs.dynamics.tippe_top.implicit_forms)
+    saturates = False
     kernel_coefficient = None
     kernel_stiffness = None
     kernel_slope = None  # optional: 2 dk/d|s|^2, for schemes that treat the friction implicitly
@@ -137,6 +141,7 @@ class Coulomb(FrictionLaw):
     eps^2)``. Near zero slip it is the viscous law ``-mu N v_P / eps``: stiff for small ``eps``."""
 
     name = "coulomb"
+    saturates = True
     kernel_coefficient = staticmethod(coulomb_coefficient)
     kernel_stiffness = staticmethod(coulomb_stiffness)
     kernel_slope = staticmethod(coulomb_slope)
