@@ -21,8 +21,9 @@ run's global error, carried by the same linearised flow, amplification included:
 (``info["global_error_estimate"]``) is ``MARGIN = 1.25`` times it: measured against the free
 body's exact solution (moments (2, 1.5, 1), 5 rad/s, a start 0.002 off the separatrix and two
 others, 400 periods, tolerances 1e-3 to 1e-9) the classical estimate is 0.88 to 2.0 times the
-error, against DOP853 on the tippe top through its rise 1.3 to 1.8 times; with the margin it
-is above the error on every period measured (``tests/test_global_error.py``). (A ratio that changed from period to period would weight the periods'
+error, against DOP853 on a tippe top through its rise (150 rad/s, from rest, at 1e-6) 1.3 to
+1.8 times; with the margin it is above the error, and at most 3 times it, on every period
+measured (``tests/test_global_error.py``: the free body and the tippe top that hops). (A ratio that changed from period to period would weight the periods'
 errors unequally, and errors that cancel over an orbit, such as a free body's energy error near
 its separatrix, would not cancel in ``D``: measured, an estimate a third of the error.)
 
