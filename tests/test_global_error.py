@@ -126,8 +126,9 @@ def test_tolerance_check_is_validated():
         _body(1e-6, compiled=True)
     from rbenvs.vector import FreeRigidBodyVectorEnv
 
-    with pytest.raises(ValueError, match="tolerance_check=True is not supported by the vector env"):
-        FreeRigidBodyVectorEnv(2, tolerance=1e-6, tolerance_check=True)
+    with pytest.raises(ValueError, match="compiled=True cannot be had with tolerance_check=True"):
+        FreeRigidBodyVectorEnv(2, compiled=True, inertia=INERTIA, axis=0, tolerance=1e-6, tolerance_check=True)
+    assert not FreeRigidBodyVectorEnv(2, inertia=INERTIA, axis=0, tolerance=1e-6, tolerance_check=True).compiled  # (numpy)
 
 
 def test_the_unstable_motion_warning_names_the_check_and_the_callers_line():

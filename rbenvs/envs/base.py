@@ -485,10 +485,14 @@ class RigidBodyEnv(gym.Env):
         if info["numerical_failure"]:
             return out
         n = int(round(engine.dt / info["internal_step"]))
-        e = self._check.period(out[0], out[5], n)
+        check = self._check
+        yc0 = check.yc
+        e = check.period(out[0], out[5], n)
         info["global_error_estimate"] = e
         if e > engine.tolerance:
-            return engine.inaccurate_one(y0, a, info["internal_step"], plain, e, self._check)
+            failed = engine.inaccurate_one(y0, a, info["internal_step"], plain, e, check)
+            check.yc, check.periods = yc0, check.periods - 1  # (the companion stays with the state kept)
+            return failed
         return out
 
     def step(self, action):

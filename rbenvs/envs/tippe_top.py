@@ -343,10 +343,9 @@ class TippeTopEnv(RigidBodyEnv):
         if not fastest > threshold:
             return None
         return (f"the top inverts (the inversion criterion: spin above {threshold:.6g} rad/s, and spin reaches {fastest:.6g} rad/s), "
-                "and its rise amplifies errors: the slip that leaves the friction band grows and carries its error; the slip "
-                "relaxation's error is held at the slip's own scale where the law saturates, which keeps the scenes' top that "
-                "inverts from rest at 150 rad/s within the tolerance, not the one that hops at 180 rad/s ('rbenvs bench accuracy "
-                "--tolerance')")
+                "and its rise amplifies errors (a slip leaving the friction band grows with its error; held at the slip's own "
+                "scale where the law saturates, which keeps the scenes' top inverting from rest at 150 rad/s within the tolerance, "
+                "not the one hopping at 180 rad/s)")
 
     def _speed_ceiling(self):
         return math.sqrt(3.0) * self._max_w
