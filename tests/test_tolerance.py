@@ -882,3 +882,45 @@ def test_the_tippe_tops_reference_runs_through_its_switches():
     assert {r[flag] for r in refs[0]} == {0.0, 1.0}  # on the sphere, then on the stem
     err, _, _, failure = _episode(case, _env(case, tolerance=1e-3, tolerance_horizon=case.periods), case.starts, refs)
     assert failure is None and err <= 1e-3, err
+
+
+def test_a_saturating_laws_share_holds_the_slips_error_at_the_slips_scale():
+    """Under Coulomb friction (``FrictionLaw.saturates``) the share is the one at ``v_G``'s scale
+    times ``m l_max max(|v_G|, eps) / max(|s|, eps)`` (the mobility split undone, the slip's own
+    scale), checked by hand on states of a top spun from rest (sliding, then rolling in the band);
+    viscous friction does not saturate and keeps the share at ``v_G``'s scale."""
+    from rbenvs.dynamics.contact import Coulomb, Viscous
+    from rbenvs.dynamics.tippe_top import constraint_vertical_velocity, contact_arm, implicit_forms, slip_velocity, tangential_mobility, tippe_frame
+
+    assert Coulomb.saturates and not Viscous.saturates
+    env = TippeTopEnv(integrator="rk4", tolerance=1e-6, tolerance_horizon=20, compiled=False)
+    system, rule = env.system, env.engine.rule
+    law = system.friction
+    at_vg_scale = implicit_forms(law.kernel_coefficient, law.kernel_stiffness, law.kernel_slope, False, False, False).share
+    share, q = rule.share
+    assert share is not at_vg_scale
+    p = q[0][0]
+    eps, m = p[7], p[2]
+    zero = np.zeros(env.action_space.shape, np.float32)
+    env.reset(seed=0)
+    checked = 0
+    for _ in range(12):
+        y = tuple(env.state_components)
+        u = rule.zero_control
+        lam_g = rule.dissipation_rate(y, u)
+        a_vg = at_vg_scale(q, y, u, env.dt, 4.0, lam_g)
+        rm = tippe_frame(*y[4:8])
+        r = contact_arm(p, rm[6], rm[7], rm[8])
+        s = np.array(slip_velocity(rm, r, y[2], y[3], constraint_vertical_velocity(p, rm, y[8], y[9]), y[8], y[9], y[10]))
+        g = np.array(rm[6:9])
+        slip = float(np.linalg.norm(s - s.dot(g) * g))
+        _, l_max = tangential_mobility(p, rm[6], rm[7], rm[8])
+        if a_vg < 1.0:  # (the share at v_G's scale is capped at 1; the slip's is not)
+            expected = a_vg * m * l_max * max(math.hypot(y[2], y[3]), eps) / max(slip, eps)
+            assert share(q, y, u, env.dt, 4.0, lam_g) == pytest.approx(expected, rel=1e-9)
+            checked += 1
+        env.step(zero)
+    assert checked >= 10
+    viscous = TippeTopEnv(integrator="rk4", tolerance=1e-6, tolerance_horizon=20, compiled=False, friction_law="viscous", friction=3.0)
+    vlaw = viscous.system.friction
+    assert viscous.engine.rule.share[0] is implicit_forms(vlaw.kernel_coefficient, vlaw.kernel_stiffness, vlaw.kernel_slope, False, False, False).share
