@@ -10,7 +10,9 @@ Systems (``--system``, repeatable; default all):
 
 * ``free_body``: :mod:`rbenvs.verify.free_body` (docs/physics.md §1): exact solution, invariants,
   axis stability and growth rate, torque balance; a fast tumble (30 rad/s) against the exact
-  solution and its invariants;
+  solution and its invariants; and, for the schemes ``tolerance=`` takes,
+  :mod:`rbenvs.verify.tolerance`: the error of an episode run with a tolerance and the global
+  error estimate's bound on it, against the exact solution;
 * ``heavy_top``: :mod:`rbenvs.verify.heavy_top` (docs/physics.md §2): critical spin by bisection,
   upright stable above / unstable below with the growth rate, regular precession held, fast
   top nutation, invariants; the threshold of small fast tops (critical spin ~100 rad/s). Not for ``exact`` (the heavy top has no exact flow).
@@ -52,6 +54,7 @@ from .free_body import FAST_TUMBLE_BODIES, FREE_BODY_SETTINGS, free_body_checks
 from .heavy_top import HEAVY_TOP_SETTINGS, SMALL_TOP_CASES, heavy_top_checks
 from . import tippe_top as _tippe
 from .tippe_top import TIPPE_TOP_SETTINGS, tippe_top_checks
+from .tolerance import tolerance_checks, tolerance_integrators
 from ..render.common import plot_unavailable
 
 __all__ = [
@@ -74,6 +77,7 @@ SYSTEMS = ("free_body", "heavy_top", "tippe_top")
 
 # random cases per system: (quick, full)
 FREE_BODY_CASES = (2, 8)
+TOLERANCE_CASES = (2, 6)  # free bodies run with tolerance= (rbenvs.verify.tolerance)
 HEAVY_TOP_CASES = (1, 6)
 
 
@@ -95,11 +99,13 @@ def run_checks(systems=SYSTEMS, integrators=None, quick=False, seed=0, show_prog
     unverified = _unverified(systems, integrators)
     n_fb, n_fast = FREE_BODY_CASES[0 if quick else 1], FAST_TUMBLE_BODIES[0 if quick else 1]
     n_ht, n_small = HEAVY_TOP_CASES[0 if quick else 1], SMALL_TOP_CASES[0 if quick else 1]
-    total = len(fb) * (n_fb + 1 + n_fast) + len(ht) * (n_ht + n_small) + _tippe.progress_total(tt, quick=quick)
+    n_tol = TOLERANCE_CASES[0 if quick else 1]
+    total = len(fb) * (n_fb + 1 + n_fast) + len(tolerance_integrators(fb)) * n_tol + len(ht) * (n_ht + n_small) + _tippe.progress_total(tt, quick=quick)
     progress = Progress(total=total, enabled=show_progress, desc="verify")
     checks = list(unverified)
     if fb:
         checks += free_body_checks(fb, seed=seed, n_cases=n_fb, progress=progress.update, n_fast=n_fast)
+        checks += tolerance_checks(fb, seed=seed, n_cases=n_tol, progress=progress.update)
     if ht:
         checks += heavy_top_checks(ht, seed=seed, n_tops=n_ht, progress=progress.update, n_small=n_small)
     if tt:

@@ -1,0 +1,91 @@
+"""``rbenvs verify``'s rows for ``tolerance=`` (docs/integrators.md, "Accuracy: tolerance="), per
+integrator that a tolerance takes (an error constant, its leading error in the phase: rk4 today),
+on random free bodies against the exact solution (:func:`rbenvs.oracles.exact_solution`):
+
+* ``tolerance=1e-6 over 400 periods: max |Pi - Pi_exact| / |Pi_exact|``: the env built with the
+  tolerance and ``tolerance_check=True`` keeps the error of its episode within it (up to the
+  state it keeps where the global error estimate ended the episode: the contract either way);
+* ``tolerance_check: error - global error estimate``: the companion run's estimate
+  (:mod:`rbenvs.core.global_error`) is at least the error on every period whose error is above
+  roundoff (``1e-11``): the largest shortfall over the periods, relative to the tolerance, is 0.
+
+Parameter ranges: moments ``I_i ~ U(0.5, 2)`` kg m^2 (triangle inequality by rejection, distinct
+by at least 5%), the body angular velocity ``|Omega| = 5`` rad/s along a uniformly random
+direction, 400 control periods of the env's ``dt`` (its episode), no torque. A start near the
+intermediate axis is drawn as often as any other: its error grows like the horizon squared, the
+case the global error estimate is for.
+"""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+
+from ..oracles import exact_solution
+from .common import Check
+from .free_body import _random_inertia
+
+__all__ = ["TOLERANCE", "PERIODS", "SPIN", "ROWS", "tolerance_integrators", "tolerance_checks"]
+
+TOLERANCE = 1e-6
+PERIODS = 400
+SPIN = 5.0  # |Omega| [rad/s] of the starts
+ROUND_OFF_ERROR = 1e-11  # errors below this are roundoff: the estimate is not held to them
+ROWS = {
+    "error": f"tolerance={TOLERANCE:g} over {PERIODS} periods: max |Pi - Pi_exact| / |Pi_exact|",
+    "bound": "tolerance_check: max (error - global error estimate) / tolerance",
+}
+
+
+def tolerance_integrators(integrators) -> list[str]:
+    """The named integrators that ``tolerance=`` takes."""
+    from ..envs.base import _takes_tolerance
+    from ..integrators import get_integrator
+
+    return [name for name in integrators if _takes_tolerance(type(get_integrator(name)))]
+
+
+def tolerance_checks(integrators, seed=0, n_cases=2, progress=None) -> list[Check]:
+    """Two rows per integrator that ``tolerance=`` takes (the module's), each the worst of
+    ``n_cases`` random bodies and starts."""
+    from ..envs import FreeRigidBodyEnv, UnstableMotionWarning
+
+    rng = np.random.default_rng([seed, 2])
+    inertias = _random_inertia(rng, n_cases, distinct=0.05)
+    directions = rng.normal(size=(n_cases, 3))
+    out = []
+    for name in tolerance_integrators(integrators):
+        worst = {"error": (0.0, {}), "bound": (0.0, {})}
+        for inertia, d in zip(inertias, directions):
+            omega = SPIN * d / np.linalg.norm(d)
+            pi0 = inertia * omega
+            case = {"inertia": inertia.tolist(), "angular_momentum": pi0.tolist(), "integrator": name, "tolerance": TOLERANCE}
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", UnstableMotionWarning)
+                env = FreeRigidBodyEnv(inertia=tuple(inertia), max_torque=0.0, integrator=name, max_angular_velocity=10.0 * SPIN,
+                                       tolerance=TOLERANCE, tolerance_horizon=PERIODS, tolerance_check=True)
+            env.reset(seed=seed, options={"state": {"angular_momentum": pi0}})
+            a = np.zeros(env.action_space.shape, np.float32)
+            error = shortfall = 0.0
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")  # (an episode the estimate ends warns: counted here)
+                for k in range(1, PERIODS + 1):
+                    _, _, terminated, _, info = env.step(a)
+                    if info["numerical_failure"]:
+                        break  # (the state kept is the last one within: measured above)
+                    ref = exact_solution(tuple(inertia), pi0, k * env.dt)
+                    err = float(np.linalg.norm(np.subtract(env.state_components, ref)) / np.linalg.norm(ref))
+                    error = max(error, err)
+                    if err > ROUND_OFF_ERROR:
+                        shortfall = max(shortfall, (err - info["global_error_estimate"]) / TOLERANCE)
+                    if terminated:
+                        break
+            for key, value in (("error", error), ("bound", shortfall)):
+                if not value <= worst[key][0]:  # (NaN too)
+                    worst[key] = (value, case)
+            if progress:
+                progress()
+        out.append(Check("free_body", name, ROWS["error"], 0.0, worst["error"][0], TOLERANCE, case=worst["error"][1]))
+        out.append(Check("free_body", name, ROWS["bound"], 0.0, max(worst["bound"][0], 0.0), 0.0, case=worst["bound"][1]))
+    return out
