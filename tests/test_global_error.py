@@ -150,7 +150,7 @@ def test_the_hopping_tippe_top_is_ended_within_the_tolerance():
     rtol 1e-13 through the env's switching layer: the estimate is at least the error on every
     period above roundoff, and the episode ends where it passes 1e-6, the state kept within it."""
     from rbenvs.bench.accuracy import REFERENCE
-    from rbenvs.bench.tolerance import _blocks, _env, scene_cases
+    from rbenvs.bench.tolerance import _env, scene_cases
 
     case = scene_cases(["tippe_hop"])[0]
     ref = _env(dataclasses.replace(case, kwargs=dict(case.kwargs, integrator=REFERENCE)))
@@ -160,7 +160,7 @@ def test_the_hopping_tippe_top_is_ended_within_the_tolerance():
     a = np.zeros(env.action_space.shape, np.float32)
 
     def error(y, r):
-        return max(float(np.linalg.norm(np.subtract(y[lo:hi], r[lo:hi])) / np.linalg.norm(r[lo:hi])) for lo, hi in _blocks(env))
+        return max(float(np.linalg.norm(np.subtract(y[lo:hi], r[lo:hi])) / np.linalg.norm(r[lo:hi])) for lo, hi in tolerance_blocks(env.system))
 
     ended, previous = None, ref.state_components
     with warnings.catch_warnings():

@@ -448,6 +448,24 @@ def test_tippe_tops_relaxation_share_is_its_local_stiffness():
     assert np.array_equal(rule.dissipation_share(batch, None, lam_b), np.array(shares))
 
 
+def _tolerance_rows(key, fixed=True):
+    """``rbenvs bench accuracy --tolerance``'s three rows of case ``key`` (1e-3, 1e-6, 1e-9);
+    ``fixed=False`` skips the search for the cheapest fixed substeps."""
+    from rbenvs.bench.tolerance import run_tolerance
+
+    rows = [r for r in run_tolerance(keys=[key], fixed=fixed)["rows"] if r["tolerance"] is not None]
+    assert len(rows) == 3
+    return rows
+
+
+def _within_at_most_1_5_times_the_fixed_cost(rows):
+    """Issue 19's bar: each row within its tolerance, none failed, at no more than 1.5 times the
+    cheapest fixed setting's cost."""
+    for r in rows:
+        assert r["failure"] is None and r["error"] <= r["tolerance"], r
+        assert r["cost_ratio"] <= 1.5, r
+
+
 @pytest.mark.parametrize("key", ["fb_separatrix", "fb_equal", "top_below", "tippe", "tippe_rolling", "tippe_viscous"])
 def test_the_benchs_other_extremes_are_within_the_tolerance(key):
     """The extremes of ``rbenvs bench accuracy --tolerance`` not covered above (1e-6 off the
@@ -455,11 +473,7 @@ def test_the_benchs_other_extremes_are_within_the_tolerance(key):
     and rolling at 100-200 rad/s and tilts 0.05-0.6, Coulomb and viscous, its slip relaxation's
     share of the error counted at its local stiffness), at 1e-3, 1e-6 and 1e-9 against the
     references: every row within its tolerance, none refused or failed."""
-    from rbenvs.bench.tolerance import run_tolerance
-
-    rows = [r for r in run_tolerance(keys=[key], fixed=False)["rows"] if r["tolerance"] is not None]
-    assert len(rows) == 3
-    for r in rows:
+    for r in _tolerance_rows(key, fixed=False):
         assert "refused" not in r and r["failure"] is None and r["error"] <= r["tolerance"], r
 
 
@@ -570,13 +584,7 @@ def test_free_body_tolerance_costs_at_most_1_5_times_the_cheapest_fixed_substeps
     the tolerance at no more than 1.5 times the cheapest fixed setting's internal steps (before
     the Jacobian's rate the fast tumble took 1.39, 1.76 and 1.97 times; with the Jacobian's
     bound, before the motion's own frequency, the nearly equal moments took 3.00 and 2.64)."""
-    from rbenvs.bench.tolerance import run_tolerance
-
-    rows = [r for r in run_tolerance(keys=[key])["rows"] if r["tolerance"] is not None]
-    assert len(rows) == 3
-    for r in rows:
-        assert r["failure"] is None and r["error"] <= r["tolerance"], r
-        assert r["cost_ratio"] <= 1.5, r
+    _within_at_most_1_5_times_the_fixed_cost(_tolerance_rows(key))
 
 
 @pytest.mark.parametrize("key", ["tippe_viscous"])
@@ -588,13 +596,7 @@ def test_tippe_top_tolerance_costs_at_most_1_5_times_the_cheapest_fixed_substeps
     can leave the band and grow), which over the ten periods of the ``tippe`` and
     ``tippe_rolling`` rows, where it does not, costs more than 1.5 (docs/integrators.md,
     "Limits"); the inverting scene's cost is the next test's."""
-    from rbenvs.bench.tolerance import run_tolerance
-
-    rows = [r for r in run_tolerance(keys=[key])["rows"] if r["tolerance"] is not None]
-    assert len(rows) == 3
-    for r in rows:
-        assert r["failure"] is None and r["error"] <= r["tolerance"], r
-        assert r["cost_ratio"] <= 1.5, r
+    _within_at_most_1_5_times_the_fixed_cost(_tolerance_rows(key))
 
 
 def test_the_inverting_tippe_top_is_within_the_tolerance_at_the_cost_of_the_fixed_steps():
@@ -710,14 +712,10 @@ def test_integrator_auto_costs_at_most_1_5_times_the_cheapest_fixed_setting_of_a
     euler's rows' starts (the default free body at 1 rad/s, a top at twice its critical spin) it
     picks rk4, within the tolerance at no more than 1.5 times that cost (euler named by the user
     is refused with a tolerance: fb_euler, top_euler)."""
-    from rbenvs.bench.tolerance import run_tolerance
-
-    rows = [r for r in run_tolerance(keys=[key])["rows"] if r["tolerance"] is not None]
-    assert len(rows) == 3
+    rows = _tolerance_rows(key)
     for r in rows:
-        assert r["failure"] is None and r["error"] <= r["tolerance"], r
         assert r["integrator"] == "rk4" and r["fixed_integrator"] in ("euler", "rk4")
-        assert r["cost_ratio"] <= 1.5, r
+    _within_at_most_1_5_times_the_fixed_cost(rows)
 
 
 def test_the_bench_prints_euler_refused_at_every_tolerance():
@@ -796,13 +794,7 @@ def test_stable_scenes_meet_the_tolerance_over_their_episode_within_1_5_times_th
     uncontrolled): a detumbling body, a spin about the major axis and a sleeping top above its
     critical spin, at 1e-3, 1e-6 and 1e-9, within the tolerance at no more than 1.5 times the
     cheapest fixed substeps."""
-    from rbenvs.bench.tolerance import run_tolerance
-
-    rows = [r for r in run_tolerance(keys=[key])["rows"] if r["tolerance"] is not None]
-    assert len(rows) == 3
-    for r in rows:
-        assert r["failure"] is None and r["error"] <= r["tolerance"], r
-        assert r["cost_ratio"] <= 1.5, r
+    _within_at_most_1_5_times_the_fixed_cost(_tolerance_rows(key))
 
 
 def test_the_tippe_tops_attitude_counts_its_own_speed_and_carries_the_angular_velocitys_error():

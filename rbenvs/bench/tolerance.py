@@ -197,15 +197,6 @@ def _reset(env, start):
     return env.state_components
 
 
-def _blocks(env):
-    """The measured blocks (:func:`rbenvs.core.global_error.tolerance_blocks`, those the
-    companion run measures too): the tippe top's horizontal position (it drifts) and its contact
-    flags (``contact``, ``hops``: counts, not quantities) left out."""
-    from ..core.global_error import tolerance_blocks
-
-    return tolerance_blocks(env.system)
-
-
 def _references(case, env, starts):
     """Per start, the reference state after each period."""
     from ..oracles import exact_solution
@@ -249,7 +240,12 @@ def _episode(case, env, starts, refs):
     steps = 0
     failure = None
     a = np.zeros(env.action_space.shape, np.float32)
+    from ..core.global_error import relative_difference, tolerance_blocks
+
     checked = getattr(env, "_check", None) is not None
+    # the measured blocks: the tippe top's horizontal position (it drifts) and its contact flags
+    # (counts, not quantities) left out
+    blocks = tolerance_blocks(env.system)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         for i, (start, ref) in enumerate(zip(starts, refs)):
@@ -267,12 +263,9 @@ def _episode(case, env, starts, refs):
                     if "global_error_estimate" not in info:
                         err = math.inf
                     break
-                y = env.state_components
-                for lo, hi in _blocks(env):
-                    scale = float(np.linalg.norm(r[lo:hi]))
-                    diff = float(np.linalg.norm(np.subtract(y[lo:hi], r[lo:hi])))
-                    # (a block the reference keeps at zero, a top at rest: 0 where the state does too)
-                    err = max(err, diff / scale if scale > 0.0 else (0.0 if diff == 0.0 else math.inf))
+                # per block |y_b - ref_b| / |ref_b|, as the companion measures (a block the reference
+                # keeps at zero, a top at rest: 0 where the state does too)
+                err = max(err, relative_difference(blocks, r, env.state_components))
                 if term:  # the episode ends here: the tolerance is per episode (a task's end is no failure)
                     if info.get("terminal_reason") not in (None, "task") and failure is None:
                         failure = info["terminal_reason"]
