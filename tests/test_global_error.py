@@ -118,10 +118,16 @@ def test_the_checked_env_passes_gymnasiums_checker():
 
 
 def test_tolerance_check_is_validated():
-    with pytest.raises(ValueError, match="tolerance_check must be True or False"):
-        _body(1e-6, check="auto")
+    # (False, True or "refine"; the rule names the three)
+    for bad in ("auto", "True", 1, "Refine"):
+        with pytest.raises(ValueError, match=r"tolerance_check must be False, True \(.*\) or 'refine'"):
+            _body(1e-6, check=bad)
     with pytest.raises(ValueError, match="tolerance_check=True needs tolerance="):
         FreeRigidBodyEnv(tolerance_check=True)
+    with pytest.raises(ValueError, match="tolerance_check='refine' needs tolerance="):
+        FreeRigidBodyEnv(tolerance_check="refine")
+    with pytest.raises(ValueError, match="tolerance_check='refine' needs guard='subdivide'"):
+        _body(1e-6, check="refine", guard="refuse")
     with pytest.raises(ValueError, match="compiled=True cannot be had with tolerance_check=True"):
         _body(1e-6, compiled=True)
     from rbenvs.vector import FreeRigidBodyVectorEnv
@@ -144,25 +150,32 @@ def test_the_unstable_motion_warning_names_the_check_and_the_callers_line():
     assert {w.filename for w in [*caught, *caught_vector] if w.category is UnstableMotionWarning} == {__file__}
 
 
-def test_the_hopping_tippe_top_is_ended_within_the_tolerance():
+@pytest.fixture(scope="module")
+def hop_reference():
+    """The hopping tippe top (scene tippe_hop, seed 0) through DOP853 at rtol 1e-13, the env's
+    switching layer included: the state after each of its 400 periods."""
+    from rbenvs.bench.tolerance import _env, _references, scene_cases
+
+    case = scene_cases(["tippe_hop"])[0]
+    return case, _references(case, _env(case), (0,))[0]
+
+
+def test_the_hopping_tippe_top_is_ended_within_the_tolerance(hop_reference):
     """The tippe top that hops while it inverts (scene tippe_hop, 180 rad/s, free flight; 1e-6
     over 4 s, outside without the check: rbenvs bench accuracy --tolerance) against DOP853 at
     rtol 1e-13 through the env's switching layer: the estimate is at least the error on every
     period above roundoff, and the episode ends where it passes 1e-6, the state kept within it."""
-    from rbenvs.bench.accuracy import REFERENCE
-    from rbenvs.bench.tolerance import _env, scene_cases
+    from rbenvs.bench.tolerance import _env
 
-    case = scene_cases(["tippe_hop"])[0]
-    ref = _env(dataclasses.replace(case, kwargs=dict(case.kwargs, integrator=REFERENCE)))
+    case, reference = hop_reference
     env = _env(case, tolerance=1e-6, tolerance_horizon=case.periods, tolerance_check=True)
-    ref.reset(seed=0)
     env.reset(seed=0)
     a = np.zeros(env.action_space.shape, np.float32)
 
     def error(y, r):
         return max(float(np.linalg.norm(np.subtract(y[lo:hi], r[lo:hi])) / np.linalg.norm(r[lo:hi])) for lo, hi in tolerance_blocks(env.system))
 
-    ended, previous = None, ref.state_components
+    ended, previous = None, None
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         for k in range(1, case.periods + 1):
@@ -171,8 +184,7 @@ def test_the_hopping_tippe_top_is_ended_within_the_tolerance():
                 ended = k
                 assert error(env.state_components, previous) <= 1e-6  # the state kept: the last period's
                 break
-            ref.step(a)
-            previous = ref.state_components
+            previous = reference[k - 1]  # (DOP853's state after period k: the fixture's)
             err = error(env.state_components, previous)
             if err > 1e-11:
                 assert err <= info["global_error_estimate"] <= 3.0 * err, (k, err, info["global_error_estimate"])
@@ -271,3 +283,144 @@ def test_the_benchs_checked_rows_are_within_or_ended_with_the_message():
         assert r["failure"] is None or r["failure"].startswith("ended: the global error estimate passed the tolerance"), r
     plain = [r for r in run_tolerance(keys=["fb_triaxial_episode"], fixed=False)["rows"] if r["tolerance"] is not None]
     assert all(c["steps"] > p["steps"] for c, p in zip(rows, plain))  # the companion's steps and the even counts
+
+
+def _refined_start(tol):
+    """The near-separatrix body with tolerance_check="refine" at ``tol``, reset."""
+    env = _body(tol, check="refine")
+    env.reset(seed=0, options={"state": {"angular_momentum": np.array(INERTIA) * np.array(STARTS[1])}})
+    return env
+
+
+def test_refine_replays_the_episode_with_more_steps_and_holds_the_tolerance():
+    """``tolerance_check="refine"`` on the near-separatrix start at 1e-9 (``True`` ends it at
+    period 228): the episode is replayed from its start with the guard's counts times the
+    factor, goes on to the horizon, stays within 1e-9 of the exact solution on every period,
+    and reports the factor and the replay's steps; copies and pickles go on with the factor."""
+    env = _refined_start(1e-9)
+    pi0 = np.array(INERTIA) * np.array(STARTS[1])
+    a = np.zeros(env.action_space.shape, np.float32)
+    replays, worst = [], 0.0
+    for k in range(1, 401):
+        _, _, terminated, truncated, info = env.step(a)
+        assert not info["numerical_failure"] and not terminated
+        worst = max(worst, _relative(env.state_components, exact_solution(INERTIA, pi0, k * env.dt)))
+        if info["replayed_steps"]:
+            replays.append((k, info["step_factor"], info["replayed_steps"]))
+        assert info["global_error_estimate"] <= 1e-9
+        if k == 300:
+            twin, loaded = copy.deepcopy(env), pickle.loads(pickle.dumps(env))
+        if k > 300:
+            for e in (twin, loaded):
+                assert e.step(a)[4]["global_error_estimate"] == info["global_error_estimate"]
+                assert e.state_components == env.state_components
+    assert worst <= 1e-9, worst
+    assert len(replays) == 1 and 220 < replays[0][0] < 240, replays  # where True ends it
+    k, factor, replayed = replays[0]
+    assert factor > 1.1 and info["step_factor"] == factor
+    assert replayed > k * 2 * 6  # the k periods again (at least 6 steps and the companion's 3 each)
+
+
+def test_refine_ends_the_episode_where_more_steps_cannot_hold_the_tolerance():
+    """1e-12 on the near-separatrix start is below what float64 carries through the motion (rk4
+    at 400 fixed substeps ends 8.5e-10 from the exact solution over the episode, at 800 4.2e-9:
+    roundoff, amplified): a replay whose estimate passes the tolerance no later than before
+    stops the refinement, and the episode ends as with ``True``, saying so, within a second."""
+    env = _refined_start(1e-12)
+    a = np.zeros(env.action_space.shape, np.float32)
+    with pytest.warns(NumericalFailureWarning, match="replaying the episode with more steps did not hold it"):
+        for _ in range(400):
+            _, _, terminated, _, info = env.step(a)
+            if terminated:
+                break
+    assert info["numerical_failure"] and info["terminal_reason"] == "numerical_failure"
+    assert info["global_error_estimate"] > 1e-12 and info["step_factor"] >= 1.0
+
+
+def test_the_refining_env_passes_gymnasiums_checker():
+    check_env(_body(1e-6, check="refine"), skip_render_check=True)
+
+
+@pytest.mark.parametrize("mode", ["next", "same"])
+def test_the_vector_env_refines_each_sub_env_as_its_single_env(mode):
+    """Each sub-env that passes the tolerance is replayed on floats as its single env is: the
+    same observations, estimates, factors and replayed steps, bit for bit, over the horizon
+    (the near-separatrix start replays once), with SAME_STEP's final infos."""
+    from gymnasium.vector import AutoresetMode
+
+    from rbenvs.vector import FreeRigidBodyVectorEnv
+
+    kw = dict(inertia=INERTIA, axis=0, max_torque=0.0, integrator="rk4", max_angular_velocity=50.0, tolerance=1e-9, tolerance_horizon=400,
+              tolerance_check="refine")
+    autoreset = AutoresetMode.NEXT_STEP if mode == "next" else AutoresetMode.SAME_STEP
+    vec = FreeRigidBodyVectorEnv(len(STARTS), max_episode_steps=400, autoreset_mode=autoreset, **kw)
+    singles = [FreeRigidBodyEnv(**kw) for _ in STARTS]
+    pis = np.array([np.array(INERTIA) * np.array(w) for w in STARTS])
+    vec.reset(seed=0, options={"state": {"angular_momentum": pis}})
+    for env, pi0 in zip(singles, pis):
+        env.reset(seed=0, options={"state": {"angular_momentum": pi0}})
+    a = np.zeros(vec.action_space.shape, np.float32)
+    replayed = np.zeros(len(STARTS), dtype=np.int64)
+    for k in range(400):
+        obs, reward, terminated, truncated, info = vec.step(a)
+        final = info.get("final_info")
+        for i, env in enumerate(singles):
+            o, r, t, tr, single = env.step(a[i])
+            source = final if final is not None and info["_final_info"][i] else info
+            for key in ("global_error_estimate", "step_factor", "replayed_steps"):
+                assert source[key][i] == single[key], (k, i, key)
+            assert bool(terminated[i]) == t and reward[i] == r  # (the single env has no time limit: the vector env's truncates at 400)
+            if source is info:
+                assert np.array_equal(obs[i], o)
+            replayed[i] += single["replayed_steps"]
+    assert truncated.all() and not terminated.any()
+    assert replayed[1] > 0 and replayed[0] == replayed[2] == 0
+
+
+def test_refine_holds_the_hopping_tippe_top_within_the_tolerance(hop_reference):
+    """The tippe top that hops while it inverts (180 rad/s; 4 times outside 1e-6 without the
+    check, ended at period 250 with ``True``): with ``"refine"`` it runs its 400 periods within
+    1e-6 of DOP853 on every one, replayed once with about twice the steps (an error made before
+    the slip leaves the friction band is amplified some thousand times after it)."""
+    from rbenvs.bench.tolerance import _env
+
+    case, ref = hop_reference
+    env = _env(case, tolerance=1e-6, tolerance_horizon=case.periods, tolerance_check="refine")
+    env.reset(seed=0)
+    a = np.zeros(env.action_space.shape, np.float32)
+    blocks = tolerance_blocks(env.system)
+    replays = []
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        for k, r in enumerate(ref, start=1):
+            _, _, terminated, _, info = env.step(a)
+            assert not info["numerical_failure"] and not terminated, k
+            assert relative_difference(blocks, r, env.state_components) <= 1e-6, k
+            if info["replayed_steps"]:
+                replays.append((k, info["step_factor"]))
+    assert len(replays) == 1 and 240 < replays[0][0] < 260 and 1.5 < replays[0][1] < 3.0, replays
+
+
+def test_the_vector_tippe_top_refines_as_its_single_env():
+    """The hybrid system's replay (the switches and hops replayed on floats): one sub-env of the
+    hopping top at 1e-3 equals its single env, factor and replayed steps included, bit for bit."""
+    from rbenvs.bench.tolerance import _env, scene_cases
+    from rbenvs.vector import TippeTopVectorEnv
+
+    case = scene_cases(["tippe_hop"])[0]
+    kw = dict(case.kwargs, tolerance=1e-3, tolerance_horizon=case.periods, tolerance_check="refine")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        vec = TippeTopVectorEnv(2, **{k: v for k, v in kw.items() if k != "task"}, task=kw["task"])
+        single = _env(dataclasses.replace(case, kwargs=kw))
+        vec.reset(seed=0, options={"state": {name: np.stack([v, v]) for name, v in single.reset(seed=0) and single.get_state().items()}})
+        a = np.zeros(vec.action_space.shape, np.float32)
+        replayed = 0
+        for k in range(260):  # (the replay comes near period 244)
+            obs, _, terminated, _, info = vec.step(a)
+            o, _, t, _, s = single.step(a[0])
+            for key in ("global_error_estimate", "step_factor", "replayed_steps", "internal_step"):
+                assert info[key][0] == info[key][1] == s[key], (k, key)
+            assert np.array_equal(obs[0], o) and np.array_equal(obs[1], o) and bool(terminated[0]) == t
+            replayed += s["replayed_steps"]
+    assert replayed > 0

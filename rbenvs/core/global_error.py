@@ -29,6 +29,27 @@ periods' errors unequally, and errors that cancel over an orbit, such as a free 
 error near its separatrix, would not cancel in ``D``: measured, an estimate a third of the
 error; hence the even counts.
 
+**Holding the tolerance** (``tolerance_check="refine"``): instead of ending the episode where
+the estimate passes the tolerance, the check replays the episode from its start under the
+controls that acted, with every period's step count (the guard's) multiplied by a factor
+``f``, companion included, and then takes the period again. The error falls like ``f^-p``
+(measured on the tippe top that hops: doubling every count cut its error 16-fold), and the
+errors a motion amplifies were made early (the same top: refining the periods before its slip
+leaves the friction band cut its error 6-fold, refining those after it none; an error made at
+its start is some 20000 times larger at its peak), so only a replay from the start takes them
+back. ``f`` (:func:`refinement`) aims at an eighth of the tolerance at the horizon with the
+estimate grown in proportion to the periods run, ``(8 E / tol max(1, N / k))^(1/p)`` after
+``k`` of ``N`` periods, at least :data:`MIN_REFINEMENT`; a replayed period whose estimate still
+passes raises ``f`` again from there, at most :data:`MAX_REPLAYS` times a period. More steps
+make every period's error smaller, so a replay that passes the tolerance no later than the run
+did, with no smaller an estimate, says the estimate is not the steps' error: roundoff the
+motion amplified (the free body 0.002 off its separatrix: rk4 at 400 fixed substeps ends 8.5e-10
+from the exact solution over 20 s, at 800 4.2e-9), or steps outside the scheme's asymptotic
+range; the refinement then stops. There, and where the factor would ask more than
+``MAX_INTERNAL_STEPS`` steps or the replay ends earlier than the run did (a terminal event, a
+non-finite state), the episode ends as with ``True``, saying so. The observations already
+returned stay as they were: each was within the tolerance by the estimate when it was returned.
+
 ``D`` is measured as :mod:`rbenvs.bench.tolerance` measures the error against its reference:
 the largest over the state's blocks (:func:`tolerance_blocks`) of ``|y_b - yc_b| / |y_b|``.
 Everything here works on one state (floats) and on a batch (arrays).
@@ -40,10 +61,45 @@ import math
 
 import numpy as np
 
-__all__ = ["MARGIN", "tolerance_blocks", "companion_ratio", "relative_difference", "GlobalErrorCheck"]
+__all__ = ["MARGIN", "AIM", "MIN_REFINEMENT", "MAX_REPLAYS", "require_tolerance_check", "tolerance_blocks", "companion_ratio", "relative_difference",
+           "refinement", "GlobalErrorCheck"]
 
 # the reported estimate over the classical one (its next order's share: the module docstring)
 MARGIN = 1.25
+# a replay multiplies the step counts by at least this (an estimate just past the tolerance)
+MIN_REFINEMENT = 1.1
+# a replay aims at the tolerance over this at the horizon, the estimate grown in proportion to the
+# periods: an amplifying motion grows it faster than that, and a replay that falls short costs a
+# replay more (the hopping tippe top, 180 rad/s, whose error peaks a third of a second after the
+# first crossing: aiming at half the tolerance took two replays, 3.2-4.2 times the cheapest fixed
+# steps; at an eighth, one)
+AIM = 8.0
+# at most this many replays for one period; past them the episode ends as with tolerance_check=True
+MAX_REPLAYS = 4
+
+
+def require_tolerance_check(check, tolerance, guard="subdivide"):
+    """``tolerance_check=``: ``False``, ``True`` or ``"refine"``; either of the last two needs a
+    tolerance (the global error estimate is checked against it), and ``"refine"`` the guard
+    that subdivides (it takes more steps)."""
+    if not (check is True or check is False or (isinstance(check, str) and check == "refine")):
+        raise ValueError("tolerance_check must be False, True (a companion run checks the episode's global error and ends the episode "
+                         f"where it passes the tolerance) or 'refine' (the episode is replayed with more steps there), got {check!r}")
+    if check is not False and tolerance is None:
+        raise ValueError(f"tolerance_check={check!r} needs tolerance= (the relative error per episode the global error estimate is checked against)")
+    if check == "refine" and guard != "subdivide":
+        raise ValueError(f"tolerance_check='refine' needs guard='subdivide' (it takes more steps per period), got guard={guard!r}")
+    return check
+
+
+def refinement(estimate, tolerance, periods, horizon, order):
+    """The factor a replay multiplies the step counts by: ``(AIM E / tol max(1, N / k))^(1/p)``,
+    at least :data:`MIN_REFINEMENT` (``E`` the estimate after ``k = periods`` of the ``N =
+    horizon`` periods, ``p`` the order): an error falls like ``f^-p``, and one that grew over
+    ``k`` periods may grow in proportion over the rest, and faster (:data:`AIM`)."""
+    grown = AIM * float(estimate) / tolerance * max(1.0, horizon / max(periods, 1))
+    f = grown ** (1.0 / float(order)) if math.isfinite(grown) else math.inf
+    return f if f > MIN_REFINEMENT else MIN_REFINEMENT
 
 
 def tolerance_blocks(system) -> tuple:
@@ -81,25 +137,46 @@ def relative_difference(blocks, y, yc):
 
 class GlobalErrorCheck:
     """One env's (or one batch's) companion: its state and the periods it has run.
-    :meth:`restart` at a reset (rows ``mask`` of a batch); :meth:`period` after each period."""
+    :meth:`restart` at a reset (rows ``mask`` of a batch); :meth:`period` after each period;
+    with ``refine`` (``tolerance_check="refine"``) also :meth:`record` of each period's control
+    once it is kept, and :meth:`hold` where a period's estimate passes the tolerance."""
 
-    __slots__ = ("engine", "blocks", "ratio", "yc", "periods")
+    __slots__ = ("engine", "blocks", "ratio", "yc", "periods", "refine", "y0", "controls", "first", "factor")
 
-    def __init__(self, engine):
+    def __init__(self, engine, refine=False):
         self.engine = engine
         self.blocks = tolerance_blocks(engine.system)
         self.ratio = companion_ratio(engine.integrator.order)
         self.yc = None
         self.periods = 0
+        self.refine = bool(refine)
+        # with refine: the episode's start, the controls of its periods (a batch: one entry per
+        # step, row i's from index first[i]) and the factor on the guard's counts
+        self.y0, self.controls, self.first, self.factor = None, [], 0, 1.0
 
     def restart(self, y, mask=None):
         """The companion starts at ``y`` (a batch: at the rows ``mask`` of ``y``, or all)."""
         if mask is None or self.yc is None:
             self.yc = y
-            self.periods = np.zeros(len(y[0]), dtype=np.int64) if isinstance(y[0], np.ndarray) else 0
+            batch = isinstance(y[0], np.ndarray)
+            self.periods = np.zeros(len(y[0]), dtype=np.int64) if batch else 0
+            if self.refine:
+                self.y0, self.controls = (tuple(np.array(c, dtype=np.float64) for c in y) if batch else y), []
+                self.first = np.zeros(len(y[0]), dtype=np.int64) if batch else 0
+                self.factor = np.ones(len(y[0])) if batch else 1.0
+                if not batch:
+                    self.engine.step_factor = 1.0
             return
         self.yc = tuple(np.where(mask, c, cc) for c, cc in zip(y, self.yc))
         self.periods = np.where(mask, 0, self.periods)
+        if self.refine:
+            self.y0 = tuple(np.where(mask, c, c0) for c, c0 in zip(y, self.y0))
+            self.first = np.where(mask, len(self.controls), self.first)
+            self.factor = np.where(mask, 1.0, self.factor)
+            drop = int(self.first.min())
+            if drop > 64 and 2 * drop > len(self.controls):  # (no row needs the oldest entries any more)
+                del self.controls[:drop]
+                self.first = self.first - drop
 
     def period(self, y, u, n):
         """After a period that took ``y``'s run ``n`` (even) steps under ``u``: the companion's
@@ -107,3 +184,92 @@ class GlobalErrorCheck:
         self.yc = self.engine.companion(self.yc, u, n)
         self.periods = self.periods + 1
         return MARGIN * relative_difference(self.blocks, y, self.yc) / self.ratio
+
+    def record(self, u):
+        """With ``refine``: the control of a period that was kept (a batch: every row's, one
+        entry a step)."""
+        if self.refine:
+            self.controls.append(u)
+
+    def hold(self, estimate, u, redo, spent, row=None):
+        """A period under ``u`` whose estimate ``estimate`` passed the tolerance, held within it
+        (``tolerance_check="refine"``): the factor raised (:func:`refinement`), the episode
+        replayed from its start (:meth:`_replay`), and the period taken again by ``redo(y,
+        factor) -> (result, y_new, n)`` from the replayed state (``result``: what the caller
+        keeps, ``None`` where the period failed; ``n`` its steps), until its estimate is within,
+        at most :data:`MAX_REPLAYS` times. ``row``: a batch's sub-env, whose episode is replayed
+        on floats (the single env's steps, bit for bit; ``u`` then that row's floats). ``spent``:
+        the steps the period's first try took, companion's included. Returns ``(result,
+        estimate, steps)``, ``steps`` all those taken beyond the kept period's own (``n`` and
+        its companion's ``n / 2``), and leaves the companion and the factor with the result;
+        ``result`` is ``None`` where the tolerance could not be held (the factor then stays as
+        it was)."""
+        engine, tol = self.engine, self.engine.tolerance
+        if row is None:
+            y0, controls, factor = self.y0, self.controls, self.factor
+        else:
+            y0 = tuple(float(c[row]) for c in self.y0)
+            controls = [None if v is None else tuple(float(c[row]) if np.ndim(c) else float(c) for c in v) for v in self.controls[int(self.first[row]):]]
+            factor = float(self.factor[row])
+        kept = factor
+        k, e, steps = len(controls) + 1, float(estimate), int(spent)
+        for _ in range(MAX_REPLAYS):
+            factor *= refinement(e, tol, k, engine.model.horizon, engine.integrator.order)
+            if not math.isfinite(factor):
+                break
+            start, e_at, k_at, taken = self._replay(y0, controls, factor)
+            steps += taken
+            if start is None:
+                # a replayed period passed the tolerance; with more steps every period's error
+                # is smaller, so a pass no later than the last one, no smaller, says the estimate
+                # is not the steps' error (roundoff the motion amplified, a non-asymptotic step):
+                # no factor holds it (and a non-finite one: an event or a state the run did not meet)
+                if not math.isfinite(e_at) or k_at < k or (k_at == k and e_at >= e):
+                    break
+                k, e = k_at, e_at
+                continue  # the factor is raised from there
+            y, yc = start
+            if row is None:
+                engine.step_factor = factor  # (the single env's period reads it)
+            result, y_new, n = redo(y, factor)
+            if result is None:
+                break
+            yc = engine.companion(yc, u, n)
+            e_at = MARGIN * relative_difference(self.blocks, y_new, yc) / self.ratio
+            if e_at <= tol:
+                if row is None:
+                    self.factor, self.yc, self.periods = factor, yc, k
+                else:
+                    self.factor[row], self.periods[row] = factor, k
+                    self.yc = tuple(np.array(c, dtype=np.float64) for c in self.yc)  # (writable rows)
+                    for c, v in zip(self.yc, yc):
+                        c[row] = v
+                return result, e_at, steps
+            steps += n + n // 2
+            if len(controls) + 1 < k or (len(controls) + 1 == k and e_at >= e):  # (as above)
+                break
+            k, e = len(controls) + 1, e_at
+        if row is None:
+            engine.step_factor = kept
+        return None, estimate, steps
+
+    def _replay(self, y0, controls, factor):
+        """One state's periods from ``y0`` under ``controls`` with the guard's counts times
+        ``factor``, the companion beside them: ``((y, yc), e, k, steps)`` at the end, or
+        ``(None, e, k, steps)`` at the ``k``-th period, whose estimate ``e`` passed the
+        tolerance (``inf``: a terminal event fired or the state went non-finite, which the run
+        did not meet)."""
+        engine, tol = self.engine, self.engine.tolerance
+        y = yc = y0
+        e, steps = 0.0, 0
+        for j, u in enumerate(controls):
+            y, fired, h = engine.advance(y, u, False, factor=factor)
+            n = int(round(engine.dt / h))
+            steps += n + n // 2
+            if fired or not all(math.isfinite(c) for c in y):
+                return None, math.inf, j + 1, steps
+            yc = engine.companion(yc, u, n)
+            e = MARGIN * relative_difference(self.blocks, y, yc) / self.ratio
+            if not e <= tol:
+                return None, e, j + 1, steps
+        return (y, yc), e, len(controls) + 1, steps

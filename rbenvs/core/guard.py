@@ -58,7 +58,7 @@ from ..rotations import maximum, power, select, sqrt
 from .codegen import generate
 
 __all__ = ["MAX_INTERNAL_STEPS", "GUARDS", "UnstableMotionWarning", "StepRule", "step_ratio", "step_ratio_motion", "motion_rates", "accuracy_steps", "relaxation_steps", "whole_root", "error_estimate", "require_guard",
-           "require_tolerance", "require_tolerance_check"]
+           "require_tolerance"]
 
 # More internal steps than this in one control period is treated as a numerical failure.
 MAX_INTERNAL_STEPS = 1_000_000
@@ -95,16 +95,6 @@ def require_tolerance(tolerance):
     if not (math.isfinite(tol) and 0.0 < tol < 1.0):
         raise ValueError(f"tolerance must be {rule}, got {tolerance!r}")
     return tol
-
-
-def require_tolerance_check(check, tolerance) -> bool:
-    """``tolerance_check=``: ``True`` or ``False``; ``True`` needs a tolerance (the global error
-    estimate is checked against it)."""
-    if check is not True and check is not False:
-        raise ValueError(f"tolerance_check must be True or False (whether a companion run checks the episode's global error), got {check!r}")
-    if check and tolerance is None:
-        raise ValueError("tolerance_check=True needs tolerance= (the relative error per episode the global error estimate is checked against)")
-    return check
 
 
 @jitable

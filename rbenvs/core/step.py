@@ -265,6 +265,9 @@ class Engine:
         # twice the size: rbenvs.core.global_error), so neither the plain loop (substeps steps) nor
         # the compiled single-state step (the guard's count) runs
         self.check = m.check
+        # tolerance_check="refine": the single env's factor on the guard's count, raised where its
+        # episode was replayed with more steps (rbenvs.core.global_error.GlobalErrorCheck.refine)
+        self.step_factor = 1.0
         if m.check:
             if compiled is True:
                 raise ValueError("compiled=True cannot be had with tolerance_check=True: the checked period (an even count of steps "
@@ -303,7 +306,7 @@ class Engine:
                                    self.metric_names, self.readout_names)
 
     # ------------------------------------------------------------------ the period
-    def advance(self, y, u, plain: bool, skip=None):
+    def advance(self, y, u, plain: bool, skip=None, factor=None):
         """One control period from ``y`` under ``u``: ``(y, fired, h)``.
 
         ``fired``: whether the terminal event ended the period (a bool, or a mask for a batch);
@@ -313,6 +316,9 @@ class Engine:
         than ``MAX_INTERNAL_STEPS`` is refused as a numerical failure: the state becomes NaN,
         never a hang). ``skip`` (a batch): elements whose result is discarded (vector
         autoreset) take ``substeps`` steps, are never refused and never stretch the loop.
+        ``factor`` (``tolerance_check="refine"``, :mod:`rbenvs.core.global_error`): the guard's
+        count times it, rounded up (a batch: one per element; one state: ``None`` reads
+        :attr:`step_factor`, the single env's).
         """
         if plain:
             step, h = self.bound_step, self.h
@@ -323,6 +329,10 @@ class Engine:
         n = self.rule.steps(y, u, self.substeps)
         event = self.event
         if not isinstance(y[0], np.ndarray):  # one state: plain Python (no numpy call per period)
+            if factor is None:
+                factor = self.step_factor
+            if factor != 1.0 and n <= MAX_INTERNAL_STEPS:
+                n = min(math.ceil(n * factor), MAX_INTERNAL_STEPS + 1)
             if n > self.substeps and self.guard == "refuse":
                 raise self.refusal(n)
             if self.check:  # an even count: the companion takes half as many steps of twice the size
@@ -336,6 +346,8 @@ class Engine:
             return y, fired, h
         # a batch: the same rules per element (each takes its own count, then is frozen)
         n = np.broadcast_to(np.asarray(n), np.shape(y[0]))
+        if factor is not None:  # (the same IEEE product and ceiling as one state's)
+            n = np.where(n <= MAX_INTERNAL_STEPS, np.minimum(np.ceil(n * np.asarray(factor, dtype=np.float64)), MAX_INTERNAL_STEPS + 1), n).astype(np.int64)
         if self.check:
             n = n + (n & 1)
         if skip is not None:
@@ -610,18 +622,25 @@ class Engine:
         """The end of an episode whose global error estimate (``tolerance_check``) passed the
         tolerance in the period from ``y0``: a numerical failure at ``y0``, the last state
         within it, with a warning that says when."""
-        what = self._inaccurate_text(estimate, check.periods)
+        what = self._inaccurate_text(estimate, check.periods, check.refine)
         u_norm, u = self.control(a)
         out = self._failed_one(y0, u_norm, u, h, plain, what, "the last state within the tolerance")
         out[4]["global_error_estimate"] = estimate
         return out
 
-    def _inaccurate_text(self, estimate, periods) -> str:
+    def _inaccurate_text(self, estimate, periods, refine=False) -> str:
+        if refine:
+            return (f"the global error estimate {float(estimate):.3g} passed tolerance={self.tolerance!r} after {int(periods)} periods "
+                    f"({int(periods) * self.dt:.6g} s) and replaying the episode with more steps did not hold it (tolerance_check='refine': "
+                    f"the estimate did not fall as the steps' error does, which roundoff amplified by the motion or a step outside the "
+                    f"scheme's asymptotic range explains, or the steps passed MAX_INTERNAL_STEPS = {MAX_INTERNAL_STEPS}, or a replay ended "
+                    f"earlier than the run); a larger tolerance holds: a relative error below what float64 carries through an unstable "
+                    f"motion cannot")
         return (f"the global error estimate {float(estimate):.3g} passed tolerance={self.tolerance!r} after {int(periods)} periods "
                 f"({int(periods) * self.dt:.6g} s; tolerance_check: a companion run at twice the step measures the error the state "
                 f"carries, errors the motion amplified included, which the steps' estimate does not budget for; more steps per period "
-                f"hold it longer: substeps= sets the least count, and 'rbenvs bench accuracy --tolerance' shows the counts that hold "
-                f"each shipped scene)")
+                f"hold it longer: substeps= sets the least count, tolerance_check='refine' replays the episode with more steps instead "
+                f"of ending it, and 'rbenvs bench accuracy --tolerance' shows the counts that hold each shipped scene)")
 
     def _failed_one(self, y0, u_norm, u, h, plain, what=None, kept="the last finite state"):
         if what is None:
@@ -667,7 +686,7 @@ class Engine:
             if late.any():
                 idx = np.flatnonzero(late)
                 warnings.warn(
-                    f"sub-envs {idx.tolist()}: {self._inaccurate_text(np.max(estimate[late]), np.min(check.periods[late]))}; their episodes end "
+                    f"sub-envs {idx.tolist()}: {self._inaccurate_text(np.max(estimate[late]), np.min(check.periods[late]), check.refine)}; their episodes end "
                     "and their last states within the tolerance are kept",
                     NumericalFailureWarning,
                     stacklevel=3,

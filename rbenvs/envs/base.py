@@ -22,8 +22,8 @@ import warnings
 import gymnasium as gym
 import numpy as np
 
-from ..core.global_error import GlobalErrorCheck
-from ..core.guard import GUARDS, MAX_INTERNAL_STEPS, StepRule, UnstableMotionWarning, relaxation_steps, require_guard, require_tolerance, require_tolerance_check, stability_ratio, step_ratio
+from ..core.global_error import GlobalErrorCheck, require_tolerance_check
+from ..core.guard import GUARDS, MAX_INTERNAL_STEPS, StepRule, UnstableMotionWarning, relaxation_steps, require_guard, require_tolerance, stability_ratio, step_ratio
 from ..core.model import Model
 from ..core.step import Engine, NumericalFailureWarning, action_values
 from ..dynamics.validation import require_finite_positive, require_int_in
@@ -129,7 +129,8 @@ class RigidBodyEnv(gym.Env):
                tolerance=None, tolerance_horizon=None, tolerance_check=False):
         guard = require_guard(guard)
         tolerance = require_tolerance(tolerance)
-        check = require_tolerance_check(tolerance_check, tolerance)
+        mode = require_tolerance_check(tolerance_check, tolerance, guard)
+        check, refine = mode is not False, mode == "refine"
         horizon = self._tolerance_horizon(tolerance_horizon)
         compiled = require_compiled(compiled)
         dt = require_finite_positive("dt", dt)
@@ -157,7 +158,7 @@ class RigidBodyEnv(gym.Env):
                     f"docs/integrators.md, 'Unstable motions')"), stacklevel=_caller_level())
         high = tuple(float(v) for v in observation_high)
         self.model = Model(system, task, integrator, actuator, dt, substeps, guard, high, self._speed_ceiling(), tolerance, horizon if tolerance is not None else None,
-                           self.registered_episode_steps(), check)
+                           self.registered_episode_steps(), check, refine)
         self.engine = Engine(self.model, compiled)
         self.render_mode = render_mode
         self._renderer = None  # built by the first render(): matplotlib is imported only then
@@ -170,7 +171,7 @@ class RigidBodyEnv(gym.Env):
         self._action_shape = self.action_space.shape  # read on every step
         self._step_one = self.engine.step_one
         # tolerance_check: the companion run beside the state (rbenvs.core.global_error)
-        self._check = GlobalErrorCheck(self.engine) if check else None
+        self._check = GlobalErrorCheck(self.engine, refine) if check else None
         if check:
             self._step_one = self._step_checked
         self._y = None  # the state: a tuple of floats
@@ -477,22 +478,47 @@ class RigidBodyEnv(gym.Env):
 
     def _step_checked(self, y0, a, plain):
         """The engine's step with the companion's period after it (``tolerance_check``):
-        ``info["global_error_estimate"]``, and the episode ended as a numerical failure at
-        ``y0`` where the estimate passes the tolerance."""
-        engine = self.engine
+        ``info["global_error_estimate"]``; where the estimate passes the tolerance, the episode
+        ends as a numerical failure at ``y0``, or, with ``"refine"``, is replayed with more steps
+        (:meth:`rbenvs.core.global_error.GlobalErrorCheck.hold`; ``info["step_factor"]``, the
+        factor on the guard's counts, and ``info["replayed_steps"]``, the steps this step
+        took beyond its period's own)."""
+        engine, check = self.engine, self._check
+        if check.refine:  # (the engine is made again, factor 1, when the env is copied or pickled)
+            engine.step_factor = check.factor
         out = engine.step_one(y0, a, plain)
         info = out[4]
         if info["numerical_failure"]:
             return out
         n = int(round(engine.dt / info["internal_step"]))
-        check = self._check
         yc0 = check.yc
         e = check.period(out[0], out[5], n)
+        replayed = 0
+        if e > engine.tolerance and check.refine:
+            check.yc, check.periods = yc0, check.periods - 1  # (hold leaves them with what it keeps)
+
+            def redo(y, factor):  # (the period again from the replayed state, at engine.step_factor = factor)
+                again = engine.step_one(y, a, False)
+                if again[4]["numerical_failure"]:
+                    return None, None, 0
+                return again, again[0], int(round(engine.dt / again[4]["internal_step"]))
+
+            held, estimate, replayed = check.hold(e, out[5], redo, n + n // 2)
+            if held is not None:
+                out, e = held, estimate
+                info = out[4]
+            else:
+                check.periods = check.periods + 1  # (the message counts the period that passed)
         info["global_error_estimate"] = e
         if e > engine.tolerance:
             failed = engine.inaccurate_one(y0, a, info["internal_step"], plain, e, check)
             check.yc, check.periods = yc0, check.periods - 1  # (the companion stays with the state kept)
+            if check.refine:
+                failed[4].update(step_factor=check.factor, replayed_steps=replayed)
             return failed
+        if check.refine:
+            check.record(out[5])
+            info["step_factor"], info["replayed_steps"] = check.factor, replayed
         return out
 
     def step(self, action):

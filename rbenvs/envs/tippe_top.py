@@ -171,7 +171,11 @@ class TippeTopEnv(RigidBodyEnv):
       :mod:`rbenvs.core.global_error`), reports it as ``info["global_error_estimate"]`` and ends
       the episode as a numerical failure, at the last state within it, where it passes the
       tolerance: for motions that amplify errors (the ``UnstableMotionWarning``'s;
-      docs/integrators.md, "Unstable motions").
+      docs/integrators.md, "Unstable motions"). ``"refine"``: there, instead, the episode is
+      replayed from its start under the same controls with more steps per period (the factor in
+      ``info["step_factor"]``, the steps it took in ``info["replayed_steps"]``) and goes on within
+      the tolerance; it ends as with ``True`` only where more steps cannot hold it (needs
+      ``guard="subdivide"``).
     * ``compiled="auto"``: run each step as one compiled call of the same functions (numba, the
       ``fast`` extra; built on the first step, about a second per setting and process), bit
       for bit the float path, where numba is installed and the setting has pure forms (the
@@ -254,7 +258,7 @@ class TippeTopEnv(RigidBodyEnv):
         compiled="auto",
         tolerance=None,
         tolerance_horizon=None,
-        tolerance_check: bool = False,
+        tolerance_check: bool | str = False,
         friction_bound: str = "accuracy",
         param_ranges=None,
         observation_noise=None,

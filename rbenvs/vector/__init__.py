@@ -63,6 +63,7 @@ Conventions (gymnasium 1.x):
 
 from __future__ import annotations
 
+import math
 import warnings
 
 import numpy as np
@@ -115,8 +116,9 @@ class RigidBodyVectorEnv(VectorEnv):
         self._template, self._ranges, self._realism = env, env.param_ranges, env.realism
         # tolerance_check: the companion run of every sub-env (rbenvs.core.global_error), on the
         # numpy path (the checked period's even counts and the companion have no compiled form)
-        self._check = GlobalErrorCheck(self.engine) if env.model.check else None
+        self._check = GlobalErrorCheck(self.engine, env.model.refine) if env.model.check else None
         self._global = None  # the last step's global error estimates
+        self._replayed = self._factor = None  # tolerance_check="refine": the last step's replayed steps and factors
         if self._check is not None:
             if compiled is True:
                 raise ValueError("compiled=True cannot be had with tolerance_check=True: the checked period (an even count of steps "
@@ -416,6 +418,14 @@ class RigidBodyVectorEnv(VectorEnv):
                 global_[info["_final_info"]] = 0.0
             info["global_error_estimate"] = global_
             info["_global_error_estimate"] = self._true
+            if self._check.refine:  # the factor on the guard's counts, and the steps beyond the period's own
+                factor, replayed = np.array(self._check.factor, dtype=np.float64), np.where(restart, 0, self._replayed)
+                if "final_info" in info:  # (the ended episodes' factors, from before their restart)
+                    info["final_info"]["step_factor"], info["final_info"]["replayed_steps"] = self._factor.copy(), replayed.copy()
+                    info["final_info"]["_step_factor"] = info["final_info"]["_replayed_steps"] = self._true
+                    replayed[info["_final_info"]] = 0
+                info["step_factor"], info["replayed_steps"] = factor, replayed
+                info["_step_factor"] = info["_replayed_steps"] = self._true
         return obs, reward, terminated, truncated, info
 
     def _step(self, actions):
@@ -438,7 +448,8 @@ class RigidBodyVectorEnv(VectorEnv):
             if self._batch_step is not None:
                 y, fast, fired, h = self._compiled_advance(y0, u, u_norm, restart)
             else:
-                y, fired, h = engine.advance(y0, u, self._plain, restart if any_restart else None)
+                factor = self._check.factor if self._check is not None and self._check.refine else None
+                y, fired, h = engine.advance(y0, u, self._plain, restart if any_restart else None, factor)
                 if fired is False:
                     fired = self._false
         inaccurate = None
@@ -447,6 +458,12 @@ class RigidBodyVectorEnv(VectorEnv):
             with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
                 self._global = np.where(restart, 0.0, self._check.period(y, u, n))
                 inaccurate = self._global > engine.tolerance
+            self._replayed = np.zeros(self.num_envs, dtype=np.int64)
+            if self._check.refine:
+                if (inaccurate & ~restart).any():
+                    y, fired, h, inaccurate = self._hold(y0, y, u, fired, h, n, inaccurate & ~restart)
+                self._check.record(u)  # (before this step's restarts: a restarting sub-env's controls begin after it)
+                self._factor = np.array(self._check.factor, dtype=np.float64)  # (SAME_STEP's final_info: before the restarts)
             if not inaccurate.any():
                 inaccurate = None
         self._u, self._last_h = u, h
@@ -460,6 +477,35 @@ class RigidBodyVectorEnv(VectorEnv):
             metrics = dict(zip(self.task.metric_names, metrics))
             return self._finish(obs, over, reward, terminated, fired, None, metrics, restart, any_restart, physical)
         return self._numpy_finish(y0, y, u_norm, fired, restart, any_restart, inaccurate)
+
+    def _hold(self, y0, y, u, fired, h, n, late):
+        """``tolerance_check="refine"``: each sub-env of ``late`` (its estimate passed the
+        tolerance) replayed from its episode's start with more steps and its period taken again,
+        on floats, as its single env does (:meth:`rbenvs.core.global_error.GlobalErrorCheck.hold`):
+        ``(y, fired, h, inaccurate)`` with its new state, or still ``inaccurate`` where the
+        tolerance could not be held."""
+        engine, check = self.engine, self._check
+        y = [np.array(c, dtype=np.float64) for c in y]
+        fired = np.array(np.broadcast_to(fired, (self.num_envs,)), dtype=bool)
+        h = np.array(np.broadcast_to(h, (self.num_envs,)), dtype=np.float64)
+        inaccurate = late.copy()
+        for i in np.flatnonzero(late):
+            ui = None if u is None else tuple(float(c[i]) if np.ndim(c) else float(c) for c in u)
+
+            def redo(start, factor, ui=ui):
+                y_new, fired_i, h_i = engine.advance(start, ui, False, factor=factor)
+                if not all(math.isfinite(c) for c in y_new):
+                    return None, None, 0
+                return (y_new, fired_i, h_i), y_new, int(round(engine.dt / h_i))
+
+            held, e, steps = check.hold(self._global[i], ui, redo, int(n[i]) + int(n[i]) // 2, row=i)
+            self._replayed[i] = steps
+            if held is not None:
+                y_new, fired[i], h[i] = held
+                for c, v in zip(y, y_new):
+                    c[i] = v
+                self._global[i], inaccurate[i] = e, False
+        return tuple(y), fired, h, inaccurate
 
     def _numpy_finish(self, y0, y, u_norm, fired, restart, any_restart, inaccurate=None):
         """The rest of a step on numpy from the period's new states ``y``: numerical failure
