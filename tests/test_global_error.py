@@ -424,3 +424,19 @@ def test_the_vector_tippe_top_refines_as_its_single_env():
             assert np.array_equal(obs[0], o) and np.array_equal(obs[1], o) and bool(terminated[0]) == t
             replayed += s["replayed_steps"]
     assert replayed > 0
+
+
+def test_the_benchs_refined_rows_are_within_over_the_whole_episode():
+    """``fb_triaxial_episode+refine``: at every tolerance within it over all 400 periods of every
+    start (``+check`` ends the near-separatrix start at period 228 of 1e-9), no episode ended,
+    the replay's steps counted (more than the checked row's at 1e-9)."""
+    from rbenvs.bench.tolerance import CHECK_SUFFIX, REFINE_SUFFIX, all_cases, run_tolerance
+
+    key = "fb_triaxial_episode" + REFINE_SUFFIX
+    assert [c.key for c in all_cases([key])] == [key] and all_cases([key])[0].check == "refine"
+    rows = [r for r in run_tolerance(keys=[key], fixed=False)["rows"] if r["tolerance"] is not None]
+    assert len(rows) == 3
+    for r in rows:
+        assert r["error"] <= r["tolerance"] and r["failure"] is None, r
+    checked = {r["tolerance"]: r for r in run_tolerance(keys=["fb_triaxial_episode" + CHECK_SUFFIX], fixed=False)["rows"]}
+    assert checked[1e-9]["failure"].startswith("ended") and rows[2]["steps"] > checked[1e-9]["steps"]
