@@ -144,6 +144,8 @@ def test_the_unstable_motion_warning_names_the_check_and_the_callers_line():
         TippeTopEnv(tolerance=1e-6)
     with pytest.warns(UnstableMotionWarning, match="tolerance_check=True: a companion run"):
         TippeTopEnv(tolerance=1e-6, tolerance_check=True)
+    with pytest.warns(UnstableMotionWarning, match="tolerance_check='refine': a companion run .* replayed with more steps"):
+        TippeTopEnv(tolerance=1e-6, tolerance_check="refine")
     with pytest.warns(UnstableMotionWarning) as caught_vector:
         TippeTopVectorEnv(2, tolerance=1e-6)
     # the line that built the env, not a line of the package (the vector env builds a single env)

@@ -148,10 +148,13 @@ class RigidBodyEnv(gym.Env):
             self._require_accuracy(integrator, guard, tolerance)
             unstable = self._unstable_motion(system, task, horizon * dt)
             if unstable:
-                then = ("tolerance_check=True: a companion run estimates the episode's global error (info['global_error_estimate']) "
+                then = ("tolerance_check='refine': a companion run estimates the episode's global error (info['global_error_estimate']) "
+                        "and the episode is replayed with more steps where it passes the tolerance" if refine else
+                        "tolerance_check=True: a companion run estimates the episode's global error (info['global_error_estimate']) "
                         "and the episode ends as a numerical failure where it passes the tolerance" if check else
                         "over a horizon that spans it the error can end above the tolerance (tolerance_check=True estimates it and ends "
-                        "the episode as a numerical failure where it passes the tolerance)")
+                        "the episode as a numerical failure where it passes the tolerance; tolerance_check='refine' replays the episode "
+                        "with more steps there instead)")
                 warnings.warn(UnstableMotionWarning(
                     f"tolerance={tolerance!r}: {unstable}. The steps hold the error they commit within the tolerance, but an unstable "
                     f"motion amplifies errors already made; {then} ('rbenvs bench accuracy --tolerance' measures it per scene; "
