@@ -246,7 +246,7 @@ class GlobalErrorCheck:
                         c[row] = v
                 return result, e_at, steps
             steps += n + n // 2
-            if len(controls) + 1 < k or (len(controls) + 1 == k and e_at >= e):  # (as above)
+            if k == len(controls) + 1 and e_at >= e:  # (this period passed before, no smaller: as above)
                 break
             k, e = len(controls) + 1, e_at
         if row is None:
