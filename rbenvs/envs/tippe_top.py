@@ -175,7 +175,8 @@ class TippeTopEnv(RigidBodyEnv):
       replayed from its start under the same controls with more steps per period (the factor in
       ``info["step_factor"]``, the steps it took in ``info["replayed_steps"]``) and goes on within
       the tolerance; it ends as with ``True`` only where more steps cannot hold it (needs
-      ``guard="subdivide"``).
+      ``guard="subdivide"``). A step that replays takes about as long as the episode so far
+      took, once more (a vector env's step: for each sub-env it replays).
     * ``compiled="auto"``: run each step as one compiled call of the same functions (numba, the
       ``fast`` extra; built on the first step, about a second per setting and process), bit
       for bit the float path, where numba is installed and the setting has pure forms (the
