@@ -266,7 +266,7 @@ class Engine:
         # the compiled single-state step (the guard's count) runs
         self.check = m.check
         # tolerance_check="refine": the single env's factor on the guard's count, raised where its
-        # episode was replayed with more steps (rbenvs.core.global_error.GlobalErrorCheck.refine)
+        # episode was replayed with more steps (rbenvs.core.global_error.GlobalErrorCheck.hold)
         self.step_factor = 1.0
         if m.check:
             if compiled is True:
