@@ -380,7 +380,7 @@ def test_the_vector_env_refines_each_sub_env_as_its_single_env(mode):
 
 
 def test_refine_holds_the_hopping_tippe_top_within_the_tolerance(hop_reference):
-    """The tippe top that hops while it inverts (180 rad/s; 4 times outside 1e-6 without the
+    """The tippe top that hops while it inverts (180 rad/s; 3.7 times outside 1e-6 without the
     check, ended at period 250 with ``True``): with ``"refine"`` it runs its 400 periods within
     1e-6 of DOP853 on every one, replayed once with about twice the steps (an error made before
     the slip leaves the friction band is amplified some thousand times after it)."""
