@@ -534,7 +534,9 @@ class RigidBodyEnv(gym.Env):
     def internal_steps(self, y, u):
         """Integrator steps per control period at ``y`` under ``u``: ``max(substeps, ceil(x))``
         from the step rule (an int, or an int array for a batch); ``MAX_INTERNAL_STEPS + 1``
-        marks a period refused as a numerical failure."""
+        marks a period refused as a numerical failure. The guard's count: with
+        ``tolerance_check`` a period takes it times ``info["step_factor"]`` (``"refine"``),
+        rounded up, and one more where that is odd (``info["internal_step"]`` is the step taken)."""
         return self.engine.internal_steps(y, u)
 
     # ------------------------------------------------------------------ state access
