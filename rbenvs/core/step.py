@@ -618,11 +618,12 @@ class Engine:
         bound = self.rule.binding(y0, u) if y0 is not None else f"the step bound ({self.rule.text})"
         return f": the period needs more than MAX_INTERNAL_STEPS = {MAX_INTERNAL_STEPS} internal steps to meet {bound}"
 
-    def inaccurate_one(self, y0, a, h, plain, estimate, check):
+    def inaccurate_one(self, y0, a, h, plain, estimate, periods, refine=False):
         """The end of an episode whose global error estimate (``tolerance_check``) passed the
-        tolerance in the period from ``y0``: a numerical failure at ``y0``, the last state
-        within it, with a warning that says when."""
-        what = self._inaccurate_text(estimate, check.periods, check.refine)
+        tolerance in its ``periods``-th period, the one from ``y0``: a numerical failure at
+        ``y0``, the last state within it, with a warning that says when (``refine``: and that
+        replaying it with more steps did not hold it)."""
+        what = self._inaccurate_text(estimate, periods, refine)
         u_norm, u = self.control(a)
         out = self._failed_one(y0, u_norm, u, h, plain, what, "the last state within the tolerance")
         out[4]["global_error_estimate"] = estimate

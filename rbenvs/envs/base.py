@@ -497,28 +497,26 @@ class RigidBodyEnv(gym.Env):
         yc0 = check.yc
         e = check.period(out[0], out[5], n)
         replayed = 0
-        if e > engine.tolerance and check.refine:
-            check.yc, check.periods = yc0, check.periods - 1  # (hold leaves them with what it keeps)
-
-            def redo(y, factor):  # (the period again from the replayed state, at engine.step_factor = factor)
-                again = engine.step_one(y, a, False)
-                if again[4]["numerical_failure"]:
-                    return None, None, 0
-                return again, again[0], int(round(engine.dt / again[4]["internal_step"]))
-
-            held, estimate, replayed = check.hold(e, out[5], redo, n + n // 2)
-            if held is not None:
-                out, e = held, estimate
-                info = out[4]
-            else:
-                check.periods = check.periods + 1  # (the message counts the period that passed)
-        info["global_error_estimate"] = e
         if e > engine.tolerance:
-            failed = engine.inaccurate_one(y0, a, info["internal_step"], plain, e, check)
-            check.yc, check.periods = yc0, check.periods - 1  # (the companion stays with the state kept)
+            check.yc, check.periods = yc0, check.periods - 1  # (the companion stays with the state kept; hold moves it on)
+            held = None
             if check.refine:
-                failed[4].update(step_factor=check.factor, replayed_steps=replayed)
-            return failed
+
+                def redo(y, factor):  # (the period again from the replayed state, at engine.step_factor = factor)
+                    again = engine.step_one(y, a, False)
+                    if again[4]["numerical_failure"]:
+                        return None, None, 0
+                    return again, again[0], int(round(engine.dt / again[4]["internal_step"]))
+
+                held, estimate, replayed = check.hold(e, out[5], redo, n + n // 2)
+            if held is None:
+                failed = engine.inaccurate_one(y0, a, info["internal_step"], plain, e, check.periods + 1, check.refine)
+                if check.refine:
+                    failed[4].update(step_factor=check.factor, replayed_steps=replayed)
+                return failed
+            out, e = held, estimate
+            info = out[4]
+        info["global_error_estimate"] = e
         if check.refine:
             check.record(out[5])
             info["step_factor"], info["replayed_steps"] = check.factor, replayed
