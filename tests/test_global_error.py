@@ -442,3 +442,31 @@ def test_the_benchs_refined_rows_are_within_over_the_whole_episode():
         assert r["error"] <= r["tolerance"] and r["failure"] is None, r
     checked = {r["tolerance"]: r for r in run_tolerance(keys=["fb_triaxial_episode" + CHECK_SUFFIX], fixed=False)["rows"]}
     assert checked[1e-9]["failure"].startswith("ended") and rows[2]["steps"] > checked[1e-9]["steps"]
+
+
+def test_float64_carries_no_better_than_about_1e_9_near_the_separatrix():
+    """What neither check mode sees (docs/integrators.md): near the intermediate axis roundoff is
+    amplified, so two rk4 runs whose steps' error is far below 1e-12 (200 and 400 substeps a
+    period, 20 s) differ by the roundoff alone: above 1e-10 from 0.01 rad/s off the axis (measured
+    1.1e-9), below 1e-11 from 0.5 off (1.1e-12); and the near-separatrix start's run at 400
+    substeps ends some 1e-9 from the exact solution, no nearer than 1e-10 (measured 8.5e-10)."""
+    def run(w, substeps):
+        env = FreeRigidBodyEnv(inertia=INERTIA, axis=0, max_torque=0.0, integrator="rk4", max_angular_velocity=50.0, substeps=substeps)
+        env.reset(seed=0, options={"state": {"angular_momentum": np.array(INERTIA) * np.array(w)}})
+        a = np.zeros(env.action_space.shape, np.float32)
+        out = []
+        for _ in range(400):
+            env.step(a)
+            out.append(env.state_components)
+        return np.array(out), env.dt
+
+    def apart(w):
+        (a, _), (b, _) = run(w, 200), run(w, 400)
+        return float(np.max(np.linalg.norm(a - b, axis=1) / np.linalg.norm(b, axis=1)))
+
+    assert apart((0.01, 5.0, 0.007)) > 1e-10
+    assert apart((0.5, 5.0, 0.35)) < 1e-11
+    states, dt = run(STARTS[1], 400)
+    pi0 = np.array(INERTIA) * np.array(STARTS[1])
+    worst = max(_relative(y, exact_solution(INERTIA, pi0, (k + 1) * dt)) for k, y in enumerate(states))
+    assert 1e-10 < worst < 1e-8
