@@ -62,10 +62,12 @@ KERNEL_OPTIONS = {"error_model": "numpy", "forceinline": True}
 # arrays' ranges are disjoint, and gives up past a number of such checks (8 by default): a loop
 # that reads and writes the eleven rows of the tippe top's state and of its next first stage
 # needs more, and stays scalar (measured: 277 against 68 ns per sub-env and internal step with
-# the limit raised). The limits are process-wide LLVM options; raising them lets more loops be
+# the limit raised); with a tolerance its compensation's eleven rows too (33 rows, 528 pairs:
+# at a limit of 512 the vector step of 64 tippe tops took 3.9 times as long). The limits are
+# process-wide LLVM options; raising them lets more loops be
 # vectorised and changes no result (the checks fall back to the scalar loop where ranges
 # overlap). Set once, before rbenvs compiles its first kernel.
-LLVM_OPTIONS = ("-runtime-memory-check-threshold=512", "-vectorize-memory-check-threshold=512")
+LLVM_OPTIONS = ("-runtime-memory-check-threshold=2048", "-vectorize-memory-check-threshold=2048")
 _llvm_tuned = False
 
 
@@ -77,6 +79,16 @@ def _tune_llvm() -> None:
         for option in LLVM_OPTIONS:
             llvm.set_option("rbenvs", option)
         _llvm_tuned = True
+
+
+def _no_compensation():
+    import numpy as np
+
+    return np.zeros((0, 0))
+
+
+# the kernels' CC argument where the layout carries no compensation (never read)
+NO_COMPENSATION = _no_compensation()
 
 
 def _comps(fmt, k):
@@ -166,6 +178,11 @@ class Layout(NamedTuple):
     switches: tuple = ()
     motion: bool = False  # rotation(PA, y, u) -> (lambda, mu): the accuracy term with the state's speed
     share: Callable | None = None
+    # step's compensated form (a tolerance), stepc(PS, y, cc, u, h) -> (y, cc) (with rhs_event
+    # stepc(PS, y, cc, k0, u, h)): the steps carry each run's compensation cc from period to
+    # period (the kernels' CC, the state kernel's cc), from zero again after a switch
+    # (rbenvs.core.step.Engine.advance); None: the plain step
+    step_c: Callable | None = None
 
 
 def _count_lines(L: Layout, u: str) -> list[str]:
@@ -238,6 +255,7 @@ def _switch_lines(L: Layout) -> list[str]:
             *("            " + line for line in _locate_lines(k)),
             f"        ys = switch{k}(PW[{k}][2], ya)",
             "        y = step(PS, ys, u, hi - t) if t < hi else ys",
+            *([f"        cc = ({_comps('0.0', L.dim)})"] if L.step_c is not None else []),
         ]
     return lines
 
@@ -257,11 +275,16 @@ def _period_lines(L: Layout) -> list[str]:
         "    hi = h if c == substeps else dt / c",
     ]
     finite = "        if not (" + " and ".join(f"isfinite(y[{j}])" for j in range(L.dim)) + "):"
+    # one internal step from y (kk: its first stage), plain or carrying the compensation cc
+    # (cc: the run's compensation, set by the caller and carried on)
+    take, take_first = "y = step(PS, y, u, hi)", "y = step(PS, y, kk, u, hi)"
+    if L.step_c is not None:
+        take, take_first = "y, cc = stepc(PS, y, cc, u, hi)", "y, cc = stepc(PS, y, cc, kk, u, hi)"
     if L.rhs_event is not None:  # the event's evaluation at a new state is the next first stage
         lines += [
             "    kk, g = rhs_event(PV, y, u)",
             "    for k in range(c):",
-            "        y = step(PS, y, kk, u, hi)",
+            "        " + take_first,
             finite,
             "            break",
             "        kk, g = rhs_event(PV, y, u)",
@@ -275,7 +298,7 @@ def _period_lines(L: Layout) -> list[str]:
         lines += [
             "    for k in range(c):",
             *(["        yp = y"] if L.switches else []),
-            "        y = step(PS, y, u, hi)",
+            "        " + take,
             *switches,
             finite,
             "            break",
@@ -284,9 +307,9 @@ def _period_lines(L: Layout) -> list[str]:
             "            break",
         ]
     elif L.switches:
-        lines += ["    for k in range(c):", "        yp = y", "        y = step(PS, y, u, hi)", *("        " + line for line in _switch_lines(L))]
+        lines += ["    for k in range(c):", "        yp = y", "        " + take, *("        " + line for line in _switch_lines(L))]
     else:
-        lines += ["    for k in range(c):", "        y = step(PS, y, u, hi)"]
+        lines += ["    for k in range(c):", "        " + take]
     return lines
 
 
@@ -367,10 +390,10 @@ def _namespace(L: Layout) -> dict:
     _tune_llvm()
     _register_all()
     switch_fns = [fn for triple in L.switches for fn in triple]
-    for fn in (L.step, L.observe, L.evaluate, L.readouts, L.rotation, L.dissipation, L.share, L.event, L.rhs_event, *switch_fns):
+    for fn in (L.step, L.step_c, L.observe, L.evaluate, L.readouts, L.rotation, L.dissipation, L.share, L.event, L.rhs_event, *switch_fns):
         if fn is not None:
             _register(fn)
-    namespace = {"step": L.step, "observe": L.observe, "evaluate": L.evaluate, "readouts": L.readouts, "rotation": L.rotation,
+    namespace = {"step": L.step, "stepc": L.step_c, "observe": L.observe, "evaluate": L.evaluate, "readouts": L.readouts, "rotation": L.rotation,
                  "dissipation": L.dissipation, "share": L.share, "event": L.event, "rhs_event": L.rhs_event, "step_ratio": step_ratio, "step_ratio_motion": step_ratio_motion, "relaxation_steps": relaxation_steps, "isfinite": isfinite,
                  "ceil": ceil, "nan": nan, "np": np}
     for k, (applies, function, switch) in enumerate(L.switches):
@@ -382,12 +405,14 @@ def _namespace(L: Layout) -> dict:
 def batch_kernel(layout: Layout):
     """The compiled step of a batch for one :class:`Layout` (cached per process). Signature::
 
-        kernel(Y, Ynew, U, UN, h, dt, substeps, check, refuse, skip, PS, PO, PE, PR, PG, PA, PD,
-               CD, PV, PW, HI, counts, hstep, fired, obs, over, reward, terminated, M_1..M_k,
+        kernel(Y, Ynew, CC, U, UN, h, dt, substeps, check, refuse, skip, PS, PO, PE, PR, PG, PA,
+               PD, CD, PV, PW, HI, counts, hstep, fired, obs, over, reward, terminated, M_1..M_k,
                R_1..R_m) -> status
 
-    ``Y``/``Ynew``: ``(dim, n)`` float64 states before/after; ``U``/``UN``: tuples of ``(n,)``
-    float64 control and normalised action components; ``h = dt / substeps``.
+    ``Y``/``Ynew``: ``(dim, n)`` float64 states before/after; ``CC``: ``(dim, n)``, each
+    sub-env's compensation, carried on in place (a layout with ``step_c``; otherwise unread);
+    ``U``/``UN``: tuples of ``(n,)`` float64 control and normalised action components; ``h =
+    dt / substeps``.
 
     The period is the step core's (:meth:`rbenvs.core.step.Engine.advance`), per sub-env:
     with ``check`` the guard counts its internal steps from its state (``x = step_ratio(PG,
@@ -410,7 +435,7 @@ def batch_kernel(layout: Layout):
     L = layout
     metrics = [f"M{j}" for j in range(L.n_metrics)]
     reads = [f"R{j}" for j in range(L.n_readouts)]
-    args = ["Y", "Ynew", "U", "UN", "h", "dt", "substeps", "check", "refuse", "skip", "PS", "PO", "PE", "PR", "PG", "PA", "PD", "CD", "PV", "PW", "HI",
+    args = ["Y", "Ynew", "CC", "U", "UN", "h", "dt", "substeps", "check", "refuse", "skip", "PS", "PO", "PE", "PR", "PG", "PA", "PD", "CD", "PV", "PW", "HI",
             "counts", "hstep", "fired", "obs", "over", "reward", "terminated"] + metrics + reads
     lines = [f"def kernel({', '.join(args)}):", "    n = Y.shape[1]"]
     lines += _period_and_finish(L, *_controls(L), "")
@@ -434,6 +459,8 @@ def _lockstep_lines(L: Layout, u: str) -> list[str]:
     y = f"y = ({_comps('Ynew[{j}, i]', dim)})"
     kk = f"kk = ({_comps('K[{j}, i]', dim)})"
     finite = " & ".join(f"isfinite(yn[{j}])" for j in range(dim))
+    compensated = L.step_c is not None  # (CC: each sub-env's compensation, as K its first stage)
+    take = "yn, cn = stepc(PS, y, cc, kk, u, hstep[i])" if compensated else "yn = step(PS, y, kk, u, hstep[i])"
     return [
         f"K = np.empty(({dim}, n))",
         "live = np.empty(n, dtype=np.bool_)",
@@ -461,13 +488,15 @@ def _lockstep_lines(L: Layout, u: str) -> list[str]:
         "        " + y,
         "        " + kk,
         "        " + u,
+        *([f"        cc = ({_comps('CC[{j}, i]', dim)})"] if compensated else []),
         "        a = live[i] & (k < counts[i])",
-        "        yn = step(PS, y, kk, u, hstep[i])",
+        "        " + take,
         "        kn, g = rhs_event(PV, yn, u)",
         f"        fin = {finite}",
         "        hit = fin & (g < 0.0)",
         *(f"        Ynew[{j}, i] = yn[{j}] if a else y[{j}]" for j in range(dim)),
         *(f"        K[{j}, i] = kn[{j}] if a else kk[{j}]" for j in range(dim)),
+        *((f"        CC[{j}, i] = cn[{j}] if a else cc[{j}]" for j in range(dim)) if compensated else ()),
         "        fired[i] = fired[i] | (a & hit)",
         "        on = live[i] & (not (a & (hit | (not fin))))",
         "        live[i] = on",
@@ -496,10 +525,14 @@ def _period_and_finish(L: Layout, u: str, un: str, more: str, starts: list[str] 
     count += ["    counts[i] = c", "    if c != substeps:", "        uniform = False"]
     lines += ["    need = 0", *("    " + line for line in count), "    if refuse and need:", f"        return -1{more}"]
     # 2. the physics: passes over the batch where every count is substeps, else per sub-env
-    per_env = ["for i in range(n):", "    " + y_old, "    " + u, "    c = counts[i]", *("    " + line for line in _period_lines(L))]
-    per_env += [*("    " + line for line in store), "    hstep[i] = hi", "    fired[i] = f"]
+    per_env = ["for i in range(n):", "    " + y_old, "    " + u, "    c = counts[i]"]
+    if L.step_c is not None:  # the sub-env's compensation, carried in CC from period to period
+        per_env += [f"    cc = ({comps('CC[{j}, i]', dim)})"]
+    per_env += [*("    " + line for line in _period_lines(L)), *("    " + line for line in store), "    hstep[i] = hi", "    fired[i] = f"]
+    if L.step_c is not None:
+        per_env += [f"    CC[{j}, i] = cc[{j}]" for j in range(dim)]
     simd = [line[4:] for line in _physics_lines(dim, u)] + ["for i in range(n):", "    hstep[i] = h", "    fired[i] = False"]
-    if L.event is None and L.rhs_event is None and not L.switches:
+    if L.event is None and L.rhs_event is None and not L.switches and L.step_c is None:  # (compensated: per sub-env)
         lines += ["    if uniform:", *("        " + line for line in simd), "    else:", *("        " + line for line in per_env)]
     elif L.rhs_event is not None and not L.switches:
         lines += ["    " + line for line in _lockstep_lines(L, u)]
@@ -604,7 +637,7 @@ def _vector_namespace(V: VectorLayout) -> dict:
 def _vector_args(L: Layout) -> list[str]:
     metrics = [f"M{j}" for j in range(L.n_metrics)]
     reads = [f"R{j}" for j in range(L.n_readouts)]
-    return ["A", "Y", "Ynew", "h", "dt", "substeps", "check", "refuse", "next_step", "max_steps", "FC", "steps", "done", "skip", "GEN", "PC", "PI",
+    return ["A", "Y", "Ynew", "CC", "h", "dt", "substeps", "check", "refuse", "next_step", "max_steps", "FC", "steps", "done", "skip", "GEN", "PC", "PI",
             "PS", "PO", "PE", "PR", "PG", "PA", "PD", "CD", "PV", "PW", "HI", "counts", "hstep", "fired", "obs", "over", "reward", "terminated",
             "truncated", "RZ", "RN", "clear", "ends", "codes"] + metrics + reads
 
@@ -614,7 +647,7 @@ def vector_kernel(V: VectorLayout):
     """A vector env's whole step, compiled: one call per step with no Python per sub-env.
     Signature (arrays ``(n,)`` unless said; see :func:`batch_kernel` for the period's)::
 
-        vstep(A, Y, Ynew, h, dt, substeps, check, refuse, next_step, max_steps, FC, steps, done,
+        vstep(A, Y, Ynew, CC, h, dt, substeps, check, refuse, next_step, max_steps, FC, steps, done,
               skip, GEN, PC, PI, PS, PO, PE, PR, PG, PA, PD, CD, PV, PW, HI, counts, hstep, fired,
               obs, over, reward, terminated, truncated, RZ, RN, clear, ends, codes, M_1..M_k,
               R_1..R_m) -> (status, k, m, r)
@@ -667,6 +700,8 @@ def vector_kernel(V: VectorLayout):
     if V.start is not None:
         starts = ["    if next_step:", "        for i in range(n):", "            if skip[i]:", *("                " + line for line in _start_lines(V, "Ynew"))]
         starts += ["                hstep[i] = h"]  # (their event flag is cleared with their step, below)
+        if L.step_c is not None:  # (a new run: its compensation at zero)
+            starts += [f"                CC[{j}, i] = 0.0" for j in range(L.dim)]
         fresh = "next_step & skip[i]"
     lines += _period_and_finish(L, *_controls(L, rows=True), ", 0, 0, 0", starts, fresh)
     # 3. the episode's bookkeeping, then 4. the restarts' step (skip: the sub-envs that restart,
@@ -723,21 +758,22 @@ def state_kernel(layout: Layout):
     """The compiled period and finish of ONE state (the single env's step where numba is
     installed): the batch kernel's lines for one sub-env, on tuples of floats. Signature::
 
-        one(y, u, un, check, refuse, P) -> (status, count, h, fired, y, obs, over, r, q)
+        one(y, cc, u, un, check, refuse, P) -> (status, count, h, fired, y, obs, over, r, q, cc)
 
     ``P = (h, dt, substeps, PS, PO, PE, PR, PG, PA, PD, CD, PV, PW, HI)`` (:class:`StateStep`);
     ``status`` 0, 1 (the new state is non-finite: the caller's failure path takes over) or -1
     (``refuse`` and the guard asks for ``count > substeps`` steps: nothing was run); ``obs``
     the observation clipped to ``HI``, ``over`` whether it was outside; ``r`` the task's
-    ``(reward, terminated, metrics...)``, ``q`` the read-outs. Every output is computed in
-    every case (one return type), the float path's values where it matters.
+    ``(reward, terminated, metrics...)``, ``q`` the read-outs; ``cc`` the run's compensation
+    (a layout with ``step_c``; otherwise ``()``, returned as it came). Every output is computed
+    in every case (one return type), the float path's values where it matters.
     """
     import numba
 
     L = layout
     comps = _comps
     lines = [
-        "def one(y, u, un, check, refuse, P):",
+        "def one(y, cc, u, un, check, refuse, P):",
         "    h, dt, substeps, PS, PO, PE, PR, PG, PA, PD, CD, PV, PW, HI = P",
         "    c = substeps",
         "    need = 0",
@@ -757,7 +793,7 @@ def state_kernel(layout: Layout):
     lines += [
         "    r = evaluate(PE, y, un)",
         "    q = readouts(PR, y, u, f)",
-        f"    return status, c, hi, f, y, ({comps('v{j}', L.n_obs)}), out, r, q",
+        f"    return status, c, hi, f, y, ({comps('v{j}', L.n_obs)}), out, r, q, cc",
     ]
     namespace = _namespace(L)
     generate("\n".join(lines), f"state kernel dim={L.dim} n_obs={L.n_obs}", namespace)
@@ -792,7 +828,7 @@ def _layout(parts, dim: int, n_obs: int, n_control: int, n_action: int, sample) 
     values = evaluate(pe, tuple(sample), (0.0,) * n_action)
     physical = readouts(pr, tuple(sample), (0.0,) * n_control, False)
     layout = Layout(step, dim, n_control, n_action, observe, n_obs, evaluate, len(values) - 2, readouts, len(physical), rotation, dissipation, event,
-                    rhs_event, switches, parts.motion, share)
+                    rhs_event, switches, parts.motion, share, None if parts.step_c is None else parts.step_c[0])
     params = (ps, po, pe, pr, parts.guard_params, pa, pd, float(parts.dissipation_step), pv, pw)
     return layout, params, values, physical
 
@@ -812,17 +848,17 @@ class StateStep:
         self.info = info_function(tuple(readout_names), tuple(metric_names))
         self._call = None
 
-    def __call__(self, y, u, un, check: bool, refuse: bool):
+    def __call__(self, y, cc, u, un, check: bool, refuse: bool):
         call = self._call
         if call is None:
             import numba
 
-            out = self.kernel(y, u, un, check, refuse, self.params)  # compiles
-            signature = tuple(numba.typeof(a) for a in (y, u, un, check, refuse, self.params))
+            out = self.kernel(y, cc, u, un, check, refuse, self.params)  # compiles
+            signature = tuple(numba.typeof(a) for a in (y, cc, u, un, check, refuse, self.params))
             overload = self.kernel.overloads.get(signature)
             self._call = overload.entry_point if overload is not None else self.kernel
             return out
-        return call(y, u, un, check, refuse, self.params)
+        return call(y, cc, u, un, check, refuse, self.params)
 
 
 @lru_cache(maxsize=None)
@@ -918,11 +954,12 @@ class BatchStep:
         self.n_obs = n_obs
         self.dt = float(dt) if dt is not None else None
 
-    def __call__(self, Y, u, u_norm, h: float, substeps: int, check: bool = False, skip=None, refuse: bool = False) -> BatchResult:
+    def __call__(self, Y, u, u_norm, h: float, substeps: int, check: bool = False, skip=None, refuse: bool = False, CC=None) -> BatchResult:
         """One control period of the states ``Y`` ``(dim, n)`` under controls ``u`` and normalised
         actions ``u_norm`` (tuples of ``(n,)`` float64 arrays): a :class:`BatchResult`.
         ``check``: run the guard (else ``substeps`` steps each); ``skip`` (bool ``(n,)``):
-        sub-envs about to restart; ``refuse``: ``guard="refuse"``."""
+        sub-envs about to restart; ``refuse``: ``guard="refuse"``; ``CC`` ``(dim, n)``: the
+        runs' compensations, carried on in place (a compensated layout: a tolerance)."""
         import numpy as np
 
         n = Y.shape[1]
@@ -940,7 +977,7 @@ class BatchStep:
         if skip is None:
             skip = np.zeros(n, dtype=bool)
         dt = self.dt if self.dt is not None else h * substeps
-        status = self.kernel(Y, Ynew, u, u_norm, h, dt, substeps, check, refuse, skip, ps, po, pe, pr, pg, pa, pd, cd, pv, pw, self.high,
+        status = self.kernel(Y, Ynew, NO_COMPENSATION if CC is None else CC, u, u_norm, h, dt, substeps, check, refuse, skip, ps, po, pe, pr, pg, pa, pd, cd, pv, pw, self.high,
                              counts, hstep, fired, obs, over, reward, terminated, *metrics, *readouts)
         return BatchResult(Ynew, status, obs, over, reward, terminated, metrics, readouts, fired, hstep, counts)
 
@@ -1035,13 +1072,15 @@ class VectorStep:
         self._calls = {}
         self._scratch = None
 
-    def __call__(self, A, Y, steps, done, skip, GEN, check: bool, refuse: bool, next_step: bool, reasons) -> VectorResult:
+    def __call__(self, A, Y, steps, done, skip, GEN, check: bool, refuse: bool, next_step: bool, reasons, CC=None) -> VectorResult:
         """One step of the states ``Y`` ``(dim, n)`` under the actions ``A`` ``(n, n_in)``
         (float32 or float64, C-contiguous); ``steps`` and ``done`` (the episode clocks and the
         sub-envs whose episode ended) are updated in place; ``skip``: the sub-envs to restart
         (with ``next_step``); ``GEN`` the sub-envs' generators (a numba typed list,
         :class:`rbenvs.draws.GeneratorTable`); ``reasons``: ``(RZ, RN, clear)`` of a
-        :class:`rbenvs.core.step.ReasonPool` array."""
+        :class:`rbenvs.core.step.ReasonPool` array; ``CC`` ``(dim, n)``: the runs'
+        compensations, carried on in place (a compensated layout: a tolerance), a restarting
+        sub-env's set to zero."""
         import numpy as np
 
         n = Y.shape[1]
@@ -1058,7 +1097,7 @@ class VectorStep:
         truncated = np.empty(n, self._bool)
         metrics = [np.empty(n, t) for t in self.metric_dtypes]
         readouts = [np.empty(n, t) for t in self.readout_dtypes]
-        args = (A, Y, Ynew, self.h, self.dt, self.substeps, check, refuse, next_step, self.max_steps, self.charge, steps, done, skip, GEN, *self.params, counts,
+        args = (A, Y, Ynew, NO_COMPENSATION if CC is None else CC, self.h, self.dt, self.substeps, check, refuse, next_step, self.max_steps, self.charge, steps, done, skip, GEN, *self.params, counts,
                 hstep, fired, obs, over, reward, terminated, truncated, *reasons, ends, codes, *metrics, *readouts)
         call = self._calls.get(A.dtype)
         if call is None:

@@ -304,11 +304,12 @@ class Integrator(Protocol):
     def step(self, system, y, u, h):
         """``y`` advanced by ``h`` under ``u``."""
 
-    def bind(self, system, dim: int):
-        """``step(y, u, h)`` with ``system`` bound once (the hot path; the same bits)."""
+    def bind(self, system, dim: int, compensated: bool = False):
+        """``step(y, u, h)`` with ``system`` bound once (the hot path; the same bits); with
+        ``compensated``, ``step(y, c, u, h) -> (y, c)`` summing with compensation, or ``None``."""
 
-    def kernel_step(self, system):
-        """``(step, P)``, a pure form of :meth:`step` for compiled code, or ``None``."""
+    def kernel_step(self, system, compensated: bool = False):
+        """``(step, P)``, a pure form of :meth:`bind`'s step for compiled code, or ``None``."""
 
 
 @runtime_checkable

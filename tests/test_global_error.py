@@ -287,10 +287,10 @@ def test_the_benchs_checked_rows_are_within_or_ended_with_the_message():
     assert all(c["steps"] > p["steps"] for c, p in zip(rows, plain))  # the companion's steps and the even counts
 
 
-def _refined_start(tol):
-    """The near-separatrix body with tolerance_check="refine" at ``tol``, reset."""
+def _refined_start(tol, w=STARTS[1]):
+    """The near-separatrix body (or the start ``w``) with tolerance_check="refine" at ``tol``, reset."""
     env = _body(tol, check="refine")
-    env.reset(seed=0, options={"state": {"angular_momentum": np.array(INERTIA) * np.array(STARTS[1])}})
+    env.reset(seed=0, options={"state": {"angular_momentum": np.array(INERTIA) * np.array(w)}})
     return env
 
 
@@ -324,11 +324,12 @@ def test_refine_replays_the_episode_with_more_steps_and_holds_the_tolerance():
 
 
 def test_refine_ends_the_episode_where_more_steps_cannot_hold_the_tolerance():
-    """1e-12 on the near-separatrix start is below what float64 carries through the motion (rk4
-    at 400 fixed substeps ends 8.5e-10 from the exact solution over the episode, at 800 4.2e-9:
-    roundoff, amplified): a replay whose estimate passes the tolerance no later than before
-    stops the refinement, and the episode ends as with ``True``, saying so, within a second."""
-    env = _refined_start(1e-12)
+    """1e-12 on a start 0.001 rad/s off the intermediate axis is below what float64 carries
+    through the motion, even summed with compensation (two such runs at 200 and 400 substeps
+    differ by 2.8e-11: roundoff, amplified): a replay whose estimate passes the tolerance no
+    later than before stops the refinement, and the episode ends as with ``True``, saying so,
+    within a second."""
+    env = _refined_start(1e-12, (0.001, 5.0, 0.001))
     a = np.zeros(env.action_space.shape, np.float32)
     with pytest.warns(NumericalFailureWarning, match="replaying the episode with more steps did not hold it"):
         for _ in range(400):
@@ -444,29 +445,82 @@ def test_the_benchs_refined_rows_are_within_over_the_whole_episode():
     assert checked[1e-9]["failure"].startswith("ended") and rows[2]["steps"] > checked[1e-9]["steps"]
 
 
+def _fixed_run(w, substeps, tolerance=None):
+    """The default-like body from ``w`` over 400 periods at ``substeps`` a period (with a
+    ``tolerance`` of 1e-3 the guard's count never passes them): the states and ``dt``."""
+    env = FreeRigidBodyEnv(inertia=INERTIA, axis=0, max_torque=0.0, integrator="rk4", max_angular_velocity=50.0, substeps=substeps,
+                           tolerance=tolerance)
+    env.reset(seed=0, options={"state": {"angular_momentum": np.array(INERTIA) * np.array(w)}})
+    a = np.zeros(env.action_space.shape, np.float32)
+    out = []
+    for _ in range(400):
+        _, _, _, _, info = env.step(a)
+        assert info["internal_step"] == env.dt / substeps
+        out.append(env.state_components)
+    return np.array(out), env.dt
+
+
+def _apart(w, tolerance=None):
+    """How far the runs at 200 and 400 substeps a period end apart (relative, worst period)."""
+    (a, _), (b, _) = _fixed_run(w, 200, tolerance), _fixed_run(w, 400, tolerance)
+    return float(np.max(np.linalg.norm(a - b, axis=1) / np.linalg.norm(b, axis=1)))
+
+
 def test_float64_carries_no_better_than_about_1e_9_near_the_separatrix():
-    """What neither check mode sees (docs/integrators.md): near the intermediate axis roundoff is
-    amplified, so two rk4 runs whose steps' error is far below 1e-12 (200 and 400 substeps a
-    period, 20 s) differ by the roundoff alone: above 1e-10 from 0.01 rad/s off the axis (measured
-    1.1e-9), below 1e-11 from 0.5 off (1.1e-12); and the near-separatrix start's run at 400
-    substeps ends some 1e-9 from the exact solution, no nearer than 1e-10 (measured 8.5e-10)."""
-    def run(w, substeps):
-        env = FreeRigidBodyEnv(inertia=INERTIA, axis=0, max_torque=0.0, integrator="rk4", max_angular_velocity=50.0, substeps=substeps)
-        env.reset(seed=0, options={"state": {"angular_momentum": np.array(INERTIA) * np.array(w)}})
-        a = np.zeros(env.action_space.shape, np.float32)
-        out = []
-        for _ in range(400):
-            env.step(a)
-            out.append(env.state_components)
-        return np.array(out), env.dt
-
-    def apart(w):
-        (a, _), (b, _) = run(w, 200), run(w, 400)
-        return float(np.max(np.linalg.norm(a - b, axis=1) / np.linalg.norm(b, axis=1)))
-
-    assert apart((0.01, 5.0, 0.007)) > 1e-10
-    assert apart((0.5, 5.0, 0.35)) < 1e-11
-    states, dt = run(STARTS[1], 400)
+    """Fixed substeps sum plainly (docs/integrators.md, "Roundoff"): near the intermediate axis
+    roundoff is amplified, so two rk4 runs whose steps' error is far below 1e-12 (200 and 400
+    substeps a period, 20 s) differ by the roundoff alone: above 1e-10 from 0.01 rad/s off the
+    axis (measured 1.1e-9), below 1e-11 from 0.5 off (1.1e-12); and the near-separatrix start's
+    run at 400 substeps ends some 1e-9 from the exact solution, no nearer than 1e-10 (measured
+    8.5e-10)."""
+    assert _apart((0.01, 5.0, 0.007)) > 1e-10
+    assert _apart((0.5, 5.0, 0.35)) < 1e-11
+    states, dt = _fixed_run(STARTS[1], 400)
     pi0 = np.array(INERTIA) * np.array(STARTS[1])
     worst = max(_relative(y, exact_solution(INERTIA, pi0, (k + 1) * dt)) for k, y in enumerate(states))
     assert 1e-10 < worst < 1e-8
+
+
+def test_a_tolerance_sums_the_steps_with_compensation_from_period_to_period():
+    """With a tolerance the steps sum with compensation, carried from period to period (Kahan
+    1965; docs/integrators.md, "Roundoff"), and the floor above falls by two to four orders. The
+    roundoff is chaotic (a start one ulp away changes it eightfold), so the bounds sit above the
+    worst of eight starts near each, measured: the same two runs differ by less than 1e-11 from
+    0.01 rad/s off the axis (1.3e-13 to 1.2e-12; summed plainly 8.8e-10 to 7.9e-9) and by less
+    than 1e-9 from 0.001 off (7.1e-12 to 6.8e-11; plainly 2.1e-8 to 1.7e-7), and the
+    near-separatrix start at 400 substeps ends within 1e-11 of the exact solution (2.4e-13 to
+    6.2e-13 near it; plainly 3.6e-10 to 4.6e-9). The compensation goes on with the state: a
+    copy and a pickle taken mid-episode step on as the env does, bit for bit."""
+    assert _apart((0.01, 5.0, 0.007), 1e-3) < 1e-11
+    assert _apart((0.001, 5.0, 0.0007), 1e-3) < 1e-9
+    states, dt = _fixed_run(STARTS[1], 400, 1e-3)
+    pi0 = np.array(INERTIA) * np.array(STARTS[1])
+    assert max(_relative(y, exact_solution(INERTIA, pi0, (k + 1) * dt)) for k, y in enumerate(states)) < 1e-11
+    env = _body(1e-9)
+    env.reset(seed=0, options={"state": {"angular_momentum": np.array(INERTIA) * np.array(STARTS[1])}})
+    a = np.zeros(env.action_space.shape, np.float32)
+    for _ in range(50):
+        env.step(a)
+    twins = [copy.deepcopy(env), pickle.loads(pickle.dumps(env))]
+    for _ in range(50):
+        env.step(a)
+        for twin in twins:
+            twin.step(a)
+            assert twin.unwrapped.state_components == env.unwrapped.state_components
+
+
+def test_refine_holds_a_tolerance_closer_to_the_axis_than_a_plain_sum_carries():
+    """0.001 rad/s off the intermediate axis (perturbations amplified some 12000 times over the
+    episode) "refine" holds 1e-9 and 1e-10 against the exact solution on every period (measured
+    7.9e-10 and 7.8e-11, one replay each); summed plainly, roundoff ended both episodes (near
+    periods 298 and 279, 1.4e-8 and 2.9e-10 off before they ended)."""
+    w = (0.001, 5.0, 0.0007)
+    pi0 = np.array(INERTIA) * np.array(w)
+    for tol in (1e-9, 1e-10):
+        env = _refined_start(tol, w)
+        a = np.zeros(env.action_space.shape, np.float32)
+        for k in range(400):
+            _, _, terminated, _, info = env.step(a)
+            assert not terminated
+            assert _relative(env.state_components, exact_solution(INERTIA, pi0, (k + 1) * env.dt)) <= tol
+        assert info["step_factor"] > 1.0

@@ -141,13 +141,14 @@ class GlobalErrorCheck:
     with ``refine`` (``tolerance_check="refine"``) also :meth:`record` of each period's control
     once it is kept, and :meth:`hold` where a period's estimate passes the tolerance."""
 
-    __slots__ = ("engine", "blocks", "ratio", "yc", "periods", "refine", "y0", "controls", "first", "factor")
+    __slots__ = ("engine", "blocks", "ratio", "yc", "cc", "periods", "refine", "y0", "controls", "first", "factor")
 
     def __init__(self, engine, refine=False):
         self.engine = engine
         self.blocks = tolerance_blocks(engine.system)
         self.ratio = companion_ratio(engine.integrator.order)
         self.yc = None
+        self.cc = None  # the companion's compensation (a tolerance's compensated sum: Engine.step_c)
         self.periods = 0
         self.refine = bool(refine)
         # with refine: the episode's start, the controls of its periods (a batch: one entry per
@@ -156,8 +157,9 @@ class GlobalErrorCheck:
 
     def restart(self, y, mask=None):
         """The companion starts at ``y`` (a batch: at the rows ``mask`` of ``y``, or all)."""
+        zero = self.engine.zero if self.engine.step_c is not None else None
         if mask is None or self.yc is None:
-            self.yc = y
+            self.yc, self.cc = y, zero
             batch = isinstance(y[0], np.ndarray)
             self.periods = np.zeros(len(y[0]), dtype=np.int64) if batch else 0
             if self.refine:
@@ -168,6 +170,8 @@ class GlobalErrorCheck:
                     self.engine.step_factor = 1.0
             return
         self.yc = tuple(np.where(mask, c, cc) for c, cc in zip(y, self.yc))
+        if self.cc is not None:
+            self.cc = tuple(np.where(mask, 0.0, c) for c in self.cc)
         self.periods = np.where(mask, 0, self.periods)
         if self.refine:
             self.y0 = tuple(np.where(mask, c, c0) for c, c0 in zip(y, self.y0))
@@ -181,7 +185,7 @@ class GlobalErrorCheck:
     def period(self, y, u, n):
         """After a period that took ``y``'s run ``n`` (even) steps under ``u``: the companion's
         period, and the global error estimate of ``y``."""
-        self.yc = self.engine.companion(self.yc, u, n)
+        self.yc, self.cc = self.engine.companion(self.yc, u, n, self.cc)
         self.periods = self.periods + 1
         return MARGIN * relative_difference(self.blocks, y, self.yc) / self.ratio
 
@@ -203,7 +207,9 @@ class GlobalErrorCheck:
         estimate, steps)``, ``steps`` all those taken beyond the kept period's own (``n`` and
         its companion's ``n / 2``), and leaves the companion and the factor with the result;
         ``result`` is ``None`` where the tolerance could not be held (the factor then stays as
-        it was)."""
+        it was). With compensation (:attr:`rbenvs.core.step.Engine.step_c`) ``redo`` starts
+        from the replayed run's: one state's in ``engine.comp`` (the single env's), a row's
+        passed as ``redo(y, factor, comp)``."""
         engine, tol = self.engine, self.engine.tolerance
         if row is None:
             y0, controls, factor = self.y0, self.controls, self.factor
@@ -228,22 +234,30 @@ class GlobalErrorCheck:
                     break
                 k, e = k_at, e_at
                 continue  # the factor is raised from there
-            y, yc = start
+            (y, comp), (yc, cc) = start
             if row is None:
                 engine.step_factor = factor  # (the single env's period reads it)
-            result, y_new, n = redo(y, factor)
+                if comp is not None:
+                    engine.comp = comp
+                result, y_new, n = redo(y, factor)
+            else:
+                result, y_new, n = redo(y, factor, comp)
             if result is None:
                 break
-            yc = engine.companion(yc, u, n)
+            yc, cc = engine.companion(yc, u, n, cc)
             e_at = MARGIN * relative_difference(self.blocks, y_new, yc) / self.ratio
             if e_at <= tol:
                 if row is None:
-                    self.factor, self.yc, self.periods = factor, yc, k
+                    self.factor, self.yc, self.cc, self.periods = factor, yc, cc, k
                 else:
                     self.factor[row], self.periods[row] = factor, k
                     self.yc = tuple(np.array(c, dtype=np.float64) for c in self.yc)  # (writable rows)
                     for c, v in zip(self.yc, yc):
                         c[row] = v
+                    if cc is not None:
+                        self.cc = tuple(np.array(np.broadcast_to(c, np.shape(self.yc[0])), dtype=np.float64) for c in self.cc)
+                        for c, v in zip(self.cc, cc):
+                            c[row] = v
                 return result, e_at, steps
             steps += n + n // 2
             if k == len(controls) + 1 and e_at >= e:  # (this period passed before, no smaller: as above)
@@ -255,21 +269,24 @@ class GlobalErrorCheck:
 
     def _replay(self, y0, controls, factor):
         """One state's periods from ``y0`` under ``controls`` with the guard's counts times
-        ``factor``, the companion beside them: ``((y, yc), e, k, steps)`` at the end, or
-        ``(None, e, k, steps)`` at the ``k``-th period, whose estimate ``e`` passed the
-        tolerance (``inf``: a terminal event fired or the state went non-finite, which the run
-        did not meet)."""
+        ``factor``, the companion beside them: ``(((y, comp), (yc, cc)), e, k, steps)`` at the
+        end (each run with its compensation), or ``(None, e, k, steps)`` at the ``k``-th period,
+        whose estimate ``e`` passed the tolerance (``inf``: a terminal event fired or the state
+        went non-finite, which the run did not meet)."""
         engine, tol = self.engine, self.engine.tolerance
         y = yc = y0
+        comp = cc = None  # (the episode's start: zero)
         e, steps = 0.0, 0
         for j, u in enumerate(controls):
-            y, fired, h = engine.advance(y, u, False, factor=factor)
+            y, fired, h, comp = engine.advance(y, u, False, factor=factor, comp=comp)
             n = int(round(engine.dt / h))
             steps += n + n // 2
             if fired or not all(math.isfinite(c) for c in y):
                 return None, math.inf, j + 1, steps
-            yc = engine.companion(yc, u, n)
+            yc, cc = engine.companion(yc, u, n, cc)
             e = MARGIN * relative_difference(self.blocks, y, yc) / self.ratio
             if not e <= tol:
                 return None, e, j + 1, steps
-        return (y, yc), e, len(controls) + 1, steps
+        if comp is None:
+            comp = cc = None if engine.step_c is None else engine.zero
+        return ((y, comp), (yc, cc)), e, len(controls) + 1, steps

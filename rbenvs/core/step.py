@@ -228,17 +228,31 @@ class Engine:
         # where the system gives the vector field and the event's value from one evaluation and
         # the scheme takes its first stage, the check at a new state is the next first stage
         # (the tippe top's lift-off: one contact solve per stage instead of one more per step)
-        self.shared = None
+        # with a tolerance the internal steps sum with compensation (Kahan 1965): what adding each
+        # increment to the state rounds away is carried into the next step's sum, so that the
+        # many steps a tight tolerance takes add no more roundoff than a few (near an unstable
+        # axis the motion amplifies it: docs/integrators.md, "Roundoff"). The compensation is
+        # part of a run's state: it starts at zero at a reset and after a switch, and each run
+        # (the env's, the companion, a replay) carries its own from period to period
+        # (advance(comp=), companion(comp=); the single env's in comp)
+        compensate = m.tolerance is not None
+        self.zero = (0.0,) * system.dim
+        self.step_c = m.integrator.bind(system, system.dim, compensated=True) if compensate else None
+        self.comp = self.zero if self.step_c is not None else None  # the single env's run's compensation
+        self.shared, self.shared_c = None, None
         if self.event is not None:
             rhs_event = getattr(system, "kernel_rhs_event", None)
             first = getattr(m.integrator, "kernel_step_first_stage", None)
-            first = first(system) if rhs_event is not None and first is not None else None
-            if first is not None:
-                self.shared = (first, rhs_event)
+            shared = first(system) if rhs_event is not None and first is not None else None
+            if shared is not None:
+                self.shared = (shared, rhs_event)
+                if compensate:
+                    self.shared_c = first(system, compensated=True)
         # the plain loop (substeps equal steps, nothing watched) is exact when no state inside
         # the observation bounds can trip the guard; a step that ends outside them drops to the
-        # checked path until the next reset (the single env's and the vector env's rule)
-        self.plain = self.event is None and self.switching is None and self.rule.idle(m.substeps)
+        # checked path until the next reset (the single env's and the vector env's rule); a
+        # compensated sum runs on the checked path
+        self.plain = self.event is None and self.switching is None and self.rule.idle(m.substeps) and self.step_c is None
         self.bound_step = m.integrator.bind(system, system.dim)  # the hot path's step, same bits
         self.high = np.asarray(m.observation_high, dtype=np.float64)
         self.high32 = self.high.astype(np.float32)
@@ -275,7 +289,7 @@ class Engine:
             self.plain, self._state_step, self._state_step_tried = False, None, True
 
     def __reduce__(self):  # generated and compiled functions are made again, not pickled
-        return (Engine, (self.model, self.compiled))
+        return (Engine, (self.model, self.compiled), {"comp": self.comp})  # (the single env's run goes on as it was)
 
     @property
     def state_step(self):
@@ -306,8 +320,8 @@ class Engine:
                                    self.metric_names, self.readout_names)
 
     # ------------------------------------------------------------------ the period
-    def advance(self, y, u, plain: bool, skip=None, factor=None):
-        """One control period from ``y`` under ``u``: ``(y, fired, h)``.
+    def advance(self, y, u, plain: bool, skip=None, factor=None, comp=None):
+        """One control period from ``y`` under ``u``: ``(y, fired, h, comp)``.
 
         ``fired``: whether the terminal event ended the period (a bool, or a mask for a batch);
         ``h``: the internal step taken (``dt / n``; per element for a batch whose elements take
@@ -318,14 +332,18 @@ class Engine:
         autoreset) take ``substeps`` steps, are never refused and never stretch the loop.
         ``factor`` (``tolerance_check="refine"``, :mod:`rbenvs.core.global_error`): the guard's
         count times it, rounded up (a batch: one per element; one state: ``None`` reads
-        :attr:`step_factor`, the single env's).
+        :attr:`step_factor`, the single env's). ``comp``: the run's compensation at ``y`` (a
+        tolerance: :attr:`step_c`; ``None`` is zero), returned as it is after the period
+        (``None`` without compensation; a refused period's is zero).
         """
         if plain:
             step, h = self.bound_step, self.h
             y = step(y, u, h)
             for _ in range(self.substeps - 1):
                 y = step(y, u, h)
-            return y, False, h
+            return y, False, h, None
+        if comp is None:
+            comp = None if self.step_c is None else self.zero
         n = self.rule.steps(y, u, self.substeps)
         event = self.event
         if not isinstance(y[0], np.ndarray):  # one state: plain Python (no numpy call per period)
@@ -340,10 +358,10 @@ class Engine:
             if n > MAX_INTERNAL_STEPS:
                 # a state beyond what the scheme can resolve in a period: NaN (a numerical
                 # failure, reported with h = dt / n), at once, never a hang
-                return tuple(math.nan for _ in y), False, self.dt / n
+                return tuple(math.nan for _ in y), False, self.dt / n, None if comp is None else self.zero
             h = self.h if n == self.substeps else self.dt / n
-            y, fired = self._run_one(y, u, n, h)
-            return y, fired, h
+            y, fired, comp = self._run_one(y, u, n, h, comp)
+            return y, fired, h, comp
         # a batch: the same rules per element (each takes its own count, then is frozen)
         n = np.broadcast_to(np.asarray(n), np.shape(y[0]))
         if factor is not None:  # (the same IEEE product and ceiling as one state's)
@@ -358,8 +376,8 @@ class Engine:
         refused = n > MAX_INTERNAL_STEPS
         if refused.any():
             y = tuple(np.where(refused, np.nan, c) for c in y)
-            y, fired, h = self.advance(y, u, False, refused if skip is None else (skip | refused))
-            return y, fired, np.where(refused, self.dt / n, h)
+            y, fired, h, comp = self.advance(y, u, False, refused if skip is None else (skip | refused), comp=comp)
+            return y, fired, np.where(refused, self.dt / n, h), comp
         uniform = bool(np.all(n == n.flat[0]))
         if self.integrator.uniform_step_only and not uniform:
             # a scheme that takes one scalar step for the whole batch (adaptive dop853: one
@@ -369,96 +387,138 @@ class Engine:
             for k in np.unique(n):
                 idx = np.flatnonzero(n == k)
                 sub_u = None if u is None else tuple(c[idx] if np.ndim(c) else c for c in u)
-                sub_y, sub_fired = self._loop(tuple(c[idx] for c in y), sub_u, np.full(len(idx), k), self.dt / int(k))
+                sub_y, sub_fired, _ = self._loop(tuple(c[idx] for c in y), sub_u, np.full(len(idx), k), self.dt / int(k), None)
                 for o, c in zip(out, sub_y):
                     o[idx] = c
                 fired[idx] = sub_fired
-            return tuple(out), fired, self.dt / n
+            return tuple(out), fired, self.dt / n, None
         h = self.dt / n.flat[0] if uniform else self.dt / n
-        y, fired = self._loop(y, u, n, h)
+        y, fired, comp = self._loop(y, u, n, h, comp)
         if uniform and event is None:
-            return y, fired, h
-        return y, fired, np.broadcast_to(np.asarray(h, dtype=float), n.shape).copy()
+            return y, fired, h, comp
+        return y, fired, np.broadcast_to(np.asarray(h, dtype=float), n.shape).copy(), comp
 
-    def _run_one(self, y, u, n: int, h: float):
+    def _run_one(self, y, u, n: int, h: float, comp=None):
         """One state's ``n`` internal steps of ``h``, the switches after each and the terminal
-        event ending them early: ``(y, fired)``."""
+        event ending them early: ``(y, fired, comp)``. ``comp``: the run's compensation at
+        ``y`` (a tolerance: the compensated step carries it; it starts again from zero after a
+        switch); ``None``: the plain step."""
         post, event = self.switching, self.event
         if self.shared is not None:  # (the event's evaluation is the next first stage)
             (first, ps), (rhs_event, pv) = self.shared
+            first_c = None if comp is None else self.shared_c[0]
             k, g = rhs_event(pv, y, u)
             for _ in range(n):
-                y = first(ps, y, k, u, h)
+                if first_c is None:
+                    y = first(ps, y, k, u, h)
+                else:
+                    y, comp = first_c(ps, y, comp, k, u, h)
                 if not all(math.isfinite(c) for c in y):
-                    return y, False
+                    return y, False, comp
                 k, g = rhs_event(pv, y, u)
                 if g < 0.0:
-                    return y, True
-            return y, False
-        step = self.bound_step  # integ.step with the system bound (the same bits)
+                    return y, True, comp
+            return y, False, comp
+        step, step_c = self.bound_step, None if comp is None else self.step_c  # integ.step with the system bound (the same bits)
+        if step_c is not None and post is None and event is None:
+            for _ in range(n):
+                y, comp = step_c(y, comp, u, h)
+            return y, False, comp
         for _ in range(n):
-            y_prev, y = y, step(y, u, h)
+            if step_c is None:
+                y_prev, y = y, step(y, u, h)
+            else:
+                y_prev, (y, comp) = y, step_c(y, comp, u, h)
             if post is not None:
-                y = post.after_step(y_prev, y, u, h)
+                y_post = post.after_step(y_prev, y, u, h)
+                if y_post is not y:  # switched: the rest of the step was taken afresh
+                    y, comp = y_post, None if comp is None else self.zero
             if event is not None:
                 if not all(math.isfinite(c) for c in y):
-                    return y, False
+                    return y, False, comp
                 if event[1](y, u):
-                    return y, True
-        return y, False
+                    return y, True, comp
+        return y, False, comp
 
-    def companion(self, y, u, n):
+    def companion(self, y, u, n, comp=None):
         """The companion run's period (:mod:`rbenvs.core.global_error`) from ``y`` under ``u``,
         where the main run took ``n`` (even, with ``tolerance_check``) steps of ``h = dt / n``:
-        ``n / 2`` steps of ``2 h`` (one state: ``n`` an int; a batch: an int array)."""
+        ``n / 2`` steps of ``2 h`` (one state: ``n`` an int; a batch: an int array); ``(y,
+        comp)``, ``comp`` the companion's own compensation as :meth:`advance` carries it."""
+        if comp is None and self.step_c is not None:
+            comp = self.zero
         if not isinstance(y[0], np.ndarray):
-            return self._run_one(y, u, n // 2, 2.0 * self.dt / n)[0]
+            y, _, comp = self._run_one(y, u, n // 2, 2.0 * self.dt / n, comp)
+            return y, comp
         n = np.broadcast_to(np.asarray(n, dtype=np.int64), np.shape(y[0]))
-        return self._loop(y, u, n // 2, 2.0 * self.dt / n)[0]
+        y, _, comp = self._loop(y, u, n // 2, 2.0 * self.dt / n, comp)
+        return y, comp
 
-    def _loop(self, y, u, n, h):
+    def _loop(self, y, u, n, h, comp=None):
         """A batch's internal steps: element ``i`` takes ``n[i]`` steps of ``h`` (``h[i]``) and is
-        frozen after them or at its terminal event: ``(y, fired)``."""
+        frozen after them or at its terminal event: ``(y, fired, comp)``. ``comp``: each
+        element's compensation, carried as :meth:`_run_one` carries it (``None``: plain)."""
         step, post, event = self.bound_step, self.switching, self.event
+        step_c = None if comp is None else self.step_c
         fired = np.zeros(n.shape, dtype=bool)
+
+        def stepped(y, comp):  # one step of every element, and the switches after it
+            if step_c is None:
+                y_new = step(y, u, h)
+            else:
+                y_new, comp = step_c(y, comp, u, h)
+            if post is not None:
+                y_post = post.after_step(y, y_new, u, h)
+                if y_post is not y_new and step_c is not None:  # the elements that switched start their sum afresh
+                    moved = np.zeros(n.shape, dtype=bool)
+                    for a, b in zip(y_post, y_new):
+                        moved |= a != b
+                    comp = tuple(np.where(moved, 0.0, ci) for ci in comp)
+                y_new = y_post
+            return y_new, comp
+
         if event is None and bool(np.all(n == n.flat[0])):
             for _ in range(int(n.flat[0])):
-                y_prev, y = y, step(y, u, h)
-                if post is not None:
-                    y = post.after_step(y_prev, y, u, h)
-            return y, fired
+                y, comp = stepped(y, comp)
+            return y, fired, comp
         active = np.ones(n.shape, dtype=bool)
         if self.shared is not None:  # (the event's evaluation is the next first stage, as above)
             (first, ps), (rhs_event, pv) = self.shared
+            first_c = None if comp is None else self.shared_c[0]
             kk, _ = rhs_event(pv, y, u)
             for k in range(int(n.max())):
-                y_new = first(ps, y, kk, u, h)
+                if first_c is None:
+                    y_new = first(ps, y, kk, u, h)
+                else:
+                    y_new, comp_new = first_c(ps, y, comp, kk, u, h)
                 kk_new, g = rhs_event(pv, y_new, u)
                 active &= k < n
                 with np.errstate(invalid="ignore"):
                     hit = active & (g < 0.0)
                 y = tuple(np.where(active, c_new, c) for c_new, c in zip(y_new, y))
                 kk = tuple(np.where(active, c_new, c) for c_new, c in zip(kk_new, kk))
+                if first_c is not None:  # (a frozen element keeps its compensation with its state)
+                    comp = tuple(np.where(active, c_new, c) for c_new, c in zip(comp_new, comp))
                 fired |= hit
                 active &= ~hit
                 if not np.any(active):
                     break
-            return y, fired
+            return y, fired, comp
         for k in range(int(n.max())):
-            y_new = step(y, u, h)
-            if post is not None:
-                y_new = post.after_step(y, y_new, u, h)
+            y_new, comp_new = stepped(y, comp)
             active &= k < n
             if event is not None:
                 with np.errstate(invalid="ignore"):
                     hit = active & np.asarray(event[1](y_new, u), dtype=bool)
             y = tuple(np.where(active, c_new, c) for c_new, c in zip(y_new, y))
+            if step_c is not None:  # (a frozen element keeps its compensation with its state)
+                comp = tuple(np.where(active, c_new, c) for c_new, c in zip(comp_new, comp))
             if event is not None:
                 fired |= hit
                 active &= ~hit
             if not np.any(active):
                 break
-        return y, fired
+        return y, fired, comp
 
     def refusal(self, n, where: str = "") -> ValueError:
         """The ``guard="refuse"`` error for a period that needs ``n`` internal steps."""
@@ -538,7 +598,10 @@ class Engine:
 
     # ------------------------------------------------------------------ one env (floats)
     def reset_one(self, y):
-        """``(obs, info)`` of a start ``y`` (no control has acted: ``u = None``)."""
+        """``(obs, info)`` of a start ``y`` (no control has acted: ``u = None``); the single env's
+        run starts there (its compensation at zero)."""
+        if self.comp is not None:
+            self.comp = self.zero
         obs, over = self.observe(y)
         if over:
             raise ValueError("the initial state lies outside the observation bounds; raise the limit parameters")
@@ -554,11 +617,13 @@ class Engine:
         u_norm, u = self.control(a)
         one = self._state_step if self._state_step_tried else self.state_step
         if one is not None:  # the same period and finish, compiled: one call
-            status, count, h, fired, y, o, over, r, q = one(y0, u, u_norm, not plain, self.guard == "refuse")
+            status, count, h, fired, y, o, over, r, q, comp = one(y0, self.comp or (), u, u_norm, not plain, self.guard == "refuse")
             if status:
                 if status < 0:
                     raise self.refusal(count)
                 return self._failed_one(y0, u_norm, u, h, plain)
+            if comp:
+                self.comp = comp
             obs, reward, terminated, info = np.array(o, dtype=np.float32), r[0], r[1], one.info(q, r, h)
             if fired or over or terminated:
                 info["terminal_reason"] = terminal_reason(False, fired, over, terminated, self.event_name)
@@ -576,10 +641,12 @@ class Engine:
                     y = step(y, u, h)
             fired = False
         else:
-            y, fired, h = self.advance(y0, u, False)
+            y, fired, h, comp = self.advance(y0, u, False, comp=self.comp)
         # a non-finite component makes the sum non-finite; the exact test runs only then
         if not math.isfinite(sum(y)) and not all(math.isfinite(c) for c in y):
             return self._failed_one(y0, u_norm, u, h, plain)
+        if not plain and comp is not None:
+            self.comp = comp
         finish = self.finish_one
         if finish is not None:
             fn, po, pe, pr = finish
@@ -720,6 +787,7 @@ class Engine:
         (free flight)."""
         system, task = self.system, self.task
         step = self.integrator.kernel_step(system)
+        step_c = self.integrator.kernel_step(system, compensated=True) if self.step_c is not None else None
         readouts = system.kernel_readouts
         if step is None or task.kernels is None or readouts is None:
             return None
@@ -740,15 +808,18 @@ class Engine:
             first = first(system) if rhs_event is not None and first is not None else None
             if first is not None:
                 step = first
+                step_c = self.shared_c
             else:
                 rhs_event = None
+        if self.step_c is not None and step_c is None:  # (the float path sums with compensation)
+            return None
         rule = self.rule
         rotation, dissipation = None, None
         if rule.active:  # checked only where asked (a period that may not take the plain loop)
             rotation, dissipation = rule.rotation, rule.dissipation
         observe, evaluate = task.kernels(system)
         return KernelParts(step, observe, evaluate, readouts, rotation, rule.params, dissipation, rule.dissipation_step, event, rhs_event, tuple(switches),
-                           rule.motion and rotation is not None, rule.share if dissipation is not None else None)
+                           rule.motion and rotation is not None, rule.share if dissipation is not None else None, step_c)
 
 
 class KernelParts(NamedTuple):
@@ -777,3 +848,6 @@ class KernelParts(NamedTuple):
     switches: tuple = ()
     motion: bool = False  # rotation is (fn, P) with fn(P, y, u) -> (lambda, mu): step_ratio_motion
     share: tuple | None = None  # (fn, P): the decaying mode's share of its error term (StepRule.share)
+    # (fn, P): step's compensated form (a tolerance: Engine.step_c), fn(PS, y, c, u, h) -> (y, c)
+    # (with rhs_event fn(PS, y, c, k0, u, h)); None: the plain step
+    step_c: tuple | None = None

@@ -489,16 +489,18 @@ class RigidBodyEnv(gym.Env):
         engine, check = self.engine, self._check
         if check.refine:  # (the engine is made again, factor 1, when the env is copied or pickled)
             engine.step_factor = check.factor
+        comp0 = engine.comp  # (the run's compensation at y0: kept with y0 where the period is not)
         out = engine.step_one(y0, a, plain)
         info = out[4]
         if info["numerical_failure"]:
             return out
         n = int(round(engine.dt / info["internal_step"]))
-        yc0 = check.yc
+        yc0, cc0 = check.yc, check.cc
         e = check.period(out[0], out[5], n)
         replayed = 0
         if e > engine.tolerance:
-            check.yc, check.periods = yc0, check.periods - 1  # (the companion stays with the state kept; hold moves it on)
+            # the companion and the run stay with the state kept; hold moves them on
+            check.yc, check.cc, check.periods, engine.comp = yc0, cc0, check.periods - 1, comp0
             held = None
             if check.refine:
 
@@ -510,6 +512,7 @@ class RigidBodyEnv(gym.Env):
 
                 held, estimate, replayed = check.hold(e, out[5], redo, n + n // 2)
             if held is None:
+                engine.comp = comp0
                 failed = engine.inaccurate_one(y0, a, info["internal_step"], plain, e, check.periods + 1, check.refine)
                 if check.refine:
                     failed[4].update(step_factor=check.factor, replayed_steps=replayed)

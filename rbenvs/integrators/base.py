@@ -72,16 +72,24 @@ class Integrator:
         """Advance ``y`` by ``h`` under control ``u`` (``None`` = zero)."""
         raise NotImplementedError
 
-    def bind(self, system, dim: int):
+    def bind(self, system, dim: int, compensated: bool = False):
         """``step(y, u, h)`` for ``system``'s states of ``dim`` components: :meth:`step` with the
         system bound once, for a hot loop (the same arithmetic, bit for bit). A system whose
-        ``needs_projection`` is false has an identity ``normalize`` that may be skipped."""
+        ``needs_projection`` is false has an identity ``normalize`` that may be skipped.
+
+        ``compensated``: the step with compensated summation, ``step(y, c, u, h) -> (y, c)``:
+        ``c`` carries what adding the increment to ``y`` rounded away into the next step's sum
+        (Kahan 1965; ``c`` zero gives the plain step's ``y``, bit for bit), or ``None`` where
+        the scheme has none (the engine then takes the plain step)."""
+        if compensated:
+            return None
         return lambda y, u, h: self.step(system, y, u, h)
 
-    def kernel_step(self, system):
+    def kernel_step(self, system, compensated: bool = False):
         """``(step, P)`` with ``step(P, y, u, h)`` a pure function equal to :meth:`step` for
         ``system`` (for :mod:`rbenvs.compiled`), or ``None`` where this scheme or this system
-        offers none (the batch then runs on numpy arrays)."""
+        offers none (the batch then runs on numpy arrays); ``compensated``: the pure form of
+        :meth:`bind`'s compensated step, ``step(P, y, c, u, h) -> (y, c)``, or ``None``."""
         return None
 
     def step_counted(self, system, y, u, h):

@@ -151,11 +151,13 @@ class RosenbrockW(Integrator):
     def step(self, system, y, u, h):
         return self.bind(system, len(y))(y, u, h)
 
-    def bind(self, system, dim):
+    def bind(self, system, dim, compensated=False):
+        if compensated:  # (no compensated form: tolerance= does not take this scheme)
+            return None
         return _generated(type(self), dim)["make"](*self._parts(system))
 
-    def kernel_step(self, system):
-        if not self.supports(system):
+    def kernel_step(self, system, compensated=False):
+        if compensated or not self.supports(system):
             return None
         f, p, factor, solve, pi, normalize, n = self._parts(system)
         return _pure_step(type(self), system.dim, f, factor, solve, normalize), (p, pi, n)

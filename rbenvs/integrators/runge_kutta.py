@@ -23,6 +23,13 @@ gets the same step with ``f(P, ...)`` in every stage and ``g(N, ...)`` at the en
 ``P`` (and ``N``) for the single env, and as the pure ``step(PS, y, u, h)`` that the compiled
 batch kernel calls (:mod:`rbenvs.compiled`; ``PS`` is ``P``, or ``(P, N)`` with a projection).
 One generator, so the same arithmetic in all three. A new explicit scheme is a new tableau.
+
+Each step is generated twice: plain, and compensated (``bind(..., compensated=True)``,
+``kernel_step(..., compensated=True)``: ``step(y, c, u, h) -> (y, c)``), which a tolerance's
+steps take (:class:`rbenvs.core.step.Engine`). Its sum is ``z = h/D (...) + c`` (the increment
+and the compensation carried in), ``t = y + z``, and it returns ``t`` and ``z - (t - y)``, what
+that addition rounded away (Kahan 1965; exact where ``|y| >= |z|``, as for a step's small
+increment). With ``c`` zero, ``t`` is the plain step's state, bit for bit.
 """
 
 from __future__ import annotations
@@ -85,8 +92,9 @@ def _literal(x: Fraction) -> str:
     return f"({x.numerator}.0 / {x.denominator}.0)"
 
 
-def _body(tableau: ButcherTableau, dim: int, call: str, project: bool) -> list[str]:
-    """The lines of one step of ``tableau`` for states of ``dim`` components (see the module)."""
+def _body(tableau: ButcherTableau, dim: int, call: str, project: bool, compensated: bool = False) -> list[str]:
+    """The lines of one step of ``tableau`` for states of ``dim`` components (see the module;
+    ``compensated``: the step that also takes and returns the sum's compensation ``c``)."""
 
     def tup(items):
         return "(" + ", ".join(items) + ("," if len(items) == 1 else "") + ")"
@@ -95,6 +103,8 @@ def _body(tableau: ButcherTableau, dim: int, call: str, project: bool) -> list[s
         return ", ".join(f"k{stage}_{i}" for i in range(dim)) + ("," if dim == 1 else "")
 
     lines = [", ".join(f"y{i}" for i in range(dim)) + ("," if dim == 1 else "") + " = y"]
+    if compensated:
+        lines.append(", ".join(f"c{i}" for i in range(dim)) + ("," if dim == 1 else "") + " = c")
     scaled = {}  # coefficient -> name of the hoisted a * h
 
     def step_of(coef: Fraction) -> str:
@@ -148,6 +158,12 @@ def _body(tableau: ButcherTableau, dim: int, call: str, project: bool) -> list[s
         t = total(i)
         return t if len(groups) == 1 and len(groups[0][1]) == 1 and groups[0][0] == 1 else f"({t})"
 
+    if compensated:  # y + (increment + c), and what that sum rounded away (module docstring)
+        lines += [f"z{i} = {hd} * {scaled_sum(i)} + c{i}" for i in range(dim)]
+        lines += [f"t{i} = y{i} + z{i}" for i in range(dim)]
+        result, lost = tup([f"t{i}" for i in range(dim)]), tup([f"z{i} - (t{i} - y{i})" for i in range(dim)])
+        lines.append(f"return normalize({result}), {lost}" if project else f"return {result}, {lost}")
+        return lines
     result = tup([f"y{i} + {hd} * {scaled_sum(i)}" for i in range(dim)])
     lines.append(f"return normalize({result})" if project else f"return {result}")
     return lines
@@ -169,41 +185,48 @@ _GENERATED: dict = {}
 
 def _generate(tableau: ButcherTableau, label: str, dim: int, project: bool, params: bool) -> dict:
     call = "f(P, " if params else "f("
-    body = _body(tableau, dim, call, project)
-    if params and project:  # the pure projection takes its own parameters N
-        body[-1] = body[-1].replace("return normalize(", "return normalize(N, ", 1)
-    inner = "\n".join("        " + line for line in body)
-    if params:  # f(P, y, u) [and normalize(N, y)]: bound to P [and N], or pure with them first
-        bound, unpack = ("f, P, normalize, N", "        P, N = PS\n") if project else ("f, P", "")
-        src = f"def make({bound}):\n    def step(y, u, h):\n" + inner + "\n    return step\n"
-        pure_args = "f, normalize" if project else "f"
-        pure_params = "PS" if project else "P"
-        src += f"def pure({pure_args}):\n    def step({pure_params}, y, u, h):\n" + unpack + inner + "\n    return step\n"
-        # the same step with its first stage given (k0 = f(P, y, u), evaluated by the caller:
-        # a kernel that needs f at the new state anyway, for an event, passes it on)
-        first = "\n".join("        " + line for line in body).replace(f"= {call}y, u)", "= k0", 1)
-        src += f"def pure_first({pure_args}):\n    def step({pure_params}, y, k0, u, h):\n" + unpack + first + "\n    return step\n"
-    else:
-        src = "def step(f, normalize, y, u, h):\n" + "\n".join("    " + line for line in body) + "\n"
-        src += "def make(f, normalize):\n    def step(y, u, h):\n" + inner + "\n    return step\n"
+    src = ""
+    # each step twice: plain (``make``, ``pure``, ...) and compensated (``make_c``, ... taking
+    # the compensation ``c`` after ``y`` and returning ``(y, c)``)
+    for suffix, c_arg in (("", ""), ("_c", "c, ")):
+        body = _body(tableau, dim, call, project, compensated=bool(suffix))
+        if params and project:  # the pure projection takes its own parameters N
+            body[-1] = body[-1].replace("return normalize(", "return normalize(N, ", 1)
+        inner = "\n".join("        " + line for line in body)
+        if params:  # f(P, y, u) [and normalize(N, y)]: bound to P [and N], or pure with them first
+            bound, unpack = ("f, P, normalize, N", "        P, N = PS\n") if project else ("f, P", "")
+            src += f"def make{suffix}({bound}):\n    def step(y, {c_arg}u, h):\n" + inner + "\n    return step\n"
+            pure_args = "f, normalize" if project else "f"
+            pure_params = "PS" if project else "P"
+            src += f"def pure{suffix}({pure_args}):\n    def step({pure_params}, y, {c_arg}u, h):\n" + unpack + inner + "\n    return step\n"
+            # the same step with its first stage given (k0 = f(P, y, u), evaluated by the caller:
+            # a kernel that needs f at the new state anyway, for an event, passes it on)
+            first = inner.replace(f"= {call}y, u)", "= k0", 1)
+            src += f"def pure_first{suffix}({pure_args}):\n    def step({pure_params}, y, {c_arg}k0, u, h):\n" + unpack + first + "\n    return step\n"
+        else:
+            src += f"def step{suffix}(f, normalize, y, {c_arg}u, h):\n" + "\n".join("    " + line for line in body) + "\n"
+            src += f"def make{suffix}(f, normalize):\n    def step(y, {c_arg}u, h):\n" + inner + "\n    return step\n"
     flavour = ("" if project else " no projection") + (" pure" if params else "")
     return generate(src, f"{label} dim={dim}{flavour}")
 
 
 @lru_cache(maxsize=None)
-def _pure_step(scheme: type, dim: int, f, normalize):
+def _pure_step(scheme: type, dim: int, f, normalize, compensated: bool = False):
     """The pure step ``step(PS, y, u, h)`` of ``scheme`` for the pure vector field ``f`` (and the
     pure projection ``normalize``, or ``None``); one function per combination, as compiled
-    kernels key on it."""
+    kernels key on it. ``compensated``: ``step(PS, y, c, u, h) -> (y, c)``."""
     ns = _generated(scheme, dim, normalize is not None, True)
-    return ns["pure"](f) if normalize is None else ns["pure"](f, normalize)
+    name = "pure_c" if compensated else "pure"
+    return ns[name](f) if normalize is None else ns[name](f, normalize)
 
 
 @lru_cache(maxsize=None)
-def _pure_first_step(scheme: type, dim: int, f, normalize):
-    """:func:`_pure_step` with the first stage given: ``step(PS, y, k0, u, h)``."""
+def _pure_first_step(scheme: type, dim: int, f, normalize, compensated: bool = False):
+    """:func:`_pure_step` with the first stage given: ``step(PS, y, k0, u, h)`` (compensated:
+    ``step(PS, y, c, k0, u, h) -> (y, c)``)."""
     ns = _generated(scheme, dim, normalize is not None, True)
-    return ns["pure_first"](f) if normalize is None else ns["pure_first"](f, normalize)
+    name = "pure_first_c" if compensated else "pure_first"
+    return ns[name](f) if normalize is None else ns[name](f, normalize)
 
 
 @dataclass(frozen=True)
@@ -219,28 +242,29 @@ class ExplicitRungeKutta(Integrator):
     def _overridden(self) -> bool:
         return type(self).step is not ExplicitRungeKutta.step  # a subclass that changes step
 
-    def bind(self, system, dim):
+    def bind(self, system, dim, compensated=False):
         if self._overridden():
-            return super().bind(system, dim)
+            return super().bind(system, dim, compensated)
+        make = "make_c" if compensated else "make"
         pure = getattr(system, "kernel_rhs", None)
         if pure is not None:  # the pure vector field (and projection): the same step the kernel runs
             f, params = pure
             project = getattr(system, "kernel_normalize", None)
             if project is None:
-                return _generated(type(self), dim, False, True)["make"](f, params)
-            return _generated(type(self), dim, True, True)["make"](f, params, *project)
-        return _generated(type(self), dim, getattr(system, "needs_projection", True), False)["make"](system.rhs, system.normalize)
+                return _generated(type(self), dim, False, True)[make](f, params)
+            return _generated(type(self), dim, True, True)[make](f, params, *project)
+        return _generated(type(self), dim, getattr(system, "needs_projection", True), False)[make](system.rhs, system.normalize)
 
-    def kernel_step(self, system):
-        return self._pure(system, _pure_step)
+    def kernel_step(self, system, compensated=False):
+        return self._pure(system, _pure_step, compensated)
 
-    def kernel_step_first_stage(self, system):
+    def kernel_step_first_stage(self, system, compensated=False):
         """``(step, PS)`` with ``step(PS, y, k0, u, h)`` equal to :meth:`kernel_step`'s step given
         its first stage ``k0 = f(y, u)`` (every explicit scheme's first stage is the vector field
-        at ``y``), or ``None``."""
-        return self._pure(system, _pure_first_step)
+        at ``y``), or ``None``; ``compensated``: ``step(PS, y, c, k0, u, h) -> (y, c)``."""
+        return self._pure(system, _pure_first_step, compensated)
 
-    def _pure(self, system, flavour):
+    def _pure(self, system, flavour, compensated=False):
         """``(flavour's step of the system's pure parts, PS)``, or ``None`` without them."""
         pure = getattr(system, "kernel_rhs", None)
         if pure is None or self._overridden():
@@ -248,9 +272,9 @@ class ExplicitRungeKutta(Integrator):
         f, params = pure
         project = getattr(system, "kernel_normalize", None)
         if project is None:
-            return flavour(type(self), system.dim, f, None), params
+            return flavour(type(self), system.dim, f, None, compensated), params
         normalize, n_params = project
-        return flavour(type(self), system.dim, f, normalize), (params, n_params)
+        return flavour(type(self), system.dim, f, normalize, compensated), (params, n_params)
 
 
 @dataclass(frozen=True)

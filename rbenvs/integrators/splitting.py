@@ -68,16 +68,16 @@ class Splitting(Integrator):
             y = flow(y, u, hh)
         return y
 
-    def bind(self, system, dim):
+    def bind(self, system, dim, compensated=False):
         pure = getattr(system, "kernel_split_flows", None)
-        if pure is None or type(self).step is not Splitting.step:
-            return super().bind(system, dim)
+        if compensated or pure is None or type(self).step is not Splitting.step:  # (no compensated form)
+            return super().bind(system, dim, compensated)
         fns, params = zip(*pure)
         return _composition(len(fns))["make"](*fns, *params)
 
-    def kernel_step(self, system):
+    def kernel_step(self, system, compensated=False):
         pure = getattr(system, "kernel_split_flows", None)
-        if pure is None or type(self).step is not Splitting.step:
+        if compensated or pure is None or type(self).step is not Splitting.step:
             return None
         fns, params = zip(*pure)
         return _pure_step(tuple(fns)), tuple(params)

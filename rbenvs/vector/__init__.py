@@ -143,6 +143,9 @@ class RigidBodyVectorEnv(VectorEnv):
         self._renderer = None
         self._y = None  # the states: a tuple of (n,) arrays, one per component
         self._y2d = None  # the (dim, n) array whose rows are self._y, when the kernel made it
+        # with a tolerance: each sub-env's compensation (dim, n), carried from period to period
+        # as the single env's run carries its own (rbenvs.core.step.Engine.advance), zero at a start
+        self._cc = np.zeros((self.system.dim, self.num_envs)) if self.engine.step_c is not None else None
         self._u = None  # the controls of the last step (None after a reset)
         self._action = None  # the compiled step's last actions, from which render makes them
         self._last_h = None  # the internal step of the last period, per sub-env
@@ -335,6 +338,8 @@ class RigidBodyVectorEnv(VectorEnv):
             task_raw, system_raw = self.model.batch_draws([self._rngs[i] for i in idx])
         if self._ranges is None:
             comps = self.model.initial_from_draws(tuple(task_raw), tuple(system_raw))
+        if self._cc is not None:  # (new runs)
+            self._cc[:, idx] = 0.0
         if self._y2d is not None:  # the rows of the kernel's (dim, n) state, which self._y views
             for j, v in enumerate(comps):
                 self._y2d[j, idx] = v
@@ -375,6 +380,8 @@ class RigidBodyVectorEnv(VectorEnv):
                 c[i] = v
         self._y = tuple(comps)
         self._y2d = None
+        if self._cc is not None:  # (new runs)
+            self._cc[:, list(rows)] = 0.0
         self._restart_companion(list(rows))
 
     # ------------------------------------------------------------------ step
@@ -449,7 +456,10 @@ class RigidBodyVectorEnv(VectorEnv):
                 y, fast, fired, h = self._compiled_advance(y0, u, u_norm, restart)
             else:
                 factor = self._check.factor if self._check is not None and self._check.refine else None
-                y, fired, h = engine.advance(y0, u, self._plain, restart if any_restart else None, factor)
+                comp = None if self._cc is None else tuple(self._cc)
+                y, fired, h, comp = engine.advance(y0, u, self._plain, restart if any_restart else None, factor, comp)
+                if comp is not None:
+                    self._cc = np.array([np.broadcast_to(c, (self.num_envs,)) for c in comp], dtype=np.float64)
                 if fired is False:
                     fired = self._false
         inaccurate = None
@@ -492,18 +502,20 @@ class RigidBodyVectorEnv(VectorEnv):
         for i in np.flatnonzero(late):
             ui = None if u is None else tuple(float(c[i]) if np.ndim(c) else float(c) for c in u)
 
-            def redo(start, factor, ui=ui):
-                y_new, fired_i, h_i = engine.advance(start, ui, False, factor=factor)
+            def redo(start, factor, comp, ui=ui):
+                y_new, fired_i, h_i, comp = engine.advance(start, ui, False, factor=factor, comp=comp)
                 if not all(math.isfinite(c) for c in y_new):
                     return None, None, 0
-                return (y_new, fired_i, h_i), y_new, int(round(engine.dt / h_i))
+                return (y_new, fired_i, h_i, comp), y_new, int(round(engine.dt / h_i))
 
             held, e, steps = check.hold(self._global[i], ui, redo, int(n[i]) + int(n[i]) // 2, row=i)
             self._replayed[i] = steps
             if held is not None:
-                y_new, fired[i], h[i] = held
+                y_new, fired[i], h[i], comp = held
                 for c, v in zip(y, y_new):
                     c[i] = v
+                if comp is not None:  # (the replayed run's compensation goes on with its state)
+                    self._cc[:, i] = comp
                 self._global[i], inaccurate[i] = e, False
         return tuple(y), fired, h, inaccurate
 
@@ -547,7 +559,7 @@ class RigidBodyVectorEnv(VectorEnv):
             done, restart, skip = np.empty(self.num_envs, dtype=bool), self._false, self._false
         reasons, rz, clear, entry = self._reasons.take()
         # (compiled arithmetic raises no floating-point warnings: no errstate needed here)
-        r = vstep(a, Y, self._steps, done, skip, self._table.list, not self._plain, engine.guard == "refuse", next_step, (rz, self._reasons.names, clear))
+        r = vstep(a, Y, self._steps, done, skip, self._table.list, not self._plain, engine.guard == "refuse", next_step, (rz, self._reasons.names, clear), self._cc)
         if r.status == -2:  # a non-finite action: the numpy path's check raises, naming the sub-envs
             action_columns(actions, shape)
             raise AssertionError("the compiled step found a non-finite action that action_columns accepted")
@@ -647,7 +659,7 @@ class RigidBodyVectorEnv(VectorEnv):
         # controls as (n,) float64 arrays (an unactuated axis is a 0.0 for every sub-env)
         u = tuple(c if type(c) is np.ndarray else np.full(n, c, dtype=np.float64) for c in u)
         u_norm = tuple(c if type(c) is np.ndarray else np.full(n, c, dtype=np.float64) for c in u_norm)
-        out = self._batch_step(Y, u, u_norm, engine.h, engine.substeps, not self._plain, restart, engine.guard == "refuse")
+        out = self._batch_step(Y, u, u_norm, engine.h, engine.substeps, not self._plain, restart, engine.guard == "refuse", self._cc)
         if out.status < 0:
             over = (out.counts > engine.substeps) & ~restart
             raise engine.refusal(int(out.counts[over].max()), f" of sub-envs {np.flatnonzero(over).tolist()}")
@@ -696,6 +708,8 @@ class RigidBodyVectorEnv(VectorEnv):
             r = compiled
             idx = np.flatnonzero(done)
             self._vector_step.rows(idx, np.ones(len(idx), dtype=bool), r.Y, self._table.list, obs, r.over, r.h, self._steps, r.metrics, r.readouts)
+            if self._cc is not None:  # (new runs)
+                self._cc[:, idx] = 0.0
             if "terminal_reason" in info:  # (every ended sub-env restarts)
                 info["terminal_reason"] = np.where(done, "", info["terminal_reason"])
                 info["_terminal_reason"] = info["_terminal_reason"] & ~done
