@@ -270,8 +270,16 @@ def test_pure_forms_on_arrays_equal_the_floats_element_by_element(fidelity, law,
 
 
 def _compiled(fn, arity):
-    """``fn`` called from a function numba compiles (as a batch kernel calls it)."""
+    """``fn`` called from a function numba compiles (as a batch kernel calls it), registered as
+    a kernel build registers its parts: every jitable function imported by now, and ``fn`` (a
+    form made per system or task is not one of them). Without it the test passed only after
+    another test in the same process had built such a kernel."""
     import numba
+
+    from rbenvs.jit import register, register_all
+
+    register_all()
+    register(fn)
 
     if arity == 2:
         return numba.njit(error_model="numpy")(lambda p, a: fn(p, a))
