@@ -380,6 +380,34 @@ def test_the_vector_env_refines_each_sub_env_as_its_single_env(mode):
     assert replayed[1] > 0 and replayed[0] == replayed[2] == 0
 
 
+def test_the_vector_env_says_which_sub_env_refine_could_not_hold():
+    """Where replaying cannot hold a sub-env (0.001 rad/s off the intermediate axis at 1e-12,
+    below what float64 carries), its episode ends as its single env's does, at the same period,
+    with the single env's words naming the sub-env; the others go on."""
+    from rbenvs.vector import FreeRigidBodyVectorEnv
+
+    starts = (STARTS[0], (0.001, 5.0, 0.001))
+    kw = dict(inertia=INERTIA, axis=0, max_torque=0.0, integrator="rk4", max_angular_velocity=50.0, tolerance=1e-12, tolerance_horizon=400,
+              tolerance_check="refine")
+    vec = FreeRigidBodyVectorEnv(len(starts), max_episode_steps=400, **kw)
+    single = FreeRigidBodyEnv(**kw)
+    pis = np.array([np.array(INERTIA) * np.array(w) for w in starts])
+    vec.reset(seed=0, options={"state": {"angular_momentum": pis}})
+    single.reset(seed=0, options={"state": {"angular_momentum": pis[1]}})
+    a = np.zeros(vec.action_space.shape, np.float32)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        for k in range(400):
+            _, _, terminated, _, info = vec.step(a)
+            _, _, t, _, one = single.step(a[1])
+            assert bool(terminated[1]) == t and info["global_error_estimate"][1] == one["global_error_estimate"], k
+            if t:
+                break
+    assert t and one["numerical_failure"] and info["numerical_failure"][1] and not terminated[0]
+    text = [str(w.message) for w in caught if issubclass(w.category, NumericalFailureWarning)]
+    assert any(m.startswith("sub-envs [1]: ") and "replaying the episode with more steps did not hold it" in m for m in text), text
+
+
 def test_refine_holds_the_hopping_tippe_top_within_the_tolerance(hop_reference):
     """The tippe top that hops while it inverts (180 rad/s; 3.7 times outside 1e-6 without the
     check, ended at period 250 with ``True``): with ``"refine"`` it runs its 400 periods within
