@@ -46,6 +46,8 @@ free-floating body with the same principal moments and zero gravity, under MuJoC
 
 ``--quick`` runs shorter grids and long runs (CI); ``--json PATH`` writes every figure;
 ``--tolerance`` runs only the table of ``tolerance=`` (:mod:`rbenvs.bench.tolerance`);
+``--roundoff`` only the roundoff floor near the free body's intermediate axis
+(:mod:`rbenvs.bench.roundoff`);
 ``--plot PATH.png`` draws the work-precision figure (needs matplotlib, the ``plot`` extra).
 
 Scenes (``--scenes``, on by default, off with ``--quick``): for every scene in
@@ -686,6 +688,9 @@ def main(argv=None) -> int:
     parser.add_argument("--case", action="append", metavar="KEY",
                         help="with --tolerance: only these cases' rows (repeatable; default all): " + ", ".join(c.key for c in _tolerance_cases())
                         + ", and scene:NAME for each shipped scene")
+    parser.add_argument("--roundoff", action="store_true",
+                        help="only the roundoff table (rbenvs.bench.roundoff): two rk4 runs at 200 and 400 substeps near the free body's "
+                             "intermediate axis, summed plainly and with compensation (a tolerance's), apart and against the exact solution")
     parser.add_argument("--tippe", action="store_true",
                         help="only the tippe top's work-precision against MuJoCo (rbenvs.bench.tippe_accuracy): t90 against the slip regularisation, "
                              "every scheme, step and fidelity level and MuJoCo's integrators and cones at several dt, cost per simulated second "
@@ -696,6 +701,17 @@ def main(argv=None) -> int:
         parser.error("--case selects rows of the --tolerance table: pass --tolerance")
     if args.tippe:
         return _tippe_main(args)
+    if args.roundoff:
+        from .roundoff import OFF, STARTS, print_roundoff, run_roundoff
+
+        bar = Progress(len(OFF) * 2 * STARTS, not args.no_progress, "bench accuracy --roundoff")
+        result = run_roundoff(progress=bar.update)
+        bar.close()
+        print_roundoff(result)
+        if args.json:
+            with open(args.json, "w") as f:
+                json.dump(result, f, indent=1, default=float)
+        return 0
     if args.tolerance:
         from .tolerance import all_cases, run_tolerance, print_tolerance
 
