@@ -758,22 +758,24 @@ def state_kernel(layout: Layout):
     """The compiled period and finish of ONE state (the single env's step where numba is
     installed): the batch kernel's lines for one sub-env, on tuples of floats. Signature::
 
-        one(y, cc, u, un, check, refuse, P) -> (status, count, h, fired, y, obs, over, r, q, cc)
+        one(y, u, un, check, refuse, P) -> (status, count, h, fired, y, obs, over, r, q)
+        one(y, cc, u, un, check, refuse, P) -> (status, count, h, fired, y, obs, over, r, q, cc)  (with step_c)
 
     ``P = (h, dt, substeps, PS, PO, PE, PR, PG, PA, PD, CD, PV, PW, HI)`` (:class:`StateStep`);
     ``status`` 0, 1 (the new state is non-finite: the caller's failure path takes over) or -1
     (``refuse`` and the guard asks for ``count > substeps`` steps: nothing was run); ``obs``
     the observation clipped to ``HI``, ``over`` whether it was outside; ``r`` the task's
-    ``(reward, terminated, metrics...)``, ``q`` the read-outs; ``cc`` the run's compensation
-    (a layout with ``step_c``; otherwise ``()``, returned as it came). Every output is computed
-    in every case (one return type), the float path's values where it matters.
+    ``(reward, terminated, metrics...)``, ``q`` the read-outs; ``cc`` the run's compensation,
+    in and out (a layout with ``step_c`` only: the others' hot call takes no more arguments).
+    Every output is computed in every case (one return type), the float path's values where it
+    matters.
     """
     import numba
 
     L = layout
     comps = _comps
     lines = [
-        "def one(y, cc, u, un, check, refuse, P):",
+        "def one(y, cc, u, un, check, refuse, P):" if L.step_c is not None else "def one(y, u, un, check, refuse, P):",
         "    h, dt, substeps, PS, PO, PE, PR, PG, PA, PD, CD, PV, PW, HI = P",
         "    c = substeps",
         "    need = 0",
@@ -793,7 +795,7 @@ def state_kernel(layout: Layout):
     lines += [
         "    r = evaluate(PE, y, un)",
         "    q = readouts(PR, y, u, f)",
-        f"    return status, c, hi, f, y, ({comps('v{j}', L.n_obs)}), out, r, q, cc",
+        f"    return status, c, hi, f, y, ({comps('v{j}', L.n_obs)}), out, r, q" + (", cc" if L.step_c is not None else ""),
     ]
     namespace = _namespace(L)
     generate("\n".join(lines), f"state kernel dim={L.dim} n_obs={L.n_obs}", namespace)
@@ -848,17 +850,26 @@ class StateStep:
         self.info = info_function(tuple(readout_names), tuple(metric_names))
         self._call = None
 
-    def __call__(self, y, cc, u, un, check: bool, refuse: bool):
+    def __call__(self, y, u, un, check: bool, refuse: bool):
         call = self._call
         if call is None:
-            import numba
+            return self._first(y, u, un, check, refuse, self.params)
+        return call(y, u, un, check, refuse, self.params)
 
-            out = self.kernel(y, cc, u, un, check, refuse, self.params)  # compiles
-            signature = tuple(numba.typeof(a) for a in (y, cc, u, un, check, refuse, self.params))
-            overload = self.kernel.overloads.get(signature)
-            self._call = overload.entry_point if overload is not None else self.kernel
-            return out
+    def compensated(self, y, cc, u, un, check: bool, refuse: bool):
+        """The call of a layout with ``step_c``: the run's compensation ``cc`` in, and out last."""
+        call = self._call
+        if call is None:
+            return self._first(y, cc, u, un, check, refuse, self.params)
         return call(y, cc, u, un, check, refuse, self.params)
+
+    def _first(self, *args):
+        import numba
+
+        out = self.kernel(*args)  # compiles
+        overload = self.kernel.overloads.get(tuple(numba.typeof(a) for a in args))
+        self._call = overload.entry_point if overload is not None else self.kernel
+        return out
 
 
 @lru_cache(maxsize=None)

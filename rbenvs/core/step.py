@@ -617,12 +617,15 @@ class Engine:
         u_norm, u = self.control(a)
         one = self._state_step if self._state_step_tried else self.state_step
         if one is not None:  # the same period and finish, compiled: one call
-            status, count, h, fired, y, o, over, r, q, comp = one(y0, self.comp or (), u, u_norm, not plain, self.guard == "refuse")
+            if self.comp is None:
+                status, count, h, fired, y, o, over, r, q = one(y0, u, u_norm, not plain, self.guard == "refuse")
+            else:  # (the run's compensation in and out)
+                status, count, h, fired, y, o, over, r, q, comp = one.compensated(y0, self.comp, u, u_norm, not plain, self.guard == "refuse")
             if status:
                 if status < 0:
                     raise self.refusal(count)
                 return self._failed_one(y0, u_norm, u, h, plain)
-            if comp:
+            if self.comp is not None:
                 self.comp = comp
             obs, reward, terminated, info = np.array(o, dtype=np.float32), r[0], r[1], one.info(q, r, h)
             if fired or over or terminated:
