@@ -360,16 +360,18 @@ def test_quick_sweep_command(tmp_path, capsys):
 def test_the_tolerance_rows_pass_and_catch_an_estimate_that_falls_short(monkeypatch):
     """``rbenvs verify``'s tolerance rows (rbenvs.verify.tolerance): for rk4 the episode run with
     tolerance=1e-6 stays within it against the exact solution and the global error estimate is
-    never below the error; an estimate scaled down (its margin 0.3 instead of 1.25: 0.24 of the
+    never below the error, and "refine" holds 1e-9 near the separatrix; an estimate scaled down (its margin 0.3 instead of 1.25: 0.24 of the
     classical estimate, which measures 0.88-2 of the error) is caught by the second row; euler,
     which a tolerance does not take, has no rows."""
     from rbenvs.core import global_error
     from rbenvs.verify.tolerance import ROWS, tolerance_checks
 
     rows = tolerance_checks(["rk4", "euler"], seed=0, n_cases=2)
-    assert [(c.integrator, c.check) for c in rows] == [("rk4", ROWS["error"]), ("rk4", ROWS["bound"])]
+    assert [(c.integrator, c.check) for c in rows] == [("rk4", ROWS["error"]), ("rk4", ROWS["bound"]), ("rk4", ROWS["refine"])]
     assert all(c.passed for c in rows), rows
     assert 0.0 < rows[0].measured <= 1e-6
+    # refine near the separatrix: within 1e-9 (measured 7.8e-10 to 8.1e-10 over 24 bodies, seeds 0-3)
+    assert 1e-10 < rows[2].measured <= 1e-9 and rows[2].case["tolerance_check"] == "refine"
     monkeypatch.setattr(global_error, "MARGIN", 0.3)
-    error, bound = tolerance_checks(["rk4"], seed=0, n_cases=2)
+    error, bound, _ = tolerance_checks(["rk4"], seed=0, n_cases=2)
     assert not bound.passed and bound.measured > 0.0 and bound.case["integrator"] == "rk4"
