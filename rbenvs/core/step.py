@@ -406,7 +406,7 @@ class Engine:
         post, event = self.switching, self.event
         if self.shared is not None:  # (the event's evaluation is the next first stage)
             (first, ps), (rhs_event, pv) = self.shared
-            first_c = None if comp is None else self.shared_c[0]
+            first_c = None if comp is None or self.shared_c is None else self.shared_c[0]
             k, g = rhs_event(pv, y, u)
             for _ in range(n):
                 if first_c is None:
@@ -484,7 +484,7 @@ class Engine:
         active = np.ones(n.shape, dtype=bool)
         if self.shared is not None:  # (the event's evaluation is the next first stage, as above)
             (first, ps), (rhs_event, pv) = self.shared
-            first_c = None if comp is None else self.shared_c[0]
+            first_c = None if comp is None or self.shared_c is None else self.shared_c[0]
             kk, _ = rhs_event(pv, y, u)
             for k in range(int(n.max())):
                 if first_c is None:
