@@ -157,9 +157,8 @@ class GlobalErrorCheck:
 
     def restart(self, y, mask=None):
         """The companion starts at ``y`` (a batch: at the rows ``mask`` of ``y``, or all)."""
-        zero = self.engine.zero if self.engine.step_c is not None else None
         if mask is None or self.yc is None:
-            self.yc, self.cc = y, zero
+            self.yc, self.cc = y, self.engine.fresh_comp
             batch = isinstance(y[0], np.ndarray)
             self.periods = np.zeros(len(y[0]), dtype=np.int64) if batch else 0
             if self.refine:
@@ -288,5 +287,5 @@ class GlobalErrorCheck:
             if not e <= tol:
                 return None, e, j + 1, steps
         if comp is None:
-            comp = cc = None if engine.step_c is None else engine.zero
+            comp = cc = engine.fresh_comp
         return ((y, comp), (yc, cc)), e, len(controls) + 1, steps

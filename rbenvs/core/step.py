@@ -236,9 +236,10 @@ class Engine:
         # (the env's, the companion, a replay) carries its own from period to period
         # (advance(comp=), companion(comp=); the single env's in comp)
         compensate = m.tolerance is not None
-        self.zero = (0.0,) * system.dim
         self.step_c = m.integrator.bind(system, system.dim, compensated=True) if compensate else None
-        self.comp = self.zero if self.step_c is not None else None  # the single env's run's compensation
+        # a run's compensation at its start (zeros; None where the steps sum plainly)
+        self.fresh_comp = (0.0,) * system.dim if self.step_c is not None else None
+        self.comp = self.fresh_comp  # the single env's run's
         self.shared, self.shared_c = None, None
         if self.event is not None:
             rhs_event = getattr(system, "kernel_rhs_event", None)
@@ -343,7 +344,7 @@ class Engine:
                 y = step(y, u, h)
             return y, False, h, None
         if comp is None:
-            comp = None if self.step_c is None else self.zero
+            comp = self.fresh_comp
         n = self.rule.steps(y, u, self.substeps)
         event = self.event
         if not isinstance(y[0], np.ndarray):  # one state: plain Python (no numpy call per period)
@@ -358,7 +359,7 @@ class Engine:
             if n > MAX_INTERNAL_STEPS:
                 # a state beyond what the scheme can resolve in a period: NaN (a numerical
                 # failure, reported with h = dt / n), at once, never a hang
-                return tuple(math.nan for _ in y), False, self.dt / n, None if comp is None else self.zero
+                return tuple(math.nan for _ in y), False, self.dt / n, self.fresh_comp
             h = self.h if n == self.substeps else self.dt / n
             y, fired, comp = self._run_one(y, u, n, h, comp)
             return y, fired, h, comp
@@ -432,7 +433,7 @@ class Engine:
             if post is not None:
                 y_post = post.after_step(y_prev, y, u, h)
                 if y_post is not y:  # switched: the rest of the step was taken afresh
-                    y, comp = y_post, None if comp is None else self.zero
+                    y, comp = y_post, self.fresh_comp
             if event is not None:
                 if not all(math.isfinite(c) for c in y):
                     return y, False, comp
@@ -445,8 +446,8 @@ class Engine:
         where the main run took ``n`` (even, with ``tolerance_check``) steps of ``h = dt / n``:
         ``n / 2`` steps of ``2 h`` (one state: ``n`` an int; a batch: an int array); ``(y,
         comp)``, ``comp`` the companion's own compensation as :meth:`advance` carries it."""
-        if comp is None and self.step_c is not None:
-            comp = self.zero
+        if comp is None:
+            comp = self.fresh_comp
         if not isinstance(y[0], np.ndarray):
             y, _, comp = self._run_one(y, u, n // 2, 2.0 * self.dt / n, comp)
             return y, comp
@@ -600,8 +601,7 @@ class Engine:
     def reset_one(self, y):
         """``(obs, info)`` of a start ``y`` (no control has acted: ``u = None``); the single env's
         run starts there (its compensation at zero)."""
-        if self.comp is not None:
-            self.comp = self.zero
+        self.comp = self.fresh_comp
         obs, over = self.observe(y)
         if over:
             raise ValueError("the initial state lies outside the observation bounds; raise the limit parameters")
