@@ -547,9 +547,7 @@ def _tippe_main(args) -> int:
     if args.plot:
         tippe_accuracy.plot(result, args.plot)
         print(f"\nplot written to {args.plot}")
-    if args.json:
-        with open(args.json, "w") as f:
-            json.dump(result, f, indent=1, default=float)
+    _write_json(args.json, result)
     return 0
 
 
@@ -666,6 +664,13 @@ def plot(result, path):
     plt.close(fig)
 
 
+def _write_json(path, result) -> None:
+    """Every figure of ``result`` as JSON at ``path`` (``--json``; nothing where ``path`` is None)."""
+    if path:
+        with open(path, "w") as f:
+            json.dump(result, f, indent=1, default=float)
+
+
 def _tolerance_cases():
     from .tolerance import TOLERANCE_CASES
 
@@ -708,9 +713,7 @@ def main(argv=None) -> int:
         result = run_roundoff(progress=bar.update)
         bar.close()
         print_roundoff(result)
-        if args.json:
-            with open(args.json, "w") as f:
-                json.dump(result, f, indent=1, default=float)
+        _write_json(args.json, result)
         return 0
     if args.tolerance:
         from .tolerance import all_cases, run_tolerance, print_tolerance
@@ -726,9 +729,7 @@ def main(argv=None) -> int:
         result = run_tolerance(keys=args.case, progress=bar.update)
         bar.close()
         print_tolerance(result)
-        if args.json:
-            with open(args.json, "w") as f:
-                json.dump(result, f, indent=1, default=float)
+        _write_json(args.json, result)
         return 0
     if args.plot and plot_unavailable("rbenvs bench accuracy"):  # fail before the long run, not after it
         return 2
@@ -745,7 +746,5 @@ def main(argv=None) -> int:
     if args.plot:
         plot(result, args.plot)
         print(f"\nplot written to {args.plot}")
-    if args.json:
-        with open(args.json, "w") as f:
-            json.dump(result, f, indent=1, default=float)
+    _write_json(args.json, result)
     return 0
