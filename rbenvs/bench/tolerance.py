@@ -249,13 +249,13 @@ def _references(case, env, starts):
 def _episode(case, env, starts, refs):
     """``(error, summed estimate, internal steps, failure)`` over the starts; ``error`` up to the
     end of each episode (where a numerical failure ends one: up to the state it keeps, the last
-    one within; ``failure`` then says where), the companion's steps (``tolerance_check``) counted
+    one within; ``failure`` then says where), the companions' steps (``tolerance_check``) counted
     in ``steps``."""
     err = est_max = 0.0
     steps = 0
     failure = None
     a = np.zeros(env.action_space.shape, np.float32)
-    from ..core.global_error import relative_difference, tolerance_blocks
+    from ..core.global_error import companion_steps, relative_difference, tolerance_blocks
 
     checked = getattr(env, "_check", None) is not None
     # the measured blocks: the tippe top's horizontal position (it drifts) and its contact flags
@@ -270,7 +270,7 @@ def _episode(case, env, starts, refs):
                 _, _, term, _, info = env.step(a)
                 n = int(round(env.dt / info["internal_step"]))
                 # (the companion: n / 2 steps of 2 h; "refine": the replays' steps, the period's first try's included)
-                steps += n + (n // 2 if checked else 0) + info.get("replayed_steps", 0)
+                steps += n + (companion_steps(n) if checked else 0) + info.get("replayed_steps", 0)
                 est += info.get("error_estimate", 0.0)
                 if info["numerical_failure"]:
                     if failure is None:

@@ -41,6 +41,7 @@ import numpy as np
 
 from ..dynamics.validation import real_array
 from ..jit import compiled_form, jitable
+from .global_error import rounding_twin, rounding_twin_first
 from .guard import MAX_INTERNAL_STEPS
 from .hybrid import Switching
 
@@ -249,6 +250,13 @@ class Engine:
                 self.shared = (shared, rhs_event)
                 if compensate:
                     self.shared_c = first(system, compensated=True)
+        # tolerance_check's rounding twin (rbenvs.core.global_error): the compensated steps with
+        # every increment off by a unit roundoff; None without a check
+        self.twin_c = self.twin_first_c = None
+        if m.check and self.step_c is not None:
+            self.twin_c = rounding_twin(self.step_c)
+            if self.shared_c is not None:
+                self.twin_first_c = rounding_twin_first(self.shared_c[0])
         # the plain loop (substeps equal steps, nothing watched) is exact when no state inside
         # the observation bounds can trip the guard; a step that ends outside them drops to the
         # checked path until the next reset (the single env's and the vector env's rule); a
@@ -399,15 +407,15 @@ class Engine:
             return y, fired, h, comp
         return y, fired, np.broadcast_to(np.asarray(h, dtype=float), n.shape).copy(), comp
 
-    def _run_one(self, y, u, n: int, h: float, comp=None):
+    def _run_one(self, y, u, n: int, h: float, comp=None, twin=False):
         """One state's ``n`` internal steps of ``h``, the switches after each and the terminal
         event ending them early: ``(y, fired, comp)``. ``comp``: the run's compensation at
         ``y`` (a tolerance: the compensated step carries it; it starts again from zero after a
-        switch); ``None``: the plain step."""
+        switch); ``None``: the plain step. ``twin``: the rounding twin's steps (:attr:`twin_c`)."""
         post, event = self.switching, self.event
         if self.shared is not None:  # (the event's evaluation is the next first stage)
             (first, ps), (rhs_event, pv) = self.shared
-            first_c = None if comp is None or self.shared_c is None else self.shared_c[0]
+            first_c = None if comp is None or self.shared_c is None else (self.twin_first_c if twin else self.shared_c[0])
             k, g = rhs_event(pv, y, u)
             for _ in range(n):
                 if first_c is None:
@@ -420,7 +428,7 @@ class Engine:
                 if g < 0.0:
                     return y, True, comp
             return y, False, comp
-        step, step_c = self.bound_step, None if comp is None else self.step_c  # integ.step with the system bound (the same bits)
+        step, step_c = self.bound_step, None if comp is None else (self.twin_c if twin else self.step_c)  # integ.step with the system bound (the same bits)
         if step_c is not None and post is None and event is None:
             for _ in range(n):
                 y, comp = step_c(y, comp, u, h)
@@ -441,26 +449,28 @@ class Engine:
                     return y, True, comp
         return y, False, comp
 
-    def companion(self, y, u, n, comp=None):
+    def companion(self, y, u, n, comp=None, twin=False):
         """The companion run's period (:mod:`rbenvs.core.global_error`) from ``y`` under ``u``,
         where the main run took ``n`` (even, with ``tolerance_check``) steps of ``h = dt / n``:
         ``n / 2`` steps of ``2 h`` (one state: ``n`` an int; a batch: an int array); ``(y,
-        comp)``, ``comp`` the companion's own compensation as :meth:`advance` carries it."""
+        comp)``, ``comp`` the companion's own compensation as :meth:`advance` carries it.
+        ``twin``: its rounding twin's (every increment off by a unit roundoff)."""
         if comp is None:
             comp = self.fresh_comp
         if not isinstance(y[0], np.ndarray):
-            y, _, comp = self._run_one(y, u, n // 2, 2.0 * self.dt / n, comp)
+            y, _, comp = self._run_one(y, u, n // 2, 2.0 * self.dt / n, comp, twin)
             return y, comp
         n = np.broadcast_to(np.asarray(n, dtype=np.int64), np.shape(y[0]))
-        y, _, comp = self._loop(y, u, n // 2, 2.0 * self.dt / n, comp)
+        y, _, comp = self._loop(y, u, n // 2, 2.0 * self.dt / n, comp, twin)
         return y, comp
 
-    def _loop(self, y, u, n, h, comp=None):
+    def _loop(self, y, u, n, h, comp=None, twin=False):
         """A batch's internal steps: element ``i`` takes ``n[i]`` steps of ``h`` (``h[i]``) and is
         frozen after them or at its terminal event: ``(y, fired, comp)``. ``comp``: each
-        element's compensation, carried as :meth:`_run_one` carries it (``None``: plain)."""
+        element's compensation, carried as :meth:`_run_one` carries it (``None``: plain);
+        ``twin``: the rounding twin's steps."""
         step, post, event = self.bound_step, self.switching, self.event
-        step_c = None if comp is None else self.step_c
+        step_c = None if comp is None else (self.twin_c if twin else self.step_c)
         fired = np.zeros(n.shape, dtype=bool)
 
         def stepped(y, comp):  # one step of every element, and the switches after it
@@ -485,7 +495,7 @@ class Engine:
         active = np.ones(n.shape, dtype=bool)
         if self.shared is not None:  # (the event's evaluation is the next first stage, as above)
             (first, ps), (rhs_event, pv) = self.shared
-            first_c = None if comp is None or self.shared_c is None else self.shared_c[0]
+            first_c = None if comp is None or self.shared_c is None else (self.twin_first_c if twin else self.shared_c[0])
             kk, _ = rhs_event(pv, y, u)
             for k in range(int(n.max())):
                 if first_c is None:
@@ -688,18 +698,23 @@ class Engine:
         bound = self.rule.binding(y0, u) if y0 is not None else f"the step bound ({self.rule.text})"
         return f": the period needs more than MAX_INTERNAL_STEPS = {MAX_INTERNAL_STEPS} internal steps to meet {bound}"
 
-    def inaccurate_one(self, y0, a, h, plain, estimate, periods, refine=False):
+    def inaccurate_one(self, y0, a, h, plain, estimate, periods, refine=False, roundoff=0.0):
         """The end of an episode whose global error estimate (``tolerance_check``) passed the
         tolerance in its ``periods``-th period, the one from ``y0``: a numerical failure at
         ``y0``, the last state within it, with a warning that says when (``refine``: and that
-        replaying it with more steps did not hold it)."""
-        what = self._inaccurate_text(estimate, periods, refine)
+        replaying it with more steps did not hold it; ``roundoff``: the estimate's roundoff part)."""
+        what = self._inaccurate_text(estimate, periods, refine, roundoff)
         u_norm, u = self.control(a)
         out = self._failed_one(y0, u_norm, u, h, plain, what, "the last state within the tolerance")
         out[4]["global_error_estimate"] = estimate
         return out
 
-    def _inaccurate_text(self, estimate, periods, refine=False) -> str:
+    def _inaccurate_text(self, estimate, periods, refine=False, roundoff=0.0) -> str:
+        if 2.0 * float(roundoff) >= float(estimate):  # (most of it the rounding twin's: rbenvs.core.global_error)
+            return (f"the global error estimate {float(estimate):.3g} passed tolerance={self.tolerance!r} after {int(periods)} periods "
+                    f"({int(periods) * self.dt:.6g} s), {float(roundoff):.3g} of it roundoff the motion amplified (the rounding twin's: "
+                    f"tolerance_check), which more steps do not reduce: the tolerance is below what float64 carries through this "
+                    f"motion; a larger tolerance holds")
         if refine:
             return (f"the global error estimate {float(estimate):.3g} passed tolerance={self.tolerance!r} after {int(periods)} periods "
                     f"({int(periods) * self.dt:.6g} s) and replaying the episode with more steps did not hold it (tolerance_check='refine': "
@@ -757,7 +772,7 @@ class Engine:
             if late.any():
                 idx = np.flatnonzero(late)
                 warnings.warn(
-                    f"sub-envs {idx.tolist()}: {self._inaccurate_text(np.max(estimate[late]), np.min(check.periods[late]), check.refine)}; their episodes end "
+                    f"sub-envs {idx.tolist()}: {self._inaccurate_text(np.max(estimate[late]), np.min(check.periods[late]), check.refine, np.min(check.roundoff[late]))}; their episodes end "
                     "and their last states within the tolerance are kept",
                     NumericalFailureWarning,
                     stacklevel=3,

@@ -22,7 +22,7 @@ import warnings
 import gymnasium as gym
 import numpy as np
 
-from ..core.global_error import GlobalErrorCheck, require_tolerance_check
+from ..core.global_error import GlobalErrorCheck, companion_steps, require_tolerance_check
 from ..core.guard import GUARDS, MAX_INTERNAL_STEPS, StepRule, UnstableMotionWarning, relaxation_steps, require_guard, require_tolerance, stability_ratio, step_ratio
 from ..core.model import Model
 from ..core.step import Engine, NumericalFailureWarning, action_values
@@ -495,12 +495,12 @@ class RigidBodyEnv(gym.Env):
         if info["numerical_failure"]:
             return out
         n = int(round(engine.dt / info["internal_step"]))
-        yc0, cc0 = check.yc, check.cc
+        runs0 = check.runs
         e = check.period(out[0], out[5], n)
         replayed = 0
         if e > engine.tolerance:
-            # the companion and the run stay with the state kept; hold moves them on
-            check.yc, check.cc, check.periods, engine.comp = yc0, cc0, check.periods - 1, comp0
+            # the companion, its twin and the run stay with the state kept; hold moves them on
+            check.runs, check.periods, engine.comp = runs0, check.periods - 1, comp0
             held = None
             if check.refine:
 
@@ -510,10 +510,10 @@ class RigidBodyEnv(gym.Env):
                         return None, None, 0
                     return again, again[0], int(round(engine.dt / again[4]["internal_step"]))
 
-                held, estimate, replayed = check.hold(e, out[5], redo, n + n // 2)
+                held, estimate, replayed = check.hold(e, out[5], redo, n + companion_steps(n))
             if held is None:
                 engine.comp = comp0
-                failed = engine.inaccurate_one(y0, a, info["internal_step"], plain, e, check.periods + 1, check.refine)
+                failed = engine.inaccurate_one(y0, a, info["internal_step"], plain, e, check.periods + 1, check.refine, check.roundoff)
                 if check.refine:
                     failed[4].update(step_factor=check.factor, replayed_steps=replayed)
                 return failed

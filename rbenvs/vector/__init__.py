@@ -72,7 +72,7 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
 from .. import compiled as _compiled
-from ..core.global_error import GlobalErrorCheck
+from ..core.global_error import GlobalErrorCheck, companion_steps
 from ..core.step import _REAL_FLOATS, ReasonPool, action_columns, terminal_reason
 from ..draws import GeneratorTable, kind_codes
 from ..envs.base import require_compiled
@@ -508,7 +508,7 @@ class RigidBodyVectorEnv(VectorEnv):
                     return None, None, 0
                 return (y_new, fired_i, h_i, comp), y_new, int(round(engine.dt / h_i))
 
-            held, e, steps = check.hold(self._global[i], ui, redo, int(n[i]) + int(n[i]) // 2, row=i)
+            held, e, steps = check.hold(self._global[i], ui, redo, int(n[i]) + companion_steps(int(n[i])), row=i)
             self._replayed[i] = steps
             if held is not None:
                 y_new, fired[i], h[i], comp = held
