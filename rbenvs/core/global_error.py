@@ -61,8 +61,9 @@ increment ``d`` off by a unit roundoff, ``+-2^-53 d`` (:func:`rounding_twin`: ca
 compensation, the sign from ``d``'s own mantissa, so that floats and arrays agree bit for bit);
 its difference from the companion ``D_t`` is roundoff alone, amplified as the motion amplifies
 the runs' own, and the estimate is ``MARGIN (D / (2^p - 1) + ROUNDOFF_WEIGHT D_t)``. It is a model
-of roundoff, not a bound: a unit roundoff of the increment per step, in a pseudo-random sign,
-where a run's own rounding near the saddle repeats itself step after step. Measured (scratch,
+of roundoff, not a bound: one sample of an amplification that varies by orders from one
+realization of the rounding to the next (against an 80-bit replay of a run's counts the twin's
+difference was 1/24 to 6 times that run's roundoff). Measured (scratch,
 docs/integrators.md "Roundoff"): 0.0001 rad/s off the error ends 1.28 times ``D / 15 + D_t``;
 over four starts 0.0001 to 0.01 rad/s off and tolerances 1e-8 to 1e-12, ``"refine"`` ran 8 of
 the 20 episodes outside the tolerance without the twin (up to 48 times) and 2 with it (2.4 and
