@@ -27,6 +27,8 @@ EXTRAS = {
     "tensorboard": (("tensorboard", "tensorboard"),),
     # gymnasium's RecordVideo writes its files through moviepy.
     "video": (("moviepy", "moviepy"),),
+    # `rbenvs bench accuracy --floor`: mpmath's Taylor series as the reference (rbenvs.oracles.taylor_solution)
+    "reference": (("mpmath", "mpmath"),),
     # `rbenvs verify --simulator mujoco`: MuJoCo's models beside ours (rbenvs.verify.mujoco_adapter)
     "mujoco": (("mujoco", "mujoco"),),
     # rbenvs-results --backend ray, rbenvs-sweep (Ray Tune with Optuna) and RLlib on the vector

@@ -168,3 +168,22 @@ def test_the_roundoff_table_runs_from_the_cli(monkeypatch, capsys, tmp_path):
     rows = {r["mode"]: r for r in json.loads(path.read_text())["rows"]}
     assert rows["compensated"]["apart"][0] < rows["plain"]["apart"][0] / 100
     assert rows["compensated"]["exact"][0] < 1e-11
+
+
+def test_the_floor_table_runs_from_the_cli(monkeypatch, capsys, tmp_path):
+    """``rbenvs bench accuracy --floor`` (one start, 0.0001 rad/s off the intermediate axis, at
+    1e-9, here): both check modes end the episode before the horizon (float64 cannot carry 1e-9
+    through it) and every period they return is within the tolerance of the Taylor solution;
+    printed and written as JSON."""
+    from rbenvs.bench import floor
+
+    monkeypatch.setattr(floor, "OFF", (1e-4,))
+    monkeypatch.setattr(floor, "TOLERANCES", (1e-9,))
+    path = tmp_path / "floor.json"
+    assert cli_main(["bench", "accuracy", "--floor", "--no-progress", "--json", str(path)]) == 0
+    out = capsys.readouterr().out
+    assert "tolerance_check near the separatrix" in out and "within the tolerance on every period returned: 2 of 2" in out
+    rows = json.loads(path.read_text())["rows"]
+    assert [r["mode"] for r in rows] == [True, "refine"]
+    for r in rows:
+        assert r["end"] is not None and r["end"] < floor.PERIODS and r["worst"] <= r["tolerance"]

@@ -23,6 +23,7 @@ CASES = [
     ("rbenvs", "rbenvs.cli:main", ["scenes"], ["yaml"], "cli"),
     ("rbenvs", "rbenvs.cli:main", ["run", "--episodes", "1"], ["yaml"], "cli"),
     ("rbenvs", "rbenvs.cli:main", ["bench", "accuracy", "--system", "free_body"], ["yaml"], "cli"),  # before its long run
+    ("rbenvs", "rbenvs.cli:main", ["bench", "accuracy", "--floor"], ["mpmath"], "reference"),  # its Taylor-series reference
 ]
 
 

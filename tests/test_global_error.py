@@ -15,7 +15,7 @@ from gymnasium.utils.env_checker import check_env
 from rbenvs.core.global_error import MARGIN, UNIT_ROUNDOFF, companion_ratio, relative_difference, tolerance_blocks
 from rbenvs.core.step import NumericalFailureWarning
 from rbenvs.envs import FreeRigidBodyEnv, TippeTopEnv, UnstableMotionWarning
-from rbenvs.oracles import exact_solution
+from rbenvs.oracles import exact_solution, taylor_solution
 
 INERTIA = (2.0, 1.5, 1.0)
 # fb_triaxial's starts (rbenvs bench accuracy --tolerance): near the major axis, 0.002 off the
@@ -537,6 +537,22 @@ def test_a_tolerance_sums_the_steps_with_compensation_from_period_to_period():
             assert twin.unwrapped.state_components == env.unwrapped.state_components
 
 
+def _within_until_ended(env, tol, reference):
+    """Steps ``env`` (reset) uncontrolled over 400 periods, each period it returns within ``tol``
+    of ``reference(k)`` (the state after ``k + 1`` periods): ``(ended, info, said)``, the period
+    its episode ended at (``None``: ran its horizon), the last step's info and its warnings."""
+    a = np.zeros(env.action_space.shape, np.float32)
+    for k in range(400):
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            _, _, terminated, _, info = env.step(a)
+        said = " ".join(str(m.message) for m in caught)
+        if terminated:
+            return k + 1, info, said
+        assert _relative(env.state_components, reference(k)) <= tol, k
+    return None, info, said
+
+
 def test_refine_holds_a_tolerance_closer_to_the_axis_than_a_plain_sum_carries():
     """0.001 rad/s off the intermediate axis (perturbations amplified some 12000 times over the
     episode) "refine" holds 1e-9 and 1e-10 against the exact solution on every period (measured
@@ -549,15 +565,9 @@ def test_refine_holds_a_tolerance_closer_to_the_axis_than_a_plain_sum_carries():
     pi0 = np.array(INERTIA) * np.array(w)
     for tol in (1e-9, 1e-10):
         env = _refined_start(tol, w)
-        a = np.zeros(env.action_space.shape, np.float32)
-        for k in range(400):
-            with warnings.catch_warnings(record=True) as caught:
-                warnings.simplefilter("always")
-                _, _, terminated, _, info = env.step(a)
-            if terminated:
-                assert tol == 1e-10 and k > 250 and any("roundoff the motion amplified" in str(m.message) for m in caught)
-                break
-            assert _relative(env.state_components, exact_solution(INERTIA, pi0, (k + 1) * env.dt)) <= tol
+        ended, info, said = _within_until_ended(env, tol, lambda k: exact_solution(INERTIA, pi0, (k + 1) * env.dt))
+        if ended is not None:
+            assert tol == 1e-10 and ended > 250 and "roundoff the motion amplified" in said
         assert info["step_factor"] > 1.0
 
 
@@ -591,21 +601,10 @@ def test_the_rounding_twin_is_the_step_with_each_increment_off_by_a_unit_roundof
 
 
 def _taylor_reference(w, periods, dt):
-    """The free body (2, 1.5, 1) from the float64 ``Pi = I w`` over ``periods`` periods, by
-    mpmath's Taylor-series integrator at 32 digits: float64's exact solution loses digits this
-    near the separatrix (1.5e-9 from 0.0001 rad/s off), this does not (at 45 digits the same
-    floats)."""
-    mp = pytest.importorskip("mpmath")
-    with mp.workdps(32):
-        inertia = [mp.mpf(i) for i in INERTIA]
-        start = [mp.mpf(float(p)) for p in np.array(INERTIA) * np.array(w)]
-
-        def euler(t, p):  # dPi/dt = Pi x I^-1 Pi
-            o = [p[i] / inertia[i] for i in range(3)]
-            return [p[1] * o[2] - p[2] * o[1], p[2] * o[0] - p[0] * o[2], p[0] * o[1] - p[1] * o[0]]
-
-        solution = mp.odefun(euler, 0, start)
-        return np.array([[float(x) for x in solution(mp.mpf(k + 1) * mp.mpf(dt))] for k in range(periods)])
+    """The body from the float64 ``Pi = I w`` over ``periods`` periods by mpmath's Taylor series
+    (:func:`rbenvs.oracles.taylor_solution`; mpmath is a dev dependency: missing it must fail,
+    not skip): float64's exact solution loses digits this near the separatrix."""
+    return taylor_solution(INERTIA, np.array(INERTIA) * np.array(w), [(k + 1) * dt for k in range(periods)])
 
 
 @pytest.mark.parametrize("w, tol", [((1e-4, 5.0, 7e-5), 1e-9), ((3e-4, 5.0, 2.1e-4), 1e-11), ((1e-3, 5.0, 7e-4), 1e-12)])
@@ -618,14 +617,5 @@ def test_refine_near_the_separatrix_ends_where_roundoff_passes_the_tolerance(w, 
     says that roundoff passed it."""
     env = _refined_start(tol, w)
     reference = _taylor_reference(w, 400, env.dt)
-    a = np.zeros(env.action_space.shape, np.float32)
-    for k in range(400):
-        with warnings.catch_warnings(record=True) as caught:
-            warnings.simplefilter("always")
-            _, _, terminated, _, info = env.step(a)
-        if terminated:
-            assert info["numerical_failure"]
-            assert any("roundoff the motion amplified" in str(m.message) for m in caught)
-            break
-        assert _relative(env.state_components, reference[k]) <= tol, k
-    assert terminated
+    ended, info, said = _within_until_ended(env, tol, lambda k: reference[k])
+    assert ended is not None and info["numerical_failure"] and "roundoff the motion amplified" in said

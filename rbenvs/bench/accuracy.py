@@ -47,7 +47,8 @@ free-floating body with the same principal moments and zero gravity, under MuJoC
 ``--quick`` runs shorter grids and long runs (CI); ``--json PATH`` writes every figure;
 ``--tolerance`` runs only the table of ``tolerance=`` (:mod:`rbenvs.bench.tolerance`);
 ``--roundoff`` only the roundoff floor near the free body's intermediate axis
-(:mod:`rbenvs.bench.roundoff`);
+(:mod:`rbenvs.bench.roundoff`); ``--floor`` only ``tolerance_check`` on that floor
+(:mod:`rbenvs.bench.floor`);
 ``--plot PATH.png`` draws the work-precision figure (needs matplotlib, the ``plot`` extra).
 
 Scenes (``--scenes``, on by default, off with ``--quick``): for every scene in
@@ -696,6 +697,9 @@ def main(argv=None) -> int:
     parser.add_argument("--roundoff", action="store_true",
                         help="only the roundoff table (rbenvs.bench.roundoff): two rk4 runs at 200 and 400 substeps near the free body's "
                              "intermediate axis, summed plainly and with compensation (a tolerance's), apart and against the exact solution")
+    parser.add_argument("--floor", action="store_true",
+                        help="only the float64 floor table (rbenvs.bench.floor): tolerance_check=True and 'refine' from 0.0001-0.01 rad/s off "
+                             "the free body's intermediate axis at 1e-8 to 1e-12, every period returned against mpmath's Taylor solution (needs mpmath)")
     parser.add_argument("--tippe", action="store_true",
                         help="only the tippe top's work-precision against MuJoCo (rbenvs.bench.tippe_accuracy): t90 against the slip regularisation, "
                              "every scheme, step and fidelity level and MuJoCo's integrators and cones at several dt, cost per simulated second "
@@ -713,6 +717,16 @@ def main(argv=None) -> int:
         result = run_roundoff(progress=bar.update)
         bar.close()
         print_roundoff(result)
+        _write_json(args.json, result)
+        return 0
+    if args.floor:
+        from .floor import MODES, OFF, TOLERANCES, print_floor, run_floor
+
+        require("reference")  # mpmath, the reference: say so before the run, not after it
+        bar = Progress(len(OFF) * len(TOLERANCES) * len(MODES), not args.no_progress, "bench accuracy --floor")
+        result = run_floor(progress=bar.update)
+        bar.close()
+        print_floor(result)
         _write_json(args.json, result)
         return 0
     if args.tolerance:

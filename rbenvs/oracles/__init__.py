@@ -8,6 +8,7 @@ from . import free_body, heavy_top, tippe_top
 from .free_body import (
     axis_stability,
     exact_solution,
+    taylor_solution,
     intermediate_axis_growth_rate,
     linearization,
     linearization_eigenvalues,
@@ -32,6 +33,7 @@ __all__ = [
     "inversion_spin_threshold",
     "final_tilt",
     "exact_solution",
+    "taylor_solution",
     "orbit_period",
     "linearization",
     "linearization_eigenvalues",
