@@ -106,17 +106,17 @@ def test_bad_inputs():
 
 def test_the_taylor_solution_is_the_exact_one_where_float64_holds_and_settles_near_the_separatrix():
     """:func:`rbenvs.oracles.taylor_solution` (mpmath's Taylor series, a dev dependency: missing
-    it must fail, not skip) agrees with the elliptic solution to 1e-13 far from the separatrix;
-    0.0001 rad/s off the intermediate axis, where the elliptic solution in float64 keeps fewer
-    digits, 32 and 40 digits give the same answer to 1e-15 over 20 s."""
+    it must fail, not skip) agrees with the elliptic solution to 1e-13 far from the separatrix
+    (over 5 s); 0.0001 rad/s off the intermediate axis, where the elliptic solution in float64
+    keeps fewer digits, 32 and 36 digits give the same answer to 1e-15 over 20 s."""
     from rbenvs.oracles import exact_solution, taylor_solution
 
     inertia = (2.0, 1.5, 1.0)
     times = [0.05 * (k + 1) for k in range(0, 400, 7)]
     pi0 = np.array(inertia) * np.array((-2.0, 4.0, 6.0))
-    exact = np.array([exact_solution(inertia, pi0, t) for t in times])
-    taylor = taylor_solution(inertia, pi0, times)
+    exact = np.array([exact_solution(inertia, pi0, t) for t in times[:15]])
+    taylor = taylor_solution(inertia, pi0, times[:15])
     assert np.max(np.linalg.norm(taylor - exact, axis=1) / np.linalg.norm(exact, axis=1)) < 1e-13
     near = np.array(inertia) * np.array((1e-4, 5.0, 7e-5))
-    a, b = taylor_solution(inertia, near, times, digits=32), taylor_solution(inertia, near, times, digits=40)
+    a, b = taylor_solution(inertia, near, times, digits=32), taylor_solution(inertia, near, times, digits=36)
     assert np.max(np.linalg.norm(a - b, axis=1) / np.linalg.norm(b, axis=1)) < 1e-15
