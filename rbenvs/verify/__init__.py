@@ -100,7 +100,7 @@ def run_checks(systems=SYSTEMS, integrators=None, quick=False, seed=0, show_prog
     n_fb, n_fast = FREE_BODY_CASES[0 if quick else 1], FAST_TUMBLE_BODIES[0 if quick else 1]
     n_ht, n_small = HEAVY_TOP_CASES[0 if quick else 1], SMALL_TOP_CASES[0 if quick else 1]
     n_tol = TOLERANCE_CASES[0 if quick else 1]
-    total = len(fb) * (n_fb + 1 + n_fast) + len(tolerance_integrators(fb)) * n_tol * 2 + len(ht) * (n_ht + n_small) + _tippe.progress_total(tt, quick=quick)
+    total = len(fb) * (n_fb + 1 + n_fast) + len(tolerance_integrators(fb)) * n_tol * 3 + len(ht) * (n_ht + n_small) + _tippe.progress_total(tt, quick=quick)
     progress = Progress(total=total, enabled=show_progress, desc="verify")
     checks = list(unverified)
     if fb:
