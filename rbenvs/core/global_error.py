@@ -63,12 +63,14 @@ its difference from the companion ``D_t`` is roundoff alone, amplified as the mo
 the runs' own, and the estimate is ``MARGIN (D / (2^p - 1) + ROUNDOFF_WEIGHT D_t)``. It is a model
 of roundoff, not a bound: one sample of an amplification that varies by orders from one
 realization of the rounding to the next (against an 80-bit replay of a run's counts the twin's
-difference was 1/24 to 6 times that run's roundoff). Measured (scratch,
-docs/integrators.md "Roundoff"): 0.0001 rad/s off the error ends 1.28 times ``D / 15 + D_t``;
-over four starts 0.0001 to 0.01 rad/s off and tolerances 1e-8 to 1e-12, ``"refine"`` ran 8 of
-the 20 episodes outside the tolerance without the twin (up to 48 times) and 2 with it (2.4 and
-1.5 times, both ended before the horizon); ``True`` is within on all 20 with and without. The
-twin costs the check half the main run's steps again.
+difference was 1/24 to 6 times that run's roundoff). More steps do not take the motion's
+roundoff down, so ``"refine"`` gives up where the estimate's roundoff part is at least
+:data:`ROUNDOFF_SHARE` of the tolerance. Measured (docs/integrators.md "Roundoff"): 0.0001 rad/s
+off the error ends 1.28 times ``D / 15 + D_t``; over four starts 0.0001 to 0.01 rad/s off and
+tolerances 1e-8 to 1e-12 (``rbenvs bench accuracy --floor``, against mpmath's Taylor series)
+``"refine"`` ran 8 of the 20 episodes outside the tolerance without the twin (up to 48 times)
+and 1 with it (2.4 times, ended at period 352); ``True`` is within on all 20 with and without.
+The twin costs the check half the main run's steps again.
 
 ``D`` is measured as :mod:`rbenvs.bench.tolerance` measures the error against its reference:
 the largest over the state's blocks (:func:`tolerance_blocks`) of ``|y_b - yc_b| / |y_b|``.
