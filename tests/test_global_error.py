@@ -211,6 +211,7 @@ def test_the_vector_env_checks_each_sub_env_as_its_single_env(mode):
     pis = np.array([np.array(INERTIA) * np.array(w) for w in STARTS])
     _, vinfo = vec.reset(seed=0, options={"state": {"angular_momentum": pis}})
     assert np.array_equal(vinfo["global_error_estimate"], np.zeros(len(STARTS)))
+    assert np.array_equal(vinfo["global_error_roundoff"], np.zeros(len(STARTS)))
     for env, pi0 in zip(singles, pis):
         env.reset(seed=0, options={"state": {"angular_momentum": pi0}})
     a = np.zeros(vec.action_space.shape, np.float32)
@@ -233,6 +234,7 @@ def test_the_vector_env_checks_each_sub_env_as_its_single_env(mode):
                 o, r, t, _, single = singles[i].step(a[i])
                 source = final if final is not None and info["_final_info"][i] else info
                 assert source["global_error_estimate"][i] == single["global_error_estimate"], (k, i)
+                assert source["global_error_roundoff"][i] == single["global_error_roundoff"] <= single["global_error_estimate"], (k, i)
                 assert bool(terminated[i]) == t and reward[i] == r
                 if final is None or not info["_final_info"][i]:
                     assert np.array_equal(obs[i], o)
@@ -266,6 +268,7 @@ def test_the_vector_tippe_top_checks_as_its_single_envs():
         for i, env in enumerate(singles):
             single = env.step(a[i])[4]
             assert info["global_error_estimate"][i] == single["global_error_estimate"] > 0.0
+            assert info["global_error_roundoff"][i] == single["global_error_roundoff"]  # (the tippe top's twin: its shared first stage)
             assert info["internal_step"][i] == single["internal_step"]
 
 
@@ -370,7 +373,7 @@ def test_the_vector_env_refines_each_sub_env_as_its_single_env(mode):
         for i, env in enumerate(singles):
             o, r, t, tr, single = env.step(a[i])
             source = final if final is not None and info["_final_info"][i] else info
-            for key in ("global_error_estimate", "step_factor", "replayed_steps"):
+            for key in ("global_error_estimate", "global_error_roundoff", "step_factor", "replayed_steps"):
                 assert source[key][i] == single[key], (k, i, key)
             assert bool(terminated[i]) == t and reward[i] == r  # (the single env has no time limit: the vector env's truncates at 400)
             if source is info:
@@ -450,7 +453,7 @@ def test_the_vector_tippe_top_refines_as_its_single_env():
         for k in range(260):  # (the replay comes near period 244)
             obs, _, terminated, _, info = vec.step(a)
             o, _, t, _, s = single.step(a[0])
-            for key in ("global_error_estimate", "step_factor", "replayed_steps", "internal_step"):
+            for key in ("global_error_estimate", "global_error_roundoff", "step_factor", "replayed_steps", "internal_step"):
                 assert info[key][0] == info[key][1] == s[key], (k, key)
             assert np.array_equal(obs[0], o) and np.array_equal(obs[1], o) and bool(terminated[0]) == t
             replayed += s["replayed_steps"]
@@ -619,3 +622,4 @@ def test_refine_near_the_separatrix_ends_where_roundoff_passes_the_tolerance(w, 
     reference = _taylor_reference(w, 400, env.dt)
     ended, info, said = _within_until_ended(env, tol, lambda k: reference[k])
     assert ended is not None and info["numerical_failure"] and "roundoff the motion amplified" in said
+    assert 2.0 * info["global_error_roundoff"] >= info["global_error_estimate"] > tol  # (info says it too: most of it roundoff)

@@ -435,7 +435,7 @@ class RigidBodyEnv(gym.Env):
         if self._check is not None:
             self._check.engine, self._step_one = self.engine, self._step_checked  # (param_ranges: this episode's engine)
             self._check.restart(self._y)
-            info["global_error_estimate"] = 0.0
+            info["global_error_estimate"] = info["global_error_roundoff"] = 0.0
         if self._realism.active:
             obs = self._reset_realism(obs)
         if params is not None:
@@ -514,12 +514,13 @@ class RigidBodyEnv(gym.Env):
             if held is None:
                 engine.comp = comp0
                 failed = engine.inaccurate_one(y0, a, info["internal_step"], plain, e, check.periods + 1, check.refine, check.roundoff)
+                failed[4]["global_error_roundoff"] = check.roundoff
                 if check.refine:
                     failed[4].update(step_factor=check.factor, replayed_steps=replayed)
                 return failed
             out, e = held, estimate
             info = out[4]
-        info["global_error_estimate"] = e
+        info["global_error_estimate"], info["global_error_roundoff"] = e, check.roundoff
         if check.refine:
             check.record(out[5])
             info["step_factor"], info["replayed_steps"] = check.factor, replayed

@@ -140,7 +140,8 @@ class FreeRigidBodyEnv(RigidBodyEnv):
       given to ``gymnasium.make`` is not seen by the env: pass ``tolerance_horizon`` with it).
     * ``tolerance_check=False``: with ``tolerance``, ``True`` estimates the episode's global error
       with a companion run (the same periods at twice the step) and its rounding twin (the
-      roundoff the motion amplifies): about the steps again; :mod:`rbenvs.core.global_error`), reports it as ``info["global_error_estimate"]`` and ends
+      roundoff the motion amplifies): about the steps again; :mod:`rbenvs.core.global_error`), reports it as ``info["global_error_estimate"]``
+      (its roundoff part ``info["global_error_roundoff"]``) and ends
       the episode as a numerical failure, at the last state within it, where it passes the
       tolerance: for motions that amplify errors (the ``UnstableMotionWarning``'s;
       docs/integrators.md, "Unstable motions"). ``"refine"``: there, instead, the episode is

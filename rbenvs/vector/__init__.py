@@ -118,6 +118,7 @@ class RigidBodyVectorEnv(VectorEnv):
         # numpy path (the checked period's even counts and the companion have no compiled form)
         self._check = GlobalErrorCheck(self.engine, env.model.refine) if env.model.check else None
         self._global = None  # the last step's global error estimates
+        self._roundoff = None  # and their roundoff parts (the rounding twin's)
         self._replayed = self._factor = None  # tolerance_check="refine": the last step's replayed steps and factors
         if self._check is not None:
             if compiled is True:
@@ -284,6 +285,8 @@ class RigidBodyVectorEnv(VectorEnv):
         if self._check is not None:
             info["global_error_estimate"] = np.zeros(n)
             info["_global_error_estimate"] = self._true
+            info["global_error_roundoff"] = np.zeros(n)
+            info["_global_error_roundoff"] = self._true
         if self._options:
             obs, info = self._realism_after(obs, info, mask, reset=True)
         return obs, info
@@ -418,13 +421,13 @@ class RigidBodyVectorEnv(VectorEnv):
         info["error_estimate"] = estimate
         info["_error_estimate"] = self._true
         if self._check is not None:  # (0 where no period ran, as the estimate's; SAME_STEP: the ended ones' go with their final info)
-            global_ = np.where(restart, 0.0, self._global)
+            global_, roundoff = np.where(restart, 0.0, self._global), np.where(restart, 0.0, self._roundoff)
             if "final_info" in info:
-                info["final_info"]["global_error_estimate"] = global_.copy()
-                info["final_info"]["_global_error_estimate"] = self._true
-                global_[info["_final_info"]] = 0.0
-            info["global_error_estimate"] = global_
-            info["_global_error_estimate"] = self._true
+                info["final_info"]["global_error_estimate"], info["final_info"]["global_error_roundoff"] = global_.copy(), roundoff.copy()
+                info["final_info"]["_global_error_estimate"] = info["final_info"]["_global_error_roundoff"] = self._true
+                global_[info["_final_info"]] = roundoff[info["_final_info"]] = 0.0
+            info["global_error_estimate"], info["global_error_roundoff"] = global_, roundoff
+            info["_global_error_estimate"] = info["_global_error_roundoff"] = self._true
             if self._check.refine:  # the factor on the guard's counts, and the steps beyond the period's own
                 factor, replayed = np.array(self._check.factor, dtype=np.float64), np.where(restart, 0, self._replayed)
                 if "final_info" in info:  # (the ended episodes' factors, from before their restart)
@@ -474,6 +477,7 @@ class RigidBodyVectorEnv(VectorEnv):
                     y, fired, h, inaccurate = self._hold(y0, y, u, fired, h, n, inaccurate & ~restart)
                 self._check.record(u)  # (before this step's restarts: a restarting sub-env's controls begin after it)
                 self._factor = np.array(self._check.factor, dtype=np.float64)  # (SAME_STEP's final_info: before the restarts)
+            self._roundoff = np.where(restart, 0.0, np.broadcast_to(self._check.roundoff, (self.num_envs,)))  # (likewise)
             if not inaccurate.any():
                 inaccurate = None
         self._u, self._last_h = u, h
