@@ -665,6 +665,18 @@ def plot(result, path):
     plt.close(fig)
 
 
+def _table(args, flag: str, total: int, run_table, print_table) -> int:
+    """One of the single-table modes (``--roundoff``, ``--floor``, ``--tolerance``): ``run_table
+    (progress=...)`` under a progress bar of ``total`` ticks, printed by ``print_table`` and
+    written as ``--json``; exit status 0."""
+    bar = Progress(total, not args.no_progress, f"bench accuracy {flag}")
+    result = run_table(progress=bar.update)
+    bar.close()
+    print_table(result)
+    _write_json(args.json, result)
+    return 0
+
+
 def _write_json(path, result) -> None:
     """Every figure of ``result`` as JSON at ``path`` (``--json``; nothing where ``path`` is None)."""
     if path:
@@ -713,22 +725,12 @@ def main(argv=None) -> int:
     if args.roundoff:
         from .roundoff import OFF, STARTS, print_roundoff, run_roundoff
 
-        bar = Progress(len(OFF) * 2 * STARTS, not args.no_progress, "bench accuracy --roundoff")
-        result = run_roundoff(progress=bar.update)
-        bar.close()
-        print_roundoff(result)
-        _write_json(args.json, result)
-        return 0
+        return _table(args, "--roundoff", len(OFF) * 2 * STARTS, run_roundoff, print_roundoff)
     if args.floor:
         from .floor import MODES, OFF, TOLERANCES, print_floor, run_floor
 
         require("reference")  # mpmath, the reference: say so before the run, not after it
-        bar = Progress(len(OFF) * len(TOLERANCES) * len(MODES), not args.no_progress, "bench accuracy --floor")
-        result = run_floor(progress=bar.update)
-        bar.close()
-        print_floor(result)
-        _write_json(args.json, result)
-        return 0
+        return _table(args, "--floor", len(OFF) * len(TOLERANCES) * len(MODES), run_floor, print_floor)
     if args.tolerance:
         from .tolerance import all_cases, run_tolerance, print_tolerance
 
@@ -739,12 +741,8 @@ def main(argv=None) -> int:
             if key not in known:
                 parser.error(f"--case {key!r}: not a case of the --tolerance table; one of {known}")
         cases = [c for c in everything if not args.case or c.key in args.case]
-        bar = Progress(sum(len(c.tolerances) for c in cases), not args.no_progress, "bench accuracy --tolerance")
-        result = run_tolerance(keys=args.case, progress=bar.update)
-        bar.close()
-        print_tolerance(result)
-        _write_json(args.json, result)
-        return 0
+        return _table(args, "--tolerance", sum(len(c.tolerances) for c in cases), lambda progress: run_tolerance(keys=args.case, progress=progress),
+                      print_tolerance)
     if args.plot and plot_unavailable("rbenvs bench accuracy"):  # fail before the long run, not after it
         return 2
     scenes = (not args.quick) if args.scenes is None else args.scenes

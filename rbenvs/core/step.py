@@ -407,15 +407,24 @@ class Engine:
             return y, fired, h, comp
         return y, fired, np.broadcast_to(np.asarray(h, dtype=float), n.shape).copy(), comp
 
+    def _compensated_steps(self, comp, twin):
+        """``(step_c, first_c)``, the compensated step and first-stage step a run takes (the
+        rounding twin's with ``twin``); ``None`` each where the run sums plainly (``comp`` is
+        ``None``) or the system has no such step."""
+        if comp is None:
+            return None, None
+        first_c = None if self.shared_c is None else (self.twin_first_c if twin else self.shared_c[0])
+        return (self.twin_c if twin else self.step_c), first_c
+
     def _run_one(self, y, u, n: int, h: float, comp=None, twin=False):
         """One state's ``n`` internal steps of ``h``, the switches after each and the terminal
         event ending them early: ``(y, fired, comp)``. ``comp``: the run's compensation at
         ``y`` (a tolerance: the compensated step carries it; it starts again from zero after a
         switch); ``None``: the plain step. ``twin``: the rounding twin's steps (:attr:`twin_c`)."""
         post, event = self.switching, self.event
+        step_c, first_c = self._compensated_steps(comp, twin)
         if self.shared is not None:  # (the event's evaluation is the next first stage)
             (first, ps), (rhs_event, pv) = self.shared
-            first_c = None if comp is None or self.shared_c is None else (self.twin_first_c if twin else self.shared_c[0])
             k, g = rhs_event(pv, y, u)
             for _ in range(n):
                 if first_c is None:
@@ -428,7 +437,7 @@ class Engine:
                 if g < 0.0:
                     return y, True, comp
             return y, False, comp
-        step, step_c = self.bound_step, None if comp is None else (self.twin_c if twin else self.step_c)  # integ.step with the system bound (the same bits)
+        step = self.bound_step  # integ.step with the system bound (the same bits)
         if step_c is not None and post is None and event is None:
             for _ in range(n):
                 y, comp = step_c(y, comp, u, h)
@@ -470,7 +479,7 @@ class Engine:
         element's compensation, carried as :meth:`_run_one` carries it (``None``: plain);
         ``twin``: the rounding twin's steps."""
         step, post, event = self.bound_step, self.switching, self.event
-        step_c = None if comp is None else (self.twin_c if twin else self.step_c)
+        step_c, first_c = self._compensated_steps(comp, twin)
         fired = np.zeros(n.shape, dtype=bool)
 
         def stepped(y, comp):  # one step of every element, and the switches after it
@@ -495,7 +504,6 @@ class Engine:
         active = np.ones(n.shape, dtype=bool)
         if self.shared is not None:  # (the event's evaluation is the next first stage, as above)
             (first, ps), (rhs_event, pv) = self.shared
-            first_c = None if comp is None or self.shared_c is None else (self.twin_first_c if twin else self.shared_c[0])
             kk, _ = rhs_event(pv, y, u)
             for k in range(int(n.max())):
                 if first_c is None:
@@ -706,24 +714,22 @@ class Engine:
         what = self._inaccurate_text(estimate, periods, refine, roundoff)
         u_norm, u = self.control(a)
         out = self._failed_one(y0, u_norm, u, h, plain, what, "the last state within the tolerance")
-        out[4]["global_error_estimate"] = estimate
+        out[4]["global_error_estimate"], out[4]["global_error_roundoff"] = estimate, roundoff
         return out
 
     def _inaccurate_text(self, estimate, periods, refine=False, roundoff=0.0) -> str:
+        passed = (f"the global error estimate {float(estimate):.3g} passed tolerance={self.tolerance!r} after {int(periods)} periods "
+                  f"({int(periods) * self.dt:.6g} s")
         if 2.0 * float(roundoff) >= float(estimate):  # (most of it the rounding twin's: rbenvs.core.global_error)
-            return (f"the global error estimate {float(estimate):.3g} passed tolerance={self.tolerance!r} after {int(periods)} periods "
-                    f"({int(periods) * self.dt:.6g} s), {float(roundoff):.3g} of it roundoff the motion amplified (the rounding twin's: "
-                    f"tolerance_check), which more steps do not reduce: the tolerance is below what float64 carries through this "
-                    f"motion; a larger tolerance holds")
+            return (f"{passed}), {float(roundoff):.3g} of it roundoff the motion amplified (the rounding twin's: tolerance_check), which "
+                    f"more steps do not reduce: the tolerance is below what float64 carries through this motion; a larger tolerance holds")
         if refine:
-            return (f"the global error estimate {float(estimate):.3g} passed tolerance={self.tolerance!r} after {int(periods)} periods "
-                    f"({int(periods) * self.dt:.6g} s) and replaying the episode with more steps did not hold it (tolerance_check='refine': "
+            return (f"{passed}) and replaying the episode with more steps did not hold it (tolerance_check='refine': "
                     f"the estimate did not fall as the steps' error does, which roundoff amplified by the motion or a step outside the "
                     f"scheme's asymptotic range explains, or the steps passed MAX_INTERNAL_STEPS = {MAX_INTERNAL_STEPS}, or a replay ended "
                     f"earlier than the run); a larger tolerance holds: a relative error below what float64 carries through an unstable "
                     f"motion cannot")
-        return (f"the global error estimate {float(estimate):.3g} passed tolerance={self.tolerance!r} after {int(periods)} periods "
-                f"({int(periods) * self.dt:.6g} s; tolerance_check: a companion run at twice the step measures the error the state "
+        return (f"{passed}; tolerance_check: a companion run at twice the step measures the error the state "
                 f"carries, errors the motion amplified included, which the steps' estimate does not budget for; more steps per period "
                 f"hold it longer: substeps= sets the least count, tolerance_check='refine' replays the episode with more steps instead "
                 f"of ending it, and 'rbenvs bench accuracy --tolerance' shows the counts that hold each shipped scene)")

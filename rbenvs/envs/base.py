@@ -514,7 +514,6 @@ class RigidBodyEnv(gym.Env):
             if held is None:
                 engine.comp = comp0
                 failed = engine.inaccurate_one(y0, a, info["internal_step"], plain, e, check.periods + 1, check.refine, check.roundoff)
-                failed[4]["global_error_roundoff"] = check.roundoff
                 if check.refine:
                     failed[4].update(step_factor=check.factor, replayed_steps=replayed)
                 return failed
