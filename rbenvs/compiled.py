@@ -9,7 +9,9 @@ one, the period (the physics as passes over the batch, in SIMD registers: a few 
 state), one loop per read-out stage, the episode clocks and end reasons, and the restarts of
 the sub-envs whose episodes ended, drawn from their own generators. :func:`batch_kernel` is
 the period and finish alone (what ``rbenvs bench throughput`` times as the kernel),
-:func:`state_kernel` the same for one state (the single env's compiled step).
+:func:`state_kernel` the same for one state (the single env's compiled step), and
+:func:`run_kernel` one state's internal steps with a given count and step (``tolerance_check``'s
+runs: :class:`CheckedRuns`), from the same lines.
 
 Every loop is written so that LLVM keeps it in SIMD registers: no call inside (libm's
 ``sin``/``cos`` replaced by :func:`rbenvs.rotations.sincos`, branches that hold a call
@@ -47,7 +49,7 @@ from .jit import register as _register
 from .jit import register_all as _register_all
 
 __all__ = ["jitable", "available", "Layout", "VectorLayout", "batch_kernel", "vector_kernel", "rows_kernel", "finish_kernel", "state_kernel", "physics_kernel",
-           "state_finish", "info_function", "BatchStep", "BatchResult", "VectorStep", "VectorResult", "StateStep", "DISABLE_VARIABLE", "LLVM_OPTIONS"]
+           "run_kernel", "CheckedRuns", "state_finish", "info_function", "BatchStep", "BatchResult", "VectorStep", "VectorResult", "StateStep", "DISABLE_VARIABLE", "LLVM_OPTIONS"]
 
 # How every kernel is compiled. error_model="numpy": a float division by zero gives inf/nan as
 # on arrays (and needs no per-element check, which would keep the loops out of SIMD
@@ -274,43 +276,52 @@ def _period_lines(L: Layout) -> list[str]:
         "else:",
         "    hi = h if c == substeps else dt / c",
     ]
-    finite = "        if not (" + " and ".join(f"isfinite(y[{j}])" for j in range(L.dim)) + "):"
+    return lines + ["    " + line for line in _steps_lines(L)]
+
+
+def _steps_lines(L: Layout, twin: bool = False) -> list[str]:
+    """Lines that take ``c`` internal steps ``hi`` from ``y`` under ``u`` (:meth:`rbenvs.core.step.Engine._run_one`):
+    the switches after each, the terminal event ending them (``f = True``), a non-finite state
+    stopping them. ``twin``: the rounding twin's steps (each increment off by a unit roundoff in
+    the compensation, :func:`rbenvs.core.global_error.rounding_twin_term`; a layout with ``step_c``)."""
+    finite = "    if not (" + " and ".join(f"isfinite(y[{j}])" for j in range(L.dim)) + "):"
     # one internal step from y (kk: its first stage), plain or carrying the compensation cc
     # (cc: the run's compensation, set by the caller and carried on)
-    take, take_first = "y = step(PS, y, u, hi)", "y = step(PS, y, kk, u, hi)"
+    take, take_first = ["y = step(PS, y, u, hi)"], ["y = step(PS, y, kk, u, hi)"]
     if L.step_c is not None:
-        take, take_first = "y, cc = stepc(PS, y, cc, u, hi)", "y, cc = stepc(PS, y, cc, kk, u, hi)"
+        take, take_first = ["y, cc = stepc(PS, y, cc, u, hi)"], ["y, cc = stepc(PS, y, cc, kk, u, hi)"]
+        if twin:
+            term = f"cc = ({_comps('twin_term(cc[{j}], y[{j}] - yo[{j}])', L.dim)})"
+            take, take_first = ["yo = y", *take, term], ["yo = y", *take_first, term]
     if L.rhs_event is not None:  # the event's evaluation at a new state is the next first stage
-        lines += [
-            "    kk, g = rhs_event(PV, y, u)",
-            "    for k in range(c):",
-            "        " + take_first,
+        return [
+            "kk, g = rhs_event(PV, y, u)",
+            "for k in range(c):",
+            *("    " + line for line in take_first),
             finite,
-            "            break",
-            "        kk, g = rhs_event(PV, y, u)",
-            "        if g < 0.0:",
-            "            f = True",
-            "            break",
+            "        break",
+            "    kk, g = rhs_event(PV, y, u)",
+            "    if g < 0.0:",
+            "        f = True",
+            "        break",
         ]
-    elif L.event is not None:  # the step core's rule: a non-finite state stops, an event freezes
+    if L.event is not None:  # the step core's rule: a non-finite state stops, an event freezes
         # (with switches, the stem's: the switches after each step, then the terminal event)
-        switches = ["        " + line for line in _switch_lines(L)] if L.switches else []
-        lines += [
-            "    for k in range(c):",
-            *(["        yp = y"] if L.switches else []),
-            "        " + take,
+        switches = ["    " + line for line in _switch_lines(L)] if L.switches else []
+        return [
+            "for k in range(c):",
+            *(["    yp = y"] if L.switches else []),
+            *("    " + line for line in take),
             *switches,
             finite,
-            "            break",
-            "        if event(PV, y, u) < 0.0:",
-            "            f = True",
-            "            break",
+            "        break",
+            "    if event(PV, y, u) < 0.0:",
+            "        f = True",
+            "        break",
         ]
-    elif L.switches:
-        lines += ["    for k in range(c):", "        yp = y", "        " + take, *("        " + line for line in _switch_lines(L))]
-    else:
-        lines += ["    for k in range(c):", "        " + take]
-    return lines
+    if L.switches:
+        return ["for k in range(c):", "    yp = y", *("    " + line for line in take), *("    " + line for line in _switch_lines(L))]
+    return ["for k in range(c):", *("    " + line for line in take)]
 
 
 def _clip_lines(j: int, v: str, dest: str) -> list[str]:
@@ -385,6 +396,7 @@ def _namespace(L: Layout) -> dict:
 
     import numpy as np
 
+    from .core.global_error import rounding_twin_term
     from .core.guard import relaxation_steps, step_ratio, step_ratio_motion
 
     _tune_llvm()
@@ -394,7 +406,7 @@ def _namespace(L: Layout) -> dict:
         if fn is not None:
             _register(fn)
     namespace = {"step": L.step, "stepc": L.step_c, "observe": L.observe, "evaluate": L.evaluate, "readouts": L.readouts, "rotation": L.rotation,
-                 "dissipation": L.dissipation, "share": L.share, "event": L.event, "rhs_event": L.rhs_event, "step_ratio": step_ratio, "step_ratio_motion": step_ratio_motion, "relaxation_steps": relaxation_steps, "isfinite": isfinite,
+                 "dissipation": L.dissipation, "share": L.share, "event": L.event, "rhs_event": L.rhs_event, "step_ratio": step_ratio, "step_ratio_motion": step_ratio_motion, "relaxation_steps": relaxation_steps, "twin_term": rounding_twin_term, "isfinite": isfinite,
                  "ceil": ceil, "nan": nan, "np": np}
     for k, (applies, function, switch) in enumerate(L.switches):
         namespace.update({f"applies{k}": applies, f"function{k}": function, f"switch{k}": switch})
@@ -800,6 +812,60 @@ def state_kernel(layout: Layout):
     namespace = _namespace(L)
     generate("\n".join(lines), f"state kernel dim={L.dim} n_obs={L.n_obs}", namespace)
     return numba.njit(**KERNEL_OPTIONS)(namespace["one"])
+
+
+@lru_cache(maxsize=None)
+def run_kernel(layout: Layout, twin: bool = False):
+    """The compiled internal steps of ONE state's run with a given count and step (the checked
+    period's, ``tolerance_check``: the main run's even count, the companion's and its rounding
+    twin's half as many steps of twice the size; :meth:`rbenvs.core.step.Engine._run_one`), on
+    tuples of floats, for a layout with ``step_c``. Signature::
+
+        run(y, cc, u, c, hi, P) -> (y, fired, cc)
+
+    ``P = (PS, PV, PW)``; ``c`` steps of ``hi`` from ``y`` with the compensation ``cc``, the
+    switches after each, the terminal event ending them (``fired``), a non-finite state
+    stopping them (returned as it is: the caller's failure path takes over). ``twin``: the
+    rounding twin's steps (:func:`rbenvs.core.global_error.rounding_twin_term`)."""
+    import numba
+
+    L = layout
+    lines = ["def run(y, cc, u, c, hi, P):", "    PS, PV, PW = P", "    f = False"]
+    lines += ["    " + line for line in _steps_lines(L, twin)]
+    lines += ["    return y, f, cc"]
+    namespace = _namespace(L)
+    generate("\n".join(lines), f"run kernel dim={L.dim}{' twin' if twin else ''}", namespace)
+    return numba.njit(**KERNEL_OPTIONS)(namespace["run"])
+
+
+class CheckedRuns:
+    """One env's compiled runs for ``tolerance_check`` (:func:`run_kernel`, the plain and the
+    rounding twin's): calling it runs ``c`` steps of ``hi`` from ``y`` with the compensation
+    ``cc`` and returns ``(y, fired, cc)``, the bits of the float path's
+    :meth:`rbenvs.core.step.Engine._run_one`. Each kernel's first call compiles it (about a
+    second per layout and process) and then takes its overload's entry point."""
+
+    def __init__(self, parts, dim: int, n_obs: int, n_control: int, n_action: int, sample):
+        layout, params, _, _ = _layout(parts, dim, n_obs, n_control, n_action, sample)
+        if layout.step_c is None:
+            raise ValueError("the checked runs need a compensated step (a tolerance)")
+        self.kernels = (run_kernel(layout), run_kernel(layout, True))
+        self.params = (params[0], params[8], params[9])  # PS, PV, PW
+        self._calls = [None, None]
+
+    def __call__(self, y, cc, u, c: int, hi: float, twin: bool = False):
+        k = 1 if twin else 0
+        call = self._calls[k]
+        if call is not None:
+            return call(y, cc, u, c, hi, self.params)
+        import numba
+
+        args = (y, cc, u, c, hi, self.params)
+        kernel = self.kernels[k]
+        out = kernel(*args)  # compiles
+        overload = kernel.overloads.get(tuple(numba.typeof(a) for a in args))
+        self._calls[k] = overload.entry_point if overload is not None else kernel
+        return out
 
 
 def _switch_parts(parts) -> tuple:

@@ -128,13 +128,88 @@ def test_tolerance_check_is_validated():
         FreeRigidBodyEnv(tolerance_check="refine")
     with pytest.raises(ValueError, match="tolerance_check='refine' needs guard='subdivide'"):
         _body(1e-6, check="refine", guard="refuse")
-    with pytest.raises(ValueError, match="compiled=True cannot be had with tolerance_check=True"):
-        _body(1e-6, compiled=True)
+    from rbenvs import compiled
+
+    if compiled.available():  # the single env's checked period runs compiled (rbenvs.compiled.CheckedRuns)
+        assert _body(1e-6, compiled=True).engine.checked_runs is not None
+    else:
+        with pytest.raises(ValueError, match="compiled=True but numba is not installed"):
+            _body(1e-6, compiled=True)
+    assert _body(1e-6, compiled=False).engine.checked_runs is None
     from rbenvs.vector import FreeRigidBodyVectorEnv
 
     with pytest.raises(ValueError, match="compiled=True cannot be had with tolerance_check=True"):
         FreeRigidBodyVectorEnv(2, compiled=True, inertia=INERTIA, axis=0, tolerance=1e-6, tolerance_check=True)
     assert not FreeRigidBodyVectorEnv(2, inertia=INERTIA, axis=0, tolerance=1e-6, tolerance_check=True).compiled  # (numpy)
+
+
+def _checked_run_inputs(env, periods, every, switches=3):
+    """``(y, comp, u, n)`` at the start of every ``every``-th period of an uncontrolled episode
+    of ``env`` (a tolerance, no check: the compiled state step), and of the first ``switches``
+    periods where the contact flag or the hop count changes (a switch inside it), ``n`` the
+    guard's count made even."""
+    engine = env.engine
+    a = np.zeros(env.action_space.shape, np.float32)
+    u = engine.control(tuple(float(v) for v in a))[1]
+    flags = [b for name, (b, _) in env.system.layout.items() if name in ("contact", "hops")]
+    out = []
+    for k in range(periods):
+        y, comp = tuple(env.state_components), engine.comp
+        n = int(engine.rule.steps(y, u, engine.substeps))
+        _, _, term, trunc, _ = env.step(a)
+        switched = any(env.state_components[i] != y[i] for i in flags)
+        if k % every == 0 or (switched and switches > 0):
+            out.append((y, comp, u, n + (n & 1)))
+            switches -= switched
+        if term or trunc:
+            break
+    return out
+
+
+@pytest.mark.parametrize("scene", [None, "top_precess", "tippe", "hops", "tippe_leine_glocker"],
+                         ids=["free_body", "heavy_top", "tippe_from_rest", "tippe_flight_hops", "tippe_stem_switches"])
+def test_the_checked_periods_compiled_runs_are_the_float_paths_bits(scene):
+    """The checked period's runs compiled (:class:`rbenvs.compiled.CheckedRuns`, the single env's
+    with numba) against the float path's :meth:`Engine._run_one`, bit for bit: the main run's
+    count and step, the companion's and its rounding twin's half as many of twice the size, from
+    states along an episode (with free flight: every period with a take-off or touchdown inside
+    it, a top hopping many times a period; with the stem: every period that lands on it or
+    leaves it), compensations carried."""
+    from rbenvs import compiled
+    from rbenvs.scenes import load_scene
+
+    if not compiled.available():
+        pytest.skip("numba is not installed (the 'fast' extra): the checked period runs on floats")
+
+    def make(**kw):
+        with warnings.catch_warnings():  # (the tippe tops invert: the warning is not what is tested here)
+            warnings.simplefilter("ignore", UnstableMotionWarning)
+            if scene is None:
+                return _body(1e-6, **kw)
+            if scene == "tippe":
+                return TippeTopEnv(integrator="rk4", tolerance=1e-6, **kw)
+            if scene == "hops":  # (tests/test_tippe_top_flight.py's top that hops many times a period)
+                return TippeTopEnv(integrator="rk4", tolerance=1e-3, spin=1000.0, friction=1.0, tilt=0.01, free_flight=True, max_speed=20.0,
+                                   start="rolling", friction_bound="stability", **kw)
+            return load_scene(scene).make(integrator="rk4", tolerance=1e-6, **kw).unwrapped
+
+    source = make(check=False) if scene is None else make(tolerance_check=False)
+    source.reset(seed=0)
+    inputs = _checked_run_inputs(source, *{None: (200, 40), "hops": (110, 20)}.get(scene, (400, 40)))
+    fast = (make(check=True) if scene is None else make(tolerance_check=True)).engine
+    slow = (make(check=True, compiled=False) if scene is None else make(tolerance_check=True, compiled=False)).engine
+    assert fast.checked_runs is not None and slow.checked_runs is None
+    switched = 0
+    for y, comp, u, n in inputs:
+        for c, h in ((n, fast.dt / n), (n // 2, 2.0 * fast.dt / n)):
+            for twin in (False, True):
+                got, want = fast._run_one(y, u, c, h, comp, twin), slow._run_one(y, u, c, h, comp, twin)
+                assert got == want, (c, twin)
+        flag = slow.system.layout.get("hops", slow.system.layout.get("contact", (0, 0)))[0]  # (flight: the hops it counts)
+        switched += scene in ("hops", "tippe_leine_glocker") and slow._run_one(y, u, n, fast.dt / n, comp)[0][flag] != y[flag]
+    assert len(inputs) >= 5
+    if scene in ("hops", "tippe_leine_glocker"):
+        assert switched >= 1  # (a period with a switch inside it was among them)
 
 
 def test_the_unstable_motion_warning_names_the_check_and_the_callers_line():
@@ -194,9 +269,11 @@ def test_the_hopping_tippe_top_is_ended_within_the_tolerance(hop_reference):
     assert ended is not None and ended < case.periods
 
 
+@pytest.mark.parametrize("compiled", ["auto", False], ids=["runs_compiled", "numpy"])
 @pytest.mark.parametrize("mode", ["next", "same"])
-def test_the_vector_env_checks_each_sub_env_as_its_single_env(mode):
-    """The vector env's companions (one per sub-env, on numpy) give each sub-env its single env's
+def test_the_vector_env_checks_each_sub_env_as_its_single_env(mode, compiled):
+    """The vector env's companions (one per sub-env; their runs on numpy with ``compiled=False``,
+    else sub-env by sub-env through the compiled runs) give each sub-env its single env's
     global error estimates, bit for bit, and end the same episodes at the same period (the
     near-separatrix start at 1e-9), restarting their companions with the sub-envs."""
     from gymnasium.vector import AutoresetMode
@@ -206,7 +283,7 @@ def test_the_vector_env_checks_each_sub_env_as_its_single_env(mode):
     kw = dict(inertia=INERTIA, axis=0, max_torque=0.0, integrator="rk4", max_angular_velocity=50.0, tolerance=1e-9, tolerance_horizon=400,
               tolerance_check=True)
     autoreset = AutoresetMode.NEXT_STEP if mode == "next" else AutoresetMode.SAME_STEP
-    vec = FreeRigidBodyVectorEnv(len(STARTS), max_episode_steps=400, autoreset_mode=autoreset, **kw)
+    vec = FreeRigidBodyVectorEnv(len(STARTS), max_episode_steps=400, autoreset_mode=autoreset, compiled=compiled, **kw)
     singles = [FreeRigidBodyEnv(**kw) for _ in STARTS]
     pis = np.array([np.array(INERTIA) * np.array(w) for w in STARTS])
     _, vinfo = vec.reset(seed=0, options={"state": {"angular_momentum": pis}})
@@ -249,7 +326,8 @@ def test_the_vector_env_checks_each_sub_env_as_its_single_env(mode):
     assert ended == [1]  # the near-separatrix start, alone
 
 
-def test_the_vector_tippe_top_checks_as_its_single_envs():
+@pytest.mark.parametrize("compiled", ["auto", False], ids=["runs_compiled", "numpy"])
+def test_the_vector_tippe_top_checks_as_its_single_envs(compiled):
     """The hybrid system (the contact's switches and the lift-off event in the companion's
     steps too): two sub-envs' estimates equal their single envs' over 60 periods."""
     from rbenvs.vector import TippeTopVectorEnv
@@ -257,7 +335,7 @@ def test_the_vector_tippe_top_checks_as_its_single_envs():
     kw = dict(tolerance=1e-6, tolerance_horizon=400, tolerance_check=True)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", UnstableMotionWarning)
-        vec = TippeTopVectorEnv(2, **kw)
+        vec = TippeTopVectorEnv(2, compiled=compiled, **kw)
         singles = [TippeTopEnv(**kw) for _ in range(2)]
     vec.reset(seed=3)
     for i, env in enumerate(singles):
@@ -347,8 +425,9 @@ def test_the_refining_env_passes_gymnasiums_checker():
     check_env(_body(1e-6, check="refine"), skip_render_check=True)
 
 
+@pytest.mark.parametrize("compiled", ["auto", False], ids=["runs_compiled", "numpy"])
 @pytest.mark.parametrize("mode", ["next", "same"])
-def test_the_vector_env_refines_each_sub_env_as_its_single_env(mode):
+def test_the_vector_env_refines_each_sub_env_as_its_single_env(mode, compiled):
     """Each sub-env that passes the tolerance is replayed on floats as its single env is: the
     same observations, estimates, factors and replayed steps, bit for bit, over the horizon
     (the near-separatrix start replays once), with SAME_STEP's final infos."""
@@ -359,7 +438,7 @@ def test_the_vector_env_refines_each_sub_env_as_its_single_env(mode):
     kw = dict(inertia=INERTIA, axis=0, max_torque=0.0, integrator="rk4", max_angular_velocity=50.0, tolerance=1e-9, tolerance_horizon=400,
               tolerance_check="refine")
     autoreset = AutoresetMode.NEXT_STEP if mode == "next" else AutoresetMode.SAME_STEP
-    vec = FreeRigidBodyVectorEnv(len(STARTS), max_episode_steps=400, autoreset_mode=autoreset, **kw)
+    vec = FreeRigidBodyVectorEnv(len(STARTS), max_episode_steps=400, autoreset_mode=autoreset, compiled=compiled, **kw)
     singles = [FreeRigidBodyEnv(**kw) for _ in STARTS]
     pis = np.array([np.array(INERTIA) * np.array(w) for w in STARTS])
     vec.reset(seed=0, options={"state": {"angular_momentum": pis}})
@@ -435,7 +514,8 @@ def test_refine_holds_the_hopping_tippe_top_within_the_tolerance(hop_reference):
     assert len(replays) == 1 and 240 < replays[0][0] < 260 and 1.5 < replays[0][1] < 3.0, replays
 
 
-def test_the_vector_tippe_top_refines_as_its_single_env():
+@pytest.mark.parametrize("compiled", ["auto", False], ids=["runs_compiled", "numpy"])
+def test_the_vector_tippe_top_refines_as_its_single_env(compiled):
     """The hybrid system's replay (the switches and hops replayed on floats): one sub-env of the
     hopping top at 1e-3 equals its single env, factor and replayed steps included, bit for bit."""
     from rbenvs.bench.tolerance import _env, scene_cases
@@ -445,7 +525,7 @@ def test_the_vector_tippe_top_refines_as_its_single_env():
     kw = dict(case.kwargs, tolerance=1e-3, tolerance_horizon=case.periods, tolerance_check="refine")
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        vec = TippeTopVectorEnv(2, **{k: v for k, v in kw.items() if k != "task"}, task=kw["task"])
+        vec = TippeTopVectorEnv(2, compiled=compiled, **{k: v for k, v in kw.items() if k != "task"}, task=kw["task"])
         single = _env(dataclasses.replace(case, kwargs=kw))
         vec.reset(seed=0, options={"state": {name: np.stack([v, v]) for name, v in single.reset(seed=0) and single.get_state().items()}})
         a = np.zeros(vec.action_space.shape, np.float32)

@@ -83,8 +83,10 @@ import math
 
 import numpy as np
 
+from ..jit import jitable
+
 __all__ = ["MARGIN", "AIM", "MIN_REFINEMENT", "MAX_REPLAYS", "UNIT_ROUNDOFF", "ROUNDOFF_WEIGHT", "ROUNDOFF_SHARE", "require_tolerance_check", "tolerance_blocks",
-           "companion_ratio", "companion_steps", "rounding_twin", "rounding_twin_first", "relative_difference", "refinement", "GlobalErrorCheck"]
+           "companion_ratio", "companion_steps", "rounding_twin", "rounding_twin_term", "rounding_twin_first", "relative_difference", "refinement", "GlobalErrorCheck"]
 
 # the reported estimate over the classical one (its next order's share: the module docstring)
 MARGIN = 1.25
@@ -159,23 +161,29 @@ def companion_steps(n):
 _SIGN_BIT = 2.0**21
 
 
+@jitable
+def rounding_twin_term(c, d):
+    """One component of the rounding twin's compensation after a step: ``c`` (the compensated
+    step's) plus ``+-UNIT_ROUNDOFF d`` for the increment ``d``, the sign from bit 21 of ``d``'s
+    mantissa; floats and compiled code (the checked period's compiled runs,
+    :func:`rbenvs.compiled.run_kernel`), the same bits."""
+    m = abs(math.frexp(d)[0]) * _SIGN_BIT
+    if m < _SIGN_BIT and int(m) & 1:  # (a non-finite increment: either sign)
+        return c + UNIT_ROUNDOFF * d
+    return c + -(UNIT_ROUNDOFF * d)
+
+
 def rounding_twin(step_c):
     """The compensated step ``step_c(y, c, u, h) -> (y, c)`` of the rounding twin: each
     increment ``d = y_new - y`` off by ``+-UNIT_ROUNDOFF d`` (carried in the compensation, so
     the next step adds it), the sign from ``d``'s own mantissa: a rounding error the size of
-    the increment's own, pseudo-random along the run and the same bits on floats and on arrays
-    (the single env's and the vector env's twins agree bit for bit)."""
+    the increment's own, pseudo-random along the run and the same bits on floats, on arrays and
+    compiled (the single env's and the vector env's twins agree bit for bit)."""
 
     def step(y, c, u, h):
         y_new, c_new = step_c(y, c, u, h)
         if not isinstance(y_new[0], np.ndarray):
-            out = []
-            for ci, a, b in zip(c_new, y_new, y):
-                d = a - b
-                m = abs(math.frexp(d)[0]) * _SIGN_BIT
-                odd = m < _SIGN_BIT and int(m) & 1  # (a non-finite increment: either sign)
-                out.append(ci + (UNIT_ROUNDOFF * d if odd else -(UNIT_ROUNDOFF * d)))
-            return y_new, tuple(out)
+            return y_new, tuple(rounding_twin_term(ci, a - b) for ci, a, b in zip(c_new, y_new, y))
         out = []
         for ci, a, b in zip(c_new, y_new, y):
             d = np.asarray(a - b, dtype=np.float64)

@@ -291,11 +291,16 @@ class Engine:
         # tolerance_check="refine": the single env's factor on the guard's count, raised where its
         # episode was replayed with more steps (rbenvs.core.global_error.GlobalErrorCheck.hold)
         self.step_factor = 1.0
+        # the checked period's runs of one state, compiled (rbenvs.compiled.CheckedRuns: the main
+        # run's count, the companion's and its twin's, each a given count and step): "auto" uses
+        # them where numba is installed and every part has a pure form, built on the first run;
+        # the guard's count, the estimate and the finish stay on floats
+        self._runs, self._runs_tried = None, True
         if m.check:
-            if compiled is True:
-                raise ValueError("compiled=True cannot be had with tolerance_check=True: the checked period (an even count of steps "
-                                 "and the companion run) runs on the float path; pass compiled='auto' or False")
             self.plain, self._state_step, self._state_step_tried = False, None, True
+            self._runs_tried = compiled is False
+            if compiled is True:
+                self._runs = self._build_runs(required=True)
 
     def __reduce__(self):  # generated and compiled functions are made again, not pickled
         return (Engine, (self.model, self.compiled), {"comp": self.comp})  # (the single env's run goes on as it was)
@@ -327,6 +332,30 @@ class Engine:
         sample = tuple(float(c) for c in m.initial_state(np.random.default_rng(0)))
         return _compiled.StateStep(parts, self.system.dim, len(self.high_list), len(u), len(u_norm), sample, self.high_list, self.h, self.dt, self.substeps,
                                    self.metric_names, self.readout_names)
+
+    @property
+    def checked_runs(self):
+        """The compiled runs of the checked period (:class:`rbenvs.compiled.CheckedRuns`), or
+        ``None`` (the float path; always without ``tolerance_check``); built on first use."""
+        if not self._runs_tried:
+            self._runs = self._build_runs(required=False)
+        return self._runs
+
+    def _build_runs(self, required: bool):
+        from .. import compiled as _compiled
+
+        self._runs_tried = True
+        parts = self.kernel_parts() if _compiled.available() else None
+        if parts is None:
+            if required:
+                why = (f"numba is not installed (the 'fast' extra) or {_compiled.DISABLE_VARIABLE}=0 is set" if not _compiled.available() else
+                       f"integrator {self.integrator.name!r} with task {self.task.name!r} and these settings has no compiled step")
+                raise ValueError(f"compiled=True but {why}")
+            return None
+        m = self.model
+        u_norm, u = m.actuator.control((0.0,) * m.actuator.size)
+        sample = tuple(float(c) for c in m.initial_state(np.random.default_rng(0)))
+        return _compiled.CheckedRuns(parts, self.system.dim, len(self.high_list), len(u), len(u_norm), sample)
 
     # ------------------------------------------------------------------ the period
     def advance(self, y, u, plain: bool, skip=None, factor=None, comp=None):
@@ -421,6 +450,10 @@ class Engine:
         event ending them early: ``(y, fired, comp)``. ``comp``: the run's compensation at
         ``y`` (a tolerance: the compensated step carries it; it starts again from zero after a
         switch); ``None``: the plain step. ``twin``: the rounding twin's steps (:attr:`twin_c`)."""
+        if self.check and comp is not None:  # (the checked period's runs, compiled where they can be)
+            runs = self._runs if self._runs_tried else self.checked_runs
+            if runs is not None:
+                return runs(y, comp, u, n, h, twin)
         post, event = self.switching, self.event
         step_c, first_c = self._compensated_steps(comp, twin)
         if self.shared is not None:  # (the event's evaluation is the next first stage)
@@ -478,6 +511,10 @@ class Engine:
         frozen after them or at its terminal event: ``(y, fired, comp)``. ``comp``: each
         element's compensation, carried as :meth:`_run_one` carries it (``None``: plain);
         ``twin``: the rounding twin's steps."""
+        if self.check and comp is not None:  # (the checked period's runs, compiled where they can be)
+            runs = self._runs if self._runs_tried else self.checked_runs
+            if runs is not None:
+                return self._run_each(runs, y, u, n, h, comp, twin)
         step, post, event = self.bound_step, self.switching, self.event
         step_c, first_c = self._compensated_steps(comp, twin)
         fired = np.zeros(n.shape, dtype=bool)
@@ -538,6 +575,22 @@ class Engine:
             if not np.any(active):
                 break
         return y, fired, comp
+
+    @staticmethod
+    def _run_each(runs, y, u, n, h, comp, twin):
+        """:meth:`_loop` through the compiled single-state runs (``tolerance_check``), element by
+        element: each its ``n[i]`` steps of ``h`` (``h[i]``) from its state and compensation, as
+        its single env takes them (the same bits as the arrays' loop)."""
+        hs = np.broadcast_to(np.asarray(h, dtype=np.float64), n.shape)
+        y_out, c_out = np.empty((len(y), n.size)), np.empty((len(comp), n.size))
+        fired = np.zeros(n.shape, dtype=bool)
+        def row(values, i):  # (a component may be one float for every element: a fresh compensation, a shared control)
+            return tuple(float(c[i]) if np.ndim(c) else float(c) for c in values)
+
+        for i in range(n.size):
+            yi, fired[i], ci = runs(row(y, i), row(comp, i), None if u is None else row(u, i), int(n[i]), float(hs[i]), twin)
+            y_out[:, i], c_out[:, i] = yi, ci
+        return tuple(y_out), fired, tuple(c_out)
 
     def refusal(self, n, where: str = "") -> ValueError:
         """The ``guard="refuse"`` error for a period that needs ``n`` internal steps."""

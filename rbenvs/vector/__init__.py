@@ -103,7 +103,7 @@ class RigidBodyVectorEnv(VectorEnv):
         self.autoreset_mode = mode
         # the single env's constructor validates the arguments and builds the model; only its
         # public model, spaces and metadata are read
-        env = self.env_class(**kwargs)
+        env = self.env_class(**kwargs, **({"compiled": False} if compiled is False else {}))  # (False: no compiled code, the checked runs' neither)
         self.model, self.engine = env.model, env.engine
         self.metadata = dict(env.metadata, autoreset_mode=mode)
         self.render_mode = env.render_mode
@@ -115,7 +115,9 @@ class RigidBodyVectorEnv(VectorEnv):
         # the robustness options (rbenvs.envs.options), validated by the single env
         self._template, self._ranges, self._realism = env, env.param_ranges, env.realism
         # tolerance_check: the companion run of every sub-env (rbenvs.core.global_error), on the
-        # numpy path (the checked period's even counts and the companion have no compiled form)
+        # numpy path, its runs (the main run's, the companion's and the twin's) sub-env by sub-env
+        # through the compiled single-state runs where numba is installed (rbenvs.compiled.CheckedRuns;
+        # with compiled=False on numpy); the batch kernel has no checked period
         self._check = GlobalErrorCheck(self.engine, env.model.refine) if env.model.check else None
         self._global = None  # the last step's global error estimates
         self._roundoff = None  # and their roundoff parts (the rounding twin's)
@@ -123,7 +125,8 @@ class RigidBodyVectorEnv(VectorEnv):
         if self._check is not None:
             if compiled is True:
                 raise ValueError("compiled=True cannot be had with tolerance_check=True: the checked period (an even count of steps "
-                                 "and the companion run) runs on numpy; pass compiled='auto' or False")
+                                 "and the companion run) runs on numpy, its runs sub-env by sub-env (compiled where numba is installed); "
+                                 "pass compiled='auto' or False")
             compiled = False
         self._options = self._ranges is not None or self._realism.active
         if self._ranges is not None:
