@@ -176,3 +176,24 @@ def test_command_line_rejects_an_unmatched_filter_and_unknown_tables(capsys):
     assert "matches no row" in capsys.readouterr().err
     assert cli_main(["bench", "throughput", "--tables", "tasks,nope", "--no-progress"]) == 2
     assert "unknown table 'nope'" in capsys.readouterr().err
+
+
+def test_the_check_table_times_the_checked_step_against_its_peers(tmp_path, capsys):
+    """``--tables check``: per setting, the single env's step without ``tolerance_check``, with
+    it (its runs compiled where numba is installed) and on floats, Pendulum-v1 timed after each,
+    and the vector env at N = 8 with the check on both paths beside CartPole-v1's; the ratios
+    printed are those of the figures written (no speed is asserted: the bench prints it)."""
+    path = tmp_path / "check.json"
+    argv = ["bench", "throughput", "--tables", "check", "--only", "free body", "--no-progress", "--json", str(path)]
+    assert cli_main(argv) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert any(line.startswith("tolerance_check=True in time") for line in lines)
+    data = json.loads(path.read_text())
+    (row,) = data["check"]
+    assert row["setting"] == "free body"
+    for key in ("plain_us", "check_us", "check_floats_us", "pendulum_check_us", "vector_check_env_steps_per_s", "vector_check_numpy_env_steps_per_s",
+                "cartpole_vector_check"):
+        assert math.isfinite(row[key]) and row[key] > 0.0, key
+    printed = next(line for line in lines if line.startswith("free body") and len(line.split()) == 7)
+    assert printed.split()[-2:] == [f"{row['check_floats_us'] / row['check_us']:.1f}", f"{row['check_us'] / row['pendulum_check_us']:.1f}"]
+    assert data["tasks"] == data["single"] == []

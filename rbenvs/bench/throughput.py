@@ -62,6 +62,12 @@ The earlier tables follow (not with ``--quick`` unless ``--tables`` names them):
   sub-envs, with the bytes of arrays one step moves per env.
 * ``sb3`` (when stable-baselines3 is installed): SB3's ``VecEnv.step`` through the native
   adapter against ``DummyVecEnv`` of single envs, at N = 16 and 256.
+* ``check``: what ``tolerance_check=True`` costs in time (rk4, ``tolerance=1e-6``, zero action): one
+  step of the single env without the check, with it (its runs compiled:
+  :class:`rbenvs.compiled.CheckedRuns`) and with it on floats (``compiled=False``), against
+  Pendulum-v1 interleaved; and the vector env at N = 8 with the check, its runs compiled sub-env
+  by sub-env and on numpy, against CartPole-v1 at 8. The free body, the heavy top, the tippe top
+  and the hopping scene (``tippe_hop``, the check's case).
 
 In the integrator table the time limit ends all sub-envs of the default scene together, so a
 step's true cost includes 1/400 of resetting every sub-env; ``min_time`` spans several episode
@@ -91,7 +97,7 @@ from ..progress import Progress
 
 __all__ = [
     "run_tasks", "task_settings", "measure_setting", "kernel_time", "stagger_clocks", "random_actions", "counting_stepper", "print_tasks",
-    "run_single", "run_vector", "run_scaling", "run_sb3", "timed", "timed_budget", "episode_stepper", "main",
+    "run_single", "run_vector", "run_scaling", "run_sb3", "run_check", "print_check", "timed", "timed_budget", "episode_stepper", "main",
 ]
 
 SIZES = (1, 16, 256, 4096)
@@ -289,6 +295,89 @@ def run_sb3(sizes=(16, 256), min_time=0.2, repeat=3) -> list[dict]:
             venv.close()
         rows.append({"id": env_id, "num_envs": n, "sb3_native_env_steps_per_s": rates[0], "sb3_dummy_env_steps_per_s": rates[1], "ratio": rates[0] / rates[1]})
     return rows
+
+
+CHECK_TOLERANCE = 1e-6
+CHECK_NUM_ENVS = 8
+# (label, id, scene or None): the check table's settings
+CHECK_SETTINGS = (("free body", "rbenvs/FreeRigidBody-v0", None), ("heavy top", "rbenvs/LagrangeTop-v0", None), ("tippe top", "rbenvs/TippeTop-v0", None),
+                  ("scene tippe_hop", None, "tippe_hop"))
+
+
+def _checked_env(env_id, scene, vector: int = 0, **kw):
+    """The check table's env: ``env_id`` at its defaults or the named ``scene``, with ``tolerance``
+    :data:`CHECK_TOLERANCE`, rk4 (the scheme a tolerance takes) and ``kw``; the vector env of
+    ``vector`` sub-envs where given."""
+    import gymnasium as gym
+
+    import rbenvs  # noqa: F401
+    from ..envs import UnstableMotionWarning
+
+    kw = dict(kw, tolerance=CHECK_TOLERANCE, integrator="rk4")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UnstableMotionWarning)
+        if scene is not None:
+            from ..scenes import load_scene
+
+            loaded = load_scene(scene)
+            env_id, kw = loaded.env_id, dict(loaded.kwargs, **kw)
+        if vector:
+            return gym.make_vec(env_id, num_envs=vector, vectorization_mode="vector_entry_point", **kw)
+        return gym.make(env_id, **kw)
+
+
+def run_check(settings=CHECK_SETTINGS, min_time=0.2, repeat=3, budget=1.0, progress=None) -> list[dict]:
+    """The ``check`` table: per setting, one single-env step (us) without ``tolerance_check``,
+    with it compiled and with it on floats, Pendulum-v1 timed after each; the vector env's
+    env-steps/s at :data:`CHECK_NUM_ENVS` with the check (runs compiled, numpy), CartPole-v1's
+    at the same N after each."""
+    peers = Peers(min_time, repeat)
+    rows = []
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # (the hopping top's check ends episodes: NumericalFailureWarning)
+        for label, env_id, scene in settings:
+            row = {"setting": label}
+            for key, kw in (("plain_us", dict(tolerance_check=False)), ("check_us", dict(tolerance_check=True)),
+                            ("check_floats_us", dict(tolerance_check=True, compiled=False))):
+                env = _checked_env(env_id, scene, **kw)
+                env.reset(seed=0)
+                zero = np.zeros(env.action_space.shape, dtype=np.float32)
+                step = episode_stepper(env, zero)
+                step()  # (compiles)
+                row[key] = timed_budget(step, min_time, repeat, budget) * 1e6
+                row["pendulum_" + key] = timed(peers.pendulum_step, min_time, repeat) * 1e6
+                env.close()
+                if progress:
+                    progress()
+            for key, compiled in (("vector_check", "auto"), ("vector_check_numpy", False)):
+                venv = _checked_env(env_id, scene, vector=CHECK_NUM_ENVS, tolerance_check=True, compiled=compiled)
+                venv.reset(seed=0)
+                action = np.zeros(venv.action_space.shape, dtype=np.float32)
+                venv.step(action)
+                t = timed_budget(lambda: venv.step(action), min_time, repeat, budget)
+                row[key + "_env_steps_per_s"] = CHECK_NUM_ENVS / t
+                row["cartpole_" + key] = peers.cartpole_rate(CHECK_NUM_ENVS)["env_steps_per_s"]
+                venv.close()
+                if progress:
+                    progress()
+            rows.append(row)
+    peers.close()
+    return rows
+
+
+def print_check(rows) -> None:
+    print(f"\ntolerance_check=True in time: rk4, tolerance={CHECK_TOLERANCE:g}, zero action; one step of the single env (us) without the check, "
+          "with it (its runs compiled) and with it on floats (compiled=False), against Pendulum-v1 (timed after each, same run)")
+    print(f"{'setting':<18} {'no check':>9} {'check':>9} {'floats':>10} {'floats/check':>12} {'check/Pendulum':>14}")
+    for r in rows:
+        print(f"{r['setting']:<18} {r['plain_us']:>9.1f} {r['check_us']:>9.1f} {r['check_floats_us']:>10.1f} {r['check_floats_us'] / r['check_us']:>12.1f} "
+              f"{r['check_us'] / r['pendulum_check_us']:>14.1f}")
+    print(f"vector env at N = {CHECK_NUM_ENVS} with the check (env-steps/s): its runs compiled sub-env by sub-env, and on numpy (compiled=False), "
+          f"against CartPole-v1's vector env at {CHECK_NUM_ENVS} (same run)")
+    print(f"{'setting':<18} {'compiled':>11} {'numpy':>11} {'compiled/numpy':>15} {'CartPole':>11} {'CartPole/ours':>14}")
+    for r in rows:
+        c, n, cart = r["vector_check_env_steps_per_s"], r["vector_check_numpy_env_steps_per_s"], r["cartpole_vector_check"]
+        print(f"{r['setting']:<18} {c:>11.4g} {n:>11.4g} {c / n:>15.1f} {cart:>11.4g} {cart / c:>14.4g}")
 
 
 def compiled_speedup(vector_rows) -> list[tuple[int, float]]:
@@ -689,7 +778,7 @@ def print_tasks(rows, notes) -> None:
             print(f"  {r['scene']}: {r['id']} " + ", ".join(f"{k}={v}" for k, v in r["kwargs"].items()))
 
 
-TABLES = ("tasks", "integrators", "scaling", "sb3")
+TABLES = ("tasks", "integrators", "scaling", "sb3", "check")
 QUICK_TABLES = ("tasks", "sb3")  # --quick: a smoke run well under a minute (the kernels' compilation is most of it)
 
 
@@ -722,14 +811,15 @@ def main(argv=None) -> int:
     do_scaling = "scaling" in tables and not args.quick and _matches(only, free, "rk4")
     do_sb3 = "sb3" in tables and _matches(only, free, "rk4")
     settings, notes = task_settings(only) if "tasks" in tables else ([], [])
-    if not (settings or systems or do_scaling or do_sb3):
+    checks = tuple(c for c in CHECK_SETTINGS if _matches(only, c[0], c[1] or "", c[2] or "")) if "check" in tables else ()
+    if not (settings or systems or do_scaling or do_sb3 or checks):
         raise ValueError(f"--only {only!r} matches no row of the tables {', '.join(tables)}")
     n_tasks = 4 * len(settings)
     n_single = sum(len(i) for _, i in systems)
     combos_extra = (2 if available() else 1) if any(i == free and "rk4" in ints for i, ints in systems) else 0
     n_vector = sum(1 for _, ints in systems for i in ints for n in sizes if n <= LARGEST.get(i, max(sizes))) + combos_extra * len(sizes)
     n_scaling = (2 if available() else 1) * len(SCALING_SIZES) if do_scaling else 0
-    bar = Progress(n_tasks + n_single + n_vector + n_scaling, not args.no_progress, "bench throughput")
+    bar = Progress(n_tasks + n_single + n_vector + n_scaling + 5 * len(checks), not args.no_progress, "bench throughput")
     tasks, task_notes = [], notes
     if settings:
         # --quick: a smoke run, its figures rough (23 settings, each timed seven ways)
@@ -740,6 +830,7 @@ def main(argv=None) -> int:
     vector = run_vector(systems, sizes=sizes, min_time=min_time, progress=bar.update, budget=legacy_budget) if systems else []
     scaling = run_scaling(min_time=min_time, progress=bar.update) if do_scaling else []
     sb3 = run_sb3(sizes=(16, 256), min_time=min_time) if do_sb3 else []
+    check = run_check(checks, min_time=min_time, budget=budget, progress=bar.update) if checks else []
     bar.close()
     if tasks:
         print_tasks(tasks, task_notes)
@@ -770,7 +861,9 @@ def main(argv=None) -> int:
         print(f"{'id':<26} {'num_envs':>8} {'native/s':>12} {'Dummy/s':>12} {'ratio':>8}")
         for r in sb3:
             print(f"{r['id']:<26} {r['num_envs']:>8d} {r['sb3_native_env_steps_per_s']:>12.4g} {r['sb3_dummy_env_steps_per_s']:>12.4g} {r['ratio']:>8.2f}")
+    if check:
+        print_check(check)
     if args.json:
         with open(args.json, "w") as f:
-            json.dump({"tasks": tasks, "task_notes": task_notes, "single": single, "vector": vector, "scaling": scaling, "sb3": sb3}, f, indent=1)
+            json.dump({"tasks": tasks, "task_notes": task_notes, "single": single, "vector": vector, "scaling": scaling, "sb3": sb3, "check": check}, f, indent=1)
     return 0
