@@ -11,7 +11,7 @@ the sub-envs whose episodes ended, drawn from their own generators. :func:`batch
 the period and finish alone (what ``rbenvs bench throughput`` times as the kernel),
 :func:`state_kernel` the same for one state (the single env's compiled step), and
 :func:`run_kernel` one state's internal steps with a given count and step (``tolerance_check``'s
-runs: :class:`CheckedRuns`), from the same lines.
+runs: :class:`CheckedRuns`; :func:`runs_kernel` a batch's, sub-env by sub-env), from the same lines.
 
 Every loop is written so that LLVM keeps it in SIMD registers: no call inside (libm's
 ``sin``/``cos`` replaced by :func:`rbenvs.rotations.sincos`, branches that hold a call
@@ -49,7 +49,7 @@ from .jit import register as _register
 from .jit import register_all as _register_all
 
 __all__ = ["jitable", "available", "Layout", "VectorLayout", "batch_kernel", "vector_kernel", "rows_kernel", "finish_kernel", "state_kernel", "physics_kernel",
-           "run_kernel", "CheckedRuns", "state_finish", "info_function", "BatchStep", "BatchResult", "VectorStep", "VectorResult", "StateStep", "DISABLE_VARIABLE", "LLVM_OPTIONS"]
+           "run_kernel", "runs_kernel", "CheckedRuns", "state_finish", "info_function", "BatchStep", "BatchResult", "VectorStep", "VectorResult", "StateStep", "DISABLE_VARIABLE", "LLVM_OPTIONS"]
 
 # How every kernel is compiled. error_model="numpy": a float division by zero gives inf/nan as
 # on arrays (and needs no per-element check, which would keep the loops out of SIMD
@@ -838,6 +838,29 @@ def run_kernel(layout: Layout, twin: bool = False):
     return numba.njit(**KERNEL_OPTIONS)(namespace["run"])
 
 
+@lru_cache(maxsize=None)
+def runs_kernel(layout: Layout, twin: bool = False):
+    """:func:`run_kernel` for a batch, sub-env by sub-env in one compiled loop (the vector env's
+    checked runs). Signature::
+
+        runs(Y, CC, U, counts, H, fired, P) -> None
+
+    ``Y``, ``CC``: ``(dim, n)`` states and compensations, advanced in place; ``U``: ``(n_control,
+    n)`` controls; ``counts``, ``H``: each sub-env's steps and step; ``fired``: ``(n,)`` bools
+    written (the terminal event); ``P = (PS, PV, PW)``."""
+    import numba
+
+    L = layout
+    lines = ["def runs(Y, CC, U, counts, H, fired, P):", "    PS, PV, PW = P", "    for i in range(Y.shape[1]):",
+             f"        y = ({_comps('Y[{j}, i]', L.dim)})", f"        cc = ({_comps('CC[{j}, i]', L.dim)})",
+             f"        u = ({_comps('U[{j}, i]', L.n_control)})", "        c = counts[i]", "        hi = H[i]", "        f = False"]
+    lines += ["        " + line for line in _steps_lines(L, twin)]
+    lines += [f"        Y[{j}, i] = y[{j}]" for j in range(L.dim)] + [f"        CC[{j}, i] = cc[{j}]" for j in range(L.dim)] + ["        fired[i] = f"]
+    namespace = _namespace(L)
+    generate("\n".join(lines), f"runs kernel dim={L.dim}{' twin' if twin else ''}", namespace)
+    return numba.njit(**KERNEL_OPTIONS)(namespace["runs"])
+
+
 class CheckedRuns:
     """One env's compiled runs for ``tolerance_check`` (:func:`run_kernel`, the plain and the
     rounding twin's): calling it runs ``c`` steps of ``hi`` from ``y`` with the compensation
@@ -850,8 +873,14 @@ class CheckedRuns:
         if layout.step_c is None:
             raise ValueError("the checked runs need a compensated step (a tolerance)")
         self.kernels = (run_kernel(layout), run_kernel(layout, True))
+        self.layout = layout
         self.params = (params[0], params[8], params[9])  # PS, PV, PW
         self._calls = [None, None]
+
+    def batch(self, Y, CC, U, counts, H, fired, twin: bool = False) -> None:
+        """A batch's runs in place (:func:`runs_kernel`): ``Y``, ``CC`` ``(dim, n)``, ``U``
+        ``(n_control, n)``, ``counts``, ``H`` ``(n,)``, ``fired`` written."""
+        runs_kernel(self.layout, twin)(Y, CC, U, counts, H, fired, self.params)
 
     def __call__(self, y, cc, u, c: int, hi: float, twin: bool = False):
         k = 1 if twin else 0

@@ -513,7 +513,7 @@ class Engine:
         ``twin``: the rounding twin's steps."""
         if self.check and comp is not None:  # (the checked period's runs, compiled where they can be)
             runs = self._runs if self._runs_tried else self.checked_runs
-            if runs is not None:
+            if runs is not None and u is not None:
                 return self._run_each(runs, y, u, n, h, comp, twin)
         step, post, event = self.bound_step, self.switching, self.event
         step_c, first_c = self._compensated_steps(comp, twin)
@@ -578,19 +578,22 @@ class Engine:
 
     @staticmethod
     def _run_each(runs, y, u, n, h, comp, twin):
-        """:meth:`_loop` through the compiled single-state runs (``tolerance_check``), element by
-        element: each its ``n[i]`` steps of ``h`` (``h[i]``) from its state and compensation, as
-        its single env takes them (the same bits as the arrays' loop)."""
-        hs = np.broadcast_to(np.asarray(h, dtype=np.float64), n.shape)
-        y_out, c_out = np.empty((len(y), n.size)), np.empty((len(comp), n.size))
-        fired = np.zeros(n.shape, dtype=bool)
-        def row(values, i):  # (a component may be one float for every element: a fresh compensation, a shared control)
-            return tuple(float(c[i]) if np.ndim(c) else float(c) for c in values)
+        """:meth:`_loop` through the compiled runs (``tolerance_check``, :meth:`rbenvs.compiled.CheckedRuns.batch`):
+        element ``i`` takes its ``n[i]`` steps of ``h`` (``h[i]``) from its state and
+        compensation, as its single env takes them (the same bits as the arrays' loop)."""
+        size = n.size
 
-        for i in range(n.size):
-            yi, fired[i], ci = runs(row(y, i), row(comp, i), None if u is None else row(u, i), int(n[i]), float(hs[i]), twin)
-            y_out[:, i], c_out[:, i] = yi, ci
-        return tuple(y_out), fired, tuple(c_out)
+        def rows(values):  # (a component may be one float for every element: a fresh compensation, a shared control)
+            out = np.empty((len(values), size))
+            for j, c in enumerate(values):
+                out[j] = c
+            return out
+
+        Y, CC, U = rows(y), rows(comp), rows(u)
+        H = np.ascontiguousarray(np.broadcast_to(np.asarray(h, dtype=np.float64), n.shape))
+        fired = np.zeros(size, dtype=bool)
+        runs.batch(Y, CC, U, np.ascontiguousarray(n, dtype=np.int64), H, fired, twin)
+        return tuple(Y), fired.reshape(n.shape), tuple(CC)
 
     def refusal(self, n, where: str = "") -> ValueError:
         """The ``guard="refuse"`` error for a period that needs ``n`` internal steps."""
