@@ -181,7 +181,7 @@ def test_command_line_rejects_an_unmatched_filter_and_unknown_tables(capsys):
 def test_the_check_table_times_the_checked_step_against_its_peers(tmp_path, capsys):
     """``--tables check``: per setting, the single env's step without ``tolerance_check``, with
     it (its runs compiled where numba is installed) and on floats, Pendulum-v1 timed after each,
-    and the vector env at N = 8 with the check on both paths beside CartPole-v1's; the ratios
+    and the vector env at N = 8 and 256 with the check on both paths beside CartPole-v1's; the ratios
     printed are those of the figures written (no speed is asserted: the bench prints it)."""
     path = tmp_path / "check.json"
     argv = ["bench", "throughput", "--tables", "check", "--only", "free body", "--no-progress", "--json", str(path)]
@@ -191,9 +191,12 @@ def test_the_check_table_times_the_checked_step_against_its_peers(tmp_path, caps
     data = json.loads(path.read_text())
     (row,) = data["check"]
     assert row["setting"] == "free body"
-    for key in ("plain_us", "check_us", "check_floats_us", "pendulum_check_us", "vector_check_env_steps_per_s", "vector_check_numpy_env_steps_per_s",
-                "cartpole_vector_check"):
+    for key in ("plain_us", "check_us", "check_floats_us", "pendulum_check_us"):
         assert math.isfinite(row[key]) and row[key] > 0.0, key
+    assert [v["num_envs"] for v in row["vector"]] == [8, 256]
+    for v in row["vector"]:
+        for key in ("check_env_steps_per_s", "check_numpy_env_steps_per_s", "cartpole_check"):
+            assert math.isfinite(v[key]) and v[key] > 0.0, key
     printed = next(line for line in lines if line.startswith("free body") and len(line.split()) == 7)
     assert printed.split()[-2:] == [f"{row['check_floats_us'] / row['check_us']:.1f}", f"{row['check_us'] / row['pendulum_check_us']:.1f}"]
     assert data["tasks"] == data["single"] == []
