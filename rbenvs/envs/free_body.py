@@ -155,6 +155,8 @@ class FreeRigidBodyEnv(RigidBodyEnv):
       for bit the float path, where numba is installed and the setting has pure forms (the
       explicit schemes ``euler``, ``rk4``, ``splitting``); ``False``: the float path; ``True``:
       demand it (``ValueError`` saying why it cannot be had). ``env.unwrapped.compiled`` tells.
+      With ``tolerance_check`` the step is not one call (``compiled`` is ``False``): its
+      period's runs are compiled instead (the main run's, the companion's and the twin's).
     * ``param_ranges=None``: domain randomization, ``{keyword: spread or (lo, hi)}`` over
       ``inertia``, ``max_torque``, drawn at each reset from the env's generator and reported in
       ``info["params"]``; each range is checked at construction (every corner of the box must be
