@@ -313,25 +313,34 @@ class Engine:
             self._state_step = self._build_state_step(required=False)
         return self._state_step
 
-    def _build_state_step(self, required: bool):
+    def _compiled_inputs(self, required: bool):
+        """``(parts, sizes and sample)`` for a compiled form of this model's step
+        (:class:`rbenvs.compiled.StateStep`, :class:`rbenvs.compiled.CheckedRuns`): the pure parts
+        (:meth:`kernel_parts`), ``(dim, n_obs, n_control, n_action, sample)``; ``None`` where numba
+        is missing or a part has no pure form (``required``: a ``ValueError`` saying which)."""
         from .. import compiled as _compiled
 
-        self._state_step_tried = True
-        parts = self.kernel_parts()
-        reason = None
-        if not _compiled.available():
-            reason = f"numba is not installed (the 'fast' extra) or {_compiled.DISABLE_VARIABLE}=0 is set"
-        elif parts is None:
-            reason = f"integrator {self.integrator.name!r} with task {self.task.name!r} and these settings has no compiled step"
-        if reason is not None:
+        parts = self.kernel_parts() if _compiled.available() else None
+        if parts is None:
             if required:
-                raise ValueError(f"compiled=True but {reason}")
+                why = (f"numba is not installed (the 'fast' extra) or {_compiled.DISABLE_VARIABLE}=0 is set" if not _compiled.available() else
+                       f"integrator {self.integrator.name!r} with task {self.task.name!r} and these settings has no compiled step")
+                raise ValueError(f"compiled=True but {why}")
             return None
         m = self.model
         u_norm, u = m.actuator.control((0.0,) * m.actuator.size)
         sample = tuple(float(c) for c in m.initial_state(np.random.default_rng(0)))
-        return _compiled.StateStep(parts, self.system.dim, len(self.high_list), len(u), len(u_norm), sample, self.high_list, self.h, self.dt, self.substeps,
-                                   self.metric_names, self.readout_names)
+        return parts, (self.system.dim, len(self.high_list), len(u), len(u_norm), sample)
+
+    def _build_state_step(self, required: bool):
+        from .. import compiled as _compiled
+
+        self._state_step_tried = True
+        inputs = self._compiled_inputs(required)
+        if inputs is None:
+            return None
+        parts, sizes = inputs
+        return _compiled.StateStep(parts, *sizes, self.high_list, self.h, self.dt, self.substeps, self.metric_names, self.readout_names)
 
     @property
     def checked_runs(self):
@@ -345,17 +354,8 @@ class Engine:
         from .. import compiled as _compiled
 
         self._runs_tried = True
-        parts = self.kernel_parts() if _compiled.available() else None
-        if parts is None:
-            if required:
-                why = (f"numba is not installed (the 'fast' extra) or {_compiled.DISABLE_VARIABLE}=0 is set" if not _compiled.available() else
-                       f"integrator {self.integrator.name!r} with task {self.task.name!r} and these settings has no compiled step")
-                raise ValueError(f"compiled=True but {why}")
-            return None
-        m = self.model
-        u_norm, u = m.actuator.control((0.0,) * m.actuator.size)
-        sample = tuple(float(c) for c in m.initial_state(np.random.default_rng(0)))
-        return _compiled.CheckedRuns(parts, self.system.dim, len(self.high_list), len(u), len(u_norm), sample)
+        inputs = self._compiled_inputs(required)
+        return None if inputs is None else _compiled.CheckedRuns(inputs[0], *inputs[1])
 
     # ------------------------------------------------------------------ the period
     def advance(self, y, u, plain: bool, skip=None, factor=None, comp=None):
