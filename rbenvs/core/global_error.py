@@ -74,7 +74,10 @@ The twin costs the check half the main run's steps again.
 
 ``D`` is measured as :mod:`rbenvs.bench.tolerance` measures the error against its reference:
 the largest over the state's blocks (:func:`tolerance_blocks`) of ``|y_b - yc_b| / |y_b|``.
-Everything here works on one state (floats) and on a batch (arrays).
+Everything here works on one state (floats) and on a batch (arrays). The runs themselves (the
+main run's, the companion's, the twin's, a replay's) are the engine's
+(:meth:`rbenvs.core.step.Engine.companion`), compiled where numba is installed
+(:class:`rbenvs.compiled.CheckedRuns`, the float path's bits).
 """
 
 from __future__ import annotations
