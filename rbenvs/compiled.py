@@ -279,11 +279,12 @@ def _period_lines(L: Layout) -> list[str]:
     return lines + ["    " + line for line in _steps_lines(L)]
 
 
-def _steps_lines(L: Layout, twin: bool = False) -> list[str]:
+def _steps_lines(L: Layout, twin: int = 0) -> list[str]:
     """Lines that take ``c`` internal steps ``hi`` from ``y`` under ``u`` (:meth:`rbenvs.core.step.Engine._run_one`):
     the switches after each, the terminal event ending them (``f = True``), a non-finite state
-    stopping them. ``twin``: the rounding twin's steps (each increment off by a unit roundoff in
-    the compensation, :func:`rbenvs.core.global_error.rounding_twin_term`; a layout with ``step_c``)."""
+    stopping them. ``twin``: rounding twin ``twin``'s steps (1 or 2, its sign bit
+    ``TWIN_BITS[twin - 1]``: each increment off by a unit roundoff in the compensation,
+    :func:`rbenvs.core.global_error.rounding_twin_term`; a layout with ``step_c``; 0: the plain run's)."""
     finite = "    if not (" + " and ".join(f"isfinite(y[{j}])" for j in range(L.dim)) + "):"
     # one internal step from y (kk: its first stage), plain or carrying the compensation cc
     # (cc: the run's compensation, set by the caller and carried on)
@@ -291,7 +292,9 @@ def _steps_lines(L: Layout, twin: bool = False) -> list[str]:
     if L.step_c is not None:
         take, take_first = ["y, cc = stepc(PS, y, cc, u, hi)"], ["y, cc = stepc(PS, y, cc, kk, u, hi)"]
         if twin:
-            term = f"cc = ({_comps('twin_term(cc[{j}], y[{j}] - yo[{j}])', L.dim)})"
+            from .core.global_error import TWIN_BITS
+
+            term = f"cc = ({_comps('twin_term(cc[{j}], y[{j}] - yo[{j}], ' + repr(TWIN_BITS[twin - 1]) + ')', L.dim)})"
             take, take_first = ["yo = y", *take, term], ["yo = y", *take_first, term]
     if L.rhs_event is not None:  # the event's evaluation at a new state is the next first stage
         return [
@@ -815,7 +818,7 @@ def state_kernel(layout: Layout):
 
 
 @lru_cache(maxsize=None)
-def run_kernel(layout: Layout, twin: bool = False):
+def run_kernel(layout: Layout, twin: int = 0):
     """The compiled internal steps of ONE state's run with a given count and step (the checked
     period's, ``tolerance_check``: the main run's even count, the companion's and its rounding
     twin's half as many steps of twice the size; :meth:`rbenvs.core.step.Engine._run_one`), on
@@ -825,8 +828,8 @@ def run_kernel(layout: Layout, twin: bool = False):
 
     ``P = (PS, PV, PW)``; ``c`` steps of ``hi`` from ``y`` with the compensation ``cc``, the
     switches after each, the terminal event ending them (``fired``), a non-finite state
-    stopping them (returned as it is: the caller's failure path takes over). ``twin``: the
-    rounding twin's steps (:func:`rbenvs.core.global_error.rounding_twin_term`)."""
+    stopping them (returned as it is: the caller's failure path takes over). ``twin``: rounding
+    twin ``twin``'s steps (1 or 2, :func:`rbenvs.core.global_error.rounding_twin_term`; 0: the plain run's)."""
     import numba
 
     L = layout
@@ -839,7 +842,7 @@ def run_kernel(layout: Layout, twin: bool = False):
 
 
 @lru_cache(maxsize=None)
-def runs_kernel(layout: Layout, twin: bool = False):
+def runs_kernel(layout: Layout, twin: int = 0):
     """:func:`run_kernel` for a batch, sub-env by sub-env in one compiled loop (the vector env's
     checked runs). Signature::
 
@@ -862,8 +865,8 @@ def runs_kernel(layout: Layout, twin: bool = False):
 
 
 class CheckedRuns:
-    """One env's compiled runs for ``tolerance_check`` (:func:`run_kernel`, the plain and the
-    rounding twin's): calling it runs ``c`` steps of ``hi`` from ``y`` with the compensation
+    """One env's compiled runs for ``tolerance_check`` (:func:`run_kernel`, the plain run's and
+    the two rounding twins'): calling it runs ``c`` steps of ``hi`` from ``y`` with the compensation
     ``cc`` and returns ``(y, fired, cc)``, the bits of the float path's
     :meth:`rbenvs.core.step.Engine._run_one`. Each kernel's first call compiles it (about a
     second per layout and process) and then takes its overload's entry point."""
@@ -872,18 +875,18 @@ class CheckedRuns:
         layout, params, _, _ = _layout(parts, dim, n_obs, n_control, n_action, sample)
         if layout.step_c is None:
             raise ValueError("the checked runs need a compensated step (a tolerance)")
-        self.kernels = (run_kernel(layout), run_kernel(layout, True))
+        self.kernels = (run_kernel(layout), run_kernel(layout, 1), run_kernel(layout, 2))
         self.layout = layout
         self.params = (params[0], params[8], params[9])  # PS, PV, PW
-        self._calls = [None, None]
+        self._calls = [None, None, None]
 
-    def batch(self, Y, CC, U, counts, H, fired, twin: bool = False) -> None:
+    def batch(self, Y, CC, U, counts, H, fired, twin: int = 0) -> None:
         """A batch's runs in place (:func:`runs_kernel`): ``Y``, ``CC`` ``(dim, n)``, ``U``
         ``(n_control, n)``, ``counts``, ``H`` ``(n,)``, ``fired`` written."""
         runs_kernel(self.layout, twin)(Y, CC, U, counts, H, fired, self.params)
 
-    def __call__(self, y, cc, u, c: int, hi: float, twin: bool = False):
-        k = 1 if twin else 0
+    def __call__(self, y, cc, u, c: int, hi: float, twin: int = 0):
+        k = int(twin)
         call = self._calls[k]
         if call is not None:
             return call(y, cc, u, c, hi, self.params)

@@ -202,7 +202,7 @@ def test_the_checked_periods_compiled_runs_are_the_float_paths_bits(scene):
     switched = 0
     for y, comp, u, n in inputs:
         for c, h in ((n, fast.dt / n), (n // 2, 2.0 * fast.dt / n)):
-            for twin in (False, True):
+            for twin in (0, 1, 2):
                 got, want = fast._run_one(y, u, c, h, comp, twin), slow._run_one(y, u, c, h, comp, twin)
                 assert got == want, (c, twin)
         flag = slow.system.layout.get("hops", slow.system.layout.get("contact", (0, 0)))[0]  # (flight: the hops it counts)
@@ -654,32 +654,37 @@ def test_refine_holds_a_tolerance_closer_to_the_axis_than_a_plain_sum_carries():
         assert info["step_factor"] > 1.0
 
 
-def test_the_rounding_twin_is_the_step_with_each_increment_off_by_a_unit_roundoff():
-    """The rounding twin (:func:`rbenvs.core.global_error.rounding_twin`) takes the compensated
-    step and carries ``+-2^-53 d`` of each increment ``d`` in its compensation, in both signs
-    along a run, with the same bits on floats and on arrays (the vector env's twins are its
-    single envs' twins)."""
+@pytest.mark.parametrize("twin", [1, 2])
+def test_the_rounding_twin_is_the_step_with_each_increment_off_by_a_unit_roundoff(twin):
+    """Each rounding twin (:func:`rbenvs.core.global_error.rounding_twin`, its sign from mantissa
+    bit 21 or 17 of the increment) takes the compensated step and carries ``+-2^-53 d`` of each
+    increment ``d`` in its compensation, in both signs along a run, with the same bits on floats
+    and on arrays (the vector env's twins are its single envs' twins); the two twins' signs
+    differ on a share of the steps (two samples of the rounding, not one)."""
     env = _body(1e-9)
     engine = env.unwrapped.engine
+    twin_c, other_c = engine.twin_cs[twin - 1], engine.twin_cs[2 - twin]
     y, c = tuple(np.array(INERTIA) * np.array(STARTS[1])), engine.fresh_comp
-    signs = []
+    signs, differ = [], 0
     rows = [y]
     for _ in range(200):
         y_new, c_new = engine.step_c(y, c, None, 0.01)
-        y_twin, c_twin = engine.twin_c(y, c, None, 0.01)
+        y_twin, c_twin = twin_c(y, c, None, 0.01)
         assert y_twin == y_new  # (the increment it adds is the step's; its error goes on in c)
-        for a, b, d in zip(c_twin, c_new, np.subtract(y_new, y)):
+        for a, b, o, d in zip(c_twin, c_new, other_c(y, c, None, 0.01)[1], np.subtract(y_new, y)):
             if d != 0.0:
                 assert abs(a - b) == pytest.approx(UNIT_ROUNDOFF * abs(d), rel=1e-9)
                 signs.append(math.copysign(1.0, (a - b) * d))
+                differ += math.copysign(1.0, (a - b) * d) != math.copysign(1.0, (o - b) * d)
         y, c = y_new, c_twin
         rows.append(y)
     assert 0.3 < signs.count(1.0) / len(signs) < 0.7
+    assert 0.3 < differ / len(signs) < 0.7
     batch = tuple(np.array(col) for col in zip(*rows[:-1]))
     zeros = tuple(np.zeros(len(rows) - 1) for _ in range(3))
-    out_y, out_c = engine.twin_c(batch, zeros, None, 0.01)
+    out_y, out_c = twin_c(batch, zeros, None, 0.01)
     for i, state in enumerate(rows[:-1]):
-        one_y, one_c = engine.twin_c(state, engine.fresh_comp, None, 0.01)
+        one_y, one_c = twin_c(state, engine.fresh_comp, None, 0.01)
         assert tuple(float(col[i]) for col in out_y) == one_y and tuple(float(col[i]) for col in out_c) == one_c
 
 

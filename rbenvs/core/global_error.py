@@ -50,32 +50,35 @@ range; the refinement then stops. There, and where the factor would ask more tha
 non-finite state), the episode ends as with ``True``, saying so. The observations already
 returned stay as they were: each was within the tolerance by the estimate when it was returned.
 
-**Roundoff** (the rounding twin). ``D`` sees the steps' ``h^p`` error; roundoff it counts at
+**Roundoff** (the rounding twins). ``D`` sees the steps' ``h^p`` error; roundoff it counts at
 ``1 / (2^p - 1)``, and near a free body's separatrix the motion amplifies the roundoff of every
 passage by the saddle until it passes the steps' error: from 0.0001 rad/s off the intermediate
 axis (the body (2, 1.5, 1) at 5 rad/s, an mpmath Taylor solution at 45 digits as reference) the
 runs at ``h`` and ``2 h`` end equally far from it after the error's node near period 250 (their
 errors in ratio 0.7, not 16), and ``"refine"`` ran that episode to its end ten times outside 1e-9.
-A second run beside the companion, its *rounding twin*, takes the companion's steps with every
+Two runs beside the companion, its *rounding twins*, take the companion's steps with every
 increment ``d`` off by a unit roundoff, ``+-2^-53 d`` (:func:`rounding_twin`: carried in the
-compensation, the sign from ``d``'s own mantissa, so that floats and arrays agree bit for bit);
-its difference from the companion ``D_t`` is roundoff alone, amplified as the motion amplifies
-the runs' own, and the estimate is ``MARGIN (D / (2^p - 1) + ROUNDOFF_WEIGHT D_t)``. It is a model
-of roundoff, not a bound: one sample of an amplification that varies by orders from one
-realization of the rounding to the next (against an 80-bit replay of a run's counts the twin's
-difference was 1/24 to 6 times that run's roundoff). More steps do not take the motion's
+compensation, the sign from mantissa bit 21 of ``d`` for one twin and bit 17 for the other, so
+that floats, arrays and compiled code agree bit for bit); a twin's difference from the companion
+is roundoff alone, amplified as the motion amplifies the runs' own, and with ``D_t`` the larger
+of the two the estimate is ``MARGIN (D / (2^p - 1) + ROUNDOFF_WEIGHT D_t)``. It is a model of
+roundoff, not a bound: each twin is one sample of an amplification that varies by orders from one
+realization of the rounding to the next (against an 80-bit replay of a run's counts one twin's
+difference was 1/24 to 6 times that run's roundoff), and the larger of two samples falls short
+less often. More steps do not take the motion's
 roundoff down, so ``"refine"`` gives up where the estimate's roundoff part is at least
 :data:`ROUNDOFF_SHARE` of the tolerance. Measured (docs/integrators.md "Roundoff"): 0.0001 rad/s
 off the error ends 1.28 times ``D / 15 + D_t``; over four starts 0.0001 to 0.01 rad/s off and
 tolerances 1e-8 to 1e-12 (``rbenvs bench accuracy --floor``, against mpmath's Taylor series)
-``"refine"`` ran 8 of the 20 episodes outside the tolerance without the twin (up to 48 times)
-and 1 with it (2.4 times, ended at period 352); ``True`` is within on all 20 with and without.
-The twin costs the check half the main run's steps again.
+``"refine"`` ran 8 of the 20 episodes outside the tolerance without a twin (up to 48 times),
+1 with one (2.4 times, ended at period 352) and none with two (and on six more starts, 60 rows,
+1 with one twin, none with two); ``True`` is within on all of them with and without. Each twin
+costs the check half the main run's steps again.
 
 ``D`` is measured as :mod:`rbenvs.bench.tolerance` measures the error against its reference:
 the largest over the state's blocks (:func:`tolerance_blocks`) of ``|y_b - yc_b| / |y_b|``.
 Everything here works on one state (floats) and on a batch (arrays). The runs themselves (the
-main run's, the companion's, the twin's, a replay's) are the engine's
+main run's, the companion's, the twins', a replay's) are the engine's
 (:meth:`rbenvs.core.step.Engine.companion`), compiled where numba is installed
 (:class:`rbenvs.compiled.CheckedRuns`, the float path's bits).
 """
@@ -89,7 +92,7 @@ import numpy as np
 from ..jit import jitable
 
 __all__ = ["MARGIN", "AIM", "MIN_REFINEMENT", "MAX_REPLAYS", "UNIT_ROUNDOFF", "ROUNDOFF_WEIGHT", "ROUNDOFF_SHARE", "require_tolerance_check", "tolerance_blocks",
-           "companion_ratio", "companion_steps", "rounding_twin", "rounding_twin_term", "rounding_twin_first", "relative_difference", "refinement", "GlobalErrorCheck"]
+           "companion_ratio", "companion_steps", "TWIN_BITS", "rounding_twin", "rounding_twin_term", "rounding_twin_first", "relative_difference", "refinement", "GlobalErrorCheck"]
 
 # the reported estimate over the classical one (its next order's share: the module docstring)
 MARGIN = 1.25
@@ -154,29 +157,31 @@ def companion_ratio(p: float) -> float:
 
 
 def companion_steps(n):
-    """The steps the companion and its rounding twin take beside a checked period of ``n``
+    """The steps the companion and its two rounding twins take beside a checked period of ``n``
     (even) steps: ``n / 2`` each (an int, or an int array)."""
-    return 2 * (n // 2)
+    return 3 * (n // 2)
 
 
-# the bit of an increment's mantissa that picks the sign of the twin's rounding error (its 21st:
-# far below what the step resolves, above what its own rounding touches)
-_SIGN_BIT = 2.0**21
+# the bit of an increment's mantissa that picks the sign of each twin's rounding error (the 21st
+# and the 17th: far below what the step resolves, above what its own rounding touches): two twins,
+# two samples of the roundoff the motion amplifies (one sample ran 2 of 100 refine episodes near the
+# separatrix outside the tolerance, up to 2.4 times; the larger of two, none: docs/integrators.md)
+TWIN_BITS = (2.0**21, 2.0**17)
 
 
 @jitable
-def rounding_twin_term(c, d):
-    """One component of the rounding twin's compensation after a step: ``c`` (the compensated
-    step's) plus ``+-UNIT_ROUNDOFF d`` for the increment ``d``, the sign from bit 21 of ``d``'s
-    mantissa; floats and compiled code (the checked period's compiled runs,
-    :func:`rbenvs.compiled.run_kernel`), the same bits."""
-    m = abs(math.frexp(d)[0]) * _SIGN_BIT
-    if m < _SIGN_BIT and int(m) & 1:  # (a non-finite increment: either sign)
+def rounding_twin_term(c, d, bit):
+    """One component of a rounding twin's compensation after a step: ``c`` (the compensated
+    step's) plus ``+-UNIT_ROUNDOFF d`` for the increment ``d``, the sign from the mantissa bit
+    ``bit`` (a power of two, one of :data:`TWIN_BITS`) of ``d``; floats and compiled code (the
+    checked period's compiled runs, :func:`rbenvs.compiled.run_kernel`), the same bits."""
+    m = abs(math.frexp(d)[0]) * bit
+    if m < bit and int(m) & 1:  # (a non-finite increment: either sign)
         return c + UNIT_ROUNDOFF * d
     return c + -(UNIT_ROUNDOFF * d)
 
 
-def rounding_twin(step_c):
+def rounding_twin(step_c, bit=TWIN_BITS[0]):
     """The compensated step ``step_c(y, c, u, h) -> (y, c)`` of the rounding twin: each
     increment ``d = y_new - y`` off by ``+-UNIT_ROUNDOFF d`` (carried in the compensation, so
     the next step adds it), the sign from ``d``'s own mantissa: a rounding error the size of
@@ -186,21 +191,21 @@ def rounding_twin(step_c):
     def step(y, c, u, h):
         y_new, c_new = step_c(y, c, u, h)
         if not isinstance(y_new[0], np.ndarray):
-            return y_new, tuple(rounding_twin_term(ci, a - b) for ci, a, b in zip(c_new, y_new, y))
+            return y_new, tuple(rounding_twin_term(ci, a - b, bit) for ci, a, b in zip(c_new, y_new, y))
         out = []
         for ci, a, b in zip(c_new, y_new, y):
             d = np.asarray(a - b, dtype=np.float64)
-            odd = np.floor(np.abs(np.frexp(d)[0]) * _SIGN_BIT) % 2.0 == 1.0
+            odd = np.floor(np.abs(np.frexp(d)[0]) * bit) % 2.0 == 1.0
             out.append(ci + np.where(odd, UNIT_ROUNDOFF * d, -(UNIT_ROUNDOFF * d)))
         return y_new, tuple(out)
 
     return step
 
 
-def rounding_twin_first(first_c):
+def rounding_twin_first(first_c, bit=TWIN_BITS[0]):
     """:func:`rounding_twin` for a step that takes its first stage, ``first_c(ps, y, c, k, u,
     h) -> (y, c)`` (the tippe top's, whose event's evaluation is the next first stage)."""
-    twin = rounding_twin(lambda y, c, args, h: first_c(args[0], y, c, args[1], args[2], h))
+    twin = rounding_twin(lambda y, c, args, h: first_c(args[0], y, c, args[1], args[2], h), bit)
     return lambda ps, y, c, k, u, h: twin(y, c, (ps, k, u), h)
 
 
@@ -250,7 +255,7 @@ class GlobalErrorCheck:
         """The companion and its twin start at ``y`` (a batch: at the rows ``mask`` of ``y``, or all)."""
         if mask is None or self.runs is None:
             fresh = self.engine.fresh_comp
-            self.runs = (y, fresh, y, fresh)
+            self.runs = (y, fresh, y, fresh, y, fresh)
             batch = isinstance(y[0], np.ndarray)
             self.periods = np.zeros(len(y[0]), dtype=np.int64) if batch else 0
             self.roundoff = np.zeros(len(y[0])) if batch else 0.0
@@ -261,11 +266,11 @@ class GlobalErrorCheck:
                 if not batch:
                     self.engine.step_factor = 1.0
             return
-        yc, cc, yt, ct = self.runs
-        yc, yt = (tuple(np.where(mask, c, r) for c, r in zip(y, run)) for run in (yc, yt))
-        if cc is not None:
-            cc, ct = (tuple(np.where(mask, 0.0, c) for c in comp) for comp in (cc, ct))
-        self.runs = (yc, cc, yt, ct)
+        states, comps = self.runs[0::2], self.runs[1::2]
+        states = [tuple(np.where(mask, c, r) for c, r in zip(y, run)) for run in states]
+        if comps[0] is not None:
+            comps = [tuple(np.where(mask, 0.0, c) for c in comp) for comp in comps]
+        self.runs = tuple(x for pair in zip(states, comps) for x in pair)
         self.periods = np.where(mask, 0, self.periods)
         self.roundoff = np.where(mask, 0.0, self.roundoff)
         if self.refine:
@@ -278,18 +283,19 @@ class GlobalErrorCheck:
                 self.first = self.first - drop
 
     def _advance(self, runs, u, n):
-        """The companion's and its twin's period beside a main run's ``n`` steps under ``u``."""
-        yc, cc, yt, ct = runs
-        engine = self.engine
-        yc, cc = engine.companion(yc, u, n, cc)
-        yt, ct = engine.companion(yt, u, n, ct, twin=True)
-        return yc, cc, yt, ct
+        """The companion's and its twins' period beside a main run's ``n`` steps under ``u``."""
+        engine, out = self.engine, []
+        for twin in range(len(runs) // 2):  # (0: the companion; 1, 2: its twins)
+            out.extend(engine.companion(runs[2 * twin], u, n, runs[2 * twin + 1], twin=twin))
+        return tuple(out)
 
     def _estimate(self, y, runs):
         """``(estimate, roundoff)`` of the main run's ``y`` beside the companion and its twin
         (``runs``; floats, or arrays for a batch): ``MARGIN (D / (2^p - 1) + ROUNDOFF_WEIGHT
         D_t)`` and its second term."""
-        roundoff = MARGIN * ROUNDOFF_WEIGHT * relative_difference(self.blocks, runs[0], runs[2])
+        d1, d2 = relative_difference(self.blocks, runs[0], runs[2]), relative_difference(self.blocks, runs[0], runs[4])
+        larger = (d1 if d1 > d2 else d2) if isinstance(d1, float) else np.where(d1 > d2, d1, d2)  # (the same rule for floats and arrays)
+        roundoff = MARGIN * ROUNDOFF_WEIGHT * larger
         return MARGIN * relative_difference(self.blocks, y, runs[0]) / self.ratio + roundoff, roundoff
 
     def period(self, y, u, n):
@@ -391,7 +397,7 @@ class GlobalErrorCheck:
         did not meet); then the estimate's roundoff part."""
         engine, tol = self.engine, self.engine.tolerance
         y, comp = y0, None  # (the episode's start: zero compensation)
-        runs = (y0, None, y0, None)
+        runs = (y0, None) * 3
         e, roundoff, steps = 0.0, 0.0, 0
         for j, u in enumerate(controls):
             y, fired, h, comp = engine.advance(y, u, False, factor=factor, comp=comp)
@@ -405,5 +411,5 @@ class GlobalErrorCheck:
                 return None, e, j + 1, steps, roundoff
         if comp is None:
             fresh = engine.fresh_comp
-            comp, runs = fresh, (runs[0], fresh, runs[2], fresh)
+            comp, runs = fresh, (runs[0], fresh, runs[2], fresh, runs[4], fresh)
         return ((y, comp), runs), e, len(controls) + 1, steps, roundoff

@@ -41,7 +41,7 @@ import numpy as np
 
 from ..dynamics.validation import real_array
 from ..jit import compiled_form, jitable
-from .global_error import rounding_twin, rounding_twin_first
+from .global_error import TWIN_BITS, rounding_twin, rounding_twin_first
 from .guard import MAX_INTERNAL_STEPS
 from .hybrid import Switching
 
@@ -250,13 +250,14 @@ class Engine:
                 self.shared = (shared, rhs_event)
                 if compensate:
                     self.shared_c = first(system, compensated=True)
-        # tolerance_check's rounding twin (rbenvs.core.global_error): the compensated steps with
-        # every increment off by a unit roundoff; None without a check
-        self.twin_c = self.twin_first_c = None
+        # tolerance_check's two rounding twins (rbenvs.core.global_error): the compensated steps
+        # with every increment off by a unit roundoff, its sign from mantissa bit 21 or 17 of the
+        # increment; () without a check
+        self.twin_cs = self.twin_first_cs = ()
         if m.check and self.step_c is not None:
-            self.twin_c = rounding_twin(self.step_c)
+            self.twin_cs = tuple(rounding_twin(self.step_c, bit) for bit in TWIN_BITS)
             if self.shared_c is not None:
-                self.twin_first_c = rounding_twin_first(self.shared_c[0])
+                self.twin_first_cs = tuple(rounding_twin_first(self.shared_c[0], bit) for bit in TWIN_BITS)
         # the plain loop (substeps equal steps, nothing watched) is exact when no state inside
         # the observation bounds can trip the guard; a step that ends outside them drops to the
         # checked path until the next reset (the single env's and the vector env's rule); a
@@ -437,19 +438,19 @@ class Engine:
         return y, fired, np.broadcast_to(np.asarray(h, dtype=float), n.shape).copy(), comp
 
     def _compensated_steps(self, comp, twin):
-        """``(step_c, first_c)``, the compensated step and first-stage step a run takes (the
-        rounding twin's with ``twin``); ``None`` each where the run sums plainly (``comp`` is
-        ``None``) or the system has no such step."""
+        """``(step_c, first_c)``, the compensated step and first-stage step a run takes (rounding
+        twin ``twin``'s, 1 or 2; 0: the plain run's); ``None`` each where the run sums plainly
+        (``comp`` is ``None``) or the system has no such step."""
         if comp is None:
             return None, None
-        first_c = None if self.shared_c is None else (self.twin_first_c if twin else self.shared_c[0])
-        return (self.twin_c if twin else self.step_c), first_c
+        first_c = None if self.shared_c is None else (self.twin_first_cs[twin - 1] if twin else self.shared_c[0])
+        return (self.twin_cs[twin - 1] if twin else self.step_c), first_c
 
     def _run_one(self, y, u, n: int, h: float, comp=None, twin=False):
         """One state's ``n`` internal steps of ``h``, the switches after each and the terminal
         event ending them early: ``(y, fired, comp)``. ``comp``: the run's compensation at
         ``y`` (a tolerance: the compensated step carries it; it starts again from zero after a
-        switch); ``None``: the plain step. ``twin``: the rounding twin's steps (:attr:`twin_c`)."""
+        switch); ``None``: the plain step. ``twin``: rounding twin ``twin``'s steps (1 or 2, :attr:`twin_cs`; 0: the plain run's)."""
         if self.check and comp is not None:  # (the checked period's runs, compiled where they can be)
             runs = self._runs if self._runs_tried else self.checked_runs
             if runs is not None:
@@ -496,7 +497,7 @@ class Engine:
         where the main run took ``n`` (even, with ``tolerance_check``) steps of ``h = dt / n``:
         ``n / 2`` steps of ``2 h`` (one state: ``n`` an int; a batch: an int array); ``(y,
         comp)``, ``comp`` the companion's own compensation as :meth:`advance` carries it.
-        ``twin``: its rounding twin's (every increment off by a unit roundoff)."""
+        ``twin``: its rounding twin ``twin``'s (1 or 2: every increment off by a unit roundoff)."""
         if comp is None:
             comp = self.fresh_comp
         if not isinstance(y[0], np.ndarray):
@@ -510,7 +511,7 @@ class Engine:
         """A batch's internal steps: element ``i`` takes ``n[i]`` steps of ``h`` (``h[i]``) and is
         frozen after them or at its terminal event: ``(y, fired, comp)``. ``comp``: each
         element's compensation, carried as :meth:`_run_one` carries it (``None``: plain);
-        ``twin``: the rounding twin's steps."""
+        ``twin``: rounding twin ``twin``'s steps (1 or 2; 0: the plain run's)."""
         if self.check and comp is not None:  # (the checked period's runs, compiled where they can be)
             runs = self._runs if self._runs_tried else self.checked_runs
             if runs is not None and u is not None:
