@@ -17,8 +17,9 @@ on random free bodies against the exact solution (:func:`rbenvs.oracles.exact_so
   summed with compensation.
 * ``tolerance_check='refine' at 1e-10, 0.001 rad/s off the intermediate axis``: ten times closer,
   where float64's roundoff, amplified at every passage by the saddle, is about the tolerance:
-  the check's rounding twin must see it, so that the episode ends saying so rather than run
-  outside (measured over 24 bodies, seeds 0-3: 0.81 of the tolerance at worst, 17 of them ended;
+  the check's rounding twins must see it, so that the episode ends saying so rather than run
+  outside (measured over 24 bodies, seeds 0-3: 0.81 of the tolerance at worst, 17 of them ended,
+  with one twin and with two;
   before the twin, b790801, a scratch run: 6 ran outside, up to 3 times, none ended). The exact solution is exact enough
   here (4e-15 from mpmath's Taylor series on the default body).
 
