@@ -688,6 +688,20 @@ def test_the_rounding_twin_is_the_step_with_each_increment_off_by_a_unit_roundof
         assert tuple(float(col[i]) for col in out_y) == one_y and tuple(float(col[i]) for col in out_c) == one_c
 
 
+@pytest.mark.parametrize("off", [3e-4, 1.5e-4], ids=["0.0003_off", "0.00015_off"])
+def test_two_rounding_twins_hold_refine_where_one_fell_short(off):
+    """Where one twin's sample of the roundoff fell short (``rbenvs bench accuracy --floor``'s
+    0.0003 rad/s off at 1e-10, 2.44 times outside to period 352; a scratch start 0.00015 off,
+    1.26 times outside to 357; the bench's starts exactly, ``Omega_3 = 0.7 off``: a start one ulp
+    away is another realization of the rounding), the larger of two twins keeps every period
+    returned by ``"refine"`` within 1e-10 of the Taylor reference and ends the episode."""
+    w = (off, 5.0, 0.7 * off)
+    env = _refined_start(1e-10, w)
+    reference = _taylor_reference(w, 400, env.dt)
+    ended, info, said = _within_until_ended(env, 1e-10, lambda k: reference[k])
+    assert ended is not None and info["numerical_failure"]
+
+
 def _taylor_reference(w, periods, dt):
     """The body from the float64 ``Pi = I w`` over ``periods`` periods by mpmath's Taylor series
     (:func:`rbenvs.oracles.taylor_solution`; mpmath is a dev dependency: missing it must fail,
