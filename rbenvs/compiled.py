@@ -821,7 +821,7 @@ def state_kernel(layout: Layout):
 def run_kernel(layout: Layout, twin: int = 0):
     """The compiled internal steps of ONE state's run with a given count and step (the checked
     period's, ``tolerance_check``: the main run's even count, the companion's and its rounding
-    twin's half as many steps of twice the size; :meth:`rbenvs.core.step.Engine._run_one`), on
+    twins' half as many steps of twice the size; :meth:`rbenvs.core.step.Engine._run_one`), on
     tuples of floats, for a layout with ``step_c``. Signature::
 
         run(y, cc, u, c, hi, P) -> (y, fired, cc)
@@ -837,7 +837,7 @@ def run_kernel(layout: Layout, twin: int = 0):
     lines += ["    " + line for line in _steps_lines(L, twin)]
     lines += ["    return y, f, cc"]
     namespace = _namespace(L)
-    generate("\n".join(lines), f"run kernel dim={L.dim}{' twin' if twin else ''}", namespace)
+    generate("\n".join(lines), f"run kernel dim={L.dim} twin={twin}", namespace)
     return numba.njit(**KERNEL_OPTIONS)(namespace["run"])
 
 
@@ -860,7 +860,7 @@ def runs_kernel(layout: Layout, twin: int = 0):
     lines += ["        " + line for line in _steps_lines(L, twin)]
     lines += [f"        Y[{j}, i] = y[{j}]" for j in range(L.dim)] + [f"        CC[{j}, i] = cc[{j}]" for j in range(L.dim)] + ["        fired[i] = f"]
     namespace = _namespace(L)
-    generate("\n".join(lines), f"runs kernel dim={L.dim}{' twin' if twin else ''}", namespace)
+    generate("\n".join(lines), f"runs kernel dim={L.dim} twin={twin}", namespace)
     return numba.njit(**KERNEL_OPTIONS)(namespace["runs"])
 
 
@@ -875,15 +875,15 @@ class CheckedRuns:
         layout, params, _, _ = _layout(parts, dim, n_obs, n_control, n_action, sample)
         if layout.step_c is None:
             raise ValueError("the checked runs need a compensated step (a tolerance)")
-        self.kernels = (run_kernel(layout), run_kernel(layout, 1), run_kernel(layout, 2))
-        self.layout = layout
+        self.kernels = tuple(run_kernel(layout, twin) for twin in range(3))  # (0: the plain run; 1, 2: the twins)
+        self.batch_kernels = tuple(runs_kernel(layout, twin) for twin in range(3))
         self.params = (params[0], params[8], params[9])  # PS, PV, PW
         self._calls = [None, None, None]
 
     def batch(self, Y, CC, U, counts, H, fired, twin: int = 0) -> None:
         """A batch's runs in place (:func:`runs_kernel`): ``Y``, ``CC`` ``(dim, n)``, ``U``
         ``(n_control, n)``, ``counts``, ``H`` ``(n,)``, ``fired`` written."""
-        runs_kernel(self.layout, twin)(Y, CC, U, counts, H, fired, self.params)
+        self.batch_kernels[twin](Y, CC, U, counts, H, fired, self.params)
 
     def __call__(self, y, cc, u, c: int, hi: float, twin: int = 0):
         k = int(twin)

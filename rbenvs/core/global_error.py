@@ -106,15 +106,15 @@ MIN_REFINEMENT = 1.1
 AIM = 8.0
 # at most this many replays for one period; past them the episode ends as with tolerance_check=True
 MAX_REPLAYS = 4
-# float64's unit roundoff: the rounding twin's increments are off by it (relative), in a sign
+# float64's unit roundoff: the rounding twins' increments are off by it (relative), in a sign
 # the increment's own low bits pick
 UNIT_ROUNDOFF = 2.0**-53
 # refine gives up where the estimate's roundoff part is at least this share of the tolerance:
 # more steps take the steps' error down, not the roundoff a motion amplified (near the saddle a
 # run's rounding repeats itself step after step), so a replay aimed within could not get there
 ROUNDOFF_SHARE = 0.5
-# the estimate counts the rounding twin's difference this many times: the main run takes twice
-# the twin's steps, each rounding several operations (measured: its error ended 1.28 times the
+# the estimate counts the rounding twins' (larger) difference this many times: the main run takes
+# twice a twin's steps, each rounding several operations (measured: its error ended 1.28 times the
 # truncation estimate plus the twin's difference where roundoff dominated; the module docstring)
 ROUNDOFF_WEIGHT = 2.0
 
@@ -242,17 +242,17 @@ class GlobalErrorCheck:
         self.engine = engine
         self.blocks = tolerance_blocks(engine.system)
         self.ratio = companion_ratio(engine.integrator.order)
-        # the companion's state and compensation (yc, cc) and its rounding twin's (yt, ct)
+        # the companion's state and compensation (yc, cc) and its two rounding twins' (yt, ct, ys, cs)
         self.runs = None
         self.periods = 0
-        self.roundoff = 0.0  # the last period's estimate's roundoff part (ROUNDOFF_WEIGHT times the twin's difference)
+        self.roundoff = 0.0  # the last period's estimate's roundoff part (ROUNDOFF_WEIGHT times the twins' larger difference)
         self.refine = bool(refine)
         # with refine: the episode's start, the controls of its periods (a batch: one entry per
         # step, row i's from index first[i]) and the factor on the guard's counts
         self.y0, self.controls, self.first, self.factor = None, [], 0, 1.0
 
     def restart(self, y, mask=None):
-        """The companion and its twin start at ``y`` (a batch: at the rows ``mask`` of ``y``, or all)."""
+        """The companion and its twins start at ``y`` (a batch: at the rows ``mask`` of ``y``, or all)."""
         if mask is None or self.runs is None:
             fresh = self.engine.fresh_comp
             self.runs = (y, fresh, y, fresh, y, fresh)
@@ -290,9 +290,9 @@ class GlobalErrorCheck:
         return tuple(out)
 
     def _estimate(self, y, runs):
-        """``(estimate, roundoff)`` of the main run's ``y`` beside the companion and its twin
+        """``(estimate, roundoff)`` of the main run's ``y`` beside the companion and its twins
         (``runs``; floats, or arrays for a batch): ``MARGIN (D / (2^p - 1) + ROUNDOFF_WEIGHT
-        D_t)`` and its second term."""
+        D_t)``, ``D_t`` the larger twin's difference, and its second term."""
         d1, d2 = relative_difference(self.blocks, runs[0], runs[2]), relative_difference(self.blocks, runs[0], runs[4])
         larger = (d1 if d1 > d2 else d2) if isinstance(d1, float) else np.where(d1 > d2, d1, d2)  # (the same rule for floats and arrays)
         roundoff = MARGIN * ROUNDOFF_WEIGHT * larger
@@ -300,7 +300,7 @@ class GlobalErrorCheck:
 
     def period(self, y, u, n):
         """After a period that took ``y``'s run ``n`` (even) steps under ``u``: the companion's
-        and its twin's period, and the global error estimate of ``y`` (:attr:`roundoff`: its
+        and its twins' period, and the global error estimate of ``y`` (:attr:`roundoff`: its
         roundoff part)."""
         self.runs = self._advance(self.runs, u, n)
         self.periods = self.periods + 1
@@ -321,9 +321,9 @@ class GlobalErrorCheck:
         keeps, ``None`` where the period failed; ``n`` its steps), until its estimate is within,
         at most :data:`MAX_REPLAYS` times. ``row``: a batch's sub-env, whose episode is replayed
         on floats (the single env's steps, bit for bit; ``u`` then that row's floats). ``spent``:
-        the steps the period's first try took, the companion's and the twin's included. Returns
+        the steps the period's first try took, the companion's and the twins' included. Returns
         ``(result, estimate, steps)``, ``steps`` all those taken beyond the kept period's own
-        (``n`` and :func:`companion_steps`), and leaves the companion, its twin and the factor
+        (``n`` and :func:`companion_steps`), and leaves the companion, its twins and the factor
         with the result; ``result`` is ``None`` where the tolerance could not be held (the
         factor then stays as it was). With compensation (:attr:`rbenvs.core.step.Engine.step_c`)
         ``redo`` starts from the replayed run's: one state's in ``engine.comp`` (the single
@@ -390,8 +390,8 @@ class GlobalErrorCheck:
 
     def _replay(self, y0, controls, factor):
         """One state's periods from ``y0`` under ``controls`` with the guard's counts times
-        ``factor``, the companion and its twin beside them: ``(((y, comp), runs), e, k, steps, roundoff)``
-        at the end (each run with its compensation; ``runs`` the companion's and the twin's),
+        ``factor``, the companion and its twins beside them: ``(((y, comp), runs), e, k, steps, roundoff)``
+        at the end (each run with its compensation; ``runs`` the companion's and the twins'),
         or ``(None, e, k, steps)`` at the ``k``-th period, whose estimate ``e`` passed the
         tolerance (``inf``: a terminal event fired or the state went non-finite, which the run
         did not meet); then the estimate's roundoff part."""

@@ -293,7 +293,7 @@ class Engine:
         # episode was replayed with more steps (rbenvs.core.global_error.GlobalErrorCheck.hold)
         self.step_factor = 1.0
         # the checked period's runs of one state, compiled (rbenvs.compiled.CheckedRuns: the main
-        # run's count, the companion's and its twin's, each a given count and step): "auto" uses
+        # run's count, the companion's and its twins', each a given count and step): "auto" uses
         # them where numba is installed and every part has a pure form, built on the first run;
         # the guard's count, the estimate and the finish stay on floats
         self._runs, self._runs_tried = None, True
@@ -446,7 +446,7 @@ class Engine:
         first_c = None if self.shared_c is None else (self.twin_first_cs[twin - 1] if twin else self.shared_c[0])
         return (self.twin_cs[twin - 1] if twin else self.step_c), first_c
 
-    def _run_one(self, y, u, n: int, h: float, comp=None, twin=False):
+    def _run_one(self, y, u, n: int, h: float, comp=None, twin=0):
         """One state's ``n`` internal steps of ``h``, the switches after each and the terminal
         event ending them early: ``(y, fired, comp)``. ``comp``: the run's compensation at
         ``y`` (a tolerance: the compensated step carries it; it starts again from zero after a
@@ -492,7 +492,7 @@ class Engine:
                     return y, True, comp
         return y, False, comp
 
-    def companion(self, y, u, n, comp=None, twin=False):
+    def companion(self, y, u, n, comp=None, twin=0):
         """The companion run's period (:mod:`rbenvs.core.global_error`) from ``y`` under ``u``,
         where the main run took ``n`` (even, with ``tolerance_check``) steps of ``h = dt / n``:
         ``n / 2`` steps of ``2 h`` (one state: ``n`` an int; a batch: an int array); ``(y,
@@ -507,7 +507,7 @@ class Engine:
         y, _, comp = self._loop(y, u, n // 2, 2.0 * self.dt / n, comp, twin)
         return y, comp
 
-    def _loop(self, y, u, n, h, comp=None, twin=False):
+    def _loop(self, y, u, n, h, comp=None, twin=0):
         """A batch's internal steps: element ``i`` takes ``n[i]`` steps of ``h`` (``h[i]``) and is
         frozen after them or at its terminal event: ``(y, fired, comp)``. ``comp``: each
         element's compensation, carried as :meth:`_run_one` carries it (``None``: plain);
@@ -777,8 +777,8 @@ class Engine:
     def _inaccurate_text(self, estimate, periods, refine=False, roundoff=0.0) -> str:
         passed = (f"the global error estimate {float(estimate):.3g} passed tolerance={self.tolerance!r} after {int(periods)} periods "
                   f"({int(periods) * self.dt:.6g} s")
-        if 2.0 * float(roundoff) >= float(estimate):  # (most of it the rounding twin's: rbenvs.core.global_error)
-            return (f"{passed}), {float(roundoff):.3g} of it roundoff the motion amplified (the rounding twin's: tolerance_check), which "
+        if 2.0 * float(roundoff) >= float(estimate):  # (most of it the rounding twins': rbenvs.core.global_error)
+            return (f"{passed}), {float(roundoff):.3g} of it roundoff the motion amplified (the rounding twins': tolerance_check), which "
                     f"more steps do not reduce: the tolerance is below what float64 carries through this motion; a larger tolerance holds")
         if refine:
             return (f"{passed}) and replaying the episode with more steps did not hold it (tolerance_check='refine': "

@@ -499,7 +499,7 @@ class RigidBodyEnv(gym.Env):
         e = check.period(out[0], out[5], n)
         replayed = 0
         if e > engine.tolerance:
-            # the companion, its twin and the run stay with the state kept; hold moves them on
+            # the companion, its twins and the run stay with the state kept; hold moves them on
             check.runs, check.periods, engine.comp = runs0, check.periods - 1, comp0
             held = None
             if check.refine:

@@ -115,17 +115,17 @@ class RigidBodyVectorEnv(VectorEnv):
         # the robustness options (rbenvs.envs.options), validated by the single env
         self._template, self._ranges, self._realism = env, env.param_ranges, env.realism
         # tolerance_check: the companion run of every sub-env (rbenvs.core.global_error), on the
-        # numpy path, its runs (the main run's, the companion's and the twin's) sub-env by sub-env
-        # through the compiled single-state runs where numba is installed (rbenvs.compiled.CheckedRuns;
-        # with compiled=False on numpy); the batch kernel has no checked period
+        # numpy path, its runs (the main run's, the companion's and the twins') in one compiled loop
+        # over the sub-envs where numba is installed (rbenvs.compiled.CheckedRuns.batch; with
+        # compiled=False on numpy); the batch kernel has no checked period
         self._check = GlobalErrorCheck(self.engine, env.model.refine) if env.model.check else None
         self._global = None  # the last step's global error estimates
-        self._roundoff = None  # and their roundoff parts (the rounding twin's)
+        self._roundoff = None  # and their roundoff parts (the rounding twins')
         self._replayed = self._factor = None  # tolerance_check="refine": the last step's replayed steps and factors
         if self._check is not None:
             if compiled is True:
                 raise ValueError("compiled=True cannot be had with tolerance_check=True: the checked period (an even count of steps "
-                                 "and the companion run) runs on numpy, its runs sub-env by sub-env (compiled where numba is installed); "
+                                 "and the companion run) runs on numpy, its runs in a compiled loop over the sub-envs (where numba is installed); "
                                  "pass compiled='auto' or False")
             compiled = False
         self._options = self._ranges is not None or self._realism.active
