@@ -187,21 +187,32 @@ class Layout(NamedTuple):
     step_c: Callable | None = None
 
 
+def _ratio_lines(L: Layout, u: str, parts: bool = False) -> list[str]:
+    """Lines that set ``x``, the guard's ratio for the state ``y`` (and controls ``u``): the step
+    core's rule (:meth:`StepRule.ratio`). ``parts``: also keep what the period's error estimate
+    reads (:meth:`StepRule.plan`): the rate(s) ``r``, the decaying rate ``rate`` (0 where it is
+    not positive) and its share ``a`` (1 where the rate is 0)."""
+    rotation = "rotation(PA, y, u)" if L.motion else "rotation(PA, y)"
+    ratio = "step_ratio_motion" if L.motion else "step_ratio"
+    lines = [u] if L.motion else []  # the state's own speed in the accuracy term: rotation(PA, y, u) -> (lambda, mu, lambda_e)
+    lines += [f"r = {rotation}", f"x = {ratio}(PG, r)"] if parts else [f"x = {ratio}(PG, {rotation})"]
+    if L.dissipation is None:
+        return lines + (["rate = 0.0", "a = 1.0"] if parts else [])
+    # v > x: Python's max(x, v), the float path's (NaN in x stays NaN); a tolerance's term for
+    # the decaying mode (0 without one), times the mode's share where the system declares one
+    pd, a = ("PD[0]", "share(PD[1], y, u, dt, PG[4], rate)") if L.share is not None else ("PD", "1.0")
+    relax = [f"    a = {a}", "    v = relaxation_steps(PG, rate, a)"] if parts else [f"    v = relaxation_steps(PG, rate, {a})"]
+    lines += [u, *(["a = 1.0"] if parts else []), f"rate = dissipation({pd}, y, u)", "if rate > 0.0:", "    v = dt / (CD / rate)", "    if v > x:", "        x = v",
+              *relax, "    if v > x:", "        x = v"]
+    return lines + (["else:", "    rate = 0.0"] if parts else [])
+
+
 def _count_lines(L: Layout, u: str) -> list[str]:
     """Lines that raise the count ``c`` (set to ``substeps``) to the guard's for the state ``y``
     (and controls ``u``), counting ``need``: the step core's rule (:meth:`StepRule.steps`)."""
     from .core.guard import MAX_INTERNAL_STEPS
 
-    lines = ["x = step_ratio(PG, rotation(PA, y))"]
-    if L.motion:  # the state's own speed in the accuracy term: rotation(PA, y, u) -> (lambda, mu)
-        lines = [u, "x = step_ratio_motion(PG, rotation(PA, y, u))"]
-    if L.dissipation is not None:
-        # v > x: Python's max(x, v), the float path's (NaN in x stays NaN); a tolerance's term for
-        # the decaying mode (0 without one), times the mode's share where the system declares one
-        pd, a = ("PD[0]", "share(PD[1], y, u, dt, PG[4], rate)") if L.share is not None else ("PD", "1.0")
-        lines += [u, f"rate = dissipation({pd}, y, u)", "if rate > 0.0:", "    v = dt / (CD / rate)", "    if v > x:", "        x = v",
-                  f"    v = relaxation_steps(PG, rate, {a})", "    if v > x:", "        x = v"]
-    return lines + ["if not (x <= substeps):", f"    c = ceil(x) if x <= {MAX_INTERNAL_STEPS} else {MAX_INTERNAL_STEPS + 1}", "    need += 1"]
+    return _ratio_lines(L, u) + ["if not (x <= substeps):", f"    c = ceil(x) if x <= {MAX_INTERNAL_STEPS} else {MAX_INTERNAL_STEPS + 1}", "    need += 1"]
 
 
 def _locate_lines(k: int) -> list[str]:
@@ -862,6 +873,51 @@ def runs_kernel(layout: Layout, twin: int = 0):
     namespace = _namespace(L)
     generate("\n".join(lines), f"runs kernel dim={L.dim} twin={twin}", namespace)
     return numba.njit(**KERNEL_OPTIONS)(namespace["runs"])
+
+
+@lru_cache(maxsize=None)
+def plan_kernel(layout: Layout):
+    """The guard's ratio and the rates of ONE state's period, compiled (a tolerance's single-env
+    step: its count and its ``info["error_estimate"]`` from one evaluation;
+    :meth:`rbenvs.core.guard.StepRule.plan`, whose values it returns bit for bit). Signature::
+
+        plan(y, u, P) -> (x, r, rate, a)
+
+    ``P = (PG, PA, PD, CD)``; ``x`` the ratio (the period needs ``ceil(x)`` steps), ``r`` the
+    rate(s) (``(lambda, mu, lambda_e)`` with the state's own speed), ``rate`` the decaying rate
+    (0 where it is not positive) and ``a`` its share (1 where ``rate`` is 0)."""
+    import numba
+
+    L = layout
+    lines = ["def plan(y, u, P):", "    PG, PA, PD, CD = P", "    dt = PG[0]"]
+    lines += ["    " + line for line in _ratio_lines(L, "u = u", parts=True)]
+    lines += ["    return x, r, rate, a"]
+    namespace = _namespace(L)
+    generate("\n".join(lines), f"plan kernel dim={L.dim}", namespace)
+    return numba.njit(**KERNEL_OPTIONS)(namespace["plan"])
+
+
+class StatePlan:
+    """One env's compiled :func:`plan_kernel` with its parameters: calling it with one state
+    ``y`` and its control ``u`` (tuples of floats) returns ``(x, r, rate, a)``, the bits of
+    :meth:`rbenvs.core.guard.StepRule.plan`. The first call compiles (about a second per layout
+    and process) and then takes its overload's entry point."""
+
+    def __init__(self, parts, dim: int, n_obs: int, n_control: int, n_action: int, sample):
+        layout, params, _, _ = _layout(parts, dim, n_obs, n_control, n_action, sample)
+        if layout.rotation is None:
+            raise ValueError("the plan needs the guard's rate (a step rule that can ask for steps)")
+        self.kernel = plan_kernel(layout)
+        self.params = params[4:8]  # PG, PA, PD, CD
+        self._call = None
+
+    def __call__(self, y, u):
+        call = self._call
+        if call is not None:
+            return call(y, u, self.params)
+        out = self.kernel(y, u, self.params)  # compiles
+        self._call = _entry_point(self.kernel, (y, u, self.params))
+        return out
 
 
 class CheckedRuns:

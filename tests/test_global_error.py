@@ -174,7 +174,9 @@ def test_the_checked_periods_compiled_runs_are_the_float_paths_bits(scene):
     count and step, the companion's and its rounding twin's half as many of twice the size, from
     states along an episode (with free flight: every period with a take-off or touchdown inside
     it, a top hopping many times a period; with the stem: every period that lands on it or
-    leaves it), compensations carried."""
+    leaves it), compensations carried; and the period's plan (:class:`rbenvs.compiled.StatePlan`:
+    the guard's ratio, the rates and the decaying mode's rate and share its estimate reads)
+    against :meth:`StepRule.plan` at the same states, under no control and a random one."""
     from rbenvs import compiled
     from rbenvs.scenes import load_scene
 
@@ -199,8 +201,15 @@ def test_the_checked_periods_compiled_runs_are_the_float_paths_bits(scene):
     fast = (make(check=True) if scene is None else make(tolerance_check=True)).engine
     slow = (make(check=True, compiled=False) if scene is None else make(tolerance_check=True, compiled=False)).engine
     assert fast.checked_runs is not None and slow.checked_runs is None
+    assert fast.planner is not None and slow.planner is None
+    rng = np.random.default_rng(5)
     switched = 0
     for y, comp, u, n in inputs:
+        for v in (u, fast.control(tuple(float(c) for c in rng.uniform(-1.0, 1.0, fast.actuator.size)))[1]):
+            plan = fast.plan_one(y, v)
+            assert plan == slow.plan_one(y, v) == slow.rule.plan(y, v), plan
+        count = fast.rule.count(fast.plan_one(y, u)[0], fast.substeps)
+        assert count + (count & 1) == n  # (the inputs' count, the guard's made even, is the plan's)
         for c, h in ((n, fast.dt / n), (n // 2, 2.0 * fast.dt / n)):
             for twin in (0, 1, 2):
                 got, want = fast._run_one(y, u, c, h, comp, twin), slow._run_one(y, u, c, h, comp, twin)

@@ -335,14 +335,21 @@ def test_tolerance_lockstep_vector_equals_single_envs_bit_for_bit(case, mode, ve
     assert len(counts) > 1  # the counts differ between sub-envs or periods: the rule acted per state
 
 
-@pytest.mark.parametrize("env_id,kwargs,max_steps,steps", LOCKSTEP, ids=[e.split("/")[1] + "-" + kw["integrator"] for e, kw, _, _ in LOCKSTEP])
-def test_tolerance_single_env_compiled_equals_the_float_path(env_id, kwargs, max_steps, steps):
+# with tolerance_check the period's count and estimate come from the compiled plan and its runs from
+# the compiled checked runs (rbenvs.compiled.StatePlan, CheckedRuns): the same bits as on floats
+SINGLE_PATHS = [(case, False) for case in LOCKSTEP] + [(LOCKSTEP[i], check) for i, check in ((0, True), (2, True), (3, True), (3, "refine"))]
+
+
+@pytest.mark.parametrize("env_id,kwargs,max_steps,steps,check", [(*case, check) for case, check in SINGLE_PATHS],
+                         ids=[c[0].split("/")[1] + "-" + c[1]["integrator"] + ("" if k is False else f"-check_{k}") for c, k in SINGLE_PATHS])
+def test_tolerance_single_env_compiled_equals_the_float_path(env_id, kwargs, max_steps, steps, check):
     import gymnasium as gym
 
     from rbenvs import compiled
 
     if not compiled.available():
         pytest.skip("the compiled path needs numba")
+    kwargs = dict(kwargs, tolerance_check=check)
     fast = gym.make(env_id, compiled=True, max_episode_steps=max_steps, **kwargs)
     slow = gym.make(env_id, compiled=False, max_episode_steps=max_steps, **kwargs)
     fast.reset(seed=4)
@@ -356,7 +363,12 @@ def test_tolerance_single_env_compiled_equals_the_float_path(env_id, kwargs, max
         if tf or uf:
             fast.reset()
             slow.reset()
-    assert fast.unwrapped.compiled
+    engine = fast.unwrapped.engine
+    if not check:
+        assert fast.unwrapped.compiled
+    else:  # (a checked period is not one compiled call: its plan and its runs are)
+        assert "global_error_estimate" in i_f and engine.checked_runs is not None
+    assert engine.planner is not None and slow.unwrapped.engine.planner is None
 
 
 @pytest.mark.parametrize("friction", [dict(), dict(friction_law="viscous", friction=3.0)], ids=["coulomb", "viscous"])

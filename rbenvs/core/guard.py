@@ -442,8 +442,36 @@ class StepRule:
             return f"the stability bound ({self.text})"
         return f"the tolerance ({self.accuracy_text})"
 
+    def plan(self, y, u):
+        """One state's (floats) ``(x, lam, lam_d, a)`` at ``y`` under ``u``: the ratio ``x`` of
+        :meth:`ratio`, the rate(s) of :meth:`rate`, the decaying rate ``lam_d`` of
+        :meth:`dissipation_rate` (0 without one) and its share ``a`` (:meth:`dissipation_share`;
+        1 where ``lam_d`` is 0, whose term is then 0), each evaluated once: the period's count
+        (:meth:`count`) and its error estimate (:meth:`estimate`) come from the same values
+        (compiled: :func:`rbenvs.compiled.plan_kernel`, the same lines as the kernels' count)."""
+        fn, p = self.rotation
+        if self.motion:
+            lam = fn(p, y, self.zero_control if u is None else u)
+            x = step_ratio_motion(self.params, lam)
+        else:
+            lam = fn(p, y)
+            x = step_ratio(self.params, lam)
+        rate, a = 0.0, 1.0
+        if self.dissipation is not None:
+            fd, pd = self.dissipation
+            r = fd(pd, y, u)
+            if r > 0.0:
+                rate = r
+                x = max(x, self.params[0] / (self.dissipation_step / rate))
+                a = self.dissipation_share(y, u, rate)
+                if self.params[5] != 0.0:
+                    x = max(x, relaxation_steps(self.params, rate, a))
+        return x, lam, rate, a
+
     def ratio(self, y, u):
         """``x`` at ``y`` under ``u`` (the period needs ``ceil(x)`` steps); floats or arrays."""
+        if not isinstance(y[0], np.ndarray):
+            return self.plan(y, u)[0]
         fn, p = self.rotation
         if self.motion:
             x = step_ratio_motion(self.params, fn(p, y, self.zero_control if u is None else u))
@@ -453,7 +481,7 @@ class StepRule:
             fd, pd = self.dissipation
             rate = fd(pd, y, u)
             dt = self.params[0]
-            if type(rate) is float:
+            if type(rate) is float:  # (a rate constant over the batch)
                 if rate > 0.0:
                     x = max(x, dt / (self.dissipation_step / rate))
                     if self.params[5] != 0.0:
@@ -479,6 +507,12 @@ class StepRule:
             return False
         return step_ratio(self.params, self.ceiling * (1.0 + 1e-9)) <= substeps
 
+    def count(self, x: float, substeps: int) -> int:
+        """One state's count from its ratio ``x`` (:meth:`plan`): :meth:`steps`' rule."""
+        if not self.active or x <= substeps:
+            return substeps
+        return math.ceil(x) if x <= MAX_INTERNAL_STEPS else MAX_INTERNAL_STEPS + 1
+
     def steps(self, y, u, substeps: int):
         """``max(substeps, ceil(x))``, or ``MAX_INTERNAL_STEPS + 1`` (refused: a numerical
         failure) for a non-finite or absurd ``x``: an int, or an int array for a batch."""
@@ -486,10 +520,7 @@ class StepRule:
             return substeps
         x = self.ratio(y, u)
         if type(x) is float or np.ndim(x) == 0:
-            x = float(x)
-            if x <= substeps:
-                return substeps
-            return math.ceil(x) if x <= MAX_INTERNAL_STEPS else MAX_INTERNAL_STEPS + 1
+            return self.count(float(x), substeps)
         x = np.broadcast_to(x, np.shape(y[0]))
         with np.errstate(invalid="ignore"):
             n = np.where(x <= MAX_INTERNAL_STEPS, np.ceil(np.where(x <= MAX_INTERNAL_STEPS, x, 0.0)), MAX_INTERNAL_STEPS + 1)

@@ -295,8 +295,12 @@ class Engine:
         # the checked period's runs of one state, compiled (rbenvs.compiled.CheckedRuns: the main
         # run's count, the companion's and its twins', each a given count and step): "auto" uses
         # them where numba is installed and every part has a pure form, built on the first run;
-        # the guard's count, the estimate and the finish stay on floats
+        # the period's count and rates come from its plan (below), the finish stays on floats
         self._runs, self._runs_tried = None, True
+        # a tolerance's one-state count and error estimate from one evaluation of the rates, compiled
+        # (rbenvs.compiled.StatePlan; the float path: StepRule.plan): "auto" where numba is
+        # installed and every part has a pure form, built on first use
+        self._plan, self._plan_tried = None, m.tolerance is None or compiled is False or self.rule.rotation is None
         if m.check:
             self.plain, self._state_step, self._state_step_tried = False, None, True
             self._runs_tried = compiled is False
@@ -351,6 +355,27 @@ class Engine:
             self._runs = self._build_runs(required=False)
         return self._runs
 
+    @property
+    def planner(self):
+        """The compiled plan of one state's period (:class:`rbenvs.compiled.StatePlan`), or
+        ``None`` (the float path's :meth:`StepRule.plan`; always without a tolerance); built
+        on first use."""
+        if not self._plan_tried:
+            from .. import compiled as _compiled
+
+            self._plan_tried = True
+            inputs = self._compiled_inputs(required=False)
+            self._plan = None if inputs is None else _compiled.StatePlan(inputs[0], *inputs[1])
+        return self._plan
+
+    def plan_one(self, y, u):
+        """One state's ``(x, lam, lam_d, a)`` (:meth:`StepRule.plan`): the guard's ratio and
+        the rates its error estimate reads, compiled where it can be."""
+        plan = self._plan if self._plan_tried else self.planner
+        if plan is not None:
+            return plan(y, u)
+        return self.rule.plan(y, u)
+
     def _build_runs(self, required: bool):
         from .. import compiled as _compiled
 
@@ -359,7 +384,7 @@ class Engine:
         return None if inputs is None else _compiled.CheckedRuns(inputs[0], *inputs[1])
 
     # ------------------------------------------------------------------ the period
-    def advance(self, y, u, plain: bool, skip=None, factor=None, comp=None):
+    def advance(self, y, u, plain: bool, skip=None, factor=None, comp=None, ratio=None):
         """One control period from ``y`` under ``u``: ``(y, fired, h, comp)``.
 
         ``fired``: whether the terminal event ended the period (a bool, or a mask for a batch);
@@ -373,7 +398,8 @@ class Engine:
         count times it, rounded up (a batch: one per element; one state: ``None`` reads
         :attr:`step_factor`, the single env's). ``comp``: the run's compensation at ``y`` (a
         tolerance: :attr:`step_c`; ``None`` is zero), returned as it is after the period
-        (``None`` without compensation; a refused period's is zero).
+        (``None`` without compensation; a refused period's is zero). ``ratio`` (one state): the
+        guard's ratio at ``y`` under ``u`` where the caller has it (:meth:`plan_one`).
         """
         if plain:
             step, h = self.bound_step, self.h
@@ -383,9 +409,11 @@ class Engine:
             return y, False, h, None
         if comp is None:
             comp = self.fresh_comp
-        n = self.rule.steps(y, u, self.substeps)
         event = self.event
         if not isinstance(y[0], np.ndarray):  # one state: plain Python (no numpy call per period)
+            n = self.substeps
+            if self.rule.active:
+                n = self.rule.count(self.plan_one(y, u)[0] if ratio is None else ratio, n)
             if factor is None:
                 factor = self.step_factor
             if factor != 1.0 and n <= MAX_INTERNAL_STEPS:
@@ -402,7 +430,7 @@ class Engine:
             y, fired, comp = self._run_one(y, u, n, h, comp)
             return y, fired, h, comp
         # a batch: the same rules per element (each takes its own count, then is frozen)
-        n = np.broadcast_to(np.asarray(n), np.shape(y[0]))
+        n = np.broadcast_to(np.asarray(self.rule.steps(y, u, self.substeps)), np.shape(y[0]))
         if factor is not None:  # (the same IEEE product and ceiling as one state's)
             n = np.where(n <= MAX_INTERNAL_STEPS, np.minimum(np.ceil(n * np.asarray(factor, dtype=np.float64)), MAX_INTERNAL_STEPS + 1), n).astype(np.int64)
         if self.check:
@@ -683,12 +711,13 @@ class Engine:
         _, _, metrics = self.evaluate(y, self.actuator.control((0.0,) * self.actuator.size)[0])
         return obs, self.info_one(y, None, False, self.h, metrics, failed=False)
 
-    def step_one(self, y0, a, plain: bool):
+    def step_one(self, y0, a, plain: bool, ratio=None):
         """One control period of one env from ``y0`` under the action ``a`` (validated floats):
         a plain tuple in the fields of :class:`~rbenvs.contracts.StepResult` ``(y, obs, reward,
         terminated, info, u, plain)``, ``u`` the control that acted and ``plain`` whether the
         next period may take the plain loop (a tuple, not the NamedTuple itself: making one
-        costs 0.2 us, 4 % of a free-body step; ``StepResult._make`` names it off the hot path)."""
+        costs 0.2 us, 4 % of a free-body step; ``StepResult._make`` names it off the hot path).
+        ``ratio``: the guard's ratio at ``y0`` where the caller has it (:meth:`plan_one`)."""
         u_norm, u = self.control(a)
         one = self._state_step if self._state_step_tried else self.state_step
         if one is not None:  # the same period and finish, compiled: one call
@@ -719,7 +748,7 @@ class Engine:
                     y = step(y, u, h)
             fired = False
         else:
-            y, fired, h, comp = self.advance(y0, u, False, comp=self.comp)
+            y, fired, h, comp = self.advance(y0, u, False, comp=self.comp, ratio=ratio)
         # a non-finite component makes the sum non-finite; the exact test runs only then
         if not math.isfinite(sum(y)) and not all(math.isfinite(c) for c in y):
             return self._failed_one(y0, u_norm, u, h, plain)
@@ -745,14 +774,10 @@ class Engine:
     def _step_one_estimated(self, y0, a, plain):
         """:meth:`step_one` with ``info["error_estimate"]``: the period's estimated relative error
         (:func:`rbenvs.core.guard.error_estimate`, from the rate at ``y0`` and the step taken)."""
-        rule = self.rule
-        u = self.control(a)[1]
-        lam = rule.rate(y0, u)
-        lam_d = rule.dissipation_rate(y0, u) if rule.dissipation is not None else 0.0
-        share = rule.dissipation_share(y0, u, lam_d) if rule.dissipation is not None else 1.0
-        out = Engine.step_one(self, y0, a, plain)
+        x, lam, lam_d, share = self.plan_one(y0, self.control(a)[1])
+        out = Engine.step_one(self, y0, a, plain, x)  # (the period's count from the same x)
         info = out[4]
-        info["error_estimate"] = float(rule.estimate(lam, info["internal_step"], lam_d, share))
+        info["error_estimate"] = float(self.rule.estimate(lam, info["internal_step"], lam_d, share))
         return out
 
     def _cap_text(self, h, y0=None, u=None) -> str:

@@ -413,6 +413,7 @@ class RigidBodyVectorEnv(VectorEnv):
             lam_d = np.array(rule.dissipation_rate(self._y, u), dtype=np.float64)
             with np.errstate(over="ignore", invalid="ignore", divide="ignore"):  # (a blown-up sub-env is reported by the step)
                 share = np.array(rule.dissipation_share(self._y, u, lam_d), dtype=np.float64)
+            share = np.where(lam_d > 0.0, share, 1.0)  # (StepRule.plan's: no decaying mode, no share of it)
         restart = self._prev_done.copy() if self.autoreset_mode is AutoresetMode.NEXT_STEP else self._false
         obs, reward, terminated, truncated, info = self._step(actions)
         estimate = np.broadcast_to(rule.estimate(lam, self._period_h, lam_d, share), (self.num_envs,)).astype(np.float64)
