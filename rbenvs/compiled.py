@@ -49,7 +49,7 @@ from .jit import register as _register
 from .jit import register_all as _register_all
 
 __all__ = ["jitable", "available", "Layout", "VectorLayout", "batch_kernel", "vector_kernel", "rows_kernel", "finish_kernel", "state_kernel", "physics_kernel",
-           "run_kernel", "runs_kernel", "CheckedRuns", "state_finish", "info_function", "BatchStep", "BatchResult", "VectorStep", "VectorResult", "StateStep", "DISABLE_VARIABLE", "LLVM_OPTIONS"]
+           "run_kernel", "runs_kernel", "CheckedRuns", "plan_kernel", "plans_kernel", "PeriodPlan", "state_finish", "info_function", "BatchStep", "BatchResult", "VectorStep", "VectorResult", "StateStep", "DISABLE_VARIABLE", "LLVM_OPTIONS"]
 
 # How every kernel is compiled. error_model="numpy": a float division by zero gives inf/nan as
 # on arrays (and needs no per-element check, which would keep the loops out of SIMD
@@ -187,23 +187,30 @@ class Layout(NamedTuple):
     step_c: Callable | None = None
 
 
-def _ratio_lines(L: Layout, u: str, parts: bool = False) -> list[str]:
+def _ratio_lines(L: Layout, u: str, parts: bool = False, ratio: bool = True) -> list[str]:
     """Lines that set ``x``, the guard's ratio for the state ``y`` (and controls ``u``): the step
     core's rule (:meth:`StepRule.ratio`). ``parts``: also keep what the period's error estimate
     reads (:meth:`StepRule.plan`): the rate(s) ``r``, the decaying rate ``rate`` (0 where it is
-    not positive) and its share ``a`` (1 where the rate is 0)."""
+    not positive) and its share ``a`` (1 where the rate is 0); with ``ratio=False`` only those."""
     rotation = "rotation(PA, y, u)" if L.motion else "rotation(PA, y)"
-    ratio = "step_ratio_motion" if L.motion else "step_ratio"
+    fn = "step_ratio_motion" if L.motion else "step_ratio"
     lines = [u] if L.motion else []  # the state's own speed in the accuracy term: rotation(PA, y, u) -> (lambda, mu, lambda_e)
-    lines += [f"r = {rotation}", f"x = {ratio}(PG, r)"] if parts else [f"x = {ratio}(PG, {rotation})"]
+    if parts:
+        lines += [f"r = {rotation}", *([f"x = {fn}(PG, r)"] if ratio else [])]
+    else:
+        lines += [f"x = {fn}(PG, {rotation})"]
     if L.dissipation is None:
         return lines + (["rate = 0.0", "a = 1.0"] if parts else [])
     # v > x: Python's max(x, v), the float path's (NaN in x stays NaN); a tolerance's term for
     # the decaying mode (0 without one), times the mode's share where the system declares one
     pd, a = ("PD[0]", "share(PD[1], y, u, dt, PG[4], rate)") if L.share is not None else ("PD", "1.0")
-    relax = [f"    a = {a}", "    v = relaxation_steps(PG, rate, a)"] if parts else [f"    v = relaxation_steps(PG, rate, {a})"]
-    lines += [u, *(["a = 1.0"] if parts else []), f"rate = dissipation({pd}, y, u)", "if rate > 0.0:", "    v = dt / (CD / rate)", "    if v > x:", "        x = v",
-              *relax, "    if v > x:", "        x = v"]
+    raise_x = ["    if v > x:", "        x = v"]
+    bound = ["    v = dt / (CD / rate)", *raise_x] if ratio else []
+    if parts:
+        relax = [f"    a = {a}", *(["    v = relaxation_steps(PG, rate, a)", *raise_x] if ratio else [])]
+    else:
+        relax = [f"    v = relaxation_steps(PG, rate, {a})", *raise_x]
+    lines += [u, *(["a = 1.0"] if parts else []), f"rate = dissipation({pd}, y, u)", "if rate > 0.0:", *bound, *relax]
     return lines + (["else:", "    rate = 0.0"] if parts else [])
 
 
@@ -897,19 +904,46 @@ def plan_kernel(layout: Layout):
     return numba.njit(**KERNEL_OPTIONS)(namespace["plan"])
 
 
-class StatePlan:
-    """One env's compiled :func:`plan_kernel` with its parameters: calling it with one state
-    ``y`` and its control ``u`` (tuples of floats) returns ``(x, r, rate, a)``, the bits of
-    :meth:`rbenvs.core.guard.StepRule.plan`. The first call compiles (about a second per layout
-    and process) and then takes its overload's entry point."""
+@lru_cache(maxsize=None)
+def plans_kernel(layout: Layout):
+    """:func:`plan_kernel`'s rates for a batch, sub-env by sub-env in one compiled loop (the
+    vector env's error estimate; not the ratio, which its count takes in its own kernel).
+    Signature::
+
+        plans(Y, U, P, R, RATE, A) -> None
+
+    ``Y``: ``(dim, n)`` states; ``U``: ``(n_control, n)`` controls; ``P = (PG, PA, PD, CD)``;
+    written: ``RATE``, ``A`` ``(n,)`` and ``R`` ``(3, n)`` (the rates ``(lambda, mu,
+    lambda_e)`` with the state's own speed) or ``(1, n)``."""
+    import numba
+
+    L = layout
+    lines = ["def plans(Y, U, P, R, RATE, A):", "    PG, PA, PD, CD = P", "    dt = PG[0]", "    for i in range(Y.shape[1]):",
+             f"        y = ({_comps('Y[{j}, i]', L.dim)})", f"        u = ({_comps('U[{j}, i]', L.n_control)})"]
+    lines += ["        " + line for line in _ratio_lines(L, "u = u", parts=True, ratio=False)]
+    lines += [*([f"        R[{j}, i] = r[{j}]" for j in range(3)] if L.motion else ["        R[0, i] = r"]),
+              "        RATE[i] = rate", "        A[i] = a"]
+    namespace = _namespace(L)
+    generate("\n".join(lines), f"plans kernel dim={L.dim}", namespace)
+    return numba.njit(**KERNEL_OPTIONS)(namespace["plans"])
+
+
+class PeriodPlan:
+    """One env's compiled :func:`plan_kernel` and :func:`plans_kernel` with their parameters:
+    calling it with one state ``y`` and its control ``u`` (tuples of floats) returns ``(x, r,
+    rate, a)``, the bits of :meth:`rbenvs.core.guard.StepRule.plan`; :meth:`batch`, a batch's
+    rates.
+    The first call compiles (about a second per layout and process) and then takes its
+    overload's entry point."""
 
     def __init__(self, parts, dim: int, n_obs: int, n_control: int, n_action: int, sample):
         layout, params, _, _ = _layout(parts, dim, n_obs, n_control, n_action, sample)
         if layout.rotation is None:
             raise ValueError("the plan needs the guard's rate (a step rule that can ask for steps)")
+        self.layout = layout
         self.kernel = plan_kernel(layout)
         self.params = params[4:8]  # PG, PA, PD, CD
-        self._call = None
+        self._call = self._batch = None
 
     def __call__(self, y, u):
         call = self._call
@@ -918,6 +952,20 @@ class StatePlan:
         out = self.kernel(y, u, self.params)  # compiles
         self._call = _entry_point(self.kernel, (y, u, self.params))
         return out
+
+    def batch(self, Y, U):
+        """``(R, RATE, A)`` of the ``(dim, n)`` states ``Y`` under the ``(n_control, n)``
+        controls ``U`` (float64, C-contiguous): arrays, ``R`` ``(3, n)`` or ``(1, n)`` (the
+        ratio is not evaluated)."""
+        import numpy as np
+
+        if self._batch is None:
+            self._batch = plans_kernel(self.layout)
+        n = Y.shape[1]
+        RATE, A = np.empty(n), np.empty(n)
+        R = np.empty((3 if self.layout.motion else 1, n))
+        self._batch(Y, U, self.params, R, RATE, A)
+        return R, RATE, A
 
 
 class CheckedRuns:

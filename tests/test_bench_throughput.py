@@ -181,8 +181,9 @@ def test_command_line_rejects_an_unmatched_filter_and_unknown_tables(capsys):
 def test_the_check_table_times_the_checked_step_against_its_peers(tmp_path, capsys):
     """``--tables check``: per setting, the single env's step without ``tolerance_check``, with
     it (its runs compiled where numba is installed) and on floats, Pendulum-v1 timed after each,
-    and the vector env at N = 8 and 256 with the check on both paths beside CartPole-v1's; the ratios
-    printed are those of the figures written (no speed is asserted: the bench prints it)."""
+    and the vector env at N = 8 and 256 without the check and with it on both paths beside
+    CartPole-v1's; the ratios printed are those of the figures written (no speed is asserted:
+    the bench prints it)."""
     path = tmp_path / "check.json"
     argv = ["bench", "throughput", "--tables", "check", "--only", "free body", "--no-progress", "--json", str(path)]
     assert cli_main(argv) == 0
@@ -195,8 +196,13 @@ def test_the_check_table_times_the_checked_step_against_its_peers(tmp_path, caps
         assert math.isfinite(row[key]) and row[key] > 0.0, key
     assert [v["num_envs"] for v in row["vector"]] == [8, 256]
     for v in row["vector"]:
-        for key in ("check_env_steps_per_s", "check_numpy_env_steps_per_s", "cartpole_check"):
+        for key in ("plain_env_steps_per_s", "check_env_steps_per_s", "check_numpy_env_steps_per_s", "cartpole_plain", "cartpole_check"):
             assert math.isfinite(v[key]) and v[key] > 0.0, key
     printed = next(line for line in lines if line.startswith("free body") and len(line.split()) == 7)
     assert printed.split()[-2:] == [f"{row['check_floats_us'] / row['check_us']:.1f}", f"{row['check_us'] / row['pendulum_check_us']:.1f}"]
+    vector = [line.split() for line in lines if line.startswith("free body") and len(line.split()) == 10]
+    assert [int(v[2]) for v in vector] == [8, 256]
+    for v, fields in zip(row["vector"], vector):
+        assert [fields[-4], *fields[-2:]] == [f"{v['check_env_steps_per_s'] / v['check_numpy_env_steps_per_s']:.1f}",
+                                              f"{v['cartpole_plain'] / v['plain_env_steps_per_s']:.4g}", f"{v['cartpole_check'] / v['check_env_steps_per_s']:.4g}"]
     assert data["tasks"] == data["single"] == []

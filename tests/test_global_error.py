@@ -174,7 +174,7 @@ def test_the_checked_periods_compiled_runs_are_the_float_paths_bits(scene):
     count and step, the companion's and its rounding twin's half as many of twice the size, from
     states along an episode (with free flight: every period with a take-off or touchdown inside
     it, a top hopping many times a period; with the stem: every period that lands on it or
-    leaves it), compensations carried; and the period's plan (:class:`rbenvs.compiled.StatePlan`:
+    leaves it), compensations carried; and the period's plan (:class:`rbenvs.compiled.PeriodPlan`:
     the guard's ratio, the rates and the decaying mode's rate and share its estimate reads)
     against :meth:`StepRule.plan` at the same states, under no control and a random one."""
     from rbenvs import compiled
@@ -219,6 +219,55 @@ def test_the_checked_periods_compiled_runs_are_the_float_paths_bits(scene):
     assert len(inputs) >= 5
     if scene in ("hops", "tippe_leine_glocker"):
         assert switched >= 1  # (a period with a switch inside it was among them)
+
+
+@pytest.mark.parametrize("scene", [None, "top_precess", "tippe", "hops", "tippe_leine_glocker"],
+                         ids=["free_body", "heavy_top", "tippe_from_rest", "tippe_flight_hops", "tippe_stem_switches"])
+def test_the_batchs_compiled_rates_are_numpys_bits(scene):
+    """The vector env's error estimate reads a batch's rates (:meth:`Engine.rates_batch`):
+    compiled in one loop (:meth:`rbenvs.compiled.PeriodPlan.batch`) they are numpy's bits and each
+    element's are the single state's plan's (:meth:`StepRule.plan`), over states along an
+    episode (flight, the stem's landings) under random controls."""
+    from rbenvs import compiled
+    from rbenvs.scenes import load_scene
+
+    if not compiled.available():
+        pytest.skip("numba is not installed (the 'fast' extra): the rates run on numpy")
+
+    def make(**kw):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", UnstableMotionWarning)
+            if scene is None:
+                return _body(1e-6, check=False, **kw)
+            if scene == "tippe":
+                return TippeTopEnv(integrator="rk4", tolerance=1e-6, **kw)
+            if scene == "hops":
+                return TippeTopEnv(integrator="rk4", tolerance=1e-3, spin=1000.0, friction=1.0, tilt=0.01, free_flight=True, max_speed=20.0,
+                                   start="rolling", friction_bound="stability", **kw)
+            return load_scene(scene).make(integrator="rk4", tolerance=1e-6, **kw).unwrapped
+
+    source = make()
+    source.reset(seed=0)
+    states = [y for y, _, _, _ in _checked_run_inputs(source, *{None: (200, 10), "hops": (110, 5)}.get(scene, (400, 10)))]
+    fast, slow = make().engine, make(compiled=False).engine
+    rng = np.random.default_rng(7)
+    actions = rng.uniform(-1.0, 1.0, (len(states), fast.actuator.size))
+    y = tuple(np.array(c) for c in zip(*states))
+    u = fast.actuator.control(tuple(actions[:, j] for j in range(actions.shape[1])))[1]
+    motion, n = fast.rule.motion, len(states)
+
+    def columns(out):  # (lam's one or three, lam_d, a: each an (n,) array)
+        lam, lam_d, a = out
+        return [np.broadcast_to(np.asarray(v, dtype=np.float64), (n,)) for v in (*(lam if motion else (lam,)), lam_d, a)]
+
+    got, want = columns(fast.rates_batch(y, u)), columns(slow.rates_batch(y, u))
+    assert fast.planner is not None and slow.planner is None
+    for g, w in zip(got, want):
+        assert np.array_equal(g, w)
+    for i, state in enumerate(states):  # (each element: the single state's plan)
+        _, r, rate, share = slow.rule.plan(state, tuple(float(np.broadcast_to(c, (n,))[i]) for c in u))
+        assert tuple(float(g[i]) for g in got) == (*(r if motion else (r,)), rate, share)
+    assert len(states) >= 5
 
 
 def test_the_unstable_motion_warning_names_the_check_and_the_callers_line():

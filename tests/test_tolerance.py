@@ -336,7 +336,7 @@ def test_tolerance_lockstep_vector_equals_single_envs_bit_for_bit(case, mode, ve
 
 
 # with tolerance_check the period's count and estimate come from the compiled plan and its runs from
-# the compiled checked runs (rbenvs.compiled.StatePlan, CheckedRuns): the same bits as on floats
+# the compiled checked runs (rbenvs.compiled.PeriodPlan, CheckedRuns): the same bits as on floats
 SINGLE_PATHS = [(case, False) for case in LOCKSTEP] + [(LOCKSTEP[i], check) for i, check in ((0, True), (2, True), (3, True), (3, "refine"))]
 
 

@@ -65,8 +65,9 @@ The earlier tables follow (not with ``--quick`` unless ``--tables`` names them):
 * ``check``: what ``tolerance_check=True`` costs in time (rk4, ``tolerance=1e-6``, zero action): one
   step of the single env without the check, with it (its runs compiled:
   :class:`rbenvs.compiled.CheckedRuns`) and with it on floats (``compiled=False``), against
-  Pendulum-v1 interleaved; and the vector env at N = 8 and 256 with the check, its runs compiled
-  (one loop over the sub-envs) and on numpy, against CartPole-v1 at the same N. The free body, the heavy top, the tippe top
+  Pendulum-v1 interleaved; and the vector env at N = 8 and 256 without the check (compiled) and
+  with it, its runs compiled (one loop over the sub-envs) and on numpy, against CartPole-v1 at
+  the same N. The free body, the heavy top, the tippe top
   and the hopping scene (``tippe_hop``, the check's case).
 
 In the integrator table the time limit ends all sub-envs of the default scene together, so a
@@ -329,8 +330,8 @@ def _checked_env(env_id, scene, vector: int = 0, **kw):
 def run_check(settings=CHECK_SETTINGS, min_time=0.2, repeat=3, budget=1.0, progress=None) -> list[dict]:
     """The ``check`` table: per setting, one single-env step (us) without ``tolerance_check``,
     with it compiled and with it on floats, Pendulum-v1 timed after each; the vector env's
-    env-steps/s at each N of :data:`CHECK_NUM_ENVS` with the check (runs compiled, numpy),
-    CartPole-v1's at the same N after each."""
+    env-steps/s at each N of :data:`CHECK_NUM_ENVS` without the check and with it (runs compiled,
+    numpy), CartPole-v1's at the same N after each."""
     peers = Peers(min_time, repeat)
     rows = []
     with warnings.catch_warnings():
@@ -352,8 +353,8 @@ def run_check(settings=CHECK_SETTINGS, min_time=0.2, repeat=3, budget=1.0, progr
             row["vector"] = []
             for size in CHECK_NUM_ENVS:
                 vrow = {"num_envs": size}
-                for key, compiled in (("check", "auto"), ("check_numpy", False)):
-                    venv = _checked_env(env_id, scene, vector=size, tolerance_check=True, compiled=compiled)
+                for key, compiled, check in (("plain", "auto", False), ("check", "auto", True), ("check_numpy", False, True)):
+                    venv = _checked_env(env_id, scene, vector=size, tolerance_check=check, compiled=compiled)
                     venv.reset(seed=0)
                     action = np.zeros(venv.action_space.shape, dtype=np.float32)
                     venv.step(action)
@@ -376,13 +377,15 @@ def print_check(rows) -> None:
     for r in rows:
         print(f"{r['setting']:<18} {r['plain_us']:>9.1f} {r['check_us']:>9.1f} {r['check_floats_us']:>10.1f} {r['check_floats_us'] / r['check_us']:>12.1f} "
               f"{r['check_us'] / r['pendulum_check_us']:>14.1f}")
-    print("vector env with the check (env-steps/s): its runs compiled (one loop over the sub-envs), and on numpy (compiled=False), "
-          "against CartPole-v1's vector env at the same N (same run)")
-    print(f"{'setting':<18} {'num_envs':>8} {'compiled':>11} {'numpy':>11} {'compiled/numpy':>15} {'CartPole':>11} {'CartPole/ours':>14}")
+    print("vector env (env-steps/s): without the check (compiled), with it (its runs compiled, one loop over the sub-envs) and with "
+          "it on numpy (compiled=False), against CartPole-v1's vector env at the same N (timed after each, same run)")
+    print(f"{'setting':<18} {'num_envs':>8} {'no check':>11} {'check':>11} {'numpy':>11} {'check/numpy':>12} {'CartPole':>11} "
+          f"{'CartPole/no check':>17} {'CartPole/check':>14}")
     for r in rows:
         for v in r["vector"]:
-            c, n, cart = v["check_env_steps_per_s"], v["check_numpy_env_steps_per_s"], v["cartpole_check"]
-            print(f"{r['setting']:<18} {v['num_envs']:>8d} {c:>11.4g} {n:>11.4g} {c / n:>15.1f} {cart:>11.4g} {cart / c:>14.4g}")
+            p, c, n = v["plain_env_steps_per_s"], v["check_env_steps_per_s"], v["check_numpy_env_steps_per_s"]
+            cart_p, cart = v["cartpole_plain"], v["cartpole_check"]
+            print(f"{r['setting']:<18} {v['num_envs']:>8d} {p:>11.4g} {c:>11.4g} {n:>11.4g} {c / n:>12.1f} {cart:>11.4g} {cart_p / p:>17.4g} {cart / c:>14.4g}")
 
 
 def compiled_speedup(vector_rows) -> list[tuple[int, float]]:
@@ -824,7 +827,7 @@ def main(argv=None) -> int:
     combos_extra = (2 if available() else 1) if any(i == free and "rk4" in ints for i, ints in systems) else 0
     n_vector = sum(1 for _, ints in systems for i in ints for n in sizes if n <= LARGEST.get(i, max(sizes))) + combos_extra * len(sizes)
     n_scaling = (2 if available() else 1) * len(SCALING_SIZES) if do_scaling else 0
-    bar = Progress(n_tasks + n_single + n_vector + n_scaling + (3 + 2 * len(CHECK_NUM_ENVS)) * len(checks), not args.no_progress, "bench throughput")
+    bar = Progress(n_tasks + n_single + n_vector + n_scaling + (3 + 3 * len(CHECK_NUM_ENVS)) * len(checks), not args.no_progress, "bench throughput")
     tasks, task_notes = [], notes
     if settings:
         # --quick: a smoke run, its figures rough (23 settings, each timed seven ways)

@@ -298,7 +298,7 @@ class Engine:
         # the period's count and rates come from its plan (below), the finish stays on floats
         self._runs, self._runs_tried = None, True
         # a tolerance's one-state count and error estimate from one evaluation of the rates, compiled
-        # (rbenvs.compiled.StatePlan; the float path: StepRule.plan): "auto" where numba is
+        # (rbenvs.compiled.PeriodPlan; the float path: StepRule.plan): "auto" where numba is
         # installed and every part has a pure form, built on first use
         self._plan, self._plan_tried = None, m.tolerance is None or compiled is False or self.rule.rotation is None
         if m.check:
@@ -357,7 +357,7 @@ class Engine:
 
     @property
     def planner(self):
-        """The compiled plan of one state's period (:class:`rbenvs.compiled.StatePlan`), or
+        """The compiled plan of one state's period (:class:`rbenvs.compiled.PeriodPlan`), or
         ``None`` (the float path's :meth:`StepRule.plan`; always without a tolerance); built
         on first use."""
         if not self._plan_tried:
@@ -365,7 +365,7 @@ class Engine:
 
             self._plan_tried = True
             inputs = self._compiled_inputs(required=False)
-            self._plan = None if inputs is None else _compiled.StatePlan(inputs[0], *inputs[1])
+            self._plan = None if inputs is None else _compiled.PeriodPlan(inputs[0], *inputs[1])
         return self._plan
 
     def plan_one(self, y, u):
@@ -375,6 +375,32 @@ class Engine:
         if plan is not None:
             return plan(y, u)
         return self.rule.plan(y, u)
+
+    def rates_batch(self, y, u, Y=None):
+        """A batch's ``(lam, lam_d, a)``, the rates its error estimate reads (arrays; ``lam`` a
+        tuple of three with the state's own speed; :meth:`StepRule.plan`'s per element, its ratio
+        not evaluated): compiled in one loop over the batch where it can be
+        (:meth:`rbenvs.compiled.PeriodPlan.batch`), else numpy's. ``u``: the batch's controls
+        (``None``: the zero action's); ``Y``: ``y`` as one ``(dim, n)`` float64 array where the
+        caller has it."""
+        rule, plan = self.rule, self._plan if self._plan_tried else self.planner
+        n = np.shape(y[0])[0]
+        if plan is not None:
+            Y = np.ascontiguousarray(np.stack(y) if Y is None else Y, dtype=np.float64)
+            U = np.zeros((plan.layout.n_control, n))
+            for j, c in enumerate(rule.zero_control if u is None else u):  # (None: the zero action's, as StepRule.rate reads it)
+                U[j] = c
+            r, lam_d, a = plan.batch(Y, U)
+            return (tuple(r) if rule.motion else r[0]), lam_d, a
+        lam = rule.rate(y, u)
+        lam = tuple(np.array(v, dtype=np.float64) for v in lam) if rule.motion else np.array(lam, dtype=np.float64)
+        lam_d, a = 0.0, 1.0
+        if rule.dissipation is not None:
+            lam_d = np.array(rule.dissipation_rate(y, u), dtype=np.float64)
+            with np.errstate(over="ignore", invalid="ignore", divide="ignore"):  # (a blown-up element is reported by its step)
+                a = np.array(rule.dissipation_share(y, u, lam_d), dtype=np.float64)
+            a = np.where(lam_d > 0.0, a, 1.0)  # (StepRule.plan's: no decaying mode, no share of it)
+        return lam, lam_d, a
 
     def _build_runs(self, required: bool):
         from .. import compiled as _compiled

@@ -406,14 +406,7 @@ class RigidBodyVectorEnv(VectorEnv):
         u = None  # (the controls of the actions, as the step makes them)
         if rule.motion or rule.dissipation is not None:
             u = self.model.actuator.control(action_columns(actions, self.action_space.shape))[1]
-        lam = rule.rate(self._y, u)
-        lam = tuple(np.array(v, dtype=np.float64) for v in lam) if rule.motion else np.array(lam, dtype=np.float64)
-        lam_d, share = 0.0, 1.0
-        if rule.dissipation is not None:
-            lam_d = np.array(rule.dissipation_rate(self._y, u), dtype=np.float64)
-            with np.errstate(over="ignore", invalid="ignore", divide="ignore"):  # (a blown-up sub-env is reported by the step)
-                share = np.array(rule.dissipation_share(self._y, u, lam_d), dtype=np.float64)
-            share = np.where(lam_d > 0.0, share, 1.0)  # (StepRule.plan's: no decaying mode, no share of it)
+        lam, lam_d, share = self.engine.rates_batch(self._y, u, self._y2d)
         restart = self._prev_done.copy() if self.autoreset_mode is AutoresetMode.NEXT_STEP else self._false
         obs, reward, terminated, truncated, info = self._step(actions)
         estimate = np.broadcast_to(rule.estimate(lam, self._period_h, lam_d, share), (self.num_envs,)).astype(np.float64)
