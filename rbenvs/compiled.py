@@ -489,11 +489,6 @@ def _lockstep_lines(L: Layout, u: str) -> list[str]:
     from .core.guard import MAX_INTERNAL_STEPS
 
     dim = L.dim
-    y = f"y = ({_comps('Ynew[{j}, i]', dim)})"
-    kk = f"kk = ({_comps('K[{j}, i]', dim)})"
-    finite = " & ".join(f"isfinite(yn[{j}])" for j in range(dim))
-    compensated = L.step_c is not None  # (CC: each sub-env's compensation, as K its first stage)
-    take = "yn, cn = stepc(PS, y, cc, kk, u, hstep[i])" if compensated else "yn = step(PS, y, kk, u, hstep[i])"
     return [
         f"K = np.empty(({dim}, n))",
         "live = np.empty(n, dtype=np.bool_)",
@@ -515,6 +510,26 @@ def _lockstep_lines(L: Layout, u: str) -> list[str]:
         *(f"    Ynew[{j}, i] = y[{j}]" for j in range(dim)),
         *(f"    K[{j}, i] = kk[{j}]" for j in range(dim)),
         "    fired[i] = False",
+        *_lockstep_passes(L, u, "hstep[i]"),
+    ]
+
+
+def _lockstep_passes(L: Layout, u: str, h: str, twin: int = 0) -> list[str]:
+    """:func:`_lockstep_lines`' passes over the batch (and the checked runs', :func:`runs_kernel`):
+    ``Ynew``, ``K`` (and ``CC``) hold each sub-env's state, next first stage (and compensation),
+    ``live`` whether it goes on, ``cmax`` the largest of the ``counts``; ``h`` the expression of
+    sub-env ``i``'s step; ``twin``: rounding twin ``twin``'s steps (:func:`_steps_lines`)."""
+    dim = L.dim
+    y = f"y = ({_comps('Ynew[{j}, i]', dim)})"
+    kk = f"kk = ({_comps('K[{j}, i]', dim)})"
+    finite = " & ".join(f"isfinite(yn[{j}])" for j in range(dim))
+    compensated = L.step_c is not None  # (CC: each sub-env's compensation, as K its first stage)
+    take = [f"yn, cn = stepc(PS, y, cc, kk, u, {h})" if compensated else f"yn = step(PS, y, kk, u, {h})"]
+    if twin:
+        from .core.global_error import TWIN_BITS
+
+        take += [f"cn = ({_comps('twin_term(cn[{j}], yn[{j}] - y[{j}], ' + repr(TWIN_BITS[twin - 1]) + ')', dim)})"]
+    return [
         "for k in range(cmax):",
         "    going = 0",
         "    for i in range(n):",
@@ -523,7 +538,7 @@ def _lockstep_lines(L: Layout, u: str) -> list[str]:
         "        " + u,
         *([f"        cc = ({_comps('CC[{j}, i]', dim)})"] if compensated else []),
         "        a = live[i] & (k < counts[i])",
-        "        " + take,
+        *("        " + line for line in take),
         "        kn, g = rhs_event(PV, yn, u)",
         f"        fin = {finite}",
         "        hit = fin & (g < 0.0)",
@@ -872,6 +887,18 @@ def runs_kernel(layout: Layout, twin: int = 0):
     import numba
 
     L = layout
+    if L.rhs_event is not None and not L.switches:
+        # as passes over the batch (the batch kernel's lockstep, _lockstep_passes): a sub-env's
+        # steps and event read only its own columns, so the bits are its own loop's
+        u = f"u = ({_comps('U[{j}, i]', L.n_control)})"
+        lines = ["def runs(Y, CC, U, counts, H, fired, P):", "    PS, PV, PW = P", "    n = Y.shape[1]", "    Ynew = Y",
+                 f"    K = np.empty(({L.dim}, n))", "    live = np.empty(n, dtype=np.bool_)", "    cmax = 0", "    for i in range(n):",
+                 f"        y = ({_comps('Y[{j}, i]', L.dim)})", "        " + u, "        live[i] = True", "        if counts[i] > cmax:",
+                 "            cmax = counts[i]", "        kk, g = rhs_event(PV, y, u)", *(f"        K[{j}, i] = kk[{j}]" for j in range(L.dim)),
+                 "        fired[i] = False", *("    " + line for line in _lockstep_passes(L, u, "H[i]", twin))]
+        namespace = _namespace(L)
+        generate("\n".join(lines), f"runs kernel dim={L.dim} twin={twin} lockstep", namespace)
+        return numba.njit(**KERNEL_OPTIONS)(namespace["runs"])
     lines = ["def runs(Y, CC, U, counts, H, fired, P):", "    PS, PV, PW = P", "    for i in range(Y.shape[1]):",
              f"        y = ({_comps('Y[{j}, i]', L.dim)})", f"        cc = ({_comps('CC[{j}, i]', L.dim)})",
              f"        u = ({_comps('U[{j}, i]', L.n_control)})", "        c = counts[i]", "        hi = H[i]", "        f = False"]

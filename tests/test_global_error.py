@@ -746,6 +746,58 @@ def test_the_rounding_twin_is_the_step_with_each_increment_off_by_a_unit_roundof
         assert tuple(float(col[i]) for col in out_y) == one_y and tuple(float(col[i]) for col in out_c) == one_c
 
 
+def test_the_twin_terms_compiled_form_gives_the_float_forms_bits():
+    """:func:`rounding_twin_term` compiled reads the mantissa bit from the increment's IEEE bits
+    (``rbenvs.jit.float_bits``, a bitcast; ``frexp`` is a libm call per component that keeps
+    the twins' batch loop out of SIMD registers): the same bits as the float form for both
+    twins' bits, on increments over the whole float64 range, subnormals, zeros of both signs,
+    infinities and NaN, run as floats and compiled in a loop."""
+    import struct
+
+    from rbenvs.core.global_error import TWIN_BITS, _rounding_twin_term_bits, rounding_twin_term
+    from rbenvs.jit import float_bits
+
+    def same(a, b):
+        return struct.pack("<d", a) == struct.pack("<d", b) or (math.isnan(a) and math.isnan(b))
+
+    assert float_bits(1.0) == 0x3FF0000000000000 and float_bits(-2.0) == -0x4000000000000000 and float_bits(5e-324) == 1
+    rng = np.random.default_rng(9)
+    d = rng.standard_normal(40_000) * 10.0 ** rng.uniform(-323.0, 307.0, 40_000)
+    d = np.concatenate([d, [0.0, -0.0, math.inf, -math.inf, math.nan, 5e-324, -5e-324, 2.2250738585072014e-308, 2.225073858507201e-308,
+                            1.0, 0.5, -0.75, 1.7976931348623157e308, 1.0 + 2.0**-20, 1.0 + 2.0**-16]])
+    c = rng.standard_normal(d.shape) * 1e-17
+    # subnormal increments on a compensation of -0.0: their term underflows to a signed zero, so
+    # only there does the sign chosen for a subnormal show in the result
+    sub = rng.uniform(-1.0, 1.0, 2000) * 2.0**-1022
+    d, c = np.concatenate([d, sub]), np.concatenate([c, np.full(sub.shape, -0.0)])
+    for bit in TWIN_BITS:
+        want = [rounding_twin_term(ci, di, bit) for ci, di in zip(c.tolist(), d.tolist())]
+        assert all(same(w, _rounding_twin_term_bits(ci, di, bit)) for w, ci, di in zip(want, c.tolist(), d.tolist()))
+        # both signs taken, and the bit read is the one frexp gives (1 + 2^-20 has bit 21 set, 1 + 2^-16 bit 17)
+        signs = {math.copysign(1.0, w - ci) for w, ci, di in zip(want, c.tolist(), d.tolist()) if math.isfinite(di) and abs(di) > 1e-290}
+        assert signs == {1.0, -1.0}
+        assert (rounding_twin_term(0.0, 1.0 + 2.0**-20, bit) > 0.0) == (bit == TWIN_BITS[0])
+        assert (rounding_twin_term(0.0, 1.0 + 2.0**-16, bit) > 0.0) == (bit == TWIN_BITS[1])
+    from rbenvs import compiled
+
+    if compiled.available():
+        import numba
+
+        from rbenvs.jit import register_all
+
+        register_all()
+
+        @numba.njit(error_model="numpy")
+        def loop(c, d, bit, out):
+            for i in range(d.shape[0]):
+                out[i] = rounding_twin_term(c[i], d[i], bit)
+
+        for bit in TWIN_BITS:
+            out = np.empty_like(d)
+            loop(c, d, bit, out)
+            assert all(same(rounding_twin_term(ci, di, bit), o) for ci, di, o in zip(c.tolist(), d.tolist(), out.tolist()))
+
+
 @pytest.mark.parametrize("off", [3e-4, 1.5e-4], ids=["0.0003_off", "0.00015_off"])
 def test_two_rounding_twins_hold_refine_where_one_fell_short(off):
     """Where one twin's sample of the roundoff fell short (``rbenvs bench accuracy --floor``'s

@@ -89,7 +89,8 @@ import math
 
 import numpy as np
 
-from ..jit import jitable
+from ..jit import compiled_form, float_bits, jitable
+from ..rotations import select
 
 __all__ = ["MARGIN", "AIM", "MIN_REFINEMENT", "MAX_REPLAYS", "UNIT_ROUNDOFF", "ROUNDOFF_WEIGHT", "ROUNDOFF_SHARE", "require_tolerance_check", "tolerance_blocks",
            "companion_ratio", "companion_steps", "TWIN_BITS", "rounding_twin", "rounding_twin_term", "rounding_twin_first", "relative_difference", "refinement", "GlobalErrorCheck"]
@@ -179,6 +180,21 @@ def rounding_twin_term(c, d, bit):
     if m < bit and int(m) & 1:  # (a non-finite increment: either sign)
         return c + UNIT_ROUNDOFF * d
     return c + -(UNIT_ROUNDOFF * d)
+
+
+@compiled_form(rounding_twin_term)
+def _rounding_twin_term_bits(c, d, bit):
+    """:func:`rounding_twin_term` compiled: the mantissa bit read from ``d``'s IEEE bits (a
+    subnormal scaled by ``2^54`` first, exactly, as ``frexp`` normalises it) and the sign
+    selected, not branched on: the same bits for every ``d`` (zero, subnormal, infinite, NaN
+    included), and a batch loop of the twins' steps stays in SIMD registers (``frexp`` is a
+    libm call per component)."""
+    a = abs(d)
+    s = select(a < 2.2250738585072014e-308, a * 18014398509481984.0, a)
+    f = (float_bits(s) & 4503599627370495) | 4503599627370496  # (the significand 1.f times 2^52)
+    odd = ((f // int(9007199254740992.0 / bit)) & 1) == 1  # (bit k of frexp's |m| bit: of f / 2^53 bit)
+    e = UNIT_ROUNDOFF * d
+    return c + select(odd & (a < math.inf), e, -e)
 
 
 def rounding_twin(step_c, bit=TWIN_BITS[0]):
