@@ -932,26 +932,29 @@ def plan_kernel(layout: Layout):
 
 
 @lru_cache(maxsize=None)
-def plans_kernel(layout: Layout):
-    """:func:`plan_kernel`'s rates for a batch, sub-env by sub-env in one compiled loop (the
-    vector env's error estimate; not the ratio, which its count takes in its own kernel).
-    Signature::
+def plans_kernel(layout: Layout, ratio: bool = False):
+    """:func:`plan_kernel` for a batch, sub-env by sub-env in one compiled loop: the rates (the
+    vector env's error estimate) or, with ``ratio``, the guard's ratio alone (its checked
+    period's count). Signature::
 
-        plans(Y, U, P, R, RATE, A) -> None
+        plans(Y, U, P, R, RATE, A) -> None      plans(Y, U, P, X) -> None  (ratio)
 
     ``Y``: ``(dim, n)`` states; ``U``: ``(n_control, n)`` controls; ``P = (PG, PA, PD, CD)``;
     written: ``RATE``, ``A`` ``(n,)`` and ``R`` ``(3, n)`` (the rates ``(lambda, mu,
-    lambda_e)`` with the state's own speed) or ``(1, n)``."""
+    lambda_e)`` with the state's own speed) or ``(1, n)``; ``X`` ``(n,)``."""
     import numba
 
     L = layout
-    lines = ["def plans(Y, U, P, R, RATE, A):", "    PG, PA, PD, CD = P", "    dt = PG[0]", "    for i in range(Y.shape[1]):",
-             f"        y = ({_comps('Y[{j}, i]', L.dim)})", f"        u = ({_comps('U[{j}, i]', L.n_control)})"]
-    lines += ["        " + line for line in _ratio_lines(L, "u = u", parts=True, ratio=False)]
-    lines += [*([f"        R[{j}, i] = r[{j}]" for j in range(3)] if L.motion else ["        R[0, i] = r"]),
-              "        RATE[i] = rate", "        A[i] = a"]
+    lines = ["def plans(Y, U, P, X):" if ratio else "def plans(Y, U, P, R, RATE, A):", "    PG, PA, PD, CD = P", "    dt = PG[0]",
+             "    for i in range(Y.shape[1]):", f"        y = ({_comps('Y[{j}, i]', L.dim)})", f"        u = ({_comps('U[{j}, i]', L.n_control)})"]
+    if ratio:
+        lines += ["        " + line for line in _ratio_lines(L, "u = u")] + ["        X[i] = x"]
+    else:
+        lines += ["        " + line for line in _ratio_lines(L, "u = u", parts=True, ratio=False)]
+        lines += [*([f"        R[{j}, i] = r[{j}]" for j in range(3)] if L.motion else ["        R[0, i] = r"]),
+                  "        RATE[i] = rate", "        A[i] = a"]
     namespace = _namespace(L)
-    generate("\n".join(lines), f"plans kernel dim={L.dim}", namespace)
+    generate("\n".join(lines), f"plans kernel dim={L.dim}{' ratio' if ratio else ''}", namespace)
     return numba.njit(**KERNEL_OPTIONS)(namespace["plans"])
 
 
@@ -970,7 +973,7 @@ class PeriodPlan:
         self.layout = layout
         self.kernel = plan_kernel(layout)
         self.params = params[4:8]  # PG, PA, PD, CD
-        self._call = self._batch = None
+        self._call = self._batch = self._ratios = None
 
     def __call__(self, y, u):
         call = self._call
@@ -993,6 +996,16 @@ class PeriodPlan:
         R = np.empty((3 if self.layout.motion else 1, n))
         self._batch(Y, U, self.params, R, RATE, A)
         return R, RATE, A
+
+    def ratios(self, Y, U):
+        """The guard's ratios ``X`` ``(n,)`` of a batch (as :meth:`batch`'s arguments)."""
+        import numpy as np
+
+        if self._ratios is None:
+            self._ratios = plans_kernel(self.layout, True)
+        X = np.empty(Y.shape[1])
+        self._ratios(Y, U, self.params, X)
+        return X
 
 
 class CheckedRuns:

@@ -224,10 +224,11 @@ def test_the_checked_periods_compiled_runs_are_the_float_paths_bits(scene):
 @pytest.mark.parametrize("scene", [None, "top_precess", "tippe", "hops", "tippe_leine_glocker"],
                          ids=["free_body", "heavy_top", "tippe_from_rest", "tippe_flight_hops", "tippe_stem_switches"])
 def test_the_batchs_compiled_rates_are_numpys_bits(scene):
-    """The vector env's error estimate reads a batch's rates (:meth:`Engine.rates_batch`):
-    compiled in one loop (:meth:`rbenvs.compiled.PeriodPlan.batch`) they are numpy's bits and each
-    element's are the single state's plan's (:meth:`StepRule.plan`), over states along an
-    episode (flight, the stem's landings) under random controls."""
+    """The vector env's error estimate reads a batch's rates (:meth:`Engine.rates_batch`) and its
+    checked period counts the guard's steps (:meth:`Engine._counts`): compiled in one loop
+    (:meth:`rbenvs.compiled.PeriodPlan.batch`, ``ratios``) they are numpy's bits and each
+    element's are the single state's plan's (:meth:`StepRule.plan`, :meth:`StepRule.count`),
+    over states along an episode (flight, the stem's landings) under random controls."""
     from rbenvs import compiled
     from rbenvs.scenes import load_scene
 
@@ -264,9 +265,13 @@ def test_the_batchs_compiled_rates_are_numpys_bits(scene):
     assert fast.planner is not None and slow.planner is None
     for g, w in zip(got, want):
         assert np.array_equal(g, w)
+    counts = fast._counts(y, u)  # (the vector env's checked period's count: the ratios compiled)
+    assert np.array_equal(counts, slow._counts(y, u)) and np.array_equal(fast.planner.ratios(*fast._plan_inputs(fast.planner, y, u)),
+                                                                          np.broadcast_to(slow.rule.ratio(y, u), (n,)))
     for i, state in enumerate(states):  # (each element: the single state's plan)
-        _, r, rate, share = slow.rule.plan(state, tuple(float(np.broadcast_to(c, (n,))[i]) for c in u))
+        x, r, rate, share = slow.rule.plan(state, tuple(float(np.broadcast_to(c, (n,))[i]) for c in u))
         assert tuple(float(g[i]) for g in got) == (*(r if motion else (r,)), rate, share)
+        assert counts[i] == slow.rule.count(x, slow.substeps)
     assert len(states) >= 5
 
 

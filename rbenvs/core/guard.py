@@ -521,7 +521,12 @@ class StepRule:
         x = self.ratio(y, u)
         if type(x) is float or np.ndim(x) == 0:
             return self.count(float(x), substeps)
-        x = np.broadcast_to(x, np.shape(y[0]))
+        return self.counts(np.broadcast_to(x, np.shape(y[0])), substeps)
+
+    def counts(self, x, substeps: int):
+        """A batch's counts from its ratios ``x`` (an array): :meth:`steps`' rule."""
+        if not self.active:
+            return np.full(np.shape(x), substeps, dtype=np.int64)
         with np.errstate(invalid="ignore"):
             n = np.where(x <= MAX_INTERNAL_STEPS, np.ceil(np.where(x <= MAX_INTERNAL_STEPS, x, 0.0)), MAX_INTERNAL_STEPS + 1)
         return np.maximum(substeps, n).astype(np.int64)

@@ -384,13 +384,8 @@ class Engine:
         (``None``: the zero action's); ``Y``: ``y`` as one ``(dim, n)`` float64 array where the
         caller has it."""
         rule, plan = self.rule, self._plan if self._plan_tried else self.planner
-        n = np.shape(y[0])[0]
         if plan is not None:
-            Y = np.ascontiguousarray(np.stack(y) if Y is None else Y, dtype=np.float64)
-            U = np.zeros((plan.layout.n_control, n))
-            for j, c in enumerate(rule.zero_control if u is None else u):  # (None: the zero action's, as StepRule.rate reads it)
-                U[j] = c
-            r, lam_d, a = plan.batch(Y, U)
+            r, lam_d, a = plan.batch(*self._plan_inputs(plan, y, u, Y))
             return (tuple(r) if rule.motion else r[0]), lam_d, a
         lam = rule.rate(y, u)
         lam = tuple(np.array(v, dtype=np.float64) for v in lam) if rule.motion else np.array(lam, dtype=np.float64)
@@ -401,6 +396,21 @@ class Engine:
                 a = np.array(rule.dissipation_share(y, u, lam_d), dtype=np.float64)
             a = np.where(lam_d > 0.0, a, 1.0)  # (StepRule.plan's: no decaying mode, no share of it)
         return lam, lam_d, a
+
+    def _plan_inputs(self, plan, y, u, Y=None):
+        """``(Y, U)``: a batch's states and controls as the compiled plan takes them."""
+        Y = np.ascontiguousarray(np.stack(y) if Y is None else Y, dtype=np.float64)
+        U = np.zeros((plan.layout.n_control, Y.shape[1]))
+        for j, c in enumerate(self.rule.zero_control if u is None else u):  # (None: the zero action's, as StepRule.rate reads it)
+            U[j] = c
+        return Y, U
+
+    def _counts(self, y, u):
+        """A batch's guard counts (:meth:`StepRule.steps`), their ratios compiled where they can be."""
+        rule, plan = self.rule, self._plan if self._plan_tried else self.planner
+        if plan is None or not rule.active:
+            return np.broadcast_to(np.asarray(rule.steps(y, u, self.substeps)), np.shape(y[0]))
+        return rule.counts(plan.ratios(*self._plan_inputs(plan, y, u)), self.substeps)
 
     def _build_runs(self, required: bool):
         from .. import compiled as _compiled
@@ -456,7 +466,7 @@ class Engine:
             y, fired, comp = self._run_one(y, u, n, h, comp)
             return y, fired, h, comp
         # a batch: the same rules per element (each takes its own count, then is frozen)
-        n = np.broadcast_to(np.asarray(self.rule.steps(y, u, self.substeps)), np.shape(y[0]))
+        n = self._counts(y, u)
         if factor is not None:  # (the same IEEE product and ceiling as one state's)
             n = np.where(n <= MAX_INTERNAL_STEPS, np.minimum(np.ceil(n * np.asarray(factor, dtype=np.float64)), MAX_INTERNAL_STEPS + 1), n).astype(np.int64)
         if self.check:
