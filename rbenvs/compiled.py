@@ -961,8 +961,8 @@ def plans_kernel(layout: Layout, ratio: bool = False):
 class PeriodPlan:
     """One env's compiled :func:`plan_kernel` and :func:`plans_kernel` with their parameters:
     calling it with one state ``y`` and its control ``u`` (tuples of floats) returns ``(x, r,
-    rate, a)``, the bits of :meth:`rbenvs.core.guard.StepRule.plan`; :meth:`batch`, a batch's
-    rates.
+    rate, a)``, the bits of :meth:`rbenvs.core.guard.StepRule.plan`; :meth:`batch` gives a
+    batch's rates and :meth:`ratios` its ratios (the vector env's estimate and checked count).
     The first call compiles (about a second per layout and process) and then takes its
     overload's entry point."""
 
