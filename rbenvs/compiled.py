@@ -479,18 +479,20 @@ def batch_kernel(layout: Layout):
 
 
 def _lockstep_lines(L: Layout, u: str) -> list[str]:
-    """The period of every sub-env with a terminal event shared with the next first stage
-    (:func:`_period_lines`' ``rhs_event`` branch, the tippe top's lift-off), as passes over the
-    batch: pass ``k`` takes internal step ``k`` of every sub-env that has one left and has
-    neither fired nor gone non-finite, and leaves the others as they are (the same operations
-    per sub-env as its own loop, so the same bits; a loop of arithmetic and selections stays
-    in SIMD registers, and a period of some 160 steps per sub-env is where the time goes).
-    ``K`` holds each sub-env's next first stage, ``live`` whether it goes on."""
+    """The period of every sub-env as passes over the batch: pass ``k`` takes internal step ``k``
+    of every sub-env that has one left (and, with a terminal event shared with the next first
+    stage, :func:`_period_lines`' ``rhs_event`` branch, the tippe top's lift-off, has neither
+    fired nor gone non-finite) and leaves the others as they are (the same operations per
+    sub-env as its own loop, so the same bits; a loop of arithmetic and selections stays in SIMD
+    registers, and a period of some 160 steps per sub-env is where the time goes). ``K`` holds
+    each sub-env's next first stage (with the event), ``live`` whether it goes on. Without an
+    event (a layout without switches: the free body's and the heavy top's compensated periods)
+    a sub-env takes its count, as its own loop does."""
     from .core.guard import MAX_INTERNAL_STEPS
 
-    dim = L.dim
+    dim, event = L.dim, L.rhs_event is not None
     return [
-        f"K = np.empty(({dim}, n))",
+        *([f"K = np.empty(({dim}, n))"] if event else []),
         "live = np.empty(n, dtype=np.bool_)",
         "cmax = 0",
         "for i in range(n):",
@@ -506,9 +508,9 @@ def _lockstep_lines(L: Layout, u: str) -> list[str]:
         "        live[i] = True",
         "        if c > cmax:",
         "            cmax = c",
-        "    kk, g = rhs_event(PV, y, u)",
+        *(["    kk, g = rhs_event(PV, y, u)"] if event else []),
         *(f"    Ynew[{j}, i] = y[{j}]" for j in range(dim)),
-        *(f"    K[{j}, i] = kk[{j}]" for j in range(dim)),
+        *((f"    K[{j}, i] = kk[{j}]" for j in range(dim)) if event else ()),
         "    fired[i] = False",
         *_lockstep_passes(L, u, "hstep[i]"),
     ]
@@ -516,41 +518,42 @@ def _lockstep_lines(L: Layout, u: str) -> list[str]:
 
 def _lockstep_passes(L: Layout, u: str, h: str, twin: int = 0) -> list[str]:
     """:func:`_lockstep_lines`' passes over the batch (and the checked runs', :func:`runs_kernel`):
-    ``Ynew``, ``K`` (and ``CC``) hold each sub-env's state, next first stage (and compensation),
-    ``live`` whether it goes on, ``cmax`` the largest of the ``counts``; ``h`` the expression of
-    sub-env ``i``'s step; ``twin``: rounding twin ``twin``'s steps (:func:`_steps_lines`)."""
-    dim = L.dim
+    ``Ynew``, ``K`` (and ``CC``) hold each sub-env's state, next first stage (with an event) and
+    compensation (with one), ``live`` whether it goes on, ``cmax`` the largest of the
+    ``counts``; ``h`` the expression of sub-env ``i``'s step; ``twin``: rounding twin ``twin``'s
+    steps (:func:`_steps_lines`)."""
+    dim, event = L.dim, L.rhs_event is not None
     y = f"y = ({_comps('Ynew[{j}, i]', dim)})"
     kk = f"kk = ({_comps('K[{j}, i]', dim)})"
     finite = " & ".join(f"isfinite(yn[{j}])" for j in range(dim))
     compensated = L.step_c is not None  # (CC: each sub-env's compensation, as K its first stage)
-    take = [f"yn, cn = stepc(PS, y, cc, kk, u, {h})" if compensated else f"yn = step(PS, y, kk, u, {h})"]
+    args = "y, cc, kk, u" if event else "y, cc, u"
+    take = [f"yn, cn = stepc(PS, {args}, {h})" if compensated else f"yn = step(PS, {args.replace('cc, ', '')}, {h})"]
     if twin:
         from .core.global_error import TWIN_BITS
 
         take += [f"cn = ({_comps('twin_term(cn[{j}], yn[{j}] - y[{j}], ' + repr(TWIN_BITS[twin - 1]) + ')', dim)})"]
+    stop = [  # (the event fired or the state went non-finite: the sub-env stops; all stopped: the passes end)
+        "        kn, g = rhs_event(PV, yn, u)",
+        f"        fin = {finite}",
+        "        hit = fin & (g < 0.0)",
+    ]
     return [
         "for k in range(cmax):",
-        "    going = 0",
+        *(["    going = 0"] if event else []),
         "    for i in range(n):",
         "        " + y,
-        "        " + kk,
+        *(["        " + kk] if event else []),
         "        " + u,
         *([f"        cc = ({_comps('CC[{j}, i]', dim)})"] if compensated else []),
         "        a = live[i] & (k < counts[i])",
         *("        " + line for line in take),
-        "        kn, g = rhs_event(PV, yn, u)",
-        f"        fin = {finite}",
-        "        hit = fin & (g < 0.0)",
+        *(stop if event else []),
         *(f"        Ynew[{j}, i] = yn[{j}] if a else y[{j}]" for j in range(dim)),
-        *(f"        K[{j}, i] = kn[{j}] if a else kk[{j}]" for j in range(dim)),
+        *((f"        K[{j}, i] = kn[{j}] if a else kk[{j}]" for j in range(dim)) if event else ()),
         *((f"        CC[{j}, i] = cn[{j}] if a else cc[{j}]" for j in range(dim)) if compensated else ()),
-        "        fired[i] = fired[i] | (a & hit)",
-        "        on = live[i] & (not (a & (hit | (not fin))))",
-        "        live[i] = on",
-        "        going += on",
-        "    if going == 0:",
-        "        break",
+        *(["        fired[i] = fired[i] | (a & hit)", "        on = live[i] & (not (a & (hit | (not fin))))", "        live[i] = on",
+           "        going += on", "    if going == 0:", "        break"] if event else []),
     ]
 
 
@@ -580,9 +583,9 @@ def _period_and_finish(L: Layout, u: str, un: str, more: str, starts: list[str] 
     if L.step_c is not None:
         per_env += [f"    CC[{j}, i] = cc[{j}]" for j in range(dim)]
     simd = [line[4:] for line in _physics_lines(dim, u)] + ["for i in range(n):", "    hstep[i] = h", "    fired[i] = False"]
-    if L.event is None and L.rhs_event is None and not L.switches and L.step_c is None:  # (compensated: per sub-env)
+    if L.event is None and L.rhs_event is None and not L.switches and L.step_c is None:
         lines += ["    if uniform:", *("        " + line for line in simd), "    else:", *("        " + line for line in per_env)]
-    elif L.rhs_event is not None and not L.switches:
+    elif (L.rhs_event is not None or L.event is None) and not L.switches:  # (compensated without an event too)
         lines += ["    " + line for line in _lockstep_lines(L, u)]
     else:
         lines += ["    " + line for line in per_env]
@@ -887,14 +890,15 @@ def runs_kernel(layout: Layout, twin: int = 0):
     import numba
 
     L = layout
-    if L.rhs_event is not None and not L.switches:
+    event = L.rhs_event is not None
+    if (event or L.event is None) and not L.switches:
         # as passes over the batch (the batch kernel's lockstep, _lockstep_passes): a sub-env's
-        # steps and event read only its own columns, so the bits are its own loop's
+        # steps (and event) read only its own columns, so the bits are its own loop's
         u = f"u = ({_comps('U[{j}, i]', L.n_control)})"
         lines = ["def runs(Y, CC, U, counts, H, fired, P):", "    PS, PV, PW = P", "    n = Y.shape[1]", "    Ynew = Y",
-                 f"    K = np.empty(({L.dim}, n))", "    live = np.empty(n, dtype=np.bool_)", "    cmax = 0", "    for i in range(n):",
+                 *([f"    K = np.empty(({L.dim}, n))"] if event else []), "    live = np.empty(n, dtype=np.bool_)", "    cmax = 0", "    for i in range(n):",
                  f"        y = ({_comps('Y[{j}, i]', L.dim)})", "        " + u, "        live[i] = True", "        if counts[i] > cmax:",
-                 "            cmax = counts[i]", "        kk, g = rhs_event(PV, y, u)", *(f"        K[{j}, i] = kk[{j}]" for j in range(L.dim)),
+                 "            cmax = counts[i]", *(["        kk, g = rhs_event(PV, y, u)", *(f"        K[{j}, i] = kk[{j}]" for j in range(L.dim))] if event else []),
                  "        fired[i] = False", *("    " + line for line in _lockstep_passes(L, u, "H[i]", twin))]
         namespace = _namespace(L)
         generate("\n".join(lines), f"runs kernel dim={L.dim} twin={twin} lockstep", namespace)
