@@ -297,6 +297,16 @@ def _period_lines(L: Layout) -> list[str]:
     return lines + ["    " + line for line in _steps_lines(L)]
 
 
+def _twin_term_line(L: Layout, twin: int, c: str, new: str, old: str) -> str:
+    """The line that makes the compensation ``c`` rounding twin ``twin``'s after a step from
+    ``old`` to ``new`` (:func:`rbenvs.core.global_error.rounding_twin_term`, its sign bit
+    ``TWIN_BITS[twin - 1]``)."""
+    from .core.global_error import TWIN_BITS
+
+    bit = repr(TWIN_BITS[twin - 1])
+    return f"{c} = ({_comps('twin_term(' + c + '[{j}], ' + new + '[{j}] - ' + old + '[{j}], ' + bit + ')', L.dim)})"
+
+
 def _steps_lines(L: Layout, twin: int = 0) -> list[str]:
     """Lines that take ``c`` internal steps ``hi`` from ``y`` under ``u`` (:meth:`rbenvs.core.step.Engine._run_one`):
     the switches after each, the terminal event ending them (``f = True``), a non-finite state
@@ -310,9 +320,7 @@ def _steps_lines(L: Layout, twin: int = 0) -> list[str]:
     if L.step_c is not None:
         take, take_first = ["y, cc = stepc(PS, y, cc, u, hi)"], ["y, cc = stepc(PS, y, cc, kk, u, hi)"]
         if twin:
-            from .core.global_error import TWIN_BITS
-
-            term = f"cc = ({_comps('twin_term(cc[{j}], y[{j}] - yo[{j}], ' + repr(TWIN_BITS[twin - 1]) + ')', L.dim)})"
+            term = _twin_term_line(L, twin, "cc", "y", "yo")
             take, take_first = ["yo = y", *take, term], ["yo = y", *take_first, term]
     if L.rhs_event is not None:  # the event's evaluation at a new state is the next first stage
         return [
@@ -530,9 +538,7 @@ def _lockstep_passes(L: Layout, u: str, h: str, twin: int = 0) -> list[str]:
     args = "y, cc, kk, u" if event else "y, cc, u"
     take = [f"yn, cn = stepc(PS, {args}, {h})" if compensated else f"yn = step(PS, {args.replace('cc, ', '')}, {h})"]
     if twin:
-        from .core.global_error import TWIN_BITS
-
-        take += [f"cn = ({_comps('twin_term(cn[{j}], yn[{j}] - y[{j}], ' + repr(TWIN_BITS[twin - 1]) + ')', dim)})"]
+        take += [_twin_term_line(L, twin, "cn", "yn", "y")]
     stop = [  # (the event fired or the state went non-finite: the sub-env stops; all stopped: the passes end)
         "        kn, g = rhs_event(PV, yn, u)",
         f"        fin = {finite}",
@@ -879,8 +885,9 @@ def run_kernel(layout: Layout, twin: int = 0):
 
 @lru_cache(maxsize=None)
 def runs_kernel(layout: Layout, twin: int = 0):
-    """:func:`run_kernel` for a batch, sub-env by sub-env in one compiled loop (the vector env's
-    checked runs). Signature::
+    """:func:`run_kernel` for a batch in one compiled loop (the vector env's checked runs): as
+    passes over the batch (:func:`_lockstep_passes`) for a layout without switches whose event,
+    if any, is its next first stage, else sub-env by sub-env. Signature::
 
         runs(Y, CC, U, counts, H, fired, P) -> None
 

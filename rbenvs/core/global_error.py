@@ -192,7 +192,7 @@ def _rounding_twin_term_bits(c, d, bit):
     a = abs(d)
     s = select(a < 2.2250738585072014e-308, a * 18014398509481984.0, a)
     f = (float_bits(s) & 4503599627370495) | 4503599627370496  # (the significand 1.f times 2^52)
-    odd = ((f // int(9007199254740992.0 / bit)) & 1) == 1  # (bit k of frexp's |m| bit: of f / 2^53 bit)
+    odd = ((f // int(9007199254740992.0 / bit)) & 1) == 1  # (frexp's |m| bit is f bit / 2^53: the lowest bit of its integer part)
     e = UNIT_ROUNDOFF * d
     return c + select(odd & (a < math.inf), e, -e)
 
