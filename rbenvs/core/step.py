@@ -747,14 +747,15 @@ class Engine:
         _, _, metrics = self.evaluate(y, self.actuator.control((0.0,) * self.actuator.size)[0])
         return obs, self.info_one(y, None, False, self.h, metrics, failed=False)
 
-    def step_one(self, y0, a, plain: bool, ratio=None):
+    def step_one(self, y0, a, plain: bool, ratio=None, control=None):
         """One control period of one env from ``y0`` under the action ``a`` (validated floats):
         a plain tuple in the fields of :class:`~rbenvs.contracts.StepResult` ``(y, obs, reward,
         terminated, info, u, plain)``, ``u`` the control that acted and ``plain`` whether the
         next period may take the plain loop (a tuple, not the NamedTuple itself: making one
         costs 0.2 us, 4 % of a free-body step; ``StepResult._make`` names it off the hot path).
-        ``ratio``: the guard's ratio at ``y0`` where the caller has it (:meth:`plan_one`)."""
-        u_norm, u = self.control(a)
+        ``ratio``, ``control``: the guard's ratio at ``y0`` (:meth:`plan_one`) and ``control(a)``
+        where the caller has them."""
+        u_norm, u = self.control(a) if control is None else control
         one = self._state_step if self._state_step_tried else self.state_step
         if one is not None:  # the same period and finish, compiled: one call
             if self.comp is None:
@@ -810,8 +811,9 @@ class Engine:
     def _step_one_estimated(self, y0, a, plain):
         """:meth:`step_one` with ``info["error_estimate"]``: the period's estimated relative error
         (:func:`rbenvs.core.guard.error_estimate`, from the rate at ``y0`` and the step taken)."""
-        x, lam, lam_d, share = self.plan_one(y0, self.control(a)[1])
-        out = Engine.step_one(self, y0, a, plain, x)  # (the period's count from the same x)
+        control = self.control(a)
+        x, lam, lam_d, share = self.plan_one(y0, control[1])
+        out = Engine.step_one(self, y0, a, plain, x, control)  # (the period's count from the same x, the same control)
         info = out[4]
         info["error_estimate"] = float(self.rule.estimate(lam, info["internal_step"], lam_d, share))
         return out
