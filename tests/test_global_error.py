@@ -525,6 +525,51 @@ def test_the_vector_env_refines_each_sub_env_as_its_single_env(mode, compiled):
     assert replayed[1] > 0 and replayed[0] == replayed[2] == 0
 
 
+@pytest.mark.parametrize("mode", ["next", "same"])
+def test_the_vector_env_with_param_ranges_refines_each_sub_env_on_its_drawn_model(mode):
+    """With param_ranges each sub-env steps its episode's own model and is checked by its own
+    companion (the single env's GlobalErrorCheck.step_one): the near-separatrix start is replayed
+    as its single env's is, bit for bit (estimates, factors, replayed steps, drawn parameters);
+    a partial reset (reset_mask) leaves the other sub-envs' runs, compensation included, going on."""
+    from gymnasium.vector import AutoresetMode
+
+    from rbenvs.vector import FreeRigidBodyVectorEnv
+
+    # (the drawn torque bound leaves the motion under zero action unchanged: the replay comes where
+    # it comes without param_ranges, while each sub-env runs a model, engine and check of its own)
+    kw = dict(inertia=INERTIA, axis=0, max_torque=0.0, integrator="rk4", max_angular_velocity=50.0, tolerance=1e-9, tolerance_horizon=400,
+              tolerance_check="refine", param_ranges={"max_torque": (0.0, 0.5)})
+    autoreset = AutoresetMode.NEXT_STEP if mode == "next" else AutoresetMode.SAME_STEP
+    vec = FreeRigidBodyVectorEnv(len(STARTS), max_episode_steps=400, autoreset_mode=autoreset, **kw)
+    singles = [FreeRigidBodyEnv(**kw) for _ in STARTS]
+    pis = np.array([np.array(INERTIA) * np.array(w) for w in STARTS])
+    _, info = vec.reset(seed=0, options={"state": {"angular_momentum": pis}})
+    for i, (env, pi0) in enumerate(zip(singles, pis)):
+        single = env.reset(seed=i, options={"state": {"angular_momentum": pi0}})[1]
+        assert info["params"]["max_torque"][i] == single["params"]["max_torque"]
+    assert len(set(info["params"]["max_torque"].tolist())) == len(STARTS)
+    a = np.zeros(vec.action_space.shape, np.float32)
+    replayed = np.zeros(len(STARTS), dtype=np.int64)
+    for k in range(400):
+        if k == 100:  # sub-env 2 starts again; 0 and 1 go on
+            mask = np.array([False, False, True])
+            vec.reset(seed=[None, None, 9], options={"reset_mask": mask, "state": {"angular_momentum": pis}})
+            singles[2].reset(seed=9, options={"state": {"angular_momentum": pis[2]}})
+        obs, reward, terminated, truncated, info = vec.step(a)
+        final = info.get("final_info")
+        for i, env in enumerate(singles):
+            o, r, t, tr, single = env.step(a[i])
+            source = final if final is not None and info["_final_info"][i] else info
+            for key in ("error_estimate", "global_error_estimate", "global_error_roundoff", "step_factor", "replayed_steps", "internal_step"):
+                assert source[key][i] == single[key], (k, i, key)
+            assert bool(terminated[i]) == t and reward[i] == r
+            if source is info:
+                assert np.array_equal(obs[i], o)
+            replayed[i] += single["replayed_steps"]
+    assert not terminated.any()
+    assert replayed[1] > 0 and replayed[0] == replayed[2] == 0
+
+
 def test_the_vector_env_says_which_sub_env_refine_could_not_hold():
     """Where replaying cannot hold a sub-env (0.001 rad/s off the intermediate axis at 1e-12,
     below what float64 carries), its episode ends as its single env's does, at the same period,

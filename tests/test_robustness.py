@@ -388,13 +388,22 @@ def test_tolerance_with_noise_and_delay_keeps_the_lockstep_and_its_estimate(comp
     assert max(float(np.max(info["error_estimate"])) for info in infos) > 0.0
 
 
-def test_tolerance_with_param_ranges_is_refused_by_the_vector_env_only():
-    """The vector env's estimate is the nominal model's while each sub-env's episode steps its
-    own drawn model: refused with the reason (the single env, whose episode model is the drawn
-    one, takes both)."""
-    with pytest.raises(ValueError, match="tolerance= with param_ranges is not supported by the vector env"):
-        make_vec(FREE, 2, integrator="rk4", tolerance=1e-6, param_ranges={"inertia": 0.1})
-    env = FreeRigidBodyEnv(integrator="rk4", tolerance=1e-6, param_ranges={"inertia": 0.1})
-    env.reset(seed=0)
-    _, _, _, _, info = env.step(zero(env))
-    assert info["error_estimate"] > 0.0
+@pytest.mark.parametrize("mode", ["NextStep", "SameStep"])
+@pytest.mark.parametrize("env_id,extra", [(FREE, {}), (FREE, {"tolerance_check": True}), (FREE, {"tolerance_check": "refine"}),
+                                          (LAGRANGE, {"tolerance_check": True}), (TIPPE, {})],
+                         ids=["free_body", "free_body-check", "free_body-refine", "top-check", "tippe"])
+def test_tolerance_with_param_ranges_steps_each_sub_env_as_its_single_env(env_id, extra, mode):
+    """tolerance= with param_ranges in the vector env: each sub-env's period is estimated (and,
+    with tolerance_check, checked by its own companion) on its episode's drawn model, as its
+    single env's is: every info key (the estimates, the drawn parameters) bit for bit, through
+    episode ends and restarts with new parameters."""
+    ranges = {FREE: {"inertia": 0.1}, LAGRANGE: {"mass": 0.05}, TIPPE: {"radius": 0.1, "friction": (0.2, 0.4)}}[env_id]
+    kwargs = dict(integrator="rk4", tolerance=1e-6, param_ranges=ranges, **extra)
+    if env_id == LAGRANGE:
+        kwargs["spin"] = (5.0, 16.0)
+    steps, max_steps = (40, 15) if env_id != TIPPE else (12, 5)
+    n_term, n_trunc, infos = lockstep(env_id, 3, 7, steps, mode, max_steps, kwargs, action_scale=1.5)
+    assert n_term + n_trunc >= 3  # episodes ended and new ones (new parameters) began
+    assert max(float(np.max(info["error_estimate"])) for info in infos) > 0.0
+    if extra:
+        assert max(float(np.max(info["global_error_estimate"])) for info in infos) > 0.0

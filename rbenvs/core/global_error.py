@@ -323,6 +323,53 @@ class GlobalErrorCheck:
         e, self.roundoff = self._estimate(y, self.runs)
         return e
 
+    def step_one(self, y0, a, plain):
+        """The engine's :meth:`~rbenvs.core.step.Engine.step_one` with the companion's period after
+        it (``tolerance_check``: the single env's step, and a sub-env's in a vector env whose
+        sub-envs step models of their own): ``info["global_error_estimate"]``; where the estimate
+        passes the tolerance, the episode ends as a numerical failure at ``y0``, or, with
+        ``"refine"``, is replayed with more steps (:meth:`hold`; ``info["step_factor"]``, the
+        factor on the guard's counts, and ``info["replayed_steps"]``, the steps this step took
+        beyond its period's own)."""
+        engine = self.engine
+        if self.refine:  # (the engine is made again, factor 1, when the env is copied or pickled)
+            engine.step_factor = self.factor
+        comp0 = engine.comp  # (the run's compensation at y0: kept with y0 where the period is not)
+        out = engine.step_one(y0, a, plain)
+        info = out[4]
+        if info["numerical_failure"]:
+            return out
+        n = int(round(engine.dt / info["internal_step"]))
+        runs0 = self.runs
+        e = self.period(out[0], out[5], n)
+        replayed = 0
+        if e > engine.tolerance:
+            # the companion, its twins and the run stay with the state kept; hold moves them on
+            self.runs, self.periods, engine.comp = runs0, self.periods - 1, comp0
+            held = None
+            if self.refine:
+
+                def redo(y, factor):  # (the period again from the replayed state, at engine.step_factor = factor)
+                    again = engine.step_one(y, a, False)
+                    if again[4]["numerical_failure"]:
+                        return None, None, 0
+                    return again, again[0], int(round(engine.dt / again[4]["internal_step"]))
+
+                held, estimate, replayed = self.hold(e, out[5], redo, n + companion_steps(n))
+            if held is None:
+                engine.comp = comp0
+                failed = engine.inaccurate_one(y0, a, info["internal_step"], plain, e, self.periods + 1, self.refine, self.roundoff)
+                if self.refine:
+                    failed[4].update(step_factor=self.factor, replayed_steps=replayed)
+                return failed
+            out, e = held, estimate
+            info = out[4]
+        info["global_error_estimate"], info["global_error_roundoff"] = e, self.roundoff
+        if self.refine:
+            self.record(out[5])
+            info["step_factor"], info["replayed_steps"] = self.factor, replayed
+        return out
+
     def record(self, u):
         """With ``refine``: the control of a period that was kept (a batch: every row's, one
         entry a step)."""

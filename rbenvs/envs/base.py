@@ -22,7 +22,7 @@ import warnings
 import gymnasium as gym
 import numpy as np
 
-from ..core.global_error import GlobalErrorCheck, companion_steps, require_tolerance_check
+from ..core.global_error import GlobalErrorCheck, require_tolerance_check
 from ..core.guard import GUARDS, MAX_INTERNAL_STEPS, StepRule, UnstableMotionWarning, relaxation_steps, require_guard, require_tolerance, stability_ratio, step_ratio
 from ..core.model import Model
 from ..core.step import Engine, NumericalFailureWarning, action_values
@@ -176,7 +176,7 @@ class RigidBodyEnv(gym.Env):
         # tolerance_check: the companion run beside the state (rbenvs.core.global_error)
         self._check = GlobalErrorCheck(self.engine, refine) if check else None
         if check:
-            self._step_one = self._step_checked
+            self._step_one = self._check.step_one
         self._y = None  # the state: a tuple of floats
         self._u = None  # the control of the last step (None after a reset: nothing acted yet)
         self._plain = self.engine.plain
@@ -433,7 +433,7 @@ class RigidBodyEnv(gym.Env):
             self._y = self.system.import_state(state)
         obs, info = self.engine.reset_one(self._y)
         if self._check is not None:
-            self._check.engine, self._step_one = self.engine, self._step_checked  # (param_ranges: this episode's engine)
+            self._check.engine, self._step_one = self.engine, self._check.step_one  # (param_ranges: this episode's engine)
             self._check.restart(self._y)
             info["global_error_estimate"] = info["global_error_roundoff"] = 0.0
         if self._realism.active:
@@ -478,52 +478,6 @@ class RigidBodyEnv(gym.Env):
         if r.stream:
             obs = self._noisy(obs)
         return obs, reward, terminated, False, info
-
-    def _step_checked(self, y0, a, plain):
-        """The engine's step with the companion's period after it (``tolerance_check``):
-        ``info["global_error_estimate"]``; where the estimate passes the tolerance, the episode
-        ends as a numerical failure at ``y0``, or, with ``"refine"``, is replayed with more steps
-        (:meth:`rbenvs.core.global_error.GlobalErrorCheck.hold`; ``info["step_factor"]``, the
-        factor on the guard's counts, and ``info["replayed_steps"]``, the steps this step
-        took beyond its period's own)."""
-        engine, check = self.engine, self._check
-        if check.refine:  # (the engine is made again, factor 1, when the env is copied or pickled)
-            engine.step_factor = check.factor
-        comp0 = engine.comp  # (the run's compensation at y0: kept with y0 where the period is not)
-        out = engine.step_one(y0, a, plain)
-        info = out[4]
-        if info["numerical_failure"]:
-            return out
-        n = int(round(engine.dt / info["internal_step"]))
-        runs0 = check.runs
-        e = check.period(out[0], out[5], n)
-        replayed = 0
-        if e > engine.tolerance:
-            # the companion, its twins and the run stay with the state kept; hold moves them on
-            check.runs, check.periods, engine.comp = runs0, check.periods - 1, comp0
-            held = None
-            if check.refine:
-
-                def redo(y, factor):  # (the period again from the replayed state, at engine.step_factor = factor)
-                    again = engine.step_one(y, a, False)
-                    if again[4]["numerical_failure"]:
-                        return None, None, 0
-                    return again, again[0], int(round(engine.dt / again[4]["internal_step"]))
-
-                held, estimate, replayed = check.hold(e, out[5], redo, n + companion_steps(n))
-            if held is None:
-                engine.comp = comp0
-                failed = engine.inaccurate_one(y0, a, info["internal_step"], plain, e, check.periods + 1, check.refine, check.roundoff)
-                if check.refine:
-                    failed[4].update(step_factor=check.factor, replayed_steps=replayed)
-                return failed
-            out, e = held, estimate
-            info = out[4]
-        info["global_error_estimate"], info["global_error_roundoff"] = e, check.roundoff
-        if check.refine:
-            check.record(out[5])
-            info["step_factor"], info["replayed_steps"] = check.factor, replayed
-        return out
 
     def step(self, action):
         if self._y is None:

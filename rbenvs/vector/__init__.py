@@ -46,8 +46,10 @@ Conventions (gymnasium 1.x):
   queued in one ``(delay, n, k)`` ring and each sub-env's noise drawn from its own stream (one
   compiled call per step for the batch, :class:`rbenvs.draws.GeneratorTable`); with
   ``param_ranges`` each sub-env's episode has a model of its own, stepped on the float path one
-  sub-env at a time (no batched or compiled step: ``compiled=True`` is refused), and
-  ``info["params"]`` holds the drawn values of the sub-envs that started an episode.
+  sub-env at a time (no batched or compiled step: ``compiled=True`` is refused; with a
+  tolerance, its period estimated and, with ``tolerance_check``, checked on that model by the
+  single env's step), and ``info["params"]`` holds the drawn values of the sub-envs that
+  started an episode.
 * The arrays a step returns are the caller's (fresh each step), except ``terminal_reason``'s,
   which comes from a small pool and is reused only once nothing else refers to it (CPython's
   reference count; :class:`rbenvs.core.step.ReasonPool`).
@@ -119,6 +121,7 @@ class RigidBodyVectorEnv(VectorEnv):
         # over the sub-envs where numba is installed (rbenvs.compiled.CheckedRuns.batch; with
         # compiled=False on numpy); the batch kernel has no checked period
         self._check = GlobalErrorCheck(self.engine, env.model.refine) if env.model.check else None
+        self._checked, self._refine = bool(env.model.check), bool(env.model.check and env.model.refine)
         self._global = None  # the last step's global error estimates
         self._roundoff = None  # and their roundoff parts (the rounding twins')
         self._replayed = self._factor = None  # tolerance_check="refine": the last step's replayed steps and factors
@@ -129,17 +132,20 @@ class RigidBodyVectorEnv(VectorEnv):
                                  "pass compiled='auto' or False")
             compiled = False
         self._options = self._ranges is not None or self._realism.active
+        self._episode_checks = self._estimates = None  # (param_ranges: below)
         if self._ranges is not None:
             # each sub-env's episode has its own model (its drawn parameters), stepped on the float
             # path: no batched or compiled step of a model per row exists
             if compiled is True:
                 raise ValueError("compiled=True cannot be had with param_ranges: each sub-env's episode has its own model (drawn "
                                  "parameters), stepped one sub-env at a time on the float path; pass compiled='auto' or False")
-            if self.engine.tolerance is not None:
-                raise ValueError("tolerance= with param_ranges is not supported by the vector env yet: its error estimate is the "
-                                 "nominal model's, while each sub-env's episode steps a model of its own (the single env supports both)")
             compiled = False
             self._episodes = [None] * self.num_envs  # each sub-env's episode engine
+            # with a tolerance each episode engine estimates its own periods (info["error_estimate"]),
+            # and with tolerance_check each sub-env has its episode's companion (the single env's
+            # GlobalErrorCheck.step_one): no batch check of the nominal model
+            self._episode_checks = [None] * self.num_envs if self._checked else None
+            self._check = None
             self._plains = np.ones(self.num_envs, dtype=bool)
             self._param_values = {}
             self._metric_dtypes = None
@@ -275,7 +281,7 @@ class RigidBodyVectorEnv(VectorEnv):
         self._steps[mask] = 0 if elapsed is None else elapsed[mask]
         self._prev_done = self._prev_done & ~mask
         self._plain = self.engine.plain
-        obs, over, metrics, physical = self._fresh(self._y, np.arange(n))
+        obs, over, metrics, physical = self._fresh(self._y, np.arange(n), started=mask)
         if np.any(over & mask):
             raise ValueError("an initial state lies outside the observation bounds; raise the limit parameters")
         self._u = None  # as the single env after reset: nothing acted yet (a table at rest)
@@ -285,7 +291,7 @@ class RigidBodyVectorEnv(VectorEnv):
         if self.engine.tolerance is not None:
             info["error_estimate"] = np.zeros(n)  # no period yet (the single env's reset)
             info["_error_estimate"] = self._true
-        if self._check is not None:
+        if self._checked:
             info["global_error_estimate"] = np.zeros(n)
             info["_global_error_estimate"] = self._true
             info["global_error_roundoff"] = np.zeros(n)
@@ -306,14 +312,15 @@ class RigidBodyVectorEnv(VectorEnv):
             raise ValueError(f"options['elapsed_steps'] must lie in [0, max_episode_steps) = [0, {self.max_episode_steps}), got [{k.min()}, {k.max()}]")
         return k.astype(np.int64)
 
-    def _fresh(self, y, idx):
+    def _fresh(self, y, idx, started=None):
         """``(obs, over, metrics, physical)`` of states ``y`` that have just been reset: no control
         acted yet (read-outs under ``u = None``, the single env's rule), the task's metrics at zero
         action. Compiled where the step is (:meth:`rbenvs.compiled.VectorStep.finish`); on numpy
         ``physical`` is ``None`` (the engine's read-outs are taken where needed). ``y``: the rows
-        ``idx`` of the batch."""
+        ``idx`` of the batch; ``started``: the sub-envs that start an episode (``None``: every
+        one of ``idx``; a sub-env's episode engine keeps its run going where it does not)."""
         if self._ranges is not None:
-            return self._fresh_episodes(y, idx)
+            return self._fresh_episodes(y, idx, started)
         if self._vector_step is not None and self._table is not None:
             obs, over, metrics, physical = self._vector_step.finish(np.stack(y), self._table.list)
             return obs, over, dict(zip(self.task.metric_names, metrics)), physical
@@ -358,6 +365,9 @@ class RigidBodyVectorEnv(VectorEnv):
 
     def _restart_companion(self, idx) -> None:
         """The companions of the sub-envs ``idx`` start at their new states (``tolerance_check``)."""
+        if self._ranges is not None and self._checked:  # (each its episode's)
+            for i in idx:
+                self._episode_checks[i].restart(tuple(float(c[i]) for c in self._y))
         if self._check is not None:
             mask = np.zeros(self.num_envs, dtype=bool)
             mask[idx] = True
@@ -403,13 +413,17 @@ class RigidBodyVectorEnv(VectorEnv):
         # with a tolerance: each period's estimated error, from the rate at its start and the
         # step it took (the single env's rule); 0 where no period ran (a sub-env restarted)
         rule = self.engine.rule
-        u = None  # (the controls of the actions, as the step makes them)
-        if rule.motion or rule.dissipation is not None:
-            u = self.model.actuator.control(action_columns(actions, self.action_space.shape))[1]
-        lam, lam_d, share = self.engine.rates_batch(self._y, u, self._y2d)
         restart = self._prev_done.copy() if self.autoreset_mode is AutoresetMode.NEXT_STEP else self._false
-        obs, reward, terminated, truncated, info = self._step(actions)
-        estimate = np.broadcast_to(rule.estimate(lam, self._period_h, lam_d, share), (self.num_envs,)).astype(np.float64)
+        if self._ranges is not None:  # (each sub-env's episode engine estimates its period: _step_episodes)
+            obs, reward, terminated, truncated, info = self._step(actions)
+            estimate = self._estimates.copy()
+        else:
+            u = None  # (the controls of the actions, as the step makes them)
+            if rule.motion or rule.dissipation is not None:
+                u = self.model.actuator.control(action_columns(actions, self.action_space.shape))[1]
+            lam, lam_d, share = self.engine.rates_batch(self._y, u, self._y2d)
+            obs, reward, terminated, truncated, info = self._step(actions)
+            estimate = np.broadcast_to(rule.estimate(lam, self._period_h, lam_d, share), (self.num_envs,)).astype(np.float64)
         estimate[restart] = 0.0
         if "final_info" in info:  # SAME_STEP: the ended periods' estimates go with their final info
             info["final_info"]["error_estimate"] = estimate.copy()
@@ -417,7 +431,7 @@ class RigidBodyVectorEnv(VectorEnv):
             estimate[info["_final_info"]] = 0.0
         info["error_estimate"] = estimate
         info["_error_estimate"] = self._true
-        if self._check is not None:  # (0 where no period ran, as the estimate's; SAME_STEP: the ended ones' go with their final info)
+        if self._checked:  # (0 where no period ran, as the estimate's; SAME_STEP: the ended ones' go with their final info)
             global_, roundoff = np.where(restart, 0.0, self._global), np.where(restart, 0.0, self._roundoff)
             if "final_info" in info:
                 info["final_info"]["global_error_estimate"], info["final_info"]["global_error_roundoff"] = global_.copy(), roundoff.copy()
@@ -425,8 +439,8 @@ class RigidBodyVectorEnv(VectorEnv):
                 global_[info["_final_info"]] = roundoff[info["_final_info"]] = 0.0
             info["global_error_estimate"], info["global_error_roundoff"] = global_, roundoff
             info["_global_error_estimate"] = info["_global_error_roundoff"] = self._true
-            if self._check.refine:  # the factor on the guard's counts, and the steps beyond the period's own
-                factor, replayed = np.array(self._check.factor, dtype=np.float64), np.where(restart, 0, self._replayed)
+            if self._refine:  # the factor on the guard's counts, and the steps beyond the period's own
+                factor, replayed = self._factors(), np.where(restart, 0, self._replayed)
                 if "final_info" in info:  # (the ended episodes' factors, from before their restart)
                     info["final_info"]["step_factor"], info["final_info"]["replayed_steps"] = self._factor.copy(), replayed.copy()
                     info["final_info"]["_step_factor"] = info["final_info"]["_replayed_steps"] = self._true
@@ -473,7 +487,7 @@ class RigidBodyVectorEnv(VectorEnv):
                 if (inaccurate & ~restart).any():
                     y, fired, h, inaccurate = self._hold(y0, y, u, fired, h, n, inaccurate & ~restart)
                 self._check.record(u)  # (before this step's restarts: a restarting sub-env's controls begin after it)
-                self._factor = np.array(self._check.factor, dtype=np.float64)  # (SAME_STEP's final_info: before the restarts)
+                self._factor = self._factors()  # (SAME_STEP's final_info: before the restarts)
             self._roundoff = np.where(restart, 0.0, np.broadcast_to(self._check.roundoff, (self.num_envs,)))  # (likewise)
             if not inaccurate.any():
                 inaccurate = None
@@ -733,19 +747,25 @@ class RigidBodyVectorEnv(VectorEnv):
             values = self._ranges.draw(self._rngs[i])
             self._episodes[i] = self._template.episode_env(values).engine
             self._plains[i] = self._episodes[i].plain
+            if self._episode_checks is not None:  # (started at the episode's state: _restart_companion)
+                self._episode_checks[i] = GlobalErrorCheck(self._episodes[i], self._refine)
             for name, v in self._ranges.info(values).items():
                 column = self._param_values.get(name)
                 if column is None:
                     column = self._param_values[name] = np.zeros((self.num_envs,) + np.shape(v))
                 column[i] = v
 
-    def _fresh_episodes(self, y, idx):
+    def _fresh_episodes(self, y, idx, started=None):
         """:meth:`_fresh` with each sub-env's episode engine (its own parameters)."""
         k = self.single_observation_space.shape[0]
         obs, over = np.zeros((len(idx), k), dtype=np.float32), np.zeros(len(idx), dtype=bool)
         infos = []
         for j, i in enumerate(idx):
-            o, info = self._episodes[i].reset_one(tuple(float(c[j]) for c in y))
+            engine = self._episodes[i]
+            comp = engine.comp
+            o, info = engine.reset_one(tuple(float(c[j]) for c in y))
+            if started is not None and not started[i]:
+                engine.comp = comp  # (a sub-env the reset leaves running goes on with its run's compensation)
             obs[j] = o
             infos.append(info)
         metrics = {name: self._column(name, [info[name] for info in infos]) for name in self.task.metric_names}
@@ -780,12 +800,26 @@ class RigidBodyVectorEnv(VectorEnv):
         y_new = [c.copy() for c in self._y]
         us = [None] * n
         event = self.engine.event_name
+        checks = self._episode_checks
+        # with a tolerance: each period's estimates from its episode's engine (0 where none ran)
+        estimated = self.engine.tolerance is not None
+        if estimated:
+            self._estimates = np.zeros(n)
+        if checks is not None:
+            self._global, self._roundoff, self._replayed = np.zeros(n), np.zeros(n), np.zeros(n, dtype=np.int64)
         for i in range(n):
             if restart[i]:  # (NEXT_STEP: reset below, the period discarded)
                 continue
             yi = tuple(float(c[i]) for c in self._y)
-            y, o, r, _, info, u, plain = self._episodes[i].step_one(yi, rows[i], bool(self._plains[i]))
+            step_one = self._episodes[i].step_one if checks is None else checks[i].step_one  # (the single env's step)
+            y, o, r, _, info, u, plain = step_one(yi, rows[i], bool(self._plains[i]))
             self._plains[i] = plain
+            if estimated:
+                self._estimates[i] = info["error_estimate"]
+            if checks is not None:
+                self._global[i], self._roundoff[i] = info["global_error_estimate"], info["global_error_roundoff"]
+                if self._refine:
+                    self._replayed[i] = info["replayed_steps"]
             for c, v in zip(y_new, y):
                 c[i] = v
             obs[i], reward[i], us[i], h[i] = o, r, u, info["internal_step"]
@@ -804,8 +838,16 @@ class RigidBodyVectorEnv(VectorEnv):
         self._action = None
         self._last_h = h
         metrics = {name: self._column(name, metric_rows[name]) for name in names}
+        if self._refine:  # (SAME_STEP's final_info: before the restarts)
+            self._factor = self._factors()
         return self._finish(obs, over, reward, terminated, fired if fired.any() else self._false, failed if failed.any() else None, metrics, restart,
                             any_restart, physical, charged=True)
+
+    def _factors(self) -> np.ndarray:
+        """``tolerance_check="refine"``: each sub-env's factor on the guard's counts."""
+        if self._episode_checks is not None:
+            return np.array([c.factor for c in self._episode_checks], dtype=np.float64)
+        return np.array(self._check.factor, dtype=np.float64)
 
     def _step_options(self, actions):
         """:meth:`step` with the robustness options: the action queue (``action_delay``) gives the
