@@ -187,16 +187,17 @@ class Layout(NamedTuple):
     step_c: Callable | None = None
 
 
-def _ratio_lines(L: Layout, u: str, parts: bool = False, ratio: bool = True) -> list[str]:
+def _ratio_lines(L: Layout, u: str, parts: bool = False, ratio: bool = True, rates: str = "r") -> list[str]:
     """Lines that set ``x``, the guard's ratio for the state ``y`` (and controls ``u``): the step
     core's rule (:meth:`StepRule.ratio`). ``parts``: also keep what the period's error estimate
-    reads (:meth:`StepRule.plan`): the rate(s) ``r``, the decaying rate ``rate`` (0 where it is
-    not positive) and its share ``a`` (1 where the rate is 0); with ``ratio=False`` only those."""
+    reads (:meth:`StepRule.plan`): the rate(s) (named ``rates``), the decaying rate ``rate`` (0
+    where it is not positive) and its share ``a`` (1 where the rate is 0); with ``ratio=False``
+    only those."""
     rotation = "rotation(PA, y, u)" if L.motion else "rotation(PA, y)"
     fn = "step_ratio_motion" if L.motion else "step_ratio"
     lines = [u] if L.motion else []  # the state's own speed in the accuracy term: rotation(PA, y, u) -> (lambda, mu, lambda_e)
     if parts:
-        lines += [f"r = {rotation}", *([f"x = {fn}(PG, r)"] if ratio else [])]
+        lines += [f"{rates} = {rotation}", *([f"x = {fn}(PG, {rates})"] if ratio else [])]
     else:
         lines += [f"x = {fn}(PG, {rotation})"]
     if L.dissipation is None:
@@ -613,13 +614,15 @@ class VectorLayout(NamedTuple):
     :class:`Layout`: the actuator's pure ``control(PC, a) -> (u_norm, u)`` for ``n_in`` action
     entries, the model's pure ``start(PI, d) -> y`` (or ``None``: restarts run in Python) and
     the kinds of a start's draws (:mod:`rbenvs.draws`), made in order from each sub-env's own
-    generator."""
+    generator; ``estimate``: the step also writes each period's error estimate (a tolerance's,
+    :meth:`rbenvs.core.guard.StepRule.estimate`)."""
 
     batch: Layout
     control: Callable
     n_in: int
     start: Callable | None
     kinds: str
+    estimate: bool = False  # each period's error estimate into EST (a tolerance: StepRule.estimate's)
 
 
 # what a sub-env's generator call is, per draw kind (rbenvs.draws: the same streams as numpy's)
@@ -688,6 +691,10 @@ def _vector_namespace(V: VectorLayout) -> dict:
         if fn is not None:
             _register(fn)
     namespace.update(act=act, start=V.start, end_code=end_code, np=np)
+    if V.estimate:
+        from .core.guard import error_estimate, motion_error_estimate, relaxation_estimate
+
+        namespace.update(error_estimate=error_estimate, motion_error_estimate=motion_error_estimate, relaxation_estimate=relaxation_estimate)
     return namespace
 
 
@@ -695,8 +702,8 @@ def _vector_args(L: Layout) -> list[str]:
     metrics = [f"M{j}" for j in range(L.n_metrics)]
     reads = [f"R{j}" for j in range(L.n_readouts)]
     return ["A", "Y", "Ynew", "CC", "h", "dt", "substeps", "check", "refuse", "next_step", "max_steps", "FC", "steps", "done", "skip", "GEN", "PC", "PI",
-            "PS", "PO", "PE", "PR", "PG", "PA", "PD", "CD", "PV", "PW", "HI", "counts", "hstep", "fired", "obs", "over", "reward", "terminated",
-            "truncated", "RZ", "RN", "clear", "ends", "codes"] + metrics + reads
+            "PS", "PO", "PE", "PR", "PG", "PA", "PD", "CD", "PV", "PW", "HI", "PEE", "counts", "hstep", "fired", "obs", "over", "reward", "terminated",
+            "truncated", "RZ", "RN", "clear", "ends", "codes", "EST"] + metrics + reads
 
 
 @lru_cache(maxsize=None)
@@ -705,9 +712,9 @@ def vector_kernel(V: VectorLayout):
     Signature (arrays ``(n,)`` unless said; see :func:`batch_kernel` for the period's)::
 
         vstep(A, Y, Ynew, CC, h, dt, substeps, check, refuse, next_step, max_steps, FC, steps, done,
-              skip, GEN, PC, PI, PS, PO, PE, PR, PG, PA, PD, CD, PV, PW, HI, counts, hstep, fired,
-              obs, over, reward, terminated, truncated, RZ, RN, clear, ends, codes, M_1..M_k,
-              R_1..R_m) -> (status, k, m, r)
+              skip, GEN, PC, PI, PS, PO, PE, PR, PG, PA, PD, CD, PV, PW, HI, PEE, counts, hstep,
+              fired, obs, over, reward, terminated, truncated, RZ, RN, clear, ends, codes, EST,
+              M_1..M_k, R_1..R_m) -> (status, k, m, r)
 
     1. the actions ``A`` ``(n, n_in)`` (float32 or float64): every entry finite (else ``(-2,
        i, 0, 0)`` for the first bad sub-env ``i``, nothing else written), clipped to ``[-1, 1]`` (the
@@ -729,7 +736,12 @@ def vector_kernel(V: VectorLayout):
        :class:`rbenvs.core.model.Model`);
     4. with ``next_step`` (autoreset NEXT_STEP), the restarting sub-envs' step: reward 0, not
        terminated or truncated, their episode clock 0 (a layout without a pure start leaves
-       their states and rows to the caller).
+       their states and rows to the caller);
+    5. with ``V.estimate`` (a tolerance), each period's error estimate into ``EST`` (0 for a
+       restarting sub-env: no period ran): the rates at its start ``Y`` under its controls
+       (:func:`_ratio_lines`' parts, the plan's) and the step it took, ``hstep``, through the
+       functions :meth:`rbenvs.core.guard.StepRule.estimate` calls, ``PEE`` its ``(C, p, dt)``
+       (unread otherwise).
 
     ``k``: the number of sub-envs whose step had an end or a truncation (restarting ones never:
     their period is discarded); ``ends[:m]`` the sub-envs whose row of ``RZ`` may have been
@@ -804,6 +816,14 @@ def vector_kernel(V: VectorLayout):
     ]
     lines += ["                steps[i] = 0", "                reward[i] = 0.0", "                terminated[i] = False", "                truncated[i] = False",
               "                fired[i] = False", "                done[i] = False", "                r += 1"]
+    if V.estimate:  # 5. the periods' estimates (hstep: the step each took; a restart's rewritten above, its estimate 0)
+        u_line = _controls(L, rows=True)[0]
+        estimate = "motion_error_estimate(PEE, er, hi)" if L.motion else "error_estimate(PEE, er, hi)"
+        if L.dissipation is not None:
+            estimate += " + relaxation_estimate(PEE, rate, a, hi)"
+        body = [f"y = ({_comps('Y[{j}, i]', L.dim)})", *_ratio_lines(L, u_line, parts=True, ratio=False, rates="er"), "hi = hstep[i]",
+                f"EST[i] = {estimate}"]
+        lines += ["    for i in range(n):", "        if next_step and skip[i]:", "            EST[i] = 0.0", "        else:", *("            " + line for line in body)]
     lines += ["    return 0, k, m, r"]
     namespace = _vector_namespace(V)
     generate("\n".join(lines), f"vector step dim={L.dim} n_obs={L.n_obs}", namespace)
@@ -1286,6 +1306,7 @@ class VectorResult(NamedTuple):
     h: object
     counts: object
     n_restarted: int
+    estimate: object = None  # each period's error estimate (a layout with VectorLayout.estimate), 0 where no period ran
 
 
 def _entry_point(dispatcher, args):
@@ -1305,11 +1326,13 @@ class VectorStep:
     ``parts``: :meth:`rbenvs.core.step.Engine.kernel_parts`; ``model``: the env's
     :class:`rbenvs.core.model.Model` (its actuator's and start's pure forms, its draw kinds);
     ``n_obs``: the observation size, ``obs_high`` its bounds; ``max_steps``: the time limit
-    (``None``: none). The call goes through the compiled overload's entry point after the
-    first (numba's per-call typing of forty arguments costs more than a small batch's step);
-    the actions must then be C-contiguous float32 or float64 (the caller converts)."""
+    (``None``: none); ``error``: a tolerance's ``(C, p, dt)``
+    (:attr:`rbenvs.core.guard.StepRule.error`), with which the step also returns each period's
+    error estimate (``None``: none). The call goes through the compiled overload's entry point
+    after the first (numba's per-call typing of forty arguments costs more than a small batch's
+    step); the actions must then be C-contiguous float32 or float64 (the caller converts)."""
 
-    def __init__(self, parts, model, n_obs: int, obs_high, max_steps: int | None):
+    def __init__(self, parts, model, n_obs: int, obs_high, max_steps: int | None, error=None):
         import numpy as np
 
         control, pc = model.kernel_control
@@ -1319,9 +1342,10 @@ class VectorStep:
         layout, params, values, physical = _layout(parts, dim, n_obs, len(u), len(u_norm), sample)
         start = model.kernel_start()
         self.restarts = start is not None  # restarts inside the kernel (else the caller's)
-        self.layout = VectorLayout(layout, control, model.actuator.size, start[0] if start else None, model.draw_kinds)
+        estimate = error is not None and layout.rotation is not None
+        self.layout = VectorLayout(layout, control, model.actuator.size, start[0] if start else None, model.draw_kinds, estimate)
         self.kernel = vector_kernel(self.layout)
-        self._rows = rows_kernel(self.layout)
+        self._rows = rows_kernel(self.layout._replace(estimate=False))  # (the rows write no estimate: one kernel for both)
         # (dtype objects, not scalar types: np.empty converts a type on every call, ~0.3 us each)
         self.metric_dtypes = tuple(np.dtype(np.bool_ if isinstance(v, (bool, np.bool_)) else np.float64) for v in values[2:])
         self.readout_dtypes = tuple(np.dtype(np.bool_ if isinstance(v, (bool, np.bool_)) else (np.int64 if isinstance(v, (int, np.integer)) else np.float64)) for v in physical)
@@ -1332,7 +1356,8 @@ class VectorStep:
         self.charge = float(model.failure_charge)
         self.n_obs, self.dim = n_obs, dim
         ps, po, pe, pr, pg, pa, pd, cd, pv, pw = params
-        self.params = (pc, start[1] if start else (), ps, po, pe, pr, pg, pa, pd, cd, pv, pw, self.high)
+        self.params = (pc, start[1] if start else (), ps, po, pe, pr, pg, pa, pd, cd, pv, pw, self.high,
+                       tuple(float(v) for v in error) if estimate else (0.0, 1.0, 0.0))
         self._calls = {}
         self._scratch = None
 
@@ -1353,6 +1378,7 @@ class VectorStep:
             scratch = self._scratch = (np.empty(n, dtype=np.int64), np.empty(n, dtype=bool), np.empty(n, dtype=bool), np.empty(n, dtype=np.int64),
                                        np.empty(n, dtype=np.int64))
         counts, fired, over, ends, codes = scratch
+        estimate = np.empty(n if self.layout.estimate else 0)
         Ynew = np.empty_like(Y)
         hstep = np.empty(n)
         obs = np.empty((n, self.n_obs), self._f32)
@@ -1362,14 +1388,15 @@ class VectorStep:
         metrics = [np.empty(n, t) for t in self.metric_dtypes]
         readouts = [np.empty(n, t) for t in self.readout_dtypes]
         args = (A, Y, Ynew, NO_COMPENSATION if CC is None else CC, self.h, self.dt, self.substeps, check, refuse, next_step, self.max_steps, self.charge, steps, done, skip, GEN, *self.params, counts,
-                hstep, fired, obs, over, reward, terminated, truncated, *reasons, ends, codes, *metrics, *readouts)
+                hstep, fired, obs, over, reward, terminated, truncated, *reasons, ends, codes, estimate, *metrics, *readouts)
         call = self._calls.get(A.dtype)
         if call is None:
             status, k, m, r = self.kernel(*args)  # compiles
             self._calls[A.dtype] = _entry_point(self.kernel, args)
         else:
             status, k, m, r = call(*args)
-        return VectorResult(status, k, Ynew, obs, over, reward, terminated, truncated, ends[:m], metrics, readouts, fired, hstep, counts, r)
+        return VectorResult(status, k, Ynew, obs, over, reward, terminated, truncated, ends[:m], metrics, readouts, fired, hstep, counts, r,
+                            estimate if self.layout.estimate else None)
 
     def rows(self, idx, draw, Y, GEN, obs, over, hstep, steps, metrics, readouts) -> None:
         """:func:`rows_kernel` on the sub-envs ``idx`` of a step's (or a reset's) arrays: their

@@ -151,6 +151,23 @@ def error_estimate(e, lam, h):
 
 
 @jitable
+def motion_error_estimate(e, rates, h):
+    """:func:`error_estimate` with the state's own speed: ``C mu dt (lambda_e h)^p``, ``rates =
+    (lambda, mu, lambda_e)`` (:func:`step_ratio_motion`'s; floats or arrays)."""
+    c, p, dt = e
+    lam, mu, lam_e = rates
+    return c * mu * dt * power(lam_e * h, p)
+
+
+@jitable
+def relaxation_estimate(e, rate, a, h):
+    """A decaying mode's error in a period of internal step ``h``: ``C a (lambda_d h)^p``,
+    ``rate`` its rate ``lambda_d`` and ``a`` its error's share (floats or arrays)."""
+    c, p, _ = e
+    return c * (a * power(rate * h, p))
+
+
+@jitable
 def stability_ratio(dt, bound, growth, lam):
     """The stability bound's ``x``: ``dt lambda / b``, and ``(dt lambda)^2 / growth`` where the
     region bounds growth (pure; floats or arrays): the part both step ratios share."""
@@ -410,16 +427,11 @@ class StepRule:
         ``C a (lam_d h)^p`` where the system has a decaying rate (``None`` without a tolerance)."""
         if self.error is None:
             return None
-        if self.motion:  # C mu dt (lambda_e h)^p
-            c, p, dt = self.error
-            lam, mu, lam_e = lam
-            e = c * mu * dt * power(lam_e * h, p)
-        else:
-            e = error_estimate(self.error, lam, h)
+        # (the compiled vector step's estimate calls the same functions: rbenvs.compiled.vector_kernel)
+        e = motion_error_estimate(self.error, lam, h) if self.motion else error_estimate(self.error, lam, h)
         if self.dissipation is None:
             return e
-        c, p, _ = self.error
-        return e + c * (a * power(lam_d * h, p))
+        return e + relaxation_estimate(self.error, lam_d, a, h)
 
     def binding(self, y, u) -> str:
         """Which bound asks for the most steps at ``y`` under ``u``, in words: the accuracy

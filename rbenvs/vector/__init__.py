@@ -183,7 +183,8 @@ class RigidBodyVectorEnv(VectorEnv):
         self._reasons = ReasonPool(self.num_envs, self.engine.event_name)
         if self._batch_step is not None and self._use_table:
             self._vector_step = _compiled.VectorStep(self.engine.kernel_parts(), self.model, self.single_observation_space.shape[0], self.engine.high,
-                                                     self.max_episode_steps)
+                                                     self.max_episode_steps,
+                                                     error=self.engine.rule.error)
 
     def _init_realism(self) -> None:
         """The action queue (``(delay, n, k)``, a ring with one head for every sub-env) and the
@@ -417,6 +418,18 @@ class RigidBodyVectorEnv(VectorEnv):
         if self._ranges is not None:  # (each sub-env's episode engine estimates its period: _step_episodes)
             obs, reward, terminated, truncated, info = self._step(actions)
             estimate = self._estimates.copy()
+        elif self._vector_step is not None and self._table is not None and self._vector_step.layout.estimate:
+            # the compiled step writes each period's estimate (its rates at the period's start, as
+            # StepRule.plan's); where it hands a non-finite state to the numpy path it writes none
+            # and the rates come from the states before the step
+            y0, y2d0 = self._y, self._y2d
+            self._estimates = None
+            obs, reward, terminated, truncated, info = self._step(actions)
+            estimate = self._estimates
+            if estimate is None:
+                u = self.model.actuator.control(action_columns(actions, self.action_space.shape))[1]
+                lam, lam_d, share = self.engine.rates_batch(y0, u, y2d0)
+                estimate = np.broadcast_to(rule.estimate(lam, self._period_h, lam_d, share), (self.num_envs,)).astype(np.float64)
         else:
             u = None  # (the controls of the actions, as the step makes them)
             if rule.motion or rule.dissipation is not None:
@@ -593,6 +606,7 @@ class RigidBodyVectorEnv(VectorEnv):
                 return self._numpy_finish(self._y, tuple(r.Y), u_norm, fired, restart, bool(restart.any()))
         self._reasons.written(entry, r.written)
         self._y2d, self._y = r.Y, tuple(r.Y)
+        self._estimates = r.estimate
         info = self._kernel_info(r, done, reasons)
         obs, reward = r.obs, r.reward  # (the failure charge is in: the kernel adds it)
         if next_step:
