@@ -882,3 +882,39 @@ def test_refine_near_the_separatrix_ends_where_roundoff_passes_the_tolerance(w, 
     ended, info, said = _within_until_ended(env, tol, lambda k: reference[k])
     assert ended is not None and info["numerical_failure"] and "roundoff the motion amplified" in said
     assert 2.0 * info["global_error_roundoff"] >= info["global_error_estimate"] > tol  # (info says it too: most of it roundoff)
+
+
+def test_the_batchs_compiled_estimate_is_the_numpy_forms_and_each_states_bits():
+    """The vector env's estimate of a batch (the companion's and the twins' differences) as one
+    compiled loop of the single env's function (estimate_terms) gives the numpy form's bits and
+    each element's float result: random states of the tippe top's blocks (velocity, attitude,
+    Omega; position and contact left out), equal blocks (a zero difference), a block of norm 0
+    against a nonzero one (inf), tiny and huge magnitudes. (A NaN difference differs: numpy's
+    maximum keeps it, the float rule passes it over; a non-finite state ends the episode first.)"""
+    from rbenvs import compiled
+    from rbenvs.core.global_error import GlobalErrorCheck, estimate_loop, estimate_terms
+
+    if not compiled.available():
+        pytest.skip("the compiled loop needs numba")
+    env = TippeTopEnv(integrator="rk4", tolerance=1e-6, tolerance_check=True)
+    check = GlobalErrorCheck(env.unwrapped.engine)
+    blocks, dim, n = check.blocks, env.unwrapped.system.dim, 400
+    rng = np.random.default_rng(0)
+    scale = 10.0 ** rng.uniform(-150, 150, (1, n))
+    y = rng.standard_normal((dim, n)) * scale
+    runs = [y + rng.standard_normal((dim, n)) * scale * 10.0 ** rng.uniform(-17, 0, (1, n)) for _ in range(3)]
+    runs[0][:, :20] = y[:, :20]  # no difference
+    runs[1][:, 20:40] = runs[0][:, 20:40]  # a twin on its companion
+    lo, hi = blocks[0]
+    y[lo:hi, 40:60] = 0.0  # a block of norm 0 against a nonzero one: inf
+    Y, (C, T, S) = tuple(y), (tuple(r) for r in runs)
+    loop = estimate_loop(blocks, dim, check.ratio)
+    e, roundoff = loop(*Y, *C, *T, *S)
+    check.engine = type("NumpyOnly", (), {"checked_runs": None})()  # (the numpy form)
+    e_np, roundoff_np = check._estimate(Y, (C, None, T, None, S, None))
+    assert np.array_equal(e, e_np) and np.array_equal(roundoff, roundoff_np)
+    assert np.isinf(e[40:60]).all() and (e[:20] == roundoff[:20]).all()  # (no difference: the roundoff term alone)
+    assert np.isfinite(e[60:]).all() and (e[60:] > 0.0).all()
+    for i in range(n):
+        one = estimate_terms(blocks, check.ratio, tuple(float(c[i]) for c in Y), *(tuple(float(c[i]) for c in r) for r in (C, T, S)))
+        assert one == (e[i], roundoff[i]), i

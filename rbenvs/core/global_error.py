@@ -86,6 +86,7 @@ main run's, the companion's, the twins', a replay's) are the engine's
 from __future__ import annotations
 
 import math
+from functools import lru_cache
 
 import numpy as np
 
@@ -225,9 +226,9 @@ def rounding_twin_first(first_c, bit=TWIN_BITS[0]):
     return lambda ps, y, c, k, u, h: twin(y, c, (ps, k, u), h)
 
 
-def relative_difference(blocks, y, yc):
-    """``max_b |y_b - yc_b| / |y_b|`` over ``blocks`` (a block of norm 0 in both: 0); one state
-    (a float) or a batch (an array)."""
+@jitable
+def block_difference(blocks, y, yc):
+    """:func:`relative_difference` of one state (floats; compiled code runs it too)."""
     out = 0.0
     for lo, hi in blocks:
         d2 = s2 = 0.0
@@ -235,14 +236,57 @@ def relative_difference(blocks, y, yc):
             d = y[i] - yc[i]
             d2 = d2 + d * d
             s2 = s2 + y[i] * y[i]
-        if isinstance(d2, float):
-            r = 0.0 if d2 == 0.0 else (math.sqrt(d2 / s2) if s2 > 0.0 else math.inf)
-            out = r if r > out else out
-        else:
-            with np.errstate(divide="ignore", invalid="ignore"):
-                r = np.where(d2 == 0.0, 0.0, np.where(s2 > 0.0, np.sqrt(d2 / np.where(s2 > 0.0, s2, 1.0)), np.inf))
-            out = np.maximum(out, r)
+        r = 0.0 if d2 == 0.0 else (math.sqrt(d2 / s2) if s2 > 0.0 else math.inf)
+        out = r if r > out else out
     return out
+
+
+def relative_difference(blocks, y, yc):
+    """``max_b |y_b - yc_b| / |y_b|`` over ``blocks`` (a block of norm 0 in both: 0); one state
+    (a float: :func:`block_difference`) or a batch (an array; where a block's difference is NaN
+    the batch's is NaN, one state's passes it over)."""
+    if not isinstance(y[0], np.ndarray):
+        return block_difference(blocks, y, yc)
+    out = 0.0
+    for lo, hi in blocks:
+        d2 = s2 = 0.0
+        for i in range(lo, hi):
+            d = y[i] - yc[i]
+            d2 = d2 + d * d
+            s2 = s2 + y[i] * y[i]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            r = np.where(d2 == 0.0, 0.0, np.where(s2 > 0.0, np.sqrt(d2 / np.where(s2 > 0.0, s2, 1.0)), np.inf))
+        out = np.maximum(out, r)
+    return out
+
+
+@jitable
+def estimate_terms(blocks, ratio, y, yc, yt, ys):
+    """``(estimate, roundoff)`` of one state ``y`` beside its companion ``yc`` and rounding twins
+    ``yt``, ``ys`` (floats): ``MARGIN (D / ratio + ROUNDOFF_WEIGHT D_t)`` and its second term
+    (:meth:`GlobalErrorCheck._estimate`'s rule; compiled code runs it too)."""
+    d1, d2 = block_difference(blocks, yc, yt), block_difference(blocks, yc, ys)
+    roundoff = MARGIN * ROUNDOFF_WEIGHT * (d1 if d1 > d2 else d2)
+    return MARGIN * block_difference(blocks, y, yc) / ratio + roundoff, roundoff
+
+
+@lru_cache(maxsize=None)
+def estimate_loop(blocks, dim: int, ratio: float):
+    """:func:`estimate_terms` over a batch as one compiled loop (:func:`rbenvs.jit.elementwise`
+    over the components of the state, the companion and the twins), ``None`` without numba; a
+    call returns ``None`` where it cannot run (the caller's numpy form then does)."""
+    from ..jit import available, elementwise
+
+    if not available():
+        return None
+    from .codegen import generate
+
+    names = [f"{r}{j}" for r in "ycts" for j in range(dim)]
+    comps = {r: "(" + "".join(f"{r}{j}, " for j in range(dim)) + ")" for r in "ycts"}
+    code = (f"def terms({', '.join(names)}):\n"
+            f"    return estimate_terms(BLOCKS, RATIO, {comps['y']}, {comps['c']}, {comps['t']}, {comps['s']})")
+    fn = jitable(generate(code, f"estimate terms dim={dim}", {"estimate_terms": estimate_terms, "BLOCKS": blocks, "RATIO": float(ratio)})["terms"])
+    return elementwise(fn, 4 * dim, 2)
 
 
 class GlobalErrorCheck:
@@ -309,8 +353,16 @@ class GlobalErrorCheck:
         """``(estimate, roundoff)`` of the main run's ``y`` beside the companion and its twins
         (``runs``; floats, or arrays for a batch): ``MARGIN (D / (2^p - 1) + ROUNDOFF_WEIGHT
         D_t)``, ``D_t`` the larger twin's difference, and its second term."""
+        if not isinstance(y[0], np.ndarray):
+            return estimate_terms(self.blocks, self.ratio, y, runs[0], runs[2], runs[4])
+        # a batch: the same function element by element in one compiled loop where the runs are
+        # compiled (numba installed, not compiled=False), else its numpy form below
+        loop = estimate_loop(self.blocks, len(y), self.ratio) if self.engine.checked_runs is not None else None
+        out = None if loop is None else loop(*y, *runs[0], *runs[2], *runs[4])
+        if out is not None:
+            return out
         d1, d2 = relative_difference(self.blocks, runs[0], runs[2]), relative_difference(self.blocks, runs[0], runs[4])
-        larger = (d1 if d1 > d2 else d2) if isinstance(d1, float) else np.where(d1 > d2, d1, d2)  # (the same rule for floats and arrays)
+        larger = np.where(d1 > d2, d1, d2)  # (estimate_terms' rule)
         roundoff = MARGIN * ROUNDOFF_WEIGHT * larger
         return MARGIN * relative_difference(self.blocks, y, runs[0]) / self.ratio + roundoff, roundoff
 

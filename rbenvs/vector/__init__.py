@@ -431,11 +431,11 @@ class RigidBodyVectorEnv(VectorEnv):
                 lam, lam_d, share = self.engine.rates_batch(y0, u, y2d0)
                 estimate = np.broadcast_to(rule.estimate(lam, self._period_h, lam_d, share), (self.num_envs,)).astype(np.float64)
         else:
-            u = None  # (the controls of the actions, as the step makes them)
-            if rule.motion or rule.dissipation is not None:
-                u = self.model.actuator.control(action_columns(actions, self.action_space.shape))[1]
+            # the controls of the actions, made once for the rates and the step (the numpy path's)
+            control = self.model.actuator.control(action_columns(actions, self.action_space.shape))
+            u = control[1] if rule.motion or rule.dissipation is not None else None
             lam, lam_d, share = self.engine.rates_batch(self._y, u, self._y2d)
-            obs, reward, terminated, truncated, info = self._step(actions)
+            obs, reward, terminated, truncated, info = self._step(actions, control)
             estimate = np.broadcast_to(rule.estimate(lam, self._period_h, lam_d, share), (self.num_envs,)).astype(np.float64)
         estimate[restart] = 0.0
         if "final_info" in info:  # SAME_STEP: the ended periods' estimates go with their final info
@@ -462,7 +462,9 @@ class RigidBodyVectorEnv(VectorEnv):
                 info["_step_factor"] = info["_replayed_steps"] = self._true
         return obs, reward, terminated, truncated, info
 
-    def _step(self, actions):
+    def _step(self, actions, control=None):
+        """The step of ``actions``; ``control``: their ``(u_norm, u)`` where the caller made them
+        (the numpy path's; the other paths make their own)."""
         if self._y is None:
             raise RuntimeError("call reset() before step()")
         if self._ranges is not None:
@@ -470,11 +472,10 @@ class RigidBodyVectorEnv(VectorEnv):
         if self._vector_step is not None and self._table is not None:
             return self._compiled_step_all(actions)
         engine = self.engine
-        cols = action_columns(actions, self.action_space.shape)
         # NEXT_STEP: the sub-envs whose episode ended last step are reset, not stepped.
         restart = self._prev_done if self.autoreset_mode is AutoresetMode.NEXT_STEP else self._false
         any_restart = bool(restart.any())
-        u_norm, u = self.model.actuator.control(cols)
+        u_norm, u = self.model.actuator.control(action_columns(actions, self.action_space.shape)) if control is None else control
         y0 = self._y
         fast = None
         with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
@@ -486,7 +487,9 @@ class RigidBodyVectorEnv(VectorEnv):
                 comp = None if self._cc is None else tuple(self._cc)
                 y, fired, h, comp = engine.advance(y0, u, self._plain, restart if any_restart else None, factor, comp)
                 if comp is not None:
-                    self._cc = np.array([np.broadcast_to(c, (self.num_envs,)) for c in comp], dtype=np.float64)
+                    cc = self._cc = np.empty((len(comp), self.num_envs))
+                    for j, c in enumerate(comp):  # (a component may be one float for every sub-env)
+                        cc[j] = c
                 if fired is False:
                     fired = self._false
         inaccurate = None
