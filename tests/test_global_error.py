@@ -889,8 +889,8 @@ def test_the_batchs_compiled_estimate_is_the_numpy_forms_and_each_states_bits():
     compiled loop of the single env's function (estimate_terms) gives the numpy form's bits and
     each element's float result: random states of the tippe top's blocks (velocity, attitude,
     Omega; position and contact left out), equal blocks (a zero difference), a block of norm 0
-    against a nonzero one (inf), tiny and huge magnitudes. (A NaN difference differs: numpy's
-    maximum keeps it, the float rule passes it over; a non-finite state ends the episode first.)"""
+    against a nonzero one (inf), tiny and huge magnitudes, and a companion or twin gone NaN beside
+    a finite run: inf, on every path (the check cannot vouch for the state)."""
     from rbenvs import compiled
     from rbenvs.core.global_error import GlobalErrorCheck, estimate_loop, estimate_terms
 
@@ -907,14 +907,16 @@ def test_the_batchs_compiled_estimate_is_the_numpy_forms_and_each_states_bits():
     runs[1][:, 20:40] = runs[0][:, 20:40]  # a twin on its companion
     lo, hi = blocks[0]
     y[lo:hi, 40:60] = 0.0  # a block of norm 0 against a nonzero one: inf
+    runs[0][lo, 60:65] = np.nan  # the companion non-finite
+    runs[2][hi - 1, 65:70] = np.nan  # a twin non-finite
     Y, (C, T, S) = tuple(y), (tuple(r) for r in runs)
     loop = estimate_loop(blocks, dim, check.ratio)
     e, roundoff = loop(*Y, *C, *T, *S)
     check.engine = type("NumpyOnly", (), {"checked_runs": None})()  # (the numpy form)
     e_np, roundoff_np = check._estimate(Y, (C, None, T, None, S, None))
     assert np.array_equal(e, e_np) and np.array_equal(roundoff, roundoff_np)
-    assert np.isinf(e[40:60]).all() and (e[:20] == roundoff[:20]).all()  # (no difference: the roundoff term alone)
-    assert np.isfinite(e[60:]).all() and (e[60:] > 0.0).all()
+    assert np.isinf(e[40:70]).all() and np.isinf(roundoff[65:70]).all() and (e[:20] == roundoff[:20]).all()  # (no difference: the roundoff term alone)
+    assert np.isfinite(e[70:]).all() and (e[70:] > 0.0).all()
     for i in range(n):
         one = estimate_terms(blocks, check.ratio, tuple(float(c[i]) for c in Y), *(tuple(float(c[i]) for c in r) for r in (C, T, S)))
         assert one == (e[i], roundoff[i]), i

@@ -227,36 +227,43 @@ def rounding_twin_first(first_c, bit=TWIN_BITS[0]):
 
 
 @jitable
+def block_sums(y, yc, lo, hi):
+    """``(|y_b - yc_b|^2, |y_b|^2)`` over the components ``lo:hi`` (floats or arrays: the same
+    operations in the same order)."""
+    d2 = s2 = 0.0
+    for i in range(lo, hi):
+        d = y[i] - yc[i]
+        d2 = d2 + d * d
+        s2 = s2 + y[i] * y[i]
+    return d2, s2
+
+
+@jitable
 def block_difference(blocks, y, yc):
-    """:func:`relative_difference` of one state (floats; compiled code runs it too)."""
+    """:func:`relative_difference` of one state (floats; compiled code runs it too). A block
+    whose difference is NaN (a companion or twin that went non-finite beside a finite run)
+    counts as ``inf``: the check cannot vouch for the state, so its estimate passes any tolerance."""
     out = 0.0
     for lo, hi in blocks:
-        d2 = s2 = 0.0
-        for i in range(lo, hi):
-            d = y[i] - yc[i]
-            d2 = d2 + d * d
-            s2 = s2 + y[i] * y[i]
+        d2, s2 = block_sums(y, yc, lo, hi)
         r = 0.0 if d2 == 0.0 else (math.sqrt(d2 / s2) if s2 > 0.0 else math.inf)
+        r = r if r == r else math.inf
         out = r if r > out else out
     return out
 
 
 def relative_difference(blocks, y, yc):
-    """``max_b |y_b - yc_b| / |y_b|`` over ``blocks`` (a block of norm 0 in both: 0); one state
-    (a float: :func:`block_difference`) or a batch (an array; where a block's difference is NaN
-    the batch's is NaN, one state's passes it over)."""
+    """``max_b |y_b - yc_b| / |y_b|`` over ``blocks`` (a block of norm 0 in both: 0; a NaN
+    difference: ``inf``); one state (a float: :func:`block_difference`) or a batch (an array,
+    the same rule element by element)."""
     if not isinstance(y[0], np.ndarray):
         return block_difference(blocks, y, yc)
     out = 0.0
     for lo, hi in blocks:
-        d2 = s2 = 0.0
-        for i in range(lo, hi):
-            d = y[i] - yc[i]
-            d2 = d2 + d * d
-            s2 = s2 + y[i] * y[i]
+        d2, s2 = block_sums(y, yc, lo, hi)
         with np.errstate(divide="ignore", invalid="ignore"):
             r = np.where(d2 == 0.0, 0.0, np.where(s2 > 0.0, np.sqrt(d2 / np.where(s2 > 0.0, s2, 1.0)), np.inf))
-        out = np.maximum(out, r)
+        out = np.maximum(out, np.where(r == r, r, np.inf))
     return out
 
 
