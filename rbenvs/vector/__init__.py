@@ -415,27 +415,23 @@ class RigidBodyVectorEnv(VectorEnv):
         # step it took (the single env's rule); 0 where no period ran (a sub-env restarted)
         rule = self.engine.rule
         restart = self._prev_done.copy() if self.autoreset_mode is AutoresetMode.NEXT_STEP else self._false
-        if self._ranges is not None:  # (each sub-env's episode engine estimates its period: _step_episodes)
-            obs, reward, terminated, truncated, info = self._step(actions)
-            estimate = self._estimates.copy()
-        elif self._vector_step is not None and self._table is not None and self._vector_step.layout.estimate:
-            # the compiled step writes each period's estimate (its rates at the period's start, as
-            # StepRule.plan's); where it hands a non-finite state to the numpy path it writes none
-            # and the rates come from the states before the step
-            y0, y2d0 = self._y, self._y2d
-            self._estimates = None
-            obs, reward, terminated, truncated, info = self._step(actions)
-            estimate = self._estimates
-            if estimate is None:
-                u = self.model.actuator.control(action_columns(actions, self.action_space.shape))[1]
-                lam, lam_d, share = self.engine.rates_batch(y0, u, y2d0)
-                estimate = np.broadcast_to(rule.estimate(lam, self._period_h, lam_d, share), (self.num_envs,)).astype(np.float64)
-        else:
-            # the controls of the actions, made once for the rates and the step (the numpy path's)
+        # the estimates come from the step where it writes them (param_ranges: each sub-env's
+        # episode engine, _step_episodes; the compiled vector step, from the rates at each
+        # period's start as StepRule.plan's), else from the rates of the states before the step
+        # (the numpy path, whose controls are made once for the rates and the step, and a
+        # compiled step that handed a non-finite state to it)
+        y0, y2d0, control = self._y, self._y2d, None
+        written = self._ranges is not None or (self._vector_step is not None and self._table is not None and self._vector_step.layout.estimate)
+        if not written:
             control = self.model.actuator.control(action_columns(actions, self.action_space.shape))
+        self._estimates = None
+        obs, reward, terminated, truncated, info = self._step(actions, control)
+        estimate = self._estimates
+        if estimate is None:
+            if control is None:
+                control = self.model.actuator.control(action_columns(actions, self.action_space.shape))
             u = control[1] if rule.motion or rule.dissipation is not None else None
-            lam, lam_d, share = self.engine.rates_batch(self._y, u, self._y2d)
-            obs, reward, terminated, truncated, info = self._step(actions, control)
+            lam, lam_d, share = self.engine.rates_batch(y0, u, y2d0)
             estimate = np.broadcast_to(rule.estimate(lam, self._period_h, lam_d, share), (self.num_envs,)).astype(np.float64)
         estimate[restart] = 0.0
         if "final_info" in info:  # SAME_STEP: the ended periods' estimates go with their final info
