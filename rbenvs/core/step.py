@@ -745,6 +745,11 @@ class Engine:
         """``(obs, info)`` of a start ``y`` (no control has acted: ``u = None``); the single env's
         run starts there (its compensation at zero)."""
         self.comp = self.fresh_comp
+        return self.fresh_one(y)
+
+    def fresh_one(self, y):
+        """:meth:`reset_one`'s ``(obs, info)`` of ``y`` without starting a run there (the run's
+        compensation as it was)."""
         obs, over = self.observe(y)
         if over:
             raise ValueError("the initial state lies outside the observation bounds; raise the limit parameters")

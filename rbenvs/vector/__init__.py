@@ -775,10 +775,9 @@ class RigidBodyVectorEnv(VectorEnv):
         infos = []
         for j, i in enumerate(idx):
             engine = self._episodes[i]
-            comp = engine.comp
-            o, info = engine.reset_one(tuple(float(c[j]) for c in y))
-            if started is not None and not started[i]:
-                engine.comp = comp  # (a sub-env the reset leaves running goes on with its run's compensation)
+            # (a sub-env the reset leaves running goes on with its run's compensation)
+            start = engine.reset_one if started is None or started[i] else engine.fresh_one
+            o, info = start(tuple(float(c[j]) for c in y))
             obs[j] = o
             infos.append(info)
         metrics = {name: self._column(name, [info[name] for info in infos]) for name in self.task.metric_names}
