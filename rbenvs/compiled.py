@@ -47,6 +47,7 @@ from .core.codegen import generate
 from .jit import DISABLE_VARIABLE, available, jitable
 from .jit import register as _register
 from .jit import register_all as _register_all
+from .kernel_cache import njit as _cached_njit
 
 __all__ = ["jitable", "available", "Layout", "VectorLayout", "batch_kernel", "vector_kernel", "rows_kernel", "finish_kernel", "state_kernel", "physics_kernel",
            "run_kernel", "runs_kernel", "CheckedRuns", "plan_kernel", "plans_kernel", "PeriodPlan", "state_finish", "info_function", "BatchStep", "BatchResult", "VectorStep", "VectorResult", "StateStep", "DISABLE_VARIABLE", "LLVM_OPTIONS"]
@@ -143,7 +144,7 @@ def physics_kernel(step, dim: int, n_control: int):
     u = f"u = ({_comps('U[{j}][i]', n_control)})"
     src = "def advance(Y, Ynew, U, h, substeps, PS):\n" + "\n".join(_physics_lines(dim, u)) + "\n"
     namespace = generate(src, f"physics kernel dim={dim}", {"step": step})
-    return numba.njit(**KERNEL_OPTIONS)(namespace["advance"])
+    return _cached_njit(namespace["advance"], "advance", **KERNEL_OPTIONS)
 
 
 class Layout(NamedTuple):
@@ -418,7 +419,7 @@ def finish_kernel(layout: Layout):
     lines += _finish_lines(L, y, f"un = ({_comps('0.0', L.n_action)})", "u = None", "False")
     namespace = _namespace(L)
     generate("\n".join(lines), f"finish kernel dim={L.dim} n_obs={L.n_obs}", namespace)
-    return numba.njit(**KERNEL_OPTIONS)(namespace["finish"])
+    return _cached_njit(namespace["finish"], "finish", **KERNEL_OPTIONS)
 
 
 def _namespace(L: Layout) -> dict:
@@ -484,7 +485,7 @@ def batch_kernel(layout: Layout):
     lines += ["    return 0"]
     namespace = _namespace(L)
     generate("\n".join(lines), f"batch kernel dim={L.dim} n_obs={L.n_obs}", namespace)
-    return numba.njit(**KERNEL_OPTIONS)(namespace["kernel"])
+    return _cached_njit(namespace["kernel"], "kernel", **KERNEL_OPTIONS)
 
 
 def _lockstep_lines(L: Layout, u: str) -> list[str]:
@@ -664,7 +665,7 @@ def rows_kernel(V: VectorLayout):
     lines += ["        q = readouts(PR, y, None, False)", *[f"        R{j}[i] = q[{j}]" for j in range(L.n_readouts)], "        hstep[i] = h"]
     namespace = _vector_namespace(V)
     generate("\n".join(lines), f"rows kernel dim={L.dim} n_obs={L.n_obs}", namespace)
-    return numba.njit(error_model="numpy")(namespace["rows"])
+    return _cached_njit(namespace["rows"], "rows", error_model="numpy")
 
 
 @lru_cache(maxsize=None)
@@ -827,7 +828,7 @@ def vector_kernel(V: VectorLayout):
     lines += ["    return 0, k, m, r"]
     namespace = _vector_namespace(V)
     generate("\n".join(lines), f"vector step dim={L.dim} n_obs={L.n_obs}", namespace)
-    return numba.njit(**KERNEL_OPTIONS)(namespace["vstep"])
+    return _cached_njit(namespace["vstep"], "vstep", **KERNEL_OPTIONS)
 
 
 @lru_cache(maxsize=None)
@@ -876,7 +877,7 @@ def state_kernel(layout: Layout):
     ]
     namespace = _namespace(L)
     generate("\n".join(lines), f"state kernel dim={L.dim} n_obs={L.n_obs}", namespace)
-    return numba.njit(**KERNEL_OPTIONS)(namespace["one"])
+    return _cached_njit(namespace["one"], "one", **KERNEL_OPTIONS)
 
 
 @lru_cache(maxsize=None)
@@ -900,7 +901,7 @@ def run_kernel(layout: Layout, twin: int = 0):
     lines += ["    return y, f, cc"]
     namespace = _namespace(L)
     generate("\n".join(lines), f"run kernel dim={L.dim} twin={twin}", namespace)
-    return numba.njit(**KERNEL_OPTIONS)(namespace["run"])
+    return _cached_njit(namespace["run"], "run", **KERNEL_OPTIONS)
 
 
 @lru_cache(maxsize=None)
@@ -929,7 +930,7 @@ def runs_kernel(layout: Layout, twin: int = 0):
                  "        fired[i] = False", *("    " + line for line in _lockstep_passes(L, u, "H[i]", twin))]
         namespace = _namespace(L)
         generate("\n".join(lines), f"runs kernel dim={L.dim} twin={twin} lockstep", namespace)
-        return numba.njit(**KERNEL_OPTIONS)(namespace["runs"])
+        return _cached_njit(namespace["runs"], "runs", **KERNEL_OPTIONS)
     lines = ["def runs(Y, CC, U, counts, H, fired, P):", "    PS, PV, PW = P", "    for i in range(Y.shape[1]):",
              f"        y = ({_comps('Y[{j}, i]', L.dim)})", f"        cc = ({_comps('CC[{j}, i]', L.dim)})",
              f"        u = ({_comps('U[{j}, i]', L.n_control)})", "        c = counts[i]", "        hi = H[i]", "        f = False"]
@@ -937,7 +938,7 @@ def runs_kernel(layout: Layout, twin: int = 0):
     lines += [f"        Y[{j}, i] = y[{j}]" for j in range(L.dim)] + [f"        CC[{j}, i] = cc[{j}]" for j in range(L.dim)] + ["        fired[i] = f"]
     namespace = _namespace(L)
     generate("\n".join(lines), f"runs kernel dim={L.dim} twin={twin}", namespace)
-    return numba.njit(**KERNEL_OPTIONS)(namespace["runs"])
+    return _cached_njit(namespace["runs"], "runs", **KERNEL_OPTIONS)
 
 
 @lru_cache(maxsize=None)
@@ -959,7 +960,7 @@ def plan_kernel(layout: Layout):
     lines += ["    return x, r, rate, a"]
     namespace = _namespace(L)
     generate("\n".join(lines), f"plan kernel dim={L.dim}", namespace)
-    return numba.njit(**KERNEL_OPTIONS)(namespace["plan"])
+    return _cached_njit(namespace["plan"], "plan", **KERNEL_OPTIONS)
 
 
 @lru_cache(maxsize=None)
@@ -986,7 +987,7 @@ def plans_kernel(layout: Layout, ratio: bool = False):
                   "        RATE[i] = rate", "        A[i] = a"]
     namespace = _namespace(L)
     generate("\n".join(lines), f"plans kernel dim={L.dim}{' ratio' if ratio else ''}", namespace)
-    return numba.njit(**KERNEL_OPTIONS)(namespace["plans"])
+    return _cached_njit(namespace["plans"], "plans", **KERNEL_OPTIONS)
 
 
 class PeriodPlan:

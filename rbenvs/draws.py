@@ -57,17 +57,21 @@ def batch_draws(rngs, kinds: str) -> np.ndarray:
     return out
 
 
-_kernel = None
+_kernels: dict = {}
 
 
-def _draw_kernel():
-    """The compiled loop (made once per process): ``kernel(generators, idx, codes, out)``."""
-    global _kernel
-    if _kernel is None:
-        import numba
+def _table_kernels() -> dict:
+    """The compiled functions of a :class:`GeneratorTable` (made once per process, kept on disk by
+    :mod:`rbenvs.kernel_cache`): ``draw(generators, idx, codes, out)``, and the typed list's
+    ``make(rng)``, ``append(table, rng)`` and ``put(table, i, rng)``. The list is built by these
+    rather than by ``numba.typed.List(rngs)``, whose methods numba compiles again in every
+    process (1.2-1.6 s: most of a vector env's start once its own kernels come from the disk)."""
+    if not _kernels:
+        from numba.typed import List
 
-        @numba.njit
-        def kernel(generators, idx, codes, out):
+        from .kernel_cache import njit
+
+        def draw(generators, idx, codes, out):
             for j in range(idx.shape[0]):
                 rng = generators[idx[j]]
                 for k in range(codes.shape[0]):
@@ -76,8 +80,20 @@ def _draw_kernel():
                     else:
                         out[k, j] = rng.standard_normal()
 
-        _kernel = kernel
-    return _kernel
+        def make(rng):
+            table = List()
+            table.append(rng)
+            return table
+
+        def append(table, rng):
+            table.append(rng)
+
+        def put(table, i, rng):
+            table[i] = rng
+
+        _kernels.update(draw=njit(draw, "draws"), make=njit(make, "generator table"), append=njit(append, "generator table append"),
+                        put=njit(put, "generator table put"))
+    return _kernels
 
 
 class GeneratorTable:
@@ -89,13 +105,18 @@ class GeneratorTable:
     ``table[i] = rng`` replaces sub-env ``i``'s generator (a reseeded sub-env)."""
 
     def __init__(self, rngs):
-        from numba import typed
-
-        self._list = typed.List(rngs)
-        self._kernel = _draw_kernel()
+        kernels = _table_kernels()
+        rngs = list(rngs)
+        if not rngs:
+            raise ValueError("a generator table needs at least one generator")
+        self._list = kernels["make"](rngs[0])
+        for rng in rngs[1:]:
+            kernels["append"](self._list, rng)
+        self._kernel = kernels["draw"]
+        self._put = kernels["put"]
 
     def __setitem__(self, i: int, rng) -> None:
-        self._list[i] = rng
+        self._put(self._list, i, rng)
 
     @property
     def list(self):

@@ -17,7 +17,9 @@ All functions are elementwise over numpy broadcasting.
 from __future__ import annotations
 
 import numpy as np
-from scipy import special
+
+# scipy.special is imported where it is used: importing it costs ~0.2 s, which every env would
+# pay at start while only the exact solution (oracles, the exact integrator) calls it
 
 __all__ = ["jacobi_sn_cn_dn", "elliptic_f", "elliptic_f_sc", "elliptic_k"]
 
@@ -27,6 +29,8 @@ _EPS = float(np.finfo(float).eps)
 
 def elliptic_k(m1):
     """Complete integral of the first kind ``K`` as a function of ``m1 = 1 - m``."""
+    from scipy import special
+
     return special.ellipkm1(m1)
 
 
@@ -95,6 +99,8 @@ def elliptic_f_sc(s, c, m, m1):
     s, c = s / r, c / r
     upper = c < 0.0  # |phi| > pi/2: F(phi) = sign(phi) (2K - F(pi - |phi|))
     sa, ca = np.abs(s), np.abs(c)
+    from scipy import special
+
     f = sa * special.elliprf(ca * ca, ca * ca + m1 * sa * sa, 1.0)
     separatrix = m1 == 0.0
     if np.any(separatrix):

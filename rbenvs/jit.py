@@ -155,9 +155,8 @@ def elementwise(fn, n_in: int, n_out: int):
 
 
 def _elementwise_loop(fn, n_in: int, n_out: int):
-    import numba
-
     from .core.codegen import generate
+    from .kernel_cache import njit
 
     register_all()
     ins = ", ".join(f"x{j}" for j in range(n_in))
@@ -166,4 +165,4 @@ def _elementwise_loop(fn, n_in: int, n_out: int):
     lines += [f"        o{j}[i] = r[{j}]" for j in range(n_out)] if n_out > 1 else ["        o0[i] = r"]
     namespace = generate("\n".join(lines), f"elementwise {fn.__name__}", {"fn": fn})
     # forceinline: fn inlined into the loop (a call left in it keeps the loop scalar)
-    return numba.njit(error_model="numpy", forceinline=True)(namespace["run"])
+    return njit(namespace["run"], f"elementwise {fn.__name__}", error_model="numpy", forceinline=True)

@@ -1,3 +1,11 @@
+import os
+from pathlib import Path
+
+# The test run's compiled kernels in a cache of its own (rbenvs.kernel_cache), shared by the
+# xdist workers (each loads what another compiled) and kept between runs of this checkout; a
+# clean clone starts it empty. Set before rbenvs compiles anything; RBENVS_CACHE_DIR overrides.
+os.environ.setdefault("RBENVS_CACHE_DIR", str(Path(__file__).resolve().parent.parent / ".rbenvs-cache"))
+
 from dataclasses import dataclass
 
 import gymnasium as gym

@@ -50,5 +50,8 @@ def generate(source: str, label: str, namespace: dict | None = None) -> dict:
         safe = re.sub(r"[^A-Za-z0-9_.=-]+", "_", label).strip("_")
         (path / f"{k:04d}-{safe}.py").write_text(f"# {filename}\n{source}")
     namespace = {} if namespace is None else namespace
+    # the definitions' __module__: an importable module (numba imports it to rebuild a cached
+    # kernel's environment, rbenvs.kernel_cache), this one, where every generated source is made
+    namespace.setdefault("__name__", __name__)
     exec(compile(source, filename, "exec"), namespace)
     return namespace

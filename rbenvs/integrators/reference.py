@@ -6,7 +6,6 @@ from dataclasses import dataclass
 from typing import ClassVar
 
 import numpy as np
-from scipy.integrate import solve_ivp
 
 from .base import Integrator, StepRegion
 
@@ -43,6 +42,8 @@ class Dop853(Integrator):
         def fun(_t, flat):
             comps = tuple(flat.reshape(dim, -1))
             return np.concatenate([np.broadcast_to(np.asarray(d, dtype=float), comps[0].shape) for d in system.rhs(comps, u)])
+
+        from scipy.integrate import solve_ivp  # (here: importing it costs ~0.3 s at every env's start)
 
         sol = solve_ivp(fun, (0.0, float(h)), y0, method="DOP853", rtol=self.rtol, atol=self.atol)
         if not sol.success:
