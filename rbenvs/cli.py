@@ -11,6 +11,10 @@
   simulator against the oracles (:mod:`rbenvs.verify`); exits non-zero on any failure.
   ``--simulator SPEC`` (repeatable) runs the same checks on another engine (``mujoco[:...]``,
   ``rbenvs[:...]`` or a user's ``module:function``), ``--comparison`` prints them as one table.
+* ``rbenvs cache info`` / ``rbenvs cache clear [--stale]``: the compiled kernels kept on disk
+  (:mod:`rbenvs.kernel_cache`): the folder, its kernels per environment, deleting them.
+* ``rbenvs warmup [--system NAME ...]``: compiles what each system's default single env and
+  vector env run into that cache ahead (container images, CI caches).
 * ``rbenvs bench kernels``: the layout measurement behind the component kernels.
 * ``rbenvs bench fidelity``: the tippe top's fidelity levels, each against gliding friction.
 * ``rbenvs bench throughput [--quick] [--json PATH] [--num-envs N] [--only TEXT] [--tables LIST]``: env-steps per
@@ -135,6 +139,69 @@ def _run_scene(scene, args, progress) -> None:
     env.close()
 
 
+# The systems' ids by the names --system takes (those of rbenvs verify)
+SYSTEM_IDS = {"free_body": "rbenvs/FreeRigidBody-v0", "heavy_top": "rbenvs/LagrangeTop-v0", "tippe_top": "rbenvs/TippeTop-v0"}
+
+
+def _cmd_cache(args) -> int:
+    from . import kernel_cache
+
+    if args.action == "clear":
+        n = kernel_cache.clear(stale_only=args.stale)
+        print(f"deleted {n} kernel file{'s' if n != 1 else ''}" + (" of other environments" if args.stale else "") + f" under {kernel_cache.cache_root()}")
+        return 0
+    info = kernel_cache.info()
+    if info["root"] is None:
+        print(f"the kernel cache is off (${kernel_cache.CACHE_VARIABLE} is empty): kernels are compiled in memory in every process")
+        return 0
+    print(f"root: {info['root']} (${kernel_cache.CACHE_VARIABLE} overrides)")
+    print(f"this environment: {info['current'] or '(numba not installed: nothing is compiled)'}")
+    if not info["folders"]:
+        print("no kernels cached yet")
+        return 0
+    rows = [("environment", "kernel files", "MB", "")]
+    for f in info["folders"]:
+        rows.append((f["name"], str(f["files"]), f"{f['bytes'] / 1e6:.1f}", "current" if f["name"] == info["current"] else "stale"))
+    _print_table(rows)
+    return 0
+
+
+def _cmd_warmup(args) -> int:
+    """Compile (or load) what each system's default single env and vector env run: its first
+    steps, as a user's first process would take them."""
+    import time
+
+    import gymnasium as gym
+
+    import rbenvs  # noqa: F401  (registers the ids)
+
+    from . import kernel_cache
+    from .jit import available
+    from .progress import Progress
+
+    if not available():
+        print("numba is not installed (or RBENVS_COMPILED=0): the envs run on numpy, nothing to compile; install the fast extra")
+        return 0
+    systems = args.system or list(SYSTEM_IDS)
+    progress = Progress(2 * len(systems), enabled=not args.no_progress, desc="rbenvs warmup")
+    rows = [("system", "env", "compiled", "loaded", "s")]
+    for name in systems:
+        for kind in ("single", "vector"):
+            before, t = kernel_cache.stats(), time.perf_counter()
+            env = gym.make(SYSTEM_IDS[name]) if kind == "single" else gym.make_vec(SYSTEM_IDS[name], num_envs=2, vectorization_mode="vector_entry_point")
+            env.reset(seed=0)
+            env.step(env.action_space.sample())
+            env.close()
+            after = kernel_cache.stats()
+            rows.append((name, kind, str(after["compiled"] - before["compiled"]), str(after["loaded"] - before["loaded"]), f"{time.perf_counter() - t:.1f}"))
+            progress.update()
+    progress.close()
+    _print_table(rows)
+    folder = kernel_cache.kernel_folder()
+    print(f"kernels in {folder}" if folder is not None else "the kernel cache is off: nothing was kept")
+    return 0
+
+
 def _cmd_bench_kernels(args) -> int:
     from .bench.kernels import main as bench_main
 
@@ -203,6 +270,14 @@ def build_parser() -> argparse.ArgumentParser:
     sub.add_parser("verify", help="check the simulator against the analytic oracles (see rbenvs verify --help)")
     # `headline` too (rbenvs.headline.main).
     sub.add_parser("headline", help="the README's headline figures from the measuring commands' records (see rbenvs headline --help)")
+    cache = sub.add_parser("cache", help="the compiled kernels kept on disk: where, how many, and clearing them")
+    cache.add_argument("action", choices=("info", "clear"), help="info: the folder and its kernels; clear: delete them")
+    cache.add_argument("--stale", action="store_true", help="with clear: only the kernels of other environments (rbenvs, numba, Python versions or CPUs)")
+    cache.set_defaults(func=_cmd_cache)
+    warmup = sub.add_parser("warmup", help="compile the default envs' kernels ahead into the cache (container images, CI caches)")
+    warmup.add_argument("--system", action="append", choices=tuple(SYSTEM_IDS), help="restrict to these systems (repeatable; default all)")
+    warmup.add_argument("--no-progress", action="store_true", help="no progress bar")
+    warmup.set_defaults(func=_cmd_warmup)
     bench = sub.add_parser("bench", help="benchmarks (each prints the peer measured in the same run)")
     bench_sub = bench.add_subparsers(dest="bench", required=True)
     kernels = bench_sub.add_parser("kernels", help="RK4 kernel: our (3, n) components vs np.cross on (n, 3)")

@@ -154,8 +154,8 @@ def _value_repr(value) -> str:
     """An exact text for the plain values numba freezes into code (floats by their bits)."""
     if isinstance(value, float):
         return f"float:{value.hex()}"
-    if isinstance(value, (tuple, list)):
-        return type(value).__name__ + "(" + ",".join(_value_repr(v) for v in value) + ")"
+    if isinstance(value, tuple):
+        return "tuple(" + ",".join(_value_repr(v) for v in value) + ")"
     if value is None or isinstance(value, (bool, int, str, bytes, complex)):
         return f"{type(value).__name__}:{value!r}"
     return f"{type(value).__module__}.{type(value).__qualname__}"
@@ -209,8 +209,8 @@ def _feed(obj, h, seen: dict) -> None:
     if isinstance(obj, (types.BuiltinFunctionType, type)):
         h.update(f"{type(obj).__name__}:{getattr(obj, '__module__', '')}.{getattr(obj, '__qualname__', obj)};".encode())
         return
-    if isinstance(obj, (tuple, list)):
-        h.update(f"{type(obj).__name__}[{len(obj)}](".encode())
+    if isinstance(obj, tuple):
+        h.update(f"tuple[{len(obj)}](".encode())
         for item in obj:
             _feed(item, h, seen)
         h.update(b")")
@@ -234,10 +234,10 @@ def _feed(obj, h, seen: dict) -> None:
     if isinstance(obj, enum.Enum):
         h.update(f"enum:{type(obj).__module__}.{type(obj).__qualname__}.{obj.name};".encode())
         return
-    # plain values by their exact text; any other object (a set, a dict, an instance) by its type
-    # alone: numba freezes none of them into compiled code (a kernel that named one would not
-    # compile), so they are reached only through Python-side names, and their repr may hold an
-    # address that differs in every process
+    # plain values by their exact text; any other object (a list, a set, a dict, an instance) by
+    # its type alone: numba freezes none of them into compiled code (a kernel that named one would
+    # not compile), so they are reached only through Python-side names (a registry's list that
+    # grows as modules are imported), and their contents or repr differ from process to process
     h.update(_value_repr(obj).encode() + b";")
 
 
@@ -256,34 +256,58 @@ def _safe(label: str) -> str:
     return "".join(c if c.isalnum() or c in "-_=" else "_" for c in label).strip("_")[:60]
 
 
+_probed: dict = {}  # folder -> whether this process could write there (probed once)
+
+
+def _usable(folder: Path | None) -> bool:
+    """Whether kernels can be kept in ``folder`` (made and probed with a file once per process;
+    a folder that cannot be written turns the cache off with the warning)."""
+    if folder is None or _off_reason:
+        return False
+    if folder not in _probed:
+        try:
+            folder.mkdir(parents=True, exist_ok=True)
+            tempfile.NamedTemporaryFile(dir=folder, prefix=".probe-", delete=True).close()
+            _probed[folder] = True
+        except OSError as error:
+            _probed[folder] = False
+            _turn_off(f"cannot write {folder}: {error.strerror or error}")
+    return _probed[folder] and not _off_reason
+
+
 class _DiskCache:
     """What numba's dispatcher asks of a cache (``load_overload``, ``save_overload``,
-    ``cache_path``, ``flush``), over one file per argument types in the kernel folder."""
+    ``cache_path``, ``flush``), over one file per argument types in the kernel folder; with the
+    cache off (no folder, or one that cannot be written) it only counts the compilations."""
 
-    def __init__(self, py_func, folder: Path, label: str, kernel_key: str):
+    def __init__(self, py_func, label: str, options: dict):
         self._py_func = py_func
-        self._folder = folder
-        self._base = f"{_safe(label)}-{kernel_key[:24]}"
-        self._kernel_key = kernel_key
+        self._label = _safe(label)
+        self._options = repr(sorted(options.items()))
+        self._folder = kernel_folder()
+        self._kernel_key = None  # (computed on first use: the fingerprint walks the functions)
 
     @property
     def cache_path(self) -> str:
         return str(self._folder)
 
     def flush(self) -> None:  # (numba's Dispatcher.flush: forget what is saved)
-        for path in self._folder.glob(self._base + "-*" + _SUFFIX):
-            try:
-                path.unlink()
-            except OSError:
-                pass
+        if self._folder is not None and self._kernel_key is not None:
+            for path in self._folder.glob(f"{self._label}-{self._kernel_key[:24]}-*{_SUFFIX}"):
+                try:
+                    path.unlink()
+                except OSError:
+                    pass
 
     def _key(self, sig, codegen) -> tuple[str, Path]:
+        if self._kernel_key is None:
+            self._kernel_key = hashlib.sha256((fingerprint(self._py_func) + self._options).encode()).hexdigest()
         text = repr((self._kernel_key, str(sig), codegen.magic_tuple()))
         digest = hashlib.sha256(text.encode()).hexdigest()
-        return text, self._folder / f"{self._base}-{digest[:16]}{_SUFFIX}"
+        return text, self._folder / f"{self._label}-{self._kernel_key[:24]}-{digest[:16]}{_SUFFIX}"
 
     def load_overload(self, sig, target_context):
-        if _off_reason:
+        if not _usable(self._folder):
             return None
         from numba.core.compiler import CompileResult
 
@@ -303,9 +327,7 @@ class _DiskCache:
             if stored != text:
                 raise ValueError("another kernel's file")
             cres = CompileResult._rebuild(target_context, *data)
-        except Exception as e:  # a file that does not verify is compiled again (and overwritten)
-            if os.environ.get("RBENVS_CACHE_DEBUG"):
-                import traceback; traceback.print_exc()
+        except Exception:  # a file that does not verify is compiled again (and overwritten)
             with _lock:
                 _stats["rejected"] += 1
             return None
@@ -316,7 +338,7 @@ class _DiskCache:
     def save_overload(self, sig, cres) -> None:
         with _lock:
             _stats["compiled"] += 1
-        if _off_reason:
+        if not _usable(self._folder):
             return
         if any(not x.can_cache for x in cres.lifted) or cres.library.has_dynamic_globals:
             return  # (numba's rule: object-mode lifts and frozen large arrays cannot be reloaded)
@@ -327,7 +349,6 @@ class _DiskCache:
         blob = _MAGIC + hashlib.sha256(payload).digest() + payload
         tmp = path.with_name(f"{path.name}.tmp.{uuid.uuid4().hex[:12]}")
         try:
-            self._folder.mkdir(parents=True, exist_ok=True)
             with open(tmp, "wb") as f:
                 f.write(blob)
             os.replace(tmp, path)  # atomic: a reader sees the old file, the new one, or none
@@ -348,18 +369,7 @@ def njit(fn, label: str, **options):
     import numba
 
     dispatcher = numba.njit(**options)(fn)
-    folder = kernel_folder()
-    if folder is None or _off_reason:
-        return dispatcher
-    try:
-        folder.mkdir(parents=True, exist_ok=True)
-        probe = tempfile.NamedTemporaryFile(dir=folder, prefix=".probe-", delete=True)
-        probe.close()
-    except OSError as error:
-        _turn_off(f"cannot write {folder}: {error.strerror or error}")
-        return dispatcher
-    key = hashlib.sha256((fingerprint(fn) + repr(sorted(options.items()))).encode()).hexdigest()
-    dispatcher._cache = _DiskCache(fn, folder, label, key)  # (what numba's enable_caching sets)
+    dispatcher._cache = _DiskCache(fn, label, options)  # (the attribute numba's enable_caching sets)
     return dispatcher
 
 

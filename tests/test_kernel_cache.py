@@ -1,0 +1,217 @@
+"""The on-disk kernel cache (rbenvs.kernel_cache): a second process loads what the first compiled
+(counted, not timed), a file that does not verify is compiled again, processes compiling one
+kernel at once, a folder that cannot be written, and the fingerprint that keys a kernel."""
+
+import json
+import os
+import subprocess
+import sys
+import warnings
+
+import numpy as np
+import pytest
+
+from rbenvs import kernel_cache
+
+pytest.importorskip("numba")
+
+# A fresh process: makes and steps an env (or a vector env), prints the cache's counts and the
+# step's observation (to compare across processes: a loaded kernel computes what a compiled one does)
+SCRIPT = r"""
+import json, sys, warnings
+import gymnasium as gym
+import numpy as np
+import rbenvs
+from rbenvs import kernel_cache
+env_id, n = sys.argv[1], int(sys.argv[2])
+with warnings.catch_warnings(record=True) as caught:
+    warnings.simplefilter("always")
+    if n:
+        env = gym.make_vec(env_id, num_envs=n, vectorization_mode="vector_entry_point")
+    else:
+        env = gym.make(env_id)
+    env.reset(seed=3)
+    obs = None
+    for _ in range(3):
+        obs = env.step(np.full(env.action_space.shape, 0.3, dtype=env.action_space.dtype))[0]
+print(json.dumps({"stats": kernel_cache.stats(), "obs": np.asarray(obs).tolist(),
+                  "warnings": [str(w.message) for w in caught if issubclass(w.category, kernel_cache.KernelCacheWarning)]}))
+"""
+
+
+def run(cache_dir, env_id="rbenvs/FreeRigidBody-v0", n=0):
+    env = dict(os.environ, RBENVS_CACHE_DIR=str(cache_dir))
+    out = subprocess.run([sys.executable, "-c", SCRIPT, env_id, str(n)], env=env, capture_output=True, text=True, timeout=600)
+    assert out.returncode == 0, out.stderr
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def kernel_files(cache_dir):
+    return sorted(p for p in (cache_dir / "kernels").rglob("*") if p.is_file())
+
+
+def test_a_second_process_loads_what_the_first_compiled(tmp_path):
+    first = run(tmp_path)
+    assert first["stats"]["compiled"] >= 1 and first["stats"]["loaded"] == 0
+    assert first["stats"]["saved"] == first["stats"]["compiled"]
+    files = kernel_files(tmp_path)
+    assert len(files) == first["stats"]["saved"] and all(p.suffix == ".nbk" for p in files)
+    second = run(tmp_path)
+    assert second["stats"] == {"loaded": first["stats"]["compiled"], "compiled": 0, "rejected": 0, "saved": 0}
+    assert second["obs"] == first["obs"]  # bit for bit (JSON keeps every float's digits)
+    assert not first["warnings"] and not second["warnings"]
+
+
+def test_the_vector_env_and_its_generator_table_load_too(tmp_path):
+    first = run(tmp_path, "rbenvs/LagrangeTop-v0", 4)
+    second = run(tmp_path, "rbenvs/LagrangeTop-v0", 4)
+    assert first["stats"]["compiled"] >= 3  # the vector step, the reset's finish, the generator table's
+    assert second["stats"]["compiled"] == 0 and second["stats"]["loaded"] == first["stats"]["compiled"]
+    assert second["obs"] == first["obs"]
+
+
+@pytest.mark.parametrize("damage", ["truncate", "flip", "empty", "swap"])
+def test_a_file_that_does_not_verify_is_compiled_again_not_loaded(tmp_path, damage):
+    first = run(tmp_path)
+    files = kernel_files(tmp_path)
+    blobs = [p.read_bytes() for p in files]
+    for p, blob in zip(files, blobs):
+        if damage == "truncate":
+            p.write_bytes(blob[: len(blob) // 2])
+        elif damage == "flip":  # one bit in the object code's half, the length kept
+            k = len(blob) * 3 // 4
+            p.write_bytes(blob[:k] + bytes([blob[k] ^ 0x10]) + blob[k + 1 :])
+        elif damage == "empty":
+            p.write_bytes(b"")
+    if damage == "swap":  # a whole, valid file of another kernel under this one's name
+        other = run(tmp_path, "rbenvs/LagrangeTop-v0")
+        assert other["stats"]["compiled"] >= 1
+        theirs = sorted(set(kernel_files(tmp_path)) - set(files))
+        files[0].write_bytes(theirs[0].read_bytes())
+    second = run(tmp_path)
+    assert second["stats"]["rejected"] >= 1
+    assert second["stats"]["compiled"] == second["stats"]["rejected"]
+    assert second["obs"] == first["obs"]
+    third = run(tmp_path)  # the damaged files were overwritten with good ones
+    assert third["stats"]["compiled"] == 0 and third["stats"]["rejected"] == 0
+    assert third["obs"] == first["obs"]
+
+
+def test_four_processes_compiling_one_kernel_at_once(tmp_path):
+    env = dict(os.environ, RBENVS_CACHE_DIR=str(tmp_path))
+    procs = [subprocess.Popen([sys.executable, "-c", SCRIPT, "rbenvs/FreeRigidBody-v0", "0"], env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                              text=True) for _ in range(4)]
+    results = []
+    for p in procs:
+        out, err = p.communicate(timeout=600)
+        assert p.returncode == 0, err
+        results.append(json.loads(out.strip().splitlines()[-1]))
+    assert all(r["obs"] == results[0]["obs"] for r in results)
+    assert not any(r["warnings"] for r in results)
+    assert not [p for p in (tmp_path / "kernels").rglob("*") if ".tmp." in p.name]  # no partial file left
+    after = run(tmp_path)
+    assert after["stats"]["compiled"] == 0 and after["stats"]["rejected"] == 0 and after["obs"] == results[0]["obs"]
+
+
+def test_a_folder_that_cannot_be_written_compiles_in_memory_with_one_warning(tmp_path):
+    blocker = tmp_path / "a-file"
+    blocker.write_text("not a folder")  # (root may write anywhere: a file in the path stops everyone)
+    out = run(blocker / "cache")
+    assert len(out["warnings"]) == 1 and "compiled in memory" in out["warnings"][0]
+    assert out["stats"]["compiled"] >= 1 and out["stats"]["saved"] == 0
+    reference = run(tmp_path / "good")
+    assert out["obs"] == reference["obs"]
+
+
+def test_a_full_disk_turns_the_cache_off_with_one_warning(tmp_path, monkeypatch):
+    # in this process: the write fails as on a full disk (ENOSPC); the kernel still runs, compiled in memory
+    import errno
+
+    monkeypatch.setenv(kernel_cache.CACHE_VARIABLE, str(tmp_path))
+    monkeypatch.setattr(kernel_cache, "_off_reason", [])
+
+    def full(*args, **kwargs):
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(kernel_cache.os, "replace", full)
+
+    def add(x, y):
+        return x + 2.0 * y
+
+    def sub(x, y):
+        return x - 2.0 * y
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        assert kernel_cache.njit(add, "test add")(1.0, 2.0) == 5.0
+        assert kernel_cache.njit(sub, "test sub")(1.0, 2.0) == -3.0
+    messages = [w for w in caught if issubclass(w.category, kernel_cache.KernelCacheWarning)]
+    assert len(messages) == 1 and "No space left" in str(messages[0].message)
+    assert not list(tmp_path.rglob("*.nbk")) and not [p for p in tmp_path.rglob("*") if ".tmp." in p.name]
+
+
+def test_an_empty_cache_variable_turns_the_disk_cache_off(monkeypatch):
+    monkeypatch.setenv(kernel_cache.CACHE_VARIABLE, "")
+    assert kernel_cache.cache_root() is None and kernel_cache.kernel_folder() is None
+
+
+def test_the_default_folder_is_the_platforms_cache(monkeypatch, tmp_path):
+    monkeypatch.delenv(kernel_cache.CACHE_VARIABLE, raising=False)
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
+    if sys.platform.startswith("linux"):
+        assert kernel_cache.cache_root() == tmp_path / "rbenvs"
+    folder = kernel_cache.kernel_folder()
+    assert folder.parent == kernel_cache.cache_root() / "kernels"
+    env = kernel_cache.environment()
+    for part in ("python", "numba", "llvmlite", "numpy", "cpu", "cpu_features", "rbenvs_source"):
+        assert env[part]
+
+
+def _adder(c):
+    def add(x):
+        return x + c
+
+    return add
+
+
+def _scaled(f, k):
+    def g(x):
+        return k * f(x)
+
+    return g
+
+
+def test_the_fingerprint_follows_closures_constants_and_called_functions():
+    fp = kernel_cache.fingerprint
+    assert fp(_adder(1.0)) == fp(_adder(1.0))
+    assert fp(_adder(1.0)) != fp(_adder(1.0000000000000002))  # one ulp: floats by their bits
+    assert fp(_adder(1.0)) != fp(_adder(1))  # int and float compile differently
+    assert fp(_scaled(_adder(1.0), 2.0)) != fp(_scaled(_adder(3.0), 2.0))  # a value two closures down
+    assert fp(_adder((1.0, 2.0))) != fp(_adder((1.0, 2.5)))
+    assert fp(_adder(np.array([1.0, 2.0]))) != fp(_adder(np.array([1.0, 2.5])))
+
+    from rbenvs.core.codegen import generate
+
+    one = generate("def f(x):\n    return x + 1.0\n", "fingerprint test")["f"]
+    two = generate("def f(x):\n    return x + 2.0\n", "fingerprint test")["f"]
+    again = generate("def f(x):\n    return x + 1.0\n", "fingerprint test")["f"]
+    assert fp(one) == fp(again) != fp(two)  # generated sources by their code, not their name
+    # a global the code names, through the generated namespace
+    g1 = generate("def f(x):\n    return h(x)\n", "fingerprint test", {"h": _adder(1.0)})["f"]
+    g2 = generate("def f(x):\n    return h(x)\n", "fingerprint test", {"h": _adder(2.0)})["f"]
+    assert fp(g1) != fp(g2)
+
+
+def test_cache_info_and_clear(tmp_path, monkeypatch):
+    run(tmp_path)
+    monkeypatch.setenv(kernel_cache.CACHE_VARIABLE, str(tmp_path))
+    stale = tmp_path / "kernels" / "cpython-3.0.0-old"
+    stale.mkdir()
+    (stale / "x.nbk").write_bytes(b"old")
+    info = kernel_cache.info()
+    names = {f["name"]: f for f in info["folders"]}
+    assert info["current"] in names and names[info["current"]]["files"] >= 1 and names["cpython-3.0.0-old"]["files"] == 1
+    assert kernel_cache.clear(stale_only=True) == 1
+    assert [f["name"] for f in kernel_cache.info()["folders"]] == [info["current"]]
+    assert kernel_cache.clear() == names[info["current"]]["files"]
+    assert kernel_cache.info()["folders"] == []
