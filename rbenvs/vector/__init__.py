@@ -175,16 +175,39 @@ class RigidBodyVectorEnv(VectorEnv):
         self._false = np.zeros(self.num_envs, dtype=bool)
         self._true.flags.writeable = False
         self._false.flags.writeable = False
+        self._reasons = ReasonPool(self.num_envs, self.engine.event_name)
+        self._build_compiled(compiled)
+
+    def _build_compiled(self, compiled) -> None:
+        """The compiled parts, which hold numba's objects: made here and again when a pickled or
+        deep-copied env is loaded (:meth:`__setstate__`), from the env's settings alone."""
         self._batch_step = self._compiled_step(compiled)
         self.compiled = self._batch_step is not None
         # the whole step compiled (actions, period, finish, episode clocks, restarts): one call
         # per step where the generators can be handed to compiled code
         self._vector_step = None
-        self._reasons = ReasonPool(self.num_envs, self.engine.event_name)
         if self._batch_step is not None and self._use_table:
             self._vector_step = _compiled.VectorStep(self.engine.kernel_parts(), self.model, self.single_observation_space.shape[0], self.engine.high,
                                                      self.max_episode_steps,
                                                      error=self.engine.rule.error)
+
+    def __getstate__(self):
+        """Everything but numba's objects (the generator tables' typed lists, the compiled steps)
+        and a figure: those are made again on loading, around the same generators, so that the
+        copy goes on bit for bit."""
+        state = self.__dict__.copy()
+        state["_batch_step"] = state["_vector_step"] = state["_renderer"] = None
+        state["_table"] = self._table is not None
+        if "_noise_table" in state:
+            state["_noise_table"] = self._noise_table is not None
+        return state
+
+    def __setstate__(self, state) -> None:
+        self.__dict__.update(state)
+        self._build_compiled(bool(state["compiled"]))
+        self._table = GeneratorTable(self._rngs) if state["_table"] else None
+        if state.get("_noise_table"):
+            self._noise_table = GeneratorTable(self._noise_gen)
 
     def _init_realism(self) -> None:
         """The action queue (``(delay, n, k)``, a ring with one head for every sub-env) and the
