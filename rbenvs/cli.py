@@ -20,6 +20,9 @@
 * ``rbenvs bench throughput [--quick] [--json PATH] [--num-envs N] [--only TEXT] [--tables LIST]``: env-steps per
   second of every task and scene, single and vector (random actions, restarts included), against Pendulum-v1
   and CartPole-v1's native vector env, with the compiled kernel's own time.
+* ``rbenvs bench startup [--system NAME] [--repeat N]``: seconds from a fresh process to its first
+  step, cold and warm kernel cache, single env and vector env, against Pendulum-v1, CartPole-v1's
+  vector env and MuJoCo; ``AsyncVectorEnv(context="spawn")``'s reset.
 * ``rbenvs bench accuracy [--quick] [--json PATH] [--plot PNG] [--system NAME] [--tippe]``: error, order,
   invariant drift and cost of every integrator on every system, and a recommended integrator
   per scene (:mod:`rbenvs.bench.accuracy`).
@@ -184,19 +187,21 @@ def _cmd_warmup(args) -> int:
         return 0
     systems = args.system or list(SYSTEM_IDS)
     progress = Progress(2 * len(systems), enabled=not args.no_progress, desc="rbenvs warmup")
-    rows = [("system", "env", "compiled", "loaded", "s")]
+    rows = [("system", "env", "compiled", "loaded", "s", "kernels (s each)")]
     for name in systems:
         for kind in ("single", "vector"):
-            before, t = kernel_cache.stats(), time.perf_counter()
+            before, first, t = kernel_cache.stats(), len(kernel_cache.kernels()), time.perf_counter()
             env = gym.make(SYSTEM_IDS[name]) if kind == "single" else gym.make_vec(SYSTEM_IDS[name], num_envs=2, vectorization_mode="vector_entry_point")
             env.reset(seed=0)
             env.step(env.action_space.sample())
             env.close()
             after = kernel_cache.stats()
-            rows.append((name, kind, str(after["compiled"] - before["compiled"]), str(after["loaded"] - before["loaded"]), f"{time.perf_counter() - t:.1f}"))
+            each = ", ".join(f"{label} {seconds:.1f}" for label, _, _, seconds in kernel_cache.kernels()[first:])
+            rows.append((name, kind, str(after["compiled"] - before["compiled"]), str(after["loaded"] - before["loaded"]), f"{time.perf_counter() - t:.1f}", each))
             progress.update()
     progress.close()
     _print_table(rows)
+    print("(a kernel already made in this process, by an earlier row, is neither compiled nor loaded again)")
     folder = kernel_cache.kernel_folder()
     print(f"kernels in {folder}" if folder is not None else "the kernel cache is off: nothing was kept")
     return 0
@@ -288,6 +293,8 @@ def build_parser() -> argparse.ArgumentParser:
     fidelity.set_defaults(func=_cmd_bench_fidelity)
     # `bench throughput` has its own parser (rbenvs.bench.throughput.main); main() hands it the rest.
     bench_sub.add_parser("throughput", help="env-steps/s against Pendulum-v1 and CartPole-v1's vector env (see its --help)")
+    # `bench startup` too (rbenvs.bench.startup.main).
+    bench_sub.add_parser("startup", help="seconds from a fresh process to its first step, cold and warm kernel cache, against Pendulum-v1 and MuJoCo (see its --help)")
     # `bench accuracy` too (rbenvs.bench.accuracy.main).
     bench_sub.add_parser("accuracy", help="error, order, drift and cost per integrator and system; a step per scene (see its --help)")
     plot = sub.add_parser("plot", help="PNG figures of the three systems against their oracles, and rendered frames (plot extra)")
@@ -320,6 +327,10 @@ def _main(argv) -> int:
         from .bench.throughput import main as throughput_main
 
         return throughput_main(argv[2:])
+    if argv[:2] == ["bench", "startup"]:
+        from .bench.startup import main as startup_main
+
+        return startup_main(argv[2:])
     if argv[:2] == ["bench", "accuracy"]:
         from .bench.accuracy import main as accuracy_main
 

@@ -40,13 +40,14 @@ import pickle
 import sys
 import tempfile
 import threading
+import time
 import types
 import uuid
 import warnings
 from functools import lru_cache
 from pathlib import Path
 
-__all__ = ["njit", "cache_root", "kernel_folder", "environment", "fingerprint", "stats", "clear", "info", "KernelCacheWarning", "CACHE_VARIABLE"]
+__all__ = ["njit", "cache_root", "kernel_folder", "environment", "fingerprint", "stats", "kernels", "clear", "info", "KernelCacheWarning", "CACHE_VARIABLE"]
 
 # the cache's root folder; set to an empty string to compile in memory only
 CACHE_VARIABLE = "RBENVS_CACHE_DIR"
@@ -56,6 +57,7 @@ _SUFFIX = ".nbk"
 
 _lock = threading.Lock()
 _stats = {"loaded": 0, "compiled": 0, "rejected": 0, "saved": 0}
+_log: list = []  # (label, argument types, "loaded" or "compiled", seconds) of this process's kernels
 _off_reason: list = []  # why the disk cache is off in this process (the warning given once)
 
 
@@ -307,6 +309,7 @@ class _DiskCache:
         return text, self._folder / f"{self._label}-{self._kernel_key[:24]}-{digest[:16]}{_SUFFIX}"
 
     def load_overload(self, sig, target_context):
+        self._started = time.perf_counter()  # (a miss: numba compiles next, then calls save_overload)
         if not _usable(self._folder):
             return None
         from numba.core.compiler import CompileResult
@@ -333,11 +336,13 @@ class _DiskCache:
             return None
         with _lock:
             _stats["loaded"] += 1
+            _log.append((self._label, len(sig), "loaded", time.perf_counter() - self._started))
         return cres
 
     def save_overload(self, sig, cres) -> None:
         with _lock:
             _stats["compiled"] += 1
+            _log.append((self._label, len(sig), "compiled", time.perf_counter() - getattr(self, "_started", time.perf_counter())))
         if not _usable(self._folder):
             return
         if any(not x.can_cache for x in cres.lifted) or cres.library.has_dynamic_globals:
@@ -371,6 +376,13 @@ def njit(fn, label: str, **options):
     dispatcher = numba.njit(**options)(fn)
     dispatcher._cache = _DiskCache(fn, label, options)  # (the attribute numba's enable_caching sets)
     return dispatcher
+
+
+def kernels() -> list[tuple]:
+    """This process's kernels in the order they were first called: ``(label, number of
+    arguments, "loaded" or "compiled", seconds)`` (``rbenvs warmup`` prints them)."""
+    with _lock:
+        return list(_log)
 
 
 def stats() -> dict:

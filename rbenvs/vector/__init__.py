@@ -305,7 +305,7 @@ class RigidBodyVectorEnv(VectorEnv):
         self._steps[mask] = 0 if elapsed is None else elapsed[mask]
         self._prev_done = self._prev_done & ~mask
         self._plain = self.engine.plain
-        obs, over, metrics, physical = self._fresh(self._y, np.arange(n), started=mask)
+        obs, over, metrics, physical = self._fresh(self._y, np.arange(n), started=mask, compiled=False)
         if np.any(over & mask):
             raise ValueError("an initial state lies outside the observation bounds; raise the limit parameters")
         self._u = None  # as the single env after reset: nothing acted yet (a table at rest)
@@ -336,19 +336,21 @@ class RigidBodyVectorEnv(VectorEnv):
             raise ValueError(f"options['elapsed_steps'] must lie in [0, max_episode_steps) = [0, {self.max_episode_steps}), got [{k.min()}, {k.max()}]")
         return k.astype(np.int64)
 
-    def _fresh(self, y, idx, started=None):
+    def _fresh(self, y, idx, started=None, compiled=True):
         """``(obs, over, metrics, physical)`` of states ``y`` that have just been reset: no control
         acted yet (read-outs under ``u = None``, the single env's rule), the task's metrics at zero
         action. Compiled where the step is (:meth:`rbenvs.compiled.VectorStep.finish`); on numpy
         ``physical`` is ``None`` (the engine's read-outs are taken where needed). ``y``: the rows
         ``idx`` of the batch; ``started``: the sub-envs that start an episode (``None``: every
-        one of ``idx``; a sub-env's episode engine keeps its run going where it does not)."""
+        one of ``idx``; a sub-env's episode engine keeps its run going where it does not);
+        ``compiled=False``: on numpy (a reset: its rows once per reset are not worth a kernel
+        that takes 3-9 s to compile; the same bits)."""
         if self._ranges is not None:
             return self._fresh_episodes(y, idx, started)
-        if self._vector_step is not None and self._table is not None:
+        if compiled and self._vector_step is not None and self._table is not None:
             obs, over, metrics, physical = self._vector_step.finish(np.stack(y), self._table.list)
             return obs, over, dict(zip(self.task.metric_names, metrics)), physical
-        if self._batch_step is not None:
+        if compiled and self._batch_step is not None:
             obs, over, _, _, metrics, physical = self._batch_step.finish(np.stack(y))
             return obs, over, dict(zip(self.task.metric_names, metrics)), physical
         k = len(y[0])
