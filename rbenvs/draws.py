@@ -65,7 +65,7 @@ def _table_kernels() -> dict:
     :mod:`rbenvs.kernel_cache`): ``draw(generators, idx, codes, out)``, and the typed list's
     ``make(rng)``, ``append(table, rng)`` and ``put(table, i, rng)``. The list is built by these
     rather than by ``numba.typed.List(rngs)``, whose methods numba compiles again in every
-    process (1.2-1.6 s: most of a vector env's start once its own kernels come from the disk)."""
+    process (most of a vector env's start once its own kernels come from the disk; rbenvs bench startup)."""
     if not _kernels:
         from numba.typed import List
 

@@ -1,7 +1,7 @@
 """Compiled kernels kept on disk, so that a new process loads what an earlier one compiled.
 
-Why: numba compiles a kernel the first time a process calls it (a second or more for a
-vector env's step), and rbenvs' kernels are generated per layout (:mod:`rbenvs.compiled`), so
+Why: numba compiles a kernel the first time a process calls it (seconds for a vector env's
+step: ``rbenvs warmup`` prints each), and rbenvs' kernels are generated per layout (:mod:`rbenvs.compiled`), so
 numba's own ``cache=True``, which finds a function by its source file, cannot keep them. Every
 kernel rbenvs compiles goes through :func:`njit`, which gives the dispatcher a cache of its own:
 numba's compile results (the object code and what it needs to be linked again), one file per

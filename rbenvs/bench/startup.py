@@ -147,12 +147,9 @@ def main(argv=None) -> int:
     root = tempfile.mkdtemp(prefix="rbenvs-bench-startup-")
     try:
         def measure(key, source, argv_, cache):
-            cold = None
-            if cache is not None:  # an empty cache of its own, then the same cache warm
-                cold = _run(source, argv_, cache)
-                bar.update()
-            else:
-                bar.update()
+            # an empty cache of its own, then the same cache warm (peers: no cache, no cold row)
+            cold = _run(source, argv_, cache) if cache is not None else None
+            bar.update()
             warm = []
             for _ in range(args.repeat):
                 warm.append(_run(source, argv_, cache))

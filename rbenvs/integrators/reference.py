@@ -43,7 +43,7 @@ class Dop853(Integrator):
             comps = tuple(flat.reshape(dim, -1))
             return np.concatenate([np.broadcast_to(np.asarray(d, dtype=float), comps[0].shape) for d in system.rhs(comps, u)])
 
-        from scipy.integrate import solve_ivp  # (here: importing it costs ~0.3 s at every env's start)
+        from scipy.integrate import solve_ivp  # (here: importing it is a large share of every env's start; rbenvs bench startup)
 
         sol = solve_ivp(fun, (0.0, float(h)), y0, method="DOP853", rtol=self.rtol, atol=self.atol)
         if not sol.success:

@@ -344,7 +344,7 @@ class RigidBodyVectorEnv(VectorEnv):
         ``idx`` of the batch; ``started``: the sub-envs that start an episode (``None``: every
         one of ``idx``; a sub-env's episode engine keeps its run going where it does not);
         ``compiled=False``: on numpy (a reset: its rows once per reset are not worth a kernel
-        that takes 3-9 s to compile; the same bits)."""
+        that is slow to compile; the same bits)."""
         if self._ranges is not None:
             return self._fresh_episodes(y, idx, started)
         if compiled and self._vector_step is not None and self._table is not None:
