@@ -566,15 +566,19 @@ def _lockstep_passes(L: Layout, u: str, h: str, twin: int = 0) -> list[str]:
 
 
 def _period_and_finish(L: Layout, u: str, un: str, more: str, starts: list[str] = (), fresh: str | None = None) -> list[str]:
-    """The batch kernel's body (see :func:`batch_kernel`): the guard's counts (a refusal returns
-    -1), the period per sub-env or as SIMD passes, the non-finite check (returns ``bad``, the
-    count), the lines ``starts`` (the vector step's restarts: new starts written into ``Ynew``)
-    and the finish loops (``fresh``: the states finished as new starts, :func:`_finish_lines`);
-    ``u`` and ``un`` the lines that set sub-env ``i``'s controls and normalised action
+    """The batch kernel's body (see :func:`batch_kernel`): :func:`_checked_period`, the lines
+    ``starts`` (the vector step's restarts: new starts written into ``Ynew``) and the finish
+    loops (``fresh``: the states finished as new starts, :func:`_finish_lines`); ``u`` and
+    ``un`` the lines that set sub-env ``i``'s controls and normalised action
     (:func:`_controls`); ``more``: further values the early returns append (``", 0"``)."""
+    return _checked_period(L, u, more) + list(starts) + _finish_lines(L, f"y = ({_comps('Ynew[{j}, i]', L.dim)})", un, u, "fired[i]", fresh)
+
+
+def _checked_period(L: Layout, u: str, more: str) -> list[str]:
+    """The guard's counts (a refusal returns -1 before anything is written), the period per
+    sub-env or as SIMD passes, and the non-finite check (returns ``bad``, the count)."""
     comps, dim = _comps, L.dim
     y_old = f"y = ({comps('Y[{j}, i]', dim)})"
-    y_new = f"y = ({comps('Ynew[{j}, i]', dim)})"
     store = [f"Ynew[{j}, i] = y[{j}]" for j in range(dim)]
     lines = ["    uniform = True"]
     # 1. the guard's counts, before anything is written
@@ -598,7 +602,7 @@ def _period_and_finish(L: Layout, u: str, un: str, more: str, starts: list[str] 
     else:
         lines += ["    " + line for line in per_env]
     # 3. non-finite states go back to the caller's failure path
-    lines += [
+    return lines + [
         "    bad = 0",
         "    for i in range(n):",
         "        if not (" + " and ".join(f"isfinite(Ynew[{j}, i])" for j in range(dim)) + "):",
@@ -606,8 +610,6 @@ def _period_and_finish(L: Layout, u: str, un: str, more: str, starts: list[str] 
         "    if bad:",
         f"        return bad{more}",
     ]
-    # 4. observation, evaluation, read-outs
-    return lines + list(starts) + _finish_lines(L, y_new, un, u, "fired[i]", fresh)
 
 
 class VectorLayout(NamedTuple):
@@ -702,7 +704,7 @@ def _vector_namespace(V: VectorLayout) -> dict:
 def _vector_args(L: Layout) -> list[str]:
     metrics = [f"M{j}" for j in range(L.n_metrics)]
     reads = [f"R{j}" for j in range(L.n_readouts)]
-    return ["A", "Y", "Ynew", "CC", "h", "dt", "substeps", "check", "refuse", "next_step", "max_steps", "FC", "steps", "done", "skip", "GEN", "PC", "PI",
+    return ["i_lo", "i_hi", "phase", "A", "Y", "Ynew", "CC", "h", "dt", "substeps", "check", "refuse", "next_step", "max_steps", "FC", "steps", "done", "skip", "GEN", "PC", "PI",
             "PS", "PO", "PE", "PR", "PG", "PA", "PD", "CD", "PV", "PW", "HI", "PEE", "counts", "hstep", "fired", "obs", "over", "reward", "terminated",
             "truncated", "RZ", "RN", "clear", "ends", "codes", "EST"] + metrics + reads
 
@@ -712,10 +714,17 @@ def vector_kernel(V: VectorLayout):
     """A vector env's whole step, compiled: one call per step with no Python per sub-env.
     Signature (arrays ``(n,)`` unless said; see :func:`batch_kernel` for the period's)::
 
-        vstep(A, Y, Ynew, CC, h, dt, substeps, check, refuse, next_step, max_steps, FC, steps, done,
-              skip, GEN, PC, PI, PS, PO, PE, PR, PG, PA, PD, CD, PV, PW, HI, PEE, counts, hstep,
-              fired, obs, over, reward, terminated, truncated, RZ, RN, clear, ends, codes, EST,
-              M_1..M_k, R_1..R_m) -> (status, k, m, r)
+        vstep(i_lo, i_hi, phase, A, Y, Ynew, CC, h, dt, substeps, check, refuse, next_step, max_steps,
+              FC, steps, done, skip, GEN, PC, PI, PS, PO, PE, PR, PG, PA, PD, CD, PV, PW, HI, PEE,
+              counts, hstep, fired, obs, over, reward, terminated, truncated, RZ, RN, clear, ends,
+              codes, EST, M_1..M_k, R_1..R_m) -> (status, k, m, r)
+
+    on the sub-envs ``i_lo <= i < i_hi`` (every array is the whole batch's); ``phase`` 0 runs the
+    whole step below; a step split over threads (:class:`VectorStep`) runs phase 1 (1 and 2
+    below: the actions' check, the guard's counts, the period and its non-finite check) on
+    every chunk, then, when every chunk returned 0, phase 2 (the rest; the caller zeroes the
+    rows ``clear`` in between, and the compacted ``ends`` of a chunk start at ``i_lo``): each
+    sub-env's arithmetic is the same whichever its chunk, so any split gives the same bits.
 
     1. the actions ``A`` ``(n, n_in)`` (float32 or float64): every entry finite (else ``(-2,
        i, 0, 0)`` for the first bad sub-env ``i``, nothing else written), clipped to ``[-1, 1]`` (the
@@ -758,8 +767,9 @@ def vector_kernel(V: VectorLayout):
     # registers), then clipped and mapped once into the rows of U and UN (scratch)
     read = [f"a{j} = A[i, {j}]" for j in range(V.n_in)]
     finite = "        if not (" + " & ".join(f"isfinite({a})" for a in a_items) + "):"
-    lines += ["    bad = 0", "    for i in range(n):", *("        " + line for line in read), finite, "            bad += 1"]
-    lines += ["    if bad:", "        for i in range(n):", *("            " + line for line in read), "    " + finite, "                return -2, i, 0, 0"]
+    check_actions = ["    bad = 0", "    for i in range(n):", *("        " + line for line in read), finite, "            bad += 1"]
+    check_actions += ["    if bad:", "        for i in range(n):", *("            " + line for line in read), "    " + finite, "                return -2, i, 0, 0"]
+    lines += ["    if phase != 2:", *("    " + line for line in check_actions)]
     lines += [f"    U = np.empty(({L.n_control}, n))", f"    UN = np.empty(({L.n_action}, n))", "    for i in range(n):", "        un, u = act(PC, A, i)"]
     lines += [f"        UN[{j}, i] = un[{j}]" for j in range(L.n_action)] + [f"        U[{j}, i] = u[{j}]" for j in range(L.n_control)]
     # 2. the period, then (NEXT_STEP) the restarting sub-envs' starts drawn into their columns
@@ -773,15 +783,18 @@ def vector_kernel(V: VectorLayout):
         if L.step_c is not None:  # (a new run: its compensation at zero)
             starts += [f"                CC[{j}, i] = 0.0" for j in range(L.dim)]
         fresh = "next_step & skip[i]"
-    lines += _period_and_finish(L, *_controls(L, rows=True), ", 0, 0, 0", starts, fresh)
+    u_line, un_line = _controls(L, rows=True)
+    lines += ["    if phase != 2:", *("    " + line for line in _checked_period(L, u_line, ", 0, 0, 0")), "    if phase == 1:", "        return 0, 0, 0, 0"]
+    lines += starts + _finish_lines(L, f"y = ({_comps('Ynew[{j}, i]', L.dim)})", un_line, u_line, "fired[i]", fresh)
     # 3. the episode's bookkeeping, then 4. the restarts' step (skip: the sub-envs that restart,
     # read-only here; with next_step they are those whose previous step ended)
     lines += [
         "    k = 0",
         "    m = 0",
-        "    for j in range(clear.shape[0]):",  # the pooled reason array's last rows
-        "        for w in range(RZ.shape[1]):",
-        "            RZ[clear[j], w] = 0",
+        "    if phase == 0:",  # the pooled reason array's last rows (a split step: the caller's, between the phases)
+        "        for j in range(clear.shape[0]):",
+        "            for w in range(RZ.shape[1]):",
+        "                RZ[clear[j], w] = 0",
         # a loop of selections and unit-stride stores (SIMD), then the ends compacted in a
         # second loop whose branch is rarely taken (an end): one loop that compacted as it went
         # carried m from sub-env to sub-env and stayed scalar (measured at 4096 reorients: 4.2
@@ -798,12 +811,12 @@ def vector_kernel(V: VectorLayout):
         "        done[i] = e | t",
         "    for i in range(n):",
         "        c = codes[i]",
-        "        if c != 0:",  # (m <= i: the compaction overwrites only rows it has read)
-        "            ends[m] = i",
-        "            codes[m] = c",
+        "        if c != 0:",  # (i_lo + m <= i: the compaction overwrites only rows it has read, in its own range)
+        "            ends[i_lo + m] = i",
+        "            codes[i_lo + m] = c",
         "            m += 1",
         # the reasons' names, UCS-4 code points into the rows of the (zero-filled) array
-        "    for j in range(m):",
+        "    for j in range(i_lo, i_lo + m):",
         "        i = ends[j]",
         "        if not (next_step and skip[i]):",
         "            for w in range(RZ.shape[1]):",
@@ -827,8 +840,11 @@ def vector_kernel(V: VectorLayout):
         lines += ["    for i in range(n):", "        if next_step and skip[i]:", "            EST[i] = 0.0", "        else:", *("            " + line for line in body)]
     lines += ["    return 0, k, m, r"]
     namespace = _vector_namespace(V)
-    generate("\n".join(lines), f"vector step dim={L.dim} n_obs={L.n_obs}", namespace)
-    return _cached_njit(namespace["vstep"], "vstep", **KERNEL_OPTIONS)
+    # every loop over the sub-envs runs over the call's range [lo, hi): the threads' chunks
+    source = "\n".join(lines).replace(" in range(n):", " in range(i_lo, i_hi):")
+    generate(source, f"vector step dim={L.dim} n_obs={L.n_obs}", namespace)
+    # (nogil: the threads of a split step run their chunks at once)
+    return _cached_njit(namespace["vstep"], "vstep", **KERNEL_OPTIONS, nogil=True)
 
 
 @lru_cache(maxsize=None)
@@ -1310,6 +1326,11 @@ class VectorResult(NamedTuple):
     estimate: object = None  # each period's error estimate (a layout with VectorLayout.estimate), 0 where no period ran
 
 
+# a split step's chunks start at multiples of this many sub-envs (no cache line of a bool
+# array shared between threads; whole SIMD blocks)
+_CHUNK_ALIGN = 64
+
+
 def _entry_point(dispatcher, args):
     """The compiled overload of ``dispatcher`` for ``args``' types, called without numba's
     per-call typing (which costs several microseconds for forty arguments); the caller then
@@ -1331,9 +1352,11 @@ class VectorStep:
     (:attr:`rbenvs.core.guard.StepRule.error`), with which the step also returns each period's
     error estimate (``None``: none). The call goes through the compiled overload's entry point
     after the first (numba's per-call typing of forty arguments costs more than a small batch's
-    step); the actions must then be C-contiguous float32 or float64 (the caller converts)."""
+    step); the actions must then be C-contiguous float32 or float64 (the caller converts).
+    ``threads`` > 1: each step's sub-envs split into that many chunks, run at once
+    (:class:`rbenvs.vector.threads.ThreadTeam`), with the same bits as one call."""
 
-    def __init__(self, parts, model, n_obs: int, obs_high, max_steps: int | None, error=None):
+    def __init__(self, parts, model, n_obs: int, obs_high, max_steps: int | None, error=None, threads: int = 1):
         import numpy as np
 
         control, pc = model.kernel_control
@@ -1361,6 +1384,12 @@ class VectorStep:
                        tuple(float(v) for v in error) if estimate else (0.0, 1.0, 0.0))
         self._calls = {}
         self._scratch = None
+        self.threads = threads
+        self._team = self._chunks = None
+        if threads > 1:
+            from .vector.threads import ThreadTeam
+
+            self._team = ThreadTeam(threads)
 
     def __call__(self, A, Y, steps, done, skip, GEN, check: bool, refuse: bool, next_step: bool, reasons, CC=None) -> VectorResult:
         """One step of the states ``Y`` ``(dim, n)`` under the actions ``A`` ``(n, n_in)``
@@ -1392,12 +1421,57 @@ class VectorStep:
                 hstep, fired, obs, over, reward, terminated, truncated, *reasons, ends, codes, estimate, *metrics, *readouts)
         call = self._calls.get(A.dtype)
         if call is None:
-            status, k, m, r = self.kernel(*args)  # compiles
-            self._calls[A.dtype] = _entry_point(self.kernel, args)
+            status, k, m, r = self.kernel(0, n, 0, *args)  # compiles
+            self._calls[A.dtype] = _entry_point(self.kernel, (0, n, 0, *args))
+            written = ends[:m]
+        elif self._team is None or n < 2 * _CHUNK_ALIGN or not np.isfinite(A).all():  # (a bad action: refused by the whole step, nothing written)
+            status, k, m, r = call(0, n, 0, *args)
+            written = ends[:m]
         else:
-            status, k, m, r = call(*args)
-        return VectorResult(status, k, Ynew, obs, over, reward, terminated, truncated, ends[:m], metrics, readouts, fired, hstep, counts, r,
+            status, k, written, r = self._split(call, args, n, refuse and CC is not None, reasons[0], reasons[2], ends)
+        return VectorResult(status, k, Ynew, obs, over, reward, terminated, truncated, written, metrics, readouts, fired, hstep, counts, r,
                             estimate if self.layout.estimate else None)
+
+    def _split(self, call, args, n: int, keep_cc: bool, RZ, clear, ends) -> tuple:
+        """The step as chunks of sub-envs on the team's threads: every chunk's phase 1 (the
+        guard's counts, the period, its non-finite check); then, where no chunk refused and every
+        new state is finite, the pool's rows ``clear`` zeroed and every chunk's phase 2
+        (:func:`vector_kernel`). ``(status, k, ends, r)`` as one call's: a refusal (-1) before a
+        non-finite count; ``keep_cc``: the compensations, carried in place, put back on a refusal
+        (one call writes none)."""
+        import numpy as np
+
+        if self._chunks is None or self._chunks[-1][1] != n:
+            cuts = [min(n, round(n * c / self.threads / _CHUNK_ALIGN) * _CHUNK_ALIGN) for c in range(self.threads + 1)]
+            cuts[-1] = n
+            self._chunks = [(lo, hi) for lo, hi in zip(cuts, cuts[1:]) if hi > lo]
+        chunks = self._chunks
+        first, second = [None] * len(chunks), [(0, 0, 0, 0)] * len(chunks)
+        CC = args[3]
+        saved = CC.copy() if keep_cc else None
+        status = [0]
+        team = self._team
+
+        def between():  # (once, when every chunk's phase 1 is done)
+            codes = [s[0] for s in first]
+            status[0] = -1 if -1 in codes else sum(codes)
+            if status[0] == 0 and clear.shape[0]:
+                RZ[clear] = 0
+
+        def job(c):
+            if c < len(chunks):  # (a batch too small for every thread leaves the last ones idle)
+                first[c] = call(*chunks[c], 1, *args)
+            team.sync()
+            if status[0] == 0 and c < len(chunks):
+                second[c] = call(*chunks[c], 2, *args)
+
+        team.run(job, between)
+        if status[0] == -1 and saved is not None:
+            CC[...] = saved
+        if status[0] != 0:
+            return status[0], 0, ends[:0], 0
+        written = np.concatenate([ends[lo:lo + m] for (lo, _), (_, _, m, _) in zip(chunks, second)])
+        return 0, sum(s[1] for s in second), written, sum(s[3] for s in second)
 
     def rows(self, idx, draw, Y, GEN, obs, over, hstep, steps, metrics, readouts) -> None:
         """:func:`rows_kernel` on the sub-envs ``idx`` of a step's (or a reset's) arrays: their

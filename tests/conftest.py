@@ -56,8 +56,16 @@ def make_singles(env_id, n, **kwargs):
 
 
 def same(a, b):
-    """Bit-for-bit equality of two numbers or arrays (NaN equal to NaN)."""
-    return np.array_equal(np.asarray(a), np.asarray(b), equal_nan=True)
+    """Bit-for-bit equality of two numbers or arrays (NaN equal to NaN), and of info values:
+    dicts, ``None`` and object arrays (final observations and infos) element by element."""
+    if isinstance(a, dict):
+        return isinstance(b, dict) and a.keys() == b.keys() and all(same(a[k], b[k]) for k in a)
+    if a is None or b is None:
+        return a is b
+    a, b = np.asarray(a), np.asarray(b)
+    if a.dtype == object or b.dtype == object:
+        return a.shape == b.shape and all(same(x, y) for x, y in zip(a.ravel(), b.ravel()))
+    return np.array_equal(a, b, equal_nan=a.dtype.kind in "fc" and b.dtype.kind in "fc")
 
 
 def same_state(a, b):

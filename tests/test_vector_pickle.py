@@ -7,20 +7,7 @@ import pickle
 
 import numpy as np
 import pytest
-from conftest import FREE, LAGRANGE, TIPPE, make_vec
-
-
-def same(a, b):
-    """Bit-for-bit equality of info values: numbers, arrays (object arrays element by element:
-    final observations and infos) and dicts."""
-    if isinstance(a, dict):
-        return isinstance(b, dict) and a.keys() == b.keys() and all(same(a[k], b[k]) for k in a)
-    if a is None or b is None:
-        return a is b
-    a, b = np.asarray(a), np.asarray(b)
-    if a.dtype == object or b.dtype == object:
-        return a.shape == b.shape and all(same(x, y) for x, y in zip(a.ravel(), b.ravel()))
-    return a.dtype == b.dtype and np.array_equal(a, b, equal_nan=a.dtype.kind == "f")
+from conftest import FREE, LAGRANGE, TIPPE, make_vec, same
 
 
 CASES = [

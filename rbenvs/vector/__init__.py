@@ -31,6 +31,9 @@ Conventions (gymnasium 1.x):
 * ``info_readouts=False`` leaves the physical read-outs (energy, invariants, contact forces)
   out of ``info``, keeping the task's metrics: on the numpy path at thousands of sub-envs
   they cost a good part of the step (``rbenvs bench throughput`` measures both).
+* ``num_threads`` (1; ``"auto"``: every usable core): the compiled step split over that many
+  threads (:mod:`rbenvs.vector.threads`), the same bits for any count; more than one where the
+  step runs on numpy is refused.
 * ``compiled="auto"`` (default): where numba is installed (the ``fast`` extra) and the model's
   integrator, system and task all have pure forms (every system and task with ``euler``,
   ``rk4`` or ``splitting``; not ``exact`` or ``dop853``), the whole step runs as one compiled
@@ -74,6 +77,7 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
 from .. import compiled as _compiled
+from .threads import resolve_num_threads
 from ..core.global_error import GlobalErrorCheck, companion_steps
 from ..core.step import _REAL_FLOATS, ReasonPool, action_columns, terminal_reason
 from ..draws import GeneratorTable, kind_codes
@@ -89,8 +93,10 @@ class RigidBodyVectorEnv(VectorEnv):
 
     env_class: type = None
 
-    def __init__(self, num_envs: int = 1, max_episode_steps: int | None = None, autoreset_mode=AutoresetMode.NEXT_STEP, info_readouts: bool = True, compiled="auto", **kwargs):
+    def __init__(self, num_envs: int = 1, max_episode_steps: int | None = None, autoreset_mode=AutoresetMode.NEXT_STEP, info_readouts: bool = True, compiled="auto",
+                 num_threads=1, **kwargs):
         self.num_envs = require_int_at_least("num_envs", num_envs, 1)
+        threads = resolve_num_threads(num_threads)
         self.info_readouts = require_bool("info_readouts", info_readouts)
         compiled = require_compiled(compiled)
         if max_episode_steps is not None:
@@ -176,7 +182,14 @@ class RigidBodyVectorEnv(VectorEnv):
         self._true.flags.writeable = False
         self._false.flags.writeable = False
         self._reasons = ReasonPool(self.num_envs, self.engine.event_name)
+        self.num_threads = threads
         self._build_compiled(compiled)
+        if self._vector_step is None:
+            if num_threads != "auto" and threads > 1:
+                raise ValueError(f"num_threads={num_threads} splits the compiled vector step, and this env steps on numpy (compiled=False, "
+                                 "param_ranges, tolerance_check, an integrator without a pure form, or numba not installed: the 'fast' extra); "
+                                 "pass num_threads=1, or 'auto' (1 where the step is not compiled)")
+            self.num_threads = 1
 
     def _build_compiled(self, compiled) -> None:
         """The compiled parts, which hold numba's objects: made here and again when a pickled or
@@ -189,7 +202,7 @@ class RigidBodyVectorEnv(VectorEnv):
         if self._batch_step is not None and self._use_table:
             self._vector_step = _compiled.VectorStep(self.engine.kernel_parts(), self.model, self.single_observation_space.shape[0], self.engine.high,
                                                      self.max_episode_steps,
-                                                     error=self.engine.rule.error)
+                                                     error=self.engine.rule.error, threads=self.num_threads)
 
     def __getstate__(self):
         """Everything but numba's objects (the generator tables' typed lists, the compiled steps)
