@@ -68,10 +68,11 @@ VALID = {
     (TippeTopEnv, "stem"): {"none"},  # None: no stem (the sphere alone)
 }
 # tolerance: None (no accuracy bound) or in (0, 1); tolerance_horizon: None (the registered
-# episode) or any whole number of periods >= 1, for every env
+# episode), or a whole number of periods >= 1 only with a tolerance (the grid passes none: every
+# value but None refused), for every env
 for _cls in TASKS:
     VALID[(_cls, "tolerance")] = {"none"}
-    VALID[(_cls, "tolerance_horizon")] = {"none", "huge_int"}
+    VALID[(_cls, "tolerance_horizon")] = {"none"}
 # the robustness options (rbenvs.envs.options), the same on every env: None (the default) for
 # each; a standard deviation of noise or bias is any finite number >= 0
 for _cls in TASKS:

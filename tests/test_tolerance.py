@@ -96,11 +96,16 @@ def test_tolerance_needs_a_guard_and_a_scheme_with_an_error_constant():
     with pytest.raises(ValueError, match=r"tolerance=0.001 needs guard='subdivide' or 'refuse'"):
         FreeRigidBodyEnv(tolerance=1e-3, guard="off")
     for integ in ("splitting", "exact", "dop853"):
-        with pytest.raises(ValueError, match=rf"tolerance=0.001 needs an integrator that declares an error constant.*'{integ}' declares none"):
+        # (the way out names only the schemes a tolerance takes: not euler, refused as well)
+        with pytest.raises(ValueError, match=rf"tolerance=0.001 needs an integrator whose error it can estimate, \['rk4'\] .*'{integ}' declares none"):
             FreeRigidBodyEnv(tolerance=1e-3, integrator=integ)
     for bad in (0, -3, 2.5, "10"):
         with pytest.raises((ValueError, TypeError), match="tolerance_horizon"):
             FreeRigidBodyEnv(tolerance=1e-3, tolerance_horizon=bad)
+    # a horizon without a tolerance would be ignored: refused
+    for cls in (FreeRigidBodyEnv, LagrangeTopEnv, TippeTopEnv):
+        with pytest.raises(ValueError, match=r"tolerance_horizon=50 is the span of control periods that tolerance= covers, and tolerance is None"):
+            cls(tolerance_horizon=50)
 
 
 def test_default_horizon_is_the_registered_episode():

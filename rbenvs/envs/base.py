@@ -132,6 +132,9 @@ class RigidBodyEnv(gym.Env):
         mode = require_tolerance_check(tolerance_check, tolerance, guard)
         check, refine = mode is not False, mode == "refine"
         horizon = self._tolerance_horizon(tolerance_horizon)
+        if tolerance is None and tolerance_horizon is not None:
+            raise ValueError(f"tolerance_horizon={tolerance_horizon!r} is the span of control periods that tolerance= covers, and tolerance is None: "
+                             "pass tolerance= with it, or leave tolerance_horizon out")
         compiled = require_compiled(compiled)
         dt = require_finite_positive("dt", dt)
         substeps = require_int_in("substeps", substeps, 1, MAX_INTERNAL_STEPS, " (more internal steps in a control period is a numerical failure)")
@@ -312,10 +315,11 @@ class RigidBodyEnv(gym.Env):
         if guard == "off":
             raise ValueError(f"tolerance={tolerance!r} needs guard='subdivide' or 'refuse': guard='off' takes substeps steps whatever the error")
         if getattr(integrator, "error_constant", None) is None:
-            with_constant = sorted(name for name, cls in _registry().items() if getattr(cls, "error_constant", None) is not None)
+            takes = sorted(name for name, cls in _registry().items() if _takes_tolerance(cls))
             raise ValueError(
-                f"tolerance={tolerance!r} needs an integrator that declares an error constant (its error C lambda T (lambda h)^order "
-                f"on a rotation, rbenvs.integrators.error): {with_constant}; integrator {integrator.name!r} declares none "
+                f"tolerance={tolerance!r} needs an integrator whose error it can estimate, {takes} (or integrator='auto'): one that declares an "
+                f"error constant (its error C lambda T (lambda h)^order on a rotation, rbenvs.integrators.error) with its leading error in the "
+                f"phase; integrator {integrator.name!r} declares none "
                 f"(exact sub-flows err by the system's commutators, not by one rate; an adaptive scheme controls its own error)"
             )
         if not integrator.error_in_phase:

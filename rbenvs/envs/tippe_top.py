@@ -164,7 +164,8 @@ class TippeTopEnv(RigidBodyEnv):
       ``info["error_estimate"]``: :mod:`rbenvs.core.guard` and docs/integrators.md ("Accuracy: tolerance=").
     * ``tolerance_horizon=None``: control periods the tolerance covers (an integer >= 1;
       ``None``: the registered ``max_episode_steps``, one episode; a ``max_episode_steps``
-      given to ``gymnasium.make`` is not seen by the env: pass ``tolerance_horizon`` with it).
+      given to ``gymnasium.make`` is not seen by the env: pass ``tolerance_horizon`` with it);
+      refused without ``tolerance``.
     * ``friction_bound="accuracy"``: or ``"stability"``, what sizes the step under friction (Internal step).
     * ``tolerance_check=False``: with ``tolerance``, ``True`` estimates the episode's global error
       with a companion run (the same periods at twice the step) and its rounding twin (the
