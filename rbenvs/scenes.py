@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from .configs import configs_root
+from .dynamics.validation import did_you_mean
 from .extras import require
 
 __all__ = ["Scene", "scenes_dir", "list_scenes", "no_scenes_found", "load_scene"]
@@ -64,7 +65,7 @@ def load_scene(name_or_path: str) -> Scene:
     if not path.is_file():
         known = list_scenes()
         hint = f"known scenes: {', '.join(known)}" if known else no_scenes_found()
-        raise ValueError(f"scene {name_or_path!r} not found (looked for {path}); {hint}")
+        raise ValueError(f"scene {name_or_path!r} not found (looked for {path}){did_you_mean(name_or_path, known)} ({hint})")
     data = yaml.safe_load(path.read_text())
     if not isinstance(data, dict) or "id" not in data:
         raise ValueError(f"scene file {path} must be a mapping with an 'id' key")

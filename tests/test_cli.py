@@ -45,7 +45,11 @@ def test_run_takes_several_scenes_after_one_flag(capsys):
 
 def test_unknown_scene_is_a_clear_error(capsys):
     assert main(["run", "--scene", "nope"]) == 2
-    assert "not found" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert "not found" in err and "did you mean" not in err  # (nothing close: no guess)
+    assert main(["run", "--scene", "tippe_invrt"]) == 2
+    err = capsys.readouterr().err
+    assert "scene 'tippe_invrt' not found" in err and "did you mean 'tippe_invert'?" in err
 
 
 def test_python_dash_m():

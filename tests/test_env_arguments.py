@@ -325,3 +325,32 @@ def test_precess_at_tilt_zero_has_a_finite_precession_rate():
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         check_env(env, skip_render_check=True)
+
+
+@pytest.mark.parametrize("env_id, misspelled, meant", [
+    ("rbenvs/FreeRigidBody-v0", "integrater", "integrator"),
+    ("rbenvs/LagrangeTop-v0", "tilt_limt", "tilt_limit"),
+    ("rbenvs/TippeTop-v0", "fidelty", "fidelity"),
+])
+def test_a_misspelled_keyword_is_answered_with_the_closest_one(env_id, misspelled, meant):
+    """Each env names itself, the closest valid keyword and where the full list is; so does each
+    vector env (whose keywords are its own and the single env's)."""
+    cls = gym.spec(env_id).entry_point.split(":")[1]
+    with pytest.raises(TypeError, match=rf"{cls} got an unexpected keyword argument '{misspelled}'; did you mean '{meant}'\? \(every keyword: help\(rbenvs.envs.{cls}\)"):
+        gym.make(env_id, **{misspelled: 1})
+    with pytest.raises(TypeError, match=rf"{cls.replace('Env', 'VectorEnv')} got an unexpected keyword argument 'num_thread'; did you mean 'num_threads'\?"):
+        gym.make_vec(env_id, num_envs=2, vectorization_mode="vector_entry_point", num_thread=2)
+    with pytest.raises(TypeError, match=rf"got an unexpected keyword argument '{misspelled}'; did you mean '{meant}'\?"):
+        gym.make_vec(env_id, num_envs=2, vectorization_mode="vector_entry_point", **{misspelled: 1})
+    with pytest.raises(TypeError, match=r"got an unexpected keyword argument 'zzzz' \(every keyword"):  # (nothing close: no guess)
+        gym.make(env_id, zzzz=1)
+
+
+@pytest.mark.parametrize("kwargs, message", [
+    (dict(task="detumbel"), "task must be one of .* got 'detumbel'; did you mean 'detumble'\\?"),
+    (dict(integrator="RK4"), "integrator must be one of .* got 'RK4'; did you mean 'rk4'\\?"),
+    (dict(guard="subdivid"), "guard must be one of .* got 'subdivid'; did you mean 'subdivide'\\?"),
+])
+def test_a_misspelled_choice_is_answered_with_the_closest_one(kwargs, message):
+    with pytest.raises(ValueError, match=message):
+        FreeRigidBodyEnv(**kwargs)

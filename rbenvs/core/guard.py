@@ -53,6 +53,7 @@ from functools import lru_cache
 
 import numpy as np
 
+from ..dynamics.validation import did_you_mean
 from ..jit import jitable
 from ..rotations import maximum, power, select, sqrt
 from .codegen import generate
@@ -79,7 +80,7 @@ class UnstableMotionWarning(UserWarning):
 
 def require_guard(guard) -> str:
     if not isinstance(guard, str) or guard not in GUARDS:
-        raise ValueError(f"guard must be one of {list(GUARDS)}, got {guard!r}")
+        raise ValueError(f"guard must be one of {list(GUARDS)}, got {guard!r}{did_you_mean(guard, GUARDS)}")
     return guard
 
 

@@ -78,7 +78,7 @@ from ..jit import jitable
 from ..rotations import atan2, maximum, power, quat_normalize, quat_rate, select, sqrt
 from .contact import FRICTION_LAWS, no_friction
 from .state import start_as_drawn
-from .validation import real_array, require_choice, require_finite_nonnegative, require_finite_positive, require_finite_result, require_real_vector
+from .validation import did_you_mean, real_array, require_choice, require_finite_nonnegative, require_finite_positive, require_finite_result, require_real_vector
 
 
 class Event(NamedTuple):
@@ -1277,9 +1277,9 @@ class TippeTop:
     def __init__(self, params: TippeTopParams, fidelity: str = "gliding", flight: bool = False, friction_bound: str = "stability"):
         self._memo = None  # the last contact solve (see _contact)
         if fidelity not in FIDELITIES:
-            raise ValueError(f"fidelity must be one of {list(FIDELITIES)}, got {fidelity!r}")
+            raise ValueError(f"fidelity must be one of {list(FIDELITIES)}, got {fidelity!r}{did_you_mean(fidelity, FIDELITIES)}")
         if friction_bound not in FRICTION_BOUNDS:
-            raise ValueError(f"friction_bound must be one of {list(FRICTION_BOUNDS)}, got {friction_bound!r}")
+            raise ValueError(f"friction_bound must be one of {list(FRICTION_BOUNDS)}, got {friction_bound!r}{did_you_mean(friction_bound, FRICTION_BOUNDS)}")
         self.friction_bound = friction_bound
         self.fidelity = fidelity
         self.rolling = fidelity == "rolling"

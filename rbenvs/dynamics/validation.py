@@ -9,12 +9,13 @@ parameter raised before keeps working.
 
 from __future__ import annotations
 
+import difflib
 import math
 import numbers
 
 import numpy as np
 
-__all__ = [
+__all__ = ["did_you_mean", "unknown_keyword", 
     "ParameterTypeError",
     "require_finite",
     "require_finite_positive",
@@ -117,13 +118,33 @@ def _sequence(label: str, value) -> list:
     return list(value)
 
 
+def did_you_mean(word, choices) -> str:
+    """``"; did you mean 'x'?"`` for the choice closest to a misspelled ``word`` (difflib's
+    ratio, case ignored), or ``""`` where none is close."""
+    if not isinstance(word, str):
+        return ""
+    choices = [str(c) for c in choices]
+    lowered = {c.lower(): c for c in choices}
+    close = difflib.get_close_matches(word.lower(), list(lowered), n=1, cutoff=0.6)
+    return f"; did you mean {lowered[close[0]]!r}?" if close else ""
+
+
 def require_choice(name: str, value, choices) -> str:
     """One of the strings ``choices``."""
     if not isinstance(value, str):
         raise ParameterTypeError(f"{name} must be one of {list(choices)}, got {value!r} ({_type_name(value)})")
     if value not in choices:
-        raise ValueError(f"{name} must be one of {list(choices)}, got {value!r}")
+        raise ValueError(f"{name} must be one of {list(choices)}, got {value!r}{did_you_mean(value, choices)}")
     return value
+
+
+def unknown_keyword(owner: str, given, valid, where: str) -> TypeError | None:
+    """The error for the first keyword of ``given`` that ``owner`` does not take: the closest
+    valid one suggested and ``where`` the full list is; ``None`` where every keyword is valid."""
+    unknown = [k for k in given if k not in valid]
+    if not unknown:
+        return None
+    return TypeError(f"{owner} got an unexpected keyword argument {unknown[0]!r}{did_you_mean(unknown[0], valid)} (every keyword: {where})")
 
 
 def require_real_vector(name: str, value, size: int, what: str = "") -> tuple[float, ...]:

@@ -26,7 +26,7 @@ from ..core.global_error import GlobalErrorCheck, require_tolerance_check
 from ..core.guard import GUARDS, MAX_INTERNAL_STEPS, StepRule, UnstableMotionWarning, relaxation_steps, require_guard, require_tolerance, stability_ratio, step_ratio
 from ..core.model import Model
 from ..core.step import Engine, NumericalFailureWarning, action_values
-from ..dynamics.validation import require_finite_positive, require_int_in
+from ..dynamics.validation import require_finite_positive, require_int_in, unknown_keyword
 from ..integrators import get_integrator
 from .options import ParamRanges, Realism, noise_generator, noisy_observation, rekey
 
@@ -116,6 +116,9 @@ class RigidBodyEnv(gym.Env):
         @functools.wraps(init)
         def __init__(self, *args, **kw):
             if "_kwargs" not in self.__dict__:  # (the outermost class's keywords)
+                error = unknown_keyword(cls.__name__, kw, sig.parameters, f"help(rbenvs.envs.{cls.__name__}), docs/environments.md")
+                if error is not None:
+                    raise error
                 bound = sig.bind(self, *args, **kw)
                 bound.apply_defaults()
                 arguments = dict(bound.arguments)

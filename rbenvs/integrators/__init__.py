@@ -18,6 +18,7 @@ accurate enough near zero slip at the step counts where it would pay (docs/integ
 
 from __future__ import annotations
 
+from ..dynamics.validation import did_you_mean
 from .base import Integrator
 from .exact import Exact
 from .runge_kutta import RK4, ButcherTableau, Euler, ExplicitRungeKutta
@@ -40,5 +41,5 @@ def get_integrator(name: str | Integrator, **options) -> Integrator:
     try:
         cls = INTEGRATORS[name]
     except (KeyError, TypeError):
-        raise ValueError(f"integrator must be one of {sorted(INTEGRATORS)}, got {name!r}") from None
+        raise ValueError(f"integrator must be one of {sorted(INTEGRATORS)}, got {name!r}{did_you_mean(name, INTEGRATORS)}") from None
     return cls(**options)

@@ -21,6 +21,7 @@ from functools import lru_cache
 import numpy as np
 
 from ..dynamics.tippe_top import tippe_frame, vertical_tilt
+from ..dynamics.validation import did_you_mean
 from ..jit import jitable
 from ..rotations import quat_multiply
 from .common import TwoStageStart, effort
@@ -47,7 +48,7 @@ def tilted_spin_state(system, d, spin_low, spin_high, tilt_low, tilt_high, start
 def spun_start(system, spin_low, spin_high, tilt_low, tilt_high, start="rolling") -> tuple:
     """``(start, P)``: the pure form of :func:`tilted_spin_state` for ``system``'s layout."""
     if start not in STARTS:
-        raise ValueError(f"start must be one of {list(STARTS)}, got {start!r}")
+        raise ValueError(f"start must be one of {list(STARTS)}, got {start!r}{did_you_mean(start, STARTS)}")
     form = spun_start_form(system.forms.state, start != "rolling", start == "vertical")
     return form, (system.form_params, float(spin_low), float(spin_high), float(tilt_low), float(tilt_high))
 

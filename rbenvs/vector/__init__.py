@@ -68,6 +68,7 @@ Conventions (gymnasium 1.x):
 
 from __future__ import annotations
 
+import inspect
 import math
 import warnings
 
@@ -83,7 +84,7 @@ from ..core.step import _REAL_FLOATS, ReasonPool, action_columns, terminal_reaso
 from ..draws import GeneratorTable, kind_codes
 from ..envs.base import require_compiled
 from ..envs.options import NOISE_BLOCK, noise_generator, noisy_observation, rekey
-from ..dynamics.validation import real_array, require_bool, require_int_at_least
+from ..dynamics.validation import real_array, require_bool, require_int_at_least, unknown_keyword
 
 __all__ = ["RigidBodyVectorEnv", "vector_class", "FreeRigidBodyVectorEnv", "LagrangeTopVectorEnv", "TippeTopVectorEnv"]
 
@@ -95,6 +96,11 @@ class RigidBodyVectorEnv(VectorEnv):
 
     def __init__(self, num_envs: int = 1, max_episode_steps: int | None = None, autoreset_mode=AutoresetMode.NEXT_STEP, info_readouts: bool = True, compiled="auto",
                  num_threads=1, **kwargs):
+        valid = [k for f in (self.env_class.__init__, RigidBodyVectorEnv.__init__) for k in inspect.signature(f).parameters if k not in ("self", "kwargs")]
+        error = unknown_keyword(type(self).__name__, kwargs, valid,
+                                f"help(rbenvs.vector.{type(self).__name__}) and help(rbenvs.envs.{self.env_class.__name__}), docs/vector.md")
+        if error is not None:
+            raise error
         self.num_envs = require_int_at_least("num_envs", num_envs, 1)
         threads = resolve_num_threads(num_threads)
         self.info_readouts = require_bool("info_readouts", info_readouts)
