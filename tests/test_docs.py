@@ -82,11 +82,10 @@ def test_the_pages_have_python_blocks():
 
 @pytest.mark.parametrize("page", [p for p in PAGES if _python_blocks(p)], ids=lambda p: p.name)
 def test_every_python_block_of_the_readme_and_docs_runs(page):
-    """Each page's Python blocks, in order, in one namespace (a later block may use an earlier
-    one's names), as a reader would paste them; their asserts check what the text says."""
-    namespace = {"__name__": "__docs__"}
+    """Each of a page's Python blocks on its own, in a namespace of its own, as a reader who
+    copies one block would run it; their asserts check what the text says."""
     for block in _python_blocks(page):
-        exec(compile(block, str(page), "exec"), namespace)
+        exec(compile(block, str(page), "exec"), {"__name__": "__docs__"})
 
 
 # --- figures written by the commands (rbenvs.docblocks), commands that parse ---------------------

@@ -176,3 +176,29 @@ def test_rbenvs_results_prints_a_finished_runs_table_from_its_json(tmp_path, cap
         with pytest.raises(SystemExit):
             results_main(["--from-json", str(path), *extra])
         assert f"leave out {extra[0]}" in capsys.readouterr().err
+
+
+def test_an_id_with_its_module_steps_from_a_script_that_never_imports_rbenvs(tmp_path):
+    """gymnasium's ``"module:id"`` form: a fresh process that imports only gymnasium makes and
+    steps the tippe top (and a vector env), rbenvs imported by gymnasium itself."""
+    code = (
+        "import sys\n"
+        "import gymnasium as gym\n"
+        "import numpy as np\n"
+        "assert 'rbenvs' not in sys.modules\n"
+        "try:\n"
+        "    gym.make('rbenvs/TippeTop-v0')\n"
+        "    raise SystemExit('made without its module')\n"
+        "except gym.error.NamespaceNotFound:\n"
+        "    pass\n"
+        "env = gym.make('rbenvs:rbenvs/TippeTop-v0')\n"
+        "env.reset(seed=0)\n"
+        "obs, *_ = env.step(np.zeros(env.action_space.shape, np.float32))\n"
+        "venv = gym.make_vec('rbenvs:rbenvs/FreeRigidBody-v0', num_envs=2, vectorization_mode='vector_entry_point')\n"
+        "venv.reset(seed=0)\n"
+        "vobs, *_ = venv.step(np.zeros(venv.action_space.shape, np.float32))\n"
+        "print(obs.shape, vobs.shape, 'rbenvs' in sys.modules)\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=tmp_path)
+    assert out.returncode == 0, out.stderr[-2000:]
+    assert out.stdout.split() == ["(8,)", "(2,", "3)", "True"], out.stdout  # (the tippe top's 8 observations, 2 free bodies' 3)
