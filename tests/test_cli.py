@@ -1,3 +1,4 @@
+import re
 import subprocess
 import sys
 
@@ -73,6 +74,22 @@ def test_core_runs_without_torch_sb3_yaml():
     assert out.strip() == "ok"
 
 
+def test_verify_shows_progress_on_the_core_install_without_tqdm():
+    """Without tqdm (the core install) a long command still shows its progress on stderr, as
+    lines of text (at the start, then every few seconds, and at the end), its output intact."""
+    code = (
+        "import sys\n"
+        "sys.modules['tqdm'] = None\n"
+        "from rbenvs.cli import main\n"
+        "sys.exit(main(['verify', '--quick', '--system', 'free_body', '--integrator', 'rk4']))\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert out.returncode == 0, out.stderr[-2000:]
+    lines = out.stderr.splitlines()
+    assert lines[0].startswith("verify: 0/") and re.fullmatch(r"verify: (\d+)/\1 \(100%\) \d+ s", lines[-1]), lines
+    assert "passed, 0 failed" in out.stdout
+
+
 def test_bench_kernels_agree_with_the_cross_product_form():
     from rbenvs.bench.kernels import run
 
@@ -110,10 +127,26 @@ def test_progress_bar_counts_and_is_silent_when_off(capsys):
     bar.update(2)
     assert bar.bar is not None and bar.bar.n == 5  # tqdm is in the cli extra
     bar.close()
+    capsys.readouterr()
     off = Progress(5, enabled=False)
     off.update()
     off.close()
     assert off.bar is None
+    assert capsys.readouterr().err == ""
+
+
+def test_progress_without_tqdm_is_text_on_stderr(capsys, monkeypatch):
+    """The fallback: the start, then a line per interval (0 s here: each update), the end."""
+    from rbenvs import progress
+
+    monkeypatch.setitem(sys.modules, "tqdm", None)
+    monkeypatch.setattr(progress, "LOG_INTERVAL", 0.0)
+    bar = progress.Progress(4, desc="work")
+    bar.update()
+    bar.update(3)
+    bar.close()
+    lines = capsys.readouterr().err.splitlines()
+    assert [line.rsplit(" ", 2)[0] for line in lines] == ["work: 0/4 (0%)", "work: 1/4 (25%)", "work: 4/4 (100%)", "work: 4/4 (100%)"], lines
 
 
 def test_long_commands_show_progress_unless_asked_not_to(capsys):
