@@ -41,7 +41,7 @@ CASES = {
 VALID = {
     (FreeRigidBodyEnv, "perturbation"): {"zero"},  # an exact principal-axis spin
     (FreeRigidBodyEnv, "max_torque"): {"zero"},  # no actuator (the body turns freely)
-    (FreeRigidBodyEnv, "control_cost"): {"zero", "huge", "huge_int"},  # any finite weight >= 0
+    (FreeRigidBodyEnv, "control_cost"): {"zero", "huge_int"},  # a weight >= 0 whose rewards float32 holds
     (FreeRigidBodyEnv, "max_angular_velocity"): {"huge_int"},  # any bound up to float32's
     (FreeRigidBodyEnv, "render_mode"): {"none"},
     (LagrangeTopEnv, "spin"): {"upright": {"negative", "zero", "none"}, "precess": {"none"}},  # precess needs [T 3.82] real
@@ -49,18 +49,18 @@ VALID = {
     (LagrangeTopEnv, "target_rate"): {"negative", "none"},  # a retrograde forced precession; None: [T 3.82]
     (LagrangeTopEnv, "tilt_limit"): {"none"},
     (LagrangeTopEnv, "max_torque"): {"zero"},
-    (LagrangeTopEnv, "spin_friction"): {"zero", "huge", "huge_int"},  # splitting solves it exactly
-    (LagrangeTopEnv, "control_cost"): {"zero", "huge", "huge_int"},
+    (LagrangeTopEnv, "spin_friction"): {"zero"},  # at most I_chi / dt: no spin stopped within a step
+    (LagrangeTopEnv, "control_cost"): {"zero", "huge_int"},
     (LagrangeTopEnv, "max_angular_velocity"): {"huge_int"},
     (LagrangeTopEnv, "render_mode"): {"none"},
     (TippeTopEnv, "friction"): {"zero"},
-    (TippeTopEnv, "slip_regularization"): {"huge", "huge_int"},  # Coulomb friction fades to nothing
+    # (slip_regularization: below max_speed, else Coulomb friction fades to nothing: huge refused)
     (TippeTopEnv, "spin"): {"negative", "zero"},  # spun the other way, or not at all
     (TippeTopEnv, "tilt"): {"zero"},
     (TippeTopEnv, "max_table_acceleration"): {"zero"},
     (TippeTopEnv, "friction_range"): {"zero"},
-    (TippeTopEnv, "max_torque"): {"zero"},
-    (TippeTopEnv, "control_cost"): {"zero", "huge", "huge_int"},
+    (TippeTopEnv, "max_torque"): {"zero", "huge", "huge_int"},  # unused without torque_action: any finite value >= 0
+    (TippeTopEnv, "control_cost"): {"zero", "huge_int"},
     (TippeTopEnv, "max_angular_velocity"): {"none", "huge_int"},
     (TippeTopEnv, "max_speed"): {"huge_int"},
     (TippeTopEnv, "render_mode"): {"none"},
@@ -77,8 +77,8 @@ for _cls in TASKS:
 # each; a standard deviation of noise or bias is any finite number >= 0
 for _cls in TASKS:
     VALID[(_cls, "param_ranges")] = {"none"}
-    VALID[(_cls, "observation_noise")] = {"zero", "huge", "huge_int", "none"}
-    VALID[(_cls, "observation_bias")] = {"zero", "huge", "huge_int", "none"}
+    VALID[(_cls, "observation_noise")] = {"zero", "none"}  # (at most the observation's bounds: huge refused)
+    VALID[(_cls, "observation_bias")] = {"zero", "none"}
 
 
 def keywords(cls):
@@ -354,3 +354,38 @@ def test_a_misspelled_keyword_is_answered_with_the_closest_one(env_id, misspelle
 def test_a_misspelled_choice_is_answered_with_the_closest_one(kwargs, message):
     with pytest.raises(ValueError, match=message):
         FreeRigidBodyEnv(**kwargs)
+
+
+@pytest.mark.parametrize(
+    "cls, kwargs, message",
+    [
+        (FreeRigidBodyEnv, dict(control_cost=1e300), r"control_cost=1e\+300 makes the least reward of a step .* beyond float32's range"),
+        (TippeTopEnv, dict(observation_noise=1e300), r"observation_noise must be at most the observation's bound in every component"),
+        (LagrangeTopEnv, dict(observation_bias=1e300), r"observation_bias must be at most the observation's bound in every component"),
+        (LagrangeTopEnv, dict(spin_friction=1e300), r"spin_friction must be at most I_chi / dt = 15 N m s"),
+        (TippeTopEnv, dict(slip_regularization=1e300), r"slip_regularization must be below max_speed = 5.0 m/s"),
+    ],
+    ids=["control_cost", "observation_noise", "observation_bias", "spin_friction", "slip_regularization"],
+)
+def test_values_that_would_hide_the_physics_are_refused_with_the_rule(cls, kwargs, message):
+    """Rewards beyond float32 (-inf in a replay buffer), noise or bias wider than the
+    observation's bounds (observations pinned to them), a pivot friction that stops the spin
+    within a step, a slip regularization above every allowed slip speed (friction off)."""
+    with pytest.raises(ValueError, match=message):
+        cls(**kwargs)
+
+
+def test_a_keyword_the_options_do_not_use_does_not_veto_the_body():
+    """A light tippe top (6 mg, A = 8e-10 kg m^2) without the torque action: max_torque's
+    default would change its spin by thousands of rad/s a step, but with torque_action=False it
+    acts on nothing, so the body is accepted (the value is still validated for type and
+    finiteness); with the torque action it is refused, naming max_torque."""
+    light = dict(mass=6e-6, inertia=(8e-10, 7e-10))
+    env = TippeTopEnv(**light)
+    env.reset(seed=0)
+    _, r, _, _, info = env.step(np.zeros(env.action_space.shape, dtype=np.float32))
+    assert math.isfinite(r) and info["numerical_failure"] is False
+    with pytest.raises(ValueError, match="max_torque"):
+        TippeTopEnv(**light, torque_action=True)
+    with pytest.raises(ValueError, match="max_torque"):
+        TippeTopEnv(**light, max_torque=math.nan)

@@ -70,6 +70,9 @@ def _caller_level() -> int:
     return level
 
 
+FLOAT32_MAX = float(np.finfo(np.float32).max)
+
+
 def _takes_tolerance(cls) -> bool:
     """Whether ``tolerance=`` takes the scheme ``cls``: an error constant, and its leading error on
     a rotation in the phase (:meth:`RigidBodyEnv._require_accuracy` says why)."""
@@ -99,7 +102,7 @@ class RigidBodyEnv(gym.Env):
     # the physical keywords ``param_ranges`` may randomize (rbenvs.envs.options), in draw order
     randomizable: tuple = ()
     _ranges = None  # the validated param_ranges (None: every episode has the constructor's parameters)
-    _realism = Realism(None, None, 0, 0)  # noise, bias, delay: none
+    _realism = Realism(None, None, 0)  # noise, bias, delay: none
     noiseless_observation = None  # with observation noise or bias: the last observation without them
     _noise_rng = None  # the noise stream's generator (rbenvs.envs.options.rekey at each reset)
 
@@ -168,6 +171,7 @@ class RigidBodyEnv(gym.Env):
         high = tuple(float(v) for v in observation_high)
         self.model = Model(system, task, integrator, actuator, dt, substeps, guard, high, self._speed_ceiling(), tolerance, horizon if tolerance is not None else None,
                            self.registered_episode_steps(), check, refine)
+        self._require_float32_rewards()
         self.engine = Engine(self.model, compiled)
         self.render_mode = render_mode
         self._renderer = None  # built by the first render(): matplotlib is imported only then
@@ -192,7 +196,7 @@ class RigidBodyEnv(gym.Env):
         """Validate the robustness options (:mod:`rbenvs.envs.options`); with ``param_ranges``
         build the env at every corner of the ranges' box and its centre, each of which must pass
         every check of the constructor and keep the env's structure."""
-        self._realism = realism = Realism(observation_noise, observation_bias, action_delay, self.observation_space.shape[0])
+        self._realism = realism = Realism(observation_noise, observation_bias, action_delay, self.observation_space.high)
         if param_ranges is not None:
             ranges = ParamRanges(type(self), self._kwargs, param_ranges)
             if self.engine.compiled is True:
@@ -279,6 +283,15 @@ class RigidBodyEnv(gym.Env):
             if spec["entry_point"] == entry:
                 return spec["max_episode_steps"]
         return None
+
+    def _require_float32_rewards(self) -> None:
+        """The least reward of a step and the failure charge must be float32 numbers: RL libraries
+        store rewards in float32 (stable-baselines3's buffers), where a larger one is -inf. The
+        control term sets them (a task's own reward is of order one)."""
+        floor, charge = self.model.task.reward_floor(self.model.system, self.model.observation_high), self.model.failure_charge
+        if not (abs(floor) <= FLOAT32_MAX and abs(charge) <= FLOAT32_MAX):
+            raise ValueError(f"control_cost={self.model.task.control_cost!r} makes the least reward of a step {floor:.3g} and the failure charge "
+                             f"{charge:.3g}, beyond float32's range (+-{FLOAT32_MAX:.3g}, in which RL libraries store rewards); lower control_cost")
 
     def _tolerance_horizon(self, value) -> int:
         """``tolerance_horizon=``: the control periods ``tolerance`` covers; ``None``: the

@@ -169,7 +169,8 @@ class FreeRigidBodyEnv(RigidBodyEnv):
       docs/environments.md, "Robustness options", and :mod:`rbenvs.envs.options`.
     * ``max_torque=0.2``: N m per actuated axis (``>= 0``).
     * ``actuated=(True, True, True)``: which body axes take torque (at least one).
-    * ``control_cost=0.01``: weight of ``mean(u^2)`` in the reward (``>= 0``).
+    * ``control_cost=0.01``: weight of ``mean(u^2)`` in the reward (``>= 0``; the rewards and
+      the failure charge it makes must fit float32, in which RL libraries store rewards).
     * ``max_angular_velocity=10.0``: rad/s, observation bound.
     * ``target_attitude=(1, 0, 0, 0)``: reorient target, unit quaternion (w, x, y, z).
 

@@ -179,7 +179,7 @@ class LagrangeTopEnv(RigidBodyEnv):
       docs/environments.md, "Robustness options", and :mod:`rbenvs.envs.options`.
     * ``max_torque=2.0``: N m per torque direction (``>= 0``); ``axial_torque=False``.
     * ``spin_friction=0.0``: N m s, viscous pivot torque ``-k (Omega.chi) chi``.
-    * ``control_cost=0.01``; ``max_angular_velocity=100.0`` rad/s (observation bound);
+    * ``control_cost=0.01`` (its rewards must fit float32); ``max_angular_velocity=100.0`` rad/s (observation bound);
       ``attitude=False``: also integrate the attitude quaternion (heading, Euler angles).
 
     Every keyword is checked at construction, whatever the task (one the task ignores, such as
@@ -298,6 +298,13 @@ class LagrangeTopEnv(RigidBodyEnv):
         self._start_speed = peak
         high = observation_bounds(task_obj, {"rad/s": max_w})
         self._setup(system, task_obj, actuator, integrator, dt, substeps, high, render_mode, guard, compiled, tolerance, tolerance_horizon, tolerance_check)
+        # the pivot's friction decays the spin about chi at the rate k / I_chi: faster than a
+        # control period, it stops the spin within one step, a clamp rather than a friction
+        i_chi = sum(i * c * c for i, c in zip(params.inertia, params.com_direction))
+        if not params.spin_friction * self.dt <= i_chi:
+            raise ValueError(f"spin_friction must be at most I_chi / dt = {i_chi / self.dt:.6g} N m s (the spin's decay time I_chi / spin_friction at "
+                             f"least the control period dt = {self.dt!r} s; faster, the spin stops within one step), got {params.spin_friction!r}; "
+                             "lower spin_friction or dt")
         # orthonormal torque directions: |tau| <= max_torque sqrt(k), |Delta Omega| <= |tau| dt / I_min
         change = self.max_torque * math.sqrt(len(self.torque_directions)) * self.dt / min(params.inertia)
         self._require_authority("max_torque", change, "max_angular_velocity", max_w, "angular velocity [rad/s]")

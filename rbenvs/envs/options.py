@@ -154,11 +154,14 @@ def _bounds(label: str, spec, v: tuple, vector: bool) -> tuple:
     return lo, hi
 
 
-def _std(name: str, value, size: int) -> np.ndarray | None:
-    """A standard deviation per observation component: a number or ``size`` numbers, each
-    finite and ``>= 0``; ``None`` stays ``None``."""
+def _std(name: str, value, high) -> np.ndarray | None:
+    """A standard deviation per observation component: a number or one number per component,
+    each finite, ``>= 0`` and at most the component's bound ``high`` (a wider one leaves nothing
+    of the observation: the clipped values sit at the bounds); ``None`` stays ``None``."""
     if value is None:
         return None
+    high = np.asarray(high, dtype=np.float64)
+    size = high.shape[0]
     if isinstance(value, (numbers.Real, np.ndarray, list, tuple)) and not isinstance(value, (bool, np.bool_)):
         if isinstance(value, numbers.Real):
             s = np.full(size, _as_real(name, value))
@@ -168,6 +171,10 @@ def _std(name: str, value, size: int) -> np.ndarray | None:
                 raise ValueError(f"{name} must be a number or {size} numbers (one per observation component), got shape {s.shape}")
         if not (np.all(np.isfinite(s)) and np.all(s >= 0.0)):
             raise ValueError(f"{name} must be finite and >= 0 in every component (a standard deviation in the observation's units), got {value!r}")
+        if not np.all(s <= high):
+            j = int(np.flatnonzero(~(s <= high))[0])
+            raise ValueError(f"{name} must be at most the observation's bound in every component (a standard deviation in its units; a wider "
+                             f"one leaves nothing of the observation, clipped to its bounds), got {s[j]!r} for component {j} whose bound is {high[j]:.6g}")
         s = s.astype(np.float64)
         s.flags.writeable = False
         return s
@@ -178,9 +185,9 @@ class Realism:
     """The validated sensor and actuator options: ``noise`` and ``bias`` (standard deviations
     per observation component, or ``None``) and ``delay`` (control periods)."""
 
-    def __init__(self, observation_noise, observation_bias, action_delay, size: int):
-        self.noise = _std("observation_noise", observation_noise, size)
-        self.bias = _std("observation_bias", observation_bias, size)
+    def __init__(self, observation_noise, observation_bias, action_delay, high=()):
+        self.noise = _std("observation_noise", observation_noise, high)
+        self.bias = _std("observation_bias", observation_bias, high)
         if isinstance(action_delay, (bool, np.bool_)) or not isinstance(action_delay, numbers.Integral):
             if isinstance(action_delay, numbers.Real):
                 raise ValueError(f"action_delay must be an integer in [0, {MAX_ACTION_DELAY}] (control periods), got {action_delay!r}")

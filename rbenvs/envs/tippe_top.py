@@ -132,7 +132,7 @@ class TippeTopEnv(RigidBodyEnv):
     * ``radius=0.015`` m, ``mass=0.006`` kg, ``offset=0.2`` (``alpha``), ``inertia=(8e-7, 7e-7)``
       (``A, C`` about the centre of mass, kg m^2), ``gravity=9.81``: the Leine-Glocker top.
     * ``friction=0.3``, ``friction_law="coulomb"`` or ``"viscous"``,
-      ``slip_regularization=1e-3`` m/s, ``fidelity="gliding"``, ``"frictionless"`` or ``"rolling"``.
+      ``slip_regularization=1e-3`` m/s (below ``max_speed``), ``fidelity="gliding"``, ``"frictionless"`` or ``"rolling"``.
     * ``free_flight=False``: model hops (gliding or frictionless) instead of ending the episode
       at lift-off; about 1.15x the gliding level's cost per step on the table (the contact
       flag is carried and the switch tested at every internal step; ``rbenvs bench fidelity``).
@@ -311,6 +311,9 @@ class TippeTopEnv(RigidBodyEnv):
         if not peak < max_w:
             raise ValueError(f"max_angular_velocity ({max_w!r} rad/s) must exceed the initial spin (spin = {peak!r} rad/s); lower spin or raise max_angular_velocity")
         max_v = require_float32_bound("max_speed", max_speed)
+        if not params.slip_regularization < max_v:
+            raise ValueError(f"slip_regularization must be below max_speed = {max_v!r} m/s, got {slip_regularization!r}: above every slip speed the env "
+                             "allows, the friction law weakens to a viscous one of vanishing rate (friction off in all but name)")
         if not params.radius * peak < max_v:
             raise ValueError(f"max_speed must exceed the initial speed of the centre of mass (radius * spin = {params.radius * peak!r} m/s), got {max_speed!r}")
         task_cls = InvertTask if task == "invert" else HoldTask
@@ -326,8 +329,9 @@ class TippeTopEnv(RigidBodyEnv):
         # the table's acceleration moves v_G (relative to the table) by at most |a_T| dt per period;
         # a body torque moves Omega by at most |tau| dt / min(A, C)
         self._require_authority("max_table_acceleration", self.max_table_acceleration * math.sqrt(2.0) * self.dt, "max_speed", max_v, "velocity of the centre of mass [m/s]")
-        change = self.max_torque * math.sqrt(3.0) * self.dt / min(params.inertia)
-        self._require_authority("max_torque", change, "max_angular_velocity", max_w, "angular velocity [rad/s]")
+        if self.torque_action:  # (without the torque action max_torque acts on nothing: validated above, no veto on the body)
+            change = self.max_torque * math.sqrt(3.0) * self.dt / min(params.inertia)
+            self._require_authority("max_torque", change, "max_angular_velocity", max_w, "angular velocity [rad/s]")
         self._setup_options(param_ranges, observation_noise, observation_bias, action_delay)
 
     @property
