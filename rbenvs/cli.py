@@ -3,7 +3,7 @@
 * ``rbenvs list``: every registered id with its tasks, ``max_episode_steps`` and reward threshold.
 * ``rbenvs scenes``: the named scenes under ``configs/scenes`` (shipped as ``rbenvs.configs``;
   ``$RBENVS_CONFIGS`` replaces them, see :func:`rbenvs.configs.configs_root`).
-* ``rbenvs run [--scene NAME ...] [--episodes N] [--seed S]``: the main job. Runs scenes (by
+* ``rbenvs run [--scene NAME ...] [--episodes N] [--seed S]``: the analytic baselines. Runs scenes (by
   default the headline scene of each system) with their analytic controller and with no
   control, and prints an episode summary per scene (return, success, the task's final
   measure, and the invariants at start and end).
@@ -92,7 +92,7 @@ def run_episode(env, policy, seed):
     return total, info0, info, steps
 
 
-# The main job's scenes: per system, the one where control matters (unstable without it).
+# rbenvs run's scenes: per system, the one where control matters (unstable without it).
 MAIN_SCENES = ("default", "top_upright", "tippe_hold")
 
 
@@ -263,11 +263,14 @@ def _print_table(rows) -> None:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="rbenvs", description="Rotating rigid body environments: list, run, check.")
+    parser = argparse.ArgumentParser(prog="rbenvs", description="Rotating rigid body environments: list, run, check.",
+                                     epilog="Every command also takes --docs PAGE: it runs as usual and writes what it printed into the block of "
+                                     "PAGE that names the same command line (<!-- rbenvs:output COMMAND -->; docs/ are written this way).")
     sub = parser.add_subparsers(dest="command", required=True)
     sub.add_parser("list", help="registered environment ids").set_defaults(func=_cmd_list)
     sub.add_parser("scenes", help="named scenes in configs/scenes").set_defaults(func=_cmd_scenes)
-    run = sub.add_parser("run", help="main job: scenes with their analytic controller and with no control")
+    run = sub.add_parser("run", help="the analytic baselines: scenes with their analytic controller and with no control (the main job, "
+                         "training, is rbenvs-train: make run)")
     run.add_argument("--scene", action="extend", nargs="+", metavar="NAME", help=f"scene names or YAML paths, several or repeated (default: {' and '.join(MAIN_SCENES)})")
     run.add_argument("--episodes", type=int, default=3, help="episodes per controller (default: %(default)s)")
     run.add_argument("--seed", type=int, default=0, help="seed of the first episode (default: %(default)s)")

@@ -19,7 +19,7 @@ __all__ = ["EXTRAS", "MissingExtra", "require", "run_command"]
 # extra -> (module, distribution) pairs that a command needing the extra cannot do without.
 EXTRAS = {
     # Scenes and agent hyperparameters are YAML files. The extra's tqdm is not required:
-    # rbenvs.progress shows no progress bar without it.
+    # rbenvs.progress writes lines of text without it.
     "cli": (("yaml", "PyYAML"),),
     # The agents: stable-baselines3 on torch; their scenes and hyperparameters are YAML too.
     "agents": (("stable_baselines3", "stable-baselines3"), ("torch", "torch"), ("yaml", "PyYAML")),
@@ -37,13 +37,19 @@ EXTRAS = {
 }
 
 
+# the extras that pull torch, and its pin (pyproject.toml's agents extra: the CPU build)
+TORCH_EXTRAS, TORCH_PIN = ("agents", "zoo", "ray"), "2.13.0"
+
+
 class MissingExtra(ImportError):
     """A module of an extra is not installed; the message says which extra to install."""
 
     def __init__(self, extra: str, distribution: str):
         self.extra = extra
         self.distribution = distribution
-        super().__init__(f"the {extra!r} extra is needed ({distribution} is not installed): pip install 'rbenvs[{extra}]'")
+        # (extras on torch: its CPU build first, pinned, or pip resolves a bare torch with CUDA)
+        line = f"pip install torch=={TORCH_PIN} && pip install 'rbenvs[{extra}]'" if extra in TORCH_EXTRAS else f"pip install 'rbenvs[{extra}]'"
+        super().__init__(f"the {extra!r} extra is needed ({distribution} is not installed): {line}")
 
 
 def require(extra: str) -> None:

@@ -1,13 +1,15 @@
 """Every command line without an extra it needs, or given an unknown scene, says so in one line
 on stderr and exits with status 2: no traceback (rbenvs.extras)."""
 
+import pathlib
 import subprocess
 import sys
+import tomllib
 
 import pytest
 
 from rbenvs.cli import main
-from rbenvs.extras import EXTRAS, MissingExtra, require
+from rbenvs.extras import EXTRAS, TORCH_EXTRAS, TORCH_PIN, MissingExtra, require
 
 # (prog, entry function, arguments, modules made unimportable, the extra it must name)
 CASES = [
@@ -36,6 +38,15 @@ def test_a_missing_extra_is_one_line_naming_it(prog, entry, argv, blocked, extra
     assert "Traceback" not in out.stderr and out.stdout == ""
     (line,) = out.stderr.splitlines()
     assert line.startswith(f"{prog}: the '{extra}' extra is needed (") and line.endswith(f"pip install 'rbenvs[{extra}]'")
+    if extra in TORCH_EXTRAS:  # the CPU torch first, pinned (a bare torch resolves to CUDA builds)
+        assert line.endswith(f": pip install torch=={TORCH_PIN} && pip install 'rbenvs[{extra}]'"), line
+
+
+def test_the_hints_torch_pin_is_the_packages():
+    """The pin the hint gives is pyproject.toml's (the agents extra's torch==)."""
+    with open(pathlib.Path(__file__).parents[1] / "pyproject.toml", "rb") as f:
+        extras = tomllib.load(f)["project"]["optional-dependencies"]
+    assert f"torch=={TORCH_PIN}" in extras["agents"]
 
 
 def test_require_names_the_missing_distribution(monkeypatch):

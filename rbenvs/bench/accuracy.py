@@ -716,7 +716,7 @@ def main(argv=None) -> int:
                         help="only the tippe top's work-precision against MuJoCo (rbenvs.bench.tippe_accuracy): t90 against the slip regularisation, "
                              "every scheme, step and fidelity level and MuJoCo's integrators and cones at several dt, cost per simulated second "
                              "against Jellett drift and the t90 error")
-    parser.add_argument("--no-progress", action="store_true")
+    parser.add_argument("--no-progress", action="store_true", help="no progress on stderr")
     args = parser.parse_args(argv)
     if args.case and not args.tolerance:
         parser.error("--case selects rows of the --tolerance table: pass --tolerance")

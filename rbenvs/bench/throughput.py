@@ -799,7 +799,7 @@ def main(argv=None) -> int:
     parser.add_argument("--num-envs", type=int, metavar="N", help=f"task table: sub-envs of the vector env (default: {TASK_NUM_ENVS}, {QUICK_NUM_ENVS} with --quick)")
     parser.add_argument("--only", metavar="SUBSTRING", help="only the rows whose id, task, scene name or integrator contains SUBSTRING (any case)")
     parser.add_argument("--tables", metavar="LIST", help=f"comma-separated tables to run, of {', '.join(TABLES)} (default: all; with --quick: {','.join(QUICK_TABLES)})")
-    parser.add_argument("--no-progress", action="store_true")
+    parser.add_argument("--no-progress", action="store_true", help="no progress on stderr")
     args = parser.parse_args(argv)
     tables = [t.strip() for t in (args.tables or ",".join(QUICK_TABLES if args.quick else TABLES)).split(",") if t.strip()]
     unknown = [t for t in tables if t not in TABLES]

@@ -191,7 +191,7 @@ def print_table(checks, file=None):
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(prog="rbenvs verify", description="Simulate what the theorems speak of and compare with the oracles.")
     parser.add_argument("--quick", action="store_true", help="fewer random cases (under a minute, for CI)")
-    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--seed", type=int, default=0, help="seed of the random cases (default: %(default)s)")
     parser.add_argument("--system", action="append", choices=SYSTEMS, help="restrict to these systems (repeatable; default all)")
     parser.add_argument("--integrator", action="append", help="restrict to these integrators (repeatable)")
     parser.add_argument("--simulator", action="append", metavar="SPEC",
@@ -201,7 +201,7 @@ def main(argv=None) -> int:
                         help="with --simulator: print, instead of the rows, one Markdown table (a row per check, a column per simulator) "
                              "and exit 0 whatever it shows: a report, not a gate (--docs PAGE writes it into the page)")
     parser.add_argument("--json", metavar="PATH", help="also write a machine-readable report")
-    parser.add_argument("--no-progress", action="store_true")
+    parser.add_argument("--no-progress", action="store_true", help="no progress on stderr")
     parser.add_argument("--sweep", action="store_true",
                         help="instead of the checks: the tippe top's final tilt over a grid of A/C and alpha, predicted against simulated")
     parser.add_argument("--plot", metavar="PATH", help="with --sweep: also draw the sweep to this PNG (needs matplotlib)")
