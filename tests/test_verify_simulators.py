@@ -251,3 +251,39 @@ def test_mujoco_at_1e_3_damps_the_fast_tumble_and_its_euler_family_misses_the_th
         bisection, above, below = _small_top(sims[name])
         assert not bisection.passed and not above.passed, name  # the threshold missed
         assert above.measured > 0.1 or name == "implicit"  # Euler's family: the stable top falls
+
+
+USER_MODULE = '''
+def unpacks_two(problem, y, u, dt):
+    pi, gamma = y  # reads the heavy top's state as (Pi, Gamma): it is one flat 6-tuple
+    return y
+
+
+def nests(problem, y, u, dt):
+    return (y[:3], y[3:])
+'''
+
+
+@pytest.mark.parametrize("function, expected", [
+    ("unpacks_two", [r"the simulator function usersim\.unpacks_two\(problem\[heavy_top\], y, u, 0\.01\) raised ValueError; its traceback:",
+                     r'File ".*usersim\.py", line 3, in unpacks_two', r"pi, gamma = y", r"ValueError: too many values to unpack"]),
+    ("nests", [r"the simulator function usersim\.nests\(problem\[heavy_top\], y, u, 0\.01\) returned \(\(.*\)\) \(tuple\): "
+               r"expected a flat tuple of 6 floats \(Pi1, Pi2, Pi3, Gamma1, Gamma2, Gamma3\)"]),
+])
+def test_a_broken_step_function_is_shown_from_the_users_side(tmp_path, function, expected):
+    """The installed ``rbenvs`` command (not ``python -m``) imports the module from the current
+    folder; a function that raises gets its own traceback lines, one that returns the wrong shape
+    the layout it should have returned, each naming the function and the call (exit status 2)."""
+    import os
+    import re
+    import subprocess
+    import sys
+
+    (tmp_path / "usersim.py").write_text(USER_MODULE)
+    script = os.path.join(os.path.dirname(sys.executable), "rbenvs")
+    out = subprocess.run([script, "verify", "--quick", "--no-progress", "--system", "heavy_top", "--simulator", f"usersim:{function},dt=0.01"],
+                         capture_output=True, text=True, cwd=tmp_path, timeout=300)
+    assert out.returncode == 2, (out.returncode, out.stderr[-2000:])
+    assert "No module named" not in out.stderr and "rbenvs/verify" not in out.stderr  # (no rbenvs frame in what the user reads)
+    for pattern in expected:
+        assert re.search(pattern, out.stderr), (pattern, out.stderr)

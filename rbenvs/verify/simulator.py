@@ -9,7 +9,8 @@ tippe top's fidelity) and a start state, and returns a :class:`Run` that advance
 
 * ``free_body``: ``y = Pi``, the body angular momentum in the principal body frame
   (``Omega = Pi / params.inertia``); ``u``: a body-frame torque [N m] or ``None``.
-* ``heavy_top``: ``y = (Pi, Gamma)``: ``Pi`` about the pivot in the principal body frame
+* ``heavy_top``: ``y = (Pi1, Pi2, Pi3, Gamma1, Gamma2, Gamma3)`` (one flat tuple, as every
+  state is: :data:`LAYOUTS`): ``Pi`` about the pivot in the principal body frame
   (``params.inertia`` are the moments about the pivot), ``Gamma = R^T e_z`` the upward vertical
   seen from the body; the centre of mass at ``params.length`` along ``params.com_direction``;
   gravity ``-params.gravity e_z``; ``u`` is ``None``.
@@ -18,7 +19,7 @@ tippe top's fidelity) and a start state, and returns a :class:`Run` that advance
   ``gliding`` (friction ``params.friction_law``, coefficient ``params.friction``) and
   ``frictionless``: ``y = (x, y, vx, vy, qw, qx, qy, qz, W1, W2, W3)``: horizontal position and
   velocity of ``G`` on the table ``z = 0``, the attitude body -> space, the body angular
-  velocity; ``rolling`` (no slip): ``y = (x, y, q, W)``. ``u``: ``None``, or the moving
+  velocity; ``rolling`` (no slip): ``y = (x, y, qw, qx, qy, qz, W1, W2, W3)``. ``u``: ``None``, or the moving
   table's ``(a_x, a_y, mu, tau1, tau2, tau3)``.
 
 A system, fidelity or control an engine does not model is declined by raising
@@ -30,6 +31,8 @@ from __future__ import annotations
 
 import importlib
 import math
+import os
+import sys
 from dataclasses import dataclass
 from typing import Any, Callable, Protocol, runtime_checkable
 
@@ -38,7 +41,7 @@ import numpy as np
 from ..integrators import Integrator, get_integrator
 
 __all__ = ["Problem", "Run", "Simulator", "IntegratorSimulator", "CallableSimulator", "problem_of", "advance", "start",
-           "as_simulators", "parse_simulator", "take_option", "no_more_options", "ADAPTERS"]
+           "as_simulators", "parse_simulator", "take_option", "no_more_options", "ADAPTERS", "LAYOUTS", "SimulatorFunctionError"]
 
 
 @dataclass(frozen=True)
@@ -171,13 +174,56 @@ class IntegratorSimulator:
 # a plain step function
 
 
+# the state each system's step function receives and returns: one flat tuple of floats
+LAYOUTS = {
+    "free_body": "(Pi1, Pi2, Pi3)",
+    "heavy_top": "(Pi1, Pi2, Pi3, Gamma1, Gamma2, Gamma3)",
+    "tippe_top": "(x, y, vx, vy, qw, qx, qy, qz, W1, W2, W3) (rolling: (x, y, qw, qx, qy, qz, W1, W2, W3))",
+}
+
+
+class SimulatorFunctionError(ValueError):
+    """A user's step function raised, or returned something other than a state: the message names
+    the function, the call, what was expected and what came back, with the function's own
+    traceback lines (a ``ValueError``: the command line prints it as the user's error)."""
+
+
+def _user_frames(error: BaseException) -> str:
+    """The traceback lines of ``error`` from the user's code (rbenvs' own frames left out)."""
+    import os
+    import traceback
+
+    here = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    frames = [f for f in traceback.extract_tb(error.__traceback__) if not os.path.abspath(f.filename).startswith(here)]
+    return "".join(traceback.format_list(frames)) + "".join(traceback.format_exception_only(type(error), error))
+
+
 class _CallableRun:
-    def __init__(self, fn, problem, y0):
-        self.fn, self.problem, self.y = fn, problem, tuple(float(c) for c in y0)
+    def __init__(self, fn, name, problem, y0):
+        self.fn, self.name, self.problem, self.y = fn, name, problem, tuple(float(c) for c in y0)
 
     def step(self, u, h):
-        self.y = tuple(float(c) for c in self.fn(self.problem, self.y, u, h))
-        return self.y
+        call = f"{self.name}(problem[{self.problem.system}], y, u, {h:g})"
+        try:
+            out = self.fn(self.problem, self.y, u, h)
+        except NotImplementedError:
+            raise
+        except Exception as error:
+            raise SimulatorFunctionError(f"the simulator function {call} raised {type(error).__name__}; its traceback:\n{_user_frames(error)}") from error
+        expected = f"a flat tuple of {len(self.y)} floats {LAYOUTS[self.problem.system]}"
+        try:
+            y = tuple(float(c) for c in out)
+        except (TypeError, ValueError):
+            y = None
+        if y is None or len(y) != len(self.y):
+            raise SimulatorFunctionError(f"the simulator function {call} returned {_short(out)}: expected {expected}")
+        self.y = y
+        return y
+
+
+def _short(value) -> str:
+    text = repr(value)
+    return (text if len(text) <= 200 else text[:200] + "...") + f" ({type(value).__name__})"
 
 
 class CallableSimulator:
@@ -195,7 +241,11 @@ class CallableSimulator:
         self.name = name or f"{getattr(fn, '__name__', 'callable')} dt={dt:g}"
 
     def start(self, problem: Problem, y0) -> Run:
-        return _CallableRun(self.fn, problem, y0)
+        return _CallableRun(self.fn, self._qualname, problem, y0)
+
+    @property
+    def _qualname(self) -> str:
+        return f"{getattr(self.fn, '__module__', '?')}.{getattr(self.fn, '__qualname__', getattr(self.fn, '__name__', repr(self.fn)))}"
 
 
 # ------------------------------------------------------------------------------------------
@@ -268,6 +318,9 @@ def parse_simulator(spec: str) -> list:
         raise ValueError(f"simulator must be one of {sorted(ADAPTERS)} or module:function, got {spec!r}")
     attr, _, rest = tail.partition(",")
     options = _options(rest)
+    # the current folder, as `python -m rbenvs` has it (an installed `rbenvs` script does not)
+    if "" not in sys.path and os.getcwd() not in sys.path:
+        sys.path.insert(0, os.getcwd())
     try:
         target = importlib.import_module(head)
     except ImportError as exc:
