@@ -263,7 +263,9 @@ def _print_table(rows) -> None:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="rbenvs", description="Rotating rigid body environments: list, run, check.",
+    from .extras import ArgumentParser  # (suggests the closest choice)
+
+    parser = ArgumentParser(prog="rbenvs", description="Rotating rigid body environments: list, run, check.",
                                      epilog="Every command also takes --docs PAGE: it runs as usual and writes what it printed into the block of "
                                      "PAGE that names the same command line (<!-- rbenvs:output COMMAND -->; docs/ are written this way).")
     sub = parser.add_subparsers(dest="command", required=True)

@@ -11,6 +11,7 @@ and exit status 2, no traceback. ``rbenvs`` (:mod:`rbenvs.cli`) and ``rbenvs-tra
 
 from __future__ import annotations
 
+import argparse
 import sys
 from importlib.util import find_spec
 
@@ -65,6 +66,19 @@ def require(extra: str) -> None:
             found = False
         if not found:
             raise MissingExtra(extra, distribution)
+
+
+class ArgumentParser(argparse.ArgumentParser):
+    """argparse's parser whose "invalid choice" error also suggests the closest choice (a
+    misspelled command, system or table: "did you mean 'verify'?"); its subparsers are of this
+    class too."""
+
+    def _check_value(self, action, value):
+        if action.choices is not None and value not in action.choices:
+            from .dynamics.validation import did_you_mean
+
+            choices = ", ".join(map(repr, action.choices))
+            raise argparse.ArgumentError(action, f"invalid choice: {value!r} (choose from {choices}){did_you_mean(value, action.choices)}")
 
 
 def run_command(prog: str, body, argv) -> int:

@@ -2,6 +2,8 @@ import re
 import subprocess
 import sys
 
+import pytest
+
 from rbenvs.cli import main
 from rbenvs.scenes import list_scenes, load_scene
 
@@ -51,6 +53,19 @@ def test_unknown_scene_is_a_clear_error(capsys):
     assert main(["run", "--scene", "tippe_invrt"]) == 2
     err = capsys.readouterr().err
     assert "scene 'tippe_invrt' not found" in err and "did you mean 'tippe_invert'?" in err
+
+
+def test_a_misspelled_command_or_choice_is_answered_with_the_closest_one(capsys):
+    for argv, said in ((["verfy"], "invalid choice: 'verfy' (choose from 'list', "), (["verify", "--system", "heavy"], "invalid choice: 'heavy'"),
+                       (["warmup", "--system", "tipe_top"], "invalid choice: 'tipe_top'")):
+        with pytest.raises(SystemExit) as exit_:
+            main(argv)
+        err = capsys.readouterr().err
+        assert exit_.value.code == 2 and said in err, err
+    assert "did you mean 'warmup'" not in err and "did you mean 'tippe_top'?" in err
+    with pytest.raises(SystemExit):
+        main(["zzzzzz"])
+    assert "did you mean" not in capsys.readouterr().err  # (nothing close: no guess)
 
 
 def test_python_dash_m():
