@@ -710,7 +710,7 @@ def _vector_args(L: Layout) -> list[str]:
 
 
 @lru_cache(maxsize=None)
-def vector_kernel(V: VectorLayout):
+def vector_kernel(V: VectorLayout, chunked: bool = False):
     """A vector env's whole step, compiled: one call per step with no Python per sub-env.
     Signature (arrays ``(n,)`` unless said; see :func:`batch_kernel` for the period's)::
 
@@ -719,7 +719,8 @@ def vector_kernel(V: VectorLayout):
               counts, hstep, fired, obs, over, reward, terminated, truncated, RZ, RN, clear, ends,
               codes, EST, M_1..M_k, R_1..R_m) -> (status, k, m, r)
 
-    on the sub-envs ``i_lo <= i < i_hi`` (every array is the whole batch's); ``phase`` 0 runs the
+    on the sub-envs ``i_lo <= i < i_hi`` with ``chunked`` (every array is the whole batch's; without
+    it, on every sub-env, the bounds unread); ``phase`` 0 runs the
     whole step below; a step split over threads (:class:`VectorStep`) runs phase 1 (1 and 2
     below: the actions' check, the guard's counts, the period and its non-finite check) on
     every chunk, then, when every chunk returned 0, phase 2 (the rest; the caller zeroes the
@@ -840,9 +841,12 @@ def vector_kernel(V: VectorLayout):
         lines += ["    for i in range(n):", "        if next_step and skip[i]:", "            EST[i] = 0.0", "        else:", *("            " + line for line in body)]
     lines += ["    return 0, k, m, r"]
     namespace = _vector_namespace(V)
-    # every loop over the sub-envs runs over the call's range [lo, hi): the threads' chunks
-    source = "\n".join(lines).replace(" in range(n):", " in range(i_lo, i_hi):")
-    generate(source, f"vector step dim={L.dim} n_obs={L.n_obs}", namespace)
+    source = "\n".join(lines)
+    if chunked:  # every loop over the sub-envs over the call's range [i_lo, i_hi): the threads' chunks
+        # (its own kernel: loops from a run-time start stay out of SIMD registers, so the
+        # one-call step keeps range(n) and ignores i_lo, i_hi)
+        source = source.replace(" in range(n):", " in range(i_lo, i_hi):")
+    generate(source, f"vector step dim={L.dim} n_obs={L.n_obs}{' chunked' if chunked else ''}", namespace)
     # (nogil: the threads of a split step run their chunks at once)
     return _cached_njit(namespace["vstep"], "vstep", **KERNEL_OPTIONS, nogil=True)
 
@@ -1390,6 +1394,8 @@ class VectorStep:
             from .vector.threads import ThreadTeam
 
             self._team = ThreadTeam(threads)
+            self._chunked = vector_kernel(self.layout, chunked=True)
+            self._chunked_calls = {}
 
     def __call__(self, A, Y, steps, done, skip, GEN, check: bool, refuse: bool, next_step: bool, reasons, CC=None) -> VectorResult:
         """One step of the states ``Y`` ``(dim, n)`` under the actions ``A`` ``(n, n_in)``
@@ -1428,11 +1434,11 @@ class VectorStep:
             status, k, m, r = call(0, n, 0, *args)
             written = ends[:m]
         else:
-            status, k, written, r = self._split(call, args, n, refuse and CC is not None, reasons[0], reasons[2], ends)
+            status, k, written, r = self._split(A.dtype, args, n, refuse and CC is not None, reasons[0], reasons[2], ends)
         return VectorResult(status, k, Ynew, obs, over, reward, terminated, truncated, written, metrics, readouts, fired, hstep, counts, r,
                             estimate if self.layout.estimate else None)
 
-    def _split(self, call, args, n: int, keep_cc: bool, RZ, clear, ends) -> tuple:
+    def _split(self, dtype, args, n: int, keep_cc: bool, RZ, clear, ends) -> tuple:
         """The step as chunks of sub-envs on the team's threads: every chunk's phase 1 (the
         guard's counts, the period, its non-finite check); then, where no chunk refused and every
         new state is finite, the pool's rows ``clear`` zeroed and every chunk's phase 2
@@ -1446,6 +1452,7 @@ class VectorStep:
             cuts[-1] = n
             self._chunks = [(lo, hi) for lo, hi in zip(cuts, cuts[1:]) if hi > lo]
         chunks = self._chunks
+        call = self._chunked_calls.get(dtype, self._chunked)  # (the dispatcher compiles on the first split)
         first, second = [None] * len(chunks), [(0, 0, 0, 0)] * len(chunks)
         CC = args[3]
         saved = CC.copy() if keep_cc else None
@@ -1466,6 +1473,8 @@ class VectorStep:
                 second[c] = call(*chunks[c], 2, *args)
 
         team.run(job, between)
+        if dtype not in self._chunked_calls:
+            self._chunked_calls[dtype] = _entry_point(self._chunked, (0, n, 1, *args))
         if status[0] == -1 and saved is not None:
             CC[...] = saved
         if status[0] != 0:

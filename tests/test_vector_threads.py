@@ -159,3 +159,26 @@ def test_num_threads_argument():
     with pytest.raises(ValueError, match="num_threads=2 splits the compiled vector step"):
         make_vec(FREE, 4, num_threads=2, compiled=False)
     assert make_vec(FREE, 4, num_threads="auto", compiled=False).num_threads == 1
+
+
+def test_an_error_in_a_chunk_reaches_the_caller_and_the_team_goes_on():
+    """A chunk that raises (here a worker's): the error is raised in the caller's thread, the
+    chunks waiting at the barrier are released, and the next run works."""
+    from rbenvs.vector.threads import ThreadTeam
+
+    team, seen = ThreadTeam(3), []
+
+    def failing(c):
+        if c == 2:
+            raise RuntimeError("chunk 2 failed")
+        team.sync()
+
+    with pytest.raises(RuntimeError, match="chunk 2 failed"):
+        team.run(failing, lambda: None)
+
+    def working(c):
+        team.sync()
+        seen.append(c)
+
+    team.run(working, lambda: seen.append("between"))
+    assert seen[0] == "between" and sorted(seen[1:]) == [0, 1, 2]

@@ -33,7 +33,7 @@ from .options import ParamRanges, Realism, noise_generator, noisy_observation, r
 __all__ = ["RigidBodyEnv", "NumericalFailureWarning", "UnstableMotionWarning", "MAX_INTERNAL_STEPS", "GUARDS", "FLOAT32_MAX", "require_float32_bound", "require_guard", "require_compiled"]
 
 
-FLOAT32_MAX = float(np.finfo(np.float32).max)  # the largest observation value
+FLOAT32_MAX = float(np.finfo(np.float32).max)  # the largest observation value (and reward: RL libraries store float32)
 
 
 def require_float32_bound(name: str, value) -> float:
@@ -68,9 +68,6 @@ def _caller_level() -> int:
     while frame is not None and os.path.abspath(frame.f_code.co_filename).startswith(package + os.sep):
         frame, level = frame.f_back, level + 1
     return level
-
-
-FLOAT32_MAX = float(np.finfo(np.float32).max)
 
 
 def _takes_tolerance(cls) -> bool:

@@ -78,13 +78,13 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
 from .. import compiled as _compiled
-from .threads import resolve_num_threads
 from ..core.global_error import GlobalErrorCheck, companion_steps
 from ..core.step import _REAL_FLOATS, ReasonPool, action_columns, terminal_reason
 from ..draws import GeneratorTable, kind_codes
 from ..envs.base import require_compiled
 from ..envs.options import NOISE_BLOCK, noise_generator, noisy_observation, rekey
 from ..dynamics.validation import real_array, require_bool, require_int_at_least, unknown_keyword
+from .threads import resolve_num_threads
 
 __all__ = ["RigidBodyVectorEnv", "vector_class", "FreeRigidBodyVectorEnv", "LagrangeTopVectorEnv", "TippeTopVectorEnv"]
 

@@ -14,6 +14,8 @@ import os
 import threading
 import weakref
 
+from ..dynamics.validation import require_int_at_least
+
 __all__ = ["ThreadTeam", "resolve_num_threads", "usable_cores"]
 
 
@@ -27,8 +29,6 @@ def usable_cores() -> int:
 
 def resolve_num_threads(value) -> int:
     """``num_threads=``: an integer >= 1, or ``"auto"`` (every core the process may use)."""
-    from ..dynamics.validation import require_int_at_least
-
     if isinstance(value, str):
         if value == "auto":
             return usable_cores()
@@ -37,8 +37,8 @@ def resolve_num_threads(value) -> int:
 
 
 class _Shared:
-    """What the workers read: the step's job, the first error raised, the barrier's abort and
-    the stop flag (kept apart from the team, so that a team nobody holds is collected and its
+    """What the workers read: the step's job and the barrier's action, the first error raised,
+    the barrier and the stop flag (kept apart from the team, so that a team nobody holds is collected and its
     workers told to stop)."""
 
     __slots__ = ("job", "between", "error", "barrier", "stop")

@@ -191,7 +191,7 @@ def main(argv=None) -> int:
     from ..extras import ArgumentParser  # (suggests the closest choice)
 
     parser = ArgumentParser(prog="rbenvs verify", description="Simulate what the theorems speak of and compare with the oracles.")
-    parser.add_argument("--quick", action="store_true", help="fewer random cases, for CI (a few minutes on 2 cores; the full run: see docs/verification.md)")
+    parser.add_argument("--quick", action="store_true", help="fewer random cases, for CI")
     parser.add_argument("--seed", type=int, default=0, help="seed of the random cases (default: %(default)s)")
     parser.add_argument("--system", action="append", choices=SYSTEMS, help="restrict to these systems (repeatable; default all)")
     parser.add_argument("--integrator", action="append", help="restrict to these integrators (repeatable)")
