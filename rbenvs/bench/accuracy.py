@@ -78,7 +78,6 @@ import numpy as np
 
 from ..integrators import get_integrator
 from ..integrators.reference import Dop853
-from ..verify.tippe_top import FloatSystem
 from ..progress import Progress
 from .throughput import episode_stepper, timed
 from ..render.common import plot_unavailable
@@ -203,19 +202,8 @@ def _block_error(system, key, y, ref, y0):
     return err
 
 
-class _FloatDop853(Dop853):
-    """DOP853 that evaluates a single state's vector field on floats: solve_ivp hands ``(1,)``
-    arrays, and a vector field on floats is ~25x cheaper than on arrays (the tippe top's:
-    2.5 against 60 us). Same formulas, same results; batches go through unchanged."""
-
-    def step_counted(self, system, y, u, h):
-        if all(isinstance(c, float) for c in y):
-            system = FloatSystem(system)
-        return super().step_counted(system, y, u, h)
-
-
-REFERENCE = _FloatDop853(rtol=1e-13, atol=1e-15)
-CHECK = _FloatDop853(rtol=1e-12, atol=1e-14)  # the reference's own error, estimated
+REFERENCE = Dop853(rtol=1e-13, atol=1e-15)
+CHECK = Dop853(rtol=1e-12, atol=1e-14)  # the reference's own error, estimated
 
 
 def _reference(case, system, y0, integ=REFERENCE):

@@ -36,12 +36,22 @@ class Dop853(Integrator):
         shape = arrays[0].shape
         dim = len(arrays)
         y0 = np.stack(arrays).reshape(-1)
-        if u is not None:
-            u = tuple(np.broadcast_to(np.asarray(c, dtype=float), shape).reshape(-1) for c in u)
+        if shape == ():
+            # One state: the vector field on Python floats (the forms are written for floats and
+            # arrays alike); on solve_ivp's (1,)-arrays every operation is a numpy call, and the
+            # tippe top's references through its switching layer cost 4-5x more.
+            uf = None if u is None else tuple(float(c) for c in u)
 
-        def fun(_t, flat):
-            comps = tuple(flat.reshape(dim, -1))
-            return np.concatenate([np.broadcast_to(np.asarray(d, dtype=float), comps[0].shape) for d in system.rhs(comps, u)])
+            def fun(_t, flat):
+                return np.array(system.rhs(tuple(flat.tolist()), uf), dtype=float)
+
+        else:
+            if u is not None:
+                u = tuple(np.broadcast_to(np.asarray(c, dtype=float), shape).reshape(-1) for c in u)
+
+            def fun(_t, flat):
+                comps = tuple(flat.reshape(dim, -1))
+                return np.concatenate([np.broadcast_to(np.asarray(d, dtype=float), comps[0].shape) for d in system.rhs(comps, u)])
 
         from scipy.integrate import solve_ivp  # (here: importing it is a large share of every env's start; rbenvs bench startup)
 

@@ -113,7 +113,6 @@ __all__ = [
     "plot_sweep",
     "SWEEP_ALPHAS",
     "SWEEP_OFFSETS",
-    "FloatSystem",
     "oracle_jellett",
 ]
 
@@ -336,21 +335,6 @@ def oracle_jellett(system, y):
     return J, scale
 
 
-class FloatSystem:
-    """The system seen by dop853 with one state: ``solve_ivp`` hands the components as arrays of
-    shape ``(1,)``; the tippe top's vector field on floats is ~25x cheaper than on arrays (no
-    numpy call per operation). Same formulas, same results."""
-
-    def __init__(self, system):
-        self.system = system
-
-    def rhs(self, y, u):
-        return self.system.rhs(tuple(float(c[0]) for c in y), None if u is None else tuple(float(c[0]) for c in u))
-
-    def normalize(self, y):
-        return self.system.normalize(y)
-
-
 def _step_size(system, name, omega_h, omega):
     """``h = omega_h / omega``, kept below the friction law's stability bound."""
     return min(omega_h / omega, system.max_stable_step(get_integrator(name).region))
@@ -442,7 +426,6 @@ def _run_invariants(system, sim, setting, y, horizon, u_of):
         every = max(1, int(round(sample / h)))
     elif sim.integrator.name == "dop853":
         every, h = 1, sample
-        target = FloatSystem(system)
     else:
         h = _step_size(system, sim.integrator.name, setting.invariant_step, omega)
         every = max(1, int(math.ceil(sample / h)))
@@ -593,7 +576,6 @@ def settle(system, integ, spin, omega_h=0.1, rtol=1e-8, horizon=SETTLE_HORIZON, 
     sample = sample_tg * t_g
     if dop853:
         sim = as_simulators([get_integrator("dop853", rtol=rtol, atol=rtol * 1e-3)])[0]
-        target = FloatSystem(system)
         every, h = 1, sample
     elif sim.dt is not None:  # a simulator's own step: whole steps per sample
         target, h = system, sim.dt
