@@ -14,7 +14,10 @@ process that imports, makes and loads its kernels).
 The kernel caches live in a temporary folder the benchmark makes and deletes (``RBENVS_CACHE_DIR``
 for its processes), so the user's own cache is neither read nor filled. Warm figures are the
 median of ``--repeat`` processes; cold ones are one process each (a cold start compiles for
-5-30 s). ``--docs PAGE`` writes the table into the page's block.
+5-30 s). Every process reads compiled bytecode, as from an installed wheel (pip writes it at
+install): the package's ``__pycache__`` is filled first and ``PYTHONDONTWRITEBYTECODE`` is not
+passed on (in an editable checkout under that variable, every process would compile rbenvs'
+sources again, about 0.25 s). ``--docs PAGE`` writes the table into the page's block.
 """
 
 from __future__ import annotations
@@ -94,8 +97,23 @@ if __name__ == "__main__":
 """
 
 
-def _run(source: str, args: list, cache: str | None, script_dir: str | None = None) -> dict:
+def _environment() -> dict:
     env = dict(os.environ)
+    env.pop("PYTHONDONTWRITEBYTECODE", None)
+    return env
+
+
+def _compile_bytecode() -> None:
+    """rbenvs' bytecode written beside its sources: a no-op for a wheel (pip wrote it); in a
+    read-only folder Python compiles the sources in every process, as it does for that user."""
+    import rbenvs
+
+    folder = os.path.dirname(rbenvs.__file__)
+    subprocess.run([sys.executable, "-m", "compileall", "-q", folder], env=_environment(), capture_output=True, timeout=600)
+
+
+def _run(source: str, args: list, cache: str | None, script_dir: str | None = None) -> dict:
+    env = _environment()
     if cache is not None:
         env["RBENVS_CACHE_DIR"] = cache
     if script_dir is not None:  # (spawn re-imports the main module: it must be a file)
@@ -145,6 +163,7 @@ def main(argv=None) -> int:
     bar = Progress(n_rows * (1 + args.repeat) + (0 if args.no_async else len(systems)), enabled=not args.no_progress, desc="bench startup")
     results: dict = {}
     root = tempfile.mkdtemp(prefix="rbenvs-bench-startup-")
+    _compile_bytecode()
     try:
         def measure(key, source, argv_, cache):
             # an empty cache of its own, then the same cache warm (peers: no cache, no cold row)
