@@ -25,6 +25,8 @@
   vector env and MuJoCo; ``AsyncVectorEnv(context="spawn")``'s reset.
 * ``rbenvs bench threads [--num-envs N] [--threads LIST]``: the vector env's rate with
   ``num_threads`` 1, 2 and every core, against CartPole-v1's vector env, and whether the bits agree.
+* ``rbenvs bench render [--frames N]``: milliseconds per ``rgb_array`` frame, beside
+  ``Pendulum-v1``'s (:mod:`rbenvs.bench.render`).
 * ``rbenvs bench accuracy [--quick] [--json PATH] [--plot PNG] [--system NAME] [--tippe]``: error, order,
   invariant drift and cost of every integrator on every system, and a recommended integrator
   per scene (:mod:`rbenvs.bench.accuracy`).
@@ -304,6 +306,8 @@ def build_parser() -> argparse.ArgumentParser:
     bench_sub.add_parser("startup", help="seconds from a fresh process to its first step, cold and warm kernel cache, against Pendulum-v1 and MuJoCo (see its --help)")
     # `bench threads` too (rbenvs.bench.threads.main).
     bench_sub.add_parser("threads", help="the vector env's rate with num_threads 1, 2 and every core, against CartPole-v1's vector env (see its --help)")
+    # `bench render` too (rbenvs.bench.render.main).
+    bench_sub.add_parser("render", help="milliseconds per rgb_array frame of every system, against Pendulum-v1's (see its --help)")
     # `bench accuracy` too (rbenvs.bench.accuracy.main).
     bench_sub.add_parser("accuracy", help="error, order, drift and cost per integrator and system; a step per scene (see its --help)")
     plot = sub.add_parser("plot", help="PNG figures of the three systems against their oracles, and rendered frames (plot extra)")
@@ -344,6 +348,10 @@ def _main(argv) -> int:
         from .bench.threads import main as threads_main
 
         return threads_main(argv[2:])
+    if argv[:2] == ["bench", "render"]:
+        from .bench.render import main as render_main
+
+        return render_main(argv[2:])
     if argv[:2] == ["bench", "accuracy"]:
         from .bench.accuracy import main as accuracy_main
 

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from gymnasium.utils.env_checker import check_env
 
-from conftest import ENV_IDS
+from conftest import ENV_IDS, env_class
 from rbenvs.render import FRAME_SIZE
 
 # a state of each system far from its default start, to see the frame change
@@ -27,23 +27,62 @@ def headless(monkeypatch):
     monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
 
 
-def _colours(frame):
-    return len(np.unique(frame.reshape(-1, 3), axis=0))
+def _pixels_of(frame, color):
+    """How many pixels of ``frame`` have the colour ``#rrggbb``."""
+    rgb = np.array([int(color[k : k + 2], 16) for k in (1, 3, 5)], dtype=np.uint8)
+    return int(np.count_nonzero(np.all(frame == rgb, axis=2)))
 
 
 @pytest.mark.parametrize("env_id", ENV_IDS)
 def test_frame_shape_dtype_and_content(env_id):
+    from rbenvs.render.common import COLORS
+
     env = gym.make(env_id, render_mode="rgb_array")
     env.reset(seed=0)
     frame = env.render()
     assert isinstance(frame, np.ndarray) and frame.dtype == np.uint8
     assert frame.shape == FRAME_SIZE + (3,)
-    assert _colours(frame) > 50  # body, vectors, text: not a blank image
+    # the body covers a good part of the frame, and the vectors are drawn in their colours (the
+    # heavy top's angular velocity lies on its angular momentum at the start: one of them shows)
+    assert np.mean(np.any(frame != 255, axis=2)) > 0.03
+    assert _pixels_of(frame, COLORS["momentum"]) + _pixels_of(frame, COLORS["angular_velocity"]) > 50
     # the frames of an episode keep one shape (what RecordVideo needs)
     for _ in range(3):
         env.step(env.action_space.sample())
         assert env.render().shape == frame.shape
     env.close()
+
+
+@pytest.mark.parametrize("env_id", ENV_IDS)
+def test_the_picture_stays_within_the_frame(env_id):
+    """Along an episode under random actions and from a state far from the default start, the
+    frame's two outermost rows and columns are background: nothing is cut at the edge."""
+    env = gym.make(env_id, render_mode="rgb_array")
+    env.action_space.seed(1)
+    env.reset(seed=1)
+    frames = []
+    for _ in range(40):
+        env.step(env.action_space.sample())
+        frames.append(env.render())
+    if env_id in OTHER_STATE:
+        env.reset(options={"state": OTHER_STATE[env_id]})
+        frames.append(env.render())
+    for frame in frames:
+        border = np.concatenate([frame[:2].reshape(-1, 3), frame[-2:].reshape(-1, 3), frame[:, :2].reshape(-1, 3), frame[:, -2:].reshape(-1, 3)])
+        assert np.all(border == 255)
+
+
+def test_the_raster_fills_a_polygon_where_it_lies_and_nothing_else():
+    """A square face seen from above (elevation 90): the pixels inside its projection take its
+    colour, those outside stay background, up to the one-pixel rim."""
+    from rbenvs.render.raster import draw
+
+    face = np.array([[-0.5, -0.5, 0.0], [0.5, -0.5, 0.0], [0.5, 0.5, 0.0], [-0.5, 0.5, 0.0]])
+    frame = draw({"center": np.zeros(3), "extent": 1.0, "view": (90.0, -90.0), "polygons": [{"faces": [face], "colors": ["#ff0000"]}]}, (100, 100))
+    red = np.all(frame == (255, 0, 0), axis=2)
+    # pixels per unit: 50 / 1.25 = 40, so the square is 40 px wide about the centre (30..70)
+    assert red[32:68, 32:68].all() and not red[:28].any() and not red[72:].any() and not red[:, :28].any() and not red[:, 72:].any()
+    assert np.all(frame[~red] == 255)
 
 
 @pytest.mark.parametrize("env_id", ENV_IDS)
@@ -57,7 +96,10 @@ def test_frame_changes_with_the_state(env_id):
         for _ in range(10):
             env.step(np.zeros(env.action_space.shape, dtype=np.float32))
     second = env.render()
-    assert np.mean(np.any(first != second, axis=2)) > 0.01
+    # at least the vectors move: two arrows of ~100 px at 3 px wide are ~600 px, 0.26% of the frame
+    assert np.mean(np.any(first != second, axis=2)) > 0.002
+    red = [np.all(f == np.array([0xD6, 0x27, 0x28], dtype=np.uint8), axis=2) for f in (first, second)]
+    assert not np.array_equal(*red)
 
 
 @pytest.mark.parametrize("env_id", ENV_IDS)
@@ -112,18 +154,16 @@ def test_rendering_off_costs_nothing():
     assert out.strip() == "[]"
 
 
-def test_core_imports_without_matplotlib_and_render_names_the_extra():
+def test_core_renders_without_matplotlib_and_plots_name_the_extra():
     code = (
         "import sys\n"
         "sys.modules['matplotlib'] = None  # blocked: 'import matplotlib' raises ImportError\n"
         "import gymnasium as gym, rbenvs, rbenvs.render, rbenvs.plotting\n"
-        "env = gym.make('rbenvs/LagrangeTop-v0', render_mode='rgb_array')\n"
-        "env.reset(seed=0)\n"
-        "env.step(env.action_space.sample())\n"
-        "try:\n"
-        "    env.render()\n"
-        "except ImportError as exc:\n"
-        "    print(exc)\n"
+        "for eid in sorted(rbenvs.ENVIRONMENTS):\n"
+        "    env = gym.make(eid, render_mode='rgb_array')\n"
+        "    env.reset(seed=0)\n"
+        "    env.step(env.action_space.sample())\n"
+        "    print(env.render().shape)\n"
         "try:\n"
         "    rbenvs.plotting.plot_heavy_top('x.png')\n"
         "except ImportError as exc:\n"
@@ -131,16 +171,49 @@ def test_core_imports_without_matplotlib_and_render_names_the_extra():
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     lines = out.strip().splitlines()
-    assert len(lines) == 2 and all("plot extra" in line and "rbenvs[plot]" in line for line in lines)
+    assert lines[:3] == [str(FRAME_SIZE + (3,))] * 3
+    assert len(lines) == 4 and "plot extra" in lines[3] and "rbenvs[plot]" in lines[3]
 
 
-def test_human_mode_headless_does_not_fail():
-    env = gym.make("rbenvs/FreeRigidBody-v0", render_mode="human")
-    env.reset(seed=0)
-    for _ in range(3):
-        env.step(env.action_space.sample())
-    assert env.render() is None
-    env.close()
+def test_checkers_pass_on_the_core_install_with_warnings_as_errors():
+    """gymnasium's check_env with its defaults (the render check too: a fresh env in each mode,
+    'human' included, headless here) and stable-baselines3's, every id and every task, warnings
+    as errors, with matplotlib blocked as on the core install (SB3 is the agents' extra; its
+    checker is run where it is installed)."""
+    code = (
+        "import sys, warnings\n"
+        "sys.modules['matplotlib'] = None\n"
+        "import gymnasium as gym, rbenvs\n"
+        "from gymnasium.utils.env_checker import check_env\n"
+        "from stable_baselines3.common.env_checker import check_env as sb3_check_env\n"
+        "warnings.simplefilter('error')\n"
+        "for eid in sorted(rbenvs.ENVIRONMENTS):\n"
+        "    for task in type(gym.make(eid).unwrapped).tasks:\n"
+        "        env = gym.make(eid, task=task, render_mode='rgb_array')\n"
+        "        check_env(env.unwrapped)\n"
+        "        sb3_check_env(env.unwrapped, warn=True)\n"
+        "        print(eid, task)\n"
+    )
+    env = {k: v for k, v in __import__("os").environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY")}
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env)
+    assert out.returncode == 0, out.stderr[-3000:]
+    assert len(out.stdout.strip().splitlines()) == sum(len(env_class(eid).tasks) for eid in ENV_IDS)
+
+
+def test_human_mode_headless_logs_once_and_shows_nothing(caplog):
+    from rbenvs.render import common
+
+    common._told.clear()
+    with caplog.at_level("WARNING", logger="rbenvs"):
+        for _ in range(2):
+            env = gym.make("rbenvs/FreeRigidBody-v0", render_mode="human")
+            env.reset(seed=0)
+            for _ in range(3):
+                env.step(env.action_space.sample())
+            assert env.render() is None
+            env.close()
+    said = [r.getMessage() for r in caplog.records if r.name == "rbenvs"]
+    assert len(said) == 1 and "no display" in said[0] and "RecordVideo" in said[0] and "rgb_array" in said[0]
 
 
 def test_render_without_mode_and_before_reset():

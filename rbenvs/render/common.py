@@ -1,24 +1,32 @@
-"""What every system's picture shares: the scene format, the lazy matplotlib import, the Agg
-canvas that turns a scene into an ``(H, W, 3)`` uint8 frame, and the optional window of
-``render_mode="human"``.
+"""What every system's picture shares: the scene format, the frame renderer (numpy alone,
+:mod:`rbenvs.render.raster`), the window of ``render_mode="human"`` (matplotlib's, where it and a
+display exist) and the lazy matplotlib import of the figures (``rbenvs plot``).
 
 A *scene* is a plain dict of geometry in space coordinates [m, or the body's length scale],
 built from one state by a system module (:mod:`rbenvs.render.free_body`, ``heavy_top``,
-``tippe_top``) with numpy alone; only :func:`draw_scene` needs matplotlib. Keys (all optional
-but ``center`` and ``extent``):
+``tippe_top``) with numpy alone. Keys (all optional but ``center`` and ``extent``):
 
 * ``center`` (3,), ``extent``: the view is the cube ``center +- extent``;
 * ``view``: ``(elevation, azimuth)`` in degrees;
 * ``title``: str; ``text``: list of str (lower left, one line each);
-* ``polygons``: list of ``{"faces": [(k, 3) arrays], "colors": [colour per face], "alpha",
-  "edgecolor"}`` (one collection is depth-sorted face by face: put what overlaps in one);
+* ``polygons``: list of ``{"faces": [(k, 3) arrays of a convex face], "colors": [colour per
+  face], "solid"}``, opaque; ``solid``: the faces close a convex body (those turned away are
+  hidden), else they are drawn far to near;
 * ``lines``: list of ``{"points": (n, 3), "color", "width", "style", "label"}``;
 * ``arrows``: list of ``{"origin": (3,), "vector": (3,), "color", "label"}`` (a shaft and a head);
-* ``points``: list of ``{"position": (3,), "color", "size", "label"}``.
+* ``points``: list of ``{"position": (3,), "color", "size", "label"}``;
+* ``table``: ``{"center": (x, y), "half", "tile", "colors": (2 colours)}``, a checkered square
+  on ``z = 0``;
+* ``spheres``: list of ``{"center", "radius", "rotation": (3, 3) body -> space, "colors":
+  ((2 shades of the half z_body < 0), (2 of the other)), "sectors"}``.
+
+``title``, ``text`` and the labels are kept for readers of a scene; a frame has no font to draw
+them with (the colours are listed in docs/rendering.md).
 """
 
 from __future__ import annotations
 
+import logging
 import os
 import sys
 
@@ -32,7 +40,6 @@ __all__ = [
     "quat_to_matrix",
     "rgba",
     "scaled_arrow",
-    "draw_scene",
     "Renderer",
 ]
 
@@ -53,7 +60,9 @@ COLORS = {
     "contact": "#000000",
 }
 
-_MISSING = "rendering and plots need matplotlib: install the plot extra, pip install 'rbenvs[plot]'"
+_told: list = []  # a human-mode env that cannot show has been logged in this process
+
+_MISSING = "plots need matplotlib: install the plot extra, pip install 'rbenvs[plot]'"
 
 
 def require_matplotlib():
@@ -116,95 +125,44 @@ def scaled_arrow(vector, scale: float, max_length: float):
     return v
 
 
-def draw_scene(ax, scene: dict) -> None:
-    """Draw ``scene`` (see the module docstring) on a fresh 3-D axes ``ax``."""
-    from mpl_toolkits.mplot3d.art3d import Poly3DCollection
-
-    c = np.asarray(scene["center"], dtype=float)
-    e = float(scene["extent"])
-    for poly in scene.get("polygons", ()):
-        coll = Poly3DCollection(
-            [np.asarray(f, dtype=float) for f in poly["faces"]],
-            facecolors=poly["colors"],
-            edgecolors=poly.get("edgecolor", "none"),
-            linewidths=poly.get("linewidth", 0.3),
-            alpha=poly.get("alpha"),
-        )
-        ax.add_collection3d(coll)
-    for line in scene.get("lines", ()):
-        p = np.asarray(line["points"], dtype=float)
-        ax.plot(p[:, 0], p[:, 1], p[:, 2], color=line.get("color", "k"), lw=line.get("width", 1.0), ls=line.get("style", "-"), label=line.get("label"))
-    for arrow in scene.get("arrows", ()):
-        o = np.asarray(arrow["origin"], dtype=float)
-        v = np.asarray(arrow["vector"], dtype=float)
-        if not np.all(np.isfinite(v)) or float(np.linalg.norm(v)) == 0.0:
-            continue
-        ax.quiver(o[0], o[1], o[2], v[0], v[1], v[2], color=arrow["color"], lw=2.2, arrow_length_ratio=0.18, label=arrow.get("label"))
-    for pt in scene.get("points", ()):
-        p = np.asarray(pt["position"], dtype=float)
-        ax.scatter([p[0]], [p[1]], [p[2]], color=pt.get("color", "k"), s=pt.get("size", 20), depthshade=False, label=pt.get("label"))
-    ax.set_xlim(c[0] - e, c[0] + e)
-    ax.set_ylim(c[1] - e, c[1] + e)
-    ax.set_zlim(c[2] - e, c[2] + e)
-    ax.set_box_aspect((1.0, 1.0, 1.0))
-    elev, azim = scene.get("view", (20.0, -60.0))
-    ax.view_init(elev=elev, azim=azim)
-    for axis in (ax.xaxis, ax.yaxis, ax.zaxis):  # the grid box stays, numbers would clutter
-        axis.set_ticklabels([])
-    if scene.get("title"):
-        ax.set_title(scene["title"], fontsize=10)
-    handles, labels = ax.get_legend_handles_labels()
-    if handles:
-        ax.legend(handles, labels, loc="upper right", fontsize=7, framealpha=0.8)
-    text = scene.get("text")
-    if text:
-        ax.text2D(0.01, 0.01, "\n".join(text), transform=ax.transAxes, fontsize=7, family="monospace", va="bottom")
-
-
 class Renderer:
-    """One figure on an Agg canvas, redrawn for every frame; ``frame(scene)`` returns the
-    ``FRAME_SIZE + (3,)`` uint8 image. ``show(frame, fps)`` puts a frame in a matplotlib window
-    when a display exists (``render_mode="human"``); without one it does nothing."""
+    """``frame(scene)`` returns the ``FRAME_SIZE + (3,)`` uint8 image (numpy alone:
+    :func:`rbenvs.render.raster.draw`). ``show(frame, fps)`` puts a frame in a matplotlib window
+    (``render_mode="human"``) where matplotlib, an interactive backend and a display exist;
+    where one is missing it warns once, saying why and how to record frames instead, and shows
+    nothing."""
 
     def __init__(self, size=FRAME_SIZE):
-        Figure, FigureCanvasAgg = require_matplotlib()
         h, w = size
         self.size = (int(h), int(w))
-        self.figure = Figure(figsize=(w / _DPI, h / _DPI), dpi=_DPI)
-        self.canvas = FigureCanvasAgg(self.figure)
-        self.figure.subplots_adjust(left=0.0, right=1.0, bottom=0.0, top=0.94)
-        # drawn in call order: the body (its faces depth-sorted), then lines, vectors and points
-        # on top, so a vector that starts inside the body stays visible
-        self.axes = self.figure.add_subplot(projection="3d", computed_zorder=False)
         self._window = None  # (pyplot module, figure, image) once a window is open
-        self._headless = None
+        self._headless = None  # why no window can be shown (str), once known; "" when one can
 
     def frame(self, scene: dict) -> np.ndarray:
-        self.axes.cla()
-        draw_scene(self.axes, scene)
-        self.canvas.draw()
-        rgba = np.asarray(self.canvas.buffer_rgba())
-        return np.ascontiguousarray(rgba[:, :, :3])
+        from .raster import draw
+
+        return draw(scene, self.size)
 
     def can_show(self) -> bool:
-        """Whether :meth:`show` can put a frame on screen (a display, an interactive backend,
-        the window not closed by the user)."""
+        """Whether :meth:`show` can put a frame on screen (a display, matplotlib with an
+        interactive backend, the window not closed by the user). The first ``False`` of the
+        process logs why (a logging warning, not a Python warning: a checker run with warnings
+        as errors, such as gymnasium's ``check_env`` in a headless CI, still passes)."""
         if self._headless is None:
-            self._headless = not display_available()
+            self._headless = _why_no_window()
+            if self._headless and not _told:
+                _told.append(True)
+                logging.getLogger("rbenvs").warning(
+                    "render_mode='human' shows nothing here: %s. To watch an episode, record it: render_mode='rgb_array' "
+                    "and gymnasium.wrappers.RecordVideo (docs/rendering.md)", self._headless)
         return not self._headless
 
     def show(self, frame: np.ndarray, fps: float) -> None:
         if not self.can_show():
             return
         if self._window is None:
-            try:
-                import matplotlib.pyplot as plt
-            except ImportError:  # pragma: no cover - matplotlib present but pyplot broken
-                self._headless = True
-                return
-            if not _interactive_backend(plt):
-                self._headless = True
-                return
+            import matplotlib.pyplot as plt
+
             plt.ion()
             fig = plt.figure(figsize=(self.size[1] / _DPI, self.size[0] / _DPI), dpi=_DPI)
             ax = fig.add_axes((0.0, 0.0, 1.0, 1.0))
@@ -212,7 +170,7 @@ class Renderer:
             self._window = (plt, fig, ax.imshow(frame))
         plt, fig, image = self._window
         if not plt.fignum_exists(fig.number):  # the user closed the window: stop showing
-            self._headless = True
+            self._headless = "the window was closed"
             return
         image.set_data(frame)
         fig.canvas.draw_idle()
@@ -225,6 +183,16 @@ class Renderer:
             self._window = None
 
 
-def _interactive_backend(plt) -> bool:
+def _why_no_window() -> str:
+    """Why a window cannot be opened ("" when it can): no display, no matplotlib, or a
+    non-interactive backend."""
+    if not display_available():
+        return "no display (DISPLAY and WAYLAND_DISPLAY are unset)"
+    try:
+        import matplotlib.pyplot as plt
+    except ImportError:
+        return "the window needs matplotlib, pip install 'rbenvs[plot]'"
     backend = str(plt.get_backend()).lower()
-    return backend not in {"agg", "pdf", "ps", "svg", "pgf", "cairo", "template"} and "inline" not in backend
+    if backend in {"agg", "pdf", "ps", "svg", "pgf", "cairo", "template"} or "inline" in backend:
+        return f"matplotlib's backend {backend!r} opens no window"
+    return ""

@@ -90,8 +90,8 @@ def scene(system, y) -> dict:
     faces, normals = _box_faces(half)
     colors = []
     for ax, sign in normals:  # each axis's faces in its colour, the + face lighter
-        colors.append(rgba(COLORS["axis"][ax], 0.55, lighten=0.55 if sign > 0 else 0.2))
-    polygons = [{"faces": [f @ rot.T for f in faces], "colors": colors, "edgecolor": "#333333"}]
+        colors.append(rgba(COLORS["axis"][ax], lighten=0.55 if sign > 0 else 0.2))
+    polygons = [{"faces": [f @ rot.T for f in faces], "colors": colors, "solid": True}]
     lines = []
     for ax in range(3):
         e = np.zeros(3)

@@ -70,7 +70,7 @@ def scene(system, y) -> dict:
         colors.append(shade)
         faces.append(np.array([centre, rim[s], rim[s + 1]]))
         colors.append(COLORS["body_alt"][s % 2])
-    polygons = [{"faces": [f @ rot.T for f in faces], "colors": colors, "alpha": 0.9, "edgecolor": "#555555", "linewidth": 0.2}]
+    polygons = [{"faces": [f @ rot.T for f in faces], "colors": colors, "solid": True}]
     axis_end = rot @ (1.35 * length * k)
     com = rot @ centre
     reach = 1.9 * length

@@ -15,40 +15,8 @@ from .common import COLORS, quat_to_matrix, rgba, scaled_arrow
 
 __all__ = ["scene"]
 
-_LON, _LAT = 16, 10  # sphere faces: longitudes x latitude bands
+_LON = 16  # the sphere's alternating longitudes (the spin shows)
 _EXTENT = 2.3  # half-width of the view, in sphere radii
-
-
-def _sphere_faces(radius):
-    """Faces (4, 3) of the unit-latitude grid on the sphere ``radius`` about the origin (body
-    frame, pole ``+e3`` = ``k``), with a flag: on the stem half (``+k``) or not."""
-    th = np.linspace(0.0, math.pi, _LAT + 1)
-    ph = np.linspace(0.0, 2.0 * math.pi, _LON + 1)
-
-    def pt(t, p):
-        return radius * np.array([math.sin(t) * math.cos(p), math.sin(t) * math.sin(p), math.cos(t)])
-
-    faces, flags = [], []
-    for i in range(_LAT):
-        for j in range(_LON):
-            faces.append(np.array([pt(th[i], ph[j]), pt(th[i], ph[j + 1]), pt(th[i + 1], ph[j + 1]), pt(th[i + 1], ph[j])]))
-            flags.append((i < _LAT // 2, j % 2))
-    return faces, flags
-
-
-def _table_tiles(cx, cy, tile, half):
-    """Checkerboard tiles (4, 3) on ``z = 0`` at fixed table coordinates, clipped to the square
-    ``(cx, cy) +- half``, with their colour parity."""
-    x0, x1, y0, y1 = cx - half, cx + half, cy - half, cy + half
-    tiles, parity = [], []
-    for i in range(math.floor(x0 / tile), math.ceil(x1 / tile)):
-        for j in range(math.floor(y0 / tile), math.ceil(y1 / tile)):
-            a, b = max(i * tile, x0), min((i + 1) * tile, x1)
-            c, d = max(j * tile, y0), min((j + 1) * tile, y1)
-            if b > a and d > c:
-                tiles.append(np.array([[a, c, 0.0], [b, c, 0.0], [b, d, 0.0], [a, d, 0.0]]))
-                parity.append((i + j) % 2)
-    return tiles, parity
 
 
 def scene(system, y, u=None) -> dict:
@@ -66,15 +34,10 @@ def scene(system, y, u=None) -> dict:
     o = g + h * k
     contact = o - np.array([0.0, 0.0, a])
     half = _EXTENT * a
-    tiles, parity = _table_tiles(o[0], o[1], a, half)
-    faces = list(tiles)
-    colors = [rgba(COLORS["table"], 1.0, lighten=0.5 if p else 0.0) for p in parity]
-    sphere, flags = _sphere_faces(a)
-    for f, (stem, odd) in zip(sphere, flags):
-        faces.append(f @ rot.T + o)
-        palette = COLORS["body_alt"] if stem else COLORS["body"]
-        colors.append(rgba(palette[odd], 0.92))
-    polygons = [{"faces": faces, "colors": colors, "edgecolor": "#666666", "linewidth": 0.15}]
+    # the table a little inside the view, so that its corners stay in the frame
+    table = {"center": (o[0], o[1]), "half": 0.8 * half, "tile": a, "colors": (COLORS["table"], rgba(COLORS["table"], 1.0, lighten=0.5))}
+    # the broad half (body z < 0) yellow, the stem half blue, alternating over the longitudes
+    spheres = [{"center": o, "radius": a, "rotation": rot, "colors": (COLORS["body"], COLORS["body_alt"]), "sectors": _LON}]
     w_body = np.asarray(st["angular_velocity"], dtype=float)
     l_body = np.array([big_a * w_body[0], big_a * w_body[1], big_c * w_body[2]])
     l_space, w_space = rot @ l_body, rot @ w_body
@@ -104,7 +67,8 @@ def scene(system, y, u=None) -> dict:
         "view": (18.0, -60.0),
         "title": "tippe top on the table",
         "text": text,
-        "polygons": polygons,
+        "table": table,
+        "spheres": spheres,
         "lines": lines,
         "arrows": arrows,
         "points": points,
