@@ -178,11 +178,11 @@ def test_core_renders_without_matplotlib_and_plots_name_the_extra():
 def test_checkers_pass_on_the_core_install_with_warnings_as_errors():
     """gymnasium's check_env with its defaults (the render check too: a fresh env in each mode,
     'human' included, headless here) and stable-baselines3's, every id and every task, warnings
-    as errors, with matplotlib blocked as on the core install (SB3 is the agents' extra; its
-    checker is run where it is installed)."""
+    as errors, with matplotlib and numba blocked as on the core install (SB3 is the agents'
+    extra; its checker is run where it is installed)."""
     code = (
         "import sys, warnings\n"
-        "sys.modules['matplotlib'] = None\n"
+        "sys.modules['matplotlib'] = sys.modules['numba'] = None\n"
         "import gymnasium as gym, rbenvs\n"
         "from gymnasium.utils.env_checker import check_env\n"
         "from stable_baselines3.common.env_checker import check_env as sb3_check_env\n"
