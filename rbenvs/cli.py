@@ -25,6 +25,8 @@
   vector env and MuJoCo; ``AsyncVectorEnv(context="spawn")``'s reset.
 * ``rbenvs bench threads [--num-envs N] [--threads LIST]``: the vector env's rate with
   ``num_threads`` 1, 2 and every core, against CartPole-v1's vector env, and whether the bits agree.
+* ``rbenvs bench costs [--skip-tests]``: what the README's two commands cost here (the venv,
+  the main job, the test suite's wall and CPU time, ``verify --quick``; :mod:`rbenvs.bench.costs`).
 * ``rbenvs bench render [--frames N]``: milliseconds per ``rgb_array`` frame, beside
   ``Pendulum-v1``'s (:mod:`rbenvs.bench.render`).
 * ``rbenvs bench accuracy [--quick] [--json PATH] [--plot PNG] [--system NAME] [--tippe]``: error, order,
@@ -306,6 +308,8 @@ def build_parser() -> argparse.ArgumentParser:
     bench_sub.add_parser("startup", help="seconds from a fresh process to its first step, cold and warm kernel cache, against Pendulum-v1 and MuJoCo (see its --help)")
     # `bench threads` too (rbenvs.bench.threads.main).
     bench_sub.add_parser("threads", help="the vector env's rate with num_threads 1, 2 and every core, against CartPole-v1's vector env (see its --help)")
+    # `bench costs` too (rbenvs.bench.costs.main).
+    bench_sub.add_parser("costs", help="the README's costs measured here: venv size, main job, test suite (wall and CPU), verify --quick (see its --help)")
     # `bench render` too (rbenvs.bench.render.main).
     bench_sub.add_parser("render", help="milliseconds per rgb_array frame of every system, against Pendulum-v1's (see its --help)")
     # `bench accuracy` too (rbenvs.bench.accuracy.main).
@@ -348,6 +352,10 @@ def _main(argv) -> int:
         from .bench.threads import main as threads_main
 
         return threads_main(argv[2:])
+    if argv[:2] == ["bench", "costs"]:
+        from .bench.costs import main as costs_main
+
+        return costs_main(argv[2:])
     if argv[:2] == ["bench", "render"]:
         from .bench.render import main as render_main
 

@@ -104,12 +104,30 @@ def headline(root: str | Path = ".") -> str:
     return "\n".join(lines)
 
 
+def default_root() -> Path:
+    """The current folder where it holds the records, else the checkout this package runs from
+    (an editable install), else the current folder (and the error names the missing record)."""
+    here = Path(".")
+    if (here / SOURCES["verify"][0]).is_file():
+        return here
+    checkout = Path(__file__).resolve().parent.parent
+    if (checkout / SOURCES["verify"][0]).is_file():
+        return checkout
+    return here
+
+
 def main(argv=None) -> int:
     import argparse
 
     p = argparse.ArgumentParser(prog="rbenvs headline", description="The README's headline figures from the records the measuring commands wrote "
-                                "(docs/verify.json, docs/throughput.json, docs/results.json).")
-    p.add_argument("--root", default=".", help="the repository (default: the current folder)")
+                                "(docs/verify.json, docs/throughput.json, docs/results.json) in the repository.")
+    p.add_argument("--root", default=None, help="the repository (default: the current folder if it holds docs/verify.json, else the checkout "
+                   "rbenvs runs from)")
     args = p.parse_args(argv)
-    print(headline(args.root))
+    root = Path(args.root) if args.root is not None else default_root()
+    try:
+        print(headline(root))
+    except ValueError as exc:
+        p.exit(2, f"rbenvs headline: {exc} (the records are the repository's docs/, not part of an installed package: run it in a clone, "
+                  "or pass --root PATH)\n")
     return 0

@@ -190,3 +190,28 @@ def test_plot_writes_into_docs_only_when_asked():
 
     assert build_parser().parse_args(["plot"]).out == "plots"
     assert build_parser().parse_args(["plot", "--out", "docs"]).out == "docs"
+
+
+def test_headline_outside_the_repository_reads_the_checkout_or_says_where_the_records_are(tmp_path):
+    """`rbenvs headline` in a folder without docs/: the checkout rbenvs runs from (editable here);
+    with --root on a folder without the records: exit 2, naming the record and where it lives."""
+    import subprocess
+
+    exe = [sys.executable, "-m", "rbenvs", "headline"]
+    out = subprocess.run(exe, cwd=tmp_path, capture_output=True, text=True)
+    assert out.returncode == 0 and out.stdout.startswith("- **Verification**"), out.stderr
+    out = subprocess.run([*exe, "--root", str(tmp_path)], cwd=tmp_path, capture_output=True, text=True)
+    assert out.returncode == 2 and "docs/verify.json is missing" in out.stderr and "--root" in out.stderr
+
+
+def test_bench_costs_sizes_folders_and_reads_pytests_summary(tmp_path, capsys):
+    from rbenvs.bench.costs import _summary, folder_bytes, main
+
+    (tmp_path / "a").write_bytes(b"x" * 1000)
+    (tmp_path / "sub").mkdir()
+    (tmp_path / "sub" / "b").write_bytes(b"y" * 234)
+    assert folder_bytes(tmp_path) == 1234
+    assert _summary("....\n==== 4829 passed, 1 skipped, 330 warnings in 1465.27s (0:24:25) ====\n") == "4829 passed, 1 skipped, 330 warnings"
+    with pytest.raises(SystemExit) as exc:  # the suite needs the repository's tests/
+        main(["--root", str(tmp_path)])
+    assert exc.value.code == 2 and "no tests/ folder" in capsys.readouterr().err

@@ -420,7 +420,6 @@ def _run_invariants(system, sim, setting, y, horizon, u_of):
     t_g = math.sqrt(prm.radius / prm.gravity)
     sample = INVARIANT_SAMPLE * t_g
     omega = 1.5 * _omega_bound(system, y)
-    target = system
     if sim.dt is not None:  # a simulator's own step: samples every whole number of its steps
         h = sim.dt
         every = max(1, int(round(sample / h)))
@@ -430,7 +429,7 @@ def _run_invariants(system, sim, setting, y, horizon, u_of):
         h = _step_size(system, sim.integrator.name, setting.invariant_step, omega)
         every = max(1, int(math.ceil(sample / h)))
         h = sample / every
-    run = start(sim, target, y)
+    run = start(sim, system, y)
     n_samples = int(math.ceil(horizon / (h * every)))
     mu = prm.friction
     weight = prm.mass * prm.gravity
@@ -578,16 +577,15 @@ def settle(system, integ, spin, omega_h=0.1, rtol=1e-8, horizon=SETTLE_HORIZON, 
         sim = as_simulators([get_integrator("dop853", rtol=rtol, atol=rtol * 1e-3)])[0]
         every, h = 1, sample
     elif sim.dt is not None:  # a simulator's own step: whole steps per sample
-        target, h = system, sim.dt
+        h = sim.dt
         every = max(1, int(round(sample / h)))
         sample = every * h
         sample_tg = sample / t_g
     else:
-        target = system
         h = _step_size(system, sim.integrator.name, omega_h, 1.2 * abs(spin))
         every = max(1, int(math.ceil(sample / h)))
         h = sample / every
-    run = start(sim, target, y)
+    run = start(sim, system, y)
     per_window = int(round(SETTLE_WINDOW / sample_tg))
     n_samples = int(math.ceil(horizon / sample_tg))
     weight = prm.mass * prm.gravity

@@ -1,0 +1,108 @@
+"""``rbenvs bench costs``: what the README's two commands cost, measured on this machine.
+
+The README states how big the set-up is and how long the main job and the tests take; typed by
+hand those figures went 3-4x stale. Here each is measured, and ``--docs README.md`` writes them
+into the README's block:
+
+* **the venv**: the size of the running interpreter's environment (``sys.prefix``), the one
+  ``make`` set up;
+* **the main job** (``make run``): ``rbenvs-train --algo ppo --scene default --seed 0`` into a
+  temporary folder, wall time;
+* **the test suite** (``make test``): ``pytest -n auto --maxprocesses 8`` in the repository,
+  first with an empty kernel cache (a clean clone: every kernel compiled), then again on the
+  cache that run filled; wall time and CPU time (user + system of every process it ran), which
+  says how much of the wall time a machine with more cores would save; then
+  ``rbenvs verify --quick``, wall time.
+
+Every step runs as a new process with this interpreter; a step that fails stops the command
+(exit 1, its output's tail shown) and nothing is written. The suite's runs take most of the
+time (20-40 minutes on 2 cores); ``--skip-tests`` measures the rest.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import platform
+import resource
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+__all__ = ["main", "folder_bytes"]
+
+
+def folder_bytes(path) -> int:
+    """Bytes of the files under ``path`` (links not followed)."""
+    total = 0
+    for root, _, files in os.walk(path):
+        for name in files:
+            p = os.path.join(root, name)
+            if not os.path.islink(p):
+                total += os.path.getsize(p)
+    return total
+
+
+def _timed(cmd, cwd, env=None) -> tuple[float, float, str]:
+    """``(wall s, CPU s of the process and its descendants, output tail)``; raises on failure."""
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    t0 = time.perf_counter()
+    out = subprocess.run(cmd, cwd=cwd, env=env, capture_output=True, text=True)
+    wall = time.perf_counter() - t0
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+    tail = (out.stdout + out.stderr)[-3000:]
+    if out.returncode != 0:
+        raise RuntimeError(f"`{' '.join(map(str, cmd))}` failed (exit {out.returncode}):\n{tail}")
+    return wall, cpu, tail
+
+
+def _minutes(seconds: float) -> str:
+    return f"{int(seconds // 60)} min {int(round(seconds % 60)):02d} s" if seconds >= 60 else f"{seconds:.0f} s"
+
+
+def _summary(tail: str) -> str:
+    """pytest's last line (``N passed, ... in ...``) without its own timing."""
+    lines = [ln.strip("= ") for ln in tail.splitlines() if " passed" in ln or " failed" in ln]
+    return lines[-1].split(" in ")[0] if lines else "?"
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(prog="rbenvs bench costs", description="The README's costs measured here: the venv's size, the main job's "
+                                     "time, the test suite's wall and CPU time (empty and filled kernel cache) and verify --quick's time")
+    parser.add_argument("--skip-tests", action="store_true", help="leave out the test suite's two runs (20-40 minutes on 2 cores)")
+    parser.add_argument("--root", default=".", help="the repository whose tests run (default: the current folder)")
+    args = parser.parse_args(argv)
+    root = Path(args.root).resolve()
+    if not args.skip_tests and not (root / "tests").is_dir():
+        parser.error(f"{root} has no tests/ folder: run in the repository (or --root PATH), or pass --skip-tests")
+    bindir = Path(sys.executable).parent
+    rows = [("venv (`sys.prefix`)", f"{folder_bytes(sys.prefix) / 1e9:.2f} GB", "")]
+    scratch = tempfile.mkdtemp(prefix="rbenvs-bench-costs-")
+    try:
+        train = shutil.which("rbenvs-train", path=str(bindir)) or "rbenvs-train"
+        wall, cpu, _ = _timed([train, "--algo", "ppo", "--scene", "default", "--seed", "0", "--out", os.path.join(scratch, "run"), "--no-progress"], cwd=scratch)
+        rows.append(("main job: `rbenvs-train --algo ppo --scene default --seed 0`", _minutes(wall), f"CPU {_minutes(cpu)}"))
+        if not args.skip_tests:
+            env = dict(os.environ, RBENVS_CACHE_DIR=os.path.join(scratch, "kernels"))
+            pytest = [sys.executable, "-m", "pytest", "-q", "-n", "auto", "--maxprocesses", "8", "-p", "no:cacheprovider"]
+            for label in ("empty kernel cache (a clean clone)", "kernel cache filled by the run before"):
+                wall, cpu, tail = _timed(pytest, cwd=root, env=env)
+                rows.append((f"test suite, {label}", _minutes(wall), f"CPU {_minutes(cpu)}; {_summary(tail)}"))
+        rbenvs = shutil.which("rbenvs", path=str(bindir)) or "rbenvs"
+        wall, cpu, _ = _timed([rbenvs, "verify", "--quick", "--no-progress", "--json", os.path.join(scratch, "verify.json")], cwd=scratch)
+        rows.append(("`rbenvs verify --quick`", _minutes(wall), f"CPU {_minutes(cpu)}"))
+    except RuntimeError as exc:
+        print(f"rbenvs bench costs: {exc}", file=sys.stderr)
+        return 1
+    finally:
+        shutil.rmtree(scratch, ignore_errors=True)
+    print(f"What the README's two commands cost on this machine ({os.cpu_count()} cores, {platform.machine()}); each step a new process, run once.\n")
+    print("| what | wall time / size | also |")
+    print("|---|---:|---|")
+    for what, figure, also in rows:
+        print(f"| {what} | {figure} | {also} |")
+    return 0
