@@ -19,12 +19,11 @@ line on stderr and exit status 2, as for ``rbenvs`` (:func:`rbenvs.extras.run_co
 
 from __future__ import annotations
 
-import argparse
 import json
 import sys
 from pathlib import Path
 
-from rbenvs.extras import require, run_command
+from rbenvs.extras import ArgumentParser, require, run_command
 
 __all__ = ["train_main", "eval_main", "results_main", "sweep_main"]
 
@@ -88,7 +87,7 @@ def train_main(argv=None) -> int:
 def _train(argv) -> int:
     from .config import ALGORITHMS
 
-    p = argparse.ArgumentParser(prog="rbenvs-train", description="Train an SB3 agent on a scene, then evaluate it against the analytic controller.")
+    p = ArgumentParser(prog="rbenvs-train", description="Train an SB3 agent on a scene, then evaluate it against the analytic controller.")
     p.add_argument("--algo", choices=ALGORITHMS, default="ppo")
     p.add_argument("--scene", default="default", help="scene name (configs/scenes) or YAML path (default: %(default)s)")
     p.add_argument("--seed", type=int, default=0)
@@ -131,7 +130,7 @@ def eval_main(argv=None) -> int:
 
 
 def _eval(argv) -> int:
-    p = argparse.ArgumentParser(prog="rbenvs-eval", description="Evaluate agents and analytic controllers on a scene.")
+    p = ArgumentParser(prog="rbenvs-eval", description="Evaluate agents and analytic controllers on a scene.")
     p.add_argument("--scene", default="default")
     p.add_argument("--agent", action="extend", nargs="+", required=True, help="'analytic', 'zero' or model.zip paths, several or repeated")
     p.add_argument("--algo", default=None, help="algorithm of a model.zip without run.json")
@@ -154,7 +153,7 @@ def results_main(argv=None) -> int:
 
 
 def _results(argv) -> int:
-    p = argparse.ArgumentParser(prog="rbenvs-results", description="The README's results table: train and evaluate every (scene, algorithm) of configs/agents/results.yml.")
+    p = ArgumentParser(prog="rbenvs-results", description="The README's results table: train and evaluate every (scene, algorithm) of configs/agents/results.yml.")
     p.add_argument("--seeds", type=int, default=None, help="seeds per (scene, agent) (default: 3)")
     p.add_argument("--quick", action="store_true", help="1/20 of each budget, 1 seed, 2 episodes: a smoke run of the whole grid")
     p.add_argument("--json", type=Path, default=None, help="also write the records here")
@@ -224,7 +223,7 @@ def sweep_main(argv=None) -> int:
 def _sweep(argv) -> int:
     from .config import ALGORITHMS
 
-    p = argparse.ArgumentParser(prog="rbenvs-sweep", description="Hyperparameter search on Ray Tune (Optuna's sampler): the best configuration per scene, in the zoo's format.")
+    p = ArgumentParser(prog="rbenvs-sweep", description="Hyperparameter search on Ray Tune (Optuna's sampler): the best configuration per scene, in the zoo's format.")
     p.add_argument("--algo", choices=ALGORITHMS, default="ppo")
     p.add_argument("--scene", action="append", default=None, help="scene to search on, repeatable (default: default)")
     p.add_argument("--trials", type=int, default=None, help="trials per scene (default: configs/agents/sweeps/<algo>.yml)")

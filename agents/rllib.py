@@ -23,7 +23,6 @@ iteration's env steps, episode return and losses.
 
 from __future__ import annotations
 
-import argparse
 import math
 import sys
 
@@ -78,7 +77,9 @@ def main(argv=None) -> int:
     from rbenvs.extras import require, run_command
 
     def body(argv):
-        p = argparse.ArgumentParser(prog="python -m rbenvs_agents.rllib", description="RLlib PPO on a scene's native vector env (the ray extra).")
+        from rbenvs.extras import ArgumentParser
+
+        p = ArgumentParser(prog="python -m rbenvs_agents.rllib", description="RLlib PPO on a scene's native vector env (the ray extra).")
         p.add_argument("--scene", default="default")
         p.add_argument("--iterations", type=int, default=10)
         p.add_argument("--num-env-runners", type=int, default=1)

@@ -117,9 +117,9 @@ def default_root() -> Path:
 
 
 def main(argv=None) -> int:
-    import argparse
+    from .extras import ArgumentParser
 
-    p = argparse.ArgumentParser(prog="rbenvs headline", description="The README's headline figures from the records the measuring commands wrote "
+    p = ArgumentParser(prog="rbenvs headline", description="The README's headline figures from the records the measuring commands wrote "
                                 "(docs/verify.json, docs/throughput.json, docs/results.json) in the repository.")
     p.add_argument("--root", default=None, help="the repository (default: the current folder if it holds docs/verify.json, else the checkout "
                    "rbenvs runs from)")

@@ -66,6 +66,17 @@ def test_a_misspelled_command_or_choice_is_answered_with_the_closest_one(capsys)
     with pytest.raises(SystemExit):
         main(["zzzzzz"])
     assert "did you mean" not in capsys.readouterr().err  # (nothing close: no guess)
+    # the benches' own parsers and the agents' commands suggest too
+    from rbenvs_agents.cli import train_main
+
+    for argv, said in ((["bench", "startup", "--system", "heavy_tp"], "did you mean 'heavy_top'?"), (["bench", "render", "--help"], None)):
+        with pytest.raises(SystemExit) as exit_:
+            main(argv)
+        err = capsys.readouterr().err
+        assert said is None or (exit_.value.code == 2 and said in err), err
+    with pytest.raises(SystemExit) as exit_:
+        train_main(["--algo", "ppx"])
+    assert exit_.value.code == 2 and "did you mean 'ppo'?" in capsys.readouterr().err
 
 
 def test_python_dash_m():

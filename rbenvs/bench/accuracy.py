@@ -81,7 +81,7 @@ from ..integrators.reference import Dop853
 from ..progress import Progress
 from .throughput import episode_stepper, timed
 from ..render.common import plot_unavailable
-from ..extras import require
+from ..extras import ArgumentParser, require
 
 __all__ = ["CASES", "REFERENCE", "TARGET", "Case", "run", "run_scenes", "fit_order", "convergence", "drift", "mujoco_free_body", "print_report", "print_scenes", "plot", "main"]
 
@@ -680,7 +680,7 @@ def _tolerance_cases():
 
 def main(argv=None) -> int:
     keys = [c.key for c in CASES]
-    parser = argparse.ArgumentParser(prog="rbenvs bench accuracy", description="Error, invariant drift, cost and order of every integrator on every system; a recommended integrator per scene.")
+    parser = ArgumentParser(prog="rbenvs bench accuracy", description="Error, invariant drift, cost and order of every integrator on every system; a recommended integrator per scene.")
     parser.add_argument("--quick", action="store_true", help="short grids and long runs of 1e4 steps; no scenes (CI)")
     parser.add_argument("--json", metavar="PATH", help="also write every figure as JSON")
     parser.add_argument("--plot", metavar="PATH", help="draw the work-precision figure to this PNG (needs matplotlib)")

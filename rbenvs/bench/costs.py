@@ -21,7 +21,6 @@ time (20-40 minutes on 2 cores); ``--skip-tests`` measures the rest.
 
 from __future__ import annotations
 
-import argparse
 import os
 import platform
 import resource
@@ -32,6 +31,7 @@ import tempfile
 import time
 from pathlib import Path
 
+from ..extras import ArgumentParser
 from ..progress import Progress
 
 __all__ = ["main", "folder_bytes"]
@@ -73,9 +73,9 @@ def _summary(tail: str) -> str:
 
 
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(prog="rbenvs bench costs", description="The README's costs measured here: the venv's size, the main job's "
+    parser = ArgumentParser(prog="rbenvs bench costs", description="The README's costs measured here: the venv's size, the main job's "
                                      "time, the test suite's wall and CPU time (empty and filled kernel cache) and verify --quick's time")
-    parser.add_argument("--skip-tests", action="store_true", help="leave out the test suite's two runs (20-40 minutes on 2 cores)")
+    parser.add_argument("--skip-tests", action="store_true", help="leave out the test suite's two runs (most of the time: the README's block says how long they took)")
     parser.add_argument("--root", default=".", help="the repository whose tests run (default: the current folder)")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     args = parser.parse_args(argv)

@@ -11,12 +11,12 @@ kept (a busy machine slows some rounds, never speeds one up).
 
 from __future__ import annotations
 
-import argparse
 import statistics
 import time
 
 import numpy as np
 
+from ..extras import ArgumentParser
 from ..progress import Progress
 
 __all__ = ["main", "frame_ms"]
@@ -58,7 +58,7 @@ def main(argv=None) -> int:
 
     import rbenvs  # noqa: F401  (registers the ids)
 
-    parser = argparse.ArgumentParser(prog="rbenvs bench render", description="Milliseconds per rgb_array frame (480x480) for every system, "
+    parser = ArgumentParser(prog="rbenvs bench render", description="Milliseconds per rgb_array frame (480x480) for every system, "
                                      f"beside {PEER}'s pygame frame (same run)")
     parser.add_argument("--frames", type=int, default=100, help="frames per env and round, their median taken (default: %(default)s)")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")

@@ -22,7 +22,6 @@ sources again, about 0.25 s). ``--docs PAGE`` writes the table into the page's b
 
 from __future__ import annotations
 
-import argparse
 import json
 import os
 import shutil
@@ -31,6 +30,7 @@ import subprocess
 import sys
 import tempfile
 
+from ..extras import ArgumentParser
 from ..progress import Progress
 
 __all__ = ["main", "SYSTEMS", "VECTOR_ENVS"]
@@ -147,7 +147,7 @@ def _row(label: str, kind: str, cold: dict | None, warm: list[dict], reference: 
 
 
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(prog="rbenvs bench startup", description="Seconds from a fresh process to its first step: each system's single env and "
+    parser = ArgumentParser(prog="rbenvs bench startup", description="Seconds from a fresh process to its first step: each system's single env and "
                                      f"vector env at {VECTOR_ENVS}, cold and warm kernel cache, beside Pendulum-v1, CartPole-v1's vector env and MuJoCo (same run)")
     parser.add_argument("--system", action="append", choices=[s for s, _ in SYSTEMS], help="restrict to these systems (repeatable; default all)")
     parser.add_argument("--repeat", type=int, default=3, help="warm processes per row, their median taken (default: %(default)s)")

@@ -18,12 +18,12 @@ thread count.
 
 from __future__ import annotations
 
-import argparse
 import hashlib
 import json
 
 import numpy as np
 
+from ..extras import ArgumentParser
 from ..progress import Progress
 from .throughput import ALTERNATIONS, Peers, counting_stepper, random_actions, stagger_clocks, timed_counting
 
@@ -108,7 +108,7 @@ def handoff_us(threads: int = 2, calls: int = 1000) -> float:
 
 
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(prog="rbenvs bench threads", description="The vector env's env-steps per second with num_threads 1, 2 and every "
+    parser = ArgumentParser(prog="rbenvs bench threads", description="The vector env's env-steps per second with num_threads 1, 2 and every "
                                      "usable core, against CartPole-v1's native vector env at the same size, and whether the bits agree.")
     parser.add_argument("--num-envs", type=int, default=NUM_ENVS, metavar="N", help="sub-envs of each vector env (default: %(default)s)")
     parser.add_argument("--threads", metavar="LIST", help="comma-separated thread counts (default: 1, 2 and every usable core)")

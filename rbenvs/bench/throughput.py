@@ -86,7 +86,6 @@ Each figure is the best of ``repeat`` timings of at least ``min_time`` seconds o
 
 from __future__ import annotations
 
-import argparse
 import json
 import time
 import warnings
@@ -94,6 +93,7 @@ import warnings
 import numpy as np
 
 from ..compiled import available
+from ..extras import ArgumentParser
 from ..progress import Progress
 
 __all__ = [
@@ -791,7 +791,7 @@ QUICK_TABLES = ("tasks", "sb3")  # --quick: a smoke run well under a minute (the
 
 
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(prog="rbenvs bench throughput", description="Env-steps per second against Pendulum-v1 and CartPole-v1's native vector env: "
+    parser = ArgumentParser(prog="rbenvs bench throughput", description="Env-steps per second against Pendulum-v1 and CartPole-v1's native vector env: "
                                      "every (id, task) and named scene, with the compiled kernel's time beside (the gap to the limit), then per integrator.")
     parser.add_argument("--json", metavar="PATH", help="also write the figures as JSON")
     parser.add_argument("--quick", action="store_true", help=f"shorter timings: the task table at N = {QUICK_NUM_ENVS} (slow settings at {QUICK_SLOW_NUM_ENVS}) "

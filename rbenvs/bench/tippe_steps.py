@@ -21,11 +21,11 @@ is what the table shows, per start, spin sign and friction law.
 
 from __future__ import annotations
 
-import argparse
 import math
 import time
 
 import numpy as np
+from ..extras import ArgumentParser
 
 __all__ = ["inversion", "rows", "table", "main"]
 
@@ -151,7 +151,7 @@ def _count(text):
 
 
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m rbenvs.bench.tippe_steps", description=__doc__.splitlines()[0])
+    parser = ArgumentParser(prog="python -m rbenvs.bench.tippe_steps", description=__doc__.splitlines()[0])
     parser.add_argument("--starts", default="rest:180,rolling:150,vertical:180", help="start:spin,... (a negative spin turns the other way)")
     parser.add_argument("--laws", default="coulomb", help="coulomb,viscous")
     parser.add_argument("--counts", default="guard,tight,40,80,160", help="internal steps a period: numbers, guard, tight, accuracy (the guard with friction_bound='accuracy')")
