@@ -386,12 +386,14 @@ def quat_normalize(q):
     is NaN, so the environment's non-finite check ends the episode instead of carrying on
     with a zero "rotation"."""
     w, x, y, z = q
-    n2 = w * w + x * x + y * y + z * z
-    if isinstance(n2, float):
+    if isinstance(w, float) and isinstance(x, float) and isinstance(y, float) and isinstance(z, float):
+        n2 = w * w + x * x + y * y + z * z
         if not 0.0 < n2 < math.inf:  # overflowed or collapsed: no rotation left to project
             return (math.nan, math.nan, math.nan, math.nan)
         inv = 1.0 / math.sqrt(n2)
     else:
+        with np.errstate(over="ignore"):  # (an overflow is handled: NaN, as on floats, not a warning)
+            n2 = w * w + x * x + y * y + z * z
         inv = _inverse_norm_arrays(n2)
     return (w * inv, x * inv, y * inv, z * inv)
 

@@ -76,11 +76,11 @@ def test_record_video_records_an_episode_of_every_env(env_id, tmp_path):
     observation (the reset's and each step's), at the env's frame size and frame rate
     (``render_fps`` = 1/dt); the frames change."""
     pytest.importorskip("moviepy")
-    pytest.importorskip("matplotlib")
     from gymnasium.wrappers import RecordVideo
 
     steps = 12
-    env = RecordVideo(gym.make(env_id, render_mode="rgb_array", max_episode_steps=steps), str(tmp_path),
+    folder = tmp_path / "videos"  # (a new folder: RecordVideo warns when it writes into an existing one)
+    env = RecordVideo(gym.make(env_id, render_mode="rgb_array", max_episode_steps=steps), str(folder),
                       name_prefix="episode", episode_trigger=lambda episode: True, disable_logger=True)
     env.reset(seed=0)
     size = env.render().shape  # (height, width, 3)
@@ -91,7 +91,7 @@ def test_record_video_records_an_episode_of_every_env(env_id, tmp_path):
     _, _, terminated, truncated, _ = env.step(env.action_space.sample())
     assert truncated
     env.close()  # writes the file
-    (video,) = tmp_path.glob("episode-episode-0.mp4")
+    (video,) = folder.glob("episode-episode-0.mp4")
     frames, (width, height) = _frames(video)
     assert (height, width) == size[:2]
     # steps + 1 frames were handed to moviepy; it samples the clip at t = k / fps for t < N / fps,
