@@ -546,16 +546,16 @@ class RigidBodyEnv(gym.Env):
             self._renderer = Renderer()
         if self.render_mode == "human" and not self._renderer.can_show():
             return None
-        frame = self._renderer.frame(self.scene(self.system, self._y, self._u))
+        frame = self._renderer.frame(self.scene(self.system, self._y))
         if self.render_mode == "rgb_array":
             return frame
         self._renderer.show(frame, self.metadata["render_fps"])
         return None
 
     @staticmethod
-    def scene(system, y, u=None) -> dict:
-        """The geometry of state ``y`` under control ``u`` for :meth:`render` (format:
-        :mod:`rbenvs.render.common`); the vector env draws its sub-envs with it too."""
+    def scene(system, y) -> dict:
+        """The geometry of state ``y`` for :meth:`render` (format: :mod:`rbenvs.render.common`);
+        the vector env draws its sub-envs with it too."""
         raise NotImplementedError
 
     def _step_human(self, action):

@@ -300,7 +300,7 @@ class FreeRigidBodyEnv(RigidBodyEnv):
         return math.sqrt(3.0) * self._max_w  # every Omega_i within +-max_angular_velocity
 
     @staticmethod
-    def scene(system, y, u=None):
+    def scene(system, y):
         from ..render.free_body import scene
 
         return scene(system, y)

@@ -347,7 +347,7 @@ class LagrangeTopEnv(RigidBodyEnv):
         return math.sqrt(3.0) * self._max_w  # every Omega_i within +-max_angular_velocity
 
     @staticmethod
-    def scene(system, y, u=None):
+    def scene(system, y):
         from ..render.heavy_top import scene
 
         return scene(system, y)

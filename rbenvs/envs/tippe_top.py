@@ -369,10 +369,10 @@ class TippeTopEnv(RigidBodyEnv):
         return self.system.friction_stiffness(max(self.params.friction, self.friction_range[1]))
 
     @staticmethod
-    def scene(system, y, u=None):
+    def scene(system, y):
         from ..render.tippe_top import scene
 
-        return scene(system, y, u)
+        return scene(system, y)
 
 
 @dataclass(frozen=True)

@@ -8,7 +8,6 @@ built from one state by a system module (:mod:`rbenvs.render.free_body`, ``heavy
 
 * ``center`` (3,), ``extent``: the view is the cube ``center +- extent``;
 * ``view``: ``(elevation, azimuth)`` in degrees;
-* ``title``: str; ``text``: list of str (lower left, one line each);
 * ``polygons``: list of ``{"faces": [(k, 3) arrays of a convex face], "colors": [colour per
   face], "solid"}``, opaque; ``solid``: the faces close a convex body (those turned away are
   hidden), else they are drawn far to near;
@@ -20,8 +19,8 @@ built from one state by a system module (:mod:`rbenvs.render.free_body`, ``heavy
 * ``spheres``: list of ``{"center", "radius", "rotation": (3, 3) body -> space, "colors":
   ((2 shades of the half z_body < 0), (2 of the other)), "sectors"}``.
 
-``title``, ``text`` and the labels are kept for readers of a scene; a frame has no font to draw
-them with (the colours are listed in docs/rendering.md).
+The labels name the parts for a reader of a scene; a frame has no font to draw them with (the
+colours are listed in docs/rendering.md).
 """
 
 from __future__ import annotations

@@ -107,17 +107,10 @@ def scene(system, y) -> dict:
         i_mean = float(inertia.mean())
         arrows.append({"origin": np.zeros(3), "vector": rot @ pi * scale, "color": COLORS["momentum"], "label": "angular momentum"})
         arrows.append({"origin": np.zeros(3), "vector": scaled_arrow(rot @ omega, scale * i_mean, 2.0 * _ARROW), "color": COLORS["angular_velocity"], "label": "angular velocity (x mean I)"})
-    text = [
-        f"|Pi| = {norm:.4g} kg m^2/s",
-        f"|Omega| = {float(np.linalg.norm(omega)):.4g} rad/s",
-        f"H = {float(system.energy(y)):.4g} J",
-    ]
     return {
         "center": np.zeros(3),
         "extent": 1.9,
         "view": (22.0, -55.0),
-        "title": "free rigid body, " + ("space frame" if space else "body frame"),
-        "text": text,
         "polygons": polygons,
         "lines": lines,
         "arrows": arrows,

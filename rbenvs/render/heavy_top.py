@@ -91,18 +91,10 @@ def scene(system, y) -> dict:
         arrows.append({"origin": np.zeros(3), "vector": rot @ pi * scale, "color": COLORS["momentum"], "label": "angular momentum"})
         i_ref = float(prm.inertia[int(np.argmax(np.abs(chi)))])
         arrows.append({"origin": np.zeros(3), "vector": scaled_arrow(rot @ omega, scale * i_ref, 2.2 * length), "color": COLORS["angular_velocity"], "label": "angular velocity (x I3)"})
-    text = [
-        f"tilt = {math.degrees(float(system.tilt(y))):.2f} deg",
-        f"spin = {float(system.spin(y)):.4g} rad/s",
-        f"E = {float(system.energy(y)):.5g} J",
-    ]
-    frame = "space" if system.attitude else "frame turning with the precession"
     return {
         "center": np.array([0.0, 0.0, 0.3 * length]),
         "extent": 1.6 * length,
         "view": (18.0, -60.0),
-        "title": f"heavy top on its pivot ({frame})",
-        "text": text,
         "polygons": polygons,
         "lines": lines,
         "arrows": arrows,

@@ -1,18 +1,16 @@
 """A scene drawn into an ``(H, W, 3)`` uint8 frame with numpy alone (no matplotlib).
 
-Why not matplotlib's 3-D axes: a 480x480 frame took 110-160 ms there, so ``RecordVideo`` of a
-500-step episode took over a minute, and the core install (no ``plot`` extra) could not render at
-all; gymnasium's own envs draw a frame in about a millisecond. Here a frame costs a few
-milliseconds (``rbenvs bench render``).
+Why not matplotlib's 3-D axes: they cost far more per frame (``RecordVideo`` pays one a step)
+and need the ``plot`` extra, which the core install lacks; ``rbenvs bench render`` measures a
+frame beside gymnasium's own pygame frame (docs/rendering.md).
 
 The view is orthographic from ``scene["view"] = (elevation, azimuth)`` in degrees, the same
 convention as matplotlib's ``view_init`` (``+z`` up on screen), scaled so that the cube
 ``center +- extent`` fits the frame. Drawn in this order, each over the last: the checkered
 table, the polygons (opaque: a solid's hidden faces culled, others depth-sorted), the spheres
-(shaded per pixel), then lines,
-arrows and points on top, so that a vector starting inside the body stays visible. The scene's
-``title`` and ``text`` are not drawn (no font without matplotlib); the arrows' and points'
-colours are those of :data:`rbenvs.render.common.COLORS`, listed in docs/rendering.md.
+(shaded per pixel), then lines, arrows and points on top, so that a vector starting inside the
+body stays visible. No text is drawn (no font without matplotlib); the colours are those of
+:data:`rbenvs.render.common.COLORS`, listed in docs/rendering.md.
 """
 
 from __future__ import annotations
@@ -22,22 +20,25 @@ import math
 
 import numpy as np
 
+from .common import rgba
+
 __all__ = ["draw", "to_rgb"]
 
 _LIGHT = np.array([0.35, -0.45, 0.82])  # world direction of the light for the spheres' shading
 _FIT = 1.25  # the cube's projected half-width is at most sqrt(2) extents sideways; this fills the frame
+_SHADES = 64  # the spheres' Lambert shading, quantised
 
 
 def to_rgb(color) -> tuple:
     """``(r, g, b)`` in 0-255 of ``#rrggbb`` or an RGB(A) tuple in [0, 1] (frames are opaque: an
     alpha is not used)."""
     if isinstance(color, str):
-        return tuple(int(color[k : k + 2], 16) for k in (1, 3, 5))
+        color = rgba(color)
     return tuple(int(round(255.0 * float(v))) for v in tuple(color)[:3])
 
 
 class _View:
-    """World -> pixel for one scene: ``px = (x, y)`` (column, row) and the depth (toward the viewer)."""
+    """World -> pixel for one scene: ``(x, y)`` = (column, row)."""
 
     def __init__(self, scene: dict, size):
         self.h, self.w = size
@@ -52,12 +53,12 @@ class _View:
         p = np.asarray(points, dtype=float) - self.center
         x = 0.5 * self.w + self.scale * (p @ self.right)
         y = 0.5 * self.h - self.scale * (p @ self.up)
-        return x, y, p @ self.eye
+        return x, y
 
 
 def _pixels(frame):
-    """``frame`` (H, W, 3) uint8 seen as (H, W) pixels of 3 bytes: writing a pixel at a time is
-    one copy, 4x faster than through the channel axis."""
+    """``frame`` (H, W, 3) uint8 seen as (H, W) pixels of 3 bytes: a pixel written as one copy,
+    not three through the channel axis."""
     return frame.view("V3")[..., 0]
 
 
@@ -70,9 +71,9 @@ def _paint(frame, rows, cols, mask, rgb):
 
 
 def _box(x, y, h, w, pad=0.0):
-    """The pixel window ``(rows, cols, xs, ys)`` covering the points ``x, y`` (clipped), or ``None``."""
-    c0, c1 = max(int(math.floor(float(np.min(x)) - pad)), 0), min(int(math.ceil(float(np.max(x)) + pad)) + 1, w)
-    r0, r1 = max(int(math.floor(float(np.min(y)) - pad)), 0), min(int(math.ceil(float(np.max(y)) + pad)) + 1, h)
+    """The pixel window ``(rows, cols, xs, ys)`` covering the few points ``x, y`` (clipped), or ``None``."""
+    c0, c1 = max(math.floor(min(x) - pad), 0), min(math.ceil(max(x) + pad) + 1, w)
+    r0, r1 = max(math.floor(min(y) - pad), 0), min(math.ceil(max(y) + pad) + 1, h)
     if c0 >= c1 or r0 >= r1:
         return None
     return slice(r0, r1), slice(c0, c1), np.arange(c0, c1) + 0.5, (np.arange(r0, r1) + 0.5)[:, None]
@@ -80,21 +81,19 @@ def _box(x, y, h, w, pad=0.0):
 
 def _fill_convex(frame, x, y, rgb):
     """Fill the convex polygon with pixel vertices ``x, y`` (lists of floats, either orientation)."""
-    h, w = frame.shape[:2]
-    c0, c1 = max(math.floor(min(x)), 0), min(math.ceil(max(x)) + 1, w)
-    r0, r1 = max(math.floor(min(y)), 0), min(math.ceil(max(y)) + 1, h)
     k = len(x)
     area = sum(x[i] * y[(i + 1) % k] - x[(i + 1) % k] * y[i] for i in range(k))
-    if c0 >= c1 or r0 >= r1 or area == 0.0:
+    box = _box(x, y, frame.shape[0], frame.shape[1])
+    if box is None or area == 0.0:
         return
-    xs, ys = np.arange(c0, c1) + 0.5, (np.arange(r0, r1) + 0.5)[:, None]
+    rows, cols, xs, ys = box
     sign = 1.0 if area > 0.0 else -1.0
     inside = None
     for i in range(k):
         x0, y0, x1, y1 = x[i], y[i], x[(i + 1) % k], y[(i + 1) % k]
         edge = (sign * (x1 - x0)) * (ys - y0) >= (sign * (y1 - y0)) * (xs - x0)
         inside = edge if inside is None else inside & edge
-    _paint(frame, slice(r0, r1), slice(c0, c1), inside, rgb)
+    _paint(frame, rows, cols, inside, rgb)
 
 
 def _polyline(frame, x, y, rgb, width=1.0, dashed=False):
@@ -126,7 +125,7 @@ def _polyline(frame, x, y, rgb, width=1.0, dashed=False):
 
 
 def _disc(frame, x, y, radius, rgb):
-    box = _box(np.array([x]), np.array([y]), frame.shape[0], frame.shape[1], pad=radius)
+    box = _box([x], [y], frame.shape[0], frame.shape[1], pad=radius)
     if box is not None:
         rows, cols, xs, ys = box
         _paint(frame, rows, cols, (xs - x) ** 2 + (ys - y) ** 2 <= radius * radius, rgb)
@@ -138,8 +137,8 @@ def _checker(frame, view, table):
     cx, cy = (float(v) for v in table["center"])
     half, tile = float(table["half"]), float(table["tile"])
     corners = np.array([[cx - half, cy - half, 0.0], [cx + half, cy - half, 0.0], [cx + half, cy + half, 0.0], [cx - half, cy + half, 0.0]])
-    px, py, _ = view.project(corners)
-    box = _box(px, py, frame.shape[0], frame.shape[1])
+    px, py = view.project(corners)
+    box = _box(px.tolist(), py.tolist(), frame.shape[0], frame.shape[1])
     if box is None:
         return
     rows, cols, xs, ys = box
@@ -148,7 +147,7 @@ def _checker(frame, view, table):
         return
     inv = np.linalg.inv(m)
     # each pixel's plane point p from (p - c) . right and (p - c) . up, in tiles from the square's
-    # corner (float32: a tile's edge to a hundredth of a pixel, at half the cost)
+    # corner (float32: a tile's edge to a hundredth of a pixel, on half the memory)
     f32 = np.float32
     ra = ((xs - 0.5 * view.w) / view.scale + view.center @ view.right).astype(f32)
     rb = ((0.5 * view.h - ys) / view.scale + view.center @ view.up).astype(f32)
@@ -170,9 +169,9 @@ def _sphere(frame, view, sphere):
     ``colors[1]``, the other in ``colors[0]`` (two shades each, alternating over ``sectors``
     longitudes, so the spin shows), Lambert-shaded."""
     radius = float(sphere["radius"])
-    x, y, _ = view.project(np.asarray(sphere["center"], dtype=float)[None, :])
+    x, y = view.project(np.asarray(sphere["center"], dtype=float)[None, :])
     rpx = radius * view.scale
-    box = _box(x, y, frame.shape[0], frame.shape[1], pad=rpx)
+    box = _box(x.tolist(), y.tolist(), frame.shape[0], frame.shape[1], pad=rpx)
     if box is None:
         return
     rows, cols, xs, ys = box
@@ -194,9 +193,6 @@ def _sphere(frame, view, sphere):
     _pixels(frame)[rows, cols][inside] = _shaded_palette(tuple(color for half in sphere["colors"] for color in half))[index]
 
 
-_SHADES = 64  # the spheres' Lambert shading, quantised
-
-
 @functools.lru_cache(maxsize=16)
 def _shaded_palette(colors: tuple):
     """Each colour at ``_SHADES`` levels of light, ``0.55 + 0.45 level`` of itself, as pixels."""
@@ -208,15 +204,15 @@ def _shaded_palette(colors: tuple):
 def draw(scene: dict, size) -> np.ndarray:
     """The frame ``size + (3,)`` of ``scene`` (the format of :mod:`rbenvs.render.common`)."""
     h, w = size
-    frame = np.full((h, w, 3), 255, dtype=np.uint8)  # (BACKGROUND)
+    frame = np.full((h, w, 3), 255, dtype=np.uint8)  # white background
     view = _View(scene, size)
     if "table" in scene:
         _checker(frame, view, scene["table"])
     for poly in scene.get("polygons", ()):
         faces = [np.asarray(f, dtype=float) for f in poly["faces"]]
-        # each face by its first three vertices (convex faces: one plane)
-        p0, p1, p2 = (np.array([f[i] for f in faces]) for i in range(3))
         if poly.get("solid"):  # a closed convex solid: its faces turned away are hidden, the rest do not overlap
+            # each face's normal from its first three vertices (a convex face lies in one plane)
+            p0, p1, p2 = (np.array([f[i] for f in faces]) for i in range(3))
             normal = np.cross(p1 - p0, p2 - p0)
             centre = np.array([f.mean(axis=0) for f in faces])
             outward = np.sign(np.einsum("ij,ij->i", normal, centre - np.mean(np.concatenate(faces), axis=0)))
@@ -224,12 +220,12 @@ def draw(scene: dict, size) -> np.ndarray:
         else:  # far to near: the painter's order
             shown = np.argsort([float(np.mean(f @ view.eye)) for f in faces])
         for k in shown:
-            x, y, _ = view.project(faces[k])
+            x, y = view.project(faces[k])
             _fill_convex(frame, x.tolist(), y.tolist(), to_rgb(poly["colors"][k]))
     for sphere in scene.get("spheres", ()):
         _sphere(frame, view, sphere)
     for line in scene.get("lines", ()):
-        x, y, _ = view.project(line["points"])
+        x, y = view.project(line["points"])
         rgb = to_rgb(line.get("color", "#000000"))
         _polyline(frame, x, y, rgb, line.get("width", 1.0), line.get("style", "-") != "-")
     for arrow in scene.get("arrows", ()):
@@ -237,7 +233,7 @@ def draw(scene: dict, size) -> np.ndarray:
         v = np.asarray(arrow["vector"], dtype=float)
         if not np.all(np.isfinite(v)) or float(np.linalg.norm(v)) == 0.0:
             continue
-        x, y, _ = view.project(np.array([o, o + v]))
+        x, y = view.project(np.array([o, o + v]))
         rgb = to_rgb(arrow["color"])
         _polyline(frame, x, y, rgb, 3.0)
         dx, dy = x[1] - x[0], y[1] - y[0]
@@ -248,6 +244,6 @@ def draw(scene: dict, size) -> np.ndarray:
             bx, by = x[1] - head * ux, y[1] - head * uy
             _fill_convex(frame, [x[1], bx - 0.45 * head * uy, bx + 0.45 * head * uy], [y[1], by + 0.45 * head * ux, by - 0.45 * head * ux], rgb)
     for point in scene.get("points", ()):
-        x, y, _ = view.project(np.asarray(point["position"], dtype=float)[None, :])
+        x, y = view.project(np.asarray(point["position"], dtype=float)[None, :])
         _disc(frame, x[0], y[0], 0.5 * math.sqrt(float(point.get("size", 20))) + 1.0, to_rgb(point.get("color", "#000000")))
     return frame

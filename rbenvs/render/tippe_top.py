@@ -7,8 +7,6 @@ and the angular velocity (docs/physics.md §3). The view follows the top across 
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
 from .common import COLORS, quat_to_matrix, rgba, scaled_arrow
@@ -19,10 +17,9 @@ _LON = 16  # the sphere's alternating longitudes (the spin shows)
 _EXTENT = 2.3  # half-width of the view, in sphere radii
 
 
-def scene(system, y, u=None) -> dict:
-    """Geometry of the state ``y`` of a :class:`rbenvs.dynamics.TippeTop` under the control
-    ``u`` (for the normal force in the text; ``None``: a table at rest), format:
-    :mod:`rbenvs.render.common`."""
+def scene(system, y) -> dict:
+    """Geometry of the state ``y`` of a :class:`rbenvs.dynamics.TippeTop` (format:
+    :mod:`rbenvs.render.common`)."""
     prm = system.params
     y = tuple(float(v) for v in y)
     st = system.export_state(y)
@@ -53,20 +50,10 @@ def scene(system, y, u=None) -> dict:
         {"position": g, "color": COLORS["gravity"], "size": 18, "label": "centre of mass"},
         {"position": o + a * k, "color": COLORS["axis"][2], "size": 22, "label": "stem end"},
     ]
-    normal, _, slip = system.contact_forces(y, u)
-    text = [
-        f"tilt = {math.degrees(float(system.tilt(y))):.1f} deg",
-        f"spin = {float(system.spin(y)):.4g} rad/s",
-        f"E = {float(system.energy(y)):.5g} J",
-        f"J = {float(system.jellett(y)):.6g} kg m^2/s",
-        f"slip = {float(slip):.3g} m/s, N = {float(normal):.3g} N",
-    ]
     return {
         "center": np.array([o[0], o[1], 0.5 * half]),
         "extent": half,
         "view": (18.0, -60.0),
-        "title": "tippe top on the table",
-        "text": text,
         "table": table,
         "spheres": spheres,
         "lines": lines,

@@ -169,7 +169,6 @@ class RigidBodyVectorEnv(VectorEnv):
         # as the single env's run carries its own (rbenvs.core.step.Engine.advance), zero at a start
         self._cc = np.zeros((self.system.dim, self.num_envs)) if self.engine.step_c is not None else None
         self._u = None  # the controls of the last step (None after a reset)
-        self._action = None  # the compiled step's last actions, from which render makes them
         self._last_h = None  # the internal step of the last period, per sub-env
         self._plain = self.engine.plain
         self._steps = np.zeros(self.num_envs, dtype=np.int64)
@@ -328,7 +327,6 @@ class RigidBodyVectorEnv(VectorEnv):
         if np.any(over & mask):
             raise ValueError("an initial state lies outside the observation bounds; raise the limit parameters")
         self._u = None  # as the single env after reset: nothing acted yet (a table at rest)
-        self._action = None
         self._last_h = np.full(n, self.engine.h)
         info = self._info(self._y, None, self._false, self._false, metrics, physical)
         if self.engine.tolerance is not None:
@@ -637,11 +635,10 @@ class RigidBodyVectorEnv(VectorEnv):
         if r.status == -1:
             over = (r.counts > engine.substeps) & ~restart
             raise engine.refusal(int(r.counts[over].max()), f" of sub-envs {np.flatnonzero(over).tolist()}")
-        # the controls that acted, made from the actions where needed (rendering, a failure)
+        # the controls that acted: made from the actions where a failure needs them
         self._u, self._last_h = None, r.h
         if engine.tolerance is not None:  # (a SAME_STEP restart below rewrites the restarted rows of r.h)
             self._period_h = np.array(r.h, dtype=np.float64)
-        self._action = None if self.render_mode is None else a.copy()
         if r.status > 0:  # non-finite new states: the numpy path's failure handling
             fired = r.fired if r.fired.any() else self._false
             u_norm, self._u = self.model.actuator.control(action_columns(a, shape))
@@ -891,7 +888,6 @@ class RigidBodyVectorEnv(VectorEnv):
         self._y, self._y2d = tuple(y_new), None
         size = next((len(u) for u in us if u is not None), None)
         self._u = None if size is None else tuple(np.array([0.0 if u is None else u[j] for u in us]) for j in range(size))
-        self._action = None
         self._last_h = h
         metrics = {name: self._column(name, metric_rows[name]) for name in names}
         if self._refine:  # (SAME_STEP's final_info: before the restarts)
@@ -1041,22 +1037,13 @@ class RigidBodyVectorEnv(VectorEnv):
         frames = []
         for i in rows:
             y = tuple(float(c[i]) for c in self._y)
-            controls = self._controls()
-            u = None if controls is None else tuple(float(c[i]) if np.ndim(c) else float(c) for c in controls)
             system = self.system if self._ranges is None else self._episodes[i].system
-            frames.append(self._renderer.frame(self.env_class.scene(system, y, u)))
+            frames.append(self._renderer.frame(self.env_class.scene(system, y)))
         if self.render_mode == "human":
             if self._renderer.can_show():
                 self._renderer.show(frames[0], self.metadata["render_fps"])
             return None
         return tuple(frames)
-
-    def _controls(self):
-        """The controls of the last step (``None`` after a reset): the numpy path keeps them, the
-        compiled step keeps its actions and they are made here on demand."""
-        if self._u is None and self._action is not None:
-            self._u = self.model.actuator.control(action_columns(self._action, self.action_space.shape))[1]
-        return self._u
 
     def close_extras(self, **kwargs):
         if self._renderer is not None:
