@@ -45,6 +45,7 @@ as does bad input such as an unknown scene (:func:`rbenvs.extras.run_command`).
 from __future__ import annotations
 
 import argparse
+import importlib
 import sys
 
 import numpy as np
@@ -331,39 +332,17 @@ def main(argv=None) -> int:
     return run_command("rbenvs", _main, argv)
 
 
+_OWN_PARSERS = (
+    (("verify",), ".verify"),
+    (("headline",), ".headline"),
+    *((("bench", name), f".bench.{name}") for name in ("throughput", "startup", "threads", "costs", "render", "accuracy")),
+)
+
+
 def _main(argv) -> int:
-    if argv[:1] == ["verify"]:
-        from .verify import main as verify_main
-
-        return verify_main(argv[1:])
-    if argv[:1] == ["headline"]:
-        from .headline import main as headline_main
-
-        return headline_main(argv[1:])
-    if argv[:2] == ["bench", "throughput"]:
-        from .bench.throughput import main as throughput_main
-
-        return throughput_main(argv[2:])
-    if argv[:2] == ["bench", "startup"]:
-        from .bench.startup import main as startup_main
-
-        return startup_main(argv[2:])
-    if argv[:2] == ["bench", "threads"]:
-        from .bench.threads import main as threads_main
-
-        return threads_main(argv[2:])
-    if argv[:2] == ["bench", "costs"]:
-        from .bench.costs import main as costs_main
-
-        return costs_main(argv[2:])
-    if argv[:2] == ["bench", "render"]:
-        from .bench.render import main as render_main
-
-        return render_main(argv[2:])
-    if argv[:2] == ["bench", "accuracy"]:
-        from .bench.accuracy import main as accuracy_main
-
-        return accuracy_main(argv[2:])
+    for prefix, module in _OWN_PARSERS:  # commands with a parser of their own get the rest of the line
+        if tuple(argv[: len(prefix)]) == prefix:
+            return importlib.import_module(module, __package__).main(argv[len(prefix) :])
     args = build_parser().parse_args(argv)
     if getattr(args, "episodes", 1) < 1:
         print("rbenvs: --episodes must be >= 1", file=sys.stderr)

@@ -21,7 +21,6 @@ from ..progress import Progress
 
 __all__ = ["main", "frame_ms"]
 
-IDS = ("rbenvs/FreeRigidBody-v0", "rbenvs/LagrangeTop-v0", "rbenvs/TippeTop-v0")
 PEER = "Pendulum-v1"
 ROUNDS = 3
 
@@ -35,20 +34,24 @@ def _pygame_installed() -> bool:
 def frame_ms(env, frames: int, rng) -> tuple[float, float]:
     """Median milliseconds of ``env.render()`` alone and of one step plus one render, over
     ``frames`` of each."""
+
+    def step(action):  # an episode that ends starts again (the reset not timed)
+        _, _, terminated, truncated, _ = env.step(action)
+        return terminated or truncated
+
     render, both = [], []
     for _ in range(frames):
         action = env.action_space.sample()
-        _, _, terminated, truncated, _ = env.step(action)
-        if terminated or truncated:
+        if step(action):
             env.reset(seed=int(rng.integers(2**31)))
         t0 = time.perf_counter()
         env.render()
         render.append(time.perf_counter() - t0)
         t0 = time.perf_counter()
-        _, _, terminated, truncated, _ = env.step(action)
+        ended = step(action)
         env.render()
         both.append(time.perf_counter() - t0)
-        if terminated or truncated:
+        if ended:
             env.reset(seed=int(rng.integers(2**31)))
     return 1e3 * statistics.median(render), 1e3 * statistics.median(both)
 
@@ -56,7 +59,7 @@ def frame_ms(env, frames: int, rng) -> tuple[float, float]:
 def main(argv=None) -> int:
     import gymnasium as gym
 
-    import rbenvs  # noqa: F401  (registers the ids)
+    import rbenvs  # (registers the ids)
 
     parser = ArgumentParser(prog="rbenvs bench render", description="Milliseconds per rgb_array frame (480x480) for every system, "
                                      f"beside {PEER}'s pygame frame (same run)")
@@ -65,7 +68,7 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
     if args.frames < 1:
         parser.error("--frames must be >= 1")
-    ids = list(IDS) + ([PEER] if _pygame_installed() else [])
+    ids = list(rbenvs.ENVIRONMENTS) + ([PEER] if _pygame_installed() else [])
     envs = {}
     for env_id in ids:
         env = gym.make(env_id, render_mode="rgb_array")

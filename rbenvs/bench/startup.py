@@ -17,7 +17,7 @@ median of ``--repeat`` processes; cold ones are one process each (a cold start c
 5-30 s). Every process reads compiled bytecode, as from an installed wheel (pip writes it at
 install): the package's ``__pycache__`` is filled first and ``PYTHONDONTWRITEBYTECODE`` is not
 passed on (in an editable checkout under that variable, every process would compile rbenvs'
-sources again, about 0.25 s). ``--docs PAGE`` writes the table into the page's block.
+sources again). ``--docs PAGE`` writes the table into the page's block.
 """
 
 from __future__ import annotations

@@ -23,13 +23,14 @@ import json
 
 import numpy as np
 
+from .. import ENVIRONMENTS
 from ..extras import ArgumentParser
 from ..progress import Progress
 from .throughput import ALTERNATIONS, Peers, counting_stepper, random_actions, stagger_clocks, timed_counting
 
 __all__ = ["main", "run_threads", "trajectory_digest", "handoff_us"]
 
-IDS = ("rbenvs/FreeRigidBody-v0", "rbenvs/LagrangeTop-v0", "rbenvs/TippeTop-v0")
+IDS = tuple(ENVIRONMENTS)
 NUM_ENVS = 4096
 BITS_STEPS = 30
 BITS_EPISODE = 10  # (max_episode_steps of the bit check: every sub-env restarts within it)
