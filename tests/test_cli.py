@@ -216,7 +216,9 @@ def test_headline_outside_the_repository_reads_the_checkout_or_says_where_the_re
 
 
 def test_bench_costs_sizes_folders_and_reads_pytests_summary(tmp_path, capsys):
-    from rbenvs.bench.costs import _summary, folder_bytes, main
+    from rbenvs.bench.costs import _minutes, _summary, folder_bytes, main
+
+    assert (_minutes(42.4), _minutes(119.6), _minutes(1167.2)) == ("42 s", "2 min 00 s", "19 min 27 s")
 
     (tmp_path / "a").write_bytes(b"x" * 1000)
     (tmp_path / "sub").mkdir()
@@ -226,3 +228,24 @@ def test_bench_costs_sizes_folders_and_reads_pytests_summary(tmp_path, capsys):
     with pytest.raises(SystemExit) as exc:  # the suite needs the repository's tests/
         main(["--root", str(tmp_path)])
     assert exc.value.code == 2 and "no tests/ folder" in capsys.readouterr().err
+
+
+def test_bench_render_prints_a_row_per_system_beside_the_peer(capsys):
+    import rbenvs
+
+    assert main(["bench", "render", "--frames", "2", "--no-progress"]) == 0
+    rows = [line.split("|")[1:-1] for line in capsys.readouterr().out.splitlines() if line.startswith("| `")]
+    assert [r[0].strip(" `") for r in rows[:3]] == list(rbenvs.ENVIRONMENTS)
+    for r in rows:
+        assert r[1].strip() in ("480x480", "500x500") and float(r[2]) > 0.0 and float(r[3]) > 0.0
+
+
+def test_bench_startups_processes_read_bytecode_whatever_the_callers_setting(monkeypatch):
+    """A wheel has its bytecode: the bench's processes must not be told to skip writing it (in an
+    editable checkout each would compile rbenvs' sources again)."""
+    from rbenvs.bench import startup
+
+    monkeypatch.setenv("PYTHONDONTWRITEBYTECODE", "1")
+    monkeypatch.setenv("RBENVS_SOMETHING", "kept")
+    env = startup._environment()
+    assert "PYTHONDONTWRITEBYTECODE" not in env and env["RBENVS_SOMETHING"] == "kept"

@@ -23,7 +23,6 @@ from __future__ import annotations
 
 import os
 import platform
-import resource
 import shutil
 import subprocess
 import sys
@@ -50,6 +49,8 @@ def folder_bytes(path) -> int:
 
 def _timed(cmd, cwd, env=None) -> tuple[float, float, str]:
     """``(wall s, CPU s of the process and its descendants, output tail)``; raises on failure."""
+    import resource  # (POSIX: the command's --help still works elsewhere)
+
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     t0 = time.perf_counter()
     out = subprocess.run(cmd, cwd=cwd, env=env, capture_output=True, text=True)
@@ -63,7 +64,8 @@ def _timed(cmd, cwd, env=None) -> tuple[float, float, str]:
 
 
 def _minutes(seconds: float) -> str:
-    return f"{int(seconds // 60)} min {int(round(seconds % 60)):02d} s" if seconds >= 60 else f"{seconds:.0f} s"
+    minutes, rest = divmod(int(round(seconds)), 60)
+    return f"{minutes} min {rest:02d} s" if minutes else f"{rest} s"
 
 
 def _summary(tail: str) -> str:
