@@ -105,9 +105,17 @@ def test_dop853_reference_matches_exact_flow():
     got = np.array(get_integrator("dop853").step(body, y0, None, 5.0))
     # Default rtol 1e-12, atol 1e-14 over a few periods: error ~1e-11 of |Pi| ~ 1.
     np.testing.assert_allclose(got, np.array(body.free_flow(y0, 5.0)), atol=1e-10)
-    single, nfev = get_integrator("dop853").step_counted(body, tuple(float(c[0]) for c in y0), None, 5.0)
-    assert all(isinstance(c, float) for c in single) and nfev > 0
-    np.testing.assert_allclose(single, got[:, 0], atol=1e-10)  # same tolerance, one state
+    exact = np.array(body.free_flow(y0, 5.0))
+    for i in range(y0[0].shape[0]):  # one state at a time: the vector field on floats, each start against the exact flow
+        single, nfev = get_integrator("dop853").step_counted(body, tuple(float(c[i]) for c in y0), None, 5.0)
+        assert all(isinstance(c, float) for c in single) and nfev > 0
+        np.testing.assert_allclose(single, exact[:, i], atol=1e-10)  # same tolerance, one state
+    # under a constant torque (the controls passed as floats): one state as the batch's row
+    u = tuple(np.full(y0[0].shape[0], c) for c in TORQUE)
+    batch = np.array(get_integrator("dop853", rtol=1e-13, atol=1e-15).step(body, y0, u, 2.0))
+    for i in range(y0[0].shape[0]):
+        single = get_integrator("dop853", rtol=1e-13, atol=1e-15).step(body, tuple(float(c[i]) for c in y0), tuple(float(c) for c in TORQUE), 2.0)
+        np.testing.assert_allclose(single, batch[:, i], atol=1e-11)
 
 
 # ---------------------------------------------------------------------------- long runs
