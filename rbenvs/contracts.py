@@ -116,7 +116,12 @@ class GuardRates:
       itself at its own speed, ``dy_b/dt = A(y_d) y_b`` with ``A`` skew and ``|A| = |dy_b/dt| /
       |y_b|`` (a unit quaternion, at half the angular speed, driven by the angular velocity): its
       own local error is ``C (mu_b h)^(p+1)``, and it carries the driver's error to the end of the
-      horizon (:func:`rbenvs.core.guard.motion_rates`).
+      horizon (:func:`rbenvs.core.guard.motion_rates`);
+    * ``speed``: pure ``fn(P, y, u, dt) -> m`` [1/s], an upper bound of the relative speed
+      ``|dy_b/dt| / |y_b|`` of the state's blocks (the rotating ones aside) over a control period
+      of ``dt`` from ``y`` under ``u``, where the system knows its motion (the free body's orbit);
+      used only by ``tolerance=`` (:func:`rbenvs.core.guard.motion_rates`); ``None``: the speed
+      at the period's start.
     """
 
     rotation: PureFunction
@@ -129,6 +134,7 @@ class GuardRates:
     dissipation_share: PureFunction | None = None
     error_blocks: tuple | None = None
     rotating_blocks: tuple = ()
+    speed: PureFunction | None = None
 
 
 @runtime_checkable

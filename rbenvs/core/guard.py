@@ -195,7 +195,7 @@ def step_ratio_motion(g, rates):
 
 
 @lru_cache(maxsize=None)
-def motion_rates(rotation, rhs, blocks: tuple, accuracy=None, rotating: tuple = (), order: float = 1.0, span: float = 0.0):
+def motion_rates(rotation, rhs, blocks: tuple, accuracy=None, rotating: tuple = (), order: float = 1.0, span: float = 0.0, speed_bound=None, dt: float = 0.0):
     """``rates(P, y, u) -> (lambda, mu, lambda_e)`` (generated, pure), ``P = (P_rotation, P_rhs)``
     (``(P_rotation, P_rhs, P_accuracy)`` with ``accuracy``): the guard's rate ``lambda =
     rotation(P_rotation, y)``, the error's rate ``lambda_e = accuracy(P_accuracy, y)`` (a bound
@@ -253,7 +253,13 @@ def motion_rates(rotation, rhs, blocks: tuple, accuracy=None, rotating: tuple = 
     ``Omega``, while ``Omega`` and ``v_G`` move slowly. Measured (``rbenvs bench accuracy
     --tolerance``, the tippe top's rows): with ``mu_d (1 + m span)`` (the whole driver's error
     carried) every row was within and the viscous scene cost 1.44-2.24 times the cheapest fixed
-    steps, its estimate about 6 times its error; with ``a_d`` 1.02-1.19, every row still within."""
+    steps, its estimate about 6 times its error; with ``a_d`` 1.02-1.19, every row still within.
+
+    Why ``speed`` (``P[3]``, with the period ``dt``): the speed at the period's start need not be
+    the period's; where the system bounds its blocks' relative speed over a period
+    (:class:`~rbenvs.contracts.GuardRates`' ``speed``: the free body's orbit, along which a
+    state by the intermediate axis runs its separatrix within the period), that bound is the
+    speed of every block but the rotating ones."""
     lines = ["def rates(P, y, u):", "    lam = rotation(P[0], y)", "    f = rhs(P[1], y, u)",
              "    lam_e = accuracy(P[2], y)" if accuracy is not None else "    lam_e = lam"]
 
@@ -264,21 +270,29 @@ def motion_rates(rotation, rhs, blocks: tuple, accuracy=None, rotating: tuple = 
 
     drivers = {tuple(d) for _, d in rotating}
     others = [blk for blk in blocks if tuple(blk) not in drivers]
+    if speed_bound is not None:
+        lines.append(f"    bound = speed_bound(P[3], y, u, {float(dt)!r})")
     for j, (a, b) in enumerate(others):
         lines.append(f"    mu = {speed(a, b)}" if j == 0 else f"    mu = maximum(mu, {speed(a, b)})")
     if not others:
         lines.append("    mu = 0.0 * lam")
+    elif speed_bound is not None:
+        lines.append("    mu = maximum(mu, bound)")
     lines.append("    mu = select(mu < lam_e, mu, lam_e)")
     for (a, b), (c, d) in rotating:
         ny = " + ".join(f"y[{i}] * y[{i}]" for i in range(c, d))
         dot = " + ".join(f"y[{i}] * f[{i}]" for i in range(c, d))
-        lines += [f"    m = {speed(a, b)}", "    m = select(m < lam_e, m, lam_e)", f"    md = {speed(c, d)}", "    md = select(md < lam_e, md, lam_e)",
+        lines += [f"    m = {speed(a, b)}", "    m = select(m < lam_e, m, lam_e)", f"    md = {speed(c, d)}"]
+        if speed_bound is not None:
+            lines.append("    md = maximum(md, bound)")
+        lines += ["    md = select(md < lam_e, md, lam_e)",
                   f"    ma = abs({dot}) / maximum({ny}, 1e-300)", "    ma = select(ma < md, ma, md)",
                   f"    mq = md + ma * m * {float(span)!r} + m * power(m / maximum(lam_e, 1e-300), {float(order)!r})",
                   "    mu = maximum(mu, mq)"]
     lines += ["    return (lam, mu, lam_e)"]
     namespace = generate("\n".join(lines) + "\n", f"motion rates of {len(blocks)} blocks" + (f" and {len(rotating)} rotating" if rotating else ""),
-                         {"rotation": rotation, "rhs": rhs, "accuracy": accuracy, "sqrt": sqrt, "maximum": maximum, "select": select, "power": power})
+                         {"rotation": rotation, "rhs": rhs, "accuracy": accuracy, "speed_bound": speed_bound, "sqrt": sqrt, "maximum": maximum, "select": select,
+                          "power": power})
     return jitable(namespace["rates"])
 
 
@@ -373,13 +387,17 @@ class StepRule:
                 mu_text += (f", with {q} (turning at its own speed m, driven by {d}): max(mu over the others, mu_{d} + a_{d} m {span:g} s "
                             f"+ m (m / lambda)^{integrator.order}), a_{d} = |{d} . d{d}/dt| / |{d}|^2 (the error {q} carries: {d}'s along itself)")
             extra = (rotating, float(integrator.order), span) if rotating else ()
+            if rates.speed is not None:  # the system's bound of its speed over a period
+                extra = (rotating, float(integrator.order), span, rates.speed[0], float(dt))
+                mu_text += f"; over the period at most {rates.speed[0].__name__}'s bound (the motion's own)"
+            tail = (rates.speed[1],) if rates.speed is not None else ()
             if rates.accuracy is not None:  # the system's sharper rate of the error (lambda_e)
-                rotation = (motion_rates(rates.rotation[0], rhs[0], blocks, rates.accuracy[0], *extra), (rates.rotation[1], rhs[1], rates.accuracy[1]))
+                rotation = (motion_rates(rates.rotation[0], rhs[0], blocks, rates.accuracy[0], *extra), (rates.rotation[1], rhs[1], rates.accuracy[1]) + tail)
                 accuracy, text = (t.replace("(lambda h)^", "(lambda_e h)^") for t in (accuracy, text))
                 mu_text = ("; lambda_e = the system's bound of its Jacobian (" + rates.accuracy[0].__name__ + ")"
                            + mu_text.replace("min(lambda,", "min(lambda_e,").replace("/ lambda)^", "/ lambda_e)^"))
             else:
-                rotation = (motion_rates(rates.rotation[0], rhs[0], blocks, None, *extra), (rates.rotation[1], rhs[1]))
+                rotation = (motion_rates(rates.rotation[0], rhs[0], blocks, None, *extra), (rates.rotation[1], rhs[1], ()) + tail)
             motion = True
             accuracy = accuracy.replace("error C lambda dt", "error C mu dt") + mu_text
             text = text.replace("error C lambda dt", "error C mu dt") + mu_text
