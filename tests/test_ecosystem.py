@@ -3,6 +3,7 @@ shipped hyperparameter files, gymnasium's RecordVideo records an episode of ever
 ``rbenvs-train --tensorboard`` writes TensorBoard logs (the ``zoo``, ``video`` and
 ``tensorboard`` extras, all in ``dev``)."""
 
+import gc
 import importlib.util
 import math
 import os
@@ -67,9 +68,13 @@ def _frames(path):
     meta = reader.__next__()
     width, height = meta["size"]
     frames = [np.frombuffer(raw, np.uint8).reshape(height, width, 3) for raw in reader]
+    reader.close()
     return frames, (width, height)
 
 
+# moviepy's ffmpeg writer (RecordVideo's) leaves its subprocess's pipes to the garbage collector:
+# collected at the end of the test (below), their ResourceWarning is moviepy's, not ours
+@pytest.mark.filterwarnings("ignore::pytest.PytestUnraisableExceptionWarning")
 @pytest.mark.parametrize("env_id", ENV_IDS)
 def test_record_video_records_an_episode_of_every_env(env_id, tmp_path):
     """RecordVideo over ``render_mode="rgb_array"``: one mp4 per episode, one frame recorded per
@@ -91,6 +96,7 @@ def test_record_video_records_an_episode_of_every_env(env_id, tmp_path):
     _, _, terminated, truncated, _ = env.step(env.action_space.sample())
     assert truncated
     env.close()  # writes the file
+    gc.collect()  # (the writer's pipes, here rather than in a later test)
     (video,) = folder.glob("episode-episode-0.mp4")
     frames, (width, height) = _frames(video)
     assert (height, width) == size[:2]
