@@ -185,8 +185,8 @@ def period_speed(p, y, u, dt):
     :func:`rbenvs.core.guard.motion_rates` is read at the period's start, and a period can be
     far longer than the motion's time scale: near the intermediate axis ``Pi`` rests by the
     saddle and then runs its separatrix orbit in ``1 / sigma`` (at 1e4 rad/s many times a
-    period), so the speed at the start says nothing of the period's error (measured: rk4 at
-    ``tolerance=1e-6`` lost 3.4e-4 of ``|Pi|`` over 500 periods, its estimate summing to 1.25e-6).
+    period), so the speed at the start says nothing of the period's error
+    (``tests/test_tolerance.py``: the intermediate axis at 1e4 rad/s).
 
     Two bounds, the smaller taken: ``|d(dPi)/dt| <= s |Pi| |dPi|`` (:func:`jacobian_rate`), so
     the speed grows at most by ``exp(z) <= 1 + (e - 1) z`` for ``z = s |Pi| dt <= 1``; and the
@@ -348,9 +348,9 @@ class FreeBody:
         accuracy = None
         if not self.attitude:
             accuracy = (error_rate, error_rate_params(self._inverse))
-        inv = tuple(float(j) for j in self._inverse)
+        inv, spread, _ = error_rate_params(self._inverse)
         return GuardRates(rotation=(rotation_rate, (self._inverse, 1.0, 0.0)), ceiling=speed_ceiling, text="lambda = |Omega|", accuracy=accuracy,
-                          speed=(period_speed, (inv, max(inv) - min(inv))))
+                          speed=(period_speed, (inv, spread)))
 
     # ------------------------------------------------------------------ vector field
     def rhs(self, y, u):
