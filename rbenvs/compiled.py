@@ -1171,7 +1171,7 @@ def info_function(readout_names: tuple, metric_names: tuple):
     """``info(q, r, h)``: the single env's ``info`` from the read-outs ``q``, the evaluation
     ``r = (reward, terminated, metrics...)`` and the internal step ``h``, as one dict display
     (the order and keys of :func:`state_finish`'s)."""
-    items = [f"{name!r}: q[{j}]" for j, name in enumerate(readout_names)] + ["'internal_step': h"]
+    items = [f"{name!r}: q[{j}]" for j, name in enumerate(readout_names)] + ["'internal_step': h", "'error_estimate': None"]
     items += [f"{name!r}: r[{j + 2}]" for j, name in enumerate(metric_names)] + ["'numerical_failure': False"]
     src = "def info(q, r, h):\n    return {" + ", ".join(items) + "}\n"
     return generate(src, f"info of {len(readout_names)} read-outs and {len(metric_names)} metrics")["info"]
@@ -1201,7 +1201,7 @@ def state_finish(observe, n_obs: int, evaluate, metric_names: tuple, readouts, r
         "    r = evaluate(PE, y, u_norm)",
         "    v = readouts(PR, y, u, fired)",
     ]
-    items = [f"{name!r}: v[{j}]" for j, name in enumerate(readout_names)] + ["'internal_step': h"]
+    items = [f"{name!r}: v[{j}]" for j, name in enumerate(readout_names)] + ["'internal_step': h", "'error_estimate': None"]
     items += [f"{name!r}: r[{j + 2}]" for j, name in enumerate(metric_names)] + ["'numerical_failure': False"]
     lines += ["    return obs, over, float(r[0]), bool(r[1]), {" + ", ".join(items) + "}"]
     namespace = {

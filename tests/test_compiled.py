@@ -25,14 +25,14 @@ needs_numba = pytest.mark.skipif(not compiled.available(), reason="the compiled 
 # partial actuation, the observation limit) as (kwargs, max_episode_steps, steps)
 COMPILED = [
     (dict(), 5, 17),
-    (dict(integrator="euler", substeps=4, max_angular_velocity=3.0, task="detumble", spin_rate=0.3), 6, 17),
+    (dict(integrator="euler", tolerance=None, substeps=4, max_angular_velocity=3.0, task="detumble", spin_rate=0.3), 6, 17),
     (dict(integrator="rk4", substeps=3, actuated=(True, False, True), axis="major"), 5, 17),
-    (dict(integrator="euler", substeps=4, max_angular_velocity=3.0, axis="minor"), 7, 30),
+    (dict(integrator="euler", tolerance=None, substeps=4, max_angular_velocity=3.0, axis="minor"), 7, 30),
     (dict(integrator="rk4", max_angular_velocity=1.6, max_torque=5.0), 40, 40),  # observation_limit
-    (dict(integrator="euler"), 5, 17),  # guarded: the guard's check runs, every period fits
+    (dict(integrator="euler", tolerance=None), 5, 17),  # guarded: the guard's check runs, every period fits
     # guarded, and the flip about the intermediate axis needs subdivided periods: those run
     # on numpy, the others compiled (see test_guarded_periods_switch_paths)
-    (dict(integrator="euler", spin_rate=1.8, perturbation=0.5), 120, 120),
+    (dict(integrator="euler", tolerance=None, spin_rate=1.8, perturbation=0.5), 120, 120),
 ]
 
 
@@ -96,7 +96,7 @@ def test_guarded_periods_subdivide_inside_the_kernel():
     axis) both occur in this run, all compiled (the numpy period never runs), each sub-env
     with its own ``internal_step`` (and the lockstep test above holds the same setting to
     single envs bit for bit)."""
-    venv = vector.FreeRigidBodyVectorEnv(num_envs=3, integrator="euler", spin_rate=1.8, perturbation=0.5)
+    venv = vector.FreeRigidBodyVectorEnv(num_envs=3, integrator="euler", tolerance=None, spin_rate=1.8, perturbation=0.5)
     numpy_periods = 0
     numpy_advance = venv.engine.advance
 
@@ -122,7 +122,7 @@ def test_guarded_periods_subdivide_inside_the_kernel():
 def test_guard_refuse_raises_from_the_compiled_path_and_changes_nothing():
     """guard='refuse': a period the guard would subdivide raises (naming substeps) instead of
     running, compiled or not; the states stay as they were."""
-    kwargs = dict(integrator="euler", guard="refuse", task="detumble", spin_rate=3.0, max_angular_velocity=20.0)
+    kwargs = dict(integrator="euler", tolerance=None, guard="refuse", task="detumble", spin_rate=3.0, max_angular_velocity=20.0)
     venv = vector.FreeRigidBodyVectorEnv(num_envs=4, **kwargs)
     assert venv.compiled
     venv.reset(seed=0)
@@ -211,14 +211,14 @@ def test_non_finite_states_take_the_numerical_failure_path():
 # general top, guarded euler) as (id, kwargs, max_episode_steps, steps)
 COMPILED_MORE = [
     (FREE, dict(task="reorient"), 5, 17),
-    (FREE, dict(task="reorient", integrator="euler", substeps=3), 5, 17),
+    (FREE, dict(task="reorient", integrator="euler", tolerance=None, substeps=3), 5, 17),
     (FREE, dict(task="reorient", integrator="splitting", max_torque=0.5), 5, 17),
     (FREE, dict(integrator="splitting", actuated=(True, False, True), axis="major"), 5, 17),
     (LAGRANGE, dict(), 5, 17),  # splitting, upright
     (LAGRANGE, dict(integrator="rk4", tilt_limit=0.06, max_torque=0.05, spin=0.0), 25, 45),  # task terminations
     (LAGRANGE, dict(integrator="rk4", task="precess", attitude=True), 5, 17),
     (LAGRANGE, dict(task="precess", target_rate=2.0), 5, 17),
-    (LAGRANGE, dict(integrator="euler", axial_torque=True, spin=(5.0, 15.0), attitude=True), 5, 17),  # guarded
+    (LAGRANGE, dict(integrator="euler", tolerance=None, axial_torque=True, spin=(5.0, 15.0), attitude=True), 5, 17),  # guarded
     (LAGRANGE, dict(integrator="splitting", task="precess", spin=(20.0, 30.0), spin_friction=0.01), 5, 17),
     (LAGRANGE, dict(integrator="splitting", inertia=(0.5, 0.45, 0.3), com_direction=(0.1, 0.0, 1.0), spin=(0.0, 3.0), attitude=True), 5, 17),
     (LAGRANGE, dict(integrator="rk4", inertia=(0.5, 0.45, 0.3), com_direction=(0.1, 0.0, 1.0), spin=(0.0, 3.0), spin_friction=0.02), 5, 17),
@@ -227,7 +227,7 @@ COMPILED_MORE = [
     (TIPPE, dict(spin=(100.0, 200.0), start="rolling", friction_bound="stability"), 3, 7),  # -v0's defaults before issue 18
     (TIPPE, dict(fidelity="frictionless", spin=(100.0, 200.0)), 4, 10),
     (TIPPE, dict(fidelity="rolling", task="hold", torque_action=True), 4, 10),
-    (TIPPE, dict(friction_law="viscous", integrator="euler"), 4, 10),
+    (TIPPE, dict(friction_law="viscous", integrator="euler", tolerance=None), 4, 10),
     (TIPPE, dict(spin=(120.0, 160.0), friction_action=True, torque_action=True), 3, 5),
     (TIPPE, dict(spin=2000.0, max_speed=50.0, start="rolling"), 20, 20),  # lift-off ends the episodes
     (TIPPE, dict(free_flight=True, spin=2000.0, max_speed=50.0, start="rolling"), 6, 12),  # hops
@@ -326,18 +326,18 @@ def test_jitable_functions_stay_plain_python():
 # ----------------------------------------------------------------- the single env, compiled
 SINGLE = [
     (FREE, dict(), 40, 90),
-    (FREE, dict(task="detumble", integrator="euler", substeps=3), 40, 90),
+    (FREE, dict(task="detumble", integrator="euler", tolerance=None, substeps=3), 40, 90),
     (FREE, dict(task="reorient"), 30, 90),
-    (FREE, dict(integrator="euler", spin_rate=1.8, perturbation=0.5), 120, 120),  # subdivided periods
+    (FREE, dict(integrator="euler", tolerance=None, spin_rate=1.8, perturbation=0.5), 120, 120),  # subdivided periods
     (FREE, dict(integrator="rk4", max_angular_velocity=1.6, max_torque=5.0), 40, 60),  # observation limit
     (LAGRANGE, dict(), 40, 90),
     (LAGRANGE, dict(integrator="rk4", tilt_limit=0.06, max_torque=0.05, spin=0.0), 25, 60),
     (LAGRANGE, dict(integrator="rk4", task="precess", attitude=True), 30, 90),
-    (LAGRANGE, dict(integrator="euler", axial_torque=True, spin=(5.0, 15.0), attitude=True), 30, 60),
+    (LAGRANGE, dict(integrator="euler", tolerance=None, axial_torque=True, spin=(5.0, 15.0), attitude=True), 30, 60),
     (LAGRANGE, dict(integrator="splitting", inertia=(0.5, 0.45, 0.3), com_direction=(0.1, 0.0, 1.0), spin=(0.0, 3.0), spin_friction=0.02), 30, 60),
     (TIPPE, dict(), 30, 40),
     (TIPPE, dict(fidelity="rolling", task="hold", torque_action=True), 10, 30),
-    (TIPPE, dict(friction_law="viscous", integrator="euler", friction_action=True), 10, 30),
+    (TIPPE, dict(friction_law="viscous", integrator="euler", tolerance=None, friction_action=True), 10, 30),
     (TIPPE, dict(spin=2000.0, max_speed=50.0, start="rolling"), 30, 40),  # lift-off ends the episodes
     (TIPPE, dict(free_flight=True, spin=2000.0, max_speed=50.0, start="rolling"), 30, 40),  # hops
     (TIPPE, dict(start="rest", spin=180.0), 30, 40),
@@ -378,7 +378,7 @@ def test_single_env_compiled_step_equals_the_float_path(env_id, kwargs, max_step
 def test_single_env_compiled_refusal_and_failure_as_the_float_path():
     """guard='refuse' raises from the compiled step naming the count, the state unchanged; a
     state that overflows ends the episode as a numerical failure with the last finite state."""
-    kwargs = dict(integrator="euler", guard="refuse", task="detumble", spin_rate=6.0, max_angular_velocity=20.0)
+    kwargs = dict(integrator="euler", tolerance=None, guard="refuse", task="detumble", spin_rate=6.0, max_angular_velocity=20.0)
     for compiled_ in (True, False):
         env = gym.make(FREE, compiled=compiled_, **kwargs)
         env.reset(seed=0)

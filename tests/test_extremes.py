@@ -4,7 +4,8 @@ Requirement everywhere: no NaN or inf ever reaches an observation, the invariant
 the bound stated (and justified) at each test, and every refusal is a ``ValueError`` naming the
 parameter. Oracles: the stability functions of euler and rk4 on an exact linear rotation (the
 symmetric free body), the exact elliptic flow and DOP853 at rtol 1e-12, equilibria that must
-stay put to the last bit, Jellett's integral for the tippe top.
+stay put to the last bit, Jellett's integral for the tippe top. The guard's tests run
+unchecked (``tolerance=None``): the default accuracy at the extremes is tests/test_default_accuracy.py's.
 """
 
 import math
@@ -103,7 +104,7 @@ def expected_steps(dt, rate, bound, growth=math.inf, substeps=1):
 
 @pytest.mark.parametrize("integrator,bound,growth", [("rk4", 1.0, math.inf), ("euler", 0.1, 0.02), ("splitting", 1.0, math.inf)])
 def test_free_body_subdivides_by_the_documented_rule(integrator, bound, growth):
-    env = FreeRigidBodyEnv(integrator=integrator, spin_rate=300.0, axis="minor", max_angular_velocity=1e4, dt=0.01)
+    env = FreeRigidBodyEnv(integrator=integrator, tolerance=None, spin_rate=300.0, axis="minor", max_angular_velocity=1e4, dt=0.01)
     env.reset(seed=0)
     speed = np.linalg.norm(env.system.angular_velocity(env._y))
     n = expected_steps(0.01, speed, bound, growth)
@@ -114,7 +115,7 @@ def test_free_body_subdivides_by_the_documented_rule(integrator, bound, growth):
 
 @pytest.mark.parametrize("integrator", ["exact", "dop853"])
 def test_free_body_exact_and_adaptive_are_never_subdivided(integrator):
-    env = FreeRigidBodyEnv(integrator=integrator, spin_rate=1e4, axis="major", max_angular_velocity=3e4, dt=0.05)
+    env = FreeRigidBodyEnv(integrator=integrator, tolerance=None, spin_rate=1e4, axis="major", max_angular_velocity=3e4, dt=0.05)
     env.reset(seed=0)
     assert env.step(zeros(env))[4]["internal_step"] == 0.05
 
@@ -123,7 +124,7 @@ def test_free_body_exact_and_adaptive_are_never_subdivided(integrator):
     "kwargs,rate",
     [
         (dict(integrator="rk4", spin=60.0), "spin+g"),
-        (dict(integrator="euler", spin=20.0), "spin+g"),
+        (dict(integrator="euler", tolerance=None, spin=20.0), "spin+g"),
         (dict(integrator="splitting", spin=60.0, dt=0.5), "g"),  # Lagrange top: gravity alone
         (dict(integrator="splitting", inertia=(0.5, 0.45, 0.3), spin=60.0), "spin+g"),
         (dict(integrator="rk4", spin=30.0, spin_friction=5.0), "spin+g+kappa"),
@@ -183,12 +184,12 @@ def test_guard_off_exposes_the_numerical_failure_path():
     it) is refused as a numerical failure, before integrating; at dt = 0.05 s the guarded
     euler stays finite."""
     with pytest.raises(ValueError, match="dt=5.0 s cannot be resolved"):
-        FreeRigidBodyEnv(integrator="euler", spin_rate=50.0, dt=5.0, substeps=7, max_angular_velocity=3e38)
-    fast = FreeRigidBodyEnv(integrator="euler", spin_rate=50.0, dt=5.0, substeps=7, max_angular_velocity=3e38, guard="off")
+        FreeRigidBodyEnv(integrator="euler", tolerance=None, spin_rate=50.0, dt=5.0, substeps=7, max_angular_velocity=3e38)
+    fast = FreeRigidBodyEnv(integrator="euler", tolerance=None, spin_rate=50.0, dt=5.0, substeps=7, max_angular_velocity=3e38, guard="off")
     fast.reset(seed=0)
     start = fast.get_state()  # a spin at 50 rad/s
     for guard in ("off", "subdivide"):
-        env = FreeRigidBodyEnv(integrator="euler", spin_rate=1.0, dt=5.0, substeps=7, max_angular_velocity=3e38, guard=guard)
+        env = FreeRigidBodyEnv(integrator="euler", tolerance=None, spin_rate=1.0, dt=5.0, substeps=7, max_angular_velocity=3e38, guard=guard)
         obs0, _ = env.reset(seed=0, options={"state": start})
         last = env.get_state()
         with warnings.catch_warnings(record=True) as caught:
@@ -199,7 +200,7 @@ def test_guard_off_exposes_the_numerical_failure_path():
         if guard == "subdivide":
             assert len(infos) == 1 and infos[0]["internal_step"] == 5.0 / (MAX_INTERNAL_STEPS + 1)
             assert all(same(last[k], v) for k, v in env.get_state().items())
-    env = FreeRigidBodyEnv(integrator="euler", spin_rate=50.0, axis="major", dt=0.05, max_angular_velocity=200.0)
+    env = FreeRigidBodyEnv(integrator="euler", tolerance=None, spin_rate=50.0, axis="major", dt=0.05, max_angular_velocity=200.0)
     env.reset(seed=0)
     infos = step_all(env, 20)
     assert len(infos) == 20 and not any(i["numerical_failure"] for i in infos)
@@ -226,7 +227,7 @@ def test_stepping_past_an_observation_limit_stays_guarded():
     "env_id,kwargs,k",
     [
         ("rbenvs/FreeRigidBody-v0", dict(task="detumble", spin_rate=30.0, max_angular_velocity=200.0), 3),
-        ("rbenvs/FreeRigidBody-v0", dict(task="detumble", integrator="euler", spin_rate=3.0, max_angular_velocity=20.0), 3),
+        ("rbenvs/FreeRigidBody-v0", dict(task="detumble", integrator="euler", tolerance=None, spin_rate=3.0, max_angular_velocity=20.0), 3),
         ("rbenvs/LagrangeTop-v0", dict(integrator="rk4", spin=(10.0, 80.0), max_angular_velocity=300.0, tilt_limit=math.pi), 2),
     ],
 )
@@ -256,7 +257,7 @@ def test_vector_env_equals_single_envs_under_guarded_stepping(env_id, kwargs, k)
 
 # ----------------------------------------------------------------- 3. free body extremes
 def run_free(integrator, spin, axis, dt, steps, inertia=(2.0, 1.5, 1.0)):
-    env = FreeRigidBodyEnv(inertia=inertia, integrator=integrator, spin_rate=spin, axis=axis, perturbation=0.3, dt=dt, max_angular_velocity=3 * spin)
+    env = FreeRigidBodyEnv(inertia=inertia, integrator=integrator, tolerance=None, spin_rate=spin, axis=axis, perturbation=0.3, dt=dt, max_angular_velocity=3 * spin)
     _, info0 = env.reset(seed=0)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
@@ -300,7 +301,7 @@ def test_euler_at_1e4_rad_per_s_is_a_numerical_failure_or_within_its_growth_boun
     At dt = 0.05 s it would need 1.25e7 steps: such a start is refused at construction (naming
     dt), and such a state reached later (here: reset to it) is a numerical failure, the state
     kept."""
-    env = FreeRigidBodyEnv(integrator="euler", spin_rate=1e4, axis="minor", perturbation=0.3, dt=0.01, max_angular_velocity=3e4)
+    env = FreeRigidBodyEnv(integrator="euler", tolerance=None, spin_rate=1e4, axis="minor", perturbation=0.3, dt=0.01, max_angular_velocity=3e4)
     _, info0 = env.reset(seed=0)
     speed = math.sqrt(sum(c * c for c in env.system.angular_velocity(env._y)))
     infos = step_all(env, 1)
@@ -313,7 +314,7 @@ def test_euler_at_1e4_rad_per_s_is_a_numerical_failure_or_within_its_growth_boun
     with pytest.raises(ValueError, match="dt=0.05 s cannot be resolved"):
         run_free("euler", 1e4, "minor", 0.05, 1)
     start = env.get_state()  # about 1e4 rad/s
-    env = FreeRigidBodyEnv(integrator="euler", spin_rate=1.0, axis="minor", dt=0.05, max_angular_velocity=3e4)
+    env = FreeRigidBodyEnv(integrator="euler", tolerance=None, spin_rate=1.0, axis="minor", dt=0.05, max_angular_velocity=3e4)
     _, info0 = env.reset(seed=0, options={"state": start})
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
@@ -330,7 +331,7 @@ def test_equal_and_nearly_equal_moments(inertia, integrator):
     tilted 0.3 rad from axis 0). Bounds: exact 1e-10 relative (round-off, docs/physics.md §4);
     splitting and rk4 their global error at |Omega| h = 0.15: C (|Omega| h)^p |Omega| t with
     p = 2 and 4, i.e. 5e-2 and 1e-3."""
-    env = FreeRigidBodyEnv(inertia=inertia, integrator=integrator, axis=0, spin_rate=3.0, perturbation=0.3, max_angular_velocity=20.0)
+    env = FreeRigidBodyEnv(inertia=inertia, integrator=integrator, tolerance=None, axis=0, spin_rate=3.0, perturbation=0.3, max_angular_velocity=20.0)
     env.reset(seed=1)
     y0 = env._y
     step_all(env, 20)
@@ -357,7 +358,7 @@ def test_on_and_near_the_separatrix(integrator, offset):
     growth sqrt(1 + (h |Omega|)^2) <= 1 + 1.3e-3 at |Omega| <= 1.02). Exact against DOP853 over
     the first second: 1e-10 (away from the separatrix states are resolved to round-off, here the
     AGM from the complementary parameter keeps it)."""
-    env = FreeRigidBodyEnv(integrator=integrator, max_angular_velocity=20.0)
+    env = FreeRigidBodyEnv(integrator=integrator, tolerance=None, max_angular_velocity=20.0)
     env.reset(options={"state": separatrix_state(offset)})
     y0 = env._y
     c0, e0 = env.system.momentum_norm(y0), env.system.energy(y0)
@@ -390,7 +391,7 @@ def test_free_body_dt_range(integrator, dt):
     (euler: its per-period growth exp(0.01); the others 1e-6, far above round-off), the step
     count the documented rule's. rk4 at dt = 1 s runs at the bound |Omega| h = 1: its |Pi|
     within [(1 - 0.0061)^steps, 1 + 1e-5 steps] (the two tests of section 1)."""
-    env = FreeRigidBodyEnv(integrator=integrator, spin_rate=5.0, dt=dt, max_angular_velocity=50.0)
+    env = FreeRigidBodyEnv(integrator=integrator, tolerance=None, spin_rate=5.0, dt=dt, max_angular_velocity=50.0)
     _, info0 = env.reset(seed=0)
     infos = step_all(env, 10)
     assert len(infos) == 10
@@ -445,7 +446,7 @@ def test_heavy_top_upright_and_hanging_are_equilibria(integrator, tilt, spin):
     guard's, tilt reading exactly 0 or pi and no NaN in the observation (the precession rate,
     undefined there, is info only)."""
     dt = 0.02
-    env = LagrangeTopEnv(integrator=integrator, tilt_limit=math.pi, max_angular_velocity=2e4, spin=min(spin, 9.0))
+    env = LagrangeTopEnv(integrator=integrator, tolerance=None, tilt_limit=math.pi, max_angular_velocity=2e4, spin=min(spin, 9.0))
     pi = (0.0, 0.0, 0.3 * spin)
     env.reset(options={"state": top_state((0.0, 0.0, math.cos(tilt)), pi)})
     y0 = env._y
@@ -473,7 +474,7 @@ def test_heavy_top_within_1e_12_of_upright_and_hanging(integrator, tilt):
     size times a modest factor), energy and Pi.Gamma within 1e-9 relative (rk4's drift at
     |Omega| h = 0.6 over 100 steps; the splitting keeps Pi.Gamma to round-off)."""
     spin = 3.0 * 9.90
-    env = LagrangeTopEnv(integrator=integrator, tilt_limit=math.pi, spin=spin)
+    env = LagrangeTopEnv(integrator=integrator, tolerance=None, tilt_limit=math.pi, spin=spin)
     g = (math.sin(tilt), 0.0, math.cos(tilt))
     _, info0 = env.reset(options={"state": top_state(g, (0.0, 0.0, 0.3 * spin))})
     infos = step_all(env, 100)
@@ -489,7 +490,7 @@ def test_heavy_top_within_1e_12_of_upright_and_hanging(integrator, tilt):
 def test_heavy_top_dt_range(integrator, dt):
     """dt 1e-6 s to 1 s, the default falling top (0.5x critical spin, tilt 0.05): finite for 5
     periods with the guard's steps; |Gamma| exactly kept (projection or exact rotations: 4 eps)."""
-    env = LagrangeTopEnv(integrator=integrator, dt=dt, tilt_limit=math.pi)
+    env = LagrangeTopEnv(integrator=integrator, tolerance=None, dt=dt, tilt_limit=math.pi)
     env.reset(seed=0)
     infos = step_all(env, 5)
     for info in infos:

@@ -431,7 +431,7 @@ def progress_total(systems=None, quick=False):
 # ------------------------------------------------------------------------------------ scenes
 def _scene_run(scene, integrator, substeps, seed, actions, horizon_steps):
     """States (per block) along ``horizon_steps`` env steps under ``actions``, from ``seed``."""
-    env = scene.make(integrator=integrator, substeps=substeps).unwrapped
+    env = scene.make(integrator=integrator, substeps=substeps, tolerance=None).unwrapped  # (fixed steps: unchecked)
     env.reset(seed=seed)
     names = [k for k in env.get_state() if not (scene.env_id.startswith("rbenvs/TippeTop") and k == "position")]
     out = {k: [env.get_state()[k]] for k in names}
@@ -462,7 +462,7 @@ def _scene_error(run, ref):
 
 def _scene_cost(scene, integrator, substeps, min_time):
     """Seconds per env step (the unwrapped env, zero action, reset when an episode ends)."""
-    env = scene.make(integrator=integrator, substeps=substeps)
+    env = scene.make(integrator=integrator, substeps=substeps, tolerance=None)
     env.reset(seed=0)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")

@@ -58,7 +58,7 @@ from ..jit import jitable
 from ..rotations import maximum, power, select, sqrt
 from .codegen import generate
 
-__all__ = ["MAX_INTERNAL_STEPS", "GUARDS", "UnstableMotionWarning", "StepRule", "step_ratio", "step_ratio_motion", "motion_rates", "accuracy_steps", "relaxation_steps", "whole_root", "error_estimate", "require_guard",
+__all__ = ["MAX_INTERNAL_STEPS", "GUARDS", "DEFAULT_TOLERANCE", "UnstableMotionWarning", "StepRule", "step_ratio", "step_ratio_motion", "motion_rates", "accuracy_steps", "relaxation_steps", "whole_root", "error_estimate", "require_guard",
            "require_tolerance"]
 
 # More internal steps than this in one control period is treated as a numerical failure.
@@ -84,12 +84,17 @@ def require_guard(guard) -> str:
     return guard
 
 
+# ``tolerance=``'s default: the env's default accuracy (RigidBodyEnv.default_tolerance)
+DEFAULT_TOLERANCE = "default"
+
+
 def require_tolerance(tolerance):
-    """``tolerance=``: ``None`` (no accuracy bound) or a finite number with ``0 < tolerance < 1``
-    (a relative error per episode)."""
-    if tolerance is None:
-        return None
-    rule = "None or a finite number with 0 < tolerance < 1 (the relative error allowed over an episode)"
+    """``tolerance=``: ``"default"`` (the env's default accuracy), ``None`` (no accuracy bound)
+    or a finite number with ``0 < tolerance < 1`` (a relative error per episode)."""
+    if tolerance is None or (isinstance(tolerance, str) and tolerance == DEFAULT_TOLERANCE):
+        return tolerance
+    rule = (f"{DEFAULT_TOLERANCE!r} (the env's default accuracy), None (unchecked: the stability bound alone) or a finite number with "
+            "0 < tolerance < 1 (the relative error allowed over an episode)")
     if isinstance(tolerance, (bool, np.bool_)) or not isinstance(tolerance, (int, float, np.integer, np.floating)):
         raise TypeError(f"tolerance must be {rule}, got {tolerance!r} ({type(tolerance).__name__})")
     tol = float(tolerance)
@@ -337,11 +342,13 @@ class StepRule:
     share: tuple | None = None
 
     @classmethod
-    def build(cls, rates, region, dt: float, guard: str, integrator=None, tolerance=None, horizon=None, system=None, zero_control=()) -> "StepRule":
+    def build(cls, rates, region, dt: float, guard: str, integrator=None, tolerance=None, horizon=None, system=None, zero_control=(),
+              enforce=True) -> "StepRule":
         """The rule for ``rates`` (the system's :class:`~rbenvs.contracts.GuardRates` for
         ``region``) at control period ``dt`` under ``guard``; with ``tolerance`` (a relative
         error over ``horizon`` periods) also the accuracy bound of ``integrator`` (its
-        ``order`` and ``error_constant``)."""
+        ``order`` and ``error_constant``), which ``enforce=False`` estimates without acting on
+        (the counts are the stability bound's)."""
         if rates.rotation_bound is not None:  # the system's accuracy bound replaces the scheme's
             bound, growth = rates.rotation_bound, math.inf
         else:
@@ -408,6 +415,10 @@ class StepRule:
             mode_share = (mode_share[0], (mode_share[1], 0.0 if forced is None else float(forced) / c))
             accuracy, text = (t.replace("C (lambda_d h)^", "C a (lambda_d h)^") + " (a = the decaying mode's share of it, "
                               + mode_share[0].__name__ + ")" for t in (accuracy, text))
+        if not enforce:  # (estimated and reported, not acted on)
+            k, kd, accuracy = 0.0, 0.0, ""
+            text = rates.text if bound == math.inf else text.split("; error ")[0]
+            active = guard != "off" and (bound != math.inf or growth != math.inf or dissipation is not None)
         return cls(rotation, (float(dt), float(bound), float(growth), float(k), float(p), float(kd)), dissipation, step_d, rates.ceiling, text, active, error,
                    accuracy, motion, tuple(zero_control), mode_share)
 

@@ -34,6 +34,11 @@ class Model:
       which lets a guard prove it never needs more than ``substeps`` steps;
     * ``tolerance``: the relative error allowed over ``horizon`` control periods (``None``: no
       accuracy bound; :mod:`rbenvs.core.guard`);
+    * ``accuracy``: where ``tolerance`` came from: ``"explicit"`` (the user's: its steps sum
+      with compensation), ``"default"`` (the env's default accuracy, enforced: the steps sum
+      plainly, so that a default scene's trajectory is the one it had without) or
+      ``"estimate"`` (the env's default, estimated and reported only: the steps are the
+      stability bound's; the tippe top's until its default bound is sized over its tops);
     * ``check``: with a tolerance, whether a companion run estimates the episode's global error
       (``tolerance_check``; :mod:`rbenvs.core.global_error`), and ``refine``: whether the episode
       is then replayed with more steps where it passes the tolerance (``"refine"``) instead of
@@ -66,6 +71,7 @@ class Model:
     episode_steps: int | None = None
     check: bool = False
     refine: bool = False
+    accuracy: str = "explicit"
     failure_charge: float = field(init=False)
     step_rule: StepRule = field(init=False)
     draw_kinds: str = field(init=False)
@@ -80,7 +86,8 @@ class Model:
         region: StepRegion = self.integrator.region
         rates = self.system.guard_rates(region, self.speed_ceiling)
         zero = self.actuator.control((0.0,) * self.actuator.size)[1] if self.tolerance is not None else ()
-        object.__setattr__(self, "step_rule", StepRule.build(rates, region, self.dt, self.guard, self.integrator, self.tolerance, self.horizon, self.system, zero))
+        object.__setattr__(self, "step_rule", StepRule.build(rates, region, self.dt, self.guard, self.integrator, self.tolerance, self.horizon, self.system, zero,
+                                                                 enforce=self.accuracy != "estimate"))
         floor = float(self.task.reward_floor(self.system, self.observation_high))
         if not math.isfinite(floor):
             raise ValueError(f"the task's reward floor must be finite, got {floor} (task {type(self.task).__name__})")
@@ -92,7 +99,7 @@ class Model:
         """Pickled as its parts and settings; the derived rule is made again on loading (it holds
         the system's pure forms, which may be functions made at run time)."""
         return (Model, (self.system, self.task, self.integrator, self.actuator, self.dt, self.substeps, self.guard, self.observation_high,
-                        self.speed_ceiling, self.tolerance, self.horizon, self.episode_steps, self.check, self.refine))
+                        self.speed_ceiling, self.tolerance, self.horizon, self.episode_steps, self.check, self.refine, self.accuracy))
 
     @property
     def h(self) -> float:

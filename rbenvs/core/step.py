@@ -204,6 +204,8 @@ def terminal_reason(failed, fired, over, terminated, event_name):
 
 
 def _to_python(v):
+    if v is None:  # (error_estimate, not estimated)
+        return None
     if isinstance(v, (bool, np.bool_)):
         return bool(v)
     if isinstance(v, (int, np.integer)):  # counts stay counts
@@ -236,7 +238,8 @@ class Engine:
         # part of a run's state: it starts at zero at a reset and after a switch, and each run
         # (the env's, the companion, a replay) carries its own from period to period
         # (advance(comp=), companion(comp=); the single env's in comp)
-        compensate = m.tolerance is not None
+        # (a default accuracy sums plainly: its scenes keep their bits; the companion's runs need it)
+        compensate = m.tolerance is not None and (m.accuracy == "explicit" or m.check)
         self.step_c = m.integrator.bind(system, system.dim, compensated=True) if compensate else None
         # a run's compensation at its start (zeros; None where the steps sum plainly)
         self.fresh_comp = (0.0,) * system.dim if self.step_c is not None else None
@@ -725,9 +728,11 @@ class Engine:
 
     def readouts(self, y, u, fired, h) -> dict:
         """The physical read-outs (the system's, under the control ``u`` that acted and with the
-        event flag) and ``internal_step`` (``h``), keyed by name."""
+        event flag), ``internal_step`` (``h``) and ``error_estimate`` (``None``: not estimated),
+        keyed by name."""
         info = dict(zip(self.readout_names, self.system.readouts(y, u, fired)))
         info["internal_step"] = h
+        info["error_estimate"] = None  # (not estimated; a tolerance's step writes its period's)
         return info
 
     def info_one(self, y, u, fired, h, metrics, failed: bool) -> dict:
@@ -745,7 +750,10 @@ class Engine:
         """``(obs, info)`` of a start ``y`` (no control has acted: ``u = None``); the single env's
         run starts there (its compensation at zero)."""
         self.comp = self.fresh_comp
-        return self.fresh_one(y)
+        obs, info = self.fresh_one(y)
+        if self.tolerance is not None:
+            info["error_estimate"] = 0.0  # (no period yet: the vector env's reset)
+        return obs, info
 
     def fresh_one(self, y):
         """:meth:`reset_one`'s ``(obs, info)`` of ``y`` without starting a run there (the run's

@@ -23,7 +23,7 @@ import gymnasium as gym
 import numpy as np
 
 from ..core.global_error import GlobalErrorCheck, require_tolerance_check
-from ..core.guard import GUARDS, MAX_INTERNAL_STEPS, StepRule, UnstableMotionWarning, relaxation_steps, require_guard, require_tolerance, stability_ratio, step_ratio
+from ..core.guard import DEFAULT_TOLERANCE, GUARDS, MAX_INTERNAL_STEPS, StepRule, UnstableMotionWarning, relaxation_steps, require_guard, require_tolerance, stability_ratio, step_ratio
 from ..core.model import Model
 from ..core.step import Engine, NumericalFailureWarning, action_values
 from ..dynamics.validation import require_finite_positive, require_int_in, unknown_keyword
@@ -70,6 +70,11 @@ def _caller_level() -> int:
     return level
 
 
+def _tolerance_schemes() -> list:
+    """The registered integrators ``tolerance=`` takes (:func:`_takes_tolerance`)."""
+    return sorted(name for name, cls in _registry().items() if _takes_tolerance(cls))
+
+
 def _takes_tolerance(cls) -> bool:
     """Whether ``tolerance=`` takes the scheme ``cls``: an error constant, and its leading error on
     a rotation in the phase (:meth:`RigidBodyEnv._require_accuracy` says why)."""
@@ -98,6 +103,11 @@ class RigidBodyEnv(gym.Env):
     integrators = _SupportedSchemes()
     # the physical keywords ``param_ranges`` may randomize (rbenvs.envs.options), in draw order
     randomizable: tuple = ()
+    # tolerance="default": the relative error over an episode each env is held to unless told
+    # otherwise ("default": enforced, the steps subdivide where it asks; "estimate": estimated and
+    # reported in info["error_estimate"] only), for the integrators a tolerance takes
+    default_tolerance: float = 1e-3
+    default_accuracy: str = "default"
     _ranges = None  # the validated param_ranges (None: every episode has the constructor's parameters)
     _realism = Realism(None, None, 0)  # noise, bias, delay: none
     noiseless_observation = None  # with observation noise or bias: the last observation without them
@@ -129,15 +139,18 @@ class RigidBodyEnv(gym.Env):
         cls.__init__ = __init__
 
     def _setup(self, system, task, actuator, integrator, dt, substeps, observation_high, render_mode, guard="subdivide", compiled="auto",
-               tolerance=None, tolerance_horizon=None, tolerance_check=False):
+               tolerance="default", tolerance_horizon=None, tolerance_check=False):
         guard = require_guard(guard)
         tolerance = require_tolerance(tolerance)
-        mode = require_tolerance_check(tolerance_check, tolerance, guard)
-        check, refine = mode is not False, mode == "refine"
-        horizon = self._tolerance_horizon(tolerance_horizon)
         if tolerance is None and tolerance_horizon is not None:
             raise ValueError(f"tolerance_horizon={tolerance_horizon!r} is the span of control periods that tolerance= covers, and tolerance is None: "
                              "pass tolerance= with it, or leave tolerance_horizon out")
+        accuracy = "explicit"
+        if isinstance(tolerance, str):  # the env's default accuracy (guard="off" takes substeps steps whatever: unchecked)
+            tolerance, accuracy = (self.default_tolerance, self.default_accuracy) if guard != "off" else (None, "explicit")
+        mode = require_tolerance_check(tolerance_check, tolerance, guard)
+        check, refine = mode is not False, mode == "refine"
+        horizon = self._tolerance_horizon(tolerance_horizon)
         compiled = require_compiled(compiled)
         dt = require_finite_positive("dt", dt)
         substeps = require_int_in("substeps", substeps, 1, MAX_INTERNAL_STEPS, " (more internal steps in a control period is a numerical failure)")
@@ -150,7 +163,15 @@ class RigidBodyEnv(gym.Env):
             raise ValueError(f"integrator {integrator.name!r} declares no step region (StepRegion, rbenvs.contracts): it cannot be guarded")
         if render_mode is not None and (not isinstance(render_mode, str) or render_mode not in self.metadata["render_modes"]):
             raise ValueError(f"render_mode must be None or one of {self.metadata['render_modes']}, got {render_mode!r}")
-        if tolerance is not None:
+        if tolerance is not None and accuracy != "explicit" and not _takes_tolerance(type(integrator)):
+            if integrator.error_constant is not None and accuracy == "default":  # (euler: its error is in the amplitude)
+                raise ValueError(
+                    f"integrator {integrator.name!r} cannot be held to {type(self).__name__}'s default accuracy (tolerance='default': "
+                    f"{self.default_tolerance!r} relative over an episode): {self._amplitude_reason(integrator)}. Pass tolerance=None to run it "
+                    f"unchecked (the stability bound alone, info['error_estimate'] None), or an integrator that takes a tolerance, "
+                    f"{_tolerance_schemes()}")
+            tolerance, accuracy = None, "explicit"  # (exact flows, the splitting, adaptive schemes: no error constant to estimate by)
+        if tolerance is not None and accuracy == "explicit":
             self._require_accuracy(integrator, guard, tolerance)
             unstable = self._unstable_motion(system, task, horizon * dt)
             if unstable:
@@ -167,7 +188,7 @@ class RigidBodyEnv(gym.Env):
                     f"docs/integrators.md, 'Unstable motions')"), stacklevel=_caller_level())
         high = tuple(float(v) for v in observation_high)
         self.model = Model(system, task, integrator, actuator, dt, substeps, guard, high, self._speed_ceiling(), tolerance, horizon if tolerance is not None else None,
-                           self.registered_episode_steps(), check, refine)
+                           self.registered_episode_steps(), check, refine, accuracy)
         self._require_float32_rewards()
         self.engine = Engine(self.model, compiled)
         self.render_mode = render_mode
@@ -328,9 +349,8 @@ class RigidBodyEnv(gym.Env):
         if guard == "off":
             raise ValueError(f"tolerance={tolerance!r} needs guard='subdivide' or 'refuse': guard='off' takes substeps steps whatever the error")
         if getattr(integrator, "error_constant", None) is None:
-            takes = sorted(name for name, cls in _registry().items() if _takes_tolerance(cls))
             raise ValueError(
-                f"tolerance={tolerance!r} needs an integrator whose error it can estimate, {takes} (or integrator='auto'): one that declares an "
+                f"tolerance={tolerance!r} needs an integrator whose error it can estimate, {_tolerance_schemes()} (or integrator='auto'): one that declares an "
                 f"error constant (its error C lambda T (lambda h)^order on a rotation, rbenvs.integrators.error) with its leading error in the "
                 f"phase; integrator {integrator.name!r} declares none "
                 f"(exact sub-flows err by the system's commutators, not by one rate; an adaptive scheme controls its own error)"
@@ -341,14 +361,16 @@ class RigidBodyEnv(gym.Env):
             # grows like T^2 and a per-period sum either misses it (with the state's own rate:
             # 2.7 times the tolerance) or overestimates it (with lambda: 16 times the error, 15
             # times the steps of the cheapest fixed substeps; docs/integrators.md)
-            in_phase = sorted(name for name, cls in _registry().items() if _takes_tolerance(cls))
             raise ValueError(
-                f"tolerance={tolerance!r} needs an integrator whose leading error on a rotation is in the phase, {in_phase} "
-                f"(or integrator='auto'): integrator {integrator.name!r} errs in the amplitude (each step grows a rotation by "
-                f"sqrt(1 + (lambda h)^2)), which on a nonlinear rotation moves the frequency, so its phase error grows like T^2 and no "
-                f"per-period estimate bounds it without overestimating it many times (measured: 15 times the steps of its cheapest fixed "
-                f"substeps meeting the same tolerance); without tolerance= it runs at the guard's stability bound"
+                f"tolerance={tolerance!r} needs an integrator whose leading error on a rotation is in the phase, {_tolerance_schemes()} "
+                f"(or integrator='auto'): {RigidBodyEnv._amplitude_reason(integrator)}; with tolerance=None it runs at the guard's stability bound"
             )
+
+    @staticmethod
+    def _amplitude_reason(integrator) -> str:
+        return (f"integrator {integrator.name!r} errs in the amplitude (each step grows a rotation by sqrt(1 + (lambda h)^2)), which on a "
+                f"nonlinear rotation moves the frequency, so its phase error grows like T^2 and no per-period estimate bounds it without "
+                f"overestimating it many times (measured: 15 times the steps of its cheapest fixed substeps meeting the same tolerance)")
 
     def _unstable_motion(self, system, task, span: float) -> str | None:
         """With ``tolerance=``: why the starts this env draws are unstable by the system's own
@@ -370,7 +392,7 @@ class RigidBodyEnv(gym.Env):
             region = dataclasses.replace(region, rotation=1.0, reason="one radian of the fastest rate per step")
         rates = self.system.guard_rates(region, self._start_speed)
         m = self.model
-        rule = StepRule.build(rates, region, self.dt, "subdivide", self.integrator, m.tolerance, m.horizon)
+        rule = StepRule.build(rates, region, self.dt, "subdivide", self.integrator, m.tolerance, m.horizon, enforce=m.accuracy != "estimate")
         x = step_ratio(rule.params, rates.ceiling)
         lam_d = self._start_dissipation()
         d_stable = 0.0
@@ -401,8 +423,10 @@ class RigidBodyEnv(gym.Env):
         x, rule, by_tolerance = self._start_steps()
         if not x <= MAX_INTERNAL_STEPS:
             if by_tolerance:
+                default = (f" (tolerance='default': {type(self).__name__}'s default accuracy; tolerance=None runs unchecked, the stability "
+                           f"bound alone)") if self.model.accuracy != "explicit" else ""
                 raise ValueError(
-                    f"tolerance={self.model.tolerance!r} cannot be met: at the start the integrator {self.integrator.name!r} needs "
+                    f"tolerance={self.model.tolerance!r}{default} cannot be met: at the start the integrator {self.integrator.name!r} needs "
                     f"{x:.3g} internal steps per control period, more than MAX_INTERNAL_STEPS = {MAX_INTERNAL_STEPS}, {rule}"
                 )
             raise ValueError(

@@ -130,15 +130,21 @@ class FreeRigidBodyEnv(RigidBodyEnv):
       with ``tolerance``: the scheme with an error constant whose steps at the fastest start,
       times its rhs evaluations, cost least.
     * ``guard="subdivide"``: ``"subdivide"``, ``"refuse"`` or ``"off"`` (Guarded stepping).
-    * ``tolerance=None``: the relative error allowed over ``tolerance_horizon`` control periods
-      (a finite number with ``0 < tolerance < 1``; ``None``: no accuracy bound), for the schemes
-      that declare ``error_constant`` with their leading error in the phase (``rk4``; ``euler``
-      errs in the amplitude and is refused with a tolerance); the rule, the refusals and
-      ``info["error_estimate"]``: :mod:`rbenvs.core.guard` and docs/integrators.md ("Accuracy: tolerance=").
+    * ``tolerance="default"``: the relative error allowed over ``tolerance_horizon`` control
+      periods, a finite number with ``0 < tolerance < 1``, for the schemes that declare
+      ``error_constant`` with their leading error in the phase (``rk4``; ``euler`` errs in the
+      amplitude and is refused with a tolerance). ``"default"``: the env's default accuracy,
+      ``default_tolerance = 1e-3`` over an episode, enforced for ``rk4`` (the steps subdivide where
+      it asks: only at extremes, every shipped scene keeps its steps) and reported in
+      ``info["error_estimate"]`` every step; refused for ``euler`` (pass ``tolerance=None``);
+      schemes without an error constant (``splitting``, ``exact``, ``dop853``) run unchecked.
+      ``None``: unchecked, the stability bound alone, ``info["error_estimate"]`` ``None``. The
+      rule, the refusals and the estimate: :mod:`rbenvs.core.guard` and docs/integrators.md
+      ("Accuracy: tolerance=").
     * ``tolerance_horizon=None``: control periods the tolerance covers (an integer >= 1;
       ``None``: the registered ``max_episode_steps``, one episode; a ``max_episode_steps``
       given to ``gymnasium.make`` is not seen by the env: pass ``tolerance_horizon`` with it);
-      refused without ``tolerance``.
+      refused with ``tolerance=None``.
     * ``tolerance_check=False``: with ``tolerance``, ``True`` estimates the episode's global error
       with a companion run (the same periods at twice the step) and its rounding twin (the
       roundoff the motion amplifies): about the steps again; :mod:`rbenvs.core.global_error`), reports it as ``info["global_error_estimate"]``
@@ -221,7 +227,7 @@ class FreeRigidBodyEnv(RigidBodyEnv):
         render_mode=None,
         guard: str = "subdivide",
         compiled="auto",
-        tolerance=None,
+        tolerance="default",
         tolerance_horizon=None,
         tolerance_check: bool | str = False,
         param_ranges=None,

@@ -329,9 +329,11 @@ class RigidBodyVectorEnv(VectorEnv):
         self._u = None  # as the single env after reset: nothing acted yet (a table at rest)
         self._last_h = np.full(n, self.engine.h)
         info = self._info(self._y, None, self._false, self._false, metrics, physical)
-        if self.engine.tolerance is not None:
-            info["error_estimate"] = np.zeros(n)  # no period yet (the single env's reset)
-            info["_error_estimate"] = self._true
+        # no period yet: 0 with a tolerance (the single env's reset); without, not estimated (the
+        # single env's None): NaN, its mask False
+        estimated = self.engine.tolerance is not None
+        info["error_estimate"] = np.zeros(n) if estimated else np.full(n, np.nan)
+        info["_error_estimate"] = self._true if estimated else self._false
         if self._checked:
             info["global_error_estimate"] = np.zeros(n)
             info["_global_error_estimate"] = self._true
@@ -452,7 +454,13 @@ class RigidBodyVectorEnv(VectorEnv):
     def _step_estimated(self, actions):
         """The step of ``actions`` (those that act) with, under a tolerance, each period's error estimate."""
         if self.engine.tolerance is None or self._y is None:
-            return self._step(actions)
+            out = self._step(actions)
+            info = out[4]
+            # not estimated (the single env's None): NaN, its mask False
+            info["error_estimate"], info["_error_estimate"] = np.full(self.num_envs, np.nan), self._false
+            if "final_info" in info:
+                info["final_info"]["error_estimate"], info["final_info"]["_error_estimate"] = np.full(self.num_envs, np.nan), self._false
+            return out
         # with a tolerance: each period's estimated error, from the rate at its start and the
         # step it took (the single env's rule); 0 where no period ran (a sub-env restarted)
         rule = self.engine.rule
