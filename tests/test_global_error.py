@@ -130,9 +130,9 @@ def test_tolerance_check_is_validated():
         with pytest.raises(ValueError, match=r"tolerance_check must be False, True \(.*\) or 'refine'"):
             _body(1e-6, check=bad)
     with pytest.raises(ValueError, match="tolerance_check=True needs tolerance="):
-        FreeRigidBodyEnv(tolerance_check=True)
+        FreeRigidBodyEnv(tolerance_check=True, tolerance=None)
     with pytest.raises(ValueError, match="tolerance_check='refine' needs tolerance="):
-        FreeRigidBodyEnv(tolerance_check="refine")
+        FreeRigidBodyEnv(tolerance_check="refine", tolerance=None)
     with pytest.raises(ValueError, match="tolerance_check='refine' needs guard='subdivide'"):
         _body(1e-6, check="refine", guard="refuse")
     from rbenvs import compiled

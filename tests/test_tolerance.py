@@ -95,7 +95,7 @@ def test_the_count_meets_the_budget_and_one_fewer_does_not():
 # ----------------------------------------------------------------- validation
 @pytest.mark.parametrize("bad", [0.0, 1.0, -1e-3, 2.0, math.nan, math.inf, "1e-3", True, 1j])
 def test_tolerance_is_validated_at_construction(bad):
-    with pytest.raises((ValueError, TypeError), match=r"tolerance must be None or a finite number with 0 < tolerance < 1"):
+    with pytest.raises((ValueError, TypeError), match=r"tolerance must be 'default' \(the env's default accuracy\), None \(unchecked.*\) or a finite number with 0 < tolerance < 1"):
         FreeRigidBodyEnv(tolerance=bad)
 
 
@@ -109,23 +109,24 @@ def test_tolerance_needs_a_guard_and_a_scheme_with_an_error_constant():
     for bad in (0, -3, 2.5, "10"):
         with pytest.raises((ValueError, TypeError), match="tolerance_horizon"):
             FreeRigidBodyEnv(tolerance=1e-3, tolerance_horizon=bad)
-    # a horizon without a tolerance would be ignored: refused
+    # a horizon without a tolerance would be ignored: refused (the default accuracy takes one)
     for cls in (FreeRigidBodyEnv, LagrangeTopEnv, TippeTopEnv):
         with pytest.raises(ValueError, match=r"tolerance_horizon=50 is the span of control periods that tolerance= covers, and tolerance is None"):
-            cls(tolerance_horizon=50)
+            cls(tolerance_horizon=50, tolerance=None)
 
 
 def test_default_horizon_is_the_registered_episode():
     assert FreeRigidBodyEnv(tolerance=1e-3, integrator="rk4").model.horizon == 400
     assert LagrangeTopEnv(tolerance=1e-3, integrator="rk4").model.horizon == 500
     assert TippeTopEnv(tolerance=1e-3).model.horizon == 2500
-    assert FreeRigidBodyEnv().model.tolerance is None  # the default: no accuracy bound, as before
+    assert FreeRigidBodyEnv().model.tolerance == 1e-3 and FreeRigidBodyEnv().model.accuracy == "default"  # the default accuracy
+    assert FreeRigidBodyEnv(tolerance=None).model.tolerance is None
 
 
 def test_without_tolerance_nothing_changes():
-    env = FreeRigidBodyEnv(integrator="rk4")
+    env = FreeRigidBodyEnv(integrator="rk4", tolerance=None)
     _, info = env.reset(seed=0)
-    assert "error_estimate" not in info and env.step_rule.params[3:] == (0.0, 1.0, 0.0) and env.step_rule.error is None
+    assert info["error_estimate"] is None and env.step_rule.params[3:] == (0.0, 1.0, 0.0) and env.step_rule.error is None
 
 
 # ----------------------------------------------------------------- free body at 1e4 rad/s
@@ -148,7 +149,7 @@ def _free_body_run(env, seed, periods):
         pi = np.array(env.state_components[:3])
         err = max(err, float(np.linalg.norm(pi - ref) / np.linalg.norm(ref)))
         norm_err = max(norm_err, abs(float(np.linalg.norm(pi) / np.linalg.norm(pi0)) - 1.0))
-        est += info.get("error_estimate", 0.0)
+        est += info["error_estimate"] or 0.0  # (None: not estimated)
     return err, norm_err, est
 
 
@@ -199,7 +200,7 @@ def _top_run(env, start, periods, refs=None):
         y = env.state_components
         err = max(err, float(np.linalg.norm(np.subtract(y[:3], r[:3])) / np.linalg.norm(r[:3])), float(np.linalg.norm(np.subtract(y[3:6], r[3:6]))))
         tilt_err = max(tilt_err, abs(info["tilt"] - top_tilt((0.0, 0.0, 1.0), r)))
-        est += info.get("error_estimate", 0.0)
+        est += info["error_estimate"] or 0.0  # (None: not estimated)
     return err, tilt_err, est, refs
 
 
@@ -229,7 +230,9 @@ def test_heavy_top_with_euler_above_the_critical_spin_stays_up_or_is_refused():
     can bound), and the scheme the message names, rk4, stays within the tolerance of the
     reference for the whole episode (500 periods, 10 s) at 1e-2 and 1e-6."""
     periods = 500
-    fallen = LagrangeTopEnv(integrator="euler", max_torque=0.0)
+    with pytest.raises(ValueError, match=r"'euler' cannot be held to LagrangeTopEnv's default accuracy.*tolerance=None to run it unchecked"):
+        LagrangeTopEnv(integrator="euler", max_torque=0.0)  # (the default accuracy refuses it)
+    fallen = LagrangeTopEnv(integrator="euler", max_torque=0.0, tolerance=None)
     refs = None
     for tol in (1e-2, 1e-6):
         with pytest.raises(ValueError, match=rf"tolerance={tol!r} needs an integrator whose leading error on a rotation is in the phase, \['rk4'\].*"
@@ -252,7 +255,8 @@ def test_free_body_with_euler_is_refused_with_the_reason():
                 FreeRigidBodyEnv(integrator="euler", tolerance=tol, **kwargs)
     with pytest.raises(ValueError, match=r"'euler' errs in the amplitude"):
         TippeTopEnv(integrator="euler", tolerance=1e-3)
-    FreeRigidBodyEnv(integrator="euler")  # without a tolerance: the stability guard alone, as before
+    FreeRigidBodyEnv(integrator="euler", tolerance=None)  # unchecked: the stability guard alone, as before
+    TippeTopEnv(integrator="euler")  # (the tippe top's default accuracy is estimated only: euler runs unchecked)
 
 
 # ----------------------------------------------------------------- refuse, the cap, info
@@ -555,7 +559,8 @@ def test_integrator_auto_takes_the_cheapest_scheme_meeting_the_tolerance():
     assert loose.integrator.name == "rk4"
     assert loose.internal_steps(loose.reset(seed=0) and loose.state_components, (0.0, 0.0, 0.0)) == 1
     with pytest.raises(ValueError, match=r"integrator='auto' chooses the scheme that meets tolerance= at the least cost: pass tolerance="):
-        FreeRigidBodyEnv(integrator="auto")
+        FreeRigidBodyEnv(integrator="auto", tolerance=None)
+    assert FreeRigidBodyEnv(integrator="auto").integrator.name == "rk4"  # (the default accuracy)
 
 
 def test_an_env_with_a_tolerance_pickles_and_steps_the_same():

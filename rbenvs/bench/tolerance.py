@@ -147,7 +147,7 @@ def scene_cases(names=None) -> tuple:
         kwargs["integrator"] = "rk4"
         if env != "tippe_top":
             kwargs["max_torque"] = 0.0
-        probe = scene.make(**kwargs)
+        probe = scene.make(**kwargs, tolerance=None)
         episode = probe.spec.max_episode_steps
         dt = probe.unwrapped.dt
         probe.close()
@@ -199,6 +199,7 @@ def _env(case, **kw):
     from ..envs import FreeRigidBodyEnv, LagrangeTopEnv, TippeTopEnv, UnstableMotionWarning
 
     cls = {"free_body": FreeRigidBodyEnv, "heavy_top": LagrangeTopEnv, "tippe_top": TippeTopEnv}[case.env]
+    kw.setdefault("tolerance", None)  # (the rows without a tolerance and the fixed settings: unchecked)
     with warnings.catch_warnings():  # (the bench measures what the warning says: the table shows it)
         warnings.simplefilter("ignore", UnstableMotionWarning)
         return cls(**case.kwargs, **kw)
@@ -271,7 +272,7 @@ def _episode(case, env, starts, refs):
                 n = int(round(env.dt / info["internal_step"]))
                 # (the companion: n / 2 steps of 2 h; "refine": the replays' steps, the period's first try's included)
                 steps += n + (companion_steps(n) if checked else 0) + info.get("replayed_steps", 0)
-                est += info.get("error_estimate", 0.0)
+                est += info.get("error_estimate") or 0.0  # (None: not estimated)
                 if info["numerical_failure"]:
                     if failure is None:
                         by = "the global error estimate passed the tolerance" if "global_error_estimate" in info else "a numerical failure"

@@ -342,13 +342,11 @@ class StepRule:
     share: tuple | None = None
 
     @classmethod
-    def build(cls, rates, region, dt: float, guard: str, integrator=None, tolerance=None, horizon=None, system=None, zero_control=(),
-              enforce=True) -> "StepRule":
+    def build(cls, rates, region, dt: float, guard: str, integrator=None, tolerance=None, horizon=None, system=None, zero_control=()) -> "StepRule":
         """The rule for ``rates`` (the system's :class:`~rbenvs.contracts.GuardRates` for
         ``region``) at control period ``dt`` under ``guard``; with ``tolerance`` (a relative
         error over ``horizon`` periods) also the accuracy bound of ``integrator`` (its
-        ``order`` and ``error_constant``), which ``enforce=False`` estimates without acting on
-        (the counts are the stability bound's)."""
+        ``order`` and ``error_constant``)."""
         if rates.rotation_bound is not None:  # the system's accuracy bound replaces the scheme's
             bound, growth = rates.rotation_bound, math.inf
         else:
@@ -415,10 +413,6 @@ class StepRule:
             mode_share = (mode_share[0], (mode_share[1], 0.0 if forced is None else float(forced) / c))
             accuracy, text = (t.replace("C (lambda_d h)^", "C a (lambda_d h)^") + " (a = the decaying mode's share of it, "
                               + mode_share[0].__name__ + ")" for t in (accuracy, text))
-        if not enforce:  # (estimated and reported, not acted on)
-            k, kd, accuracy = 0.0, 0.0, ""
-            text = rates.text if bound == math.inf else text.split("; error ")[0]
-            active = guard != "off" and (bound != math.inf or growth != math.inf or dissipation is not None)
         return cls(rotation, (float(dt), float(bound), float(growth), float(k), float(p), float(kd)), dissipation, step_d, rates.ceiling, text, active, error,
                    accuracy, motion, tuple(zero_control), mode_share)
 

@@ -35,10 +35,8 @@ class Model:
     * ``tolerance``: the relative error allowed over ``horizon`` control periods (``None``: no
       accuracy bound; :mod:`rbenvs.core.guard`);
     * ``accuracy``: where ``tolerance`` came from: ``"explicit"`` (the user's: its steps sum
-      with compensation), ``"default"`` (the env's default accuracy, enforced: the steps sum
-      plainly, so that a default scene's trajectory is the one it had without) or
-      ``"estimate"`` (the env's default, estimated and reported only: the steps are the
-      stability bound's; the tippe top's until its default bound is sized over its tops);
+      with compensation) or ``"default"`` (the env's default accuracy: the steps sum plainly, so
+      that a default scene's trajectory is the one it had without);
     * ``check``: with a tolerance, whether a companion run estimates the episode's global error
       (``tolerance_check``; :mod:`rbenvs.core.global_error`), and ``refine``: whether the episode
       is then replayed with more steps where it passes the tolerance (``"refine"``) instead of
@@ -86,8 +84,7 @@ class Model:
         region: StepRegion = self.integrator.region
         rates = self.system.guard_rates(region, self.speed_ceiling)
         zero = self.actuator.control((0.0,) * self.actuator.size)[1] if self.tolerance is not None else ()
-        object.__setattr__(self, "step_rule", StepRule.build(rates, region, self.dt, self.guard, self.integrator, self.tolerance, self.horizon, self.system, zero,
-                                                                 enforce=self.accuracy != "estimate"))
+        object.__setattr__(self, "step_rule", StepRule.build(rates, region, self.dt, self.guard, self.integrator, self.tolerance, self.horizon, self.system, zero))
         floor = float(self.task.reward_floor(self.system, self.observation_high))
         if not math.isfinite(floor):
             raise ValueError(f"the task's reward floor must be finite, got {floor} (task {type(self.task).__name__})")

@@ -728,16 +728,15 @@ class Engine:
 
     def readouts(self, y, u, fired, h) -> dict:
         """The physical read-outs (the system's, under the control ``u`` that acted and with the
-        event flag), ``internal_step`` (``h``) and ``error_estimate`` (``None``: not estimated),
-        keyed by name."""
+        event flag), and ``internal_step`` (``h``), keyed by name."""
         info = dict(zip(self.readout_names, self.system.readouts(y, u, fired)))
         info["internal_step"] = h
-        info["error_estimate"] = None  # (not estimated; a tolerance's step writes its period's)
         return info
 
     def info_one(self, y, u, fired, h, metrics, failed: bool) -> dict:
         """One env's ``info``: read-outs, metrics, ``numerical_failure``; Python scalars."""
         info = self.readouts(y, u, fired, h)
+        info["error_estimate"] = None  # (not estimated; a tolerance's step writes its period's)
         info.update(metrics)
         for name, v in info.items():
             if type(v) is not float and type(v) is not bool:

@@ -104,10 +104,8 @@ class RigidBodyEnv(gym.Env):
     # the physical keywords ``param_ranges`` may randomize (rbenvs.envs.options), in draw order
     randomizable: tuple = ()
     # tolerance="default": the relative error over an episode each env is held to unless told
-    # otherwise ("default": enforced, the steps subdivide where it asks; "estimate": estimated and
-    # reported in info["error_estimate"] only), for the integrators a tolerance takes
-    default_tolerance: float = 1e-3
-    default_accuracy: str = "default"
+    # otherwise, for the integrators a tolerance takes (None: unchecked)
+    default_tolerance: float | None = 1e-3
     _ranges = None  # the validated param_ranges (None: every episode has the constructor's parameters)
     _realism = Realism(None, None, 0)  # noise, bias, delay: none
     noiseless_observation = None  # with observation noise or bias: the last observation without them
@@ -147,7 +145,7 @@ class RigidBodyEnv(gym.Env):
                              "pass tolerance= with it, or leave tolerance_horizon out")
         accuracy = "explicit"
         if isinstance(tolerance, str):  # the env's default accuracy (guard="off" takes substeps steps whatever: unchecked)
-            tolerance, accuracy = (self.default_tolerance, self.default_accuracy) if guard != "off" else (None, "explicit")
+            tolerance, accuracy = (self.default_tolerance, "default") if guard != "off" and self.default_tolerance is not None else (None, "explicit")
         mode = require_tolerance_check(tolerance_check, tolerance, guard)
         check, refine = mode is not False, mode == "refine"
         horizon = self._tolerance_horizon(tolerance_horizon)
@@ -164,7 +162,7 @@ class RigidBodyEnv(gym.Env):
         if render_mode is not None and (not isinstance(render_mode, str) or render_mode not in self.metadata["render_modes"]):
             raise ValueError(f"render_mode must be None or one of {self.metadata['render_modes']}, got {render_mode!r}")
         if tolerance is not None and accuracy != "explicit" and not _takes_tolerance(type(integrator)):
-            if integrator.error_constant is not None and accuracy == "default":  # (euler: its error is in the amplitude)
+            if integrator.error_constant is not None:  # (euler: its error is in the amplitude)
                 raise ValueError(
                     f"integrator {integrator.name!r} cannot be held to {type(self).__name__}'s default accuracy (tolerance='default': "
                     f"{self.default_tolerance!r} relative over an episode): {self._amplitude_reason(integrator)}. Pass tolerance=None to run it "
@@ -392,7 +390,7 @@ class RigidBodyEnv(gym.Env):
             region = dataclasses.replace(region, rotation=1.0, reason="one radian of the fastest rate per step")
         rates = self.system.guard_rates(region, self._start_speed)
         m = self.model
-        rule = StepRule.build(rates, region, self.dt, "subdivide", self.integrator, m.tolerance, m.horizon, enforce=m.accuracy != "estimate")
+        rule = StepRule.build(rates, region, self.dt, "subdivide", self.integrator, m.tolerance, m.horizon)
         x = step_ratio(rule.params, rates.ceiling)
         lam_d = self._start_dissipation()
         d_stable = 0.0
