@@ -199,10 +199,10 @@ def _env(case, **kw):
     from ..envs import FreeRigidBodyEnv, LagrangeTopEnv, TippeTopEnv, UnstableMotionWarning
 
     cls = {"free_body": FreeRigidBodyEnv, "heavy_top": LagrangeTopEnv, "tippe_top": TippeTopEnv}[case.env]
-    kw.setdefault("tolerance", None)  # (the rows without a tolerance and the fixed settings: unchecked)
+    kw = {"tolerance": None, **case.kwargs, **kw}  # (the rows without a tolerance and the fixed settings: unchecked)
     with warnings.catch_warnings():  # (the bench measures what the warning says: the table shows it)
         warnings.simplefilter("ignore", UnstableMotionWarning)
-        return cls(**case.kwargs, **kw)
+        return cls(**kw)
 
 
 def _reset(env, start):
