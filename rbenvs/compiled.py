@@ -574,16 +574,35 @@ def _period_and_finish(L: Layout, u: str, un: str, more: str, starts: list[str] 
     return _checked_period(L, u, more) + list(starts) + _finish_lines(L, f"y = ({_comps('Ynew[{j}, i]', L.dim)})", un, u, "fired[i]", fresh)
 
 
-def _checked_period(L: Layout, u: str, more: str) -> list[str]:
+def _estimate_expression(L: Layout) -> str:
+    """The period's error estimate from the rates ``er`` (``rate``, ``a``) and the step ``hi``:
+    the functions :meth:`rbenvs.core.guard.StepRule.estimate` calls, ``PEE`` its ``(C, p, dt)``."""
+    estimate = "motion_error_estimate(PEE, er, hi)" if L.motion else "error_estimate(PEE, er, hi)"
+    if L.dissipation is not None:
+        estimate += " + relaxation_estimate(PEE, rate, a, hi)"
+    return estimate
+
+
+def _checked_period(L: Layout, u: str, more: str, estimate: bool = False) -> list[str]:
     """The guard's counts (a refusal returns -1 before anything is written), the period per
-    sub-env or as SIMD passes, and the non-finite check (returns ``bad``, the count)."""
+    sub-env or as SIMD passes, and the non-finite check (returns ``bad``, the count).
+    ``estimate``: the count's loop also writes each period's error estimate into ``EST`` from the
+    same rates (0 for a restarting sub-env, ``next_step`` and ``skip``: no period of its own ran)
+    and the step its count gives, the step the period takes (one evaluation of the rates)."""
     comps, dim = _comps, L.dim
     y_old = f"y = ({comps('Y[{j}, i]', dim)})"
     store = [f"Ynew[{j}, i] = y[{j}]" for j in range(dim)]
     lines = ["    uniform = True"]
     # 1. the guard's counts, before anything is written
     count = ["for i in range(n):", "    c = substeps"]
-    if L.rotation is not None:
+    if estimate:
+        from .core.guard import MAX_INTERNAL_STEPS
+
+        count += ["    " + y_old, *("    " + line for line in _ratio_lines(L, u, parts=True, rates="er")), "    if check and not skip[i] and not (x <= substeps):",
+                  f"        c = ceil(x) if x <= {MAX_INTERNAL_STEPS} else {MAX_INTERNAL_STEPS + 1}", "        need += 1",
+                  "    if next_step and skip[i]:", "        EST[i] = 0.0", "    else:", "        hi = h if c == substeps else dt / c",
+                  f"        EST[i] = {_estimate_expression(L)}"]
+    elif L.rotation is not None:
         count += ["    if check and not skip[i]:", "        " + y_old, *("        " + line for line in _count_lines(L, u))]
     count += ["    counts[i] = c", "    if c != substeps:", "        uniform = False"]
     lines += ["    need = 0", *("    " + line for line in count), "    if refuse and need:", f"        return -1{more}"]
@@ -749,10 +768,10 @@ def vector_kernel(V: VectorLayout, chunked: bool = False):
        terminated or truncated, their episode clock 0 (a layout without a pure start leaves
        their states and rows to the caller);
     5. with ``V.estimate`` (a tolerance), each period's error estimate into ``EST`` (0 for a
-       restarting sub-env: no period ran): the rates at its start ``Y`` under its controls
-       (:func:`_ratio_lines`' parts, the plan's) and the step it took, ``hstep``, through the
-       functions :meth:`rbenvs.core.guard.StepRule.estimate` calls, ``PEE`` its ``(C, p, dt)``
-       (unread otherwise).
+       restarting sub-env: no period ran), written in 2's count loop from the rates it counts
+       with (:func:`_checked_period`) and the step the count gives, through the functions
+       :meth:`rbenvs.core.guard.StepRule.estimate` calls, ``PEE`` its ``(C, p, dt)`` (unread
+       otherwise): every sub-env's rates, counted or not.
 
     ``k``: the number of sub-envs whose step had an end or a truncation (restarting ones never:
     their period is discarded); ``ends[:m]`` the sub-envs whose row of ``RZ`` may have been
@@ -785,7 +804,7 @@ def vector_kernel(V: VectorLayout, chunked: bool = False):
             starts += [f"                CC[{j}, i] = 0.0" for j in range(L.dim)]
         fresh = "next_step & skip[i]"
     u_line, un_line = _controls(L, rows=True)
-    lines += ["    if phase != 2:", *("    " + line for line in _checked_period(L, u_line, ", 0, 0, 0")), "    if phase == 1:", "        return 0, 0, 0, 0"]
+    lines += ["    if phase != 2:", *("    " + line for line in _checked_period(L, u_line, ", 0, 0, 0", V.estimate)), "    if phase == 1:", "        return 0, 0, 0, 0"]
     lines += starts + _finish_lines(L, f"y = ({_comps('Ynew[{j}, i]', L.dim)})", un_line, u_line, "fired[i]", fresh)
     # 3. the episode's bookkeeping, then 4. the restarts' step (skip: the sub-envs that restart,
     # read-only here; with next_step they are those whose previous step ended)
@@ -831,14 +850,6 @@ def vector_kernel(V: VectorLayout, chunked: bool = False):
     ]
     lines += ["                steps[i] = 0", "                reward[i] = 0.0", "                terminated[i] = False", "                truncated[i] = False",
               "                fired[i] = False", "                done[i] = False", "                r += 1"]
-    if V.estimate:  # 5. the periods' estimates (hstep: the step each took; a restart's rewritten above, its estimate 0)
-        u_line = _controls(L, rows=True)[0]
-        estimate = "motion_error_estimate(PEE, er, hi)" if L.motion else "error_estimate(PEE, er, hi)"
-        if L.dissipation is not None:
-            estimate += " + relaxation_estimate(PEE, rate, a, hi)"
-        body = [f"y = ({_comps('Y[{j}, i]', L.dim)})", *_ratio_lines(L, u_line, parts=True, ratio=False, rates="er"), "hi = hstep[i]",
-                f"EST[i] = {estimate}"]
-        lines += ["    for i in range(n):", "        if next_step and skip[i]:", "            EST[i] = 0.0", "        else:", *("            " + line for line in body)]
     lines += ["    return 0, k, m, r"]
     namespace = _vector_namespace(V)
     source = "\n".join(lines)
@@ -852,7 +863,7 @@ def vector_kernel(V: VectorLayout, chunked: bool = False):
 
 
 @lru_cache(maxsize=None)
-def state_kernel(layout: Layout):
+def state_kernel(layout: Layout, estimate: bool = False):
     """The compiled period and finish of ONE state (the single env's step where numba is
     installed): the batch kernel's lines for one sub-env, on tuples of floats. Signature::
 
@@ -866,19 +877,26 @@ def state_kernel(layout: Layout):
     ``(reward, terminated, metrics...)``, ``q`` the read-outs; ``cc`` the run's compensation,
     in and out (a layout with ``step_c`` only: the others' hot call takes no more arguments).
     Every output is computed in every case (one return type), the float path's values where it
-    matters.
+    matters. ``estimate`` (a tolerance): ``P`` ends with ``PEE``, the estimate's ``(C, p, dt)``,
+    and the period's error estimate ``e`` is returned last, from the rates the count reads
+    (evaluated every period, counted or not: :func:`_checked_period`'s).
     """
     import numba
+    from .core.guard import MAX_INTERNAL_STEPS
 
     L = layout
     comps = _comps
     lines = [
         "def one(y, cc, u, un, check, refuse, P):" if L.step_c is not None else "def one(y, u, un, check, refuse, P):",
-        "    h, dt, substeps, PS, PO, PE, PR, PG, PA, PD, CD, PV, PW, HI = P",
+        "    h, dt, substeps, PS, PO, PE, PR, PG, PA, PD, CD, PV, PW, HI" + (", PEE" if estimate else "") + " = P",
         "    c = substeps",
         "    need = 0",
     ]
-    if L.rotation is not None:
+    if estimate:
+        lines += [*("    " + line for line in _ratio_lines(L, "u = u", parts=True, rates="er")), "    if check and not (x <= substeps):",
+                  f"        c = ceil(x) if x <= {MAX_INTERNAL_STEPS} else {MAX_INTERNAL_STEPS + 1}", "        need += 1",
+                  "    hi = h if c == substeps else dt / c", f"    e = {_estimate_expression(L)}"]
+    elif L.rotation is not None:
         lines += ["    if check:", *("        " + line for line in _count_lines(L, "u = u"))]
     lines += ["    status = 0", "    hi = h", "    f = False", "    if refuse and need:", "        status = -1", "    else:"]
     lines += ["        " + line for line in _period_lines(L)]
@@ -893,10 +911,14 @@ def state_kernel(layout: Layout):
     lines += [
         "    r = evaluate(PE, y, un)",
         "    q = readouts(PR, y, u, f)",
-        f"    return status, c, hi, f, y, ({comps('v{j}', L.n_obs)}), out, r, q" + (", cc" if L.step_c is not None else ""),
+        f"    return status, c, hi, f, y, ({comps('v{j}', L.n_obs)}), out, r, q" + (", cc" if L.step_c is not None else "") + (", e" if estimate else ""),
     ]
     namespace = _namespace(L)
-    generate("\n".join(lines), f"state kernel dim={L.dim} n_obs={L.n_obs}", namespace)
+    if estimate:
+        from .core.guard import error_estimate, motion_error_estimate, relaxation_estimate
+
+        namespace.update(error_estimate=error_estimate, motion_error_estimate=motion_error_estimate, relaxation_estimate=relaxation_estimate)
+    generate("\n".join(lines), f"state kernel dim={L.dim} n_obs={L.n_obs}" + (" estimate" if estimate else ""), namespace)
     return _cached_njit(namespace["one"], "one", **KERNEL_OPTIONS)
 
 
@@ -1136,11 +1158,14 @@ class StateStep:
     compiled overload's entry point for these argument types, which skips numba's per-call
     type dispatch (about 0.9 us of a call's 1.7 with the parameter tuples)."""
 
-    def __init__(self, parts, dim: int, n_obs: int, n_control: int, n_action: int, sample, obs_high, h: float, dt: float, substeps: int, metric_names, readout_names):
+    def __init__(self, parts, dim: int, n_obs: int, n_control: int, n_action: int, sample, obs_high, h: float, dt: float, substeps: int, metric_names, readout_names,
+                 error=None):
         layout, params, _, _ = _layout(parts, dim, n_obs, n_control, n_action, sample)
-        self.kernel = state_kernel(layout)
+        # error: a tolerance's (C, p, dt): the kernel returns each period's estimate last
+        self.estimated = error is not None and layout.rotation is not None
+        self.kernel = state_kernel(layout, self.estimated)
         high = tuple(float(v) for v in obs_high)
-        self.params = (float(h), float(dt), int(substeps)) + params + (high,)
+        self.params = (float(h), float(dt), int(substeps)) + params + (high,) + ((tuple(float(v) for v in error),) if self.estimated else ())
         self.info = info_function(tuple(readout_names), tuple(metric_names))
         self._call = None
 
@@ -1168,12 +1193,13 @@ class StateStep:
 
 @lru_cache(maxsize=None)
 def info_function(readout_names: tuple, metric_names: tuple):
-    """``info(q, r, h)``: the single env's ``info`` from the read-outs ``q``, the evaluation
-    ``r = (reward, terminated, metrics...)`` and the internal step ``h``, as one dict display
-    (the order and keys of :func:`state_finish`'s)."""
-    items = [f"{name!r}: q[{j}]" for j, name in enumerate(readout_names)] + ["'internal_step': h", "'error_estimate': None"]
+    """``info(q, r, h, e=None)``: the single env's ``info`` from the read-outs ``q``, the evaluation
+    ``r = (reward, terminated, metrics...)``, the internal step ``h`` and the period's error
+    estimate ``e`` (``None``: not estimated), as one dict display (the order and keys of
+    :func:`state_finish`'s)."""
+    items = [f"{name!r}: q[{j}]" for j, name in enumerate(readout_names)] + ["'internal_step': h", "'error_estimate': e"]
     items += [f"{name!r}: r[{j + 2}]" for j, name in enumerate(metric_names)] + ["'numerical_failure': False"]
-    src = "def info(q, r, h):\n    return {" + ", ".join(items) + "}\n"
+    src = "def info(q, r, h, e=None):\n    return {" + ", ".join(items) + "}\n"
     return generate(src, f"info of {len(readout_names)} read-outs and {len(metric_names)} metrics")["info"]
 
 

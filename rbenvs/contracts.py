@@ -122,6 +122,11 @@ class GuardRates:
       of ``dt`` from ``y`` under ``u``, where the system knows its motion (the free body's orbit);
       used only by ``tolerance=`` (:func:`rbenvs.core.guard.motion_rates`); ``None``: the speed
       at the period's start.
+    * ``accuracy_bound``: pure ``fn(P, y) -> Lambda`` [1/s], a cheap upper bound of ``accuracy``'s
+      rate at every ``y`` (the free body's Jacobian bound ``s |Pi|``): the default accuracy tests
+      it first and reads the sharp rates only where it does not hold the period within its budget
+      (:func:`rbenvs.core.guard.motion_rates`' gate); ``None``: no gate where ``accuracy`` is
+      declared (without ``accuracy`` the gate takes ``rotation``'s rate).
     """
 
     rotation: PureFunction
@@ -135,6 +140,7 @@ class GuardRates:
     error_blocks: tuple | None = None
     rotating_blocks: tuple = ()
     speed: PureFunction | None = None
+    accuracy_bound: PureFunction | None = None
 
 
 @runtime_checkable

@@ -120,6 +120,8 @@ def _ceil_arrays(x):
 def whole_root(y, p):
     """The fewest whole ``n >= 0`` with ``n^p >= y`` (floats or arrays): the root's guess moved to
     the exact answer of the integer-power test, so every path gives the same count."""
+    if isinstance(y, float) and 0.0 < y <= 1.0:  # (one step is enough: the common case, without a root)
+        return 1.0
     n = ceiling(y ** (1.0 / p))
     m = n - 1.0
     n = select(m >= 1.0, select(power(m, p) >= y, m, n), n)
@@ -200,7 +202,8 @@ def step_ratio_motion(g, rates):
 
 
 @lru_cache(maxsize=None)
-def motion_rates(rotation, rhs, blocks: tuple, accuracy=None, rotating: tuple = (), order: float = 1.0, span: float = 0.0, speed_bound=None, dt: float = 0.0):
+def motion_rates(rotation, rhs, blocks: tuple, accuracy=None, rotating: tuple = (), order: float = 1.0, span: float = 0.0, speed_bound=None, dt: float = 0.0,
+                 gate: bool = False, gate_rate=None):
     """``rates(P, y, u) -> (lambda, mu, lambda_e)`` (generated, pure), ``P = (P_rotation, P_rhs)``
     (``(P_rotation, P_rhs, P_accuracy)`` with ``accuracy``): the guard's rate ``lambda =
     rotation(P_rotation, y)``, the error's rate ``lambda_e = accuracy(P_accuracy, y)`` (a bound
@@ -264,9 +267,23 @@ def motion_rates(rotation, rhs, blocks: tuple, accuracy=None, rotating: tuple = 
     the period's; where the system bounds its blocks' relative speed over a period
     (:class:`~rbenvs.contracts.GuardRates`' ``speed``: the free body's orbit, along which a
     state by the intermediate axis runs its separatrix within the period), that bound is the
-    speed of every block but the rotating ones."""
-    lines = ["def rates(P, y, u):", "    lam = rotation(P[0], y)", "    f = rhs(P[1], y, u)",
-             "    lam_e = accuracy(P[2], y)" if accuracy is not None else "    lam_e = lam"]
+    speed of every block but the rotating ones.
+
+    Why ``gate`` (the default accuracy; ``P``'s last item ``(dt, p + 1, substeps^p / k, P_gate)``):
+    ``mu <= lambda_e <= Lambda``, ``Lambda`` a cheap bound of the error's rate (``gate_rate``, the
+    system's ``accuracy_bound``; ``None``: ``lambda``, which is ``lambda_e`` without ``accuracy``),
+    so ``C Lambda dt (Lambda h)^p`` bounds the estimate. Where that bound keeps the period's
+    ``substeps`` within its budget the rates are ``(lambda, Lambda, Lambda)``: the count is the
+    one the sharp rates give (both within ``substeps``: the stability bound's), the estimate
+    reported is the bound, and the sharp rates (the vector field, the system's rate) are not
+    evaluated. Without rotating blocks only (their carried term is not bounded by ``Lambda``)."""
+    lines = ["def rates(P, y, u):", "    lam = rotation(P[0], y)"]
+    if gate:
+        lines += [f"    G = P[{4 if speed_bound is not None else 3}]", "    big = gate_rate(G[3], y)" if gate_rate is not None else "    big = lam",
+                  "    cheap = power(big * G[0], G[1]) <= G[2]",
+                  "    if isinstance(lam, float) and cheap:",  # (one state: the sharp rates only where the bound does not hold)
+                  "        return (lam, big, big)"]
+    lines += ["    f = rhs(P[1], y, u)", "    lam_e = accuracy(P[2], y)" if accuracy is not None else "    lam_e = lam"]
 
     def speed(a, b):
         ny = " + ".join(f"y[{i}] * y[{i}]" for i in range(a, b))
@@ -294,10 +311,13 @@ def motion_rates(rotation, rhs, blocks: tuple, accuracy=None, rotating: tuple = 
                   f"    ma = abs({dot}) / maximum({ny}, 1e-300)", "    ma = select(ma < md, ma, md)",
                   f"    mq = md + ma * m * {float(span)!r} + m * power(m / maximum(lam_e, 1e-300), {float(order)!r})",
                   "    mu = maximum(mu, mq)"]
-    lines += ["    return (lam, mu, lam_e)"]
-    namespace = generate("\n".join(lines) + "\n", f"motion rates of {len(blocks)} blocks" + (f" and {len(rotating)} rotating" if rotating else ""),
-                         {"rotation": rotation, "rhs": rhs, "accuracy": accuracy, "speed_bound": speed_bound, "sqrt": sqrt, "maximum": maximum, "select": select,
-                          "power": power})
+    if gate:  # (a batch: the bound where it holds)
+        lines += ["    return (lam, select(cheap, big, mu), select(cheap, big, lam_e))"]
+    else:
+        lines += ["    return (lam, mu, lam_e)"]
+    namespace = generate("\n".join(lines) + "\n", f"motion rates of {len(blocks)} blocks" + (f" and {len(rotating)} rotating" if rotating else "") + (" gated" if gate else ""),
+                         {"rotation": rotation, "rhs": rhs, "accuracy": accuracy, "speed_bound": speed_bound, "gate_rate": gate_rate, "sqrt": sqrt, "maximum": maximum,
+                          "select": select, "power": power})
     return jitable(namespace["rates"])
 
 
@@ -342,11 +362,12 @@ class StepRule:
     share: tuple | None = None
 
     @classmethod
-    def build(cls, rates, region, dt: float, guard: str, integrator=None, tolerance=None, horizon=None, system=None, zero_control=()) -> "StepRule":
+    def build(cls, rates, region, dt: float, guard: str, integrator=None, tolerance=None, horizon=None, system=None, zero_control=(), gate_steps=None) -> "StepRule":
         """The rule for ``rates`` (the system's :class:`~rbenvs.contracts.GuardRates` for
         ``region``) at control period ``dt`` under ``guard``; with ``tolerance`` (a relative
         error over ``horizon`` periods) also the accuracy bound of ``integrator`` (its
-        ``order`` and ``error_constant``)."""
+        ``order`` and ``error_constant``). ``gate_steps``: the default accuracy's ``substeps``,
+        with which the rates test a cheap bound first (:func:`motion_rates`' gate)."""
         if rates.rotation_bound is not None:  # the system's accuracy bound replaces the scheme's
             bound, growth = rates.rotation_bound, math.inf
         else:
@@ -391,18 +412,25 @@ class StepRule:
             for q, d in rates.rotating_blocks:
                 mu_text += (f", with {q} (turning at its own speed m, driven by {d}): max(mu over the others, mu_{d} + a_{d} m {span:g} s "
                             f"+ m (m / lambda)^{integrator.order}), a_{d} = |{d} . d{d}/dt| / |{d}|^2 (the error {q} carries: {d}'s along itself)")
-            extra = (rotating, float(integrator.order), span) if rotating else ()
+            extra = {"rotating": rotating, "order": float(integrator.order), "span": span} if rotating else {}
             if rates.speed is not None:  # the system's bound of its speed over a period
-                extra = (rotating, float(integrator.order), span, rates.speed[0], float(dt))
+                extra.update(speed_bound=rates.speed[0], dt=float(dt))
                 mu_text += f"; over the period at most {rates.speed[0].__name__}'s bound (the motion's own)"
             tail = (rates.speed[1],) if rates.speed is not None else ()
+            if gate_steps is not None and not rotating and (rates.accuracy is None or rates.accuracy_bound is not None):
+                # the default accuracy: a cheap bound first (motion_rates' gate)
+                bound_fn, bound_p = rates.accuracy_bound if rates.accuracy is not None else (None, ())
+                extra.update(gate=True, gate_rate=bound_fn)
+                tail += ((float(dt), p + 1.0, float(gate_steps) ** p / k, bound_p),)
+                mu_text += (f"; first the bound C L dt (L dt / {gate_steps})^{integrator.order}, L = "
+                            + (f"{bound_fn.__name__}" if bound_fn is not None else "lambda") + " (the default accuracy: where it holds, reported)")
             if rates.accuracy is not None:  # the system's sharper rate of the error (lambda_e)
-                rotation = (motion_rates(rates.rotation[0], rhs[0], blocks, rates.accuracy[0], *extra), (rates.rotation[1], rhs[1], rates.accuracy[1]) + tail)
+                rotation = (motion_rates(rates.rotation[0], rhs[0], blocks, rates.accuracy[0], **extra), (rates.rotation[1], rhs[1], rates.accuracy[1]) + tail)
                 accuracy, text = (t.replace("(lambda h)^", "(lambda_e h)^") for t in (accuracy, text))
                 mu_text = ("; lambda_e = the system's bound of its Jacobian (" + rates.accuracy[0].__name__ + ")"
                            + mu_text.replace("min(lambda,", "min(lambda_e,").replace("/ lambda)^", "/ lambda_e)^"))
             else:
-                rotation = (motion_rates(rates.rotation[0], rhs[0], blocks, None, *extra), (rates.rotation[1], rhs[1], ()) + tail)
+                rotation = (motion_rates(rates.rotation[0], rhs[0], blocks, None, **extra), (rates.rotation[1], rhs[1], ()) + tail)
             motion = True
             accuracy = accuracy.replace("error C lambda dt", "error C mu dt") + mu_text
             text = text.replace("error C lambda dt", "error C mu dt") + mu_text

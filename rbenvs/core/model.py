@@ -84,7 +84,8 @@ class Model:
         region: StepRegion = self.integrator.region
         rates = self.system.guard_rates(region, self.speed_ceiling)
         zero = self.actuator.control((0.0,) * self.actuator.size)[1] if self.tolerance is not None else ()
-        object.__setattr__(self, "step_rule", StepRule.build(rates, region, self.dt, self.guard, self.integrator, self.tolerance, self.horizon, self.system, zero))
+        object.__setattr__(self, "step_rule", StepRule.build(rates, region, self.dt, self.guard, self.integrator, self.tolerance, self.horizon, self.system, zero,
+                                                                gate_steps=self.substeps if self.accuracy == "default" else None))
         floor = float(self.task.reward_floor(self.system, self.observation_high))
         if not math.isfinite(floor):
             raise ValueError(f"the task's reward floor must be finite, got {floor} (task {type(self.task).__name__})")

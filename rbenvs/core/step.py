@@ -286,8 +286,6 @@ class Engine:
         # with a tolerance every period reports its estimated error (info["error_estimate"]): the
         # rate at its start and the step it took; without one the step is untouched
         self.tolerance = m.tolerance
-        if m.tolerance is not None:
-            self.step_one = self._step_one_estimated
         # tolerance_check: every period takes an even count (its companion half as many steps of
         # twice the size: rbenvs.core.global_error), so neither the plain loop (substeps steps) nor
         # the compiled single-state step (the guard's count) runs
@@ -348,7 +346,7 @@ class Engine:
         if inputs is None:
             return None
         parts, sizes = inputs
-        return _compiled.StateStep(parts, *sizes, self.high_list, self.h, self.dt, self.substeps, self.metric_names, self.readout_names)
+        return _compiled.StateStep(parts, *sizes, self.high_list, self.h, self.dt, self.substeps, self.metric_names, self.readout_names, self.rule.error)
 
     @property
     def checked_runs(self):
@@ -774,17 +772,25 @@ class Engine:
         u_norm, u = self.control(a) if control is None else control
         one = self._state_step if self._state_step_tried else self.state_step
         if one is not None:  # the same period and finish, compiled: one call
+            e = None  # (the period's error estimate: a kernel with a tolerance's returns it last)
             if self.comp is None:
-                status, count, h, fired, y, o, over, r, q = one(y0, u, u_norm, not plain, self.guard == "refuse")
-            else:  # (the run's compensation in and out)
+                if one.estimated:
+                    status, count, h, fired, y, o, over, r, q, e = one(y0, u, u_norm, not plain, self.guard == "refuse")
+                else:
+                    status, count, h, fired, y, o, over, r, q = one(y0, u, u_norm, not plain, self.guard == "refuse")
+            elif one.estimated:  # (the run's compensation in and out)
+                status, count, h, fired, y, o, over, r, q, comp, e = one.compensated(y0, self.comp, u, u_norm, not plain, self.guard == "refuse")
+            else:
                 status, count, h, fired, y, o, over, r, q, comp = one.compensated(y0, self.comp, u, u_norm, not plain, self.guard == "refuse")
             if status:
                 if status < 0:
                     raise self.refusal(count)
-                return self._failed_one(y0, u_norm, u, h, plain)
+                out = self._failed_one(y0, u_norm, u, h, plain)
+                out[4]["error_estimate"] = e
+                return out
             if self.comp is not None:
                 self.comp = comp
-            obs, reward, terminated, info = np.array(o, dtype=np.float32), r[0], r[1], one.info(q, r, h)
+            obs, reward, terminated, info = np.array(o, dtype=np.float32), r[0], r[1], one.info(q, r, h, e)
             if fired or over or terminated:
                 info["terminal_reason"] = terminal_reason(False, fired, over, terminated, self.event_name)
                 terminated = True
@@ -793,6 +799,9 @@ class Engine:
                 if over:
                     plain = False
             return y, obs, reward, terminated, info, u, plain
+        lam = None  # a tolerance's float path: the rates at y0 give the count and the estimate
+        if self.tolerance is not None and ratio is None:
+            ratio, lam, lam_d, share = self.plan_one(y0, u)
         if plain:  # fixed substeps, nothing watched: the loop inline (the hot path)
             step, h = self.bound_step, self.h
             y = step(y0, u, h)
@@ -804,7 +813,10 @@ class Engine:
             y, fired, h, comp = self.advance(y0, u, False, comp=self.comp, ratio=ratio)
         # a non-finite component makes the sum non-finite; the exact test runs only then
         if not math.isfinite(sum(y)) and not all(math.isfinite(c) for c in y):
-            return self._failed_one(y0, u_norm, u, h, plain)
+            out = self._failed_one(y0, u_norm, u, h, plain)
+            if lam is not None:
+                out[4]["error_estimate"] = float(self.rule.estimate(lam, h, lam_d, share))
+            return out
         if not plain and comp is not None:
             self.comp = comp
         finish = self.finish_one
@@ -815,6 +827,8 @@ class Engine:
             obs, over = self.observe(y)
             reward, terminated, metrics = self.evaluate(y, u_norm)
             info = self.info_one(y, u, fired, h, metrics, failed=False)
+        if lam is not None:  # (the period's estimated relative error: rbenvs.core.guard.error_estimate)
+            info["error_estimate"] = float(self.rule.estimate(lam, h, lam_d, share))
         if fired or over or terminated:  # (the common case tests three bools and goes on)
             info["terminal_reason"] = terminal_reason(False, fired, over, terminated, self.event_name)
             terminated = True
@@ -823,16 +837,6 @@ class Engine:
             if over:
                 plain = False  # outside the bounds the guard's static proof is void
         return y, obs, reward, terminated, info, u, plain
-
-    def _step_one_estimated(self, y0, a, plain):
-        """:meth:`step_one` with ``info["error_estimate"]``: the period's estimated relative error
-        (:func:`rbenvs.core.guard.error_estimate`, from the rate at ``y0`` and the step taken)."""
-        control = self.control(a)
-        x, lam, lam_d, share = self.plan_one(y0, control[1])
-        out = Engine.step_one(self, y0, a, plain, x, control)  # (the period's count from the same x, the same control)
-        info = out[4]
-        info["error_estimate"] = float(self.rule.estimate(lam, info["internal_step"], lam_d, share))
-        return out
 
     def _cap_text(self, h, y0=None, u=None) -> str:
         """Why a period failed when it was refused past the cap (``h < dt / MAX_INTERNAL_STEPS``):

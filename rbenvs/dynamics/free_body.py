@@ -345,12 +345,14 @@ class FreeBody:
         attitude the error ``tolerance=`` estimates takes the sharper :func:`error_rate`, the
         motion's own frequency within :func:`jacobian_rate`'s bound (the attitude itself turns
         at ``|Omega| / 2``: with it, ``lambda`` stays)."""
-        accuracy = None
+        accuracy = bound = None
         if not self.attitude:
             accuracy = (error_rate, error_rate_params(self._inverse))
         inv, spread, _ = error_rate_params(self._inverse)
+        # (the default accuracy's gate: error_rate is capped at the Jacobian's bound s |Pi|)
+        bound = (jacobian_rate, (spread,)) if accuracy is not None else None
         return GuardRates(rotation=(rotation_rate, (self._inverse, 1.0, 0.0)), ceiling=speed_ceiling, text="lambda = |Omega|", accuracy=accuracy,
-                          speed=(period_speed, (inv, spread)))
+                          speed=(period_speed, (inv, spread)), accuracy_bound=bound)
 
     # ------------------------------------------------------------------ vector field
     def rhs(self, y, u):

@@ -184,6 +184,10 @@ class RigidBodyVectorEnv(VectorEnv):
         # shared read-only masks: every step's info reuses them instead of allocating
         self._true = np.ones(self.num_envs, dtype=bool)
         self._false = np.zeros(self.num_envs, dtype=bool)
+        # info["error_estimate"] where nothing is estimated (tolerance=None, a scheme without an
+        # error constant): NaN, its mask False; one read-only array, not a new one per step
+        self._unestimated = np.full(self.num_envs, np.nan)
+        self._unestimated.flags.writeable = False
         self._true.flags.writeable = False
         self._false.flags.writeable = False
         self._reasons = ReasonPool(self.num_envs, self.engine.event_name)
@@ -332,7 +336,7 @@ class RigidBodyVectorEnv(VectorEnv):
         # no period yet: 0 with a tolerance (the single env's reset); without, not estimated (the
         # single env's None): NaN, its mask False
         estimated = self.engine.tolerance is not None
-        info["error_estimate"] = np.zeros(n) if estimated else np.full(n, np.nan)
+        info["error_estimate"] = np.zeros(n) if estimated else self._unestimated
         info["_error_estimate"] = self._true if estimated else self._false
         if self._checked:
             info["global_error_estimate"] = np.zeros(n)
@@ -457,13 +461,22 @@ class RigidBodyVectorEnv(VectorEnv):
             out = self._step(actions)
             info = out[4]
             # not estimated (the single env's None): NaN, its mask False
-            info["error_estimate"], info["_error_estimate"] = np.full(self.num_envs, np.nan), self._false
+            info["error_estimate"], info["_error_estimate"] = self._unestimated, self._false
             if "final_info" in info:
-                info["final_info"]["error_estimate"], info["final_info"]["_error_estimate"] = np.full(self.num_envs, np.nan), self._false
+                info["final_info"]["error_estimate"], info["final_info"]["_error_estimate"] = self._unestimated, self._false
             return out
         # with a tolerance: each period's estimated error, from the rate at its start and the
         # step it took (the single env's rule); 0 where no period ran (a sub-env restarted)
-        rule = self.engine.rule
+        vstep = self._vector_step
+        if self._ranges is None and not self._checked and vstep is not None and self._table is not None and vstep.layout.estimate:
+            # the compiled step writes the estimates into its info itself (a restart's 0, SAME_STEP's
+            # with the final info; _kernel_info); a non-finite state handed to the numpy path
+            # leaves them to _estimated (the kernel wrote them before the period: a restart's 0)
+            self._estimates = None
+            out = self._step(actions)
+            if "error_estimate" in out[4]:
+                return out
+            return self._estimated(out, self._estimates, self._false, None, None, None, actions)
         restart = self._prev_done.copy() if self.autoreset_mode is AutoresetMode.NEXT_STEP else self._false
         # the estimates come from the step where it writes them (param_ranges: each sub-env's
         # episode engine, _step_episodes; the compiled vector step, from the rates at each
@@ -475,8 +488,15 @@ class RigidBodyVectorEnv(VectorEnv):
         if not written:
             control = self.model.actuator.control(action_columns(actions, self.action_space.shape))
         self._estimates = None
-        obs, reward, terminated, truncated, info = self._step(actions, control)
-        estimate = self._estimates
+        out = self._step(actions, control)
+        return self._estimated(out, self._estimates, restart, control, y0, y2d0, actions)
+
+    def _estimated(self, out, estimate, restart, control, y0, y2d0, actions):
+        """The step's ``out`` with each period's ``estimate`` in its info (``None``: from the rates
+        of the states ``y0`` (``y2d0``) before the step under ``control``, made from ``actions``
+        where ``None``): 0 where no period ran (``restart``), SAME_STEP's with the final info."""
+        obs, reward, terminated, truncated, info = out
+        rule = self.engine.rule
         if estimate is None:
             if control is None:
                 control = self.model.actuator.control(action_columns(actions, self.action_space.shape))
@@ -645,9 +665,10 @@ class RigidBodyVectorEnv(VectorEnv):
             raise engine.refusal(int(r.counts[over].max()), f" of sub-envs {np.flatnonzero(over).tolist()}")
         # the controls that acted: made from the actions where a failure needs them
         self._u, self._last_h = None, r.h
-        if engine.tolerance is not None:  # (a SAME_STEP restart below rewrites the restarted rows of r.h)
-            self._period_h = np.array(r.h, dtype=np.float64)
         if r.status > 0:  # non-finite new states: the numpy path's failure handling
+            if engine.tolerance is not None:  # (the estimate's step: _step_estimated; a SAME_STEP restart rewrites r.h's restarted rows)
+                self._period_h = np.array(r.h, dtype=np.float64)
+                self._estimates = r.estimate
             fired = r.fired if r.fired.any() else self._false
             u_norm, self._u = self.model.actuator.control(action_columns(a, shape))
             with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
@@ -679,6 +700,9 @@ class RigidBodyVectorEnv(VectorEnv):
             self._info_template, self._info_names = template, names
         info = template.copy()
         info.update(zip(self._info_names, (*r.readouts, r.h, *r.metrics) if self.info_readouts else r.metrics))
+        if r.estimate is not None and not self._checked:  # (the kernel's: a restart's 0; a SAME_STEP end's moved to final_info there)
+            info["error_estimate"] = r.estimate
+            info["_error_estimate"] = self._true
         if r.n_ended:
             info["terminal_reason"] = reasons
             info["_terminal_reason"] = done.copy()
@@ -790,6 +814,8 @@ class RigidBodyVectorEnv(VectorEnv):
             if "terminal_reason" in info:  # (every ended sub-env restarts)
                 info["terminal_reason"] = np.where(done, "", info["terminal_reason"])
                 info["_terminal_reason"] = info["_terminal_reason"] & ~done
+            if "error_estimate" in info:  # (a restart ran no period of its own)
+                info["error_estimate"] = np.where(done, 0.0, info["error_estimate"])
         else:
             obs, info = self._restart(done, obs, info)
         final = np.empty(self.num_envs, dtype=object)  # one float32 observation per ended sub-env
