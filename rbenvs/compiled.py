@@ -583,28 +583,49 @@ def _estimate_expression(L: Layout) -> str:
     return estimate
 
 
-def _checked_period(L: Layout, u: str, more: str, estimate: bool = False) -> list[str]:
+def _products(x: str, k: int) -> str:
+    """``x^k`` written out as ``x * x * ... * x``: :func:`rbenvs.rotations.power`'s products in its
+    order (the same bits), which a loop over a batch keeps in SIMD registers (a power with a
+    run-time exponent is a loop of its own)."""
+    return "(" + " * ".join([x] * k) + ")"
+
+
+def _checked_period(L: Layout, u: str, more: str, estimate: bool = False, gate: int = 0) -> list[str]:
     """The guard's counts (a refusal returns -1 before anything is written), the period per
     sub-env or as SIMD passes, and the non-finite check (returns ``bad``, the count).
     ``estimate``: the count's loop also writes each period's error estimate into ``EST`` from the
     same rates (0 for a restarting sub-env, ``next_step`` and ``skip``: no period of its own ran)
-    and the step its count gives, the step the period takes (one evaluation of the rates)."""
+    and the step its count gives, the step the period takes (one evaluation of the rates).
+    ``gate`` (with ``estimate``; :class:`VectorLayout`'s, its scheme's order ``p``, 0: none): first every sub-env's cheap bound
+    ``Lambda = gate(PGT[0], y)``, its count ``substeps`` and its estimate ``C Lambda dt (Lambda
+    h)^p`` (the rates :func:`rbenvs.core.guard.motion_rates` returns there), in one loop without
+    branches; the count's loop then runs only if a sub-env's bound does not hold, on those alone."""
     comps, dim = _comps, L.dim
     y_old = f"y = ({comps('Y[{j}, i]', dim)})"
     store = [f"Ynew[{j}, i] = y[{j}]" for j in range(dim)]
     lines = ["    uniform = True"]
     # 1. the guard's counts, before anything is written
     count = ["for i in range(n):", "    c = substeps"]
+    if estimate and gate:  # (the sub-envs within the bound were counted and estimated in the gate's loop)
+        # (motion_rates' test power(Lambda dt, p + 1) <= substeps^p / k and motion_error_estimate's
+        # C Lambda dt (Lambda h)^p, their powers as products)
+        test = f"{_products('w', gate + 1)} <= PGT[1][2]"
+        lines += ["    ng = 0", "    for i in range(n):", "        " + y_old, "        big = gate(PGT[0], y)", "        counts[i] = substeps", "        w = big * PGT[1][0]",
+                  "        z = big * h", f"        EST[i] = 0.0 if next_step and skip[i] else PEE[0] * big * PEE[2] * {_products('z', gate)}", f"        ng += not ({test})"]
+        count = ["if ng:", "for i in range(n):", "    c = substeps", "    " + y_old, "    big = gate(PGT[0], y)", "    w = big * PGT[1][0]", f"    if {test}:",
+                 "        continue"]
     if estimate:
         from .core.guard import MAX_INTERNAL_STEPS
 
-        count += ["    " + y_old, *("    " + line for line in _ratio_lines(L, u, parts=True, rates="er")), "    if check and not skip[i] and not (x <= substeps):",
+        count += (["    " + y_old] if not gate else []) + [*("    " + line for line in _ratio_lines(L, u, parts=True, rates="er")), "    if check and not skip[i] and not (x <= substeps):",
                   f"        c = ceil(x) if x <= {MAX_INTERNAL_STEPS} else {MAX_INTERNAL_STEPS + 1}", "        need += 1",
                   "    if next_step and skip[i]:", "        EST[i] = 0.0", "    else:", "        hi = h if c == substeps else dt / c",
                   f"        EST[i] = {_estimate_expression(L)}"]
     elif L.rotation is not None:
         count += ["    if check and not skip[i]:", "        " + y_old, *("        " + line for line in _count_lines(L, u))]
     count += ["    counts[i] = c", "    if c != substeps:", "        uniform = False"]
+    if estimate and gate:  # (the loop under "if ng:")
+        count = count[:1] + ["    " + line for line in count[1:]]
     lines += ["    need = 0", *("    " + line for line in count), "    if refuse and need:", f"        return -1{more}"]
     # 2. the physics: passes over the batch where every count is substeps, else per sub-env
     per_env = ["for i in range(n):", "    " + y_old, "    " + u, "    c = counts[i]"]
@@ -645,6 +666,11 @@ class VectorLayout(NamedTuple):
     start: Callable | None
     kinds: str
     estimate: bool = False  # each period's error estimate into EST (a tolerance: StepRule.estimate's)
+    # with estimate, the default accuracy's gate fn(P, y) -> Lambda (StepRule.gate) where the
+    # stability bound never asks for more than substeps (StepRule.stable): every sub-env tested
+    # first in one loop without branches, the rates read only where the bound does not hold
+    gate: Callable | None = None
+    gate_order: int = 0  # the scheme's order p (a whole number): the gate's powers written out as products
 
 
 # what a sub-env's generator call is, per draw kind (rbenvs.draws: the same streams as numpy's)
@@ -709,14 +735,15 @@ def _vector_namespace(V: VectorLayout) -> dict:
 
     namespace = _namespace(V.batch)
     act = _act(V.control, V.n_in)
-    for fn in (V.control, act, V.start, end_code):
+    for fn in (V.control, act, V.start, end_code, V.gate):
         if fn is not None:
             _register(fn)
-    namespace.update(act=act, start=V.start, end_code=end_code, np=np)
+    namespace.update(act=act, start=V.start, end_code=end_code, np=np, gate=V.gate)
     if V.estimate:
         from .core.guard import error_estimate, motion_error_estimate, relaxation_estimate
+        from .rotations import power
 
-        namespace.update(error_estimate=error_estimate, motion_error_estimate=motion_error_estimate, relaxation_estimate=relaxation_estimate)
+        namespace.update(error_estimate=error_estimate, motion_error_estimate=motion_error_estimate, relaxation_estimate=relaxation_estimate, power=power)
     return namespace
 
 
@@ -725,7 +752,7 @@ def _vector_args(L: Layout) -> list[str]:
     reads = [f"R{j}" for j in range(L.n_readouts)]
     return ["i_lo", "i_hi", "phase", "A", "Y", "Ynew", "CC", "h", "dt", "substeps", "check", "refuse", "next_step", "max_steps", "FC", "steps", "done", "skip", "GEN", "PC", "PI",
             "PS", "PO", "PE", "PR", "PG", "PA", "PD", "CD", "PV", "PW", "HI", "PEE", "counts", "hstep", "fired", "obs", "over", "reward", "terminated",
-            "truncated", "RZ", "RN", "clear", "ends", "codes", "EST"] + metrics + reads
+            "truncated", "RZ", "RN", "clear", "ends", "codes", "EST", "PGT"] + metrics + reads
 
 
 @lru_cache(maxsize=None)
@@ -736,7 +763,7 @@ def vector_kernel(V: VectorLayout, chunked: bool = False):
         vstep(i_lo, i_hi, phase, A, Y, Ynew, CC, h, dt, substeps, check, refuse, next_step, max_steps,
               FC, steps, done, skip, GEN, PC, PI, PS, PO, PE, PR, PG, PA, PD, CD, PV, PW, HI, PEE,
               counts, hstep, fired, obs, over, reward, terminated, truncated, RZ, RN, clear, ends,
-              codes, EST, M_1..M_k, R_1..R_m) -> (status, k, m, r)
+              codes, EST, PGT, M_1..M_k, R_1..R_m) -> (status, k, m, r)
 
     on the sub-envs ``i_lo <= i < i_hi`` with ``chunked`` (every array is the whole batch's; without
     it, on every sub-env, the bounds unread); ``phase`` 0 runs the
@@ -804,7 +831,7 @@ def vector_kernel(V: VectorLayout, chunked: bool = False):
             starts += [f"                CC[{j}, i] = 0.0" for j in range(L.dim)]
         fresh = "next_step & skip[i]"
     u_line, un_line = _controls(L, rows=True)
-    lines += ["    if phase != 2:", *("    " + line for line in _checked_period(L, u_line, ", 0, 0, 0", V.estimate)), "    if phase == 1:", "        return 0, 0, 0, 0"]
+    lines += ["    if phase != 2:", *("    " + line for line in _checked_period(L, u_line, ", 0, 0, 0", V.estimate, V.gate_order if V.gate is not None else 0)), "    if phase == 1:", "        return 0, 0, 0, 0"]
     lines += starts + _finish_lines(L, f"y = ({_comps('Ynew[{j}, i]', L.dim)})", un_line, u_line, "fired[i]", fresh)
     # 3. the episode's bookkeeping, then 4. the restarts' step (skip: the sub-envs that restart,
     # read-only here; with next_step they are those whose previous step ended)
@@ -1397,9 +1424,13 @@ class VectorStep:
         start = model.kernel_start()
         self.restarts = start is not None  # restarts inside the kernel (else the caller's)
         estimate = error is not None and layout.rotation is not None
-        self.layout = VectorLayout(layout, control, model.actuator.size, start[0] if start else None, model.draw_kinds, estimate)
+        # the default accuracy's gate where the stability bound alone never asks for more steps
+        # (an order that is a whole number: the gate's powers are written out)
+        gate = parts.gate if estimate and parts.gate is not None and model.step_rule.stable(int(model.substeps)) and float(error[1]).is_integer() else None
+        self.layout = VectorLayout(layout, control, model.actuator.size, start[0] if start else None, model.draw_kinds, estimate, gate[0] if gate else None,
+                                   int(error[1]) if gate else 0)
         self.kernel = vector_kernel(self.layout)
-        self._rows = rows_kernel(self.layout._replace(estimate=False))  # (the rows write no estimate: one kernel for both)
+        self._rows = rows_kernel(self.layout._replace(estimate=False, gate=None, gate_order=0))  # (the rows write no estimate: one kernel for both)
         # (dtype objects, not scalar types: np.empty converts a type on every call, ~0.3 us each)
         self.metric_dtypes = tuple(np.dtype(np.bool_ if isinstance(v, (bool, np.bool_)) else np.float64) for v in values[2:])
         self.readout_dtypes = tuple(np.dtype(np.bool_ if isinstance(v, (bool, np.bool_)) else (np.int64 if isinstance(v, (int, np.integer)) else np.float64)) for v in physical)
@@ -1412,6 +1443,7 @@ class VectorStep:
         ps, po, pe, pr, pg, pa, pd, cd, pv, pw = params
         self.params = (pc, start[1] if start else (), ps, po, pe, pr, pg, pa, pd, cd, pv, pw, self.high,
                        tuple(float(v) for v in error) if estimate else (0.0, 1.0, 0.0))
+        self.gate_params = (gate[1], gate[2]) if gate else ((), (0.0, 1.0, 0.0))  # (PGT: the gate's P and its test)
         self._calls = {}
         self._scratch = None
         self.threads = threads
@@ -1450,7 +1482,7 @@ class VectorStep:
         metrics = [np.empty(n, t) for t in self.metric_dtypes]
         readouts = [np.empty(n, t) for t in self.readout_dtypes]
         args = (A, Y, Ynew, NO_COMPENSATION if CC is None else CC, self.h, self.dt, self.substeps, check, refuse, next_step, self.max_steps, self.charge, steps, done, skip, GEN, *self.params, counts,
-                hstep, fired, obs, over, reward, terminated, truncated, *reasons, ends, codes, estimate, *metrics, *readouts)
+                hstep, fired, obs, over, reward, terminated, truncated, *reasons, ends, codes, estimate, self.gate_params, *metrics, *readouts)
         call = self._calls.get(A.dtype)
         if call is None:
             status, k, m, r = self.kernel(0, n, 0, *args)  # compiles

@@ -360,6 +360,9 @@ class StepRule:
     # forced_error_constant, 0 if none), fn(Q, y, u, dt, p, lambda_d) -> a in [0, 1], the share of
     # C (lambda_d h)^p its decaying mode's error is (relaxation_steps); None: a = 1
     share: tuple | None = None
+    # the default accuracy's gate (motion_rates'): (fn, P, (dt, p + 1, substeps^p / k)), fn(P, y) -> Lambda,
+    # a cheap bound of the error's rate; a batch tests it first (rbenvs.compiled's gate loop); None: no gate
+    gate: tuple | None = None
 
     @classmethod
     def build(cls, rates, region, dt: float, guard: str, integrator=None, tolerance=None, horizon=None, system=None, zero_control=(), gate_steps=None) -> "StepRule":
@@ -397,7 +400,7 @@ class StepRule:
             text += f"; h <= {step_d:.6g} / lambda_d"
         if accuracy:
             text += f"; {accuracy}"
-        rotation, motion = rates.rotation, False
+        rotation, motion, gate = rates.rotation, False, None
         rhs = getattr(system, "kernel_rhs", None)
         named = rates.error_blocks is not None
         if error is not None and rhs is not None and (named or not system.hybrid) and getattr(integrator, "error_in_phase", False):
@@ -421,7 +424,9 @@ class StepRule:
                 # the default accuracy: a cheap bound first (motion_rates' gate)
                 bound_fn, bound_p = rates.accuracy_bound if rates.accuracy is not None else (None, ())
                 extra.update(gate=True, gate_rate=bound_fn)
-                tail += ((float(dt), p + 1.0, float(gate_steps) ** p / k, bound_p),)
+                test = (float(dt), p + 1.0, float(gate_steps) ** p / k)
+                tail += (test + (bound_p,),)
+                gate = (bound_fn, bound_p, test) if bound_fn is not None else (rates.rotation[0], rates.rotation[1], test)
                 mu_text += (f"; first the bound C L dt (L dt / {gate_steps})^{integrator.order}, L = "
                             + (f"{bound_fn.__name__}" if bound_fn is not None else "lambda") + " (the default accuracy: where it holds, reported)")
             if rates.accuracy is not None:  # the system's sharper rate of the error (lambda_e)
@@ -442,7 +447,7 @@ class StepRule:
             accuracy, text = (t.replace("C (lambda_d h)^", "C a (lambda_d h)^") + " (a = the decaying mode's share of it, "
                               + mode_share[0].__name__ + ")" for t in (accuracy, text))
         return cls(rotation, (float(dt), float(bound), float(growth), float(k), float(p), float(kd)), dissipation, step_d, rates.ceiling, text, active, error,
-                   accuracy, motion, tuple(zero_control), mode_share)
+                   accuracy, motion, tuple(zero_control), mode_share, gate)
 
     def rate(self, y, u=None):
         """``lambda`` at ``y`` (the rate both the bounds and the error estimate use); with
@@ -570,6 +575,17 @@ class StepRule:
         if self.dissipation is not None:
             return False
         return step_ratio(self.params, self.ceiling * (1.0 + 1e-9)) <= substeps
+
+    def stable(self, substeps: int) -> bool:
+        """True when the stability bound alone can never ask for more than ``substeps`` steps
+        inside the observation bounds (:meth:`idle` without the accuracy term): with a
+        :attr:`gate`, a batch's states within it then take ``substeps`` unevaluated."""
+        if not self.active:
+            return True
+        if self.dissipation is not None:
+            return False
+        dt, bound, growth = self.params[:3]
+        return step_ratio((dt, bound, growth, 0.0, 1.0, 0.0), self.ceiling * (1.0 + 1e-9)) <= substeps
 
     def count(self, x: float, substeps: int) -> int:
         """One state's count from its ratio ``x`` (:meth:`plan`): :meth:`steps`' rule."""

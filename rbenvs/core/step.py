@@ -983,7 +983,8 @@ class Engine:
             rotation, dissipation = rule.rotation, rule.dissipation
         observe, evaluate = task.kernels(system)
         return KernelParts(step, observe, evaluate, readouts, rotation, rule.params, dissipation, rule.dissipation_step, event, rhs_event, tuple(switches),
-                           rule.motion and rotation is not None, rule.share if dissipation is not None else None, step_c)
+                           rule.motion and rotation is not None, rule.share if dissipation is not None else None, step_c,
+                           rule.gate if rotation is not None and dissipation is None else None)
 
 
 class KernelParts(NamedTuple):
@@ -1015,3 +1016,5 @@ class KernelParts(NamedTuple):
     # (fn, P): step's compensated form (a tolerance: Engine.step_c), fn(PS, y, c, u, h) -> (y, c)
     # (with rhs_event fn(PS, y, c, k0, u, h)); None: the plain step
     step_c: tuple | None = None
+    # the default accuracy's gate (StepRule.gate): (fn, P, (dt, p + 1, substeps^p / k)); None: none
+    gate: tuple | None = None
