@@ -19,6 +19,7 @@ __all__ = [
     "sqrt",
     "maximum",
     "select",
+    "every",
     "power",
     "expm1",
     "atan2",
@@ -73,6 +74,19 @@ def select(cond, a, b):
 @jitable  # (registered so that compiled code can name it; it only ever runs on arrays)
 def _select_arrays(cond, a, b):
     return np.where(cond, a, b)
+
+
+@jitable
+def every(cond):
+    """``cond`` for one state (a bool); for a batch (a boolean array) whether it holds for all."""
+    if isinstance(cond, bool):
+        return cond
+    return _all_arrays(cond)
+
+
+@jitable  # (registered so that compiled code can name it; it only ever runs on arrays)
+def _all_arrays(cond):
+    return bool(cond.all())
 
 
 @jitable

@@ -55,7 +55,7 @@ import numpy as np
 
 from ..dynamics.validation import did_you_mean
 from ..jit import jitable
-from ..rotations import maximum, power, select, sqrt
+from ..rotations import every, maximum, power, select, sqrt
 from .codegen import generate
 
 __all__ = ["MAX_INTERNAL_STEPS", "GUARDS", "DEFAULT_TOLERANCE", "UnstableMotionWarning", "StepRule", "step_ratio", "step_ratio_motion", "motion_rates", "accuracy_steps", "relaxation_steps", "whole_root", "error_estimate", "require_guard",
@@ -281,7 +281,7 @@ def motion_rates(rotation, rhs, blocks: tuple, accuracy=None, rotating: tuple = 
     if gate:
         lines += [f"    G = P[{4 if speed_bound is not None else 3}]", "    big = gate_rate(G[3], y)" if gate_rate is not None else "    big = lam",
                   "    cheap = power(big * G[0], G[1]) <= G[2]",
-                  "    if isinstance(lam, float) and cheap:",  # (one state: the sharp rates only where the bound does not hold)
+                  "    if every(cheap):",  # (the sharp rates only where the bound does not hold: a batch, for all)
                   "        return (lam, big, big)"]
     lines += ["    f = rhs(P[1], y, u)", "    lam_e = accuracy(P[2], y)" if accuracy is not None else "    lam_e = lam"]
 
@@ -317,7 +317,7 @@ def motion_rates(rotation, rhs, blocks: tuple, accuracy=None, rotating: tuple = 
         lines += ["    return (lam, mu, lam_e)"]
     namespace = generate("\n".join(lines) + "\n", f"motion rates of {len(blocks)} blocks" + (f" and {len(rotating)} rotating" if rotating else "") + (" gated" if gate else ""),
                          {"rotation": rotation, "rhs": rhs, "accuracy": accuracy, "speed_bound": speed_bound, "gate_rate": gate_rate, "sqrt": sqrt, "maximum": maximum,
-                          "select": select, "power": power})
+                          "select": select, "every": every, "power": power})
     return jitable(namespace["rates"])
 
 

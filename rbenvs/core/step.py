@@ -41,6 +41,7 @@ import numpy as np
 
 from ..dynamics.validation import real_array
 from ..jit import compiled_form, jitable
+from ..rotations import every, power
 from .global_error import TWIN_BITS, rounding_twin, rounding_twin_first
 from .guard import MAX_INTERNAL_STEPS
 from .hybrid import Switching
@@ -286,6 +287,12 @@ class Engine:
         # with a tolerance every period reports its estimated error (info["error_estimate"]): the
         # rate at its start and the step it took; without one the step is untouched
         self.tolerance = m.tolerance
+        # the default accuracy's gate on the float and numpy paths (StepRule.gate), where the
+        # stability bound alone never asks for more than substeps: a state within the cheap bound
+        # takes the plain loop, its estimate the bound's (the compiled paths test it themselves)
+        self.gate = None
+        if self.rule.gate is not None and not m.check and self.event is None and self.switching is None and self.step_c is None and self.rule.stable(m.substeps):
+            self.gate = self.rule.gate
         # tolerance_check: every period takes an even count (its companion half as many steps of
         # twice the size: rbenvs.core.global_error), so neither the plain loop (substeps steps) nor
         # the compiled single-state step (the guard's count) runs
@@ -799,11 +806,13 @@ class Engine:
                 if over:
                     plain = False
             return y, obs, reward, terminated, info, u, plain
-        lam = None  # a tolerance's float path: the rates at y0 give the count and the estimate
+        lam = estimate = None  # a tolerance's float path: the rates at y0 give the count and the estimate
         if self.tolerance is not None and ratio is None:
-            ratio, lam, lam_d, share = self.plan_one(y0, u)
-        if plain:  # fixed substeps, nothing watched: the loop inline (the hot path)
-            step, h = self.bound_step, self.h
+            estimate = self.gated(y0)
+            if estimate is None:
+                ratio, lam, lam_d, share = self.plan_one(y0, u)
+        if plain or estimate is not None:  # fixed substeps, nothing watched: the loop inline (the hot path)
+            step, h, comp = self.bound_step, self.h, None
             y = step(y0, u, h)
             if self.substeps != 1:
                 for _ in range(self.substeps - 1):
@@ -816,6 +825,8 @@ class Engine:
             out = self._failed_one(y0, u_norm, u, h, plain)
             if lam is not None:
                 out[4]["error_estimate"] = float(self.rule.estimate(lam, h, lam_d, share))
+            elif estimate is not None:
+                out[4]["error_estimate"] = estimate
             return out
         if not plain and comp is not None:
             self.comp = comp
@@ -829,6 +840,8 @@ class Engine:
             info = self.info_one(y, u, fired, h, metrics, failed=False)
         if lam is not None:  # (the period's estimated relative error: rbenvs.core.guard.error_estimate)
             info["error_estimate"] = float(self.rule.estimate(lam, h, lam_d, share))
+        elif estimate is not None:
+            info["error_estimate"] = estimate
         if fired or over or terminated:  # (the common case tests three bools and goes on)
             info["terminal_reason"] = terminal_reason(False, fired, over, terminated, self.event_name)
             terminated = True
@@ -837,6 +850,19 @@ class Engine:
             if over:
                 plain = False  # outside the bounds the guard's static proof is void
         return y, obs, reward, terminated, info, u, plain
+
+    def gated(self, y):
+        """The default accuracy's gate at the states ``y`` (:attr:`gate`; floats or arrays): where
+        every state lies within the cheap bound ``Lambda``, their periods' estimates ``C Lambda dt
+        (Lambda h)^p`` at ``substeps`` steps (the rates :func:`rbenvs.core.guard.motion_rates` gives
+        there); else (or without a gate) ``None``."""
+        if self.gate is None:
+            return None
+        fn, p, (dt, q, top) = self.gate
+        big = fn(p, y)
+        if not every(power(big * dt, q) <= top):
+            return None
+        return self.rule.estimate((big, big, big), self.h)
 
     def _cap_text(self, h, y0=None, u=None) -> str:
         """Why a period failed when it was refused past the cap (``h < dt / MAX_INTERNAL_STEPS``):

@@ -488,8 +488,13 @@ class RigidBodyVectorEnv(VectorEnv):
         if not written:
             control = self.model.actuator.control(action_columns(actions, self.action_space.shape))
         self._estimates = None
-        out = self._step(actions, control)
-        return self._estimated(out, self._estimates, restart, control, y0, y2d0, actions)
+        # (the default accuracy's gate: every sub-env within it takes substeps, its estimate the bound's)
+        gated = None if written or self._checked else self.engine.gated(y0)
+        if gated is not None:
+            gated = np.broadcast_to(gated, (self.num_envs,)).astype(np.float64)
+        out = self._step(actions, control, True if gated is not None else None)
+        return self._estimated(out, self._estimates if gated is None else gated, restart, control, y0, y2d0, actions)
+
 
     def _estimated(self, out, estimate, restart, control, y0, y2d0, actions):
         """The step's ``out`` with each period's ``estimate`` in its info (``None``: from the rates
@@ -528,9 +533,10 @@ class RigidBodyVectorEnv(VectorEnv):
                 info["_step_factor"] = info["_replayed_steps"] = self._true
         return obs, reward, terminated, truncated, info
 
-    def _step(self, actions, control=None):
+    def _step(self, actions, control=None, plain=None):
         """The step of ``actions``; ``control``: their ``(u_norm, u)`` where the caller made them
-        (the numpy path's; the other paths make their own)."""
+        (the numpy path's; the other paths make their own); ``plain``: the numpy path's periods
+        take ``substeps`` unchecked (``None``: where the guard's static proof holds, ``_plain``)."""
         if self._y is None:
             raise RuntimeError("call reset() before step()")
         if self._ranges is not None:
@@ -544,14 +550,15 @@ class RigidBodyVectorEnv(VectorEnv):
         u_norm, u = self.model.actuator.control(action_columns(actions, self.action_space.shape)) if control is None else control
         y0 = self._y
         fast = None
+        plain = self._plain if plain is None else plain
         with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
             # a sub-env blowing up is reported once, below, as the single env does
             if self._batch_step is not None:
-                y, fast, fired, h = self._compiled_advance(y0, u, u_norm, restart)
+                y, fast, fired, h = self._compiled_advance(y0, u, u_norm, restart, plain)
             else:
                 factor = self._check.factor if self._check is not None and self._check.refine else None
                 comp = None if self._cc is None else tuple(self._cc)
-                y, fired, h, comp = engine.advance(y0, u, self._plain, restart if any_restart else None, factor, comp)
+                y, fired, h, comp = engine.advance(y0, u, plain, restart if any_restart else None, factor, comp)
                 if comp is not None:
                     cc = self._cc = np.empty((len(comp), self.num_envs))
                     for j, c in enumerate(comp):  # (a component may be one float for every sub-env)
@@ -749,7 +756,7 @@ class RigidBodyVectorEnv(VectorEnv):
         fail = ended & ~np.asarray(success, dtype=bool)
         return np.where(fail, reward + charge, reward) if fail.any() else reward
 
-    def _compiled_advance(self, y, u, u_norm, restart):
+    def _compiled_advance(self, y, u, u_norm, restart, plain):
         """The compiled period: ``(y, fast, fired, h)``; ``fast`` is ``(Y, obs, over, reward,
         terminated, metrics, physical read-outs)``, or ``None`` when a new state is non-finite
         (the numpy path then handles the failure from ``y``). The kernel runs the guard per
@@ -760,7 +767,7 @@ class RigidBodyVectorEnv(VectorEnv):
         # controls as (n,) float64 arrays (an unactuated axis is a 0.0 for every sub-env)
         u = tuple(c if type(c) is np.ndarray else np.full(n, c, dtype=np.float64) for c in u)
         u_norm = tuple(c if type(c) is np.ndarray else np.full(n, c, dtype=np.float64) for c in u_norm)
-        out = self._batch_step(Y, u, u_norm, engine.h, engine.substeps, not self._plain, restart, engine.guard == "refuse", self._cc)
+        out = self._batch_step(Y, u, u_norm, engine.h, engine.substeps, not plain, restart, engine.guard == "refuse", self._cc)
         if out.status < 0:
             over = (out.counts > engine.substeps) & ~restart
             raise engine.refusal(int(out.counts[over].max()), f" of sub-envs {np.flatnonzero(over).tolist()}")
