@@ -118,3 +118,77 @@ def test_tolerance_horizon_needs_a_tolerance_and_the_default_takes_one():
     with pytest.raises(ValueError, match="tolerance_horizon=10 .* tolerance is None"):
         FreeRigidBodyEnv(tolerance=None, tolerance_horizon=10)
     assert FreeRigidBodyEnv(tolerance_horizon=10).model.horizon == 10
+
+
+# (free body: its Jacobian's bound s|Pi| gates; heavy top under rk4: its rate lambda)
+GATED = [(FreeRigidBodyEnv, dict(EXTREME)), (FreeRigidBodyEnv, {}), (LagrangeTopEnv, {"integrator": "rk4"})]
+
+
+@pytest.mark.filterwarnings("ignore::rbenvs.core.guard.UnstableMotionWarning")  # (the explicit twin of the default spin: its rule is what is compared)
+@pytest.mark.parametrize("cls,kwargs", GATED, ids=["free_body_extreme", "free_body", "heavy_top_rk4"])
+def test_the_gate_keeps_the_sharp_counts_and_bounds_their_estimate(cls, kwargs):
+    """The default accuracy tests a cheap bound Lambda >= lambda_e >= mu first (motion_rates' gate):
+    where it holds the period within its budget the rates are (lambda, Lambda, Lambda). From states
+    over six decades of speed, both sides of the gate: the counts are those of the sharp rates (an
+    explicit tolerance of the same size, ungated), and the estimate reported bounds the sharp one."""
+    gated = cls(**kwargs)
+    sharp = cls(tolerance=gated.model.tolerance, **kwargs)
+    rule, reference = gated.engine.rule, sharp.engine.rule
+    assert gated.model.accuracy == "default" and rule.gate is not None and reference.gate is None
+    substeps, dt = gated.model.substeps, gated.dt
+    rng = np.random.default_rng(7)
+    y0 = gated.engine.model.initial_state(rng)
+    held = failed = 0
+    for scale in np.logspace(-2, 4, 25):
+        for _ in range(4):
+            y = list(gated.engine.model.initial_state(rng))
+            y[:3] = list(scale * rng.normal(size=3) * (1.0 + abs(float(np.linalg.norm(y0[:3])))))
+            y = tuple(float(c) for c in y)
+            u = rule.zero_control
+            xg, lg, _, _ = rule.plan(y, u)
+            xs, ls, _, _ = reference.plan(y, u)
+            n = rule.count(xg, substeps)
+            assert n == reference.count(xs, substeps), (y, xg, xs)
+            if n > 1_000_000:
+                continue
+            eg, es = rule.estimate(lg, dt / n), reference.estimate(ls, dt / n)
+            assert eg >= es, (y, eg, es)
+            if lg[1] == lg[2] and lg[1] != ls[1]:
+                held += 1  # (the bound reported)
+            else:
+                failed += 1
+    assert held > 0 and failed > 0, (held, failed)
+
+
+def test_the_gate_gives_every_path_the_same_estimates():
+    """A batch with sub-envs on both sides of the gate (the extreme free body at four speeds): the
+    compiled vector step (its gate loop, then the rates of those outside it), the numpy vector
+    step and each sub-env's single env (compiled and on floats) report the same estimates, bit for
+    bit, and hold the same states."""
+    starts = np.array([[1e-3, 2e4, 1e-3], [0.3, 0.2, 0.1], [1e-3, 2e2, 1e-3], [50.0, 1e-3, 2.0]])
+    n = len(starts)
+    runs = {}
+    for compiled in (True, False):
+        venv = gym.make_vec("rbenvs/FreeRigidBody-v0", num_envs=n, vectorization_mode="vector_entry_point", compiled=compiled, **EXTREME)
+        venv.reset(seed=0, options={"state": {"angular_momentum": starts}})
+        rows = []
+        for _ in range(4):
+            _, _, _, _, info = venv.step(np.zeros(venv.action_space.shape, np.float32))
+            rows.append((info["error_estimate"].copy(), info["internal_step"].copy()))
+        runs[("vector", compiled)] = rows
+        for i in range(n):
+            env = FreeRigidBodyEnv(compiled=compiled, **EXTREME)
+            env.reset(seed=0, options={"state": {"angular_momentum": starts[i]}})
+            single = []
+            for _ in range(4):
+                _, _, _, _, info = env.step(np.zeros(env.action_space.shape, np.float32))
+                single.append((info["error_estimate"], info["internal_step"]))
+            runs[("single", compiled, i)] = single
+    reference = runs[("vector", True)]
+    assert reference[0][1][0] < reference[0][1][1], "the extreme sub-env subdivides, the slow one does not"
+    for key, rows in runs.items():
+        for k, row in enumerate(rows):
+            if key[0] == "vector":
+                assert np.array_equal(row[0], reference[k][0]) and np.array_equal(row[1], reference[k][1]), (key, k)
+            else:
+                assert row == (reference[k][0][key[2]], reference[k][1][key[2]]), (key, k)
