@@ -469,14 +469,10 @@ class RigidBodyVectorEnv(VectorEnv):
         # step it took (the single env's rule); 0 where no period ran (a sub-env restarted)
         vstep = self._vector_step
         if self._ranges is None and not self._checked and vstep is not None and self._table is not None and vstep.layout.estimate:
-            # the compiled step writes the estimates into its info itself (a restart's 0, SAME_STEP's
-            # with the final info; _kernel_info); a non-finite state handed to the numpy path
-            # leaves them to _estimated (the kernel wrote them before the period: a restart's 0)
+            # the compiled step writes the estimates (before the period, a restart's 0: a step handed
+            # to the numpy path has them too); they go into its info last, as on the numpy path
             self._estimates = None
-            out = self._step(actions)
-            if "error_estimate" in out[4]:
-                return out
-            return self._estimated(out, self._estimates, self._false, None, None, None, actions)
+            return self._estimated(self._step(actions), self._estimates, self._false, None, None, None, actions)
         restart = self._prev_done.copy() if self.autoreset_mode is AutoresetMode.NEXT_STEP else self._false
         # the estimates come from the step where it writes them (param_ranges: each sub-env's
         # episode engine, _step_episodes; the compiled vector step, from the rates at each
@@ -508,7 +504,8 @@ class RigidBodyVectorEnv(VectorEnv):
             u = control[1] if rule.motion or rule.dissipation is not None else None
             lam, lam_d, share = self.engine.rates_batch(y0, u, y2d0)
             estimate = np.broadcast_to(rule.estimate(lam, self._period_h, lam_d, share), (self.num_envs,)).astype(np.float64)
-        estimate[restart] = 0.0
+        if restart is not self._false:  # (a compiled step wrote a restart's 0 itself)
+            estimate[restart] = 0.0
         if "final_info" in info:  # SAME_STEP: the ended periods' estimates go with their final info
             info["final_info"]["error_estimate"] = estimate.copy()
             info["final_info"]["_error_estimate"] = self._true
@@ -707,9 +704,6 @@ class RigidBodyVectorEnv(VectorEnv):
             self._info_template, self._info_names = template, names
         info = template.copy()
         info.update(zip(self._info_names, (*r.readouts, r.h, *r.metrics) if self.info_readouts else r.metrics))
-        if r.estimate is not None and not self._checked:  # (the kernel's: a restart's 0; a SAME_STEP end's moved to final_info there)
-            info["error_estimate"] = r.estimate
-            info["_error_estimate"] = self._true
         if r.n_ended:
             info["terminal_reason"] = reasons
             info["_terminal_reason"] = done.copy()
@@ -821,8 +815,6 @@ class RigidBodyVectorEnv(VectorEnv):
             if "terminal_reason" in info:  # (every ended sub-env restarts)
                 info["terminal_reason"] = np.where(done, "", info["terminal_reason"])
                 info["_terminal_reason"] = info["_terminal_reason"] & ~done
-            if "error_estimate" in info:  # (a restart ran no period of its own)
-                info["error_estimate"] = np.where(done, 0.0, info["error_estimate"])
         else:
             obs, info = self._restart(done, obs, info)
         final = np.empty(self.num_envs, dtype=object)  # one float32 observation per ended sub-env
