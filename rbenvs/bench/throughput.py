@@ -534,7 +534,8 @@ def kernel_time(venv, action, min_time: float, repeat: int, budget: float | None
     states (``Y = np.stack(state_components)``) under the controls of ``action`` (one batch,
     mapped by ``model.actuator.control``; unactuated axes as arrays of 0.0), with the env's
     internal step and substeps, the guard checked per sub-env where the env's periods are not
-    plain (as the env calls it): ``{"seconds", "ns_per_env_step", "bad", "check", "state_unchanged"}``.
+    plain (as the env calls it: not where the default accuracy's gate holds every state,
+    :meth:`rbenvs.core.step.Engine.gated`): ``{"seconds", "ns_per_env_step", "bad", "check", "state_unchanged"}``.
     ``state_unchanged``: the env's states (and ``Y``) equal what they were before the calls,
     and the kernel's new states share no memory with them."""
     env = venv.unwrapped
@@ -555,6 +556,8 @@ def kernel_time(venv, action, min_time: float, repeat: int, budget: float | None
     u, u_norm = full(u), full(u_norm)
     h, substeps = env.engine.h, env.engine.substeps
     check = not getattr(env.engine, "plain", True)  # the guard per sub-env where the env runs one, as the env calls it
+    if check and env.engine.gated(before) is not None:  # (the default accuracy's gate holds every state: the env's periods are plain)
+        check = False
 
     def call():
         return batch_step(Y, u, u_norm, h, substeps, check)
