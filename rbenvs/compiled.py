@@ -611,7 +611,9 @@ def _checked_period(L: Layout, u: str, more: str, estimate: bool = False, gate: 
         # C Lambda dt (Lambda h)^p, their powers as products)
         test = f"{_products('w', gate + 1)} <= PGT[1][2]"
         lines += ["    ng = 0", "    for i in range(n):", "        " + y_old, "        big = gate(PGT[0], y)", "        counts[i] = substeps", "        w = big * PGT[1][0]",
-                  "        z = big * h", f"        EST[i] = 0.0 if next_step and skip[i] else PEE[0] * big * PEE[2] * {_products('z', gate)}", f"        ng += not ({test})"]
+                  "        z = big * h", f"        EST[i] = PEE[0] * big * PEE[2] * {_products('z', gate)}", f"        ng += not ({test})",
+                  "    if next_step:",  # (a restart ran no period of its own: apart, so that the loop above has no branch)
+                  "        for i in range(n):", "            if skip[i]:", "                EST[i] = 0.0"]
         count = ["if ng:", "for i in range(n):", "    c = substeps", "    " + y_old, "    big = gate(PGT[0], y)", "    w = big * PGT[1][0]", f"    if {test}:",
                  "        continue"]
     if estimate:
