@@ -570,22 +570,22 @@ class StepRule:
     def idle(self, substeps: int) -> bool:
         """True when no state inside the observation bounds can need more than ``substeps``
         steps (then no check needs to run: the plain loop is exact)."""
-        if not self.active:
-            return True
-        if self.dissipation is not None:
-            return False
-        return step_ratio(self.params, self.ceiling * (1.0 + 1e-9)) <= substeps
+        return self._bounded(self.params, substeps)
 
     def stable(self, substeps: int) -> bool:
         """True when the stability bound alone can never ask for more than ``substeps`` steps
         inside the observation bounds (:meth:`idle` without the accuracy term): with a
         :attr:`gate`, a batch's states within it then take ``substeps`` unevaluated."""
+        dt, bound, growth = self.params[:3]
+        return self._bounded((dt, bound, growth, 0.0, 1.0, 0.0), substeps)
+
+    def _bounded(self, params, substeps: int) -> bool:
+        """Whether :func:`step_ratio` with ``params`` stays within ``substeps`` up to the rate's ceiling."""
         if not self.active:
             return True
         if self.dissipation is not None:
             return False
-        dt, bound, growth = self.params[:3]
-        return step_ratio((dt, bound, growth, 0.0, 1.0, 0.0), self.ceiling * (1.0 + 1e-9)) <= substeps
+        return step_ratio(params, self.ceiling * (1.0 + 1e-9)) <= substeps
 
     def count(self, x: float, substeps: int) -> int:
         """One state's count from its ratio ``x`` (:meth:`plan`): :meth:`steps`' rule."""
