@@ -299,31 +299,16 @@ def _period_lines(L: Layout) -> list[str]:
     return lines + ["    " + line for line in _steps_lines(L)]
 
 
-def _twin_term_line(L: Layout, twin: int, c: str, new: str, old: str) -> str:
-    """The line that makes the compensation ``c`` rounding twin ``twin``'s after a step from
-    ``old`` to ``new`` (:func:`rbenvs.core.global_error.rounding_twin_term`, its sign bit
-    ``TWIN_BITS[twin - 1]``)."""
-    from .core.global_error import TWIN_BITS
-
-    bit = repr(TWIN_BITS[twin - 1])
-    return f"{c} = ({_comps('twin_term(' + c + '[{j}], ' + new + '[{j}] - ' + old + '[{j}], ' + bit + ')', L.dim)})"
-
-
-def _steps_lines(L: Layout, twin: int = 0) -> list[str]:
+def _steps_lines(L: Layout) -> list[str]:
     """Lines that take ``c`` internal steps ``hi`` from ``y`` under ``u`` (:meth:`rbenvs.core.step.Engine._run_one`):
     the switches after each, the terminal event ending them (``f = True``), a non-finite state
-    stopping them. ``twin``: rounding twin ``twin``'s steps (1 or 2, its sign bit
-    ``TWIN_BITS[twin - 1]``: each increment off by a unit roundoff in the compensation,
-    :func:`rbenvs.core.global_error.rounding_twin_term`; a layout with ``step_c``; 0: the plain run's)."""
+    stopping them."""
     finite = "    if not (" + " and ".join(f"isfinite(y[{j}])" for j in range(L.dim)) + "):"
     # one internal step from y (kk: its first stage), plain or carrying the compensation cc
     # (cc: the run's compensation, set by the caller and carried on)
     take, take_first = ["y = step(PS, y, u, hi)"], ["y = step(PS, y, kk, u, hi)"]
     if L.step_c is not None:
         take, take_first = ["y, cc = stepc(PS, y, cc, u, hi)"], ["y, cc = stepc(PS, y, cc, kk, u, hi)"]
-        if twin:
-            term = _twin_term_line(L, twin, "cc", "y", "yo")
-            take, take_first = ["yo = y", *take, term], ["yo = y", *take_first, term]
     if L.rhs_event is not None:  # the event's evaluation at a new state is the next first stage
         return [
             "kk, g = rhs_event(PV, y, u)",
@@ -427,7 +412,6 @@ def _namespace(L: Layout) -> dict:
 
     import numpy as np
 
-    from .core.global_error import rounding_twin_term
     from .core.guard import relaxation_steps, step_ratio, step_ratio_motion
 
     _tune_llvm()
@@ -437,7 +421,7 @@ def _namespace(L: Layout) -> dict:
         if fn is not None:
             _register(fn)
     namespace = {"step": L.step, "stepc": L.step_c, "observe": L.observe, "evaluate": L.evaluate, "readouts": L.readouts, "rotation": L.rotation,
-                 "dissipation": L.dissipation, "share": L.share, "event": L.event, "rhs_event": L.rhs_event, "step_ratio": step_ratio, "step_ratio_motion": step_ratio_motion, "relaxation_steps": relaxation_steps, "twin_term": rounding_twin_term, "isfinite": isfinite,
+                 "dissipation": L.dissipation, "share": L.share, "event": L.event, "rhs_event": L.rhs_event, "step_ratio": step_ratio, "step_ratio_motion": step_ratio_motion, "relaxation_steps": relaxation_steps, "isfinite": isfinite,
                  "ceil": ceil, "nan": nan, "np": np}
     for k, (applies, function, switch) in enumerate(L.switches):
         namespace.update({f"applies{k}": applies, f"function{k}": function, f"switch{k}": switch})
@@ -526,12 +510,11 @@ def _lockstep_lines(L: Layout, u: str) -> list[str]:
     ]
 
 
-def _lockstep_passes(L: Layout, u: str, h: str, twin: int = 0) -> list[str]:
+def _lockstep_passes(L: Layout, u: str, h: str) -> list[str]:
     """:func:`_lockstep_lines`' passes over the batch (and the checked runs', :func:`runs_kernel`):
     ``Ynew``, ``K`` (and ``CC``) hold each sub-env's state, next first stage (with an event) and
     compensation (with one), ``live`` whether it goes on, ``cmax`` the largest of the
-    ``counts``; ``h`` the expression of sub-env ``i``'s step; ``twin``: rounding twin ``twin``'s
-    steps (:func:`_steps_lines`)."""
+    ``counts``; ``h`` the expression of sub-env ``i``'s step."""
     dim, event = L.dim, L.rhs_event is not None
     y = f"y = ({_comps('Ynew[{j}, i]', dim)})"
     kk = f"kk = ({_comps('K[{j}, i]', dim)})"
@@ -539,8 +522,6 @@ def _lockstep_passes(L: Layout, u: str, h: str, twin: int = 0) -> list[str]:
     compensated = L.step_c is not None  # (CC: each sub-env's compensation, as K its first stage)
     args = "y, cc, kk, u" if event else "y, cc, u"
     take = [f"yn, cn = stepc(PS, {args}, {h})" if compensated else f"yn = step(PS, {args.replace('cc, ', '')}, {h})"]
-    if twin:
-        take += [_twin_term_line(L, twin, "cn", "yn", "y")]
     stop = [  # (the event fired or the state went non-finite: the sub-env stops; all stopped: the passes end)
         "        kn, g = rhs_event(PV, yn, u)",
         f"        fin = {finite}",
@@ -952,31 +933,30 @@ def state_kernel(layout: Layout, estimate: bool = False):
 
 
 @lru_cache(maxsize=None)
-def run_kernel(layout: Layout, twin: int = 0):
+def run_kernel(layout: Layout):
     """The compiled internal steps of ONE state's run with a given count and step (the checked
-    period's, ``tolerance_check``: the main run's even count, the companion's and its rounding
-    twins' half as many steps of twice the size; :meth:`rbenvs.core.step.Engine._run_one`), on
+    period's, ``tolerance_check``: the main run's even count, the companion's half as many steps
+    of twice the size; :meth:`rbenvs.core.step.Engine._run_one`), on
     tuples of floats, for a layout with ``step_c``. Signature::
 
         run(y, cc, u, c, hi, P) -> (y, fired, cc)
 
     ``P = (PS, PV, PW)``; ``c`` steps of ``hi`` from ``y`` with the compensation ``cc``, the
     switches after each, the terminal event ending them (``fired``), a non-finite state
-    stopping them (returned as it is: the caller's failure path takes over). ``twin``: rounding
-    twin ``twin``'s steps (1 or 2, :func:`rbenvs.core.global_error.rounding_twin_term`; 0: the plain run's)."""
+    stopping them (returned as it is: the caller's failure path takes over)."""
     import numba
 
     L = layout
     lines = ["def run(y, cc, u, c, hi, P):", "    PS, PV, PW = P", "    f = False"]
-    lines += ["    " + line for line in _steps_lines(L, twin)]
+    lines += ["    " + line for line in _steps_lines(L)]
     lines += ["    return y, f, cc"]
     namespace = _namespace(L)
-    generate("\n".join(lines), f"run kernel dim={L.dim} twin={twin}", namespace)
+    generate("\n".join(lines), f"run kernel dim={L.dim}", namespace)
     return _cached_njit(namespace["run"], "run", **KERNEL_OPTIONS)
 
 
 @lru_cache(maxsize=None)
-def runs_kernel(layout: Layout, twin: int = 0):
+def runs_kernel(layout: Layout):
     """:func:`run_kernel` for a batch in one compiled loop (the vector env's checked runs): as
     passes over the batch (:func:`_lockstep_passes`) for a layout without switches whose event,
     if any, is its next first stage, else sub-env by sub-env. Signature::
@@ -998,17 +978,17 @@ def runs_kernel(layout: Layout, twin: int = 0):
                  *([f"    K = np.empty(({L.dim}, n))"] if event else []), "    live = np.empty(n, dtype=np.bool_)", "    cmax = 0", "    for i in range(n):",
                  f"        y = ({_comps('Y[{j}, i]', L.dim)})", "        " + u, "        live[i] = True", "        if counts[i] > cmax:",
                  "            cmax = counts[i]", *(["        kk, g = rhs_event(PV, y, u)", *(f"        K[{j}, i] = kk[{j}]" for j in range(L.dim))] if event else []),
-                 "        fired[i] = False", *("    " + line for line in _lockstep_passes(L, u, "H[i]", twin))]
+                 "        fired[i] = False", *("    " + line for line in _lockstep_passes(L, u, "H[i]"))]
         namespace = _namespace(L)
-        generate("\n".join(lines), f"runs kernel dim={L.dim} twin={twin} lockstep", namespace)
+        generate("\n".join(lines), f"runs kernel dim={L.dim} lockstep", namespace)
         return _cached_njit(namespace["runs"], "runs", **KERNEL_OPTIONS)
     lines = ["def runs(Y, CC, U, counts, H, fired, P):", "    PS, PV, PW = P", "    for i in range(Y.shape[1]):",
              f"        y = ({_comps('Y[{j}, i]', L.dim)})", f"        cc = ({_comps('CC[{j}, i]', L.dim)})",
              f"        u = ({_comps('U[{j}, i]', L.n_control)})", "        c = counts[i]", "        hi = H[i]", "        f = False"]
-    lines += ["        " + line for line in _steps_lines(L, twin)]
+    lines += ["        " + line for line in _steps_lines(L)]
     lines += [f"        Y[{j}, i] = y[{j}]" for j in range(L.dim)] + [f"        CC[{j}, i] = cc[{j}]" for j in range(L.dim)] + ["        fired[i] = f"]
     namespace = _namespace(L)
-    generate("\n".join(lines), f"runs kernel dim={L.dim} twin={twin}", namespace)
+    generate("\n".join(lines), f"runs kernel dim={L.dim}", namespace)
     return _cached_njit(namespace["runs"], "runs", **KERNEL_OPTIONS)
 
 
@@ -1112,8 +1092,8 @@ class PeriodPlan:
 
 
 class CheckedRuns:
-    """One env's compiled runs for ``tolerance_check`` (:func:`run_kernel`, the plain run's and
-    the two rounding twins'): calling it runs ``c`` steps of ``hi`` from ``y`` with the compensation
+    """One env's compiled runs for ``tolerance_check`` (:func:`run_kernel`, the main run's and
+    the companion's): calling it runs ``c`` steps of ``hi`` from ``y`` with the compensation
     ``cc`` and returns ``(y, fired, cc)``, the bits of the float path's
     :meth:`rbenvs.core.step.Engine._run_one`. Each kernel's first call compiles it (about a
     second per layout and process) and then takes its overload's entry point."""
@@ -1122,28 +1102,25 @@ class CheckedRuns:
         layout, params, _, _ = _layout(parts, dim, n_obs, n_control, n_action, sample)
         if layout.step_c is None:
             raise ValueError("the checked runs need a compensated step (a tolerance)")
-        self.kernels = tuple(run_kernel(layout, twin) for twin in range(3))  # (0: the plain run; 1, 2: the twins)
-        self.batch_kernels = tuple(runs_kernel(layout, twin) for twin in range(3))
+        self.kernel = run_kernel(layout)
+        self.batch_kernel = runs_kernel(layout)
         self.params = (params[0], params[8], params[9])  # PS, PV, PW
-        self._calls = [None, None, None]
+        self._call = None
 
-    def batch(self, Y, CC, U, counts, H, fired, twin: int = 0) -> None:
+    def batch(self, Y, CC, U, counts, H, fired) -> None:
         """A batch's runs in place (:func:`runs_kernel`): ``Y``, ``CC`` ``(dim, n)``, ``U``
         ``(n_control, n)``, ``counts``, ``H`` ``(n,)``, ``fired`` written."""
-        self.batch_kernels[twin](Y, CC, U, counts, H, fired, self.params)
+        self.batch_kernel(Y, CC, U, counts, H, fired, self.params)
 
-    def __call__(self, y, cc, u, c: int, hi: float, twin: int = 0):
-        k = int(twin)
-        call = self._calls[k]
-        if call is not None:
-            return call(y, cc, u, c, hi, self.params)
+    def __call__(self, y, cc, u, c: int, hi: float):
+        if self._call is not None:
+            return self._call(y, cc, u, c, hi, self.params)
         import numba
 
         args = (y, cc, u, c, hi, self.params)
-        kernel = self.kernels[k]
-        out = kernel(*args)  # compiles
-        overload = kernel.overloads.get(tuple(numba.typeof(a) for a in args))
-        self._calls[k] = overload.entry_point if overload is not None else kernel
+        out = self.kernel(*args)  # compiles
+        overload = self.kernel.overloads.get(tuple(numba.typeof(a) for a in args))
+        self._call = overload.entry_point if overload is not None else self.kernel
         return out
 
 

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import os
 
-__all__ = ["jitable", "compiled_form", "available", "register_all", "register", "elementwise", "float_bits", "DISABLE_VARIABLE"]
+__all__ = ["jitable", "compiled_form", "available", "register_all", "register", "elementwise", "DISABLE_VARIABLE"]
 
 # set to "0" to keep the numpy path even where numba is installed (comparisons, debugging)
 DISABLE_VARIABLE = "RBENVS_COMPILED"
@@ -54,36 +54,6 @@ def compiled_form(of):
     return mark
 
 
-def float_bits(x):
-    """The IEEE 754 binary64 bits of the float ``x`` as a signed 64-bit int: on floats through
-    ``struct``; in compiled code one bitcast (registered by :func:`register_all`), which keeps a
-    batch loop in SIMD registers where ``math.frexp``, a libm call, does not. For compiled forms
-    (:func:`compiled_form`) that read a float's exponent or mantissa bits."""
-    import struct
-
-    return struct.unpack("<q", struct.pack("<d", x))[0]
-
-
-def _register_float_bits() -> None:
-    from llvmlite import ir
-    from numba.core import types
-    from numba.extending import intrinsic, overload
-
-    @intrinsic
-    def bitcast(typingctx, x):
-        if not isinstance(x, types.Float):
-            return None
-
-        def codegen(context, builder, signature, args):
-            value = args[0] if x == types.float64 else builder.fpext(args[0], ir.DoubleType())
-            return builder.bitcast(value, ir.IntType(64))
-
-        return types.int64(x), codegen
-
-    overload(float_bits, inline="never", strict=False)(lambda x: lambda x: bitcast(x))
-    _done.add(id(float_bits))
-
-
 def available() -> bool:
     """Whether compiled kernels can be used: numba importable and not disabled."""
     if os.environ.get(DISABLE_VARIABLE, "1") == "0":
@@ -109,8 +79,6 @@ def register(fn) -> None:
 def register_all() -> None:
     """Register every jitable function not yet registered (those of modules imported since the
     last call included); every kernel build calls it."""
-    if id(float_bits) not in _done:
-        _register_float_bits()
     for fn in _JITABLE:
         if id(fn) not in _done:
             register(fn)

@@ -172,8 +172,8 @@ def test_the_roundoff_table_runs_from_the_cli(monkeypatch, capsys, tmp_path):
 
 def test_the_floor_table_runs_from_the_cli(monkeypatch, capsys, tmp_path):
     """``rbenvs bench accuracy --floor`` (one start, 0.0001 rad/s off the intermediate axis, at
-    1e-9, here): both check modes end the episode before the horizon (float64 cannot carry 1e-9
-    through it) and every period they return is within the tolerance of the Taylor solution;
+    1e-9, here): tolerance_check=True ends the episode before the horizon (float64 cannot carry
+    1e-9 through it) and every period it returns is within the tolerance of the Taylor solution;
     printed and written as JSON."""
     from rbenvs.bench import floor
 
@@ -182,8 +182,8 @@ def test_the_floor_table_runs_from_the_cli(monkeypatch, capsys, tmp_path):
     path = tmp_path / "floor.json"
     assert cli_main(["bench", "accuracy", "--floor", "--no-progress", "--json", str(path)]) == 0
     out = capsys.readouterr().out
-    assert "tolerance_check near the separatrix" in out and "within the tolerance on every period returned: 2 of 2" in out
+    assert "tolerance_check near the separatrix" in out and "within the tolerance on every period returned: 1 of 1" in out
     rows = json.loads(path.read_text())["rows"]
-    assert [r["mode"] for r in rows] == [True, "refine"]
+    assert len(rows) == 1
     for r in rows:
         assert r["end"] is not None and r["end"] < floor.PERIODS and r["worst"] <= r["tolerance"]

@@ -396,9 +396,8 @@ def test_tolerance_with_noise_and_delay_keeps_the_lockstep_and_its_estimate(comp
 
 @UNSTABLE_MOTION
 @pytest.mark.parametrize("mode", ["NextStep", "SameStep"])
-@pytest.mark.parametrize("env_id,extra", [(FREE, {}), (FREE, {"tolerance_check": True}), (FREE, {"tolerance_check": "refine"}),
-                                          (LAGRANGE, {"tolerance_check": True}), (TIPPE, {})],
-                         ids=["free_body", "free_body-check", "free_body-refine", "top-check", "tippe"])
+@pytest.mark.parametrize("env_id,extra", [(FREE, {}), (FREE, {"tolerance_check": True}), (LAGRANGE, {"tolerance_check": True}), (TIPPE, {})],
+                         ids=["free_body", "free_body-check", "top-check", "tippe"])
 def test_tolerance_with_param_ranges_steps_each_sub_env_as_its_single_env(env_id, extra, mode):
     """tolerance= with param_ranges in the vector env: each sub-env's period is estimated (and,
     with tolerance_check, checked by its own companion) on its episode's drawn model, as its

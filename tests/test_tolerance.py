@@ -396,7 +396,7 @@ def test_the_compiled_vector_step_writes_the_estimate_and_its_fallback_gives_the
 
 # with tolerance_check the period's count and estimate come from the compiled plan and its runs from
 # the compiled checked runs (rbenvs.compiled.PeriodPlan, CheckedRuns): the same bits as on floats
-SINGLE_PATHS = [(case, False) for case in LOCKSTEP] + [(LOCKSTEP[i], check) for i, check in ((0, True), (2, True), (3, True), (3, "refine"))]
+SINGLE_PATHS = [(case, False) for case in LOCKSTEP] + [(LOCKSTEP[i], check) for i, check in ((0, True), (2, True), (3, True))]
 
 
 @pytest.mark.parametrize("env_id,kwargs,max_steps,steps,check", [(*case, check) for case, check in SINGLE_PATHS],

@@ -360,25 +360,19 @@ def test_quick_sweep_command(tmp_path, capsys):
 def test_the_tolerance_rows_pass_and_catch_an_estimate_that_falls_short(monkeypatch):
     """``rbenvs verify``'s tolerance rows (rbenvs.verify.tolerance): for rk4 the episode run with
     tolerance=1e-6 stays within it against the exact solution and the global error estimate is
-    never below the error, and "refine" holds 1e-9 near the separatrix and, ten times closer, is
-    within 1e-10 on every period it returns (and fails without the rounding twin's share); an estimate scaled down (its margin 0.3 instead of 1.25: 0.24 of the
-    classical estimate, which measures 0.88-2 of the error) is caught by the second row; euler,
-    which a tolerance does not take, has no rows."""
+    never below the error, and tolerance_check=True near the separatrix (1e-9) and, ten times
+    closer, at 1e-10, is within the tolerance on every period it returns; an estimate scaled
+    down (its margin 0.3 instead of 1.25: 0.24 of the classical estimate, which measures 0.88-2
+    of the error) is caught by the second row; euler, which a tolerance does not take, has no rows."""
     from rbenvs.core import global_error
     from rbenvs.verify.tolerance import ROWS, tolerance_checks
 
     rows = tolerance_checks(["rk4", "euler"], seed=0, n_cases=2)
-    assert [(c.integrator, c.check) for c in rows] == [("rk4", ROWS["error"]), ("rk4", ROWS["bound"]), ("rk4", ROWS["refine"]), ("rk4", ROWS["floor"])]
+    assert [(c.integrator, c.check) for c in rows] == [("rk4", ROWS["error"]), ("rk4", ROWS["bound"]), ("rk4", ROWS["near"]), ("rk4", ROWS["floor"])]
     assert all(c.passed for c in rows), rows
     assert 0.0 < rows[0].measured <= 1e-6
-    # refine near the separatrix: within 1e-9 (measured 7.8e-10 to 8.1e-10 over 24 bodies, seeds 0-3)
-    assert 1e-10 < rows[2].measured <= 1e-9 and rows[2].case["tolerance_check"] == "refine"
-    # ten times closer, at 1e-10: within (0.81 of it at worst over 24 bodies; 6 outside, up to 3 times, before the rounding twin)
-    assert 1e-11 < rows[3].measured <= 1e-10
-    with monkeypatch.context() as m:  # without the rounding twin's share the floor row fails (seed 1: 2.9e-10)
-        m.setattr(global_error, "ROUNDOFF_WEIGHT", 0.0)
-        floor = tolerance_checks(["rk4"], seed=1, n_cases=2)[3]
-        assert not floor.passed and floor.measured > 1e-10
+    assert 1e-11 < rows[2].measured <= 1e-9 and rows[2].case["tolerance_check"] is True
+    assert 1e-12 < rows[3].measured <= 1e-10
     monkeypatch.setattr(global_error, "MARGIN", 0.3)
     error, bound, _, _ = tolerance_checks(["rk4"], seed=0, n_cases=2)
     assert not bound.passed and bound.measured > 0.0 and bound.case["integrator"] == "rk4"

@@ -29,10 +29,7 @@ body: the exact elliptic solution; the others: DOP853 at ``rtol = 1e-13``, as
   ended as a numerical failure is printed as such; an episode ended where the global error
   estimate passed the tolerance (``tolerance_check=True``: the ``<key>+check`` rows of
   :data:`CHECKED`) shows the error up to the state it kept, the period where it ended, the
-  companion's steps counted in ``steps`` and no fixed search (it ran fewer periods); the
-  ``<key>+refine`` rows (``tolerance_check="refine"``) run the whole episode, replayed with more
-  steps where the estimate passed the tolerance, every replay's steps and the companion's
-  counted in ``steps``, against the same cheapest fixed steps.
+  companion's steps counted in ``steps`` and no fixed search (it ran fewer periods).
 
 The error constants are measured here too (:func:`rbenvs.integrators.error.measure_error_constant`)
 against each scheme's declared one.
@@ -67,7 +64,7 @@ class ToleranceCase:
     skip_fixed: tuple = field(default_factory=tuple)  # tolerances whose fixed search is too costly
     # with integrator="auto": the schemes the fixed setting is chosen from (cost in rhs evaluations)
     fixed_integrators: tuple = ()
-    check: bool | str = False  # tolerance_check= with each tolerance (True or "refine": the companion run's global error estimate)
+    check: bool = False  # tolerance_check= with each tolerance (True: the companion run's global error estimate)
 
 
 def _top(spin, tilt, side=0.0):
@@ -161,37 +158,29 @@ def scene_cases(names=None) -> tuple:
 
 # the rows whose motion amplifies errors beyond the tolerance (docs/integrators.md, "Unstable
 # motions") run again with tolerance_check=True, keyed "<key>+check": within the tolerance, or ended
-# as a numerical failure where the global error estimate passes it; and with tolerance_check="refine",
-# keyed "<key>+refine": replayed with more steps there, within it over the whole episode (the replays'
-# steps counted, against the same cheapest fixed steps)
+# as a numerical failure where the global error estimate passes it
 CHECKED = ("fb_triaxial_episode", "scene:tippe_hop")
 CHECK_SUFFIX = "+check"
-REFINE_SUFFIX = "+refine"
-_SUFFIXES = {CHECK_SUFFIX: True, REFINE_SUFFIX: "refine"}
 
 
-def _checked(case, suffix=CHECK_SUFFIX):
-    mode = _SUFFIXES[suffix]
-    return dataclasses.replace(case, key=case.key + suffix, label=case.label + f", tolerance_check={mode!r}", check=mode)
+def _checked(case):
+    return dataclasses.replace(case, key=case.key + CHECK_SUFFIX, label=case.label + ", tolerance_check=True", check=True)
 
 
 def _plain_key(key):
-    for suffix in _SUFFIXES:
-        if key.endswith(suffix):
-            return key[: -len(suffix)]
-    return key
+    return key[: -len(CHECK_SUFFIX)] if key.endswith(CHECK_SUFFIX) else key
 
 
 def all_cases(keys=None) -> tuple:
     """:data:`TOLERANCE_CASES` and, where ``keys`` asks for them (or is ``None``: all), the scenes'
     rows (:func:`scene_cases`), then the :data:`CHECKED` rows with ``tolerance_check=True``
-    (``<key>+check``) and ``"refine"`` (``<key>+refine``)."""
+    (``<key>+check``)."""
     plain = None if keys is None else {_plain_key(k) for k in keys}
     cases = tuple(c for c in TOLERANCE_CASES if plain is None or c.key in plain)
     scenes = None if plain is None else [k[len(SCENE_PREFIX):] for k in plain if k.startswith(SCENE_PREFIX)]
     if scenes is None or scenes:
         cases += scene_cases(scenes)
-    checked = tuple(_checked(c, suffix) for suffix in _SUFFIXES for c in cases if c.key in CHECKED and (keys is None or c.key + suffix in keys))
+    checked = tuple(_checked(c) for c in cases if c.key in CHECKED and (keys is None or c.key + CHECK_SUFFIX in keys))
     return tuple(c for c in cases if keys is None or c.key in keys) + checked
 
 
@@ -270,8 +259,7 @@ def _episode(case, env, starts, refs):
             for k, r in enumerate(ref):
                 _, _, term, _, info = env.step(a)
                 n = int(round(env.dt / info["internal_step"]))
-                # (the companion: n / 2 steps of 2 h; "refine": the replays' steps, the period's first try's included)
-                steps += n + (companion_steps(n) if checked else 0) + info.get("replayed_steps", 0)
+                steps += n + (companion_steps(n) if checked else 0)  # (the companion: n / 2 steps of 2 h)
                 est += info.get("error_estimate") or 0.0  # (None: not estimated)
                 if info["numerical_failure"]:
                     if failure is None:

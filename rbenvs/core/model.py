@@ -38,9 +38,8 @@ class Model:
       with compensation) or ``"default"`` (the env's default accuracy: the steps sum plainly, so
       that a default scene's trajectory is the one it had without);
     * ``check``: with a tolerance, whether a companion run estimates the episode's global error
-      (``tolerance_check``; :mod:`rbenvs.core.global_error`), and ``refine``: whether the episode
-      is then replayed with more steps where it passes the tolerance (``"refine"``) instead of
-      ending;
+      (``tolerance_check``; :mod:`rbenvs.core.global_error`) and ends it where it passes the
+      tolerance;
     * ``episode_steps``: the episode's length in control periods (the registered
       ``max_episode_steps``; ``None``: none);
     * ``failure_charge`` (derived): what the last reward of an episode that ends without success
@@ -68,7 +67,6 @@ class Model:
     horizon: int | None = None
     episode_steps: int | None = None
     check: bool = False
-    refine: bool = False
     accuracy: str = "explicit"
     failure_charge: float = field(init=False)
     step_rule: StepRule = field(init=False)
@@ -97,7 +95,7 @@ class Model:
         """Pickled as its parts and settings; the derived rule is made again on loading (it holds
         the system's pure forms, which may be functions made at run time)."""
         return (Model, (self.system, self.task, self.integrator, self.actuator, self.dt, self.substeps, self.guard, self.observation_high,
-                        self.speed_ceiling, self.tolerance, self.horizon, self.episode_steps, self.check, self.refine, self.accuracy))
+                        self.speed_ceiling, self.tolerance, self.horizon, self.episode_steps, self.check, self.accuracy))
 
     @property
     def h(self) -> float:

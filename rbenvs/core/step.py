@@ -42,7 +42,6 @@ import numpy as np
 from ..dynamics.validation import real_array
 from ..jit import compiled_form, jitable
 from ..rotations import every, power
-from .global_error import TWIN_BITS, rounding_twin, rounding_twin_first
 from .guard import MAX_INTERNAL_STEPS
 from .hybrid import Switching
 
@@ -237,7 +236,7 @@ class Engine:
         # many steps a tight tolerance takes add no more roundoff than a few (near an unstable
         # axis the motion amplifies it: docs/integrators.md, "Roundoff"). The compensation is
         # part of a run's state: it starts at zero at a reset and after a switch, and each run
-        # (the env's, the companion, a replay) carries its own from period to period
+        # (the env's, the companion) carries its own from period to period
         # (advance(comp=), companion(comp=); the single env's in comp)
         # (a default accuracy sums plainly: its scenes keep their bits; the companion's runs need it)
         compensate = m.tolerance is not None and (m.accuracy == "explicit" or m.check)
@@ -254,14 +253,6 @@ class Engine:
                 self.shared = (shared, rhs_event)
                 if compensate:
                     self.shared_c = first(system, compensated=True)
-        # tolerance_check's two rounding twins (rbenvs.core.global_error): the compensated steps
-        # with every increment off by a unit roundoff, its sign from mantissa bit 21 or 17 of the
-        # increment; () without a check
-        self.twin_cs = self.twin_first_cs = ()
-        if m.check and self.step_c is not None:
-            self.twin_cs = tuple(rounding_twin(self.step_c, bit) for bit in TWIN_BITS)
-            if self.shared_c is not None:
-                self.twin_first_cs = tuple(rounding_twin_first(self.shared_c[0], bit) for bit in TWIN_BITS)
         # the plain loop (substeps equal steps, nothing watched) is exact when no state inside
         # the observation bounds can trip the guard; a step that ends outside them drops to the
         # checked path until the next reset (the single env's and the vector env's rule); a
@@ -297,11 +288,8 @@ class Engine:
         # twice the size: rbenvs.core.global_error), so neither the plain loop (substeps steps) nor
         # the compiled single-state step (the guard's count) runs
         self.check = m.check
-        # tolerance_check="refine": the single env's factor on the guard's count, raised where its
-        # episode was replayed with more steps (rbenvs.core.global_error.GlobalErrorCheck.hold)
-        self.step_factor = 1.0
         # the checked period's runs of one state, compiled (rbenvs.compiled.CheckedRuns: the main
-        # run's count, the companion's and its twins', each a given count and step): "auto" uses
+        # run's count and the companion's, each a given count and step): "auto" uses
         # them where numba is installed and every part has a pure form, built on the first run;
         # the period's count and rates come from its plan (below), the finish stays on floats
         self._runs, self._runs_tried = None, True
@@ -428,7 +416,7 @@ class Engine:
         return None if inputs is None else _compiled.CheckedRuns(inputs[0], *inputs[1])
 
     # ------------------------------------------------------------------ the period
-    def advance(self, y, u, plain: bool, skip=None, factor=None, comp=None, ratio=None):
+    def advance(self, y, u, plain: bool, skip=None, comp=None, ratio=None):
         """One control period from ``y`` under ``u``: ``(y, fired, h, comp)``.
 
         ``fired``: whether the terminal event ended the period (a bool, or a mask for a batch);
@@ -438,9 +426,7 @@ class Engine:
         than ``MAX_INTERNAL_STEPS`` is refused as a numerical failure: the state becomes NaN,
         never a hang). ``skip`` (a batch): elements whose result is discarded (vector
         autoreset) take ``substeps`` steps, are never refused and never stretch the loop.
-        ``factor`` (``tolerance_check="refine"``, :mod:`rbenvs.core.global_error`): the guard's
-        count times it, rounded up (a batch: one per element; one state: ``None`` reads
-        :attr:`step_factor`, the single env's). ``comp``: the run's compensation at ``y`` (a
+        ``comp``: the run's compensation at ``y`` (a
         tolerance: :attr:`step_c`; ``None`` is zero), returned as it is after the period
         (``None`` without compensation; a refused period's is zero). ``ratio`` (one state): the
         guard's ratio at ``y`` under ``u`` where the caller has it (:meth:`plan_one`).
@@ -458,10 +444,6 @@ class Engine:
             n = self.substeps
             if self.rule.active:
                 n = self.rule.count(self.plan_one(y, u)[0] if ratio is None else ratio, n)
-            if factor is None:
-                factor = self.step_factor
-            if factor != 1.0 and n <= MAX_INTERNAL_STEPS:
-                n = min(math.ceil(n * factor), MAX_INTERNAL_STEPS + 1)
             if n > self.substeps and self.guard == "refuse":
                 raise self.refusal(n)
             if self.check:  # an even count: the companion takes half as many steps of twice the size
@@ -475,8 +457,6 @@ class Engine:
             return y, fired, h, comp
         # a batch: the same rules per element (each takes its own count, then is frozen)
         n = self._counts(y, u)
-        if factor is not None:  # (the same IEEE product and ceiling as one state's)
-            n = np.where(n <= MAX_INTERNAL_STEPS, np.minimum(np.ceil(n * np.asarray(factor, dtype=np.float64)), MAX_INTERNAL_STEPS + 1), n).astype(np.int64)
         if self.check:
             n = n + (n & 1)
         if skip is not None:
@@ -509,26 +489,24 @@ class Engine:
             return y, fired, h, comp
         return y, fired, np.broadcast_to(np.asarray(h, dtype=float), n.shape).copy(), comp
 
-    def _compensated_steps(self, comp, twin):
-        """``(step_c, first_c)``, the compensated step and first-stage step a run takes (rounding
-        twin ``twin``'s, 1 or 2; 0: the plain run's); ``None`` each where the run sums plainly
-        (``comp`` is ``None``) or the system has no such step."""
+    def _compensated_steps(self, comp):
+        """``(step_c, first_c)``, the compensated step and first-stage step a run takes; ``None``
+        each where the run sums plainly (``comp`` is ``None``) or the system has no such step."""
         if comp is None:
             return None, None
-        first_c = None if self.shared_c is None else (self.twin_first_cs[twin - 1] if twin else self.shared_c[0])
-        return (self.twin_cs[twin - 1] if twin else self.step_c), first_c
+        return self.step_c, None if self.shared_c is None else self.shared_c[0]
 
-    def _run_one(self, y, u, n: int, h: float, comp=None, twin=0):
+    def _run_one(self, y, u, n: int, h: float, comp=None):
         """One state's ``n`` internal steps of ``h``, the switches after each and the terminal
         event ending them early: ``(y, fired, comp)``. ``comp``: the run's compensation at
         ``y`` (a tolerance: the compensated step carries it; it starts again from zero after a
-        switch); ``None``: the plain step. ``twin``: rounding twin ``twin``'s steps (1 or 2, :attr:`twin_cs`; 0: the plain run's)."""
+        switch); ``None``: the plain step."""
         if self.check and comp is not None:  # (the checked period's runs, compiled where they can be)
             runs = self._runs if self._runs_tried else self.checked_runs
             if runs is not None:
-                return runs(y, comp, u, n, h, twin)
+                return runs(y, comp, u, n, h)
         post, event = self.switching, self.event
-        step_c, first_c = self._compensated_steps(comp, twin)
+        step_c, first_c = self._compensated_steps(comp)
         if self.shared is not None:  # (the event's evaluation is the next first stage)
             (first, ps), (rhs_event, pv) = self.shared
             k, g = rhs_event(pv, y, u)
@@ -564,34 +542,32 @@ class Engine:
                     return y, True, comp
         return y, False, comp
 
-    def companion(self, y, u, n, comp=None, twin=0):
+    def companion(self, y, u, n, comp=None):
         """The companion run's period (:mod:`rbenvs.core.global_error`) from ``y`` under ``u``,
         where the main run took ``n`` (even, with ``tolerance_check``) steps of ``h = dt / n``:
         ``n / 2`` steps of ``2 h`` (one state: ``n`` an int; a batch: an int array); ``(y,
-        comp)``, ``comp`` the companion's own compensation as :meth:`advance` carries it.
-        ``twin``: its rounding twin ``twin``'s (1 or 2: every increment off by a unit roundoff)."""
+        comp)``, ``comp`` the companion's own compensation as :meth:`advance` carries it."""
         if comp is None:
             comp = self.fresh_comp
         if not isinstance(y[0], np.ndarray):
-            y, _, comp = self._run_one(y, u, n // 2, 2.0 * self.dt / n, comp, twin)
+            y, _, comp = self._run_one(y, u, n // 2, 2.0 * self.dt / n, comp)
             return y, comp
         n = np.asarray(n, dtype=np.int64)
         if n.shape != np.shape(y[0]):  # (broadcast_to costs ~5 us: only where needed)
             n = np.broadcast_to(n, np.shape(y[0]))
-        y, _, comp = self._loop(y, u, n // 2, 2.0 * self.dt / n, comp, twin)
+        y, _, comp = self._loop(y, u, n // 2, 2.0 * self.dt / n, comp)
         return y, comp
 
-    def _loop(self, y, u, n, h, comp=None, twin=0):
+    def _loop(self, y, u, n, h, comp=None):
         """A batch's internal steps: element ``i`` takes ``n[i]`` steps of ``h`` (``h[i]``) and is
         frozen after them or at its terminal event: ``(y, fired, comp)``. ``comp``: each
-        element's compensation, carried as :meth:`_run_one` carries it (``None``: plain);
-        ``twin``: rounding twin ``twin``'s steps (1 or 2; 0: the plain run's)."""
+        element's compensation, carried as :meth:`_run_one` carries it (``None``: plain)."""
         if self.check and comp is not None:  # (the checked period's runs, compiled where they can be)
             runs = self._runs if self._runs_tried else self.checked_runs
             if runs is not None and u is not None:
-                return self._run_each(runs, y, u, n, h, comp, twin)
+                return self._run_each(runs, y, u, n, h, comp)
         step, post, event = self.bound_step, self.switching, self.event
-        step_c, first_c = self._compensated_steps(comp, twin)
+        step_c, first_c = self._compensated_steps(comp)
         fired = np.zeros(n.shape, dtype=bool)
 
         def stepped(y, comp):  # one step of every element, and the switches after it
@@ -652,7 +628,7 @@ class Engine:
         return y, fired, comp
 
     @staticmethod
-    def _run_each(runs, y, u, n, h, comp, twin):
+    def _run_each(runs, y, u, n, h, comp):
         """:meth:`_loop` through the compiled runs (``tolerance_check``, :meth:`rbenvs.compiled.CheckedRuns.batch`):
         element ``i`` takes its ``n[i]`` steps of ``h`` (``h[i]``) from its state and
         compensation, as its single env takes them (the same bits as the arrays' loop)."""
@@ -669,7 +645,7 @@ class Engine:
         if H.shape != n.shape or not H.flags.c_contiguous:  # (read only by the runs)
             H = np.full(n.shape, H)
         fired = np.zeros(size, dtype=bool)
-        runs.batch(Y, CC, U, np.ascontiguousarray(n, dtype=np.int64), H, fired, twin)
+        runs.batch(Y, CC, U, np.ascontiguousarray(n, dtype=np.int64), H, fired)
         return tuple(Y), fired.reshape(n.shape), tuple(CC)
 
     def refusal(self, n, where: str = "") -> ValueError:
@@ -872,33 +848,22 @@ class Engine:
         bound = self.rule.binding(y0, u) if y0 is not None else f"the step bound ({self.rule.text})"
         return f": the period needs more than MAX_INTERNAL_STEPS = {MAX_INTERNAL_STEPS} internal steps to meet {bound}"
 
-    def inaccurate_one(self, y0, a, h, plain, estimate, periods, refine=False, roundoff=0.0):
+    def inaccurate_one(self, y0, a, h, plain, estimate, periods):
         """The end of an episode whose global error estimate (``tolerance_check``) passed the
         tolerance in its ``periods``-th period, the one from ``y0``: a numerical failure at
-        ``y0``, the last state within it, with a warning that says when (``refine``: and that
-        replaying it with more steps did not hold it; ``roundoff``: the estimate's roundoff part)."""
-        what = self._inaccurate_text(estimate, periods, refine, roundoff)
+        ``y0``, the last state within it, with a warning that says when."""
+        what = self._inaccurate_text(estimate, periods)
         u_norm, u = self.control(a)
         out = self._failed_one(y0, u_norm, u, h, plain, what, "the last state within the tolerance")
-        out[4]["global_error_estimate"], out[4]["global_error_roundoff"] = estimate, roundoff
+        out[4]["global_error_estimate"] = estimate
         return out
 
-    def _inaccurate_text(self, estimate, periods, refine=False, roundoff=0.0) -> str:
-        passed = (f"the global error estimate {float(estimate):.3g} passed tolerance={self.tolerance!r} after {int(periods)} periods "
-                  f"({int(periods) * self.dt:.6g} s")
-        if 2.0 * float(roundoff) >= float(estimate):  # (most of it the rounding twins': rbenvs.core.global_error)
-            return (f"{passed}), {float(roundoff):.3g} of it roundoff the motion amplified (the rounding twins': tolerance_check), which "
-                    f"more steps do not reduce: the tolerance is below what float64 carries through this motion; a larger tolerance holds")
-        if refine:
-            return (f"{passed}) and replaying the episode with more steps did not hold it (tolerance_check='refine': "
-                    f"the estimate did not fall as the steps' error does, which roundoff amplified by the motion or a step outside the "
-                    f"scheme's asymptotic range explains, or the steps passed MAX_INTERNAL_STEPS = {MAX_INTERNAL_STEPS}, or a replay ended "
-                    f"earlier than the run); a larger tolerance holds: a relative error below what float64 carries through an unstable "
-                    f"motion cannot")
-        return (f"{passed}; tolerance_check: a companion run at twice the step measures the error the state "
+    def _inaccurate_text(self, estimate, periods) -> str:
+        return (f"the global error estimate {float(estimate):.3g} passed tolerance={self.tolerance!r} after {int(periods)} periods "
+                f"({int(periods) * self.dt:.6g} s; tolerance_check: a companion run at twice the step measures the error the state "
                 f"carries, errors the motion amplified included, which the steps' estimate does not budget for; more steps per period "
-                f"hold it longer: substeps= sets the least count, tolerance_check='refine' replays the episode with more steps instead "
-                f"of ending it, and 'rbenvs bench accuracy --tolerance' shows the counts that hold each shipped scene)")
+                f"hold it longer: a tighter tolerance= or substeps= (the least count), and 'rbenvs bench accuracy --tolerance' shows "
+                f"the counts that hold each shipped scene)")
 
     def _failed_one(self, y0, u_norm, u, h, plain, what=None, kept="the last finite state"):
         if what is None:
@@ -944,7 +909,7 @@ class Engine:
             if late.any():
                 idx = np.flatnonzero(late)
                 warnings.warn(
-                    f"sub-envs {idx.tolist()}: {self._inaccurate_text(np.max(estimate[late]), np.min(check.periods[late]), check.refine, np.min(check.roundoff[late]))}; their episodes end "
+                    f"sub-envs {idx.tolist()}: {self._inaccurate_text(np.max(estimate[late]), np.min(check.periods[late]))}; their episodes end "
                     "and their last states within the tolerance are kept",
                     NumericalFailureWarning,
                     stacklevel=3,

@@ -146,8 +146,7 @@ class RigidBodyEnv(gym.Env):
         accuracy = "explicit"
         if isinstance(tolerance, str):  # the env's default accuracy (guard="off" takes substeps steps whatever: unchecked)
             tolerance, accuracy = (self.default_tolerance, "default") if guard != "off" and self.default_tolerance is not None else (None, "explicit")
-        mode = require_tolerance_check(tolerance_check, tolerance, guard)
-        check, refine = mode is not False, mode == "refine"
+        check = require_tolerance_check(tolerance_check, tolerance)
         horizon = self._tolerance_horizon(tolerance_horizon)
         compiled = require_compiled(compiled)
         dt = require_finite_positive("dt", dt)
@@ -173,20 +172,17 @@ class RigidBodyEnv(gym.Env):
             self._require_accuracy(integrator, guard, tolerance)
             unstable = self._unstable_motion(system, task, horizon * dt)
             if unstable:
-                then = ("tolerance_check='refine': a companion run estimates the episode's global error (info['global_error_estimate']) "
-                        "and the episode is replayed with more steps where it passes the tolerance" if refine else
-                        "tolerance_check=True: a companion run estimates the episode's global error (info['global_error_estimate']) "
+                then = ("tolerance_check=True: a companion run estimates the episode's global error (info['global_error_estimate']) "
                         "and the episode ends as a numerical failure where it passes the tolerance" if check else
                         "over a horizon that spans it the error can end above the tolerance (tolerance_check=True estimates it and ends "
-                        "the episode as a numerical failure where it passes the tolerance; tolerance_check='refine' replays the episode "
-                        "with more steps there instead)")
+                        "the episode as a numerical failure where it passes the tolerance)")
                 warnings.warn(UnstableMotionWarning(
                     f"tolerance={tolerance!r}: {unstable}. The steps hold the error they commit within the tolerance, but an unstable "
                     f"motion amplifies errors already made; {then} ('rbenvs bench accuracy --tolerance' measures it per scene; "
                     f"docs/integrators.md, 'Unstable motions')"), stacklevel=_caller_level())
         high = tuple(float(v) for v in observation_high)
         self.model = Model(system, task, integrator, actuator, dt, substeps, guard, high, self._speed_ceiling(), tolerance, horizon if tolerance is not None else None,
-                           self.registered_episode_steps(), check, refine, accuracy)
+                           self.registered_episode_steps(), check, accuracy)
         self._require_float32_rewards()
         self.engine = Engine(self.model, compiled)
         self.render_mode = render_mode
@@ -200,7 +196,7 @@ class RigidBodyEnv(gym.Env):
         self._action_shape = self.action_space.shape  # read on every step
         self._step_one = self.engine.step_one
         # tolerance_check: the companion run beside the state (rbenvs.core.global_error)
-        self._check = GlobalErrorCheck(self.engine, refine) if check else None
+        self._check = GlobalErrorCheck(self.engine) if check else None
         if check:
             self._step_one = self._check.step_one
         self._y = None  # the state: a tuple of floats
@@ -474,7 +470,7 @@ class RigidBodyEnv(gym.Env):
         if self._check is not None:
             self._check.engine, self._step_one = self.engine, self._check.step_one  # (param_ranges: this episode's engine)
             self._check.restart(self._y)
-            info["global_error_estimate"] = info["global_error_roundoff"] = 0.0
+            info["global_error_estimate"] = 0.0
         if self._realism.active:
             obs = self._reset_realism(obs)
         if params is not None:
@@ -529,8 +525,8 @@ class RigidBodyEnv(gym.Env):
         """Integrator steps per control period at ``y`` under ``u``: ``max(substeps, ceil(x))``
         from the step rule (an int, or an int array for a batch); ``MAX_INTERNAL_STEPS + 1``
         marks a period refused as a numerical failure. The guard's count: with
-        ``tolerance_check`` a period takes it times ``info["step_factor"]`` (``"refine"``),
-        rounded up, and one more where that is odd (``info["internal_step"]`` is the step taken)."""
+        ``tolerance_check`` a period takes one more where it is odd (``info["internal_step"]`` is
+        the step taken)."""
         return self.engine.internal_steps(y, u)
 
     # ------------------------------------------------------------------ state access

@@ -156,24 +156,18 @@ class LagrangeTopEnv(RigidBodyEnv):
       given to ``gymnasium.make`` is not seen by the env: pass ``tolerance_horizon`` with it);
       refused with ``tolerance=None``.
     * ``tolerance_check=False``: with ``tolerance``, ``True`` estimates the episode's global error
-      with a companion run (the same periods at twice the step) and its rounding twin (the
-      roundoff the motion amplifies): about the steps again; :mod:`rbenvs.core.global_error`), reports it as ``info["global_error_estimate"]``
-      (its roundoff part ``info["global_error_roundoff"]``) and ends
+      with a companion run (the same periods at twice the step: about half the steps again;
+      :mod:`rbenvs.core.global_error`), reports it as ``info["global_error_estimate"]`` and ends
       the episode as a numerical failure, at the last state within it, where it passes the
       tolerance: for motions that amplify errors (the ``UnstableMotionWarning``'s;
-      docs/integrators.md, "Unstable motions"). ``"refine"``: there, instead, the episode is
-      replayed from its start under the same controls with more steps per period (the factor in
-      ``info["step_factor"]``, the steps it took in ``info["replayed_steps"]``) and goes on within
-      the tolerance; it ends as with ``True`` only where more steps cannot hold it (needs
-      ``guard="subdivide"``). A step that replays takes about as long as the episode so far
-      took, once more (a vector env's step: for each sub-env it replays).
+      docs/integrators.md, "Unstable motions").
     * ``compiled="auto"``: run each step as one compiled call of the same functions (numba, the
       ``fast`` extra; built on the first step, about a second per setting and process), bit
       for bit the float path, where numba is installed and the setting has pure forms (the
       explicit schemes ``euler``, ``rk4``, ``splitting``); ``False``: the float path; ``True``:
       demand it (``ValueError`` saying why it cannot be had). ``env.unwrapped.compiled`` tells.
       With ``tolerance_check`` the step is not one call (``compiled`` is ``False``): its
-      period's runs are compiled instead (the main run's, the companion's and the twin's).
+      period's runs are compiled instead (the main run's and the companion's).
     * ``param_ranges=None``: domain randomization, ``{keyword: spread or (lo, hi)}`` over
       ``inertia``, ``mass``, ``length``, ``gravity``, ``spin_friction``, ``max_torque``, drawn at each reset from the env's generator and reported in
       ``info["params"]``; each range is checked at construction (every corner of the box must be

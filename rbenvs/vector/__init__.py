@@ -69,7 +69,6 @@ Conventions (gymnasium 1.x):
 from __future__ import annotations
 
 import inspect
-import math
 import warnings
 
 import numpy as np
@@ -78,7 +77,7 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
 from .. import compiled as _compiled
-from ..core.global_error import GlobalErrorCheck, companion_steps
+from ..core.global_error import GlobalErrorCheck
 from ..core.step import _REAL_FLOATS, ReasonPool, action_columns, terminal_reason
 from ..draws import GeneratorTable, kind_codes
 from ..envs.base import require_compiled
@@ -129,14 +128,12 @@ class RigidBodyVectorEnv(VectorEnv):
         # the robustness options (rbenvs.envs.options), validated by the single env
         self._template, self._ranges, self._realism = env, env.param_ranges, env.realism
         # tolerance_check: the companion run of every sub-env (rbenvs.core.global_error), on the
-        # numpy path, its runs (the main run's, the companion's and the twins') in one compiled loop
+        # numpy path, its runs (the main run's and the companion's) in one compiled loop
         # over the sub-envs where numba is installed (rbenvs.compiled.CheckedRuns.batch; with
         # compiled=False on numpy); the batch kernel has no checked period
-        self._check = GlobalErrorCheck(self.engine, env.model.refine) if env.model.check else None
-        self._checked, self._refine = bool(env.model.check), bool(env.model.check and env.model.refine)
+        self._check = GlobalErrorCheck(self.engine) if env.model.check else None
+        self._checked = bool(env.model.check)
         self._global = None  # the last step's global error estimates
-        self._roundoff = None  # and their roundoff parts (the rounding twins')
-        self._replayed = self._factor = None  # tolerance_check="refine": the last step's replayed steps and factors
         if self._check is not None:
             if compiled is True:
                 raise ValueError("compiled=True cannot be had with tolerance_check=True: the checked period (an even count of steps "
@@ -341,8 +338,6 @@ class RigidBodyVectorEnv(VectorEnv):
         if self._checked:
             info["global_error_estimate"] = np.zeros(n)
             info["_global_error_estimate"] = self._true
-            info["global_error_roundoff"] = np.zeros(n)
-            info["_global_error_roundoff"] = self._true
         if self._options:
             obs, info = self._realism_after(obs, info, mask, reset=True)
         return obs, info
@@ -513,21 +508,13 @@ class RigidBodyVectorEnv(VectorEnv):
         info["error_estimate"] = estimate
         info["_error_estimate"] = self._true
         if self._checked:  # (0 where no period ran, as the estimate's; SAME_STEP: the ended ones' go with their final info)
-            global_, roundoff = np.where(restart, 0.0, self._global), np.where(restart, 0.0, self._roundoff)
+            global_ = np.where(restart, 0.0, self._global)
             if "final_info" in info:
-                info["final_info"]["global_error_estimate"], info["final_info"]["global_error_roundoff"] = global_.copy(), roundoff.copy()
-                info["final_info"]["_global_error_estimate"] = info["final_info"]["_global_error_roundoff"] = self._true
-                global_[info["_final_info"]] = roundoff[info["_final_info"]] = 0.0
-            info["global_error_estimate"], info["global_error_roundoff"] = global_, roundoff
-            info["_global_error_estimate"] = info["_global_error_roundoff"] = self._true
-            if self._refine:  # the factor on the guard's counts, and the steps beyond the period's own
-                factor, replayed = self._factors(), np.where(restart, 0, self._replayed)
-                if "final_info" in info:  # (the ended episodes' factors, from before their restart)
-                    info["final_info"]["step_factor"], info["final_info"]["replayed_steps"] = self._factor.copy(), replayed.copy()
-                    info["final_info"]["_step_factor"] = info["final_info"]["_replayed_steps"] = self._true
-                    replayed[info["_final_info"]] = 0
-                info["step_factor"], info["replayed_steps"] = factor, replayed
-                info["_step_factor"] = info["_replayed_steps"] = self._true
+                info["final_info"]["global_error_estimate"] = global_.copy()
+                info["final_info"]["_global_error_estimate"] = self._true
+                global_[info["_final_info"]] = 0.0
+            info["global_error_estimate"] = global_
+            info["_global_error_estimate"] = self._true
         return obs, reward, terminated, truncated, info
 
     def _step(self, actions, control=None, plain=None):
@@ -553,9 +540,8 @@ class RigidBodyVectorEnv(VectorEnv):
             if self._batch_step is not None:
                 y, fast, fired, h = self._compiled_advance(y0, u, u_norm, restart, plain)
             else:
-                factor = self._check.factor if self._check is not None and self._check.refine else None
                 comp = None if self._cc is None else tuple(self._cc)
-                y, fired, h, comp = engine.advance(y0, u, plain, restart if any_restart else None, factor, comp)
+                y, fired, h, comp = engine.advance(y0, u, plain, restart if any_restart else None, comp)
                 if comp is not None:
                     cc = self._cc = np.empty((len(comp), self.num_envs))
                     for j, c in enumerate(comp):  # (a component may be one float for every sub-env)
@@ -568,13 +554,6 @@ class RigidBodyVectorEnv(VectorEnv):
             with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
                 self._global = np.where(restart, 0.0, self._check.period(y, u, n))
                 inaccurate = self._global > engine.tolerance
-            self._replayed = np.zeros(self.num_envs, dtype=np.int64)
-            if self._check.refine:
-                if (inaccurate & ~restart).any():
-                    y, fired, h, inaccurate = self._hold(y0, y, u, fired, h, n, inaccurate & ~restart)
-                self._check.record(u)  # (before this step's restarts: a restarting sub-env's controls begin after it)
-                self._factor = self._factors()  # (SAME_STEP's final_info: before the restarts)
-            self._roundoff = np.where(restart, 0.0, np.broadcast_to(self._check.roundoff, (self.num_envs,)))  # (likewise)
             if not inaccurate.any():
                 inaccurate = None
         self._u, self._last_h = u, h
@@ -588,37 +567,6 @@ class RigidBodyVectorEnv(VectorEnv):
             metrics = dict(zip(self.task.metric_names, metrics))
             return self._finish(obs, over, reward, terminated, fired, None, metrics, restart, any_restart, physical)
         return self._numpy_finish(y0, y, u_norm, fired, restart, any_restart, inaccurate)
-
-    def _hold(self, y0, y, u, fired, h, n, late):
-        """``tolerance_check="refine"``: each sub-env of ``late`` (its estimate passed the
-        tolerance) replayed from its episode's start with more steps and its period taken again,
-        on floats, as its single env does (:meth:`rbenvs.core.global_error.GlobalErrorCheck.hold`):
-        ``(y, fired, h, inaccurate)`` with its new state, or still ``inaccurate`` where the
-        tolerance could not be held."""
-        engine, check = self.engine, self._check
-        y = [np.array(c, dtype=np.float64) for c in y]
-        fired = np.array(np.broadcast_to(fired, (self.num_envs,)), dtype=bool)
-        h = np.array(np.broadcast_to(h, (self.num_envs,)), dtype=np.float64)
-        inaccurate = late.copy()
-        for i in np.flatnonzero(late):
-            ui = None if u is None else tuple(float(c[i]) if np.ndim(c) else float(c) for c in u)
-
-            def redo(start, factor, comp, ui=ui):
-                y_new, fired_i, h_i, comp = engine.advance(start, ui, False, factor=factor, comp=comp)
-                if not all(math.isfinite(c) for c in y_new):
-                    return None, None, 0
-                return (y_new, fired_i, h_i, comp), y_new, int(round(engine.dt / h_i))
-
-            held, e, steps = check.hold(self._global[i], ui, redo, int(n[i]) + companion_steps(int(n[i])), row=i)
-            self._replayed[i] = steps
-            if held is not None:
-                y_new, fired[i], h[i], comp = held
-                for c, v in zip(y, y_new):
-                    c[i] = v
-                if comp is not None:  # (the replayed run's compensation goes on with its state)
-                    self._cc[:, i] = comp
-                self._global[i], inaccurate[i] = e, False
-        return tuple(y), fired, h, inaccurate
 
     def _numpy_finish(self, y0, y, u_norm, fired, restart, any_restart, inaccurate=None):
         """The rest of a step on numpy from the period's new states ``y``: numerical failure
@@ -835,7 +783,7 @@ class RigidBodyVectorEnv(VectorEnv):
             self._episodes[i] = self._template.episode_env(values).engine
             self._plains[i] = self._episodes[i].plain
             if self._episode_checks is not None:  # (started at the episode's state: _restart_companion)
-                self._episode_checks[i] = GlobalErrorCheck(self._episodes[i], self._refine)
+                self._episode_checks[i] = GlobalErrorCheck(self._episodes[i])
             for name, v in self._ranges.info(values).items():
                 column = self._param_values.get(name)
                 if column is None:
@@ -892,7 +840,7 @@ class RigidBodyVectorEnv(VectorEnv):
         if estimated:
             self._estimates = np.zeros(n)
         if checks is not None:
-            self._global, self._roundoff, self._replayed = np.zeros(n), np.zeros(n), np.zeros(n, dtype=np.int64)
+            self._global = np.zeros(n)
         for i in range(n):
             if restart[i]:  # (NEXT_STEP: reset below, the period discarded)
                 continue
@@ -903,9 +851,7 @@ class RigidBodyVectorEnv(VectorEnv):
             if estimated:
                 self._estimates[i] = info["error_estimate"]
             if checks is not None:
-                self._global[i], self._roundoff[i] = info["global_error_estimate"], info["global_error_roundoff"]
-                if self._refine:
-                    self._replayed[i] = info["replayed_steps"]
+                self._global[i] = info["global_error_estimate"]
             for c, v in zip(y_new, y):
                 c[i] = v
             obs[i], reward[i], us[i], h[i] = o, r, u, info["internal_step"]
@@ -923,16 +869,8 @@ class RigidBodyVectorEnv(VectorEnv):
         self._u = None if size is None else tuple(np.array([0.0 if u is None else u[j] for u in us]) for j in range(size))
         self._last_h = h
         metrics = {name: self._column(name, metric_rows[name]) for name in names}
-        if self._refine:  # (SAME_STEP's final_info: before the restarts)
-            self._factor = self._factors()
         return self._finish(obs, over, reward, terminated, fired if fired.any() else self._false, failed if failed.any() else None, metrics, restart,
                             any_restart, physical, charged=True)
-
-    def _factors(self) -> np.ndarray:
-        """``tolerance_check="refine"``: each sub-env's factor on the guard's counts."""
-        if self._episode_checks is not None:
-            return np.array([c.factor for c in self._episode_checks], dtype=np.float64)
-        return np.array(self._check.factor, dtype=np.float64)
 
     def _step_options(self, actions):
         """:meth:`step` with the robustness options: the action queue (``action_delay``) gives the
