@@ -95,8 +95,22 @@ def test_the_count_meets_the_budget_and_one_fewer_does_not():
 # ----------------------------------------------------------------- validation
 @pytest.mark.parametrize("bad", [0.0, 1.0, -1e-3, 2.0, math.nan, math.inf, "1e-3", True, 1j])
 def test_tolerance_is_validated_at_construction(bad):
-    with pytest.raises((ValueError, TypeError), match=r"tolerance must be 'default' \(the env's default accuracy\), None \(unchecked.*\) or a finite number with 0 < tolerance < 1"):
+    with pytest.raises((ValueError, TypeError), match=r"tolerance must be 'default' \(the env's default accuracy\), None \(unchecked.*\) or a finite number with 1e-12 <= tolerance < 1"):
         FreeRigidBodyEnv(tolerance=bad)
+
+
+def test_a_tolerance_below_float64s_floor_is_refused():
+    """Below ``TOLERANCE_FLOOR`` (1e-12) float64 cannot carry the error over an episode: near the
+    separatrix the compensated sums' roundoff alone reaches 1e-13-1e-12, and at 1e-13 the check
+    returned periods 1.33 times outside (``rbenvs bench accuracy --floor``, 0.01 rad/s off). The
+    refusal says why and what to do; the floor itself is accepted."""
+    from rbenvs.core.guard import TOLERANCE_FLOOR
+
+    assert TOLERANCE_FLOOR == 1e-12
+    for bad in (1e-13, 5e-13, 1e-300):
+        with pytest.raises(ValueError, match=r"below what float64 carries over an episode \(1e-12.*pass tolerance >= 1e-12"):
+            FreeRigidBodyEnv(tolerance=bad)
+    assert FreeRigidBodyEnv(tolerance=TOLERANCE_FLOOR).model.tolerance == 1e-12
 
 
 def test_tolerance_needs_a_guard_and_a_scheme_with_an_error_constant():

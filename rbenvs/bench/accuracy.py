@@ -699,7 +699,7 @@ def main(argv=None) -> int:
                              "intermediate axis, summed plainly and with compensation (a tolerance's), apart and against the exact solution")
     parser.add_argument("--floor", action="store_true",
                         help="only the float64 floor table (rbenvs.bench.floor): tolerance_check=True from 0.0001-0.01 rad/s off "
-                             "the free body's intermediate axis at 1e-8 to 1e-13, every period returned against mpmath's Taylor solution (needs mpmath)")
+                             "the free body's intermediate axis at 1e-8 to 1e-12, every period returned against mpmath's Taylor solution (needs mpmath)")
     parser.add_argument("--tippe", action="store_true",
                         help="only the tippe top's work-precision against MuJoCo (rbenvs.bench.tippe_accuracy): t90 against the slip regularisation, "
                              "every scheme, step and fidelity level and MuJoCo's integrators and cones at several dt, cost per simulated second "

@@ -29,7 +29,7 @@ __all__ = ["INERTIA", "SPIN", "OFF", "TOLERANCES", "PERIODS", "run_floor", "prin
 INERTIA = (2.0, 1.5, 1.0)
 SPIN = 5.0  # |Omega| about the intermediate axis [rad/s]
 OFF = (1e-4, 3e-4, 1e-3, 1e-2)  # the start's Omega_1 [rad/s] (Omega_3 = 0.7 of it)
-TOLERANCES = (1e-8, 1e-9, 1e-10, 1e-11, 1e-12, 1e-13)
+TOLERANCES = (1e-8, 1e-9, 1e-10, 1e-11, 1e-12)  # (down to rbenvs.core.guard.TOLERANCE_FLOOR)
 PERIODS = 400  # the free body's episode (20 s)
 # an error below this is roundoff of the comparison itself, not of the run (the estimate/error column)
 ERROR_FLOOR = 1e-13

@@ -59,7 +59,7 @@ from ..rotations import every, maximum, power, select, sqrt
 from .codegen import generate
 
 __all__ = ["MAX_INTERNAL_STEPS", "GUARDS", "DEFAULT_TOLERANCE", "UnstableMotionWarning", "StepRule", "step_ratio", "step_ratio_motion", "motion_rates", "accuracy_steps", "relaxation_steps", "whole_root", "error_estimate", "require_guard",
-           "require_tolerance"]
+           "require_tolerance", "TOLERANCE_FLOOR"]
 
 # More internal steps than this in one control period is treated as a numerical failure.
 MAX_INTERNAL_STEPS = 1_000_000
@@ -86,20 +86,28 @@ def require_guard(guard) -> str:
 
 # ``tolerance=``'s default: the env's default accuracy (RigidBodyEnv.default_tolerance)
 DEFAULT_TOLERANCE = "default"
+# the least tolerance float64 carries over an episode: near the free body's separatrix the
+# motion amplifies the (compensated) sums' roundoff to 1e-13-1e-12 over 20 s, and at 1e-13 the
+# check returned periods 1.33 times outside (rbenvs bench accuracy --roundoff and --floor)
+TOLERANCE_FLOOR = 1e-12
 
 
 def require_tolerance(tolerance):
     """``tolerance=``: ``"default"`` (the env's default accuracy), ``None`` (no accuracy bound)
-    or a finite number with ``0 < tolerance < 1`` (a relative error per episode)."""
+    or a finite number with ``TOLERANCE_FLOOR <= tolerance < 1`` (a relative error per episode)."""
     if tolerance is None or (isinstance(tolerance, str) and tolerance == DEFAULT_TOLERANCE):
         return tolerance
     rule = (f"{DEFAULT_TOLERANCE!r} (the env's default accuracy), None (unchecked: the stability bound alone) or a finite number with "
-            "0 < tolerance < 1 (the relative error allowed over an episode)")
+            f"{TOLERANCE_FLOOR:g} <= tolerance < 1 (the relative error allowed over an episode)")
     if isinstance(tolerance, (bool, np.bool_)) or not isinstance(tolerance, (int, float, np.integer, np.floating)):
         raise TypeError(f"tolerance must be {rule}, got {tolerance!r} ({type(tolerance).__name__})")
     tol = float(tolerance)
     if not (math.isfinite(tol) and 0.0 < tol < 1.0):
         raise ValueError(f"tolerance must be {rule}, got {tolerance!r}")
+    if tol < TOLERANCE_FLOOR:
+        raise ValueError(f"tolerance={tolerance!r} is below what float64 carries over an episode ({TOLERANCE_FLOOR:g}: near an unstable "
+                         f"motion the sums' roundoff alone reaches 1e-13-1e-12, 'rbenvs bench accuracy --roundoff'); pass tolerance >= "
+                         f"{TOLERANCE_FLOOR:g}, or integrate in extended precision outside the env (rbenvs.oracles.taylor_solution)")
     return tol
 
 
