@@ -714,7 +714,7 @@ def _act(control, n_in: int):
 def _vector_namespace(V: VectorLayout) -> dict:
     import numpy as np
 
-    from .core.step import end_code
+    from .core.reasons import end_code
 
     namespace = _namespace(V.batch)
     act = _act(V.control, V.n_in)
@@ -768,10 +768,10 @@ def vector_kernel(V: VectorLayout, chunked: bool = False):
     3. the episode's bookkeeping per sub-env: ``steps += 1``; ``terminated`` where the task,
        the observation bounds or the event ended it, ``truncated`` where ``steps >= max_steps``
        (``max_steps < 0``: no limit); ``done`` their union (the ``_terminal_reason`` mask, and
-       the next step's restarts); the reason's name (:func:`rbenvs.core.step.end_code`, row
+       the next step's restarts); the reason's name (:func:`rbenvs.core.reasons.end_code`, row
        ``RN[code]`` of code points) written into the row of ``RZ``, a zero-filled reason
        array's ``(n, width)`` uint32 view whose rows ``clear`` are zeroed first
-       (:class:`rbenvs.core.step.ReasonPool`); the failure charge ``FC`` added to the reward of
+       (:class:`rbenvs.core.reasons.ReasonPool`); the failure charge ``FC`` added to the reward of
        every end without success (the last metric, ``is_success``; the single env's rule,
        :class:`rbenvs.core.model.Model`);
     4. with ``next_step`` (autoreset NEXT_STEP), the restarting sub-envs' step: reward 0, not
@@ -1440,7 +1440,7 @@ class VectorStep:
         sub-envs whose episode ended) are updated in place; ``skip``: the sub-envs to restart
         (with ``next_step``); ``GEN`` the sub-envs' generators (a numba typed list,
         :class:`rbenvs.draws.GeneratorTable`); ``reasons``: ``(RZ, RN, clear)`` of a
-        :class:`rbenvs.core.step.ReasonPool` array; ``CC`` ``(dim, n)``: the runs'
+        :class:`rbenvs.core.reasons.ReasonPool` array; ``CC`` ``(dim, n)``: the runs'
         compensations, carried on in place (a compensated layout: a tolerance), a restarting
         sub-env's set to zero."""
         import numpy as np

@@ -41,6 +41,52 @@ def test_exec_appears_in_one_module_only():
     assert users == {"rbenvs/core/codegen.py"}, users
 
 
+def _module_imports() -> dict:
+    """Every module of rbenvs/ and the modules of rbenvs/ it imports, at the top or inside a
+    function alike (a lazy import is still a dependency): ``{"rbenvs.core.step": {...}}``."""
+    modules = {}
+    for path, _ in _trees(PACKAGE):
+        parts = list(path.relative_to(ROOT).with_suffix("").parts)
+        modules[".".join(parts[:-1] if parts[-1] == "__init__" else parts)] = path
+    graph = {}
+    for name, path in modules.items():
+        package = name if path.name == "__init__.py" else name.rsplit(".", 1)[0]
+        deps = set()
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.ImportFrom):
+                base = package.split(".")[: len(package.split(".")) - node.level + 1] if node.level else []
+                target = ".".join(base + ([node.module] if node.module else []))
+                candidates = [target] + [f"{target}.{alias.name}" for alias in node.names]
+            elif isinstance(node, ast.Import):
+                candidates = [alias.name for alias in node.names]
+            else:
+                continue
+            deps.update(c for c in candidates if c in modules and c != name)
+        graph[name] = deps
+    return graph
+
+
+def test_no_import_cycle_in_rbenvs():
+    """No module of rbenvs/ reaches itself through its imports (issue 44): each layer imports
+    only below it, so a module can be read, tested and changed without the ones above it."""
+    graph = _module_imports()
+    cycles, done = [], set()
+
+    def visit(name, path):
+        if name in path:
+            cycles.append(path[path.index(name):] + [name])
+            return
+        if name in done:
+            return
+        for dep in sorted(graph[name]):
+            visit(dep, path + [name])
+        done.add(name)
+
+    for name in sorted(graph):
+        visit(name, [])
+    assert not cycles, cycles
+
+
 def test_nothing_in_rbenvs_imports_the_agents():
     for path, tree in _trees(PACKAGE):
         for node in ast.walk(tree):

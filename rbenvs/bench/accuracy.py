@@ -77,7 +77,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..integrators import get_integrator
-from ..integrators.reference import Dop853
+from ..integrators.reference import REFERENCE, Dop853
 from ..progress import Progress
 from .throughput import episode_stepper, timed
 from ..render.common import plot_unavailable
@@ -202,7 +202,6 @@ def _block_error(system, key, y, ref, y0):
     return err
 
 
-REFERENCE = Dop853(rtol=1e-13, atol=1e-15)
 CHECK = Dop853(rtol=1e-12, atol=1e-14)  # the reference's own error, estimated
 
 

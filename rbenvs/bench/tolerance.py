@@ -205,7 +205,7 @@ def _reset(env, start):
 def _references(case, env, starts):
     """Per start, the reference state after each period."""
     from ..oracles import exact_solution
-    from .accuracy import REFERENCE
+    from ..integrators.reference import REFERENCE
 
     refs = []
     for start in starts:

@@ -31,6 +31,8 @@ import sys
 
 import numpy as np
 
+from .raster import rgba  # (raster draws with it; the figures' modules take it from here)
+
 __all__ = [
     "FRAME_SIZE",
     "COLORS",
@@ -106,13 +108,6 @@ def quat_to_matrix(q) -> np.ndarray:
             [s * (x * z - w * y), s * (y * z + w * x), 1.0 - s * (x * x + y * y)],
         ]
     )
-
-
-def rgba(color: str, alpha: float = 1.0, lighten: float = 0.0) -> tuple:
-    """``#rrggbb`` as an RGBA tuple in [0, 1], mixed with white by ``lighten`` (0: unchanged)."""
-    c = np.array([int(color[k : k + 2], 16) for k in (1, 3, 5)], dtype=float) / 255.0
-    c = c + (1.0 - c) * lighten
-    return (float(c[0]), float(c[1]), float(c[2]), float(alpha))
 
 
 def scaled_arrow(vector, scale: float, max_length: float):

@@ -20,7 +20,13 @@ import math
 
 import numpy as np
 
-from .common import rgba
+
+def rgba(color: str, alpha: float = 1.0, lighten: float = 0.0) -> tuple:
+    """``#rrggbb`` as an RGBA tuple in [0, 1], mixed with white by ``lighten`` (0: unchanged)."""
+    c = np.array([int(color[k : k + 2], 16) for k in (1, 3, 5)], dtype=float) / 255.0
+    c = c + (1.0 - c) * lighten
+    return (float(c[0]), float(c[1]), float(c[2]), float(alpha))
+
 
 __all__ = ["draw", "to_rgb"]
 

@@ -55,7 +55,7 @@ Conventions (gymnasium 1.x):
   started an episode.
 * The arrays a step returns are the caller's (fresh each step), except ``terminal_reason``'s,
   which comes from a small pool and is reused only once nothing else refers to it (CPython's
-  reference count; :class:`rbenvs.core.step.ReasonPool`).
+  reference count; :class:`rbenvs.core.reasons.ReasonPool`).
 * ``get_state()`` returns the single env's dict with every array batched along a leading
   axis of length ``num_envs``; ``reset(options={"state": d})`` starts every sub-env there
   (each row validated like the single env's). ``reset(options={"reset_mask": m})`` resets only
@@ -78,7 +78,8 @@ from gymnasium.vector.utils import batch_space
 
 from .. import compiled as _compiled
 from ..core.global_error import GlobalErrorCheck
-from ..core.step import _REAL_FLOATS, ReasonPool, action_columns, terminal_reason
+from ..core.reasons import ReasonPool, terminal_reason
+from ..core.step import _REAL_FLOATS, action_columns
 from ..draws import GeneratorTable, kind_codes
 from ..envs.base import require_compiled
 from ..envs.options import NOISE_BLOCK, noise_generator, noisy_observation, rekey

@@ -35,7 +35,7 @@ import math
 import numpy as np
 
 from ..rotations import quat_from_two_vectors
-from .simulator import Problem
+from .protocol import Problem
 
 __all__ = ["MUJOCO_INTEGRATORS", "MujocoSimulator", "mujoco_simulators"]
 
@@ -181,7 +181,7 @@ class _Run:
 
 def mujoco_simulators(options: dict) -> list[MujocoSimulator]:
     """The simulators of ``--simulator mujoco:...`` options (module docstring), one per integrator."""
-    from .simulator import take_option, no_more_options
+    from .protocol import no_more_options, take_option
 
     names = take_option(options, "integrator", str, "+".join(DEFAULT_INTEGRATORS)).split("+")
     settings = dict(dt=take_option(options, "dt", float, 1e-3), cone=take_option(options, "cone", str, "elliptic"),

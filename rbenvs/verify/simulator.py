@@ -1,6 +1,7 @@
-"""The simulator under test: the contract ``rbenvs verify`` runs its checks through, and the
-adapters for rbenvs' own integrators and for a plain Python step function (docs/verification.md,
-"Any simulator"). MuJoCo's adapter is :mod:`rbenvs.verify.mujoco_adapter`, imported only when named.
+"""The simulator under test: the adapters for rbenvs' own integrators and for a plain Python
+step function (docs/verification.md, "Any simulator"), and the parser of ``--simulator``; the
+contract they meet is :mod:`rbenvs.verify.protocol`. MuJoCo's adapter is
+:mod:`rbenvs.verify.mujoco_adapter`, imported only when named.
 
 A :class:`Simulator` is told a :class:`Problem` (which system, its physical parameters, the
 tippe top's fidelity) and a start state, and returns a :class:`Run` that advances by a step
@@ -33,55 +34,15 @@ import importlib
 import math
 import os
 import sys
-from dataclasses import dataclass
-from typing import Any, Callable, Protocol, runtime_checkable
+from typing import Callable
 
 import numpy as np
 
 from ..integrators import Integrator, get_integrator
+from .protocol import Problem, Run, Simulator, no_more_options, take_option
 
 __all__ = ["Problem", "Run", "Simulator", "IntegratorSimulator", "CallableSimulator", "problem_of", "advance", "start",
            "as_simulators", "parse_simulator", "take_option", "no_more_options", "ADAPTERS", "LAYOUTS", "SimulatorFunctionError"]
-
-
-@dataclass(frozen=True)
-class Problem:
-    """What to simulate: ``system`` (``"free_body"``, ``"heavy_top"`` or ``"tippe_top"``), its
-    ``params`` (:class:`~rbenvs.dynamics.FreeBodyParams`, :class:`~rbenvs.dynamics.HeavyTopParams`,
-    :class:`~rbenvs.dynamics.TippeTopParams`), the tippe top's ``fidelity`` (``None`` for the
-    others) and ``model``: rbenvs' own system object for them (its ``layout``, read-outs and
-    ``rhs``, for an adapter that wants them)."""
-
-    system: str
-    params: Any
-    fidelity: str | None
-    model: Any
-
-
-class Run(Protocol):
-    """One trajectory in an engine, from the start state it was given."""
-
-    def step(self, u, h: float) -> tuple:
-        """Advance by ``h`` [s] under the control ``u`` (``None``: none) held over the step; the
-        new state in rbenvs' layout. ``NotImplementedError`` for a control not modelled."""
-        ...
-
-
-@runtime_checkable
-class Simulator(Protocol):
-    """An engine under test. ``name`` labels its rows; ``dt`` is its fixed step [s] (``None``:
-    the checks choose each run's step, as for rbenvs' integrators at their verify settings);
-    ``order`` is its declared order of accuracy, which scales the tolerances of the accuracy rows
-    to ``dt`` (docs/verification.md). An adapter may set ``batched = True`` when it steps
-    components that are arrays (many states) at once."""
-
-    name: str
-    dt: float | None
-    order: int
-
-    def start(self, problem: Problem, y0: tuple) -> Run:
-        """A run from ``y0``; ``NotImplementedError`` (with the reason) for a problem not modelled."""
-        ...
 
 
 def problem_of(model) -> Problem:
@@ -267,16 +228,6 @@ def _options(text: str) -> dict[str, str]:
     return out
 
 
-def take_option(options, key, kind, default):
-    if key not in options:
-        return default
-    value = options.pop(key)
-    try:
-        return kind(value)
-    except ValueError:
-        raise ValueError(f"simulator option {key}={value!r}: not a {kind.__name__}") from None
-
-
 def _rbenvs(options) -> list:
     names = take_option(options, "integrator", str, None)
     dt = take_option(options, "dt", float, None)
@@ -292,11 +243,6 @@ def _mujoco(options) -> list:
     from .mujoco_adapter import mujoco_simulators  # the only import of the mujoco adapter (and of mujoco)
 
     return mujoco_simulators(options)
-
-
-def no_more_options(options, what):
-    if options:
-        raise ValueError(f"unknown {what} simulator option(s): {sorted(options)}")
 
 
 ADAPTERS: dict[str, Callable[[dict], list]] = {"rbenvs": _rbenvs, "mujoco": _mujoco}
