@@ -219,7 +219,7 @@ def _ratio_lines(L: Layout, u: str, parts: bool = False, ratio: bool = True, rat
 def _count_lines(L: Layout, u: str) -> list[str]:
     """Lines that raise the count ``c`` (set to ``substeps``) to the guard's for the state ``y``
     (and controls ``u``), counting ``need``: the step core's rule (:meth:`StepRule.steps`)."""
-    from .core.guard import MAX_INTERNAL_STEPS
+    from .stepsize.controller import MAX_INTERNAL_STEPS
 
     return _ratio_lines(L, u) + ["if not (x <= substeps):", f"    c = ceil(x) if x <= {MAX_INTERNAL_STEPS} else {MAX_INTERNAL_STEPS + 1}", "    need += 1"]
 
@@ -286,7 +286,7 @@ def _period_lines(L: Layout) -> list[str]:
     """Lines that advance the state ``y`` under ``u`` by ``c`` internal steps (the step core's
     period, :meth:`rbenvs.core.step.Engine.advance`): ``hi`` the internal step and ``f`` whether
     the terminal event ended it; past the cap the period is refused (``y`` NaN)."""
-    from .core.guard import MAX_INTERNAL_STEPS
+    from .stepsize.controller import MAX_INTERNAL_STEPS
 
     lines = [
         "f = False",
@@ -412,7 +412,7 @@ def _namespace(L: Layout) -> dict:
 
     import numpy as np
 
-    from .core.guard import relaxation_steps, step_ratio, step_ratio_motion
+    from .stepsize.forms import relaxation_steps, step_ratio, step_ratio_motion
 
     _tune_llvm()
     _register_all()
@@ -482,7 +482,7 @@ def _lockstep_lines(L: Layout, u: str) -> list[str]:
     each sub-env's next first stage (with the event), ``live`` whether it goes on. Without an
     event (a layout without switches: the free body's and the heavy top's compensated periods)
     a sub-env takes its count, as its own loop does."""
-    from .core.guard import MAX_INTERNAL_STEPS
+    from .stepsize.controller import MAX_INTERNAL_STEPS
 
     dim, event = L.dim, L.rhs_event is not None
     return [
@@ -557,7 +557,7 @@ def _period_and_finish(L: Layout, u: str, un: str, more: str, starts: list[str] 
 
 def _estimate_expression(L: Layout) -> str:
     """The period's error estimate from the rates ``er`` (``rate``, ``a``) and the step ``hi``:
-    the functions :meth:`rbenvs.core.guard.StepRule.estimate` calls, ``PEE`` its ``(C, p, dt)``."""
+    the functions :meth:`rbenvs.stepsize.controller.StepRule.estimate` calls, ``PEE`` its ``(C, p, dt)``."""
     estimate = "motion_error_estimate(PEE, er, hi)" if L.motion else "error_estimate(PEE, er, hi)"
     if L.dissipation is not None:
         estimate += " + relaxation_estimate(PEE, rate, a, hi)"
@@ -579,7 +579,7 @@ def _checked_period(L: Layout, u: str, more: str, estimate: bool = False, gate: 
     and the step its count gives, the step the period takes (one evaluation of the rates).
     ``gate`` (with ``estimate``; :class:`VectorLayout`'s, its scheme's order ``p``, 0: none): first every sub-env's cheap bound
     ``Lambda = gate(PGT[0], y)``, its count ``substeps`` and its estimate ``C Lambda dt (Lambda
-    h)^p`` (the rates :func:`rbenvs.core.guard.motion_rates` returns there), in one loop without
+    h)^p`` (the rates :func:`rbenvs.stepsize.forms.motion_rates` returns there), in one loop without
     branches; the count's loop then runs only if a sub-env's bound does not hold, on those alone."""
     comps, dim = _comps, L.dim
     y_old = f"y = ({comps('Y[{j}, i]', dim)})"
@@ -598,7 +598,7 @@ def _checked_period(L: Layout, u: str, more: str, estimate: bool = False, gate: 
         count = ["if ng:", "for i in range(n):", "    c = substeps", "    " + y_old, "    big = gate(PGT[0], y)", "    w = big * PGT[1][0]", f"    if {test}:",
                  "        continue"]
     if estimate:
-        from .core.guard import MAX_INTERNAL_STEPS
+        from .stepsize.controller import MAX_INTERNAL_STEPS
 
         count += (["    " + y_old] if not gate else []) + [*("    " + line for line in _ratio_lines(L, u, parts=True, rates="er")), "    if check and not skip[i] and not (x <= substeps):",
                   f"        c = ceil(x) if x <= {MAX_INTERNAL_STEPS} else {MAX_INTERNAL_STEPS + 1}", "        need += 1",
@@ -641,7 +641,7 @@ class VectorLayout(NamedTuple):
     entries, the model's pure ``start(PI, d) -> y`` (or ``None``: restarts run in Python) and
     the kinds of a start's draws (:mod:`rbenvs.draws`), made in order from each sub-env's own
     generator; ``estimate``: the step also writes each period's error estimate (a tolerance's,
-    :meth:`rbenvs.core.guard.StepRule.estimate`)."""
+    :meth:`rbenvs.stepsize.controller.StepRule.estimate`)."""
 
     batch: Layout
     control: Callable
@@ -723,7 +723,7 @@ def _vector_namespace(V: VectorLayout) -> dict:
             _register(fn)
     namespace.update(act=act, start=V.start, end_code=end_code, np=np, gate=V.gate)
     if V.estimate:
-        from .core.guard import error_estimate, motion_error_estimate, relaxation_estimate
+        from .stepsize.forms import error_estimate, motion_error_estimate, relaxation_estimate
         from .rotations import power
 
         namespace.update(error_estimate=error_estimate, motion_error_estimate=motion_error_estimate, relaxation_estimate=relaxation_estimate, power=power)
@@ -780,7 +780,7 @@ def vector_kernel(V: VectorLayout, chunked: bool = False):
     5. with ``V.estimate`` (a tolerance), each period's error estimate into ``EST`` (0 for a
        restarting sub-env: no period ran), written in 2's count loop from the rates it counts
        with (:func:`_checked_period`) and the step the count gives, through the functions
-       :meth:`rbenvs.core.guard.StepRule.estimate` calls, ``PEE`` its ``(C, p, dt)`` (unread
+       :meth:`rbenvs.stepsize.controller.StepRule.estimate` calls, ``PEE`` its ``(C, p, dt)`` (unread
        otherwise): every sub-env's rates, counted or not.
 
     ``k``: the number of sub-envs whose step had an end or a truncation (restarting ones never:
@@ -892,7 +892,7 @@ def state_kernel(layout: Layout, estimate: bool = False):
     (evaluated every period, counted or not: :func:`_checked_period`'s).
     """
     import numba
-    from .core.guard import MAX_INTERNAL_STEPS
+    from .stepsize.controller import MAX_INTERNAL_STEPS
 
     L = layout
     comps = _comps
@@ -925,7 +925,7 @@ def state_kernel(layout: Layout, estimate: bool = False):
     ]
     namespace = _namespace(L)
     if estimate:
-        from .core.guard import error_estimate, motion_error_estimate, relaxation_estimate
+        from .stepsize.forms import error_estimate, motion_error_estimate, relaxation_estimate
 
         namespace.update(error_estimate=error_estimate, motion_error_estimate=motion_error_estimate, relaxation_estimate=relaxation_estimate)
     generate("\n".join(lines), f"state kernel dim={L.dim} n_obs={L.n_obs}" + (" estimate" if estimate else ""), namespace)
@@ -996,7 +996,7 @@ def runs_kernel(layout: Layout):
 def plan_kernel(layout: Layout):
     """The guard's ratio and the rates of ONE state's period, compiled (a tolerance's single-env
     step: its count and its ``info["error_estimate"]`` from one evaluation;
-    :meth:`rbenvs.core.guard.StepRule.plan`, whose values it returns bit for bit). Signature::
+    :meth:`rbenvs.stepsize.controller.StepRule.plan`, whose values it returns bit for bit). Signature::
 
         plan(y, u, P) -> (x, r, rate, a)
 
@@ -1044,7 +1044,7 @@ def plans_kernel(layout: Layout, ratio: bool = False):
 class PeriodPlan:
     """One env's compiled :func:`plan_kernel` and :func:`plans_kernel` with their parameters:
     calling it with one state ``y`` and its control ``u`` (tuples of floats) returns ``(x, r,
-    rate, a)``, the bits of :meth:`rbenvs.core.guard.StepRule.plan`; :meth:`batch` gives a
+    rate, a)``, the bits of :meth:`rbenvs.stepsize.controller.StepRule.plan`; :meth:`batch` gives a
     batch's rates and :meth:`ratios` its ratios (the vector env's estimate and checked count).
     The first call compiles (about a second per layout and process) and then takes its
     overload's entry point."""
@@ -1385,7 +1385,7 @@ class VectorStep:
     :class:`rbenvs.core.model.Model` (its actuator's and start's pure forms, its draw kinds);
     ``n_obs``: the observation size, ``obs_high`` its bounds; ``max_steps``: the time limit
     (``None``: none); ``error``: a tolerance's ``(C, p, dt)``
-    (:attr:`rbenvs.core.guard.StepRule.error`), with which the step also returns each period's
+    (:attr:`rbenvs.stepsize.controller.StepRule.error`), with which the step also returns each period's
     error estimate (``None``: none). The call goes through the compiled overload's entry point
     after the first (numba's per-call typing of forty arguments costs more than a small batch's
     step); the actions must then be C-contiguous float32 or float64 (the caller converts).

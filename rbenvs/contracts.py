@@ -45,7 +45,7 @@ PureFunction = tuple[Callable[..., Any], tuple]
 @dataclass(frozen=True)
 class StepRegion:
     """Where an integrator's step ``h`` can be trusted, in units of a rate ``lambda`` of the
-    dynamics: what the step guard reads to size the internal step (:mod:`rbenvs.core.guard`).
+    dynamics: what the step guard reads to size the internal step (:mod:`rbenvs.stepsize.controller`).
 
     * ``rotation``: the largest ``|lambda| h`` for an oscillatory rate (eigenvalues on the
       imaginary axis: a rotation), a stability or an accuracy bound (``inf``: none);
@@ -95,7 +95,7 @@ class GuardRates:
     * ``text``: the rule in words, with the parameters that set the rates;
     * ``accuracy``: pure ``fn(P, y) -> lambda_e`` [1/s], the rate of the error at ``y`` (a bound
       of the vector field's Jacobian and of its higher derivatives' share, or the motion's own
-      frequency within it, :func:`rbenvs.core.guard.motion_rates`), sharper than ``rotation``
+      frequency within it, :func:`rbenvs.stepsize.forms.motion_rates`), sharper than ``rotation``
       for the error ``tolerance=`` estimates; used only there, never
       for the stability bound; ``None``: ``rotation``'s rate;
     * ``dissipation_share``: pure ``fn((P, r), y, u, dt, p, lambda_d) -> a`` in ``[0, 1]`` (``r``:
@@ -106,9 +106,9 @@ class GuardRates:
       ``y`` under ``u`` with a scheme of order ``p``: less where the mode is less stiff than
       ``lambda_d`` in that period (a saturated friction), near its slow manifold (only its
       distance from it errs), or driven slower than it relaxes; used only by ``tolerance=``
-      (:func:`rbenvs.core.guard.relaxation_steps`); ``None``: 1.
+      (:func:`rbenvs.stepsize.forms.relaxation_steps`); ``None``: 1.
     * ``error_blocks``: the names of the state's blocks (``layout``) whose relative speed counts
-      in the state's own rate ``mu`` of ``tolerance=`` (:func:`rbenvs.core.guard.motion_rates`):
+      in the state's own rate ``mu`` of ``tolerance=`` (:func:`rbenvs.stepsize.forms.motion_rates`):
       those the error is measured on. ``None``: every block, and a hybrid system then keeps the
       rate alone; a hybrid system that names them takes ``mu`` too (the tippe top: its velocity
       and angular velocity; the horizontal position drifts, the contact flags are not measured);
@@ -116,16 +116,16 @@ class GuardRates:
       itself at its own speed, ``dy_b/dt = A(y_d) y_b`` with ``A`` skew and ``|A| = |dy_b/dt| /
       |y_b|`` (a unit quaternion, at half the angular speed, driven by the angular velocity): its
       own local error is ``C (mu_b h)^(p+1)``, and it carries the driver's error to the end of the
-      horizon (:func:`rbenvs.core.guard.motion_rates`);
+      horizon (:func:`rbenvs.stepsize.forms.motion_rates`);
     * ``speed``: pure ``fn(P, y, u, dt) -> m`` [1/s], an upper bound of the relative speed
       ``|dy_b/dt| / |y_b|`` of the state's blocks (the rotating ones aside) over a control period
       of ``dt`` from ``y`` under ``u``, where the system knows its motion (the free body's orbit);
-      used only by ``tolerance=`` (:func:`rbenvs.core.guard.motion_rates`); ``None``: the speed
+      used only by ``tolerance=`` (:func:`rbenvs.stepsize.forms.motion_rates`); ``None``: the speed
       at the period's start.
     * ``accuracy_bound``: pure ``fn(P, y) -> Lambda`` [1/s], a cheap upper bound of ``accuracy``'s
       rate at every ``y`` (the free body's Jacobian bound ``s |Pi|``): the default accuracy tests
       it first and reads the sharp rates only where it does not hold the period within its budget
-      (:func:`rbenvs.core.guard.motion_rates`' gate); ``None``: no gate where ``accuracy`` is
+      (:func:`rbenvs.stepsize.forms.motion_rates`' gate); ``None``: no gate where ``accuracy`` is
       declared (without ``accuracy`` the gate takes ``rotation``'s rate).
     """
 

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 import rbenvs
-from rbenvs.core.guard import UnstableMotionWarning
+from rbenvs.stepsize.controller import UnstableMotionWarning
 from rbenvs.envs.free_body import FreeRigidBodyEnv
 from rbenvs.envs.heavy_top import LagrangeTopEnv
 from rbenvs.envs.tippe_top import TippeTopEnv
@@ -124,7 +124,7 @@ def test_tolerance_horizon_needs_a_tolerance_and_the_default_takes_one():
 GATED = [(FreeRigidBodyEnv, dict(EXTREME)), (FreeRigidBodyEnv, {}), (LagrangeTopEnv, {"integrator": "rk4"})]
 
 
-@pytest.mark.filterwarnings("ignore::rbenvs.core.guard.UnstableMotionWarning")  # (the explicit twin of the default spin: its rule is what is compared)
+@pytest.mark.filterwarnings("ignore::rbenvs.stepsize.controller.UnstableMotionWarning")  # (the explicit twin of the default spin: its rule is what is compared)
 @pytest.mark.parametrize("cls,kwargs", GATED, ids=["free_body_extreme", "free_body", "heavy_top_rk4"])
 def test_the_gate_keeps_the_sharp_counts_and_bounds_their_estimate(cls, kwargs):
     """The default accuracy tests a cheap bound Lambda >= lambda_e >= mu first (motion_rates' gate):

@@ -1,5 +1,5 @@
 """``tolerance_check=True``: the companion run's estimate of an episode's global error
-(:mod:`rbenvs.core.global_error`), checked against the free body's exact solution and the tippe
+(:mod:`rbenvs.stepsize.controller`), checked against the free body's exact solution and the tippe
 top's DOP853 reference, and the episode it ends."""
 
 import copy
@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 from gymnasium.utils.env_checker import check_env
 
-from rbenvs.core.global_error import companion_ratio, relative_difference, tolerance_blocks
+from rbenvs.stepsize.controller import companion_ratio, relative_difference, tolerance_blocks
 from rbenvs.core.step import NumericalFailureWarning
 from rbenvs.envs import FreeRigidBodyEnv, TippeTopEnv, UnstableMotionWarning
 from rbenvs.oracles import exact_solution, taylor_solution
@@ -22,7 +22,7 @@ from rbenvs.oracles import exact_solution, taylor_solution
 # expected, and asserted where it is the subject: test_the_unstable_motion_warning_names_the_check_and_the_callers_line
 # (pytest.warns sees it whatever this filter says). Every other warning fails the run
 # (pyproject.toml: filterwarnings = error).
-pytestmark = pytest.mark.filterwarnings("ignore::rbenvs.core.guard.UnstableMotionWarning")
+pytestmark = pytest.mark.filterwarnings("ignore::rbenvs.stepsize.controller.UnstableMotionWarning")
 
 INERTIA = (2.0, 1.5, 1.0)
 # fb_triaxial's starts (rbenvs bench accuracy --tolerance): near the major axis, 0.002 off the

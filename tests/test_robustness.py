@@ -379,7 +379,7 @@ def test_a_scene_file_carries_the_options_and_evaluation_holds_parameters_out(tm
 
 # (a tolerance on the intermediate-axis scene: its UnstableMotionWarning is expected, and asserted
 # where it is the subject, tests/test_tolerance.py)
-UNSTABLE_MOTION = pytest.mark.filterwarnings("ignore::rbenvs.core.guard.UnstableMotionWarning")
+UNSTABLE_MOTION = pytest.mark.filterwarnings("ignore::rbenvs.stepsize.controller.UnstableMotionWarning")
 
 
 @UNSTABLE_MOTION

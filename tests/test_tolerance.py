@@ -1,6 +1,6 @@
 """``tolerance=``: the guard bounds the error of an episode, not only stability (issue 19).
 
-The rule (rbenvs.core.guard): a period of ``n`` steps at rate ``lambda`` commits ``e = C lambda dt
+The rule (rbenvs.stepsize.controller): a period of ``n`` steps at rate ``lambda`` commits ``e = C lambda dt
 (lambda h)^p``; every period is held to ``log(1 + tolerance) / N`` (``N = tolerance_horizon``),
 so the episode's error stays within ``tolerance``. Checked here against the references (the
 exact elliptic solution of the free body, DOP853 at rtol 1e-13 for the heavy top) at
@@ -16,7 +16,8 @@ import numpy as np
 import pytest
 
 from rbenvs.bench.accuracy import REFERENCE
-from rbenvs.core.guard import MAX_INTERNAL_STEPS, accuracy_steps, error_estimate, step_ratio
+from rbenvs.stepsize.controller import MAX_INTERNAL_STEPS
+from rbenvs.stepsize.forms import accuracy_steps, error_estimate, step_ratio
 from rbenvs.dynamics.heavy_top import top_tilt
 from rbenvs.envs import FreeRigidBodyEnv, LagrangeTopEnv, TippeTopEnv, UnstableMotionWarning
 from rbenvs.integrators import INTEGRATORS, get_integrator
@@ -28,7 +29,7 @@ from rbenvs.oracles import exact_solution
 # expected, and asserted where it is the subject: test_a_tolerance_on_an_unstable_motion_warns_with_the_theorem
 # (pytest.warns sees it whatever this filter says). Every other warning fails the run
 # (pyproject.toml: filterwarnings = error).
-pytestmark = pytest.mark.filterwarnings("ignore::rbenvs.core.guard.UnstableMotionWarning")
+pytestmark = pytest.mark.filterwarnings("ignore::rbenvs.stepsize.controller.UnstableMotionWarning")
 
 TOLERANCES = (1e-3, 1e-6, 1e-9)
 
@@ -104,7 +105,7 @@ def test_a_tolerance_below_float64s_floor_is_refused():
     separatrix the compensated sums' roundoff alone reaches 1e-13-1e-12, and at 1e-13 the check
     returned periods 1.33 times outside (``rbenvs bench accuracy --floor``, 0.01 rad/s off). The
     refusal says why and what to do; the floor itself is accepted."""
-    from rbenvs.core.guard import TOLERANCE_FLOOR
+    from rbenvs.stepsize.controller import TOLERANCE_FLOOR
 
     assert TOLERANCE_FLOOR == 1e-12
     for bad in (1e-13, 5e-13, 1e-300):

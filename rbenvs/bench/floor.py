@@ -5,7 +5,7 @@ Near the intermediate axis the motion amplifies the roundoff of every passage by
 from a start close enough to the separatrix no step count holds a tight tolerance in float64. The
 check must then end the episode, saying so, and never return a period outside the tolerance:
 the companion's estimate counts the steps' error, and the episode ends where it passes the
-tolerance, before the roundoff does (:mod:`rbenvs.core.global_error`). For the default-like body
+tolerance, before the roundoff does (:mod:`rbenvs.stepsize.controller`). For the default-like body
 ``INERTIA`` at ``SPIN`` rad/s about its intermediate axis and ``OFF`` rad/s about the others
 (the third at 0.7 of it) and each tolerance of ``TOLERANCES``, one episode of ``PERIODS`` periods, compared on every period it returns with mpmath's Taylor-series
 solution (:func:`rbenvs.oracles.taylor_solution`, 32 digits; float64's elliptic solution is not
@@ -29,14 +29,14 @@ __all__ = ["INERTIA", "SPIN", "OFF", "TOLERANCES", "PERIODS", "run_floor", "prin
 INERTIA = (2.0, 1.5, 1.0)
 SPIN = 5.0  # |Omega| about the intermediate axis [rad/s]
 OFF = (1e-4, 3e-4, 1e-3, 1e-2)  # the start's Omega_1 [rad/s] (Omega_3 = 0.7 of it)
-TOLERANCES = (1e-8, 1e-9, 1e-10, 1e-11, 1e-12)  # (down to rbenvs.core.guard.TOLERANCE_FLOOR)
+TOLERANCES = (1e-8, 1e-9, 1e-10, 1e-11, 1e-12)  # (down to rbenvs.stepsize.controller.TOLERANCE_FLOOR)
 PERIODS = 400  # the free body's episode (20 s)
 # an error below this is roundoff of the comparison itself, not of the run (the estimate/error column)
 ERROR_FLOOR = 1e-13
 
 
 def _episode(w, tol, reference):
-    from ..core.global_error import companion_steps
+    from ..stepsize.controller import companion_steps
     from ..envs import FreeRigidBodyEnv
 
     with warnings.catch_warnings():

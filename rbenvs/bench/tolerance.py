@@ -245,7 +245,7 @@ def _episode(case, env, starts, refs):
     steps = 0
     failure = None
     a = np.zeros(env.action_space.shape, np.float32)
-    from ..core.global_error import companion_steps, relative_difference, tolerance_blocks
+    from ..stepsize.controller import companion_steps, relative_difference, tolerance_blocks
 
     checked = getattr(env, "_check", None) is not None
     # the measured blocks: the tippe top's horizontal position (it drifts) and its contact flags
@@ -283,7 +283,7 @@ def _cheapest_fixed(case, tol, starts, refs, hint, limit=None):
     """The fewest ``substeps`` (no tolerance) whose error meets ``tol`` on every start, and its
     steps (bisection between 1 and a count that meets it; ``None`` past MAX_FIXED, or past
     ``limit`` substeps where given: a search that cannot beat a cheaper scheme stops there)."""
-    from ..core.guard import MAX_INTERNAL_STEPS
+    from ..stepsize.controller import MAX_INTERNAL_STEPS
 
     def run(n):
         env = _env(case, substeps=n)

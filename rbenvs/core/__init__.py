@@ -1,6 +1,5 @@
-"""The step core: what every env and vector env runs, written once.
-
-* :mod:`rbenvs.core.guard`: the internal step count of a control period, from the integrator's
-  declared :class:`~rbenvs.contracts.StepRegion` and the system's declared
-  :class:`~rbenvs.contracts.GuardRates`.
+"""The step core: what every env and vector env runs, written once (the model, the engine's
+period and finish, the terminal reasons, the hybrid switches, code generation). How many
+internal steps a period takes and what error it commits is the step controller's:
+:mod:`rbenvs.stepsize`.
 """

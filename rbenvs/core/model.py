@@ -17,7 +17,7 @@ from ..contracts import Actuator, HybridSystem, Integrator, StepRegion, System, 
 from ..draws import batch_draws
 from ..jit import jitable
 from .codegen import generate
-from .guard import StepRule
+from ..stepsize.controller import StepRule
 
 __all__ = ["Model", "observation_bounds"]
 
@@ -28,17 +28,17 @@ class Model:
 
     * ``system``, ``task``, ``integrator``, ``actuator``: the parts;
     * ``dt`` [s] and ``substeps``: the control period and its minimum number of internal steps;
-    * ``guard``: ``"subdivide"``, ``"refuse"`` or ``"off"`` (:mod:`rbenvs.core.guard`);
+    * ``guard``: ``"subdivide"``, ``"refuse"`` or ``"off"`` (:mod:`rbenvs.stepsize.controller`);
     * ``observation_high``: the bound of each observation component (the box ``[-high, high]``);
     * ``speed_ceiling``: an upper bound of ``|Omega|`` inside those bounds (``inf``: unknown),
       which lets a guard prove it never needs more than ``substeps`` steps;
     * ``tolerance``: the relative error allowed over ``horizon`` control periods (``None``: no
-      accuracy bound; :mod:`rbenvs.core.guard`);
+      accuracy bound; :mod:`rbenvs.stepsize.controller`);
     * ``accuracy``: where ``tolerance`` came from: ``"explicit"`` (the user's: its steps sum
       with compensation) or ``"default"`` (the env's default accuracy: the steps sum plainly, so
       that a default scene's trajectory is the one it had without);
     * ``check``: with a tolerance, whether a companion run estimates the episode's global error
-      (``tolerance_check``; :mod:`rbenvs.core.global_error`) and ends it where it passes the
+      (``tolerance_check``; :mod:`rbenvs.stepsize.controller`) and ends it where it passes the
       tolerance;
     * ``episode_steps``: the episode's length in control periods (the registered
       ``max_episode_steps``; ``None``: none);

@@ -7,7 +7,7 @@ on a tuple of arrays, one per component. Each part of the step is here once:
 1. the action: validated and clipped (:func:`action_values`, :func:`action_columns`), mapped to
    controls by the model's actuator;
 2. the period (:meth:`Engine.advance`): ``substeps`` equal internal steps, or as many as the step
-   guard asks for per state (:mod:`rbenvs.core.guard`; each element of a batch takes its own
+   guard asks for per state (:mod:`rbenvs.stepsize.controller`; each element of a batch takes its own
    ``h`` and is frozen after its own count), the hybrid layer's switches after every internal
    step (:mod:`rbenvs.core.hybrid`) and the system's terminal event (the tippe top's lift-off
    without free flight) ending a period early;
@@ -39,7 +39,7 @@ import numpy as np
 
 from ..dynamics.validation import real_array
 from ..rotations import every, power
-from .guard import MAX_INTERNAL_STEPS
+from ..stepsize.controller import MAX_INTERNAL_STEPS
 from .hybrid import Switching
 from .reasons import terminal_reason
 
@@ -172,7 +172,7 @@ class Engine:
         if self.rule.gate is not None and not m.check and self.event is None and self.switching is None and self.step_c is None and self.rule.stable(m.substeps):
             self.gate = self.rule.gate
         # tolerance_check: every period takes an even count (its companion half as many steps of
-        # twice the size: rbenvs.core.global_error), so neither the plain loop (substeps steps) nor
+        # twice the size: rbenvs.stepsize.controller), so neither the plain loop (substeps steps) nor
         # the compiled single-state step (the guard's count) runs
         self.check = m.check
         # the checked period's runs of one state, compiled (rbenvs.compiled.CheckedRuns: the main
@@ -430,7 +430,7 @@ class Engine:
         return y, False, comp
 
     def companion(self, y, u, n, comp=None):
-        """The companion run's period (:mod:`rbenvs.core.global_error`) from ``y`` under ``u``,
+        """The companion run's period (:mod:`rbenvs.stepsize.controller`) from ``y`` under ``u``,
         where the main run took ``n`` (even, with ``tolerance_check``) steps of ``h = dt / n``:
         ``n / 2`` steps of ``2 h`` (one state: ``n`` an int; a batch: an int array); ``(y,
         comp)``, ``comp`` the companion's own compensation as :meth:`advance` carries it."""
@@ -701,7 +701,7 @@ class Engine:
             obs, over = self.observe(y)
             reward, terminated, metrics = self.evaluate(y, u_norm)
             info = self.info_one(y, u, fired, h, metrics, failed=False)
-        if lam is not None:  # (the period's estimated relative error: rbenvs.core.guard.error_estimate)
+        if lam is not None:  # (the period's estimated relative error: rbenvs.stepsize.forms.error_estimate)
             info["error_estimate"] = float(self.rule.estimate(lam, h, lam_d, share))
         elif estimate is not None:
             info["error_estimate"] = estimate
@@ -717,7 +717,7 @@ class Engine:
     def gated(self, y):
         """The default accuracy's gate at the states ``y`` (:attr:`gate`; floats or arrays): where
         every state lies within the cheap bound ``Lambda``, their periods' estimates ``C Lambda dt
-        (Lambda h)^p`` at ``substeps`` steps (the rates :func:`rbenvs.core.guard.motion_rates` gives
+        (Lambda h)^p`` at ``substeps`` steps (the rates :func:`rbenvs.stepsize.forms.motion_rates` gives
         there); else (or without a gate) ``None``."""
         if self.gate is None:
             return None
@@ -735,10 +735,12 @@ class Engine:
         bound = self.rule.binding(y0, u) if y0 is not None else f"the step bound ({self.rule.text})"
         return f": the period needs more than MAX_INTERNAL_STEPS = {MAX_INTERNAL_STEPS} internal steps to meet {bound}"
 
-    def inaccurate_one(self, y0, a, h, plain, estimate, periods):
+    def inaccurate_one(self, y0, a, h, plain, estimate, periods, comp):
         """The end of an episode whose global error estimate (``tolerance_check``) passed the
         tolerance in its ``periods``-th period, the one from ``y0``: a numerical failure at
-        ``y0``, the last state within it, with a warning that says when."""
+        ``y0``, the last state within it (the run's compensation ``comp`` at it kept with it),
+        with a warning that says when."""
+        self.comp = comp
         what = self._inaccurate_text(estimate, periods)
         u_norm, u = self.control(a)
         out = self._failed_one(y0, u_norm, u, h, plain, what, "the last state within the tolerance")
@@ -870,7 +872,7 @@ class KernelParts(NamedTuple):
     ``step`` (the integrator's, ``step(PS, y, u, h)``), ``observe``, ``evaluate``, ``readouts``
     (the task's and the system's), the guard's ``rotation`` rate (``None``: no check can be
     needed) with ``guard_params`` (``(dt, bound, growth, k, p, kd)`` of
-    :func:`rbenvs.core.guard.step_ratio`), its ``dissipation`` rate (or ``None``) with
+    :func:`rbenvs.stepsize.forms.step_ratio`), its ``dissipation`` rate (or ``None``) with
     ``dissipation_step`` (``h <= c / lambda_d``), the terminal ``event`` (or ``None``; it fires
     where its value is negative) and ``rhs_event``, the vector field and the event's value from
     one evaluation (then ``step`` takes its first stage: ``step(PS, y, k0, u, h)``), or ``None``;

@@ -114,7 +114,7 @@ def rotation_rate(p, y):
 def jacobian_rate(p, y):
     """``lambda_e = s |Pi|`` [1/s], ``p = (s,)`` with ``s = max_i 1/I_i - min_i 1/I_i``: a bound of
     the Jacobian of Euler's equations and of their second derivative's share, the rate of the
-    error ``tolerance=`` estimates (:func:`rbenvs.core.guard.motion_rates`).
+    error ``tolerance=`` estimates (:func:`rbenvs.stepsize.forms.motion_rates`).
 
     Why: ``Pi x (a Pi) = 0`` for any ``a``, so ``dPi/dt = Pi x D Pi + tau`` with ``D = I^-1 - a``;
     with ``a`` the midpoint of the inverse moments ``|D| = s / 2``. Then ``f'(Pi) v = v x D Pi +
@@ -136,7 +136,7 @@ def _cross(a1, a2, a3, b1, b2, b3):
 def error_rate(p, y):
     """``lambda_e = min(s |Pi|, (|dddPi| / |dPi|)^(1/2) + sigma |Pi|)`` [1/s], ``p = (inv, s,
     sigma)``: the rate of the error ``tolerance=`` estimates for the free body without attitude
-    (:func:`rbenvs.core.guard.motion_rates`), the torque-free motion's own frequency where that
+    (:func:`rbenvs.stepsize.forms.motion_rates`), the torque-free motion's own frequency where that
     is sharper than :func:`jacobian_rate`'s bound ``s |Pi|``.
 
     Why: ``Pi`` moves on its polhode, and near a stable axis or about the symmetry axis of a
@@ -182,7 +182,7 @@ def error_rate(p, y):
 def period_speed(p, y, u, dt):
     """An upper bound of ``|dPi/dt| / |Pi|`` [1/s] over a control period of ``dt`` from ``y`` under
     the torque ``u``; ``p = (inv, s)`` (inverse moments, their spread). The state's own speed of
-    :func:`rbenvs.core.guard.motion_rates` is read at the period's start, and a period can be
+    :func:`rbenvs.stepsize.forms.motion_rates` is read at the period's start, and a period can be
     far longer than the motion's time scale: near the intermediate axis ``Pi`` rests by the
     saddle and then runs its separatrix orbit in ``1 / sigma`` (at 1e4 rad/s many times a
     period), so the speed at the start says nothing of the period's error

@@ -1060,7 +1060,7 @@ class ImplicitForms(NamedTuple):
       part, ``c_f (kappa lambda_d h)^2 (w h)^2`` (the contact turning at ``w = max(|Omega|,
       omega_g)`` drives the stiff mode; the whole velocity counted as the drive; ``c_f`` the
       scheme's ``forced_error_constant``, ``q``'s second item ``c_f / C``, given by the guard).
-      The tolerance's relaxation term (:func:`rbenvs.core.guard.relaxation_steps`) takes it.
+      The tolerance's relaxation term (:func:`rbenvs.stepsize.forms.relaxation_steps`) takes it.
 
     Without friction (frictionless, rolling, in flight ``N = 0``) ``W = I``.
     """

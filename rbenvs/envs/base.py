@@ -22,8 +22,9 @@ import warnings
 import gymnasium as gym
 import numpy as np
 
-from ..core.global_error import GlobalErrorCheck, require_tolerance_check
-from ..core.guard import DEFAULT_TOLERANCE, GUARDS, MAX_INTERNAL_STEPS, StepRule, UnstableMotionWarning, relaxation_steps, require_guard, require_tolerance, stability_ratio, step_ratio
+from ..stepsize.controller import (GUARDS, MAX_INTERNAL_STEPS, GlobalErrorCheck, StepRule, UnstableMotionWarning, default_accuracy, require_accuracy, require_guard,
+                                   require_tolerance, require_tolerance_check, takes_tolerance, unstable_motion_warning)
+from ..stepsize.forms import relaxation_steps, stability_ratio, step_ratio
 from ..core.model import Model
 from ..core.step import Engine, NumericalFailureWarning, action_values
 from ..dynamics.validation import require_finite_positive, require_int_in, unknown_keyword
@@ -68,17 +69,6 @@ def _caller_level() -> int:
     while frame is not None and os.path.abspath(frame.f_code.co_filename).startswith(package + os.sep):
         frame, level = frame.f_back, level + 1
     return level
-
-
-def _tolerance_schemes() -> list:
-    """The registered integrators ``tolerance=`` takes (:func:`_takes_tolerance`)."""
-    return sorted(name for name, cls in _registry().items() if _takes_tolerance(cls))
-
-
-def _takes_tolerance(cls) -> bool:
-    """Whether ``tolerance=`` takes the scheme ``cls``: an error constant, and its leading error on
-    a rotation in the phase (:meth:`RigidBodyEnv._require_accuracy` says why)."""
-    return getattr(cls, "error_constant", None) is not None and cls.error_in_phase
 
 
 class _SupportedSchemes:
@@ -143,9 +133,7 @@ class RigidBodyEnv(gym.Env):
         if tolerance is None and tolerance_horizon is not None:
             raise ValueError(f"tolerance_horizon={tolerance_horizon!r} is the span of control periods that tolerance= covers, and tolerance is None: "
                              "pass tolerance= with it, or leave tolerance_horizon out")
-        accuracy = "explicit"
-        if isinstance(tolerance, str):  # the env's default accuracy (guard="off" takes substeps steps whatever: unchecked)
-            tolerance, accuracy = (self.default_tolerance, "default") if guard != "off" and self.default_tolerance is not None else (None, "explicit")
+        tolerance, accuracy = default_accuracy(tolerance, guard, self.default_tolerance)
         check = require_tolerance_check(tolerance_check, tolerance)
         horizon = self._tolerance_horizon(tolerance_horizon)
         compiled = require_compiled(compiled)
@@ -160,26 +148,11 @@ class RigidBodyEnv(gym.Env):
             raise ValueError(f"integrator {integrator.name!r} declares no step region (StepRegion, rbenvs.contracts): it cannot be guarded")
         if render_mode is not None and (not isinstance(render_mode, str) or render_mode not in self.metadata["render_modes"]):
             raise ValueError(f"render_mode must be None or one of {self.metadata['render_modes']}, got {render_mode!r}")
-        if tolerance is not None and accuracy != "explicit" and not _takes_tolerance(type(integrator)):
-            if integrator.error_constant is not None:  # (euler: its error is in the amplitude)
-                raise ValueError(
-                    f"integrator {integrator.name!r} cannot be held to {type(self).__name__}'s default accuracy (tolerance='default': "
-                    f"{self.default_tolerance!r} relative over an episode): {self._amplitude_reason(integrator)}. Pass tolerance=None to run it "
-                    f"unchecked (the stability bound alone, info['error_estimate'] None), or an integrator that takes a tolerance, "
-                    f"{_tolerance_schemes()}")
-            tolerance, accuracy = None, "explicit"  # (exact flows, the splitting, adaptive schemes: no error constant to estimate by)
+        tolerance, accuracy = require_accuracy(integrator, guard, tolerance, accuracy, type(self).__name__)
         if tolerance is not None and accuracy == "explicit":
-            self._require_accuracy(integrator, guard, tolerance)
             unstable = self._unstable_motion(system, task, horizon * dt)
             if unstable:
-                then = ("tolerance_check=True: a companion run estimates the episode's global error (info['global_error_estimate']) "
-                        "and the episode ends as a numerical failure where it passes the tolerance" if check else
-                        "over a horizon that spans it the error can end above the tolerance (tolerance_check=True estimates it and ends "
-                        "the episode as a numerical failure where it passes the tolerance)")
-                warnings.warn(UnstableMotionWarning(
-                    f"tolerance={tolerance!r}: {unstable}. The steps hold the error they commit within the tolerance, but an unstable "
-                    f"motion amplifies errors already made; {then} ('rbenvs bench accuracy --tolerance' measures it per scene; "
-                    f"docs/integrators.md, 'Unstable motions')"), stacklevel=_caller_level())
+                warnings.warn(unstable_motion_warning(tolerance, unstable, check), stacklevel=_caller_level())
         high = tuple(float(v) for v in observation_high)
         self.model = Model(system, task, integrator, actuator, dt, substeps, guard, high, self._speed_ceiling(), tolerance, horizon if tolerance is not None else None,
                            self.registered_episode_steps(), check, accuracy)
@@ -195,7 +168,7 @@ class RigidBodyEnv(gym.Env):
         self.action_space = gym.spaces.Box(-1.0, 1.0, (actuator.size,), dtype=np.float32)
         self._action_shape = self.action_space.shape  # read on every step
         self._step_one = self.engine.step_one
-        # tolerance_check: the companion run beside the state (rbenvs.core.global_error)
+        # tolerance_check: the companion run beside the state (rbenvs.stepsize.controller)
         self._check = GlobalErrorCheck(self.engine) if check else None
         if check:
             self._step_one = self._check.step_one
@@ -315,7 +288,7 @@ class RigidBodyEnv(gym.Env):
 
     def _cheapest_integrator(self, system, task, actuator, dt, substeps, guard, observation_high, tolerance, horizon):
         """``integrator="auto"``: of the schemes that ``tolerance=`` takes (an error constant, the
-        leading error in the phase: :meth:`_require_accuracy`) and that take this system, the one
+        leading error in the phase: :func:`~rbenvs.stepsize.controller.takes_tolerance`) and that take this system, the one
         whose internal steps at the fastest start, times its rhs evaluations a step, cost the least
         (ties: the first registered)."""
         if tolerance is None:
@@ -324,7 +297,7 @@ class RigidBodyEnv(gym.Env):
         high = tuple(float(v) for v in observation_high)
         for cls in _registry().values():
             scheme = cls()
-            if not _takes_tolerance(cls) or not scheme.evaluations or not scheme.supports(system):
+            if not takes_tolerance(cls) or not scheme.evaluations or not scheme.supports(system):
                 continue
             self.model = Model(system, task, scheme, actuator, dt, substeps, guard, high, self._speed_ceiling(), tolerance, horizon,
                                self.registered_episode_steps())
@@ -336,35 +309,6 @@ class RigidBodyEnv(gym.Env):
         if best is None:
             raise ValueError(f"integrator='auto' found no scheme with an error constant for {type(system).__name__}")
         return best[1]
-
-    @staticmethod
-    def _require_accuracy(integrator, guard, tolerance) -> None:
-        """``tolerance=`` needs a guard that acts on it and a scheme whose error it can estimate."""
-        if guard == "off":
-            raise ValueError(f"tolerance={tolerance!r} needs guard='subdivide' or 'refuse': guard='off' takes substeps steps whatever the error")
-        if getattr(integrator, "error_constant", None) is None:
-            raise ValueError(
-                f"tolerance={tolerance!r} needs an integrator whose error it can estimate, {_tolerance_schemes()} (or integrator='auto'): one that declares an "
-                f"error constant (its error C lambda T (lambda h)^order on a rotation, rbenvs.integrators.error) with its leading error in the "
-                f"phase; integrator {integrator.name!r} declares none "
-                f"(exact sub-flows err by the system's commutators, not by one rate; an adaptive scheme controls its own error)"
-            )
-        if not integrator.error_in_phase:
-            # euler: its leading error grows a rotation's amplitude (by sqrt(1 + (lambda h)^2) a
-            # step); on a nonlinear rotation the amplitude sets the frequency, so the phase error
-            # grows like T^2 and a per-period sum either misses it (with the state's own rate:
-            # 2.7 times the tolerance) or overestimates it (with lambda: 16 times the error, 15
-            # times the steps of the cheapest fixed substeps; docs/integrators.md)
-            raise ValueError(
-                f"tolerance={tolerance!r} needs an integrator whose leading error on a rotation is in the phase, {_tolerance_schemes()} "
-                f"(or integrator='auto'): {RigidBodyEnv._amplitude_reason(integrator)}; with tolerance=None it runs at the guard's stability bound"
-            )
-
-    @staticmethod
-    def _amplitude_reason(integrator) -> str:
-        return (f"integrator {integrator.name!r} errs in the amplitude (each step grows a rotation by sqrt(1 + (lambda h)^2)), which on a "
-                f"nonlinear rotation moves the frequency, so its phase error grows like T^2 and no per-period estimate bounds it without "
-                f"overestimating it many times (measured: 15 times the steps of its cheapest fixed substeps meeting the same tolerance)")
 
     def _unstable_motion(self, system, task, span: float) -> str | None:
         """With ``tolerance=``: why the starts this env draws are unstable by the system's own

@@ -149,7 +149,7 @@ class LagrangeTopEnv(RigidBodyEnv):
       ``info["error_estimate"]`` every step; refused for ``euler`` (pass ``tolerance=None``);
       schemes without an error constant (``splitting``, ``exact``, ``dop853``) run unchecked.
       ``None``: unchecked, the stability bound alone, ``info["error_estimate"]`` ``None``. The
-      rule, the refusals and the estimate: :mod:`rbenvs.core.guard` and docs/integrators.md
+      rule, the refusals and the estimate: :mod:`rbenvs.stepsize.controller` and docs/integrators.md
       ("Accuracy: tolerance=").
     * ``tolerance_horizon=None``: control periods the tolerance covers (an integer >= 1;
       ``None``: the registered ``max_episode_steps``, one episode; a ``max_episode_steps``
@@ -157,7 +157,7 @@ class LagrangeTopEnv(RigidBodyEnv):
       refused with ``tolerance=None``.
     * ``tolerance_check=False``: with ``tolerance``, ``True`` estimates the episode's global error
       with a companion run (the same periods at twice the step: about half the steps again;
-      :mod:`rbenvs.core.global_error`), reports it as ``info["global_error_estimate"]`` and ends
+      :mod:`rbenvs.stepsize.controller`), reports it as ``info["global_error_estimate"]`` and ends
       the episode as a numerical failure, at the last state within it, where it passes the
       tolerance: for motions that amplify errors (the ``UnstableMotionWarning``'s;
       docs/integrators.md, "Unstable motions").

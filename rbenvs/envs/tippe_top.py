@@ -163,7 +163,7 @@ class TippeTopEnv(RigidBodyEnv):
       amplitude and is refused with a tolerance). ``"default"``: the tippe top has no default
       accuracy yet (``default_tolerance = None``): like ``None``, unchecked (the stability and
       friction bounds' steps), ``info["error_estimate"]`` ``None``. The rule, the refusals and the estimate:
-      :mod:`rbenvs.core.guard` and docs/integrators.md ("Accuracy: tolerance=").
+      :mod:`rbenvs.stepsize.controller` and docs/integrators.md ("Accuracy: tolerance=").
     * ``tolerance_horizon=None``: control periods the tolerance covers (an integer >= 1;
       ``None``: the registered ``max_episode_steps``, one episode; a ``max_episode_steps``
       given to ``gymnasium.make`` is not seen by the env: pass ``tolerance_horizon`` with it);
@@ -171,7 +171,7 @@ class TippeTopEnv(RigidBodyEnv):
     * ``friction_bound="accuracy"``: or ``"stability"``, what sizes the step under friction (Internal step).
     * ``tolerance_check=False``: with ``tolerance``, ``True`` estimates the episode's global error
       with a companion run (the same periods at twice the step: about half the steps again;
-      :mod:`rbenvs.core.global_error`), reports it as ``info["global_error_estimate"]`` and ends
+      :mod:`rbenvs.stepsize.controller`), reports it as ``info["global_error_estimate"]`` and ends
       the episode as a numerical failure, at the last state within it, where it passes the
       tolerance: for motions that amplify errors (the ``UnstableMotionWarning``'s;
       docs/integrators.md, "Unstable motions").

@@ -58,7 +58,7 @@ class Integrator:
     region: ClassVar[StepRegion | None] = None
     error_constant: ClassVar[float | None] = None
     # whether the leading error on a rotation is in the phase (|R(i z)| = 1 + O(z^(p+2))): then
-    # tolerance= may count the state's own speed (rbenvs.core.guard.motion_rates)
+    # tolerance= may count the state's own speed (rbenvs.stepsize.forms.motion_rates)
     error_in_phase: ClassVar[bool] = False
     # one scalar step for a whole batch (an adaptive solve whose step follows all members): a
     # batch whose members need different step counts runs in groups of equal counts

@@ -77,7 +77,7 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
 from .. import compiled as _compiled
-from ..core.global_error import GlobalErrorCheck
+from ..stepsize.controller import GlobalErrorCheck
 from ..core.reasons import ReasonPool, terminal_reason
 from ..core.step import _REAL_FLOATS, action_columns
 from ..draws import GeneratorTable, kind_codes
@@ -128,7 +128,7 @@ class RigidBodyVectorEnv(VectorEnv):
         self.system, self.task, self.integrator = self.model.system, self.model.task, self.model.integrator
         # the robustness options (rbenvs.envs.options), validated by the single env
         self._template, self._ranges, self._realism = env, env.param_ranges, env.realism
-        # tolerance_check: the companion run of every sub-env (rbenvs.core.global_error), on the
+        # tolerance_check: the companion run of every sub-env (rbenvs.stepsize.controller), on the
         # numpy path, its runs (the main run's and the companion's) in one compiled loop
         # over the sub-envs where numba is installed (rbenvs.compiled.CheckedRuns.batch; with
         # compiled=False on numpy); the batch kernel has no checked period

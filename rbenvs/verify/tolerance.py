@@ -6,7 +6,7 @@ on random free bodies against the exact solution (:func:`rbenvs.oracles.exact_so
   tolerance and ``tolerance_check=True`` keeps the error of its episode within it (up to the
   state it keeps where the global error estimate ended the episode: the contract either way);
 * ``tolerance_check: error - global error estimate``: the companion run's estimate
-  (:mod:`rbenvs.core.global_error`) is at least the error on every period whose error is above
+  (:mod:`rbenvs.stepsize.controller`) is at least the error on every period whose error is above
   roundoff (``1e-11``): the largest shortfall over the periods, relative to the tolerance, is 0;
 * ``tolerance_check=True at 1e-9, 0.01 rad/s off the intermediate axis``: a start near the
   separatrix (``|Omega| = 5`` rad/s about the intermediate axis, 0.01 rad/s about each of the
@@ -30,7 +30,7 @@ import warnings
 
 import numpy as np
 
-from ..core.global_error import relative_difference, tolerance_blocks
+from ..stepsize.controller import relative_difference, tolerance_blocks
 from ..oracles import exact_solution
 from .common import Check
 from .free_body import _random_inertia
@@ -54,10 +54,10 @@ ROWS = {
 
 def tolerance_integrators(integrators) -> list[str]:
     """The named integrators that ``tolerance=`` takes."""
-    from ..envs.base import _takes_tolerance
+    from ..stepsize.controller import takes_tolerance
     from ..integrators import get_integrator
 
-    return [name for name in integrators if _takes_tolerance(type(get_integrator(name)))]
+    return [name for name in integrators if takes_tolerance(type(get_integrator(name)))]
 
 
 def tolerance_checks(integrators, seed=0, n_cases=2, progress=None) -> list[Check]:

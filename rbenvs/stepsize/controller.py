@@ -1,4 +1,9 @@
-"""The step guard: how many internal steps a control period needs, from declarations only.
+"""The step controller: how many internal steps a control period takes, what error it commits and
+what an episode carries, from declarations only; its settings the stability bound alone
+(``tolerance=None``), an error bound (``tolerance=``, the env's default accuracy included) and the
+measured check (``tolerance_check=True``, the companion run below).
+
+**Stability.**
 
 The integrator declares where its step can be trusted (:class:`~rbenvs.contracts.StepRegion`);
 the system declares the rates a step must resolve for that region
@@ -40,26 +45,65 @@ no step bounds it for long.
 
 Everything here works on floats (one state) and arrays (a batch) with the same IEEE
 operations, so a sub-env of a vector env takes exactly its single env's steps; the pure
-:func:`step_ratio` is what the compiled batch step calls (the accuracy term's fractional power
+:func:`~rbenvs.stepsize.forms.step_ratio` is what the compiled batch step calls (the accuracy term's fractional power
 is corrected to the exact whole count by integer powers, so a last-bit difference between
 libm's ``pow`` and numpy's cannot change a count).
+
+**The measured check** (``tolerance_check=True``, :class:`GlobalErrorCheck`). The error bound above holds
+the error each period *commits*. A motion that is unstable by
+its own theorem (a tippe top that inverts, a top below its critical spin, a spin near the
+intermediate axis) amplifies errors already made, by a factor no local estimate knows in
+advance, so the error at the end of an episode can pass the tolerance although every period
+met its share. The classical remedy is Richardson's: a second solution of the same problem with
+a known ratio of steps, whose difference from the first is a multiple of the first's global
+error, amplification included (it rests on the asymptotic expansion of the global error,
+``y_h(t) - y(t) = e_p(t) h^p + O(h^(p+1))`` with ``e_p`` carried by the linearised flow: Hairer,
+Norsett and Wanner, *Solving Ordinary Differential Equations I*, 2nd ed., Springer 1993,
+section II.8; docs/physics.md's references).
+
+Here every period takes an even count ``n`` of steps ``h`` (the guard's count, plus one where
+it is odd), and the companion starts with the state at every reset and runs each control period
+under the same control with ``n / 2`` steps ``2 h``. A scheme of order ``p`` commits the local
+error ``c h^(p+1)`` per step, so the companion's period commits ``2^p`` times the main run's;
+while both are in the asymptotic range their difference ``D`` is ``2^p - 1`` times the main
+run's global error, carried by the same linearised flow, amplification included:
+``E = D / (2^p - 1)``, the classical estimate, exact up to the next order's share. Reported
+(``info["global_error_estimate"]``) is ``MARGIN = 1.25`` times it, and where it passes the
+tolerance the episode ends as a numerical failure at the last state within it
+(``tests/test_global_error.py`` and ``rbenvs verify``'s tolerance rows check the estimate
+against the free body's exact solution and a DOP853 reference of the tippe top that hops). A
+ratio that changed from period to period would weight the periods' errors unequally, and errors
+that cancel over an orbit, such as a free body's energy error near its separatrix, would not
+cancel in ``D``: hence the even counts.
+
+Roundoff the motion amplifies (near the separatrix) enters ``D`` at ``1 / (2^p - 1)`` of its
+size, but the check ends such an episode where the steps' error passes the tolerance, before the
+roundoff does: ``rbenvs bench accuracy --floor`` (20 runs 0.0001-0.01 rad/s off the intermediate
+axis, tolerances 1e-8 to 1e-12, against mpmath's Taylor series) is within on every period
+returned. The runs (the main run's and the companion's) are the engine's
+(:meth:`rbenvs.core.step.Engine.companion`), compiled where numba is installed
+(:class:`rbenvs.compiled.CheckedRuns`, the float path's bits); ``D`` is measured as
+:mod:`rbenvs.bench.tolerance` measures the error against its reference: the largest over the
+state's blocks (:func:`tolerance_blocks`) of ``|y_b - yc_b| / |y_b|``, on one state (floats) or
+a batch (arrays).
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from functools import lru_cache
 
 import numpy as np
 
 from ..dynamics.validation import did_you_mean
-from ..jit import jitable
-from ..rotations import every, maximum, power, select, sqrt
-from .codegen import generate
+from ..rotations import power
+from .forms import (accuracy_steps, error_estimate, motion_error_estimate, motion_rates, relaxation_estimate, relaxation_steps, step_ratio,
+                    step_ratio_motion, whole_root)
 
-__all__ = ["MAX_INTERNAL_STEPS", "GUARDS", "DEFAULT_TOLERANCE", "UnstableMotionWarning", "StepRule", "step_ratio", "step_ratio_motion", "motion_rates", "accuracy_steps", "relaxation_steps", "whole_root", "error_estimate", "require_guard",
-           "require_tolerance", "TOLERANCE_FLOOR"]
+__all__ = ["MAX_INTERNAL_STEPS", "GUARDS", "DEFAULT_TOLERANCE", "TOLERANCE_FLOOR", "MARGIN", "UnstableMotionWarning", "StepRule", "GlobalErrorCheck",
+           "require_guard", "require_tolerance", "require_tolerance_check", "default_accuracy", "takes_tolerance", "tolerance_schemes",
+           "require_accuracy", "unstable_motion_warning", "tolerance_blocks", "companion_ratio", "companion_steps",
+           "relative_difference"]
 
 # More internal steps than this in one control period is treated as a numerical failure.
 MAX_INTERNAL_STEPS = 1_000_000
@@ -111,235 +155,82 @@ def require_tolerance(tolerance):
     return tol
 
 
-@jitable
-def ceiling(x):
-    """``ceil(x)`` as a float (``inf`` and NaN pass through; floats or arrays)."""
-    if isinstance(x, float):
-        return float(math.ceil(x)) if x <= 9.0e15 else x
-    return _ceil_arrays(x)
+def default_accuracy(tolerance, guard: str, default):
+    """``(tolerance, accuracy)`` for a validated ``tolerance=``: the env's ``default`` tolerance
+    (``"default"``: ``accuracy="default"``; none with ``guard="off"``, which takes ``substeps``
+    steps whatever, or where the env declares none) or the user's (``"explicit"``)."""
+    if isinstance(tolerance, str):
+        return (default, "default") if guard != "off" and default is not None else (None, "explicit")
+    return tolerance, "explicit"
 
 
-@jitable  # (registered so that compiled code can name it; it only ever runs on arrays)
-def _ceil_arrays(x):
-    return np.ceil(x)
+def takes_tolerance(cls) -> bool:
+    """Whether ``tolerance=`` takes the scheme ``cls``: an error constant, and its leading error on
+    a rotation in the phase (:func:`require_accuracy` says why)."""
+    return getattr(cls, "error_constant", None) is not None and cls.error_in_phase
 
 
-@jitable
-def whole_root(y, p):
-    """The fewest whole ``n >= 0`` with ``n^p >= y`` (floats or arrays): the root's guess moved to
-    the exact answer of the integer-power test, so every path gives the same count."""
-    if isinstance(y, float) and 0.0 < y <= 1.0:  # (one step is enough: the common case, without a root)
-        return 1.0
-    n = ceiling(y ** (1.0 / p))
-    m = n - 1.0
-    n = select(m >= 1.0, select(power(m, p) >= y, m, n), n)
-    return select(power(n, p) < y, n + 1.0, n)
+def tolerance_schemes() -> list:
+    """The registered integrators ``tolerance=`` takes (:func:`takes_tolerance`)."""
+    from ..integrators import INTEGRATORS
+
+    return sorted(name for name, cls in INTEGRATORS.items() if takes_tolerance(cls))
 
 
-@jitable
-def accuracy_steps(k, p, z):
-    """The fewest whole ``n`` with ``n^p >= k z^(p+1)``: the steps a period of ``z = lambda dt``
-    needs for an error ``C z (z / n)^p <= b`` (``k = C / b``, ``p`` the order; floats or arrays)."""
-    return whole_root(k * power(z, p + 1.0), p)
+def _amplitude_reason(integrator) -> str:
+    return (f"integrator {integrator.name!r} errs in the amplitude (each step grows a rotation by sqrt(1 + (lambda h)^2)), which on a "
+            f"nonlinear rotation moves the frequency, so its phase error grows like T^2 and no per-period estimate bounds it without "
+            f"overestimating it many times (measured: 15 times the steps of its cheapest fixed substeps meeting the same tolerance)")
 
 
-@jitable
-def relaxation_steps(g, rate, a):
-    """The fewest whole ``n`` whose steps ``h = dt / n`` keep a decaying mode of rate ``rate``
-    within its share of the tolerance, ``C a (rate h)^p <= b_d`` (``g[5] = C / b_d``; 0 without
-    a tolerance): a decaying mode forgets its error within ``1 / rate``, so its error does not
-    add up over the periods. ``a <= 1``: the system's ``dissipation_share`` (1 where it declares
-    none), the share of ``C (rate h)^p`` the mode's error is in this period: less where the mode
-    is less stiff than ``rate`` says (a saturated friction), near its slow manifold, or driven
-    slowly. Floats; :meth:`StepRule.ratio` writes the array form."""
-    dt, bound, growth, k, p, kd = g
-    if kd == 0.0:
-        return 0.0
-    return whole_root(kd * (a * power(dt * rate, p)), p)
+def require_accuracy(integrator, guard: str, tolerance, accuracy: str, env_name: str):
+    """``(tolerance, accuracy)`` the integrator runs under. The default accuracy of a scheme without
+    an error constant (exact flows, the splitting, adaptive schemes) is none (unchecked); of one
+    whose error is in the amplitude (euler) it is refused, with ``tolerance=None`` as the way out.
+    An explicit tolerance needs a guard that acts on it and a scheme whose error it can estimate."""
+    if tolerance is not None and accuracy != "explicit" and not takes_tolerance(type(integrator)):
+        if integrator.error_constant is not None:  # (euler: its error is in the amplitude)
+            raise ValueError(
+                f"integrator {integrator.name!r} cannot be held to {env_name}'s default accuracy (tolerance='default': "
+                f"{tolerance!r} relative over an episode): {_amplitude_reason(integrator)}. Pass tolerance=None to run it "
+                f"unchecked (the stability bound alone, info['error_estimate'] None), or an integrator that takes a tolerance, "
+                f"{tolerance_schemes()}")
+        return None, "explicit"
+    if tolerance is None or accuracy != "explicit":
+        return tolerance, accuracy
+    if guard == "off":
+        raise ValueError(f"tolerance={tolerance!r} needs guard='subdivide' or 'refuse': guard='off' takes substeps steps whatever the error")
+    if getattr(integrator, "error_constant", None) is None:
+        raise ValueError(
+            f"tolerance={tolerance!r} needs an integrator whose error it can estimate, {tolerance_schemes()} (or integrator='auto'): one that declares an "
+            f"error constant (its error C lambda T (lambda h)^order on a rotation, rbenvs.integrators.error) with its leading error in the "
+            f"phase; integrator {integrator.name!r} declares none "
+            f"(exact sub-flows err by the system's commutators, not by one rate; an adaptive scheme controls its own error)"
+        )
+    if not integrator.error_in_phase:
+        # euler: its leading error grows a rotation's amplitude (by sqrt(1 + (lambda h)^2) a
+        # step); on a nonlinear rotation the amplitude sets the frequency, so the phase error
+        # grows like T^2 and a per-period sum either misses it (with the state's own rate:
+        # 2.7 times the tolerance) or overestimates it (with lambda: 16 times the error, 15
+        # times the steps of the cheapest fixed substeps; docs/integrators.md)
+        raise ValueError(
+            f"tolerance={tolerance!r} needs an integrator whose leading error on a rotation is in the phase, {tolerance_schemes()} "
+            f"(or integrator='auto'): {_amplitude_reason(integrator)}; with tolerance=None it runs at the guard's stability bound"
+        )
+    return tolerance, accuracy
 
 
-@jitable
-def error_estimate(e, lam, h):
-    """The relative error a period commits, ``C lambda dt (lambda h)^p``: ``e = (C, p, dt)``,
-    ``lam`` the rate at its start, ``h`` its internal step (floats or arrays)."""
-    c, p, dt = e
-    return c * lam * dt * power(lam * h, p)
-
-
-@jitable
-def motion_error_estimate(e, rates, h):
-    """:func:`error_estimate` with the state's own speed: ``C mu dt (lambda_e h)^p``, ``rates =
-    (lambda, mu, lambda_e)`` (:func:`step_ratio_motion`'s; floats or arrays)."""
-    c, p, dt = e
-    lam, mu, lam_e = rates
-    return c * mu * dt * power(lam_e * h, p)
-
-
-@jitable
-def relaxation_estimate(e, rate, a, h):
-    """A decaying mode's error in a period of internal step ``h``: ``C a (lambda_d h)^p``,
-    ``rate`` its rate ``lambda_d`` and ``a`` its error's share (floats or arrays)."""
-    c, p, _ = e
-    return c * (a * power(rate * h, p))
-
-
-@jitable
-def stability_ratio(dt, bound, growth, lam):
-    """The stability bound's ``x``: ``dt lambda / b``, and ``(dt lambda)^2 / growth`` where the
-    region bounds growth (pure; floats or arrays): the part both step ratios share."""
-    x = dt * lam / bound
-    if growth != math.inf:
-        z = dt * lam
-        x = maximum(x, z * z / growth)
-    return x
-
-
-@jitable
-def step_ratio_motion(g, rates):
-    """:func:`step_ratio` with the state's own rate: ``rates = (lambda, mu, lambda_e)``,
-    ``lambda_e`` the error's rate (the system's Jacobian bound, or ``lambda``) and ``mu <=
-    lambda_e`` the relative speed of the state (:func:`motion_rates`); the stability bound takes
-    ``lambda``, the accuracy term the fewest whole ``n`` with ``C mu dt (lambda_e dt / n)^p <= b``
-    (pure; floats or arrays)."""
-    lam, mu, lam_e = rates
-    dt, bound, growth, k, p, kd = g
-    x = stability_ratio(dt, bound, growth, lam)
-    if k != 0.0:
-        x = maximum(x, whole_root(k * (power(dt * lam_e, p) * (mu * dt)), p))
-    return x
-
-
-@lru_cache(maxsize=None)
-def motion_rates(rotation, rhs, blocks: tuple, accuracy=None, rotating: tuple = (), order: float = 1.0, span: float = 0.0, speed_bound=None, dt: float = 0.0,
-                 gate: bool = False, gate_rate=None):
-    """``rates(P, y, u) -> (lambda, mu, lambda_e)`` (generated, pure), ``P = (P_rotation, P_rhs)``
-    (``(P_rotation, P_rhs, P_accuracy)`` with ``accuracy``): the guard's rate ``lambda =
-    rotation(P_rotation, y)``, the error's rate ``lambda_e = accuracy(P_accuracy, y)`` (a bound
-    of the vector field's Jacobian the system declares, :class:`~rbenvs.contracts.GuardRates`;
-    without one ``lambda_e = lambda``) and the state's own relative speed ``mu = min(lambda_e,
-    max_b |f_b(y, u)| / |y_b|)`` over the named blocks ``b`` of the state (``blocks``: ``(start,
-    stop)`` slices), ``f`` the system's pure vector field under the control ``u``.
-
-    Why ``mu``: a scheme's local error on ``dy/dt = A y`` is ``C h^(p+1) A^p (A y)`` to leading
-    order, at most ``C h^(p+1) lambda^p |dy/dt|`` with ``lambda >= |A|``: relative to ``|y|``,
-    ``C (lambda h)^p h mu``. A state that moves slower than its fastest rate (a body spinning
-    near a principal axis, a fast top whose axis barely moves) commits less error than a
-    rotation at ``lambda`` would, and a steady spin (``mu = 0``) none. Used for schemes whose
-    leading error on a rotation is in the phase (``error_in_phase``: rk4): a scheme whose leading
-    error changes the amplitude (euler) changes a nonlinear motion's frequency with it, and the
-    phase then drifts over the whole episode (measured: euler on the free body at 1 rad/s ended
-    2.7 times its tolerance with ``mu``, and 16 times inside it with ``lambda``): the envs refuse
-    it with a tolerance.
-
-    Why ``lambda_e``: the bound ``|A| <= lambda`` is loose where the vector field's Jacobian is
-    far smaller than the fastest rotation rate (a free body's ``Pi`` moves in the body frame at
-    a rate set by the spread of its moments, not by ``|Omega|``: nearly equal moments, a fast
-    tumble); where the system bounds its Jacobian and its second derivative's share by
-    ``lambda_e`` (:func:`rbenvs.dynamics.free_body.jacobian_rate`), the local error is at most
-    ``C h^(p+1) lambda_e^p |dy/dt|`` to the same order; where the system knows its motion's own
-    frequency (:func:`rbenvs.dynamics.free_body.error_rate`: ``Pi`` on its polhode), that
-    frequency, within the bound.
-
-    Why ``rotating`` (pairs of ``(start, stop)`` slices, a block and the block that drives it,
-    with the scheme's ``order`` ``p`` and ``span``, the time an error of the horizon's periods is
-    carried to its end, on average): a block that turns as a rotation of itself at its own speed
-    ``m`` (``dy_q/dt = A(y_d) y_q``, ``A`` skew, ``|A| = m``: a unit quaternion at half the
-    angular speed) errs by ``C (m h)^(p+1)`` a step, not at ``lambda_e``; but it integrates its
-    driver: a relative error ``eps`` of ``y_d`` along ``y_d`` made in period ``k`` turns it at a
-    rate off by ``m eps``, which it carries to the end of the horizon, ``m eps (N - k) dt``. Summed
-    over the ``N`` periods of the horizon, each within the same budget, those weights ``m (N - k)
-    dt`` add up to ``N m span`` with ``span = (N + 1) dt / 2``: exact where ``m`` is steady, and
-    where it varies off by a share ``O(1 / (m span))``, small where the term matters. Only the
-    error along the driver is carried: with ``dq/dt = q (0, Omega) / 2`` the error ``q (0, e)``
-    follows ``de/dt = dOmega / 2 - Omega x e`` (body frame), whose part along ``Omega`` adds up
-    (the angle turned) while its part across is turned at ``|Omega|`` as it is made and stays
-    within ``|dOmega_perp| / |Omega|``, the driver's own relative error (a rotation by a large
-    angle about an axis off by ``dn`` is off by at most ``|dn|``). The error along the driver
-    follows the rate of its magnitude, ``a_d = |y_d . f_d| / |y_d|^2 <= mu_d``, to leading order
-    (a scheme's error on a vector that turns is in its phase: rk4 errs in the amplitude of a
-    rotation an order higher). So the driver counts ``mu_d`` once, its own error, and ``a_d m
-    span`` carried, and the block's own error ``C m dt (m h)^p`` is written as ``C mu dt (lambda_e
-    h)^p`` with ``mu = m (m / lambda_e)^p``:
-
-        mu = max(mu over the other blocks, mu_d + a_d m span + m (m / lambda_e)^p)
-
-    (the estimate and the step count keep their one form). Over a long horizon the carried term
-    can pass ``lambda_e`` (the phase error of an integrated rate grows like the horizon squared):
-    it is not capped there. The tippe top's attitude turns at ``|Omega| / 2``, driven by
-    ``Omega``, while ``Omega`` and ``v_G`` move slowly. Measured (``rbenvs bench accuracy
-    --tolerance``, the tippe top's rows): with ``mu_d (1 + m span)`` (the whole driver's error
-    carried) every row was within and the viscous scene cost 1.44-2.24 times the cheapest fixed
-    steps, its estimate about 6 times its error; with ``a_d`` 1.02-1.19, every row still within.
-
-    Why ``speed`` (``P[3]``, with the period ``dt``): the speed at the period's start need not be
-    the period's; where the system bounds its blocks' relative speed over a period
-    (:class:`~rbenvs.contracts.GuardRates`' ``speed``: the free body's orbit, along which a
-    state by the intermediate axis runs its separatrix within the period), that bound is the
-    speed of every block but the rotating ones.
-
-    Why ``gate`` (the default accuracy; ``P``'s last item ``(dt, p + 1, substeps^p / k, P_gate)``):
-    ``mu <= lambda_e <= Lambda``, ``Lambda`` a cheap bound of the error's rate (``gate_rate``, the
-    system's ``accuracy_bound``; ``None``: ``lambda``, which is ``lambda_e`` without ``accuracy``),
-    so ``C Lambda dt (Lambda h)^p`` bounds the estimate. Where that bound keeps the period's
-    ``substeps`` within its budget the rates are ``(lambda, Lambda, Lambda)``: the count is the
-    one the sharp rates give (both within ``substeps``: the stability bound's), the estimate
-    reported is the bound, and the sharp rates (the vector field, the system's rate) are not
-    evaluated. Without rotating blocks only (their carried term is not bounded by ``Lambda``)."""
-    lines = ["def rates(P, y, u):", "    lam = rotation(P[0], y)"]
-    if gate:
-        lines += [f"    G = P[{4 if speed_bound is not None else 3}]", "    big = gate_rate(G[3], y)" if gate_rate is not None else "    big = lam",
-                  "    cheap = power(big * G[0], G[1]) <= G[2]",
-                  "    if every(cheap):",  # (the sharp rates only where the bound does not hold: a batch, for all)
-                  "        return (lam, big, big)"]
-    lines += ["    f = rhs(P[1], y, u)", "    lam_e = accuracy(P[2], y)" if accuracy is not None else "    lam_e = lam"]
-
-    def speed(a, b):
-        ny = " + ".join(f"y[{i}] * y[{i}]" for i in range(a, b))
-        nf = " + ".join(f"f[{i}] * f[{i}]" for i in range(a, b))
-        return f"sqrt({nf}) / maximum(sqrt({ny}), 1e-300)"
-
-    drivers = {tuple(d) for _, d in rotating}
-    others = [blk for blk in blocks if tuple(blk) not in drivers]
-    if speed_bound is not None:
-        lines.append(f"    bound = speed_bound(P[3], y, u, {float(dt)!r})")
-    for j, (a, b) in enumerate(others):
-        lines.append(f"    mu = {speed(a, b)}" if j == 0 else f"    mu = maximum(mu, {speed(a, b)})")
-    if not others:
-        lines.append("    mu = 0.0 * lam")
-    elif speed_bound is not None:
-        lines.append("    mu = maximum(mu, bound)")
-    lines.append("    mu = select(mu < lam_e, mu, lam_e)")
-    for (a, b), (c, d) in rotating:
-        ny = " + ".join(f"y[{i}] * y[{i}]" for i in range(c, d))
-        dot = " + ".join(f"y[{i}] * f[{i}]" for i in range(c, d))
-        lines += [f"    m = {speed(a, b)}", "    m = select(m < lam_e, m, lam_e)", f"    md = {speed(c, d)}"]
-        if speed_bound is not None:
-            lines.append("    md = maximum(md, bound)")
-        lines += ["    md = select(md < lam_e, md, lam_e)",
-                  f"    ma = abs({dot}) / maximum({ny}, 1e-300)", "    ma = select(ma < md, ma, md)",
-                  f"    mq = md + ma * m * {float(span)!r} + m * power(m / maximum(lam_e, 1e-300), {float(order)!r})",
-                  "    mu = maximum(mu, mq)"]
-    if gate:  # (a batch: the bound where it holds)
-        lines += ["    return (lam, select(cheap, big, mu), select(cheap, big, lam_e))"]
-    else:
-        lines += ["    return (lam, mu, lam_e)"]
-    namespace = generate("\n".join(lines) + "\n", f"motion rates of {len(blocks)} blocks" + (f" and {len(rotating)} rotating" if rotating else "") + (" gated" if gate else ""),
-                         {"rotation": rotation, "rhs": rhs, "accuracy": accuracy, "speed_bound": speed_bound, "gate_rate": gate_rate, "sqrt": sqrt, "maximum": maximum,
-                          "select": select, "every": every, "power": power})
-    return jitable(namespace["rates"])
-
-
-@jitable
-def step_ratio(g, lam):
-    """``x`` (a period needs ``ceil(x)`` steps) from the oscillatory rate ``lam`` alone:
-    ``g = (dt, bound, growth, k, p, kd)``; ``k = C / b > 0`` adds the accuracy term
-    (:func:`accuracy_steps`), ``k = 0`` none (``kd``: :func:`relaxation_steps`; pure, floats
-    or arrays)."""
-    dt, bound, growth, k, p, kd = g
-    x = stability_ratio(dt, bound, growth, lam)
-    if k != 0.0:
-        x = maximum(x, accuracy_steps(k, p, dt * lam))
-    return x
+def unstable_motion_warning(tolerance: float, unstable: str, check: bool) -> UnstableMotionWarning:
+    """The construction warning for an explicit ``tolerance`` on a motion ``unstable`` by the
+    system's own theorem (the env says why), and what the check does about it."""
+    then = ("tolerance_check=True: a companion run estimates the episode's global error (info['global_error_estimate']) "
+            "and the episode ends as a numerical failure where it passes the tolerance" if check else
+            "over a horizon that spans it the error can end above the tolerance (tolerance_check=True estimates it and ends "
+            "the episode as a numerical failure where it passes the tolerance)")
+    return UnstableMotionWarning(
+        f"tolerance={tolerance!r}: {unstable}. The steps hold the error they commit within the tolerance, but an unstable "
+        f"motion amplifies errors already made; {then} ('rbenvs bench accuracy --tolerance' measures it per scene; "
+        f"docs/integrators.md, 'Unstable motions')")
 
 
 @dataclass(frozen=True)
@@ -618,3 +509,138 @@ class StepRule:
         with np.errstate(invalid="ignore"):
             n = np.where(x <= MAX_INTERNAL_STEPS, np.ceil(np.where(x <= MAX_INTERNAL_STEPS, x, 0.0)), MAX_INTERNAL_STEPS + 1)
         return np.maximum(substeps, n).astype(np.int64)
+
+
+# the reported estimate over the classical one (its next order's share: the module docstring)
+MARGIN = 1.25
+
+
+def require_tolerance_check(check, tolerance):
+    """``tolerance_check=``: ``False`` or ``True`` (a companion run checks the episode's global
+    error against ``tolerance=``, which it then needs)."""
+    if isinstance(check, str) and check == "refine":
+        raise ValueError("tolerance_check='refine' was removed (2026-11-29: each replay ran the episode again from its start); use "
+                         "tolerance_check=True, which ends the episode, flagged, where the estimate passes the tolerance, with a tighter "
+                         "tolerance= to hold it longer")
+    if not (check is True or check is False):
+        raise ValueError("tolerance_check must be False or True (a companion run checks the episode's global error and ends the episode "
+                         f"where it passes the tolerance), got {check!r}")
+    if check and tolerance is None:
+        raise ValueError("tolerance_check=True needs tolerance= (the relative error per episode the global error estimate is checked against)")
+    return check
+
+
+def tolerance_blocks(system) -> tuple:
+    """The ``(start, stop)`` blocks of the state over which a tolerance is measured: every block
+    of the layout, less a hybrid system's horizontal position (it drifts along the table: its
+    size is no scale of the motion) and its contact flags and hop counts (counts, not
+    quantities)."""
+    return tuple(tuple(span) for name, span in system.layout.items() if not (system.hybrid and name in ("position", "contact", "hops")))
+
+
+def companion_ratio(p: float) -> float:
+    """``2^p - 1``: the companion's global error over the main run's, less one (order ``p``)."""
+    return 2.0 ** float(p) - 1.0
+
+
+def companion_steps(n):
+    """The steps the companion takes beside a checked period of ``n`` (even) steps: ``n / 2`` (an
+    int, or an int array)."""
+    return n // 2
+
+
+def block_sums(y, yc, lo, hi):
+    """``(|y_b - yc_b|^2, |y_b|^2)`` over the components ``lo:hi`` (floats or arrays: the same
+    operations in the same order)."""
+    d2 = s2 = 0.0
+    for i in range(lo, hi):
+        d = y[i] - yc[i]
+        d2 = d2 + d * d
+        s2 = s2 + y[i] * y[i]
+    return d2, s2
+
+
+def block_difference(blocks, y, yc):
+    """:func:`relative_difference` of one state (floats). A block whose difference is NaN (a
+    companion that went non-finite beside a finite run)
+    counts as ``inf``: the check cannot vouch for the state, so its estimate passes any tolerance."""
+    out = 0.0
+    for lo, hi in blocks:
+        d2, s2 = block_sums(y, yc, lo, hi)
+        r = 0.0 if d2 == 0.0 else (math.sqrt(d2 / s2) if s2 > 0.0 else math.inf)
+        r = r if r == r else math.inf
+        out = r if r > out else out
+    return out
+
+
+def relative_difference(blocks, y, yc):
+    """``max_b |y_b - yc_b| / |y_b|`` over ``blocks`` (a block of norm 0 in both: 0; a NaN
+    difference: ``inf``); one state (a float: :func:`block_difference`) or a batch (an array,
+    the same rule element by element)."""
+    if not isinstance(y[0], np.ndarray):
+        return block_difference(blocks, y, yc)
+    out = 0.0
+    for lo, hi in blocks:
+        d2, s2 = block_sums(y, yc, lo, hi)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            r = np.where(d2 == 0.0, 0.0, np.where(s2 > 0.0, np.sqrt(d2 / np.where(s2 > 0.0, s2, 1.0)), np.inf))
+        out = np.maximum(out, np.where(r == r, r, np.inf))
+    return out
+
+
+
+
+class GlobalErrorCheck:
+    """One env's (or one batch's) companion: its state, its compensation and the periods it has
+    run. :meth:`restart` at a reset (rows ``mask`` of a batch); :meth:`period` after each period;
+    :meth:`step_one` a single env's checked step."""
+
+    __slots__ = ("engine", "blocks", "ratio", "runs", "periods")
+
+    def __init__(self, engine):
+        self.engine = engine
+        self.blocks = tolerance_blocks(engine.system)
+        self.ratio = companion_ratio(engine.integrator.order)
+        self.runs = None  # the companion's state and compensation (yc, cc)
+        self.periods = 0
+
+    def restart(self, y, mask=None):
+        """The companion starts at ``y`` (a batch: at the rows ``mask`` of ``y``, or all)."""
+        if mask is None or self.runs is None:
+            self.runs = (y, self.engine.fresh_comp)
+            self.periods = np.zeros(len(y[0]), dtype=np.int64) if isinstance(y[0], np.ndarray) else 0
+            return
+        yc, cc = self.runs
+        yc = tuple(np.where(mask, c, r) for c, r in zip(y, yc))
+        if cc is not None:
+            cc = tuple(np.where(mask, 0.0, c) for c in cc)
+        self.runs = (yc, cc)
+        self.periods = np.where(mask, 0, self.periods)
+
+    def period(self, y, u, n):
+        """After a period that took ``y``'s run ``n`` (even) steps under ``u``: the companion's
+        period, and the global error estimate of ``y``, ``MARGIN D / (2^p - 1)`` (floats, or
+        arrays for a batch)."""
+        self.runs = self.engine.companion(self.runs[0], u, n, self.runs[1])
+        self.periods = self.periods + 1
+        return MARGIN * relative_difference(self.blocks, y, self.runs[0]) / self.ratio
+
+    def step_one(self, y0, a, plain):
+        """The engine's :meth:`~rbenvs.core.step.Engine.step_one` with the companion's period after
+        it (the single env's step, and a sub-env's in a vector env whose sub-envs step models of
+        their own): ``info["global_error_estimate"]``; where the estimate passes the tolerance, the
+        episode ends as a numerical failure at ``y0``."""
+        engine = self.engine
+        comp0 = engine.comp  # (the run's compensation at y0: kept with y0 where the period is not)
+        out = engine.step_one(y0, a, plain)
+        info = out[4]
+        if info["numerical_failure"]:
+            return out
+        n = int(round(engine.dt / info["internal_step"]))
+        runs0 = self.runs
+        e = self.period(out[0], out[5], n)
+        if e > engine.tolerance:  # the companion and the run stay with the state kept
+            self.runs, self.periods = runs0, self.periods - 1
+            return engine.inaccurate_one(y0, a, info["internal_step"], plain, e, self.periods + 1, comp0)
+        info["global_error_estimate"] = e
+        return out
