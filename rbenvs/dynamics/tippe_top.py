@@ -105,7 +105,6 @@ __all__ = [
     "FRICTION_MARGIN",
     "FRICTION_BOUNDS",
     "ACCURACY_MARGIN",
-    "ACCURACY_SCALE",
     "PURE_PARAMETERS",
     "tippe_rotation_rate",
     "pure_parameters",
@@ -155,19 +154,15 @@ TOUCHDOWN_TOL = 1e-13
 SPIN_STEP = 0.1
 FRICTION_MARGIN = 0.5
 # friction_bound="accuracy": h <= ACCURACY_MARGIN of the scheme's real-axis interval over
-# lambda_a = max(lambda_d, ACCURACY_SCALE sqrt(lambda_d w)), lambda_d the tight rate (actual N,
-# mobility along the table), w = max(|Omega|, omega_g). For rk4: h <= 1.25 / lambda_d (stable with
-# the tight rate's growth within a period, measured up to about twice: 2.5 < 2.78) and h <= 0.12 /
-# sqrt(lambda_d w): near zero slip the slip relaxes at lambda_d while the contact geometry that
-# drives it turns at w, and rk4's error in the time to 90 degrees was measured to follow h^2 lambda_d
-# w there (the count for 1e-4 s from the rolling start scales as sqrt(lambda_d w) between friction
-# 0.1 and 0.3). Measured (python -m rbenvs.bench.tippe_steps, tests/test_tippe_stiff.py): within
-# 3.3e-5 s of the stability bound's time to 90 degrees for the default top from the rest, rolling
-# and vertical starts, both spin signs, and at friction 0.1 and 0.6, slip regularisation 1e-4 and
-# 1e-2, 300 rad/s with free flight.
+# lambda_a = max(lambda_d, K sqrt(lambda_d w)), lambda_d the tight rate (actual N, mobility along
+# the table), w = max(|Omega|, omega_g), K the friction law's accuracy_scale
+# (rbenvs.dynamics.contact). For rk4: h <= 1.25 / lambda_d (stable with the tight rate's growth
+# within a period, measured up to about twice: 2.5 < 2.78) and h <= 1.25 / (K sqrt(lambda_d w)):
+# near zero slip the slip relaxes at lambda_d while the contact geometry that drives it turns at
+# w, and rk4's error in the time to 90 degrees follows h^2 lambda_d w per unit time there, so a top
+# that rises slowly (long near rolling) gathers more of it; the error falls like K^-4.
 FRICTION_BOUNDS = ("stability", "accuracy")
 ACCURACY_MARGIN = 0.45
-ACCURACY_SCALE = 10.4
 
 
 @jitable
@@ -1178,7 +1173,7 @@ def implicit_forms(coefficient, stiffness, slope, rolling: bool, flight: bool, s
         def accuracy_rate(q, y, u):
             """``max(lambda_d, K sqrt(lambda_d w))``, ``q = (P, K, omega_g)``, ``w = max(|Omega|,
             omega_g)``: the friction guard's rate with ``friction_bound="accuracy"`` (see
-            ``ACCURACY_SCALE``)."""
+            the friction law's ``accuracy_scale``)."""
             p, k, omega_g = q
             lam = rate(p, y, u)
             w = sqrt(y[W] * y[W] + y[W + 1] * y[W + 1] + y[W + 2] * y[W + 2])
@@ -1755,7 +1750,7 @@ class TippeTop:
         :meth:`TippeTopParams.gravity_rate`), and, with friction, ``h <= c / lambda_d``
         (:meth:`friction_stiffness`) with ``c`` half the scheme's real-axis interval (euler
         1.0, rk4 1.39; none for dop853). With ``friction_bound="accuracy"``: ``lambda_a =
-        max(lambda_d, ACCURACY_SCALE sqrt(lambda_d w))`` (:func:`implicit_forms`'
+        max(lambda_d, K sqrt(lambda_d w))`` (``K`` the law's ``accuracy_scale``; :func:`implicit_forms`'
         ``accuracy_rate``; ``lambda_d`` the tight rate: the law's stiffness at the actual ``N`` and
         the largest mobility along the table; ``w = max(|Omega|, omega_g)``) and ``c``
         ``ACCURACY_MARGIN`` of the interval (rk4 1.25); a law without a slope (no ``implicit``)
@@ -1765,7 +1760,7 @@ class TippeTop:
         margin = FRICTION_MARGIN
         text = f"lambda = max(|Omega|, omega_g) (omega_g = {omega_g:.6g} rad/s)"
         if dissipation is not None and self.friction_bound == "accuracy" and self.implicit is not None and self.implicit.accuracy_rate is not None:
-            dissipation = (self.implicit.accuracy_rate, (self.form_params, ACCURACY_SCALE, omega_g))
+            dissipation = (self.implicit.accuracy_rate, (self.form_params, self.friction.accuracy_scale, omega_g))
             margin = ACCURACY_MARGIN
             text += f", lambda_d = the {self.friction_law} law's stiffness at N and the mobility along the table (friction_bound='accuracy')"
         elif dissipation is not None:

@@ -116,12 +116,12 @@ class TippeTopEnv(RigidBodyEnv):
     (the default) sizes ``h_f`` from
     accuracy instead, from the tight rate ``lambda_d`` (the law's stiffness at the actual ``N``
     and the largest mobility of the contact point along the table: within 1 % of the vector
-    field's stiffest decay rate near zero slip): for rk4 ``h_f = min(1.25 / lambda_d, 0.12 /
-    sqrt(lambda_d w))``, ``w = max(|Omega|, omega_g)`` (``ACCURACY_MARGIN``, ``ACCURACY_SCALE``
-    of :mod:`rbenvs.dynamics.tippe_top`): about half the steps near zero slip for the default
-    top (a third at friction 0.6 or slip regularisation 1e-4), the time to 90 degrees within
-    1e-4 s of the converged value (``python -m rbenvs.bench.tippe_steps``;
-    tests/test_tippe_stiff.py). ``n`` is set from the state at the start of each period;
+    field's stiffest decay rate near zero slip): for rk4 ``h_f = min(1.25 / lambda_d, 1.25 /
+    (K sqrt(lambda_d w)))``, ``w = max(|Omega|, omega_g)``, ``K`` the law's ``accuracy_scale``
+    (Coulomb 19, viscous 10.4; :mod:`rbenvs.dynamics.contact`): about 0.9 of the stability
+    bound's steps for the default top, the time to 90 degrees within 1e-4 s of the converged value and Jellett's drift
+    at most 3e-9 per simulated second on every top of a sweep across the inversion band
+    (tests/test_tippe_stiff.py; ``python -m rbenvs.bench.tippe_steps``). ``n`` is set from the state at the start of each period;
     ``info["internal_step"]`` reports ``dt / n``. ``guard="refuse"`` raises ``ValueError`` from
     ``step`` (naming ``substeps`` and the ``n`` needed) when ``n > substeps``, leaving the state
     unchanged; ``guard="off"`` always takes ``substeps`` steps (an explicit scheme may then
