@@ -495,7 +495,7 @@ def _apart(w, tolerance=None):
 
 
 def test_float64_carries_no_better_than_about_1e_9_near_the_separatrix():
-    """Fixed substeps sum plainly (docs/integrators.md, "Roundoff"): near the intermediate axis
+    """Fixed substeps sum plainly (docs/accuracy.md, "Roundoff"): near the intermediate axis
     roundoff is amplified, so two rk4 runs whose steps' error is far below 1e-12 (200 and 400
     substeps a period, 20 s) differ by the roundoff alone: above 1e-10 from 0.01 rad/s off the
     axis (measured 1.1e-9), below 1e-11 from 0.5 off (1.1e-12); and the near-separatrix start's
@@ -511,7 +511,7 @@ def test_float64_carries_no_better_than_about_1e_9_near_the_separatrix():
 
 def test_a_tolerance_sums_the_steps_with_compensation_from_period_to_period():
     """With a tolerance the steps sum with compensation, carried from period to period (Kahan
-    1965; docs/integrators.md, "Roundoff"), and the floor above falls by two to four orders. The
+    1965; docs/accuracy.md, "Roundoff"), and the floor above falls by two to four orders. The
     roundoff is chaotic (a start one ulp away changes it eightfold), so the bounds sit above the
     worst of eight starts near each, measured: the same two runs differ by less than 1e-11 from
     0.01 rad/s off the axis (1.3e-13 to 1.2e-12; summed plainly 8.8e-10 to 7.9e-9) and by less

@@ -720,7 +720,7 @@ def test_tippe_top_tolerance_costs_at_most_1_5_times_the_cheapest_fixed_substeps
     cheapest fixed substeps at 1e-3, 1e-6 and 1e-9 (before the attitude counted its own speed,
     2.13 and 1.69). Under Coulomb friction the slip's error is held at the slip's own scale (it
     can leave the band and grow), which over the ten periods of the ``tippe`` and
-    ``tippe_rolling`` rows, where it does not, costs more than 1.5 (docs/integrators.md,
+    ``tippe_rolling`` rows, where it does not, costs more than 1.5 (docs/accuracy.md,
     "Limits"); the inverting scene's cost is the next test's."""
     _within_at_most_1_5_times_the_fixed_cost(_tolerance_rows(key))
 

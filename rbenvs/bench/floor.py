@@ -1,5 +1,5 @@
 """``rbenvs bench accuracy --floor``: ``tolerance_check=True`` where float64's roundoff sets the floor,
-near the free body's separatrix (docs/integrators.md, "Roundoff").
+near the free body's separatrix (docs/accuracy.md, "Roundoff").
 
 Near the intermediate axis the motion amplifies the roundoff of every passage by the saddle, and
 from a start close enough to the separatrix no step count holds a tight tolerance in float64. The

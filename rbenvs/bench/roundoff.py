@@ -1,5 +1,5 @@
 """``rbenvs bench accuracy --roundoff``: the roundoff floor near the free body's intermediate axis,
-summed plainly and with compensation (docs/integrators.md, "Roundoff").
+summed plainly and with compensation (docs/accuracy.md, "Roundoff").
 
 Near the separatrix the motion amplifies every rounding, and two rk4 runs whose steps' own
 error is far below either's differ by the roundoff alone. Per distance of the start from the

@@ -93,7 +93,7 @@ TOLERANCE_CASES = (
                   dict(inertia=(2.0, 1.5, 1.0), axis=0, max_torque=0.0, integrator="rk4", max_angular_velocity=50.0),
                   tuple(_body((2.0, 1.5, 1.0), w) for w in ((5.0, 3.0, 0.05), (0.01, 5.0, 0.01), (-2.0, 4.0, 6.0))), 200),
     # the same starts over the free body's own episode (400 periods, 20 s): the start 0.002 off the
-    # separatrix amplifies its error beyond a local estimate (docs/integrators.md, "Unstable motions")
+    # separatrix amplifies its error beyond a local estimate (docs/accuracy.md, "Unstable motions")
     ToleranceCase("fb_triaxial_episode", "free body, rk4, moments (2, 1.5, 1), 5 rad/s, fb_triaxial's starts over 400 periods", "free_body",
                   dict(inertia=(2.0, 1.5, 1.0), axis=0, max_torque=0.0, integrator="rk4", max_angular_velocity=50.0),
                   tuple(_body((2.0, 1.5, 1.0), w) for w in ((5.0, 3.0, 0.05), (0.01, 5.0, 0.01), (-2.0, 4.0, 6.0))), 400),
@@ -156,7 +156,7 @@ def scene_cases(names=None) -> tuple:
     return tuple(cases)
 
 
-# the rows whose motion amplifies errors beyond the tolerance (docs/integrators.md, "Unstable
+# the rows whose motion amplifies errors beyond the tolerance (docs/accuracy.md, "Unstable
 # motions") run again with tolerance_check=True, keyed "<key>+check": within the tolerance, or ended
 # as a numerical failure where the global error estimate passes it
 CHECKED = ("fb_triaxial_episode", "scene:tippe_hop")

@@ -121,7 +121,7 @@ class Engine:
         # with a tolerance the internal steps sum with compensation (Kahan 1965): what adding each
         # increment to the state rounds away is carried into the next step's sum, so that the
         # many steps a tight tolerance takes add no more roundoff than a few (near an unstable
-        # axis the motion amplifies it: docs/integrators.md, "Roundoff"). The compensation is
+        # axis the motion amplifies it: docs/accuracy.md, "Roundoff"). The compensation is
         # part of a run's state: it starts at zero at a reset and after a switch, and each run
         # (the env's, the companion) carries its own from period to period
         # (advance(comp=), companion(comp=); the single env's in comp)

@@ -13,7 +13,7 @@ dop853      8      scipy adaptive DOP853 at rtol 1e-12: the accuracy reference
 Not registered by name (pass an instance, ``integrator=Ros2()``): ``Ros2``, order 2, the
 Rosenbrock-W method of Verwer et al. (1999), L-stable, linearly implicit in the tippe top's
 friction and explicit elsewhere (:mod:`.rosenbrock`): an experiment on the stiff friction, not
-accurate enough near zero slip at the step counts where it would pay (docs/integrators.md).
+accurate enough near zero slip at the step counts where it would pay (docs/accuracy.md).
 """
 
 from __future__ import annotations

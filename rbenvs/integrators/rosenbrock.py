@@ -1,6 +1,6 @@
 """Linearly implicit schemes for stiff friction: the Rosenbrock-W methods ROS2 and ROS34PW2.
 
-ROS2 (Verwer, Spee, Blom and Hundsdorfer 1999, docs/integrators.md) advances ``y' = f(y)`` by
+ROS2 (Verwer, Spee, Blom and Hundsdorfer 1999, docs/accuracy.md) advances ``y' = f(y)`` by
 
     W k1 = f(y_n),   W k2 = f(y_n + h k1) - 2 k1,   y_{n+1} = y_n + h (3/2 k1 + 1/2 k2),
 
@@ -24,7 +24,7 @@ and explicit elsewhere: with ``J = 0`` ROS2 is Heun's method (explicit trapezoid
 is a 3x3 solve (Woodbury), made once per step. Two (ROS2) or four (ROS34PW2) vector-field
 evaluations per step.
 
-Measured (``python -m rbenvs.bench.tippe_steps``, docs/integrators.md "Stiff friction"): near
+Measured (``python -m rbenvs.bench.tippe_steps``, docs/accuracy.md "Stiff friction"): near
 zero slip neither is more accurate than rk4 at the counts where it would pay, so neither is
 registered by name; they are here to be measured and built on.
 
