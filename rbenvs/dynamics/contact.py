@@ -148,8 +148,7 @@ class Coulomb(FrictionLaw):
 
     name = "coulomb"
     saturates = True
-    # (its slow tops creep near rolling for tens of seconds: 19 holds t90 within 5.1e-5 s over the
-    # sweep; 10.4, fitted on the default top alone, had let two pass 5.9e-4 s)
+    # (a slow top creeps near rolling for tens of seconds, gathering the error: the largest scale)
     accuracy_scale = 19.0
     kernel_coefficient = staticmethod(coulomb_coefficient)
     kernel_stiffness = staticmethod(coulomb_stiffness)
@@ -161,8 +160,7 @@ class Viscous(FrictionLaw):
     """Viscous friction ``F = -mu N v_P`` (``mu`` in s/m): linear in the slip everywhere."""
 
     name = "viscous"
-    # (linear everywhere, no creeping phase: 10.4 holds t90 within 5.1e-6 s over the sweep at
-    # 3 and 30 s/m; 19 would take 1.8 times the steps for errors already 20 times inside)
+    # (linear everywhere, no creeping phase: a smaller scale holds it; tests/test_tippe_stiff.py)
     accuracy_scale = 10.4
     kernel_coefficient = staticmethod(viscous_coefficient)
     kernel_stiffness = staticmethod(viscous_stiffness)

@@ -130,9 +130,8 @@ def require_guard(guard) -> str:
 
 # ``tolerance=``'s default: the env's default accuracy (RigidBodyEnv.default_tolerance)
 DEFAULT_TOLERANCE = "default"
-# the least tolerance float64 carries over an episode: near the free body's separatrix the
-# motion amplifies the (compensated) sums' roundoff to 1e-13-1e-12 over 20 s, and at 1e-13 the
-# check returned periods 1.33 times outside (rbenvs bench accuracy --roundoff and --floor)
+# the least tolerance float64 carries over an episode: near the free body's separatrix the motion
+# amplifies the (compensated) sums' roundoff to about this (rbenvs bench accuracy --roundoff, --floor)
 TOLERANCE_FLOOR = 1e-12
 
 

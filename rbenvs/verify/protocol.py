@@ -11,7 +11,7 @@ tippe top's fidelity) and a start state, and returns a :class:`Run` that advance
 * ``free_body``: ``y = Pi``, the body angular momentum in the principal body frame
   (``Omega = Pi / params.inertia``); ``u``: a body-frame torque [N m] or ``None``.
 * ``heavy_top``: ``y = (Pi1, Pi2, Pi3, Gamma1, Gamma2, Gamma3)`` (one flat tuple, as every
-  state is: :data:`LAYOUTS`): ``Pi`` about the pivot in the principal body frame
+  state is: :data:`rbenvs.verify.simulator.LAYOUTS`): ``Pi`` about the pivot in the principal body frame
   (``params.inertia`` are the moments about the pivot), ``Gamma = R^T e_z`` the upward vertical
   seen from the body; the centre of mass at ``params.length`` along ``params.com_direction``;
   gravity ``-params.gravity e_z``; ``u`` is ``None``.
