@@ -18,6 +18,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from . import jit
+
 __all__ = ["UNIFORM", "NORMAL", "draw", "kind_codes", "batch_draws", "GeneratorTable"]
 
 UNIFORM = "u"  # Generator.random(): [0, 1)
@@ -112,11 +114,14 @@ class GeneratorTable:
         self._list = kernels["make"](rngs[0])
         for rng in rngs[1:]:
             kernels["append"](self._list, rng)
+        self._rngs = rngs  # (the same objects: the draws' Python form before the kernel is built)
+        self._calls = 0
         self._kernel = kernels["draw"]
         self._put = kernels["put"]
 
     def __setitem__(self, i: int, rng) -> None:
         self._put(self._list, i, rng)
+        self._rngs[i] = rng
 
     @property
     def list(self):
@@ -126,5 +131,12 @@ class GeneratorTable:
     def draws(self, idx: np.ndarray, codes: np.ndarray) -> np.ndarray:
         """``(len(codes), len(idx))``: column ``j`` the numbers of sub-env ``idx[j]``'s start."""
         out = np.empty((len(codes), len(idx)))
+        if self._calls < jit.COMPILE_AFTER:  # (the kernel's calls in Python: a reset's draws compile nothing)
+            self._calls += 1
+            for j, i in enumerate(idx):
+                rng = self._rngs[i]
+                for k, code in enumerate(codes):
+                    out[k, j] = rng.random() if code == 0 else rng.standard_normal()
+            return out
         self._kernel(self._list, np.asarray(idx, dtype=np.int64), codes, out)
         return out

@@ -251,10 +251,13 @@ def _same_bits(a, b):
     return np.array_equal(a, b, equal_nan=True) and np.array_equal(np.signbit(a), np.signbit(b))
 
 
-def test_atan2_floats_arrays_and_compiled_give_the_same_bits():
+def test_atan2_floats_arrays_and_compiled_give_the_same_bits(monkeypatch):
     """One atan2 for the single env (floats), the numpy batch (arrays) and compiled kernels:
     the same bits on every argument, special values included."""
+    from rbenvs import jit
     from rbenvs.rotations import _atan2_arrays, atan2
+
+    monkeypatch.setattr(jit, "COMPILE_AFTER", 1)  # (the compiled pass from the first call)
 
     ys, xs = _atan2_arguments()
     floats = np.array([atan2(float(a), float(b)) for a, b in zip(ys, xs)])
@@ -336,11 +339,29 @@ def _compiled_sincos(xs):
     return s, c
 
 
-def test_sincos_floats_arrays_and_compiled_give_the_same_bits():
+def test_an_elementwise_loop_is_compiled_only_for_a_function_called_often():
+    """A one-off call (a reset's rows) runs the numpy form and compiles nothing; the
+    ``COMPILE_AFTER``-th call builds the loop, which gives the numpy form's bits."""
+    from rbenvs import compiled, jit
+    from rbenvs.rotations import _atan2_arrays, atan2
+
+    loop = jit.elementwise(atan2, 2, 1)
+    ys, xs = _atan2_arguments()
+    assert all(loop(ys, xs) is None for _ in range(jit.COMPILE_AFTER - 1))
+    out = loop(ys, xs)
+    if compiled.available():
+        assert _same_bits(out[0], _atan2_arrays(ys, xs))
+    else:
+        assert out is None
+
+
+def test_sincos_floats_arrays_and_compiled_give_the_same_bits(monkeypatch):
     """One sin/cos for the single env (floats), the numpy batch (arrays) and compiled kernels
     (where a loop of it stays in SIMD registers): the same bits on every argument, signed
     zeros included, and NaN outside the range."""
-    from rbenvs import compiled
+    from rbenvs import compiled, jit
+
+    monkeypatch.setattr(jit, "COMPILE_AFTER", 1)  # (the compiled pass from the first call)
     from rbenvs.rotations import SINCOS_LIMIT, _sincos_arrays, sincos
 
     xs = np.concatenate([_sincos_arguments(), [SINCOS_LIMIT, -SINCOS_LIMIT, 1e300, np.inf, -np.inf, np.nan]])
