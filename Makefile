@@ -29,10 +29,11 @@ $(STAMP): pyproject.toml
 run: $(STAMP)
 	$(BIN)/rbenvs-train --algo ppo --scene default --seed 0
 
-# The tests on every core, at most 8 (one worker per core; each compiles the kernels it uses).
+# The tests on every core, at most 8 (one worker per core; each compiles the kernels it uses),
+# then verify on the kernels the tests compiled (their cache: tests/conftest.py).
 test: $(STAMP)
 	$(BIN)/python -m pytest -q -n auto --maxprocesses 8
-	$(BIN)/rbenvs verify --quick --no-progress
+	RBENVS_CACHE_DIR="$${RBENVS_CACHE_DIR-$(CURDIR)/.rbenvs-cache}" $(BIN)/rbenvs verify --quick --no-progress
 
 $(RAY_STAMP): pyproject.toml
 	$(PYTHON) -m venv $(RAY_VENV)

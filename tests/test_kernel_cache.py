@@ -16,30 +16,37 @@ from rbenvs import kernel_cache
 pytest.importorskip("numba")
 
 # A fresh process: makes and steps an env (or a vector env), prints the cache's counts and the
-# step's observation (to compare across processes: a loaded kernel computes what a compiled one does)
+# step's observation (to compare across processes: a loaded kernel computes what a compiled one does).
+# env_id "small": a small generated kernel instead (through the same rbenvs.kernel_cache.njit), n its
+# constant: the tests of the files' handling need a kernel, not an env's seconds of compiling
 SCRIPT = r"""
 import json, sys, warnings
-import gymnasium as gym
 import numpy as np
-import rbenvs
 from rbenvs import kernel_cache
 env_id, n = sys.argv[1], int(sys.argv[2])
 with warnings.catch_warnings(record=True) as caught:
     warnings.simplefilter("always")
-    if n:
-        env = gym.make_vec(env_id, num_envs=n, vectorization_mode="vector_entry_point")
+    if env_id == "small":
+        from rbenvs.core.codegen import generate
+        f = kernel_cache.njit(generate("def f(x):\n    return x * K + 1.0\n", "cache test", {"K": float(n)})["f"], "cache test")
+        obs = [f(0.3 * j) for j in range(3)]
     else:
-        env = gym.make(env_id)
-    env.reset(seed=3)
-    obs = None
-    for _ in range(3):
-        obs = env.step(np.full(env.action_space.shape, 0.3, dtype=env.action_space.dtype))[0]
+        import gymnasium as gym
+        import rbenvs
+        if n:
+            env = gym.make_vec(env_id, num_envs=n, vectorization_mode="vector_entry_point")
+        else:
+            env = gym.make(env_id)
+        env.reset(seed=3)
+        obs = None
+        for _ in range(3):
+            obs = env.step(np.full(env.action_space.shape, 0.3, dtype=env.action_space.dtype))[0]
 print(json.dumps({"stats": kernel_cache.stats(), "obs": np.asarray(obs).tolist(),
                   "warnings": [str(w.message) for w in caught if issubclass(w.category, kernel_cache.KernelCacheWarning)]}))
 """
 
 
-def run(cache_dir, env_id="rbenvs/FreeRigidBody-v0", n=0):
+def run(cache_dir, env_id="small", n=1):
     env = dict(os.environ, RBENVS_CACHE_DIR=str(cache_dir))
     out = subprocess.run([sys.executable, "-c", SCRIPT, env_id, str(n)], env=env, capture_output=True, text=True, timeout=600)
     assert out.returncode == 0, out.stderr
@@ -51,12 +58,12 @@ def kernel_files(cache_dir):
 
 
 def test_a_second_process_loads_what_the_first_compiled(tmp_path):
-    first = run(tmp_path)
+    first = run(tmp_path, "rbenvs/FreeRigidBody-v0", 0)
     assert first["stats"]["compiled"] >= 1 and first["stats"]["loaded"] == 0
     assert first["stats"]["saved"] == first["stats"]["compiled"]
     files = kernel_files(tmp_path)
     assert len(files) == first["stats"]["saved"] and all(p.suffix == ".nbk" for p in files)
-    second = run(tmp_path)
+    second = run(tmp_path, "rbenvs/FreeRigidBody-v0", 0)
     assert second["stats"] == {"loaded": first["stats"]["compiled"], "compiled": 0, "rejected": 0, "saved": 0}
     assert second["obs"] == first["obs"]  # bit for bit (JSON keeps every float's digits)
     assert not first["warnings"] and not second["warnings"]
@@ -65,7 +72,7 @@ def test_a_second_process_loads_what_the_first_compiled(tmp_path):
 def test_the_vector_env_and_its_generator_table_load_too(tmp_path):
     first = run(tmp_path, "rbenvs/LagrangeTop-v0", 4)
     second = run(tmp_path, "rbenvs/LagrangeTop-v0", 4)
-    assert first["stats"]["compiled"] >= 3  # the vector step, the reset's finish, the generator table's
+    assert first["stats"]["compiled"] >= 3  # the vector step, the generator table's two (make, append)
     assert second["stats"]["compiled"] == 0 and second["stats"]["loaded"] == first["stats"]["compiled"]
     assert second["obs"] == first["obs"]
 
@@ -84,7 +91,7 @@ def test_a_file_that_does_not_verify_is_compiled_again_not_loaded(tmp_path, dama
         elif damage == "empty":
             p.write_bytes(b"")
     if damage == "swap":  # a whole, valid file of another kernel under this one's name
-        other = run(tmp_path, "rbenvs/LagrangeTop-v0")
+        other = run(tmp_path, "small", 2)
         assert other["stats"]["compiled"] >= 1
         theirs = sorted(set(kernel_files(tmp_path)) - set(files))
         files[0].write_bytes(theirs[0].read_bytes())
@@ -99,7 +106,7 @@ def test_a_file_that_does_not_verify_is_compiled_again_not_loaded(tmp_path, dama
 
 def test_four_processes_compiling_one_kernel_at_once(tmp_path):
     env = dict(os.environ, RBENVS_CACHE_DIR=str(tmp_path))
-    procs = [subprocess.Popen([sys.executable, "-c", SCRIPT, "rbenvs/FreeRigidBody-v0", "0"], env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+    procs = [subprocess.Popen([sys.executable, "-c", SCRIPT, "small", "1"], env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                               text=True) for _ in range(4)]
     results = []
     for p in procs:
