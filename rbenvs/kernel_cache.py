@@ -11,7 +11,8 @@ The key:
 
 * the *environment*, one folder each (:func:`environment`): the Python, numba, llvmlite and
   numpy versions, the CPU (LLVM's name and feature string) and a hash of rbenvs' own source
-  files (any edit of rbenvs starts a new folder: a kernel inlines the package's functions);
+  files (an edit of rbenvs starts a new folder: a kernel inlines the package's functions; the
+  modules no kernel calls into, :data:`NOT_COMPILED`, are left out);
 * the *kernel*, one file name each (:func:`fingerprint`): the function's bytecode and constants,
   and, followed through closures, defaults and the globals its code names, every function it
   calls (a generated step's own source, the vector field it closes over, the parameters frozen
@@ -80,12 +81,25 @@ def cache_root() -> Path | None:
     return Path(base) / "rbenvs"
 
 
+# rbenvs' modules that no kernel calls into (no jitable function, no generated or compiled code:
+# tests/test_kernel_cache.py checks it): left out of the source hash, so that an edit of the
+# command line, the benches, verify or the renderers keeps the compiled kernels
+NOT_COMPILED = ("bench", "verify", "render", "controllers", "oracles", "__main__.py", "cli.py", "docblocks.py", "extras.py", "headline.py",
+                "plotting.py", "progress.py", "scenes.py", "testing.py")
+
+
 @lru_cache(maxsize=None)
 def _source_hash() -> str:
-    """SHA-256 over rbenvs' own source files (paths and contents), the package as installed."""
-    package = Path(__file__).resolve().parent
+    """SHA-256 over rbenvs' own source files (paths and contents), the package as installed,
+    but the modules :data:`NOT_COMPILED`."""
+    return _hash_sources(Path(__file__).resolve().parent)
+
+
+def _hash_sources(package: Path) -> str:
     h = hashlib.sha256()
     for path in sorted(package.rglob("*.py")):
+        if path.relative_to(package).parts[0] in NOT_COMPILED:
+            continue
         h.update(str(path.relative_to(package)).encode())
         h.update(b"\0")
         h.update(path.read_bytes())

@@ -222,3 +222,30 @@ def test_cache_info_and_clear(tmp_path, monkeypatch):
     assert [f["name"] for f in kernel_cache.info()["folders"]] == [info["current"]]
     assert kernel_cache.clear() == names[info["current"]]["files"]
     assert kernel_cache.info()["folders"] == []
+
+
+def test_the_modules_left_out_of_the_source_hash_hold_no_compiled_code(tmp_path):
+    """An edit of a module in NOT_COMPILED keeps the kernels: none of them may hold code a kernel
+    runs (a jitable function, a compiled form, a generated source or an njit of its own)."""
+    import ast
+    from pathlib import Path
+
+    package = Path(kernel_cache.__file__).resolve().parent
+    compiling = {"jitable", "compiled_form", "njit", "generate", "elementwise"}
+    left_out = [p for p in sorted(package.rglob("*.py")) if p.relative_to(package).parts[0] in kernel_cache.NOT_COMPILED]
+    assert len(left_out) >= len(kernel_cache.NOT_COMPILED)
+    for path in left_out:
+        for node in ast.walk(ast.parse(path.read_text())):
+            name = node.id if isinstance(node, ast.Name) else node.attr if isinstance(node, ast.Attribute) else None
+            assert name not in compiling, f"{path.relative_to(package)}:{node.lineno} uses {name}: it is not NOT_COMPILED"
+    # an edit of one keeps the environment's key, an edit elsewhere changes it (on a copy)
+    import shutil
+
+    copy = tmp_path / "rbenvs"
+    shutil.copytree(package, copy, ignore=shutil.ignore_patterns("__pycache__"))
+    before = kernel_cache._hash_sources(copy)
+    assert before == kernel_cache._source_hash()
+    (copy / "headline.py").write_text((copy / "headline.py").read_text() + "\n# an edit\n")
+    assert kernel_cache._hash_sources(copy) == before
+    (copy / "rotations.py").write_text((copy / "rotations.py").read_text() + "\n# an edit\n")
+    assert kernel_cache._hash_sources(copy) != before
