@@ -130,13 +130,9 @@ class GeneratorTable:
 
     def draws(self, idx: np.ndarray, codes: np.ndarray) -> np.ndarray:
         """``(len(codes), len(idx))``: column ``j`` the numbers of sub-env ``idx[j]``'s start."""
-        out = np.empty((len(codes), len(idx)))
-        if self._calls < jit.COMPILE_AFTER:  # (the kernel's calls in Python: a reset's draws compile nothing)
+        if self._calls < jit.COMPILE_AFTER:  # (in Python, the same numbers: a reset's draws compile nothing)
             self._calls += 1
-            for j, i in enumerate(idx):
-                rng = self._rngs[i]
-                for k, code in enumerate(codes):
-                    out[k, j] = rng.random() if code == 0 else rng.standard_normal()
-            return out
+            return batch_draws([self._rngs[i] for i in idx], "".join(UNIFORM if c == 0 else NORMAL for c in codes))
+        out = np.empty((len(codes), len(idx)))
         self._kernel(self._list, np.asarray(idx, dtype=np.int64), codes, out)
         return out

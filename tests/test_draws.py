@@ -36,7 +36,7 @@ def test_compiled_table_draws_the_same_streams_as_numpy(kinds):
     """64 generators, 300 rounds of restarts of changing subsets (about 1e5 normals and
     uniforms): the table's draws equal numpy's bit for bit, and a generator replaced in the
     table (a reseeded sub-env) is the one drawn from next. (The first ``COMPILE_AFTER`` rounds
-    draw in Python, the rest in the kernel: both forms are compared.)"""
+    draw in Python, :func:`batch_draws` itself; the kernel draws the rest.)"""
     n = 64
     mine = [np.random.default_rng(s) for s in range(n)]
     ref = [np.random.default_rng(s) for s in range(n)]
