@@ -115,7 +115,7 @@ class GeneratorTable:
         for rng in rngs[1:]:
             kernels["append"](self._list, rng)
         self._rngs = rngs  # (the same objects: the draws' Python form before the kernel is built)
-        self._calls = 0
+        self._drawn = 0  # (sub-envs drawn in Python: jit.COMPILE_AFTER)
         self._kernel = kernels["draw"]
         self._put = kernels["put"]
 
@@ -130,8 +130,8 @@ class GeneratorTable:
 
     def draws(self, idx: np.ndarray, codes: np.ndarray) -> np.ndarray:
         """``(len(codes), len(idx))``: column ``j`` the numbers of sub-env ``idx[j]``'s start."""
-        if self._calls < jit.COMPILE_AFTER:  # (in Python, the same numbers: a reset's draws compile nothing)
-            self._calls += 1
+        if self._drawn < jit.COMPILE_AFTER:  # (in Python, the same numbers: a reset's draws compile nothing)
+            self._drawn += len(idx)
             return batch_draws([self._rngs[i] for i in idx], "".join(UNIFORM if c == 0 else NORMAL for c in codes))
         out = np.empty((len(codes), len(idx)))
         self._kernel(self._list, np.asarray(idx, dtype=np.int64), codes, out)

@@ -18,10 +18,11 @@ __all__ = ["jitable", "compiled_form", "available", "register_all", "register", 
 # set to "0" to keep the numpy path even where numba is installed (comparisons, debugging)
 DISABLE_VARIABLE = "RBENVS_COMPILED"
 
-# the call of a helper loop (elementwise, GeneratorTable.draws) that compiles it: the calls
-# before it run the numpy or Python form (the same bits), so that a one-off call (a reset's
-# rows) does not pay a compile of about a second for a pass that costs under a millisecond
-COMPILE_AFTER = 100
+# the elements (array entries, sub-envs drawn) a helper loop (elementwise, GeneratorTable.draws)
+# runs on numpy or in Python (the same bits) before it is compiled: a one-off call (a reset's
+# rows) does not pay a compile that costs more than the pass, and a large batch soon stops paying
+# the slower form (rbenvs bench startup counts the kernels a cold start compiles)
+COMPILE_AFTER = 1 << 15
 
 _JITABLE: list = []  # pure functions compiled code may call, in definition order
 _done: set = set()  # ids of the functions registered with numba (each once)
@@ -100,7 +101,8 @@ def elementwise(fn, n_in: int, n_out: int):
     us and :func:`rbenvs.rotations.atan2` 140 us, where libm's ``np.sin`` takes 0.5 us);
     compiled, it is one pass. The loop runs the compiled form, which gives the same bits as the
     numpy form element for element (each pair is tested), so a result does not depend on which
-    ran. Built on the :data:`COMPILE_AFTER`-th call (about a second), once per process."""
+    ran. Built once :data:`COMPILE_AFTER` elements have gone through the numpy form, once per
+    process."""
     cache: dict = {}
 
     def loop(*xs):
@@ -114,8 +116,9 @@ def elementwise(fn, n_in: int, n_out: int):
                 return None
         run = cache.get("run")
         if run is None:
-            cache["calls"] = calls = cache.get("calls", 0) + 1
-            if calls < COMPILE_AFTER:
+            done = cache.get("done", 0)
+            if done < COMPILE_AFTER:
+                cache["done"] = done + x.size
                 return None
             run = cache["run"] = _elementwise_loop(fn, n_in, n_out)
         if x.ndim == 1 and all(a.flags.c_contiguous for a in xs):  # (the batches' components)

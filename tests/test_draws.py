@@ -32,11 +32,14 @@ def test_unknown_kinds_are_refused_naming_the_rule():
 
 @pytest.mark.skipif(not available(), reason="numba (the fast extra) is not installed: no compiled draws to compare")
 @pytest.mark.parametrize("kinds", KINDS)
-def test_compiled_table_draws_the_same_streams_as_numpy(kinds):
+def test_compiled_table_draws_the_same_streams_as_numpy(kinds, monkeypatch):
     """64 generators, 300 rounds of restarts of changing subsets (about 1e5 normals and
     uniforms): the table's draws equal numpy's bit for bit, and a generator replaced in the
-    table (a reseeded sub-env) is the one drawn from next. (The first ``COMPILE_AFTER`` rounds
-    draw in Python, :func:`batch_draws` itself; the kernel draws the rest.)"""
+    table (a reseeded sub-env) is the one drawn from next. (The first ``COMPILE_AFTER`` sub-envs,
+    here about 100 rounds, draw in Python, :func:`batch_draws` itself; the kernel the rest.)"""
+    from rbenvs import jit
+
+    monkeypatch.setattr(jit, "COMPILE_AFTER", 2000)
     n = 64
     mine = [np.random.default_rng(s) for s in range(n)]
     ref = [np.random.default_rng(s) for s in range(n)]

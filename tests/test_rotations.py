@@ -257,7 +257,7 @@ def test_atan2_floats_arrays_and_compiled_give_the_same_bits(monkeypatch):
     from rbenvs import jit
     from rbenvs.rotations import _atan2_arrays, atan2
 
-    monkeypatch.setattr(jit, "COMPILE_AFTER", 1)  # (the compiled pass from the first call)
+    monkeypatch.setattr(jit, "COMPILE_AFTER", 0)  # (the compiled pass from the first call)
 
     ys, xs = _atan2_arguments()
     floats = np.array([atan2(float(a), float(b)) for a, b in zip(ys, xs)])
@@ -339,15 +339,16 @@ def _compiled_sincos(xs):
     return s, c
 
 
-def test_an_elementwise_loop_is_compiled_only_for_a_function_called_often():
-    """A one-off call (a reset's rows) runs the numpy form and compiles nothing; the
-    ``COMPILE_AFTER``-th call builds the loop, which gives the numpy form's bits."""
+def test_an_elementwise_loop_is_compiled_only_once_it_has_run_on_enough_elements(monkeypatch):
+    """A one-off call (a reset's rows) runs the numpy form and compiles nothing; once
+    ``COMPILE_AFTER`` elements have gone through it, the loop is built, with the numpy form's bits."""
     from rbenvs import compiled, jit
     from rbenvs.rotations import _atan2_arrays, atan2
 
-    loop = jit.elementwise(atan2, 2, 1)
     ys, xs = _atan2_arguments()
-    assert all(loop(ys, xs) is None for _ in range(jit.COMPILE_AFTER - 1))
+    monkeypatch.setattr(jit, "COMPILE_AFTER", 3 * ys.size)
+    loop = jit.elementwise(atan2, 2, 1)
+    assert all(loop(ys, xs) is None for _ in range(3))
     out = loop(ys, xs)
     if compiled.available():
         assert _same_bits(out[0], _atan2_arrays(ys, xs))
@@ -361,7 +362,7 @@ def test_sincos_floats_arrays_and_compiled_give_the_same_bits(monkeypatch):
     zeros included, and NaN outside the range."""
     from rbenvs import compiled, jit
 
-    monkeypatch.setattr(jit, "COMPILE_AFTER", 1)  # (the compiled pass from the first call)
+    monkeypatch.setattr(jit, "COMPILE_AFTER", 0)  # (the compiled pass from the first call)
     from rbenvs.rotations import SINCOS_LIMIT, _sincos_arrays, sincos
 
     xs = np.concatenate([_sincos_arguments(), [SINCOS_LIMIT, -SINCOS_LIMIT, 1e300, np.inf, -np.inf, np.nan]])
