@@ -665,7 +665,7 @@ def _start_lines(V: VectorLayout, dest: str) -> list[str]:
     calls, one statement each: in order) through the model's pure start, written into column
     ``i`` of ``dest``: a restart, written once for the rows kernel and the vector step."""
     draws = [f"d{k} = {_DRAW_CALLS[kind]}" for k, kind in enumerate(V.kinds)]
-    return ["g = GEN[i]", *draws, f"y = start(PI, ({''.join(f'd{k}, ' for k in range(len(V.kinds)))}))",
+    return ["g = GEN[np.int64(i)]", *draws, f"y = start(PI, ({''.join(f'd{k}, ' for k in range(len(V.kinds)))}))",
             *(f"{dest}[{j}, i] = y[{j}]" for j in range(V.batch.dim))]
 
 
@@ -798,7 +798,7 @@ def vector_kernel(V: VectorLayout, chunked: bool = False):
     read = [f"a{j} = A[i, {j}]" for j in range(V.n_in)]
     finite = "        if not (" + " & ".join(f"isfinite({a})" for a in a_items) + "):"
     check_actions = ["    bad = 0", "    for i in range(n):", *("        " + line for line in read), finite, "            bad += 1"]
-    check_actions += ["    if bad:", "        for i in range(n):", *("            " + line for line in read), "    " + finite, "                return -2, i, 0, 0"]
+    check_actions += ["    if bad:", "        for i in range(n):", *("            " + line for line in read), "    " + finite, "                return -2, np.int64(i), 0, 0"]
     lines += ["    if phase != 2:", *("    " + line for line in check_actions)]
     lines += [f"    U = np.empty(({L.n_control}, n))", f"    UN = np.empty(({L.n_action}, n))", "    for i in range(n):", "        un, u = act(PC, A, i)"]
     lines += [f"        UN[{j}, i] = un[{j}]" for j in range(L.n_action)] + [f"        U[{j}, i] = u[{j}]" for j in range(L.n_control)]
@@ -842,7 +842,7 @@ def vector_kernel(V: VectorLayout, chunked: bool = False):
         "    for i in range(n):",
         "        c = codes[i]",
         "        if c != 0:",  # (i_lo + m <= i: the compaction overwrites only rows it has read, in its own range)
-        "            ends[i_lo + m] = i",
+        "            ends[i_lo + m] = np.int64(i)",  # (i unsigned in the chunked form: cast, not converted silently)
         "            codes[i_lo + m] = c",
         "            m += 1",
         # the reasons' names, UCS-4 code points into the rows of the (zero-filled) array
@@ -866,10 +866,85 @@ def vector_kernel(V: VectorLayout, chunked: bool = False):
     if chunked:  # every loop over the sub-envs over the call's range [i_lo, i_hi): the threads' chunks
         # (its own kernel: loops from a run-time start stay out of SIMD registers, so the
         # one-call step keeps range(n) and ignores i_lo, i_hi)
-        source = source.replace(" in range(n):", " in range(i_lo, i_hi):")
+        # (unsigned bounds: an index numba cannot prove non-negative gets a wraparound select on
+        # every access, which keeps the loop out of SIMD registers)
+        source = source.replace("    n = Y.shape[1]\n", "    n = Y.shape[1]\n    u_lo, u_hi = np.uint64(i_lo), np.uint64(i_hi)\n", 1)
+        source = source.replace(" in range(n):", " in range(u_lo, u_hi):")
     generate(source, f"vector step dim={L.dim} n_obs={L.n_obs}{' chunked' if chunked else ''}", namespace)
-    # (nogil: the threads of a split step run their chunks at once)
+    # (nogil: envs stepped from several Python threads run at once)
     return _cached_njit(namespace["vstep"], "vstep", **KERNEL_OPTIONS, nogil=True)
+
+
+def _rebuild(shape, names: list[str]) -> str:
+    """The expression that rebuilds a value of nested-tuple ``shape`` (``None``: a leaf) from
+    flat leaf names, appending those to ``names``."""
+    if shape is None:
+        names.append(f"x{len(names)}")
+        return names[-1]
+    return "(" + "".join(_rebuild(part, names) + ", " for part in shape) + ")"
+
+
+def tuple_shape(value):
+    """``value``'s nesting of tuples, leaves as ``None`` (the key of :func:`split_kernel`)."""
+    return tuple(tuple_shape(v) for v in value) if isinstance(value, tuple) else None
+
+
+def flat_leaves(value) -> tuple:
+    """``value``'s leaves in order, its tuples flattened."""
+    if not isinstance(value, tuple):
+        return (value,)
+    return tuple(leaf for v in value for leaf in flat_leaves(v))
+
+
+@lru_cache(maxsize=None)
+def split_kernel(V: VectorLayout, shape: tuple):
+    """A vector step split over threads, in one call: ``vsplit(cuts, S, width, *leaves)`` runs
+    the chunked :func:`vector_kernel`'s phase 1 on every chunk ``[cuts[c], cuts[c + 1])`` at once
+    (``prange`` on ``width`` of numba's threads), then, when every chunk returned 0, zeroes the
+    reason pool's rows ``clear`` and runs phase 2 the same way; ``S[c]`` is chunk ``c``'s
+    ``(status, k, m, r)``. Returns -1 if a chunk refused, else the sum of the phase-1 statuses
+    (0: phase 2 ran). ``leaves``: the chunked kernel's arguments after ``phase``, their tuples
+    flattened (``shape``: :func:`tuple_shape` of them), since a parallel loop's body takes no
+    nested tuple from outside; the body rebuilds them. The calling thread's thread count is
+    put back before it returns."""
+    import numba
+    import numpy as np
+
+    names: list[str] = []
+    exprs = [_rebuild(part, names) for part in shape]
+    at = dict(zip(_vector_args(V.batch)[3:], exprs))
+    lines = [f"def vsplit(cuts, S, width, {', '.join(names)}):",
+             "    nc = cuts.shape[0] - 1",
+             "    before = get_num_threads()",
+             "    set_num_threads(width)",
+             "    status = 0",
+             "    phase = 1",
+             "    while phase != 0:",
+             "        for c in prange(nc):",
+             f"            r = vstep(cuts[c], cuts[c + 1], phase, {', '.join(exprs)})",
+             *(f"            S[c, {j}] = r[{j}]" for j in range(4)),
+             "        if phase == 2:",
+             "            phase = 0",
+             "            continue",
+             "        refused = False",
+             "        for c in range(nc):",
+             "            refused |= S[c, 0] == -1",
+             "            status += S[c, 0]",
+             "        if refused:",
+             "            status = -1",
+             "        if status != 0:",
+             "            phase = 0",
+             "            continue",
+             f"        for j in range({at['clear']}.shape[0]):",
+             f"            for w in range({at['RZ']}.shape[1]):",
+             f"                {at['RZ']}[{at['clear']}[j], w] = 0",
+             "        phase = 2",
+             "    set_num_threads(before)",
+             "    return status"]
+    namespace = {"vstep": vector_kernel(V, chunked=True), "prange": numba.prange, "get_num_threads": numba.get_num_threads,
+                 "set_num_threads": numba.set_num_threads, "np": np}
+    generate("\n".join(lines), f"vector step split dim={V.batch.dim} n_obs={V.batch.n_obs}", namespace)
+    return _cached_njit(namespace["vsplit"], "vsplit", error_model="numpy", parallel=True)
 
 
 @lru_cache(maxsize=None)
@@ -1426,13 +1501,14 @@ class VectorStep:
         self._calls = {}
         self._scratch = None
         self.threads = threads
-        self._team = self._chunks = None
-        if threads > 1:
-            from .vector.threads import ThreadTeam
+        self._cuts = None
+        self._split_calls = {}
+        from .vector.threads import splits
 
-            self._team = ThreadTeam(threads)
-            self._chunked = vector_kernel(self.layout, chunked=True)
-            self._chunked_calls = {}
+        self._splits = splits  # (False in a forked child that cannot run numba's threads: one call)
+        # (a parallel loop's body takes no nested tuple from outside: the split kernel's
+        # parameters go in flattened, once)
+        self._flat_params, self._flat_gate = flat_leaves(self.params), flat_leaves(self.gate_params)
 
     def __call__(self, A, Y, steps, done, skip, GEN, check: bool, refuse: bool, next_step: bool, reasons, CC=None) -> VectorResult:
         """One step of the states ``Y`` ``(dim, n)`` under the actions ``A`` ``(n, n_in)``
@@ -1460,64 +1536,58 @@ class VectorStep:
         truncated = np.empty(n, self._bool)
         metrics = [np.empty(n, t) for t in self.metric_dtypes]
         readouts = [np.empty(n, t) for t in self.readout_dtypes]
-        args = (A, Y, Ynew, NO_COMPENSATION if CC is None else CC, self.h, self.dt, self.substeps, check, refuse, next_step, self.max_steps, self.charge, steps, done, skip, GEN, *self.params, counts,
-                hstep, fired, obs, over, reward, terminated, truncated, *reasons, ends, codes, estimate, self.gate_params, *metrics, *readouts)
-        call = self._calls.get(A.dtype)
-        if call is None:
-            status, k, m, r = self.kernel(0, n, 0, *args)  # compiles
-            self._calls[A.dtype] = _entry_point(self.kernel, (0, n, 0, *args))
-            written = ends[:m]
-        elif self._team is None or n < 2 * _CHUNK_ALIGN or not np.isfinite(A).all():  # (a bad action: refused by the whole step, nothing written)
-            status, k, m, r = call(0, n, 0, *args)
-            written = ends[:m]
+        head = (A, Y, Ynew, NO_COMPENSATION if CC is None else CC, self.h, self.dt, self.substeps, check, refuse, next_step, self.max_steps, self.charge, steps, done, skip, GEN)
+        tail = (counts, hstep, fired, obs, over, reward, terminated, truncated, *reasons, ends, codes, estimate)
+        if self.threads > 1 and n >= 2 * _CHUNK_ALIGN and np.isfinite(A).all() and self._splits():  # (a bad action: refused by the whole step, nothing written)
+            leaves = (*head, *self._flat_params, *tail, *self._flat_gate, *metrics, *readouts)
+            status, k, written, r = self._split(A.dtype, (*head, *self.params, *tail, self.gate_params, *metrics, *readouts), leaves, n, refuse and CC is not None, ends)
         else:
-            status, k, written, r = self._split(A.dtype, args, n, refuse and CC is not None, reasons[0], reasons[2], ends)
+            args = (*head, *self.params, *tail, self.gate_params, *metrics, *readouts)
+            call = self._calls.get(A.dtype)
+            if call is None:
+                status, k, m, r = self.kernel(0, n, 0, *args)  # compiles
+                self._calls[A.dtype] = _entry_point(self.kernel, (0, n, 0, *args))
+            else:
+                status, k, m, r = call(0, n, 0, *args)
+            written = ends[:m]
         return VectorResult(status, k, Ynew, obs, over, reward, terminated, truncated, written, metrics, readouts, fired, hstep, counts, r,
                             estimate if self.layout.estimate else None)
 
-    def _split(self, dtype, args, n: int, keep_cc: bool, RZ, clear, ends) -> tuple:
-        """The step as chunks of sub-envs on the team's threads: every chunk's phase 1 (the
-        guard's counts, the period, its non-finite check); then, where no chunk refused and every
-        new state is finite, the pool's rows ``clear`` zeroed and every chunk's phase 2
-        (:func:`vector_kernel`). ``(status, k, ends, r)`` as one call's: a refusal (-1) before a
-        non-finite count; ``keep_cc``: the compensations, carried in place, put back on a refusal
-        (one call writes none)."""
+    def _split(self, dtype, args, leaves, n: int, keep_cc: bool, ends) -> tuple:
+        """The step as chunks of sub-envs, one per thread, in one call (:func:`split_kernel`):
+        every chunk's phase 1 (the guard's counts, the period, its non-finite check) at once, then,
+        where no chunk refused and every new state is finite, every chunk's phase 2.
+        ``(status, k, ends, r)`` as one call's: a refusal (-1) before a non-finite count;
+        ``keep_cc``: the compensations, carried in place, put back on a refusal (one call writes
+        none)."""
         import numpy as np
 
-        if self._chunks is None or self._chunks[-1][1] != n:
+        from .vector.threads import pool_size
+
+        if self._cuts is None or self._cuts[-1] != n:  # (chunks of whole SIMD blocks)
             cuts = [min(n, round(n * c / self.threads / _CHUNK_ALIGN) * _CHUNK_ALIGN) for c in range(self.threads + 1)]
             cuts[-1] = n
-            self._chunks = [(lo, hi) for lo, hi in zip(cuts, cuts[1:]) if hi > lo]
-        chunks = self._chunks
-        call = self._chunked_calls.get(dtype, self._chunked)  # (the dispatcher compiles on the first split)
-        first, second = [None] * len(chunks), [(0, 0, 0, 0)] * len(chunks)
+            self._cuts = np.unique(np.asarray(cuts, dtype=np.int64))
+            self._S = np.zeros((len(self._cuts) - 1, 4), dtype=np.int64)
+            self._width = min(len(self._cuts) - 1, pool_size())  # (numba's threads: at most its pool)
+            self._lows = self._cuts[:-1].tolist()
+        cuts, S = self._cuts, self._S
         CC = args[3]
         saved = CC.copy() if keep_cc else None
-        status = [0]
-        team = self._team
-
-        def between():  # (once, when every chunk's phase 1 is done)
-            codes = [s[0] for s in first]
-            status[0] = -1 if -1 in codes else sum(codes)
-            if status[0] == 0 and clear.shape[0]:
-                RZ[clear] = 0
-
-        def job(c):
-            if c < len(chunks):  # (a batch too small for every thread leaves the last ones idle)
-                first[c] = call(*chunks[c], 1, *args)
-            team.sync()
-            if status[0] == 0 and c < len(chunks):
-                second[c] = call(*chunks[c], 2, *args)
-
-        team.run(job, between)
-        if dtype not in self._chunked_calls:
-            self._chunked_calls[dtype] = _entry_point(self._chunked, (0, n, 1, *args))
-        if status[0] == -1 and saved is not None:
+        call = self._split_calls.get(dtype)
+        if call is None:  # (compiled or loaded on the first split)
+            kernel = split_kernel(self.layout, tuple_shape(args))
+            status = kernel(cuts, S, self._width, *leaves)
+            self._split_calls[dtype] = _entry_point(kernel, (cuts, S, self._width, *leaves))
+        else:
+            status = call(cuts, S, self._width, *leaves)
+        if status == -1 and saved is not None:
             CC[...] = saved
-        if status[0] != 0:
-            return status[0], 0, ends[:0], 0
-        written = np.concatenate([ends[lo:lo + m] for (lo, _), (_, _, m, _) in zip(chunks, second)])
-        return 0, sum(s[1] for s in second), written, sum(s[3] for s in second)
+        if status != 0:
+            return status, 0, ends[:0], 0
+        rows = S.tolist()  # (a few Python ints: cheaper than numpy's reductions on a tiny array)
+        written = np.concatenate([ends[lo:lo + row[2]] for lo, row in zip(self._lows, rows)]) if any(row[2] for row in rows) else ends[:0]
+        return 0, sum(row[1] for row in rows), written, sum(row[3] for row in rows)
 
     def rows(self, idx, draw, Y, GEN, obs, over, hstep, steps, metrics, readouts) -> None:
         """:func:`rows_kernel` on the sub-envs ``idx`` of a step's (or a reset's) arrays: their

@@ -11,9 +11,9 @@ the same run. ``bits``: whether every thread count's observations, rewards, ends
 one-thread run's, byte for byte.
 
 A split step runs its sub-envs' arithmetic in chunks, one per thread; what a thread cannot split
-is the Python around the kernel (the env's ``info``, the arrays it returns) and the two hand-offs
-per step, so the cheaper a system's step per sub-env, the further its speedup stays below the
-thread count.
+is the Python around the kernel (the env's ``info``, the arrays it returns) and the two parallel
+regions' launches per step, so the cheaper a system's step per sub-env, the further its speedup
+stays below the thread count.
 """
 
 from __future__ import annotations
@@ -28,7 +28,7 @@ from ..extras import ArgumentParser
 from ..progress import Progress
 from .throughput import ALTERNATIONS, Peers, counting_stepper, random_actions, stagger_clocks, timed_counting
 
-__all__ = ["main", "run_threads", "trajectory_digest", "handoff_us"]
+__all__ = ["main", "run_threads", "trajectory_digest"]
 
 IDS = tuple(ENVIRONMENTS)
 NUM_ENVS = 4096
@@ -87,27 +87,6 @@ def run_threads(num_envs: int = NUM_ENVS, counts=None, min_time: float = 0.2, re
     return rows
 
 
-def handoff_us(threads: int = 2, calls: int = 1000) -> float:
-    """Microseconds of one :class:`rbenvs.vector.threads.ThreadTeam` round with empty chunks
-    (wake the workers, meet at the barrier, wait for them): what a split step pays beyond its
-    arithmetic, set by how fast this machine wakes a sleeping thread."""
-    import time
-
-    from ..vector.threads import ThreadTeam
-
-    team = ThreadTeam(threads)
-
-    def job(_):
-        team.sync()
-
-    for _ in range(20):
-        team.run(job, lambda: None)
-    start = time.perf_counter()
-    for _ in range(calls):
-        team.run(job, lambda: None)
-    return 1e6 * (time.perf_counter() - start) / calls
-
-
 def main(argv=None) -> int:
     parser = ArgumentParser(prog="rbenvs bench threads", description="The vector env's env-steps per second with num_threads 1, 2 and every "
                                      "usable core, against CartPole-v1's native vector env at the same size, and whether the bits agree.")
@@ -130,7 +109,10 @@ def main(argv=None) -> int:
 
     print(f"Vector env at N = {args.num_envs}, random actions, staggered clocks; {usable_cores()} usable cores; speedup: over the first row's rate; "
           "bits: the same observations, rewards, ends and info as the first row's, byte for byte.\n")
-    print(f"A split step's hand-offs (wake the threads, the barrier, the wait), empty chunks: {handoff_us(max(2, max(r['threads'] for r in rows))):.0f} us a step.\n")
+    from ..vector.threads import launch_us
+
+    layer, launch = launch_us(max(2, max(r["threads"] for r in rows)))
+    print(f"numba's threading layer: {layer}; a parallel region of empty chunks (a split step runs two): {launch:.1f} us.\n")
     print("| id | threads | env-steps/s | speedup | CartPole-v1/s | ratio | bits |")
     print("|---|---:|---:|---:|---:|---:|---|")
     for r in rows:

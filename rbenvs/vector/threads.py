@@ -1,22 +1,26 @@
-"""The vector env's ``num_threads=``: a team of threads that run one compiled step's chunks of
-sub-envs at once (the kernel releases the GIL: :func:`rbenvs.compiled.vector_kernel`).
+"""The vector env's ``num_threads=``: how many of numba's threads one compiled step's chunks of
+sub-envs run on (:func:`rbenvs.compiled.split_kernel`, a ``prange`` over the chunks), and when
+they cannot run at all.
 
-The team is a handful of daemon threads parked on semaphores, woken once per step; the calling
-thread runs chunk 0 itself. A barrier between the step's two phases lets every chunk's check
-finish before any chunk writes the episode's bookkeeping (see :class:`rbenvs.compiled.VectorStep`).
-Threads, not processes: the chunks share the env's arrays, and a fork of the process (gymnasium's
-``AsyncVectorEnv``) finds no threads: the team starts its own again in the child.
+numba's threading layer is chosen once per process (``tbb`` where it loads, else ``omp``, else
+``workqueue``; ``NUMBA_THREADING_LAYER`` overrides). GNU OpenMP's threads do not survive a
+``fork``: a child of a process that ran them terminates when it starts a parallel region. A
+forked child (gymnasium's ``AsyncVectorEnv`` with the ``fork`` start method, after the parent
+stepped a split env) therefore runs its steps as one call, with the same results, and says so
+once.
 """
 
 from __future__ import annotations
 
 import os
-import threading
-import weakref
+import warnings
 
 from ..dynamics.validation import require_int_at_least
 
-__all__ = ["ThreadTeam", "resolve_num_threads", "usable_cores"]
+__all__ = ["resolve_num_threads", "usable_cores", "pool_size", "splits", "launch_us"]
+
+# True in a child forked after this process (or its parent) had started GNU OpenMP's threads
+_forked_after_omp = False
 
 
 def usable_cores() -> int:
@@ -36,84 +40,64 @@ def resolve_num_threads(value) -> int:
     return require_int_at_least("num_threads", value, 1)
 
 
-class _Shared:
-    """What the workers read: the step's job and the barrier's action, the first error raised,
-    the barrier and the stop flag (kept apart from the team, so that a team nobody holds is collected and its
-    workers told to stop)."""
+def pool_size() -> int:
+    """The most threads numba may run a parallel region on (``NUMBA_NUM_THREADS``)."""
+    import numba
 
-    __slots__ = ("job", "between", "error", "barrier", "stop")
-
-    def __init__(self, size: int):
-        self.job = self.between = self.error = None
-        self.barrier = threading.Barrier(size, action=self._between)
-        self.stop = False
-
-    def _between(self) -> None:
-        self.between()
-
-    def failed(self, error: BaseException) -> None:
-        """Keep the first error (one that broke the barrier only where no other came), and free
-        the chunks waiting at the barrier."""
-        if self.error is None or isinstance(self.error, threading.BrokenBarrierError):
-            self.error = error
-        self.barrier.abort()
+    return int(numba.config.NUMBA_NUM_THREADS)
 
 
-def _work(shared: _Shared, chunk: int, go, done) -> None:
-    while True:
-        go.acquire()
-        if shared.stop:
-            return
-        try:
-            shared.job(chunk)
-        except BaseException as error:  # (handed to the caller's thread, raised there)
-            shared.failed(error)
-        finally:
-            done.release()
+def _omp_started() -> bool:
+    import sys
+
+    parallel = sys.modules.get("numba.np.ufunc.parallel")
+    return parallel is not None and parallel._is_initialized and parallel._threading_layer == "omp"
 
 
-def _stop(shared: _Shared, gos) -> None:
-    shared.stop = True
-    for go in gos:
-        go.release()
+def _after_fork_in_child() -> None:
+    global _forked_after_omp
+    _forked_after_omp = _forked_after_omp or _omp_started()
 
 
-class ThreadTeam:
-    """``size`` threads (the caller's and ``size - 1`` workers) that run ``job(chunk)`` for every
-    chunk at once (:meth:`run`); a job calls :meth:`sync` to wait until every chunk has reached it
-    (then ``between()``, given to :meth:`run`, runs once, on one thread, before any goes on)."""
+os.register_at_fork(after_in_child=_after_fork_in_child) if hasattr(os, "register_at_fork") else None
+_warned = False
 
-    def __init__(self, size: int):
-        self.size = size
-        self._pid = None
 
-    def _start(self) -> None:
-        self._shared = _Shared(self.size)
-        self._gos = [threading.Semaphore(0) for _ in range(self.size - 1)]
-        self._dones = [threading.Semaphore(0) for _ in range(self.size - 1)]
-        for chunk, (go, done) in enumerate(zip(self._gos, self._dones), start=1):
-            threading.Thread(target=_work, args=(self._shared, chunk, go, done), name=f"rbenvs-step-{chunk}", daemon=True).start()
-        weakref.finalize(self, _stop, self._shared, self._gos)
-        self._pid = os.getpid()
+def splits() -> bool:
+    """Whether a step may run on numba's threads in this process (not in a child forked after
+    GNU OpenMP's threads started: there it runs as one call, with a warning, once)."""
+    global _warned
+    if not _forked_after_omp:
+        return True
+    if not _warned:
+        _warned = True
+        warnings.warn("num_threads: this process was forked from one that ran numba's GNU OpenMP threads, which cannot start in a forked "
+                      "child; its vector steps run on one thread (the same results). Start such workers with 'spawn' or 'forkserver' "
+                      "(AsyncVectorEnv(..., context='spawn')) to run them on threads.", RuntimeWarning, stacklevel=4)
+    return False
 
-    def run(self, job, between) -> None:
-        if self._pid != os.getpid():  # (first use, or a forked child: the parent's threads are not here)
-            self._start()
-        shared = self._shared
-        shared.job, shared.between, shared.error = job, between, None
-        for go in self._gos:
-            go.release()
-        try:
-            job(0)
-        except BaseException as error:
-            shared.failed(error)
-        for done in self._dones:
-            done.acquire()
-        shared.job = shared.between = None
-        if shared.error is not None:
-            shared.barrier.reset()
-            raise shared.error
 
-    def sync(self) -> None:
-        """Wait for every chunk; ``between()`` runs once all have come."""
-        self._shared.barrier.wait()
+def launch_us(threads: int = 2, calls: int = 2000) -> tuple[str, float]:
+    """``(numba's threading layer, microseconds of one parallel region of ``threads`` empty
+    chunks)``: what a split step pays twice beyond its arithmetic."""
+    import time
+
+    import numba
+    import numpy as np
+
+    @numba.njit(parallel=True)
+    def region(width, out):
+        before = numba.get_num_threads()
+        numba.set_num_threads(width)
+        for c in numba.prange(out.shape[0]):
+            out[c] += 1
+        numba.set_num_threads(before)
+
+    width = min(threads, pool_size())
+    out = np.zeros(threads, dtype=np.int64)
+    for _ in range(20):
+        region(width, out)
+    start = time.perf_counter()
+    for _ in range(calls):
+        region(width, out)
+    return numba.threading_layer(), 1e6 * (time.perf_counter() - start) / calls
