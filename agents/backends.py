@@ -19,7 +19,9 @@ __all__ = ["Backend", "SerialBackend", "RayBackend"]
 
 
 class Backend(Protocol):
-    def run(self, cells: Sequence[Cell], on_result: Callable[[CellResult], None] | None = None) -> list[CellResult]:
+    def run(
+        self, cells: Sequence[Cell], on_result: Callable[[CellResult], None] | None = None
+    ) -> list[CellResult]:
         """The results of ``cells``, in their order; ``on_result`` is called with each result as
         soon as it is in (in the order the cells finish: ``rbenvs-results --records`` keeps them)."""
 

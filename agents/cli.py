@@ -46,15 +46,21 @@ def _policy_factory(agent: str, algo_hint: str | None = None):
         return zero_policy
     path = Path(agent)
     if not path.is_file():
-        raise ValueError(f"agent must be 'analytic', 'zero' or a path to a model.zip, got {agent!r}")
+        raise ValueError(
+            f"agent must be 'analytic', 'zero' or a path to a model.zip, got {agent!r}"
+        )
     algo, normalization = algo_hint, None
     meta = path.with_name("run.json")
     if meta.is_file():
         run = json.loads(meta.read_text())
         algo = algo or run["algo"]
-        normalization = run.get("obs_normalization")  # (normalize_obs: the policy's frozen statistics)
+        normalization = run.get(
+            "obs_normalization"
+        )  # (normalize_obs: the policy's frozen statistics)
     if algo is None:
-        raise ValueError(f"cannot tell the algorithm of {agent}: no run.json beside it; pass --algo")
+        raise ValueError(
+            f"cannot tell the algorithm of {agent}: no run.json beside it; pass --algo"
+        )
     from .train import algorithm_class
 
     model = algorithm_class(algo).load(path, device="cpu")
@@ -63,7 +69,10 @@ def _policy_factory(agent: str, algo_hint: str | None = None):
 
 def _table(rows, header):
     widths = [max(len(str(r[i])) for r in [header] + rows) for i in range(len(header))]
-    lines = ["  ".join(str(c).ljust(w) for c, w in zip(header, widths)).rstrip(), "  ".join("-" * w for w in widths)]
+    lines = [
+        "  ".join(str(c).ljust(w) for c, w in zip(header, widths)).rstrip(),
+        "  ".join("-" * w for w in widths),
+    ]
     lines += ["  ".join(str(c).ljust(w) for c, w in zip(r, widths)).rstrip() for r in rows]
     return "\n".join(lines)
 
@@ -76,7 +85,13 @@ def _eval_rows(scene, named_factories, episodes, seeds):
         evals = [evaluate(factory, scene, episodes=episodes, seed=s) for s in seeds]
         summary = summarize(evals)
         records.append({"agent": label} | summary | {"per_seed": [e.as_dict() for e in evals]})
-        rows.append((label, f"{summary['return_mean']:.2f} +- {summary['return_std']:.2f}", f"{summary['success_mean']:.0%}"))
+        rows.append(
+            (
+                label,
+                f"{summary['return_mean']:.2f} +- {summary['return_std']:.2f}",
+                f"{summary['success_mean']:.0%}",
+            )
+        )
     return rows, records
 
 
@@ -87,18 +102,46 @@ def train_main(argv=None) -> int:
 def _train(argv) -> int:
     from .config import ALGORITHMS
 
-    p = ArgumentParser(prog="rbenvs-train", description="Train an SB3 agent on a scene, then evaluate it against the analytic controller.")
+    p = ArgumentParser(
+        prog="rbenvs-train",
+        description="Train an SB3 agent on a scene, then evaluate it against the analytic controller.",
+    )
     p.add_argument("--algo", choices=ALGORITHMS, default="ppo")
-    p.add_argument("--scene", default="default", help="scene name (configs/scenes) or YAML path (default: %(default)s)")
+    p.add_argument(
+        "--scene",
+        default="default",
+        help="scene name (configs/scenes) or YAML path (default: %(default)s)",
+    )
     p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--timesteps", type=int, default=None, help="training budget (default: configs/agents/<algo>.yml)")
-    p.add_argument("--out", type=Path, default=None, help="run directory (default: runs/<algo>-<scene>-seed<seed>)")
+    p.add_argument(
+        "--timesteps",
+        type=int,
+        default=None,
+        help="training budget (default: configs/agents/<algo>.yml)",
+    )
+    p.add_argument(
+        "--out",
+        type=Path,
+        default=None,
+        help="run directory (default: runs/<algo>-<scene>-seed<seed>)",
+    )
     p.add_argument("--checkpoint-every", type=int, default=None, metavar="STEPS")
     p.add_argument("--eval-episodes", type=int, default=10)
-    p.add_argument("--eval-seeds", type=int, nargs="+", default=[100, 101, 102], help="evaluation seeds (default: %(default)s)")
+    p.add_argument(
+        "--eval-seeds",
+        type=int,
+        nargs="+",
+        default=[100, 101, 102],
+        help="evaluation seeds (default: %(default)s)",
+    )
     p.add_argument("--no-compare", action="store_true", help="skip the evaluation")
-    p.add_argument("--tensorboard", type=Path, default=None, metavar="DIR",
-                   help="also write TensorBoard logs into DIR (the tensorboard extra; view with: tensorboard --logdir DIR)")
+    p.add_argument(
+        "--tensorboard",
+        type=Path,
+        default=None,
+        metavar="DIR",
+        help="also write TensorBoard logs into DIR (the tensorboard extra; view with: tensorboard --logdir DIR)",
+    )
     p.add_argument("--no-progress", action="store_true")
     args = p.parse_args(argv)
     require("agents")  # (train() asks for the tensorboard extra itself, before it builds anything)
@@ -107,19 +150,47 @@ def _train(argv) -> int:
     from .evaluate import analytic_policy, sb3_policy, zero_policy
     from .train import train
 
-    model, info = train(args.algo, scene, seed=args.seed, timesteps=args.timesteps, out_dir=out, progress=not args.no_progress,
-                        checkpoint_every=args.checkpoint_every, tensorboard=args.tensorboard)
-    print(f"trained {args.algo} on '{scene.name}' for {info['timesteps']} steps in {info['wall_time_s']:.1f} s -> {out / 'model.zip'}")
+    model, info = train(
+        args.algo,
+        scene,
+        seed=args.seed,
+        timesteps=args.timesteps,
+        out_dir=out,
+        progress=not args.no_progress,
+        checkpoint_every=args.checkpoint_every,
+        tensorboard=args.tensorboard,
+    )
+    print(
+        f"trained {args.algo} on '{scene.name}' for {info['timesteps']} steps in {info['wall_time_s']:.1f} s -> {out / 'model.zip'}"
+    )
     if "tensorboard" in info:
-        print(f"TensorBoard logs in {info['tensorboard']} (tensorboard --logdir {args.tensorboard})")
+        print(
+            f"TensorBoard logs in {info['tensorboard']} (tensorboard --logdir {args.tensorboard})"
+        )
     if not args.no_compare:
-        rows, records = _eval_rows(scene, [(f"{args.algo} (seed {args.seed})", lambda env: sb3_policy(model, info.get("obs_normalization"))),
-                                           ("analytic", analytic_policy), ("zero action", zero_policy)],
-                                   args.eval_episodes, args.eval_seeds)
-        print(f"\nevaluation on '{scene.name}' ({scene.description}), {args.eval_episodes} episodes x seeds {args.eval_seeds}:")
+        rows, records = _eval_rows(
+            scene,
+            [
+                (
+                    f"{args.algo} (seed {args.seed})",
+                    lambda env: sb3_policy(model, info.get("obs_normalization")),
+                ),
+                ("analytic", analytic_policy),
+                ("zero action", zero_policy),
+            ],
+            args.eval_episodes,
+            args.eval_seeds,
+        )
+        print(
+            f"\nevaluation on '{scene.name}' ({scene.description}), {args.eval_episodes} episodes x seeds {args.eval_seeds}:"
+        )
         print(_table(rows, ("agent", "return (mean +- std over seeds)", "success")))
         # the run's record keeps its evaluation: a finished run can be compared without rerunning
-        info["evaluation"] = {"episodes": args.eval_episodes, "seeds": list(args.eval_seeds), "results": records}
+        info["evaluation"] = {
+            "episodes": args.eval_episodes,
+            "seeds": list(args.eval_seeds),
+            "results": records,
+        }
         (out / "run.json").write_text(json.dumps(info, indent=2, default=str))
         print(f"evaluation written to {out / 'run.json'}")
     return 0
@@ -130,9 +201,17 @@ def eval_main(argv=None) -> int:
 
 
 def _eval(argv) -> int:
-    p = ArgumentParser(prog="rbenvs-eval", description="Evaluate agents and analytic controllers on a scene.")
+    p = ArgumentParser(
+        prog="rbenvs-eval", description="Evaluate agents and analytic controllers on a scene."
+    )
     p.add_argument("--scene", default="default")
-    p.add_argument("--agent", action="extend", nargs="+", required=True, help="'analytic', 'zero' or model.zip paths, several or repeated")
+    p.add_argument(
+        "--agent",
+        action="extend",
+        nargs="+",
+        required=True,
+        help="'analytic', 'zero' or model.zip paths, several or repeated",
+    )
     p.add_argument("--algo", default=None, help="algorithm of a model.zip without run.json")
     p.add_argument("--episodes", type=int, default=10)
     p.add_argument("--seeds", type=int, nargs="+", default=[100, 101, 102])
@@ -140,7 +219,9 @@ def _eval(argv) -> int:
     args = p.parse_args(argv)
     require("cli" if set(args.agent) <= set(BASELINES) else "agents")
     scene = _scene(args.scene)
-    rows, records = _eval_rows(scene, [(a, _policy_factory(a, args.algo)) for a in args.agent], args.episodes, args.seeds)
+    rows, records = _eval_rows(
+        scene, [(a, _policy_factory(a, args.algo)) for a in args.agent], args.episodes, args.seeds
+    )
     if args.json:
         print(json.dumps({"scene": scene.name, "results": records}, indent=2))
     else:
@@ -153,28 +234,74 @@ def results_main(argv=None) -> int:
 
 
 def _results(argv) -> int:
-    p = ArgumentParser(prog="rbenvs-results", description="The README's results table: train and evaluate every (scene, algorithm) of configs/agents/results.yml.")
+    p = ArgumentParser(
+        prog="rbenvs-results",
+        description="The README's results table: train and evaluate every (scene, algorithm) of configs/agents/results.yml.",
+    )
     p.add_argument("--seeds", type=int, default=None, help="seeds per (scene, agent) (default: 3)")
-    p.add_argument("--quick", action="store_true", help="1/20 of each budget, 1 seed, 2 episodes: a smoke run of the whole grid")
+    p.add_argument(
+        "--quick",
+        action="store_true",
+        help="1/20 of each budget, 1 seed, 2 episodes: a smoke run of the whole grid",
+    )
     p.add_argument("--json", type=Path, default=None, help="also write the records here")
-    p.add_argument("--from-json", type=Path, default=None, metavar="PATH",
-                   help="print the table of a finished run's records (its --json) without training: the docs' table is written this way")
-    p.add_argument("--scene", action="append", default=None, metavar="NAME",
-                   help="run only this scene of results.yml, repeatable (default: every scene); the grid's other rows are left out")
-    p.add_argument("--records", type=Path, default=None, metavar="PATH",
-                   help="keep every finished cell in this JSON Lines file as it finishes, and run only the cells it does not hold yet: "
-                        "a stopped run resumes where it stopped (rbenvs_agents.records)")
+    p.add_argument(
+        "--from-json",
+        type=Path,
+        default=None,
+        metavar="PATH",
+        help="print the table of a finished run's records (its --json) without training: the docs' table is written this way",
+    )
+    p.add_argument(
+        "--scene",
+        action="append",
+        default=None,
+        metavar="NAME",
+        help="run only this scene of results.yml, repeatable (default: every scene); the grid's other rows are left out",
+    )
+    p.add_argument(
+        "--records",
+        type=Path,
+        default=None,
+        metavar="PATH",
+        help="keep every finished cell in this JSON Lines file as it finishes, and run only the cells it does not hold yet: "
+        "a stopped run resumes where it stopped (rbenvs_agents.records)",
+    )
     p.add_argument("--no-progress", action="store_true")
-    p.add_argument("--backend", choices=("serial", "ray"), default="serial",
-                   help="serial: one cell after another here (default); ray: one Ray task per (scene, agent, seed), the ray extra")
-    p.add_argument("--address", default=None, help="--backend ray: join this Ray cluster (default: start a local one for the command)")
-    p.add_argument("--num-cpus", type=int, default=None, help="--backend ray: CPUs of the local cluster (default: every core)")
+    p.add_argument(
+        "--backend",
+        choices=("serial", "ray"),
+        default="serial",
+        help="serial: one cell after another here (default); ray: one Ray task per (scene, agent, seed), the ray extra",
+    )
+    p.add_argument(
+        "--address",
+        default=None,
+        help="--backend ray: join this Ray cluster (default: start a local one for the command)",
+    )
+    p.add_argument(
+        "--num-cpus",
+        type=int,
+        default=None,
+        help="--backend ray: CPUs of the local cluster (default: every core)",
+    )
     args = p.parse_args(argv)
     if args.from_json is not None:
         # (a finished run's table: nothing runs, so an option of a run would be silently ignored)
-        given = [flag for flag, on in (("--json", args.json), ("--quick", args.quick), ("--seeds", args.seeds is not None), ("--scene", args.scene is not None), ("--records", args.records is not None),
-                                       ("--backend", args.backend != "serial"),
-                                       ("--address", args.address is not None), ("--num-cpus", args.num_cpus is not None)) if on]
+        given = [
+            flag
+            for flag, on in (
+                ("--json", args.json),
+                ("--quick", args.quick),
+                ("--seeds", args.seeds is not None),
+                ("--scene", args.scene is not None),
+                ("--records", args.records is not None),
+                ("--backend", args.backend != "serial"),
+                ("--address", args.address is not None),
+                ("--num-cpus", args.num_cpus is not None),
+            )
+            if on
+        ]
         if given:
             p.error(f"--from-json prints a finished run's table: leave out {', '.join(given)}")
         from .grid import grid_cost, grid_table
@@ -195,7 +322,11 @@ def _results(argv) -> int:
 
     seeds = [0] if args.quick else list(range(3 if args.seeds is None else args.seeds))
     cells = grid_cells(seeds, quick=args.quick, only=args.scene)
-    backend = RayBackend(args.address, args.num_cpus) if args.backend == "ray" else SerialBackend(progress=not args.no_progress)
+    backend = (
+        RayBackend(args.address, args.num_cpus)
+        if args.backend == "ray"
+        else SerialBackend(progress=not args.no_progress)
+    )
     if args.records is None:
         results = backend.run(cells)
     else:
@@ -204,7 +335,10 @@ def _results(argv) -> int:
         kept = CellRecords(args.records)
         results = [kept.get(cell) for cell in cells]
         todo = [cell for cell, result in zip(cells, results) if result is None]
-        print(f"rbenvs-results: {len(cells) - len(todo)} of {len(cells)} cells from {args.records}; running {len(todo)}", file=sys.stderr)
+        print(
+            f"rbenvs-results: {len(cells) - len(todo)} of {len(cells)} cells from {args.records}; running {len(todo)}",
+            file=sys.stderr,
+        )
         ran = iter(backend.run(todo, on_result=kept.add))
         results = [result if result is not None else next(ran) for result in results]
     records = grid_records(results)
@@ -223,17 +357,52 @@ def sweep_main(argv=None) -> int:
 def _sweep(argv) -> int:
     from .config import ALGORITHMS
 
-    p = ArgumentParser(prog="rbenvs-sweep", description="Hyperparameter search on Ray Tune (Optuna's sampler): the best configuration per scene, in the zoo's format.")
+    p = ArgumentParser(
+        prog="rbenvs-sweep",
+        description="Hyperparameter search on Ray Tune (Optuna's sampler): the best configuration per scene, in the zoo's format.",
+    )
     p.add_argument("--algo", choices=ALGORITHMS, default="ppo")
-    p.add_argument("--scene", action="append", default=None, help="scene to search on, repeatable (default: default)")
-    p.add_argument("--trials", type=int, default=None, help="trials per scene (default: configs/agents/sweeps/<algo>.yml)")
-    p.add_argument("--timesteps", type=int, default=None, help="training budget of a trial (default: the sweep file's)")
-    p.add_argument("--out", type=Path, default=None, help="the zoo-format file of the best configurations (default: runs/sweep-<algo>.yml)")
-    p.add_argument("--seed", type=int, default=0, help="seed of Optuna's sampler (default: %(default)s)")
-    p.add_argument("--address", default=None, help="join this Ray cluster (default: start a local one for the command)")
-    p.add_argument("--num-cpus", type=int, default=None, help="CPUs of the local cluster (default: every core)")
-    p.add_argument("--storage", type=Path, default=None,
-                   help="Tune's folder for its records: one every node reaches, on a cluster of several machines (default: tune/ beside --out)")
+    p.add_argument(
+        "--scene",
+        action="append",
+        default=None,
+        help="scene to search on, repeatable (default: default)",
+    )
+    p.add_argument(
+        "--trials",
+        type=int,
+        default=None,
+        help="trials per scene (default: configs/agents/sweeps/<algo>.yml)",
+    )
+    p.add_argument(
+        "--timesteps",
+        type=int,
+        default=None,
+        help="training budget of a trial (default: the sweep file's)",
+    )
+    p.add_argument(
+        "--out",
+        type=Path,
+        default=None,
+        help="the zoo-format file of the best configurations (default: runs/sweep-<algo>.yml)",
+    )
+    p.add_argument(
+        "--seed", type=int, default=0, help="seed of Optuna's sampler (default: %(default)s)"
+    )
+    p.add_argument(
+        "--address",
+        default=None,
+        help="join this Ray cluster (default: start a local one for the command)",
+    )
+    p.add_argument(
+        "--num-cpus", type=int, default=None, help="CPUs of the local cluster (default: every core)"
+    )
+    p.add_argument(
+        "--storage",
+        type=Path,
+        default=None,
+        help="Tune's folder for its records: one every node reaches, on a cluster of several machines (default: tune/ beside --out)",
+    )
     args = p.parse_args(argv)
     require("agents")
     require("ray")
@@ -244,11 +413,25 @@ def _sweep(argv) -> int:
     out = args.out or Path("runs") / f"sweep-{args.algo}.yml"
     results = []
     for scene in scenes:
-        result = run_sweep(spec, scene, args.storage or out.parent / "tune", address=args.address, num_cpus=args.num_cpus, seed=args.seed)
+        result = run_sweep(
+            spec,
+            scene,
+            args.storage or out.parent / "tune",
+            address=args.address,
+            num_cpus=args.num_cpus,
+            seed=args.seed,
+        )
         results.append(result)
         names = list(spec.space)
-        rows = [(*(_flat(t.hyperparams, n) for n in names), f"{t.return_mean:.1f}", f"{t.success_mean:.0%}", f"{t.wall_time_s:.0f} s")
-                for t in sorted(result.trials, key=lambda t: -t.return_mean)]
+        rows = [
+            (
+                *(_flat(t.hyperparams, n) for n in names),
+                f"{t.return_mean:.1f}",
+                f"{t.success_mean:.0%}",
+                f"{t.wall_time_s:.0f} s",
+            )
+            for t in sorted(result.trials, key=lambda t: -t.return_mean)
+        ]
         print(f"\n{args.algo.upper()} on '{scene.name}': {len(result.trials)} trials, best first")
         print(_table(rows, (*names, "return", "success", "training")))
     out.parent.mkdir(parents=True, exist_ok=True)

@@ -43,7 +43,9 @@ def ray_cluster(address: str | None = None, num_cpus: int | None = None):
     """
     require("ray")
     if address is not None and num_cpus is not None:
-        raise ValueError("--num-cpus sizes the embedded local cluster; a cluster joined with --address has its own CPUs")
+        raise ValueError(
+            "--num-cpus sizes the embedded local cluster; a cluster joined with --address has its own CPUs"
+        )
     if num_cpus is not None and num_cpus < 1:
         raise ValueError(f"--num-cpus must be >= 1, got {num_cpus}")
     import logging
@@ -53,7 +55,11 @@ def ray_cluster(address: str | None = None, num_cpus: int | None = None):
     if ray.is_initialized():
         yield ray
         return
-    options = {"runtime_env": {"env_vars": worker_env()}, "include_dashboard": False, "logging_level": logging.WARNING}
+    options = {
+        "runtime_env": {"env_vars": worker_env()},
+        "include_dashboard": False,
+        "logging_level": logging.WARNING,
+    }
     if address is None:
         # Ray starts its workers at nice 15, to keep its own processes responsive; here they do
         # all of the command's work, and at nice 15 they yield to every other program on the

@@ -41,7 +41,15 @@ from rbenvs.extras import require
 __all__ = ["ALGORITHMS", "AgentConfig", "agent_config", "configs_dir"]
 
 ALGORITHMS = ("ppo", "sac", "td3")
-RESERVED = ("n_timesteps", "n_envs", "policy", "policy_kwargs", "eval_episodes", "normalize_reward", "normalize_obs")
+RESERVED = (
+    "n_timesteps",
+    "n_envs",
+    "policy",
+    "policy_kwargs",
+    "eval_episodes",
+    "normalize_reward",
+    "normalize_obs",
+)
 
 
 def configs_dir():
@@ -88,7 +96,9 @@ def agent_config(algo: str, env_id: str, scene: str | None = None, **overrides) 
             else:
                 merged[key] = value
     if "n_timesteps" not in merged:
-        raise ValueError(f"{path}: no n_timesteps for {env_id!r} (set it in 'default:' or the env's block)")
+        raise ValueError(
+            f"{path}: no n_timesteps for {env_id!r} (set it in 'default:' or the env's block)"
+        )
     n_timesteps = int(merged.pop("n_timesteps"))
     if n_timesteps < 1:
         raise ValueError(f"n_timesteps must be >= 1, got {n_timesteps}")

@@ -21,7 +21,15 @@ from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
-__all__ = ["Evaluation", "evaluate", "env_throughput", "analytic_policy", "zero_policy", "sb3_policy", "summarize"]
+__all__ = [
+    "Evaluation",
+    "evaluate",
+    "env_throughput",
+    "analytic_policy",
+    "zero_policy",
+    "sb3_policy",
+    "summarize",
+]
 
 
 @dataclass(frozen=True)
@@ -54,7 +62,10 @@ class Evaluation:
 
 def _plain(params: dict) -> dict:
     """``info["params"]`` as plain numbers (vector keywords as tuples): comparable and JSON-ready."""
-    return {k: tuple(float(c) for c in np.atleast_1d(v)) if np.ndim(v) else float(v) for k, v in params.items()}
+    return {
+        k: tuple(float(c) for c in np.atleast_1d(v)) if np.ndim(v) else float(v)
+        for k, v in params.items()
+    }
 
 
 class _Controller:
@@ -83,14 +94,20 @@ class _SB3:
     def __init__(self, model, normalization=None):
         self.model = model
         self.scale = None
-        if normalization is not None:  # VecNormalize's standardisation, frozen at the end of training
+        if (
+            normalization is not None
+        ):  # VecNormalize's standardisation, frozen at the end of training
             self.mean = np.asarray(normalization["mean"], dtype=np.float64)
-            self.scale = np.sqrt(np.asarray(normalization["var"], dtype=np.float64) + float(normalization["epsilon"]))
+            self.scale = np.sqrt(
+                np.asarray(normalization["var"], dtype=np.float64) + float(normalization["epsilon"])
+            )
             self.clip = float(normalization["clip"])
 
     def predict(self, obs):
         if self.scale is not None:
-            obs = np.clip((np.asarray(obs, dtype=np.float64) - self.mean) / self.scale, -self.clip, self.clip).astype(np.float32)
+            obs = np.clip(
+                (np.asarray(obs, dtype=np.float64) - self.mean) / self.scale, -self.clip, self.clip
+            ).astype(np.float32)
         action, _ = self.model.predict(obs, deterministic=True)
         return action
 
@@ -102,7 +119,9 @@ def sb3_policy(model, normalization=None):
     return _SB3(model, normalization)
 
 
-def evaluate(policy_factory, scene, episodes: int = 10, seed: int = 0, env_overrides=None) -> Evaluation:
+def evaluate(
+    policy_factory, scene, episodes: int = 10, seed: int = 0, env_overrides=None
+) -> Evaluation:
     """Run ``episodes`` episodes of ``scene`` (an :class:`rbenvs.scenes.Scene`) with the policy
     ``policy_factory(env)`` builds."""
     env = scene.make(**(env_overrides or {}))
@@ -124,10 +143,19 @@ def evaluate(policy_factory, scene, episodes: int = 10, seed: int = 0, env_overr
         lengths.append(steps)
     wall = time.perf_counter() - start
     env.close()
-    return Evaluation(tuple(returns), tuple(successes), tuple(lengths), tuple(params), tuple(starts), sum(lengths) / wall)
+    return Evaluation(
+        tuple(returns),
+        tuple(successes),
+        tuple(lengths),
+        tuple(params),
+        tuple(starts),
+        sum(lengths) / wall,
+    )
 
 
-def env_throughput(scene, seconds: float = 0.5, max_steps: int = 20000, seed: int = 0, env_overrides=None) -> float:
+def env_throughput(
+    scene, seconds: float = 0.5, max_steps: int = 20000, seed: int = 0, env_overrides=None
+) -> float:
     """Env steps per second of the single env of ``scene`` alone: uniform random actions drawn
     beforehand (no policy in the loop), restarts included, for about ``seconds`` (or
     ``max_steps`` steps), after 64 untimed steps."""

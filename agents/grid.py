@@ -41,7 +41,18 @@ from dataclasses import dataclass, field
 
 from .evaluate import Evaluation
 
-__all__ = ["BASELINES", "Cell", "CellResult", "run_cell", "grid_cells", "grid_records", "grid_table", "grid_cost", "heldout_outside", "ranges_box"]
+__all__ = [
+    "BASELINES",
+    "Cell",
+    "CellResult",
+    "run_cell",
+    "grid_cells",
+    "grid_records",
+    "grid_table",
+    "grid_cost",
+    "heldout_outside",
+    "ranges_box",
+]
 
 # the agents that are evaluated without training, by their label in the table
 BASELINES = ("zero action", "analytic")
@@ -97,7 +108,9 @@ class CellResult:
 
     def evaluations(self) -> dict:
         """``{NOMINAL: evaluation, HELDOUT: heldout}`` (the latter when there is one)."""
-        return {NOMINAL: self.evaluation} | ({HELDOUT: self.heldout} if self.heldout is not None else {})
+        return {NOMINAL: self.evaluation} | (
+            {HELDOUT: self.heldout} if self.heldout is not None else {}
+        )
 
 
 def run_cell(cell: Cell, progress: bool = False) -> CellResult:
@@ -113,8 +126,15 @@ def run_cell(cell: Cell, progress: bool = False) -> CellResult:
 
         start = time.perf_counter()
         overrides = {"param_ranges": cell.train_ranges} if cell.train_ranges else None
-        model, info = train(cell.agent, cell.scene, seed=cell.seed, timesteps=cell.timesteps, progress=progress, env_overrides=overrides,
-                            **cell.hyperparams)
+        model, info = train(
+            cell.agent,
+            cell.scene,
+            seed=cell.seed,
+            timesteps=cell.timesteps,
+            progress=progress,
+            env_overrides=overrides,
+            **cell.hyperparams,
+        )
         wall = time.perf_counter() - start
         timesteps, train_rate = info["timesteps"], info["steps_per_s"]
 
@@ -127,7 +147,13 @@ def run_cell(cell: Cell, progress: bool = False) -> CellResult:
     nominal = evaluate(factory, cell.scene, episodes=cell.episodes, seed=cell.eval_seed)
     heldout = None
     if cell.heldout is not None:
-        heldout = evaluate(factory, cell.scene, episodes=cell.episodes, seed=cell.eval_seed, env_overrides={"param_ranges": cell.heldout})
+        heldout = evaluate(
+            factory,
+            cell.scene,
+            episodes=cell.episodes,
+            seed=cell.eval_seed,
+            env_overrides={"param_ranges": cell.heldout},
+        )
     return CellResult(cell, nominal, timesteps, wall, heldout, env_rate, train_rate)
 
 
@@ -142,7 +168,11 @@ def ranges_box(scene, ranges: dict | None) -> dict:
             box[name] = validated.bounds[name]
         else:
             value = env._kwargs[name]
-            v = tuple(float(c) for c in value) if isinstance(value, (tuple, list)) else (float(value),)
+            v = (
+                tuple(float(c) for c in value)
+                if isinstance(value, (tuple, list))
+                else (float(value),)
+            )
             box[name] = (v, v)
     env.close()
     return box
@@ -155,10 +185,16 @@ def heldout_outside(scene, train: dict | None, heldout: dict) -> None:
     is checked too). ``ValueError`` names the scene."""
     for label, ranges in (("the scene's parameters", None), ("the training ranges", train)):
         a, b = ranges_box(scene, ranges), ranges_box(scene, heldout)
-        apart = any(hi_a < lo_b or hi_b < lo_a for name in a for lo_a, hi_a, lo_b, hi_b in zip(*a[name], *b[name]))
+        apart = any(
+            hi_a < lo_b or hi_b < lo_a
+            for name in a
+            for lo_a, hi_a, lo_b, hi_b in zip(*a[name], *b[name])
+        )
         if not apart:
-            raise ValueError(f"scene {scene.name!r}: robustness.heldout {heldout!r} meets {label} ({train!r}): a held-out range must "
-                             f"lie outside them in at least one parameter")
+            raise ValueError(
+                f"scene {scene.name!r}: robustness.heldout {heldout!r} meets {label} ({train!r}): a held-out range must "
+                f"lie outside them in at least one parameter"
+            )
 
 
 def in_box(params: dict, box: dict) -> bool:
@@ -191,7 +227,9 @@ def grid_cells(seeds, quick: bool = False, only=None) -> list[Cell]:
     if only:
         unknown = sorted(set(only) - {entry["scene"] for entry in runs})
         if unknown:
-            raise ValueError(f"--scene: not in results.yml: {unknown} (its scenes: {[entry['scene'] for entry in runs]})")
+            raise ValueError(
+                f"--scene: not in results.yml: {unknown} (its scenes: {[entry['scene'] for entry in runs]})"
+            )
         runs = [entry for entry in runs if entry["scene"] in set(only)]
     scenes = [load_scene(entry["scene"]) for entry in runs]
     cells = []
@@ -199,7 +237,9 @@ def grid_cells(seeds, quick: bool = False, only=None) -> list[Cell]:
         episodes = 2 if quick else int(entry.get("eval_episodes", 10))
         robust = entry.get("robustness") or {}
         if robust and set(robust) != {"train", "heldout"}:
-            raise ValueError(f"results.yml, scene {scene.name!r}: robustness must have exactly 'train' and 'heldout' (param_ranges), got {sorted(robust)}")
+            raise ValueError(
+                f"results.yml, scene {scene.name!r}: robustness must have exactly 'train' and 'heldout' (param_ranges), got {sorted(robust)}"
+            )
         train_ranges, heldout = robust.get("train"), robust.get("heldout")
         if robust:
             heldout_outside(scene, train_ranges, heldout)
@@ -208,13 +248,39 @@ def grid_cells(seeds, quick: bool = False, only=None) -> list[Cell]:
             config = agent_config(agent, scene.env_id, scene.name)
             # (quick: past learning_starts, so that an off-policy algorithm makes some updates)
             starts = int(config.hyperparams.get("learning_starts", 0))
-            budgets[agent] = max(1000, config.n_timesteps // 20, starts + 1000 if starts else 0) if quick else None
+            budgets[agent] = (
+                max(1000, config.n_timesteps // 20, starts + 1000 if starts else 0)
+                if quick
+                else None
+            )
         for agent in (*BASELINES, *entry["algos"]):
-            cells += [Cell(scene, agent, s, episodes, EVAL_SEED_OFFSET + s, budgets.get(agent), heldout=heldout) for s in seeds]
+            cells += [
+                Cell(
+                    scene,
+                    agent,
+                    s,
+                    episodes,
+                    EVAL_SEED_OFFSET + s,
+                    budgets.get(agent),
+                    heldout=heldout,
+                )
+                for s in seeds
+            ]
         if robust:
             for agent in entry["algos"]:
-                cells += [Cell(scene, agent, s, episodes, EVAL_SEED_OFFSET + s, budgets[agent], train_ranges=train_ranges, heldout=heldout)
-                          for s in seeds]
+                cells += [
+                    Cell(
+                        scene,
+                        agent,
+                        s,
+                        episodes,
+                        EVAL_SEED_OFFSET + s,
+                        budgets[agent],
+                        train_ranges=train_ranges,
+                        heldout=heldout,
+                    )
+                    for s in seeds
+                ]
     return cells
 
 
@@ -237,7 +303,9 @@ def grid_records(results: list[CellResult]) -> list[dict]:
         for result in results:
             evaluation = result.evaluations().get(kind)
             if evaluation is not None:
-                groups.setdefault((kind, result.cell.scene.name, result.cell.label), []).append((result, evaluation))
+                groups.setdefault((kind, result.cell.scene.name, result.cell.label), []).append(
+                    (result, evaluation)
+                )
     records = []
     for (kind, _, _), group in groups.items():
         cell = group[0][0].cell
@@ -247,12 +315,22 @@ def grid_records(results: list[CellResult]) -> list[dict]:
         def mean(values):
             return sum(values) / len(values)
 
-        record = {"scene": scene.name, "env_id": scene.env_id, "task": scene.kwargs.get("task", ""), "agent": cell.label,
-                  "training": cell.training, "evaluation": kind, "timesteps": group[-1][0].timesteps, "wall_time_s": mean(walls)}
+        record = {
+            "scene": scene.name,
+            "env_id": scene.env_id,
+            "task": scene.kwargs.get("task", ""),
+            "agent": cell.label,
+            "training": cell.training,
+            "evaluation": kind,
+            "timesteps": group[-1][0].timesteps,
+            "wall_time_s": mean(walls),
+        }
         record |= summarize([e for _, e in group])
-        record |= {"env_steps_per_s": mean([r.env_steps_per_s for r, _ in group]),
-                   "policy_steps_per_s": mean([e.steps_per_s for _, e in group]),
-                   "train_steps_per_s": mean([r.train_steps_per_s for r, _ in group])}
+        record |= {
+            "env_steps_per_s": mean([r.env_steps_per_s for r, _ in group]),
+            "policy_steps_per_s": mean([e.steps_per_s for _, e in group]),
+            "train_steps_per_s": mean([r.train_steps_per_s for r, _ in group]),
+        }
         if kind == HELDOUT:
             record |= {"train_ranges": cell.train_ranges, "heldout_ranges": cell.heldout}
         records.append(record)
@@ -269,25 +347,67 @@ def grid_table(records: list[dict], n_seeds: int) -> str:
     random actions, with the policy's inference, during training), then, when there are
     held-out evaluations, the robustness table. Records without a throughput (an older run's)
     show ``-`` there."""
-    header = ("env", "task (scene)", "agent", "training steps", "wall time / seed", f"return (mean +- std, {n_seeds} seeds)", "success",
-              "env steps/s", "with policy steps/s", "training steps/s")
+    header = (
+        "env",
+        "task (scene)",
+        "agent",
+        "training steps",
+        "wall time / seed",
+        f"return (mean +- std, {n_seeds} seeds)",
+        "success",
+        "env steps/s",
+        "with policy steps/s",
+        "training steps/s",
+    )
     lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
     nominal = [r for r in records if r.get("evaluation", NOMINAL) == NOMINAL]
     heldout = [r for r in records if r.get("evaluation", NOMINAL) == HELDOUT]
     for r in nominal:
         steps, wall = r["timesteps"], r["wall_time_s"]
-        row = (r["env_id"].split("/")[-1], f"{r['task']} ({r['scene']})", r["agent"], f"{steps:,}" if steps else "-",
-               f"{wall:.0f} s" if wall else "-", f"{r['return_mean']:.1f} +- {r['return_std']:.1f}", f"{r['success_mean']:.0%}",
-               _rate(r.get("env_steps_per_s")), _rate(r.get("policy_steps_per_s")), _rate(r.get("train_steps_per_s")))
+        row = (
+            r["env_id"].split("/")[-1],
+            f"{r['task']} ({r['scene']})",
+            r["agent"],
+            f"{steps:,}" if steps else "-",
+            f"{wall:.0f} s" if wall else "-",
+            f"{r['return_mean']:.1f} +- {r['return_std']:.1f}",
+            f"{r['success_mean']:.0%}",
+            _rate(r.get("env_steps_per_s")),
+            _rate(r.get("policy_steps_per_s")),
+            _rate(r.get("train_steps_per_s")),
+        )
         lines.append("| " + " | ".join(row) + " |")
     if heldout:
-        lines += ["", f"Robustness: every agent on held-out parameters, outside every training range (the same episodes for every agent of a scene; {n_seeds} seeds):", ""]
-        header = ("env", "task (scene)", "held-out parameters", "agent", "trained on", f"return (mean +- std, {n_seeds} seeds)", "success")
+        lines += [
+            "",
+            f"Robustness: every agent on held-out parameters, outside every training range (the same episodes for every agent of a scene; {n_seeds} seeds):",
+            "",
+        ]
+        header = (
+            "env",
+            "task (scene)",
+            "held-out parameters",
+            "agent",
+            "trained on",
+            f"return (mean +- std, {n_seeds} seeds)",
+            "success",
+        )
         lines += ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
         for r in heldout:
-            trained = {"nominal": "scene's parameters", "randomized": _ranges_text(r.get("train_ranges")), "-": "-"}[r.get("training", "-")]
-            row = (r["env_id"].split("/")[-1], f"{r['task']} ({r['scene']})", _ranges_text(r.get("heldout_ranges")), r["agent"], trained,
-                   f"{r['return_mean']:.1f} +- {r['return_std']:.1f}", f"{r['success_mean']:.0%}")
+            trained = {
+                "nominal": "scene's parameters",
+                "randomized": _ranges_text(r.get("train_ranges")),
+                "-": "-",
+            }[r.get("training", "-")]
+            row = (
+                r["env_id"].split("/")[-1],
+                f"{r['task']} ({r['scene']})",
+                _ranges_text(r.get("heldout_ranges")),
+                r["agent"],
+                trained,
+                f"{r['return_mean']:.1f} +- {r['return_std']:.1f}",
+                f"{r['success_mean']:.0%}",
+            )
             lines.append("| " + " | ".join(row) + " |")
     return "\n".join(lines)
 
@@ -301,16 +421,25 @@ def grid_cost(records: list[dict], n_seeds: int) -> str:
     spread over ``COST_CPUS`` free CPUs (``max(total / k, longest)``: no cluster start, no
     compilation, no evaluation counted; a lower bound of a run's wall time). The wall times are
     the run's own, under whatever load it met."""
-    trained = [r for r in records if r.get("evaluation", NOMINAL) == NOMINAL and r.get("timesteps") and r.get("wall_time_s")]
+    trained = [
+        r
+        for r in records
+        if r.get("evaluation", NOMINAL) == NOMINAL and r.get("timesteps") and r.get("wall_time_s")
+    ]
     if not trained:
         return "Training cost: no trained rows in these records."
     total = sum(r["wall_time_s"] for r in trained) * n_seeds
     longest = max(trained, key=lambda r: r["wall_time_s"])
-    spread = ", ".join(f"{k} CPU{'s' if k > 1 else ''} {_duration(max(total / k, longest['wall_time_s']))}" for k in COST_CPUS)
+    spread = ", ".join(
+        f"{k} CPU{'s' if k > 1 else ''} {_duration(max(total / k, longest['wall_time_s']))}"
+        for k in COST_CPUS
+    )
     rows = f"{len(trained)} row{'s' if len(trained) > 1 else ''} x {n_seeds} seed{'s' if n_seeds > 1 else ''}"
-    return (f"Training cost (this run's wall times): {len(trained) * n_seeds} trained cell{'s' if len(trained) * n_seeds > 1 else ''} ({rows}), "
-            f"{_duration(total)} in all; the longest, {longest['agent']} on {longest['scene']}, {longest['wall_time_s']:.0f} s a seed. "
-            f"Spread over free CPUs (training only, a lower bound): {spread}.")
+    return (
+        f"Training cost (this run's wall times): {len(trained) * n_seeds} trained cell{'s' if len(trained) * n_seeds > 1 else ''} ({rows}), "
+        f"{_duration(total)} in all; the longest, {longest['agent']} on {longest['scene']}, {longest['wall_time_s']:.0f} s a seed. "
+        f"Spread over free CPUs (training only, a lower bound): {spread}."
+    )
 
 
 def _duration(seconds: float) -> str:

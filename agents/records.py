@@ -40,14 +40,28 @@ def _plain(value):
 def cell_key(cell: Cell) -> str:
     """The cell as configured, one canonical JSON text (see the module's docstring)."""
     scene = cell.scene
-    key = {"scene": scene.name, "env_id": scene.env_id, "kwargs": scene.kwargs, "agent": cell.agent, "seed": cell.seed,
-           "episodes": cell.episodes, "eval_seed": cell.eval_seed, "timesteps": cell.timesteps, "hyperparams": cell.hyperparams,
-           "train_ranges": cell.train_ranges, "heldout": cell.heldout}
+    key = {
+        "scene": scene.name,
+        "env_id": scene.env_id,
+        "kwargs": scene.kwargs,
+        "agent": cell.agent,
+        "seed": cell.seed,
+        "episodes": cell.episodes,
+        "eval_seed": cell.eval_seed,
+        "timesteps": cell.timesteps,
+        "hyperparams": cell.hyperparams,
+        "train_ranges": cell.train_ranges,
+        "heldout": cell.heldout,
+    }
     if cell.learned:
         from .config import agent_config
 
-        key["config"] = dataclasses.asdict(agent_config(cell.agent, scene.env_id, scene.name, **cell.hyperparams))
-        if not key["config"]["normalize_obs"]:  # (absent when off: the keys written before the flag stay valid)
+        key["config"] = dataclasses.asdict(
+            agent_config(cell.agent, scene.env_id, scene.name, **cell.hyperparams)
+        )
+        if not key["config"][
+            "normalize_obs"
+        ]:  # (absent when off: the keys written before the flag stay valid)
             del key["config"]["normalize_obs"]
     return json.dumps(key, sort_keys=True, default=_plain)
 
@@ -55,28 +69,52 @@ def cell_key(cell: Cell) -> str:
 def _evaluation_data(evaluation: Evaluation | None):
     if evaluation is None:
         return None
-    return {"returns": list(evaluation.returns), "successes": list(evaluation.successes), "lengths": list(evaluation.lengths),
-            "params": [dict(p) for p in evaluation.params], "starts": [list(s) for s in evaluation.starts], "steps_per_s": evaluation.steps_per_s}
+    return {
+        "returns": list(evaluation.returns),
+        "successes": list(evaluation.successes),
+        "lengths": list(evaluation.lengths),
+        "params": [dict(p) for p in evaluation.params],
+        "starts": [list(s) for s in evaluation.starts],
+        "steps_per_s": evaluation.steps_per_s,
+    }
 
 
 def _evaluation(data) -> Evaluation | None:
     if data is None:
         return None
-    return Evaluation(tuple(float(r) for r in data["returns"]), tuple(bool(s) for s in data["successes"]), tuple(int(n) for n in data["lengths"]),
-                      tuple(dict(p) for p in data["params"]), tuple(tuple(float(c) for c in s) for s in data["starts"]), float(data["steps_per_s"]))
+    return Evaluation(
+        tuple(float(r) for r in data["returns"]),
+        tuple(bool(s) for s in data["successes"]),
+        tuple(int(n) for n in data["lengths"]),
+        tuple(dict(p) for p in data["params"]),
+        tuple(tuple(float(c) for c in s) for s in data["starts"]),
+        float(data["steps_per_s"]),
+    )
 
 
 def result_data(result: CellResult) -> dict:
     """A cell's result as JSON data (the cell itself is its key)."""
-    return {"evaluation": _evaluation_data(result.evaluation), "heldout": _evaluation_data(result.heldout), "timesteps": int(result.timesteps),
-            "wall_time_s": float(result.wall_time_s), "env_steps_per_s": float(result.env_steps_per_s),
-            "train_steps_per_s": float(result.train_steps_per_s)}
+    return {
+        "evaluation": _evaluation_data(result.evaluation),
+        "heldout": _evaluation_data(result.heldout),
+        "timesteps": int(result.timesteps),
+        "wall_time_s": float(result.wall_time_s),
+        "env_steps_per_s": float(result.env_steps_per_s),
+        "train_steps_per_s": float(result.train_steps_per_s),
+    }
 
 
 def result_from_data(cell: Cell, data: dict) -> CellResult:
     """The :class:`CellResult` of ``cell`` from :func:`result_data`'s output."""
-    return CellResult(cell, _evaluation(data["evaluation"]), int(data["timesteps"]), float(data["wall_time_s"]), _evaluation(data["heldout"]),
-                      float(data["env_steps_per_s"]), float(data["train_steps_per_s"]))
+    return CellResult(
+        cell,
+        _evaluation(data["evaluation"]),
+        int(data["timesteps"]),
+        float(data["wall_time_s"]),
+        _evaluation(data["heldout"]),
+        float(data["env_steps_per_s"]),
+        float(data["train_steps_per_s"]),
+    )
 
 
 class CellRecords:

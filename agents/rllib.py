@@ -43,7 +43,9 @@ def env_creator(config):
     num_envs = kwargs.pop("num_envs", None)
     if num_envs is None:
         return gym.make(env_id, **kwargs)
-    return gym.make_vec(env_id, num_envs=num_envs, vectorization_mode=gym.VectorizeMode.VECTOR_ENTRY_POINT, **kwargs)
+    return gym.make_vec(
+        env_id, num_envs=num_envs, vectorization_mode=gym.VectorizeMode.VECTOR_ENTRY_POINT, **kwargs
+    )
 
 
 def ppo_config(scene, num_env_runners: int = 1, num_envs_per_env_runner: int = 8, seed: int = 0):
@@ -59,8 +61,11 @@ def ppo_config(scene, num_env_runners: int = 1, num_envs_per_env_runner: int = 8
     return (
         PPOConfig()
         .environment(env=ENV_NAME, env_config={"env_id": scene.env_id, **scene.kwargs})
-        .env_runners(num_env_runners=num_env_runners, num_envs_per_env_runner=num_envs_per_env_runner,
-                     gym_env_vectorize_mode=gym.VectorizeMode.VECTOR_ENTRY_POINT)
+        .env_runners(
+            num_env_runners=num_env_runners,
+            num_envs_per_env_runner=num_envs_per_env_runner,
+            gym_env_vectorize_mode=gym.VectorizeMode.VECTOR_ENTRY_POINT,
+        )
         .debugging(seed=seed)
     )
 
@@ -69,8 +74,13 @@ def iteration_summary(result: dict) -> dict:
     """The numbers of one ``algo.train()`` result this module reports: env steps sampled so far,
     the mean return of the episodes finished (NaN before the first) and the learner's losses."""
     runners, learner = result["env_runners"], result["learners"]["default_policy"]
-    return {"env_steps": int(runners["num_env_steps_sampled_lifetime"]), "episode_return_mean": float(runners.get("episode_return_mean", math.nan)),
-            "total_loss": float(learner["total_loss"]), "policy_loss": float(learner["policy_loss"]), "vf_loss": float(learner["vf_loss"])}
+    return {
+        "env_steps": int(runners["num_env_steps_sampled_lifetime"]),
+        "episode_return_mean": float(runners.get("episode_return_mean", math.nan)),
+        "total_loss": float(learner["total_loss"]),
+        "policy_loss": float(learner["policy_loss"]),
+        "vf_loss": float(learner["vf_loss"]),
+    }
 
 
 def main(argv=None) -> int:
@@ -79,16 +89,38 @@ def main(argv=None) -> int:
     def body(argv):
         from rbenvs.extras import ArgumentParser
 
-        p = ArgumentParser(prog="python -m rbenvs_agents.rllib", description="RLlib PPO on a scene's native vector env (the ray extra).")
+        p = ArgumentParser(
+            prog="python -m rbenvs_agents.rllib",
+            description="RLlib PPO on a scene's native vector env (the ray extra).",
+        )
         p.add_argument("--scene", default="default")
         p.add_argument("--iterations", type=int, default=10)
         p.add_argument("--num-env-runners", type=int, default=1)
-        p.add_argument("--num-envs", type=int, default=8, help="sub-envs of each runner's vector env")
-        p.add_argument("--train-batch-size", type=int, default=None, help="env steps per iteration (default: RLlib's, 4000)")
-        p.add_argument("--num-epochs", type=int, default=None, help="passes over each batch (default: RLlib's, 30)")
+        p.add_argument(
+            "--num-envs", type=int, default=8, help="sub-envs of each runner's vector env"
+        )
+        p.add_argument(
+            "--train-batch-size",
+            type=int,
+            default=None,
+            help="env steps per iteration (default: RLlib's, 4000)",
+        )
+        p.add_argument(
+            "--num-epochs",
+            type=int,
+            default=None,
+            help="passes over each batch (default: RLlib's, 30)",
+        )
         p.add_argument("--seed", type=int, default=0)
-        p.add_argument("--address", default=None, help="join this Ray cluster (default: start a local one)")
-        p.add_argument("--num-cpus", type=int, default=None, help="CPUs of the local cluster (default: every core)")
+        p.add_argument(
+            "--address", default=None, help="join this Ray cluster (default: start a local one)"
+        )
+        p.add_argument(
+            "--num-cpus",
+            type=int,
+            default=None,
+            help="CPUs of the local cluster (default: every core)",
+        )
         args = p.parse_args(argv)
         require("ray")
         from rbenvs.scenes import load_scene
@@ -106,8 +138,11 @@ def main(argv=None) -> int:
             try:
                 for i in range(args.iterations):
                     s = iteration_summary(algo.train())
-                    print(f"iteration {i + 1}: {s['env_steps']} env steps, episode return {s['episode_return_mean']:.1f}, "
-                          f"loss {s['total_loss']:.3g} (policy {s['policy_loss']:.3g}, value {s['vf_loss']:.3g})", flush=True)
+                    print(
+                        f"iteration {i + 1}: {s['env_steps']} env steps, episode return {s['episode_return_mean']:.1f}, "
+                        f"loss {s['total_loss']:.3g} (policy {s['policy_loss']:.3g}, value {s['vf_loss']:.3g})",
+                        flush=True,
+                    )
             finally:
                 algo.stop()
         return 0

@@ -35,7 +35,15 @@ from pathlib import Path
 
 from .grid import Cell, run_cell
 
-__all__ = ["SweepSpec", "Trial", "SweepResult", "load_sweep", "trial_overrides", "run_sweep", "zoo_config"]
+__all__ = [
+    "SweepSpec",
+    "Trial",
+    "SweepResult",
+    "load_sweep",
+    "trial_overrides",
+    "run_sweep",
+    "zoo_config",
+]
 
 DISTRIBUTIONS = ("uniform", "loguniform", "randint", "choice")
 SWEEP_EVAL_SEED_OFFSET = 200  # training seed s is evaluated with evaluation seed 200 + s
@@ -74,13 +82,22 @@ class SweepResult:
 
 def _distribution(name: str, value, path) -> tuple:
     if not (isinstance(value, dict) and len(value) == 1 and next(iter(value)) in DISTRIBUTIONS):
-        raise ValueError(f"{path}: space.{name} must be one of {{{': ..., '.join(DISTRIBUTIONS)}: ...}}, got {value!r}")
+        raise ValueError(
+            f"{path}: space.{name} must be one of {{{': ..., '.join(DISTRIBUTIONS)}: ...}}, got {value!r}"
+        )
     kind, args = next(iter(value.items()))
     if kind == "choice":
         if not isinstance(args, list) or not args:
             raise ValueError(f"{path}: space.{name}: choice needs a non-empty list, got {args!r}")
-    elif not (isinstance(args, list) and len(args) == 2 and all(isinstance(a, (int, float)) for a in args) and args[0] < args[1]):
-        raise ValueError(f"{path}: space.{name}: {kind} needs [low, high] with low < high, got {args!r}")
+    elif not (
+        isinstance(args, list)
+        and len(args) == 2
+        and all(isinstance(a, (int, float)) for a in args)
+        and args[0] < args[1]
+    ):
+        raise ValueError(
+            f"{path}: space.{name}: {kind} needs [low, high] with low < high, got {args!r}"
+        )
     elif kind == "loguniform" and args[0] <= 0:
         raise ValueError(f"{path}: space.{name}: loguniform needs low > 0, got {args!r}")
     elif kind == "randint" and not all(isinstance(a, int) for a in args):
@@ -109,20 +126,33 @@ def load_sweep(algo: str, trials: int | None = None, timesteps: int | None = Non
     space = {}
     for name, value in data["space"].items():
         if name in ("n_timesteps", "n_envs", "policy", "eval_episodes"):
-            raise ValueError(f"{path}: space.{name} cannot be searched (the trials' budget is 'timesteps:')")
+            raise ValueError(
+                f"{path}: space.{name} cannot be searched (the trials' budget is 'timesteps:')"
+            )
         if name in NESTED:
             if not isinstance(value, dict) or not value:
                 raise ValueError(f"{path}: space.{name} must be a mapping of distributions")
             # (Tune reserves "/" for its own flattening of nested spaces)
-            space |= {f"{name}.{key}": _distribution(f"{name}.{key}", v, path) for key, v in value.items()}
+            space |= {
+                f"{name}.{key}": _distribution(f"{name}.{key}", v, path) for key, v in value.items()
+            }
         else:
             space[name] = _distribution(name, value, path)
     trials = int(trials if trials is not None else data.get("trials", 8))
     timesteps = timesteps if timesteps is not None else data.get("timesteps")
     seeds = tuple(int(s) for s in data.get("seeds", [0]))
     if trials < 1 or (timesteps is not None and int(timesteps) < 1) or not seeds:
-        raise ValueError(f"a sweep needs trials >= 1, timesteps >= 1 and at least one seed (got {trials}, {timesteps}, {list(seeds)})")
-    return SweepSpec(algo, trials, None if timesteps is None else int(timesteps), seeds, int(data.get("eval_episodes", 5)), space)
+        raise ValueError(
+            f"a sweep needs trials >= 1, timesteps >= 1 and at least one seed (got {trials}, {timesteps}, {list(seeds)})"
+        )
+    return SweepSpec(
+        algo,
+        trials,
+        None if timesteps is None else int(timesteps),
+        seeds,
+        int(data.get("eval_episodes", 5)),
+        space,
+    )
 
 
 def trial_overrides(spec: SweepSpec, point: dict) -> dict:
@@ -142,7 +172,10 @@ def _tune_space(spec: SweepSpec) -> dict:
     from ray import tune
 
     make = {"uniform": tune.uniform, "loguniform": tune.loguniform, "randint": tune.randint}
-    return {name: tune.choice(list(range(len(args)))) if kind == "choice" else make[kind](*args) for name, (kind, args) in spec.space.items()}
+    return {
+        name: tune.choice(list(range(len(args)))) if kind == "choice" else make[kind](*args)
+        for name, (kind, args) in spec.space.items()
+    }
 
 
 def _trial(point, scene, spec: SweepSpec):
@@ -152,13 +185,38 @@ def _trial(point, scene, spec: SweepSpec):
     from .evaluate import summarize
 
     overrides = trial_overrides(spec, point)
-    results = [run_cell(Cell(scene, spec.algo, s, spec.eval_episodes, SWEEP_EVAL_SEED_OFFSET + s, spec.timesteps, overrides)) for s in spec.seeds]
+    results = [
+        run_cell(
+            Cell(
+                scene,
+                spec.algo,
+                s,
+                spec.eval_episodes,
+                SWEEP_EVAL_SEED_OFFSET + s,
+                spec.timesteps,
+                overrides,
+            )
+        )
+        for s in spec.seeds
+    ]
     summary = summarize([r.evaluation for r in results])
-    tune.report({"return_mean": summary["return_mean"], "success_mean": summary["success_mean"],
-                 "wall_time_s": sum(r.wall_time_s for r in results)})
+    tune.report(
+        {
+            "return_mean": summary["return_mean"],
+            "success_mean": summary["success_mean"],
+            "wall_time_s": sum(r.wall_time_s for r in results),
+        }
+    )
 
 
-def run_sweep(spec: SweepSpec, scene, storage, address: str | None = None, num_cpus: int | None = None, seed: int = 0) -> SweepResult:
+def run_sweep(
+    spec: SweepSpec,
+    scene,
+    storage,
+    address: str | None = None,
+    num_cpus: int | None = None,
+    seed: int = 0,
+) -> SweepResult:
     """``spec.trials`` trials of ``spec.algo`` on ``scene``, one CPU each, on the cluster of
     :func:`rbenvs_agents.cluster.ray_cluster`; Optuna's TPE sampler (seeded ``seed``) proposes
     each point from the trials finished before it. ``storage``: the folder where Tune keeps its
@@ -173,16 +231,27 @@ def run_sweep(spec: SweepSpec, scene, storage, address: str | None = None, num_c
 
         optuna.logging.set_verbosity(optuna.logging.WARNING)  # (not a line per study created)
 
-        trainable = tune.with_resources(tune.with_parameters(_trial, scene=scene, spec=spec), {"cpu": 1})
+        trainable = tune.with_resources(
+            tune.with_parameters(_trial, scene=scene, spec=spec), {"cpu": 1}
+        )
         tuner = tune.Tuner(
             trainable,
             param_space=_tune_space(spec),
             # reuse_actors: a trial's actor serves the next trial, whose training finds the numba
             # kernels already compiled (a fresh actor per trial compiles them again: most of a
             # small trial's time)
-            tune_config=tune.TuneConfig(search_alg=OptunaSearch(seed=seed), metric="return_mean", mode="max", num_samples=spec.trials,
-                                        reuse_actors=True),
-            run_config=tune.RunConfig(name=f"{spec.algo}-{scene.name}", storage_path=str(Path(storage).resolve()), verbose=0),
+            tune_config=tune.TuneConfig(
+                search_alg=OptunaSearch(seed=seed),
+                metric="return_mean",
+                mode="max",
+                num_samples=spec.trials,
+                reuse_actors=True,
+            ),
+            run_config=tune.RunConfig(
+                name=f"{spec.algo}-{scene.name}",
+                storage_path=str(Path(storage).resolve()),
+                verbose=0,
+            ),
         )
         grid = tuner.fit()
         trials = []
@@ -190,9 +259,19 @@ def run_sweep(spec: SweepSpec, scene, storage, address: str | None = None, num_c
             if result.error is not None:
                 raise RuntimeError(f"a trial of the sweep failed: {result.error}")
             # (numpy scalars, if Tune hands any back, as plain numbers for the YAML)
-            point = {name: v.item() if hasattr(v, "item") else v for name, v in ((n, result.config[n]) for n in spec.space)}
+            point = {
+                name: v.item() if hasattr(v, "item") else v
+                for name, v in ((n, result.config[n]) for n in spec.space)
+            }
             m = result.metrics
-            trials.append(Trial(trial_overrides(spec, point), float(m["return_mean"]), float(m["success_mean"]), float(m["wall_time_s"])))
+            trials.append(
+                Trial(
+                    trial_overrides(spec, point),
+                    float(m["return_mean"]),
+                    float(m["success_mean"]),
+                    float(m["wall_time_s"]),
+                )
+            )
     if not all(math.isfinite(t.return_mean) for t in trials):
         raise RuntimeError("a trial of the sweep reported a non-finite return")
     return SweepResult(scene, spec, trials)
@@ -210,16 +289,25 @@ def zoo_config(results: list[SweepResult]) -> str:
     for r in results:
         best, scene = r.best, r.scene
         cfg = asdict(agent_config(r.spec.algo, scene.env_id, scene.name, **best.hyperparams))
-        block = {"policy": cfg["policy"], "n_timesteps": cfg["n_timesteps"], "n_envs": cfg["n_envs"]} | cfg["hyperparams"]
+        block = {
+            "policy": cfg["policy"],
+            "n_timesteps": cfg["n_timesteps"],
+            "n_envs": cfg["n_envs"],
+        } | cfg["hyperparams"]
         if cfg["policy_kwargs"]:
             block["policy_kwargs"] = cfg["policy_kwargs"]
         blocks.setdefault(scene.env_id, block)
         scenes[scene.name] = best.hyperparams
         budget = f"{r.spec.timesteps:,} steps" if r.spec.timesteps else "the configured budget"
-        notes.append(f"# {scene.name} ({scene.env_id}): return {best.return_mean:.1f}, success {best.success_mean:.0%}, best of {len(r.trials)} trials "
-                     f"at {budget}, training seeds {list(r.spec.seeds)}, {r.spec.eval_episodes} episodes of evaluation seeds 200 + seed")
+        notes.append(
+            f"# {scene.name} ({scene.env_id}): return {best.return_mean:.1f}, success {best.success_mean:.0%}, best of {len(r.trials)} trials "
+            f"at {budget}, training seeds {list(r.spec.seeds)}, {r.spec.eval_episodes} episodes of evaluation seeds 200 + seed"
+        )
     algo = results[0].spec.algo
-    header = [f"# {algo.upper()} hyperparameters found by rbenvs-sweep (Ray Tune, Optuna's TPE sampler), in rl-baselines3-zoo's format:",
-              "# each env id's complete block, and under `scenes:` the values found per scene (an rbenvs extension).", *notes]
+    header = [
+        f"# {algo.upper()} hyperparameters found by rbenvs-sweep (Ray Tune, Optuna's TPE sampler), in rl-baselines3-zoo's format:",
+        "# each env id's complete block, and under `scenes:` the values found per scene (an rbenvs extension).",
+        *notes,
+    ]
     body = yaml.safe_dump(blocks | {"scenes": scenes}, sort_keys=False, default_flow_style=None)
     return "\n".join(header) + "\n" + body

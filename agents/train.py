@@ -52,8 +52,19 @@ def _progress_callback(total: int, label: str, enabled: bool):
     return ProgressBar()
 
 
-def train(algo: str, scene, seed: int = 0, timesteps: int | None = None, out_dir=None, progress: bool = True,
-          checkpoint_every: int | None = None, device: str = "cpu", tensorboard=None, env_overrides=None, **overrides):
+def train(
+    algo: str,
+    scene,
+    seed: int = 0,
+    timesteps: int | None = None,
+    out_dir=None,
+    progress: bool = True,
+    checkpoint_every: int | None = None,
+    device: str = "cpu",
+    tensorboard=None,
+    env_overrides=None,
+    **overrides,
+):
     """Train ``algo`` on ``scene`` (an :class:`rbenvs.scenes.Scene`); returns ``(model, info)``
     with ``info`` the run record (also written to ``out_dir/run.json`` with ``model.zip``).
     ``env_overrides``: env keywords over the scene's (``{"param_ranges": {...}}`` trains with
@@ -85,18 +96,39 @@ def train(algo: str, scene, seed: int = 0, timesteps: int | None = None, out_dir
 
         # without normalize_obs the policy sees the env's own observations, in training and after;
         # with it, the final statistics go with the policy (info["obs_normalization"])
-        venv = VecNormalize(venv, norm_obs=cfg.normalize_obs, norm_reward=cfg.normalize_reward, gamma=float(cfg.hyperparams.get("gamma", 0.99)))
+        venv = VecNormalize(
+            venv,
+            norm_obs=cfg.normalize_obs,
+            norm_reward=cfg.normalize_reward,
+            gamma=float(cfg.hyperparams.get("gamma", 0.99)),
+        )
     cls = algorithm_class(algo)
-    model = cls(cfg.policy, venv, seed=seed, device=device, policy_kwargs=cfg.policy_kwargs or None, verbose=0,
-                tensorboard_log=None if tensorboard is None else str(tensorboard), **cfg.hyperparams)
+    model = cls(
+        cfg.policy,
+        venv,
+        seed=seed,
+        device=device,
+        policy_kwargs=cfg.policy_kwargs or None,
+        verbose=0,
+        tensorboard_log=None if tensorboard is None else str(tensorboard),
+        **cfg.hyperparams,
+    )
     callbacks = [_progress_callback(total, f"{algo} {scene.name} seed {seed}", progress)]
     out = Path(out_dir) if out_dir is not None else None
     if out is not None:
         out.mkdir(parents=True, exist_ok=True)
         if checkpoint_every:
-            callbacks.append(CheckpointCallback(max(1, checkpoint_every // cfg.n_envs), str(out / "checkpoints"), name_prefix=algo))
+            callbacks.append(
+                CheckpointCallback(
+                    max(1, checkpoint_every // cfg.n_envs),
+                    str(out / "checkpoints"),
+                    name_prefix=algo,
+                )
+            )
     start = time.perf_counter()
-    model.learn(total, callback=CallbackList(callbacks), tb_log_name=f"{algo}-{scene.name}-seed{seed}")
+    model.learn(
+        total, callback=CallbackList(callbacks), tb_log_name=f"{algo}-{scene.name}-seed{seed}"
+    )
     wall = time.perf_counter() - start
     info = {
         "algo": algo,
@@ -106,12 +138,17 @@ def train(algo: str, scene, seed: int = 0, timesteps: int | None = None, out_dir
         "seed": seed,
         "timesteps": total,
         "wall_time_s": wall,
-        "steps_per_s": model.num_timesteps / wall,  # (a rollout may overshoot the budget: the steps taken)
+        "steps_per_s": model.num_timesteps
+        / wall,  # (a rollout may overshoot the budget: the steps taken)
         "config": asdict(cfg),
     }
     if cfg.normalize_obs:
-        info["obs_normalization"] = {"mean": venv.obs_rms.mean.tolist(), "var": venv.obs_rms.var.tolist(), "epsilon": float(venv.epsilon),
-                                     "clip": float(venv.clip_obs)}
+        info["obs_normalization"] = {
+            "mean": venv.obs_rms.mean.tolist(),
+            "var": venv.obs_rms.var.tolist(),
+            "epsilon": float(venv.epsilon),
+            "clip": float(venv.clip_obs),
+        }
     if tensorboard is not None:
         info["tensorboard"] = model.logger.dir  # the run's own folder of event files
     if out is not None:

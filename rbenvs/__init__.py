@@ -48,8 +48,32 @@ for _env_id, _spec in ENVIRONMENTS.items():
 # The subpackages and modules, reachable as attributes after ``import rbenvs`` alone
 # (``help(rbenvs.envs.FreeRigidBodyEnv)``) and imported on first access (PEP 562): importing
 # rbenvs stays a registration, without the physics, scipy or numba behind it.
-_SUBMODULES = ("bench", "cli", "compiled", "contracts", "controllers", "core", "docblocks", "draws", "dynamics", "elliptic", "envs", "extras", "integrators",
-               "jit", "oracles", "plotting", "progress", "render", "rotations", "scenes", "tasks", "testing", "vector", "verify")
+_SUBMODULES = (
+    "bench",
+    "cli",
+    "compiled",
+    "contracts",
+    "controllers",
+    "core",
+    "docblocks",
+    "draws",
+    "dynamics",
+    "elliptic",
+    "envs",
+    "extras",
+    "integrators",
+    "jit",
+    "oracles",
+    "plotting",
+    "progress",
+    "render",
+    "rotations",
+    "scenes",
+    "tasks",
+    "testing",
+    "vector",
+    "verify",
+)
 
 
 def __getattr__(name):

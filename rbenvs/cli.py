@@ -65,7 +65,9 @@ def _cmd_list(args) -> int:
         if isinstance(cls, str):
             mod, name = cls.split(":")
             cls = getattr(__import__(mod, fromlist=[name]), name)
-        rows.append((env_id, ", ".join(cls.tasks), str(spec.max_episode_steps), str(spec.reward_threshold)))
+        rows.append(
+            (env_id, ", ".join(cls.tasks), str(spec.max_episode_steps), str(spec.reward_threshold))
+        )
     _print_table(rows)
     return 0
 
@@ -108,7 +110,9 @@ def _cmd_run(args) -> int:
 
     require("cli")
     scenes = [load_scene(name) for name in (args.scene or MAIN_SCENES)]  # fail before running any
-    progress = Progress(2 * args.episodes * len(scenes), enabled=not args.no_progress, desc="rbenvs run: episodes")
+    progress = Progress(
+        2 * args.episodes * len(scenes), enabled=not args.no_progress, desc="rbenvs run: episodes"
+    )
     for n, scene in enumerate(scenes):
         if n:
             print()
@@ -121,12 +125,20 @@ def _run_scene(scene, args, progress) -> None:
     from .controllers import ZeroController, controller_for
 
     env = scene.make()
-    measure = env.unwrapped.task.final_measure  # the metric or read-out that summarises an episode's end
+    measure = (
+        env.unwrapped.task.final_measure
+    )  # the metric or read-out that summarises an episode's end
     print(f"scene {scene.name!r}: {scene.description}")
     print(f"  {scene.env_id} {scene.kwargs}")
-    print(f"  dt = {env.unwrapped.dt} s, {env.spec.max_episode_steps} steps, integrator {env.unwrapped.integrator.name}, {args.episodes} episodes from seed {args.seed}\n")
+    print(
+        f"  dt = {env.unwrapped.dt} s, {env.spec.max_episode_steps} steps, integrator {env.unwrapped.integrator.name}, {args.episodes} episodes from seed {args.seed}\n"
+    )
     invariants = env.unwrapped.invariants
-    rows = [("controller", "return", "success", f"final {measure}") + tuple(f"{k} start -> end" for k in invariants) + ("steps",)]
+    rows = [
+        ("controller", "return", "success", f"final {measure}")
+        + tuple(f"{k} start -> end" for k in invariants)
+        + ("steps",)
+    ]
     # With zero torque the invariants must hold (up to the integrator's drift): a quick check.
     for label, make in (("analytic", controller_for), ("zero torque", ZeroController)):
         policy = make(env)
@@ -144,13 +156,26 @@ def _run_scene(scene, args, progress) -> None:
             rel = f" ({(v1 - v0) / abs(v0):+.1e})" if v0 != 0 else ""
             changes.append(f"{v0:.7g} -> {v1:.7g}{rel}")
         steps = np.mean([r[3] for r in results])
-        rows.append((f"{label} ({type(policy).__name__})", f"{ret.mean():.2f} +- {ret.std():.2f}", f"{succ:.0%}", f"{fin:.4f}", *changes, f"{steps:.0f}"))
+        rows.append(
+            (
+                f"{label} ({type(policy).__name__})",
+                f"{ret.mean():.2f} +- {ret.std():.2f}",
+                f"{succ:.0%}",
+                f"{fin:.4f}",
+                *changes,
+                f"{steps:.0f}",
+            )
+        )
     _print_table(rows)
     env.close()
 
 
 # The systems' ids by the names --system takes (those of rbenvs verify)
-SYSTEM_IDS = {"free_body": "rbenvs/FreeRigidBody-v0", "heavy_top": "rbenvs/LagrangeTop-v0", "tippe_top": "rbenvs/TippeTop-v0"}
+SYSTEM_IDS = {
+    "free_body": "rbenvs/FreeRigidBody-v0",
+    "heavy_top": "rbenvs/LagrangeTop-v0",
+    "tippe_top": "rbenvs/TippeTop-v0",
+}
 
 
 def _cmd_cache(args) -> int:
@@ -158,11 +183,17 @@ def _cmd_cache(args) -> int:
 
     if args.action == "clear":
         n = kernel_cache.clear(stale_only=args.stale)
-        print(f"deleted {n} kernel file{'s' if n != 1 else ''}" + (" of other environments" if args.stale else "") + f" under {kernel_cache.cache_root()}")
+        print(
+            f"deleted {n} kernel file{'s' if n != 1 else ''}"
+            + (" of other environments" if args.stale else "")
+            + f" under {kernel_cache.cache_root()}"
+        )
         return 0
     info = kernel_cache.info()
     if info["root"] is None:
-        print(f"the kernel cache is off (${kernel_cache.CACHE_VARIABLE} is empty): kernels are compiled in memory in every process")
+        print(
+            f"the kernel cache is off (${kernel_cache.CACHE_VARIABLE} is empty): kernels are compiled in memory in every process"
+        )
         return 0
     print(f"root: {info['root']} (${kernel_cache.CACHE_VARIABLE} overrides)")
     print(f"this environment: {info['current'] or '(numba not installed: nothing is compiled)'}")
@@ -171,7 +202,14 @@ def _cmd_cache(args) -> int:
         return 0
     rows = [("environment", "kernel files", "MB", "")]
     for f in info["folders"]:
-        rows.append((f["name"], str(f["files"]), f"{f['bytes'] / 1e6:.1f}", "current" if f["name"] == info["current"] else "stale"))
+        rows.append(
+            (
+                f["name"],
+                str(f["files"]),
+                f"{f['bytes'] / 1e6:.1f}",
+                "current" if f["name"] == info["current"] else "stale",
+            )
+        )
     _print_table(rows)
     return 0
 
@@ -190,27 +228,56 @@ def _cmd_warmup(args) -> int:
     from .progress import Progress
 
     if not available():
-        print("numba is not installed (or RBENVS_COMPILED=0): the envs run on numpy, nothing to compile; install the fast extra")
+        print(
+            "numba is not installed (or RBENVS_COMPILED=0): the envs run on numpy, nothing to compile; install the fast extra"
+        )
         return 0
     systems = args.system or list(SYSTEM_IDS)
     progress = Progress(2 * len(systems), enabled=not args.no_progress, desc="rbenvs warmup")
     rows = [("system", "env", "compiled", "loaded", "s", "kernels (s each)")]
     for name in systems:
         for kind in ("single", "vector"):
-            before, first, t = kernel_cache.stats(), len(kernel_cache.kernels()), time.perf_counter()
-            env = gym.make(SYSTEM_IDS[name]) if kind == "single" else gym.make_vec(SYSTEM_IDS[name], num_envs=2, vectorization_mode="vector_entry_point")
+            before, first, t = (
+                kernel_cache.stats(),
+                len(kernel_cache.kernels()),
+                time.perf_counter(),
+            )
+            env = (
+                gym.make(SYSTEM_IDS[name])
+                if kind == "single"
+                else gym.make_vec(
+                    SYSTEM_IDS[name], num_envs=2, vectorization_mode="vector_entry_point"
+                )
+            )
             env.reset(seed=0)
             env.step(env.action_space.sample())
             env.close()
             after = kernel_cache.stats()
-            each = ", ".join(f"{label} {seconds:.1f}" for label, _, _, seconds in kernel_cache.kernels()[first:])
-            rows.append((name, kind, str(after["compiled"] - before["compiled"]), str(after["loaded"] - before["loaded"]), f"{time.perf_counter() - t:.1f}", each))
+            each = ", ".join(
+                f"{label} {seconds:.1f}" for label, _, _, seconds in kernel_cache.kernels()[first:]
+            )
+            rows.append(
+                (
+                    name,
+                    kind,
+                    str(after["compiled"] - before["compiled"]),
+                    str(after["loaded"] - before["loaded"]),
+                    f"{time.perf_counter() - t:.1f}",
+                    each,
+                )
+            )
             progress.update()
     progress.close()
     _print_table(rows)
-    print("(a kernel already made in this process, by an earlier row, is neither compiled nor loaded again)")
+    print(
+        "(a kernel already made in this process, by an earlier row, is neither compiled nor loaded again)"
+    )
     folder = kernel_cache.kernel_folder()
-    print(f"kernels in {folder}" if folder is not None else "the kernel cache is off: nothing was kept")
+    print(
+        f"kernels in {folder}"
+        if folder is not None
+        else "the kernel cache is off: nothing was kept"
+    )
     return 0
 
 
@@ -237,14 +304,20 @@ def _cmd_plot(args) -> int:
     what = args.what or ["all"]
     unknown = [w for w in what if w not in PLOT_CHOICES]
     if unknown:
-        raise ValueError(f"plot: unknown figure {unknown[0]!r}; choose from {', '.join(PLOT_CHOICES)}")
+        raise ValueError(
+            f"plot: unknown figure {unknown[0]!r}; choose from {', '.join(PLOT_CHOICES)}"
+        )
     require_matplotlib()  # before any simulation: ImportError naming the plot extra
     from . import plotting
 
     names = PLOT_CHOICES[:-1] if "all" in what else tuple(dict.fromkeys(what))
     os.makedirs(args.out, exist_ok=True)
     # --quick: short runs for a smoke test (the tippe top with viscous friction, 10 s)
-    quick = {"free_body": dict(max_time=20.0), "heavy_top": dict(duration=1.0), "tippe_top": dict(duration=10.0, friction_law="viscous")}
+    quick = {
+        "free_body": dict(max_time=20.0),
+        "heavy_top": dict(duration=1.0),
+        "tippe_top": dict(duration=10.0, friction_law="viscous"),
+    }
     for name in names:
         if name == "frames":
             for path in plotting.render_frames(args.out):
@@ -252,7 +325,11 @@ def _cmd_plot(args) -> int:
             continue
         func, filename, describe = plotting.PLOTS[name]
         figures = {} if describe is not None else None  # (what the docs' captions state)
-        path = func(os.path.join(args.out, filename), **(quick[name] if args.quick else {}), **({"figures": figures} if figures is not None else {}))
+        path = func(
+            os.path.join(args.out, filename),
+            **(quick[name] if args.quick else {}),
+            **({"figures": figures} if figures is not None else {}),
+        )
         print(f"wrote {path}")
         if describe is not None:
             print(describe(figures))
@@ -270,55 +347,134 @@ def _print_table(rows) -> None:
 def build_parser() -> argparse.ArgumentParser:
     from .extras import ArgumentParser  # (suggests the closest choice)
 
-    parser = ArgumentParser(prog="rbenvs", description="Rotating rigid body environments: list, run, check.",
-                                     epilog="Every command also takes --docs PAGE: it runs as usual and writes what it printed into the block of "
-                                     "PAGE that names the same command line (<!-- rbenvs:output COMMAND -->; docs/ are written this way).")
+    parser = ArgumentParser(
+        prog="rbenvs",
+        description="Rotating rigid body environments: list, run, check.",
+        epilog="Every command also takes --docs PAGE: it runs as usual and writes what it printed into the block of "
+        "PAGE that names the same command line (<!-- rbenvs:output COMMAND -->; docs/ are written this way).",
+    )
     sub = parser.add_subparsers(dest="command", required=True)
     sub.add_parser("list", help="registered environment ids").set_defaults(func=_cmd_list)
     sub.add_parser("scenes", help="named scenes in configs/scenes").set_defaults(func=_cmd_scenes)
-    run = sub.add_parser("run", help="the analytic baselines: scenes with their analytic controller and with no control (the main job, "
-                         "training, is rbenvs-train: make run)")
-    run.add_argument("--scene", action="extend", nargs="+", metavar="NAME", help=f"scene names or YAML paths, several or repeated (default: {' and '.join(MAIN_SCENES)})")
-    run.add_argument("--episodes", type=int, default=3, help="episodes per controller (default: %(default)s)")
-    run.add_argument("--seed", type=int, default=0, help="seed of the first episode (default: %(default)s)")
+    run = sub.add_parser(
+        "run",
+        help="the analytic baselines: scenes with their analytic controller and with no control (the main job, "
+        "training, is rbenvs-train: make run)",
+    )
+    run.add_argument(
+        "--scene",
+        action="extend",
+        nargs="+",
+        metavar="NAME",
+        help=f"scene names or YAML paths, several or repeated (default: {' and '.join(MAIN_SCENES)})",
+    )
+    run.add_argument(
+        "--episodes", type=int, default=3, help="episodes per controller (default: %(default)s)"
+    )
+    run.add_argument(
+        "--seed", type=int, default=0, help="seed of the first episode (default: %(default)s)"
+    )
     run.add_argument("--no-progress", action="store_true", help="no progress bar")
     run.set_defaults(func=_cmd_run)
     # `verify` has its own parser (rbenvs.verify.main); main() hands it the rest of the line.
-    sub.add_parser("verify", help="check the simulator against the analytic oracles (see rbenvs verify --help)")
+    sub.add_parser(
+        "verify", help="check the simulator against the analytic oracles (see rbenvs verify --help)"
+    )
     # `headline` too (rbenvs.headline.main).
-    sub.add_parser("headline", help="the README's headline figures from the measuring commands' records (see rbenvs headline --help)")
-    cache = sub.add_parser("cache", help="the compiled kernels kept on disk: where, how many, and clearing them")
-    cache.add_argument("action", choices=("info", "clear"), help="info: the folder and its kernels; clear: delete them")
-    cache.add_argument("--stale", action="store_true", help="with clear: only the kernels of other environments (rbenvs, numba, Python versions or CPUs)")
+    sub.add_parser(
+        "headline",
+        help="the README's headline figures from the measuring commands' records (see rbenvs headline --help)",
+    )
+    cache = sub.add_parser(
+        "cache", help="the compiled kernels kept on disk: where, how many, and clearing them"
+    )
+    cache.add_argument(
+        "action",
+        choices=("info", "clear"),
+        help="info: the folder and its kernels; clear: delete them",
+    )
+    cache.add_argument(
+        "--stale",
+        action="store_true",
+        help="with clear: only the kernels of other environments (rbenvs, numba, Python versions or CPUs)",
+    )
     cache.set_defaults(func=_cmd_cache)
-    warmup = sub.add_parser("warmup", help="compile the default envs' kernels ahead into the cache (container images, CI caches)")
-    warmup.add_argument("--system", action="append", choices=tuple(SYSTEM_IDS), help="restrict to these systems (repeatable; default all)")
+    warmup = sub.add_parser(
+        "warmup",
+        help="compile the default envs' kernels ahead into the cache (container images, CI caches)",
+    )
+    warmup.add_argument(
+        "--system",
+        action="append",
+        choices=tuple(SYSTEM_IDS),
+        help="restrict to these systems (repeatable; default all)",
+    )
     warmup.add_argument("--no-progress", action="store_true", help="no progress bar")
     warmup.set_defaults(func=_cmd_warmup)
-    bench = sub.add_parser("bench", help="benchmarks (each prints the peer measured in the same run)")
+    bench = sub.add_parser(
+        "bench", help="benchmarks (each prints the peer measured in the same run)"
+    )
     bench_sub = bench.add_subparsers(dest="bench", required=True)
-    kernels = bench_sub.add_parser("kernels", help="RK4 kernel: our (3, n) components vs np.cross on (n, 3)")
+    kernels = bench_sub.add_parser(
+        "kernels", help="RK4 kernel: our (3, n) components vs np.cross on (n, 3)"
+    )
     kernels.add_argument("--no-progress", action="store_true", help="no progress bar")
     kernels.set_defaults(func=_cmd_bench_kernels)
-    fidelity = bench_sub.add_parser("fidelity", help="tippe top: cost of each fidelity level against gliding")
+    fidelity = bench_sub.add_parser(
+        "fidelity", help="tippe top: cost of each fidelity level against gliding"
+    )
     fidelity.add_argument("--no-progress", action="store_true", help="no progress bar")
     fidelity.set_defaults(func=_cmd_bench_fidelity)
     # `bench throughput` has its own parser (rbenvs.bench.throughput.main); main() hands it the rest.
-    bench_sub.add_parser("throughput", help="env-steps/s against Pendulum-v1 and CartPole-v1's vector env (see its --help)")
+    bench_sub.add_parser(
+        "throughput",
+        help="env-steps/s against Pendulum-v1 and CartPole-v1's vector env (see its --help)",
+    )
     # `bench startup` too (rbenvs.bench.startup.main).
-    bench_sub.add_parser("startup", help="seconds from a fresh process to its first step, cold and warm kernel cache, against Pendulum-v1 and MuJoCo (see its --help)")
+    bench_sub.add_parser(
+        "startup",
+        help="seconds from a fresh process to its first step, cold and warm kernel cache, against Pendulum-v1 and MuJoCo (see its --help)",
+    )
     # `bench threads` too (rbenvs.bench.threads.main).
-    bench_sub.add_parser("threads", help="the vector env's rate with num_threads 1, 2 and every core, against CartPole-v1's vector env (see its --help)")
+    bench_sub.add_parser(
+        "threads",
+        help="the vector env's rate with num_threads 1, 2 and every core, against CartPole-v1's vector env (see its --help)",
+    )
     # `bench costs` too (rbenvs.bench.costs.main).
-    bench_sub.add_parser("costs", help="the README's costs measured here: venv size, main job, test suite (wall and CPU), verify --quick (see its --help)")
+    bench_sub.add_parser(
+        "costs",
+        help="the README's costs measured here: venv size, main job, test suite (wall and CPU), verify --quick (see its --help)",
+    )
     # `bench render` too (rbenvs.bench.render.main).
-    bench_sub.add_parser("render", help="milliseconds per rgb_array frame of every system, against Pendulum-v1's (see its --help)")
+    bench_sub.add_parser(
+        "render",
+        help="milliseconds per rgb_array frame of every system, against Pendulum-v1's (see its --help)",
+    )
     # `bench accuracy` too (rbenvs.bench.accuracy.main).
-    bench_sub.add_parser("accuracy", help="error, order, drift and cost per integrator and system; a step per scene (see its --help)")
-    plot = sub.add_parser("plot", help="PNG figures of the three systems against their oracles, and rendered frames (plot extra)")
-    plot.add_argument("what", nargs="*", metavar="WHAT", help=f"figures to draw, of {', '.join(PLOT_CHOICES)} (default: all)")
-    plot.add_argument("--out", default="plots", help="output folder (default: %(default)s in the current folder; the figures of docs/ come from --out docs)")
-    plot.add_argument("--quick", action="store_true", help="short simulations (a smoke test; not the committed pictures)")
+    bench_sub.add_parser(
+        "accuracy",
+        help="error, order, drift and cost per integrator and system; a step per scene (see its --help)",
+    )
+    plot = sub.add_parser(
+        "plot",
+        help="PNG figures of the three systems against their oracles, and rendered frames (plot extra)",
+    )
+    plot.add_argument(
+        "what",
+        nargs="*",
+        metavar="WHAT",
+        help=f"figures to draw, of {', '.join(PLOT_CHOICES)} (default: all)",
+    )
+    plot.add_argument(
+        "--out",
+        default="plots",
+        help="output folder (default: %(default)s in the current folder; the figures of docs/ come from --out docs)",
+    )
+    plot.add_argument(
+        "--quick",
+        action="store_true",
+        help="short simulations (a smoke test; not the committed pictures)",
+    )
     plot.set_defaults(func=_cmd_plot)
     return parser
 
@@ -335,12 +491,18 @@ def main(argv=None) -> int:
 _OWN_PARSERS = (
     (("verify",), ".verify"),
     (("headline",), ".headline"),
-    *((("bench", name), f".bench.{name}") for name in ("throughput", "startup", "threads", "costs", "render", "accuracy")),
+    *(
+        (("bench", name), f".bench.{name}")
+        for name in ("throughput", "startup", "threads", "costs", "render", "accuracy")
+    ),
 )
 
 
 def _main(argv) -> int:
-    for prefix, module in _OWN_PARSERS:  # commands with a parser of their own get the rest of the line
+    for (
+        prefix,
+        module,
+    ) in _OWN_PARSERS:  # commands with a parser of their own get the rest of the line
         if tuple(argv[: len(prefix)]) == prefix:
             return importlib.import_module(module, __package__).main(argv[len(prefix) :])
     args = build_parser().parse_args(argv)

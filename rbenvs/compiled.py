@@ -49,8 +49,33 @@ from .jit import register as _register
 from .jit import register_all as _register_all
 from .kernel_cache import njit as _cached_njit
 
-__all__ = ["jitable", "available", "Layout", "VectorLayout", "batch_kernel", "vector_kernel", "rows_kernel", "finish_kernel", "state_kernel", "physics_kernel",
-           "run_kernel", "runs_kernel", "CheckedRuns", "plan_kernel", "plans_kernel", "PeriodPlan", "state_finish", "info_function", "BatchStep", "BatchResult", "VectorStep", "VectorResult", "StateStep", "DISABLE_VARIABLE", "LLVM_OPTIONS"]
+__all__ = [
+    "jitable",
+    "available",
+    "Layout",
+    "VectorLayout",
+    "batch_kernel",
+    "vector_kernel",
+    "rows_kernel",
+    "finish_kernel",
+    "state_kernel",
+    "physics_kernel",
+    "run_kernel",
+    "runs_kernel",
+    "CheckedRuns",
+    "plan_kernel",
+    "plans_kernel",
+    "PeriodPlan",
+    "state_finish",
+    "info_function",
+    "BatchStep",
+    "BatchResult",
+    "VectorStep",
+    "VectorResult",
+    "StateStep",
+    "DISABLE_VARIABLE",
+    "LLVM_OPTIONS",
+]
 
 # How every kernel is compiled. error_model="numpy": a float division by zero gives inf/nan as
 # on arrays (and needs no per-element check, which would keep the loops out of SIMD
@@ -105,8 +130,10 @@ def _controls(L, rows: bool = False) -> tuple[str, str]:
     reading unit-stride rows stays in SIMD registers, one reading each sub-env's actions from
     the ``(n, k)`` batch would not; measured: 76 against 123 us a 4096 free-body step)."""
     access = "{name}[{j}, i]" if rows else "{name}[{j}][i]"
-    return (f"u = ({_comps(access.format(name='U', j='{j}'), L.n_control)})",
-            f"un = ({_comps(access.format(name='UN', j='{j}'), L.n_action)})")
+    return (
+        f"u = ({_comps(access.format(name='U', j='{j}'), L.n_control)})",
+        f"un = ({_comps(access.format(name='UN', j='{j}'), L.n_action)})",
+    )
 
 
 def _physics_lines(dim: int, u: str) -> list[str]:
@@ -179,7 +206,9 @@ class Layout(NamedTuple):
     event: Callable | None = None
     rhs_event: Callable | None = None
     switches: tuple = ()
-    motion: bool = False  # rotation(PA, y, u) -> (lambda, mu): the accuracy term with the state's speed
+    motion: bool = (
+        False  # rotation(PA, y, u) -> (lambda, mu): the accuracy term with the state's speed
+    )
     share: Callable | None = None
     # step's compensated form (a tolerance), stepc(PS, y, cc, u, h) -> (y, cc) (with rhs_event
     # stepc(PS, y, cc, k0, u, h)): the steps carry each run's compensation cc from period to
@@ -188,7 +217,9 @@ class Layout(NamedTuple):
     step_c: Callable | None = None
 
 
-def _ratio_lines(L: Layout, u: str, parts: bool = False, ratio: bool = True, rates: str = "r") -> list[str]:
+def _ratio_lines(
+    L: Layout, u: str, parts: bool = False, ratio: bool = True, rates: str = "r"
+) -> list[str]:
     """Lines that set ``x``, the guard's ratio for the state ``y`` (and controls ``u``): the step
     core's rule (:meth:`StepRule.ratio`). ``parts``: also keep what the period's error estimate
     reads (:meth:`StepRule.plan`): the rate(s) (named ``rates``), the decaying rate ``rate`` (0
@@ -196,7 +227,9 @@ def _ratio_lines(L: Layout, u: str, parts: bool = False, ratio: bool = True, rat
     only those."""
     rotation = "rotation(PA, y, u)" if L.motion else "rotation(PA, y)"
     fn = "step_ratio_motion" if L.motion else "step_ratio"
-    lines = [u] if L.motion else []  # the state's own speed in the accuracy term: rotation(PA, y, u) -> (lambda, mu, lambda_e)
+    lines = (
+        [u] if L.motion else []
+    )  # the state's own speed in the accuracy term: rotation(PA, y, u) -> (lambda, mu, lambda_e)
     if parts:
         lines += [f"{rates} = {rotation}", *([f"x = {fn}(PG, {rates})"] if ratio else [])]
     else:
@@ -205,14 +238,26 @@ def _ratio_lines(L: Layout, u: str, parts: bool = False, ratio: bool = True, rat
         return lines + (["rate = 0.0", "a = 1.0"] if parts else [])
     # v > x: Python's max(x, v), the float path's (NaN in x stays NaN); a tolerance's term for
     # the decaying mode (0 without one), times the mode's share where the system declares one
-    pd, a = ("PD[0]", "share(PD[1], y, u, dt, PG[4], rate)") if L.share is not None else ("PD", "1.0")
+    pd, a = (
+        ("PD[0]", "share(PD[1], y, u, dt, PG[4], rate)") if L.share is not None else ("PD", "1.0")
+    )
     raise_x = ["    if v > x:", "        x = v"]
     bound = ["    v = dt / (CD / rate)", *raise_x] if ratio else []
     if parts:
-        relax = [f"    a = {a}", *(["    v = relaxation_steps(PG, rate, a)", *raise_x] if ratio else [])]
+        relax = [
+            f"    a = {a}",
+            *(["    v = relaxation_steps(PG, rate, a)", *raise_x] if ratio else []),
+        ]
     else:
         relax = [f"    v = relaxation_steps(PG, rate, {a})", *raise_x]
-    lines += [u, *(["a = 1.0"] if parts else []), f"rate = dissipation({pd}, y, u)", "if rate > 0.0:", *bound, *relax]
+    lines += [
+        u,
+        *(["a = 1.0"] if parts else []),
+        f"rate = dissipation({pd}, y, u)",
+        "if rate > 0.0:",
+        *bound,
+        *relax,
+    ]
     return lines + (["else:", "    rate = 0.0"] if parts else [])
 
 
@@ -221,7 +266,11 @@ def _count_lines(L: Layout, u: str) -> list[str]:
     (and controls ``u``), counting ``need``: the step core's rule (:meth:`StepRule.steps`)."""
     from .stepsize.controller import MAX_INTERNAL_STEPS
 
-    return _ratio_lines(L, u) + ["if not (x <= substeps):", f"    c = ceil(x) if x <= {MAX_INTERNAL_STEPS} else {MAX_INTERNAL_STEPS + 1}", "    need += 1"]
+    return _ratio_lines(L, u) + [
+        "if not (x <= substeps):",
+        f"    c = ceil(x) if x <= {MAX_INTERNAL_STEPS} else {MAX_INTERNAL_STEPS + 1}",
+        "    need += 1",
+    ]
 
 
 def _locate_lines(k: int) -> list[str]:
@@ -308,7 +357,10 @@ def _steps_lines(L: Layout) -> list[str]:
     # (cc: the run's compensation, set by the caller and carried on)
     take, take_first = ["y = step(PS, y, u, hi)"], ["y = step(PS, y, kk, u, hi)"]
     if L.step_c is not None:
-        take, take_first = ["y, cc = stepc(PS, y, cc, u, hi)"], ["y, cc = stepc(PS, y, cc, kk, u, hi)"]
+        take, take_first = (
+            ["y, cc = stepc(PS, y, cc, u, hi)"],
+            ["y, cc = stepc(PS, y, cc, kk, u, hi)"],
+        )
     if L.rhs_event is not None:  # the event's evaluation at a new state is the next first stage
         return [
             "kk, g = rhs_event(PV, y, u)",
@@ -336,7 +388,12 @@ def _steps_lines(L: Layout) -> list[str]:
             "        break",
         ]
     if L.switches:
-        return ["for k in range(c):", "    yp = y", *("    " + line for line in take), *("    " + line for line in _switch_lines(L))]
+        return [
+            "for k in range(c):",
+            "    yp = y",
+            *("    " + line for line in take),
+            *("    " + line for line in _switch_lines(L)),
+        ]
     return ["for k in range(c):", *("    " + line for line in take)]
 
 
@@ -345,10 +402,15 @@ def _clip_lines(j: int, v: str, dest: str) -> list[str]:
     for every kernel: ``out`` set where ``v`` lies outside (a NaN counts as outside), ``dest``
     the value clipped. Without a branch (min/max return ``v`` itself inside the bounds): a loop
     without branches stays in SIMD registers."""
-    return [f"out = out | (not (({v} >= -HI[{j}]) & ({v} <= HI[{j}])))", f"{dest} = min(max({v}, -HI[{j}]), HI[{j}])"]
+    return [
+        f"out = out | (not (({v} >= -HI[{j}]) & ({v} <= HI[{j}])))",
+        f"{dest} = min(max({v}, -HI[{j}]), HI[{j}])",
+    ]
 
 
-def _finish_lines(L: Layout, y: str, un: str, u: str, fired: str, fresh: str | None = None) -> list[str]:
+def _finish_lines(
+    L: Layout, y: str, un: str, u: str, fired: str, fresh: str | None = None
+) -> list[str]:
     """The loops over a batch's states (``y`` reads state ``i``) that fill ``obs`` (clipped to
     ``HI``) and ``over``, the evaluation's ``reward``, ``terminated`` and metrics ``M_j`` under the
     normalised action ``un``, and the read-outs ``R_j`` under the control ``u`` with the event
@@ -360,16 +422,36 @@ def _finish_lines(L: Layout, y: str, un: str, u: str, fired: str, fresh: str | N
     # the clip (:func:`_clip_lines`) writes the components as rows of a scratch array
     # (unit-stride stores), then one loop interleaves them into the (n, n_obs) observation
     # (measured at 4096 reorients: 14 ns a sub-env storing into obs directly, 5 + 4 this way)
-    lines = [f"    OT = np.empty(({L.n_obs}, n), dtype=np.float32)", "    for i in range(n):", "        " + y, "        o = observe(PO, y)", "        out = False"]
+    lines = [
+        f"    OT = np.empty(({L.n_obs}, n), dtype=np.float32)",
+        "    for i in range(n):",
+        "        " + y,
+        "        o = observe(PO, y)",
+        "        out = False",
+    ]
     for j in range(L.n_obs):
-        lines += [f"        v = o[{j}]", *("        " + line for line in _clip_lines(j, "v", f"OT[{j}, i]"))]
-    lines += ["        over[i] = out", "    for i in range(n):", *(f"        obs[i, {j}] = OT[{j}, i]" for j in range(L.n_obs))]
+        lines += [
+            f"        v = o[{j}]",
+            *("        " + line for line in _clip_lines(j, "v", f"OT[{j}, i]")),
+        ]
+    lines += [
+        "        over[i] = out",
+        "    for i in range(n):",
+        *(f"        obs[i, {j}] = OT[{j}, i]" for j in range(L.n_obs)),
+    ]
     if fresh is None:
         action, reads = [], [f"        R{j}[i] = q[{j}]" for j in range(L.n_readouts)]
     else:
         # (where the read-outs ignore u, LLVM computes the two calls' common arithmetic once)
-        action = ["        z = " + fresh, f"        un = ({_comps('0.0 if z else un[{j}]', L.n_action)})"]
-        reads = ["        z = " + fresh, "        q0 = readouts(PR, y, None, False)", *[f"        R{j}[i] = q0[{j}] if z else q[{j}]" for j in range(L.n_readouts)]]
+        action = [
+            "        z = " + fresh,
+            f"        un = ({_comps('0.0 if z else un[{j}]', L.n_action)})",
+        ]
+        reads = [
+            "        z = " + fresh,
+            "        q0 = readouts(PR, y, None, False)",
+            *[f"        R{j}[i] = q0[{j}] if z else q[{j}]" for j in range(L.n_readouts)],
+        ]
     return lines + [
         "    for i in range(n):",
         "        " + y,
@@ -417,12 +499,40 @@ def _namespace(L: Layout) -> dict:
     _tune_llvm()
     _register_all()
     switch_fns = [fn for triple in L.switches for fn in triple]
-    for fn in (L.step, L.step_c, L.observe, L.evaluate, L.readouts, L.rotation, L.dissipation, L.share, L.event, L.rhs_event, *switch_fns):
+    for fn in (
+        L.step,
+        L.step_c,
+        L.observe,
+        L.evaluate,
+        L.readouts,
+        L.rotation,
+        L.dissipation,
+        L.share,
+        L.event,
+        L.rhs_event,
+        *switch_fns,
+    ):
         if fn is not None:
             _register(fn)
-    namespace = {"step": L.step, "stepc": L.step_c, "observe": L.observe, "evaluate": L.evaluate, "readouts": L.readouts, "rotation": L.rotation,
-                 "dissipation": L.dissipation, "share": L.share, "event": L.event, "rhs_event": L.rhs_event, "step_ratio": step_ratio, "step_ratio_motion": step_ratio_motion, "relaxation_steps": relaxation_steps, "isfinite": isfinite,
-                 "ceil": ceil, "nan": nan, "np": np}
+    namespace = {
+        "step": L.step,
+        "stepc": L.step_c,
+        "observe": L.observe,
+        "evaluate": L.evaluate,
+        "readouts": L.readouts,
+        "rotation": L.rotation,
+        "dissipation": L.dissipation,
+        "share": L.share,
+        "event": L.event,
+        "rhs_event": L.rhs_event,
+        "step_ratio": step_ratio,
+        "step_ratio_motion": step_ratio_motion,
+        "relaxation_steps": relaxation_steps,
+        "isfinite": isfinite,
+        "ceil": ceil,
+        "nan": nan,
+        "np": np,
+    }
     for k, (applies, function, switch) in enumerate(L.switches):
         namespace.update({f"applies{k}": applies, f"function{k}": function, f"switch{k}": switch})
     return namespace
@@ -462,8 +572,41 @@ def batch_kernel(layout: Layout):
     L = layout
     metrics = [f"M{j}" for j in range(L.n_metrics)]
     reads = [f"R{j}" for j in range(L.n_readouts)]
-    args = ["Y", "Ynew", "CC", "U", "UN", "h", "dt", "substeps", "check", "refuse", "skip", "PS", "PO", "PE", "PR", "PG", "PA", "PD", "CD", "PV", "PW", "HI",
-            "counts", "hstep", "fired", "obs", "over", "reward", "terminated"] + metrics + reads
+    args = (
+        [
+            "Y",
+            "Ynew",
+            "CC",
+            "U",
+            "UN",
+            "h",
+            "dt",
+            "substeps",
+            "check",
+            "refuse",
+            "skip",
+            "PS",
+            "PO",
+            "PE",
+            "PR",
+            "PG",
+            "PA",
+            "PD",
+            "CD",
+            "PV",
+            "PW",
+            "HI",
+            "counts",
+            "hstep",
+            "fired",
+            "obs",
+            "over",
+            "reward",
+            "terminated",
+        ]
+        + metrics
+        + reads
+    )
     lines = [f"def kernel({', '.join(args)}):", "    n = Y.shape[1]"]
     lines += _period_and_finish(L, *_controls(L), "")
     lines += ["    return 0"]
@@ -521,7 +664,11 @@ def _lockstep_passes(L: Layout, u: str, h: str) -> list[str]:
     finite = " & ".join(f"isfinite(yn[{j}])" for j in range(dim))
     compensated = L.step_c is not None  # (CC: each sub-env's compensation, as K its first stage)
     args = "y, cc, kk, u" if event else "y, cc, u"
-    take = [f"yn, cn = stepc(PS, {args}, {h})" if compensated else f"yn = step(PS, {args.replace('cc, ', '')}, {h})"]
+    take = [
+        f"yn, cn = stepc(PS, {args}, {h})"
+        if compensated
+        else f"yn = step(PS, {args.replace('cc, ', '')}, {h})"
+    ]
     stop = [  # (the event fired or the state went non-finite: the sub-env stops; all stopped: the passes end)
         "        kn, g = rhs_event(PV, yn, u)",
         f"        fin = {finite}",
@@ -540,19 +687,39 @@ def _lockstep_passes(L: Layout, u: str, h: str) -> list[str]:
         *(stop if event else []),
         *(f"        Ynew[{j}, i] = yn[{j}] if a else y[{j}]" for j in range(dim)),
         *((f"        K[{j}, i] = kn[{j}] if a else kk[{j}]" for j in range(dim)) if event else ()),
-        *((f"        CC[{j}, i] = cn[{j}] if a else cc[{j}]" for j in range(dim)) if compensated else ()),
-        *(["        fired[i] = fired[i] | (a & hit)", "        on = live[i] & (not (a & (hit | (not fin))))", "        live[i] = on",
-           "        going += on", "    if going == 0:", "        break"] if event else []),
+        *(
+            (f"        CC[{j}, i] = cn[{j}] if a else cc[{j}]" for j in range(dim))
+            if compensated
+            else ()
+        ),
+        *(
+            [
+                "        fired[i] = fired[i] | (a & hit)",
+                "        on = live[i] & (not (a & (hit | (not fin))))",
+                "        live[i] = on",
+                "        going += on",
+                "    if going == 0:",
+                "        break",
+            ]
+            if event
+            else []
+        ),
     ]
 
 
-def _period_and_finish(L: Layout, u: str, un: str, more: str, starts: list[str] = (), fresh: str | None = None) -> list[str]:
+def _period_and_finish(
+    L: Layout, u: str, un: str, more: str, starts: list[str] = (), fresh: str | None = None
+) -> list[str]:
     """The batch kernel's body (see :func:`batch_kernel`): :func:`_checked_period`, the lines
     ``starts`` (the vector step's restarts: new starts written into ``Ynew``) and the finish
     loops (``fresh``: the states finished as new starts, :func:`_finish_lines`); ``u`` and
     ``un`` the lines that set sub-env ``i``'s controls and normalised action
     (:func:`_controls`); ``more``: further values the early returns append (``", 0"``)."""
-    return _checked_period(L, u, more) + list(starts) + _finish_lines(L, f"y = ({_comps('Ynew[{j}, i]', L.dim)})", un, u, "fired[i]", fresh)
+    return (
+        _checked_period(L, u, more)
+        + list(starts)
+        + _finish_lines(L, f"y = ({_comps('Ynew[{j}, i]', L.dim)})", un, u, "fired[i]", fresh)
+    )
 
 
 def _estimate_expression(L: Layout) -> str:
@@ -571,7 +738,9 @@ def _products(x: str, k: int) -> str:
     return "(" + " * ".join([x] * k) + ")"
 
 
-def _checked_period(L: Layout, u: str, more: str, estimate: bool = False, gate: int = 0) -> list[str]:
+def _checked_period(
+    L: Layout, u: str, more: str, estimate: bool = False, gate: int = 0
+) -> list[str]:
     """The guard's counts (a refusal returns -1 before anything is written), the period per
     sub-env or as SIMD passes, and the non-finite check (returns ``bad``, the count).
     ``estimate``: the count's loop also writes each period's error estimate into ``EST`` from the
@@ -587,40 +756,93 @@ def _checked_period(L: Layout, u: str, more: str, estimate: bool = False, gate: 
     lines = ["    uniform = True"]
     # 1. the guard's counts, before anything is written
     count = ["for i in range(n):", "    c = substeps"]
-    if estimate and gate:  # (the sub-envs within the bound were counted and estimated in the gate's loop)
+    if (
+        estimate and gate
+    ):  # (the sub-envs within the bound were counted and estimated in the gate's loop)
         # (motion_rates' test power(Lambda dt, p + 1) <= substeps^p / k and motion_error_estimate's
         # C Lambda dt (Lambda h)^p, their powers as products)
         test = f"{_products('w', gate + 1)} <= PGT[1][2]"
-        lines += ["    ng = 0", "    for i in range(n):", "        " + y_old, "        big = gate(PGT[0], y)", "        counts[i] = substeps", "        w = big * PGT[1][0]",
-                  "        z = big * h", f"        EST[i] = PEE[0] * big * PEE[2] * {_products('z', gate)}", f"        ng += not ({test})",
-                  "    if next_step:",  # (a restart ran no period of its own: apart, so that the loop above has no branch)
-                  "        for i in range(n):", "            if skip[i]:", "                EST[i] = 0.0"]
-        count = ["if ng:", "for i in range(n):", "    c = substeps", "    " + y_old, "    big = gate(PGT[0], y)", "    w = big * PGT[1][0]", f"    if {test}:",
-                 "        continue"]
+        lines += [
+            "    ng = 0",
+            "    for i in range(n):",
+            "        " + y_old,
+            "        big = gate(PGT[0], y)",
+            "        counts[i] = substeps",
+            "        w = big * PGT[1][0]",
+            "        z = big * h",
+            f"        EST[i] = PEE[0] * big * PEE[2] * {_products('z', gate)}",
+            f"        ng += not ({test})",
+            "    if next_step:",  # (a restart ran no period of its own: apart, so that the loop above has no branch)
+            "        for i in range(n):",
+            "            if skip[i]:",
+            "                EST[i] = 0.0",
+        ]
+        count = [
+            "if ng:",
+            "for i in range(n):",
+            "    c = substeps",
+            "    " + y_old,
+            "    big = gate(PGT[0], y)",
+            "    w = big * PGT[1][0]",
+            f"    if {test}:",
+            "        continue",
+        ]
     if estimate:
         from .stepsize.controller import MAX_INTERNAL_STEPS
 
-        count += (["    " + y_old] if not gate else []) + [*("    " + line for line in _ratio_lines(L, u, parts=True, rates="er")), "    if check and not skip[i] and not (x <= substeps):",
-                  f"        c = ceil(x) if x <= {MAX_INTERNAL_STEPS} else {MAX_INTERNAL_STEPS + 1}", "        need += 1",
-                  "    if next_step and skip[i]:", "        EST[i] = 0.0", "    else:", "        hi = h if c == substeps else dt / c",
-                  f"        EST[i] = {_estimate_expression(L)}"]
+        count += (["    " + y_old] if not gate else []) + [
+            *("    " + line for line in _ratio_lines(L, u, parts=True, rates="er")),
+            "    if check and not skip[i] and not (x <= substeps):",
+            f"        c = ceil(x) if x <= {MAX_INTERNAL_STEPS} else {MAX_INTERNAL_STEPS + 1}",
+            "        need += 1",
+            "    if next_step and skip[i]:",
+            "        EST[i] = 0.0",
+            "    else:",
+            "        hi = h if c == substeps else dt / c",
+            f"        EST[i] = {_estimate_expression(L)}",
+        ]
     elif L.rotation is not None:
-        count += ["    if check and not skip[i]:", "        " + y_old, *("        " + line for line in _count_lines(L, u))]
+        count += [
+            "    if check and not skip[i]:",
+            "        " + y_old,
+            *("        " + line for line in _count_lines(L, u)),
+        ]
     count += ["    counts[i] = c", "    if c != substeps:", "        uniform = False"]
     if estimate and gate:  # (the loop under "if ng:")
         count = count[:1] + ["    " + line for line in count[1:]]
-    lines += ["    need = 0", *("    " + line for line in count), "    if refuse and need:", f"        return -1{more}"]
+    lines += [
+        "    need = 0",
+        *("    " + line for line in count),
+        "    if refuse and need:",
+        f"        return -1{more}",
+    ]
     # 2. the physics: passes over the batch where every count is substeps, else per sub-env
     per_env = ["for i in range(n):", "    " + y_old, "    " + u, "    c = counts[i]"]
     if L.step_c is not None:  # the sub-env's compensation, carried in CC from period to period
         per_env += [f"    cc = ({comps('CC[{j}, i]', dim)})"]
-    per_env += [*("    " + line for line in _period_lines(L)), *("    " + line for line in store), "    hstep[i] = hi", "    fired[i] = f"]
+    per_env += [
+        *("    " + line for line in _period_lines(L)),
+        *("    " + line for line in store),
+        "    hstep[i] = hi",
+        "    fired[i] = f",
+    ]
     if L.step_c is not None:
         per_env += [f"    CC[{j}, i] = cc[{j}]" for j in range(dim)]
-    simd = [line[4:] for line in _physics_lines(dim, u)] + ["for i in range(n):", "    hstep[i] = h", "    fired[i] = False"]
+    simd = [line[4:] for line in _physics_lines(dim, u)] + [
+        "for i in range(n):",
+        "    hstep[i] = h",
+        "    fired[i] = False",
+    ]
     if L.event is None and L.rhs_event is None and not L.switches and L.step_c is None:
-        lines += ["    if uniform:", *("        " + line for line in simd), "    else:", *("        " + line for line in per_env)]
-    elif (L.rhs_event is not None or L.event is None) and not L.switches:  # (compensated without an event too)
+        lines += [
+            "    if uniform:",
+            *("        " + line for line in simd),
+            "    else:",
+            *("        " + line for line in per_env),
+        ]
+    elif (
+        L.rhs_event is not None or L.event is None
+    ) and not L.switches:  # (compensated without an event too)
         lines += ["    " + line for line in _lockstep_lines(L, u)]
     else:
         lines += ["    " + line for line in per_env]
@@ -648,12 +870,16 @@ class VectorLayout(NamedTuple):
     n_in: int
     start: Callable | None
     kinds: str
-    estimate: bool = False  # each period's error estimate into EST (a tolerance: StepRule.estimate's)
+    estimate: bool = (
+        False  # each period's error estimate into EST (a tolerance: StepRule.estimate's)
+    )
     # with estimate, the default accuracy's gate fn(P, y) -> Lambda (StepRule.gate) where the
     # stability bound never asks for more than substeps (StepRule.stable): every sub-env tested
     # first in one loop without branches, the rates read only where the bound does not hold
     gate: Callable | None = None
-    gate_order: int = 0  # the scheme's order p (a whole number): the gate's powers written out as products
+    gate_order: int = (
+        0  # the scheme's order p (a whole number): the gate's powers written out as products
+    )
 
 
 # what a sub-env's generator call is, per draw kind (rbenvs.draws: the same streams as numpy's)
@@ -665,8 +891,12 @@ def _start_lines(V: VectorLayout, dest: str) -> list[str]:
     calls, one statement each: in order) through the model's pure start, written into column
     ``i`` of ``dest``: a restart, written once for the rows kernel and the vector step."""
     draws = [f"d{k} = {_DRAW_CALLS[kind]}" for k, kind in enumerate(V.kinds)]
-    return ["g = GEN[np.int64(i)]", *draws, f"y = start(PI, ({''.join(f'd{k}, ' for k in range(len(V.kinds)))}))",
-            *(f"{dest}[{j}, i] = y[{j}]" for j in range(V.batch.dim))]
+    return [
+        "g = GEN[np.int64(i)]",
+        *draws,
+        f"y = start(PI, ({''.join(f'd{k}, ' for k in range(len(V.kinds)))}))",
+        *(f"{dest}[{j}, i] = y[{j}]" for j in range(V.batch.dim)),
+    ]
 
 
 @lru_cache(maxsize=None)
@@ -684,15 +914,57 @@ def rows_kernel(V: VectorLayout):
     L = V.batch
     metrics = [f"M{j}" for j in range(L.n_metrics)]
     reads = [f"R{j}" for j in range(L.n_readouts)]
-    args = ["idx", "draw", "Y", "GEN", "PI", "PO", "PE", "PR", "HI", "h", "obs", "over", "hstep", "steps"] + metrics + reads
-    lines = [f"def rows({', '.join(args)}):", "    for m in range(idx.shape[0]):", "        i = idx[m]"]
+    args = (
+        [
+            "idx",
+            "draw",
+            "Y",
+            "GEN",
+            "PI",
+            "PO",
+            "PE",
+            "PR",
+            "HI",
+            "h",
+            "obs",
+            "over",
+            "hstep",
+            "steps",
+        ]
+        + metrics
+        + reads
+    )
+    lines = [
+        f"def rows({', '.join(args)}):",
+        "    for m in range(idx.shape[0]):",
+        "        i = idx[m]",
+    ]
     if V.start is not None:
-        lines += ["        if draw[m]:", *("            " + line for line in _start_lines(V, "Y")), "            steps[i] = 0"]
-    lines += [f"        y = ({_comps('Y[{j}, i]', L.dim)})", "        o = observe(PO, y)", "        out = False"]
+        lines += [
+            "        if draw[m]:",
+            *("            " + line for line in _start_lines(V, "Y")),
+            "            steps[i] = 0",
+        ]
+    lines += [
+        f"        y = ({_comps('Y[{j}, i]', L.dim)})",
+        "        o = observe(PO, y)",
+        "        out = False",
+    ]
     for j in range(L.n_obs):
-        lines += [f"        v = o[{j}]", *("        " + line for line in _clip_lines(j, "v", f"obs[i, {j}]"))]
-    lines += ["        over[i] = out", f"        r = evaluate(PE, y, ({_comps('0.0', L.n_action)}))", *[f"        M{j}[i] = r[{j + 2}]" for j in range(L.n_metrics)]]
-    lines += ["        q = readouts(PR, y, None, False)", *[f"        R{j}[i] = q[{j}]" for j in range(L.n_readouts)], "        hstep[i] = h"]
+        lines += [
+            f"        v = o[{j}]",
+            *("        " + line for line in _clip_lines(j, "v", f"obs[i, {j}]")),
+        ]
+    lines += [
+        "        over[i] = out",
+        f"        r = evaluate(PE, y, ({_comps('0.0', L.n_action)}))",
+        *[f"        M{j}[i] = r[{j + 2}]" for j in range(L.n_metrics)],
+    ]
+    lines += [
+        "        q = readouts(PR, y, None, False)",
+        *[f"        R{j}[i] = q[{j}]" for j in range(L.n_readouts)],
+        "        hstep[i] = h",
+    ]
     namespace = _vector_namespace(V)
     generate("\n".join(lines), f"rows kernel dim={L.dim} n_obs={L.n_obs}", namespace)
     return _cached_njit(namespace["rows"], "rows", error_model="numpy")
@@ -726,16 +998,72 @@ def _vector_namespace(V: VectorLayout) -> dict:
         from .stepsize.forms import error_estimate, motion_error_estimate, relaxation_estimate
         from .rotations import power
 
-        namespace.update(error_estimate=error_estimate, motion_error_estimate=motion_error_estimate, relaxation_estimate=relaxation_estimate, power=power)
+        namespace.update(
+            error_estimate=error_estimate,
+            motion_error_estimate=motion_error_estimate,
+            relaxation_estimate=relaxation_estimate,
+            power=power,
+        )
     return namespace
 
 
 def _vector_args(L: Layout) -> list[str]:
     metrics = [f"M{j}" for j in range(L.n_metrics)]
     reads = [f"R{j}" for j in range(L.n_readouts)]
-    return ["i_lo", "i_hi", "phase", "A", "Y", "Ynew", "CC", "h", "dt", "substeps", "check", "refuse", "next_step", "max_steps", "FC", "steps", "done", "skip", "GEN", "PC", "PI",
-            "PS", "PO", "PE", "PR", "PG", "PA", "PD", "CD", "PV", "PW", "HI", "PEE", "counts", "hstep", "fired", "obs", "over", "reward", "terminated",
-            "truncated", "RZ", "RN", "clear", "ends", "codes", "EST", "PGT"] + metrics + reads
+    return (
+        [
+            "i_lo",
+            "i_hi",
+            "phase",
+            "A",
+            "Y",
+            "Ynew",
+            "CC",
+            "h",
+            "dt",
+            "substeps",
+            "check",
+            "refuse",
+            "next_step",
+            "max_steps",
+            "FC",
+            "steps",
+            "done",
+            "skip",
+            "GEN",
+            "PC",
+            "PI",
+            "PS",
+            "PO",
+            "PE",
+            "PR",
+            "PG",
+            "PA",
+            "PD",
+            "CD",
+            "PV",
+            "PW",
+            "HI",
+            "PEE",
+            "counts",
+            "hstep",
+            "fired",
+            "obs",
+            "over",
+            "reward",
+            "terminated",
+            "truncated",
+            "RZ",
+            "RN",
+            "clear",
+            "ends",
+            "codes",
+            "EST",
+            "PGT",
+        ]
+        + metrics
+        + reads
+    )
 
 
 @lru_cache(maxsize=None)
@@ -797,25 +1125,63 @@ def vector_kernel(V: VectorLayout, chunked: bool = False):
     # registers), then clipped and mapped once into the rows of U and UN (scratch)
     read = [f"a{j} = A[i, {j}]" for j in range(V.n_in)]
     finite = "        if not (" + " & ".join(f"isfinite({a})" for a in a_items) + "):"
-    check_actions = ["    bad = 0", "    for i in range(n):", *("        " + line for line in read), finite, "            bad += 1"]
-    check_actions += ["    if bad:", "        for i in range(n):", *("            " + line for line in read), "    " + finite, "                return -2, np.int64(i), 0, 0"]
+    check_actions = [
+        "    bad = 0",
+        "    for i in range(n):",
+        *("        " + line for line in read),
+        finite,
+        "            bad += 1",
+    ]
+    check_actions += [
+        "    if bad:",
+        "        for i in range(n):",
+        *("            " + line for line in read),
+        "    " + finite,
+        "                return -2, np.int64(i), 0, 0",
+    ]
     lines += ["    if phase != 2:", *("    " + line for line in check_actions)]
-    lines += [f"    U = np.empty(({L.n_control}, n))", f"    UN = np.empty(({L.n_action}, n))", "    for i in range(n):", "        un, u = act(PC, A, i)"]
-    lines += [f"        UN[{j}, i] = un[{j}]" for j in range(L.n_action)] + [f"        U[{j}, i] = u[{j}]" for j in range(L.n_control)]
+    lines += [
+        f"    U = np.empty(({L.n_control}, n))",
+        f"    UN = np.empty(({L.n_action}, n))",
+        "    for i in range(n):",
+        "        un, u = act(PC, A, i)",
+    ]
+    lines += [f"        UN[{j}, i] = un[{j}]" for j in range(L.n_action)] + [
+        f"        U[{j}, i] = u[{j}]" for j in range(L.n_control)
+    ]
     # 2. the period, then (NEXT_STEP) the restarting sub-envs' starts drawn into their columns
     # of Ynew, so that the finish loops fill their rows as after a reset (per-row selections:
     # no second pass, no scattered writes into the step's arrays); a layout without a pure start
     # restarts in the caller
     starts, fresh = [], None
     if V.start is not None:
-        starts = ["    if next_step:", "        for i in range(n):", "            if skip[i]:", *("                " + line for line in _start_lines(V, "Ynew"))]
-        starts += ["                hstep[i] = h"]  # (their event flag is cleared with their step, below)
+        starts = [
+            "    if next_step:",
+            "        for i in range(n):",
+            "            if skip[i]:",
+            *("                " + line for line in _start_lines(V, "Ynew")),
+        ]
+        starts += [
+            "                hstep[i] = h"
+        ]  # (their event flag is cleared with their step, below)
         if L.step_c is not None:  # (a new run: its compensation at zero)
             starts += [f"                CC[{j}, i] = 0.0" for j in range(L.dim)]
         fresh = "next_step & skip[i]"
     u_line, un_line = _controls(L, rows=True)
-    lines += ["    if phase != 2:", *("    " + line for line in _checked_period(L, u_line, ", 0, 0, 0", V.estimate, V.gate_order if V.gate is not None else 0)), "    if phase == 1:", "        return 0, 0, 0, 0"]
-    lines += starts + _finish_lines(L, f"y = ({_comps('Ynew[{j}, i]', L.dim)})", un_line, u_line, "fired[i]", fresh)
+    lines += [
+        "    if phase != 2:",
+        *(
+            "    " + line
+            for line in _checked_period(
+                L, u_line, ", 0, 0, 0", V.estimate, V.gate_order if V.gate is not None else 0
+            )
+        ),
+        "    if phase == 1:",
+        "        return 0, 0, 0, 0",
+    ]
+    lines += starts + _finish_lines(
+        L, f"y = ({_comps('Ynew[{j}, i]', L.dim)})", un_line, u_line, "fired[i]", fresh
+    )
     # 3. the episode's bookkeeping, then 4. the restarts' step (skip: the sub-envs that restart,
     # read-only here; with next_step they are those whose previous step ended)
     lines += [
@@ -858,19 +1224,34 @@ def vector_kernel(V: VectorLayout, chunked: bool = False):
         "        for i in range(n):",
         "            if skip[i]:",
     ]
-    lines += ["                steps[i] = 0", "                reward[i] = 0.0", "                terminated[i] = False", "                truncated[i] = False",
-              "                fired[i] = False", "                done[i] = False", "                r += 1"]
+    lines += [
+        "                steps[i] = 0",
+        "                reward[i] = 0.0",
+        "                terminated[i] = False",
+        "                truncated[i] = False",
+        "                fired[i] = False",
+        "                done[i] = False",
+        "                r += 1",
+    ]
     lines += ["    return 0, k, m, r"]
     namespace = _vector_namespace(V)
     source = "\n".join(lines)
-    if chunked:  # every loop over the sub-envs over the call's range [i_lo, i_hi): the threads' chunks
+    if (
+        chunked
+    ):  # every loop over the sub-envs over the call's range [i_lo, i_hi): the threads' chunks
         # (its own kernel: loops from a run-time start stay out of SIMD registers, so the
         # one-call step keeps range(n) and ignores i_lo, i_hi)
         # (unsigned bounds: an index numba cannot prove non-negative gets a wraparound select on
         # every access, which keeps the loop out of SIMD registers)
-        source = source.replace("    n = Y.shape[1]\n", "    n = Y.shape[1]\n    u_lo, u_hi = np.uint64(i_lo), np.uint64(i_hi)\n", 1)
+        source = source.replace(
+            "    n = Y.shape[1]\n",
+            "    n = Y.shape[1]\n    u_lo, u_hi = np.uint64(i_lo), np.uint64(i_hi)\n",
+            1,
+        )
         source = source.replace(" in range(n):", " in range(u_lo, u_hi):")
-    generate(source, f"vector step dim={L.dim} n_obs={L.n_obs}{' chunked' if chunked else ''}", namespace)
+    generate(
+        source, f"vector step dim={L.dim} n_obs={L.n_obs}{' chunked' if chunked else ''}", namespace
+    )
     # (nogil: envs stepped from several Python threads run at once)
     return _cached_njit(namespace["vstep"], "vstep", **KERNEL_OPTIONS, nogil=True)
 
@@ -913,37 +1294,46 @@ def split_kernel(V: VectorLayout, shape: tuple):
     names: list[str] = []
     exprs = [_rebuild(part, names) for part in shape]
     at = dict(zip(_vector_args(V.batch)[3:], exprs))
-    lines = [f"def vsplit(cuts, S, width, {', '.join(names)}):",
-             "    nc = cuts.shape[0] - 1",
-             "    before = get_num_threads()",
-             "    set_num_threads(width)",
-             "    status = 0",
-             "    phase = 1",
-             "    while phase != 0:",
-             "        for c in prange(nc):",
-             f"            r = vstep(cuts[c], cuts[c + 1], phase, {', '.join(exprs)})",
-             *(f"            S[c, {j}] = r[{j}]" for j in range(4)),
-             "        if phase == 2:",
-             "            phase = 0",
-             "            continue",
-             "        refused = False",
-             "        for c in range(nc):",
-             "            refused |= S[c, 0] == -1",
-             "            status += S[c, 0]",
-             "        if refused:",
-             "            status = -1",
-             "        if status != 0:",
-             "            phase = 0",
-             "            continue",
-             f"        for j in range({at['clear']}.shape[0]):",
-             f"            for w in range({at['RZ']}.shape[1]):",
-             f"                {at['RZ']}[{at['clear']}[j], w] = 0",
-             "        phase = 2",
-             "    set_num_threads(before)",
-             "    return status"]
-    namespace = {"vstep": vector_kernel(V, chunked=True), "prange": numba.prange, "get_num_threads": numba.get_num_threads,
-                 "set_num_threads": numba.set_num_threads, "np": np}
-    generate("\n".join(lines), f"vector step split dim={V.batch.dim} n_obs={V.batch.n_obs}", namespace)
+    lines = [
+        f"def vsplit(cuts, S, width, {', '.join(names)}):",
+        "    nc = cuts.shape[0] - 1",
+        "    before = get_num_threads()",
+        "    set_num_threads(width)",
+        "    status = 0",
+        "    phase = 1",
+        "    while phase != 0:",
+        "        for c in prange(nc):",
+        f"            r = vstep(cuts[c], cuts[c + 1], phase, {', '.join(exprs)})",
+        *(f"            S[c, {j}] = r[{j}]" for j in range(4)),
+        "        if phase == 2:",
+        "            phase = 0",
+        "            continue",
+        "        refused = False",
+        "        for c in range(nc):",
+        "            refused |= S[c, 0] == -1",
+        "            status += S[c, 0]",
+        "        if refused:",
+        "            status = -1",
+        "        if status != 0:",
+        "            phase = 0",
+        "            continue",
+        f"        for j in range({at['clear']}.shape[0]):",
+        f"            for w in range({at['RZ']}.shape[1]):",
+        f"                {at['RZ']}[{at['clear']}[j], w] = 0",
+        "        phase = 2",
+        "    set_num_threads(before)",
+        "    return status",
+    ]
+    namespace = {
+        "vstep": vector_kernel(V, chunked=True),
+        "prange": numba.prange,
+        "get_num_threads": numba.get_num_threads,
+        "set_num_threads": numba.set_num_threads,
+        "np": np,
+    }
+    generate(
+        "\n".join(lines), f"vector step split dim={V.batch.dim} n_obs={V.batch.n_obs}", namespace
+    )
     return _cached_njit(namespace["vsplit"], "vsplit", error_model="numpy", parallel=True)
 
 
@@ -972,18 +1362,34 @@ def state_kernel(layout: Layout, estimate: bool = False):
     L = layout
     comps = _comps
     lines = [
-        "def one(y, cc, u, un, check, refuse, P):" if L.step_c is not None else "def one(y, u, un, check, refuse, P):",
-        "    h, dt, substeps, PS, PO, PE, PR, PG, PA, PD, CD, PV, PW, HI" + (", PEE" if estimate else "") + " = P",
+        "def one(y, cc, u, un, check, refuse, P):"
+        if L.step_c is not None
+        else "def one(y, u, un, check, refuse, P):",
+        "    h, dt, substeps, PS, PO, PE, PR, PG, PA, PD, CD, PV, PW, HI"
+        + (", PEE" if estimate else "")
+        + " = P",
         "    c = substeps",
         "    need = 0",
     ]
     if estimate:
-        lines += [*("    " + line for line in _ratio_lines(L, "u = u", parts=True, rates="er")), "    if check and not (x <= substeps):",
-                  f"        c = ceil(x) if x <= {MAX_INTERNAL_STEPS} else {MAX_INTERNAL_STEPS + 1}", "        need += 1",
-                  "    hi = h if c == substeps else dt / c", f"    e = {_estimate_expression(L)}"]
+        lines += [
+            *("    " + line for line in _ratio_lines(L, "u = u", parts=True, rates="er")),
+            "    if check and not (x <= substeps):",
+            f"        c = ceil(x) if x <= {MAX_INTERNAL_STEPS} else {MAX_INTERNAL_STEPS + 1}",
+            "        need += 1",
+            "    hi = h if c == substeps else dt / c",
+            f"    e = {_estimate_expression(L)}",
+        ]
     elif L.rotation is not None:
         lines += ["    if check:", *("        " + line for line in _count_lines(L, "u = u"))]
-    lines += ["    status = 0", "    hi = h", "    f = False", "    if refuse and need:", "        status = -1", "    else:"]
+    lines += [
+        "    status = 0",
+        "    hi = h",
+        "    f = False",
+        "    if refuse and need:",
+        "        status = -1",
+        "    else:",
+    ]
     lines += ["        " + line for line in _period_lines(L)]
     lines += [
         "        if not (" + " and ".join(f"isfinite(y[{j}])" for j in range(L.dim)) + "):",
@@ -992,18 +1398,31 @@ def state_kernel(layout: Layout, estimate: bool = False):
         "    out = False",
     ]
     for j in range(L.n_obs):
-        lines += [f"    v{j} = o[{j}]", *("    " + line for line in _clip_lines(j, f"v{j}", f"v{j}"))]
+        lines += [
+            f"    v{j} = o[{j}]",
+            *("    " + line for line in _clip_lines(j, f"v{j}", f"v{j}")),
+        ]
     lines += [
         "    r = evaluate(PE, y, un)",
         "    q = readouts(PR, y, u, f)",
-        f"    return status, c, hi, f, y, ({comps('v{j}', L.n_obs)}), out, r, q" + (", cc" if L.step_c is not None else "") + (", e" if estimate else ""),
+        f"    return status, c, hi, f, y, ({comps('v{j}', L.n_obs)}), out, r, q"
+        + (", cc" if L.step_c is not None else "")
+        + (", e" if estimate else ""),
     ]
     namespace = _namespace(L)
     if estimate:
         from .stepsize.forms import error_estimate, motion_error_estimate, relaxation_estimate
 
-        namespace.update(error_estimate=error_estimate, motion_error_estimate=motion_error_estimate, relaxation_estimate=relaxation_estimate)
-    generate("\n".join(lines), f"state kernel dim={L.dim} n_obs={L.n_obs}" + (" estimate" if estimate else ""), namespace)
+        namespace.update(
+            error_estimate=error_estimate,
+            motion_error_estimate=motion_error_estimate,
+            relaxation_estimate=relaxation_estimate,
+        )
+    generate(
+        "\n".join(lines),
+        f"state kernel dim={L.dim} n_obs={L.n_obs}" + (" estimate" if estimate else ""),
+        namespace,
+    )
     return _cached_njit(namespace["one"], "one", **KERNEL_OPTIONS)
 
 
@@ -1049,19 +1468,51 @@ def runs_kernel(layout: Layout):
         # as passes over the batch (the batch kernel's lockstep, _lockstep_passes): a sub-env's
         # steps (and event) read only its own columns, so the bits are its own loop's
         u = f"u = ({_comps('U[{j}, i]', L.n_control)})"
-        lines = ["def runs(Y, CC, U, counts, H, fired, P):", "    PS, PV, PW = P", "    n = Y.shape[1]", "    Ynew = Y",
-                 *([f"    K = np.empty(({L.dim}, n))"] if event else []), "    live = np.empty(n, dtype=np.bool_)", "    cmax = 0", "    for i in range(n):",
-                 f"        y = ({_comps('Y[{j}, i]', L.dim)})", "        " + u, "        live[i] = True", "        if counts[i] > cmax:",
-                 "            cmax = counts[i]", *(["        kk, g = rhs_event(PV, y, u)", *(f"        K[{j}, i] = kk[{j}]" for j in range(L.dim))] if event else []),
-                 "        fired[i] = False", *("    " + line for line in _lockstep_passes(L, u, "H[i]"))]
+        lines = [
+            "def runs(Y, CC, U, counts, H, fired, P):",
+            "    PS, PV, PW = P",
+            "    n = Y.shape[1]",
+            "    Ynew = Y",
+            *([f"    K = np.empty(({L.dim}, n))"] if event else []),
+            "    live = np.empty(n, dtype=np.bool_)",
+            "    cmax = 0",
+            "    for i in range(n):",
+            f"        y = ({_comps('Y[{j}, i]', L.dim)})",
+            "        " + u,
+            "        live[i] = True",
+            "        if counts[i] > cmax:",
+            "            cmax = counts[i]",
+            *(
+                [
+                    "        kk, g = rhs_event(PV, y, u)",
+                    *(f"        K[{j}, i] = kk[{j}]" for j in range(L.dim)),
+                ]
+                if event
+                else []
+            ),
+            "        fired[i] = False",
+            *("    " + line for line in _lockstep_passes(L, u, "H[i]")),
+        ]
         namespace = _namespace(L)
         generate("\n".join(lines), f"runs kernel dim={L.dim} lockstep", namespace)
         return _cached_njit(namespace["runs"], "runs", **KERNEL_OPTIONS)
-    lines = ["def runs(Y, CC, U, counts, H, fired, P):", "    PS, PV, PW = P", "    for i in range(Y.shape[1]):",
-             f"        y = ({_comps('Y[{j}, i]', L.dim)})", f"        cc = ({_comps('CC[{j}, i]', L.dim)})",
-             f"        u = ({_comps('U[{j}, i]', L.n_control)})", "        c = counts[i]", "        hi = H[i]", "        f = False"]
+    lines = [
+        "def runs(Y, CC, U, counts, H, fired, P):",
+        "    PS, PV, PW = P",
+        "    for i in range(Y.shape[1]):",
+        f"        y = ({_comps('Y[{j}, i]', L.dim)})",
+        f"        cc = ({_comps('CC[{j}, i]', L.dim)})",
+        f"        u = ({_comps('U[{j}, i]', L.n_control)})",
+        "        c = counts[i]",
+        "        hi = H[i]",
+        "        f = False",
+    ]
     lines += ["        " + line for line in _steps_lines(L)]
-    lines += [f"        Y[{j}, i] = y[{j}]" for j in range(L.dim)] + [f"        CC[{j}, i] = cc[{j}]" for j in range(L.dim)] + ["        fired[i] = f"]
+    lines += (
+        [f"        Y[{j}, i] = y[{j}]" for j in range(L.dim)]
+        + [f"        CC[{j}, i] = cc[{j}]" for j in range(L.dim)]
+        + ["        fired[i] = f"]
+    )
     namespace = _namespace(L)
     generate("\n".join(lines), f"runs kernel dim={L.dim}", namespace)
     return _cached_njit(namespace["runs"], "runs", **KERNEL_OPTIONS)
@@ -1103,14 +1554,27 @@ def plans_kernel(layout: Layout, ratio: bool = False):
     import numba
 
     L = layout
-    lines = ["def plans(Y, U, P, X):" if ratio else "def plans(Y, U, P, R, RATE, A):", "    PG, PA, PD, CD = P", "    dt = PG[0]",
-             "    for i in range(Y.shape[1]):", f"        y = ({_comps('Y[{j}, i]', L.dim)})", f"        u = ({_comps('U[{j}, i]', L.n_control)})"]
+    lines = [
+        "def plans(Y, U, P, X):" if ratio else "def plans(Y, U, P, R, RATE, A):",
+        "    PG, PA, PD, CD = P",
+        "    dt = PG[0]",
+        "    for i in range(Y.shape[1]):",
+        f"        y = ({_comps('Y[{j}, i]', L.dim)})",
+        f"        u = ({_comps('U[{j}, i]', L.n_control)})",
+    ]
     if ratio:
         lines += ["        " + line for line in _ratio_lines(L, "u = u")] + ["        X[i] = x"]
     else:
         lines += ["        " + line for line in _ratio_lines(L, "u = u", parts=True, ratio=False)]
-        lines += [*([f"        R[{j}, i] = r[{j}]" for j in range(3)] if L.motion else ["        R[0, i] = r"]),
-                  "        RATE[i] = rate", "        A[i] = a"]
+        lines += [
+            *(
+                [f"        R[{j}, i] = r[{j}]" for j in range(3)]
+                if L.motion
+                else ["        R[0, i] = r"]
+            ),
+            "        RATE[i] = rate",
+            "        A[i] = a",
+        ]
     namespace = _namespace(L)
     generate("\n".join(lines), f"plans kernel dim={L.dim}{' ratio' if ratio else ''}", namespace)
     return _cached_njit(namespace["plans"], "plans", **KERNEL_OPTIONS)
@@ -1202,8 +1666,14 @@ class CheckedRuns:
 def _switch_parts(parts) -> tuple:
     """``(layout triples, PW)`` from :attr:`KernelParts.switches` (``((applies, P), (function, P),
     tolerance, (switch, P))`` each)."""
-    triples = tuple((applies[0], function[0], switch[0]) for applies, function, tolerance, switch in parts.switches)
-    pw = tuple((function[1], float(tolerance), switch[1], applies[1]) for applies, function, tolerance, switch in parts.switches)
+    triples = tuple(
+        (applies[0], function[0], switch[0])
+        for applies, function, tolerance, switch in parts.switches
+    )
+    pw = tuple(
+        (function[1], float(tolerance), switch[1], applies[1])
+        for applies, function, tolerance, switch in parts.switches
+    )
     return triples, pw
 
 
@@ -1212,7 +1682,12 @@ def _layout(parts, dim: int, n_obs: int, n_control: int, n_action: int, sample) 
     :class:`rbenvs.core.step.KernelParts`: the functions for :class:`Layout`, their parameters
     ``(PS, PO, PE, PR, PG, PA, PD, CD, PV, PW)`` in the kernels' order, and the task's evaluation
     and the system's read-outs of the float state ``sample`` (their sizes and types)."""
-    (step, ps), (observe, po), (evaluate, pe), (readouts, pr) = parts.step, parts.observe, parts.evaluate, parts.readouts
+    (step, ps), (observe, po), (evaluate, pe), (readouts, pr) = (
+        parts.step,
+        parts.observe,
+        parts.evaluate,
+        parts.readouts,
+    )
     (rotation, pa) = parts.rotation if parts.rotation is not None else (None, ())
     (dissipation, pd) = parts.dissipation if parts.dissipation is not None else (None, ())
     share = None
@@ -1226,8 +1701,26 @@ def _layout(parts, dim: int, n_obs: int, n_control: int, n_action: int, sample) 
     switches, pw = _switch_parts(parts)
     values = evaluate(pe, tuple(sample), (0.0,) * n_action)
     physical = readouts(pr, tuple(sample), (0.0,) * n_control, False)
-    layout = Layout(step, dim, n_control, n_action, observe, n_obs, evaluate, len(values) - 2, readouts, len(physical), rotation, dissipation, event,
-                    rhs_event, switches, parts.motion, share, None if parts.step_c is None else parts.step_c[0])
+    layout = Layout(
+        step,
+        dim,
+        n_control,
+        n_action,
+        observe,
+        n_obs,
+        evaluate,
+        len(values) - 2,
+        readouts,
+        len(physical),
+        rotation,
+        dissipation,
+        event,
+        rhs_event,
+        switches,
+        parts.motion,
+        share,
+        None if parts.step_c is None else parts.step_c[0],
+    )
     params = (ps, po, pe, pr, parts.guard_params, pa, pd, float(parts.dissipation_step), pv, pw)
     return layout, params, values, physical
 
@@ -1239,14 +1732,33 @@ class StateStep:
     compiled overload's entry point for these argument types, which skips numba's per-call
     type dispatch (about 0.9 us of a call's 1.7 with the parameter tuples)."""
 
-    def __init__(self, parts, dim: int, n_obs: int, n_control: int, n_action: int, sample, obs_high, h: float, dt: float, substeps: int, metric_names, readout_names,
-                 error=None):
+    def __init__(
+        self,
+        parts,
+        dim: int,
+        n_obs: int,
+        n_control: int,
+        n_action: int,
+        sample,
+        obs_high,
+        h: float,
+        dt: float,
+        substeps: int,
+        metric_names,
+        readout_names,
+        error=None,
+    ):
         layout, params, _, _ = _layout(parts, dim, n_obs, n_control, n_action, sample)
         # error: a tolerance's (C, p, dt): the kernel returns each period's estimate last
         self.estimated = error is not None and layout.rotation is not None
         self.kernel = state_kernel(layout, self.estimated)
         high = tuple(float(v) for v in obs_high)
-        self.params = (float(h), float(dt), int(substeps)) + params + (high,) + ((tuple(float(v) for v in error),) if self.estimated else ())
+        self.params = (
+            (float(h), float(dt), int(substeps))
+            + params
+            + (high,)
+            + ((tuple(float(v) for v in error),) if self.estimated else ())
+        )
         self.info = info_function(tuple(readout_names), tuple(metric_names))
         self._call = None
 
@@ -1278,14 +1790,23 @@ def info_function(readout_names: tuple, metric_names: tuple):
     ``r = (reward, terminated, metrics...)``, the internal step ``h`` and the period's error
     estimate ``e`` (``None``: not estimated), as one dict display (the order and keys of
     :func:`state_finish`'s)."""
-    items = [f"{name!r}: q[{j}]" for j, name in enumerate(readout_names)] + ["'internal_step': h", "'error_estimate': e"]
-    items += [f"{name!r}: r[{j + 2}]" for j, name in enumerate(metric_names)] + ["'numerical_failure': False"]
+    items = [f"{name!r}: q[{j}]" for j, name in enumerate(readout_names)] + [
+        "'internal_step': h",
+        "'error_estimate': e",
+    ]
+    items += [f"{name!r}: r[{j + 2}]" for j, name in enumerate(metric_names)] + [
+        "'numerical_failure': False"
+    ]
     src = "def info(q, r, h, e=None):\n    return {" + ", ".join(items) + "}\n"
-    return generate(src, f"info of {len(readout_names)} read-outs and {len(metric_names)} metrics")["info"]
+    return generate(src, f"info of {len(readout_names)} read-outs and {len(metric_names)} metrics")[
+        "info"
+    ]
 
 
 @lru_cache(maxsize=None)
-def state_finish(observe, n_obs: int, evaluate, metric_names: tuple, readouts, readout_names: tuple, high: tuple):
+def state_finish(
+    observe, n_obs: int, evaluate, metric_names: tuple, readouts, readout_names: tuple, high: tuple
+):
     """The single env's counterpart of the batch kernel's task loops, for one state of floats:
     ``finish(y, u_norm, PO, PE, PR, h, u, fired) -> (obs, over, reward, terminated, info)``
     (``u``: the control that acted, ``fired``: the period's terminal event; read-out inputs).
@@ -1308,12 +1829,24 @@ def state_finish(observe, n_obs: int, evaluate, metric_names: tuple, readouts, r
         "    r = evaluate(PE, y, u_norm)",
         "    v = readouts(PR, y, u, fired)",
     ]
-    items = [f"{name!r}: v[{j}]" for j, name in enumerate(readout_names)] + ["'internal_step': h", "'error_estimate': None"]
-    items += [f"{name!r}: r[{j + 2}]" for j, name in enumerate(metric_names)] + ["'numerical_failure': False"]
+    items = [f"{name!r}: v[{j}]" for j, name in enumerate(readout_names)] + [
+        "'internal_step': h",
+        "'error_estimate': None",
+    ]
+    items += [f"{name!r}: r[{j + 2}]" for j, name in enumerate(metric_names)] + [
+        "'numerical_failure': False"
+    ]
     lines += ["    return obs, over, float(r[0]), bool(r[1]), {" + ", ".join(items) + "}"]
     namespace = {
-        "observe": observe, "evaluate": evaluate, "readouts": readouts, "array": np.array, "clip": np.clip,
-        "F32": np.dtype(np.float32), "F64": np.dtype(np.float64), "LOW": -np.asarray(high), "HIGH": np.asarray(high),
+        "observe": observe,
+        "evaluate": evaluate,
+        "readouts": readouts,
+        "array": np.array,
+        "clip": np.clip,
+        "F32": np.dtype(np.float32),
+        "F64": np.dtype(np.float64),
+        "LOW": -np.asarray(high),
+        "HIGH": np.asarray(high),
     }
     assert len(high) == n_obs
     generate("\n".join(lines), f"state finish n_obs={n_obs}", namespace)
@@ -1348,17 +1881,39 @@ class BatchStep:
     state (as floats) used once to learn the metrics' types, ``dt`` the control period.
     """
 
-    def __init__(self, parts, dim: int, n_obs: int, n_control: int, sample, obs_high, n_action: int | None = None, dt: float | None = None):
+    def __init__(
+        self,
+        parts,
+        dim: int,
+        n_obs: int,
+        n_control: int,
+        sample,
+        obs_high,
+        n_action: int | None = None,
+        dt: float | None = None,
+    ):
         import numpy as np
 
         n_action = n_control if n_action is None else n_action
-        layout, self.params, values, physical = _layout(parts, dim, n_obs, n_control, n_action, sample)
+        layout, self.params, values, physical = _layout(
+            parts, dim, n_obs, n_control, n_action, sample
+        )
         self.n_metrics, self.n_readouts = layout.n_metrics, layout.n_readouts
         # each metric's and read-out's array type from its value on a float state (a bool stays a
         # bool, a count an int)
         # (dtype objects, not scalar types: np.empty converts a type on every call, ~0.3 us each)
-        self.metric_dtypes = tuple(np.dtype(np.bool_ if isinstance(v, (bool, np.bool_)) else np.float64) for v in values[2:])
-        self.readout_dtypes = tuple(np.dtype(np.bool_ if isinstance(v, (bool, np.bool_)) else (np.int64 if isinstance(v, (int, np.integer)) else np.float64)) for v in physical)
+        self.metric_dtypes = tuple(
+            np.dtype(np.bool_ if isinstance(v, (bool, np.bool_)) else np.float64)
+            for v in values[2:]
+        )
+        self.readout_dtypes = tuple(
+            np.dtype(
+                np.bool_
+                if isinstance(v, (bool, np.bool_))
+                else (np.int64 if isinstance(v, (int, np.integer)) else np.float64)
+            )
+            for v in physical
+        )
         self._bool, self._f32 = np.dtype(np.bool_), np.dtype(np.float32)
         self.layout = layout
         self.kernel = batch_kernel(layout)
@@ -1366,7 +1921,18 @@ class BatchStep:
         self.n_obs = n_obs
         self.dt = float(dt) if dt is not None else None
 
-    def __call__(self, Y, u, u_norm, h: float, substeps: int, check: bool = False, skip=None, refuse: bool = False, CC=None) -> BatchResult:
+    def __call__(
+        self,
+        Y,
+        u,
+        u_norm,
+        h: float,
+        substeps: int,
+        check: bool = False,
+        skip=None,
+        refuse: bool = False,
+        CC=None,
+    ) -> BatchResult:
         """One control period of the states ``Y`` ``(dim, n)`` under controls ``u`` and normalised
         actions ``u_norm`` (tuples of ``(n,)`` float64 arrays): a :class:`BatchResult`.
         ``check``: run the guard (else ``substeps`` steps each); ``skip`` (bool ``(n,)``):
@@ -1389,9 +1955,42 @@ class BatchStep:
         if skip is None:
             skip = np.zeros(n, dtype=bool)
         dt = self.dt if self.dt is not None else h * substeps
-        status = self.kernel(Y, Ynew, NO_COMPENSATION if CC is None else CC, u, u_norm, h, dt, substeps, check, refuse, skip, ps, po, pe, pr, pg, pa, pd, cd, pv, pw, self.high,
-                             counts, hstep, fired, obs, over, reward, terminated, *metrics, *readouts)
-        return BatchResult(Ynew, status, obs, over, reward, terminated, metrics, readouts, fired, hstep, counts)
+        status = self.kernel(
+            Y,
+            Ynew,
+            NO_COMPENSATION if CC is None else CC,
+            u,
+            u_norm,
+            h,
+            dt,
+            substeps,
+            check,
+            refuse,
+            skip,
+            ps,
+            po,
+            pe,
+            pr,
+            pg,
+            pa,
+            pd,
+            cd,
+            pv,
+            pw,
+            self.high,
+            counts,
+            hstep,
+            fired,
+            obs,
+            over,
+            reward,
+            terminated,
+            *metrics,
+            *readouts,
+        )
+        return BatchResult(
+            Ynew, status, obs, over, reward, terminated, metrics, readouts, fired, hstep, counts
+        )
 
     def finish(self, Y):
         """``(obs, over, reward, terminated, metrics, readouts)`` of states ``Y`` ``(dim, k)`` that
@@ -1406,7 +2005,9 @@ class BatchStep:
         metrics = tuple(np.empty(k, dtype=t) for t in self.metric_dtypes)
         readouts = tuple(np.empty(k, dtype=t) for t in self.readout_dtypes)
         ps, po, pe, pr, pg, pa, pd, cd, pv, pw = self.params
-        finish_kernel(self.layout)(Y, po, pe, pr, self.high, obs, over, reward, terminated, *metrics, *readouts)
+        finish_kernel(self.layout)(
+            Y, po, pe, pr, self.high, obs, over, reward, terminated, *metrics, *readouts
+        )
         return obs, over, reward, terminated, metrics, readouts
 
 
@@ -1467,7 +2068,16 @@ class VectorStep:
     ``threads`` > 1: each step's sub-envs split into that many chunks, run at once
     (:class:`rbenvs.vector.threads.ThreadTeam`), with the same bits as one call."""
 
-    def __init__(self, parts, model, n_obs: int, obs_high, max_steps: int | None, error=None, threads: int = 1):
+    def __init__(
+        self,
+        parts,
+        model,
+        n_obs: int,
+        obs_high,
+        max_steps: int | None,
+        error=None,
+        threads: int = 1,
+    ):
         import numpy as np
 
         control, pc = model.kernel_control
@@ -1480,14 +2090,41 @@ class VectorStep:
         estimate = error is not None and layout.rotation is not None
         # the default accuracy's gate where the stability bound alone never asks for more steps
         # (an order that is a whole number: the gate's powers are written out)
-        gate = parts.gate if estimate and parts.gate is not None and model.step_rule.stable(int(model.substeps)) and float(error[1]).is_integer() else None
-        self.layout = VectorLayout(layout, control, model.actuator.size, start[0] if start else None, model.draw_kinds, estimate, gate[0] if gate else None,
-                                   int(error[1]) if gate else 0)
+        gate = (
+            parts.gate
+            if estimate
+            and parts.gate is not None
+            and model.step_rule.stable(int(model.substeps))
+            and float(error[1]).is_integer()
+            else None
+        )
+        self.layout = VectorLayout(
+            layout,
+            control,
+            model.actuator.size,
+            start[0] if start else None,
+            model.draw_kinds,
+            estimate,
+            gate[0] if gate else None,
+            int(error[1]) if gate else 0,
+        )
         self.kernel = vector_kernel(self.layout)
-        self._rows = rows_kernel(self.layout._replace(estimate=False, gate=None, gate_order=0))  # (the rows write no estimate: one kernel for both)
+        self._rows = rows_kernel(
+            self.layout._replace(estimate=False, gate=None, gate_order=0)
+        )  # (the rows write no estimate: one kernel for both)
         # (dtype objects, not scalar types: np.empty converts a type on every call, ~0.3 us each)
-        self.metric_dtypes = tuple(np.dtype(np.bool_ if isinstance(v, (bool, np.bool_)) else np.float64) for v in values[2:])
-        self.readout_dtypes = tuple(np.dtype(np.bool_ if isinstance(v, (bool, np.bool_)) else (np.int64 if isinstance(v, (int, np.integer)) else np.float64)) for v in physical)
+        self.metric_dtypes = tuple(
+            np.dtype(np.bool_ if isinstance(v, (bool, np.bool_)) else np.float64)
+            for v in values[2:]
+        )
+        self.readout_dtypes = tuple(
+            np.dtype(
+                np.bool_
+                if isinstance(v, (bool, np.bool_))
+                else (np.int64 if isinstance(v, (int, np.integer)) else np.float64)
+            )
+            for v in physical
+        )
         self._bool, self._f32 = np.dtype(np.bool_), np.dtype(np.float32)
         self.high = np.asarray(obs_high, dtype=np.float64)
         self.h, self.dt, self.substeps = float(model.h), float(model.dt), int(model.substeps)
@@ -1495,9 +2132,25 @@ class VectorStep:
         self.charge = float(model.failure_charge)
         self.n_obs, self.dim = n_obs, dim
         ps, po, pe, pr, pg, pa, pd, cd, pv, pw = params
-        self.params = (pc, start[1] if start else (), ps, po, pe, pr, pg, pa, pd, cd, pv, pw, self.high,
-                       tuple(float(v) for v in error) if estimate else (0.0, 1.0, 0.0))
-        self.gate_params = (gate[1], gate[2]) if gate else ((), (0.0, 1.0, 0.0))  # (PGT: the gate's P and its test)
+        self.params = (
+            pc,
+            start[1] if start else (),
+            ps,
+            po,
+            pe,
+            pr,
+            pg,
+            pa,
+            pd,
+            cd,
+            pv,
+            pw,
+            self.high,
+            tuple(float(v) for v in error) if estimate else (0.0, 1.0, 0.0),
+        )
+        self.gate_params = (
+            (gate[1], gate[2]) if gate else ((), (0.0, 1.0, 0.0))
+        )  # (PGT: the gate's P and its test)
         self._calls = {}
         self._scratch = None
         self.threads = threads
@@ -1510,7 +2163,20 @@ class VectorStep:
         # parameters go in flattened, once)
         self._flat_params, self._flat_gate = flat_leaves(self.params), flat_leaves(self.gate_params)
 
-    def __call__(self, A, Y, steps, done, skip, GEN, check: bool, refuse: bool, next_step: bool, reasons, CC=None) -> VectorResult:
+    def __call__(
+        self,
+        A,
+        Y,
+        steps,
+        done,
+        skip,
+        GEN,
+        check: bool,
+        refuse: bool,
+        next_step: bool,
+        reasons,
+        CC=None,
+    ) -> VectorResult:
         """One step of the states ``Y`` ``(dim, n)`` under the actions ``A`` ``(n, n_in)``
         (float32 or float64, C-contiguous); ``steps`` and ``done`` (the episode clocks and the
         sub-envs whose episode ended) are updated in place; ``skip``: the sub-envs to restart
@@ -1524,8 +2190,13 @@ class VectorStep:
         n = Y.shape[1]
         scratch = self._scratch  # (the arrays no caller keeps past the step: reused)
         if scratch is None or scratch[0].shape[0] != n:
-            scratch = self._scratch = (np.empty(n, dtype=np.int64), np.empty(n, dtype=bool), np.empty(n, dtype=bool), np.empty(n, dtype=np.int64),
-                                       np.empty(n, dtype=np.int64))
+            scratch = self._scratch = (
+                np.empty(n, dtype=np.int64),
+                np.empty(n, dtype=bool),
+                np.empty(n, dtype=bool),
+                np.empty(n, dtype=np.int64),
+                np.empty(n, dtype=np.int64),
+            )
         counts, fired, over, ends, codes = scratch
         estimate = np.empty(n if self.layout.estimate else 0)
         Ynew = np.empty_like(Y)
@@ -1536,11 +2207,50 @@ class VectorStep:
         truncated = np.empty(n, self._bool)
         metrics = [np.empty(n, t) for t in self.metric_dtypes]
         readouts = [np.empty(n, t) for t in self.readout_dtypes]
-        head = (A, Y, Ynew, NO_COMPENSATION if CC is None else CC, self.h, self.dt, self.substeps, check, refuse, next_step, self.max_steps, self.charge, steps, done, skip, GEN)
-        tail = (counts, hstep, fired, obs, over, reward, terminated, truncated, *reasons, ends, codes, estimate)
-        if self.threads > 1 and n >= 2 * _CHUNK_ALIGN and np.isfinite(A).all() and self._splits():  # (a bad action: refused by the whole step, nothing written)
+        head = (
+            A,
+            Y,
+            Ynew,
+            NO_COMPENSATION if CC is None else CC,
+            self.h,
+            self.dt,
+            self.substeps,
+            check,
+            refuse,
+            next_step,
+            self.max_steps,
+            self.charge,
+            steps,
+            done,
+            skip,
+            GEN,
+        )
+        tail = (
+            counts,
+            hstep,
+            fired,
+            obs,
+            over,
+            reward,
+            terminated,
+            truncated,
+            *reasons,
+            ends,
+            codes,
+            estimate,
+        )
+        if (
+            self.threads > 1 and n >= 2 * _CHUNK_ALIGN and np.isfinite(A).all() and self._splits()
+        ):  # (a bad action: refused by the whole step, nothing written)
             leaves = (*head, *self._flat_params, *tail, *self._flat_gate, *metrics, *readouts)
-            status, k, written, r = self._split(A.dtype, (*head, *self.params, *tail, self.gate_params, *metrics, *readouts), leaves, n, refuse and CC is not None, ends)
+            status, k, written, r = self._split(
+                A.dtype,
+                (*head, *self.params, *tail, self.gate_params, *metrics, *readouts),
+                leaves,
+                n,
+                refuse and CC is not None,
+                ends,
+            )
         else:
             args = (*head, *self.params, *tail, self.gate_params, *metrics, *readouts)
             call = self._calls.get(A.dtype)
@@ -1550,8 +2260,24 @@ class VectorStep:
             else:
                 status, k, m, r = call(0, n, 0, *args)
             written = ends[:m]
-        return VectorResult(status, k, Ynew, obs, over, reward, terminated, truncated, written, metrics, readouts, fired, hstep, counts, r,
-                            estimate if self.layout.estimate else None)
+        return VectorResult(
+            status,
+            k,
+            Ynew,
+            obs,
+            over,
+            reward,
+            terminated,
+            truncated,
+            written,
+            metrics,
+            readouts,
+            fired,
+            hstep,
+            counts,
+            r,
+            estimate if self.layout.estimate else None,
+        )
 
     def _split(self, dtype, args, leaves, n: int, keep_cc: bool, ends) -> tuple:
         """The step as chunks of sub-envs, one per thread, in one call (:func:`split_kernel`):
@@ -1565,11 +2291,16 @@ class VectorStep:
         from .vector.threads import pool_size
 
         if self._cuts is None or self._cuts[-1] != n:  # (chunks of whole SIMD blocks)
-            cuts = [min(n, round(n * c / self.threads / _CHUNK_ALIGN) * _CHUNK_ALIGN) for c in range(self.threads + 1)]
+            cuts = [
+                min(n, round(n * c / self.threads / _CHUNK_ALIGN) * _CHUNK_ALIGN)
+                for c in range(self.threads + 1)
+            ]
             cuts[-1] = n
             self._cuts = np.unique(np.asarray(cuts, dtype=np.int64))
             self._S = np.zeros((len(self._cuts) - 1, 4), dtype=np.int64)
-            self._width = min(len(self._cuts) - 1, pool_size())  # (numba's threads: at most its pool)
+            self._width = min(
+                len(self._cuts) - 1, pool_size()
+            )  # (numba's threads: at most its pool)
             self._lows = self._cuts[:-1].tolist()
         cuts, S = self._cuts, self._S
         CC = args[3]
@@ -1586,7 +2317,11 @@ class VectorStep:
         if status != 0:
             return status, 0, ends[:0], 0
         rows = S.tolist()  # (a few Python ints: cheaper than numpy's reductions on a tiny array)
-        written = np.concatenate([ends[lo:lo + row[2]] for lo, row in zip(self._lows, rows)]) if any(row[2] for row in rows) else ends[:0]
+        written = (
+            np.concatenate([ends[lo : lo + row[2]] for lo, row in zip(self._lows, rows)])
+            if any(row[2] for row in rows)
+            else ends[:0]
+        )
         return 0, sum(row[1] for row in rows), written, sum(row[3] for row in rows)
 
     def rows(self, idx, draw, Y, GEN, obs, over, hstep, steps, metrics, readouts) -> None:
@@ -1595,12 +2330,42 @@ class VectorStep:
         filled."""
         import numpy as np
 
-        self._rows(*self._rows_args(np.asarray(idx, dtype=np.int64), np.asarray(draw, dtype=np.bool_), Y, GEN, obs, over, hstep, steps, metrics, readouts))
+        self._rows(
+            *self._rows_args(
+                np.asarray(idx, dtype=np.int64),
+                np.asarray(draw, dtype=np.bool_),
+                Y,
+                GEN,
+                obs,
+                over,
+                hstep,
+                steps,
+                metrics,
+                readouts,
+            )
+        )
 
     def _rows_args(self, idx, draw, Y, GEN, obs, over, hstep, steps, metrics, readouts) -> tuple:
         """:func:`rows_kernel`'s arguments, the start's, task's and read-outs' parameters in place."""
         pi, po, pe, pr = self.params[1], self.params[3], self.params[4], self.params[5]
-        return (idx, draw, Y, GEN, pi, po, pe, pr, self.high, self.h, obs, over, hstep, steps, *metrics, *readouts)
+        return (
+            idx,
+            draw,
+            Y,
+            GEN,
+            pi,
+            po,
+            pe,
+            pr,
+            self.high,
+            self.h,
+            obs,
+            over,
+            hstep,
+            steps,
+            *metrics,
+            *readouts,
+        )
 
     def finish(self, Y, GEN) -> tuple:
         """``(obs, over, metrics, readouts)`` of the states ``Y`` ``(dim, k)`` as after a reset (no
@@ -1613,5 +2378,16 @@ class VectorStep:
         over = np.empty(k, dtype=bool)
         metrics = tuple(np.empty(k, dtype=t) for t in self.metric_dtypes)
         readouts = tuple(np.empty(k, dtype=t) for t in self.readout_dtypes)
-        self.rows(np.arange(k), np.zeros(k, dtype=bool), Y, GEN, obs, over, np.empty(k), np.zeros(k, dtype=np.int64), metrics, readouts)
+        self.rows(
+            np.arange(k),
+            np.zeros(k, dtype=bool),
+            Y,
+            GEN,
+            obs,
+            over,
+            np.empty(k),
+            np.zeros(k, dtype=np.int64),
+            metrics,
+            readouts,
+        )
         return obs, over, metrics, readouts

@@ -76,7 +76,9 @@ class StepRegion:
 
     @property
     def bounded(self) -> bool:
-        return not (self.rotation == math.inf and self.growth == math.inf and self.dissipation == math.inf)
+        return not (
+            self.rotation == math.inf and self.growth == math.inf and self.dissipation == math.inf
+        )
 
 
 @dataclass(frozen=True)
@@ -368,7 +370,9 @@ def require_parts(obj, protocol, role: str) -> None:
     member of ``protocol`` (checked once, at construction)."""
     missing = [name for name in _members(protocol) if not hasattr(obj, name)]
     if missing:
-        raise TypeError(f"{role} {type(obj).__name__} does not provide {missing} ({protocol.__name__} contract, rbenvs.contracts)")
+        raise TypeError(
+            f"{role} {type(obj).__name__} does not provide {missing} ({protocol.__name__} contract, rbenvs.contracts)"
+        )
 
 
 def _members(protocol) -> list[str]:

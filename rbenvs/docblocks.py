@@ -32,11 +32,23 @@ import sys
 import time
 from pathlib import Path
 
-__all__ = ["BEGIN", "END", "split_docs_flag", "command_key", "find_block", "write_block", "machine", "run_with_docs", "blocks"]
+__all__ = [
+    "BEGIN",
+    "END",
+    "split_docs_flag",
+    "command_key",
+    "find_block",
+    "write_block",
+    "machine",
+    "run_with_docs",
+    "blocks",
+]
 
 BEGIN = "<!-- rbenvs:output {} -->"
 END = "<!-- rbenvs:end -->"
-_BLOCK = re.compile(r"<!-- rbenvs:output ([^\n]+?) -->\n(.*?)<!-- rbenvs:end -->", re.S)  # (a command line is one line)
+_BLOCK = re.compile(
+    r"<!-- rbenvs:output ([^\n]+?) -->\n(.*?)<!-- rbenvs:end -->", re.S
+)  # (a command line is one line)
 # flags that change how a command shows itself, not what it measures
 _NOT_PART_OF_THE_KEY = ("--no-progress",)
 
@@ -87,10 +99,18 @@ def machine() -> str:
                 break
     except OSError:
         pass
-    return f"{os.cpu_count()} cores, {model}, {platform.system()}, Python {platform.python_version()}"
+    return (
+        f"{os.cpu_count()} cores, {model}, {platform.system()}, Python {platform.python_version()}"
+    )
 
 
-def write_block(page: str | Path, key: str, output: str, seconds: float | None = None, when: datetime.date | None = None) -> None:
+def write_block(
+    page: str | Path,
+    key: str,
+    output: str,
+    seconds: float | None = None,
+    when: datetime.date | None = None,
+) -> None:
     """Replace the content of ``page``'s block for ``key`` with ``output`` (fenced), under a line
     naming the command, the date, the machine and the wall time."""
     path = Path(page)
@@ -101,18 +121,22 @@ def write_block(page: str | Path, key: str, output: str, seconds: float | None =
     when = when or datetime.date.today()
     took = f", {_duration(seconds)}" if seconds is not None else ""
     lines = [line for line in output.strip().splitlines() if line.strip()]
-    if lines and (all(line.startswith("|") for line in lines) or all(line.startswith("- ") for line in lines)):
+    if lines and (
+        all(line.startswith("|") for line in lines) or all(line.startswith("- ") for line in lines)
+    ):
         shown = output.strip() + "\n"  # a Markdown table or list: the page renders it as one
     else:
         fence = "````" if "```" in output else "```"
         shown = f"{fence}\n{output.rstrip()}\n{fence}\n"
     body = f"`{key}` ({when.isoformat()}, {machine()}{took}):\n\n{shown}"
-    path.write_text(text[:m.start(2)] + body + text[m.end(2):])
+    path.write_text(text[: m.start(2)] + body + text[m.end(2) :])
 
 
 def missing_block(path: Path, key: str) -> str:
-    return (f"--docs {path}: the page has no block for `{key}`; add the two lines "
-            f"'{BEGIN.format(key)}' and '{END}' where its output belongs")
+    return (
+        f"--docs {path}: the page has no block for `{key}`; add the two lines "
+        f"'{BEGIN.format(key)}' and '{END}' where its output belongs"
+    )
 
 
 def _duration(seconds: float) -> str:

@@ -31,7 +31,9 @@ def kind_codes(kinds: str) -> np.ndarray:
     """The kinds as the compiled loop's codes (``int8``); an unknown kind is an error."""
     unknown = set(kinds) - set(_CODES)
     if unknown:
-        raise ValueError(f"draw kinds must be {UNIFORM!r} (uniform) or {NORMAL!r} (normal), got {sorted(unknown)}")
+        raise ValueError(
+            f"draw kinds must be {UNIFORM!r} (uniform) or {NORMAL!r} (normal), got {sorted(unknown)}"
+        )
     return np.array([_CODES[k] for k in kinds], dtype=np.int8)
 
 
@@ -93,8 +95,12 @@ def _table_kernels() -> dict:
         def put(table, i, rng):
             table[i] = rng
 
-        _kernels.update(draw=njit(draw, "draws"), make=njit(make, "generator table"), append=njit(append, "generator table append"),
-                        put=njit(put, "generator table put"))
+        _kernels.update(
+            draw=njit(draw, "draws"),
+            make=njit(make, "generator table"),
+            append=njit(append, "generator table append"),
+            put=njit(put, "generator table put"),
+        )
     return _kernels
 
 
@@ -130,9 +136,13 @@ class GeneratorTable:
 
     def draws(self, idx: np.ndarray, codes: np.ndarray) -> np.ndarray:
         """``(len(codes), len(idx))``: column ``j`` the numbers of sub-env ``idx[j]``'s start."""
-        if self._drawn < jit.COMPILE_AFTER:  # (in Python, the same numbers: a reset's draws compile nothing)
+        if (
+            self._drawn < jit.COMPILE_AFTER
+        ):  # (in Python, the same numbers: a reset's draws compile nothing)
             self._drawn += len(idx)
-            return batch_draws([self._rngs[i] for i in idx], "".join(UNIFORM if c == 0 else NORMAL for c in codes))
+            return batch_draws(
+                [self._rngs[i] for i in idx], "".join(UNIFORM if c == 0 else NORMAL for c in codes)
+            )
         out = np.empty((len(codes), len(idx)))
         self._kernel(self._list, np.asarray(idx, dtype=np.int64), codes, out)
         return out

@@ -45,7 +45,9 @@ def jacobi_sn_cn_dn(u, m, m1):
     element's result does not depend on the rest of the batch: a single state and the same
     state inside a batch give the same bits.
     """
-    u, m, m1 = np.broadcast_arrays(np.asarray(u, float), np.asarray(m, float), np.asarray(m1, float))
+    u, m, m1 = np.broadcast_arrays(
+        np.asarray(u, float), np.asarray(m, float), np.asarray(m1, float)
+    )
     separatrix = m1 == 0.0
     m1_safe = np.where(separatrix, 0.5, m1)
     # Descending Landen / AGM: a0 = 1, b0 = sqrt(m1), c0 = sqrt(m).
@@ -71,7 +73,9 @@ def jacobi_sn_cn_dn(u, m, m1):
         x = c_n / a_n * sp
         one_minus = (b_prev + c_n * (cp * cp) / (1.0 + np.abs(sp))) / a_n
         near_one = np.abs(x) > 0.5
-        alt = np.sign(x) * (0.5 * np.pi - 2.0 * np.arcsin(np.sqrt(np.clip(0.5 * one_minus, 0.0, 1.0))))
+        alt = np.sign(x) * (
+            0.5 * np.pi - 2.0 * np.arcsin(np.sqrt(np.clip(0.5 * one_minus, 0.0, 1.0)))
+        )
         phi = 0.5 * (phi + np.where(near_one, alt, np.arcsin(np.clip(x, -1.0, 1.0))))
     sn = np.sin(phi)
     cn = np.cos(phi)

@@ -49,7 +49,11 @@ class MissingExtra(ImportError):
         self.extra = extra
         self.distribution = distribution
         # (extras on torch: its CPU build first, pinned, or pip resolves a bare torch with CUDA)
-        line = f"pip install torch=={TORCH_PIN} && pip install 'rbenvs[{extra}]'" if extra in TORCH_EXTRAS else f"pip install 'rbenvs[{extra}]'"
+        line = (
+            f"pip install torch=={TORCH_PIN} && pip install 'rbenvs[{extra}]'"
+            if extra in TORCH_EXTRAS
+            else f"pip install 'rbenvs[{extra}]'"
+        )
         super().__init__(f"the {extra!r} extra is needed ({distribution} is not installed): {line}")
 
 
@@ -78,7 +82,10 @@ class ArgumentParser(argparse.ArgumentParser):
             from .dynamics.validation import did_you_mean
 
             choices = ", ".join(map(repr, action.choices))
-            raise argparse.ArgumentError(action, f"invalid choice: {value!r} (choose from {choices}){did_you_mean(value, action.choices)}")
+            raise argparse.ArgumentError(
+                action,
+                f"invalid choice: {value!r} (choose from {choices}){did_you_mean(value, action.choices)}",
+            )
 
 
 def run_command(prog: str, body, argv) -> int:

@@ -13,7 +13,16 @@ from __future__ import annotations
 
 import os
 
-__all__ = ["jitable", "compiled_form", "available", "register_all", "register", "elementwise", "DISABLE_VARIABLE", "COMPILE_AFTER"]
+__all__ = [
+    "jitable",
+    "compiled_form",
+    "available",
+    "register_all",
+    "register",
+    "elementwise",
+    "DISABLE_VARIABLE",
+    "COMPILE_AFTER",
+]
 
 # set to "0" to keep the numpy path even where numba is installed (comparisons, debugging)
 DISABLE_VARIABLE = "RBENVS_COMPILED"
@@ -53,7 +62,9 @@ def compiled_form(of):
 
     def mark(alt):
         if id(of) in _done:
-            raise RuntimeError(f"{of.__name__} was registered with numba before its compiled form was declared")
+            raise RuntimeError(
+                f"{of.__name__} was registered with numba before its compiled form was declared"
+            )
         of.__compiled_form__ = alt
         return alt
 
@@ -140,8 +151,16 @@ def _elementwise_loop(fn, n_in: int, n_out: int):
     register_all()
     ins = ", ".join(f"x{j}" for j in range(n_in))
     outs = ", ".join(f"o{j}" for j in range(n_out))
-    lines = [f"def run({ins}, {outs}):", "    for i in range(x0.shape[0]):", f"        r = fn({', '.join(f'x{j}[i]' for j in range(n_in))})"]
-    lines += [f"        o{j}[i] = r[{j}]" for j in range(n_out)] if n_out > 1 else ["        o0[i] = r"]
+    lines = [
+        f"def run({ins}, {outs}):",
+        "    for i in range(x0.shape[0]):",
+        f"        r = fn({', '.join(f'x{j}[i]' for j in range(n_in))})",
+    ]
+    lines += (
+        [f"        o{j}[i] = r[{j}]" for j in range(n_out)] if n_out > 1 else ["        o0[i] = r"]
+    )
     namespace = generate("\n".join(lines), f"elementwise {fn.__name__}", {"fn": fn})
     # forceinline: fn inlined into the loop (a call left in it keeps the loop scalar)
-    return njit(namespace["run"], f"elementwise {fn.__name__}", error_model="numpy", forceinline=True)
+    return njit(
+        namespace["run"], f"elementwise {fn.__name__}", error_model="numpy", forceinline=True
+    )

@@ -48,7 +48,19 @@ import warnings
 from functools import lru_cache
 from pathlib import Path
 
-__all__ = ["njit", "cache_root", "kernel_folder", "environment", "fingerprint", "stats", "kernels", "clear", "info", "KernelCacheWarning", "CACHE_VARIABLE"]
+__all__ = [
+    "njit",
+    "cache_root",
+    "kernel_folder",
+    "environment",
+    "fingerprint",
+    "stats",
+    "kernels",
+    "clear",
+    "info",
+    "KernelCacheWarning",
+    "CACHE_VARIABLE",
+]
 
 # the cache's root folder; set to an empty string to compile in memory only
 CACHE_VARIABLE = "RBENVS_CACHE_DIR"
@@ -84,8 +96,22 @@ def cache_root() -> Path | None:
 # rbenvs' modules that no kernel calls into (no jitable function, no generated or compiled code:
 # tests/test_kernel_cache.py checks it): left out of the source hash, so that an edit of the
 # command line, the benches, verify or the renderers keeps the compiled kernels
-NOT_COMPILED = ("bench", "verify", "render", "controllers", "oracles", "__main__.py", "cli.py", "docblocks.py", "extras.py", "headline.py",
-                "plotting.py", "progress.py", "scenes.py", "testing.py")
+NOT_COMPILED = (
+    "bench",
+    "verify",
+    "render",
+    "controllers",
+    "oracles",
+    "__main__.py",
+    "cli.py",
+    "docblocks.py",
+    "extras.py",
+    "headline.py",
+    "plotting.py",
+    "progress.py",
+    "scenes.py",
+    "testing.py",
+)
 
 
 @lru_cache(maxsize=None)
@@ -127,7 +153,9 @@ def environment() -> dict:
         "llvmlite": llvmlite.__version__,
         "numpy": numpy.__version__,
         "cpu": llvm.get_host_cpu_name(),
-        "cpu_features": hashlib.sha256(llvm.get_host_cpu_features().flatten().encode()).hexdigest()[:12],
+        "cpu_features": hashlib.sha256(llvm.get_host_cpu_features().flatten().encode()).hexdigest()[
+            :12
+        ],
     }
 
 
@@ -145,6 +173,7 @@ def kernel_folder() -> Path | None:
 
 
 # --- the kernel's fingerprint --------------------------------------------------------------------
+
 
 def _code_names(code: types.CodeType, out: set) -> set:
     out.update(code.co_names)
@@ -223,7 +252,9 @@ def _feed(obj, h, seen: dict) -> None:
         h.update(f"module:{obj.__name__};".encode())
         return
     if isinstance(obj, (types.BuiltinFunctionType, type)):
-        h.update(f"{type(obj).__name__}:{getattr(obj, '__module__', '')}.{getattr(obj, '__qualname__', obj)};".encode())
+        h.update(
+            f"{type(obj).__name__}:{getattr(obj, '__module__', '')}.{getattr(obj, '__qualname__', obj)};".encode()
+        )
         return
     if isinstance(obj, tuple):
         h.update(f"tuple[{len(obj)}](".encode())
@@ -259,13 +290,18 @@ def _feed(obj, h, seen: dict) -> None:
 
 # --- the cache numba's dispatcher calls ----------------------------------------------------------
 
+
 def _turn_off(reason: str) -> None:
     with _lock:
         if _off_reason:
             return
         _off_reason.append(reason)
-    warnings.warn(f"rbenvs' kernel cache is off for this process ({reason}); kernels are compiled in memory. "
-                  f"Set {CACHE_VARIABLE} to a writable folder, or to an empty string to silence this.", KernelCacheWarning, stacklevel=3)
+    warnings.warn(
+        f"rbenvs' kernel cache is off for this process ({reason}); kernels are compiled in memory. "
+        f"Set {CACHE_VARIABLE} to a writable folder, or to an empty string to silence this.",
+        KernelCacheWarning,
+        stacklevel=3,
+    )
 
 
 def _safe(label: str) -> str:
@@ -317,13 +353,17 @@ class _DiskCache:
 
     def _key(self, sig, codegen) -> tuple[str, Path]:
         if self._kernel_key is None:
-            self._kernel_key = hashlib.sha256((fingerprint(self._py_func) + self._options).encode()).hexdigest()
+            self._kernel_key = hashlib.sha256(
+                (fingerprint(self._py_func) + self._options).encode()
+            ).hexdigest()
         text = repr((self._kernel_key, str(sig), codegen.magic_tuple()))
         digest = hashlib.sha256(text.encode()).hexdigest()
         return text, self._folder / f"{self._label}-{self._kernel_key[:24]}-{digest[:16]}{_SUFFIX}"
 
     def load_overload(self, sig, target_context):
-        self._started = time.perf_counter()  # (a miss: numba compiles next, then calls save_overload)
+        self._started = (
+            time.perf_counter()
+        )  # (a miss: numba compiles next, then calls save_overload)
         if not _usable(self._folder):
             return None
         from numba.core.compiler import CompileResult
@@ -356,7 +396,14 @@ class _DiskCache:
     def save_overload(self, sig, cres) -> None:
         with _lock:
             _stats["compiled"] += 1
-            _log.append((self._label, len(sig), "compiled", time.perf_counter() - getattr(self, "_started", time.perf_counter())))
+            _log.append(
+                (
+                    self._label,
+                    len(sig),
+                    "compiled",
+                    time.perf_counter() - getattr(self, "_started", time.perf_counter()),
+                )
+            )
         if not _usable(self._folder):
             return
         if any(not x.can_cache for x in cres.lifted) or cres.library.has_dynamic_globals:
@@ -388,7 +435,9 @@ def njit(fn, label: str, **options):
     import numba
 
     dispatcher = numba.njit(**options)(fn)
-    dispatcher._cache = _DiskCache(fn, label, options)  # (the attribute numba's enable_caching sets)
+    dispatcher._cache = _DiskCache(
+        fn, label, options
+    )  # (the attribute numba's enable_caching sets)
     return dispatcher
 
 
@@ -421,7 +470,13 @@ def info() -> dict:
     if kernels.is_dir():
         for folder in sorted(p for p in kernels.iterdir() if p.is_dir()):
             files = [p for p in folder.iterdir() if p.is_file() and p.suffix == _SUFFIX]
-            out["folders"].append({"name": folder.name, "files": len(files), "bytes": sum(p.stat().st_size for p in files)})
+            out["folders"].append(
+                {
+                    "name": folder.name,
+                    "files": len(files),
+                    "bytes": sum(p.stat().st_size for p in files),
+                }
+            )
     return out
 
 

@@ -69,7 +69,9 @@ def _separatrix(inertia, r, n=400):
     (1/I_min - 1/I_mid) P_min^2 = 0``."""
     inertia = np.asarray(inertia, dtype=float)
     lo, mid, hi = np.argsort(inertia)
-    s = math.sqrt((1.0 / inertia[mid] - 1.0 / inertia[hi]) / (1.0 / inertia[lo] - 1.0 / inertia[mid]))
+    s = math.sqrt(
+        (1.0 / inertia[mid] - 1.0 / inertia[hi]) / (1.0 / inertia[lo] - 1.0 / inertia[mid])
+    )
     t = np.linspace(0.0, 2.0 * np.pi, n)
     out = []
     for sign in (1.0, -1.0):
@@ -91,7 +93,14 @@ def plot_free_body(path, inertia=(2.0, 1.5, 1.0), dt=0.02, max_time=60.0, integr
     from .oracles import orbit_period
 
     inertia = tuple(float(v) for v in inertia)
-    env = FreeRigidBodyEnv(inertia=inertia, task="spin", axis=0, integrator=integrator, dt=dt, max_angular_velocity=10.0 / min(inertia) + 10.0)
+    env = FreeRigidBodyEnv(
+        inertia=inertia,
+        task="spin",
+        axis=0,
+        integrator=integrator,
+        dt=dt,
+        max_angular_velocity=10.0 / min(inertia) + 10.0,
+    )
     lo, mid, hi = np.argsort(inertia)
     starts = []
     # around the major and the minor axis at growing distance, and one just off the
@@ -112,11 +121,19 @@ def plot_free_body(path, inertia=(2.0, 1.5, 1.0), dt=0.02, max_time=60.0, integr
     fig = _figure((7.0, 7.0))
     ax = fig.add_subplot(projection="3d", computed_zorder=False)  # drawn in call order
     u, v = np.mgrid[0.0 : 2.0 * np.pi : 37j, 0.0 : np.pi : 19j]
-    ax.plot_wireframe(np.cos(u) * np.sin(v), np.sin(u) * np.sin(v), np.cos(v), color="#cccccc", lw=0.3)
+    ax.plot_wireframe(
+        np.cos(u) * np.sin(v), np.sin(u) * np.sin(v), np.cos(v), color="#cccccc", lw=0.3
+    )
     cmap_major, cmap_minor = ("#1f77b4", "#6baed6"), ("#d62728", "#fc9272")
     for k, circle in enumerate(_separatrix(inertia, 1.0)):
         f, b = _visible_split(circle, view_dir)
-        ax.plot(*f.T, color="k", lw=1.0, ls="--", label="separatrix (2H = |Pi|^2 / I_mid)" if k == 0 else None)
+        ax.plot(
+            *f.T,
+            color="k",
+            lw=1.0,
+            ls="--",
+            label="separatrix (2H = |Pi|^2 / I_mid)" if k == 0 else None,
+        )
         ax.plot(*b.T, color="k", lw=0.6, ls="--", alpha=0.25)
     for n, p0 in enumerate(starts):
         period = orbit_period(inertia, p0)
@@ -139,7 +156,13 @@ def plot_free_body(path, inertia=(2.0, 1.5, 1.0), dt=0.02, max_time=60.0, integr
         orbit = momentum_orbit(inertia, p0)
         if orbit is not None:
             f, _ = _visible_split(orbit, view_dir)
-            ax.plot(*f.T, color="k", lw=0.8, ls=":", label="sphere cut by the energy ellipsoid" if n == 0 else None)
+            ax.plot(
+                *f.T,
+                color="k",
+                lw=0.8,
+                ls=":",
+                label="sphere cut by the energy ellipsoid" if n == 0 else None,
+            )
     names = {hi: "major", mid: "intermediate", lo: "minor"}
     for i in range(3):
         e = np.zeros(3)
@@ -154,7 +177,10 @@ def plot_free_body(path, inertia=(2.0, 1.5, 1.0), dt=0.02, max_time=60.0, integr
     ax.set_xlabel("Pi1")
     ax.set_ylabel("Pi2")
     ax.set_zlabel("Pi3")
-    ax.set_title(f"Free rigid body: Pi on the sphere |Pi| = 1, inertia {inertia}\n(FreeRigidBody-v0, zero torque, {integrator}, dt = {dt} s; hidden side faint)", fontsize=10)
+    ax.set_title(
+        f"Free rigid body: Pi on the sphere |Pi| = 1, inertia {inertia}\n(FreeRigidBody-v0, zero torque, {integrator}, dt = {dt} s; hidden side faint)",
+        fontsize=10,
+    )
     ax.legend(loc="lower left", fontsize=7)
     return _save(fig, path)
 
@@ -171,7 +197,13 @@ def plot_heavy_top(path, spin_factor=4.0, tilt=0.5, duration=3.0, dt=0.002):
 
     probe = LagrangeTopEnv()
     n = float(spin_factor) * probe.critical_spin
-    env = LagrangeTopEnv(task="upright", spin=n, tilt_limit=math.pi, dt=dt, max_angular_velocity=max(100.0, 4.0 * abs(n)))
+    env = LagrangeTopEnv(
+        task="upright",
+        spin=n,
+        tilt_limit=math.pi,
+        dt=dt,
+        max_angular_velocity=max(100.0, 4.0 * abs(n)),
+    )
     prm = env.params
     A, C = prm.transverse_inertia, prm.axial_inertia
     I = np.asarray(prm.inertia, dtype=float)
@@ -183,11 +215,21 @@ def plot_heavy_top(path, spin_factor=4.0, tilt=0.5, duration=3.0, dt=0.002):
     runs = []
     for label, omega in (
         ("released without precession", n * chi),
-        ("started on the slow regular precession", p_slow * gamma + (n - p_slow * math.cos(tilt)) * chi),
+        (
+            "started on the slow regular precession",
+            p_slow * gamma + (n - p_slow * math.cos(tilt)) * chi,
+        ),
     ):
         ys = _run_zero_action(env, {"angular_momentum": I * omega, "vertical": gamma}, steps)
         t = np.arange(len(ys)) * dt
-        runs.append((label, t, np.array([env.system.tilt(y) for y in ys]), np.array([env.system.precession_rate(y) for y in ys])))
+        runs.append(
+            (
+                label,
+                t,
+                np.array([env.system.tilt(y) for y in ys]),
+                np.array([env.system.precession_rate(y) for y in ys]),
+            )
+        )
 
     fig = _figure((8.0, 6.5))
     ax1, ax2 = fig.add_subplot(2, 1, 1), fig.add_subplot(2, 1, 2)
@@ -195,11 +237,37 @@ def plot_heavy_top(path, spin_factor=4.0, tilt=0.5, duration=3.0, dt=0.002):
     for (label, t, th, rate), c in zip(runs, colors):
         ax1.plot(t, np.degrees(th), color=c, lw=1.2, label=f"simulated, {label}")
         ax2.plot(t, rate, color=c, lw=1.2, label=f"simulated, {label}")
-    ax1.axhline(math.degrees(tilt), color="k", ls=":", lw=1, label="release tilt alpha (upper turning point)")
-    ax1.axhline(math.degrees(tilt + nut.angle_amplitude), color="k", ls="--", lw=1, label="fast-top bound beta = alpha + 2 A m g l sin(alpha)/(C n)^2 [T 3.79]")
-    ax1.axhline(math.degrees(nut.mean_tilt), color="#2ca02c", ls="-.", lw=1, label="mean tilt [T 3.77]")
-    ax2.axhline(nut.mean_precession_rate, color="k", ls="--", lw=1, label="fast-top mean rate m g l/(C n) [T 3.78]")
-    ax2.axhline(p_slow, color="#ff7f0e", ls=":", lw=1.5, label="slow root of A p^2 cos(alpha) - C n p + m g l = 0 [T 3.82]")
+    ax1.axhline(
+        math.degrees(tilt),
+        color="k",
+        ls=":",
+        lw=1,
+        label="release tilt alpha (upper turning point)",
+    )
+    ax1.axhline(
+        math.degrees(tilt + nut.angle_amplitude),
+        color="k",
+        ls="--",
+        lw=1,
+        label="fast-top bound beta = alpha + 2 A m g l sin(alpha)/(C n)^2 [T 3.79]",
+    )
+    ax1.axhline(
+        math.degrees(nut.mean_tilt), color="#2ca02c", ls="-.", lw=1, label="mean tilt [T 3.77]"
+    )
+    ax2.axhline(
+        nut.mean_precession_rate,
+        color="k",
+        ls="--",
+        lw=1,
+        label="fast-top mean rate m g l/(C n) [T 3.78]",
+    )
+    ax2.axhline(
+        p_slow,
+        color="#ff7f0e",
+        ls=":",
+        lw=1.5,
+        label="slow root of A p^2 cos(alpha) - C n p + m g l = 0 [T 3.82]",
+    )
     ax1.set_ylabel("tilt [deg]")
     ax2.set_ylabel("precession rate [rad/s]")
     ax2.set_xlabel("time [s]")
@@ -211,7 +279,10 @@ def plot_heavy_top(path, spin_factor=4.0, tilt=0.5, duration=3.0, dt=0.002):
     for ax in (ax1, ax2):
         ax.legend(fontsize=7, loc="upper right")
         ax.grid(alpha=0.3)
-    ax1.set_ylim(math.degrees(tilt) - 0.2 * math.degrees(nut.angle_amplitude) - 0.05, math.degrees(tilt + 2.2 * nut.angle_amplitude))
+    ax1.set_ylim(
+        math.degrees(tilt) - 0.2 * math.degrees(nut.angle_amplitude) - 0.05,
+        math.degrees(tilt + 2.2 * nut.angle_amplitude),
+    )
     fig.tight_layout()
     return _save(fig, path)
 
@@ -232,7 +303,12 @@ def plot_tippe_top(path, duration=25.0, figures=None, **env_kwargs):
     env = TippeTopEnv(**env_kwargs)
     s, prm = env.system, env.params
     steps = int(math.ceil(duration / env.dt))
-    ys = _run_zero_action(env, None, steps, stop=lambda info: info.get("terminal_reason") in ("lift_off", "numerical_failure"))
+    ys = _run_zero_action(
+        env,
+        None,
+        steps,
+        stop=lambda info: info.get("terminal_reason") in ("lift_off", "numerical_failure"),
+    )
     t = np.arange(len(ys)) * env.dt
     tilt = np.degrees([s.tilt(y) for y in ys])
     energy = np.array([s.energy(y) for y in ys])
@@ -243,24 +319,47 @@ def plot_tippe_top(path, duration=25.0, figures=None, **env_kwargs):
     e_min = energy_star(theta_f, jell[0], *args)
 
     # the first time the tilt reaches 90 and 150 degrees (None: not in this run), drawn and reported
-    reached = {deg: next((float(t[k]) for k in np.flatnonzero(tilt >= deg)[:1]), None) for deg in (90.0, 150.0)}
+    reached = {
+        deg: next((float(t[k]) for k in np.flatnonzero(tilt >= deg)[:1]), None)
+        for deg in (90.0, 150.0)
+    }
     if figures is not None:
         drift = np.abs(jell / jell[0] - 1.0)
         turn = tilt <= 120.0  # (the start, 0.1 rad, is always in it)
-        figures.update(t90=reached[90.0], t150=reached[150.0], jellett_turn_over=float(drift[turn].max()), jellett_run=float(drift.max()),
-                       duration=float(t[-1]), final_tilt=math.degrees(theta_f))
+        figures.update(
+            t90=reached[90.0],
+            t150=reached[150.0],
+            jellett_turn_over=float(drift[turn].max()),
+            jellett_run=float(drift.max()),
+            duration=float(t[-1]),
+            final_tilt=math.degrees(theta_f),
+        )
 
     fig = _figure((8.0, 8.0))
     ax1, ax2, ax3 = (fig.add_subplot(3, 1, k) for k in (1, 2, 3))
     ax1.plot(t, tilt, color="#1f77b4", lw=1.3, label="simulated tilt")
-    ax1.axhline(math.degrees(theta_f), color="k", ls="--", lw=1, label="final tilt predicted from J (minimum of E*)")
+    ax1.axhline(
+        math.degrees(theta_f),
+        color="k",
+        ls="--",
+        lw=1,
+        label="final tilt predicted from J (minimum of E*)",
+    )
     for deg, when in reached.items():
         if when is not None:
             ax1.axvline(when, color="#888888", ls=":", lw=1)
-            ax1.annotate(f"{deg:.0f} deg at {when:.2f} s", (when, deg), fontsize=7, xytext=(4, -12), textcoords="offset points")
+            ax1.annotate(
+                f"{deg:.0f} deg at {when:.2f} s",
+                (when, deg),
+                fontsize=7,
+                xytext=(4, -12),
+                textcoords="offset points",
+            )
     ax1.set_ylabel("tilt theta [deg]")
     ax2.plot(t, energy * 1e3, color="#d62728", lw=1.3, label="simulated energy")
-    ax2.axhline(e_min * 1e3, color="k", ls="--", lw=1, label="E*(final tilt): least energy at this J")
+    ax2.axhline(
+        e_min * 1e3, color="k", ls="--", lw=1, label="E*(final tilt): least energy at this J"
+    )
     ax2.set_ylabel("energy [mJ]")
     ax3.plot(t, jell / jell[0] - 1.0, color="#2ca02c", lw=1.3, label="J(t)/J(0) - 1")
     ax3.axhline(0.0, color="k", lw=0.8)
@@ -317,9 +416,11 @@ def describe_tippe_top(figures: dict) -> str:
     def at(x):
         return "-" if x is None else f"{x:.2f} s"
 
-    return (f"tippe top, zero action, {figures['duration']:.2f} s: 90 deg at {at(figures['t90'])}, 150 deg at {at(figures['t150'])}; "
-            f"Jellett's largest relative change {figures['jellett_turn_over']:.2g} through the turn-over (to 120 deg), "
-            f"{figures['jellett_run']:.2g} over the run; predicted final tilt {figures['final_tilt']:.1f} deg")
+    return (
+        f"tippe top, zero action, {figures['duration']:.2f} s: 90 deg at {at(figures['t90'])}, 150 deg at {at(figures['t150'])}; "
+        f"Jellett's largest relative change {figures['jellett_turn_over']:.2g} through the turn-over (to 120 deg), "
+        f"{figures['jellett_run']:.2g} over the run; predicted final tilt {figures['final_tilt']:.1f} deg"
+    )
 
 
 # name -> (function, file, what its run reports: a function of the figures it fills, or None)

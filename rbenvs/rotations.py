@@ -113,8 +113,18 @@ def sqrt(x):
 # fdlibm's atan (Sun Microsystems, 1993; s_atan.c): the breakpoints of its argument reduction,
 # atan of each reduced interval's centre as a head and tail, and the odd polynomial's
 # coefficients aT[0..10] (|error| < 1 ulp on the reduced interval).
-_ATAN_HI = (4.63647609000806093515e-01, 7.85398163397448278999e-01, 9.82793723247329054082e-01, 1.57079632679489655800e00)
-_ATAN_LO = (2.26987774529616870924e-17, 3.06161699786838301793e-17, 1.39033110312309984516e-17, 6.12323399573676603587e-17)
+_ATAN_HI = (
+    4.63647609000806093515e-01,
+    7.85398163397448278999e-01,
+    9.82793723247329054082e-01,
+    1.57079632679489655800e00,
+)
+_ATAN_LO = (
+    2.26987774529616870924e-17,
+    3.06161699786838301793e-17,
+    1.39033110312309984516e-17,
+    6.12323399573676603587e-17,
+)
 _PI = 3.14159265358979311600e00
 _PI_LO = 1.22464679914735317720e-16  # pi - _PI
 _PIO2 = 1.57079632679489655800e00
@@ -127,8 +137,34 @@ def atan_kernel(r):
     for ``|r| <= 7/16`` (floats or arrays; pure arithmetic)."""
     z = r * r
     w = z * z
-    s1 = z * (3.33333333333329318027e-01 + w * (1.42857142725034663711e-01 + w * (9.09088713343650656196e-02 + w * (6.66107313738753120669e-02 + w * (4.97687799461593236017e-02 + w * 1.62858201153657823623e-02)))))
-    s2 = w * (-1.99999999998764832476e-01 + w * (-1.11111104054623557880e-01 + w * (-7.69187620504482999495e-02 + w * (-5.83357013379057348645e-02 + w * -3.65315727442169155270e-02))))
+    s1 = z * (
+        3.33333333333329318027e-01
+        + w
+        * (
+            1.42857142725034663711e-01
+            + w
+            * (
+                9.09088713343650656196e-02
+                + w
+                * (
+                    6.66107313738753120669e-02
+                    + w * (4.97687799461593236017e-02 + w * 1.62858201153657823623e-02)
+                )
+            )
+        )
+    )
+    s2 = w * (
+        -1.99999999998764832476e-01
+        + w
+        * (
+            -1.11111104054623557880e-01
+            + w
+            * (
+                -7.69187620504482999495e-02
+                + w * (-5.83357013379057348645e-02 + w * -3.65315727442169155270e-02)
+            )
+        )
+    )
     return r * (s1 + s2)
 
 
@@ -189,13 +225,19 @@ def _atan2_selects(y, x):
     which keeps a batch loop in SIMD registers and never mispredicts."""
     ay = select(y < 0.0, -y, y)  # (not abs: -0.0 stays -0.0, as in the float form)
     ax = select(x < 0.0, -x, x)
-    t = select(ax == 0.0, select(ay > 0.0, math.inf, 0.0), select((ay == math.inf) & (ax == math.inf), 1.0, ay / ax))
+    t = select(
+        ax == 0.0,
+        select(ay > 0.0, math.inf, 0.0),
+        select((ay == math.inf) & (ax == math.inf), 1.0, ay / ax),
+    )
     small = t < 0.4375
     k0 = t < 0.6875
     k1 = t < 1.1875
     k2 = t < 2.4375
     # the reduced argument r = num / den on the interval of t (fdlibm's four, or t itself)
-    num = select(small, t, select(k0, 2.0 * t - 1.0, select(k1, t - 1.0, select(k2, t - 1.5, -1.0))))
+    num = select(
+        small, t, select(k0, 2.0 * t - 1.0, select(k1, t - 1.0, select(k2, t - 1.5, -1.0)))
+    )
     den = select(small, 1.0, select(k0, 2.0 + t, select(k1, t + 1.0, select(k2, 1.0 + 1.5 * t, t))))
     r = select(small, t, num / den)
     hi = select(k0, _ATAN_HI[0], select(k1, _ATAN_HI[1], select(k2, _ATAN_HI[2], _ATAN_HI[3])))
@@ -212,12 +254,25 @@ def _atan2_arrays(y, x):
     """:func:`atan2`'s branches as selections on arrays (the same operations per element)."""
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         ay, ax = np.abs(y), np.abs(x)
-        t = np.where(ax == 0.0, np.where(ay > 0.0, np.inf, 0.0), np.where((ay == np.inf) & (ax == np.inf), 1.0, ay / ax))
+        t = np.where(
+            ax == 0.0,
+            np.where(ay > 0.0, np.inf, 0.0),
+            np.where((ay == np.inf) & (ax == np.inf), 1.0, ay / ax),
+        )
         small = t < 0.4375
         k = np.where(t < 0.6875, 0, np.where(t < 1.1875, 1, np.where(t < 2.4375, 2, 3)))
         r = np.where(
-            small, t,
-            np.where(k == 0, (2.0 * t - 1.0) / (2.0 + t), np.where(k == 1, (t - 1.0) / (t + 1.0), np.where(k == 2, (t - 1.5) / (1.0 + 1.5 * t), -1.0 / t))),
+            small,
+            t,
+            np.where(
+                k == 0,
+                (2.0 * t - 1.0) / (2.0 + t),
+                np.where(
+                    k == 1,
+                    (t - 1.0) / (t + 1.0),
+                    np.where(k == 2, (t - 1.5) / (1.0 + 1.5 * t), -1.0 / t),
+                ),
+            ),
         )
         poly = atan_kernel(r)
         hi, lo = np.asarray(_ATAN_HI)[k], np.asarray(_ATAN_LO)[k]
@@ -236,10 +291,22 @@ _PIO2_1, _PIO2_1T = 1.57079632673412561417e00, 6.07710050650619224932e-11
 _PIO2_2, _PIO2_2T = 6.07710050630396597660e-11, 2.02226624879595063154e-21
 _PIO2_3, _PIO2_3T = 2.02226624871116645580e-21, 8.47842766036889956997e-32
 _TOINT = 6755399441055744.0  # 1.5 * 2^52: x + _TOINT - _TOINT rounds x to an integer
-_S = (-1.66666666666666324348e-01, 8.33333333332248946124e-03, -1.98412698298579493134e-04, 2.75573137070700676789e-06,
-      -2.50507602534068634195e-08, 1.58969099521155010221e-10)
-_C = (4.16666666666666019037e-02, -1.38888888888741095749e-03, 2.48015872894767294178e-05, -2.75573143513906633035e-07,
-      2.08757232129817482790e-09, -1.13596475577881948265e-11)
+_S = (
+    -1.66666666666666324348e-01,
+    8.33333333332248946124e-03,
+    -1.98412698298579493134e-04,
+    2.75573137070700676789e-06,
+    -2.50507602534068634195e-08,
+    1.58969099521155010221e-10,
+)
+_C = (
+    4.16666666666666019037e-02,
+    -1.38888888888741095749e-03,
+    2.48015872894767294178e-05,
+    -2.75573143513906633035e-07,
+    2.08757232129817482790e-09,
+    -1.13596475577881948265e-11,
+)
 SINCOS_LIMIT = 1647099.0  # |x| < 2^20 pi/2: the reduction's n fits 20 bits (exact products)
 _NO_REDUCTION = 0.785  # below pi/4 the reduction gives (0, x, 0.0) exactly: floats skip it
 
@@ -400,13 +467,20 @@ def quat_normalize(q):
     is NaN, so the environment's non-finite check ends the episode instead of carrying on
     with a zero "rotation"."""
     w, x, y, z = q
-    if isinstance(w, float) and isinstance(x, float) and isinstance(y, float) and isinstance(z, float):
+    if (
+        isinstance(w, float)
+        and isinstance(x, float)
+        and isinstance(y, float)
+        and isinstance(z, float)
+    ):
         n2 = w * w + x * x + y * y + z * z
         if not 0.0 < n2 < math.inf:  # overflowed or collapsed: no rotation left to project
             return (math.nan, math.nan, math.nan, math.nan)
         inv = 1.0 / math.sqrt(n2)
     else:
-        with np.errstate(over="ignore"):  # (an overflow is handled: NaN, as on floats, not a warning)
+        with np.errstate(
+            over="ignore"
+        ):  # (an overflow is handled: NaN, as on floats, not a warning)
             n2 = w * w + x * x + y * y + z * z
         inv = _inverse_norm_arrays(n2)
     return (w * inv, x * inv, y * inv, z * inv)
@@ -484,9 +558,13 @@ def quat_from_two_vectors(a, b):
 @jitable  # (registered so that compiled code can name it; it only ever runs on arrays)
 def _two_vectors_arrays(a, b, dot):
     bx, by, bz = b
-    with np.errstate(divide="ignore", invalid="ignore"):  # each branch is kept only where it is valid
+    with np.errstate(
+        divide="ignore", invalid="ignore"
+    ):  # each branch is kept only where it is valid
         direct = _short_turn(a, b, dot)
-        flipped = quat_multiply((0.0 * dot,) + _normal_axis(b), _short_turn(a, (-bx, -by, -bz), -dot))
+        flipped = quat_multiply(
+            (0.0 * dot,) + _normal_axis(b), _short_turn(a, (-bx, -by, -bz), -dot)
+        )
     return tuple(np.where(dot >= 0.0, d, f) for d, f in zip(direct, flipped))
 
 

@@ -42,7 +42,11 @@ def scenes_dir():
 def list_scenes() -> list[str]:
     """The names of the scenes in :func:`scenes_dir`, sorted (empty if it holds none)."""
     d = scenes_dir()
-    return sorted(p.name[: -len(".yml")] for p in d.iterdir() if p.name.endswith(".yml")) if d.is_dir() else []
+    return (
+        sorted(p.name[: -len(".yml")] for p in d.iterdir() if p.name.endswith(".yml"))
+        if d.is_dir()
+        else []
+    )
 
 
 def no_scenes_found() -> str:
@@ -65,7 +69,9 @@ def load_scene(name_or_path: str) -> Scene:
     if not path.is_file():
         known = list_scenes()
         hint = f"known scenes: {', '.join(known)}" if known else no_scenes_found()
-        raise ValueError(f"scene {name_or_path!r} not found (looked for {path}){did_you_mean(name_or_path, known)} ({hint})")
+        raise ValueError(
+            f"scene {name_or_path!r} not found (looked for {path}){did_you_mean(name_or_path, known)} ({hint})"
+        )
     data = yaml.safe_load(path.read_text())
     if not isinstance(data, dict) or "id" not in data:
         raise ValueError(f"scene file {path} must be a mapping with an 'id' key")
@@ -77,4 +83,9 @@ def load_scene(name_or_path: str) -> Scene:
         raise ValueError(f"scene file {path}: 'kwargs' must be a mapping")
     # YAML lists become tuples: the env arguments are fixed-size vectors.
     kwargs = {k: tuple(v) if isinstance(v, list) else v for k, v in kwargs.items()}
-    return Scene(name=path.name.rsplit(".", 1)[0], env_id=data["id"], kwargs=kwargs, description=data.get("description", ""))
+    return Scene(
+        name=path.name.rsplit(".", 1)[0],
+        env_id=data["id"],
+        kwargs=kwargs,
+        description=data.get("description", ""),
+    )

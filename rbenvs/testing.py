@@ -19,8 +19,15 @@ from .verify.simulator import CallableSimulator, Problem, Simulator, parse_simul
 __all__ = ["verify", "Check", "Problem", "Simulator", "CallableSimulator", "failures"]
 
 
-def verify(simulator, systems=("free_body", "heavy_top", "tippe_top"), quick=True, seed=0, dt=1e-3, order=1,
-           show_progress=False) -> list[Check]:
+def verify(
+    simulator,
+    systems=("free_body", "heavy_top", "tippe_top"),
+    quick=True,
+    seed=0,
+    dt=1e-3,
+    order=1,
+    show_progress=False,
+) -> list[Check]:
     """Every check of ``systems`` on ``simulator``: a :class:`Simulator`, a ``--simulator``
     spec string (``"mujoco:integrator=RK4"``, ``"module:function,dt=1e-3"``), or a step function
     ``step(problem, y, u, dt) -> y`` run at ``dt`` with the declared ``order`` (which scales the
@@ -35,7 +42,9 @@ def verify(simulator, systems=("free_body", "heavy_top", "tippe_top"), quick=Tru
         sims = [simulator]
     else:
         sims = [CallableSimulator(simulator, dt=dt, order=order)]
-    return run_checks(systems=tuple(systems), quick=quick, seed=seed, show_progress=show_progress, simulators=sims)
+    return run_checks(
+        systems=tuple(systems), quick=quick, seed=seed, show_progress=show_progress, simulators=sims
+    )
 
 
 def failures(rows) -> list[str]:

@@ -4,7 +4,9 @@ from pathlib import Path
 # The test run's compiled kernels in a cache of its own (rbenvs.kernel_cache), shared by the
 # xdist workers (each loads what another compiled) and kept between runs of this checkout; a
 # clean clone starts it empty. Set before rbenvs compiles anything; RBENVS_CACHE_DIR overrides.
-os.environ.setdefault("RBENVS_CACHE_DIR", str(Path(__file__).resolve().parent.parent / ".rbenvs-cache"))
+os.environ.setdefault(
+    "RBENVS_CACHE_DIR", str(Path(__file__).resolve().parent.parent / ".rbenvs-cache")
+)
 
 from dataclasses import dataclass
 
@@ -48,7 +50,11 @@ def all_variants():
 # ---------------------------------------------------------------- vector env = single envs
 # Shared by tests/test_vector.py and tests/test_compiled.py.
 FREE, LAGRANGE, TIPPE = "rbenvs/FreeRigidBody-v0", "rbenvs/LagrangeTop-v0", "rbenvs/TippeTop-v0"
-VECTOR_CLASS = {FREE: vector.FreeRigidBodyVectorEnv, LAGRANGE: vector.LagrangeTopVectorEnv, TIPPE: vector.TippeTopVectorEnv}
+VECTOR_CLASS = {
+    FREE: vector.FreeRigidBodyVectorEnv,
+    LAGRANGE: vector.LagrangeTopVectorEnv,
+    TIPPE: vector.TippeTopVectorEnv,
+}
 # the tippe top's read-outs that depend on the last control period, not on the state alone
 TIPPE_CONTROL_READOUTS = {"normal_force", "internal_step"}
 
@@ -91,7 +97,9 @@ def check_info_row(vinfo, i, single_info, skip=()):
         if key == "terminal_reason":
             assert vinfo["_terminal_reason"][i] and vinfo["terminal_reason"][i] == value, (key, i)
             continue
-        if key == "error_estimate" and value is None:  # (not estimated: the vector env's NaN, its mask false)
+        if (
+            key == "error_estimate" and value is None
+        ):  # (not estimated: the vector env's NaN, its mask false)
             assert np.isnan(vinfo[key][i]) and not vinfo["_" + key][i], (key, i, vinfo[key][i])
             continue
         if isinstance(value, dict):  # a nested dict (the drawn "params"): gymnasium's nested masks
@@ -108,7 +116,14 @@ def lockstep(env_id, n, seed, steps, mode, max_steps, kwargs, action_scale=2.0, 
     """Run a vector env and ``n`` single envs on the float path side by side; assert sub-env ``i``
     equals single env ``i`` (seeded ``seed + i``) bit for bit. Returns (#terminations, #truncations, infos).
     ``vector_kwargs``: arguments of the vector env alone (``compiled``)."""
-    venv = make_vec(env_id, n, max_episode_steps=max_steps, autoreset_mode=mode, **kwargs, **(vector_kwargs or {}))
+    venv = make_vec(
+        env_id,
+        n,
+        max_episode_steps=max_steps,
+        autoreset_mode=mode,
+        **kwargs,
+        **(vector_kwargs or {}),
+    )
     # the reference is the float path (a compiled single env would share a kernel bug)
     singles = make_singles(env_id, n, max_episode_steps=max_steps, compiled=False, **kwargs)
     reset_skip = ()  # every info key, the tippe top's control-dependent read-outs included
@@ -126,17 +141,32 @@ def lockstep(env_id, n, seed, steps, mode, max_steps, kwargs, action_scale=2.0, 
         a = random_actions(rng, venv.action_space, action_scale)
         obs, reward, terminated, truncated, info = venv.step(a)
         infos.append(info)
-        assert obs.dtype == np.float32 and reward.dtype == np.float64 and terminated.dtype == bool and truncated.dtype == bool
-        assert obs.shape == venv.observation_space.shape and reward.shape == terminated.shape == truncated.shape == (n,)
+        assert (
+            obs.dtype == np.float32
+            and reward.dtype == np.float64
+            and terminated.dtype == bool
+            and truncated.dtype == bool
+        )
+        assert (
+            obs.shape == venv.observation_space.shape
+            and reward.shape == terminated.shape == truncated.shape == (n,)
+        )
         for i, env in enumerate(singles):
             if mode == "NextStep" and prev_done[i]:
                 # the step after a done resets the sub-env: first obs, reward 0, no flags
                 o, inf = env.reset()
-                assert same(obs[i], o) and reward[i] == 0.0 and not terminated[i] and not truncated[i], (t, i)
+                assert (
+                    same(obs[i], o) and reward[i] == 0.0 and not terminated[i] and not truncated[i]
+                ), (t, i)
                 check_info_row(info, i, inf, skip=reset_skip)
                 continue
             o, r, te, tr, inf = env.step(a[i])
-            assert reward[i] == r and terminated[i] == te and truncated[i] == tr, (t, i, reward[i], r)
+            assert reward[i] == r and terminated[i] == te and truncated[i] == tr, (
+                t,
+                i,
+                reward[i],
+                r,
+            )
             n_term += te
             n_trunc += tr
             if mode == "SameStep" and (te or tr):

@@ -25,7 +25,11 @@ def test_the_vector_env_reads_no_private_attribute_of_another_object():
     offences = []
     for path, tree in _trees(PACKAGE / "vector"):
         for node in ast.walk(tree):
-            if isinstance(node, ast.Attribute) and node.attr.startswith("_") and not node.attr.startswith("__"):
+            if (
+                isinstance(node, ast.Attribute)
+                and node.attr.startswith("_")
+                and not node.attr.startswith("__")
+            ):
                 if not (isinstance(node.value, ast.Name) and node.value.id == "self"):
                     offences.append(f"{path.relative_to(ROOT)}:{node.lineno} .{node.attr}")
     assert not offences, offences
@@ -36,7 +40,11 @@ def test_exec_appears_in_one_module_only():
     users = set()
     for path, tree in _trees(PACKAGE):
         for node in ast.walk(tree):
-            if isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and node.func.id in ("exec", "eval"):
+            if (
+                isinstance(node, ast.Call)
+                and isinstance(node.func, ast.Name)
+                and node.func.id in ("exec", "eval")
+            ):
                 users.add(path.relative_to(ROOT).as_posix())
     assert users == {"rbenvs/core/codegen.py"}, users
 
@@ -54,7 +62,11 @@ def _module_imports() -> dict:
         deps = set()
         for node in ast.walk(ast.parse(path.read_text())):
             if isinstance(node, ast.ImportFrom):
-                base = package.split(".")[: len(package.split(".")) - node.level + 1] if node.level else []
+                base = (
+                    package.split(".")[: len(package.split(".")) - node.level + 1]
+                    if node.level
+                    else []
+                )
                 target = ".".join(base + ([node.module] if node.module else []))
                 candidates = [target] + [f"{target}.{alias.name}" for alias in node.names]
             elif isinstance(node, ast.Import):
@@ -74,7 +86,7 @@ def test_no_import_cycle_in_rbenvs():
 
     def visit(name, path):
         if name in path:
-            cycles.append(path[path.index(name):] + [name])
+            cycles.append(path[path.index(name) :] + [name])
             return
         if name in done:
             return
@@ -90,7 +102,13 @@ def test_no_import_cycle_in_rbenvs():
 def test_nothing_in_rbenvs_imports_the_agents():
     for path, tree in _trees(PACKAGE):
         for node in ast.walk(tree):
-            names = [a.name for a in node.names] if isinstance(node, ast.Import) else [node.module or ""] if isinstance(node, ast.ImportFrom) else []
+            names = (
+                [a.name for a in node.names]
+                if isinstance(node, ast.Import)
+                else [node.module or ""]
+                if isinstance(node, ast.ImportFrom)
+                else []
+            )
             assert not any(n.split(".")[0] == "rbenvs_agents" for n in names), (path, node.lineno)
 
 
@@ -98,7 +116,15 @@ def test_bench_and_verify_use_each_others_public_names_only():
     for folder, other in (("bench", "verify"), ("verify", "bench")):
         for path, tree in _trees(PACKAGE / folder):
             for node in ast.walk(tree):
-                if isinstance(node, ast.ImportFrom) and node.module and (other in node.module.split(".") or node.level and node.module.split(".")[0] in (folder, other)):
+                if (
+                    isinstance(node, ast.ImportFrom)
+                    and node.module
+                    and (
+                        other in node.module.split(".")
+                        or node.level
+                        and node.module.split(".")[0] in (folder, other)
+                    )
+                ):
                     private = [a.name for a in node.names if a.name.startswith("_")]
                     assert not private, (path, node.lineno, private)
 
@@ -128,12 +154,24 @@ def test_an_integrator_without_a_region_cannot_run():
         FreeRigidBodyEnv(integrator=_NoRegion())
 
 
-@pytest.mark.parametrize("env", [FreeRigidBodyEnv(), FreeRigidBodyEnv(task="reorient"), LagrangeTopEnv(task="precess", attitude=True), TippeTopEnv(free_flight=True)],
-                         ids=["free", "reorient", "precess", "tippe"])
+@pytest.mark.parametrize(
+    "env",
+    [
+        FreeRigidBodyEnv(),
+        FreeRigidBodyEnv(task="reorient"),
+        LagrangeTopEnv(task="precess", attitude=True),
+        TippeTopEnv(free_flight=True),
+    ],
+    ids=["free", "reorient", "precess", "tippe"],
+)
 def test_every_system_and_task_provides_its_contract(env):
     require_parts(env.system, System, "system")
     require_parts(env.task, Task, "task")
-    assert len(env.task.observation_names) == len(env.task.observation_units) == env.observation_space.shape[0]
+    assert (
+        len(env.task.observation_names)
+        == len(env.task.observation_units)
+        == env.observation_space.shape[0]
+    )
     assert env.task.metric_names[-1] == "is_success"
 
 
@@ -145,7 +183,9 @@ def test_require_parts_names_what_is_missing():
         require_parts(Half(), System, "system")
 
 
-def test_a_registered_scheme_is_in_every_env_it_supports_and_verify_reports_it_unverified(monkeypatch):
+def test_a_registered_scheme_is_in_every_env_it_supports_and_verify_reports_it_unverified(
+    monkeypatch,
+):
     """A new integrator registered once appears in the choices of every env whose system meets
     its needs, runs guarded by its own region, and `rbenvs verify` reports it as unverified
     (a FAIL row) until it has settings, rather than skipping it."""
@@ -158,17 +198,33 @@ def test_a_registered_scheme_is_in_every_env_it_supports_and_verify_reports_it_u
         name = "rk4_copy"
 
     monkeypatch.setitem(integrators.INTEGRATORS, "rk4_copy", RK4Copy)
-    assert all("rk4_copy" in cls.integrators for cls in (FreeRigidBodyEnv, LagrangeTopEnv, TippeTopEnv))
-    env = FreeRigidBodyEnv(integrator="rk4_copy", spin_rate=30.0, max_angular_velocity=200.0, task="detumble")
+    assert all(
+        "rk4_copy" in cls.integrators for cls in (FreeRigidBodyEnv, LagrangeTopEnv, TippeTopEnv)
+    )
+    env = FreeRigidBodyEnv(
+        integrator="rk4_copy", spin_rate=30.0, max_angular_velocity=200.0, task="detumble"
+    )
     assert env.step_rule.active and env.step_rule.params[1] == 1.0  # the region RK4Copy declares
-    rows = verify.run_checks(systems=("free_body", "tippe_top"), integrators=["rk4_copy"], quick=True, show_progress=False)
-    assert [(r.system, r.passed) for r in rows if "verification settings" in r.check] == [("free_body", False), ("tippe_top", False)]
+    rows = verify.run_checks(
+        systems=("free_body", "tippe_top"),
+        integrators=["rk4_copy"],
+        quick=True,
+        show_progress=False,
+    )
+    assert [(r.system, r.passed) for r in rows if "verification settings" in r.check] == [
+        ("free_body", False),
+        ("tippe_top", False),
+    ]
 
 
 def test_vector_classes_come_from_the_registration():
     from rbenvs import vector
 
-    for env_id, cls in (("rbenvs/FreeRigidBody-v0", FreeRigidBodyEnv), ("rbenvs/LagrangeTop-v0", LagrangeTopEnv), ("rbenvs/TippeTop-v0", TippeTopEnv)):
+    for env_id, cls in (
+        ("rbenvs/FreeRigidBody-v0", FreeRigidBodyEnv),
+        ("rbenvs/LagrangeTop-v0", LagrangeTopEnv),
+        ("rbenvs/TippeTop-v0", TippeTopEnv),
+    ):
         vcls = vector.vector_class(cls)
         assert vcls.env_class is cls and vcls.__name__ == cls.__name__.replace("Env", "VectorEnv")
         assert getattr(vector, vcls.__name__) is vcls

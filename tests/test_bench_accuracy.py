@@ -65,7 +65,13 @@ def test_splitting_keeps_momentum_norm_and_bounds_energy_while_rk4_drifts():
 
 def test_fit_order_uses_only_the_asymptotic_range():
     hs = [0.1, 0.05, 0.025, 0.0125, 0.00625]
-    errors = [0.5, 1e-4 * 16, 1e-4, 1e-4 / 16, 1e-15]  # one point above the ceiling, one at the floor
+    errors = [
+        0.5,
+        1e-4 * 16,
+        1e-4,
+        1e-4 / 16,
+        1e-15,
+    ]  # one point above the ceiling, one at the floor
     assert accuracy.fit_order(hs, errors, floor=1e-12) == pytest.approx(4.0)
     assert accuracy.fit_order(hs[:3], errors[:3], floor=1e-12) is None  # two usable points
 
@@ -74,7 +80,21 @@ def test_fit_order_uses_only_the_asymptotic_range():
 def quick_run(tmp_path_factory):
     out = tmp_path_factory.mktemp("accuracy")
     json_path, png_path = out / "accuracy.json", out / "accuracy.png"
-    rc = cli_main(["bench", "accuracy", "--quick", "--system", "free_body", "--no-mujoco", "--no-progress", "--json", str(json_path), "--plot", str(png_path)])
+    rc = cli_main(
+        [
+            "bench",
+            "accuracy",
+            "--quick",
+            "--system",
+            "free_body",
+            "--no-mujoco",
+            "--no-progress",
+            "--json",
+            str(json_path),
+            "--plot",
+            str(png_path),
+        ]
+    )
     return rc, json_path, png_path
 
 
@@ -83,16 +103,41 @@ def test_json_has_the_documented_keys(quick_run):
     assert rc == 0
     data = json.loads(json_path.read_text())
     assert set(data) >= {"cases", "convergence", "drift", "settings"}
-    assert set(data["cases"]["free_body"]) >= {"label", "horizon", "states", "drift_h", "reference", "reference_check"}
-    names = {c["integrator"] for c in data["convergence"] if not c["integrator"].startswith("mujoco ")}  # (mujoco: when installed)
+    assert set(data["cases"]["free_body"]) >= {
+        "label",
+        "horizon",
+        "states",
+        "drift_h",
+        "reference",
+        "reference_check",
+    }
+    names = {
+        c["integrator"] for c in data["convergence"] if not c["integrator"].startswith("mujoco ")
+    }  # (mujoco: when installed)
     assert names == {"euler", "rk4", "splitting", "exact", "dop853"}
     for c in data["convergence"]:
         assert set(c) >= {"case", "integrator", "declared_order", "order", "points"}
         for p in c["points"]:
-            assert set(p) >= {"h", "steps", "error", "seconds_per_step", "rhs_per_step", "seconds_per_simulated_second"}
+            assert set(p) >= {
+                "h",
+                "steps",
+                "error",
+                "seconds_per_step",
+                "rhs_per_step",
+                "seconds_per_simulated_second",
+            }
             assert p["seconds_per_step"] > 0
     for d in data["drift"]:
-        assert set(d) >= {"case", "integrator", "h", "short_steps", "long_steps", "drift_short", "drift_long", "diverged_at"}
+        assert set(d) >= {
+            "case",
+            "integrator",
+            "h",
+            "short_steps",
+            "long_steps",
+            "drift_short",
+            "drift_long",
+            "diverged_at",
+        }
     rk4 = next(c for c in data["convergence"] if c["integrator"] == "rk4")
     assert rk4["points"][0]["rhs_per_step"] == 4
 
@@ -110,7 +155,11 @@ def test_scene_errors_follow_the_order_and_pick_a_scheme_that_meets_the_target()
     for a, b in zip(euler, euler[1:]):
         assert b["error"] / a["error"] == pytest.approx(0.5, abs=0.1)
     rec = row["recommended"]
-    chosen = next(c for c in row["candidates"] if (c["integrator"], c["substeps"]) == (rec["integrator"], rec["substeps"]))
+    chosen = next(
+        c
+        for c in row["candidates"]
+        if (c["integrator"], c["substeps"]) == (rec["integrator"], rec["substeps"])
+    )
     assert chosen["error"] <= accuracy.TARGET
 
 
@@ -118,8 +167,20 @@ def test_cheapest_picks_the_least_cost_point_within_the_tolerance():
     from rbenvs.bench.accuracy import cheapest
 
     rows = [
-        {"integrator": "a", "points": [{"error": 1e-2, "seconds_per_simulated_second": 1.0}, {"error": 1e-7, "seconds_per_simulated_second": 4.0}]},
-        {"integrator": "b", "points": [{"error": 1e-7, "seconds_per_simulated_second": 3.0}, {"error": 1e-10, "seconds_per_simulated_second": 9.0}]},
+        {
+            "integrator": "a",
+            "points": [
+                {"error": 1e-2, "seconds_per_simulated_second": 1.0},
+                {"error": 1e-7, "seconds_per_simulated_second": 4.0},
+            ],
+        },
+        {
+            "integrator": "b",
+            "points": [
+                {"error": 1e-7, "seconds_per_simulated_second": 3.0},
+                {"error": 1e-10, "seconds_per_simulated_second": 9.0},
+            ],
+        },
     ]
     assert cheapest(rows, 1e-1) == ("a", 1.0)
     assert cheapest(rows, 1e-6) == ("b", 3.0)
@@ -150,7 +211,9 @@ def test_a_block_zero_in_start_and_reference_is_no_error_unless_the_state_leaves
     assert _block_error(system, "tippe_frictionless", moved, ref, y0) == math.inf
     spun = [list(c) for c in y0]
     spun[wa + 2] = [150.0 * (1 + 1e-9)]
-    assert _block_error(system, "tippe_frictionless", spun, ref, y0) == pytest.approx(1e-9, rel=1e-6)
+    assert _block_error(system, "tippe_frictionless", spun, ref, y0) == pytest.approx(
+        1e-9, rel=1e-6
+    )
 
 
 def test_the_roundoff_table_runs_from_the_cli(monkeypatch, capsys, tmp_path):
@@ -182,7 +245,10 @@ def test_the_floor_table_runs_from_the_cli(monkeypatch, capsys, tmp_path):
     path = tmp_path / "floor.json"
     assert cli_main(["bench", "accuracy", "--floor", "--no-progress", "--json", str(path)]) == 0
     out = capsys.readouterr().out
-    assert "tolerance_check near the separatrix" in out and "within the tolerance on every period returned: 1 of 1" in out
+    assert (
+        "tolerance_check near the separatrix" in out
+        and "within the tolerance on every period returned: 1 of 1" in out
+    )
     rows = json.loads(path.read_text())["rows"]
     assert len(rows) == 1
     for r in rows:

@@ -70,12 +70,17 @@ def test_default_env_meets_issue_18_accuracy_line(ref):
 def test_mujoco_rows_cover_both_cones_and_report_what_they_measure(ref):
     pytest.importorskip("mujoco")
     rows = ta.mujoco_rows("default", ref["t90_same"], quick=True)
-    assert {r["scheme"] for r in rows} == {f"mujoco {i} {c}" for i in ("implicitfast", "RK4") for c in ta.CONES}
+    assert {r["scheme"] for r in rows} == {
+        f"mujoco {i} {c}" for i in ("implicitfast", "RK4") for c in ta.CONES
+    }
     for r in rows:
         assert r["cost"] > 0.0 and math.isfinite(r["jellett"]) and r["steps"] == 10
         if r["ended"] is None:
             assert r["t90_error"] == pytest.approx(abs(r["t90"] - ref["t90_same"]))
-    result = {"starts": {"default": ref}, "rows": rows + [ta._rbenvs_row("default", ref["t90_same"], "rk4", "rk4", "accuracy")]}
+    result = {
+        "starts": {"default": ref},
+        "rows": rows + [ta._rbenvs_row("default", ref["t90_same"], "rk4", "rk4", "accuracy")],
+    }
     out = io.StringIO()
     ta.print_report(result, file=out)
     assert "rbenvs / MuJoCo =" in out.getvalue()  # the issue's comparison, measured in the same run

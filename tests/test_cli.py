@@ -56,8 +56,11 @@ def test_unknown_scene_is_a_clear_error(capsys):
 
 
 def test_a_misspelled_command_or_choice_is_answered_with_the_closest_one(capsys):
-    for argv, said in ((["verfy"], "invalid choice: 'verfy' (choose from 'list', "), (["verify", "--system", "heavy"], "invalid choice: 'heavy'"),
-                       (["warmup", "--system", "tipe_top"], "invalid choice: 'tipe_top'")):
+    for argv, said in (
+        (["verfy"], "invalid choice: 'verfy' (choose from 'list', "),
+        (["verify", "--system", "heavy"], "invalid choice: 'heavy'"),
+        (["warmup", "--system", "tipe_top"], "invalid choice: 'tipe_top'"),
+    ):
         with pytest.raises(SystemExit) as exit_:
             main(argv)
         err = capsys.readouterr().err
@@ -69,7 +72,10 @@ def test_a_misspelled_command_or_choice_is_answered_with_the_closest_one(capsys)
     # the benches' own parsers and the agents' commands suggest too
     from rbenvs_agents.cli import train_main
 
-    for argv, said in ((["bench", "startup", "--system", "heavy_tp"], "did you mean 'heavy_top'?"), (["bench", "render", "--help"], None)):
+    for argv, said in (
+        (["bench", "startup", "--system", "heavy_tp"], "did you mean 'heavy_top'?"),
+        (["bench", "render", "--help"], None),
+    ):
         with pytest.raises(SystemExit) as exit_:
             main(argv)
         err = capsys.readouterr().err
@@ -80,7 +86,9 @@ def test_a_misspelled_command_or_choice_is_answered_with_the_closest_one(capsys)
 
 
 def test_python_dash_m():
-    out = subprocess.run([sys.executable, "-m", "rbenvs", "list"], capture_output=True, text=True, check=True).stdout
+    out = subprocess.run(
+        [sys.executable, "-m", "rbenvs", "list"], capture_output=True, text=True, check=True
+    ).stdout
     assert "FreeRigidBody-v0" in out
 
 
@@ -96,7 +104,9 @@ def test_core_runs_without_torch_sb3_yaml():
         "env.step(env.action_space.sample())\n"
         "print('ok')\n"
     )
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    out = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, check=True
+    ).stdout
     assert out.strip() == "ok"
 
 
@@ -112,7 +122,9 @@ def test_verify_shows_progress_on_the_core_install_without_tqdm():
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert out.returncode == 0, out.stderr[-2000:]
     lines = out.stderr.splitlines()
-    assert lines[0].startswith("verify: 0/") and re.fullmatch(r"verify: (\d+)/\1 \(100%\) \d+ s", lines[-1]), lines
+    assert lines[0].startswith("verify: 0/") and re.fullmatch(
+        r"verify: (\d+)/\1 \(100%\) \d+ s", lines[-1]
+    ), lines
     assert "passed, 0 failed" in out.stdout
 
 
@@ -172,7 +184,12 @@ def test_progress_without_tqdm_is_text_on_stderr(capsys, monkeypatch):
     bar.update(3)
     bar.close()
     lines = capsys.readouterr().err.splitlines()
-    assert [line.rsplit(" ", 2)[0] for line in lines] == ["work: 0/4 (0%)", "work: 1/4 (25%)", "work: 4/4 (100%)", "work: 4/4 (100%)"], lines
+    assert [line.rsplit(" ", 2)[0] for line in lines] == [
+        "work: 0/4 (0%)",
+        "work: 1/4 (25%)",
+        "work: 4/4 (100%)",
+        "work: 4/4 (100%)",
+    ], lines
 
 
 def test_long_commands_show_progress_unless_asked_not_to(capsys):
@@ -211,20 +228,33 @@ def test_headline_outside_the_repository_reads_the_checkout_or_says_where_the_re
     exe = [sys.executable, "-m", "rbenvs", "headline"]
     out = subprocess.run(exe, cwd=tmp_path, capture_output=True, text=True)
     assert out.returncode == 0 and out.stdout.startswith("- **Verification**"), out.stderr
-    out = subprocess.run([*exe, "--root", str(tmp_path)], cwd=tmp_path, capture_output=True, text=True)
-    assert out.returncode == 2 and "docs/verify.json is missing" in out.stderr and "--root" in out.stderr
+    out = subprocess.run(
+        [*exe, "--root", str(tmp_path)], cwd=tmp_path, capture_output=True, text=True
+    )
+    assert (
+        out.returncode == 2
+        and "docs/verify.json is missing" in out.stderr
+        and "--root" in out.stderr
+    )
 
 
 def test_bench_costs_sizes_folders_and_reads_pytests_summary(tmp_path, capsys):
     from rbenvs.bench.costs import _minutes, _summary, folder_bytes, main
 
-    assert (_minutes(42.4), _minutes(119.6), _minutes(1167.2)) == ("42 s", "2 min 00 s", "19 min 27 s")
+    assert (_minutes(42.4), _minutes(119.6), _minutes(1167.2)) == (
+        "42 s",
+        "2 min 00 s",
+        "19 min 27 s",
+    )
 
     (tmp_path / "a").write_bytes(b"x" * 1000)
     (tmp_path / "sub").mkdir()
     (tmp_path / "sub" / "b").write_bytes(b"y" * 234)
     assert folder_bytes(tmp_path) == 1234
-    assert _summary("....\n==== 4829 passed, 1 skipped, 330 warnings in 1465.27s (0:24:25) ====\n") == "4829 passed, 1 skipped, 330 warnings"
+    assert (
+        _summary("....\n==== 4829 passed, 1 skipped, 330 warnings in 1465.27s (0:24:25) ====\n")
+        == "4829 passed, 1 skipped, 330 warnings"
+    )
     with pytest.raises(SystemExit) as exc:  # the suite needs the repository's tests/
         main(["--root", str(tmp_path)])
     assert exc.value.code == 2 and "no tests/ folder" in capsys.readouterr().err
@@ -234,7 +264,11 @@ def test_bench_render_prints_a_row_per_system_beside_the_peer(capsys):
     import rbenvs
 
     assert main(["bench", "render", "--frames", "2", "--no-progress"]) == 0
-    rows = [line.split("|")[1:-1] for line in capsys.readouterr().out.splitlines() if line.startswith("| `")]
+    rows = [
+        line.split("|")[1:-1]
+        for line in capsys.readouterr().out.splitlines()
+        if line.startswith("| `")
+    ]
     assert [r[0].strip(" `") for r in rows[:3]] == list(rbenvs.ENVIRONMENTS)
     for r in rows:
         assert r[1].strip() in ("480x480", "500x500") and float(r[2]) > 0.0 and float(r[3]) > 0.0

@@ -12,14 +12,23 @@ import numpy as np
 import pytest
 
 from rbenvs.core import codegen
-from rbenvs.dynamics import FreeBody, FreeBodyParams, HeavyTop, HeavyTopParams, TippeTop, TippeTopParams
+from rbenvs.dynamics import (
+    FreeBody,
+    FreeBodyParams,
+    HeavyTop,
+    HeavyTopParams,
+    TippeTop,
+    TippeTopParams,
+)
 from rbenvs.integrators import RK4, ButcherTableau, Euler, ExplicitRungeKutta, get_integrator
 from rbenvs.oracles import exact_solution
 
 
 # ----------------------------------------------------------------- the generator
 def test_generated_code_shows_its_source_in_tracebacks():
-    ns = codegen.generate("def f(x):\n    y = x + 1\n    return 1 / (y - y)\n", "test zero division")
+    ns = codegen.generate(
+        "def f(x):\n    y = x + 1\n    return 1 / (y - y)\n", "test zero division"
+    )
     with pytest.raises(ZeroDivisionError) as err:
         ns["f"](2.0)
     text = "".join(traceback.format_exception(err.value))
@@ -32,7 +41,9 @@ def test_generated_code_is_readable_with_inspect_and_survives_checkcache():
     second = codegen.generate("def f(x):\n    return x * 4\n", "same label")["f"]
     linecache.checkcache()
     assert inspect.getsourcefile(first) != inspect.getsourcefile(second)
-    assert "return x * 3" in inspect.getsource(first) and "return x * 4" in inspect.getsource(second)
+    assert "return x * 3" in inspect.getsource(first) and "return x * 4" in inspect.getsource(
+        second
+    )
     step = RK4().bind(FreeBody(FreeBodyParams((2.0, 1.5, 1.0))), 3)
     assert "h_sum = h / 6.0" in inspect.getsource(step)
 
@@ -78,7 +89,9 @@ def _systems():
     yield tippe, tippe.state((0.0, 0.0), q, (3.0, -2.0, 150.0)), (0.5, -0.2, 0.3, 0.0, 0.0, 0.0)
 
 
-@pytest.mark.parametrize("scheme,reference", [(Euler(), euler_reference), (RK4(), rk4_reference)], ids=["euler", "rk4"])
+@pytest.mark.parametrize(
+    "scheme,reference", [(Euler(), euler_reference), (RK4(), rk4_reference)], ids=["euler", "rk4"]
+)
 def test_tableau_steps_equal_the_hand_written_formulas_bit_for_bit(scheme, reference):
     """Generated from the tableaus, Euler's and RK4's steps make the hand-written formulas'
     operations in their order: equal with ==, on floats and arrays, in every flavour (step,
@@ -87,7 +100,9 @@ def test_tableau_steps_equal_the_hand_written_formulas_bit_for_bit(scheme, refer
         want = system.normalize(reference(system.rhs, y, u, 1e-3))
         assert scheme.step(system, y, u, 1e-3) == want
         bound = scheme.bind(system, system.dim)(y, u, 1e-3)
-        assert bound == (want if getattr(system, "needs_projection", True) else reference(system.rhs, y, u, 1e-3))
+        assert bound == (
+            want if getattr(system, "needs_projection", True) else reference(system.rhs, y, u, 1e-3)
+        )
         y2 = tuple(2.0 * c for c in y)
         want2 = system.normalize(reference(system.rhs, y2, u, 1e-3))
         batch = tuple(np.array([c, c2]) for c, c2 in zip(y, y2))
@@ -98,7 +113,11 @@ def test_tableau_steps_equal_the_hand_written_formulas_bit_for_bit(scheme, refer
         if pure is not None:
             step, params = pure
             # (a system that projects, projects in the pure step too, as in the bound one)
-            assert step(params, y, u, 1e-3) == (want if getattr(system, "needs_projection", True) else reference(system.rhs, y, u, 1e-3))
+            assert step(params, y, u, 1e-3) == (
+                want
+                if getattr(system, "needs_projection", True)
+                else reference(system.rhs, y, u, 1e-3)
+            )
 
 
 @pytest.mark.parametrize("scheme", [Euler(), RK4()], ids=["euler", "rk4"])
@@ -111,7 +130,10 @@ def test_the_compensated_step_is_the_plain_step_and_what_its_sum_rounded_away(sc
     h = 1e-3
     for system, y, u in _systems():
         zero = (0.0,) * system.dim
-        plain, comp = scheme.bind(system, system.dim), scheme.bind(system, system.dim, compensated=True)
+        plain, comp = (
+            scheme.bind(system, system.dim),
+            scheme.bind(system, system.dim, compensated=True),
+        )
         t, c = comp(y, zero, u, h)
         assert t == plain(y, u, h)
         assert any(ci != 0.0 for ci in c) and all(abs(ci) <= math.ulp(ti) for ti, ci in zip(t, c))
@@ -124,7 +146,10 @@ def test_the_compensated_step_is_the_plain_step_and_what_its_sum_rounded_away(sc
         assert all(a[1] == b for a, b in zip(tb, t)) and all(a[0] == b for a, b in zip(cb, c))
         if isinstance(scheme, Euler) and not getattr(system, "needs_projection", True):
             k = system.rhs(y, u)
-            assert all(Fraction(ti) + Fraction(ci) == Fraction(yi) + Fraction(h * ki) for yi, ki, ti, ci in zip(y, k, t, c))
+            assert all(
+                Fraction(ti) + Fraction(ci) == Fraction(yi) + Fraction(h * ki)
+                for yi, ki, ti, ci in zip(y, k, t, c)
+            )
 
 
 # ----------------------------------------------------------------- a new scheme is a tableau
@@ -133,7 +158,11 @@ class Kutta3(ExplicitRungeKutta):
     """Kutta's third-order method, defined only by its tableau here."""
 
     name = "kutta3"
-    tableau = ButcherTableau(a=((), (Fraction(1, 2),), (-1, 2)), b=(Fraction(1, 6), Fraction(2, 3), Fraction(1, 6)), c=(0, Fraction(1, 2), 1))
+    tableau = ButcherTableau(
+        a=((), (Fraction(1, 2),), (-1, 2)),
+        b=(Fraction(1, 6), Fraction(2, 3), Fraction(1, 6)),
+        c=(0, Fraction(1, 2), 1),
+    )
     order = 3
     evaluations = 3
     region = RK4.region
@@ -201,5 +230,7 @@ def test_bad_tableaus_are_refused(kwargs, match):
 def test_the_registry_schemes_are_tableaus():
     for name in ("euler", "rk4"):
         scheme = get_integrator(name)
-        assert isinstance(scheme, ExplicitRungeKutta) and scheme.tableau.stages == scheme.evaluations
+        assert (
+            isinstance(scheme, ExplicitRungeKutta) and scheme.tableau.stages == scheme.evaluations
+        )
     assert math.isclose(float(sum(RK4.tableau.b)), 1.0)

@@ -18,18 +18,42 @@ from rbenvs.envs import NumericalFailureWarning
 from conftest import FREE, LAGRANGE, TIPPE, lockstep, make_singles, make_vec, same
 
 # (numba is in the dev extra, so CI runs these; RBENVS_COMPILED=0 runs the rest on numpy)
-needs_numba = pytest.mark.skipif(not compiled.available(), reason="the compiled path needs the 'fast' extra (numba) and RBENVS_COMPILED unset")
+needs_numba = pytest.mark.skipif(
+    not compiled.available(),
+    reason="the compiled path needs the 'fast' extra (numba) and RBENVS_COMPILED unset",
+)
 
 
 # free-body settings with a compiled step (spin and detumble, euler and rk4, substeps > 1,
 # partial actuation, the observation limit) as (kwargs, max_episode_steps, steps)
 COMPILED = [
     (dict(), 5, 17),
-    (dict(integrator="euler", tolerance=None, substeps=4, max_angular_velocity=3.0, task="detumble", spin_rate=0.3), 6, 17),
+    (
+        dict(
+            integrator="euler",
+            tolerance=None,
+            substeps=4,
+            max_angular_velocity=3.0,
+            task="detumble",
+            spin_rate=0.3,
+        ),
+        6,
+        17,
+    ),
     (dict(integrator="rk4", substeps=3, actuated=(True, False, True), axis="major"), 5, 17),
-    (dict(integrator="euler", tolerance=None, substeps=4, max_angular_velocity=3.0, axis="minor"), 7, 30),
+    (
+        dict(
+            integrator="euler", tolerance=None, substeps=4, max_angular_velocity=3.0, axis="minor"
+        ),
+        7,
+        30,
+    ),
     (dict(integrator="rk4", max_angular_velocity=1.6, max_torque=5.0), 40, 40),  # observation_limit
-    (dict(integrator="euler", tolerance=None), 5, 17),  # guarded: the guard's check runs, every period fits
+    (
+        dict(integrator="euler", tolerance=None),
+        5,
+        17,
+    ),  # guarded: the guard's check runs, every period fits
     # guarded, and the flip about the intermediate axis needs subdivided periods: those run
     # on numpy, the others compiled (see test_guarded_periods_switch_paths)
     (dict(integrator="euler", tolerance=None, spin_rate=1.8, perturbation=0.5), 120, 120),
@@ -60,7 +84,9 @@ def test_single_env_generated_finish_equals_the_methods(task):
         want_info = engine.info_one(y, u, False, engine.h, metrics, failed=False)
         assert obs.dtype == np.float32 and same(obs, want_obs) and over == want_over
         assert type(reward) is float and reward == want_reward and terminated is want_terminated
-        assert list(info) == list(want_info) and all(type(info[k]) is type(want_info[k]) and info[k] == want_info[k] for k in info)
+        assert list(info) == list(want_info) and all(
+            type(info[k]) is type(want_info[k]) and info[k] == want_info[k] for k in info
+        )
         outside += over
     assert 50 < outside < 250
 
@@ -77,7 +103,9 @@ def test_compiled_settings_take_the_kernel(kwargs, max_steps, steps):
 @pytest.mark.parametrize("mode", ["NextStep", "SameStep"])
 @pytest.mark.parametrize("kwargs,max_steps,steps", COMPILED, ids=_ids(COMPILED))
 def test_compiled_sub_envs_equal_single_envs_bit_for_bit(kwargs, max_steps, steps, mode):
-    n_term, n_trunc, _ = lockstep(FREE, 3, 11, steps, mode, max_steps, kwargs, vector_kwargs=dict(compiled=True))
+    n_term, n_trunc, _ = lockstep(
+        FREE, 3, 11, steps, mode, max_steps, kwargs, vector_kwargs=dict(compiled=True)
+    )
     assert n_term + n_trunc >= 3
 
 
@@ -85,7 +113,9 @@ def test_compiled_sub_envs_equal_single_envs_bit_for_bit(kwargs, max_steps, step
 @pytest.mark.parametrize("kwargs,max_steps,steps", COMPILED, ids=_ids(COMPILED))
 def test_numpy_path_sub_envs_equal_single_envs_bit_for_bit(kwargs, max_steps, steps, mode):
     """The numpy path of the same settings (where numba is missing, this is the one that runs)."""
-    n_term, n_trunc, _ = lockstep(FREE, 3, 11, steps, mode, max_steps, kwargs, vector_kwargs=dict(compiled=False))
+    n_term, n_trunc, _ = lockstep(
+        FREE, 3, 11, steps, mode, max_steps, kwargs, vector_kwargs=dict(compiled=False)
+    )
     assert n_term + n_trunc >= 3
 
 
@@ -96,7 +126,9 @@ def test_guarded_periods_subdivide_inside_the_kernel():
     axis) both occur in this run, all compiled (the numpy period never runs), each sub-env
     with its own ``internal_step`` (and the lockstep test above holds the same setting to
     single envs bit for bit)."""
-    venv = vector.FreeRigidBodyVectorEnv(num_envs=3, integrator="euler", tolerance=None, spin_rate=1.8, perturbation=0.5)
+    venv = vector.FreeRigidBodyVectorEnv(
+        num_envs=3, integrator="euler", tolerance=None, spin_rate=1.8, perturbation=0.5
+    )
     numpy_periods = 0
     numpy_advance = venv.engine.advance
 
@@ -122,7 +154,14 @@ def test_guarded_periods_subdivide_inside_the_kernel():
 def test_guard_refuse_raises_from_the_compiled_path_and_changes_nothing():
     """guard='refuse': a period the guard would subdivide raises (naming substeps) instead of
     running, compiled or not; the states stay as they were."""
-    kwargs = dict(integrator="euler", tolerance=None, guard="refuse", task="detumble", spin_rate=3.0, max_angular_velocity=20.0)
+    kwargs = dict(
+        integrator="euler",
+        tolerance=None,
+        guard="refuse",
+        task="detumble",
+        spin_rate=3.0,
+        max_angular_velocity=20.0,
+    )
     venv = vector.FreeRigidBodyVectorEnv(num_envs=4, **kwargs)
     assert venv.compiled
     venv.reset(seed=0)
@@ -154,7 +193,9 @@ def test_compiled_equals_numpy_path_on_a_large_batch():
         info_f, info_s = out_f[4], out_s[4]
         assert list(info_f) == list(info_s)
         for key in info_f:
-            assert info_f[key].dtype == info_s[key].dtype and np.array_equal(info_f[key], info_s[key]), key
+            assert info_f[key].dtype == info_s[key].dtype and np.array_equal(
+                info_f[key], info_s[key]
+            ), key
         ended += int(out_f[2].sum())
     assert ended > 100  # observation limits were crossed, not only time limits
     s_f, s_s = fast.get_state(), slow.get_state()
@@ -192,7 +233,10 @@ def test_non_finite_states_take_the_numerical_failure_path():
         obs, r, te, tr, info = venv.step(a)
     assert len([w for w in caught if issubclass(w.category, NumericalFailureWarning)]) == 1
     # reward 0 and the failure charge (rbenvs.core.model.Model)
-    assert np.array_equal(te, [False, True, False]) and r[1] == venv.unwrapped.engine.failure_charge == -404.0
+    assert (
+        np.array_equal(te, [False, True, False])
+        and r[1] == venv.unwrapped.engine.failure_charge == -404.0
+    )
     assert list(info["terminal_reason"]) == ["", "numerical_failure", ""]
     now = venv.get_state()
     assert np.array_equal(now["angular_momentum"][1], last["angular_momentum"][1])
@@ -215,44 +259,126 @@ COMPILED_MORE = [
     (FREE, dict(task="reorient", integrator="splitting", max_torque=0.5), 5, 17),
     (FREE, dict(integrator="splitting", actuated=(True, False, True), axis="major"), 5, 17),
     (LAGRANGE, dict(), 5, 17),  # splitting, upright
-    (LAGRANGE, dict(integrator="rk4", tilt_limit=0.06, max_torque=0.05, spin=0.0), 25, 45),  # task terminations
+    (
+        LAGRANGE,
+        dict(integrator="rk4", tilt_limit=0.06, max_torque=0.05, spin=0.0),
+        25,
+        45,
+    ),  # task terminations
     (LAGRANGE, dict(integrator="rk4", task="precess", attitude=True), 5, 17),
     (LAGRANGE, dict(task="precess", target_rate=2.0), 5, 17),
-    (LAGRANGE, dict(integrator="euler", tolerance=None, axial_torque=True, spin=(5.0, 15.0), attitude=True), 5, 17),  # guarded
-    (LAGRANGE, dict(integrator="splitting", task="precess", spin=(20.0, 30.0), spin_friction=0.01), 5, 17),
-    (LAGRANGE, dict(integrator="splitting", inertia=(0.5, 0.45, 0.3), com_direction=(0.1, 0.0, 1.0), spin=(0.0, 3.0), attitude=True), 5, 17),
-    (LAGRANGE, dict(integrator="rk4", inertia=(0.5, 0.45, 0.3), com_direction=(0.1, 0.0, 1.0), spin=(0.0, 3.0), spin_friction=0.02), 5, 17),
+    (
+        LAGRANGE,
+        dict(
+            integrator="euler", tolerance=None, axial_torque=True, spin=(5.0, 15.0), attitude=True
+        ),
+        5,
+        17,
+    ),  # guarded
+    (
+        LAGRANGE,
+        dict(integrator="splitting", task="precess", spin=(20.0, 30.0), spin_friction=0.01),
+        5,
+        17,
+    ),
+    (
+        LAGRANGE,
+        dict(
+            integrator="splitting",
+            inertia=(0.5, 0.45, 0.3),
+            com_direction=(0.1, 0.0, 1.0),
+            spin=(0.0, 3.0),
+            attitude=True,
+        ),
+        5,
+        17,
+    ),
+    (
+        LAGRANGE,
+        dict(
+            integrator="rk4",
+            inertia=(0.5, 0.45, 0.3),
+            com_direction=(0.1, 0.0, 1.0),
+            spin=(0.0, 3.0),
+            spin_friction=0.02,
+        ),
+        5,
+        17,
+    ),
     # the tippe top: every fidelity and law, the guard's own count per sub-env, actions on the
     # friction and a torque, the lift-off ending episodes, free flight with hops
-    (TIPPE, dict(spin=(100.0, 200.0), start="rolling", friction_bound="stability"), 3, 7),  # -v0's defaults before issue 18
+    (
+        TIPPE,
+        dict(spin=(100.0, 200.0), start="rolling", friction_bound="stability"),
+        3,
+        7,
+    ),  # -v0's defaults before issue 18
     (TIPPE, dict(fidelity="frictionless", spin=(100.0, 200.0)), 4, 10),
     (TIPPE, dict(fidelity="rolling", task="hold", torque_action=True), 4, 10),
     (TIPPE, dict(friction_law="viscous", integrator="euler", tolerance=None), 4, 10),
     (TIPPE, dict(spin=(120.0, 160.0), friction_action=True, torque_action=True), 3, 5),
-    (TIPPE, dict(spin=2000.0, max_speed=50.0, start="rolling"), 20, 20),  # lift-off ends the episodes
-    (TIPPE, dict(free_flight=True, spin=2000.0, max_speed=50.0, start="rolling"), 20, 20),  # hops (from about the 13th period)
-    (TIPPE, dict(free_flight=True, fidelity="frictionless", spin=(1500.0, 2500.0), max_speed=60.0, friction_law="viscous", start="rolling"), 6, 12),
-    (TIPPE, dict(start="vertical", free_flight=True, spin=(150.0, 180.0)), 4, 10),  # both start flags, restarts in the kernel
+    (
+        TIPPE,
+        dict(spin=2000.0, max_speed=50.0, start="rolling"),
+        20,
+        20,
+    ),  # lift-off ends the episodes
+    (
+        TIPPE,
+        dict(free_flight=True, spin=2000.0, max_speed=50.0, start="rolling"),
+        20,
+        20,
+    ),  # hops (from about the 13th period)
+    (
+        TIPPE,
+        dict(
+            free_flight=True,
+            fidelity="frictionless",
+            spin=(1500.0, 2500.0),
+            max_speed=60.0,
+            friction_law="viscous",
+            start="rolling",
+        ),
+        6,
+        12,
+    ),
+    (
+        TIPPE,
+        dict(start="vertical", free_flight=True, spin=(150.0, 180.0)),
+        4,
+        10,
+    ),  # both start flags, restarts in the kernel
 ]
 
 
 def _ids_more(cases):
-    return [env_id.split("/")[1] + "-" + (",".join(f"{k}={v}" for k, v in kw.items()) or "default") for env_id, kw, _, _ in cases]
+    return [
+        env_id.split("/")[1] + "-" + (",".join(f"{k}={v}" for k, v in kw.items()) or "default")
+        for env_id, kw, _, _ in cases
+    ]
 
 
 @needs_numba
 @pytest.mark.parametrize("mode", ["NextStep", "SameStep"])
-@pytest.mark.parametrize("env_id,kwargs,max_steps,steps", COMPILED_MORE, ids=_ids_more(COMPILED_MORE))
-def test_more_compiled_settings_equal_single_envs_bit_for_bit(env_id, kwargs, max_steps, steps, mode):
+@pytest.mark.parametrize(
+    "env_id,kwargs,max_steps,steps", COMPILED_MORE, ids=_ids_more(COMPILED_MORE)
+)
+def test_more_compiled_settings_equal_single_envs_bit_for_bit(
+    env_id, kwargs, max_steps, steps, mode
+):
     """Every newly compiled setting takes the kernel, and its sub-envs follow single envs bit
     for bit (observations, rewards, flags, every info value) across episode ends."""
     assert make_vec(env_id, 2, **kwargs).unwrapped.compiled
-    n_term, n_trunc, _ = lockstep(env_id, 3, 11, steps, mode, max_steps, kwargs, vector_kwargs=dict(compiled=True))
+    n_term, n_trunc, _ = lockstep(
+        env_id, 3, 11, steps, mode, max_steps, kwargs, vector_kwargs=dict(compiled=True)
+    )
     assert n_term + n_trunc >= 3
 
 
 @needs_numba
-@pytest.mark.parametrize("env_id,kwargs,max_steps,steps", COMPILED_MORE, ids=_ids_more(COMPILED_MORE))
+@pytest.mark.parametrize(
+    "env_id,kwargs,max_steps,steps", COMPILED_MORE, ids=_ids_more(COMPILED_MORE)
+)
 def test_more_compiled_settings_equal_the_numpy_path(env_id, kwargs, max_steps, steps):
     """Compiled and numpy paths of the same vector env on 64 sub-envs with random actions: every
     output, info array (dtype included) and the final state agree bit for bit."""
@@ -328,17 +454,55 @@ SINGLE = [
     (FREE, dict(), 40, 90),
     (FREE, dict(task="detumble", integrator="euler", tolerance=None, substeps=3), 40, 90),
     (FREE, dict(task="reorient"), 30, 90),
-    (FREE, dict(integrator="euler", tolerance=None, spin_rate=1.8, perturbation=0.5), 120, 120),  # subdivided periods
-    (FREE, dict(integrator="rk4", max_angular_velocity=1.6, max_torque=5.0), 40, 60),  # observation limit
+    (
+        FREE,
+        dict(integrator="euler", tolerance=None, spin_rate=1.8, perturbation=0.5),
+        120,
+        120,
+    ),  # subdivided periods
+    (
+        FREE,
+        dict(integrator="rk4", max_angular_velocity=1.6, max_torque=5.0),
+        40,
+        60,
+    ),  # observation limit
     (LAGRANGE, dict(), 40, 90),
     (LAGRANGE, dict(integrator="rk4", tilt_limit=0.06, max_torque=0.05, spin=0.0), 25, 60),
     (LAGRANGE, dict(integrator="rk4", task="precess", attitude=True), 30, 90),
-    (LAGRANGE, dict(integrator="euler", tolerance=None, axial_torque=True, spin=(5.0, 15.0), attitude=True), 30, 60),
-    (LAGRANGE, dict(integrator="splitting", inertia=(0.5, 0.45, 0.3), com_direction=(0.1, 0.0, 1.0), spin=(0.0, 3.0), spin_friction=0.02), 30, 60),
+    (
+        LAGRANGE,
+        dict(
+            integrator="euler", tolerance=None, axial_torque=True, spin=(5.0, 15.0), attitude=True
+        ),
+        30,
+        60,
+    ),
+    (
+        LAGRANGE,
+        dict(
+            integrator="splitting",
+            inertia=(0.5, 0.45, 0.3),
+            com_direction=(0.1, 0.0, 1.0),
+            spin=(0.0, 3.0),
+            spin_friction=0.02,
+        ),
+        30,
+        60,
+    ),
     (TIPPE, dict(), 30, 40),
     (TIPPE, dict(fidelity="rolling", task="hold", torque_action=True), 10, 30),
-    (TIPPE, dict(friction_law="viscous", integrator="euler", tolerance=None, friction_action=True), 10, 30),
-    (TIPPE, dict(spin=2000.0, max_speed=50.0, start="rolling"), 30, 40),  # lift-off ends the episodes
+    (
+        TIPPE,
+        dict(friction_law="viscous", integrator="euler", tolerance=None, friction_action=True),
+        10,
+        30,
+    ),
+    (
+        TIPPE,
+        dict(spin=2000.0, max_speed=50.0, start="rolling"),
+        30,
+        40,
+    ),  # lift-off ends the episodes
     (TIPPE, dict(free_flight=True, spin=2000.0, max_speed=50.0, start="rolling"), 30, 40),  # hops
     (TIPPE, dict(start="rest", spin=180.0), 30, 40),
     (TIPPE, dict(start="vertical", free_flight=True), 30, 40),
@@ -364,7 +528,11 @@ def test_single_env_compiled_step_equals_the_float_path(env_id, kwargs, max_step
         assert out_f[0].dtype == np.float32 and same(out_f[0], out_s[0])
         assert type(out_f[1]) is float and out_f[1:4] == out_s[1:4]
         assert list(out_f[4]) == list(out_s[4])
-        assert all(type(out_f[4][k]) is type(v) and same(out_f[4][k], v) for k, v in out_s[4].items() if k != "terminal_reason")
+        assert all(
+            type(out_f[4][k]) is type(v) and same(out_f[4][k], v)
+            for k, v in out_s[4].items()
+            if k != "terminal_reason"
+        )
         assert out_f[4].get("terminal_reason") == out_s[4].get("terminal_reason")
         assert fast.unwrapped.state_components == slow.unwrapped.state_components
         if out_f[2] or out_f[3]:
@@ -378,7 +546,14 @@ def test_single_env_compiled_step_equals_the_float_path(env_id, kwargs, max_step
 def test_single_env_compiled_refusal_and_failure_as_the_float_path():
     """guard='refuse' raises from the compiled step naming the count, the state unchanged; a
     state that overflows ends the episode as a numerical failure with the last finite state."""
-    kwargs = dict(integrator="euler", tolerance=None, guard="refuse", task="detumble", spin_rate=6.0, max_angular_velocity=20.0)
+    kwargs = dict(
+        integrator="euler",
+        tolerance=None,
+        guard="refuse",
+        task="detumble",
+        spin_rate=6.0,
+        max_angular_velocity=20.0,
+    )
     for compiled_ in (True, False):
         env = gym.make(FREE, compiled=compiled_, **kwargs)
         env.reset(seed=0)
@@ -394,9 +569,21 @@ def test_single_env_compiled_refusal_and_failure_as_the_float_path():
             warnings.simplefilter("always")
             obs, r, te, tr, info = env.step(np.zeros(3, dtype=np.float32))
         assert any(issubclass(w.category, NumericalFailureWarning) for w in caught)
-        results.append((obs, r, te, info["terminal_reason"], info["numerical_failure"], env.unwrapped.state_components))
+        results.append(
+            (
+                obs,
+                r,
+                te,
+                info["terminal_reason"],
+                info["numerical_failure"],
+                env.unwrapped.state_components,
+            )
+        )
     assert same(results[0][0], results[1][0]) and results[0][1:] == results[1][1:]
-    assert results[0][1] == env.unwrapped.model.failure_charge == -404.0 and results[0][3] == "numerical_failure"  # 0 + the charge
+    assert (
+        results[0][1] == env.unwrapped.model.failure_charge == -404.0
+        and results[0][3] == "numerical_failure"
+    )  # 0 + the charge
 
 
 def test_single_env_compiled_argument():
@@ -407,7 +594,9 @@ def test_single_env_compiled_argument():
     env.reset(seed=0)
     env.step(np.zeros(3, dtype=np.float32))
     assert not env.unwrapped.compiled
-    with pytest.raises(ValueError, match="compiled=True but .*no compiled step|compiled=True but numba"):
+    with pytest.raises(
+        ValueError, match="compiled=True but .*no compiled step|compiled=True but numba"
+    ):
         gym.make(FREE, integrator="exact", compiled=True)
 
 
@@ -416,7 +605,9 @@ def test_compiled_tippe_top_crosses_lift_offs_and_hops():
     """The tippe-top settings above do exercise the kernel's event and switches: without free
     flight lift-offs end episodes (``terminal_reason == "lift_off"``, ``lifted_off`` set); with
     it the tops hop (``hops`` counts, ``airborne`` is seen) and no episode ends at a lift-off."""
-    venv = make_vec(TIPPE, 4, spin=2000.0, max_speed=50.0, max_episode_steps=20, compiled=True, start="rolling")
+    venv = make_vec(
+        TIPPE, 4, spin=2000.0, max_speed=50.0, max_episode_steps=20, compiled=True, start="rolling"
+    )
     assert venv.unwrapped.compiled
     venv.reset(seed=0)
     reasons = set()
@@ -424,7 +615,16 @@ def test_compiled_tippe_top_crosses_lift_offs_and_hops():
         info = venv.step(np.zeros((4, 2), dtype=np.float32))[4]
         reasons |= set(info.get("terminal_reason", []))
     assert "lift_off" in reasons
-    venv = make_vec(TIPPE, 4, free_flight=True, spin=2000.0, max_speed=50.0, max_episode_steps=40, compiled=True, start="rolling")
+    venv = make_vec(
+        TIPPE,
+        4,
+        free_flight=True,
+        spin=2000.0,
+        max_speed=50.0,
+        max_episode_steps=40,
+        compiled=True,
+        start="rolling",
+    )
     venv.reset(seed=0)
     airborne = hops = 0
     for _ in range(20):  # (the first hop comes near period 13)
@@ -446,7 +646,14 @@ WHOLE_STEP = [
 ]
 
 
-@pytest.mark.parametrize("env_id,tasks", [(FREE, ("spin", "detumble", "reorient")), (LAGRANGE, ("upright", "precess")), (TIPPE, ("invert", "hold"))])
+@pytest.mark.parametrize(
+    "env_id,tasks",
+    [
+        (FREE, ("spin", "detumble", "reorient")),
+        (LAGRANGE, ("upright", "precess")),
+        (TIPPE, ("invert", "hold")),
+    ],
+)
 def test_every_task_has_pure_starts_and_actuators(env_id, tasks):
     """Every (system, task) declares the pure start and actuator the compiled restarts need, and
     they give the methods' values (a start drawn from one generator, floats and a batch)."""
@@ -462,7 +669,9 @@ def test_every_task_has_pure_starts_and_actuators(env_id, tasks):
             for i in range(3):
                 one = start(p, tuple(rows[:, i].tolist()))
                 assert all(np.float64(b[i]) == o for b, o in zip(batch, one))
-            assert model.kernel_control[0](model.kernel_control[1], (0.0,) * model.actuator.size) == model.actuator.control((0.0,) * model.actuator.size)
+            assert model.kernel_control[0](
+                model.kernel_control[1], (0.0,) * model.actuator.size
+            ) == model.actuator.control((0.0,) * model.actuator.size)
 
 
 def _same_outputs(a, b, where):
@@ -484,20 +693,34 @@ def _same_outputs(a, b, where):
 
 @needs_numba
 @pytest.mark.parametrize("mode", ["NextStep", "SameStep"])
-@pytest.mark.parametrize("env_id,kwargs", WHOLE_STEP, ids=[f"{e.split('/')[1]}-{','.join(f'{k}={v}' for k, v in kw.items()) or 'default'}" for e, kw in WHOLE_STEP])
-def test_the_whole_vector_step_compiled_equals_the_numpy_path_through_restarts(env_id, kwargs, mode):
+@pytest.mark.parametrize(
+    "env_id,kwargs",
+    WHOLE_STEP,
+    ids=[
+        f"{e.split('/')[1]}-{','.join(f'{k}={v}' for k, v in kw.items()) or 'default'}"
+        for e, kw in WHOLE_STEP
+    ],
+)
+def test_the_whole_vector_step_compiled_equals_the_numpy_path_through_restarts(
+    env_id, kwargs, mode
+):
     """The vector step as one compiled call (actions checked, clipped and mapped; the period;
     the finish; the episode clocks; restarts drawn from each sub-env's own generator and
     finished inside the kernel) equals the numpy path bit for bit, every output and info key,
     with a time limit of 7 steps so that every sub-env restarts three times (actions beyond
     the bounds: clipping counts)."""
-    envs = [make_vec(env_id, 6, max_episode_steps=7, autoreset_mode=mode, compiled=c, **kwargs) for c in (False, True)]
+    envs = [
+        make_vec(env_id, 6, max_episode_steps=7, autoreset_mode=mode, compiled=c, **kwargs)
+        for c in (False, True)
+    ]
     step = envs[1].unwrapped._vector_step
     assert step is not None and step.restarts
     _same_outputs(envs[0].reset(seed=5), envs[1].reset(seed=5), "reset")
     rng = np.random.default_rng(0)
     for t in range(25):
-        a = rng.uniform(-1.3, 1.3, envs[0].action_space.shape).astype(np.float32 if t % 2 else np.float64)
+        a = rng.uniform(-1.3, 1.3, envs[0].action_space.shape).astype(
+            np.float32 if t % 2 else np.float64
+        )
         _same_outputs(envs[0].step(a), envs[1].step(a), f"step {t}")
     _same_outputs(envs[0].unwrapped.get_state(), envs[1].unwrapped.get_state(), "state")
 
@@ -516,8 +739,14 @@ def test_the_compiled_step_keeps_the_controls_for_rendering():
 
 @pytest.mark.parametrize(
     "env_id,kwargs",
-    [(FREE, dict()), (FREE, dict(actuated=(False, True, True))), (LAGRANGE, dict()), (LAGRANGE, dict(axial_torque=True)),
-     (TIPPE, dict()), (TIPPE, dict(friction_range=(0.1, 0.5), max_torque=1e-4))],
+    [
+        (FREE, dict()),
+        (FREE, dict(actuated=(False, True, True))),
+        (LAGRANGE, dict()),
+        (LAGRANGE, dict(axial_torque=True)),
+        (TIPPE, dict()),
+        (TIPPE, dict(friction_range=(0.1, 0.5), max_torque=1e-4)),
+    ],
 )
 def test_actuators_pure_forms_are_their_formulas(env_id, kwargs):
     """Each actuator's pure form (what the single env, the numpy batch and the compiled step
@@ -532,9 +761,13 @@ def test_actuators_pure_forms_are_their_formulas(env_id, kwargs):
     if env_id == FREE:
         full = np.zeros(3)
         full[list(act.axes)] = a
-        assert np.allclose(u_norm, full, rtol=0, atol=0) and np.allclose(u, act.max_torque * full, rtol=1e-15)
+        assert np.allclose(u_norm, full, rtol=0, atol=0) and np.allclose(
+            u, act.max_torque * full, rtol=1e-15
+        )
     elif env_id == LAGRANGE:
-        assert u_norm == a and np.allclose(u, act.max_torque * np.asarray(a) @ np.asarray(act.directions), rtol=1e-14, atol=1e-15)
+        assert u_norm == a and np.allclose(
+            u, act.max_torque * np.asarray(a) @ np.asarray(act.directions), rtol=1e-14, atol=1e-15
+        )
     else:
         acc = act.max_table_acceleration
         assert u[:2] == (acc * a[0], acc * a[1])

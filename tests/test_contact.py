@@ -25,9 +25,10 @@ def test_coulomb_and_viscous_coefficients_and_stiffness():
     assert v.stiffness(0.3, 2.0, 500.0, 1e-3) == pytest.approx(0.3 * 2.0 * 500.0)
     # arrays (a batch) alike
     s = np.array([1e-6, 10.0])
-    assert np.allclose(c.coefficient(0.3, s, 0.0 * s, 0.0 * s, 1e-3) * s, [-0.3e-3, -0.3], rtol=1e-6)
+    assert np.allclose(
+        c.coefficient(0.3, s, 0.0 * s, 0.0 * s, 1e-3) * s, [-0.3e-3, -0.3], rtol=1e-6
+    )
     assert set(FRICTION_LAWS) == {"coulomb", "viscous"}
-
 
 
 def test_a_new_law_is_one_class_and_one_registry_entry(monkeypatch):

@@ -60,7 +60,9 @@ def test_euler_on_the_heavy_top_is_refused_with_the_way_out():
     """Euler errs in the amplitude: no per-period estimate holds it, so the default accuracy
     refuses it at construction, naming ``tolerance=None`` (unchecked) and the schemes that take a
     tolerance; with ``tolerance=None`` it runs, its estimate NaN."""
-    with pytest.raises(ValueError, match=r"default accuracy.*tolerance=None to run it unchecked.*\['rk4'\]"):
+    with pytest.raises(
+        ValueError, match=r"default accuracy.*tolerance=None to run it unchecked.*\['rk4'\]"
+    ):
         LagrangeTopEnv(integrator="euler")
     env = LagrangeTopEnv(integrator="euler", tolerance=None)
     env.reset(seed=0)
@@ -81,15 +83,23 @@ def test_every_env_reports_its_error_estimate(env_id):
         for _ in range(3):
             _, _, _, _, info = env.step(env.action_space.sample())
             if estimated:
-                assert type(info["error_estimate"]) is float and math.isfinite(info["error_estimate"]), (kw, info)
+                assert type(info["error_estimate"]) is float and math.isfinite(
+                    info["error_estimate"]
+                ), (kw, info)
             else:
                 assert info["error_estimate"] is None, (kw, info)
         venv = gym.make_vec(env_id, num_envs=3, vectorization_mode="vector_entry_point", **kw)
         _, info = venv.reset(seed=0)
         assert info["error_estimate"].shape == (3,)
         _, _, _, _, info = venv.step(venv.action_space.sample())
-        assert np.isfinite(info["error_estimate"]).all() == estimated and np.isnan(info["error_estimate"]).all() != estimated
-        assert info["_error_estimate"].all() == estimated and not info["_error_estimate"].any() != estimated
+        assert (
+            np.isfinite(info["error_estimate"]).all() == estimated
+            and np.isnan(info["error_estimate"]).all() != estimated
+        )
+        assert (
+            info["_error_estimate"].all() == estimated
+            and not info["_error_estimate"].any() != estimated
+        )
 
 
 def test_the_default_scenes_do_not_warn_and_an_explicit_tolerance_does():
@@ -121,11 +131,19 @@ def test_tolerance_horizon_needs_a_tolerance_and_the_default_takes_one():
 
 
 # (free body: its Jacobian's bound s|Pi| gates; heavy top under rk4: its rate lambda)
-GATED = [(FreeRigidBodyEnv, dict(EXTREME)), (FreeRigidBodyEnv, {}), (LagrangeTopEnv, {"integrator": "rk4"})]
+GATED = [
+    (FreeRigidBodyEnv, dict(EXTREME)),
+    (FreeRigidBodyEnv, {}),
+    (LagrangeTopEnv, {"integrator": "rk4"}),
+]
 
 
-@pytest.mark.filterwarnings("ignore::rbenvs.stepsize.controller.UnstableMotionWarning")  # (the explicit twin of the default spin: its rule is what is compared)
-@pytest.mark.parametrize("cls,kwargs", GATED, ids=["free_body_extreme", "free_body", "heavy_top_rk4"])
+@pytest.mark.filterwarnings(
+    "ignore::rbenvs.stepsize.controller.UnstableMotionWarning"
+)  # (the explicit twin of the default spin: its rule is what is compared)
+@pytest.mark.parametrize(
+    "cls,kwargs", GATED, ids=["free_body_extreme", "free_body", "heavy_top_rk4"]
+)
 def test_the_gate_keeps_the_sharp_counts_and_bounds_their_estimate(cls, kwargs):
     """The default accuracy tests a cheap bound Lambda >= lambda_e >= mu first (motion_rates' gate):
     where it holds the period within its budget the rates are (lambda, Lambda, Lambda). From states
@@ -169,7 +187,13 @@ def test_the_gate_gives_every_path_the_same_estimates():
     n = len(starts)
     runs = {}
     for compiled in (True, False):
-        venv = gym.make_vec("rbenvs/FreeRigidBody-v0", num_envs=n, vectorization_mode="vector_entry_point", compiled=compiled, **EXTREME)
+        venv = gym.make_vec(
+            "rbenvs/FreeRigidBody-v0",
+            num_envs=n,
+            vectorization_mode="vector_entry_point",
+            compiled=compiled,
+            **EXTREME,
+        )
         venv.reset(seed=0, options={"state": {"angular_momentum": starts}})
         rows = []
         for _ in range(4):
@@ -185,10 +209,14 @@ def test_the_gate_gives_every_path_the_same_estimates():
                 single.append((info["error_estimate"], info["internal_step"]))
             runs[("single", compiled, i)] = single
     reference = runs[("vector", True)]
-    assert reference[0][1][0] < reference[0][1][1], "the extreme sub-env subdivides, the slow one does not"
+    assert reference[0][1][0] < reference[0][1][1], (
+        "the extreme sub-env subdivides, the slow one does not"
+    )
     for key, rows in runs.items():
         for k, row in enumerate(rows):
             if key[0] == "vector":
-                assert np.array_equal(row[0], reference[k][0]) and np.array_equal(row[1], reference[k][1]), (key, k)
+                assert np.array_equal(row[0], reference[k][0]) and np.array_equal(
+                    row[1], reference[k][1]
+                ), (key, k)
             else:
                 assert row == (reference[k][0][key[2]], reference[k][1][key[2]]), (key, k)

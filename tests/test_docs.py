@@ -14,15 +14,30 @@ LABEL = re.compile(r"\[(?:MR|T)(?: Fig\.)? [0-9][0-9.\-]*[0-9]\]")
 
 
 def _sources():
-    files = [p for d in ("rbenvs", "agents", "tests", "configs") for p in (ROOT / d).rglob("*") if p.suffix in (".py", ".yml", ".yaml", ".md")]
+    files = [
+        p
+        for d in ("rbenvs", "agents", "tests", "configs")
+        for p in (ROOT / d).rglob("*")
+        if p.suffix in (".py", ".yml", ".yaml", ".md")
+    ]
     pages = [p for p in (ROOT / "docs").glob("*.md") if p != PAGE]
-    return [p for p in files + pages + [ROOT / "README.md", ROOT / "Makefile", ROOT / "CHANGELOG.md"] if p.is_file()]
+    return [
+        p
+        for p in files + pages + [ROOT / "README.md", ROOT / "Makefile", ROOT / "CHANGELOG.md"]
+        if p.is_file()
+    ]
 
 
 def _label_table() -> set[str]:
     text = PAGE.read_text()
-    table = text[text.index("## 5. Equation labels"):text.index("## 6. Sources")]
-    return {m.group(0) for line in table.splitlines() if line.startswith("| [") for m in [LABEL.match(line[2:])] if m}
+    table = text[text.index("## 5. Equation labels") : text.index("## 6. Sources")]
+    return {
+        m.group(0)
+        for line in table.splitlines()
+        if line.startswith("| [")
+        for m in [LABEL.match(line[2:])]
+        if m
+    }
 
 
 def test_every_cited_label_is_on_the_physics_page():
@@ -47,23 +62,38 @@ def test_physics_page_sections_named_by_the_code_exist():
             if path == ROOT / "tests" / "test_docs.py":
                 continue
             beside = path.parent == PAGE.parent  # (a page in docs/ names it by its own folder)
-            assert m.group(1).endswith("docs/") or beside, f"{path.relative_to(ROOT)}: {m.group(0)!r} is not docs/physics.md"
+            assert m.group(1).endswith("docs/") or beside, (
+                f"{path.relative_to(ROOT)}: {m.group(0)!r} is not docs/physics.md"
+            )
             for section in re.findall(r"§(\d+)", m.group(2)):
-                assert section in headings, f"{path.relative_to(ROOT)} cites docs/physics.md §{section}, which does not exist"
+                assert section in headings, (
+                    f"{path.relative_to(ROOT)} cites docs/physics.md §{section}, which does not exist"
+                )
                 named += 1
     assert named >= 40
 
 
 def test_no_reference_to_texts_outside_the_repository():
-    pattern = re.compile(r"seed 2\b|seed 1,|seed §|seeds/|shared/|\(1[0-9]\.\d+\.\d+\)|\(3\.\d{2,3}\)")
-    offenders = [f"{p.relative_to(ROOT)}: {m.group(0)}" for p in _sources() if p != ROOT / "tests" / "test_docs.py" for m in pattern.finditer(p.read_text())]
+    pattern = re.compile(
+        r"seed 2\b|seed 1,|seed §|seeds/|shared/|\(1[0-9]\.\d+\.\d+\)|\(3\.\d{2,3}\)"
+    )
+    offenders = [
+        f"{p.relative_to(ROOT)}: {m.group(0)}"
+        for p in _sources()
+        if p != ROOT / "tests" / "test_docs.py"
+        for m in pattern.finditer(p.read_text())
+    ]
     assert not offenders, offenders
 
 
 def test_sources_are_full_citations():
     sources = PAGE.read_text().split("## 6. Sources")[1]
-    for needle in ("Marsden and T. S. Ratiu, *Introduction to Mechanics and Symmetry*", "Jellett, *A Treatise on the Theory of Friction*",
-                   "Rauch-Wojciechowski", "Leine and Ch. Glocker"):
+    for needle in (
+        "Marsden and T. S. Ratiu, *Introduction to Mechanics and Symmetry*",
+        "Jellett, *A Treatise on the Theory of Friction*",
+        "Rauch-Wojciechowski",
+        "Leine and Ch. Glocker",
+    ):
         assert needle in sources
     entries = [e for e in sources.split("\n- ")[1:]]
     assert all(re.search(r"1[89]\d\d|20\d\d", e) for e in entries), "every source carries its year"
@@ -120,7 +150,9 @@ def test_every_figure_block_is_written_by_a_command():
         for lang, at in _fenced_blocks(text):
             if lang == "" and not any(a <= at < b for a, b in spans):
                 loose.append(f"{page.relative_to(ROOT)}:{text[:at].count(chr(10)) + 1}")
-    assert not loose, f"figure blocks not written by a command (wrap them in <!-- rbenvs:output CMD --> ... <!-- rbenvs:end -->): {loose}"
+    assert not loose, (
+        f"figure blocks not written by a command (wrap them in <!-- rbenvs:output CMD --> ... <!-- rbenvs:end -->): {loose}"
+    )
 
 
 def _written_blocks():
@@ -133,7 +165,11 @@ def test_the_written_blocks_name_their_command_date_and_machine():
     written = _written_blocks()
     assert len(written) >= 8
     for page, key, body in written:
-        assert re.match(rf"`{re.escape(key)}` \(20\d\d-\d\d-\d\d, \d+ cores, .+\):\n\n", body), (page.name, key, body[:200])
+        assert re.match(rf"`{re.escape(key)}` \(20\d\d-\d\d-\d\d, \d+ cores, .+\):\n\n", body), (
+            page.name,
+            key,
+            body[:200],
+        )
 
 
 class _Parsed(Exception):
@@ -161,7 +197,12 @@ def _parses(command: str, monkeypatch) -> None:
         pytest.importorskip("stable_baselines3")
         from rbenvs_agents import cli
 
-        mains |= {"rbenvs-train": cli.train_main, "rbenvs-eval": cli.eval_main, "rbenvs-results": cli.results_main, "rbenvs-sweep": cli.sweep_main}
+        mains |= {
+            "rbenvs-train": cli.train_main,
+            "rbenvs-eval": cli.eval_main,
+            "rbenvs-results": cli.results_main,
+            "rbenvs-sweep": cli.sweep_main,
+        }
     assert prog in mains, f"unknown command {prog!r} in {command!r}"
     with pytest.raises(_Parsed):
         mains[prog](args)
@@ -184,8 +225,13 @@ def _commands_in_text():
                 if command:
                     found.append((page.name, command))
         for span in re.findall(r"`([^`\n]+)`", text):
-            if span.startswith("pip install ") or (re.match(r"(rbenvs|rbenvs-train|rbenvs-eval|rbenvs-results|rbenvs-sweep|make|python -m rl_zoo3) ", span)
-                                                   and not re.search(r"[\[\]{}]|\.\.\.|PATH|NAME|DIR\b", span)):
+            if span.startswith("pip install ") or (
+                re.match(
+                    r"(rbenvs|rbenvs-train|rbenvs-eval|rbenvs-results|rbenvs-sweep|make|python -m rl_zoo3) ",
+                    span,
+                )
+                and not re.search(r"[\[\]{}]|\.\.\.|PATH|NAME|DIR\b", span)
+            ):
                 found.append((page.name, span))
     for page, key, _ in _written_blocks():
         found.append((page.name, key))
@@ -197,7 +243,9 @@ def test_the_pages_name_commands():
     assert len(commands) >= 20 and any(c.startswith("rbenvs-results") for c in commands)
 
 
-@pytest.mark.parametrize("where,command", _commands_in_text(), ids=lambda x: x[:60] if isinstance(x, str) else x)
+@pytest.mark.parametrize(
+    "where,command", _commands_in_text(), ids=lambda x: x[:60] if isinstance(x, str) else x
+)
 def test_every_command_in_the_docs_is_one_the_project_accepts(where, command, monkeypatch):
     """Each command of the pages, as written: ``make`` targets exist, ``pip install`` asks for
     extras that exist (and the pinned torch), and every ``rbenvs`` command line parses with its
@@ -209,7 +257,9 @@ def test_every_command_in_the_docs_is_one_the_project_accepts(where, command, mo
     if argv[0].endswith("/bin/pip"):  # a venv's own pip (the Ray job's)
         argv = ["pip", *argv[1:]]
     if argv[:3] == ["python3", "-m", "venv"] or argv[:2] == ["python", "-"]:
-        assert len(argv) >= 2, command  # the standard library's venv; python reading a here-document
+        assert len(argv) >= 2, (
+            command
+        )  # the standard library's venv; python reading a here-document
     elif argv[:3] == ["python", "-m", "rbenvs_agents.rllib"]:
         # needs the ray extra (its own venv: tests/test_ray.py runs it); here: the module and its main exist
         assert "def main(" in (ROOT / "agents" / "rllib.py").read_text(), command
@@ -219,7 +269,9 @@ def test_every_command_in_the_docs_is_one_the_project_accepts(where, command, mo
     elif argv[:2] == ["pip", "install"]:
         import tomllib
 
-        extras = set(tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]["optional-dependencies"])
+        extras = set(
+            tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]["optional-dependencies"]
+        )
         for spec in argv[2:]:
             if spec == "-e":
                 continue
@@ -233,7 +285,9 @@ def test_every_command_in_the_docs_is_one_the_project_accepts(where, command, mo
         import rbenvs
 
         options = dict(zip(argv[3::2], argv[4::2]))
-        assert options["--env"] in rbenvs.ENVIRONMENTS and options["--gym-packages"] == "rbenvs", command
+        assert options["--env"] in rbenvs.ENVIRONMENTS and options["--gym-packages"] == "rbenvs", (
+            command
+        )
         assert (ROOT / options["--conf-file"]).is_file(), command
     else:
         _parses(command, monkeypatch)
@@ -245,8 +299,10 @@ def test_docs_flag_writes_the_output_into_the_named_block(tmp_path, capsys):
     assert split_docs_flag(["a", "--docs", "p.md", "b"]) == (["a", "b"], "p.md")
     assert split_docs_flag(["--docs=p.md"]) == ([], "p.md")
     page = tmp_path / "page.md"
-    page.write_text("before\n<!-- rbenvs:output prog x 'a b' -->\nold\n<!-- rbenvs:end -->\nafter\n"
-                    "<!-- rbenvs:output prog table -->\n<!-- rbenvs:end -->\n")
+    page.write_text(
+        "before\n<!-- rbenvs:output prog x 'a b' -->\nold\n<!-- rbenvs:end -->\nafter\n"
+        "<!-- rbenvs:output prog table -->\n<!-- rbenvs:end -->\n"
+    )
 
     def body(argv):
         print("figures of", argv)
@@ -254,15 +310,22 @@ def test_docs_flag_writes_the_output_into_the_named_block(tmp_path, capsys):
 
     assert run_with_docs("prog", body, ["x", "a b", "--no-progress", "--docs", str(page)]) == 0
     text = page.read_text()
-    assert "old" not in text and text.startswith("before\n") and text.endswith("<!-- rbenvs:end -->\n")
-    assert re.search(r"`prog x 'a b'` \(20\d\d-\d\d-\d\d, \d+ cores, .*\):\n\n```\nfigures of \['x', 'a b', '--no-progress'\]\n```\n", text)
+    assert (
+        "old" not in text and text.startswith("before\n") and text.endswith("<!-- rbenvs:end -->\n")
+    )
+    assert re.search(
+        r"`prog x 'a b'` \(20\d\d-\d\d-\d\d, \d+ cores, .*\):\n\n```\nfigures of \['x', 'a b', '--no-progress'\]\n```\n",
+        text,
+    )
 
     def table(argv):
         print("| a | b |\n|---|---|\n| 1 | 2 |")
         return 0
 
     assert run_with_docs("prog", table, ["table", "--docs", str(page)]) == 0
-    assert "\n| a | b |\n|---|---|\n| 1 | 2 |\n<!-- rbenvs:end -->" in page.read_text()  # Markdown stays Markdown
+    assert (
+        "\n| a | b |\n|---|---|\n| 1 | 2 |\n<!-- rbenvs:end -->" in page.read_text()
+    )  # Markdown stays Markdown
 
     def bullets(argv):
         print("- one\n- two")
@@ -287,7 +350,9 @@ def test_the_readme_headline_is_made_from_the_records():
     m = find_block((ROOT / "README.md").read_text(), "rbenvs headline")
     assert m is not None, "README.md has no `rbenvs headline` block"
     shown = m.group(2).split("\n\n", 1)[1].strip()
-    assert shown == headline(ROOT), "README.md's headline is stale: run `rbenvs headline --docs README.md`"
+    assert shown == headline(ROOT), (
+        "README.md's headline is stale: run `rbenvs headline --docs README.md`"
+    )
 
 
 def test_headline_counts_what_the_records_say(tmp_path):
@@ -295,20 +360,72 @@ def test_headline_counts_what_the_records_say(tmp_path):
 
     from rbenvs.headline import headline
 
-    with pytest.raises(ValueError, match="docs/verify.json is missing: it is written by `rbenvs verify --json docs/verify.json`"):
+    with pytest.raises(
+        ValueError,
+        match="docs/verify.json is missing: it is written by `rbenvs verify --json docs/verify.json`",
+    ):
         headline(tmp_path)
     docs = tmp_path / "docs"
     docs.mkdir()
     check = {"system": "free_body", "passed": True}
-    (docs / "verify.json").write_text(json.dumps([check, check | {"passed": False}, check | {"system": "tippe_top", "passed": False, "applies": False}]))
-    row = {"scene": None, "num_envs": 64, "single_ratio_to_pendulum": 0.4, "ratio_to_cartpole": 2.0, "compiled_over_numpy": 5.0}
-    (docs / "throughput.json").write_text(json.dumps({"tasks": [row | {"id": "rbenvs/FreeRigidBody-v0", "task": "spin"},
-                                                                row | {"id": "rbenvs/TippeTop-v0", "task": "invert", "single_ratio_to_pendulum": 3.0}]}))
+    (docs / "verify.json").write_text(
+        json.dumps(
+            [
+                check,
+                check | {"passed": False},
+                check | {"system": "tippe_top", "passed": False, "applies": False},
+            ]
+        )
+    )
+    row = {
+        "scene": None,
+        "num_envs": 64,
+        "single_ratio_to_pendulum": 0.4,
+        "ratio_to_cartpole": 2.0,
+        "compiled_over_numpy": 5.0,
+    }
+    (docs / "throughput.json").write_text(
+        json.dumps(
+            {
+                "tasks": [
+                    row | {"id": "rbenvs/FreeRigidBody-v0", "task": "spin"},
+                    row
+                    | {
+                        "id": "rbenvs/TippeTop-v0",
+                        "task": "invert",
+                        "single_ratio_to_pendulum": 3.0,
+                    },
+                ]
+            }
+        )
+    )
     rec = {"task": "spin", "seeds": 3, "success_mean": 1.0}
-    (docs / "results.json").write_text(json.dumps([rec | {"scene": "default", "agent": "analytic"}, rec | {"scene": "default", "agent": "PPO"},
-                                                   rec | {"scene": "tippe_hold", "task": "hold", "agent": "zero action", "success_mean": 0.0}]))
+    (docs / "results.json").write_text(
+        json.dumps(
+            [
+                rec | {"scene": "default", "agent": "analytic"},
+                rec | {"scene": "default", "agent": "PPO"},
+                rec
+                | {
+                    "scene": "tippe_hold",
+                    "task": "hold",
+                    "agent": "zero action",
+                    "success_mean": 0.0,
+                },
+            ]
+        )
+    )
     lines = headline(tmp_path).splitlines()
-    assert "1 of 2 checks pass, on free_body " in lines[0]  # (a row that does not apply is not counted)
-    assert "free body 0.40; tippe top 3.00." in lines[1] and "free body spin 2.00x" in lines[1] and "tippe top 5.0-5.0x" in lines[1]
-    assert "learned agents on 1 of 2 scenes, 3 seeds each" in lines[2] and "`default` PPO 100% (analytic 100%)" in lines[2]
+    assert (
+        "1 of 2 checks pass, on free_body " in lines[0]
+    )  # (a row that does not apply is not counted)
+    assert (
+        "free body 0.40; tippe top 3.00." in lines[1]
+        and "free body spin 2.00x" in lines[1]
+        and "tippe top 5.0-5.0x" in lines[1]
+    )
+    assert (
+        "learned agents on 1 of 2 scenes, 3 seeds each" in lines[2]
+        and "`default` PPO 100% (analytic 100%)" in lines[2]
+    )
     assert "no learned agent yet on `tippe_hold` (hold)" in lines[2]

@@ -30,7 +30,9 @@ def test_unknown_kinds_are_refused_naming_the_rule():
         kind_codes("ux")
 
 
-@pytest.mark.skipif(not available(), reason="numba (the fast extra) is not installed: no compiled draws to compare")
+@pytest.mark.skipif(
+    not available(), reason="numba (the fast extra) is not installed: no compiled draws to compare"
+)
 @pytest.mark.parametrize("kinds", KINDS)
 def test_compiled_table_draws_the_same_streams_as_numpy(kinds, monkeypatch):
     """64 generators, 300 rounds of restarts of changing subsets (about 1e5 normals and

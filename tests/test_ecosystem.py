@@ -33,23 +33,59 @@ def test_rl_zoo3_trains_every_env_from_the_shipped_config(env_id, tmp_path):
     yaml = pytest.importorskip("yaml")
     from stable_baselines3 import PPO
 
-    cmd = [sys.executable, "-m", "rl_zoo3.train", "--algo", "ppo", "--env", env_id, "--gym-packages", "rbenvs",
-           "--conf-file", str(ROOT / "configs" / "agents" / "ppo.yml"), "-n", "256", "--eval-freq", "-1", "--seed", "0",
-           "--log-folder", str(tmp_path), "--hyperparams", "n_envs:2", "n_steps:64", "batch_size:64",
-           # the float path: 256 steps cost less than compiling the period (seconds, per env)
-           "--env-kwargs", "compiled:False"]
-    done = subprocess.run(cmd, cwd=tmp_path, capture_output=True, text=True, timeout=600, env=os.environ | {"PYTHONUNBUFFERED": "1", "OMP_NUM_THREADS": "1"})  # (torch's threads against xdist's workers: 2x slower)
+    cmd = [
+        sys.executable,
+        "-m",
+        "rl_zoo3.train",
+        "--algo",
+        "ppo",
+        "--env",
+        env_id,
+        "--gym-packages",
+        "rbenvs",
+        "--conf-file",
+        str(ROOT / "configs" / "agents" / "ppo.yml"),
+        "-n",
+        "256",
+        "--eval-freq",
+        "-1",
+        "--seed",
+        "0",
+        "--log-folder",
+        str(tmp_path),
+        "--hyperparams",
+        "n_envs:2",
+        "n_steps:64",
+        "batch_size:64",
+        # the float path: 256 steps cost less than compiling the period (seconds, per env)
+        "--env-kwargs",
+        "compiled:False",
+    ]
+    done = subprocess.run(
+        cmd,
+        cwd=tmp_path,
+        capture_output=True,
+        text=True,
+        timeout=600,
+        env=os.environ | {"PYTHONUNBUFFERED": "1", "OMP_NUM_THREADS": "1"},
+    )  # (torch's threads against xdist's workers: 2x slower)
     assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-3000:]
     name = env_id.replace("/", "-")
     (run,) = (tmp_path / "ppo").glob(f"{name}_*")
     # the zoo read our block: the env's budget and the defaults merged into it by the anchor
-    saved = yaml.safe_load((run / name / "config.yml").read_text().replace("!!python/object/apply:collections.OrderedDict", ""))
+    saved = yaml.safe_load(
+        (run / name / "config.yml")
+        .read_text()
+        .replace("!!python/object/apply:collections.OrderedDict", "")
+    )
     saved = dict(saved[0]) if isinstance(saved, list) else saved
     ours = yaml.safe_load((ROOT / "configs" / "agents" / "ppo.yml").read_text())[env_id]
     assert saved["gamma"] == ours["gamma"] == 0.98 and saved["n_timesteps"] == ours["n_timesteps"]
     assert saved["policy"] == "MlpPolicy" and saved["n_envs"] == 2  # (the command line's override)
     updates = [int(line.split("|")[2]) for line in done.stdout.splitlines() if "n_updates" in line]
-    assert updates and updates[-1] >= 1, done.stdout[-2000:]  # PPO did update (10 epochs per rollout)
+    assert updates and updates[-1] >= 1, done.stdout[
+        -2000:
+    ]  # PPO did update (10 epochs per rollout)
     model = PPO.load(run / f"{name}.zip", device="cpu")
     env = gym.make(env_id)
     obs, _ = env.reset(seed=1)
@@ -84,9 +120,16 @@ def test_record_video_records_an_episode_of_every_env(env_id, tmp_path):
     from gymnasium.wrappers import RecordVideo
 
     steps = 12
-    folder = tmp_path / "videos"  # (a new folder: RecordVideo warns when it writes into an existing one)
-    env = RecordVideo(gym.make(env_id, render_mode="rgb_array", max_episode_steps=steps), str(folder),
-                      name_prefix="episode", episode_trigger=lambda episode: True, disable_logger=True)
+    folder = (
+        tmp_path / "videos"
+    )  # (a new folder: RecordVideo warns when it writes into an existing one)
+    env = RecordVideo(
+        gym.make(env_id, render_mode="rgb_array", max_episode_steps=steps),
+        str(folder),
+        name_prefix="episode",
+        episode_trigger=lambda episode: True,
+        disable_logger=True,
+    )
     env.reset(seed=0)
     size = env.render().shape  # (height, width, 3)
     for step in range(steps - 1):
@@ -103,7 +146,9 @@ def test_record_video_records_an_episode_of_every_env(env_id, tmp_path):
     # steps + 1 frames were handed to moviepy; it samples the clip at t = k / fps for t < N / fps,
     # which in floating point can drop the last frame (it does at 50 and 100 fps, not at 20)
     assert len(frames) in (steps, steps + 1)
-    assert any(np.abs(frames[0].astype(int) - f.astype(int)).mean() > 0.01 for f in frames[1:])  # the body moves
+    assert any(
+        np.abs(frames[0].astype(int) - f.astype(int)).mean() > 0.01 for f in frames[1:]
+    )  # the body moves
 
 
 def test_rbenvs_train_writes_tensorboard_logs(tmp_path):
@@ -115,8 +160,18 @@ def test_rbenvs_train_writes_tensorboard_logs(tmp_path):
     from rbenvs.scenes import load_scene
     from rbenvs_agents.train import train
 
-    model, info = train("ppo", load_scene("default"), seed=0, timesteps=256, out_dir=tmp_path / "run", progress=False,
-                        tensorboard=tmp_path / "tb", n_envs=2, n_steps=64, batch_size=64)
+    model, info = train(
+        "ppo",
+        load_scene("default"),
+        seed=0,
+        timesteps=256,
+        out_dir=tmp_path / "run",
+        progress=False,
+        tensorboard=tmp_path / "tb",
+        n_envs=2,
+        n_steps=64,
+        batch_size=64,
+    )
     logdir = pathlib.Path(info["tensorboard"])
     assert logdir.parent == tmp_path / "tb" and logdir.name.startswith("ppo-default-seed0")
     events = EventAccumulator(str(logdir))
@@ -131,8 +186,25 @@ def test_rbenvs_train_tensorboard_flag(tmp_path):
     from rbenvs_agents.cli import train_main
 
     out = tmp_path / "run"
-    assert train_main(["--algo", "ppo", "--scene", "default", "--timesteps", "64", "--out", str(out), "--no-compare",
-                       "--no-progress", "--tensorboard", str(tmp_path / "tb")]) == 0
+    assert (
+        train_main(
+            [
+                "--algo",
+                "ppo",
+                "--scene",
+                "default",
+                "--timesteps",
+                "64",
+                "--out",
+                str(out),
+                "--no-compare",
+                "--no-progress",
+                "--tensorboard",
+                str(tmp_path / "tb"),
+            ]
+        )
+        == 0
+    )
     assert list((tmp_path / "tb").glob("ppo-default-seed0_*/events.out.tfevents.*"))
 
 
@@ -146,14 +218,19 @@ def test_scene_overrides_are_a_top_level_block_the_zoo_never_reads(tmp_path, mon
     (tmp_path / "agents" / "ppo.yml").write_text(
         "default: &default\n  policy: MlpPolicy\n  n_timesteps: 100\n  gamma: 0.9\n  policy_kwargs: {net_arch: [8]}\n"
         "rbenvs/FreeRigidBody-v0:\n  <<: *default\n  n_timesteps: 200\n"
-        "scenes:\n  reorient:\n    gamma: 0.5\n")
+        "scenes:\n  reorient:\n    gamma: 0.5\n"
+    )
     monkeypatch.setenv("RBENVS_CONFIGS", str(tmp_path))
     plain = agent_config("ppo", "rbenvs/FreeRigidBody-v0", "default")
     scene = agent_config("ppo", "rbenvs/FreeRigidBody-v0", "reorient")
     other = agent_config("ppo", "rbenvs/LagrangeTop-v0", "top_upright")
     assert (plain.n_timesteps, plain.hyperparams["gamma"]) == (200, 0.9)
     assert (scene.n_timesteps, scene.hyperparams["gamma"]) == (200, 0.5)
-    assert (other.n_timesteps, other.hyperparams["gamma"], other.policy_kwargs) == (100, 0.9, {"net_arch": [8]})
+    assert (other.n_timesteps, other.hyperparams["gamma"], other.policy_kwargs) == (
+        100,
+        0.9,
+        {"net_arch": [8]},
+    )
 
 
 def test_rbenvs_results_prints_a_finished_runs_table_from_its_json(tmp_path, capsys):
@@ -163,22 +240,65 @@ def test_rbenvs_results_prints_a_finished_runs_table_from_its_json(tmp_path, cap
 
     from rbenvs_agents.cli import results_main
 
-    records = [{"scene": "default", "env_id": "rbenvs/FreeRigidBody-v0", "task": "spin", "agent": "zero action", "timesteps": 0,
-                "wall_time_s": 0.0, "seeds": 3, "return_mean": 150.14, "return_std": 42.04, "success_mean": 1 / 30, "success_std": 0.05},
-               {"scene": "top_upright", "env_id": "rbenvs/LagrangeTop-v0", "task": "upright", "agent": "PPO", "timesteps": 100000,
-                "wall_time_s": 17.2, "seeds": 3, "return_mean": 499.93, "return_std": 0.01, "success_mean": 1.0, "success_std": 0.0}]
+    records = [
+        {
+            "scene": "default",
+            "env_id": "rbenvs/FreeRigidBody-v0",
+            "task": "spin",
+            "agent": "zero action",
+            "timesteps": 0,
+            "wall_time_s": 0.0,
+            "seeds": 3,
+            "return_mean": 150.14,
+            "return_std": 42.04,
+            "success_mean": 1 / 30,
+            "success_std": 0.05,
+        },
+        {
+            "scene": "top_upright",
+            "env_id": "rbenvs/LagrangeTop-v0",
+            "task": "upright",
+            "agent": "PPO",
+            "timesteps": 100000,
+            "wall_time_s": 17.2,
+            "seeds": 3,
+            "return_mean": 499.93,
+            "return_std": 0.01,
+            "success_mean": 1.0,
+            "success_std": 0.0,
+        },
+    ]
     path = tmp_path / "results.json"
     path.write_text(json.dumps(records))
     assert results_main(["--from-json", str(path)]) == 0
     lines = capsys.readouterr().out.strip().splitlines()
-    assert lines[0].endswith("| return (mean +- std, 3 seeds) | success | env steps/s | with policy steps/s | training steps/s |") and len(lines) == 6
+    assert (
+        lines[0].endswith(
+            "| return (mean +- std, 3 seeds) | success | env steps/s | with policy steps/s | training steps/s |"
+        )
+        and len(lines) == 6
+    )
     # (records of a run from before the throughput columns show "-" there)
-    assert lines[2] == "| FreeRigidBody-v0 | spin (default) | zero action | - | - | 150.1 +- 42.0 | 3% | - | - | - |"
-    assert lines[3] == "| LagrangeTop-v0 | upright (top_upright) | PPO | 100,000 | 17 s | 499.9 +- 0.0 | 100% | - | - | - |"
+    assert (
+        lines[2]
+        == "| FreeRigidBody-v0 | spin (default) | zero action | - | - | 150.1 +- 42.0 | 3% | - | - | - |"
+    )
+    assert (
+        lines[3]
+        == "| LagrangeTop-v0 | upright (top_upright) | PPO | 100,000 | 17 s | 499.9 +- 0.0 | 100% | - | - | - |"
+    )
     # under the table, the run's training cost (the trained row's seeds)
-    assert lines[4] == "" and lines[5].startswith("Training cost (this run's wall times): 3 trained cells (1 row x 3 seeds), 52 s in all;")
+    assert lines[4] == "" and lines[5].startswith(
+        "Training cost (this run's wall times): 3 trained cells (1 row x 3 seeds), 52 s in all;"
+    )
     # an option of a run is refused, naming it, not silently ignored (nothing runs)
-    for extra in (["--quick"], ["--seeds", "3"], ["--backend", "ray"], ["--num-cpus", "2"], ["--address", "auto"]):
+    for extra in (
+        ["--quick"],
+        ["--seeds", "3"],
+        ["--backend", "ray"],
+        ["--num-cpus", "2"],
+        ["--address", "auto"],
+    ):
         with pytest.raises(SystemExit):
             results_main(["--from-json", str(path), *extra])
         assert f"leave out {extra[0]}" in capsys.readouterr().err
@@ -207,4 +327,6 @@ def test_an_id_with_its_module_steps_from_a_script_that_never_imports_rbenvs(tmp
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=tmp_path)
     assert out.returncode == 0, out.stderr[-2000:]
-    assert out.stdout.split() == ["(8,)", "(2,", "3)", "True"], out.stdout  # (the tippe top's 8 observations, 2 free bodies' 3)
+    assert out.stdout.split() == ["(8,)", "(2,", "3)", "True"], (
+        out.stdout
+    )  # (the tippe top's 8 observations, 2 free bodies' 3)

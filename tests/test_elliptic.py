@@ -70,6 +70,7 @@ def test_elliptic_k_matches_scipy(m):
 @pytest.mark.parametrize("m1", NEAR_ONE_M1)
 def test_sn_cn_dn_near_m_one_match_mpmath(m1):
     import mpmath as mp  # a dev dependency: missing it must fail, not skip
+
     m_mp = mp.mpf(1) - mp.mpf(m1)  # the exact parameter; the float m = 1 - m1 rounds it
     k = float(mp.ellipk(m_mp))
     rng = np.random.default_rng(2)
@@ -85,6 +86,7 @@ def test_sn_cn_dn_near_m_one_match_mpmath(m1):
 @pytest.mark.parametrize("m1", [1e-8, 1e-12, 1e-16, 1e-30])
 def test_elliptic_f_and_k_near_m_one_match_mpmath(m1):
     import mpmath as mp  # a dev dependency: missing it must fail, not skip
+
     m_mp = mp.mpf(1) - mp.mpf(m1)
     phi = np.linspace(-np.pi, np.pi, 41)
     got = elliptic_f(phi, 1.0 - m1, m1)
@@ -141,7 +143,9 @@ def test_separatrix_incomplete_integral():
     # closed form evaluated at the same float, to a few ulp.
     half_pi = np.pi / 2
     assert elliptic_f(half_pi, 1.0, 0.0) == pytest.approx(np.arcsinh(np.tan(half_pi)), rel=4 * EPS)
-    assert elliptic_f(-half_pi, 1.0, 0.0) == pytest.approx(-np.arcsinh(np.tan(half_pi)), rel=4 * EPS)
+    assert elliptic_f(-half_pi, 1.0, 0.0) == pytest.approx(
+        -np.arcsinh(np.tan(half_pi)), rel=4 * EPS
+    )
     assert elliptic_k(0.0) == np.inf
 
 

@@ -14,8 +14,16 @@ import pytest
 from rbenvs.envs import FreeRigidBodyEnv, LagrangeTopEnv, TippeTopEnv
 from rbenvs.envs.base import MAX_INTERNAL_STEPS
 
-TASKS = {FreeRigidBodyEnv: ("spin", "detumble", "reorient"), LagrangeTopEnv: ("upright", "precess"), TippeTopEnv: ("invert", "hold")}
-IDS = {FreeRigidBodyEnv: "rbenvs/FreeRigidBody-v0", LagrangeTopEnv: "rbenvs/LagrangeTop-v0", TippeTopEnv: "rbenvs/TippeTop-v0"}
+TASKS = {
+    FreeRigidBodyEnv: ("spin", "detumble", "reorient"),
+    LagrangeTopEnv: ("upright", "precess"),
+    TippeTopEnv: ("invert", "hold"),
+}
+IDS = {
+    FreeRigidBodyEnv: "rbenvs/FreeRigidBody-v0",
+    LagrangeTopEnv: "rbenvs/LagrangeTop-v0",
+    TippeTopEnv: "rbenvs/TippeTop-v0",
+}
 
 # The bad values of the issue's table, each tried on every keyword of every env and task.
 CASES = {
@@ -39,15 +47,26 @@ CASES = {
 VALID = {
     (FreeRigidBodyEnv, "perturbation"): {"zero"},  # an exact principal-axis spin
     (FreeRigidBodyEnv, "max_torque"): {"zero"},  # no actuator (the body turns freely)
-    (FreeRigidBodyEnv, "control_cost"): {"zero", "huge_int"},  # a weight >= 0 whose rewards float32 holds
+    (FreeRigidBodyEnv, "control_cost"): {
+        "zero",
+        "huge_int",
+    },  # a weight >= 0 whose rewards float32 holds
     (FreeRigidBodyEnv, "max_angular_velocity"): {"huge_int"},  # any bound up to float32's
     (FreeRigidBodyEnv, "render_mode"): {"none"},
-    (LagrangeTopEnv, "spin"): {"upright": {"negative", "zero", "none"}, "precess": {"none"}},  # precess needs [T 3.82] real
+    (LagrangeTopEnv, "spin"): {
+        "upright": {"negative", "zero", "none"},
+        "precess": {"none"},
+    },  # precess needs [T 3.82] real
     (LagrangeTopEnv, "perturbation"): {"zero"},
-    (LagrangeTopEnv, "target_rate"): {"negative", "none"},  # a retrograde forced precession; None: [T 3.82]
+    (LagrangeTopEnv, "target_rate"): {
+        "negative",
+        "none",
+    },  # a retrograde forced precession; None: [T 3.82]
     (LagrangeTopEnv, "tilt_limit"): {"none"},
     (LagrangeTopEnv, "max_torque"): {"zero"},
-    (LagrangeTopEnv, "spin_friction"): {"zero"},  # at most I_chi / dt: no spin stopped within a step
+    (LagrangeTopEnv, "spin_friction"): {
+        "zero"
+    },  # at most I_chi / dt: no spin stopped within a step
     (LagrangeTopEnv, "control_cost"): {"zero", "huge_int"},
     (LagrangeTopEnv, "max_angular_velocity"): {"huge_int"},
     (LagrangeTopEnv, "render_mode"): {"none"},
@@ -57,7 +76,11 @@ VALID = {
     (TippeTopEnv, "tilt"): {"zero"},
     (TippeTopEnv, "max_table_acceleration"): {"zero"},
     (TippeTopEnv, "friction_range"): {"zero"},
-    (TippeTopEnv, "max_torque"): {"zero", "huge", "huge_int"},  # unused without torque_action: any finite value >= 0
+    (TippeTopEnv, "max_torque"): {
+        "zero",
+        "huge",
+        "huge_int",
+    },  # unused without torque_action: any finite value >= 0
     (TippeTopEnv, "control_cost"): {"zero", "huge_int"},
     (TippeTopEnv, "max_angular_velocity"): {"none", "huge_int"},
     (TippeTopEnv, "max_speed"): {"huge_int"},
@@ -75,7 +98,10 @@ for _cls in TASKS:
 # each; a standard deviation of noise or bias is any finite number >= 0
 for _cls in TASKS:
     VALID[(_cls, "param_ranges")] = {"none"}
-    VALID[(_cls, "observation_noise")] = {"zero", "none"}  # (at most the observation's bounds: huge refused)
+    VALID[(_cls, "observation_noise")] = {
+        "zero",
+        "none",
+    }  # (at most the observation's bounds: huge refused)
     VALID[(_cls, "observation_bias")] = {"zero", "none"}
 
 
@@ -114,7 +140,9 @@ def test_every_keyword_is_valid_or_refused_by_name(cls, task, keyword, case):
         for a in (np.zeros, np.ones, lambda s, dtype: -np.ones(s, dtype)):
             _, r, _, _, info = env.step(a(env.action_space.shape, dtype=np.float32))
             assert math.isfinite(r) and info["numerical_failure"] is False
-            assert all(math.isfinite(v) for v in info.values() if not isinstance(v, str) and v is not None), info
+            assert all(
+                math.isfinite(v) for v in info.values() if not isinstance(v, str) and v is not None
+            ), info
 
 
 def test_the_grid_covers_every_keyword():
@@ -152,7 +180,11 @@ def test_the_grid_covers_every_keyword():
         (LagrangeTopEnv, dict(length=1e300), "length"),  # an OverflowError before
         (LagrangeTopEnv, dict(gravity=1e300), "gravity"),  # blamed max_angular_velocity before
         (LagrangeTopEnv, dict(spin=1e300), "spin"),
-        (LagrangeTopEnv, dict(com_direction="abc"), "com_direction"),  # "could not convert string to float"
+        (
+            LagrangeTopEnv,
+            dict(com_direction="abc"),
+            "com_direction",
+        ),  # "could not convert string to float"
         (LagrangeTopEnv, dict(spin_friction=1e300, integrator="rk4"), "spin_friction"),
     ],
 )
@@ -252,12 +284,24 @@ def test_mistyped_reset_states_raise_type_error_single_and_vector(cls, kind):
 CHECKED_CONFIGS = [
     pytest.param(LagrangeTopEnv, dict(inertia=(0.5, 0.45, 0.3)), id="asymmetric-top"),
     pytest.param(LagrangeTopEnv, dict(com_direction=(0.1, 0.0, 1.0)), id="off-axis-top"),
-    pytest.param(LagrangeTopEnv, dict(inertia=(0.5, 0.45, 0.3), com_direction=(0.3, -0.2, 1.0), spin=(-4.0, 4.0)), id="general-top"),
-    pytest.param(LagrangeTopEnv, dict(inertia=(0.5, 0.45, 0.3), integrator="rk4", attitude=True), id="asymmetric-top-rk4-attitude"),
+    pytest.param(
+        LagrangeTopEnv,
+        dict(inertia=(0.5, 0.45, 0.3), com_direction=(0.3, -0.2, 1.0), spin=(-4.0, 4.0)),
+        id="general-top",
+    ),
+    pytest.param(
+        LagrangeTopEnv,
+        dict(inertia=(0.5, 0.45, 0.3), integrator="rk4", attitude=True),
+        id="asymmetric-top-rk4-attitude",
+    ),
     pytest.param(LagrangeTopEnv, dict(task="precess"), id="precess"),
-    pytest.param(FreeRigidBodyEnv, dict(inertia=(1.0, 1.0, 1.0), task="detumble"), id="sphere-detumble"),
+    pytest.param(
+        FreeRigidBodyEnv, dict(inertia=(1.0, 1.0, 1.0), task="detumble"), id="sphere-detumble"
+    ),
     *[
-        pytest.param(TippeTopEnv, dict(fidelity=f, free_flight=ff), id=f"tippe-{f}{'-flight' if ff else ''}")
+        pytest.param(
+            TippeTopEnv, dict(fidelity=f, free_flight=ff), id=f"tippe-{f}{'-flight' if ff else ''}"
+        )
         for f in ("gliding", "frictionless", "rolling")
         for ff in (False, True)
         if not (f == "rolling" and ff)
@@ -278,7 +322,9 @@ def test_both_checkers_pass_and_info_is_finite(cls, kwargs):
     env.action_space.seed(0)
     _, info = env.reset(seed=1)
     for _ in range(30):
-        assert all(math.isfinite(v) for v in info.values() if not isinstance(v, str) and v is not None), info
+        assert all(
+            math.isfinite(v) for v in info.values() if not isinstance(v, str) and v is not None
+        ), info
         _, _, te, tr, info = env.step(env.action_space.sample())
         if te or tr:
             break
@@ -293,13 +339,18 @@ def test_precess_at_tilt_zero_has_a_finite_precession_rate():
     env = LagrangeTopEnv(task="precess")
     env.reset(seed=0)
     spin = 2.0 * env.critical_spin
-    upright = {"angular_momentum": np.array([0.0, 0.0, 0.3 * spin]), "vertical": np.array([0.0, 0.0, 1.0])}
+    upright = {
+        "angular_momentum": np.array([0.0, 0.0, 0.3 * spin]),
+        "vertical": np.array([0.0, 0.0, 1.0]),
+    }
     _, info = env.reset(options={"state": upright})
     assert info["precession_rate"] == 0.0 and info["tilt_error"] == pytest.approx(0.5)
     assert all(math.isfinite(v) for v in info.values() if v is not None)
     _, r, te, _, info = env.step(np.zeros(2, dtype=np.float32))
     assert te and info["terminal_reason"] == "task"  # 0.5 rad from the target: past tilt_limit
-    assert math.isfinite(r) and all(math.isfinite(v) for k, v in info.items() if k != "terminal_reason" and v is not None)
+    assert math.isfinite(r) and all(
+        math.isfinite(v) for k, v in info.items() if k != "terminal_reason" and v is not None
+    )
     # the batch computes the same value (0) where sin(tilt) = 0
     y = tuple(np.array([c, c]) for c in (0.0, 0.0, 0.3 * spin, 0.0, 0.0, 1.0))
     assert np.array_equal(env.system.precession_rate(y), [0.0, 0.0])
@@ -308,30 +359,53 @@ def test_precess_at_tilt_zero_has_a_finite_precession_rate():
         check_env(env, skip_render_check=True)
 
 
-@pytest.mark.parametrize("env_id, misspelled, meant", [
-    ("rbenvs/FreeRigidBody-v0", "integrater", "integrator"),
-    ("rbenvs/LagrangeTop-v0", "tilt_limt", "tilt_limit"),
-    ("rbenvs/TippeTop-v0", "fidelty", "fidelity"),
-])
+@pytest.mark.parametrize(
+    "env_id, misspelled, meant",
+    [
+        ("rbenvs/FreeRigidBody-v0", "integrater", "integrator"),
+        ("rbenvs/LagrangeTop-v0", "tilt_limt", "tilt_limit"),
+        ("rbenvs/TippeTop-v0", "fidelty", "fidelity"),
+    ],
+)
 def test_a_misspelled_keyword_is_answered_with_the_closest_one(env_id, misspelled, meant):
     """Each env names itself, the closest valid keyword and where the full list is; so does each
     vector env (whose keywords are its own and the single env's)."""
     cls = gym.spec(env_id).entry_point.split(":")[1]
-    with pytest.raises(TypeError, match=rf"{cls} got an unexpected keyword argument '{misspelled}'; did you mean '{meant}'\? \(every keyword: help\(rbenvs.envs.{cls}\)"):
+    with pytest.raises(
+        TypeError,
+        match=rf"{cls} got an unexpected keyword argument '{misspelled}'; did you mean '{meant}'\? \(every keyword: help\(rbenvs.envs.{cls}\)",
+    ):
         gym.make(env_id, **{misspelled: 1})
-    with pytest.raises(TypeError, match=rf"{cls.replace('Env', 'VectorEnv')} got an unexpected keyword argument 'num_thread'; did you mean 'num_threads'\?"):
+    with pytest.raises(
+        TypeError,
+        match=rf"{cls.replace('Env', 'VectorEnv')} got an unexpected keyword argument 'num_thread'; did you mean 'num_threads'\?",
+    ):
         gym.make_vec(env_id, num_envs=2, vectorization_mode="vector_entry_point", num_thread=2)
-    with pytest.raises(TypeError, match=rf"got an unexpected keyword argument '{misspelled}'; did you mean '{meant}'\?"):
+    with pytest.raises(
+        TypeError,
+        match=rf"got an unexpected keyword argument '{misspelled}'; did you mean '{meant}'\?",
+    ):
         gym.make_vec(env_id, num_envs=2, vectorization_mode="vector_entry_point", **{misspelled: 1})
-    with pytest.raises(TypeError, match=r"got an unexpected keyword argument 'zzzz' \(every keyword"):  # (nothing close: no guess)
+    with pytest.raises(
+        TypeError, match=r"got an unexpected keyword argument 'zzzz' \(every keyword"
+    ):  # (nothing close: no guess)
         gym.make(env_id, zzzz=1)
 
 
-@pytest.mark.parametrize("kwargs, message", [
-    (dict(task="detumbel"), "task must be one of .* got 'detumbel'; did you mean 'detumble'\\?"),
-    (dict(integrator="RK4"), "integrator must be one of .* got 'RK4'; did you mean 'rk4'\\?"),
-    (dict(guard="subdivid"), "guard must be one of .* got 'subdivid'; did you mean 'subdivide'\\?"),
-])
+@pytest.mark.parametrize(
+    "kwargs, message",
+    [
+        (
+            dict(task="detumbel"),
+            "task must be one of .* got 'detumbel'; did you mean 'detumble'\\?",
+        ),
+        (dict(integrator="RK4"), "integrator must be one of .* got 'RK4'; did you mean 'rk4'\\?"),
+        (
+            dict(guard="subdivid"),
+            "guard must be one of .* got 'subdivid'; did you mean 'subdivide'\\?",
+        ),
+    ],
+)
 def test_a_misspelled_choice_is_answered_with_the_closest_one(kwargs, message):
     with pytest.raises(ValueError, match=message):
         FreeRigidBodyEnv(**kwargs)
@@ -340,13 +414,39 @@ def test_a_misspelled_choice_is_answered_with_the_closest_one(kwargs, message):
 @pytest.mark.parametrize(
     "cls, kwargs, message",
     [
-        (FreeRigidBodyEnv, dict(control_cost=1e300), r"control_cost=1e\+300 makes the least reward of a step .* beyond float32's range"),
-        (TippeTopEnv, dict(observation_noise=1e300), r"observation_noise must be at most the observation's bound in every component"),
-        (LagrangeTopEnv, dict(observation_bias=1e300), r"observation_bias must be at most the observation's bound in every component"),
-        (LagrangeTopEnv, dict(spin_friction=1e300), r"spin_friction must be at most I_chi / dt = 15 N m s"),
-        (TippeTopEnv, dict(slip_regularization=1e300), r"slip_regularization must be below max_speed = 5.0 m/s"),
+        (
+            FreeRigidBodyEnv,
+            dict(control_cost=1e300),
+            r"control_cost=1e\+300 makes the least reward of a step .* beyond float32's range",
+        ),
+        (
+            TippeTopEnv,
+            dict(observation_noise=1e300),
+            r"observation_noise must be at most the observation's bound in every component",
+        ),
+        (
+            LagrangeTopEnv,
+            dict(observation_bias=1e300),
+            r"observation_bias must be at most the observation's bound in every component",
+        ),
+        (
+            LagrangeTopEnv,
+            dict(spin_friction=1e300),
+            r"spin_friction must be at most I_chi / dt = 15 N m s",
+        ),
+        (
+            TippeTopEnv,
+            dict(slip_regularization=1e300),
+            r"slip_regularization must be below max_speed = 5.0 m/s",
+        ),
     ],
-    ids=["control_cost", "observation_noise", "observation_bias", "spin_friction", "slip_regularization"],
+    ids=[
+        "control_cost",
+        "observation_noise",
+        "observation_bias",
+        "spin_friction",
+        "slip_regularization",
+    ],
 )
 def test_values_that_would_hide_the_physics_are_refused_with_the_rule(cls, kwargs, message):
     """Rewards beyond float32 (-inf in a replay buffer), noise or bias wider than the

@@ -36,7 +36,10 @@ def test_step_types_and_info(env_id, task, integrator):
             assert key in info
         assert np.isfinite(info["energy"]) and info["numerical_failure"] is False
         # (error_estimate is None where nothing is estimated: tolerance=None, a scheme without an error constant)
-    assert all(type(v) in (float, bool, int, str) or (k == "error_estimate" and v is None) for k, v in info.items()), {k: type(v) for k, v in info.items()}
+    assert all(
+        type(v) in (float, bool, int, str) or (k == "error_estimate" and v is None)
+        for k, v in info.items()
+    ), {k: type(v) for k, v in info.items()}
 
 
 @pytest.mark.parametrize("env_id", ENV_IDS)
@@ -46,7 +49,9 @@ def test_registered_with_time_limit_and_dt(env_id):
     assert env.unwrapped.dt > 0
     assert env.action_space.dtype == np.float32
     assert np.all(env.action_space.low == -1) and np.all(env.action_space.high == 1)
-    assert np.all(np.isfinite(env.observation_space.low)) and np.all(np.isfinite(env.observation_space.high))
+    assert np.all(np.isfinite(env.observation_space.low)) and np.all(
+        np.isfinite(env.observation_space.high)
+    )
 
 
 @pytest.mark.parametrize("env_id,task", sorted({(v.values[0], v.values[1]) for v in VARIANTS}))

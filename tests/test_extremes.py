@@ -90,7 +90,10 @@ def test_rk4_growth_per_step_inside_its_bound_on_random_bodies():
         system = FreeBody(FreeBodyParams(tuple(inertia)))
         y = tuple(rng.normal(size=3) * 10.0 ** rng.uniform(-2, 4))
         h = rng.uniform(0.0, 1.0) / np.linalg.norm(np.array(y) / inertia)
-        worst = max(worst, system.momentum_norm(rk4.step(system, y, None, h)) / system.momentum_norm(y) - 1.0)
+        worst = max(
+            worst,
+            system.momentum_norm(rk4.step(system, y, None, h)) / system.momentum_norm(y) - 1.0,
+        )
     assert worst < 1e-5
 
 
@@ -102,9 +105,19 @@ def expected_steps(dt, rate, bound, growth=math.inf, substeps=1):
     return n
 
 
-@pytest.mark.parametrize("integrator,bound,growth", [("rk4", 1.0, math.inf), ("euler", 0.1, 0.02), ("splitting", 1.0, math.inf)])
+@pytest.mark.parametrize(
+    "integrator,bound,growth",
+    [("rk4", 1.0, math.inf), ("euler", 0.1, 0.02), ("splitting", 1.0, math.inf)],
+)
 def test_free_body_subdivides_by_the_documented_rule(integrator, bound, growth):
-    env = FreeRigidBodyEnv(integrator=integrator, tolerance=None, spin_rate=300.0, axis="minor", max_angular_velocity=1e4, dt=0.01)
+    env = FreeRigidBodyEnv(
+        integrator=integrator,
+        tolerance=None,
+        spin_rate=300.0,
+        axis="minor",
+        max_angular_velocity=1e4,
+        dt=0.01,
+    )
     env.reset(seed=0)
     speed = np.linalg.norm(env.system.angular_velocity(env._y))
     n = expected_steps(0.01, speed, bound, growth)
@@ -115,7 +128,14 @@ def test_free_body_subdivides_by_the_documented_rule(integrator, bound, growth):
 
 @pytest.mark.parametrize("integrator", ["exact", "dop853"])
 def test_free_body_exact_and_adaptive_are_never_subdivided(integrator):
-    env = FreeRigidBodyEnv(integrator=integrator, tolerance=None, spin_rate=1e4, axis="major", max_angular_velocity=3e4, dt=0.05)
+    env = FreeRigidBodyEnv(
+        integrator=integrator,
+        tolerance=None,
+        spin_rate=1e4,
+        axis="major",
+        max_angular_velocity=3e4,
+        dt=0.05,
+    )
     env.reset(seed=0)
     assert env.step(zeros(env))[4]["internal_step"] == 0.05
 
@@ -131,14 +151,18 @@ def test_free_body_exact_and_adaptive_are_never_subdivided(integrator):
     ],
 )
 def test_heavy_top_subdivides_by_the_documented_rule(kwargs, rate):
-    env = LagrangeTopEnv(max_angular_velocity=1e3, **({"tolerance": None} | kwargs))  # (the guard alone: unchecked)
+    env = LagrangeTopEnv(
+        max_angular_velocity=1e3, **({"tolerance": None} | kwargs)
+    )  # (the guard alone: unchecked)
     env.reset(seed=0)
     prm = env.params
     omega_g = math.sqrt(prm.mgl / min(prm.inertia))
     kappa = prm.spin_friction * sum(c * c / i for c, i in zip(prm.com_direction, prm.inertia))
     w = math.sqrt(sum(c * c for c in env.system.angular_velocity(env._y)))
     lam = {"spin+g": w + omega_g, "g": omega_g, "spin+g+kappa": w + omega_g + kappa}[rate]
-    bound, growth = {"rk4": (1.0, math.inf), "euler": (0.1, 0.02), "splitting": (1.0, math.inf)}[kwargs["integrator"]]
+    bound, growth = {"rk4": (1.0, math.inf), "euler": (0.1, 0.02), "splitting": (1.0, math.inf)}[
+        kwargs["integrator"]
+    ]
     dt = kwargs.get("dt", 0.02)
     n = expected_steps(dt, lam, bound, growth)
     assert n > 1
@@ -148,9 +172,15 @@ def test_heavy_top_subdivides_by_the_documented_rule(kwargs, rate):
 @pytest.mark.parametrize(
     "make",
     [
-        lambda g, n=1: FreeRigidBodyEnv(spin_rate=100.0, max_angular_velocity=1e3, guard=g, substeps=n),
-        lambda g, n=1: LagrangeTopEnv(integrator="rk4", spin=100.0, max_angular_velocity=1e3, guard=g, substeps=n),
-        lambda g, n=1: TippeTopEnv(guard=g, substeps=n),  # the default top needs ~160 steps per period
+        lambda g, n=1: FreeRigidBodyEnv(
+            spin_rate=100.0, max_angular_velocity=1e3, guard=g, substeps=n
+        ),
+        lambda g, n=1: LagrangeTopEnv(
+            integrator="rk4", spin=100.0, max_angular_velocity=1e3, guard=g, substeps=n
+        ),
+        lambda g, n=1: TippeTopEnv(
+            guard=g, substeps=n
+        ),  # the default top needs ~160 steps per period
     ],
     ids=["free", "lagrange", "tippe"],
 )
@@ -184,23 +214,55 @@ def test_guard_off_exposes_the_numerical_failure_path():
     it) is refused as a numerical failure, before integrating; at dt = 0.05 s the guarded
     euler stays finite."""
     with pytest.raises(ValueError, match="dt=5.0 s cannot be resolved"):
-        FreeRigidBodyEnv(integrator="euler", tolerance=None, spin_rate=50.0, dt=5.0, substeps=7, max_angular_velocity=3e38)
-    fast = FreeRigidBodyEnv(integrator="euler", tolerance=None, spin_rate=50.0, dt=5.0, substeps=7, max_angular_velocity=3e38, guard="off")
+        FreeRigidBodyEnv(
+            integrator="euler",
+            tolerance=None,
+            spin_rate=50.0,
+            dt=5.0,
+            substeps=7,
+            max_angular_velocity=3e38,
+        )
+    fast = FreeRigidBodyEnv(
+        integrator="euler",
+        tolerance=None,
+        spin_rate=50.0,
+        dt=5.0,
+        substeps=7,
+        max_angular_velocity=3e38,
+        guard="off",
+    )
     fast.reset(seed=0)
     start = fast.get_state()  # a spin at 50 rad/s
     for guard in ("off", "subdivide"):
-        env = FreeRigidBodyEnv(integrator="euler", tolerance=None, spin_rate=1.0, dt=5.0, substeps=7, max_angular_velocity=3e38, guard=guard)
+        env = FreeRigidBodyEnv(
+            integrator="euler",
+            tolerance=None,
+            spin_rate=1.0,
+            dt=5.0,
+            substeps=7,
+            max_angular_velocity=3e38,
+            guard=guard,
+        )
         obs0, _ = env.reset(seed=0, options={"state": start})
         last = env.get_state()
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
             infos = step_all(env, 20)
         assert [w.category for w in caught] == [NumericalFailureWarning]
-        assert infos[-1]["terminal_reason"] == "numerical_failure" and math.isfinite(infos[-1]["energy"])
+        assert infos[-1]["terminal_reason"] == "numerical_failure" and math.isfinite(
+            infos[-1]["energy"]
+        )
         if guard == "subdivide":
             assert len(infos) == 1 and infos[0]["internal_step"] == 5.0 / (MAX_INTERNAL_STEPS + 1)
             assert all(same(last[k], v) for k, v in env.get_state().items())
-    env = FreeRigidBodyEnv(integrator="euler", tolerance=None, spin_rate=50.0, axis="major", dt=0.05, max_angular_velocity=200.0)
+    env = FreeRigidBodyEnv(
+        integrator="euler",
+        tolerance=None,
+        spin_rate=50.0,
+        axis="major",
+        dt=0.05,
+        max_angular_velocity=200.0,
+    )
     env.reset(seed=0)
     infos = step_all(env, 20)
     assert len(infos) == 20 and not any(i["numerical_failure"] for i in infos)
@@ -226,9 +288,29 @@ def test_stepping_past_an_observation_limit_stays_guarded():
 @pytest.mark.parametrize(
     "env_id,kwargs,k",
     [
-        ("rbenvs/FreeRigidBody-v0", dict(task="detumble", spin_rate=30.0, max_angular_velocity=200.0), 3),
-        ("rbenvs/FreeRigidBody-v0", dict(task="detumble", integrator="euler", tolerance=None, spin_rate=3.0, max_angular_velocity=20.0), 3),
-        ("rbenvs/LagrangeTop-v0", dict(integrator="rk4", spin=(10.0, 80.0), max_angular_velocity=300.0, tilt_limit=math.pi), 2),
+        (
+            "rbenvs/FreeRigidBody-v0",
+            dict(task="detumble", spin_rate=30.0, max_angular_velocity=200.0),
+            3,
+        ),
+        (
+            "rbenvs/FreeRigidBody-v0",
+            dict(
+                task="detumble",
+                integrator="euler",
+                tolerance=None,
+                spin_rate=3.0,
+                max_angular_velocity=20.0,
+            ),
+            3,
+        ),
+        (
+            "rbenvs/LagrangeTop-v0",
+            dict(
+                integrator="rk4", spin=(10.0, 80.0), max_angular_velocity=300.0, tilt_limit=math.pi
+            ),
+            2,
+        ),
     ],
 )
 def test_vector_env_equals_single_envs_under_guarded_stepping(env_id, kwargs, k):
@@ -257,7 +339,16 @@ def test_vector_env_equals_single_envs_under_guarded_stepping(env_id, kwargs, k)
 
 # ----------------------------------------------------------------- 3. free body extremes
 def run_free(integrator, spin, axis, dt, steps, inertia=(2.0, 1.5, 1.0)):
-    env = FreeRigidBodyEnv(inertia=inertia, integrator=integrator, tolerance=None, spin_rate=spin, axis=axis, perturbation=0.3, dt=dt, max_angular_velocity=3 * spin)
+    env = FreeRigidBodyEnv(
+        inertia=inertia,
+        integrator=integrator,
+        tolerance=None,
+        spin_rate=spin,
+        axis=axis,
+        perturbation=0.3,
+        dt=dt,
+        max_angular_velocity=3 * spin,
+    )
     _, info0 = env.reset(seed=0)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
@@ -301,29 +392,51 @@ def test_euler_at_1e4_rad_per_s_is_a_numerical_failure_or_within_its_growth_boun
     At dt = 0.05 s it would need 1.25e7 steps: such a start is refused at construction (naming
     dt), and such a state reached later (here: reset to it) is a numerical failure, the state
     kept."""
-    env = FreeRigidBodyEnv(integrator="euler", tolerance=None, spin_rate=1e4, axis="minor", perturbation=0.3, dt=0.01, max_angular_velocity=3e4)
+    env = FreeRigidBodyEnv(
+        integrator="euler",
+        tolerance=None,
+        spin_rate=1e4,
+        axis="minor",
+        perturbation=0.3,
+        dt=0.01,
+        max_angular_velocity=3e4,
+    )
     _, info0 = env.reset(seed=0)
     speed = math.sqrt(sum(c * c for c in env.system.angular_velocity(env._y)))
     infos = step_all(env, 1)
     info = infos[0]
     h = info["internal_step"]
-    assert round(0.01 / h) == math.ceil((0.01 * speed) ** 2 / 0.02) and not info["numerical_failure"]
+    assert (
+        round(0.01 / h) == math.ceil((0.01 * speed) ** 2 / 0.02) and not info["numerical_failure"]
+    )
     c0, c1 = info0["momentum_norm"], info["momentum_norm"]
     w_max = c1 / 1.0  # I_min = 1
     assert 1.0 - 1e-12 <= c1 / c0 <= math.exp(w_max * w_max * h * 0.01 / 2)
     with pytest.raises(ValueError, match="dt=0.05 s cannot be resolved"):
         run_free("euler", 1e4, "minor", 0.05, 1)
     start = env.get_state()  # about 1e4 rad/s
-    env = FreeRigidBodyEnv(integrator="euler", tolerance=None, spin_rate=1.0, axis="minor", dt=0.05, max_angular_velocity=3e4)
+    env = FreeRigidBodyEnv(
+        integrator="euler",
+        tolerance=None,
+        spin_rate=1.0,
+        axis="minor",
+        dt=0.05,
+        max_angular_velocity=3e4,
+    )
     _, info0 = env.reset(seed=0, options={"state": start})
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         infos = step_all(env, 1)
-    assert [w.category for w in caught] == [NumericalFailureWarning] and infos[0]["numerical_failure"] is True
+    assert [w.category for w in caught] == [NumericalFailureWarning] and infos[0][
+        "numerical_failure"
+    ] is True
     assert infos[0]["momentum_norm"] == info0["momentum_norm"]
 
 
-@pytest.mark.parametrize("inertia", [(1.5, 1.5 * (1 + 1e-12), 1.0), (1.5, 1.5, 1.0), (1.0, 1.0, 1.0), (2.0, 1.0 + 1e-12, 1.0)])
+@pytest.mark.parametrize(
+    "inertia",
+    [(1.5, 1.5 * (1 + 1e-12), 1.0), (1.5, 1.5, 1.0), (1.0, 1.0, 1.0), (2.0, 1.0 + 1e-12, 1.0)],
+)
 @pytest.mark.parametrize("integrator", ["exact", "splitting", "rk4"])
 def test_equal_and_nearly_equal_moments(inertia, integrator):
     """Moments equal to 1e-12 relative and exactly equal (elliptic modulus 0 or 1): every
@@ -331,7 +444,15 @@ def test_equal_and_nearly_equal_moments(inertia, integrator):
     tilted 0.3 rad from axis 0). Bounds: exact 1e-10 relative (round-off, docs/physics.md §4);
     splitting and rk4 their global error at |Omega| h = 0.15: C (|Omega| h)^p |Omega| t with
     p = 2 and 4, i.e. 5e-2 and 1e-3."""
-    env = FreeRigidBodyEnv(inertia=inertia, integrator=integrator, tolerance=None, axis=0, spin_rate=3.0, perturbation=0.3, max_angular_velocity=20.0)
+    env = FreeRigidBodyEnv(
+        inertia=inertia,
+        integrator=integrator,
+        tolerance=None,
+        axis=0,
+        spin_rate=3.0,
+        perturbation=0.3,
+        max_angular_velocity=20.0,
+    )
     env.reset(seed=1)
     y0 = env._y
     step_all(env, 20)
@@ -339,7 +460,10 @@ def test_equal_and_nearly_equal_moments(inertia, integrator):
     c0 = env.system.momentum_norm(y0)
     err = np.max(np.abs(np.subtract(env._y, ref))) / c0
     assert err < {"exact": 1e-10, "splitting": 5e-2, "rk4": 1e-3}[integrator]
-    assert abs(env.system.momentum_norm(env._y) / c0 - 1) < {"exact": 1e-12, "splitting": 1e-14, "rk4": 1e-4}[integrator]
+    assert (
+        abs(env.system.momentum_norm(env._y) / c0 - 1)
+        < {"exact": 1e-12, "splitting": 1e-14, "rk4": 1e-4}[integrator]
+    )
 
 
 def separatrix_state(offset):
@@ -375,12 +499,16 @@ def test_on_and_near_the_separatrix(integrator, offset):
         assert np.max(np.abs(np.subtract(env._y, ref))) < 1e-10 * c0
     elif integrator == "splitting":
         assert np.max(np.abs(cs / c0 - 1)) < 200 * 50 * EPS
-        assert np.all(cs * cs / 4.0 * (1 - 1e-12) <= es) and np.all(es <= cs * cs / 2.0 * (1 + 1e-12))
+        assert np.all(cs * cs / 4.0 * (1 - 1e-12) <= es) and np.all(
+            es <= cs * cs / 2.0 * (1 + 1e-12)
+        )
     elif integrator == "rk4":
         assert np.max(np.abs(cs / c0 - 1)) < 1e-6 and np.max(np.abs(es / e0 - 1)) < 1e-6
     else:
         assert np.all(np.diff(cs) >= -4 * EPS * cs[1:])
-        assert np.all(cs[1:] / cs[:-1] <= math.sqrt(1 + (0.05 * 1.02 * cs.max() / c0) ** 2) + 4 * EPS)
+        assert np.all(
+            cs[1:] / cs[:-1] <= math.sqrt(1 + (0.05 * 1.02 * cs.max() / c0) ** 2) + 4 * EPS
+        )
 
 
 @pytest.mark.parametrize("dt", [1e-6, 1e-3, 0.05, 1.0])
@@ -391,7 +519,9 @@ def test_free_body_dt_range(integrator, dt):
     (euler: its per-period growth exp(0.01); the others 1e-6, far above round-off), the step
     count the documented rule's. rk4 at dt = 1 s runs at the bound |Omega| h = 1: its |Pi|
     within [(1 - 0.0061)^steps, 1 + 1e-5 steps] (the two tests of section 1)."""
-    env = FreeRigidBodyEnv(integrator=integrator, tolerance=None, spin_rate=5.0, dt=dt, max_angular_velocity=50.0)
+    env = FreeRigidBodyEnv(
+        integrator=integrator, tolerance=None, spin_rate=5.0, dt=dt, max_angular_velocity=50.0
+    )
     _, info0 = env.reset(seed=0)
     infos = step_all(env, 10)
     assert len(infos) == 10
@@ -403,7 +533,13 @@ def test_free_body_dt_range(integrator, dt):
         assert (1 - 0.0061) ** steps <= c.min() and c.max() < 1 + 1e-5 * steps
     else:
         assert np.all(np.abs(c - 1) < 1e-6)
-    assert infos[0]["internal_step"] == dt / expected_steps(dt, 5.0, *{"euler": (0.1, 0.02), "rk4": (1.0,), "splitting": (1.0,), "exact": (math.inf,)}[integrator])
+    assert infos[0]["internal_step"] == dt / expected_steps(
+        dt,
+        5.0,
+        *{"euler": (0.1, 0.02), "rk4": (1.0,), "splitting": (1.0,), "exact": (math.inf,)}[
+            integrator
+        ],
+    )
 
 
 @pytest.mark.slow
@@ -446,7 +582,13 @@ def test_heavy_top_upright_and_hanging_are_equilibria(integrator, tilt, spin):
     guard's, tilt reading exactly 0 or pi and no NaN in the observation (the precession rate,
     undefined there, is info only)."""
     dt = 0.02
-    env = LagrangeTopEnv(integrator=integrator, tolerance=None, tilt_limit=math.pi, max_angular_velocity=2e4, spin=min(spin, 9.0))
+    env = LagrangeTopEnv(
+        integrator=integrator,
+        tolerance=None,
+        tilt_limit=math.pi,
+        max_angular_velocity=2e4,
+        spin=min(spin, 9.0),
+    )
     pi = (0.0, 0.0, 0.3 * spin)
     env.reset(options={"state": top_state((0.0, 0.0, math.cos(tilt)), pi)})
     y0 = env._y
@@ -455,14 +597,22 @@ def test_heavy_top_upright_and_hanging_are_equilibria(integrator, tilt, spin):
         infos = step_all(env, 3)
     assert same(env._y, y0)
     assert infos[-1]["tilt"] == tilt
-    if integrator == "euler" and spin == 1e4:  # (0.02 * 1e4)^2 / 0.02 = 2e6 steps: refused, state kept
-        assert [w.category for w in caught] == [NumericalFailureWarning] and infos[-1]["numerical_failure"]
+    if (
+        integrator == "euler" and spin == 1e4
+    ):  # (0.02 * 1e4)^2 / 0.02 = 2e6 steps: refused, state kept
+        assert [w.category for w in caught] == [NumericalFailureWarning] and infos[-1][
+            "numerical_failure"
+        ]
         assert infos[-1]["internal_step"] == dt / (MAX_INTERNAL_STEPS + 1)
         return
     assert len(infos) == 3 and not caught
     if integrator != "dop853":
         rate = {"splitting": 0.0}.get(integrator, spin) + math.sqrt(env.params.mgl / 0.3)
-        bound, growth = {"rk4": (1.0, math.inf), "euler": (0.1, 0.02), "splitting": (1.0, math.inf)}[integrator]
+        bound, growth = {
+            "rk4": (1.0, math.inf),
+            "euler": (0.1, 0.02),
+            "splitting": (1.0, math.inf),
+        }[integrator]
         assert infos[-1]["internal_step"] == dt / expected_steps(dt, rate, bound, growth)
 
 
@@ -552,13 +702,22 @@ def test_tippe_top_vanishing_normal_force_lifts_off_or_flies():
     step, finite observation); free flight: hops with the sphere never below the table by more
     than the touchdown tolerance and no energy gain in any period (plastic impact)."""
     # the rolling start (G moving at R n sin(theta)): its normal force vanishes within 60 periods
-    env = TippeTopEnv(spin=1000.0, tilt=0.3, max_angular_velocity=3000.0, max_speed=50.0, start="rolling")
+    env = TippeTopEnv(
+        spin=1000.0, tilt=0.3, max_angular_velocity=3000.0, max_speed=50.0, start="rolling"
+    )
     env.reset(seed=0)
     infos = step_all(env, 60)
     assert infos[-1]["terminal_reason"] == "lift_off" and infos[-1]["normal_force"] < 0.0
     from rbenvs.dynamics.tippe_top import TOUCHDOWN_TOL
 
-    env = TippeTopEnv(spin=1000.0, tilt=0.3, max_angular_velocity=3000.0, max_speed=50.0, free_flight=True, start="rolling")
+    env = TippeTopEnv(
+        spin=1000.0,
+        tilt=0.3,
+        max_angular_velocity=3000.0,
+        max_speed=50.0,
+        free_flight=True,
+        start="rolling",
+    )
     _, info0 = env.reset(seed=0)
     infos = step_all(env, 60)
     assert len(infos) == 60 and infos[-1]["hops"] > 0
@@ -581,4 +740,6 @@ def test_tippe_top_dt_range(dt):
     assert jellett_drift(infos, info0) < 1e-9
     h = infos[0]["internal_step"]
     assert h <= dt and h * 150.0 * 1.01 <= 0.1 + 1e-12
-    assert h <= env.system.max_stable_step(get_integrator("rk4"), normal_force=info0["normal_force"])
+    assert h <= env.system.max_stable_step(
+        get_integrator("rk4"), normal_force=info0["normal_force"]
+    )

@@ -20,8 +20,18 @@ FB, HT, TT = "rbenvs/FreeRigidBody-v0", "rbenvs/LagrangeTop-v0", "rbenvs/TippeTo
 # (id, kwargs, the charge docs/environments.md states, its formula from the task's reward)
 DEFAULTS = [
     (FB, dict(), -404.0, lambda e: -(1.0 + 0.01) * 400),
-    (FB, dict(task="detumble"), -6932.0, lambda e: -(math.sqrt(3.0) * 10.0 / e.task.spin_rate + 0.01) * 400),
-    (FB, dict(task="reorient"), -1097.0, lambda e: -(1.0 + 0.1 * math.sqrt(3.0) * 10.0 / e.task.spin_rate + 0.01) * 400),
+    (
+        FB,
+        dict(task="detumble"),
+        -6932.0,
+        lambda e: -(math.sqrt(3.0) * 10.0 / e.task.spin_rate + 0.01) * 400,
+    ),
+    (
+        FB,
+        dict(task="reorient"),
+        -1097.0,
+        lambda e: -(1.0 + 0.1 * math.sqrt(3.0) * 10.0 / e.task.spin_rate + 0.01) * 400,
+    ),
     (HT, dict(), 0.0, lambda e: min(0.0, math.cos(e.task.tilt_limit) - e.task.control_cost) * 500),
     (HT, dict(task="precess"), -505.0, lambda e: -(1.0 + 0.01) * 500),
     (TT, dict(), -2525.0, lambda e: -(1.0 + 0.01) * 2500),
@@ -38,7 +48,15 @@ def test_charge_at_the_defaults_is_the_documented_one(env_id, kwargs, documented
     assert env.model.episode_steps == gym.spec(env_id).max_episode_steps
 
 
-@pytest.mark.parametrize("env_id,kwargs", [(FB, dict(task="detumble")), (FB, dict(task="reorient")), (HT, dict(task="precess")), (TT, dict())])
+@pytest.mark.parametrize(
+    "env_id,kwargs",
+    [
+        (FB, dict(task="detumble")),
+        (FB, dict(task="reorient")),
+        (HT, dict(task="precess")),
+        (TT, dict()),
+    ],
+)
 def test_least_reward_bounds_every_uncharged_step(env_id, kwargs):
     """Random actions on 64 sub-envs for 60 periods: every reward of a step that was not a
     failed end lies at or above the task's least reward (the floor the charge is made of)."""
@@ -87,8 +105,13 @@ def test_failed_end_is_charged_alike_on_every_path(compiled):
     last = infos[-1]
     assert last["terminal_reason"] == "task" and last["is_success"] is False
     charge = env.model.failure_charge
-    assert charge == pytest.approx((math.cos(2.0) - env.task.control_cost) * 500, rel=1e-12) and charge < -200.0
-    assert -1.0 <= rewards[-1] - charge <= math.cos(2.0) + 1e-12  # the step's own cos(tilt), past the limit
+    assert (
+        charge == pytest.approx((math.cos(2.0) - env.task.control_cost) * 500, rel=1e-12)
+        and charge < -200.0
+    )
+    assert (
+        -1.0 <= rewards[-1] - charge <= math.cos(2.0) + 1e-12
+    )  # the step's own cos(tilt), past the limit
     assert all(r > -1.0 for r in rewards[:-1])  # no other step is charged
     assert vector_rewards == rewards  # bit for bit, the charge included
 
@@ -122,5 +145,7 @@ def test_failed_end_is_charged_once_with_param_ranges():
     assert te and rewards[-1] < -200.0  # charged (about (cos 2 - 0.01) x 500)
     venv = vector_class(type(single.unwrapped))(num_envs=2, **kwargs)
     venv.reset(seed=[3, 4])
-    vector_rewards = [venv.step(np.zeros(venv.action_space.shape, np.float32))[1][0] for _ in rewards]
+    vector_rewards = [
+        venv.step(np.zeros(venv.action_space.shape, np.float32))[1][0] for _ in rewards
+    ]
     assert vector_rewards == rewards

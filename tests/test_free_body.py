@@ -55,7 +55,12 @@ def dop853(inertia, y0, t_eval, rtol=1e-13, attitude=False, dense=False):
         w, x, yy, z = y[3:]
         o1, o2, o3 = y[:3] / inertia
         dq = 0.5 * np.array(
-            [-x * o1 - yy * o2 - z * o3, w * o1 + yy * o3 - z * o2, w * o2 - x * o3 + z * o1, w * o3 + x * o2 - yy * o1]
+            [
+                -x * o1 - yy * o2 - z * o3,
+                w * o1 + yy * o3 - z * o2,
+                w * o2 - x * o3 + z * o1,
+                w * o3 + x * o2 - yy * o1,
+            ]
         )
         return np.concatenate([dpi, dq])
 
@@ -64,7 +69,14 @@ def dop853(inertia, y0, t_eval, rtol=1e-13, attitude=False, dense=False):
         atol[3:] = rtol
     t_end = float(np.max(t_eval)) if t_eval is not None else None
     sol = solve_ivp(
-        fun, (0.0, t_end), y0, method="DOP853", rtol=rtol, atol=atol, t_eval=None if dense else t_eval, dense_output=dense
+        fun,
+        (0.0, t_end),
+        y0,
+        method="DOP853",
+        rtol=rtol,
+        atol=atol,
+        t_eval=None if dense else t_eval,
+        dense_output=dense,
     )
     assert sol.success
     return sol
@@ -161,7 +173,13 @@ def test_params_accept_valid_inertia(good):
 def _random_cases():
     rng = np.random.default_rng(12)
     cases = [random_inertia(rng) for _ in range(32)]
-    for base in [(1.0, 1.0, 0.999), (1.0, 0.999, 0.999), (1.0, 0.9995, 0.999), (1.0, 1.0, 0.5), (1.0, 0.5, 0.5)]:
+    for base in [
+        (1.0, 1.0, 0.999),
+        (1.0, 0.999, 0.999),
+        (1.0, 0.9995, 0.999),
+        (1.0, 1.0, 0.5),
+        (1.0, 0.5, 0.5),
+    ]:
         cases.extend(sorted(set(itertools.permutations(base))))
     cases.append((1.0, 1.0, 1.0))
     return cases
@@ -188,7 +206,12 @@ def test_exact_solution_matches_dop853(case):
     np.testing.assert_allclose(energy(inertia, got), energy(inertia, pi0), rtol=1e-13)
 
 
-FAST_CASES = [((0.9, 0.6, 0.5), 1e2), ((1.0, 0.999, 0.998), 1e3), ((0.3, 0.5, 0.7), 1e4), ((1.0, 1.0, 0.5), 1e4)]
+FAST_CASES = [
+    ((0.9, 0.6, 0.5), 1e2),
+    ((1.0, 0.999, 0.998), 1e3),
+    ((0.3, 0.5, 0.7), 1e4),
+    ((1.0, 1.0, 0.5), 1e4),
+]
 
 
 @pytest.mark.parametrize("inertia, omega", FAST_CASES)
@@ -307,7 +330,9 @@ def _zero_crossings(sol, component, t_end, n_grid=4000):
     v = sol.sol(t)[component]
     roots = []
     for k in np.nonzero(np.sign(v[:-1]) * np.sign(v[1:]) < 0)[0]:
-        roots.append(brentq(lambda s: sol.sol(s)[component], t[k], t[k + 1], xtol=1e-15, rtol=4 * EPS))
+        roots.append(
+            brentq(lambda s: sol.sol(s)[component], t[k], t[k + 1], xtol=1e-15, rtol=4 * EPS)
+        )
     return np.array(roots)
 
 
@@ -335,7 +360,9 @@ def test_period_matches_dop853_zero_crossings(seed):
     np.testing.assert_allclose(orbit.momentum_at(period), pi0, atol=1e-12 * np.linalg.norm(pi0))
 
 
-@pytest.mark.parametrize("inertia, axis", [((1.0, 1.0, 0.5), 2), ((0.7, 0.9, 0.9), 0), ((2.0, 1.5, 2.0), 1)])
+@pytest.mark.parametrize(
+    "inertia, axis", [((1.0, 1.0, 0.5), 2), ((0.7, 0.9, 0.9), 0), ((2.0, 1.5, 2.0), 1)]
+)
 def test_symmetric_body_precesses_uniformly(inertia, axis):
     """Two equal moments: Pi_axis constant, the other pair rotates at lambda = (I1-I3)/(I1 I3) Pi3."""
     rng = np.random.default_rng(21)
@@ -360,7 +387,9 @@ def test_symmetric_body_precesses_uniformly(inertia, axis):
 
 
 # ---------------------------------------------------------------------------- equilibria
-@pytest.mark.parametrize("inertia", [(0.9, 0.6, 0.5), (0.5, 0.9, 0.6), (1.0, 1.0, 0.5), (1.0, 0.999, 0.998)])
+@pytest.mark.parametrize(
+    "inertia", [(0.9, 0.6, 0.5), (0.5, 0.9, 0.6), (1.0, 1.0, 0.5), (1.0, 0.999, 0.998)]
+)
 @pytest.mark.parametrize("axis", [0, 1, 2])
 @pytest.mark.parametrize("sign", [1.0, -1.0])
 def test_principal_axis_spin_stays_put(inertia, axis, sign):
@@ -397,7 +426,16 @@ def test_all_equal_moments_keep_pi_constant():
 
 
 # ---------------------------------------------------------------------------- attitude
-ATTITUDE_INERTIAS = [(0.9, 0.6, 0.5), (0.5, 0.6, 0.9), (0.6, 0.9, 0.5), (1.0, 0.999, 0.998), (1.0, 1.0, 0.5), (0.5, 1.0, 1.0), (1.0, 1.0, 1.0), (0.3, 0.5, 0.7)]
+ATTITUDE_INERTIAS = [
+    (0.9, 0.6, 0.5),
+    (0.5, 0.6, 0.9),
+    (0.6, 0.9, 0.5),
+    (1.0, 0.999, 0.998),
+    (1.0, 1.0, 0.5),
+    (0.5, 1.0, 1.0),
+    (1.0, 1.0, 1.0),
+    (0.3, 0.5, 0.7),
+]
 
 
 @pytest.mark.parametrize("inertia", [(0.9, 0.6, 0.5), (1.0, 0.999, 0.998), (1.0, 1.0, 0.5)])
@@ -406,7 +444,9 @@ def test_exact_attitude_conserves_spatial_momentum(inertia):
     body = FreeBody(FreeBodyParams(inertia), attitude=True)
     integ = get_integrator("exact")
     n_batch = 8
-    pi0 = tuple(np.array([random_momentum(rng, inertia, rng.uniform(1.0, 5.0)) for _ in range(n_batch)]).T)
+    pi0 = tuple(
+        np.array([random_momentum(rng, inertia, rng.uniform(1.0, 5.0)) for _ in range(n_batch)]).T
+    )
     q0 = quat_random(rng, (n_batch,))
     s0 = np.array(quat_rotate(q0, pi0))
     y = pi0 + q0
@@ -414,7 +454,9 @@ def test_exact_attitude_conserves_spatial_momentum(inertia):
     for _ in range(1000):
         y = integ.step(body, y, None, 0.01)
         s = np.array(quat_rotate(y[3:], y[:3]))
-        drift = max(drift, float(np.max(np.linalg.norm(s - s0, axis=0) / np.linalg.norm(s0, axis=0))))
+        drift = max(
+            drift, float(np.max(np.linalg.norm(s - s0, axis=0) / np.linalg.norm(s0, axis=0)))
+        )
     # Each step is exact to ~1e-16 and the quaternion is renormalised; 1000 steps of random
     # rounding stay ~1e-14 (measured); 1e-12 leaves room for unlucky accumulation.
     assert drift <= 1e-12
@@ -461,7 +503,9 @@ def _check_near_middle_axis(eps):
     t_flip = float(orbit.tau0 / abs(orbit.nu))  # u = 0: Pi_mid crosses zero
     t = np.linspace(0.0, t_flip + 5.0, 121)
     fun = lambda _t, y: euler_cross(inertia, y)  # noqa: E731
-    ref = solve_ivp(fun, (0.0, t[-1]), np.array(pi0), method="DOP853", rtol=1e-13, atol=1e-40, t_eval=t).y
+    ref = solve_ivp(
+        fun, (0.0, t[-1]), np.array(pi0), method="DOP853", rtol=1e-13, atol=1e-40, t_eval=t
+    ).y
     got = np.array(orbit.momentum_at(t))
     # Reference self-consistency at rtol 1e-12 vs 1e-13 is ~2e-12 over this horizon (measured).
     assert np.max(np.abs(got - ref)) <= 1e-10
@@ -488,8 +532,14 @@ def test_period_speed_bounds_the_speed_over_the_period():
     from rbenvs.dynamics.free_body import error_rate_params, period_speed
 
     rng = np.random.default_rng(7)
-    bodies = [np.sort(rng.uniform(1.0, 3.0, 3))[::-1] for _ in range(4)] + [np.array([3.0, 2.0, 1.0]), np.array([2.0, 2.0, 1.0])]
-    starts = [rng.normal(size=3) * 5.0 for _ in range(4)] + [np.array([1e-4, 5.0, 1e-4]), np.array([1.0, 2.0, 3.0])]
+    bodies = [np.sort(rng.uniform(1.0, 3.0, 3))[::-1] for _ in range(4)] + [
+        np.array([3.0, 2.0, 1.0]),
+        np.array([2.0, 2.0, 1.0]),
+    ]
+    starts = [rng.normal(size=3) * 5.0 for _ in range(4)] + [
+        np.array([1e-4, 5.0, 1e-4]),
+        np.array([1.0, 2.0, 3.0]),
+    ]
     for inertia, pi0 in zip(bodies, starts):
         inv, spread, _ = error_rate_params(tuple(1.0 / inertia))
         j = np.array(inv)
@@ -497,15 +547,36 @@ def test_period_speed_bounds_the_speed_over_the_period():
         def speed(p):
             return float(np.linalg.norm(np.cross(p, j * p)) / np.linalg.norm(p))
 
-        period = 60.0 / float(np.linalg.norm(j * pi0))  # (radians of the fastest rotation: every orbit passes its maximum)
-        sol = solve_ivp(lambda t, p: np.cross(p, j * p), (0.0, period), pi0, rtol=1e-11, atol=1e-12, max_step=period / 6000)
+        period = 60.0 / float(
+            np.linalg.norm(j * pi0)
+        )  # (radians of the fastest rotation: every orbit passes its maximum)
+        sol = solve_ivp(
+            lambda t, p: np.cross(p, j * p),
+            (0.0, period),
+            pi0,
+            rtol=1e-11,
+            atol=1e-12,
+            max_step=period / 6000,
+        )
         along = [speed(p) for p in sol.y.T]
         orbit = period_speed((inv, spread), tuple(pi0), None, 1e9)
         assert max(along) <= orbit * (1 + 1e-6) and orbit <= max(along) * (1 + 1e-6), (inertia, pi0)
         dt = 0.5 / (spread * float(np.linalg.norm(pi0)))  # (z = 0.5: the growth bound)
-        short = solve_ivp(lambda t, p: np.cross(p, j * p), (0.0, dt), pi0, rtol=1e-11, atol=1e-12, max_step=dt / 200)
-        assert max(speed(p) for p in short.y.T) <= period_speed((inv, spread), tuple(pi0), None, dt) * (1 + 1e-9)
+        short = solve_ivp(
+            lambda t, p: np.cross(p, j * p),
+            (0.0, dt),
+            pi0,
+            rtol=1e-11,
+            atol=1e-12,
+            max_step=dt / 200,
+        )
+        assert max(speed(p) for p in short.y.T) <= period_speed(
+            (inv, spread), tuple(pi0), None, dt
+        ) * (1 + 1e-9)
     batch = rng.normal(size=(3, 6))
     inv, spread, _ = error_rate_params((1 / 3, 1 / 2, 1.0))
     rows = period_speed((inv, spread), tuple(batch), (0.1, -0.2, 0.3), 0.05)
-    assert [float(v) for v in rows] == [period_speed((inv, spread), tuple(float(c) for c in batch[:, i]), (0.1, -0.2, 0.3), 0.05) for i in range(6)]
+    assert [float(v) for v in rows] == [
+        period_speed((inv, spread), tuple(float(c) for c in batch[:, i]), (0.1, -0.2, 0.3), 0.05)
+        for i in range(6)
+    ]

@@ -90,7 +90,9 @@ def test_out_of_range_actions_are_clipped():
 
 
 def test_actuation_mask_shapes_and_routes_torque():
-    env = FreeRigidBodyEnv(actuated=(False, True, False), task="detumble", max_torque=1.0, integrator="exact")
+    env = FreeRigidBodyEnv(
+        actuated=(False, True, False), task="detumble", max_torque=1.0, integrator="exact"
+    )
     assert env.action_space.shape == (1,)
     env.reset(seed=0, options={"state": {"angular_momentum": np.zeros(3)}})
     env.step(np.array([1.0], dtype=np.float32))
@@ -121,7 +123,11 @@ def test_attitude_state_requires_unit_quaternion():
     assert set(env.reset(seed=0)[0].shape) == {7}
     assert set(env.get_state()) == {"angular_momentum", "attitude"}
     with pytest.raises(ValueError, match="unit quaternion"):
-        env.reset(options={"state": {"angular_momentum": np.zeros(3), "attitude": np.array([2.0, 0, 0, 0])}})
+        env.reset(
+            options={
+                "state": {"angular_momentum": np.zeros(3), "attitude": np.array([2.0, 0, 0, 0])}
+            }
+        )
     with pytest.raises(ValueError, match="missing"):
         env.reset(options={"state": {"angular_momentum": np.zeros(3)}})
 
@@ -157,8 +163,12 @@ def test_numerical_failure_ends_episode_with_last_finite_state():
     last = env.get_state()
     with pytest.warns(NumericalFailureWarning, match="non-finite"):
         obs, r, te, tr, info = env.step(zero)
-    assert info["numerical_failure"] is True and te and info["terminal_reason"] == "numerical_failure"
-    assert r == env.model.failure_charge == -404.0 and np.array_equal(obs, obs_ok)  # reward 0 and the failure charge
+    assert (
+        info["numerical_failure"] is True and te and info["terminal_reason"] == "numerical_failure"
+    )
+    assert r == env.model.failure_charge == -404.0 and np.array_equal(
+        obs, obs_ok
+    )  # reward 0 and the failure charge
     assert np.array_equal(env.get_state()["angular_momentum"], last["angular_momentum"])
     assert np.isfinite(info["energy"])
 
@@ -182,7 +192,9 @@ def test_info_invariants_match_state():
     _, _, _, _, info = env.step(np.zeros(3, dtype=np.float32))
     pi = env.get_state()["angular_momentum"]
     assert info["momentum_norm"] == pytest.approx(np.linalg.norm(pi), rel=1e-15)
-    assert info["energy"] == pytest.approx(0.5 * np.sum(pi**2 / np.array([3.0, 2.0, 1.5])), rel=1e-15)
+    assert info["energy"] == pytest.approx(
+        0.5 * np.sum(pi**2 / np.array([3.0, 2.0, 1.5])), rel=1e-15
+    )
 
 
 def run(env, policy, seed):
@@ -205,7 +217,15 @@ def test_zero_torque_reproduces_the_stability_theorem(axis, stable):
         assert max(finals) < 0.5  # the flip happened within 20 s
 
 
-@pytest.mark.parametrize("scene", [dict(task="spin"), dict(task="spin", actuated=(True, False, False)), dict(task="detumble"), dict(task="reorient")])
+@pytest.mark.parametrize(
+    "scene",
+    [
+        dict(task="spin"),
+        dict(task="spin", actuated=(True, False, False)),
+        dict(task="detumble"),
+        dict(task="reorient"),
+    ],
+)
 def test_analytic_controllers_succeed(scene):
     env = gym.make(ID, **scene)
     infos = [run(env, controller_for(env), seed)[1] for seed in range(3)]

@@ -31,8 +31,17 @@ STARTS = ((5.0, 3.0, 0.05), (0.01, 5.0, 0.01), (-2.0, 4.0, 6.0))
 
 
 def _body(tol, check=True, **kw):
-    return FreeRigidBodyEnv(inertia=INERTIA, axis=0, max_torque=0.0, integrator="rk4", max_angular_velocity=50.0, tolerance=tol,
-                            tolerance_horizon=400, tolerance_check=check, **kw)
+    return FreeRigidBodyEnv(
+        inertia=INERTIA,
+        axis=0,
+        max_torque=0.0,
+        integrator="rk4",
+        max_angular_velocity=50.0,
+        tolerance=tol,
+        tolerance_horizon=400,
+        tolerance_check=check,
+        **kw,
+    )
 
 
 def _relative(y, ref):
@@ -43,18 +52,33 @@ def test_the_ratio_and_the_difference_by_hand():
     assert companion_ratio(4) == 15.0 and companion_ratio(1) == 1.0
     blocks = ((0, 2), (2, 3))
     y, yc = (3.0, 4.0, 0.0), (3.0, 4.5, 0.0)
-    assert relative_difference(blocks, y, yc) == pytest.approx(0.1)  # |(0, 0.5)| / 5; the zero block: 0
-    assert relative_difference(blocks, y, (3.0, 4.0, 1e-3)) == math.inf  # a block of norm 0 that differs
+    assert relative_difference(blocks, y, yc) == pytest.approx(
+        0.1
+    )  # |(0, 0.5)| / 5; the zero block: 0
+    assert (
+        relative_difference(blocks, y, (3.0, 4.0, 1e-3)) == math.inf
+    )  # a block of norm 0 that differs
     batch = tuple(np.array([a, b]) for a, b in zip(y, (1.0, 0.0, 2.0)))
     batch_c = tuple(np.array([a, b]) for a, b in zip(yc, (1.0, 0.0, 1.0)))
-    assert np.array_equal(relative_difference(blocks, batch, batch_c), [relative_difference(blocks, y, yc), 0.5])
+    assert np.array_equal(
+        relative_difference(blocks, batch, batch_c), [relative_difference(blocks, y, yc), 0.5]
+    )
 
 
 def test_the_measured_blocks_leave_out_the_tippe_tops_position_and_flags():
     env = TippeTopEnv()
-    names = [n for n, span in env.system.layout.items() if tuple(span) in tolerance_blocks(env.system)]
-    assert "position" not in names and "contact" not in names and "velocity" in names and "attitude" in names
-    assert tolerance_blocks(FreeRigidBodyEnv().system) == tuple(tuple(s) for s in FreeRigidBodyEnv().system.layout.values())
+    names = [
+        n for n, span in env.system.layout.items() if tuple(span) in tolerance_blocks(env.system)
+    ]
+    assert (
+        "position" not in names
+        and "contact" not in names
+        and "velocity" in names
+        and "attitude" in names
+    )
+    assert tolerance_blocks(FreeRigidBodyEnv().system) == tuple(
+        tuple(s) for s in FreeRigidBodyEnv().system.layout.values()
+    )
 
 
 @pytest.mark.parametrize("start", STARTS)
@@ -74,11 +98,17 @@ def test_the_estimate_bounds_the_free_bodys_error_and_ends_the_episode_where_it_
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
             _, _, terminated, _, info = env.step(a)
-        assert round(env.dt / info["internal_step"]) % 2 == 0  # an even count: the companion takes half
+        assert (
+            round(env.dt / info["internal_step"]) % 2 == 0
+        )  # an even count: the companion takes half
         if info["numerical_failure"]:
             assert terminated and info["terminal_reason"] == "numerical_failure"
             assert info["global_error_estimate"] > tol
-            assert any(issubclass(w.category, NumericalFailureWarning) and "global error estimate" in str(w.message) for w in caught)
+            assert any(
+                issubclass(w.category, NumericalFailureWarning)
+                and "global error estimate" in str(w.message)
+                for w in caught
+            )
             ended = k
             break
         err = _relative(env.state_components, exact_solution(INERTIA, pi0, k * env.dt))
@@ -87,9 +117,14 @@ def test_the_estimate_bounds_the_free_bodys_error_and_ends_the_episode_where_it_
         if err > 1e-11:
             assert err <= est <= 3.0 * err, (k, err, est)
     if ended is not None:  # the state kept: the last one within, after ended - 1 periods
-        assert _relative(env.state_components, exact_solution(INERTIA, pi0, (ended - 1) * env.dt)) <= tol
+        assert (
+            _relative(env.state_components, exact_solution(INERTIA, pi0, (ended - 1) * env.dt))
+            <= tol
+        )
     if start == (0.01, 5.0, 0.01) and tol == 1e-9:
-        assert ended is not None  # the near-separatrix start passes 1e-9 (2.3e-9 without the check: the bench's row)
+        assert (
+            ended is not None
+        )  # the near-separatrix start passes 1e-9 (2.3e-9 without the check: the bench's row)
 
 
 def test_reset_restarts_the_companion_and_the_env_copies_and_pickles():
@@ -131,11 +166,15 @@ def test_tolerance_check_is_validated():
             _body(1e-6, check=bad)
     with pytest.raises(ValueError, match="tolerance_check=True needs tolerance="):
         FreeRigidBodyEnv(tolerance_check=True, tolerance=None)
-    with pytest.raises(ValueError, match=r"tolerance_check='refine' was removed .*use tolerance_check=True"):
+    with pytest.raises(
+        ValueError, match=r"tolerance_check='refine' was removed .*use tolerance_check=True"
+    ):
         _body(1e-6, check="refine")
     from rbenvs import compiled
 
-    if compiled.available():  # the single env's checked period runs compiled (rbenvs.compiled.CheckedRuns)
+    if (
+        compiled.available()
+    ):  # the single env's checked period runs compiled (rbenvs.compiled.CheckedRuns)
         assert _body(1e-6, compiled=True).engine.checked_runs is not None
     else:
         with pytest.raises(ValueError, match="compiled=True but numba is not installed"):
@@ -144,8 +183,12 @@ def test_tolerance_check_is_validated():
     from rbenvs.vector import FreeRigidBodyVectorEnv
 
     with pytest.raises(ValueError, match="compiled=True cannot be had with tolerance_check=True"):
-        FreeRigidBodyVectorEnv(2, compiled=True, inertia=INERTIA, axis=0, tolerance=1e-6, tolerance_check=True)
-    assert not FreeRigidBodyVectorEnv(2, inertia=INERTIA, axis=0, tolerance=1e-6, tolerance_check=True).compiled  # (numpy)
+        FreeRigidBodyVectorEnv(
+            2, compiled=True, inertia=INERTIA, axis=0, tolerance=1e-6, tolerance_check=True
+        )
+    assert not FreeRigidBodyVectorEnv(
+        2, inertia=INERTIA, axis=0, tolerance=1e-6, tolerance_check=True
+    ).compiled  # (numpy)
 
 
 def _checked_run_inputs(env, periods, every, switches=3):
@@ -171,8 +214,11 @@ def _checked_run_inputs(env, periods, every, switches=3):
     return out
 
 
-@pytest.mark.parametrize("scene", [None, "top_precess", "tippe", "hops", "tippe_leine_glocker"],
-                         ids=["free_body", "heavy_top", "tippe_from_rest", "tippe_flight_hops", "tippe_stem_switches"])
+@pytest.mark.parametrize(
+    "scene",
+    [None, "top_precess", "tippe", "hops", "tippe_leine_glocker"],
+    ids=["free_body", "heavy_top", "tippe_from_rest", "tippe_flight_hops", "tippe_stem_switches"],
+)
 def test_the_checked_periods_compiled_runs_are_the_float_paths_bits(scene):
     """The checked period's runs compiled (:class:`rbenvs.compiled.CheckedRuns`, the single env's
     with numba) against the float path's :meth:`Engine._run_one`, bit for bit: the main run's
@@ -189,43 +235,74 @@ def test_the_checked_periods_compiled_runs_are_the_float_paths_bits(scene):
         pytest.skip("numba is not installed (the 'fast' extra): the checked period runs on floats")
 
     def make(**kw):
-        with warnings.catch_warnings():  # (the tippe tops invert: the warning is not what is tested here)
+        with (
+            warnings.catch_warnings()
+        ):  # (the tippe tops invert: the warning is not what is tested here)
             warnings.simplefilter("ignore", UnstableMotionWarning)
             if scene is None:
                 return _body(1e-6, **kw)
             if scene == "tippe":
                 return TippeTopEnv(integrator="rk4", tolerance=1e-6, **kw)
-            if scene == "hops":  # (tests/test_tippe_top_flight.py's top that hops many times a period)
-                return TippeTopEnv(integrator="rk4", tolerance=1e-3, spin=1000.0, friction=1.0, tilt=0.01, free_flight=True, max_speed=20.0,
-                                   start="rolling", friction_bound="stability", **kw)
+            if (
+                scene == "hops"
+            ):  # (tests/test_tippe_top_flight.py's top that hops many times a period)
+                return TippeTopEnv(
+                    integrator="rk4",
+                    tolerance=1e-3,
+                    spin=1000.0,
+                    friction=1.0,
+                    tilt=0.01,
+                    free_flight=True,
+                    max_speed=20.0,
+                    start="rolling",
+                    friction_bound="stability",
+                    **kw,
+                )
             return load_scene(scene).make(integrator="rk4", tolerance=1e-6, **kw).unwrapped
 
     source = make(check=False) if scene is None else make(tolerance_check=False)
     source.reset(seed=0)
-    inputs = _checked_run_inputs(source, *{None: (200, 40), "hops": (110, 20)}.get(scene, (400, 40)))
+    inputs = _checked_run_inputs(
+        source, *{None: (200, 40), "hops": (110, 20)}.get(scene, (400, 40))
+    )
     fast = (make(check=True) if scene is None else make(tolerance_check=True)).engine
-    slow = (make(check=True, compiled=False) if scene is None else make(tolerance_check=True, compiled=False)).engine
+    slow = (
+        make(check=True, compiled=False)
+        if scene is None
+        else make(tolerance_check=True, compiled=False)
+    ).engine
     assert fast.checked_runs is not None and slow.checked_runs is None
     assert fast.planner is not None and slow.planner is None
     rng = np.random.default_rng(5)
     switched = 0
     for y, comp, u, n in inputs:
-        for v in (u, fast.control(tuple(float(c) for c in rng.uniform(-1.0, 1.0, fast.actuator.size)))[1]):
+        for v in (
+            u,
+            fast.control(tuple(float(c) for c in rng.uniform(-1.0, 1.0, fast.actuator.size)))[1],
+        ):
             plan = fast.plan_one(y, v)
             assert plan == slow.plan_one(y, v) == slow.rule.plan(y, v), plan
         count = fast.rule.count(fast.plan_one(y, u)[0], fast.substeps)
         assert count + (count & 1) == n  # (the inputs' count, the guard's made even, is the plan's)
         for c, h in ((n, fast.dt / n), (n // 2, 2.0 * fast.dt / n)):
             assert fast._run_one(y, u, c, h, comp) == slow._run_one(y, u, c, h, comp), c
-        flag = slow.system.layout.get("hops", slow.system.layout.get("contact", (0, 0)))[0]  # (flight: the hops it counts)
-        switched += scene in ("hops", "tippe_leine_glocker") and slow._run_one(y, u, n, fast.dt / n, comp)[0][flag] != y[flag]
+        flag = slow.system.layout.get("hops", slow.system.layout.get("contact", (0, 0)))[
+            0
+        ]  # (flight: the hops it counts)
+        switched += (
+            scene in ("hops", "tippe_leine_glocker")
+            and slow._run_one(y, u, n, fast.dt / n, comp)[0][flag] != y[flag]
+        )
     assert len(inputs) >= 5
     if scene in ("hops", "tippe_leine_glocker"):
         assert switched >= 1  # (a period with a switch inside it was among them)
 
 
-@pytest.mark.parametrize("scene", [None, "top_precess", "tippe", "hops", "tippe_leine_glocker"],
-                         ids=["free_body", "heavy_top", "tippe_from_rest", "tippe_flight_hops", "tippe_stem_switches"])
+@pytest.mark.parametrize(
+    "scene",
+    [None, "top_precess", "tippe", "hops", "tippe_leine_glocker"],
+    ids=["free_body", "heavy_top", "tippe_from_rest", "tippe_flight_hops", "tippe_stem_switches"],
+)
 def test_the_batchs_compiled_rates_are_numpys_bits(scene):
     """The vector env's error estimate reads a batch's rates (:meth:`Engine.rates_batch`) and its
     checked period counts the guard's steps (:meth:`Engine._counts`): compiled in one loop
@@ -246,13 +323,28 @@ def test_the_batchs_compiled_rates_are_numpys_bits(scene):
             if scene == "tippe":
                 return TippeTopEnv(integrator="rk4", tolerance=1e-6, **kw)
             if scene == "hops":
-                return TippeTopEnv(integrator="rk4", tolerance=1e-3, spin=1000.0, friction=1.0, tilt=0.01, free_flight=True, max_speed=20.0,
-                                   start="rolling", friction_bound="stability", **kw)
+                return TippeTopEnv(
+                    integrator="rk4",
+                    tolerance=1e-3,
+                    spin=1000.0,
+                    friction=1.0,
+                    tilt=0.01,
+                    free_flight=True,
+                    max_speed=20.0,
+                    start="rolling",
+                    friction_bound="stability",
+                    **kw,
+                )
             return load_scene(scene).make(integrator="rk4", tolerance=1e-6, **kw).unwrapped
 
     source = make()
     source.reset(seed=0)
-    states = [y for y, _, _, _ in _checked_run_inputs(source, *{None: (200, 10), "hops": (110, 5)}.get(scene, (400, 10)))]
+    states = [
+        y
+        for y, _, _, _ in _checked_run_inputs(
+            source, *{None: (200, 10), "hops": (110, 5)}.get(scene, (400, 10))
+        )
+    ]
     fast, slow = make().engine, make(compiled=False).engine
     rng = np.random.default_rng(7)
     actions = rng.uniform(-1.0, 1.0, (len(states), fast.actuator.size))
@@ -262,17 +354,24 @@ def test_the_batchs_compiled_rates_are_numpys_bits(scene):
 
     def columns(out):  # (lam's one or three, lam_d, a: each an (n,) array)
         lam, lam_d, a = out
-        return [np.broadcast_to(np.asarray(v, dtype=np.float64), (n,)) for v in (*(lam if motion else (lam,)), lam_d, a)]
+        return [
+            np.broadcast_to(np.asarray(v, dtype=np.float64), (n,))
+            for v in (*(lam if motion else (lam,)), lam_d, a)
+        ]
 
     got, want = columns(fast.rates_batch(y, u)), columns(slow.rates_batch(y, u))
     assert fast.planner is not None and slow.planner is None
     for g, w in zip(got, want):
         assert np.array_equal(g, w)
     counts = fast._counts(y, u)  # (the vector env's checked period's count: the ratios compiled)
-    assert np.array_equal(counts, slow._counts(y, u)) and np.array_equal(fast.planner.ratios(*fast._plan_inputs(fast.planner, y, u)),
-                                                                          np.broadcast_to(slow.rule.ratio(y, u), (n,)))
+    assert np.array_equal(counts, slow._counts(y, u)) and np.array_equal(
+        fast.planner.ratios(*fast._plan_inputs(fast.planner, y, u)),
+        np.broadcast_to(slow.rule.ratio(y, u), (n,)),
+    )
     for i, state in enumerate(states):  # (each element: the single state's plan)
-        x, r, rate, share = slow.rule.plan(state, tuple(float(np.broadcast_to(c, (n,))[i]) for c in u))
+        x, r, rate, share = slow.rule.plan(
+            state, tuple(float(np.broadcast_to(c, (n,))[i]) for c in u)
+        )
         assert tuple(float(g[i]) for g in got) == (*(r if motion else (r,)), rate, share)
         assert counts[i] == slow.rule.count(x, slow.substeps)
     assert len(states) >= 5
@@ -288,7 +387,9 @@ def test_the_unstable_motion_warning_names_the_check_and_the_callers_line():
     with pytest.warns(UnstableMotionWarning) as caught_vector:
         TippeTopVectorEnv(2, tolerance=1e-6)
     # the line that built the env, not a line of the package (the vector env builds a single env)
-    assert {w.filename for w in [*caught, *caught_vector] if w.category is UnstableMotionWarning} == {__file__}
+    assert {
+        w.filename for w in [*caught, *caught_vector] if w.category is UnstableMotionWarning
+    } == {__file__}
 
 
 @pytest.fixture(scope="module")
@@ -317,7 +418,10 @@ def test_the_hopping_tippe_top_is_ended_within_the_tolerance(hop_reference):
     a = np.zeros(env.action_space.shape, np.float32)
 
     def error(y, r):
-        return max(float(np.linalg.norm(np.subtract(y[lo:hi], r[lo:hi])) / np.linalg.norm(r[lo:hi])) for lo, hi in tolerance_blocks(env.system))
+        return max(
+            float(np.linalg.norm(np.subtract(y[lo:hi], r[lo:hi])) / np.linalg.norm(r[lo:hi]))
+            for lo, hi in tolerance_blocks(env.system)
+        )
 
     ended, previous = None, None
     with warnings.catch_warnings():
@@ -326,12 +430,18 @@ def test_the_hopping_tippe_top_is_ended_within_the_tolerance(hop_reference):
             _, _, terminated, _, info = env.step(a)
             if info["numerical_failure"]:
                 ended = k
-                assert error(env.state_components, previous) <= 1e-6  # the state kept: the last period's
+                assert (
+                    error(env.state_components, previous) <= 1e-6
+                )  # the state kept: the last period's
                 break
             previous = reference[k - 1]  # (DOP853's state after period k: the fixture's)
             err = error(env.state_components, previous)
             if err > 1e-11:
-                assert err <= info["global_error_estimate"] <= 3.0 * err, (k, err, info["global_error_estimate"])
+                assert err <= info["global_error_estimate"] <= 3.0 * err, (
+                    k,
+                    err,
+                    info["global_error_estimate"],
+                )
             assert not terminated
     assert ended is not None and ended < len(reference)
 
@@ -347,10 +457,20 @@ def test_the_vector_env_checks_each_sub_env_as_its_single_env(mode, compiled):
 
     from rbenvs.vector import FreeRigidBodyVectorEnv
 
-    kw = dict(inertia=INERTIA, axis=0, max_torque=0.0, integrator="rk4", max_angular_velocity=50.0, tolerance=1e-9, tolerance_horizon=400,
-              tolerance_check=True)
+    kw = dict(
+        inertia=INERTIA,
+        axis=0,
+        max_torque=0.0,
+        integrator="rk4",
+        max_angular_velocity=50.0,
+        tolerance=1e-9,
+        tolerance_horizon=400,
+        tolerance_check=True,
+    )
     autoreset = AutoresetMode.NEXT_STEP if mode == "next" else AutoresetMode.SAME_STEP
-    vec = FreeRigidBodyVectorEnv(len(STARTS), max_episode_steps=400, autoreset_mode=autoreset, compiled=compiled, **kw)
+    vec = FreeRigidBodyVectorEnv(
+        len(STARTS), max_episode_steps=400, autoreset_mode=autoreset, compiled=compiled, **kw
+    )
     singles = [FreeRigidBodyEnv(**kw) for _ in STARTS]
     pis = np.array([np.array(INERTIA) * np.array(w) for w in STARTS])
     _, vinfo = vec.reset(seed=0, options={"state": {"angular_momentum": pis}})
@@ -363,12 +483,16 @@ def test_the_vector_env_checks_each_sub_env_as_its_single_env(mode, compiled):
         warnings.simplefilter("ignore", NumericalFailureWarning)
         for k in range(300):
             obs, reward, terminated, _, info = vec.step(a)
-            if ended:  # after the end: NEXT_STEP restarts the sub-env on the next step; the others go on
+            if (
+                ended
+            ):  # after the end: NEXT_STEP restarts the sub-env on the next step; the others go on
                 rows = [j for j in range(len(STARTS)) if j != ended[0]]
                 since = k - at
                 if mode == "next" and since == 1:  # the restart: no period ran
                     assert info["global_error_estimate"][ended[0]] == 0.0
-                elif since >= 1:  # the restarted companion measures the new episode alone (a start drawn from the seed)
+                elif (
+                    since >= 1
+                ):  # the restarted companion measures the new episode alone (a start drawn from the seed)
                     assert 0.0 < info["global_error_estimate"][ended[0]] < 1e-9
             else:
                 rows = range(len(STARTS))
@@ -427,9 +551,17 @@ def test_the_benchs_checked_rows_are_within_or_ended_with_the_message():
     assert len(rows) == 3
     for r in rows:
         assert r["error"] <= r["tolerance"], r
-        assert r["failure"] is None or r["failure"].startswith("ended: the global error estimate passed the tolerance"), r
-    plain = [r for r in run_tolerance(keys=["fb_triaxial_episode"], fixed=False)["rows"] if r["tolerance"] is not None]
-    assert all(c["steps"] > p["steps"] for c, p in zip(rows, plain))  # the companion's steps and the even counts
+        assert r["failure"] is None or r["failure"].startswith(
+            "ended: the global error estimate passed the tolerance"
+        ), r
+    plain = [
+        r
+        for r in run_tolerance(keys=["fb_triaxial_episode"], fixed=False)["rows"]
+        if r["tolerance"] is not None
+    ]
+    assert all(
+        c["steps"] > p["steps"] for c, p in zip(rows, plain)
+    )  # the companion's steps and the even counts
 
 
 @pytest.mark.parametrize("mode", ["next", "same"])
@@ -445,8 +577,17 @@ def test_the_vector_env_with_param_ranges_checks_each_sub_env_on_its_drawn_model
 
     # (the drawn torque bound leaves the motion under zero action unchanged, while each sub-env
     # runs a model, engine and check of its own)
-    kw = dict(inertia=INERTIA, axis=0, max_torque=0.0, integrator="rk4", max_angular_velocity=50.0, tolerance=1e-9, tolerance_horizon=400,
-              tolerance_check=True, param_ranges={"max_torque": (0.0, 0.5)})
+    kw = dict(
+        inertia=INERTIA,
+        axis=0,
+        max_torque=0.0,
+        integrator="rk4",
+        max_angular_velocity=50.0,
+        tolerance=1e-9,
+        tolerance_horizon=400,
+        tolerance_check=True,
+        param_ranges={"max_torque": (0.0, 0.5)},
+    )
     autoreset = AutoresetMode.NEXT_STEP if mode == "next" else AutoresetMode.SAME_STEP
     vec = FreeRigidBodyVectorEnv(len(STARTS), max_episode_steps=400, autoreset_mode=autoreset, **kw)
     singles = [FreeRigidBodyEnv(**kw) for _ in STARTS]
@@ -460,7 +601,10 @@ def test_the_vector_env_with_param_ranges_checks_each_sub_env_on_its_drawn_model
     for k in range(220):
         if k == 100:  # sub-env 2 starts again; 0 and 1 go on
             mask = np.array([False, False, True])
-            vec.reset(seed=[None, None, 9], options={"reset_mask": mask, "state": {"angular_momentum": pis}})
+            vec.reset(
+                seed=[None, None, 9],
+                options={"reset_mask": mask, "state": {"angular_momentum": pis}},
+            )
             singles[2].reset(seed=9, options={"state": {"angular_momentum": pis[2]}})
         obs, reward, terminated, truncated, info = vec.step(a)
         final = info.get("final_info")
@@ -473,14 +617,23 @@ def test_the_vector_env_with_param_ranges_checks_each_sub_env_on_its_drawn_model
             if source is info:
                 assert np.array_equal(obs[i], o)
     assert not terminated.any()
-    assert 1e-10 < info["global_error_estimate"][1] <= 1e-9  # (the near-separatrix start's, close to its end)
+    assert (
+        1e-10 < info["global_error_estimate"][1] <= 1e-9
+    )  # (the near-separatrix start's, close to its end)
 
 
 def _fixed_run(w, substeps, tolerance=None):
     """The default-like body from ``w`` over 400 periods at ``substeps`` a period (with a
     ``tolerance`` of 1e-3 the guard's count never passes them): the states and ``dt``."""
-    env = FreeRigidBodyEnv(inertia=INERTIA, axis=0, max_torque=0.0, integrator="rk4", max_angular_velocity=50.0, substeps=substeps,
-                           tolerance=tolerance)
+    env = FreeRigidBodyEnv(
+        inertia=INERTIA,
+        axis=0,
+        max_torque=0.0,
+        integrator="rk4",
+        max_angular_velocity=50.0,
+        substeps=substeps,
+        tolerance=tolerance,
+    )
     env.reset(seed=0, options={"state": {"angular_momentum": np.array(INERTIA) * np.array(w)}})
     a = np.zeros(env.action_space.shape, np.float32)
     out = []
@@ -508,7 +661,9 @@ def test_float64_carries_no_better_than_about_1e_9_near_the_separatrix():
     assert _apart((0.5, 5.0, 0.35)) < 1e-11
     states, dt = _fixed_run(STARTS[1], 400)
     pi0 = np.array(INERTIA) * np.array(STARTS[1])
-    worst = max(_relative(y, exact_solution(INERTIA, pi0, (k + 1) * dt)) for k, y in enumerate(states))
+    worst = max(
+        _relative(y, exact_solution(INERTIA, pi0, (k + 1) * dt)) for k, y in enumerate(states)
+    )
     assert 1e-10 < worst < 1e-8
 
 
@@ -526,9 +681,14 @@ def test_a_tolerance_sums_the_steps_with_compensation_from_period_to_period():
     assert _apart((0.001, 5.0, 0.0007), 1e-3) < 1e-9
     states, dt = _fixed_run(STARTS[1], 400, 1e-3)
     pi0 = np.array(INERTIA) * np.array(STARTS[1])
-    assert max(_relative(y, exact_solution(INERTIA, pi0, (k + 1) * dt)) for k, y in enumerate(states)) < 1e-11
+    assert (
+        max(_relative(y, exact_solution(INERTIA, pi0, (k + 1) * dt)) for k, y in enumerate(states))
+        < 1e-11
+    )
     env = _body(1e-9)
-    env.reset(seed=0, options={"state": {"angular_momentum": np.array(INERTIA) * np.array(STARTS[1])}})
+    env.reset(
+        seed=0, options={"state": {"angular_momentum": np.array(INERTIA) * np.array(STARTS[1])}}
+    )
     a = np.zeros(env.action_space.shape, np.float32)
     for _ in range(50):
         env.step(a)
@@ -560,11 +720,21 @@ def _taylor_reference(w, periods, dt):
     """The body from the float64 ``Pi = I w`` over ``periods`` periods by mpmath's Taylor series
     (:func:`rbenvs.oracles.taylor_solution`; mpmath is a dev dependency: missing it must fail,
     not skip): float64's exact solution loses digits this near the separatrix."""
-    return taylor_solution(INERTIA, np.array(INERTIA) * np.array(w), [(k + 1) * dt for k in range(periods)])
+    return taylor_solution(
+        INERTIA, np.array(INERTIA) * np.array(w), [(k + 1) * dt for k in range(periods)]
+    )
 
 
-@pytest.mark.parametrize("w, tol", [((1e-4, 5.0, 7e-5), 1e-9), ((3e-4, 5.0, 2.1e-4), 1e-10), ((1.5e-4, 5.0, 1.05e-4), 1e-10),
-                                    ((3e-4, 5.0, 2.1e-4), 1e-11), ((1e-3, 5.0, 7e-4), 1e-12)])
+@pytest.mark.parametrize(
+    "w, tol",
+    [
+        ((1e-4, 5.0, 7e-5), 1e-9),
+        ((3e-4, 5.0, 2.1e-4), 1e-10),
+        ((1.5e-4, 5.0, 1.05e-4), 1e-10),
+        ((3e-4, 5.0, 2.1e-4), 1e-11),
+        ((1e-3, 5.0, 7e-4), 1e-12),
+    ],
+)
 def test_the_check_near_the_separatrix_ends_before_roundoff_passes_the_tolerance(w, tol):
     """0.0001 to 0.001 rad/s off the intermediate axis the motion amplifies the roundoff of every
     passage by the saddle past the steps' error, and the companion counts roundoff at a fifteenth

@@ -25,7 +25,11 @@ from scipy.integrate import solve_ivp
 
 from rbenvs.dynamics import HeavyTop, HeavyTopParams
 from rbenvs.integrators import get_integrator
-from rbenvs.oracles.heavy_top import fast_top_nutation, regular_precession_rates, upright_eigenvalues
+from rbenvs.oracles.heavy_top import (
+    fast_top_nutation,
+    regular_precession_rates,
+    upright_eigenvalues,
+)
 
 EPS = np.finfo(float).eps
 GRAVITY = 9.81
@@ -74,7 +78,9 @@ def general_params(rng, friction_rate=0.0):
         rot = _rotation_matrix(q / np.linalg.norm(q))
         chi = rng.standard_normal(3)
         chi /= np.linalg.norm(chi)
-        i_pivot = rot @ np.diag(mass * gyration**2 * m) @ rot.T + mass * length**2 * (np.eye(3) - np.outer(chi, chi))
+        i_pivot = rot @ np.diag(mass * gyration**2 * m) @ rot.T + mass * length**2 * (
+            np.eye(3) - np.outer(chi, chi)
+        )
         moments, axes = np.linalg.eigh(i_pivot)
         tilted = np.sort(np.abs(axes.T @ chi))[1] >= 0.2
         if np.all(m.sum() - m >= 1.05 * m) and tilted and moments[0] >= 0.2 * moments[2]:
@@ -97,7 +103,9 @@ def _with_friction(params, friction_rate):
     chi, inv = np.array(params.com_direction), 1.0 / np.array(params.inertia)
     # kappa = k chi.I^-1.chi is the decay rate of the spin Omega.chi: set it to friction_rate / T0.
     k = friction_rate / (time_scale(params) * float(chi @ (inv * chi)))
-    return HeavyTopParams(params.inertia, params.mass, params.length, params.gravity, params.com_direction, k)
+    return HeavyTopParams(
+        params.inertia, params.mass, params.length, params.gravity, params.com_direction, k
+    )
 
 
 def time_scale(params):
@@ -115,7 +123,11 @@ def random_states(rng, params, n, attitude, omega, spin=0.0):
     w += spin * np.array(params.com_direction)[:, None]
     y = tuple(np.array(params.inertia)[:, None] * w) + tuple(gam)
     if attitude:
-        y += tuple(HeavyTop(params, attitude=True).attitude_from_vertical(tuple(gam), rng.uniform(-np.pi, np.pi, n)))
+        y += tuple(
+            HeavyTop(params, attitude=True).attitude_from_vertical(
+                tuple(gam), rng.uniform(-np.pi, np.pi, n)
+            )
+        )
     return y
 
 
@@ -129,7 +141,11 @@ def field(params, y, tau=None):
     pi, gam = y[:3], y[3:6]
     om = pi / inertia
     spin = np.sum(om * chi, axis=0)
-    dpi = np.cross(pi, om, axis=0) + params.mgl * np.cross(gam, chi, axis=0) - params.spin_friction * spin * chi
+    dpi = (
+        np.cross(pi, om, axis=0)
+        + params.mgl * np.cross(gam, chi, axis=0)
+        - params.spin_friction * spin * chi
+    )
     if tau is not None:
         dpi = dpi + np.asarray(tau, dtype=float)
     out = [dpi, np.cross(gam, om, axis=0)]
@@ -180,7 +196,9 @@ def test_params_accept_physical_tops():
         lag = lagrange_params(rng)
         i1, _, i3 = lag.inertia
         assert lag.is_lagrange and lag.symmetry_axis == 2 and lag.com_direction == (0.0, 0.0, 1.0)
-        assert lag.critical_spin == pytest.approx(2.0 * math.sqrt(lag.mass * lag.gravity * lag.length * i1) / i3, rel=1e-15)
+        assert lag.critical_spin == pytest.approx(
+            2.0 * math.sqrt(lag.mass * lag.gravity * lag.length * i1) / i3, rel=1e-15
+        )
         gen = general_params(rng)
         assert not gen.is_lagrange and gen.symmetry_axis is None and math.isnan(gen.critical_spin)
         assert np.linalg.norm(gen.com_direction) == pytest.approx(1.0, abs=4 * EPS)
@@ -189,14 +207,23 @@ def test_params_accept_physical_tops():
     # The extreme Lagrange top C_G = 2 A_G (a flat disc about its axis) is still a real body.
     HeavyTopParams(inertia=(0.1 + 0.25, 0.1 + 0.25, 0.2), mass=1.0, length=0.5)
     # com_direction is normalised, and an axis direction stays exactly an axis.
-    assert HeavyTopParams(inertia=(0.5, 0.5, 0.3), com_direction=(0.0, 0.0, 7.0)).com_direction == (0.0, 0.0, 1.0)
+    assert HeavyTopParams(inertia=(0.5, 0.5, 0.3), com_direction=(0.0, 0.0, 7.0)).com_direction == (
+        0.0,
+        0.0,
+        1.0,
+    )
 
 
 def _bad_inertia_general():
     """A general top whose transverse moment about the pivot is too small for its M l^2."""
     rng = np.random.default_rng(101)
     good = general_params(rng)
-    return dict(inertia=good.inertia, mass=good.mass, length=2.0 * good.length, com_direction=good.com_direction)
+    return dict(
+        inertia=good.inertia,
+        mass=good.mass,
+        length=2.0 * good.length,
+        com_direction=good.com_direction,
+    )
 
 
 BAD_PARAMS = [
@@ -229,12 +256,25 @@ BAD_PARAMS = [
 ]
 
 
-@pytest.mark.parametrize("name, kwargs", BAD_PARAMS, ids=[f"{n}-{i}" for i, (n, _) in enumerate(BAD_PARAMS)])
+@pytest.mark.parametrize(
+    "name, kwargs", BAD_PARAMS, ids=[f"{n}-{i}" for i, (n, _) in enumerate(BAD_PARAMS)]
+)
 def test_params_reject_invalid(name, kwargs):
-    base = dict(inertia=(0.45, 0.45, 0.3), mass=1.0, length=0.5, gravity=9.81, com_direction=(0.0, 0.0, 1.0), spin_friction=0.0)
-    if name == "inertia" and "com_direction" in kwargs:  # independent check that the case is unphysical
+    base = dict(
+        inertia=(0.45, 0.45, 0.3),
+        mass=1.0,
+        length=0.5,
+        gravity=9.81,
+        com_direction=(0.0, 0.0, 1.0),
+        spin_friction=0.0,
+    )
+    if (
+        name == "inertia" and "com_direction" in kwargs
+    ):  # independent check that the case is unphysical
         chi = np.asarray(kwargs["com_direction"])
-        i_com = np.diag(kwargs["inertia"]) - kwargs["mass"] * kwargs["length"] ** 2 * (np.eye(3) - np.outer(chi, chi))
+        i_com = np.diag(kwargs["inertia"]) - kwargs["mass"] * kwargs["length"] ** 2 * (
+            np.eye(3) - np.outer(chi, chi)
+        )
         assert np.min(np.linalg.eigvalsh(i_com)) < 0.0
     with pytest.raises(ValueError, match=name):
         HeavyTopParams(**(base | kwargs))
@@ -258,19 +298,32 @@ def test_rhs_matches_independent_field(kind, attitude):
         # The same terms summed in another association: a few ulp of the largest term of each
         # row, |Pi||Omega| + M g l + k |Omega| + |tau| for dPi, |Omega| for dGamma and dq.
         torque = 0.0 if u is None else np.linalg.norm(np.array(u), axis=0)
-        term = np.linalg.norm(arr[:3], axis=0) * om + params.mgl + params.spin_friction * om + torque
-        scale = np.concatenate([np.broadcast_to(term, (3, term.size)), np.broadcast_to(om, (arr.shape[0] - 3, om.size))])
-        assert np.all(np.abs(got - want) <= 16 * EPS * scale), np.max(np.abs(got - want) / scale) / EPS
+        term = (
+            np.linalg.norm(arr[:3], axis=0) * om + params.mgl + params.spin_friction * om + torque
+        )
+        scale = np.concatenate(
+            [
+                np.broadcast_to(term, (3, term.size)),
+                np.broadcast_to(om, (arr.shape[0] - 3, om.size)),
+            ]
+        )
+        assert np.all(np.abs(got - want) <= 16 * EPS * scale), (
+            np.max(np.abs(got - want) / scale) / EPS
+        )
 
 
 def test_integrator_support():
     for attitude in (False, True):
         top = HeavyTop(HeavyTopParams(), attitude=attitude)
-        y = (0.01, -0.02, 1.0, 0.1, 0.0, math.sqrt(0.99)) + ((1.0, 0.0, 0.0, 0.0) if attitude else ())
+        y = (0.01, -0.02, 1.0, 0.1, 0.0, math.sqrt(0.99)) + (
+            (1.0, 0.0, 0.0, 0.0) if attitude else ()
+        )
         for name, calls in (("euler", 1), ("rk4", 4), ("splitting", 0)):
             integ = get_integrator(name)
             assert integ.supports(top), name
-            assert integ.step_counted(top, y, None, 0.01)[1] == calls, name  # honest cost accounting
+            assert integ.step_counted(top, y, None, 0.01)[1] == calls, (
+                name
+            )  # honest cost accounting
         assert get_integrator("dop853").supports(top)
         # No exact free flow for the heavy top: the 'exact' integrator must refuse it (an env
         # would otherwise accept it and fail with AttributeError on the first step).
@@ -292,7 +345,9 @@ FORCING = ("free", "friction", "friction+torque")
 
 @functools.lru_cache(maxsize=None)
 def _order_case(kind, attitude, forcing):
-    seed = 200 + 10 * ("lagrange", "general").index(kind) + 2 * FORCING.index(forcing) + int(attitude)
+    seed = (
+        200 + 10 * ("lagrange", "general").index(kind) + 2 * FORCING.index(forcing) + int(attitude)
+    )
     rng = np.random.default_rng(seed)
     make = lagrange_params if kind == "lagrange" else general_params
     # Friction: the spin decays at rate 1/T0, a visible effect over T = 2 T0.
@@ -301,7 +356,11 @@ def _order_case(kind, attitude, forcing):
     t0 = time_scale(params)
     n = 4
     y0 = random_states(rng, params, n, attitude, 3.0 / t0)
-    u = tuple(rng.standard_normal((3, n)) * 0.5 * params.mgl) if forcing == "friction+torque" else None
+    u = (
+        tuple(rng.standard_normal((3, n)) * 0.5 * params.mgl)
+        if forcing == "friction+torque"
+        else None
+    )
     ref = reference(params, y0, 2.0 * t0, u)
     return top, y0, u, ref, t0
 
@@ -313,7 +372,13 @@ def _scaled_error(y, ref):
     return float(np.max(err))
 
 
-ORDER_CASES = [(k, a, f, n) for k in ("lagrange", "general") for a in (False, True) for f in FORCING for n in ORDER_H]
+ORDER_CASES = [
+    (k, a, f, n)
+    for k in ("lagrange", "general")
+    for a in (False, True)
+    for f in FORCING
+    for n in ORDER_H
+]
 
 
 @pytest.mark.parametrize(
@@ -361,7 +426,15 @@ def test_splitting_long_run_keeps_casimirs_and_bounded_energy(kind, attitude):
     integ = get_integrator("splitting")
     e0, c0 = top.energy(y), top.pi_dot_gamma(y)
     pi_norm = np.sqrt(y[0] ** 2 + y[1] ** 2 + y[2] ** 2)
-    e_scale = 0.5 * (y[0] ** 2 / params.inertia[0] + y[1] ** 2 / params.inertia[1] + y[2] ** 2 / params.inertia[2]) + params.mgl
+    e_scale = (
+        0.5
+        * (
+            y[0] ** 2 / params.inertia[0]
+            + y[1] ** 2 / params.inertia[1]
+            + y[2] ** 2 / params.inertia[2]
+        )
+        + params.mgl
+    )
     every = 50
     e_err, c_err, g_err, q_err, att_err = [], 0.0, 0.0, 0.0, 0.0
     for k in range(LONG_STEPS):
@@ -371,8 +444,12 @@ def test_splitting_long_run_keeps_casimirs_and_bounded_energy(kind, attitude):
             c_err = max(c_err, float(np.max(np.abs(top.pi_dot_gamma(y) - c0) / pi_norm)))
             g_err = max(g_err, float(np.max(np.abs(top.vertical_norm(y) - 1.0))))
             if attitude:
-                q_err = max(q_err, float(np.max(np.abs(np.sqrt(sum(c * c for c in y[6:10])) - 1.0))))
-                att_err = max(att_err, float(np.max(np.abs(np.array(y[3:6]) - vertical_from_attitude(y)))))
+                q_err = max(
+                    q_err, float(np.max(np.abs(np.sqrt(sum(c * c for c in y[6:10])) - 1.0)))
+                )
+                att_err = max(
+                    att_err, float(np.max(np.abs(np.array(y[3:6]) - vertical_from_attitude(y))))
+                )
     if kind == "general":
         # Every piece is an exact rotation (or a kick normal to Gamma): the Casimirs change only by
         # rounding, a random walk of ~sqrt(7 pieces * 1e5 steps) * 2 eps ~ 4e-13 (measured 1e-13).
@@ -395,7 +472,7 @@ def test_splitting_long_run_keeps_casimirs_and_bounded_energy(kind, attitude):
     first, last = e_err[:tenth].max(axis=0), e_err[-tenth:].max(axis=0)
     # Bounded (backward-error) oscillation: the last tenth's worst equals the first tenth's
     # (measured ratios 0.84-1.14); a linear drift from zero would make it ~10x larger.
-    assert np.all(last <= 2.0 * first), (last / first)
+    assert np.all(last <= 2.0 * first), last / first
     assert np.max(e_err) < 1e-2  # O((|Omega| h)^2) oscillation, measured 4e-4
 
 
@@ -415,12 +492,16 @@ def test_pi_dot_gamma_balance_under_constant_torque(friction):
 
     def source(y):
         s = top.spin(y)
-        return sum(g * t for g, t in zip(y[3:6], tau)) - params.spin_friction * s * sum(g * c for g, c in zip(y[3:6], chi))
+        return sum(g * t for g, t in zip(y[3:6], tau)) - params.spin_friction * s * sum(
+            g * c for g, c in zip(y[3:6], chi)
+        )
 
     # Continuous balance along the system's own vector field: Q' = source, integrated with it.
     def augmented(_t, flat):
         comps = tuple(flat.reshape(7, n)[:6])
-        return np.concatenate([np.concatenate([np.broadcast_to(d, (n,)) for d in top.rhs(comps, tau)]), source(comps)])
+        return np.concatenate(
+            [np.concatenate([np.broadcast_to(d, (n,)) for d in top.rhs(comps, tau)]), source(comps)]
+        )
 
     flat0 = np.concatenate([np.array(y0).reshape(-1), np.zeros(n)])
     sol = solve_ivp(augmented, (0.0, t_end), flat0, method="DOP853", rtol=1e-12, atol=1e-14)
@@ -446,7 +527,12 @@ def test_pi_dot_gamma_balance_under_constant_torque(friction):
         y_next = integ.step(top, y, tau, h)
         total += 0.5 * h * sum(t * (a + b) for t, a, b in zip(tau, y[3:6], y_next[3:6]))
         y = y_next
-    np.testing.assert_allclose(top.pi_dot_gamma(y) - top.pi_dot_gamma(y0), total, rtol=0.0, atol=1e-12 * float(np.max(pi_norm)))
+    np.testing.assert_allclose(
+        top.pi_dot_gamma(y) - top.pi_dot_gamma(y0),
+        total,
+        rtol=0.0,
+        atol=1e-12 * float(np.max(pi_norm)),
+    )
 
 
 def _simpson(values, h):
@@ -482,7 +568,9 @@ def test_energy_balance_with_friction(torque):
         scale = _simpson(np.abs(samples), h)  # int |P| dt: the energy that friction (and tau) moved
         errors.append(np.abs(change - _simpson(samples, h)) / scale)
     kinetic = 0.5 * sum(p * p / i for p, i in zip(y0[:3], params.inertia))
-    assert np.all(scale > 0.1 * kinetic)  # friction (and the torque) matter over 4 T0 (measured >= 0.4)
+    assert np.all(
+        scale > 0.1 * kinetic
+    )  # friction (and the torque) matter over 4 T0 (measured >= 0.4)
     # rk4 and Simpson are both O(h^4): (|Omega| h)^4 = 3e-6 times a small constant (measured
     # max relative error 2e-9 without torque, 6e-10 with); bound 1e-7.
     assert np.max(errors[1]) < 1e-7, errors[1]
@@ -542,12 +630,16 @@ def test_attitude_from_vertical():
     assert q.shape == (4, n)
     np.testing.assert_allclose(np.linalg.norm(q, axis=0), 1.0, rtol=0.0, atol=4 * EPS)
     # R(q)^T e_z = Gamma to round-off (a few ulp; measured <= 6e-16).
-    np.testing.assert_allclose(vertical_from_attitude((None,) * 6 + tuple(q)), gam, rtol=0.0, atol=16 * EPS)
+    np.testing.assert_allclose(
+        vertical_from_attitude((None,) * 6 + tuple(q)), gam, rtol=0.0, atol=16 * EPS
+    )
     # The heading is a turn about the space vertical: q(h) = Rz(h - h0) q(h0).
     q0 = np.array(top.attitude_from_vertical(tuple(gam), np.zeros(n)))
     for j in range(n):
         turn = _rotation_matrix((math.cos(heading[j] / 2), 0.0, 0.0, math.sin(heading[j] / 2)))
-        np.testing.assert_allclose(_rotation_matrix(q[:, j]), turn @ _rotation_matrix(q0[:, j]), rtol=0.0, atol=16 * EPS)
+        np.testing.assert_allclose(
+            _rotation_matrix(q[:, j]), turn @ _rotation_matrix(q0[:, j]), rtol=0.0, atol=16 * EPS
+        )
     # Single states (floats) give the same answer, including the antipode -e_z.
     for j in range(n):
         single = top.attitude_from_vertical(tuple(float(c) for c in gam[:, j]), float(heading[j]))
@@ -568,17 +660,28 @@ def test_attitude_from_vertical_near_hanging():
 
 
 # ---------------------------------------------------------------------------- batch = loop
-BATCH_CASES = [(k, a, f, n) for k in ("lagrange", "general") for a in (False, True) for f in (False, True) for n in ("euler", "rk4", "splitting")]
+BATCH_CASES = [
+    (k, a, f, n)
+    for k in ("lagrange", "general")
+    for a in (False, True)
+    for f in (False, True)
+    for n in ("euler", "rk4", "splitting")
+]
 
 
 @pytest.mark.parametrize(
     "kind, attitude, forced, name",
     BATCH_CASES,
-    ids=[f"{k}-{'att' if a else 'pg'}-{'friction+torque' if f else 'free'}-{n}" for k, a, f, n in BATCH_CASES],
+    ids=[
+        f"{k}-{'att' if a else 'pg'}-{'friction+torque' if f else 'free'}-{n}"
+        for k, a, f, n in BATCH_CASES
+    ],
 )
 def test_batch_equals_loop_bitwise(kind, attitude, forced, name):
     rng = np.random.default_rng(600)
-    params = (lagrange_params if kind == "lagrange" else general_params)(rng, friction_rate=1.0 if forced else 0.0)
+    params = (lagrange_params if kind == "lagrange" else general_params)(
+        rng, friction_rate=1.0 if forced else 0.0
+    )
     top = HeavyTop(params, attitude=attitude)
     t0 = time_scale(params)
     n = 16
@@ -640,7 +743,9 @@ def test_upright_top_stable_above_critical_spin_unstable_below():
         worst = {}
         for factor in (1.1, 0.9):
             spin = factor * crit
-            nutation = 2.0 * math.pi * params.inertia[0] / (params.inertia[2] * spin)  # T_n ~ 2 pi A/(C n)
+            nutation = (
+                2.0 * math.pi * params.inertia[0] / (params.inertia[2] * spin)
+            )  # T_n ~ 2 pi A/(C n)
             t_end = max(100.0, 50.0 * nutation)
             y, w = _upright(params, spin), 0.0
             for _ in range(int(math.ceil(t_end / h))):
@@ -675,7 +780,18 @@ def test_bisection_on_spin_finds_critical_spin(seed):
     top = HeavyTop(params)
     t1 = _transverse_time(params)
     horizon, h = 60.0 * t1, STAB_H * t1
-    lam = float(np.max(upright_eigenvalues(params.inertia[0], params.inertia[2], params.mass, params.length, params.gravity, 0.99 * params.critical_spin).real))
+    lam = float(
+        np.max(
+            upright_eigenvalues(
+                params.inertia[0],
+                params.inertia[2],
+                params.mass,
+                params.length,
+                params.gravity,
+                0.99 * params.critical_spin,
+            ).real
+        )
+    )
     assert lam * horizon > math.log(FALLEN / TILT0) + 2.0  # the horizon's justification holds
     lo, hi = 0.0, 1.0 / t1
     assert _falls(top, lo, horizon, h)  # without spin the inverted pendulum falls
@@ -698,7 +814,18 @@ def test_upright_growth_rate_matches_eigenvalues():
         top = HeavyTop(params)
         t1 = _transverse_time(params)
         spin = 0.5 * params.critical_spin
-        lam = float(np.max(upright_eigenvalues(params.inertia[0], params.inertia[2], params.mass, params.length, params.gravity, spin).real))
+        lam = float(
+            np.max(
+                upright_eigenvalues(
+                    params.inertia[0],
+                    params.inertia[2],
+                    params.mass,
+                    params.length,
+                    params.gravity,
+                    spin,
+                ).real
+            )
+        )
         h = 0.01 * t1  # rk4: rate error ~(lambda h)^4 ~ 1e-8
         y, t = _upright(params, spin, tilt0=1e-8), 0.0
         times, logs = [], []
@@ -734,7 +861,17 @@ def test_regular_precession_keeps_tilt_and_precesses_at_the_root(root):
         # Above the critical spin: real roots at every tilt ((C n)^2 >= 4 A m g h cos).
         spin = float(rng.uniform(1.2, 2.5) * rng.choice([-1.0, 1.0])) * params.critical_spin
         tilts = np.array([rng.uniform(0.3, 1.2), rng.uniform(0.3, 1.2), rng.uniform(1.9, 2.8)])
-        rates = np.array([getattr(regular_precession_rates(a, c, params.mass, params.length, params.gravity, spin, t), root) for t in tilts])
+        rates = np.array(
+            [
+                getattr(
+                    regular_precession_rates(
+                        a, c, params.mass, params.length, params.gravity, spin, t
+                    ),
+                    root,
+                )
+                for t in tilts
+            ]
+        )
         alpha = np.concatenate([tilts, tilts])
         p = np.concatenate([rates, rates * (1.0 + 1e-4)])
         psi = rng.uniform(-np.pi, np.pi, alpha.size)
@@ -756,7 +893,9 @@ def test_regular_precession_keeps_tilt_and_precesses_at_the_root(root):
             prev = az
             d_tilt = np.maximum(d_tilt, np.abs(top.tilt(y) - alpha))
             d_rate = np.maximum(d_rate, np.abs(top.precession_rate(y) / p - 1.0))
-            d_phi = np.maximum(d_phi, np.abs(phi - phi0 - p * j * dt) / np.maximum(1.0, np.abs(p) * j * dt))
+            d_phi = np.maximum(
+                d_phi, np.abs(phi - phi0 - p * j * dt) / np.maximum(1.0, np.abs(p) * j * dt)
+            )
         on, off = slice(0, 3), slice(3, 6)
         # At the root: DOP853's error (~1e-10, measured <= 5e-11) in tilt, in the read-out
         # precession rate and in the azimuth of the axis.
@@ -843,7 +982,9 @@ def test_fast_top_nutation_asymptotics():
             spin = math.sqrt(a * params.mgl / eps) / c * float(rng.choice([-1.0, 1.0]))
             measured = _fast_top_measurement(params, spin, alpha)
             for i, meas in enumerate(measured):
-                oracle = fast_top_nutation(a, c, params.mass, params.length, params.gravity, spin, alpha[i])
+                oracle = fast_top_nutation(
+                    a, c, params.mass, params.length, params.gravity, spin, alpha[i]
+                )
                 assert oracle.expansion_parameter == pytest.approx(eps, rel=1e-12)
                 assert meas["count"] == 10
                 # The tilt returns to alpha at every cusp (energy conservation; splitting O(h^2)
@@ -856,7 +997,9 @@ def test_fast_top_nutation_asymptotics():
                     assert abs(rel) <= 3.0 * eps, (key, eps, rel)
                     # Sharper: the error is the predicted first-order term (measured within 3.6% at
                     # eps = 1e-2 and 1.9% at 1e-3; O(eps) corrections and sampling, so 10%).
-                    assert rel / (eps * math.cos(alpha[i])) == pytest.approx(coefficient, rel=0.1), (key, eps)
+                    assert rel / (eps * math.cos(alpha[i])) == pytest.approx(
+                        coefficient, rel=0.1
+                    ), (key, eps)
                     errors[(eps, i, key)] = abs(rel)
         for i in range(alpha.size):
             for key in FAST_TOP_COEFFICIENTS:

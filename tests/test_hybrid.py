@@ -40,7 +40,9 @@ def test_a_lift_off_is_located_and_counted():
     for _ in range(20000):
         y_prev, y_new = y, integ.step(system, y, u, h)
         y = layer.after_step(y_prev, y_new, u, h)
-        batch = layer.after_step(tuple(np.array([c, c]) for c in y_prev), tuple(np.array([c, c]) for c in y_new), u, h)
+        batch = layer.after_step(
+            tuple(np.array([c, c]) for c in y_prev), tuple(np.array([c, c]) for c in y_new), u, h
+        )
         assert all(np.array_equal(b, [c, c]) for b, c in zip(batch, y))
         if y[13] == 0.0:
             break

@@ -106,15 +106,21 @@ def test_dop853_reference_matches_exact_flow():
     # Default rtol 1e-12, atol 1e-14 over a few periods: error ~1e-11 of |Pi| ~ 1.
     np.testing.assert_allclose(got, np.array(body.free_flow(y0, 5.0)), atol=1e-10)
     exact = np.array(body.free_flow(y0, 5.0))
-    for i in range(y0[0].shape[0]):  # one state at a time: the vector field on floats, each start against the exact flow
-        single, nfev = get_integrator("dop853").step_counted(body, tuple(float(c[i]) for c in y0), None, 5.0)
+    for i in range(
+        y0[0].shape[0]
+    ):  # one state at a time: the vector field on floats, each start against the exact flow
+        single, nfev = get_integrator("dop853").step_counted(
+            body, tuple(float(c[i]) for c in y0), None, 5.0
+        )
         assert all(isinstance(c, float) for c in single) and nfev > 0
         np.testing.assert_allclose(single, exact[:, i], atol=1e-10)  # same tolerance, one state
     # under a constant torque (the controls passed as floats): one state as the batch's row
     u = tuple(np.full(y0[0].shape[0], c) for c in TORQUE)
     batch = np.array(get_integrator("dop853", rtol=1e-13, atol=1e-15).step(body, y0, u, 2.0))
     for i in range(y0[0].shape[0]):
-        single = get_integrator("dop853", rtol=1e-13, atol=1e-15).step(body, tuple(float(c[i]) for c in y0), tuple(float(c) for c in TORQUE), 2.0)
+        single = get_integrator("dop853", rtol=1e-13, atol=1e-15).step(
+            body, tuple(float(c[i]) for c in y0), tuple(float(c) for c in TORQUE), 2.0
+        )
         np.testing.assert_allclose(single, batch[:, i], atol=1e-11)
 
 
@@ -304,7 +310,10 @@ def test_declared_casimirs_are_kept_to_round_off_by_the_schemes_that_say_so():
     systems = [
         (FreeBody(FreeBodyParams((2.0, 1.5, 1.0))), rng.standard_normal(3).tolist()),
         (HeavyTop(HeavyTopParams()), rng.standard_normal(3).tolist() + g.tolist()),
-        (HeavyTop(HeavyTopParams(inertia=(0.5, 0.45, 0.3), com_direction=(0.1, 0.2, 1.0))), rng.standard_normal(3).tolist() + g.tolist()),
+        (
+            HeavyTop(HeavyTopParams(inertia=(0.5, 0.45, 0.3), com_direction=(0.1, 0.2, 1.0))),
+            rng.standard_normal(3).tolist() + g.tolist(),
+        ),
     ]
     steps = 2000
     for system, y0 in systems:
@@ -316,17 +325,29 @@ def test_declared_casimirs_are_kept_to_round_off_by_the_schemes_that_say_so():
             y = y0
             for _ in range(steps):
                 y = integ.step(system, y, None, 0.01)
-            drift = max(abs(getattr(system, c)(y) - getattr(system, c)(y0)) / abs(getattr(system, c)(y0)) for c in system.casimirs)
+            drift = max(
+                abs(getattr(system, c)(y) - getattr(system, c)(y0)) / abs(getattr(system, c)(y0))
+                for c in system.casimirs
+            )
             if "casimirs" in integ.conserves:
                 assert drift < 1e-13 * steps**0.5 * 10, (type(system).__name__, name, drift)
             elif name == "euler":
-                assert not drift < 1e-6, (type(system).__name__, name, drift)  # it does not keep them
+                assert not drift < 1e-6, (
+                    type(system).__name__,
+                    name,
+                    drift,
+                )  # it does not keep them
 
 
 def _bind_cases():
     from rbenvs.envs import FreeRigidBodyEnv, LagrangeTopEnv, TippeTopEnv
 
-    for env in (FreeRigidBodyEnv(), FreeRigidBodyEnv(task="reorient"), LagrangeTopEnv(), TippeTopEnv(free_flight=True)):
+    for env in (
+        FreeRigidBodyEnv(),
+        FreeRigidBodyEnv(task="reorient"),
+        LagrangeTopEnv(),
+        TippeTopEnv(free_flight=True),
+    ):
         env.reset(seed=3)
         yield env.system, env._y, env.actuator.control(env.action_space.sample().tolist())[1]
 

@@ -48,7 +48,13 @@ print(json.dumps({"stats": kernel_cache.stats(), "obs": np.asarray(obs).tolist()
 
 def run(cache_dir, env_id="small", n=1):
     env = dict(os.environ, RBENVS_CACHE_DIR=str(cache_dir))
-    out = subprocess.run([sys.executable, "-c", SCRIPT, env_id, str(n)], env=env, capture_output=True, text=True, timeout=600)
+    out = subprocess.run(
+        [sys.executable, "-c", SCRIPT, env_id, str(n)],
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
     assert out.returncode == 0, out.stderr
     return json.loads(out.stdout.strip().splitlines()[-1])
 
@@ -64,7 +70,12 @@ def test_a_second_process_loads_what_the_first_compiled(tmp_path):
     files = kernel_files(tmp_path)
     assert len(files) == first["stats"]["saved"] and all(p.suffix == ".nbk" for p in files)
     second = run(tmp_path, "rbenvs/FreeRigidBody-v0", 0)
-    assert second["stats"] == {"loaded": first["stats"]["compiled"], "compiled": 0, "rejected": 0, "saved": 0}
+    assert second["stats"] == {
+        "loaded": first["stats"]["compiled"],
+        "compiled": 0,
+        "rejected": 0,
+        "saved": 0,
+    }
     assert second["obs"] == first["obs"]  # bit for bit (JSON keeps every float's digits)
     assert not first["warnings"] and not second["warnings"]
 
@@ -72,8 +83,12 @@ def test_a_second_process_loads_what_the_first_compiled(tmp_path):
 def test_the_vector_env_and_its_generator_table_load_too(tmp_path):
     first = run(tmp_path, "rbenvs/LagrangeTop-v0", 4)
     second = run(tmp_path, "rbenvs/LagrangeTop-v0", 4)
-    assert first["stats"]["compiled"] >= 3  # the vector step, the generator table's two (make, append)
-    assert second["stats"]["compiled"] == 0 and second["stats"]["loaded"] == first["stats"]["compiled"]
+    assert (
+        first["stats"]["compiled"] >= 3
+    )  # the vector step, the generator table's two (make, append)
+    assert (
+        second["stats"]["compiled"] == 0 and second["stats"]["loaded"] == first["stats"]["compiled"]
+    )
     assert second["obs"] == first["obs"]
 
 
@@ -106,8 +121,16 @@ def test_a_file_that_does_not_verify_is_compiled_again_not_loaded(tmp_path, dama
 
 def test_four_processes_compiling_one_kernel_at_once(tmp_path):
     env = dict(os.environ, RBENVS_CACHE_DIR=str(tmp_path))
-    procs = [subprocess.Popen([sys.executable, "-c", SCRIPT, "small", "1"], env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                              text=True) for _ in range(4)]
+    procs = [
+        subprocess.Popen(
+            [sys.executable, "-c", SCRIPT, "small", "1"],
+            env=env,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+        )
+        for _ in range(4)
+    ]
     results = []
     for p in procs:
         out, err = p.communicate(timeout=600)
@@ -115,14 +138,22 @@ def test_four_processes_compiling_one_kernel_at_once(tmp_path):
         results.append(json.loads(out.strip().splitlines()[-1]))
     assert all(r["obs"] == results[0]["obs"] for r in results)
     assert not any(r["warnings"] for r in results)
-    assert not [p for p in (tmp_path / "kernels").rglob("*") if ".tmp." in p.name]  # no partial file left
+    assert not [
+        p for p in (tmp_path / "kernels").rglob("*") if ".tmp." in p.name
+    ]  # no partial file left
     after = run(tmp_path)
-    assert after["stats"]["compiled"] == 0 and after["stats"]["rejected"] == 0 and after["obs"] == results[0]["obs"]
+    assert (
+        after["stats"]["compiled"] == 0
+        and after["stats"]["rejected"] == 0
+        and after["obs"] == results[0]["obs"]
+    )
 
 
 def test_a_folder_that_cannot_be_written_compiles_in_memory_with_one_warning(tmp_path):
     blocker = tmp_path / "a-file"
-    blocker.write_text("not a folder")  # (root may write anywhere: a file in the path stops everyone)
+    blocker.write_text(
+        "not a folder"
+    )  # (root may write anywhere: a file in the path stops everyone)
     out = run(blocker / "cache")
     assert len(out["warnings"]) == 1 and "compiled in memory" in out["warnings"][0]
     assert out["stats"]["compiled"] >= 1 and out["stats"]["saved"] == 0
@@ -154,7 +185,9 @@ def test_a_full_disk_turns_the_cache_off_with_one_warning(tmp_path, monkeypatch)
         assert kernel_cache.njit(sub, "test sub")(1.0, 2.0) == -3.0
     messages = [w for w in caught if issubclass(w.category, kernel_cache.KernelCacheWarning)]
     assert len(messages) == 1 and "No space left" in str(messages[0].message)
-    assert not list(tmp_path.rglob("*.nbk")) and not [p for p in tmp_path.rglob("*") if ".tmp." in p.name]
+    assert not list(tmp_path.rglob("*.nbk")) and not [
+        p for p in tmp_path.rglob("*") if ".tmp." in p.name
+    ]
 
 
 def test_an_empty_cache_variable_turns_the_disk_cache_off(monkeypatch):
@@ -193,7 +226,9 @@ def test_the_fingerprint_follows_closures_constants_and_called_functions():
     assert fp(_adder(1.0)) == fp(_adder(1.0))
     assert fp(_adder(1.0)) != fp(_adder(1.0000000000000002))  # one ulp: floats by their bits
     assert fp(_adder(1.0)) != fp(_adder(1))  # int and float compile differently
-    assert fp(_scaled(_adder(1.0), 2.0)) != fp(_scaled(_adder(3.0), 2.0))  # a value two closures down
+    assert fp(_scaled(_adder(1.0), 2.0)) != fp(
+        _scaled(_adder(3.0), 2.0)
+    )  # a value two closures down
     assert fp(_adder((1.0, 2.0))) != fp(_adder((1.0, 2.5)))
     assert fp(_adder(np.array([1.0, 2.0]))) != fp(_adder(np.array([1.0, 2.5])))
 
@@ -217,7 +252,11 @@ def test_cache_info_and_clear(tmp_path, monkeypatch):
     (stale / "x.nbk").write_bytes(b"old")
     info = kernel_cache.info()
     names = {f["name"]: f for f in info["folders"]}
-    assert info["current"] in names and names[info["current"]]["files"] >= 1 and names["cpython-3.0.0-old"]["files"] == 1
+    assert (
+        info["current"] in names
+        and names[info["current"]]["files"] >= 1
+        and names["cpython-3.0.0-old"]["files"] == 1
+    )
     assert kernel_cache.clear(stale_only=True) == 1
     assert [f["name"] for f in kernel_cache.info()["folders"]] == [info["current"]]
     assert kernel_cache.clear() == names[info["current"]]["files"]
@@ -232,12 +271,24 @@ def test_the_modules_left_out_of_the_source_hash_hold_no_compiled_code(tmp_path)
 
     package = Path(kernel_cache.__file__).resolve().parent
     compiling = {"jitable", "compiled_form", "njit", "generate", "elementwise"}
-    left_out = [p for p in sorted(package.rglob("*.py")) if p.relative_to(package).parts[0] in kernel_cache.NOT_COMPILED]
+    left_out = [
+        p
+        for p in sorted(package.rglob("*.py"))
+        if p.relative_to(package).parts[0] in kernel_cache.NOT_COMPILED
+    ]
     assert len(left_out) >= len(kernel_cache.NOT_COMPILED)
     for path in left_out:
         for node in ast.walk(ast.parse(path.read_text())):
-            name = node.id if isinstance(node, ast.Name) else node.attr if isinstance(node, ast.Attribute) else None
-            assert name not in compiling, f"{path.relative_to(package)}:{node.lineno} uses {name}: it is not NOT_COMPILED"
+            name = (
+                node.id
+                if isinstance(node, ast.Name)
+                else node.attr
+                if isinstance(node, ast.Attribute)
+                else None
+            )
+            assert name not in compiling, (
+                f"{path.relative_to(package)}:{node.lineno} uses {name}: it is not NOT_COMPILED"
+            )
     # an edit of one keeps the environment's key, an edit elsewhere changes it (on a copy)
     import shutil
 

@@ -38,7 +38,12 @@ def zero_policy(env):
 
 def flat(state):
     """State dict -> the flat component tuple (layout order: angular_momentum, vertical, attitude)."""
-    return tuple(float(x) for name in ("angular_momentum", "vertical", "attitude") if name in state for x in state[name])
+    return tuple(
+        float(x)
+        for name in ("angular_momentum", "vertical", "attitude")
+        if name in state
+        for x in state[name]
+    )
 
 
 def quat_mul(p, q):
@@ -104,7 +109,10 @@ def run(env, policy, seed=None, options=None, steps=None):
         (dict(inertia=(0.45, -0.45, 0.3)), "inertia"),
         (dict(inertia=(0.45, 0.45)), "inertia"),
         (dict(inertia="heavy"), "inertia"),
-        (dict(inertia=(0.2, 0.2, 0.3)), "inertia"),  # transverse moments below M l^2 = 0.25: no real body
+        (
+            dict(inertia=(0.2, 0.2, 0.3)),
+            "inertia",
+        ),  # transverse moments below M l^2 = 0.25: no real body
         (dict(inertia=(0.45, 0.45, 1.0)), "inertia"),  # violates the triangle inequality
         (dict(mass=0.0), "mass"),
         (dict(mass=-1.0), "mass"),
@@ -122,7 +130,10 @@ def run(env, policy, seed=None, options=None, steps=None):
         # task and its parameters
         (dict(task="hover"), "task"),
         (dict(task="precess", inertia=(0.5, 0.45, 0.3)), "precess"),  # unequal transverse moments
-        (dict(task="precess", com_direction=(0.1, 0.0, 1.0)), "precess"),  # com off the symmetry axis
+        (
+            dict(task="precess", com_direction=(0.1, 0.0, 1.0)),
+            "precess",
+        ),  # com off the symmetry axis
         (dict(spin=NAN), "spin"),
         (dict(spin=INF), "spin"),
         (dict(spin=(3.0, 1.0)), "spin"),  # low > high
@@ -207,7 +218,9 @@ def test_exact_integrator_is_refused_for_the_heavy_top():
         dict(task="precess", target_tilt=2.0),  # centre of mass below the pivot: rates always real
         dict(task="precess", target_tilt=0.5, spin=9.3),  # just above the 9.2785 rad/s threshold
         dict(max_torque=0.0),
-        dict(inertia=(0.45, 0.45, 0.3), com_direction=(0.1, 0.0, 1.0)),  # not a Lagrange top: fine upright
+        dict(
+            inertia=(0.45, 0.45, 0.3), com_direction=(0.1, 0.0, 1.0)
+        ),  # not a Lagrange top: fine upright
         dict(spin=(-3.0, 4.0)),
     ],
 )
@@ -256,7 +269,9 @@ def test_torque_directions_and_action_mapping_for_a_tilted_com(axial):
     assert dirs.shape == ((3, 3) if axial else (2, 3)) and env.action_space.shape == (len(dirs),)
     t1, t2 = dirs[0], dirs[1]
     # (t1, t2, chi) right-handed and orthonormal: t1, t2 span exactly the plane normal to chi
-    np.testing.assert_allclose(np.array([t1, t2, chi]) @ np.array([t1, t2, chi]).T, np.eye(3), atol=1e-15)
+    np.testing.assert_allclose(
+        np.array([t1, t2, chi]) @ np.array([t1, t2, chi]).T, np.eye(3), atol=1e-15
+    )
     np.testing.assert_allclose(np.cross(t1, t2), chi, atol=1e-15)
     if axial:
         np.testing.assert_allclose(dirs[2], chi, atol=1e-15)
@@ -265,7 +280,9 @@ def test_torque_directions_and_action_mapping_for_a_tilted_com(axial):
     env.reset(seed=7)
     start = env.get_state()
     # the upright start of a general top spins about chi: Omega = n chi (Pi = I n chi)
-    np.testing.assert_allclose(start["angular_momentum"] / np.array(GENERAL["inertia"]), 3.0 * chi, rtol=1e-15, atol=1e-15)
+    np.testing.assert_allclose(
+        start["angular_momentum"] / np.array(GENERAL["inertia"]), 3.0 * chi, rtol=1e-15, atol=1e-15
+    )
     env.step(a)
     got = np.array(flat(env.get_state()))
     np.testing.assert_allclose(got, one_step_reference(env, start, tau), rtol=0, atol=1e-14)
@@ -281,7 +298,9 @@ def test_out_of_range_actions_are_clipped(axial):
     b.reset(seed=1)
     ra = a.step(big)
     rb = b.step(unit)
-    assert np.array_equal(ra[0], rb[0]) and ra[1] == rb[1]  # state and reward (the effort uses the clipped u)
+    assert (
+        np.array_equal(ra[0], rb[0]) and ra[1] == rb[1]
+    )  # state and reward (the effort uses the clipped u)
     assert all(np.array_equal(a.get_state()[k], b.get_state()[k]) for k in a.get_state())
 
 
@@ -328,14 +347,29 @@ def test_reward_formula_uses_the_clipped_action(task):
             want = math.cos(info["tilt"]) - cost * effort
         else:
             p, target = info["precession_rate"], info["target_precession_rate"]
-            want = 1.0 - abs(info["tilt"] - 0.5) / 0.3 - min(abs(p - target) / abs(target), 1.0) - cost * effort
+            want = (
+                1.0
+                - abs(info["tilt"] - 0.5) / 0.3
+                - min(abs(p - target) / abs(target), 1.0)
+                - cost * effort
+            )
         assert type(r) is float and r == pytest.approx(want, abs=1e-12)
         assert not te
 
 
 # ---------------------------------------------------------------------------------- 3. info
 
-BASE_KEYS = {"energy", "pi_dot_gamma", "vertical_norm", "tilt", "spin", "critical_spin", "internal_step", "is_success", "numerical_failure"}
+BASE_KEYS = {
+    "energy",
+    "pi_dot_gamma",
+    "vertical_norm",
+    "tilt",
+    "spin",
+    "critical_spin",
+    "internal_step",
+    "is_success",
+    "numerical_failure",
+}
 PRECESS_KEYS = {"precession_rate", "target_precession_rate", "tilt_error"}
 ATTITUDE_KEYS = {"precession_angle", "nutation_angle", "spin_angle"}
 
@@ -344,12 +378,18 @@ ATTITUDE_KEYS = {"precession_angle", "nutation_angle", "spin_angle"}
 @pytest.mark.parametrize("attitude", [False, True])
 def test_info_keys_and_python_types(task, attitude):
     env = gym.make(ID, task=task, attitude=attitude)
-    want = BASE_KEYS | (PRECESS_KEYS if task == "precess" else set()) | (ATTITUDE_KEYS if attitude else set())
+    want = (
+        BASE_KEYS
+        | (PRECESS_KEYS if task == "precess" else set())
+        | (ATTITUDE_KEYS if attitude else set())
+    )
     env.action_space.seed(0)
     _, info = env.reset(seed=0)
     infos = [info] + [env.step(env.action_space.sample())[4] for _ in range(5)]
     for info in infos:
-        assert set(info) == want | {"error_estimate"}  # no episode ends in 5 steps: no terminal_reason
+        assert set(info) == want | {
+            "error_estimate"
+        }  # no episode ends in 5 steps: no terminal_reason
         for key, value in info.items():
             if key == "error_estimate":  # (the default splitting: not estimated)
                 assert value is None
@@ -363,7 +403,11 @@ def check_readouts_against_state(env, info):
     p = env.params
     s = env.get_state()
     pi, g = s["angular_momentum"], s["vertical"]
-    inertia, chi, mgl = np.array(p.inertia), np.array(p.com_direction), p.mass * p.gravity * p.length
+    inertia, chi, mgl = (
+        np.array(p.inertia),
+        np.array(p.com_direction),
+        p.mass * p.gravity * p.length,
+    )
     omega = pi / inertia
     energy = 0.5 * pi @ omega + mgl * g @ chi
     assert info["energy"] == pytest.approx(energy, rel=1e-14, abs=1e-14 * abs(mgl))
@@ -376,7 +420,12 @@ def check_readouts_against_state(env, info):
 
 @pytest.mark.parametrize(
     "kwargs",
-    [dict(), dict(task="precess", attitude=True), dict(**GENERAL, spin=(-4.0, 4.0)), dict(inertia=(0.3, 0.45, 0.45), com_direction=(1.0, 0.0, 0.0), spin=6.0)],
+    [
+        dict(),
+        dict(task="precess", attitude=True),
+        dict(**GENERAL, spin=(-4.0, 4.0)),
+        dict(inertia=(0.3, 0.45, 0.45), com_direction=(1.0, 0.0, 0.0), spin=6.0),
+    ],
 )
 def test_info_values_match_the_state(kwargs):
     env = LagrangeTopEnv(**kwargs)
@@ -401,23 +450,39 @@ def test_info_values_match_the_state(kwargs):
     ],
 )
 def test_critical_spin_of_lagrange_tops(inertia, mass, length, gravity, com, axis):
-    env = LagrangeTopEnv(inertia=inertia, mass=mass, length=length, gravity=gravity, com_direction=com, spin=1.0)
+    env = LagrangeTopEnv(
+        inertia=inertia, mass=mass, length=length, gravity=gravity, com_direction=com, spin=1.0
+    )
     i1 = inertia[(axis + 1) % 3]
     want = 2.0 * math.sqrt(mass * gravity * length * i1) / inertia[axis]
-    assert want == pytest.approx(critical_spin(i1, inertia[axis], mass, length, gravity), rel=1e-15)  # the oracle agrees
+    assert want == pytest.approx(
+        critical_spin(i1, inertia[axis], mass, length, gravity), rel=1e-15
+    )  # the oracle agrees
     _, info = env.reset(seed=0)
-    assert info["critical_spin"] == pytest.approx(want, rel=1e-14) and env.critical_spin == info["critical_spin"]
+    assert (
+        info["critical_spin"] == pytest.approx(want, rel=1e-14)
+        and env.critical_spin == info["critical_spin"]
+    )
     if (inertia, mass, length, gravity) == ((A0, A0, C0), M0, L0, G0):
         assert info["critical_spin"] == pytest.approx(9.90, abs=0.005)  # the documented figure
 
 
-@pytest.mark.parametrize("kwargs", [GENERAL, dict(inertia=(0.45, 0.45, 0.3), com_direction=(0.1, 0.0, 1.0)), dict(inertia=(0.5, 0.45, 0.3))])
+@pytest.mark.parametrize(
+    "kwargs",
+    [
+        GENERAL,
+        dict(inertia=(0.45, 0.45, 0.3), com_direction=(0.1, 0.0, 1.0)),
+        dict(inertia=(0.5, 0.45, 0.3)),
+    ],
+)
 def test_critical_spin_is_absent_for_a_general_top(kwargs):
     # [MR 15.10.1] gives a threshold for a Lagrange top only: no key rather than a NaN in info
     env = LagrangeTopEnv(**kwargs)
     _, info = env.reset(seed=0)
     assert "critical_spin" not in info and math.isnan(env.critical_spin)
-    assert all(math.isfinite(v) for v in info.values() if v is not None)  # (error_estimate: None, the splitting's)
+    assert all(
+        math.isfinite(v) for v in info.values() if v is not None
+    )  # (error_estimate: None, the splitting's)
     assert info["spin"] == 0.0  # default spin of a top that is not a Lagrange top: 0
 
 
@@ -428,9 +493,13 @@ def test_precess_info_metrics():
     infos = [info] + [env.step(env.action_space.sample())[4] for _ in range(10)]
     for info in infos:
         assert info["tilt_error"] == pytest.approx(abs(info["tilt"] - 0.5), rel=1e-15, abs=1e-16)
-        slow = regular_precession_rates(A0, C0, M0, L0, G0, info["spin"], 0.5).slow  # at the current spin
+        slow = regular_precession_rates(
+            A0, C0, M0, L0, G0, info["spin"], 0.5
+        ).slow  # at the current spin
         assert info["target_precession_rate"] == pytest.approx(slow, rel=1e-13)
-        assert info["is_success"] == (info["tilt_error"] < 0.02 and abs(info["precession_rate"] / slow - 1.0) < 0.1)
+        assert info["is_success"] == (
+            info["tilt_error"] < 0.02 and abs(info["precession_rate"] / slow - 1.0) < 0.1
+        )
     env = LagrangeTopEnv(task="precess", target_rate=-1.25)
     assert env.reset(seed=0)[1]["target_precession_rate"] == -1.25
 
@@ -439,7 +508,9 @@ def test_steady_precession_readouts_from_the_attitude():
     """perturbation=0: the start is the regular precession at the target tilt and slow rate, so
     (with the accurate dop853) the tilt and the precession rate stay constant, the Euler angle
     phi advances at the target rate, and the nutation angle equals the tilt (chi = e3)."""
-    env = LagrangeTopEnv(task="precess", perturbation=0.0, attitude=True, integrator="dop853", max_torque=0.0)
+    env = LagrangeTopEnv(
+        task="precess", perturbation=0.0, attitude=True, integrator="dop853", max_torque=0.0
+    )
     k, _, infos, te, _ = run(env, zero_policy(env), seed=3, steps=50)
     target = infos[0]["target_precession_rate"]
     phi = np.unwrap([i["precession_angle"] for i in infos])
@@ -482,7 +553,11 @@ def attitude_env_state(seed=0):
 def test_attitude_state_names_shapes_and_round_trip():
     env, s = attitude_env_state()
     assert set(s) == {"angular_momentum", "vertical", "attitude"}
-    assert {k: v.shape for k, v in s.items()} == {"angular_momentum": (3,), "vertical": (3,), "attitude": (4,)}
+    assert {k: v.shape for k, v in s.items()} == {
+        "angular_momentum": (3,),
+        "vertical": (3,),
+        "attitude": (4,),
+    }
     assert all(v.dtype == np.float64 for v in s.values())
     assert np.linalg.norm(s["attitude"]) == pytest.approx(1.0, abs=1e-14)
     np.testing.assert_allclose(vertical_of(s["attitude"]), s["vertical"], atol=1e-14)
@@ -512,12 +587,25 @@ def _modified(s, **changes):
     "change,match",
     [
         (lambda s: _modified(s, vertical=1.01 * s["vertical"]), "unit vector"),
-        (lambda s: _modified(s, vertical=(1.0 + 2e-6) * s["vertical"]), "unit vector"),  # just outside 1e-6
+        (
+            lambda s: _modified(s, vertical=(1.0 + 2e-6) * s["vertical"]),
+            "unit vector",
+        ),  # just outside 1e-6
         (lambda s: _modified(s, attitude=1.01 * s["attitude"]), "unit quaternion"),
         (lambda s: _modified(s, attitude=(1.0 + 2e-6) * s["attitude"]), "unit quaternion"),
         # turned about a body axis: the attitude no longer carries this vertical
-        (lambda s: _modified(s, attitude=quat_mul(s["attitude"], (math.cos(0.05), math.sin(0.05), 0.0, 0.0))), r"R\(attitude\)\^T e_z"),
-        (lambda s: _modified(s, vertical=np.array([0.0, 0.0, 1.0]), attitude=np.array([0.0, 1.0, 0.0, 0.0])), r"R\(attitude\)\^T e_z"),
+        (
+            lambda s: _modified(
+                s, attitude=quat_mul(s["attitude"], (math.cos(0.05), math.sin(0.05), 0.0, 0.0))
+            ),
+            r"R\(attitude\)\^T e_z",
+        ),
+        (
+            lambda s: _modified(
+                s, vertical=np.array([0.0, 0.0, 1.0]), attitude=np.array([0.0, 1.0, 0.0, 0.0])
+            ),
+            r"R\(attitude\)\^T e_z",
+        ),
         (lambda s: {k: v for k, v in s.items() if k != "attitude"}, "missing"),
         (lambda s: {k: v for k, v in s.items() if k != "vertical"}, "missing"),
         (lambda s: _modified(s, spin=np.zeros(1)), "unknown"),
@@ -540,7 +628,13 @@ def test_bad_state_dicts_raise_and_name_the_problem(change, match):
 
 def test_unit_tolerances_accept_round_off():
     env, s = attitude_env_state()
-    _, info = env.reset(options={"state": _modified(s, vertical=(1.0 + 5e-7) * s["vertical"], attitude=(1.0 - 5e-7) * s["attitude"])})
+    _, info = env.reset(
+        options={
+            "state": _modified(
+                s, vertical=(1.0 + 5e-7) * s["vertical"], attitude=(1.0 - 5e-7) * s["attitude"]
+            )
+        }
+    )
     # documented "within 1e-6": accepted as given (the read-outs see the unprojected Gamma)
     assert info["vertical_norm"] == pytest.approx(1.0 + 5e-7, rel=1e-15)
     assert np.array_equal(env.get_state()["vertical"], (1.0 + 5e-7) * s["vertical"])
@@ -549,7 +643,15 @@ def test_unit_tolerances_accept_round_off():
 def test_state_without_attitude_refuses_one():
     env = LagrangeTopEnv()
     with pytest.raises(ValueError, match="unknown"):
-        env.reset(options={"state": {"angular_momentum": np.zeros(3), "vertical": np.array([0.0, 0.0, 1.0]), "attitude": np.array([1.0, 0, 0, 0])}})
+        env.reset(
+            options={
+                "state": {
+                    "angular_momentum": np.zeros(3),
+                    "vertical": np.array([0.0, 0.0, 1.0]),
+                    "attitude": np.array([1.0, 0, 0, 0]),
+                }
+            }
+        )
     with pytest.raises(ValueError, match="unit vector"):
         env.reset(options={"state": {"angular_momentum": np.zeros(3), "vertical": np.zeros(3)}})
 
@@ -584,7 +686,10 @@ def test_upright_start_tilt_spin_range_and_axis():
 
 
 def test_fixed_spin_and_default_spins():
-    assert all(LagrangeTopEnv(spin=4.25).reset(seed=s)[1]["spin"] == pytest.approx(4.25, rel=1e-15) for s in range(5))
+    assert all(
+        LagrangeTopEnv(spin=4.25).reset(seed=s)[1]["spin"] == pytest.approx(4.25, rel=1e-15)
+        for s in range(5)
+    )
     _, info = LagrangeTopEnv().reset(seed=0)
     assert info["spin"] == pytest.approx(0.5 * CRIT0, rel=1e-14)
     _, info = LagrangeTopEnv(task="precess").reset(seed=0)
@@ -593,10 +698,14 @@ def test_fixed_spin_and_default_spins():
     kw = dict(inertia=(0.6, 0.6, 0.4), mass=1.2, length=0.4, gravity=9.0)
     crit = 2.0 * math.sqrt(1.2 * 9.0 * 0.4 * 0.6) / 0.4
     assert LagrangeTopEnv(**kw).reset(seed=0)[1]["spin"] == pytest.approx(0.5 * crit, rel=1e-14)
-    assert LagrangeTopEnv(**kw, task="precess").reset(seed=0)[1]["spin"] == pytest.approx(2.0 * crit, rel=1e-14)
+    assert LagrangeTopEnv(**kw, task="precess").reset(seed=0)[1]["spin"] == pytest.approx(
+        2.0 * crit, rel=1e-14
+    )
 
 
-@pytest.mark.parametrize("target_tilt,spin", [(0.5, None), (0.8, (12.0, 30.0)), (2.0, (-25.0, -10.0))])
+@pytest.mark.parametrize(
+    "target_tilt,spin", [(0.5, None), (0.8, (12.0, 30.0)), (2.0, (-25.0, -10.0))]
+)
 def test_precess_start_tilt_and_torque_free_rate(target_tilt, spin):
     pert = 0.2
     env = LagrangeTopEnv(task="precess", perturbation=pert, target_tilt=target_tilt, spin=spin)
@@ -680,7 +789,9 @@ def test_zero_torque_matches_the_released_top_turning_point(frac):
     n = frac * CRIT0
     env = gym.make(ID, spin=n)
     tilt0 = 0.05
-    k, _, infos, te, tr = run(env, zero_policy(env), options={"state": tilted_state((A0, A0, C0), n, tilt0)})
+    k, _, infos, te, tr = run(
+        env, zero_policy(env), options={"state": tilted_state((A0, A0, C0), n, tilt0)}
+    )
     tilt_max = released_top_max_tilt(A0, C0, M0 * G0 * L0, n, tilt0)
     if frac < 1.0:
         assert tilt_max > math.pi / 4
@@ -707,7 +818,9 @@ def max_rel_errors(env, infos):
 
 CONSERVATION_SCENES = [
     pytest.param(dict(spin=1.5 * CRIT0, perturbation=0.3), id="sleeping-lagrange"),
-    pytest.param(dict(**GENERAL, spin=15.0, perturbation=0.3, tilt_limit=math.pi), id="general-top"),
+    pytest.param(
+        dict(**GENERAL, spin=15.0, perturbation=0.3, tilt_limit=math.pi), id="general-top"
+    ),
     pytest.param(dict(task="precess", perturbation=0.2), id="precess"),
 ]
 
@@ -757,7 +870,12 @@ def random_tops(count, seed=0):
         c_g = rng.uniform(0.3, 1.9) * a_g
         a = a_g + mass * length**2
         crit = critical_spin(a, c_g, mass, length, G0)
-        yield dict(inertia=(a, a, c_g), mass=mass, length=length, spin=rng.uniform(0.05, 0.85) * crit), crit
+        yield (
+            dict(
+                inertia=(a, a, c_g), mass=mass, length=length, spin=rng.uniform(0.05, 0.85) * crit
+            ),
+            crit,
+        )
 
 
 @pytest.mark.parametrize("case", range(6))
@@ -827,7 +945,9 @@ def test_observation_limit_terminates_with_clipped_observation():
         if te:
             break
     assert te and info["terminal_reason"] == "observation_limit"
-    assert info["spin"] > 6.0 and env.observation_space.contains(obs) and obs[5] == pytest.approx(6.0)
+    assert (
+        info["spin"] > 6.0 and env.observation_space.contains(obs) and obs[5] == pytest.approx(6.0)
+    )
 
 
 def test_euler_blow_up_ends_episode_with_last_finite_state():
@@ -836,7 +956,17 @@ def test_euler_blow_up_ends_episode_with_last_finite_state():
     # overflow before the observation bound can catch it (max_angular_velocity near float32 max).
     # guard="off": the default guarded stepping would subdivide the period and stay finite.
     inertia = (0.5, 0.45, 0.3)
-    env = LagrangeTopEnv(inertia=inertia, spin=50.0, integrator="euler", tolerance=None, dt=5.0, substeps=7, tilt_limit=math.pi, max_angular_velocity=3e38, guard="off")
+    env = LagrangeTopEnv(
+        inertia=inertia,
+        spin=50.0,
+        integrator="euler",
+        tolerance=None,
+        dt=5.0,
+        substeps=7,
+        tilt_limit=math.pi,
+        max_angular_velocity=3e38,
+        guard="off",
+    )
     obs, _ = env.reset(options={"state": tilted_state(inertia, 50.0, 0.05)})
     for _ in range(20):
         last, last_obs = env.get_state(), obs
@@ -848,12 +978,23 @@ def test_euler_blow_up_ends_episode_with_last_finite_state():
         assert not caught
     assert [w.category for w in caught] == [NumericalFailureWarning]
     assert "non-finite" in str(caught[0].message)
-    assert te and not tr and info["numerical_failure"] is True and info["terminal_reason"] == "numerical_failure"
-    assert r == env.model.failure_charge == -505.0 and np.array_equal(obs, last_obs)  # reward 0 and the failure charge
+    assert (
+        te
+        and not tr
+        and info["numerical_failure"] is True
+        and info["terminal_reason"] == "numerical_failure"
+    )
+    assert r == env.model.failure_charge == -505.0 and np.array_equal(
+        obs, last_obs
+    )  # reward 0 and the failure charge
     now = env.get_state()
     assert all(np.array_equal(now[k], last[k]) and np.all(np.isfinite(now[k])) for k in now)
-    assert np.isfinite(info["energy"]) and info["energy"] == pytest.approx(env.system.energy(flat(now)), rel=1e-15)
-    assert np.max(np.abs(last["angular_momentum"])) > 1e3  # it had blown up before failing: not the start
+    assert np.isfinite(info["energy"]) and info["energy"] == pytest.approx(
+        env.system.energy(flat(now)), rel=1e-15
+    )
+    assert (
+        np.max(np.abs(last["angular_momentum"])) > 1e3
+    )  # it had blown up before failing: not the start
 
 
 @pytest.mark.parametrize("limit", [0.06, 0.3, math.pi / 4, 1.5, 3.0, math.pi])
@@ -875,12 +1016,20 @@ def test_upright_decisions_equal_the_tilt_comparisons(limit):
         return (math.sin(theta) * math.cos(phi), math.sin(theta) * math.sin(phi), math.cos(theta))
 
     gammas = [tuple(g / np.linalg.norm(g)) for g in rng.standard_normal((3000, 3))]
-    gammas += [vertical(b + d, rng.uniform(0, 2 * math.pi)) for b in (limit, success) for d in (-1e-9, 1e-9) if 0 < b + d < math.pi]
+    gammas += [
+        vertical(b + d, rng.uniform(0, 2 * math.pi))
+        for b in (limit, success)
+        for d in (-1e-9, 1e-9)
+        if 0 < b + d < math.pi
+    ]
     for g in gammas:
         y = (0.3, -0.2, 0.5, *map(float, g))
         _, terminated, metrics = task.evaluate(system, y, (0.0, 0.0))
         tilt = top_tilt(chi, y)
-        assert terminated == (tilt > limit) and metrics["is_success"] == (tilt < success), (tilt, limit)
+        assert terminated == (tilt > limit) and metrics["is_success"] == (tilt < success), (
+            tilt,
+            limit,
+        )
         checked += 1
     assert checked > 3000 and isinstance(task, UprightTask)
     up, down = (0.0, 0.0, 1.0, 0.0, 0.0, 1.0), (0.0, 0.0, 1.0, 0.0, 0.0, -1.0)

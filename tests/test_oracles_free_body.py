@@ -46,7 +46,9 @@ def test_linearization_and_eigenvalues_match_numerical_jacobian(seed):
         # central differences of a quadratic field are exact up to round-off (~eps/1e-6)
         np.testing.assert_allclose(linearization(inertia, x), jac, atol=1e-8)
         ev = np.sort_complex(np.linalg.eigvals(jac))
-        np.testing.assert_allclose(np.sort_complex(linearization_eigenvalues(inertia, axis, p)), ev, atol=1e-7)
+        np.testing.assert_allclose(
+            np.sort_complex(linearization_eigenvalues(inertia, axis, p)), ev, atol=1e-7
+        )
 
 
 @pytest.mark.parametrize("seed", range(5))
@@ -60,7 +62,9 @@ def test_stability_classification_agrees_with_eigenvalues(seed):
         growth = np.max(linearization_eigenvalues(inertia, axis, 1.0).real)
         assert (growth > 0) == (labels[axis] == "unstable")
     lam = intermediate_axis_growth_rate(inertia, 1.3)
-    assert lam == pytest.approx(np.max(linearization_eigenvalues(inertia, middle, 1.3).real), rel=1e-12)
+    assert lam == pytest.approx(
+        np.max(linearization_eigenvalues(inertia, middle, 1.3).real), rel=1e-12
+    )
 
 
 def test_equal_moments_are_neutral_and_have_no_intermediate_axis():
@@ -77,9 +81,19 @@ def test_exact_solution_batched_against_dop853():
         got = exact_solution(inertia, pi0[:, :, None], ts)
         assert got.shape == (3, 3, 5)
         for b in range(3):
-            sol = solve_ivp(euler_cross(inertia), (0, 20), pi0[:, b], method="DOP853", rtol=1e-13, atol=1e-14, dense_output=True)
+            sol = solve_ivp(
+                euler_cross(inertia),
+                (0, 20),
+                pi0[:, b],
+                method="DOP853",
+                rtol=1e-13,
+                atol=1e-14,
+                dense_output=True,
+            )
             # DOP853 at rtol 1e-13 over ~20 periods is itself good to ~1e-11
-            np.testing.assert_allclose(got[:, b, :], sol.sol(ts), atol=1e-10 * np.linalg.norm(pi0[:, b]))
+            np.testing.assert_allclose(
+                got[:, b, :], sol.sol(ts), atol=1e-10 * np.linalg.norm(pi0[:, b])
+            )
 
 
 def test_orbit_period_is_the_period_of_the_exact_solution_and_of_dop853():
@@ -118,5 +132,8 @@ def test_the_taylor_solution_is_the_exact_one_where_float64_holds_and_settles_ne
     taylor = taylor_solution(inertia, pi0, times[:15])
     assert np.max(np.linalg.norm(taylor - exact, axis=1) / np.linalg.norm(exact, axis=1)) < 1e-13
     near = np.array(inertia) * np.array((1e-4, 5.0, 7e-5))
-    a, b = taylor_solution(inertia, near, times, digits=32), taylor_solution(inertia, near, times, digits=36)
+    a, b = (
+        taylor_solution(inertia, near, times, digits=32),
+        taylor_solution(inertia, near, times, digits=36),
+    )
     assert np.max(np.linalg.norm(a - b, axis=1) / np.linalg.norm(b, axis=1)) < 1e-15

@@ -41,7 +41,9 @@ def upright_jacobian(I1, I3, mgl, spin):
         step = 1e-3 * max(1.0, abs(y0[j]))
         e = np.zeros(6)
         e[j] = step
-        jac[:, j] = (heavy_top_field(y0 + e, inertia, mgl) - heavy_top_field(y0 - e, inertia, mgl)) / (2 * step)
+        jac[:, j] = (
+            heavy_top_field(y0 + e, inertia, mgl) - heavy_top_field(y0 - e, inertia, mgl)
+        ) / (2 * step)
     return jac
 
 
@@ -51,7 +53,9 @@ def match_multiset(expected, actual, tol):
     for lam in expected:
         d = [abs(lam - mu) for mu in rest]
         i = int(np.argmin(d))
-        assert d[i] <= tol, f"oracle eigenvalue {lam} not found in {actual} (nearest off by {d[i]:.3g})"
+        assert d[i] <= tol, (
+            f"oracle eigenvalue {lam} not found in {actual} (nearest off by {d[i]:.3g})"
+        )
         rest.pop(i)
     return np.array(rest)
 
@@ -83,7 +87,10 @@ def test_upright_eigenvalues_match_finite_difference_jacobian(I1, I3, M, l, g, s
     assert (np.max(np.abs(lam.real)) < 1e-12 * scale) == stable
 
 
-@pytest.mark.parametrize("I1, I3, M, l, g", [(1.0, 0.5, 1.0, 1.0, 1.0), (0.3, 0.5, 2.0, 0.1, 9.81), (2.0, 3.5, 0.7, 0.4, 9.81)])
+@pytest.mark.parametrize(
+    "I1, I3, M, l, g",
+    [(1.0, 0.5, 1.0, 1.0, 1.0), (0.3, 0.5, 2.0, 0.1, 9.81), (2.0, 3.5, 0.7, 0.4, 9.81)],
+)
 def test_critical_spin_is_where_the_jacobian_spectrum_turns_imaginary(I1, I3, M, l, g):
     def unstable(spin):
         return np.max(np.linalg.eigvals(upright_jacobian(I1, I3, M * g * l, spin)).real) > 1e-5
@@ -153,10 +160,20 @@ def test_regular_precession_keeps_tilt_and_precesses_at_the_root(A, C, m, g, h, 
         if math.isnan(p):
             assert abs(math.cos(tilt)) < 1e-15
             continue
-        assert A * p * p * math.cos(tilt) - C * spin * p + m * g * h == pytest.approx(0.0, abs=1e-12 * (C * abs(spin * p) + m * g * h))
+        assert A * p * p * math.cos(tilt) - C * spin * p + m * g * h == pytest.approx(
+            0.0, abs=1e-12 * (C * abs(spin * p) + m * g * h)
+        )
         t_end = 3.0 * 2.0 * math.pi / abs(p)  # three precession periods
         rhs = lagrange_top_rhs(A, C, m * g * h)
-        sol = solve_ivp(rhs, (0.0, t_end), initial_state(A, C, tilt, spin, p), method="DOP853", rtol=1e-11, atol=1e-12, dense_output=True)
+        sol = solve_ivp(
+            rhs,
+            (0.0, t_end),
+            initial_state(A, C, tilt, spin, p),
+            method="DOP853",
+            rtol=1e-11,
+            atol=1e-12,
+            dense_output=True,
+        )
         assert sol.success
         t = np.linspace(0.0, t_end, 601)
         theta, phi = axis_angles(sol.sol(t).T)
@@ -169,7 +186,15 @@ def test_regular_precession_check_is_sensitive():
     A, C, m, g, h, spin, tilt = PRECESSION_CASES[0]
     p = ht.regular_precession_rates(A, C, m, g, h, spin, tilt).fast * (1.0 + 1e-4)
     t_end = 2.0 * math.pi / abs(p)
-    sol = solve_ivp(lagrange_top_rhs(A, C, m * g * h), (0.0, t_end), initial_state(A, C, tilt, spin, p), method="DOP853", rtol=1e-11, atol=1e-12, dense_output=True)
+    sol = solve_ivp(
+        lagrange_top_rhs(A, C, m * g * h),
+        (0.0, t_end),
+        initial_state(A, C, tilt, spin, p),
+        method="DOP853",
+        rtol=1e-11,
+        atol=1e-12,
+        dense_output=True,
+    )
     theta, _ = axis_angles(sol.sol(np.linspace(0.0, t_end, 601)).T)
     assert np.max(np.abs(theta - tilt)) > 1e-5
 
@@ -204,7 +229,15 @@ def fast_top_measurement(A, C, m, g, h, spin, tilt, periods):
     cusp.direction = -1.0
     bottom = lambda t, y: kz_rate(t, y)  # noqa: E731  k_z minimal: theta = beta
     bottom.direction = 1.0
-    sol = solve_ivp(rhs, (0.0, (periods + 0.5) * t_nut), initial_state(A, C, tilt, spin, 0.0), method="DOP853", rtol=1e-11, atol=1e-12, events=(cusp, bottom))
+    sol = solve_ivp(
+        rhs,
+        (0.0, (periods + 0.5) * t_nut),
+        initial_state(A, C, tilt, spin, 0.0),
+        method="DOP853",
+        rtol=1e-11,
+        atol=1e-12,
+        events=(cusp, bottom),
+    )
     assert sol.success
     keep = sol.t_events[0] > 0.25 * t_nut  # the release itself is a cusp at t = 0
     t_cusp, y_cusp = sol.t_events[0][keep], sol.y_events[0][keep]
@@ -242,7 +275,9 @@ def test_fast_top_nutation_asymptotics():
         measured = fast_top_measurement(A, C, m, g, h, spin, tilt, periods=12)
         err = {key: abs(measured[key] / getattr(oracle, key) - 1.0) for key in measured}
         for key, e in err.items():
-            assert e < 6.0 * eps, f"{key}: relative error {e:.3g} > 6 eps = {6 * eps:.3g} at ratio {ratio}"
+            assert e < 6.0 * eps, (
+                f"{key}: relative error {e:.3g} > 6 eps = {6 * eps:.3g} at ratio {ratio}"
+            )
         errors.append(err)
     for key in errors[0]:
         assert errors[1][key] < errors[0][key] / 2.5, key
@@ -278,7 +313,13 @@ def e_star_kkt(theta, J, m, g, R, alpha, A, C):
 def test_energy_star_is_the_constrained_minimum_of_the_energy():
     rng = np.random.default_rng(3)
     for _ in range(40):
-        p = dict(m=rng.uniform(0.1, 2), g=rng.uniform(1, 10), R=rng.uniform(0.01, 1), alpha=rng.uniform(0.05, 0.95), C=rng.uniform(0.1, 1))
+        p = dict(
+            m=rng.uniform(0.1, 2),
+            g=rng.uniform(1, 10),
+            R=rng.uniform(0.01, 1),
+            alpha=rng.uniform(0.05, 0.95),
+            C=rng.uniform(0.1, 1),
+        )
         p["A"] = p["C"] * rng.uniform(0.5, 2.5)
         theta, J = rng.uniform(0, math.pi), rng.normal() * 2
         assert tt.energy_star(theta, J, **p) == pytest.approx(e_star_kkt(theta, J, **p), rel=1e-11)
@@ -343,10 +384,14 @@ def test_inversion_criterion_classifications():
     assert tt.inversion_criterion(1.1, C, alpha).classification == "full inversion"
     assert tt.inversion_criterion(1.5, C, alpha).classification == "partial inversion"
     c = tt.inversion_criterion(1.1, C, alpha)
-    assert c.upright_unstable and c.inverted_can_be_stable and c.J_min is None and c.J_upright is None
+    assert (
+        c.upright_unstable and c.inverted_can_be_stable and c.J_min is None and c.J_upright is None
+    )
     # the Leine-Glocker top at 180 rad/s inverts fully; docs/physics.md's numbers
     J = tt.jellett_upright(LEINE["C"], LEINE["R"], LEINE["alpha"], 180.0)
-    crit = tt.inversion_criterion(LEINE["A"], LEINE["C"], LEINE["alpha"], m=LEINE["m"], g=LEINE["g"], R=LEINE["R"], J=J)
+    crit = tt.inversion_criterion(
+        LEINE["A"], LEINE["C"], LEINE["alpha"], m=LEINE["m"], g=LEINE["g"], R=LEINE["R"], J=J
+    )
     assert crit.classification == "full inversion" and crit.J == J
     assert tt.final_tilt(J, **LEINE) == math.pi
 
@@ -374,9 +419,15 @@ def test_inversion_criterion_with_J_agrees_with_the_energy_landscape():
 
 
 def test_inversion_spin_threshold_gives_J_min():
-    n = tt.inversion_spin_threshold(LEINE["A"], LEINE["C"], LEINE["alpha"], LEINE["m"], LEINE["g"], LEINE["R"])
-    crit = tt.inversion_criterion(LEINE["A"], LEINE["C"], LEINE["alpha"], m=LEINE["m"], g=LEINE["g"], R=LEINE["R"])
-    assert tt.jellett_upright(LEINE["C"], LEINE["R"], LEINE["alpha"], n) == pytest.approx(crit.J_min, rel=1e-14)
+    n = tt.inversion_spin_threshold(
+        LEINE["A"], LEINE["C"], LEINE["alpha"], LEINE["m"], LEINE["g"], LEINE["R"]
+    )
+    crit = tt.inversion_criterion(
+        LEINE["A"], LEINE["C"], LEINE["alpha"], m=LEINE["m"], g=LEINE["g"], R=LEINE["R"]
+    )
+    assert tt.jellett_upright(LEINE["C"], LEINE["R"], LEINE["alpha"], n) == pytest.approx(
+        crit.J_min, rel=1e-14
+    )
     assert 100.0 < n < 180.0  # the docs/physics.md spin of 180 rad/s is above it
 
 
@@ -384,7 +435,13 @@ def test_final_tilt_matches_brute_force_grid():
     rng = np.random.default_rng(11)
     grid = np.linspace(0.0, math.pi, 400001)
     for _ in range(25):
-        p = dict(m=rng.uniform(0.1, 2), g=9.81, R=rng.uniform(0.02, 0.2), alpha=rng.uniform(0.05, 0.9), C=rng.uniform(1e-3, 1e-2))
+        p = dict(
+            m=rng.uniform(0.1, 2),
+            g=9.81,
+            R=rng.uniform(0.02, 0.2),
+            alpha=rng.uniform(0.05, 0.9),
+            C=rng.uniform(1e-3, 1e-2),
+        )
         p["A"] = p["C"] * rng.uniform(0.5, 2.5)
         J = float(rng.uniform(0, 3) * math.sqrt(p["m"] * p["g"] * p["R"] ** 3 * p["C"]))
         theta = tt.final_tilt(J, **p)
@@ -419,8 +476,16 @@ def test_jellett_matches_seed_form_3_106():
     rng = np.random.default_rng(9)
     A, C, R, alpha = 8e-7, 7e-7, 0.015, 0.2
     for _ in range(10):
-        theta, phi, dphi, dtheta, omega3 = rng.uniform(0, math.pi), rng.uniform(0, 6), rng.normal(), rng.normal(), rng.normal() * 50
-        k = np.array([math.sin(theta) * math.sin(phi), -math.sin(theta) * math.cos(phi), math.cos(theta)])
+        theta, phi, dphi, dtheta, omega3 = (
+            rng.uniform(0, math.pi),
+            rng.uniform(0, 6),
+            rng.normal(),
+            rng.normal(),
+            rng.normal() * 50,
+        )
+        k = np.array(
+            [math.sin(theta) * math.sin(phi), -math.sin(theta) * math.cos(phi), math.cos(theta)]
+        )
         node = np.array([math.cos(phi), math.sin(phi), 0.0])
         omega = dphi * E3 + dtheta * node + (omega3 - dphi * math.cos(theta)) * k  # spin rate psi'
         L = A * (omega - np.dot(omega, k) * k) + C * np.dot(omega, k) * k
@@ -430,7 +495,9 @@ def test_jellett_matches_seed_form_3_106():
 
 def test_jellett_upright():
     C, R, alpha, n = 7e-7, 0.015, 0.2, 180.0
-    assert tt.jellett_upright(C, R, alpha, n) == pytest.approx(tt.jellett(C * n * E3, E3, R, alpha), rel=1e-15)
+    assert tt.jellett_upright(C, R, alpha, n) == pytest.approx(
+        tt.jellett(C * n * E3, E3, R, alpha), rel=1e-15
+    )
     assert tt.jellett_upright(C, R, alpha, n) == pytest.approx(R * C * n * (1 - alpha))
 
 

@@ -23,7 +23,9 @@ SOURCES = ("pyproject.toml", "README.md", "rbenvs", "agents", "configs")
 
 
 def _run(cmd, cwd, env=None, timeout=300):
-    return subprocess.run([str(c) for c in cmd], cwd=cwd, env=env, capture_output=True, text=True, timeout=timeout)
+    return subprocess.run(
+        [str(c) for c in cmd], cwd=cwd, env=env, capture_output=True, text=True, timeout=timeout
+    )
 
 
 @pytest.fixture(scope="module")
@@ -34,11 +36,16 @@ def wheel_venv(tmp_path_factory):
     src.mkdir()
     for name in SOURCES:
         if (ROOT / name).is_dir():
-            shutil.copytree(ROOT / name, src / name, ignore=shutil.ignore_patterns("__pycache__", "*.egg-info"))
+            shutil.copytree(
+                ROOT / name, src / name, ignore=shutil.ignore_patterns("__pycache__", "*.egg-info")
+            )
         else:
             shutil.copy2(ROOT / name, src / name)
     pip = [sys.executable, "-m", "pip", "--disable-pip-version-check", "--no-input"]
-    built = _run(pip + ["wheel", src, "--no-deps", "--no-build-isolation", "--no-index", "-w", tmp / "dist"], cwd=tmp)
+    built = _run(
+        pip + ["wheel", src, "--no-deps", "--no-build-isolation", "--no-index", "-w", tmp / "dist"],
+        cwd=tmp,
+    )
     assert built.returncode == 0, built.stdout + built.stderr
     (wheel,) = (tmp / "dist").glob("rbenvs-*.whl")
 
@@ -47,13 +54,23 @@ def wheel_venv(tmp_path_factory):
     assert made.returncode == 0, made.stderr
     bindir = venv / ("Scripts" if os.name == "nt" else "bin")
     python = bindir / ("python.exe" if os.name == "nt" else "python")
-    installed = _run(pip + ["--python", python, "install", "--no-deps", "--no-index", wheel], cwd=tmp)
+    installed = _run(
+        pip + ["--python", python, "install", "--no-deps", "--no-index", wheel], cwd=tmp
+    )
     assert installed.returncode == 0, installed.stdout + installed.stderr
-    site = Path(_run([python, "-c", "import sysconfig; print(sysconfig.get_paths()['purelib'])"], cwd=tmp).stdout.strip())
+    site = Path(
+        _run(
+            [python, "-c", "import sysconfig; print(sysconfig.get_paths()['purelib'])"], cwd=tmp
+        ).stdout.strip()
+    )
     # the dev venv's packages, appended after the temporary venv's own
     (site / "_rbenvs_test_dependencies.pth").write_text(sysconfig.get_paths()["purelib"] + "\n")
 
-    env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "PYTHONHOME", "PYTHONSTARTUP", "RBENVS_CONFIGS", "VIRTUAL_ENV")}
+    env = {
+        k: v
+        for k, v in os.environ.items()
+        if k not in ("PYTHONPATH", "PYTHONHOME", "PYTHONSTARTUP", "RBENVS_CONFIGS", "VIRTUAL_ENV")
+    }
     work = tmp / "work"
     work.mkdir()
     return bindir, site, env, work
@@ -82,7 +99,9 @@ def test_every_package_of_the_source_tree_is_in_the_wheel(wheel_venv):
     """A subpackage left out of pyproject's list would import in the checkout and fail here."""
     bindir, site, env, work = wheel_venv
     source = {p.parent.relative_to(ROOT).as_posix() for p in (ROOT / "rbenvs").rglob("__init__.py")}
-    installed = {p.parent.relative_to(site).as_posix() for p in (site / "rbenvs").rglob("__init__.py")}
+    installed = {
+        p.parent.relative_to(site).as_posix() for p in (site / "rbenvs").rglob("__init__.py")
+    }
     assert source <= installed, sorted(source - installed)
 
 
@@ -97,16 +116,24 @@ def test_every_scene_is_listed(wheel_venv):
 
 def test_the_main_job_runs_on_the_default_scene(wheel_venv):
     bindir, site, env, work = wheel_venv
-    out = _run([bindir / "rbenvs", "run", "--scene", "default", "--episodes", "1"], cwd=work, env=env)
+    out = _run(
+        [bindir / "rbenvs", "run", "--scene", "default", "--episodes", "1"], cwd=work, env=env
+    )
     assert out.returncode == 0, out.stderr
-    assert "scene 'default'" in out.stdout and "SpinLQR" in out.stdout and "ZeroController" in out.stdout
+    assert (
+        "scene 'default'" in out.stdout
+        and "SpinLQR" in out.stdout
+        and "ZeroController" in out.stdout
+    )
 
 
 def test_an_empty_configs_folder_is_an_error_saying_where_it_looked(wheel_venv, tmp_path):
     bindir, site, env, work = wheel_venv
     out = _run([bindir / "rbenvs", "scenes"], cwd=work, env=env | {"RBENVS_CONFIGS": str(tmp_path)})
     assert out.returncode == 2 and out.stdout == ""
-    assert out.stderr.splitlines() == [f"rbenvs: error: no scenes found in {tmp_path / 'scenes'} ($RBENVS_CONFIGS is set: unset it or point it at a folder with scenes/*.yml)"]
+    assert out.stderr.splitlines() == [
+        f"rbenvs: error: no scenes found in {tmp_path / 'scenes'} ($RBENVS_CONFIGS is set: unset it or point it at a folder with scenes/*.yml)"
+    ]
 
 
 def test_subpackages_are_attributes_after_import_rbenvs_alone(tmp_path):

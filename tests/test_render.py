@@ -16,7 +16,10 @@ from rbenvs.render import FRAME_SIZE
 # a state of each system far from its default start, to see the frame change
 OTHER_STATE = {
     "rbenvs/FreeRigidBody-v0": {"angular_momentum": np.array([1.2, -0.3, 0.5])},
-    "rbenvs/LagrangeTop-v0": {"angular_momentum": np.array([0.1, 0.0, 1.5]), "vertical": np.array([np.sin(0.6), 0.0, np.cos(0.6)])},
+    "rbenvs/LagrangeTop-v0": {
+        "angular_momentum": np.array([0.1, 0.0, 1.5]),
+        "vertical": np.array([np.sin(0.6), 0.0, np.cos(0.6)]),
+    },
 }
 
 
@@ -45,7 +48,9 @@ def test_frame_shape_dtype_and_content(env_id):
     # the body covers a good part of the frame, and the vectors are drawn in their colours (the
     # heavy top's angular velocity lies on its angular momentum at the start: one of them shows)
     assert np.mean(np.any(frame != 255, axis=2)) > 0.03
-    assert _pixels_of(frame, COLORS["momentum"]) + _pixels_of(frame, COLORS["angular_velocity"]) > 50
+    assert (
+        _pixels_of(frame, COLORS["momentum"]) + _pixels_of(frame, COLORS["angular_velocity"]) > 50
+    )
     # the frames of an episode keep one shape (what RecordVideo needs)
     for _ in range(3):
         env.step(env.action_space.sample())
@@ -68,7 +73,14 @@ def test_the_picture_stays_within_the_frame(env_id):
         env.reset(options={"state": OTHER_STATE[env_id]})
         frames.append(env.render())
     for frame in frames:
-        border = np.concatenate([frame[:2].reshape(-1, 3), frame[-2:].reshape(-1, 3), frame[:, :2].reshape(-1, 3), frame[:, -2:].reshape(-1, 3)])
+        border = np.concatenate(
+            [
+                frame[:2].reshape(-1, 3),
+                frame[-2:].reshape(-1, 3),
+                frame[:, :2].reshape(-1, 3),
+                frame[:, -2:].reshape(-1, 3),
+            ]
+        )
         assert np.all(border == 255)
 
 
@@ -78,10 +90,24 @@ def test_the_raster_fills_a_polygon_where_it_lies_and_nothing_else():
     from rbenvs.render.raster import draw
 
     face = np.array([[-0.5, -0.5, 0.0], [0.5, -0.5, 0.0], [0.5, 0.5, 0.0], [-0.5, 0.5, 0.0]])
-    frame = draw({"center": np.zeros(3), "extent": 1.0, "view": (90.0, -90.0), "polygons": [{"faces": [face], "colors": ["#ff0000"]}]}, (100, 100))
+    frame = draw(
+        {
+            "center": np.zeros(3),
+            "extent": 1.0,
+            "view": (90.0, -90.0),
+            "polygons": [{"faces": [face], "colors": ["#ff0000"]}],
+        },
+        (100, 100),
+    )
     red = np.all(frame == (255, 0, 0), axis=2)
     # pixels per unit: 50 / 1.25 = 40, so the square is 40 px wide about the centre (30..70)
-    assert red[32:68, 32:68].all() and not red[:28].any() and not red[72:].any() and not red[:, :28].any() and not red[:, 72:].any()
+    assert (
+        red[32:68, 32:68].all()
+        and not red[:28].any()
+        and not red[72:].any()
+        and not red[:, :28].any()
+        and not red[:, 72:].any()
+    )
     assert np.all(frame[~red] == 255)
 
 
@@ -98,7 +124,9 @@ def test_frame_changes_with_the_state(env_id):
     second = env.render()
     # at least the vectors move: two arrows of ~100 px at 3 px wide are ~600 px, 0.26% of the frame
     assert np.mean(np.any(first != second, axis=2)) > 0.002
-    red = [np.all(f == np.array([0xD6, 0x27, 0x28], dtype=np.uint8), axis=2) for f in (first, second)]
+    red = [
+        np.all(f == np.array([0xD6, 0x27, 0x28], dtype=np.uint8), axis=2) for f in (first, second)
+    ]
     assert not np.array_equal(*red)
 
 
@@ -150,7 +178,9 @@ def test_rendering_off_costs_nothing():
         "    assert 'step' not in vars(env.unwrapped) and env.unwrapped._renderer is None\n"
         "print(sorted(m for m in sys.modules if m.split('.')[0] in ('matplotlib', 'mpl_toolkits')))\n"
     )
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    out = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, check=True
+    ).stdout
     assert out.strip() == "[]"
 
 
@@ -169,7 +199,9 @@ def test_core_renders_without_matplotlib_and_plots_name_the_extra():
         "except ImportError as exc:\n"
         "    print(exc)\n"
     )
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    out = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, check=True
+    ).stdout
     lines = out.strip().splitlines()
     assert lines[:3] == [str(FRAME_SIZE + (3,))] * 3
     assert len(lines) == 4 and "plot extra" in lines[3] and "rbenvs[plot]" in lines[3]
@@ -194,7 +226,9 @@ def test_checkers_pass_on_the_core_install_with_warnings_as_errors():
         "        sb3_check_env(env.unwrapped, warn=True)\n"
         "        print(eid, task)\n"
     )
-    env = {k: v for k, v in __import__("os").environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY")}
+    env = {
+        k: v for k, v in __import__("os").environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY")
+    }
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env)
     assert out.returncode == 0, out.stderr[-3000:]
     assert len(out.stdout.strip().splitlines()) == sum(len(env_class(eid).tasks) for eid in ENV_IDS)
@@ -213,7 +247,12 @@ def test_human_mode_headless_logs_once_and_shows_nothing(caplog):
             assert env.render() is None
             env.close()
     said = [r.getMessage() for r in caplog.records if r.name == "rbenvs"]
-    assert len(said) == 1 and "no display" in said[0] and "RecordVideo" in said[0] and "rgb_array" in said[0]
+    assert (
+        len(said) == 1
+        and "no display" in said[0]
+        and "RecordVideo" in said[0]
+        and "rgb_array" in said[0]
+    )
 
 
 def test_render_without_mode_and_before_reset():
@@ -251,7 +290,9 @@ def test_scene_geometry():
     orbit = momentum_orbit(FreeBodyParams(inertia).inertia, p)
     # every point on the orbit has the start's |Pi| and energy
     assert np.allclose(np.linalg.norm(orbit, axis=1), np.linalg.norm(p))
-    assert np.allclose(np.sum(orbit**2 / np.array(inertia), axis=1), np.sum(p**2 / np.array(inertia)))
+    assert np.allclose(
+        np.sum(orbit**2 / np.array(inertia), axis=1), np.sum(p**2 / np.array(inertia))
+    )
     assert momentum_orbit(inertia, np.zeros(3)) is None
     gamma, chi = np.array([0.3, -0.2, 0.9]), np.array([0.0, 0.0, 1.0])
     gamma /= np.linalg.norm(gamma)
@@ -292,12 +333,18 @@ def test_render_collection_wrapper_gets_one_frame_per_step():
     for _ in range(3):
         env.step(env.action_space.sample())
     frames = env.render()
-    assert len(frames) == 4 and all(f.shape == FRAME_SIZE + (3,) and f.dtype == np.uint8 for f in frames)
+    assert len(frames) == 4 and all(
+        f.shape == FRAME_SIZE + (3,) and f.dtype == np.uint8 for f in frames
+    )
 
 
-@pytest.mark.parametrize("env_id", ["rbenvs/FreeRigidBody-v0", "rbenvs/LagrangeTop-v0", "rbenvs/TippeTop-v0"])
+@pytest.mark.parametrize(
+    "env_id", ["rbenvs/FreeRigidBody-v0", "rbenvs/LagrangeTop-v0", "rbenvs/TippeTop-v0"]
+)
 def test_vector_env_renders_one_frame_per_sub_env_as_the_single_env_does(env_id):
-    venv = gym.make_vec(env_id, num_envs=3, vectorization_mode="vector_entry_point", render_mode="rgb_array")
+    venv = gym.make_vec(
+        env_id, num_envs=3, vectorization_mode="vector_entry_point", render_mode="rgb_array"
+    )
     venv.reset(seed=0)
     venv.step(venv.action_space.sample())
     frames = venv.render()
@@ -319,8 +366,22 @@ def test_tippe_plot_reports_the_figures_of_its_caption(tmp_path):
 
     figures = {}
     plotting.plot_tippe_top(tmp_path / "tt.png", duration=2.0, figures=figures)
-    assert set(figures) == {"t90", "t150", "jellett_turn_over", "jellett_run", "duration", "final_tilt"}
-    assert abs(figures["t90"] - 1.61) < 0.01 and figures["t150"] is None and figures["duration"] == pytest.approx(2.0, abs=0.011)
+    assert set(figures) == {
+        "t90",
+        "t150",
+        "jellett_turn_over",
+        "jellett_run",
+        "duration",
+        "final_tilt",
+    }
+    assert (
+        abs(figures["t90"] - 1.61) < 0.01
+        and figures["t150"] is None
+        and figures["duration"] == pytest.approx(2.0, abs=0.011)
+    )
     # through the turn-over within issue 18's 1e-8 (1.1e-9); past 120 degrees the slow climb adds rk4's drift (1.2e-8 by 2 s)
-    assert 0.0 < figures["jellett_turn_over"] < 1e-8 and figures["jellett_turn_over"] <= figures["jellett_run"] < 1e-7
+    assert (
+        0.0 < figures["jellett_turn_over"] < 1e-8
+        and figures["jellett_turn_over"] <= figures["jellett_run"] < 1e-7
+    )
     assert 90.0 < figures["final_tilt"] <= 180.0

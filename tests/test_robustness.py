@@ -24,7 +24,12 @@ Z = 5.3  # two-sided normal bound: P(|N(0, 1)| > 5.3) = 1.2e-7
 # A Lagrange top whose every corner is a real body (the inertia about the centre of mass obeys
 # the triangle inequality at I1 = 0.44, M l^2 = 1.05 * 0.51^2, I3 = 0.31) and whose critical
 # spin ranges over 8.7-11.3 rad/s across the box.
-TOP_RANGES = {"inertia": ((0.44, 0.44, 0.29), (0.46, 0.46, 0.31)), "mass": (0.95, 1.05), "length": (0.49, 0.51), "gravity": (9.0, 10.5)}
+TOP_RANGES = {
+    "inertia": ((0.44, 0.44, 0.29), (0.46, 0.46, 0.31)),
+    "mass": (0.95, 1.05),
+    "length": (0.49, 0.51),
+    "gravity": (9.0, 10.5),
+}
 
 
 def zero(env):
@@ -43,7 +48,12 @@ def test_two_seeds_draw_different_parameters_and_a_seed_the_same():
     # the drawn values are the episode's: the system's parameters and the info's critical spin
     env.reset(seed=1)
     p = env.unwrapped.params
-    assert p.inertia == tuple(a["inertia"]) and p.mass == a["mass"] and p.length == a["length"] and p.gravity == a["gravity"]
+    assert (
+        p.inertia == tuple(a["inertia"])
+        and p.mass == a["mass"]
+        and p.length == a["length"]
+        and p.gravity == a["gravity"]
+    )
 
 
 def test_draws_cover_each_range_and_keep_a_symmetric_top_symmetric():
@@ -55,7 +65,9 @@ def test_draws_cover_each_range_and_keep_a_symmetric_top_symmetric():
         assert np.all(v >= lo) and np.all(v < hi), name
         # U(lo, hi): 400 draws leave no gap of 5 % of the range at either end (P = 2 (0.95)^400 < 1e-8)
         width = hi - lo
-        assert np.all(v.min(axis=0) < lo + 0.05 * width + (width == 0)) and np.all(v.max(axis=0) > hi - 0.05 * width), name
+        assert np.all(v.min(axis=0) < lo + 0.05 * width + (width == 0)) and np.all(
+            v.max(axis=0) > hi - 0.05 * width
+        ), name
     inertia = np.array([d["inertia"] for d in draws])
     assert np.array_equal(inertia[:, 0], inertia[:, 1])  # I1 = I2 share one draw: a Lagrange top
     assert not np.array_equal(inertia[:, 0] - 0.44, (inertia[:, 2] - 0.29))  # I3 drawn on its own
@@ -97,7 +109,10 @@ def test_zero_action_keeps_a_top_up_exactly_above_its_drawn_critical_spin():
         obs, info = env.reset(seed=seed)
         p = info["params"]
         crit = critical_spin(p["inertia"][0], p["inertia"][2], p["mass"], p["length"], p["gravity"])
-        assert info["critical_spin"] == pytest.approx(crit, rel=1e-14) and env.unwrapped.critical_spin == info["critical_spin"]
+        assert (
+            info["critical_spin"] == pytest.approx(crit, rel=1e-14)
+            and env.unwrapped.critical_spin == info["critical_spin"]
+        )
         spin = info["spin"]
         k, te, tr = 0, False, False
         while not (te or tr):
@@ -117,7 +132,12 @@ def test_the_tippe_tops_jellett_integral_follows_its_drawn_parameters():
     the episode's drawn radius, axial moment and offset (rbenvs.oracles), not the keywords'."""
     from rbenvs.oracles.tippe_top import jellett_upright
 
-    env = TippeTopEnv(param_ranges={"radius": 0.1, "offset": (0.15, 0.25), "inertia": 0.05}, tilt=0.0, spin=150.0, compiled=False)
+    env = TippeTopEnv(
+        param_ranges={"radius": 0.1, "offset": (0.15, 0.25), "inertia": 0.05},
+        tilt=0.0,
+        spin=150.0,
+        compiled=False,
+    )
     values = set()
     for seed in range(5):
         info = env.reset(seed=seed)[1]
@@ -134,21 +154,41 @@ def test_the_tippe_tops_jellett_integral_follows_its_drawn_parameters():
         (LagrangeTopEnv, [("mass", 1.0)], "param_ranges must be None or a dict"),
         (LagrangeTopEnv, {"dt": 0.1}, "param_ranges keys must be among"),
         (LagrangeTopEnv, {}, "at least one"),
-        (LagrangeTopEnv, {"mass": 1.0}, r"param_ranges\['mass'\]: a relative spread must lie in \[0, 1\)"),
+        (
+            LagrangeTopEnv,
+            {"mass": 1.0},
+            r"param_ranges\['mass'\]: a relative spread must lie in \[0, 1\)",
+        ),
         (LagrangeTopEnv, {"mass": -0.1}, "relative spread"),
         (LagrangeTopEnv, {"mass": (2.0, 1.0)}, "lo <= hi"),
         (LagrangeTopEnv, {"mass": (math.nan, 1.0)}, "finite"),
         (LagrangeTopEnv, {"mass": "abc"}, r"param_ranges\['mass'\]"),
-        (LagrangeTopEnv, {"inertia": (0.4, 0.5)}, r"param_ranges\['inertia'\]: lo must be a vector of 3 numbers"),
+        (
+            LagrangeTopEnv,
+            {"inertia": (0.4, 0.5)},
+            r"param_ranges\['inertia'\]: lo must be a vector of 3 numbers",
+        ),
         (LagrangeTopEnv, {"mass": (-1.0, 1.0)}, "mass must be finite and > 0"),  # positive masses
         # the inertia about the centre of mass must be a body's at the corner I1 = 0.4, M = 1.2
-        (LagrangeTopEnv, {"mass": 0.2, "inertia": ((0.4, 0.4, 0.28), (0.5, 0.5, 0.32))}, "triangle inequality"),
-        (FreeRigidBodyEnv, {"inertia": ((2.0, 1.5, 1.0), (2.0, 1.5, 3.6))}, "triangle inequality I1 \\+ I2 >= I3"),
+        (
+            LagrangeTopEnv,
+            {"mass": 0.2, "inertia": ((0.4, 0.4, 0.28), (0.5, 0.5, 0.32))},
+            "triangle inequality",
+        ),
+        (
+            FreeRigidBodyEnv,
+            {"inertia": ((2.0, 1.5, 1.0), (2.0, 1.5, 3.6))},
+            "triangle inequality I1 \\+ I2 >= I3",
+        ),
         # the named intermediate axis changes inside the box: the structure changes
         (FreeRigidBodyEnv, {"inertia": ((2.0, 1.5, 1.0), (2.0, 2.5, 1.0))}, "structure changes"),
         (TippeTopEnv, {"inertia": ((8e-7, 7e-7), (8e-7, 2e-6))}, "C <= 2 A"),
         (TippeTopEnv, {"offset": (0.5, 1.0)}, "offset"),
-        (FreeRigidBodyEnv, {"max_torque": (0.0, 1e6)}, "max_torque is too large"),  # the actuator's authority
+        (
+            FreeRigidBodyEnv,
+            {"max_torque": (0.0, 1e6)},
+            "max_torque is too large",
+        ),  # the actuator's authority
     ],
 )
 def test_invalid_ranges_are_refused_at_construction(cls, ranges, match):
@@ -174,7 +214,10 @@ def test_compiled_true_is_refused_with_param_ranges():
 def noise_samples(env, steps, seed=0):
     """``(noisy - noiseless)`` per observation of one long episode (float64), and the noiseless."""
     obs, _ = env.reset(seed=seed)
-    dev, clean = [obs.astype(np.float64) - env.unwrapped.noiseless_observation], [env.unwrapped.noiseless_observation]
+    dev, clean = (
+        [obs.astype(np.float64) - env.unwrapped.noiseless_observation],
+        [env.unwrapped.noiseless_observation],
+    )
     for _ in range(steps):
         obs, _, te, tr, _ = env.step(zero(env))
         assert not (te or tr)
@@ -225,10 +268,15 @@ def test_observation_bias_is_constant_per_episode_with_the_stated_spread():
 def test_noise_never_reaches_the_physics_or_the_reward():
     """The same seed and actions with and without noise: the states, rewards and info agree bit
     for bit within the episode (the noise stream's key is drawn after the start)."""
-    quiet, noisy = LagrangeTopEnv(compiled=False), LagrangeTopEnv(observation_noise=0.3, observation_bias=0.1, compiled=False)
+    quiet, noisy = (
+        LagrangeTopEnv(compiled=False),
+        LagrangeTopEnv(observation_noise=0.3, observation_bias=0.1, compiled=False),
+    )
     o1, i1 = quiet.reset(seed=4)
     o2, i2 = noisy.reset(seed=4)
-    assert i1 == i2 and np.array_equal(o1, noisy.noiseless_observation) and not np.array_equal(o1, o2)
+    assert (
+        i1 == i2 and np.array_equal(o1, noisy.noiseless_observation) and not np.array_equal(o1, o2)
+    )
     rng = np.random.default_rng(0)
     for _ in range(100):
         a = rng.uniform(-1, 1, 2).astype(np.float32)
@@ -239,7 +287,9 @@ def test_noise_never_reaches_the_physics_or_the_reward():
 
 
 def test_noisy_observations_stay_in_the_observation_space():
-    env = gym.make(LAGRANGE, observation_noise=0.5, compiled=False)  # Gamma's components are bound by 1: clipped there
+    env = gym.make(
+        LAGRANGE, observation_noise=0.5, compiled=False
+    )  # Gamma's components are bound by 1: clipped there
     obs, _ = env.reset(seed=0)
     for _ in range(20):
         assert env.observation_space.contains(obs)
@@ -255,7 +305,11 @@ def test_an_action_first_acts_k_periods_later(k):
     env equals the undelayed one fed ``k`` zero actions first, bit for bit."""
     rng = np.random.default_rng(1)
     actions = [np.ones(2, dtype=np.float32)] + [np.zeros(2, dtype=np.float32)] * 10
-    delayed, free, ref = (LagrangeTopEnv(action_delay=k, compiled=False), LagrangeTopEnv(compiled=False), LagrangeTopEnv(compiled=False))
+    delayed, free, ref = (
+        LagrangeTopEnv(action_delay=k, compiled=False),
+        LagrangeTopEnv(compiled=False),
+        LagrangeTopEnv(compiled=False),
+    )
     delayed.reset(seed=0)
     free.reset(seed=0)
     for t, a in enumerate(actions):
@@ -315,9 +369,24 @@ def test_invalid_noise_and_delay_are_refused(kwargs, match):
 
 # ----------------------------------------------------------------------------- vector envs
 ALL_OPTIONS = {
-    FREE: dict(param_ranges={"inertia": 0.1, "max_torque": 0.5}, observation_noise=(0.01, 0.05, 0.1), observation_bias=0.01, action_delay=2),
-    LAGRANGE: dict(param_ranges=TOP_RANGES, spin=(5.0, 16.0), observation_noise=0.02, observation_bias=0.01, action_delay=1),
-    TIPPE: dict(param_ranges={"radius": 0.1, "friction": (0.2, 0.4), "inertia": 0.05}, observation_noise=0.5, action_delay=3),
+    FREE: dict(
+        param_ranges={"inertia": 0.1, "max_torque": 0.5},
+        observation_noise=(0.01, 0.05, 0.1),
+        observation_bias=0.01,
+        action_delay=2,
+    ),
+    LAGRANGE: dict(
+        param_ranges=TOP_RANGES,
+        spin=(5.0, 16.0),
+        observation_noise=0.02,
+        observation_bias=0.01,
+        action_delay=1,
+    ),
+    TIPPE: dict(
+        param_ranges={"radius": 0.1, "friction": (0.2, 0.4), "inertia": 0.05},
+        observation_noise=0.5,
+        action_delay=3,
+    ),
 }
 
 
@@ -328,9 +397,13 @@ def test_vector_sub_env_i_is_the_single_env_seeded_s_plus_i_with_every_option(en
     sub-env's parameters, starts, noise and queue are the single env's, bit for bit."""
     steps, max_steps = (90, 70) if env_id != TIPPE else (40, 15)
     assert env_id == TIPPE or max_steps > NOISE_BLOCK
-    n_term, n_trunc, infos = lockstep(env_id, 3, 7, steps, mode, max_steps, ALL_OPTIONS[env_id], action_scale=1.5)
+    n_term, n_trunc, infos = lockstep(
+        env_id, 3, 7, steps, mode, max_steps, ALL_OPTIONS[env_id], action_scale=1.5
+    )
     assert n_term + n_trunc > 0  # episodes ended and new ones (new parameters, new streams) began
-    assert infos[0]["_params"].all() and set(infos[0]["params"]) >= set(ALL_OPTIONS[env_id]["param_ranges"])
+    assert infos[0]["_params"].all() and set(infos[0]["params"]) >= set(
+        ALL_OPTIONS[env_id]["param_ranges"]
+    )
 
 
 @pytest.mark.parametrize("env_id,compiled", [(FREE, False), (LAGRANGE, False), (LAGRANGE, "auto")])
@@ -371,7 +444,9 @@ def test_a_scene_file_carries_the_options_and_evaluation_holds_parameters_out(tm
     )
     scene = load_scene(str(path))
     env = scene.make()
-    assert env.unwrapped.param_ranges.names == ("inertia", "mass") and env.unwrapped.realism.delay == 1
+    assert (
+        env.unwrapped.param_ranges.names == ("inertia", "mass") and env.unwrapped.realism.delay == 1
+    )
     held_out = {"param_ranges": {"mass": (1.06, 1.1), "length": (0.51, 0.52)}}
     result = evaluate(analytic_policy, scene, episodes=3, seed=0, env_overrides=held_out)
     assert result.success_rate == 1.0 and result.lengths == (500, 500, 500)
@@ -379,7 +454,9 @@ def test_a_scene_file_carries_the_options_and_evaluation_holds_parameters_out(tm
 
 # (a tolerance on the intermediate-axis scene: its UnstableMotionWarning is expected, and asserted
 # where it is the subject, tests/test_tolerance.py)
-UNSTABLE_MOTION = pytest.mark.filterwarnings("ignore::rbenvs.stepsize.controller.UnstableMotionWarning")
+UNSTABLE_MOTION = pytest.mark.filterwarnings(
+    "ignore::rbenvs.stepsize.controller.UnstableMotionWarning"
+)
 
 
 @UNSTABLE_MOTION
@@ -388,27 +465,50 @@ def test_tolerance_with_noise_and_delay_keeps_the_lockstep_and_its_estimate(comp
     """tolerance= (its internal steps and info["error_estimate"]) beside action_delay and
     observation noise: the estimate is of the period that ran, under the delayed action that
     acted, in the vector env as in the single env, bit for bit."""
-    kwargs = dict(integrator="rk4", tolerance=1e-6, observation_noise=0.01, action_delay=2, spin_rate=20.0, max_angular_velocity=100.0)
-    _, _, infos = lockstep(FREE, 3, 5, 40, "NextStep", 30, kwargs, vector_kwargs={"compiled": compiled})
+    kwargs = dict(
+        integrator="rk4",
+        tolerance=1e-6,
+        observation_noise=0.01,
+        action_delay=2,
+        spin_rate=20.0,
+        max_angular_velocity=100.0,
+    )
+    _, _, infos = lockstep(
+        FREE, 3, 5, 40, "NextStep", 30, kwargs, vector_kwargs={"compiled": compiled}
+    )
     assert all("error_estimate" in info for info in infos)
     assert max(float(np.max(info["error_estimate"])) for info in infos) > 0.0
 
 
 @UNSTABLE_MOTION
 @pytest.mark.parametrize("mode", ["NextStep", "SameStep"])
-@pytest.mark.parametrize("env_id,extra", [(FREE, {}), (FREE, {"tolerance_check": True}), (LAGRANGE, {"tolerance_check": True}), (TIPPE, {})],
-                         ids=["free_body", "free_body-check", "top-check", "tippe"])
+@pytest.mark.parametrize(
+    "env_id,extra",
+    [
+        (FREE, {}),
+        (FREE, {"tolerance_check": True}),
+        (LAGRANGE, {"tolerance_check": True}),
+        (TIPPE, {}),
+    ],
+    ids=["free_body", "free_body-check", "top-check", "tippe"],
+)
 def test_tolerance_with_param_ranges_steps_each_sub_env_as_its_single_env(env_id, extra, mode):
     """tolerance= with param_ranges in the vector env: each sub-env's period is estimated (and,
     with tolerance_check, checked by its own companion) on its episode's drawn model, as its
     single env's is: every info key (the estimates, the drawn parameters) bit for bit, through
     episode ends and restarts with new parameters."""
-    ranges = {FREE: {"inertia": 0.1}, LAGRANGE: {"mass": 0.05}, TIPPE: {"radius": 0.1, "friction": (0.2, 0.4)}}[env_id]
+    ranges = {
+        FREE: {"inertia": 0.1},
+        LAGRANGE: {"mass": 0.05},
+        TIPPE: {"radius": 0.1, "friction": (0.2, 0.4)},
+    }[env_id]
     kwargs = dict(integrator="rk4", tolerance=1e-6, param_ranges=ranges, **extra)
     if env_id == LAGRANGE:
         kwargs["spin"] = (5.0, 16.0)
     steps, max_steps = (40, 15) if env_id != TIPPE else (12, 5)
-    n_term, n_trunc, infos = lockstep(env_id, 3, 7, steps, mode, max_steps, kwargs, action_scale=1.5)
+    n_term, n_trunc, infos = lockstep(
+        env_id, 3, 7, steps, mode, max_steps, kwargs, action_scale=1.5
+    )
     assert n_term + n_trunc >= 3  # episodes ended and new ones (new parameters) began
     assert max(float(np.max(info["error_estimate"])) for info in infos) > 0.0
     if extra:

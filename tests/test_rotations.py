@@ -65,7 +65,9 @@ def test_product_is_associative_and_matches_matrix_product(shape):
     # The product represents the composition of rotations: R(p q) = R(p) R(q).
     pq = quat_multiply(p, q)
     np.testing.assert_allclose(
-        _rotation_matrix(pq), np.einsum("ij...,jk...->ik...", _rotation_matrix(p), _rotation_matrix(q)), atol=TOL
+        _rotation_matrix(pq),
+        np.einsum("ij...,jk...->ik...", _rotation_matrix(p), _rotation_matrix(q)),
+        atol=TOL,
     )
     # Unit in, unit out (|pq| = |p| |q|).
     np.testing.assert_allclose(_norm(pq), 1.0, atol=TOL)
@@ -122,7 +124,9 @@ def test_axis_angle_rotates_about_axis(shape):
     want = vv * c + np.cross(k, vv, axis=0) * s + k * np.sum(k * vv, axis=0) * (1 - c)
     for g, w in zip(quat_rotate(q, v), want):
         np.testing.assert_allclose(g, w, atol=TOL * 10)  # |v| ~ 2: a few products of size 1
-    np.testing.assert_allclose(quat_angle(q), np.abs(angle), atol=8 * EPS)  # atan2 form, well conditioned
+    np.testing.assert_allclose(
+        quat_angle(q), np.abs(angle), atol=8 * EPS
+    )  # atan2 form, well conditioned
 
 
 @SHAPES
@@ -147,10 +151,21 @@ def test_normalize_floats_arrays_and_compiled_give_the_same_bits():
     rng = np.random.default_rng(6)
     n = 20_000
     q = rng.standard_normal((4, n)) * np.exp(rng.uniform(-700.0, 700.0, n))
-    special = np.array([[0.0, 0.0, 0.0, 0.0], [5e-324, 0.0, 0.0, 0.0], [1e-170, 1e-170, 0.0, 0.0], [1e200, 1e200, 0.0, 0.0],
-                        [np.inf, 0.0, 0.0, 0.0], [np.nan, 1.0, 0.0, 0.0], [-0.0, -1.0, 0.0, 0.0]]).T
+    special = np.array(
+        [
+            [0.0, 0.0, 0.0, 0.0],
+            [5e-324, 0.0, 0.0, 0.0],
+            [1e-170, 1e-170, 0.0, 0.0],
+            [1e200, 1e200, 0.0, 0.0],
+            [np.inf, 0.0, 0.0, 0.0],
+            [np.nan, 1.0, 0.0, 0.0],
+            [-0.0, -1.0, 0.0, 0.0],
+        ]
+    ).T
     q = np.concatenate([q, special], axis=1)
-    floats = np.array([quat_normalize(tuple(float(c) for c in q[:, i])) for i in range(q.shape[1])]).T
+    floats = np.array(
+        [quat_normalize(tuple(float(c) for c in q[:, i])) for i in range(q.shape[1])]
+    ).T
     assert all(_same_bits(a, b) for a, b in zip(floats, quat_normalize(tuple(q))))
     assert np.isnan(floats[:, -7:-1]).all() and not np.isnan(floats[:, -1]).any()
     from rbenvs import compiled
@@ -229,7 +244,9 @@ def test_random_quaternions_are_uniform():
     np.testing.assert_allclose((q**4).mean(axis=1), 0.125, atol=tol)
     # Rotation angle density on SO(3) is (1 - cos a)/pi: mean angle pi/2 + 2/pi.
     angle = quat_angle(tuple(q))
-    assert angle.mean() == pytest.approx(np.pi / 2 + 2 / np.pi, abs=5 * 0.7 / np.sqrt(n))  # std(angle) < 0.7
+    assert angle.mean() == pytest.approx(
+        np.pi / 2 + 2 / np.pi, abs=5 * 0.7 / np.sqrt(n)
+    )  # std(angle) < 0.7
 
 
 # ----------------------------------------------------------------------------- atan2
@@ -240,11 +257,15 @@ def _atan2_arguments():
     n = 100_000
     ys = rng.standard_normal(n) * np.exp(rng.uniform(-30.0, 30.0, n))
     xs = rng.standard_normal(n) * np.exp(rng.uniform(-30.0, 30.0, n))
-    special = np.array([0.0, -0.0, np.inf, -np.inf, np.nan, 1.0, -1.0, 5e-324, 1e-310, -1e-310, 1e308, -1e308])
+    special = np.array(
+        [0.0, -0.0, np.inf, -np.inf, np.nan, 1.0, -1.0, 5e-324, 1e-310, -1e-310, 1e308, -1e308]
+    )
     sy, sx = np.meshgrid(special, special)
     edges = np.array([0.4375, 0.6875, 1.1875, 2.4375, 2.0**60, 2.0**66])
     ey = np.concatenate([np.nextafter(edges, 0.0), edges, np.nextafter(edges, np.inf)])
-    return np.concatenate([ys, sy.ravel(), ey, -ey]), np.concatenate([xs, sx.ravel(), np.ones(3 * len(edges)), -np.ones(3 * len(edges))])
+    return np.concatenate([ys, sy.ravel(), ey, -ey]), np.concatenate(
+        [xs, sx.ravel(), np.ones(3 * len(edges)), -np.ones(3 * len(edges))]
+    )
 
 
 def _same_bits(a, b):
@@ -316,7 +337,21 @@ def _sincos_arguments():
         rng.uniform(-1.6e6, 1.6e6, n),
         np.sign(rng.standard_normal(n)) * 10.0 ** rng.uniform(-320.0, 6.2, n),
         np.round(rng.uniform(-1e6, 1e6, 2000)) * (np.pi / 2),  # nearest doubles to k pi/2
-        np.array([0.0, -0.0, 5e-324, -5e-324, 1e-310, np.pi / 4, -np.pi / 4, np.pi / 2, np.pi, 1647098.99, -1647098.99]),
+        np.array(
+            [
+                0.0,
+                -0.0,
+                5e-324,
+                -5e-324,
+                1e-310,
+                np.pi / 4,
+                -np.pi / 4,
+                np.pi / 2,
+                np.pi,
+                1647098.99,
+                -1647098.99,
+            ]
+        ),
     ]
     return np.concatenate(parts)
 
@@ -365,7 +400,9 @@ def test_sincos_floats_arrays_and_compiled_give_the_same_bits(monkeypatch):
     monkeypatch.setattr(jit, "COMPILE_AFTER", 0)  # (the compiled pass from the first call)
     from rbenvs.rotations import SINCOS_LIMIT, _sincos_arrays, sincos
 
-    xs = np.concatenate([_sincos_arguments(), [SINCOS_LIMIT, -SINCOS_LIMIT, 1e300, np.inf, -np.inf, np.nan]])
+    xs = np.concatenate(
+        [_sincos_arguments(), [SINCOS_LIMIT, -SINCOS_LIMIT, 1e300, np.inf, -np.inf, np.nan]]
+    )
     floats = [sincos(float(x)) for x in xs]
     fs, fc = np.array([a for a, _ in floats]), np.array([b for _, b in floats])
     s, c = sincos(xs)  # (where numba runs: one compiled pass, rbenvs.jit.elementwise)
@@ -374,9 +411,15 @@ def test_sincos_floats_arrays_and_compiled_give_the_same_bits(monkeypatch):
     assert _same_bits(fs, ns) and _same_bits(fc, nc)
     grid = xs[: 6 * (len(xs) // 12)].reshape(6, -1)[:, ::2]  # any shape, any strides
     gs, gc = sincos(grid)
-    assert gs.shape == grid.shape and _same_bits(gs, _sincos_arrays(grid)[0]) and _same_bits(gc, _sincos_arrays(grid)[1])
+    assert (
+        gs.shape == grid.shape
+        and _same_bits(gs, _sincos_arrays(grid)[0])
+        and _same_bits(gc, _sincos_arrays(grid)[1])
+    )
     assert np.isnan(fs[-6:]).all() and np.isnan(fc[-6:]).all()
-    assert np.array_equal(np.signbit(fs[np.isin(xs, [0.0])]), np.signbit(xs[np.isin(xs, [0.0])]))  # sin(-0) = -0
+    assert np.array_equal(
+        np.signbit(fs[np.isin(xs, [0.0])]), np.signbit(xs[np.isin(xs, [0.0])])
+    )  # sin(-0) = -0
     if compiled.available():
         cs, cc = _compiled_sincos(xs)
         assert _same_bits(fs, cs) and _same_bits(fc, cc)

@@ -35,7 +35,10 @@ def test_rest_start_has_the_centre_of_mass_at_rest_and_the_spin_on_the_axis(seed
     # rests, the rest start leaves the contact point slipping at that speed
     assert np.array_equal(rolling.get_state()["attitude"], state["attitude"])
     slip = env.system.slip_speed(env.state_components)
-    assert slip == pytest.approx(np.linalg.norm(rolling.get_state()["velocity"][:2]), rel=1e-12) and slip > 0.0
+    assert (
+        slip == pytest.approx(np.linalg.norm(rolling.get_state()["velocity"][:2]), rel=1e-12)
+        and slip > 0.0
+    )
     assert rolling.system.slip_speed(rolling.state_components) < 1e-15
 
 
@@ -71,10 +74,18 @@ def _t90(refine, spin=180.0, start="rest", **kwargs):
     ``refine = 2`` halves the step of every period the start's count governs)."""
     # the stability bound's steps: the refinement below halves them (the accuracy bound, the
     # default, has its own tests: tests/test_tippe_stiff.py)
-    make = dict(start=start, spin=spin, tilt=0.1, max_episode_steps=2000, **dict(dict(friction_bound="stability"), **kwargs))
+    make = dict(
+        start=start,
+        spin=spin,
+        tilt=0.1,
+        max_episode_steps=2000,
+        **dict(dict(friction_bound="stability"), **kwargs),
+    )
     env = gym.make(ID, **make).unwrapped
     env.reset(seed=0)
-    count = env.internal_steps(env.state_components, env.actuator.control(np.zeros(env.action_space.shape))[1])
+    count = env.internal_steps(
+        env.state_components, env.actuator.control(np.zeros(env.action_space.shape))[1]
+    )
     env = gym.make(ID, substeps=refine * count, **make).unwrapped
     _, info = env.reset(seed=0)
     j0, e_prev, prev = info["jellett"], info["energy"], info["tilt"]
@@ -84,13 +95,20 @@ def _t90(refine, spin=180.0, start="rest", **kwargs):
     for k in range(1, 2000):
         _, _, terminated, truncated, info = env.step(action)
         if terminated or truncated:
-            raise EpisodeEnded(f"ended at {k * env.dt:.3f} s, tilt {math.degrees(info['tilt']):.1f} deg: {info.get('terminal_reason')}")
+            raise EpisodeEnded(
+                f"ended at {k * env.dt:.3f} s, tilt {math.degrees(info['tilt']):.1f} deg: {info.get('terminal_reason')}"
+            )
         drift = max(drift, abs(info["jellett"] - j0) / abs(j0))
         rise = max(rise, info["energy"] - e_prev)
         e_prev = info["energy"]
         least = min(least, info["normal_force"] / (env.params.mass * env.params.gravity))
         if info["tilt"] > math.pi / 2:
-            return (k - 1 + (math.pi / 2 - prev) / (info["tilt"] - prev)) * env.dt, drift, rise, least
+            return (
+                (k - 1 + (math.pi / 2 - prev) / (info["tilt"] - prev)) * env.dt,
+                drift,
+                rise,
+                least,
+            )
         prev = info["tilt"]
     raise EpisodeEnded("the top did not pass 90 degrees in 20 s")
 

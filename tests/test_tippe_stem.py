@@ -27,15 +27,37 @@ from rbenvs.scenes import load_scene
 ID = "rbenvs/TippeTop-v0"
 A_, C_, M_, G_, RAD, H, MU, EPS = 8e-7, 7e-7, 0.006, 9.81, 0.015, 0.003, 0.3, 1e-3
 B, D = 0.005, 0.016
-LG = dict(radius=RAD, mass=M_, offset=0.2, inertia=(A_, C_), friction=MU, friction_law="coulomb", spin=180.0, tilt=0.1, start="rest")
+LG = dict(
+    radius=RAD,
+    mass=M_,
+    offset=0.2,
+    inertia=(A_, C_),
+    friction=MU,
+    friction_law="coulomb",
+    spin=180.0,
+    tilt=0.1,
+    start="rest",
+)
 THETA_STAR = math.acos(-(RAD - B) / (D - H))  # both contacts touch: a - h cos = b - d cos
 
 
 def test_scene_is_leine_and_glockers_top_with_its_stem():
     scene = load_scene("tippe_leine_glocker")
     kw = scene.kwargs
-    assert (kw["radius"], kw["mass"], kw["offset"], tuple(kw["inertia"]), kw["friction"], kw["friction_law"]) == (0.015, 0.006, 0.2, (8e-7, 7e-7), 0.3, "coulomb")
-    assert (kw["spin"], kw["tilt"], kw["start"], tuple(kw["stem"])) == (180.0, 0.1, "rest", (0.005, 0.016))
+    assert (
+        kw["radius"],
+        kw["mass"],
+        kw["offset"],
+        tuple(kw["inertia"]),
+        kw["friction"],
+        kw["friction_law"],
+    ) == (0.015, 0.006, 0.2, (8e-7, 7e-7), 0.3, "coulomb")
+    assert (kw["spin"], kw["tilt"], kw["start"], tuple(kw["stem"])) == (
+        180.0,
+        0.1,
+        "rest",
+        (0.005, 0.016),
+    )
     env = scene.make()
     env.reset(seed=0)
     assert env.unwrapped.system.stem and env.unwrapped.system.dim == 12
@@ -45,19 +67,24 @@ def test_scene_is_leine_and_glockers_top_with_its_stem():
 def test_stem_touch_tilt_from_the_geometry():
     prm = TippeTopParams(stem=(B, D))
     assert prm.stem_touch_tilt() == pytest.approx(THETA_STAR, rel=1e-15)
-    assert math.degrees(prm.stem_touch_tilt()) == pytest.approx(140.2849, abs=1e-4)  # well past 90 degrees
+    assert math.degrees(prm.stem_touch_tilt()) == pytest.approx(
+        140.2849, abs=1e-4
+    )  # well past 90 degrees
     assert math.isnan(TippeTopParams().stem_touch_tilt())
     # the inverted top on its stem lifts the sphere by (d - h) - (a - b)
     assert (D - H) - (RAD - B) == pytest.approx(0.003, rel=1e-12)
 
 
-@pytest.mark.parametrize("stem, words", [
-    ((0.015, 0.016), "below the sphere's radius"),
-    ((0.005, 0.003), "must exceed h"),
-    ((0.005, 0.012), "protrude"),
-    ((0.005,), "stem"),
-    ((0.005, -0.016), "stem[1]"),
-])
+@pytest.mark.parametrize(
+    "stem, words",
+    [
+        ((0.015, 0.016), "below the sphere's radius"),
+        ((0.005, 0.003), "must exceed h"),
+        ((0.005, 0.012), "protrude"),
+        ((0.005,), "stem"),
+        ((0.005, -0.016), "stem[1]"),
+    ],
+)
 def test_bad_stems_are_refused_by_name(stem, words):
     with pytest.raises(ValueError, match=words.replace("[", r"\[").replace("]", r"\]")):
         gym.make(ID, stem=stem)
@@ -117,9 +144,11 @@ def _reference_touchdown(rtol):
     def matrix(q):
         n = math.sqrt(sum(c * c for c in q))
         w, x, y, z = (c / n for c in q)
-        return ((1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)),
-                (2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)),
-                (2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)))
+        return (
+            (1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)),
+            (2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)),
+            (2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)),
+        )
 
     def mv(R, v):
         return tuple(R[i][0] * v[0] + R[i][1] * v[1] + R[i][2] * v[2] for i in range(3))
@@ -152,8 +181,12 @@ def _reference_touchdown(rtol):
         dw = tuple(dw0[i] + n * dw1[i] for i in range(3))
         qw, qx, qy, qz = q
         w1, w2, w3 = wb
-        dq = (0.5 * (-qx * w1 - qy * w2 - qz * w3), 0.5 * (qw * w1 + qy * w3 - qz * w2),
-              0.5 * (qw * w2 + qz * w1 - qx * w3), 0.5 * (qw * w3 + qx * w2 - qy * w1))
+        dq = (
+            0.5 * (-qx * w1 - qy * w2 - qz * w3),
+            0.5 * (qw * w1 + qy * w3 - qz * w2),
+            0.5 * (qw * w2 + qz * w1 - qx * w3),
+            0.5 * (qw * w3 + qx * w2 - qy * w1),
+        )
         return [vx, vy, n * e[0] / M_, n * e[1] / M_, *dq, *dw]
 
     def stem_gap(t, s):
@@ -171,13 +204,23 @@ def _rbenvs_touchdown(h):
     the hybrid layer's own regula falsi (:func:`rbenvs.core.hybrid.locate`)."""
     env = gym.make(ID, stem=(B, D), **LG).unwrapped
     system, integ = env.system, env.model.integrator
-    y = system.state((0.0, 0.0), (math.cos(0.05), math.sin(0.05), 0.0, 0.0), (0.0, 0.0, 180.0), (0.0, 0.0))
+    y = system.state(
+        (0.0, 0.0), (math.cos(0.05), math.sin(0.05), 0.0, 0.0), (0.0, 0.0, 180.0), (0.0, 0.0)
+    )
     t = 0.0
     while t < 6.0:
         y_new = integ.step(system, y, None, h)
         g = system.other_gap(y_new)
         if g < 0.0:
-            dt, y_at = locate(y, y_new, g, lambda z, s: integ.step(system, z, None, s), h, system.other_gap, STEM_TOL * B)
+            dt, y_at = locate(
+                y,
+                y_new,
+                g,
+                lambda z, s: integ.step(system, z, None, s),
+                h,
+                system.other_gap,
+                STEM_TOL * B,
+            )
             assert abs(system.tilt(y_at) - THETA_STAR) < 1e-9  # located at the geometry's tilt
             return t + dt
         y, t = y_new, t + h
@@ -230,8 +273,17 @@ def test_through_the_touchdown_and_on_the_stem():
             alone.step(zero)
             if alone._y != y[:11]:
                 touch = k
-        rows.append((y[11], top.system.energy(y), system.jellett(y), system.stem_jellett(y), system.tilt(y),
-                     system.constraint_normal_force(y, None), system.gap(y)))
+        rows.append(
+            (
+                y[11],
+                top.system.energy(y),
+                system.jellett(y),
+                system.stem_jellett(y),
+                system.tilt(y),
+                system.constraint_normal_force(y, None),
+                system.gap(y),
+            )
+        )
     r = np.array(rows)
     flag, energy, jb, js, tilt, normal, gap = r.T
     assert np.all(np.diff(energy) <= 0.0)
@@ -271,16 +323,30 @@ def test_vector_env_steps_as_the_single_env_through_the_touchdown(compiled):
         single.step(zero)
     state = single.get_state()
     single.reset(options={"state": state})
-    floats = load_scene("tippe_leine_glocker").make(compiled=False).unwrapped  # the single env's float path
+    floats = (
+        load_scene("tippe_leine_glocker").make(compiled=False).unwrapped
+    )  # the single env's float path
     floats.reset(options={"state": state})
-    venv = gym.make_vec(ID, num_envs=2, vectorization_mode="vector_entry_point", compiled=compiled, stem=(B, D), **LG)
+    venv = gym.make_vec(
+        ID,
+        num_envs=2,
+        vectorization_mode="vector_entry_point",
+        compiled=compiled,
+        stem=(B, D),
+        **LG,
+    )
     assert venv.unwrapped.compiled is compiled
     venv.reset(seed=0, options={"state": {k: np.stack([v, v]) for k, v in state.items()}})
     flags = set()
     for _ in range(60):
         obs1, rew1, term1, _, info1 = single.step(zero)
         obs2, rew2, _, _, info2 = floats.step(zero)
-        assert floats._y == single._y and np.array_equal(obs2, obs1) and rew2 == rew1 and info2["normal_force"] == info1["normal_force"]
+        assert (
+            floats._y == single._y
+            and np.array_equal(obs2, obs1)
+            and rew2 == rew1
+            and info2["normal_force"] == info1["normal_force"]
+        )
         obs, rew, term, _, info = venv.step(np.zeros((2, 2)))
         flags.add(single._y[11])
         for i in range(2):
@@ -292,7 +358,9 @@ def test_vector_env_steps_as_the_single_env_through_the_touchdown(compiled):
     assert flags == {0.0, 1.0}  # the run crossed the touchdown
 
 
-@pytest.mark.parametrize("kwargs, seed", [({}, 11), (dict(start="vertical"), 7), (dict(spin=160.0, tilt=0.05), 7)])
+@pytest.mark.parametrize(
+    "kwargs, seed", [({}, 11), (dict(start="vertical"), 7), (dict(spin=160.0, tilt=0.05), 7)]
+)
 def test_from_several_starts_energy_never_rises_and_jellett_holds_until_the_touchdown(kwargs, seed):
     """From the scene's start (another seed), the vertical start and a slower, more upright one,
     8 s of zero action: every state finite, no lift-off, the energy never rising in any period,
@@ -302,7 +370,9 @@ def test_from_several_starts_energy_never_rises_and_jellett_holds_until_the_touc
     scene = load_scene("tippe_leine_glocker")
     top = scene.make(**kwargs).unwrapped
     top.reset(seed=seed)
-    alone = gym.make(ID, **{k: v for k, v in (scene.kwargs | kwargs).items() if k != "stem"}).unwrapped
+    alone = gym.make(
+        ID, **{k: v for k, v in (scene.kwargs | kwargs).items() if k != "stem"}
+    ).unwrapped
     alone.reset(seed=seed)
     system = top.system
     zero = np.zeros(2)
@@ -312,7 +382,11 @@ def test_from_several_starts_energy_never_rises_and_jellett_holds_until_the_touc
     for k in range(800):
         _, _, _, _, info = top.step(zero)
         y = top._y
-        assert all(math.isfinite(c) for c in y) and not info["lifted_off"] and info["normal_force"] >= 0.0
+        assert (
+            all(math.isfinite(c) for c in y)
+            and not info["lifted_off"]
+            and info["normal_force"] >= 0.0
+        )
         energy.append(system.energy(y))
         if touch is None:
             alone.step(zero)

@@ -34,7 +34,10 @@ def test_friction_slope_is_the_derivative_of_the_force(law):
         for j in range(3):
             e = np.zeros(3)
             e[j] = d
-            fp, fm = f.coefficient(mu, *(s + e), eps) * (s + e), f.coefficient(mu, *(s - e), eps) * (s - e)
+            fp, fm = (
+                f.coefficient(mu, *(s + e), eps) * (s + e),
+                f.coefficient(mu, *(s - e), eps) * (s - e),
+            )
             numeric[:, j] = (fp - fm) / (2 * d)
         assert np.allclose(analytic, numeric, rtol=1e-7, atol=1e-9 * np.abs(analytic).max())
         assert np.all(np.linalg.eigvalsh(analytic) <= 0.0)  # friction only dissipates
@@ -57,19 +60,27 @@ def test_tangential_mobility_is_the_largest_eigenvalue_along_the_table():
     rng = np.random.default_rng(2)
     for theta in (0.0, 1e-9, 0.1, 1.0, math.pi / 2, 2.5, math.pi - 1e-9, math.pi):
         phi = rng.uniform(0, 2 * math.pi)
-        gamma = np.array([math.sin(theta) * math.cos(phi), math.sin(theta) * math.sin(phi), math.cos(theta)])
+        gamma = np.array(
+            [math.sin(theta) * math.cos(phi), math.sin(theta) * math.sin(phi), math.cos(theta)]
+        )
         mob, proj = _mobility(p, gamma)
         q, top = tangential_mobility(p, *gamma)
-        assert np.allclose(np.array(q).reshape(3, 3), proj @ mob @ proj, rtol=0, atol=1e-12 * np.abs(mob).max())
+        assert np.allclose(
+            np.array(q).reshape(3, 3), proj @ mob @ proj, rtol=0, atol=1e-12 * np.abs(mob).max()
+        )
         assert top == pytest.approx(np.linalg.eigvalsh(proj @ mob @ proj).max(), rel=1e-12)
     # upright (r along the axis): every slip direction sees 1/m + (a - h)^2 / A
-    assert tangential_mobility(p, 0.0, 0.0, 1.0)[1] == pytest.approx(1 / m + (a - h) ** 2 / big_a, rel=1e-14)
+    assert tangential_mobility(p, 0.0, 0.0, 1.0)[1] == pytest.approx(
+        1 / m + (a - h) ** 2 / big_a, rel=1e-14
+    )
     # the old guard's bound (1/m + (a + h)^2 / min(A, C)) lies above it everywhere
     assert tangential_mobility(p, 0.0, 0.0, -1.0)[1] < env.params.contact_mobility()
 
 
 def _states(start, spin, periods):
-    env = gym.make(ID, start=start, spin=spin, tilt=0.1, max_episode_steps=5000, compiled=False).unwrapped
+    env = gym.make(
+        ID, start=start, spin=spin, tilt=0.1, max_episode_steps=5000, compiled=False
+    ).unwrapped
     env.reset(seed=0)
     out = []
     action = np.zeros(env.action_space.shape, dtype=np.float32)
@@ -88,11 +99,16 @@ def _jacobian(system, y):
         yp, ym = y.copy(), y.copy()
         yp[i] += d
         ym[i] -= d
-        jac[:, i] = (np.array(system.rhs(tuple(yp), None)) - np.array(system.rhs(tuple(ym), None))) / (2 * d)
+        jac[:, i] = (
+            np.array(system.rhs(tuple(yp), None)) - np.array(system.rhs(tuple(ym), None))
+        ) / (2 * d)
     return jac
 
 
-@pytest.mark.parametrize("start,spin,periods", [("rolling", 150.0, (0, 100)), ("rest", 180.0, (0, 40, 230)), ("vertical", 180.0, (0, 120))])
+@pytest.mark.parametrize(
+    "start,spin,periods",
+    [("rolling", 150.0, (0, 100)), ("rest", 180.0, (0, 40, 230)), ("vertical", 180.0, (0, 120))],
+)
 def test_tight_rate_bounds_the_stiffest_eigenvalue_of_the_vector_field(start, spin, periods):
     """The tight rate (the law's stiffness at the actual normal force and the largest mobility
     along the table) is never below the stiffest decay rate of the vector field's Jacobian
@@ -109,7 +125,9 @@ def test_tight_rate_bounds_the_stiffest_eigenvalue_of_the_vector_field(start, sp
             assert system.forms.friction_rate(p, y, None) / tight == pytest.approx(3.62, abs=0.02)
 
 
-@pytest.mark.parametrize("start,period,gh", [("rolling", 100, 1e-4), ("rest", 40, 1e-3), ("vertical", 120, 1e-2)])
+@pytest.mark.parametrize(
+    "start,period,gh", [("rolling", 100, 1e-4), ("rest", 40, 1e-3), ("vertical", 120, 1e-2)]
+)
 def test_w_matrix_solve_matches_the_dense_matrix(start, period, gh):
     """``solve(factor(y, g), x)`` is ``(I - g J)^-1 x`` with ``J`` the Jacobian of the friction's
     contribution with the normal force and ``B`` frozen at ``y`` (dense, central differences of
@@ -162,7 +180,11 @@ class _Linear:
 
     def __init__(self, lam):
         self.kernel_rhs = (lambda P, y, u: (P[0] * y[0],), (lam,))
-        self.kernel_implicit = (lambda P, y, u, g: 1.0 / (1.0 - g * P[0]), lambda P, w, x: (w * x[0],), (lam,))
+        self.kernel_implicit = (
+            lambda P, y, u, g: 1.0 / (1.0 - g * P[0]),
+            lambda P, w, x: (w * x[0],),
+            (lam,),
+        )
         self.kernel_normalize = (lambda N, y: y, ())
 
 
@@ -179,7 +201,11 @@ class _Pendulum:
             return tuple(np.linalg.inv(np.eye(2) - g * jac).ravel())
 
         self.kernel_rhs = (lambda P, y, u: (y[1], -math.sin(y[0]) - 0.3 * y[1]), ())
-        self.kernel_implicit = (factor, lambda P, w, x: (w[0] * x[0] + w[1] * x[1], w[2] * x[0] + w[3] * x[1]), ())
+        self.kernel_implicit = (
+            factor,
+            lambda P, w, x: (w[0] * x[0] + w[1] * x[1], w[2] * x[0] + w[3] * x[1]),
+            (),
+        )
         self.kernel_normalize = (lambda N, y: y, ())
 
 
@@ -187,10 +213,12 @@ def test_ros2_stability_function_is_l_stable():
     """On ``y' = lam y`` (``J = lam``): ``R(z) = (1 + (1 - 2 gamma) z) / (1 - gamma z)^2``, ``|R| <=
     1`` on the negative real axis, ``R(-inf) = 0`` (L-stable)."""
     scheme = Ros2()
-    assert ROS2_GAMMA ** 2 - 2 * ROS2_GAMMA + 0.5 == pytest.approx(0.0, abs=1e-15)
+    assert ROS2_GAMMA**2 - 2 * ROS2_GAMMA + 0.5 == pytest.approx(0.0, abs=1e-15)
     for z in (-1e-3, -0.5, -1.0, -2.785, -10.0, -1e3, -1e6):
         r = scheme.step(_Linear(z), (1.0,), None, 1.0)[0]
-        assert r == pytest.approx((1 + (1 - 2 * ROS2_GAMMA) * z) / (1 - ROS2_GAMMA * z) ** 2, rel=1e-12)
+        assert r == pytest.approx(
+            (1 + (1 - 2 * ROS2_GAMMA) * z) / (1 - ROS2_GAMMA * z) ** 2, rel=1e-12
+        )
 
 
 def test_ros34pw2_is_stiffly_accurate():
@@ -199,8 +227,14 @@ def test_ros34pw2_is_stiffly_accurate():
     stage's value."""
     s = Ros34pw2
     assert np.allclose(s.m[:3], s.a[3], rtol=1e-14, atol=0) and s.m[3] == 1.0
-    a, c, m = transformed([[0, 0], [1, 0]], [[2.0, 0], [-1.0, 2.0]], [0.5, 0.5])  # a hand-computed case
-    assert np.allclose(a, [[0, 0], [0.5, 0]]) and np.allclose(c, [[0, 0], [-0.25, 0]]) and np.allclose(m, [0.375, 0.25])
+    a, c, m = transformed(
+        [[0, 0], [1, 0]], [[2.0, 0], [-1.0, 2.0]], [0.5, 0.5]
+    )  # a hand-computed case
+    assert (
+        np.allclose(a, [[0, 0], [0.5, 0]])
+        and np.allclose(c, [[0, 0], [-0.25, 0]])
+        and np.allclose(m, [0.375, 0.25])
+    )
 
 
 @pytest.mark.parametrize("scheme", [Ros2(), Ros34pw2()], ids=lambda s: s.name)
@@ -213,7 +247,14 @@ def test_rosenbrock_w_stability_and_order(scheme):
     assert abs(scheme.step(_Linear(-1e12), (1.0,), None, 1.0)[0]) < 1e-10
     from scipy.integrate import solve_ivp
 
-    ref = solve_ivp(lambda t, y: [y[1], -math.sin(y[0]) - 0.3 * y[1]], (0, 2), [1.0, 0.5], method="DOP853", rtol=1e-13, atol=1e-13).y[:, -1]
+    ref = solve_ivp(
+        lambda t, y: [y[1], -math.sin(y[0]) - 0.3 * y[1]],
+        (0, 2),
+        [1.0, 0.5],
+        method="DOP853",
+        rtol=1e-13,
+        atol=1e-13,
+    ).y[:, -1]
     for jac in ([[0, 0], [0, 0]], [[0.3, -1.1], [2.0, -0.7]], [[0, 1], [-math.cos(1.0), -0.3]]):
         step = scheme.bind(_Pendulum(jac), 2)
         errs = []
@@ -227,8 +268,18 @@ def test_rosenbrock_w_stability_and_order(scheme):
 
 
 def _run(n, start="vertical", spin=180.0, periods=30, integrator=None, compiled=False, **kw):
-    env = gym.make(ID, start=start, spin=spin, tilt=0.1, integrator=integrator or Ros2(), guard="off", substeps=n, compiled=compiled,
-                   max_episode_steps=5000, **kw).unwrapped
+    env = gym.make(
+        ID,
+        start=start,
+        spin=spin,
+        tilt=0.1,
+        integrator=integrator or Ros2(),
+        guard="off",
+        substeps=n,
+        compiled=compiled,
+        max_episode_steps=5000,
+        **kw,
+    ).unwrapped
     _, info = env.reset(seed=0)
     j0, e0 = info["jellett"], info["energy"]
     e_prev, rise, drift = e0, 0.0, 0.0
@@ -243,8 +294,13 @@ def _run(n, start="vertical", spin=180.0, periods=30, integrator=None, compiled=
 
 
 @pytest.mark.parametrize("scheme", [Ros2(), Ros34pw2()], ids=lambda s: s.name)
-@pytest.mark.parametrize("start,spin,law", [("vertical", 180.0, "coulomb"), ("rest", 180.0, "coulomb"), ("rest", -150.0, "viscous")])
-def test_rosenbrock_w_on_the_tippe_top_converges_keeps_jellett_and_dissipates(scheme, start, spin, law):
+@pytest.mark.parametrize(
+    "start,spin,law",
+    [("vertical", 180.0, "coulomb"), ("rest", 180.0, "coulomb"), ("rest", -150.0, "viscous")],
+)
+def test_rosenbrock_w_on_the_tippe_top_converges_keeps_jellett_and_dissipates(
+    scheme, start, spin, law
+):
     """Over 0.3 s against rk4 at 400 steps a period (its error below 1e-11 here): the error of the
     state falls at the declared order per halving of the step (fitted within 0.3), Jellett's
     integral drifts less and less and the energy never rises, from two starts, both spin signs
@@ -253,7 +309,9 @@ def test_rosenbrock_w_on_the_tippe_top_converges_keeps_jellett_and_dissipates(sc
     ref, _, _ = _run(400, start, spin, integrator="rk4", friction_law=law, friction=friction)
     errs, drifts = [], []
     for n in (40, 80, 160):
-        y, drift, rise = _run(n, start, spin, integrator=scheme, friction_law=law, friction=friction)
+        y, drift, rise = _run(
+            n, start, spin, integrator=scheme, friction_law=law, friction=friction
+        )
         errs.append(np.abs(y - ref).max())
         drifts.append(drift)
         assert rise <= 1e-15
@@ -262,10 +320,18 @@ def test_rosenbrock_w_on_the_tippe_top_converges_keeps_jellett_and_dissipates(sc
     assert drifts[-1] < drifts[0] / 10 and drifts[-1] < 1e-5
 
 
-@pytest.mark.parametrize("scheme,free_flight", [(Ros2(), False), (Ros34pw2(), False), (Ros34pw2(), True)], ids=["ros2", "ros34pw2", "ros34pw2-flight"])
+@pytest.mark.parametrize(
+    "scheme,free_flight",
+    [(Ros2(), False), (Ros34pw2(), False), (Ros34pw2(), True)],
+    ids=["ros2", "ros34pw2", "ros34pw2-flight"],
+)
 def test_rosenbrock_w_compiled_step_is_the_float_step_bit_for_bit(scheme, free_flight):
-    y_c, _, _ = _run(25, "rest", periods=10, integrator=scheme, compiled=True, free_flight=free_flight)
-    y_f, _, _ = _run(25, "rest", periods=10, integrator=scheme, compiled=False, free_flight=free_flight)
+    y_c, _, _ = _run(
+        25, "rest", periods=10, integrator=scheme, compiled=True, free_flight=free_flight
+    )
+    y_f, _, _ = _run(
+        25, "rest", periods=10, integrator=scheme, compiled=False, free_flight=free_flight
+    )
     assert np.array_equal(y_c, y_f)
 
 
@@ -281,15 +347,38 @@ def test_steps_bench_measures_an_inversion_and_the_tight_count():
     y, p = env.state_components, env.system.form_params
     rm = tippe_frame(*y[4:8])
     mob, proj = _mobility(p, np.array(rm[6:9]))
-    rate = p[6] * env.system.constraint_normal_force(y, None) * np.linalg.eigvalsh(proj @ mob @ proj).max() / p[7]
-    assert tippe_steps.tight_count("rolling", 150.0) == math.ceil(env.dt * rate / 2.785) == 23  # (above the spin bound's 16)
-    spin = math.sqrt(sum(w * w for w in y[8:11]))  # viscous (30 s/m: 620/s, 3 steps): the spin bound, 0.1 rad a step
+    rate = (
+        p[6]
+        * env.system.constraint_normal_force(y, None)
+        * np.linalg.eigvalsh(proj @ mob @ proj).max()
+        / p[7]
+    )
+    assert (
+        tippe_steps.tight_count("rolling", 150.0) == math.ceil(env.dt * rate / 2.785) == 23
+    )  # (above the spin bound's 16)
+    spin = math.sqrt(
+        sum(w * w for w in y[8:11])
+    )  # viscous (30 s/m: 620/s, 3 steps): the spin bound, 0.1 rad a step
     assert tippe_steps.tight_count("rolling", 150.0, "viscous") == math.ceil(env.dt * spin / 0.1)
     fine = tippe_steps.inversion("vertical", 180.0, 160, compiled=False)
     coarse = tippe_steps.inversion("vertical", 180.0, 20, compiled=False)
     assert fine["ended"] is None and coarse["ended"] is None and coarse["steps"] == 20.0
-    assert abs(coarse["t90"] - fine["t90"]) < 1e-6 and coarse["rise"] <= 0.0 and coarse["drift"] < 1e-6
-    assert "| vertical | 180 |" in tippe_steps.table([dict(coarse, start="vertical", spin=180.0, law="coulomb", scheme="rk4", count=20, error=0.0)])
+    assert (
+        abs(coarse["t90"] - fine["t90"]) < 1e-6 and coarse["rise"] <= 0.0 and coarse["drift"] < 1e-6
+    )
+    assert "| vertical | 180 |" in tippe_steps.table(
+        [
+            dict(
+                coarse,
+                start="vertical",
+                spin=180.0,
+                law="coulomb",
+                scheme="rk4",
+                count=20,
+                error=0.0,
+            )
+        ]
+    )
 
 
 @pytest.mark.parametrize("start,spin,periods", [("rest", 180.0, 290), ("vertical", 180.0, 90)])
@@ -320,9 +409,16 @@ def test_guard_rate_bounds_the_tight_rate_within_every_period_of_an_inversion(st
     assert 1.0 < growth < 2.0
 
 
-@pytest.mark.parametrize("start,spin,law,friction", [("rolling", 150.0, "coulomb", 0.3), ("rest", -180.0, "coulomb", 0.3),
-                                                     ("vertical", 180.0, "coulomb", 0.3), ("rolling", 150.0, "coulomb", 0.1),
-                                                     ("rest", 180.0, "viscous", 30.0)])
+@pytest.mark.parametrize(
+    "start,spin,law,friction",
+    [
+        ("rolling", 150.0, "coulomb", 0.3),
+        ("rest", -180.0, "coulomb", 0.3),
+        ("vertical", 180.0, "coulomb", 0.3),
+        ("rolling", 150.0, "coulomb", 0.1),
+        ("rest", 180.0, "viscous", 30.0),
+    ],
+)
 def test_accuracy_bound_inverts_as_the_converged_model_with_fewer_steps(start, spin, law, friction):
     """``friction_bound="accuracy"`` against the default guard, whose time to 90 degrees is within
     2e-6 s of the converged one from these starts (tests/test_tippe_starts.py refines it;
@@ -333,10 +429,14 @@ def test_accuracy_bound_inverts_as_the_converged_model_with_fewer_steps(start, s
     from rbenvs.bench import tippe_steps
 
     base = tippe_steps.inversion(start, spin, None, law=law, compiled=False, friction=friction)
-    fast = tippe_steps.inversion(start, spin, "accuracy", law=law, compiled=False, friction=friction)
+    fast = tippe_steps.inversion(
+        start, spin, "accuracy", law=law, compiled=False, friction=friction
+    )
     assert base["ended"] is None and fast["ended"] is None
     assert abs(fast["t90"] - base["t90"]) < 1e-4
-    assert fast["rise"] <= 0.0 and (fast["drift"] < 1e-8 or law == "viscous")  # viscous: the spin bound sets both
+    assert fast["rise"] <= 0.0 and (
+        fast["drift"] < 1e-8 or law == "viscous"
+    )  # viscous: the spin bound sets both
     if law == "coulomb":
         # at the default friction the stability term sets most counts (0.90-0.99 of the guard's,
         # measured); at 0.1 the friction is softer and the accuracy term sets them (1.47 times)
@@ -353,17 +453,31 @@ def test_accuracy_bound_is_its_rule_compiled_as_on_floats_and_is_checked():
     from rbenvs.dynamics.contact import FRICTION_LAWS
     from rbenvs.dynamics.tippe_top import ACCURACY_MARGIN
 
-    assert FRICTION_LAWS["coulomb"].accuracy_scale == 19.0 and FRICTION_LAWS["viscous"].accuracy_scale == 10.4
+    assert (
+        FRICTION_LAWS["coulomb"].accuracy_scale == 19.0
+        and FRICTION_LAWS["viscous"].accuracy_scale == 10.4
+    )
 
     out = []
     for compiled in (True, False):
-        env = gym.make(ID, start="rest", spin=180.0, friction_bound="accuracy", compiled=compiled).unwrapped
+        env = gym.make(
+            ID, start="rest", spin=180.0, friction_bound="accuracy", compiled=compiled
+        ).unwrapped
         env.reset(seed=0)
         y, p = env.state_components, env.system.form_params
         rm = tippe_frame(*y[4:8])
         mob, proj = _mobility(p, np.array(rm[6:9]))
-        lam = p[6] * env.system.constraint_normal_force(y, None) * np.linalg.eigvalsh(proj @ mob @ proj).max() / p[7]
-        lam_a = max(lam, env.system.friction.accuracy_scale * math.sqrt(lam * max(np.linalg.norm(y[8:11]), env.params.gravity_rate())))
+        lam = (
+            p[6]
+            * env.system.constraint_normal_force(y, None)
+            * np.linalg.eigvalsh(proj @ mob @ proj).max()
+            / p[7]
+        )
+        lam_a = max(
+            lam,
+            env.system.friction.accuracy_scale
+            * math.sqrt(lam * max(np.linalg.norm(y[8:11]), env.params.gravity_rate())),
+        )
         counts = []
         for _ in range(10):
             _, _, _, _, info = env.step(np.zeros(env.action_space.shape, dtype=np.float32))
@@ -378,8 +492,11 @@ def test_accuracy_bound_is_its_rule_compiled_as_on_floats_and_is_checked():
 # The sweep of tops the accuracy bound holds (issue 44, item 5): alpha 0.1-0.3, A/C = 1 + f alpha
 # across the inversion band (1 - alpha < A/C < 1 + alpha; the lowest f per alpha the lowest whose
 # top passes 90 degrees within about 27 s at 150 rad/s), C = 7e-7 kg m^2, the default start
-SWEEP = [(0.1, f) for f in (-0.5, -0.25, 0.0, 0.5, 0.9)] + [(0.2, f) for f in (-0.7, -0.5, 0.0, 0.5, 0.9)] + \
-        [(0.3, f) for f in (-0.8, -0.5, 0.0, 0.5, 0.9)]
+SWEEP = (
+    [(0.1, f) for f in (-0.5, -0.25, 0.0, 0.5, 0.9)]
+    + [(0.2, f) for f in (-0.7, -0.5, 0.0, 0.5, 0.9)]
+    + [(0.3, f) for f in (-0.8, -0.5, 0.0, 0.5, 0.9)]
+)
 
 
 def _to_90(alpha, f, **kw):
@@ -387,7 +504,9 @@ def _to_90(alpha, f, **kw):
     to the period that passes 90 degrees: ``(t90, Jellett's largest relative drift, steps a
     period)``, ``t90`` interpolated linearly in the period that crosses."""
     c = 7e-7
-    env = gym.make(ID, offset=alpha, inertia=((1.0 + f * alpha) * c, c), max_episode_steps=5000, **kw).unwrapped
+    env = gym.make(
+        ID, offset=alpha, inertia=((1.0 + f * alpha) * c, c), max_episode_steps=5000, **kw
+    ).unwrapped
     _, info = env.reset(seed=0)
     a = np.zeros(env.action_space.shape, np.float32)
     j0, tilt, drift, steps = info["jellett"], info["tilt"], 0.0, []
@@ -397,16 +516,26 @@ def _to_90(alpha, f, **kw):
         steps.append(env.dt / info["internal_step"])
         drift = max(drift, abs(info["jellett"] - j0) / abs(j0))
         if info["tilt"] > math.pi / 2:
-            return (k - 1 + (math.pi / 2 - tilt) / (info["tilt"] - tilt)) * env.dt, drift, float(np.mean(steps))
+            return (
+                (k - 1 + (math.pi / 2 - tilt) / (info["tilt"] - tilt)) * env.dt,
+                drift,
+                float(np.mean(steps)),
+            )
         tilt = info["tilt"]
-    raise AssertionError(f"the top {alpha}, {1 + f * alpha} did not pass 90 degrees in 5000 periods")
+    raise AssertionError(
+        f"the top {alpha}, {1 + f * alpha} did not pass 90 degrees in 5000 periods"
+    )
 
 
 # viscous friction (30 s/m, from rest at 180 rad/s: the stiff case of the test above) across alpha
 VISCOUS = dict(friction_law="viscous", friction=30.0, spin=180.0)
 
 
-@pytest.mark.parametrize("alpha,f", [(0.1, -0.5), (0.2, 0.0), (0.3, 0.5)], ids=["alpha0.1-AC0.950", "alpha0.2-AC1.000", "alpha0.3-AC1.150"])
+@pytest.mark.parametrize(
+    "alpha,f",
+    [(0.1, -0.5), (0.2, 0.0), (0.3, 0.5)],
+    ids=["alpha0.1-AC0.950", "alpha0.2-AC1.000", "alpha0.3-AC1.150"],
+)
 def test_accuracy_bound_holds_t90_under_viscous_friction(alpha, f):
     """Viscous friction is linear in the slip everywhere (no creeping phase near rolling): its
     scale 10.4 holds the time to 90 degrees within 1e-4 s of rk4 at 2560 fixed steps a period

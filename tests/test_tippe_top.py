@@ -31,7 +31,13 @@ from scipy import optimize
 
 from rbenvs.dynamics import TippeTop, TippeTopParams
 from rbenvs.integrators import get_integrator
-from rbenvs.oracles.tippe_top import energy_star, final_tilt, inversion_criterion, jellett, jellett_upright
+from rbenvs.oracles.tippe_top import (
+    energy_star,
+    final_tilt,
+    inversion_criterion,
+    jellett,
+    jellett_upright,
+)
 
 EPS = np.finfo(float).eps
 RK4 = get_integrator("rk4")
@@ -122,7 +128,9 @@ def newton_euler(params, fidelity, y, u=None):
     y = np.asarray(y, dtype=float)
     a, h, m, g = params.radius, params.offset * params.radius, params.mass, params.gravity
     big_a, big_c = params.inertia
-    ax, ay, mu, t1, t2, t3 = (0.0, 0.0, params.friction, 0.0, 0.0, 0.0) if u is None else (float(c) for c in u)
+    ax, ay, mu, t1, t2, t3 = (
+        (0.0, 0.0, params.friction, 0.0, 0.0, 0.0) if u is None else (float(c) for c in u)
+    )
     rolling = fidelity == "rolling"
     o = 2 if rolling else 4
     q, big_w = y[o : o + 4], y[o + 4 : o + 7]
@@ -137,7 +145,11 @@ def newton_euler(params, fidelity, y, u=None):
         mat, b = np.zeros((9, 9)), np.zeros(9)
         mat[0:3, 0:3], mat[0:3, 6:9], b[0:3] = m * np.eye(3), -np.eye(3), b_lin
         mat[3:6, 3:6], mat[3:6, 6:9], b[3:6] = inertia, -cross_matrix(r), b_rot
-        mat[6:9, 0:3], mat[6:9, 3:6], b[6:9] = np.eye(3), -cross_matrix(r), -np.cross(w, h * np.cross(w, k))
+        mat[6:9, 0:3], mat[6:9, 3:6], b[6:9] = (
+            np.eye(3),
+            -cross_matrix(r),
+            -np.cross(w, h * np.cross(w, k)),
+        )
         sol = np.linalg.solve(mat, b)
         dw, force = sol[3:6], sol[6:9]
         head = tuple(-np.cross(w, r)[:2])
@@ -154,7 +166,12 @@ def newton_euler(params, fidelity, y, u=None):
         mat, b = np.zeros((7, 7)), np.zeros(7)
         mat[0:3, 0:3], mat[0:3, 6], b[0:3] = m * np.eye(3), -e, b_lin
         mat[3:6, 3:6], mat[3:6, 6], b[3:6] = inertia, -np.cross(r, e), b_rot
-        mat[6, 2], mat[6, 3], mat[6, 4], b[6] = 1.0, h * k[1], -h * k[0], -h * np.cross(w, np.cross(w, k))[2]
+        mat[6, 2], mat[6, 3], mat[6, 4], b[6] = (
+            1.0,
+            h * k[1],
+            -h * k[0],
+            -h * np.cross(w, np.cross(w, k))[2],
+        )
         sol = np.linalg.solve(mat, b)
         dw, force = sol[3:6], sol[6] * e
         head = (y[2], y[3], sol[0], sol[1])
@@ -241,7 +258,16 @@ def _energy_oracle_args(system):
 
 
 # ---------------------------------------------------------------------------- parameters
-BASE = dict(radius=0.015, mass=0.006, offset=0.2, inertia=(8e-7, 7e-7), gravity=9.81, friction=0.3, friction_law="coulomb", slip_regularization=1e-3)
+BASE = dict(
+    radius=0.015,
+    mass=0.006,
+    offset=0.2,
+    inertia=(8e-7, 7e-7),
+    gravity=9.81,
+    friction=0.3,
+    friction_law="coulomb",
+    slip_regularization=1e-3,
+)
 BAD_PARAMS = [
     ("radius", dict(radius=0.0)),
     ("radius", dict(radius=-0.01)),
@@ -275,7 +301,9 @@ BAD_PARAMS = [
 ]
 
 
-@pytest.mark.parametrize("name, kwargs", BAD_PARAMS, ids=[f"{n}-{i}" for i, (n, _) in enumerate(BAD_PARAMS)])
+@pytest.mark.parametrize(
+    "name, kwargs", BAD_PARAMS, ids=[f"{n}-{i}" for i, (n, _) in enumerate(BAD_PARAMS)]
+)
 def test_params_reject_invalid(name, kwargs):
     with pytest.raises(ValueError, match=name):
         TippeTopParams(**(BASE | kwargs))
@@ -283,7 +311,9 @@ def test_params_reject_invalid(name, kwargs):
 
 def test_params_accept_limits_and_fidelity_rejects_unknown():
     # The limits of a real body and of the laws are accepted: C = 2 A (a flat disc), no friction.
-    flat = TippeTopParams(**(BASE | dict(inertia=(4e-7, 8e-7), friction=0.0, friction_law="viscous")))
+    flat = TippeTopParams(
+        **(BASE | dict(inertia=(4e-7, 8e-7), friction=0.0, friction_law="viscous"))
+    )
     assert flat.gamma == 0.5 and flat.height == pytest.approx(0.2 * 0.015, rel=4 * EPS)
     for fid in ("gliding", "frictionless", "rolling"):
         assert TippeTop(flat, fid).fidelity == fid
@@ -292,7 +322,12 @@ def test_params_accept_limits_and_fidelity_rejects_unknown():
 
 
 # ---------------------------------------------------------------------------- vector field
-RHS_CASES = [("gliding", "coulomb"), ("gliding", "viscous"), ("frictionless", "coulomb"), ("rolling", "coulomb")]
+RHS_CASES = [
+    ("gliding", "coulomb"),
+    ("gliding", "viscous"),
+    ("frictionless", "coulomb"),
+    ("rolling", "coulomb"),
+]
 
 
 @pytest.mark.parametrize("fidelity, law", RHS_CASES, ids=[f"{f}-{law}" for f, law in RHS_CASES])
@@ -309,7 +344,12 @@ def test_rhs_and_contact_forces_match_newton_euler(fidelity, law):
     worst = 0.0
     for i in range(100):
         y = member(states, i)
-        u_rand = (rng.uniform(-5, 5), rng.uniform(-5, 5), mu0 * rng.uniform(0, 2), *(1e-4 * rng.standard_normal(3)))
+        u_rand = (
+            rng.uniform(-5, 5),
+            rng.uniform(-5, 5),
+            mu0 * rng.uniform(0, 2),
+            *(1e-4 * rng.standard_normal(3)),
+        )
         for u in (None, u_rand):
             got = np.array(system.rhs(y, u))
             want, n_want, f_want = newton_euler(prm, fidelity, y, u)
@@ -324,12 +364,18 @@ def test_rhs_and_contact_forces_match_newton_euler(fidelity, law):
             o = attitude_slice(system)
             err_w = np.max(np.abs(got[o.stop :] - want[o.stop :])) / rot_scale
             err_q = np.max(np.abs(got[o] - want[o])) / math.sqrt(w2)
-            err_v = 0.0 if fidelity == "rolling" else np.max(np.abs(got[2:4] - want[2:4])) / lin_scale
+            err_v = (
+                0.0 if fidelity == "rolling" else np.max(np.abs(got[2:4] - want[2:4])) / lin_scale
+            )
             err_x = np.max(np.abs(got[:2] - want[:2])) / (math.sqrt(w2) * (a + h) + 0.5)
             err_n = abs(n_got - n_want) / (m * lin_scale)
             err_f = np.max(np.abs(np.array([fx, fy]) - f_want[:2])) / (m * lin_scale)
             worst = max(worst, err_w, err_q, err_v, err_x, err_n, err_f)
-            assert slip == pytest.approx(0.0 if fidelity == "rolling" else math.hypot(*slip_velocity(system, y)), rel=1e-12, abs=1e-15)
+            assert slip == pytest.approx(
+                0.0 if fidelity == "rolling" else math.hypot(*slip_velocity(system, y)),
+                rel=1e-12,
+                abs=1e-15,
+            )
     # Both sides sum O(10) rounded products of terms bounded by these scales and solve a linear
     # system whose mobility 1/m + r x I^-1 r x is well conditioned (~4): a few tens of ulp of the
     # scale (measured <= 40); 256 ulp is the bound. A wrong or missing term is O(1) of its scale.
@@ -344,7 +390,9 @@ def test_integrator_support():
         assert integ.supports(system) and integ.step_counted(system, y, None, 1e-5)[1] == calls
     assert get_integrator("dop853").supports(system)
     # No exact sub-flows for the tippe top: the geometric schemes must refuse it.
-    assert not get_integrator("splitting").supports(system) and not get_integrator("exact").supports(system)
+    assert not get_integrator("splitting").supports(system) and not get_integrator(
+        "exact"
+    ).supports(system)
 
 
 @pytest.mark.parametrize("fidelity", ["gliding", "rolling"])
@@ -361,13 +409,25 @@ def test_dop853_matches_independent_model(fidelity):
     system = default_top(fidelity, friction_law="viscous", friction=3.0)
     prm = system.params
     y0 = random_states(rng, system, 4)
-    u = (rng.uniform(-3, 3, 4), rng.uniform(-3, 3, 4), rng.uniform(0, 6, 4), *rng.uniform(-1e-5, 1e-5, (3, 4)))
+    u = (
+        rng.uniform(-3, 3, 4),
+        rng.uniform(-3, 3, 4),
+        rng.uniform(0, 6, 4),
+        *rng.uniform(-1e-5, 1e-5, (3, 4)),
+    )
     t_end = 0.05
     got = np.array(get_integrator("dop853", rtol=1e-12, atol=1e-14).step(system, y0, u, t_end))
     o = attitude_slice(system)
     for i in range(4):
         yi, ui = np.array(member(y0, i)), tuple(float(c[i]) for c in u)
-        sol = solve_ivp(lambda _t, z: newton_euler(prm, fidelity, z, ui)[0], (0.0, t_end), yi, method="DOP853", rtol=1e-12, atol=1e-14)
+        sol = solve_ivp(
+            lambda _t, z: newton_euler(prm, fidelity, z, ui)[0],
+            (0.0, t_end),
+            yi,
+            method="DOP853",
+            rtol=1e-12,
+            atol=1e-14,
+        )
         assert sol.success
         want = sol.y[:, -1]
         want[o] /= np.linalg.norm(want[o])
@@ -400,9 +460,15 @@ def test_export_import_round_trip_and_constraint_checks():
             o = attitude_slice(system)
             rot = rotation_matrix(y[o])
             k, om = rot[:, 2], rot @ np.array(y[o.stop :])
-            assert d["position"][2] == pytest.approx(prm.radius - prm.height * k[2], abs=4 * EPS * prm.radius)
-            assert d["velocity"][2] == pytest.approx(-prm.height * np.cross(om, k)[2], abs=64 * EPS * prm.radius * np.linalg.norm(om))
-            bad = [("position", 2, 1e-6), ("velocity", 2, 1e-3)] + ([("velocity", 0, 1e-3)] if fidelity == "rolling" else [])
+            assert d["position"][2] == pytest.approx(
+                prm.radius - prm.height * k[2], abs=4 * EPS * prm.radius
+            )
+            assert d["velocity"][2] == pytest.approx(
+                -prm.height * np.cross(om, k)[2], abs=64 * EPS * prm.radius * np.linalg.norm(om)
+            )
+            bad = [("position", 2, 1e-6), ("velocity", 2, 1e-3)] + (
+                [("velocity", 0, 1e-3)] if fidelity == "rolling" else []
+            )
             for name, j, delta in bad:
                 d2 = {key: v.copy() for key, v in d.items()}
                 d2[name][j] += delta
@@ -411,7 +477,12 @@ def test_export_import_round_trip_and_constraint_checks():
 
 
 # ---------------------------------------------------------------------------- Jellett
-JELLETT_CASES = [("gliding", "coulomb", 0.05), ("gliding", "viscous", 0.2), ("frictionless", "coulomb", 0.2), ("rolling", "coulomb", 0.2)]
+JELLETT_CASES = [
+    ("gliding", "coulomb", 0.05),
+    ("gliding", "viscous", 0.2),
+    ("frictionless", "coulomb", 0.2),
+    ("rolling", "coulomb", 0.2),
+]
 
 
 def jellett_scale(system, y):
@@ -454,7 +525,9 @@ def _assert_fourth_order(drifts, steps):
             assert math.exp(np.mean(np.log(ratios))) >= 12.0, ratios
 
 
-@pytest.mark.parametrize("fidelity, law, t_end", JELLETT_CASES, ids=[f"{f}-{law}" for f, law, _ in JELLETT_CASES])
+@pytest.mark.parametrize(
+    "fidelity, law, t_end", JELLETT_CASES, ids=[f"{f}-{law}" for f, law, _ in JELLETT_CASES]
+)
 def test_jellett_conserved_to_fourth_order(fidelity, law, t_end):
     """16 random states, no action, rk4 at the step rule h, h/2, h/4: the drift of J is the
     integrator's, O(h^4). Measured max drifts (coarse step): coulomb ~1e-11 over 0.05 s
@@ -483,7 +556,14 @@ def test_jellett_conserved_on_an_accelerating_table(fidelity):
     n, h = steps_for(t_end, stable_step(system, 200.0 * math.sqrt(1.01), mu=0.3))
 
     def controls(k, zero=np.zeros(16)):
-        return (rng.uniform(-5, 5, 16), rng.uniform(-5, 5, 16), rng.uniform(0.0, 0.3, 16), zero, zero, zero)
+        return (
+            rng.uniform(-5, 5, 16),
+            rng.uniform(-5, 5, 16),
+            rng.uniform(0.0, 0.3, 16),
+            zero,
+            zero,
+            zero,
+        )
 
     drifts = [_jellett_drift(system, y0, h / 2**k, n * 2**k, controls) for k in range(levels)]
     _assert_fourth_order(drifts, [n * 2**k for k in range(levels)])
@@ -576,7 +656,9 @@ def _coulomb_inversion(h, track_energy=False):
             if 1.0 - 2.0 * (qx * qx + qy * qy) <= c:  # cos(theta) from q, computed here
                 break
             assert k * h < 30.0, "no inversion"
-        marks[deg] = crossing_time(system, y_prev, None, h, (k - 1) * h, math.radians(deg), system.tilt)
+        marks[deg] = crossing_time(
+            system, y_prev, None, h, (k - 1) * h, math.radians(deg), system.tilt
+        )
     return marks, worst_rise, e0, system.energy(y), k
 
 
@@ -623,12 +705,20 @@ def test_conservation_laws_without_dissipation(fidelity):
             ee = np.maximum(ee, np.abs(system.energy(y) - e0) / e0)
             le = np.maximum(le, np.abs(l_z(y) - lz0) / l_norm)  # L.z can be near zero
             if fidelity == "frictionless" and k == 0:
-                assert np.array_equal(y[8 + 2], y0[8 + 2]) and np.array_equal(y[2], y0[2]) and np.array_equal(y[3], y0[3])
+                assert (
+                    np.array_equal(y[8 + 2], y0[8 + 2])
+                    and np.array_equal(y[2], y0[2])
+                    and np.array_equal(y[3], y0[3])
+                )
             if fidelity == "rolling" and k == 0:
                 vp = np.array(slip_velocity(system, y))  # the reported v_G + omega x r, here
-                assert np.all(np.abs(vp) <= 64 * EPS * (prm.radius + prm.height) * 210.0)  # rounding of |omega| |r|
+                assert np.all(
+                    np.abs(vp) <= 64 * EPS * (prm.radius + prm.height) * 210.0
+                )  # rounding of |omega| |r|
                 normal, (fx, fy), slip = system.contact_forces(y)
-                assert np.all(np.isfinite(fx) & np.isfinite(fy) & (normal > 0.0)) and np.all(slip == 0.0)
+                assert np.all(np.isfinite(fx) & np.isfinite(fy) & (normal > 0.0)) and np.all(
+                    slip == 0.0
+                )
         e_err.append(ee)
         lz_err.append(le)
     _assert_fourth_order(e_err, [n, 2 * n, 4 * n])
@@ -654,7 +744,14 @@ def test_normal_force_and_friction_produce_the_motion(fidelity):
     system = default_top(fidelity)
     prm = system.params
     y = random_states(rng, system, 8)
-    u = (rng.uniform(-3, 3, 8), rng.uniform(-3, 3, 8), np.full(8, prm.friction), np.zeros(8), np.zeros(8), np.zeros(8))
+    u = (
+        rng.uniform(-3, 3, 8),
+        rng.uniform(-3, 3, 8),
+        np.full(8, prm.friction),
+        np.zeros(8),
+        np.zeros(8),
+        np.zeros(8),
+    )
     h, steps = 1e-5, 1200
     o = attitude_slice(system)
     zs, xs, ys, ns, fxs, fys = [], [], [], [], [], []
@@ -678,7 +775,11 @@ def test_normal_force_and_friction_produce_the_motion(fidelity):
         return (-x[:-4] + 16 * x[1:-3] - 30 * x[2:-2] + 16 * x[3:-1] - x[4:]) / (12 * d * d)
 
     rounding = 64 / 12 * 4 * EPS * (prm.radius + prm.height) / h**2
-    for pos, force, table in ((zs, ns / prm.mass - prm.gravity, 0.0), (xs, fxs / prm.mass, u[0]), (ys, fys / prm.mass, u[1])):
+    for pos, force, table in (
+        (zs, ns / prm.mass - prm.gravity, 0.0),
+        (xs, fxs / prm.mass, u[0]),
+        (ys, fys / prm.mass, u[1]),
+    ):
         want = force[2:-2] - table
         fine = second(pos, 1)
         coarse = second(pos, 2)
@@ -746,17 +847,23 @@ def test_energy_is_bounded_below_by_energy_star():
     w = np.array(y[8:11])
     big_l = np.einsum("ij...,j...->i...", rot, np.array([big_a, big_a, big_c])[:, None] * w)
     scale = jellett_scale(system, y)  # J can be near zero: rounding is relative to its terms
-    assert np.all(np.abs(jellett(big_l.T, rot[:, 2].T, prm.radius, prm.offset) - j) <= 64 * EPS * scale)
+    assert np.all(
+        np.abs(jellett(big_l.T, rot[:, 2].T, prm.radius, prm.offset) - j) <= 64 * EPS * scale
+    )
     # the minimiser at each tilt
     gam = rot[2]  # Gamma = R^T z_hat
     arm = prm.radius * gam - prm.height * np.array([0.0, 0.0, 1.0])[:, None]
     inertia = np.array([big_a, big_a, big_c])[:, None]
     w_min = j * arm / np.sum(arm * inertia * arm, axis=0)
-    y_min = system.state((np.zeros(200), np.zeros(200)), y[4:8], tuple(w_min), (np.zeros(200), np.zeros(200)))
+    y_min = system.state(
+        (np.zeros(200), np.zeros(200)), y[4:8], tuple(w_min), (np.zeros(200), np.zeros(200))
+    )
     assert np.all(np.abs(system.jellett(y_min) - j) <= 64 * EPS * scale)
     np.testing.assert_allclose(system.energy(y_min), estar, rtol=64 * EPS)
     upright = upright_start(system, tilt=0.0, spin=150.0)
-    assert system.jellett(upright) == pytest.approx(jellett_upright(big_c, prm.radius, prm.offset, 150.0), rel=8 * EPS)
+    assert system.jellett(upright) == pytest.approx(
+        jellett_upright(big_c, prm.radius, prm.offset, 150.0), rel=8 * EPS
+    )
 
 
 # ---------------------------------------------------------------------------- inversion
@@ -775,9 +882,13 @@ def test_inversion_times_converge(law):
     system = default_top(friction_law=law, friction=3.0 if law == "viscous" else 0.2)
     prm = system.params
     y0 = upright_start(system)
-    crit = inversion_criterion(*prm.inertia, prm.offset, prm.mass, prm.gravity, prm.radius, J=system.jellett(y0))
+    crit = inversion_criterion(
+        *prm.inertia, prm.offset, prm.mass, prm.gravity, prm.radius, J=system.jellett(y0)
+    )
     assert crit.classification == "full inversion"
-    assert final_tilt(system.jellett(y0), *_energy_oracle_args(system)) == pytest.approx(math.pi, abs=1e-12)
+    assert final_tilt(system.jellett(y0), *_energy_oracle_args(system)) == pytest.approx(
+        math.pi, abs=1e-12
+    )
     hs = INVERSION_H[law]
     for h in hs:
         assert h <= stable_step(system, 150.0 * 1.01)
@@ -792,7 +903,9 @@ def test_inversion_times_converge(law):
                     y_prev = y
                     y = RK4.step(system, y, None, h)
                     k += 1
-                marks[deg] = crossing_time(system, y_prev, None, h, (k - 1) * h, math.radians(deg), system.tilt)
+                marks[deg] = crossing_time(
+                    system, y_prev, None, h, (k - 1) * h, math.radians(deg), system.tilt
+                )
             times.append(marks)
     for deg in (90, 150):
         t = np.array([m[deg] for m in times])
@@ -859,7 +972,12 @@ def test_top_with_large_inertia_ratio_rises_to_final_tilt():
     args = _energy_oracle_args(system)
     y = upright_start(system)
     j0 = system.jellett(y)
-    assert inversion_criterion(*prm.inertia, prm.offset, prm.mass, prm.gravity, prm.radius, J=j0).classification == "partial inversion"
+    assert (
+        inversion_criterion(
+            *prm.inertia, prm.offset, prm.mass, prm.gravity, prm.radius, J=j0
+        ).classification
+        == "partial inversion"
+    )
     n, h = steps_for(30.0, stable_step(system, 150.0 * 1.01))
     for _ in range(n):
         y = RK4.step(system, y, None, h)
@@ -871,7 +989,9 @@ def test_top_with_large_inertia_ratio_rises_to_final_tilt():
     excess = system.energy(y) - e_min
     assert excess >= -8 * EPS * e_min  # nothing sits below the least energy
     d = 1e-3
-    curvature = (energy_star(theta_f + d, j, *args) - 2 * e_min + energy_star(theta_f - d, j, *args)) / d**2
+    curvature = (
+        energy_star(theta_f + d, j, *args) - 2 * e_min + energy_star(theta_f - d, j, *args)
+    ) / d**2
     bound = math.sqrt(2.0 * max(excess, 0.0) / curvature)
     assert bound < 0.01, bound  # settled: the oracle pins the tilt to within 0.01 rad
     assert abs(system.tilt(y) - theta_f) <= bound, (system.tilt(y), theta_f, bound)
@@ -897,7 +1017,12 @@ def test_fast_spin_near_upright():
         for period in range(periods):
             normal = system.contact_forces(y, u)[0]
             w = system.angular_velocity(y)
-            n = max(math.ceil(dt * math.sqrt(sum(c * c for c in w)) / SPIN_STEP), math.ceil(dt / system.max_stable_step(get_integrator("rk4"), mu=1.0, normal_force=normal)))
+            n = max(
+                math.ceil(dt * math.sqrt(sum(c * c for c in w)) / SPIN_STEP),
+                math.ceil(
+                    dt / system.max_stable_step(get_integrator("rk4"), mu=1.0, normal_force=normal)
+                ),
+            )
             h = dt / (n * refine)
             for i in range(n * refine):
                 y = RK4.step(system, y, u, h)
@@ -952,7 +1077,9 @@ def test_coulomb_near_zero_slip_has_no_chatter():
         slips.append(np.array(s))
     coarse, fine = slips
     assert np.max(coarse[n // 10 :]) < prm.slip_regularization
-    assert np.max(np.abs(coarse - fine)) < 1e-2 * prm.slip_regularization, np.max(np.abs(coarse - fine))
+    assert np.max(np.abs(coarse - fine)) < 1e-2 * prm.slip_regularization, np.max(
+        np.abs(coarse - fine)
+    )
     # no growth: the last tenth's slip is no larger than the second tenth's (steady creep)
     assert np.max(coarse[-n // 10 :]) <= 1.5 * np.max(coarse[n // 10 : n // 5])
 
@@ -964,21 +1091,48 @@ def test_batch_is_bit_identical_to_single_states(name, fidelity):
     """8 random states stepped as one batch (arrays, with a batch of controls: table
     acceleration, friction coefficient, torque) give exactly the bits of each state stepped alone
     with Python floats, and so do the read-outs."""
-    rng = np.random.default_rng(100 + ["gliding", "frictionless", "rolling"].index(fidelity) + 10 * (name == "rk4"))
+    rng = np.random.default_rng(
+        100 + ["gliding", "frictionless", "rolling"].index(fidelity) + 10 * (name == "rk4")
+    )
     system = default_top(fidelity)
     integ = get_integrator(name)
     y = random_states(rng, system, 8)
-    u = (rng.uniform(-3, 3, 8), rng.uniform(-3, 3, 8), rng.uniform(0.0, 0.6, 8), *rng.uniform(-1e-5, 1e-5, (3, 8)))
+    u = (
+        rng.uniform(-3, 3, 8),
+        rng.uniform(-3, 3, 8),
+        rng.uniform(0.0, 0.6, 8),
+        *rng.uniform(-1e-5, 1e-5, (3, 8)),
+    )
     h = 1e-5
     singles = [member(y, i) for i in range(8)]
     for _ in range(20):
         y = integ.step(system, y, u, h)
-        singles = [integ.step(system, s, tuple(float(c[i]) for c in u), h) for i, s in enumerate(singles)]
+        singles = [
+            integ.step(system, s, tuple(float(c[i]) for c in u), h) for i, s in enumerate(singles)
+        ]
     for i, s in enumerate(singles):
         assert all(type(c) is float for c in s)
         assert member(y, i) == s
         ui = tuple(float(c[i]) for c in u)
-        batch_reads = (system.energy(y), system.jellett(y), system.tilt(y), system.contact_forces(y, u)[0], system.slip_speed(y))
-        single_reads = (system.energy(s), system.jellett(s), system.contact_forces(s, ui)[0], system.slip_speed(s))
-        assert (batch_reads[0][i], batch_reads[1][i], batch_reads[3][i], batch_reads[4][i]) == single_reads
-        assert batch_reads[2][i] == pytest.approx(system.tilt(s), abs=4 * EPS)  # numpy vs libm atan2
+        batch_reads = (
+            system.energy(y),
+            system.jellett(y),
+            system.tilt(y),
+            system.contact_forces(y, u)[0],
+            system.slip_speed(y),
+        )
+        single_reads = (
+            system.energy(s),
+            system.jellett(s),
+            system.contact_forces(s, ui)[0],
+            system.slip_speed(s),
+        )
+        assert (
+            batch_reads[0][i],
+            batch_reads[1][i],
+            batch_reads[3][i],
+            batch_reads[4][i],
+        ) == single_reads
+        assert batch_reads[2][i] == pytest.approx(
+            system.tilt(s), abs=4 * EPS
+        )  # numpy vs libm atan2

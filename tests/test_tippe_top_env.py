@@ -25,8 +25,20 @@ NAN, INF = float("nan"), float("inf")
 FIDELITIES = ("gliding", "frictionless", "rolling")
 STATE_NAMES = {"position", "velocity", "attitude", "angular_velocity"}
 INFO_KEYS = {
-    "energy", "jellett", "tilt", "normal_force", "slip_speed", "lifted_off", "airborne", "hops", "gap",
-    "spin", "internal_step", "error_estimate", "numerical_failure", "is_success",
+    "energy",
+    "jellett",
+    "tilt",
+    "normal_force",
+    "slip_speed",
+    "lifted_off",
+    "airborne",
+    "hops",
+    "gap",
+    "spin",
+    "internal_step",
+    "error_estimate",
+    "numerical_failure",
+    "is_success",
 }
 
 # The documented defaults (class docstring, "Arguments"): the Leine-Glocker top.
@@ -83,18 +95,36 @@ def run(env, policy, seed=None, options=None, steps=None):
 
 # ---------------------------------------------------------------------------------- 1. check_env
 
-CHECK_VARIANTS = [
-    pytest.param(dict(fidelity=f, task=t, integrator=i), id=f"{f}-{t}-{i}") for f in FIDELITIES for t in ("invert", "hold") for i in ("rk4", "euler")
-] + [
-    # dop853 on the gliding level is in tests/test_envs.py (default fidelity, every task)
-    pytest.param(dict(fidelity=f, task=t, integrator="dop853"), id=f"{f}-{t}-dop853") for f in ("frictionless", "rolling") for t in ("invert", "hold")
-] + [
-    pytest.param(dict(friction_action=True, torque_action=True), id="friction+torque-rk4"),
-    pytest.param(dict(friction_action=True, torque_action=True, task="hold", integrator="euler"), id="friction+torque-hold-euler"),
-    pytest.param(dict(friction_action=True, friction_law="viscous", friction_range=(0.0, 2.0)), id="friction-viscous"),
-    pytest.param(dict(fidelity="frictionless", torque_action=True), id="frictionless-torque"),
-    pytest.param(dict(fidelity="rolling", torque_action=True, integrator="euler"), id="rolling-torque-euler"),
-]
+CHECK_VARIANTS = (
+    [
+        pytest.param(dict(fidelity=f, task=t, integrator=i), id=f"{f}-{t}-{i}")
+        for f in FIDELITIES
+        for t in ("invert", "hold")
+        for i in ("rk4", "euler")
+    ]
+    + [
+        # dop853 on the gliding level is in tests/test_envs.py (default fidelity, every task)
+        pytest.param(dict(fidelity=f, task=t, integrator="dop853"), id=f"{f}-{t}-dop853")
+        for f in ("frictionless", "rolling")
+        for t in ("invert", "hold")
+    ]
+    + [
+        pytest.param(dict(friction_action=True, torque_action=True), id="friction+torque-rk4"),
+        pytest.param(
+            dict(friction_action=True, torque_action=True, task="hold", integrator="euler"),
+            id="friction+torque-hold-euler",
+        ),
+        pytest.param(
+            dict(friction_action=True, friction_law="viscous", friction_range=(0.0, 2.0)),
+            id="friction-viscous",
+        ),
+        pytest.param(dict(fidelity="frictionless", torque_action=True), id="frictionless-torque"),
+        pytest.param(
+            dict(fidelity="rolling", torque_action=True, integrator="euler"),
+            id="rolling-torque-euler",
+        ),
+    ]
+)
 
 
 @pytest.mark.parametrize("kwargs", CHECK_VARIANTS)
@@ -195,7 +225,10 @@ def test_check_env_gymnasium_and_sb3(kwargs):
         (dict(max_angular_velocity=NAN), "max_angular_velocity"),
         (dict(max_angular_velocity=150.0), "max_angular_velocity"),  # must exceed the spin 150
         (dict(max_angular_velocity=100.0), "max_angular_velocity"),
-        (dict(spin=(-220.0, 100.0), max_angular_velocity=200.0), "max_angular_velocity"),  # |low| counts
+        (
+            dict(spin=(-220.0, 100.0), max_angular_velocity=200.0),
+            "max_angular_velocity",
+        ),  # |low| counts
         (dict(max_speed=0.0), "max_speed"),
         (dict(max_speed=NAN), "max_speed"),
         (dict(max_speed=A_R * 150.0), "max_speed"),  # radius * spin = 2.25 m/s: must exceed it
@@ -286,7 +319,9 @@ def reference_step(env, state, u):
 def assert_states_close(got, want, tol=1e-12):
     # Same scheme, same state, the same control up to its last bit: only round-off can differ.
     for k in want:
-        np.testing.assert_allclose(got[k], want[k], rtol=tol, atol=tol * max(1.0, np.max(np.abs(want[k]))), err_msg=k)
+        np.testing.assert_allclose(
+            got[k], want[k], rtol=tol, atol=tol * max(1.0, np.max(np.abs(want[k]))), err_msg=k
+        )
 
 
 def max_difference(a, b):
@@ -294,7 +329,9 @@ def max_difference(a, b):
 
 
 ACTION_LAYOUTS = [
-    pytest.param(f, fa, ta, id=f"{f}-{'friction' if fa else 'nofriction'}-{'torque' if ta else 'notorque'}")
+    pytest.param(
+        f, fa, ta, id=f"{f}-{'friction' if fa else 'nofriction'}-{'torque' if ta else 'notorque'}"
+    )
     for f in FIDELITIES
     for fa in (False, True)
     for ta in (False, True)
@@ -304,7 +341,14 @@ ACTION_LAYOUTS = [
 
 @pytest.mark.parametrize("fidelity,friction_action,torque_action", ACTION_LAYOUTS)
 def test_action_mapping_against_direct_integration(fidelity, friction_action, torque_action):
-    kw = dict(fidelity=fidelity, friction_action=friction_action, torque_action=torque_action, max_table_acceleration=ACC, friction_range=MU_RANGE, max_torque=TAU)
+    kw = dict(
+        fidelity=fidelity,
+        friction_action=friction_action,
+        torque_action=torque_action,
+        max_table_acceleration=ACC,
+        friction_range=MU_RANGE,
+        max_torque=TAU,
+    )
     env = TippeTopEnv(**kw)
     rng = np.random.default_rng(11)
     env.reset(seed=3)
@@ -316,7 +360,11 @@ def test_action_mapping_against_direct_integration(fidelity, friction_action, to
         got = env.get_state()
         assert_states_close(got, reference_step(env, start, u))
         # each part of the action mattered, far beyond the round-off tolerance
-        neutral = [(0, 0.0), (1, 0.0)] + ([(2, 0.3)] if friction_action else []) + ([(3, 0.0), (4, 0.0), (5, 0.0)] if torque_action else [])
+        neutral = (
+            [(0, 0.0), (1, 0.0)]
+            + ([(2, 0.3)] if friction_action else [])
+            + ([(3, 0.0), (4, 0.0), (5, 0.0)] if torque_action else [])
+        )
         for i, value in neutral:
             other = list(u)
             other[i] = value
@@ -333,7 +381,9 @@ def test_friction_action_is_affine_onto_friction_range(a2, mu):
     got = env.get_state()
     u = (2.0 * 0.5, 2.0 * 0.25, mu, 0.0, 0.0, 0.0)
     assert_states_close(got, reference_step(env, start, u), tol=1e-11)  # mu to its last bit or so
-    assert max_difference(got, reference_step(env, start, (1.0, 0.5, mu + 0.05, 0.0, 0.0, 0.0))) > 1e-9
+    assert (
+        max_difference(got, reference_step(env, start, (1.0, 0.5, mu + 0.05, 0.0, 0.0, 0.0))) > 1e-9
+    )
 
 
 def test_zero_friction_action_is_the_frictionless_level():
@@ -369,7 +419,10 @@ def test_out_of_range_actions_are_clipped(fidelity):
 @pytest.mark.parametrize("bad", [NAN, INF, -INF])
 @pytest.mark.parametrize("index", range(6))
 def test_non_finite_action_raises_and_keeps_state(bad, index):
-    env, twin = TippeTopEnv(friction_action=True, torque_action=True), TippeTopEnv(friction_action=True, torque_action=True)
+    env, twin = (
+        TippeTopEnv(friction_action=True, torque_action=True),
+        TippeTopEnv(friction_action=True, torque_action=True),
+    )
     env.reset(seed=0)
     twin.reset(seed=0)
     before = env.get_state()
@@ -392,7 +445,10 @@ def test_step_before_reset_raises():
 def test_table_acceleration_only_moves_the_centre_of_mass_when_frictionless():
     """Frictionless, the table's acceleration acts only as the fictitious force -m a_T at G:
     dv/dt = -a_T exactly and the rotation is untouched (it is decoupled from v_x, v_y)."""
-    env, free = TippeTopEnv(fidelity="frictionless", max_table_acceleration=ACC), TippeTopEnv(fidelity="frictionless")
+    env, free = (
+        TippeTopEnv(fidelity="frictionless", max_table_acceleration=ACC),
+        TippeTopEnv(fidelity="frictionless"),
+    )
     env.reset(seed=4)
     free.reset(seed=4)
     rng = np.random.default_rng(5)
@@ -407,11 +463,24 @@ def test_table_acceleration_only_moves_the_centre_of_mass_when_frictionless():
         dt = env.dt
         dv -= acc * dt
         # constant acceleration: rk4 is exact; 16 internal steps of round-off on |v| ~ 2 m/s
-        np.testing.assert_allclose(s1["velocity"][:2], s0["velocity"][:2] - acc * dt, rtol=0, atol=1e-13)
-        np.testing.assert_allclose(s1["position"][:2], s0["position"][:2] + s0["velocity"][:2] * dt - 0.5 * acc * dt**2, rtol=0, atol=1e-15)
-        assert np.array_equal(s1["attitude"], sf["attitude"]) and np.array_equal(s1["angular_velocity"], sf["angular_velocity"])
-        assert np.array_equal(s1["position"][2], sf["position"][2]) and np.array_equal(s1["velocity"][2], sf["velocity"][2])
-        np.testing.assert_array_equal(obs[6:8], s1["velocity"][:2].astype(np.float32))  # v relative to the table
+        np.testing.assert_allclose(
+            s1["velocity"][:2], s0["velocity"][:2] - acc * dt, rtol=0, atol=1e-13
+        )
+        np.testing.assert_allclose(
+            s1["position"][:2],
+            s0["position"][:2] + s0["velocity"][:2] * dt - 0.5 * acc * dt**2,
+            rtol=0,
+            atol=1e-15,
+        )
+        assert np.array_equal(s1["attitude"], sf["attitude"]) and np.array_equal(
+            s1["angular_velocity"], sf["angular_velocity"]
+        )
+        assert np.array_equal(s1["position"][2], sf["position"][2]) and np.array_equal(
+            s1["velocity"][2], sf["velocity"][2]
+        )
+        np.testing.assert_array_equal(
+            obs[6:8], s1["velocity"][:2].astype(np.float32)
+        )  # v relative to the table
     # relative to a table at rest: the accumulated -sum(a_T) dt, and it is no round-off
     np.testing.assert_allclose(s1["velocity"][:2] - sf["velocity"][:2], dv, rtol=0, atol=1e-13)
     assert np.max(np.abs(dv)) > 1e-3
@@ -426,14 +495,19 @@ def test_table_acceleration_reaches_the_rotation_through_the_contact(fidelity):
         env.step(np.array([1.0, -1.0], dtype=np.float32))
         still.step(np.zeros(2, dtype=np.float32))
     # 2.8 m/s^2 for 0.05 s, through friction (or the rolling constraint): far above round-off
-    assert np.max(np.abs(env.get_state()["angular_velocity"] - still.get_state()["angular_velocity"])) > 1e-3
+    assert (
+        np.max(np.abs(env.get_state()["angular_velocity"] - still.get_state()["angular_velocity"]))
+        > 1e-3
+    )
 
 
 def jellett_drift(env, seed=1, steps=20):
     _, info = env.reset(seed=seed)
     j0, rng, worst = info["jellett"], np.random.default_rng(0), 0.0
     for _ in range(steps):
-        _, _, te, _, info = env.step(rng.uniform(-1.0, 1.0, env.action_space.shape).astype(np.float32))
+        _, _, te, _, info = env.step(
+            rng.uniform(-1.0, 1.0, env.action_space.shape).astype(np.float32)
+        )
         assert not te
         worst = max(worst, abs(info["jellett"] / j0 - 1.0))
     return worst
@@ -462,12 +536,24 @@ def test_info_keys_and_python_types(fidelity, task):
     for info in infos:
         assert set(info) == INFO_KEYS  # no episode ends in 5 steps: no terminal_reason
         for key, value in info.items():
-            if key == "error_estimate":  # (no default accuracy for the tippe top yet: not estimated)
+            if (
+                key == "error_estimate"
+            ):  # (no default accuracy for the tippe top yet: not estimated)
                 assert value is None
                 continue
-            expected = bool if key in ("lifted_off", "airborne", "numerical_failure", "is_success") else int if key == "hops" else float
+            expected = (
+                bool
+                if key in ("lifted_off", "airborne", "numerical_failure", "is_success")
+                else int
+                if key == "hops"
+                else float
+            )
             assert type(value) is expected, (key, type(value))
-        assert info["lifted_off"] is False and info["airborne"] is False and info["numerical_failure"] is False
+        assert (
+            info["lifted_off"] is False
+            and info["airborne"] is False
+            and info["numerical_failure"] is False
+        )
         assert info["hops"] == 0 and info["gap"] == 0.0
 
 
@@ -494,7 +580,9 @@ def check_readouts(env, obs, info):
     energy = 0.5 * M0 * v @ v + 0.5 * wb @ (inertia * wb) + MG * s["position"][2]
     assert info["energy"] == pytest.approx(energy, rel=1e-13)
     L = R @ (inertia * wb)
-    assert info["jellett"] == pytest.approx(L @ (A_R * z - H0 * k), rel=1e-12, abs=1e-12 * np.linalg.norm(L) * A_R)
+    assert info["jellett"] == pytest.approx(
+        L @ (A_R * z - H0 * k), rel=1e-12, abs=1e-12 * np.linalg.norm(L) * A_R
+    )
     vp = v + np.cross(ws, H0 * k - A_R * z)  # velocity of the material point at the contact
     if env.system.fidelity == "rolling":
         assert info["slip_speed"] == 0.0
@@ -532,7 +620,11 @@ def test_normal_force_of_a_top_at_rest_upright_is_its_weight(fidelity):
 
 @pytest.mark.parametrize(
     "fidelity,kwargs",
-    [("frictionless", {}), ("rolling", {}), ("gliding", dict(friction_law="viscous", friction=0.3))],
+    [
+        ("frictionless", {}),
+        ("rolling", {}),
+        ("gliding", dict(friction_law="viscous", friction=0.3)),
+    ],
 )
 def test_normal_force_is_the_vertical_force_balance(fidelity, kwargs):
     """m d^2 z_G/dt^2 = N - m g (friction is horizontal). With a strong nutation N swings from
@@ -565,12 +657,22 @@ INTERNAL_CASES = [
     pytest.param(dict(torque_action=True), "friction", id="gliding-torque"),
     pytest.param(dict(friction_action=True), None, id="friction-action"),
     pytest.param(dict(fidelity="frictionless", spin=300.0), "spin", id="frictionless-spin"),
-    pytest.param(dict(fidelity="rolling", spin=300.0, integrator="euler"), "spin", id="rolling-spin"),
+    pytest.param(
+        dict(fidelity="rolling", spin=300.0, integrator="euler"), "spin", id="rolling-spin"
+    ),
     pytest.param(dict(substeps=300), "substeps", id="substeps"),
-    pytest.param(dict(fidelity="frictionless", substeps=6, spin=(-10.0, 10.0)), "substeps", id="substeps-low-spin"),
+    pytest.param(
+        dict(fidelity="frictionless", substeps=6, spin=(-10.0, 10.0)),
+        "substeps",
+        id="substeps-low-spin",
+    ),
     # a slow frictionless top: gravity's rate (38.9 rad/s for the default top) sets the step
-    pytest.param(dict(fidelity="frictionless", spin=(-10.0, 10.0)), "gravity", id="gravity-low-spin"),
-    pytest.param(dict(fidelity="rolling", spin=(5.0, 20.0), dt=0.05), "gravity", id="gravity-rolling"),
+    pytest.param(
+        dict(fidelity="frictionless", spin=(-10.0, 10.0)), "gravity", id="gravity-low-spin"
+    ),
+    pytest.param(
+        dict(fidelity="rolling", spin=(5.0, 20.0), dt=0.05), "gravity", id="gravity-rolling"
+    ),
 ]
 
 
@@ -582,15 +684,21 @@ def documented_internal_steps(env, state, u):
     e = env.unwrapped
     p = e.params
     omega_g = math.sqrt(p.mass * p.gravity * (p.radius + p.height) / min(p.inertia))
-    terms = {"substeps": e.substeps, "spin": math.ceil(e.dt * np.linalg.norm(state["angular_velocity"]) / 0.1), "friction": 0,
-             "gravity": math.ceil(e.dt * omega_g / 0.1)}
+    terms = {
+        "substeps": e.substeps,
+        "spin": math.ceil(e.dt * np.linalg.norm(state["angular_velocity"]) / 0.1),
+        "friction": 0,
+        "gravity": math.ceil(e.dt * omega_g / 0.1),
+    }
     if e.system.fidelity == "gliding" and u[2] > 0.0:
         normal = e.system.contact_forces(components(env, state), u)[0]
         mobility = 1.0 / p.mass + (p.radius + p.height) ** 2 / min(p.inertia)
         rate = u[2] * 2.0 * max(p.mass * p.gravity, normal) * mobility
         if p.friction_law == "coulomb":
             rate /= p.slip_regularization
-        terms["friction"] = math.ceil(e.dt / ((1.0 if e.integrator.name == "euler" else 1.39) / rate))
+        terms["friction"] = math.ceil(
+            e.dt / ((1.0 if e.integrator.name == "euler" else 1.39) / rate)
+        )
     return max(terms.values()), terms
 
 
@@ -606,7 +714,11 @@ def test_internal_step_follows_the_documented_rule(kwargs, dominant):
         a = rng.uniform(-1.0, 1.0, env.action_space.shape).astype(np.float32)
         if fa and i % 2 == 0:
             a[2] = -1.0  # mu = 0: no friction bound
-        u = (2.0 * float(a[0]), 2.0 * float(a[1]), (0.3 + 0.3 * float(a[2])) if fa else env.params.friction)
+        u = (
+            2.0 * float(a[0]),
+            2.0 * float(a[1]),
+            (0.3 + 0.3 * float(a[2])) if fa else env.params.friction,
+        )
         u = u + (tuple(1e-4 * float(x) for x in a[-3:]) if ta else (0.0, 0.0, 0.0))
         n, terms = documented_internal_steps(env, start, u)
         assert env.internal_steps(components(env, start), u) == n
@@ -614,7 +726,9 @@ def test_internal_step_follows_the_documented_rule(kwargs, dominant):
         assert not te
         assert info["internal_step"] == env.dt / n
         if dominant is not None:
-            assert terms[dominant] == n and sorted(terms.values())[-2] < n, terms  # this term sets n
+            assert terms[dominant] == n and sorted(terms.values())[-2] < n, (
+                terms
+            )  # this term sets n
         elif i % 2 == 0:
             assert terms["friction"] == 0 and n == terms["spin"]
         else:
@@ -626,12 +740,23 @@ def test_friction_bound_is_infinite_without_friction_and_for_dop853():
     s = env.system
     assert s.max_stable_step(get_integrator("dop853")) == math.inf
     assert s.max_stable_step(get_integrator("rk4"), mu=0.0) == math.inf
-    assert TippeTopEnv(fidelity="frictionless").system.max_stable_step(get_integrator("rk4")) == math.inf
-    assert TippeTopEnv(fidelity="rolling").system.max_stable_step(get_integrator("euler")) == math.inf
+    assert (
+        TippeTopEnv(fidelity="frictionless").system.max_stable_step(get_integrator("rk4"))
+        == math.inf
+    )
+    assert (
+        TippeTopEnv(fidelity="rolling").system.max_stable_step(get_integrator("euler")) == math.inf
+    )
     # rk4 allows 1.39x euler's step; a larger load only shortens it
-    assert s.max_stable_step(get_integrator("rk4")) == pytest.approx(1.39 * s.max_stable_step(get_integrator("euler")), rel=1e-15)
-    assert s.max_stable_step(get_integrator("rk4"), normal_force=0.5 * MG) == s.max_stable_step(get_integrator("rk4"))
-    assert s.max_stable_step(get_integrator("rk4"), normal_force=4.0 * MG) == pytest.approx(0.25 * s.max_stable_step(get_integrator("rk4")), rel=1e-15)
+    assert s.max_stable_step(get_integrator("rk4")) == pytest.approx(
+        1.39 * s.max_stable_step(get_integrator("euler")), rel=1e-15
+    )
+    assert s.max_stable_step(get_integrator("rk4"), normal_force=0.5 * MG) == s.max_stable_step(
+        get_integrator("rk4")
+    )
+    assert s.max_stable_step(get_integrator("rk4"), normal_force=4.0 * MG) == pytest.approx(
+        0.25 * s.max_stable_step(get_integrator("rk4")), rel=1e-15
+    )
 
 
 # ---------------------------------------------------------------------------------- 5. state dict
@@ -650,14 +775,24 @@ def stepped_state(fidelity, seed=0, steps=3):
 def test_state_names_shapes_and_constraint(fidelity):
     env, s = stepped_state(fidelity)
     assert set(s) == STATE_NAMES
-    assert {k: v.shape for k, v in s.items()} == {"position": (3,), "velocity": (3,), "attitude": (4,), "angular_velocity": (3,)}
+    assert {k: v.shape for k, v in s.items()} == {
+        "position": (3,),
+        "velocity": (3,),
+        "attitude": (4,),
+        "angular_velocity": (3,),
+    }
     assert all(v.dtype == np.float64 for v in s.values())
     assert np.linalg.norm(s["attitude"]) == pytest.approx(1.0, abs=1e-14)
     R = rotation(s["attitude"])
     k, ws = R[:, 2], R @ s["angular_velocity"]
     assert s["position"][2] == pytest.approx(A_R - H0 * k[2], rel=1e-14)
     if fidelity == "rolling":  # v_G = -omega x r, r = P - G = h k - a z_hat
-        np.testing.assert_allclose(s["velocity"], -np.cross(ws, H0 * k - A_R * np.array([0.0, 0.0, 1.0])), rtol=1e-13, atol=1e-15)
+        np.testing.assert_allclose(
+            s["velocity"],
+            -np.cross(ws, H0 * k - A_R * np.array([0.0, 0.0, 1.0])),
+            rtol=1e-13,
+            atol=1e-15,
+        )
 
 
 @pytest.mark.parametrize("fidelity", FIDELITIES)
@@ -739,8 +874,17 @@ def test_state_from_own_formulas_is_accepted(fidelity):
         k, ws = R[:, 2], R @ wb
         vxy = rng.uniform(-0.5, 0.5, 2)
         vz = -H0 * np.cross(ws, k)[2]
-        v = -np.cross(ws, H0 * k - A_R * np.array([0.0, 0.0, 1.0])) if fidelity == "rolling" else np.array([vxy[0], vxy[1], vz])
-        state = {"position": np.array([0.1, -0.2, A_R - H0 * k[2]]), "velocity": v, "attitude": q, "angular_velocity": wb}
+        v = (
+            -np.cross(ws, H0 * k - A_R * np.array([0.0, 0.0, 1.0]))
+            if fidelity == "rolling"
+            else np.array([vxy[0], vxy[1], vz])
+        )
+        state = {
+            "position": np.array([0.1, -0.2, A_R - H0 * k[2]]),
+            "velocity": v,
+            "attitude": q,
+            "angular_velocity": wb,
+        }
         env.reset(options={"state": state})
         got = env.get_state()
         np.testing.assert_array_equal(got["attitude"], q)
@@ -759,7 +903,11 @@ def test_fast_top_lifts_off():
     k, infos, _, te, tr = run(env, lambda obs: zeros(env), seed=0)
     last = infos[-1]
     assert te and not tr and k < 1000
-    assert last["terminal_reason"] == "lift_off" and last["lifted_off"] is True and last["is_success"] is False
+    assert (
+        last["terminal_reason"] == "lift_off"
+        and last["lifted_off"] is True
+        and last["is_success"] is False
+    )
     assert all("terminal_reason" not in i and i["lifted_off"] is False for i in infos[:-1])
     normals = np.array([i["normal_force"] for i in infos])
     assert np.all(normals[:-1] > 0.0)
@@ -774,7 +922,9 @@ def test_fast_top_lifts_off():
     k1, infos1, _, te1, _ = run(env, lambda obs: zeros(env), seed=1)
     assert te1 and abs(k1 - k) <= 1 and infos1[-1]["terminal_reason"] == "lift_off"
     n = min(k, k1)
-    np.testing.assert_allclose([i["tilt"] for i in infos1[:n]], [i["tilt"] for i in infos[:n]], rtol=0, atol=1e-3)
+    np.testing.assert_allclose(
+        [i["tilt"] for i in infos1[:n]], [i["tilt"] for i in infos[:n]], rtol=0, atol=1e-3
+    )
     # a new episode clears the flag
     _, info = env.reset(seed=0)
     assert info["lifted_off"] is False
@@ -791,11 +941,17 @@ def test_default_top_inverts_from_rest_without_lift_off():
     k, infos, rewards, te, tr = run(env, lambda obs: zeros(env), seed=0)
     last = infos[-1]
     assert te and not tr and k < env.spec.max_episode_steps
-    assert last["terminal_reason"] == "task" and last["is_success"] is True and last["lifted_off"] is False
+    assert (
+        last["terminal_reason"] == "task"
+        and last["is_success"] is True
+        and last["lifted_off"] is False
+    )
     tilt = np.array([i["tilt"] for i in infos])
     assert tilt[-1] > math.radians(150.0) and np.all(tilt[:-1] <= math.radians(150.0))
     t90 = np.argmax(tilt > math.pi / 2) * env.unwrapped.dt
-    assert abs(t90 - 1.61) <= 0.005 and abs(k * env.unwrapped.dt - 18.84) <= 0.005  # docstring, to the period
+    assert (
+        abs(t90 - 1.61) <= 0.005 and abs(k * env.unwrapped.dt - 18.84) <= 0.005
+    )  # docstring, to the period
     # G at rest: the contact point slides at |omega x (P - G)| = R n sin(theta) (k x z_hat)
     assert infos[0]["slip_speed"] == pytest.approx(0.015 * 150.0 * math.sin(0.1), rel=1e-12)
     normals = np.array([i["normal_force"] for i in infos])
@@ -821,11 +977,17 @@ def test_rolling_top_inverts_without_lift_off():
     k, infos, rewards, te, tr = run(env, lambda obs: zeros(env), seed=0)
     last = infos[-1]
     assert te and not tr and k < env.spec.max_episode_steps
-    assert last["terminal_reason"] == "task" and last["is_success"] is True and last["lifted_off"] is False
+    assert (
+        last["terminal_reason"] == "task"
+        and last["is_success"] is True
+        and last["lifted_off"] is False
+    )
     tilt = np.array([i["tilt"] for i in infos])
     assert tilt[-1] > math.radians(150.0) and np.all(tilt[:-1] <= math.radians(150.0))
     t90 = np.argmax(tilt > math.pi / 2) * env.unwrapped.dt
-    assert abs(t90 - 7.0) <= 0.05 and abs(k * env.unwrapped.dt - 17.3) <= 0.05  # docstring, to 0.1 s
+    assert (
+        abs(t90 - 7.0) <= 0.05 and abs(k * env.unwrapped.dt - 17.3) <= 0.05
+    )  # docstring, to 0.1 s
     normals = np.array([i["normal_force"] for i in infos])
     assert normals.min() > 0.38 * MG  # docstring "stays above 0.38 m g" (measured 0.401)
     jel = np.array([i["jellett"] for i in infos])
@@ -858,18 +1020,28 @@ def test_without_sliding_friction_the_top_does_not_invert(fidelity):
 @pytest.mark.parametrize("fidelity", FIDELITIES)
 def test_reward_formula_uses_the_clipped_action(task, fidelity):
     cost = 0.2
-    env = TippeTopEnv(task=task, fidelity=fidelity, control_cost=cost, torque_action=True, friction_action=fidelity == "gliding")
+    env = TippeTopEnv(
+        task=task,
+        fidelity=fidelity,
+        control_cost=cost,
+        torque_action=True,
+        friction_action=fidelity == "gliding",
+    )
     env.reset(seed=3)
     rng = np.random.default_rng(0)
     for _ in range(10):
-        a = rng.uniform(-2.0, 2.0, env.action_space.shape).astype(np.float32)  # about half out of range
+        a = rng.uniform(-2.0, 2.0, env.action_space.shape).astype(
+            np.float32
+        )  # about half out of range
         obs, r, te, _, info = env.step(a)
         effort = np.mean(np.clip(a.astype(np.float64), -1.0, 1.0) ** 2)
         up = 0.5 * (1.0 + math.cos(info["tilt"]))
         want = (-up if task == "invert" else up) - cost * effort
         assert type(r) is float and r == pytest.approx(want, abs=1e-12)
         assert not te
-        assert info["is_success"] == (info["tilt"] > math.radians(150.0) if task == "invert" else info["tilt"] < 0.2)
+        assert info["is_success"] == (
+            info["tilt"] > math.radians(150.0) if task == "invert" else info["tilt"] < 0.2
+        )
 
 
 def test_hold_terminates_past_ninety_degrees():
@@ -879,7 +1051,11 @@ def test_hold_terminates_past_ninety_degrees():
     k, infos, rewards, te, tr = run(env, lambda obs: zeros(env), seed=0)
     assert te and not tr
     last = infos[-1]
-    assert last["terminal_reason"] == "task" and last["is_success"] is False and last["lifted_off"] is False
+    assert (
+        last["terminal_reason"] == "task"
+        and last["is_success"] is False
+        and last["lifted_off"] is False
+    )
     tilt = np.array([i["tilt"] for i in infos])
     assert tilt[-1] > math.pi / 2 and np.all(tilt[:-1] <= math.pi / 2)
     assert abs(k * env.unwrapped.dt - 7.0) <= 0.05
@@ -958,12 +1134,17 @@ def test_non_finite_state_ends_episode_with_last_finite_state(fidelity):
     assert np.array_equal(obs, last_obs)
     now = env.get_state()
     assert same_state(now, last) and all(np.all(np.isfinite(v)) for v in now.values())
-    assert all(math.isfinite(info[key]) for key in ("energy", "jellett", "tilt", "normal_force", "slip_speed", "spin"))
+    assert all(
+        math.isfinite(info[key])
+        for key in ("energy", "jellett", "tilt", "normal_force", "slip_speed", "spin")
+    )
     assert info["energy"] == pytest.approx(env.system.energy(components(env, now)), rel=1e-15)
 
 
 def test_observation_limit_terminates_with_clipped_observation():
-    env = TippeTopEnv(fidelity="frictionless", spin=150.0, torque_action=True, max_angular_velocity=160.0)
+    env = TippeTopEnv(
+        fidelity="frictionless", spin=150.0, torque_action=True, max_angular_velocity=160.0
+    )
     env.reset(seed=0)
     # axial torque 1e-4 N m spins up at 1e-4 / C = 143 rad/s^2: past 160 rad/s within ~0.1 s
     for _ in range(30):
@@ -992,8 +1173,16 @@ def test_euler_overflow_is_a_numerical_failure(fidelity):
     # about every axis (it hops at once: free flight, so the episode does not end at the
     # lift-off): Euler multiplies a rotation by sqrt(1 + (h rate)^2) ~ 1e3 per step, past the
     # float range within the period
-    env = TippeTopEnv(fidelity=fidelity, integrator="euler", torque_action=True, guard="off", substeps=100,
-                      max_angular_velocity=3e38, max_speed=3e38, free_flight=True)
+    env = TippeTopEnv(
+        fidelity=fidelity,
+        integrator="euler",
+        torque_action=True,
+        guard="off",
+        substeps=100,
+        max_angular_velocity=3e38,
+        max_speed=3e38,
+        free_flight=True,
+    )
     env.reset(seed=0, options={"state": make_state(env, tilted(0.3), (1e8, 1e8, 1e8))})
     last = env.get_state()
     with warnings.catch_warnings(record=True) as caught:

@@ -87,7 +87,9 @@ def test_impact_is_plastic_dissipative_and_keeps_jellett():
         assert lam > 0.0
         # plastic: the contact point stops moving vertically; the state is on the table
         w_after = R @ np.array(after[10:13])
-        assert after[5] + np.cross(w_after, r)[2] == pytest.approx(0.0, abs=1e-15 * (1.0 + abs(v_pz)))
+        assert after[5] + np.cross(w_after, r)[2] == pytest.approx(
+            0.0, abs=1e-15 * (1.0 + abs(v_pz))
+        )
         assert after[13] == 1.0 and system.gap(after) == pytest.approx(0.0, abs=1e-17)
         # horizontal velocity untouched (frictionless impact), vertical by lambda / m
         assert after[3:5] == y[3:5]
@@ -134,7 +136,9 @@ def test_flight_is_ballistic_and_torque_free(fidelity):
         t = n * env.dt
         # RK4 integrates a quadratic in t exactly: the parabola to round-off
         assert s["position"][2] == pytest.approx(z0 + vz0 * t - 0.5 * g * t * t, abs=1e-15)
-        np.testing.assert_allclose(s["position"][:2], s0["position"][:2] + s0["velocity"][:2] * t, atol=1e-15)
+        np.testing.assert_allclose(
+            s["position"][:2], s0["position"][:2] + s0["velocity"][:2] * t, atol=1e-15
+        )
         np.testing.assert_array_equal(s["velocity"][:2], s0["velocity"][:2])
         assert s["angular_velocity"][2] == s0["angular_velocity"][2]  # symmetric, torque-free
         L = rotation(s["attitude"]) @ (inertia * s["angular_velocity"])
@@ -145,7 +149,9 @@ def test_flight_is_ballistic_and_torque_free(fidelity):
 
 @pytest.mark.parametrize("integrator", ["rk4", "dop853"])
 def test_a_dropped_top_lands_plastically_and_stays_on_the_table(integrator):
-    env = TippeTopEnv(free_flight=True, fidelity="frictionless", spin=200.0, tilt=0.3, integrator=integrator)
+    env = TippeTopEnv(
+        free_flight=True, fidelity="frictionless", spin=200.0, tilt=0.3, integrator=integrator
+    )
     env.reset(seed=0)
     state = env.get_state()
     state["position"][2] += 0.01
@@ -158,7 +164,7 @@ def test_a_dropped_top_lands_plastically_and_stays_on_the_table(integrator):
     assert landed[0]["energy"] < e_drop
     assert all(i["gap"] >= -TOUCHDOWN_TOL * env.params.radius for i in infos)
     assert all(abs(i["jellett"] - j0) <= 1e-9 * abs(j0) for i in infos)
-    after = [i["energy"] for i in infos[infos.index(landed[0]):] if not i["airborne"]]
+    after = [i["energy"] for i in infos[infos.index(landed[0]) :] if not i["airborne"]]
     assert max(after) - min(after) <= 1e-9 * after[0]
 
 
@@ -166,15 +172,30 @@ def test_a_dropped_top_lands_plastically_and_stays_on_the_table(integrator):
 @pytest.mark.parametrize(
     "spin, friction, tilt, steps, min_hops",
     [
-        (180.0, 0.3, 0.1, 900, 1),  # docs/physics.md's Leine-Glocker scene: hops near 80 deg, inverts
+        (
+            180.0,
+            0.3,
+            0.1,
+            900,
+            1,
+        ),  # docs/physics.md's Leine-Glocker scene: hops near 80 deg, inverts
         (1000.0, 1.0, 0.01, 300, 10),
         (2000.0, 0.3, 0.1, 200, 100),
         (5000.0, 1.0, 0.1, 150, 100),
     ],
 )
-def test_fast_tops_hop_without_nan_penetration_or_energy_gain(spin, friction, tilt, steps, min_hops):
+def test_fast_tops_hop_without_nan_penetration_or_energy_gain(
+    spin, friction, tilt, steps, min_hops
+):
     """The issue's must-show, with hops modelled: thousands of rad/s, mu up to 1, default dt."""
-    env = TippeTopEnv(spin=spin, friction=friction, tilt=tilt, free_flight=True, max_speed=max(5.0, 0.02 * spin), **ROLLING)
+    env = TippeTopEnv(
+        spin=spin,
+        friction=friction,
+        tilt=tilt,
+        free_flight=True,
+        max_speed=max(5.0, 0.02 * spin),
+        **ROLLING,
+    )
     infos, observations = run(env, steps)
     assert all(np.all(np.isfinite(o)) for o in observations)
     assert not any(i["numerical_failure"] for i in infos)
@@ -193,12 +214,22 @@ def test_fast_tops_hop_without_nan_penetration_or_energy_gain(spin, friction, ti
 def test_jellett_error_through_hops_converges_at_fourth_order():
     drifts, steps = [], []
     for substeps in (1, 1000, 2000):  # the automatic rule asks for 534 at this spin and friction
-        env = TippeTopEnv(spin=2000.0, friction=1.0, tilt=0.1, free_flight=True, substeps=substeps, max_speed=40.0, **ROLLING)
+        env = TippeTopEnv(
+            spin=2000.0,
+            friction=1.0,
+            tilt=0.1,
+            free_flight=True,
+            substeps=substeps,
+            max_speed=40.0,
+            **ROLLING,
+        )
         infos, _ = run(env, 40)
         assert infos[-1]["hops"] >= 50
         drifts.append(abs(infos[-1]["jellett"] - infos[0]["jellett"]))
         steps.append(infos[-1]["internal_step"])
-    orders = [math.log(drifts[i] / drifts[i + 1]) / math.log(steps[i] / steps[i + 1]) for i in range(2)]
+    orders = [
+        math.log(drifts[i] / drifts[i + 1]) / math.log(steps[i] / steps[i + 1]) for i in range(2)
+    ]
     assert min(orders) > 3.5, orders
 
 
@@ -208,7 +239,11 @@ def test_hopping_model_follows_the_contact_model_until_its_lift_off():
     from itself when its initial spin is changed by 4 ulp (a round-off-seeded reference, since
     the rising top amplifies round-off)."""
     kwargs = dict(spin=1000.0, friction=1.0, tilt=0.01, max_speed=40.0, **ROLLING)
-    plain, flying, nudged = TippeTopEnv(**kwargs), TippeTopEnv(free_flight=True, **kwargs), TippeTopEnv(**kwargs)
+    plain, flying, nudged = (
+        TippeTopEnv(**kwargs),
+        TippeTopEnv(free_flight=True, **kwargs),
+        TippeTopEnv(**kwargs),
+    )
     plain.reset(seed=1)
     flying.reset(seed=1)
     state = plain.get_state()
@@ -234,8 +269,12 @@ def test_hopping_model_follows_the_contact_model_until_its_lift_off():
 
 # ---------------------------------------------------------------------------- API
 def test_vector_env_matches_single_envs_through_hops():
-    kwargs = dict(spin=2000.0, friction=0.3, tilt=(0.01, 0.1), free_flight=True, max_speed=40.0, **ROLLING)
-    venv = gym.make_vec("rbenvs/TippeTop-v0", num_envs=3, vectorization_mode="vector_entry_point", **kwargs)
+    kwargs = dict(
+        spin=2000.0, friction=0.3, tilt=(0.01, 0.1), free_flight=True, max_speed=40.0, **ROLLING
+    )
+    venv = gym.make_vec(
+        "rbenvs/TippeTop-v0", num_envs=3, vectorization_mode="vector_entry_point", **kwargs
+    )
     singles = [TippeTopEnv(**kwargs) for _ in range(3)]
     venv.reset(seed=5)
     for i, env in enumerate(singles):
@@ -284,7 +323,9 @@ def test_free_flight_needs_a_sliding_fidelity():
         TippeTop(TippeTopParams(), "rolling", flight=True)
 
 
-@pytest.mark.parametrize("task, integrator", [("invert", "rk4"), ("hold", "rk4"), ("invert", "euler")])
+@pytest.mark.parametrize(
+    "task, integrator", [("invert", "rk4"), ("hold", "rk4"), ("invert", "euler")]
+)
 def test_check_env_with_free_flight(task, integrator):
     from gymnasium.utils.env_checker import check_env
     from stable_baselines3.common.env_checker import check_env as sb3_check_env
@@ -295,7 +336,15 @@ def test_check_env_with_free_flight(task, integrator):
 
 
 def test_euler_hops_too():
-    env = TippeTopEnv(spin=2000.0, friction=0.3, tilt=0.1, free_flight=True, integrator="euler", max_speed=40.0, **ROLLING)
+    env = TippeTopEnv(
+        spin=2000.0,
+        friction=0.3,
+        tilt=0.1,
+        free_flight=True,
+        integrator="euler",
+        max_speed=40.0,
+        **ROLLING,
+    )
     infos, observations = run(env, 20)
     assert all(np.all(np.isfinite(o)) for o in observations)
     assert infos[-1]["hops"] > 0

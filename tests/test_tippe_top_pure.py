@@ -9,14 +9,25 @@ import pytest
 
 from rbenvs import compiled
 from rbenvs.dynamics import contact
-from rbenvs.dynamics.contact import FRICTION_LAWS, Coulomb, Viscous, coulomb_coefficient, coulomb_stiffness, viscous_coefficient, viscous_stiffness
+from rbenvs.dynamics.contact import (
+    FRICTION_LAWS,
+    Coulomb,
+    Viscous,
+    coulomb_coefficient,
+    coulomb_stiffness,
+    viscous_coefficient,
+    viscous_stiffness,
+)
 from rbenvs.dynamics.tippe_top import TippeTop, TippeTopParams, pure_forms
 from rbenvs.integrators import get_integrator
 from rbenvs.tasks import HoldTask, InvertTask
 
 from conftest import HalfViscous
 
-needs_numba = pytest.mark.skipif(not compiled.available(), reason="the compiled path needs the 'fast' extra (numba) and RBENVS_COMPILED unset")
+needs_numba = pytest.mark.skipif(
+    not compiled.available(),
+    reason="the compiled path needs the 'fast' extra (numba) and RBENVS_COMPILED unset",
+)
 
 # (fidelity, friction law, flight): every combination a TippeTop can be
 COMBOS = [
@@ -33,7 +44,11 @@ N = 40  # random states per combination
 
 
 def make_system(fidelity, law, flight):
-    return TippeTop(TippeTopParams(friction_law=law, friction=0.4 if law == "coulomb" else 2.0), fidelity, flight)
+    return TippeTop(
+        TippeTopParams(friction_law=law, friction=0.4 if law == "coulomb" else 2.0),
+        fidelity,
+        flight,
+    )
 
 
 def random_states(system, rng, n):
@@ -100,7 +115,18 @@ def forms_of(system):
     """``name -> (fn, P, arity)`` of every pure form of ``system``: the kernel pairs, the guard's
     rate and the tasks' observation and rewards."""
     out = {}
-    for name in ("rhs", "rhs_normal", "normal", "normalize", "readouts", "gap", "take_off", "touch_down", "on_table", "airborne"):
+    for name in (
+        "rhs",
+        "rhs_normal",
+        "normal",
+        "normalize",
+        "readouts",
+        "gap",
+        "take_off",
+        "touch_down",
+        "on_table",
+        "airborne",
+    ):
         pair = getattr(system, f"kernel_{name}")
         if pair is not None:
             out[name] = pair
@@ -128,7 +154,9 @@ def test_each_law_is_its_pure_functions():
     assert isinstance(c, Coulomb) and isinstance(v, Viscous)
     assert c.kernel_coefficient is coulomb_coefficient and c.kernel_stiffness is coulomb_stiffness
     assert v.kernel_coefficient is viscous_coefficient and v.kernel_stiffness is viscous_stiffness
-    assert c.pure_forms() == (coulomb_coefficient, coulomb_stiffness) and c.compilable and v.compilable
+    assert (
+        c.pure_forms() == (coulomb_coefficient, coulomb_stiffness) and c.compilable and v.compilable
+    )
     rng = np.random.default_rng(0)
     for law in (c, v):
         for _ in range(50):
@@ -137,9 +165,10 @@ def test_each_law_is_its_pure_functions():
             assert bits(law.stiffness(*args[:4])) == bits(law.kernel_stiffness(*args[:4]))
     # the tippe top's forms are made once per combination, around the law's functions
     a, b = make_system("gliding", "coulomb", True), make_system("gliding", "coulomb", True)
-    assert a.forms is b.forms and a.forms is pure_forms(coulomb_coefficient, coulomb_stiffness, False, True)
+    assert a.forms is b.forms and a.forms is pure_forms(
+        coulomb_coefficient, coulomb_stiffness, False, True
+    )
     assert make_system("gliding", "viscous", True).forms is not a.forms
-
 
 
 def test_a_law_without_pure_functions_runs_on_floats_and_arrays_with_no_kernels(monkeypatch):
@@ -184,7 +213,9 @@ def test_kernel_pairs_are_what_the_methods_compute(fidelity, law, flight):
             dy = system.rhs(y, u)
             assert bits(call("rhs", y, u)) == bits(dy) and len(dy) == system.dim
             n = system.constraint_normal_force(y, u)
-            assert bits(call("rhs_normal", y, u)) == bits((dy, n)) and bits(call("normal", y, u)) == bits(n)
+            assert bits(call("rhs_normal", y, u)) == bits((dy, n)) and bits(
+                call("normal", y, u)
+            ) == bits(n)
             assert bits(system.contact_forces(y, u)[0]) == bits(n)
             fired = i % 2 == 0
             reads = system.readouts(y, u, fired)
@@ -202,8 +233,14 @@ def test_kernel_pairs_are_what_the_methods_compute(fidelity, law, flight):
             assert bits(call("gap", y)) == bits(system.gap(y))
             assert call("on_table", y) == system.on_table(y) == (y[13] == 1.0)
             assert call("airborne", y) == system.airborne(y) == (y[13] != 1.0)
-            assert bits(call("take_off", y)) == bits(system.take_off(y)) and system.take_off(y)[13:] == (0.0, y[14] + 1.0)
-            assert bits(call("touch_down", y)) == bits(system.touch_down(y)) == bits(system.impact(y)[0])
+            assert bits(call("take_off", y)) == bits(system.take_off(y)) and system.take_off(y)[
+                13:
+            ] == (0.0, y[14] + 1.0)
+            assert (
+                bits(call("touch_down", y))
+                == bits(system.touch_down(y))
+                == bits(system.impact(y)[0])
+            )
             if y[13] == 0.0:
                 assert call("normal", y, None) == 0.0  # no contact force in flight
     if not flight and fidelity != "rolling":
@@ -216,11 +253,16 @@ def test_tasks_observe_and_evaluate_are_their_pure_forms(fidelity, law, flight):
     rng = np.random.default_rng(3)
     floats, _ = random_states(system, rng, N)
     f = forms_of(system)
-    for task, key in ((InvertTask(150.0, 150.0, 0.1, 0.1, 0.03), "invert"), (HoldTask(150.0, 150.0, 0.1, 0.1, 0.05), "hold")):
+    for task, key in (
+        (InvertTask(150.0, 150.0, 0.1, 0.1, 0.03), "invert"),
+        (HoldTask(150.0, 150.0, 0.1, 0.1, 0.05), "hold"),
+    ):
         fn, pe = f[key]
         for i, y in enumerate(floats):
             assert bits(f["observe"][0](f["observe"][1], y)) == bits(tuple(task.observe(system, y)))
-            u = tuple(float(c) for c in rng.uniform(-1.0, 1.0, 2 + i % 5))  # the action's size varies with the options
+            u = tuple(
+                float(c) for c in rng.uniform(-1.0, 1.0, 2 + i % 5)
+            )  # the action's size varies with the options
             reward, terminated, metrics = task.evaluate(system, y, u)
             assert bits(fn(pe, y, u)) == bits((reward, terminated, metrics["is_success"]))
             assert type(reward) is float and type(terminated) is bool
@@ -228,7 +270,9 @@ def test_tasks_observe_and_evaluate_are_their_pure_forms(fidelity, law, flight):
             if key == "invert":
                 assert terminated == (tilt > task.goal_tilt) == metrics["is_success"]
             else:
-                assert terminated == (tilt > task.fall_tilt) and metrics["is_success"] == (tilt < task.success_tilt)
+                assert terminated == (tilt > task.fall_tilt) and metrics["is_success"] == (
+                    tilt < task.success_tilt
+                )
 
 
 # ------------------------------------------------------------------------------------------
@@ -247,9 +291,19 @@ def test_pure_forms_on_arrays_equal_the_floats_element_by_element(fidelity, law,
     f = forms_of(system)
     fired = np.arange(N) % 2 == 0
     u_norm = tuple(np.ascontiguousarray(c) for c in rng.uniform(-1.0, 1.0, (4, N)))
-    for ua, uf in ((u_arrays, controls), (shared, [(float(shared[0][i]), float(shared[1][i]), 0.3, 0.0, 0.0, 0.0) for i in range(N)]),
-                   (None, [None] * N)):
-        batch = {name: f[name][0](f[name][1], arrays, ua) for name in ("rhs", "rhs_normal", "normal", "guard_rate") if name in f}
+    for ua, uf in (
+        (u_arrays, controls),
+        (
+            shared,
+            [(float(shared[0][i]), float(shared[1][i]), 0.3, 0.0, 0.0, 0.0) for i in range(N)],
+        ),
+        (None, [None] * N),
+    ):
+        batch = {
+            name: f[name][0](f[name][1], arrays, ua)
+            for name in ("rhs", "rhs_normal", "normal", "guard_rate")
+            if name in f
+        }
         batch["readouts"] = f["readouts"][0](f["readouts"][1], arrays, ua, fired)
         for i, y in enumerate(floats):
             for name, got in batch.items():
@@ -288,7 +342,16 @@ def _compiled(fn, arity):
     return numba.njit(error_model="numpy")(lambda p, a, b, c: fn(p, a, b, c))
 
 
-ARITY = {"normalize": 2, "gap": 2, "take_off": 2, "touch_down": 2, "on_table": 2, "airborne": 2, "observe": 2, "readouts": 4}
+ARITY = {
+    "normalize": 2,
+    "gap": 2,
+    "take_off": 2,
+    "touch_down": 2,
+    "on_table": 2,
+    "airborne": 2,
+    "observe": 2,
+    "readouts": 4,
+}
 
 
 @needs_numba
@@ -312,7 +375,11 @@ def test_compiled_pure_forms_equal_the_floats_bit_for_bit(fidelity, law, flight)
                 continue  # (switches of a state in flight; a touchdown's impact is a float branch)
             if name == "readouts":
                 for u in (controls[i], None):
-                    assert bits(kernel(p, y, u, i % 2 == 0)) == bits(fn(p, y, u, i % 2 == 0)), (name, i, u)
+                    assert bits(kernel(p, y, u, i % 2 == 0)) == bits(fn(p, y, u, i % 2 == 0)), (
+                        name,
+                        i,
+                        u,
+                    )
             elif name in ("invert", "hold"):
                 u = tuple(float(c) for c in rng.uniform(-1.0, 1.0, 2 + i % 5))
                 assert bits(kernel(p, y, u)) == bits(fn(p, y, u)), (name, i)
@@ -323,7 +390,9 @@ def test_compiled_pure_forms_equal_the_floats_bit_for_bit(fidelity, law, flight)
 
 
 @needs_numba
-@pytest.mark.parametrize("fidelity,law,flight", [COMBOS[0], COMBOS[3], COMBOS[4]], ids=[IDS[0], IDS[3], IDS[4]])
+@pytest.mark.parametrize(
+    "fidelity,law,flight", [COMBOS[0], COMBOS[3], COMBOS[4]], ids=[IDS[0], IDS[3], IDS[4]]
+)
 def test_the_compiled_integrator_step_is_the_single_env_step(fidelity, law, flight):
     """rk4's pure step (``kernel_step``: the generated step around ``kernel_rhs`` and
     ``kernel_normalize``), compiled, takes the single env's bound step bit for bit."""
@@ -380,7 +449,9 @@ def test_systems_and_envs_pickle_into_a_new_process(tmp_path):
         "fn, p = env.unwrapped.model.step_rule.dissipation\n"
         "print(repr(system.rhs(y, None)), repr(fn(p, env.unwrapped.state_components, None)), env.step(np.zeros(2, np.float32))[1])\n"
     )
-    out = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, check=True).stdout
+    out = subprocess.run(
+        [sys.executable, "-c", script], capture_output=True, text=True, check=True
+    ).stdout
     fn, p = env.unwrapped.model.step_rule.dissipation
     want = f"{system.rhs(y, None)!r} {fn(p, env.unwrapped.state_components, None)!r} {env.step(np.zeros(2, np.float32))[1]}"
     assert out.strip() == want

@@ -77,7 +77,10 @@ def test_accuracy_steps_is_the_fewest_whole_count_on_floats_and_arrays():
             if 1.0 < n < 1e6:  # the fewest whole n with n^p >= y (to the rounding of y)
                 assert n**p >= y * (1 - 1e-12) and (n - 1) ** p < y * (1 + 1e-12)
     assert accuracy_steps(1.0, 4.0, 0.0) == 0.0
-    assert math.isnan(accuracy_steps(1.0, 4.0, math.nan)) and accuracy_steps(1.0, 4.0, math.inf) == math.inf
+    assert (
+        math.isnan(accuracy_steps(1.0, 4.0, math.nan))
+        and accuracy_steps(1.0, 4.0, math.inf) == math.inf
+    )
 
 
 def test_the_count_meets_the_budget_and_one_fewer_does_not():
@@ -96,7 +99,10 @@ def test_the_count_meets_the_budget_and_one_fewer_does_not():
 # ----------------------------------------------------------------- validation
 @pytest.mark.parametrize("bad", [0.0, 1.0, -1e-3, 2.0, math.nan, math.inf, "1e-3", True, 1j])
 def test_tolerance_is_validated_at_construction(bad):
-    with pytest.raises((ValueError, TypeError), match=r"tolerance must be 'default' \(the env's default accuracy\), None \(unchecked.*\) or a finite number with 1e-12 <= tolerance < 1"):
+    with pytest.raises(
+        (ValueError, TypeError),
+        match=r"tolerance must be 'default' \(the env's default accuracy\), None \(unchecked.*\) or a finite number with 1e-12 <= tolerance < 1",
+    ):
         FreeRigidBodyEnv(tolerance=bad)
 
 
@@ -109,7 +115,10 @@ def test_a_tolerance_below_float64s_floor_is_refused():
 
     assert TOLERANCE_FLOOR == 1e-12
     for bad in (1e-13, 5e-13, 1e-300):
-        with pytest.raises(ValueError, match=r"below what float64 carries over an episode \(1e-12.*pass tolerance >= 1e-12"):
+        with pytest.raises(
+            ValueError,
+            match=r"below what float64 carries over an episode \(1e-12.*pass tolerance >= 1e-12",
+        ):
             FreeRigidBodyEnv(tolerance=bad)
     assert FreeRigidBodyEnv(tolerance=TOLERANCE_FLOOR).model.tolerance == 1e-12
 
@@ -119,14 +128,20 @@ def test_tolerance_needs_a_guard_and_a_scheme_with_an_error_constant():
         FreeRigidBodyEnv(tolerance=1e-3, guard="off")
     for integ in ("splitting", "exact", "dop853"):
         # (the way out names only the schemes a tolerance takes: not euler, refused as well)
-        with pytest.raises(ValueError, match=rf"tolerance=0.001 needs an integrator whose error it can estimate, \['rk4'\] .*'{integ}' declares none"):
+        with pytest.raises(
+            ValueError,
+            match=rf"tolerance=0.001 needs an integrator whose error it can estimate, \['rk4'\] .*'{integ}' declares none",
+        ):
             FreeRigidBodyEnv(tolerance=1e-3, integrator=integ)
     for bad in (0, -3, 2.5, "10"):
         with pytest.raises((ValueError, TypeError), match="tolerance_horizon"):
             FreeRigidBodyEnv(tolerance=1e-3, tolerance_horizon=bad)
     # a horizon without a tolerance would be ignored: refused (the default accuracy takes one)
     for cls in (FreeRigidBodyEnv, LagrangeTopEnv, TippeTopEnv):
-        with pytest.raises(ValueError, match=r"tolerance_horizon=50 is the span of control periods that tolerance= covers, and tolerance is None"):
+        with pytest.raises(
+            ValueError,
+            match=r"tolerance_horizon=50 is the span of control periods that tolerance= covers, and tolerance is None",
+        ):
             cls(tolerance_horizon=50, tolerance=None)
 
 
@@ -134,20 +149,35 @@ def test_default_horizon_is_the_registered_episode():
     assert FreeRigidBodyEnv(tolerance=1e-3, integrator="rk4").model.horizon == 400
     assert LagrangeTopEnv(tolerance=1e-3, integrator="rk4").model.horizon == 500
     assert TippeTopEnv(tolerance=1e-3).model.horizon == 2500
-    assert FreeRigidBodyEnv().model.tolerance == 1e-3 and FreeRigidBodyEnv().model.accuracy == "default"  # the default accuracy
+    assert (
+        FreeRigidBodyEnv().model.tolerance == 1e-3
+        and FreeRigidBodyEnv().model.accuracy == "default"
+    )  # the default accuracy
     assert FreeRigidBodyEnv(tolerance=None).model.tolerance is None
 
 
 def test_without_tolerance_nothing_changes():
     env = FreeRigidBodyEnv(integrator="rk4", tolerance=None)
     _, info = env.reset(seed=0)
-    assert info["error_estimate"] is None and env.step_rule.params[3:] == (0.0, 1.0, 0.0) and env.step_rule.error is None
+    assert (
+        info["error_estimate"] is None
+        and env.step_rule.params[3:] == (0.0, 1.0, 0.0)
+        and env.step_rule.error is None
+    )
 
 
 # ----------------------------------------------------------------- free body at 1e4 rad/s
 def _free_body(tol, horizon, **kw):
-    return FreeRigidBodyEnv(task="detumble", spin_rate=1e4, max_angular_velocity=2e4, max_torque=0.0, integrator="rk4", tolerance=tol,
-                            tolerance_horizon=horizon, **kw)
+    return FreeRigidBodyEnv(
+        task="detumble",
+        spin_rate=1e4,
+        max_angular_velocity=2e4,
+        max_torque=0.0,
+        integrator="rk4",
+        tolerance=tol,
+        tolerance_horizon=horizon,
+        **kw,
+    )
 
 
 def _free_body_run(env, seed, periods):
@@ -193,7 +223,10 @@ def test_free_body_at_1e4_rad_s_over_the_whole_episode():
 # ----------------------------------------------------------------- fast heavy tops
 def _top_start(spin, tilt=0.1, side=0.0):
     inertia = np.array([0.45, 0.45, 0.3])
-    return {"angular_momentum": np.array([side, 0.0, spin]) * inertia, "vertical": np.array([math.sin(tilt), 0.0, math.cos(tilt)])}
+    return {
+        "angular_momentum": np.array([side, 0.0, spin]) * inertia,
+        "vertical": np.array([math.sin(tilt), 0.0, math.cos(tilt)]),
+    }
 
 
 def _top_run(env, start, periods, refs=None):
@@ -213,7 +246,11 @@ def _top_run(env, start, periods, refs=None):
         if term:
             return math.inf, math.inf, est, refs
         y = env.state_components
-        err = max(err, float(np.linalg.norm(np.subtract(y[:3], r[:3])) / np.linalg.norm(r[:3])), float(np.linalg.norm(np.subtract(y[3:6], r[3:6]))))
+        err = max(
+            err,
+            float(np.linalg.norm(np.subtract(y[:3], r[:3])) / np.linalg.norm(r[:3])),
+            float(np.linalg.norm(np.subtract(y[3:6], r[3:6]))),
+        )
         tilt_err = max(tilt_err, abs(info["tilt"] - top_tilt((0.0, 0.0, 1.0), r)))
         est += info["error_estimate"] or 0.0  # (None: not estimated)
     return err, tilt_err, est, refs
@@ -227,9 +264,17 @@ def test_fast_heavy_top_with_rk4_keeps_its_tilt(spin, periods):
     at 100 rad/s), measurably outside 1e-3."""
     refs = {}
     for tol in (None,) + TOLERANCES:
-        env = LagrangeTopEnv(integrator="rk4", max_torque=0.0, max_angular_velocity=2 * spin + 100, tolerance=tol, tolerance_horizon=periods if tol else None)
+        env = LagrangeTopEnv(
+            integrator="rk4",
+            max_torque=0.0,
+            max_angular_velocity=2 * spin + 100,
+            tolerance=tol,
+            tolerance_horizon=periods if tol else None,
+        )
         for side in (0.0, 3.0):
-            err, tilt_err, est, refs[side] = _top_run(env, _top_start(spin, side=side), periods, refs.get(side))
+            err, tilt_err, est, refs[side] = _top_run(
+                env, _top_start(spin, side=side), periods, refs.get(side)
+            )
             if tol is None:
                 if spin == 100.0:
                     assert tilt_err > 1e-3
@@ -245,13 +290,19 @@ def test_heavy_top_with_euler_above_the_critical_spin_stays_up_or_is_refused():
     can bound), and the scheme the message names, rk4, stays within the tolerance of the
     reference for the whole episode (500 periods, 10 s) at 1e-2 and 1e-6."""
     periods = 500
-    with pytest.raises(ValueError, match=r"'euler' cannot be held to LagrangeTopEnv's default accuracy.*tolerance=None to run it unchecked"):
+    with pytest.raises(
+        ValueError,
+        match=r"'euler' cannot be held to LagrangeTopEnv's default accuracy.*tolerance=None to run it unchecked",
+    ):
         LagrangeTopEnv(integrator="euler", max_torque=0.0)  # (the default accuracy refuses it)
     fallen = LagrangeTopEnv(integrator="euler", max_torque=0.0, tolerance=None)
     refs = None
     for tol in (1e-2, 1e-6):
-        with pytest.raises(ValueError, match=rf"tolerance={tol!r} needs an integrator whose leading error on a rotation is in the phase, \['rk4'\].*"
-                                             r"'euler' errs in the amplitude.*grows like T\^2"):
+        with pytest.raises(
+            ValueError,
+            match=rf"tolerance={tol!r} needs an integrator whose leading error on a rotation is in the phase, \['rk4'\].*"
+            r"'euler' errs in the amplitude.*grows like T\^2",
+        ):
             LagrangeTopEnv(integrator="euler", max_torque=0.0, tolerance=tol)
         env = LagrangeTopEnv(integrator="rk4", max_torque=0.0, tolerance=tol)
         err, tilt_err, _, refs = _top_run(env, _top_start(20.0), periods, refs)
@@ -263,22 +314,35 @@ def test_heavy_top_with_euler_above_the_critical_spin_stays_up_or_is_refused():
 def test_free_body_with_euler_is_refused_with_the_reason():
     """euler with any tolerance, slow or fast spin, every task: refused, naming why and the
     schemes that take a tolerance; integrator='auto' never picks it."""
-    for kwargs in (dict(), dict(task="detumble", spin_rate=1e3, max_angular_velocity=2e3), dict(task="reorient")):
+    for kwargs in (
+        dict(),
+        dict(task="detumble", spin_rate=1e3, max_angular_velocity=2e3),
+        dict(task="reorient"),
+    ):
         for tol in (0.5, 1e-3, 1e-9):
-            with pytest.raises(ValueError, match=rf"tolerance={tol!r} needs an integrator whose leading error on a rotation is in the phase.*"
-                                                 r"'euler' errs in the amplitude"):
+            with pytest.raises(
+                ValueError,
+                match=rf"tolerance={tol!r} needs an integrator whose leading error on a rotation is in the phase.*"
+                r"'euler' errs in the amplitude",
+            ):
                 FreeRigidBodyEnv(integrator="euler", tolerance=tol, **kwargs)
     with pytest.raises(ValueError, match=r"'euler' errs in the amplitude"):
         TippeTopEnv(integrator="euler", tolerance=1e-3)
-    FreeRigidBodyEnv(integrator="euler", tolerance=None)  # unchecked: the stability guard alone, as before
-    TippeTopEnv(integrator="euler")  # (the tippe top's default accuracy is estimated only: euler runs unchecked)
+    FreeRigidBodyEnv(
+        integrator="euler", tolerance=None
+    )  # unchecked: the stability guard alone, as before
+    TippeTopEnv(
+        integrator="euler"
+    )  # (the tippe top's default accuracy is estimated only: euler runs unchecked)
 
 
 # ----------------------------------------------------------------- refuse, the cap, info
 def test_refuse_names_the_substeps_needed():
     env = _free_body(1e-6, 4, guard="refuse")
     env.reset(seed=0)
-    with pytest.raises(ValueError, match=r"guard='refuse' and the state needs \d+ internal steps.*tolerance=1e-06"):
+    with pytest.raises(
+        ValueError, match=r"guard='refuse' and the state needs \d+ internal steps.*tolerance=1e-06"
+    ):
         env.step(np.zeros(3, np.float32))
 
 
@@ -289,17 +353,35 @@ def test_a_period_past_the_cap_is_a_numerical_failure_naming_the_tolerance():
     says that the tolerance asked for them."""
     env = _free_body(1e-9, None, compiled=False)
     env.reset(seed=0, options={"state": {"angular_momentum": np.array([3.8e4, 2.9e4, 1.9e4])}})
-    with pytest.warns(Warning, match=r"refused: the period needs more than MAX_INTERNAL_STEPS = 1000000 internal steps to meet the tolerance"):
+    with pytest.warns(
+        Warning,
+        match=r"refused: the period needs more than MAX_INTERNAL_STEPS = 1000000 internal steps to meet the tolerance",
+    ):
         _, reward, term, _, info = env.step(np.zeros(3, np.float32))
-    assert term and info["numerical_failure"] and info["internal_step"] < env.dt / MAX_INTERNAL_STEPS
+    assert (
+        term and info["numerical_failure"] and info["internal_step"] < env.dt / MAX_INTERNAL_STEPS
+    )
 
 
 def test_vector_env_reports_the_single_envs_estimates_bit_for_bit(compiled=False):
     """(The compiled vector step: the lockstep tests below.)"""
     import gymnasium as gym
 
-    kw = dict(task="detumble", spin_rate=300.0, max_angular_velocity=1e3, integrator="rk4", tolerance=1e-6, tolerance_horizon=50)
-    venv = gym.make_vec("rbenvs/FreeRigidBody-v0", num_envs=3, vectorization_mode="vector_entry_point", compiled=compiled, **kw)
+    kw = dict(
+        task="detumble",
+        spin_rate=300.0,
+        max_angular_velocity=1e3,
+        integrator="rk4",
+        tolerance=1e-6,
+        tolerance_horizon=50,
+    )
+    venv = gym.make_vec(
+        "rbenvs/FreeRigidBody-v0",
+        num_envs=3,
+        vectorization_mode="vector_entry_point",
+        compiled=compiled,
+        **kw,
+    )
     _, vinfo = venv.reset(seed=5)
     assert np.all(vinfo["error_estimate"] == 0.0)
     singles = [FreeRigidBodyEnv(compiled=compiled, **kw) for _ in range(3)]
@@ -311,7 +393,10 @@ def test_vector_env_reports_the_single_envs_estimates_bit_for_bit(compiled=False
         _, _, _, _, vinfo = venv.step(a)
         for i, e in enumerate(singles):
             _, _, _, _, info = e.step(a[i])
-            assert info["error_estimate"] == vinfo["error_estimate"][i] and info["internal_step"] == vinfo["internal_step"][i]
+            assert (
+                info["error_estimate"] == vinfo["error_estimate"][i]
+                and info["internal_step"] == vinfo["internal_step"][i]
+            )
             assert 0.0 < info["error_estimate"] <= math.log1p(1e-6) / 50
     venv.close()
 
@@ -328,14 +413,42 @@ def test_tippe_top_takes_the_generic_rule():
         _, _, _, _, base = plain.step(np.zeros(env.action_space.shape, np.float32))
         # the rotation's share per period and the friction's decaying mode's share (which does
         # not add up over the periods: it relaxes)
-        assert 0.0 < info["error_estimate"] <= (math.log1p(1e-6) / 40 + math.log1p(1e-6) / 2) * (1 + 1e-12)
+        assert (
+            0.0
+            < info["error_estimate"]
+            <= (math.log1p(1e-6) / 40 + math.log1p(1e-6) / 2) * (1 + 1e-12)
+        )
         assert info["internal_step"] <= base["internal_step"]
 
 
 # ----------------------------------------------------------------- every path takes the same steps
 LOCKSTEP = [
-    ("rbenvs/FreeRigidBody-v0", dict(task="detumble", spin_rate=30.0, max_angular_velocity=60.0, integrator="rk4", tolerance=1e-6, tolerance_horizon=50), 6, 14),
-    ("rbenvs/FreeRigidBody-v0", dict(task="reorient", integrator="rk4", spin_rate=10.0, max_angular_velocity=30.0, tolerance=1e-10, tolerance_horizon=20), 5, 11),
+    (
+        "rbenvs/FreeRigidBody-v0",
+        dict(
+            task="detumble",
+            spin_rate=30.0,
+            max_angular_velocity=60.0,
+            integrator="rk4",
+            tolerance=1e-6,
+            tolerance_horizon=50,
+        ),
+        6,
+        14,
+    ),
+    (
+        "rbenvs/FreeRigidBody-v0",
+        dict(
+            task="reorient",
+            integrator="rk4",
+            spin_rate=10.0,
+            max_angular_velocity=30.0,
+            tolerance=1e-10,
+            tolerance_horizon=20,
+        ),
+        5,
+        11,
+    ),
     ("rbenvs/LagrangeTop-v0", dict(integrator="rk4", spin=(20.0, 60.0), tolerance=1e-5), 5, 11),
     ("rbenvs/TippeTop-v0", dict(integrator="rk4", tolerance=1e-4, tolerance_horizon=100), 3, 7),
 ]
@@ -343,12 +456,19 @@ LOCKSTEP = [
 
 # the numpy path in both modes for every setting; the compiled vector step (a kernel build each,
 # ~10-30 s) for two: SAME_STEP, whose restarts rewrite the period's steps in the kernel, and NEXT_STEP
-VECTOR_PATHS = [(i, mode, False) for i in range(len(LOCKSTEP)) for mode in ("NextStep", "SameStep")] + [(0, "SameStep", True), (1, "NextStep", True),
-                                                                                                     (2, "NextStep", True), (3, "SameStep", True)]
+VECTOR_PATHS = [
+    (i, mode, False) for i in range(len(LOCKSTEP)) for mode in ("NextStep", "SameStep")
+] + [(0, "SameStep", True), (1, "NextStep", True), (2, "NextStep", True), (3, "SameStep", True)]
 
 
-@pytest.mark.parametrize("case,mode,vector_compiled", VECTOR_PATHS,
-                         ids=[f"{LOCKSTEP[i][0].split('/')[1]}-{LOCKSTEP[i][1]['integrator']}-{m}-{'compiled' if c else 'numpy'}" for i, m, c in VECTOR_PATHS])
+@pytest.mark.parametrize(
+    "case,mode,vector_compiled",
+    VECTOR_PATHS,
+    ids=[
+        f"{LOCKSTEP[i][0].split('/')[1]}-{LOCKSTEP[i][1]['integrator']}-{m}-{'compiled' if c else 'numpy'}"
+        for i, m, c in VECTOR_PATHS
+    ],
+)
 def test_tolerance_lockstep_vector_equals_single_envs_bit_for_bit(case, mode, vector_compiled):
     """The vector env (numpy path and, where numba is installed, compiled) takes each sub-env's
     own count and reports its single env's ``error_estimate`` and every other info value bit
@@ -360,10 +480,16 @@ def test_tolerance_lockstep_vector_equals_single_envs_bit_for_bit(case, mode, ve
         pytest.skip("the compiled path needs numba")
     from conftest import lockstep
 
-    n_term, n_trunc, infos = lockstep(env_id, 3, 11, steps, mode, max_steps, kwargs, vector_kwargs=dict(compiled=vector_compiled))
+    n_term, n_trunc, infos = lockstep(
+        env_id, 3, 11, steps, mode, max_steps, kwargs, vector_kwargs=dict(compiled=vector_compiled)
+    )
     assert n_term + n_trunc >= 3
-    counts = {round(float(v)) for info in infos[1:] for v in 1.0 / np.asarray(info["internal_step"])}
-    assert len(counts) > 1  # the counts differ between sub-envs or periods: the rule acted per state
+    counts = {
+        round(float(v)) for info in infos[1:] for v in 1.0 / np.asarray(info["internal_step"])
+    }
+    assert (
+        len(counts) > 1
+    )  # the counts differ between sub-envs or periods: the rule acted per state
 
 
 @pytest.mark.parametrize("case", [0, 2, 3], ids=["free_body", "heavy_top", "tippe_top"])
@@ -379,7 +505,11 @@ def test_the_compiled_vector_step_writes_the_estimate_and_its_fallback_gives_the
     if not compiled.available():
         pytest.skip("the compiled path needs numba")
     env_id, kwargs, _, steps = LOCKSTEP[case]
-    cls = {"rbenvs/FreeRigidBody-v0": FreeRigidBodyVectorEnv, "rbenvs/LagrangeTop-v0": LagrangeTopVectorEnv, "rbenvs/TippeTop-v0": TippeTopVectorEnv}[env_id]
+    cls = {
+        "rbenvs/FreeRigidBody-v0": FreeRigidBodyVectorEnv,
+        "rbenvs/LagrangeTop-v0": LagrangeTopVectorEnv,
+        "rbenvs/TippeTop-v0": TippeTopVectorEnv,
+    }[env_id]
     # (no time limit: a step handed to the numpy path after the kernel's own bookkeeping would
     # count the episode clock twice, which a real hand-over, returned before it, does not)
     envs = kernel, handed, numpy = [cls(4, compiled=c, **kwargs) for c in (True, True, False)]
@@ -404,19 +534,34 @@ def test_the_compiled_vector_step_writes_the_estimate_and_its_fallback_gives_the
         (o1, r1, t1, tr1, i1), *others = (e.step(a) for e in envs)
         for o2, r2, t2, tr2, i2 in others:
             assert np.array_equal(i1["error_estimate"], i2["error_estimate"]), k
-            assert np.array_equal(o1, o2) and np.array_equal(r1, r2) and np.array_equal(t1, t2) and np.array_equal(tr1, tr2)
+            assert (
+                np.array_equal(o1, o2)
+                and np.array_equal(r1, r2)
+                and np.array_equal(t1, t2)
+                and np.array_equal(tr1, tr2)
+            )
         largest = max(largest, float(np.max(i1["error_estimate"])))
     assert largest > 0.0
 
 
 # with tolerance_check the period's count and estimate come from the compiled plan and its runs from
 # the compiled checked runs (rbenvs.compiled.PeriodPlan, CheckedRuns): the same bits as on floats
-SINGLE_PATHS = [(case, False) for case in LOCKSTEP] + [(LOCKSTEP[i], check) for i, check in ((0, True), (2, True), (3, True))]
+SINGLE_PATHS = [(case, False) for case in LOCKSTEP] + [
+    (LOCKSTEP[i], check) for i, check in ((0, True), (2, True), (3, True))
+]
 
 
-@pytest.mark.parametrize("env_id,kwargs,max_steps,steps,check", [(*case, check) for case, check in SINGLE_PATHS],
-                         ids=[c[0].split("/")[1] + "-" + c[1]["integrator"] + ("" if k is False else f"-check_{k}") for c, k in SINGLE_PATHS])
-def test_tolerance_single_env_compiled_equals_the_float_path(env_id, kwargs, max_steps, steps, check):
+@pytest.mark.parametrize(
+    "env_id,kwargs,max_steps,steps,check",
+    [(*case, check) for case, check in SINGLE_PATHS],
+    ids=[
+        c[0].split("/")[1] + "-" + c[1]["integrator"] + ("" if k is False else f"-check_{k}")
+        for c, k in SINGLE_PATHS
+    ],
+)
+def test_tolerance_single_env_compiled_equals_the_float_path(
+    env_id, kwargs, max_steps, steps, check
+):
     import gymnasium as gym
 
     from rbenvs import compiled
@@ -445,7 +590,9 @@ def test_tolerance_single_env_compiled_equals_the_float_path(env_id, kwargs, max
     assert engine.planner is not None and slow.unwrapped.engine.planner is None
 
 
-@pytest.mark.parametrize("friction", [dict(), dict(friction_law="viscous", friction=3.0)], ids=["coulomb", "viscous"])
+@pytest.mark.parametrize(
+    "friction", [dict(), dict(friction_law="viscous", friction=3.0)], ids=["coulomb", "viscous"]
+)
 def test_tippe_top_within_the_tolerance_of_the_reference(friction):
     """The tippe top (rk4, seed 0, 5 periods = 0.05 s) at 1e-6 and 1e-9 against DOP853 at rtol
     1e-13: within the tolerance (the friction's decaying mode takes its share: under Coulomb
@@ -468,7 +615,13 @@ def test_tippe_top_within_the_tolerance_of_the_reference(friction):
             _, _, term, _, info = env.step(np.zeros(env.action_space.shape, np.float32))
             assert not term
             y = env.state_components
-            err = max(err, max(float(np.linalg.norm(np.subtract(y[a:b], r[a:b])) / np.linalg.norm(r[a:b])) for a, b in blocks))
+            err = max(
+                err,
+                max(
+                    float(np.linalg.norm(np.subtract(y[a:b], r[a:b])) / np.linalg.norm(r[a:b]))
+                    for a, b in blocks
+                ),
+            )
         assert err <= tol, (tol, err)
 
 
@@ -552,7 +705,9 @@ def _within_at_most_1_5_times_the_fixed_cost(rows):
         assert r["cost_ratio"] <= 1.5, r
 
 
-@pytest.mark.parametrize("key", ["fb_separatrix", "fb_equal", "top_below", "tippe", "tippe_rolling", "tippe_viscous"])
+@pytest.mark.parametrize(
+    "key", ["fb_separatrix", "fb_equal", "top_below", "tippe", "tippe_rolling", "tippe_viscous"]
+)
 def test_the_benchs_other_extremes_are_within_the_tolerance(key):
     """The extremes of ``rbenvs bench accuracy --tolerance`` not covered above (1e-6 off the
     separatrix, moments equal to 1e-9, a top below its critical spin, the tippe top from rest
@@ -573,8 +728,13 @@ def test_integrator_auto_takes_the_cheapest_scheme_meeting_the_tolerance():
     assert TippeTopEnv(integrator="auto", tolerance=1e-3).integrator.name == "rk4"
     loose = FreeRigidBodyEnv(integrator="auto", spin_rate=0.01, tolerance=0.5, tolerance_horizon=1)
     assert loose.integrator.name == "rk4"
-    assert loose.internal_steps(loose.reset(seed=0) and loose.state_components, (0.0, 0.0, 0.0)) == 1
-    with pytest.raises(ValueError, match=r"integrator='auto' chooses the scheme that meets tolerance= at the least cost: pass tolerance="):
+    assert (
+        loose.internal_steps(loose.reset(seed=0) and loose.state_components, (0.0, 0.0, 0.0)) == 1
+    )
+    with pytest.raises(
+        ValueError,
+        match=r"integrator='auto' chooses the scheme that meets tolerance= at the least cost: pass tolerance=",
+    ):
         FreeRigidBodyEnv(integrator="auto", tolerance=None)
     assert FreeRigidBodyEnv(integrator="auto").integrator.name == "rk4"  # (the default accuracy)
 
@@ -612,7 +772,9 @@ def test_jacobian_rate_bounds_the_free_bodys_jacobian_and_second_derivative():
     from rbenvs.dynamics.free_body import jacobian_rate
 
     rng = np.random.default_rng(7)
-    bodies = [(2.0, 1.5, 1.0), (1.5, 1.5 * (1 + 1e-9), 1.0), (3.0, 1.0, 0.2), (1.0, 1.0, 1.0)] + [tuple(rng.uniform(0.1, 5.0, 3)) for _ in range(20)]
+    bodies = [(2.0, 1.5, 1.0), (1.5, 1.5 * (1 + 1e-9), 1.0), (3.0, 1.0, 0.2), (1.0, 1.0, 1.0)] + [
+        tuple(rng.uniform(0.1, 5.0, 3)) for _ in range(20)
+    ]
     tightest = 0.0
     for inertia in bodies:
         inv = 1.0 / np.asarray(inertia)
@@ -638,8 +800,15 @@ NEARLY_EQUAL = (1.5, 1.5 * (1 + 1e-9), 1.0)
 def _exact_run(inertia, omega, tol, periods, max_angular_velocity):
     """rk4 with ``tolerance=tol`` over ``periods`` periods from ``Pi = I omega``, no torque: the
     worst relative error of ``Pi`` against the exact solution and the summed estimate."""
-    env = FreeRigidBodyEnv(inertia=inertia, axis=0, max_torque=0.0, integrator="rk4", max_angular_velocity=max_angular_velocity, tolerance=tol,
-                           tolerance_horizon=periods)
+    env = FreeRigidBodyEnv(
+        inertia=inertia,
+        axis=0,
+        max_torque=0.0,
+        integrator="rk4",
+        max_angular_velocity=max_angular_velocity,
+        tolerance=tol,
+        tolerance_horizon=periods,
+    )
     pi0 = np.array(inertia) * np.array(omega)
     env.reset(seed=0, options={"state": {"angular_momentum": pi0}})
     err = est = 0.0
@@ -647,7 +816,10 @@ def _exact_run(inertia, omega, tol, periods, max_angular_velocity):
         _, _, _, _, info = env.step(np.zeros(3, np.float32))
         assert not info["numerical_failure"]
         ref = np.array(exact_solution(inertia, pi0, k * env.dt))
-        err = max(err, float(np.linalg.norm(np.array(env.state_components[:3]) - ref) / np.linalg.norm(ref)))
+        err = max(
+            err,
+            float(np.linalg.norm(np.array(env.state_components[:3]) - ref) / np.linalg.norm(ref)),
+        )
         est += info["error_estimate"]
     return err, est
 
@@ -777,7 +949,9 @@ def test_the_error_rate_is_the_free_bodys_without_attitude_only():
         if attitude:
             assert lam_e == lam
         else:
-            assert lam_e == error_rate(error_rate_params((0.5, 1.0 / 1.5, 1.0)), pi) and lam_e <= bound
+            assert (
+                lam_e == error_rate(error_rate_params((0.5, 1.0 / 1.5, 1.0)), pi) and lam_e <= bound
+            )
         assert 0.0 < mu <= lam_e
 
 
@@ -796,7 +970,9 @@ def test_the_error_rate_is_a_symmetric_bodys_precession_frequency_within_the_jac
         for _ in range(50):
             pi = tuple(rng.normal(size=3) * 10.0 ** rng.uniform(-2, 3))
             assert error_rate(p, pi) == pytest.approx(abs(pi[2] * (1.0 / c - 1.0 / a)), rel=1e-12)
-    bodies = [(2.0, 1.5, 1.0), (1.5, 1.5 * (1 + 1e-9), 1.0), (3.0, 1.0, 2.5)] + [tuple(rng.uniform(0.5, 2.0, 3)) for _ in range(10)]
+    bodies = [(2.0, 1.5, 1.0), (1.5, 1.5 * (1 + 1e-9), 1.0), (3.0, 1.0, 2.5)] + [
+        tuple(rng.uniform(0.5, 2.0, 3)) for _ in range(10)
+    ]
     for inertia in bodies:
         inv = tuple(1.0 / np.asarray(inertia))
         p = error_rate_params(inv)
@@ -808,19 +984,25 @@ def test_the_error_rate_is_a_symmetric_bodys_precession_frequency_within_the_jac
             assert r == rates[k] and 0.0 < r <= jacobian_rate((p[1],), pi)
         axis = int(np.argmax(inertia))
         spin = tuple(3.0 if i == axis else 0.0 for i in range(3))
-        assert error_rate(p, spin) == jacobian_rate((p[1],), spin)  # at rest in the body frame: the bound
+        assert error_rate(p, spin) == jacobian_rate(
+            (p[1],), spin
+        )  # at rest in the body frame: the bound
 
 
 # triaxial and nearly symmetric bodies, starts near a stable axis, near the separatrix, in between
-BODIES = [((1.5, 1.45, 1.0), [(5.0, 1.0, 0.5), (0.01, 5.0, 0.01), (3.0, 3.0, 3.0)]),
-          ((3.0, 2.9, 1.2), [(1.0, 4.0, 2.0), (0.02, 5.0, 0.01)]),
-          ((2.0, 1.5, 1.0), [(5.0, 3.0, 0.05), (0.01, 5.0, 0.01), (-2.0, 4.0, 6.0)]),
-          ((1.5, 1.5 * (1 + 1e-3), 1.0), [(5.0, 3.0, 0.05), (3.0, 3.0, 3.0)])]
+BODIES = [
+    ((1.5, 1.45, 1.0), [(5.0, 1.0, 0.5), (0.01, 5.0, 0.01), (3.0, 3.0, 3.0)]),
+    ((3.0, 2.9, 1.2), [(1.0, 4.0, 2.0), (0.02, 5.0, 0.01)]),
+    ((2.0, 1.5, 1.0), [(5.0, 3.0, 0.05), (0.01, 5.0, 0.01), (-2.0, 4.0, 6.0)]),
+    ((1.5, 1.5 * (1 + 1e-3), 1.0), [(5.0, 3.0, 0.05), (3.0, 3.0, 3.0)]),
+]
 
 
 @pytest.mark.parametrize("inertia,starts", BODIES, ids=["%g-%g-%g" % b for b, _ in BODIES])
 @pytest.mark.parametrize("tol", (1e-6, 1e-9))
-def test_triaxial_and_nearly_symmetric_bodies_within_the_tolerance_from_several_starts(inertia, starts, tol):
+def test_triaxial_and_nearly_symmetric_bodies_within_the_tolerance_from_several_starts(
+    inertia, starts, tol
+):
     """The motion's own frequency as the error's rate (:func:`error_rate`) on bodies beside the
     bench's: rk4, 200 periods (10 s) from starts near a stable axis, 0.002-0.004 off the
     separatrix and in between, against the exact solution: within the tolerance, the summed
@@ -862,7 +1044,10 @@ def test_the_bench_prints_euler_refused_at_every_tolerance():
             assert "errs in the amplitude" in r["refused"], r
     out = io.StringIO()
     print_tolerance(result, out)
-    assert out.getvalue().count("refused  ") == 6 and "integrator 'euler' errs in the amplitude" in out.getvalue()
+    assert (
+        out.getvalue().count("refused  ") == 6
+        and "integrator 'euler' errs in the amplitude" in out.getvalue()
+    )
 
 
 def test_a_tolerance_on_an_unstable_motion_warns_with_the_theorem():
@@ -876,14 +1061,27 @@ def test_a_tolerance_on_an_unstable_motion_warns_with_the_theorem():
     from rbenvs.oracles.tippe_top import inversion_spin_threshold
 
     crit = LagrangeTopEnv().critical_spin
-    with pytest.warns(UnstableMotionWarning, match=rf"critical spin {crit:.6g} rad/s.*spin reaches 4\.95227 rad/s.*amplifies errors already made"):
-        LagrangeTopEnv(integrator="rk4", tolerance=1e-6)  # the default upright start: half the critical spin
-    with pytest.warns(UnstableMotionWarning, match=r"intermediate axis \(axis 1\) is unstable: a perturbation grows at 0\.354 1/s \(7\.07 e-folds"):
+    with pytest.warns(
+        UnstableMotionWarning,
+        match=rf"critical spin {crit:.6g} rad/s.*spin reaches 4\.95227 rad/s.*amplifies errors already made",
+    ):
+        LagrangeTopEnv(
+            integrator="rk4", tolerance=1e-6
+        )  # the default upright start: half the critical spin
+    with pytest.warns(
+        UnstableMotionWarning,
+        match=r"intermediate axis \(axis 1\) is unstable: a perturbation grows at 0\.354 1/s \(7\.07 e-folds",
+    ):
         FreeRigidBodyEnv(tolerance=1e-6)
     top = TippeTopEnv()
     p = top.params
-    threshold = inversion_spin_threshold(p.inertia[0], p.inertia[1], p.offset, p.mass, p.gravity, p.radius)
-    with pytest.warns(UnstableMotionWarning, match=rf"the top inverts \(the inversion criterion: spin above {threshold:.6g} rad/s"):
+    threshold = inversion_spin_threshold(
+        p.inertia[0], p.inertia[1], p.offset, p.mass, p.gravity, p.radius
+    )
+    with pytest.warns(
+        UnstableMotionWarning,
+        match=rf"the top inverts \(the inversion criterion: spin above {threshold:.6g} rad/s",
+    ):
         TippeTopEnv(tolerance=1e-6)
     with warnings.catch_warnings():
         warnings.simplefilter("error", UnstableMotionWarning)
@@ -892,7 +1090,9 @@ def test_a_tolerance_on_an_unstable_motion_warns_with_the_theorem():
         LagrangeTopEnv(integrator="rk4")
         FreeRigidBodyEnv(axis="major", tolerance=1e-6)
         # moments equal to 1e-9: the middle axis is unstable, at ~1e-5 |Pi| 1/s: not one e-fold in an episode
-        FreeRigidBodyEnv(inertia=(1.5, 1.5 * (1 + 1e-9), 1.0), axis=0, max_angular_velocity=20.0, tolerance=1e-6)
+        FreeRigidBodyEnv(
+            inertia=(1.5, 1.5 * (1 + 1e-9), 1.0), axis=0, max_angular_velocity=20.0, tolerance=1e-6
+        )
         FreeRigidBodyEnv(tolerance=1e-6, tolerance_horizon=2)  # 0.1 s: 0.035 e-folds
         FreeRigidBodyEnv(task="detumble", tolerance=1e-6)
         FreeRigidBodyEnv()
@@ -911,7 +1111,11 @@ def test_the_bench_has_a_row_for_every_shipped_scene():
     assert [c.key for c in cases] == ["scene:" + n for n in list_scenes()]
     for c in cases:
         assert c.kwargs["integrator"] == "rk4" and "substeps" not in c.kwargs
-        assert c.periods == (round(SCENE_TIPPE_HORIZON / 0.01) if c.env == "tippe_top" else {"free_body": 400, "heavy_top": 500}[c.env])
+        assert c.periods == (
+            round(SCENE_TIPPE_HORIZON / 0.01)
+            if c.env == "tippe_top"
+            else {"free_body": 400, "heavy_top": 500}[c.env]
+        )
 
 
 @pytest.mark.parametrize("key", ["scene:detumble", "scene:spin_major", "scene:top_sleeping"])
@@ -946,17 +1150,38 @@ def test_the_tippe_tops_attitude_counts_its_own_speed_and_carries_the_angular_ve
 
             def speed(name):
                 a, b = system.layout[name]
-                return min(math.sqrt(sum(f[i] ** 2 for i in range(a, b))) / math.sqrt(sum(y[i] ** 2 for i in range(a, b))), lam)
+                return min(
+                    math.sqrt(sum(f[i] ** 2 for i in range(a, b)))
+                    / math.sqrt(sum(y[i] ** 2 for i in range(a, b))),
+                    lam,
+                )
 
             o = system.layout["angular_velocity"][0]
-            assert lam == lam_e == max(math.sqrt(sum(y[i] ** 2 for i in range(o, o + 3))), system.params.gravity_rate())
+            assert (
+                lam
+                == lam_e
+                == max(
+                    math.sqrt(sum(y[i] ** 2 for i in range(o, o + 3))), system.params.gravity_rate()
+                )
+            )
             m = speed("attitude")
-            assert m == pytest.approx(math.sqrt(sum(y[i] ** 2 for i in range(o, o + 3))) / 2, rel=1e-9)
-            along = abs(sum(y[i] * f[i] for i in range(o, o + 3))) / sum(y[i] ** 2 for i in range(o, o + 3))
+            assert m == pytest.approx(
+                math.sqrt(sum(y[i] ** 2 for i in range(o, o + 3))) / 2, rel=1e-9
+            )
+            along = abs(sum(y[i] * f[i] for i in range(o, o + 3))) / sum(
+                y[i] ** 2 for i in range(o, o + 3)
+            )
             along = min(along, speed("angular_velocity"))
-            expected = max(speed("velocity"), speed("angular_velocity") + along * m * (horizon + 1) * env.dt / 2 + m * (m / lam) ** 4)
+            expected = max(
+                speed("velocity"),
+                speed("angular_velocity")
+                + along * m * (horizon + 1) * env.dt / 2
+                + m * (m / lam) ** 4,
+            )
             assert mu == pytest.approx(expected, rel=1e-12)
-            assert along < speed("angular_velocity")  # (Omega turns more than it grows: the carried part is the smaller)
+            assert along < speed(
+                "angular_velocity"
+            )  # (Omega turns more than it grows: the carried part is the smaller)
 
 
 def test_the_viscous_tippe_top_stays_within_the_tolerance_over_4_s():
@@ -966,8 +1191,21 @@ def test_the_viscous_tippe_top_stays_within_the_tolerance_over_4_s():
     2.4 times outside: 2.4e-6)."""
     from rbenvs.bench.tolerance import ToleranceCase, _env, _episode, _references
 
-    case = ToleranceCase("v400", "", "tippe_top", dict(integrator="rk4", max_torque=0.0, friction_law="viscous", friction=3.0, spin=(100.0, 200.0),
-                                                       tilt=(0.05, 1.0)), (6,), 400)
+    case = ToleranceCase(
+        "v400",
+        "",
+        "tippe_top",
+        dict(
+            integrator="rk4",
+            max_torque=0.0,
+            friction_law="viscous",
+            friction=3.0,
+            spin=(100.0, 200.0),
+            tilt=(0.05, 1.0),
+        ),
+        (6,),
+        400,
+    )
     refs = _references(case, _env(case), case.starts)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
@@ -983,7 +1221,9 @@ def test_the_bench_measures_each_episode_until_it_ends():
     from rbenvs.bench.tolerance import run_tolerance
 
     rows = run_tolerance(keys=["scene:top_upright"], fixed=False)["rows"]
-    assert rows[0]["tolerance"] is None and rows[0]["steps"] < 3 * 500 // 4  # the guard's 1 step a period, each episode ending early
+    assert (
+        rows[0]["tolerance"] is None and rows[0]["steps"] < 3 * 500 // 4
+    )  # the guard's 1 step a period, each episode ending early
     for r in rows[1:]:
         assert r["failure"] is None and r["error"] <= r["tolerance"], r
 
@@ -1002,7 +1242,9 @@ def test_the_tippe_tops_reference_runs_through_its_switches():
     refs = _references(case, _env(case), case.starts)
     flag = _env(case).system.layout["contact"][0]
     assert {r[flag] for r in refs[0]} == {0.0, 1.0}  # on the sphere, then on the stem
-    err, _, _, failure = _episode(case, _env(case, tolerance=1e-3, tolerance_horizon=case.periods), case.starts, refs)
+    err, _, _, failure = _episode(
+        case, _env(case, tolerance=1e-3, tolerance_horizon=case.periods), case.starts, refs
+    )
     assert failure is None and err <= 1e-3, err
 
 
@@ -1012,13 +1254,22 @@ def test_a_saturating_laws_share_holds_the_slips_error_at_the_slips_scale():
     scale), checked by hand on states of a top spun from rest (sliding, then rolling in the band);
     viscous friction does not saturate and keeps the share at ``v_G``'s scale."""
     from rbenvs.dynamics.contact import Coulomb, Viscous
-    from rbenvs.dynamics.tippe_top import constraint_vertical_velocity, contact_arm, implicit_forms, slip_velocity, tangential_mobility, tippe_frame
+    from rbenvs.dynamics.tippe_top import (
+        constraint_vertical_velocity,
+        contact_arm,
+        implicit_forms,
+        slip_velocity,
+        tangential_mobility,
+        tippe_frame,
+    )
 
     assert Coulomb.saturates and not Viscous.saturates
     env = TippeTopEnv(integrator="rk4", tolerance=1e-6, tolerance_horizon=20, compiled=False)
     system, rule = env.system, env.engine.rule
     law = system.friction
-    at_vg_scale = implicit_forms(law.kernel_coefficient, law.kernel_stiffness, law.kernel_slope, False, False, False).share
+    at_vg_scale = implicit_forms(
+        law.kernel_coefficient, law.kernel_stiffness, law.kernel_slope, False, False, False
+    ).share
     share, q = rule.share
     assert share is not at_vg_scale
     p = q[0][0]
@@ -1033,7 +1284,18 @@ def test_a_saturating_laws_share_holds_the_slips_error_at_the_slips_scale():
         a_vg = at_vg_scale(q, y, u, env.dt, 4.0, lam_g)
         rm = tippe_frame(*y[4:8])
         r = contact_arm(p, rm[6], rm[7], rm[8])
-        s = np.array(slip_velocity(rm, r, y[2], y[3], constraint_vertical_velocity(p, rm, y[8], y[9]), y[8], y[9], y[10]))
+        s = np.array(
+            slip_velocity(
+                rm,
+                r,
+                y[2],
+                y[3],
+                constraint_vertical_velocity(p, rm, y[8], y[9]),
+                y[8],
+                y[9],
+                y[10],
+            )
+        )
         g = np.array(rm[6:9])
         slip = float(np.linalg.norm(s - s.dot(g) * g))
         _, l_max = tangential_mobility(p, rm[6], rm[7], rm[8])
@@ -1043,6 +1305,18 @@ def test_a_saturating_laws_share_holds_the_slips_error_at_the_slips_scale():
             checked += 1
         env.step(zero)
     assert checked >= 10
-    viscous = TippeTopEnv(integrator="rk4", tolerance=1e-6, tolerance_horizon=20, compiled=False, friction_law="viscous", friction=3.0)
+    viscous = TippeTopEnv(
+        integrator="rk4",
+        tolerance=1e-6,
+        tolerance_horizon=20,
+        compiled=False,
+        friction_law="viscous",
+        friction=3.0,
+    )
     vlaw = viscous.system.friction
-    assert viscous.engine.rule.share[0] is implicit_forms(vlaw.kernel_coefficient, vlaw.kernel_stiffness, vlaw.kernel_slope, False, False, False).share
+    assert (
+        viscous.engine.rule.share[0]
+        is implicit_forms(
+            vlaw.kernel_coefficient, vlaw.kernel_stiffness, vlaw.kernel_slope, False, False, False
+        ).share
+    )

@@ -19,7 +19,22 @@ import rbenvs
 from rbenvs.envs import NumericalFailureWarning
 from rbenvs.jit import available as compiled_available
 
-from conftest import ENV_IDS, FREE, LAGRANGE, TIPPE, TIPPE_CONTROL_READOUTS, VECTOR_CLASS, check_info_row, lockstep, make_singles, make_vec, random_actions, same, same_state
+from conftest import (
+    ENV_IDS,
+    FREE,
+    LAGRANGE,
+    TIPPE,
+    TIPPE_CONTROL_READOUTS,
+    VECTOR_CLASS,
+    check_info_row,
+    lockstep,
+    make_singles,
+    make_vec,
+    random_actions,
+    same,
+    same_state,
+)
+
 
 @pytest.mark.parametrize("env_id", ENV_IDS)
 def test_make_vec_returns_the_native_vector_env(env_id):
@@ -39,8 +54,14 @@ def test_make_vec_returns_the_native_vector_env(env_id):
     assert venv.dt == single.unwrapped.dt
     assert venv.metadata["autoreset_mode"] is AutoresetMode.NEXT_STEP
     for mode in ("SameStep", AutoresetMode.SAME_STEP):
-        assert make_vec(env_id, 2, autoreset_mode=mode).metadata["autoreset_mode"] is AutoresetMode.SAME_STEP
-    assert make_vec(env_id, 2, autoreset_mode="NextStep").metadata["autoreset_mode"] is AutoresetMode.NEXT_STEP
+        assert (
+            make_vec(env_id, 2, autoreset_mode=mode).metadata["autoreset_mode"]
+            is AutoresetMode.SAME_STEP
+        )
+    assert (
+        make_vec(env_id, 2, autoreset_mode="NextStep").metadata["autoreset_mode"]
+        is AutoresetMode.NEXT_STEP
+    )
     for bad in ("Disabled", AutoresetMode.DISABLED, "junk", 3):
         with pytest.raises(ValueError, match="autoreset_mode"):
             make_vec(env_id, 2, autoreset_mode=bad)
@@ -71,13 +92,45 @@ EQUIVALENCE = [
     (FREE, dict(integrator="splitting", task="reorient"), 5, 17),
     (FREE, dict(integrator="exact", task="reorient", max_torque=0.5), 5, 17),
     (FREE, dict(integrator="exact", actuated=(True, False, True), axis="major"), 5, 17),
-    (FREE, dict(integrator="rk4", max_angular_velocity=1.6, max_torque=5.0), 40, 40),  # observation_limit
+    (
+        FREE,
+        dict(integrator="rk4", max_angular_velocity=1.6, max_torque=5.0),
+        40,
+        40,
+    ),  # observation_limit
     (LAGRANGE, dict(), 5, 17),  # splitting, upright
-    (LAGRANGE, dict(integrator="rk4", tilt_limit=0.06, max_torque=0.05, spin=0.0), 25, 45),  # task terminations
+    (
+        LAGRANGE,
+        dict(integrator="rk4", tilt_limit=0.06, max_torque=0.05, spin=0.0),
+        25,
+        45,
+    ),  # task terminations
     (LAGRANGE, dict(integrator="rk4", task="precess", attitude=True), 5, 17),
-    (LAGRANGE, dict(integrator="euler", tolerance=None, axial_torque=True, spin=(5.0, 15.0), attitude=True), 5, 17),
-    (LAGRANGE, dict(integrator="splitting", task="precess", spin=(20.0, 30.0), spin_friction=0.01), 5, 17),
-    (LAGRANGE, dict(integrator="rk4", inertia=(0.5, 0.45, 0.3), com_direction=(0.1, 0.0, 1.0), spin=(0.0, 3.0)), 5, 17),
+    (
+        LAGRANGE,
+        dict(
+            integrator="euler", tolerance=None, axial_torque=True, spin=(5.0, 15.0), attitude=True
+        ),
+        5,
+        17,
+    ),
+    (
+        LAGRANGE,
+        dict(integrator="splitting", task="precess", spin=(20.0, 30.0), spin_friction=0.01),
+        5,
+        17,
+    ),
+    (
+        LAGRANGE,
+        dict(
+            integrator="rk4",
+            inertia=(0.5, 0.45, 0.3),
+            com_direction=(0.1, 0.0, 1.0),
+            spin=(0.0, 3.0),
+        ),
+        5,
+        17,
+    ),
     (TIPPE, dict(fidelity="frictionless", spin=(100.0, 200.0)), 4, 10),
     (TIPPE, dict(fidelity="rolling", task="hold", torque_action=True), 4, 10),
     (TIPPE, dict(friction_law="viscous", integrator="euler", tolerance=None), 4, 10),
@@ -105,10 +158,28 @@ def test_sub_envs_equal_single_envs_bit_for_bit(variant, mode):
 
 def test_equivalence_covers_terminations_and_observation_limits():
     """The equivalence runs above do cross terminations of both kinds, not only truncations."""
-    n_term, _, infos = lockstep(LAGRANGE, 3, 12, 45, "SameStep", 25, dict(integrator="rk4", tilt_limit=0.06, max_torque=0.05, spin=0.0))
-    reasons = {r for info in infos if "final_info" in info for r in info["final_info"]["terminal_reason"]}
+    n_term, _, infos = lockstep(
+        LAGRANGE,
+        3,
+        12,
+        45,
+        "SameStep",
+        25,
+        dict(integrator="rk4", tilt_limit=0.06, max_torque=0.05, spin=0.0),
+    )
+    reasons = {
+        r for info in infos if "final_info" in info for r in info["final_info"]["terminal_reason"]
+    }
     assert n_term >= 3 and "task" in reasons
-    n_term, _, infos = lockstep(FREE, 3, 11, 40, "NextStep", 40, dict(integrator="rk4", max_angular_velocity=1.6, max_torque=5.0))
+    n_term, _, infos = lockstep(
+        FREE,
+        3,
+        11,
+        40,
+        "NextStep",
+        40,
+        dict(integrator="rk4", max_angular_velocity=1.6, max_torque=5.0),
+    )
     reasons = {r for info in infos if "terminal_reason" in info for r in info["terminal_reason"]}
     assert n_term >= 1 and "observation_limit" in reasons
 
@@ -148,7 +219,11 @@ def test_same_step_final_obs_is_a_1d_array_of_float32_observations(n_ending):
     final = info["final_obs"]
     assert final.shape == (2,) and final.dtype == object
     for i in np.flatnonzero(tr):
-        assert isinstance(final[i], np.ndarray) and final[i].dtype == np.float32 and final[i].shape == (3,)
+        assert (
+            isinstance(final[i], np.ndarray)
+            and final[i].dtype == np.float32
+            and final[i].shape == (3,)
+        )
 
 
 def test_sb3_ppo_across_simultaneous_time_limits():
@@ -190,7 +265,9 @@ def test_dop853_sub_envs_agree_within_tolerance(env_id, kwargs, mode):
             assert reward[i] == pytest.approx(r, rel=1e-9, abs=1e-12)
             if te or tr:
                 if mode == "SameStep":
-                    np.testing.assert_allclose(np.asarray(info["final_obs"][i], dtype=np.float32), o, rtol=1e-6, atol=1e-7)
+                    np.testing.assert_allclose(
+                        np.asarray(info["final_obs"][i], dtype=np.float32), o, rtol=1e-6, atol=1e-7
+                    )
                     o = env.reset()[0]
                     assert same(obs[i], o)
                     continue
@@ -230,7 +307,9 @@ def test_seeding(env_id):
         for i, env in enumerate(singles):
             assert same(obs[i], env.reset()[0])
     # an unseeded first reset draws from fresh entropy: two vector envs differ
-    assert not np.array_equal(make_vec(env_id, n, **kwargs).reset()[0], make_vec(env_id, n, **kwargs).reset()[0])
+    assert not np.array_equal(
+        make_vec(env_id, n, **kwargs).reset()[0], make_vec(env_id, n, **kwargs).reset()[0]
+    )
 
 
 @pytest.mark.parametrize("env_id", ENV_IDS)
@@ -303,7 +382,9 @@ STATE_CASES = [
 ]
 
 
-@pytest.mark.parametrize("env_id,kwargs", STATE_CASES, ids=[f"{e.split('/')[1]}-{k}" for e, k in STATE_CASES])
+@pytest.mark.parametrize(
+    "env_id,kwargs", STATE_CASES, ids=[f"{e.split('/')[1]}-{k}" for e, k in STATE_CASES]
+)
 def test_get_state_shapes_and_round_trip(env_id, kwargs):
     n, steps = 3, 3
     venv = make_vec(env_id, n, **kwargs)
@@ -372,7 +453,10 @@ def _bad_rows(env_id, state):
     return out
 
 
-@pytest.mark.parametrize("env_id,kwargs", [(FREE, dict(task="reorient")), (LAGRANGE, dict()), (TIPPE, dict(fidelity="frictionless"))])
+@pytest.mark.parametrize(
+    "env_id,kwargs",
+    [(FREE, dict(task="reorient")), (LAGRANGE, dict()), (TIPPE, dict(fidelity="frictionless"))],
+)
 def test_bad_state_rows_are_refused_and_change_nothing(env_id, kwargs):
     venv = make_vec(env_id, 4, **kwargs)
     venv.reset(seed=2)
@@ -411,7 +495,11 @@ def test_info_arrays_and_masks(env_id):
             assert isinstance(info[key], np.ndarray) and info[key].shape == (n,), key
             mask = info["_" + key]
             # (error_estimate where not estimated, the single env's None: NaN, its mask false)
-            assert mask.dtype == bool and mask.shape == (n,) and mask.all() == (key != "error_estimate" or sinfo[key] is not None), key
+            assert (
+                mask.dtype == bool
+                and mask.shape == (n,)
+                and mask.all() == (key != "error_estimate" or sinfo[key] is not None)
+            ), key
         assert info["numerical_failure"].dtype == bool and not info["numerical_failure"].any()
         assert info["is_success"].dtype == bool
     # the info arrays are not views of the state: editing them changes nothing
@@ -434,7 +522,10 @@ def test_info_readouts_false_keeps_the_task_metrics_and_the_trajectory(env_id):
     single.reset(seed=4)
     metrics = set(single.task.metric_names)
     readouts = set(info_full) - set(info_lean)
-    assert {k for k in info_lean if not k.startswith("_")} == metrics | {"numerical_failure", "error_estimate"}
+    assert {k for k in info_lean if not k.startswith("_")} == metrics | {
+        "numerical_failure",
+        "error_estimate",
+    }
     assert readouts and "energy" in readouts and not readouts & metrics
     rng = np.random.default_rng(0)
     for _ in range(5):
@@ -468,7 +559,9 @@ def test_terminal_reason_task_and_truncation(compiled):
 
 def test_terminal_reason_observation_limit_clips_the_observation():
     n = 3
-    venv = make_vec(TIPPE, n, fidelity="frictionless", torque_action=True, max_angular_velocity=160.0)
+    venv = make_vec(
+        TIPPE, n, fidelity="frictionless", torque_action=True, max_angular_velocity=160.0
+    )
     venv.reset(seed=0)
     a = np.zeros((n, 5), dtype=np.float32)
     a[1, 4] = 1.0  # spin up sub-env 1 only (143 rad/s^2): past 160 rad/s within ~0.1 s
@@ -477,8 +570,12 @@ def test_terminal_reason_observation_limit_clips_the_observation():
         if te.any():
             break
     assert np.array_equal(te, [False, True, False]) and not tr.any()
-    assert list(info["terminal_reason"]) == ["", "observation_limit", ""] and np.array_equal(info["_terminal_reason"], te)
-    assert venv.observation_space.contains(obs) and np.max(np.abs(obs[1, 3:6])) == pytest.approx(160.0)
+    assert list(info["terminal_reason"]) == ["", "observation_limit", ""] and np.array_equal(
+        info["_terminal_reason"], te
+    )
+    assert venv.observation_space.contains(obs) and np.max(np.abs(obs[1, 3:6])) == pytest.approx(
+        160.0
+    )
     assert info["spin"][1] > 160.0 and np.all(np.abs(info["spin"][[0, 2]]) < 160.0)
 
 
@@ -507,20 +604,35 @@ def test_terminal_reason_lift_off():
         o, sr, ste, _, sinfo = outs[k - back + j]
         assert r[0] == sr and te[0] == ste and not te[1] and not tr.any()
         if j < back - 1:
-            assert same(obs[0], o) and "terminal_reason" not in info and not info["lifted_off"].any()
+            assert (
+                same(obs[0], o) and "terminal_reason" not in info and not info["lifted_off"].any()
+            )
     assert np.array_equal(te, [True, False])
     assert same(np.asarray(info["final_obs"][0], dtype=np.float32), o)
     final = info["final_info"]
-    assert final["terminal_reason"][0] == "lift_off" and final["_terminal_reason"][0] and final["terminal_reason"][1] == ""
+    assert (
+        final["terminal_reason"][0] == "lift_off"
+        and final["_terminal_reason"][0]
+        and final["terminal_reason"][1] == ""
+    )
     assert final["lifted_off"][0] and not final["lifted_off"][1]
     assert final["normal_force"][0] < 0.0 < final["normal_force"][1]
-    assert same(final["tilt"][0], sinfo["tilt"]) and same(final["normal_force"][0], sinfo["normal_force"])
+    assert same(final["tilt"][0], sinfo["tilt"]) and same(
+        final["normal_force"][0], sinfo["normal_force"]
+    )
     # reset in the same step: the new episode's flag is clear
     assert not info["lifted_off"].any() and info["terminal_reason"][0] == ""
 
 
-@pytest.mark.parametrize("kwargs", [dict(fidelity="frictionless"), dict(), dict(integrator="euler", tolerance=None, fidelity="rolling")],
-                         ids=["frictionless", "gliding", "euler-rolling"])
+@pytest.mark.parametrize(
+    "kwargs",
+    [
+        dict(fidelity="frictionless"),
+        dict(),
+        dict(integrator="euler", tolerance=None, fidelity="rolling"),
+    ],
+    ids=["frictionless", "gliding", "euler-rolling"],
+)
 def test_numerical_failure_ends_only_the_failing_sub_env(kwargs):
     """Sub-env 1 reset to a spin of 1e37 rad/s (inside bounds raised to float32's; a torque that
     could get there in a step is refused at construction): its guard asks for 1e36 internal
@@ -539,7 +651,9 @@ def test_numerical_failure_ends_only_the_failing_sub_env(kwargs):
     for env in singles:
         env.step(zero[0])
     system = singles[1].unwrapped.system
-    fast = system.export_state(system.state((0.0, 0.0), (math.cos(0.05), math.sin(0.05), 0.0, 0.0), (0.0, 0.0, 1e37)))
+    fast = system.export_state(
+        system.state((0.0, 0.0), (math.cos(0.05), math.sin(0.05), 0.0, 0.0), (0.0, 0.0, 1e37))
+    )
     state = venv.get_state()
     for key, value in fast.items():
         state[key][1] = value
@@ -552,15 +666,28 @@ def test_numerical_failure_ends_only_the_failing_sub_env(kwargs):
         warnings.simplefilter("always")
         obs, r, te, tr, info = venv.step(a)
     failures = [w for w in caught if issubclass(w.category, NumericalFailureWarning)]
-    assert len(failures) == 1 and "[1]" in str(failures[0].message) and "non-finite" in str(failures[0].message)
+    assert (
+        len(failures) == 1
+        and "[1]" in str(failures[0].message)
+        and "non-finite" in str(failures[0].message)
+    )
     # reward 0 and the failure charge (rbenvs.core.model.Model)
-    assert np.array_equal(te, [False, True, False]) and not tr.any() and r[1] == singles[1].unwrapped.model.failure_charge < 0.0
-    assert np.array_equal(info["numerical_failure"], [False, True, False]) and info["_numerical_failure"].all()
+    assert (
+        np.array_equal(te, [False, True, False])
+        and not tr.any()
+        and r[1] == singles[1].unwrapped.model.failure_charge < 0.0
+    )
+    assert (
+        np.array_equal(info["numerical_failure"], [False, True, False])
+        and info["_numerical_failure"].all()
+    )
     assert list(info["terminal_reason"]) == ["", "numerical_failure", ""]
     assert same(obs[1], last_obs[1])
     now = venv.get_state()
     assert all(np.array_equal(now[k][1], last[k][1]) and np.all(np.isfinite(now[k])) for k in now)
-    assert all(np.all(np.isfinite(info[k])) for k in ("energy", "jellett", "tilt", "slip_speed", "spin"))
+    assert all(
+        np.all(np.isfinite(info[k])) for k in ("energy", "jellett", "tilt", "slip_speed", "spin")
+    )
     # the single env fails alike; the others are unaffected
     for i, env in enumerate(singles):
         with warnings.catch_warnings():
@@ -573,7 +700,12 @@ def test_numerical_failure_ends_only_the_failing_sub_env(kwargs):
         warnings.simplefilter("always")
         obs, r, te, tr, info = venv.step(a)
     assert not [w for w in caught if issubclass(w.category, NumericalFailureWarning)]
-    assert same(obs[1], singles[1].reset()[0]) and r[1] == 0.0 and not te.any() and not info["numerical_failure"].any()
+    assert (
+        same(obs[1], singles[1].reset()[0])
+        and r[1] == 0.0
+        and not te.any()
+        and not info["numerical_failure"].any()
+    )
     for i in (0, 2):
         o, sr, *_ = singles[i].step(a[i])
         assert same(obs[i], o) and r[i] == sr
@@ -584,7 +716,17 @@ def test_numerical_failure_of_euler_with_a_huge_dt():
     float32's limit) overflows after a few steps (guard="off": unguarded); whichever sub-env
     fails keeps its last state."""
     n = 3
-    kwargs = dict(inertia=(0.5, 0.45, 0.3), spin=(40.0, 60.0), integrator="euler", tolerance=None, dt=5.0, substeps=7, tilt_limit=math.pi, max_angular_velocity=3e38, guard="off")
+    kwargs = dict(
+        inertia=(0.5, 0.45, 0.3),
+        spin=(40.0, 60.0),
+        integrator="euler",
+        tolerance=None,
+        dt=5.0,
+        substeps=7,
+        tilt_limit=math.pi,
+        max_angular_velocity=3e38,
+        guard="off",
+    )
     venv = make_vec(LAGRANGE, n, **kwargs)
     singles = make_singles(LAGRANGE, n, **kwargs)
     venv.reset(seed=1)
@@ -607,12 +749,22 @@ def test_numerical_failure_of_euler_with_a_huge_dt():
         failed = info["numerical_failure"]
         if failed.any():
             assert len(fails) == 1
-            assert np.all(te[failed]) and np.all(r[failed] == venv.unwrapped.engine.failure_charge) and not tr.any()  # 0 + the charge
-            assert all(info["terminal_reason"][i] == "numerical_failure" for i in np.flatnonzero(failed))
+            assert (
+                np.all(te[failed])
+                and np.all(r[failed] == venv.unwrapped.engine.failure_charge)
+                and not tr.any()
+            )  # 0 + the charge
+            assert all(
+                info["terminal_reason"][i] == "numerical_failure" for i in np.flatnonzero(failed)
+            )
             now = venv.get_state()
             for k in now:
-                assert np.all(np.isfinite(now[k])) and np.array_equal(now[k][failed], last[k][failed])
-            assert np.max(np.abs(last["angular_momentum"][failed])) > 1e3  # it had blown up: not the start
+                assert np.all(np.isfinite(now[k])) and np.array_equal(
+                    now[k][failed], last[k][failed]
+                )
+            assert (
+                np.max(np.abs(last["angular_momentum"][failed])) > 1e3
+            )  # it had blown up: not the start
             failed_seen = True
             break
         assert not fails and not te.any()
@@ -676,14 +828,23 @@ def test_sb3_ppo_learns_on_the_native_vector_env(env_id):
     assert isinstance(venv, VecEnv) and venv.num_envs == 4
     assert venv.observation_space == gym.make(env_id).observation_space
     obs = venv.reset()
-    assert isinstance(obs, np.ndarray) and obs.shape == (4,) + venv.observation_space.shape and obs.dtype == np.float32
+    assert (
+        isinstance(obs, np.ndarray)
+        and obs.shape == (4,) + venv.observation_space.shape
+        and obs.dtype == np.float32
+    )
     venv.step_async(np.stack([venv.action_space.sample() for _ in range(4)]))
     obs, rewards, dones, infos = venv.step_wait()
-    assert obs.shape == (4,) + venv.observation_space.shape and all(venv.observation_space.contains(o) for o in obs)
+    assert obs.shape == (4,) + venv.observation_space.shape and all(
+        venv.observation_space.contains(o) for o in obs
+    )
     assert rewards.shape == (4,) and rewards.dtype == np.float32
     assert dones.shape == (4,) and dones.dtype == bool
     assert isinstance(infos, list) and len(infos) == 4 and all(isinstance(i, dict) for i in infos)
-    assert venv.get_attr("dt") == [venv.venv.dt] * 4 and venv.env_is_wrapped(gym.Wrapper) == [False] * 4
+    assert (
+        venv.get_attr("dt") == [venv.venv.dt] * 4
+        and venv.env_is_wrapped(gym.Wrapper) == [False] * 4
+    )
     model = PPO("MlpPolicy", venv, n_steps=32, batch_size=64, n_epochs=1, device="cpu", seed=0)
     model.learn(256)
     assert model.num_timesteps >= 256
@@ -715,7 +876,9 @@ def test_sb3_step_wait_dones_terminal_observation_and_time_limit():
             if dones[i]:
                 assert same(np.asarray(infos[i]["terminal_observation"], dtype=np.float32), o)
                 assert infos[i]["TimeLimit.truncated"] == (tr and not te)
-                assert infos[i]["energy"] == sinfo["energy"] and infos[i]["terminal_reason"] == sinfo.get("terminal_reason", "")
+                assert infos[i]["energy"] == sinfo["energy"] and infos[i][
+                    "terminal_reason"
+                ] == sinfo.get("terminal_reason", "")
                 n_term += te
                 n_trunc += tr and not te
                 o = env.reset()[0]
@@ -735,7 +898,9 @@ def test_sb3_info_keys_on_every_step():
     venv.reset()
     venv.step_async(np.zeros((3, 3), dtype=np.float32))
     _, _, dones, infos = venv.step_wait()
-    assert not dones.any() and all(set(i) == {"energy"} and isinstance(i["energy"], float) for i in infos)
+    assert not dones.any() and all(
+        set(i) == {"energy"} and isinstance(i["energy"], float) for i in infos
+    )
 
 
 def test_sb3_adapter_refuses_next_step_vector_envs():
@@ -786,10 +951,19 @@ def test_bench_throughput_smoke():
     rows = run_vector(systems=systems, sizes=(1, 16), min_time=0.01, repeat=1)
     measured = [(r["id"], r["integrator"], r["num_envs"]) for r in rows]
     assert (FREE, "rk4", 1) in measured and (FREE, "rk4", 16) in measured
-    assert all(r["id"] == FREE and r["integrator"].startswith("rk4") and r["num_envs"] in (1, 16) for r in rows)
+    assert all(
+        r["id"] == FREE and r["integrator"].startswith("rk4") and r["num_envs"] in (1, 16)
+        for r in rows
+    )
     for r in rows:
-        assert r["env_steps_per_s"] > 0 and r["cartpole_env_steps_per_s"] > 0 and r["ns_per_env_step"] > 0
-        assert r["ratio_to_cartpole"] == pytest.approx(r["env_steps_per_s"] / r["cartpole_env_steps_per_s"], rel=1e-12)
+        assert (
+            r["env_steps_per_s"] > 0
+            and r["cartpole_env_steps_per_s"] > 0
+            and r["ns_per_env_step"] > 0
+        )
+        assert r["ratio_to_cartpole"] == pytest.approx(
+            r["env_steps_per_s"] / r["cartpole_env_steps_per_s"], rel=1e-12
+        )
         assert r["ns_per_env_step"] * r["env_steps_per_s"] == pytest.approx(1e9, rel=1e-12)
     # one CartPole figure per size, shared by every row of that size
     assert len({(r["num_envs"], r["cartpole_env_steps_per_s"]) for r in rows}) == 2
@@ -805,17 +979,23 @@ def test_bench_throughput_smoke():
     else:
         assert paths == {("rk4", "numpy"), ("rk4, lean info", "numpy")}
     scaling = run_scaling(sizes=(1, 4), min_time=0.01, repeat=1)
-    assert [(r["path"], r["num_envs"]) for r in scaling] == [(p, n) for p in (["compiled"] if available() else []) + ["numpy"] for n in (1, 4)]
+    assert [(r["path"], r["num_envs"]) for r in scaling] == [
+        (p, n) for p in (["compiled"] if available() else []) + ["numpy"] for n in (1, 4)
+    ]
     for r in scaling:
         # state in and out (2 x 24), a float32 action and observation (12 + 12), reward (8),
         # two flags (2) and the info arrays: at least 82 bytes per env
         assert r["ns_per_env_step"] > 0 and r["bytes_per_env_step"] >= 82
-        assert r["megabytes_per_step"] == pytest.approx(r["bytes_per_env_step"] * r["num_envs"] / 1e6)
+        assert r["megabytes_per_step"] == pytest.approx(
+            r["bytes_per_env_step"] * r["num_envs"] / 1e6
+        )
     rows = run_single(systems=systems, min_time=0.01, repeat=1)
     assert [(r["id"], r["integrator"]) for r in rows] == [(FREE, "rk4")]
     for r in rows:
         assert r["step_us"] > 0 and r["pendulum_step_us"] > 0
-        assert r["ratio_to_pendulum"] == pytest.approx(r["step_us"] / r["pendulum_step_us"], rel=1e-12)
+        assert r["ratio_to_pendulum"] == pytest.approx(
+            r["step_us"] / r["pendulum_step_us"], rel=1e-12
+        )
 
 
 def test_bench_sb3_rows_compare_the_adapter_with_dummy_vec_env():
@@ -825,7 +1005,9 @@ def test_bench_sb3_rows_compare_the_adapter_with_dummy_vec_env():
     assert len(rows) == 1 and rows[0]["num_envs"] == 4
     r = rows[0]
     assert r["sb3_native_env_steps_per_s"] > 0 and r["sb3_dummy_env_steps_per_s"] > 0
-    assert r["ratio"] == pytest.approx(r["sb3_native_env_steps_per_s"] / r["sb3_dummy_env_steps_per_s"], rel=1e-12)
+    assert r["ratio"] == pytest.approx(
+        r["sb3_native_env_steps_per_s"] / r["sb3_dummy_env_steps_per_s"], rel=1e-12
+    )
 
 
 START_CASES = [
@@ -834,7 +1016,15 @@ START_CASES = [
     (FREE, dict(task="reorient")),
     (LAGRANGE, dict(task="upright", spin=(2.0, 8.0))),
     (LAGRANGE, dict(task="precess", spin=(15.0, 25.0), perturbation=0.2, attitude=True)),
-    (LAGRANGE, dict(inertia=(0.5, 0.45, 0.3), com_direction=(0.3, -0.2, 1.0), spin=(-4.0, 4.0), attitude=True)),
+    (
+        LAGRANGE,
+        dict(
+            inertia=(0.5, 0.45, 0.3),
+            com_direction=(0.3, -0.2, 1.0),
+            spin=(-4.0, 4.0),
+            attitude=True,
+        ),
+    ),
     (TIPPE, dict(task="invert", spin=(100.0, 200.0), tilt=(0.0, 0.5))),
     (TIPPE, dict(task="hold", fidelity="rolling", spin=(100.0, 200.0))),
     (TIPPE, dict(free_flight=True, spin=(100.0, 200.0))),
@@ -844,7 +1034,11 @@ START_CASES = [
 
 
 @pytest.mark.parametrize("compiled", ["auto", False], ids=["draws-auto", "draws-python"])
-@pytest.mark.parametrize("env_id,kwargs", START_CASES, ids=lambda v: v if isinstance(v, str) else ",".join(f"{k}={x}" for k, x in v.items()))
+@pytest.mark.parametrize(
+    "env_id,kwargs",
+    START_CASES,
+    ids=lambda v: v if isinstance(v, str) else ",".join(f"{k}={x}" for k, x in v.items()),
+)
 def test_batched_starts_equal_single_env_starts_bit_for_bit(env_id, kwargs, compiled):
     """Every task and system draws its starts in two stages: 64 sub-envs reset at once (the
     arithmetic on the batch) equal 64 single envs seeded alike, bit for bit, twice in a row;
@@ -878,8 +1072,15 @@ def test_elapsed_steps_spread_the_time_limits():
             if first_truncation[i] is None:
                 first_truncation[i] = t
     assert first_truncation == [5, 4, 2, 1]
-    for bad in (np.array([0, 1, 2, 5]), np.array([-1, 0, 0, 0]), np.array([0.0, 1.0, 2.0, 3.0]), np.array([0, 1])):
+    for bad in (
+        np.array([0, 1, 2, 5]),
+        np.array([-1, 0, 0, 0]),
+        np.array([0.0, 1.0, 2.0, 3.0]),
+        np.array([0, 1]),
+    ):
         with pytest.raises(ValueError, match="elapsed_steps"):
             venv.reset(options={"elapsed_steps": bad})
     with pytest.raises(ValueError, match="needs a time limit"):
-        make_vec(FREE, 2, max_episode_steps=None).reset(options={"elapsed_steps": np.zeros(2, dtype=int)})
+        make_vec(FREE, 2, max_episode_steps=None).reset(
+            options={"elapsed_steps": np.zeros(2, dtype=int)}
+        )

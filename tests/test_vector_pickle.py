@@ -24,7 +24,11 @@ CASES = [
 
 
 @pytest.mark.filterwarnings("ignore::UserWarning")
-@pytest.mark.parametrize("env_id, kwargs", CASES, ids=[f"{e.split('/')[1]}-{'-'.join(map(str, k)) or 'default'}" for e, k in CASES])
+@pytest.mark.parametrize(
+    "env_id, kwargs",
+    CASES,
+    ids=[f"{e.split('/')[1]}-{'-'.join(map(str, k)) or 'default'}" for e, k in CASES],
+)
 def test_a_pickled_or_copied_vector_env_goes_on_bit_for_bit(env_id, kwargs):
     kwargs = dict(kwargs)
     if kwargs.get("autoreset_mode") == "same_step":
@@ -32,7 +36,9 @@ def test_a_pickled_or_copied_vector_env_goes_on_bit_for_bit(env_id, kwargs):
 
         kwargs["autoreset_mode"] = AutoresetMode.SAME_STEP
     # short episodes: restarts after the copy (the tippe top on numpy, 0.1 s a step: shorter still)
-    limit, before, after = (8, 10, 20) if env_id == TIPPE and kwargs.get("compiled") is False else (50, 30, 90)
+    limit, before, after = (
+        (8, 10, 20) if env_id == TIPPE and kwargs.get("compiled") is False else (50, 30, 90)
+    )
     env = make_vec(env_id, 4, max_episode_steps=limit, **kwargs)
     rng = np.random.default_rng(7)
     env.reset(seed=11)

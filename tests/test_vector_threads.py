@@ -14,7 +14,10 @@ from gymnasium.vector import AutoresetMode
 
 from rbenvs import compiled as _compiled
 
-pytestmark = pytest.mark.skipif(not _compiled.available(), reason="num_threads splits the compiled step: numba (the 'fast' extra)")
+pytestmark = pytest.mark.skipif(
+    not _compiled.available(),
+    reason="num_threads splits the compiled step: numba (the 'fast' extra)",
+)
 
 N = 200  # chunks at multiples of 64: [0, 128), [128, 200) for 2 threads; three chunks for 3
 THREADS = (1, 2, 3)
@@ -25,12 +28,18 @@ def trajectory(env, steps: int, seed: int = 5, scale: float = 1.5) -> list:
     rng = np.random.default_rng(seed)
     out = [env.reset(seed=11)]
     for _ in range(steps):
-        out.append(env.step(rng.uniform(-scale, scale, env.action_space.shape).astype(env.action_space.dtype)))
+        out.append(
+            env.step(
+                rng.uniform(-scale, scale, env.action_space.shape).astype(env.action_space.dtype)
+            )
+        )
     return out
 
 
 def identical(a: list, b: list) -> bool:
-    return len(a) == len(b) and all(len(x) == len(y) and all(same(p, q) for p, q in zip(x, y)) for x, y in zip(a, b))
+    return len(a) == len(b) and all(
+        len(x) == len(y) and all(same(p, q) for p, q in zip(x, y)) for x, y in zip(a, b)
+    )
 
 
 CASES = [
@@ -39,13 +48,31 @@ CASES = [
     (FREE, {"task": "detumble", "integrator": "rk4", "tolerance": 1e-6}, 40),
     (FREE, {"observation_noise": 0.01, "action_delay": 2}, 40),
     (LAGRANGE, {}, 60),
-    (LAGRANGE, {"integrator": "euler", "tolerance": None, "axial_torque": True, "spin": (5.0, 15.0), "attitude": True}, 40),  # (counts per sub-env: the per-env period)
-    (LAGRANGE, {"task": "upright", "spin": (5.0, 30.0), "autoreset_mode": AutoresetMode.SAME_STEP}, 60),
+    (
+        LAGRANGE,
+        {
+            "integrator": "euler",
+            "tolerance": None,
+            "axial_torque": True,
+            "spin": (5.0, 15.0),
+            "attitude": True,
+        },
+        40,
+    ),  # (counts per sub-env: the per-env period)
+    (
+        LAGRANGE,
+        {"task": "upright", "spin": (5.0, 30.0), "autoreset_mode": AutoresetMode.SAME_STEP},
+        60,
+    ),
     (TIPPE, {}, 25),
 ]
 
 
-@pytest.mark.parametrize("env_id, kwargs, steps", CASES, ids=[f"{e.split('/')[1]}-{'-'.join(map(str, k)) or 'default'}" for e, k, _ in CASES])
+@pytest.mark.parametrize(
+    "env_id, kwargs, steps",
+    CASES,
+    ids=[f"{e.split('/')[1]}-{'-'.join(map(str, k)) or 'default'}" for e, k, _ in CASES],
+)
 def test_threads_give_the_bits_of_one_call(env_id, kwargs, steps):
     """Short episodes (max_episode_steps=15): every sub-env ends and restarts a few times, its
     start drawn from its own generator inside whichever chunk holds it."""
@@ -66,19 +93,31 @@ def _fast_sub_env(env, i: int, momentum) -> None:
     env.reset(options={"state": state, "reset_mask": mask})
 
 
-@pytest.mark.parametrize("kwargs", [dict(integrator="euler", tolerance=None), dict(task="detumble", integrator="rk4", tolerance=1e-6)], ids=["euler", "rk4-tolerance"])
+@pytest.mark.parametrize(
+    "kwargs",
+    [
+        dict(integrator="euler", tolerance=None),
+        dict(task="detumble", integrator="rk4", tolerance=1e-6),
+    ],
+    ids=["euler", "rk4-tolerance"],
+)
 def test_a_refusal_in_one_chunk_raises_and_changes_nothing(kwargs):
     """guard='refuse' with one fast sub-env in the last chunk: the same error for every thread
     count, every state (and a tolerance's compensations, carried in place) as before the step,
     and the next steps the same bits."""
     runs = []
     for threads in THREADS:
-        env = make_vec(FREE, N, guard="refuse", max_angular_velocity=1e4, num_threads=threads, **kwargs)
+        env = make_vec(
+            FREE, N, guard="refuse", max_angular_velocity=1e4, num_threads=threads, **kwargs
+        )
         out = trajectory(env, 3)
         _fast_sub_env(env, 170, (3e3, 2e3, 1e3))
         before = env.get_state()
         cc = None if env._cc is None else env._cc.copy()
-        with pytest.raises(ValueError, match=r"guard='refuse' and the state of sub-envs \[170\] needs .* internal steps"):
+        with pytest.raises(
+            ValueError,
+            match=r"guard='refuse' and the state of sub-envs \[170\] needs .* internal steps",
+        ):
             env.step(np.zeros(env.action_space.shape, dtype=np.float32))
         assert same(env.get_state(), before)
         assert cc is None or np.array_equal(env._cc, cc)
@@ -143,7 +182,11 @@ def test_a_pickled_threaded_env_and_a_forked_child_go_on_bit_for_bit():
                 warnings.simplefilter("always")
                 obs = env.step(a)[0]
                 env.step(a)
-            warned = [w for w in caught if "forked from one that ran numba's GNU OpenMP threads" in str(w.message)]
+            warned = [
+                w
+                for w in caught
+                if "forked from one that ran numba's GNU OpenMP threads" in str(w.message)
+            ]
             os.write(write, bytes([len(warned)]) + obs.tobytes())
         finally:
             os._exit(0)

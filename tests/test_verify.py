@@ -22,7 +22,23 @@ def test_quick_verify_passes_and_writes_json(tmp_path, capsys):
     # the free body's rows (the heavy and tippe tops' pass in the tests below; `make test` runs
     # the whole `rbenvs verify --quick` after the suite)
     path = tmp_path / "report.json"
-    assert verify.main(["--quick", "--no-progress", "--system", "free_body", "--integrator", "rk4", "--integrator", "exact", "--json", str(path)]) == 0
+    assert (
+        verify.main(
+            [
+                "--quick",
+                "--no-progress",
+                "--system",
+                "free_body",
+                "--integrator",
+                "rk4",
+                "--integrator",
+                "exact",
+                "--json",
+                str(path),
+            ]
+        )
+        == 0
+    )
     out = capsys.readouterr().out
     assert "0 failed" in out and "FAIL" not in out.replace("0 failed", "")
     report = json.loads(path.read_text())
@@ -76,7 +92,11 @@ def test_failing_row_prints_replay_parameters(capsys):
     check = verify.Check("free_body", "rk4", "demo", 1.0, 2.0, 0.1, case={"inertia": [1, 2, 3]})
     verify.print_table([check])
     out = capsys.readouterr().out
-    assert "FAIL" in out and "replay with {'inertia': [1, 2, 3]}" in out and "0 passed, 1 failed" in out
+    assert (
+        "FAIL" in out
+        and "replay with {'inertia': [1, 2, 3]}" in out
+        and "0 passed, 1 failed" in out
+    )
 
 
 @pytest.mark.parametrize("bad", [[], ["--integrator", "leapfrog"]])
@@ -115,9 +135,18 @@ def test_heavy_top_checks_pass(integrator):
     assert checks and not failed(checks)
     assert {c.system for c in checks} == {"heavy_top"}
     names = " ".join(c.check for c in checks)
-    for word in ("critical spin by bisection", "regular precession held", "fast top: nutation amplitude",
-                 "fast top: nutation period", "fast top: mean precession rate", "energy drift", "Pi.Gamma drift",
-                 "|Gamma|", "1.2 x critical", "0.5 x critical: growth rate"):
+    for word in (
+        "critical spin by bisection",
+        "regular precession held",
+        "fast top: nutation amplitude",
+        "fast top: nutation period",
+        "fast top: mean precession rate",
+        "energy drift",
+        "Pi.Gamma drift",
+        "|Gamma|",
+        "1.2 x critical",
+        "0.5 x critical: growth rate",
+    ):
         assert word in names
     bisection = next(c for c in checks if "bisection" in c.check)
     # the 50 t_g horizon puts the measured threshold 0.1-0.2% below the theorem's (module docstring)
@@ -126,7 +155,12 @@ def test_heavy_top_checks_pass(integrator):
 
 @pytest.mark.parametrize("integrator", ["rk4", "splitting"])
 def test_flipped_gravity_is_caught(integrator):
-    bad = {c.check for c in failed(verify.heavy_top_checks([integrator], n_tops=1, system_class=FlippedGravity))}
+    bad = {
+        c.check
+        for c in failed(
+            verify.heavy_top_checks([integrator], n_tops=1, system_class=FlippedGravity)
+        )
+    }
     assert any("bisection" in c for c in bad)
     assert any("regular precession held" in c for c in bad)
     assert any("growth rate" in c for c in bad)
@@ -134,7 +168,9 @@ def test_flipped_gravity_is_caught(integrator):
 
 
 def test_ten_percent_too_much_gravity_is_caught():
-    bad = {c.check for c in failed(verify.heavy_top_checks(["rk4"], n_tops=1, system_class=HeavierTop))}
+    bad = {
+        c.check for c in failed(verify.heavy_top_checks(["rk4"], n_tops=1, system_class=HeavierTop))
+    }
     assert any("bisection" in c for c in bad)  # n_c ~ sqrt(M g l): 5% off
     assert any("regular precession" in c for c in bad)
     assert any("fast top" in c for c in bad)
@@ -148,16 +184,44 @@ def test_failing_heavy_top_row_carries_its_parameters():
     for key in ("inertia", "mass", "length", "gravity", "start tilt", "fall tilt", "T"):
         assert key in case
     # replay: the same parameters rebuild the same top
-    params = HeavyTopParams(inertia=tuple(case["inertia"]), mass=case["mass"], length=case["length"], gravity=case["gravity"])
+    params = HeavyTopParams(
+        inertia=tuple(case["inertia"]),
+        mass=case["mass"],
+        length=case["length"],
+        gravity=case["gravity"],
+    )
     assert params.is_lagrange
 
 
 def test_heavy_top_has_no_exact_rows_and_system_filter(tmp_path):
-    assert verify.run_checks(systems=("heavy_top",), integrators=["exact"], quick=True, show_progress=False) == []
+    assert (
+        verify.run_checks(
+            systems=("heavy_top",), integrators=["exact"], quick=True, show_progress=False
+        )
+        == []
+    )
     path = tmp_path / "top.json"
-    assert verify.main(["--quick", "--no-progress", "--system", "heavy_top", "--integrator", "splitting", "--json", str(path)]) == 0
+    assert (
+        verify.main(
+            [
+                "--quick",
+                "--no-progress",
+                "--system",
+                "heavy_top",
+                "--integrator",
+                "splitting",
+                "--json",
+                str(path),
+            ]
+        )
+        == 0
+    )
     report = json.loads(path.read_text())
-    assert report and {r["system"] for r in report} == {"heavy_top"} and all(r["passed"] for r in report)
+    assert (
+        report
+        and {r["system"] for r in report} == {"heavy_top"}
+        and all(r["passed"] for r in report)
+    )
     with pytest.raises(SystemExit):
         verify.main(["--system", "rattleback"])
 
@@ -220,7 +284,13 @@ class FlippedContactArm(tp.TippeTop):
         tp.TippeTop.params.fset(self, params)
         i = tp.PURE_PARAMETERS.index("height")
         flipped = self.form_params[:i] + (-self.form_params[i],) + self.form_params[i + 1 :]
-        for name in ("kernel_rhs", "kernel_rhs_normal", "kernel_normal", "kernel_event", "kernel_rhs_event"):
+        for name in (
+            "kernel_rhs",
+            "kernel_rhs_normal",
+            "kernel_normal",
+            "kernel_event",
+            "kernel_rhs_event",
+        ):
             if getattr(self, name) is not None:
                 setattr(self, name, (getattr(self, name)[0], flipped))
         self._flipped = flipped
@@ -243,11 +313,19 @@ def test_tippe_top_checks_pass_quick_rk4():
     names = " ".join(c.check for c in checks)
     for law in ("coulomb", "viscous", "frictionless", "rolling", "moving table"):
         assert f"Jellett held ({law})" in names
-    for word in ("energy non-increasing (coulomb)", "energy non-increasing (viscous)", "energy conserved (frictionless)",
-                 "energy conserved (rolling)"):
+    for word in (
+        "energy non-increasing (coulomb)",
+        "energy non-increasing (viscous)",
+        "energy conserved (frictionless)",
+        "energy conserved (rolling)",
+    ):
         assert word in names
     classes = tippe_rows(checks, "inversion class")
-    assert sorted(c.predicted for c in classes) == [0, 1, 2]  # one top below, inside and above the window
+    assert sorted(c.predicted for c in classes) == [
+        0,
+        1,
+        2,
+    ]  # one top below, inside and above the window
     tilts = {c.check: c for c in tippe_rows(checks, "final tilt")}
     assert len(tilts) == 3
     for c in tilts.values():
@@ -265,19 +343,26 @@ def test_tippe_top_ranges_are_seeded_and_physical():
         assert a == verify.tippe_top.random_tops(np.random.default_rng(5), 30, regime)
         for top in a:
             window = (1 - top.alpha, 1 + top.alpha)
-            assert {"below": top.gamma < window[0], "inside": window[0] < top.gamma < window[1],
-                    "above": top.gamma > window[1]}[regime]
+            assert {
+                "below": top.gamma < window[0],
+                "inside": window[0] < top.gamma < window[1],
+                "above": top.gamma > window[1],
+            }[regime]
             params = top.params()  # valid parameters (C <= 2 A, 0 < alpha < 1)
             assert params.inertia[1] <= 2 * params.inertia[0]
             assert top.c <= verify.tippe_top.ball_bound(top.alpha, top.gamma) + 1e-15
-            crit = verify.tippe_top.inversion_criterion(top.A, top.C, top.alpha, top.mass, top.gravity, top.radius)
+            crit = verify.tippe_top.inversion_criterion(
+                top.A, top.C, top.alpha, top.mass, top.gravity, top.radius
+            )
             J = top.spin * top.radius * top.C * (1 - top.alpha)
             if regime != "below":  # the spin exceeds the thresholds
                 assert J > crit.J_upright and (crit.J_min is None or J > crit.J_min)
 
 
 def test_flipped_friction_is_caught():
-    checks = verify.tippe_top_checks(["rk4"], quick=True, t90=False, system_class=FlippedFriction, regimes=("inside",))
+    checks = verify.tippe_top_checks(
+        ["rk4"], quick=True, t90=False, system_class=FlippedFriction, regimes=("inside",)
+    )
     bad = {c.check for c in failed(checks)}
     assert any("energy non-increasing (coulomb)" in c for c in bad)
     assert any("energy non-increasing (viscous)" in c for c in bad)
@@ -292,7 +377,9 @@ def test_wrong_impact_law_is_caught():
 
 
 def test_flipped_contact_arm_is_caught():
-    checks = verify.tippe_top_checks(["rk4"], quick=True, t90=False, system_class=FlippedContactArm, regimes=("inside",))
+    checks = verify.tippe_top_checks(
+        ["rk4"], quick=True, t90=False, system_class=FlippedContactArm, regimes=("inside",)
+    )
     bad = {c.check for c in failed(checks)}
     for law in ("coulomb", "viscous", "rolling"):
         assert f"Jellett held ({law})" in " ".join(bad)
@@ -301,18 +388,47 @@ def test_flipped_contact_arm_is_caught():
 
 
 def test_failing_tippe_row_carries_its_parameters():
-    checks = verify.tippe_top_checks(["rk4"], quick=True, t90=False, system_class=FlippedContactArm, regimes=("inside",))
+    checks = verify.tippe_top_checks(
+        ["rk4"], quick=True, t90=False, system_class=FlippedContactArm, regimes=("inside",)
+    )
     row = next(c for c in failed(checks) if "Jellett held (viscous)" in c.check)
     case = row.case
-    for key in ("radius", "mass", "offset", "inertia", "gravity", "friction", "friction_law", "fidelity", "attitude",
-                "angular_velocity", "slip", "h", "T"):
+    for key in (
+        "radius",
+        "mass",
+        "offset",
+        "inertia",
+        "gravity",
+        "friction",
+        "friction_law",
+        "fidelity",
+        "attitude",
+        "angular_velocity",
+        "slip",
+        "h",
+        "T",
+    ):
         assert key in case
-    TippeTopParams(radius=case["radius"], mass=case["mass"], offset=case["offset"], inertia=tuple(case["inertia"]),
-                   friction=case["friction"], friction_law=case["friction_law"])  # replayable
+    TippeTopParams(
+        radius=case["radius"],
+        mass=case["mass"],
+        offset=case["offset"],
+        inertia=tuple(case["inertia"]),
+        friction=case["friction"],
+        friction_law=case["friction_law"],
+    )  # replayable
 
 
 def test_tippe_top_leaves_out_other_integrators_and_filters():
-    assert verify.run_checks(systems=("tippe_top",), integrators=["splitting", "exact"], quick=True, show_progress=False) == []
+    assert (
+        verify.run_checks(
+            systems=("tippe_top",),
+            integrators=["splitting", "exact"],
+            quick=True,
+            show_progress=False,
+        )
+        == []
+    )
 
 
 def test_sweep_point_and_plot(tmp_path, capsys):
@@ -350,13 +466,20 @@ def test_sweep_cli_arguments(monkeypatch, capsys):
 
 def test_quick_sweep_command(tmp_path, capsys):
     path = tmp_path / "sweep.json"
-    assert verify.main(["--sweep", "--quick", "--no-progress", "--system", "tippe_top", "--json", str(path)]) == 0
+    assert (
+        verify.main(
+            ["--sweep", "--quick", "--no-progress", "--system", "tippe_top", "--json", str(path)]
+        )
+        == 0
+    )
     out = capsys.readouterr().out
     for word in ("no inversion", "full inversion", "partial inversion", "3 passed, 0 failed"):
         assert word in out
     report = json.loads(path.read_text())
     assert len(report) == 3 and all(r["passed"] for r in report)
-    assert {"alpha", "gamma", "J", "predicted_class", "predicted_tilt", "simulated_tilt"} <= set(report[0])
+    assert {"alpha", "gamma", "J", "predicted_class", "predicted_tilt", "simulated_tilt"} <= set(
+        report[0]
+    )
 
 
 def test_the_tolerance_rows_pass_and_catch_an_estimate_that_falls_short(monkeypatch):
@@ -370,7 +493,12 @@ def test_the_tolerance_rows_pass_and_catch_an_estimate_that_falls_short(monkeypa
     from rbenvs.verify.tolerance import ROWS, tolerance_checks
 
     rows = tolerance_checks(["rk4", "euler"], seed=0, n_cases=2)
-    assert [(c.integrator, c.check) for c in rows] == [("rk4", ROWS["error"]), ("rk4", ROWS["bound"]), ("rk4", ROWS["near"]), ("rk4", ROWS["floor"])]
+    assert [(c.integrator, c.check) for c in rows] == [
+        ("rk4", ROWS["error"]),
+        ("rk4", ROWS["bound"]),
+        ("rk4", ROWS["near"]),
+        ("rk4", ROWS["floor"]),
+    ]
     assert all(c.passed for c in rows), rows
     assert 0.0 < rows[0].measured <= 1e-6
     assert 1e-11 < rows[2].measured <= 1e-9 and rows[2].case["tolerance_check"] is True

@@ -83,7 +83,22 @@ from .throughput import episode_stepper, timed
 from ..render.common import plot_unavailable
 from ..extras import ArgumentParser, require
 
-__all__ = ["CASES", "REFERENCE", "TARGET", "Case", "run", "run_scenes", "fit_order", "convergence", "drift", "mujoco_free_body", "print_report", "print_scenes", "plot", "main"]
+__all__ = [
+    "CASES",
+    "REFERENCE",
+    "TARGET",
+    "Case",
+    "run",
+    "run_scenes",
+    "fit_order",
+    "convergence",
+    "drift",
+    "mujoco_free_body",
+    "print_report",
+    "print_scenes",
+    "plot",
+    "main",
+]
 
 FIT_FLOOR = {"exact": 1e-12, "dop853": 1e-10}  # by the reference's kind
 FIT_CEILING = 1e-2
@@ -111,18 +126,61 @@ class Case:
 
 
 CASES = (
-    Case("free_body", "free body (2, 1.5, 1), |Omega| = 1 rad/s", ("euler", "rk4", "splitting", "exact", "dop853"),
-         10.0, tuple(0.2 / 2**k for k in range(6)), tuple(0.0125 / 2**k for k in range(6)), 0.05,
-         {"euler": (10**4, 10**6), "rk4": (10**4, 10**6), "splitting": (10**4, 10**6), "exact": (2000, 10**5), "dop853": (10**3, 10**4)}, True),
-    Case("heavy_top", "Lagrange top, |Omega| 5-20 rad/s", ("euler", "rk4", "splitting", "dop853"),
-         2.0, tuple(0.02 / 2**k for k in range(6)), tuple(5e-5 / 2**k for k in range(4)), 0.02,
-         {"euler": (10**4, 10**5), "rk4": (10**4, 10**5), "splitting": (10**4, 10**5), "dop853": (10**3, 10**3)}, True),
-    Case("tippe_top", "tippe top, viscous friction 3 s/m, 150 rad/s", ("euler", "rk4"),
-         0.2, tuple(1e-3 / 2**k for k in range(5)), tuple(1e-5 / 2**k for k in range(4)), 0.01 / 15,
-         {"euler": (10**4, 10**5), "rk4": (10**4, 10**5)}, False),
-    Case("tippe_frictionless", "tippe top, frictionless, 150 rad/s", ("euler", "rk4"),
-         0.2, tuple(1e-3 / 2**k for k in range(5)), tuple(1e-5 / 2**k for k in range(4)), 0.01 / 15,
-         {"euler": (10**4, 10**5), "rk4": (10**4, 10**5)}, False),
+    Case(
+        "free_body",
+        "free body (2, 1.5, 1), |Omega| = 1 rad/s",
+        ("euler", "rk4", "splitting", "exact", "dop853"),
+        10.0,
+        tuple(0.2 / 2**k for k in range(6)),
+        tuple(0.0125 / 2**k for k in range(6)),
+        0.05,
+        {
+            "euler": (10**4, 10**6),
+            "rk4": (10**4, 10**6),
+            "splitting": (10**4, 10**6),
+            "exact": (2000, 10**5),
+            "dop853": (10**3, 10**4),
+        },
+        True,
+    ),
+    Case(
+        "heavy_top",
+        "Lagrange top, |Omega| 5-20 rad/s",
+        ("euler", "rk4", "splitting", "dop853"),
+        2.0,
+        tuple(0.02 / 2**k for k in range(6)),
+        tuple(5e-5 / 2**k for k in range(4)),
+        0.02,
+        {
+            "euler": (10**4, 10**5),
+            "rk4": (10**4, 10**5),
+            "splitting": (10**4, 10**5),
+            "dop853": (10**3, 10**3),
+        },
+        True,
+    ),
+    Case(
+        "tippe_top",
+        "tippe top, viscous friction 3 s/m, 150 rad/s",
+        ("euler", "rk4"),
+        0.2,
+        tuple(1e-3 / 2**k for k in range(5)),
+        tuple(1e-5 / 2**k for k in range(4)),
+        0.01 / 15,
+        {"euler": (10**4, 10**5), "rk4": (10**4, 10**5)},
+        False,
+    ),
+    Case(
+        "tippe_frictionless",
+        "tippe top, frictionless, 150 rad/s",
+        ("euler", "rk4"),
+        0.2,
+        tuple(1e-3 / 2**k for k in range(5)),
+        tuple(1e-5 / 2**k for k in range(4)),
+        0.01 / 15,
+        {"euler": (10**4, 10**5), "rk4": (10**4, 10**5)},
+        False,
+    ),
 )
 QUICK_POINTS = 4  # grid points per integrator with --quick
 
@@ -139,7 +197,10 @@ def _setup(key):
         system = FreeBody(FreeBodyParams(tuple(inertia)))
         omega = rng.standard_normal((3, 8))
         y0 = tuple(omega / np.linalg.norm(omega, axis=0) * inertia[:, None])
-        inv = {"energy": (system.energy, system.energy(y0)), "|Pi|": (system.momentum_norm, system.momentum_norm(y0))}
+        inv = {
+            "energy": (system.energy, system.energy(y0)),
+            "|Pi|": (system.momentum_norm, system.momentum_norm(y0)),
+        }
         return system, y0, inv
     if key == "heavy_top":
         from ..dynamics import HeavyTop, HeavyTopParams
@@ -150,12 +211,17 @@ def _setup(key):
         gamma = rng.standard_normal((3, 8))
         gamma /= np.linalg.norm(gamma, axis=0)
         omega = rng.standard_normal((3, 8))
-        omega *= rng.uniform(1.0, 4.0, 8) * math.sqrt(prm.mgl * a) / c / np.linalg.norm(omega, axis=0)
+        omega *= (
+            rng.uniform(1.0, 4.0, 8) * math.sqrt(prm.mgl * a) / c / np.linalg.norm(omega, axis=0)
+        )
         y0 = tuple(omega * np.array(prm.inertia)[:, None]) + tuple(gamma)
         pi_norm = np.linalg.norm(np.array(y0[:3]), axis=0)
         kinetic = system.energy(y0[:3] + (0.0 * gamma[0],) * 3)  # Gamma = 0: no potential
-        inv = {"energy": (system.energy, kinetic + prm.mgl), "Pi.Gamma": (system.pi_dot_gamma, pi_norm),
-               "|Gamma|": (system.vertical_norm, 1.0)}
+        inv = {
+            "energy": (system.energy, kinetic + prm.mgl),
+            "Pi.Gamma": (system.pi_dot_gamma, pi_norm),
+            "|Gamma|": (system.vertical_norm, 1.0),
+        }
         return system, y0, inv
     # the tippe top: the tippe_viscous scene's reset states
     from ..envs import TippeTopEnv
@@ -184,7 +250,11 @@ def _n_states(y0):
 
 
 def _blocks(system, key):
-    return [(a, b) for name, (a, b) in system.layout.items() if not (key.startswith("tippe") and name == "position")]
+    return [
+        (a, b)
+        for name, (a, b) in system.layout.items()
+        if not (key.startswith("tippe") and name == "position")
+    ]
 
 
 def _block_error(system, key, y, ref, y0):
@@ -197,7 +267,11 @@ def _block_error(system, key, y, ref, y0):
         scale = np.maximum(np.linalg.norm(ref[a:b], axis=0), np.linalg.norm(y0[a:b], axis=0))
         diff = np.linalg.norm(y[a:b] - ref[a:b], axis=0)
         with np.errstate(divide="ignore", invalid="ignore"):
-            e = np.where(scale > 0.0, diff / np.where(scale > 0.0, scale, 1.0), np.where(diff == 0.0, 0.0, np.inf))
+            e = np.where(
+                scale > 0.0,
+                diff / np.where(scale > 0.0, scale, 1.0),
+                np.where(diff == 0.0, 0.0, np.inf),
+            )
         err = max(err, float(np.max(np.where(np.isfinite(e), e, np.inf))))
     return err
 
@@ -263,13 +337,31 @@ def convergence(case, name, quick=False, min_time=0.05, progress=None, setup=Non
         with np.errstate(all="ignore"):
             y = _integrate(case, system, integ, y0, case.horizon / n, n)
         seconds, evals = _cost(system, integ, y0, case.horizon / n, min_time)
-        points.append({"h": case.horizon / n, "steps": n, "error": _block_error(system, case.key, y, ref, y0), "seconds_per_step": seconds,
-                       "rhs_per_step": evals, "seconds_per_simulated_second": seconds * n / case.horizon})
+        points.append(
+            {
+                "h": case.horizon / n,
+                "steps": n,
+                "error": _block_error(system, case.key, y, ref, y0),
+                "seconds_per_step": seconds,
+                "rhs_per_step": evals,
+                "seconds_per_simulated_second": seconds * n / case.horizon,
+            }
+        )
         if progress:
             progress()
     floor = FIT_FLOOR["exact" if case.key == "free_body" else "dop853"]
-    order = None if name in ("exact", "dop853") else fit_order([p["h"] for p in points], [p["error"] for p in points], floor)
-    return {"case": case.key, "integrator": name, "declared_order": integ.order, "order": order, "points": points}
+    order = (
+        None
+        if name in ("exact", "dop853")
+        else fit_order([p["h"] for p in points], [p["error"] for p in points], floor)
+    )
+    return {
+        "case": case.key,
+        "integrator": name,
+        "declared_order": integ.order,
+        "order": order,
+        "points": points,
+    }
 
 
 def drift(case, name, steps, setup=None, short=1000, samples=1000):
@@ -306,8 +398,17 @@ def drift(case, name, steps, setup=None, short=1000, samples=1000):
                 diverged = done
                 break
     elapsed = time.perf_counter() - t0
-    return {"case": case.key, "integrator": name, "h": h, "short_steps": min(short, steps), "long_steps": steps, "drift_short": at_short,
-            "drift_long": worst, "diverged_at": diverged, "seconds": elapsed}
+    return {
+        "case": case.key,
+        "integrator": name,
+        "h": h,
+        "short_steps": min(short, steps),
+        "long_steps": steps,
+        "drift_short": at_short,
+        "drift_long": worst,
+        "diverged_at": diverged,
+        "seconds": elapsed,
+    }
 
 
 def run(systems=None, quick=False, progress=None, min_time=None, mujoco=True) -> dict:
@@ -324,12 +425,25 @@ def run(systems=None, quick=False, progress=None, min_time=None, mujoco=True) ->
             check = None  # the exact solution: nothing to check it against but round-off
         else:
             check = _block_error(system, case.key, _reference(case, system, y0, CHECK), ref, y0)
-        result["cases"][case.key] = {"label": case.label, "horizon": case.horizon, "states": _n_states(y0), "drift_h": case.drift_h,
-                                     "reference": "exact elliptic solution" if case.key == "free_body" else f"dop853 rtol={REFERENCE.rtol:g} atol={REFERENCE.atol:g}",
-                                     "reference_check": check}
+        result["cases"][case.key] = {
+            "label": case.label,
+            "horizon": case.horizon,
+            "states": _n_states(y0),
+            "drift_h": case.drift_h,
+            "reference": "exact elliptic solution"
+            if case.key == "free_body"
+            else f"dop853 rtol={REFERENCE.rtol:g} atol={REFERENCE.atol:g}",
+            "reference_check": check,
+        }
         for name in case.integrators:
-            result["convergence"].append(convergence(case, name, quick=quick, min_time=min_time, progress=progress, setup=setup))
-            result["drift"].append(drift(case, name, case.long_steps[name][0 if quick else 1], setup=setup))
+            result["convergence"].append(
+                convergence(
+                    case, name, quick=quick, min_time=min_time, progress=progress, setup=setup
+                )
+            )
+            result["drift"].append(
+                drift(case, name, case.long_steps[name][0 if quick else 1], setup=setup)
+            )
             if progress:
                 progress()
         if case.key == "free_body" and mujoco:
@@ -340,7 +454,12 @@ def run(systems=None, quick=False, progress=None, min_time=None, mujoco=True) ->
 
 
 # ------------------------------------------------------------------------------------ MuJoCo
-MUJOCO_INTEGRATORS = {"Euler": 1, "RK4": 4, "implicit": 1, "implicitfast": 1}  # MuJoCo's, with their orders
+MUJOCO_INTEGRATORS = {
+    "Euler": 1,
+    "RK4": 4,
+    "implicit": 1,
+    "implicitfast": 1,
+}  # MuJoCo's, with their orders
 
 
 def mujoco_free_body(quick=False, min_time=0.1):
@@ -362,8 +481,10 @@ def mujoco_free_body(quick=False, min_time=0.1):
     ref = np.array(exact_solution(tuple(inertia), pi0, case.horizon))
 
     def model(integrator, h):
-        xml = (f'<mujoco><option gravity="0 0 0" integrator="{integrator}" timestep="{float(h)!r}"/><worldbody><body><freejoint/>'
-               f'<inertial pos="0 0 0" mass="1" diaginertia="{float(inertia[0])!r} {float(inertia[1])!r} {float(inertia[2])!r}"/></body></worldbody></mujoco>')
+        xml = (
+            f'<mujoco><option gravity="0 0 0" integrator="{integrator}" timestep="{float(h)!r}"/><worldbody><body><freejoint/>'
+            f'<inertial pos="0 0 0" mass="1" diaginertia="{float(inertia[0])!r} {float(inertia[1])!r} {float(inertia[2])!r}"/></body></worldbody></mujoco>'
+        )
         m = mujoco.MjModel.from_xml_string(xml)
         return m, mujoco.MjData(m)
 
@@ -389,10 +510,28 @@ def mujoco_free_body(quick=False, min_time=0.1):
             start(m, d, 0)
             seconds = timed(lambda: mujoco.mj_step(m, d), min_time, 3)
             err = float(np.max(np.linalg.norm(y - ref, axis=0) / np.linalg.norm(pi0, axis=0)))
-            points.append({"h": case.horizon / n, "steps": n, "error": err, "seconds_per_step": seconds, "rhs_per_step": None,
-                           "seconds_per_simulated_second": seconds * n / case.horizon})
-        fitted = fit_order([p["h"] for p in points], [p["error"] for p in points], FIT_FLOOR["exact"])
-        conv.append({"case": case.key, "integrator": f"mujoco {name}", "declared_order": order, "order": fitted, "points": points})
+            points.append(
+                {
+                    "h": case.horizon / n,
+                    "steps": n,
+                    "error": err,
+                    "seconds_per_step": seconds,
+                    "rhs_per_step": None,
+                    "seconds_per_simulated_second": seconds * n / case.horizon,
+                }
+            )
+        fitted = fit_order(
+            [p["h"] for p in points], [p["error"] for p in points], FIT_FLOOR["exact"]
+        )
+        conv.append(
+            {
+                "case": case.key,
+                "integrator": f"mujoco {name}",
+                "declared_order": order,
+                "order": fitted,
+                "points": points,
+            }
+        )
         steps = 10**4 if quick else 10**5
         m, d = model(name, case.drift_h)
         short, long_, diverged = {k: 0.0 for k in invariants}, {k: 0.0 for k in invariants}, None
@@ -404,16 +543,31 @@ def mujoco_free_body(quick=False, min_time=0.1):
                 if k % every and k != 1000:
                     continue
                 for key, (f, scale) in invariants.items():
-                    change = abs(float(f(tuple(d.qvel[3:6] * inertia))) - float(f(tuple(pi0[:, i])))) / float(np.asarray(scale)[i])
+                    change = abs(
+                        float(f(tuple(d.qvel[3:6] * inertia))) - float(f(tuple(pi0[:, i])))
+                    ) / float(np.asarray(scale)[i])
                     change = change if math.isfinite(change) else math.inf
                     long_[key] = max(long_[key], change)
                     if k <= 1000:
                         short[key] = max(short[key], change)
-                if max(long_.values()) > DIVERGED:  # (MuJoCo resets an unstable state: stop at the first sign)
+                if (
+                    max(long_.values()) > DIVERGED
+                ):  # (MuJoCo resets an unstable state: stop at the first sign)
                     diverged = k if diverged is None else min(diverged, k)
                     break
-        drifts.append({"case": case.key, "integrator": f"mujoco {name}", "h": case.drift_h, "short_steps": 1000, "long_steps": steps,
-                       "drift_short": None if diverged is not None and diverged < 1000 else short, "drift_long": long_, "diverged_at": diverged, "seconds": None})
+        drifts.append(
+            {
+                "case": case.key,
+                "integrator": f"mujoco {name}",
+                "h": case.drift_h,
+                "short_steps": 1000,
+                "long_steps": steps,
+                "drift_short": None if diverged is not None and diverged < 1000 else short,
+                "drift_long": long_,
+                "diverged_at": diverged,
+                "seconds": None,
+            }
+        )
     return conv, drifts
 
 
@@ -430,9 +584,15 @@ def progress_total(systems=None, quick=False):
 # ------------------------------------------------------------------------------------ scenes
 def _scene_run(scene, integrator, substeps, seed, actions, horizon_steps):
     """States (per block) along ``horizon_steps`` env steps under ``actions``, from ``seed``."""
-    env = scene.make(integrator=integrator, substeps=substeps, tolerance=None).unwrapped  # (fixed steps: unchecked)
+    env = scene.make(
+        integrator=integrator, substeps=substeps, tolerance=None
+    ).unwrapped  # (fixed steps: unchecked)
     env.reset(seed=seed)
-    names = [k for k in env.get_state() if not (scene.env_id.startswith("rbenvs/TippeTop") and k == "position")]
+    names = [
+        k
+        for k in env.get_state()
+        if not (scene.env_id.startswith("rbenvs/TippeTop") and k == "position")
+    ]
     out = {k: [env.get_state()[k]] for k in names}
     failed = False
     with warnings.catch_warnings():
@@ -465,12 +625,16 @@ def _scene_cost(scene, integrator, substeps, min_time):
     env.reset(seed=0)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        t = timed(episode_stepper(env, np.zeros(env.action_space.shape, dtype=np.float32)), min_time, 3)
+        t = timed(
+            episode_stepper(env, np.zeros(env.action_space.shape, dtype=np.float32)), min_time, 3
+        )
     env.close()
     return t
 
 
-def run_scenes(names=None, target=TARGET, seeds=SCENE_SEEDS, min_time=0.1, progress=None) -> list[dict]:
+def run_scenes(
+    names=None, target=TARGET, seeds=SCENE_SEEDS, min_time=0.1, progress=None
+) -> list[dict]:
     """Per scene: each integrator's error over an episode at ``substeps = 1, 2, 4, ...`` until
     it meets ``target`` (at most :data:`MAX_SUBSTEPS`), its cost per env step, and the cheapest
     integrator and substeps that meet it."""
@@ -490,9 +654,13 @@ def run_scenes(names=None, target=TARGET, seeds=SCENE_SEEDS, min_time=0.1, progr
         refs = [_scene_run(scene, REFERENCE, 1, seed, actions, steps)[0] for seed in range(seeds)]
         candidates = []
         ladder = [2**k for k in range(int(math.log2(MAX_SUBSTEPS)) + 1)]
-        if tippe:  # the env takes max(substeps, its own rule's count): only counts above the rule matter
+        if (
+            tippe
+        ):  # the env takes max(substeps, its own rule's count): only counts above the rule matter
             probe.reset(seed=0)
-            n0 = probe.internal_steps(probe.state_components, (0.0, 0.0, probe.params.friction, 0.0, 0.0, 0.0))
+            n0 = probe.internal_steps(
+                probe.state_components, (0.0, 0.0, probe.params.friction, 0.0, 0.0, 0.0)
+            )
             ladder = [1] + [k for k in (2**j for j in range(1, 9)) if k >= 2 * n0]
         for integ in (i for i in probe.integrators if i != "dop853"):
             for substeps in ladder:
@@ -502,7 +670,15 @@ def run_scenes(names=None, target=TARGET, seeds=SCENE_SEEDS, min_time=0.1, progr
                     errs.append(math.inf if failed else _scene_error(run_, refs[seed]))
                 err = max(errs)
                 cost = _scene_cost(scene, integ, substeps, min_time)
-                candidates.append({"integrator": integ, "substeps": substeps, "error": err, "step_us": cost * 1e6, "meets": err <= target})
+                candidates.append(
+                    {
+                        "integrator": integ,
+                        "substeps": substeps,
+                        "error": err,
+                        "step_us": cost * 1e6,
+                        "meets": err <= target,
+                    }
+                )
                 cheapest = min((c["step_us"] for c in candidates if c["meets"]), default=math.inf)
                 # more substeps only cost more: stop once the target is met or this costs more
                 # than a pair that meets it
@@ -515,9 +691,22 @@ def run_scenes(names=None, target=TARGET, seeds=SCENE_SEEDS, min_time=0.1, progr
         cur = next((c for c in candidates if (c["integrator"], c["substeps"]) == current), None)
         if cur is not None and cur["meets"] and best["step_us"] > SAVING * cur["step_us"]:
             best = cur  # a saving within the timing noise is no reason to change a scene
-        rows.append({"scene": name, "id": scene.env_id, "dt": dt, "steps": steps, "episode_steps": episode, "current": {"integrator": current[0], "substeps": current[1]},
-                     "current_error": None if cur is None else cur["error"], "candidates": candidates,
-                     "recommended": None if best is None else {"integrator": best["integrator"], "substeps": best["substeps"]}, "target": target})
+        rows.append(
+            {
+                "scene": name,
+                "id": scene.env_id,
+                "dt": dt,
+                "steps": steps,
+                "episode_steps": episode,
+                "current": {"integrator": current[0], "substeps": current[1]},
+                "current_error": None if cur is None else cur["error"],
+                "candidates": candidates,
+                "recommended": None
+                if best is None
+                else {"integrator": best["integrator"], "substeps": best["substeps"]},
+                "target": target,
+            }
+        )
     return rows
 
 
@@ -528,7 +717,9 @@ def _tippe_main(args) -> int:
 
     if args.plot and plot_unavailable("rbenvs bench accuracy"):
         return 2
-    bar = Progress(tippe_accuracy.progress_total(args.quick), not args.no_progress, "bench accuracy --tippe")
+    bar = Progress(
+        tippe_accuracy.progress_total(args.quick), not args.no_progress, "bench accuracy --tippe"
+    )
     result = tippe_accuracy.run(quick=args.quick, progress=bar.update, mujoco=args.mujoco)
     bar.close()
     tippe_accuracy.print_report(result)
@@ -547,24 +738,47 @@ def _g(x, fmt=".1e"):
 def print_report(result, file=None):
     file = sys.stdout if file is None else file
     for key, info in result["cases"].items():
-        chk = "" if info["reference_check"] is None else f"; ref. check (rtol 1e-12 vs 1e-13): {info['reference_check']:.1e}"
-        print(f"\n{key}: {info['label']}; {info['states']} states; error after T = {info['horizon']:g} s against the {info['reference']}{chk}", file=file)
-        print(f"{'integrator':<10} {'order':>6} {'declared':>8} {'rhs/step':>8} {'us/step':>8}  error at h = ...", file=file)
+        chk = (
+            ""
+            if info["reference_check"] is None
+            else f"; ref. check (rtol 1e-12 vs 1e-13): {info['reference_check']:.1e}"
+        )
+        print(
+            f"\n{key}: {info['label']}; {info['states']} states; error after T = {info['horizon']:g} s against the {info['reference']}{chk}",
+            file=file,
+        )
+        print(
+            f"{'integrator':<10} {'order':>6} {'declared':>8} {'rhs/step':>8} {'us/step':>8}  error at h = ...",
+            file=file,
+        )
         for c in (c for c in result["convergence"] if c["case"] == key):
             pts = c["points"]
-            order = "round-off" if c["integrator"] == "exact" and max(p["error"] for p in pts) < 1e-12 else _g(c["order"], ".2f")
+            order = (
+                "round-off"
+                if c["integrator"] == "exact" and max(p["error"] for p in pts) < 1e-12
+                else _g(c["order"], ".2f")
+            )
             rhs = "adaptive" if c["integrator"] == "dop853" else _g(pts[0]["rhs_per_step"], "d")
             us = min(p["seconds_per_step"] for p in pts) * 1e6
             errs = "  ".join(f"{p['h']:.2e}:{p['error']:.1e}" for p in pts)
-            print(f"{c['integrator']:<10} {order:>6} {c['declared_order']:>8} {rhs:>8} {us:>8.2f}  {errs}", file=file)
+            print(
+                f"{c['integrator']:<10} {order:>6} {c['declared_order']:>8} {rhs:>8} {us:>8.2f}  {errs}",
+                file=file,
+            )
         _print_mujoco_ratios([c for c in result["convergence"] if c["case"] == key], file)
         drifts = [d for d in result["drift"] if d["case"] == key]
         names = list(drifts[0]["drift_long"])
-        print(f"drift at h = {info['drift_h']:.4g} s (largest relative change from the start)", file=file)
+        print(
+            f"drift at h = {info['drift_h']:.4g} s (largest relative change from the start)",
+            file=file,
+        )
         head = "  ".join(f"{n + ' 1e3':>13} {n + ' long':>14}" for n in names)
         print(f"{'integrator':<10} {'long steps':>10}  {head}  note", file=file)
         for d in drifts:
-            cols = "  ".join(f"{_g(d['drift_short'][n]) if d['drift_short'] else '-':>13} {_g(d['drift_long'][n]):>14}" for n in names)
+            cols = "  ".join(
+                f"{_g(d['drift_short'][n]) if d['drift_short'] else '-':>13} {_g(d['drift_long'][n]):>14}"
+                for n in names
+            )
             note = f"diverged at step {d['diverged_at']}" if d["diverged_at"] else ""
             print(f"{d['integrator']:<10} {d['long_steps']:>10.0e}  {cols}  {note}", file=file)
     if result.get("scenes"):
@@ -592,30 +806,65 @@ def _print_mujoco_ratios(rows, file):
     if not theirs:
         return
     ours = [c for c in rows if not c["integrator"].startswith("mujoco")]
-    print("cost to reach a relative error at T (CPU s per simulated s, the cheapest grid point of each side):", file=file)
+    print(
+        "cost to reach a relative error at T (CPU s per simulated s, the cheapest grid point of each side):",
+        file=file,
+    )
     for tol in COST_TARGETS:
         a, b = cheapest(ours, tol), cheapest(theirs, tol)
         if a is None or b is None:
-            print(f"  error <= {tol:.0e}: rbenvs {a[0] if a else 'none'}, MuJoCo {b[0] if b else 'none on the grid'}", file=file)
+            print(
+                f"  error <= {tol:.0e}: rbenvs {a[0] if a else 'none'}, MuJoCo {b[0] if b else 'none on the grid'}",
+                file=file,
+            )
             continue
-        print(f"  error <= {tol:.0e}: rbenvs {a[0]} {a[1]:.2e} s, MuJoCo {b[0][7:]} {b[1]:.2e} s: MuJoCo / rbenvs = {b[1] / a[1]:.1f}", file=file)
+        print(
+            f"  error <= {tol:.0e}: rbenvs {a[0]} {a[1]:.2e} s, MuJoCo {b[0][7:]} {b[1]:.2e} s: MuJoCo / rbenvs = {b[1] / a[1]:.1f}",
+            file=file,
+        )
 
 
 def print_scenes(rows, file=None):
     file = sys.stdout if file is None else file
     target = rows[0]["target"]
-    print(f"\nscenes: worst relative state error over an episode (random actions, {SCENE_SEEDS} seeds) against dop853 at rtol 1e-13; "
-          f"target {target:g}; cost = one env step (us); tippe top: first {TIPPE_HORIZON:g} s", file=file)
-    print(f"{'scene':<20} {'dt':>6} {'current':<14} {'error':>8} {'us':>7}   {'recommended':<14} {'error':>8} {'us':>7}   candidates (integrator x substeps: error)", file=file)
+    print(
+        f"\nscenes: worst relative state error over an episode (random actions, {SCENE_SEEDS} seeds) against dop853 at rtol 1e-13; "
+        f"target {target:g}; cost = one env step (us); tippe top: first {TIPPE_HORIZON:g} s",
+        file=file,
+    )
+    print(
+        f"{'scene':<20} {'dt':>6} {'current':<14} {'error':>8} {'us':>7}   {'recommended':<14} {'error':>8} {'us':>7}   candidates (integrator x substeps: error)",
+        file=file,
+    )
     for r in rows:
         cur = r["current"]
-        cur_c = next((c for c in r["candidates"] if (c["integrator"], c["substeps"]) == (cur["integrator"], cur["substeps"])), None)
+        cur_c = next(
+            (
+                c
+                for c in r["candidates"]
+                if (c["integrator"], c["substeps"]) == (cur["integrator"], cur["substeps"])
+            ),
+            None,
+        )
         rec = r["recommended"]
-        rec_c = None if rec is None else next(c for c in r["candidates"] if (c["integrator"], c["substeps"]) == (rec["integrator"], rec["substeps"]))
-        cand = ", ".join(f"{c['integrator']}x{c['substeps']}:{c['error']:.0e}" for c in r["candidates"])
-        print(f"{r['scene']:<20} {r['dt']:>6g} {cur['integrator'] + ' x' + str(cur['substeps']):<14} {_g(None if cur_c is None else cur_c['error']):>8} "
-              f"{_g(None if cur_c is None else cur_c['step_us'], '.1f'):>7}   {'none' if rec is None else rec['integrator'] + ' x' + str(rec['substeps']):<14} "
-              f"{_g(None if rec_c is None else rec_c['error']):>8} {_g(None if rec_c is None else rec_c['step_us'], '.1f'):>7}   {cand}", file=file)
+        rec_c = (
+            None
+            if rec is None
+            else next(
+                c
+                for c in r["candidates"]
+                if (c["integrator"], c["substeps"]) == (rec["integrator"], rec["substeps"])
+            )
+        )
+        cand = ", ".join(
+            f"{c['integrator']}x{c['substeps']}:{c['error']:.0e}" for c in r["candidates"]
+        )
+        print(
+            f"{r['scene']:<20} {r['dt']:>6g} {cur['integrator'] + ' x' + str(cur['substeps']):<14} {_g(None if cur_c is None else cur_c['error']):>8} "
+            f"{_g(None if cur_c is None else cur_c['step_us'], '.1f'):>7}   {'none' if rec is None else rec['integrator'] + ' x' + str(rec['substeps']):<14} "
+            f"{_g(None if rec_c is None else rec_c['error']):>8} {_g(None if rec_c is None else rec_c['step_us'], '.1f'):>7}   {cand}",
+            file=file,
+        )
 
 
 def plot(result, path):
@@ -630,8 +879,17 @@ def plot(result, path):
         raise RuntimeError("--plot needs matplotlib: pip install 'rbenvs[plot]'") from None
     keys = list(result["cases"])
     fig, axes = plt.subplots(1, len(keys), figsize=(4.2 * len(keys), 4.0), squeeze=False)
-    colors = {"euler": "C0", "rk4": "C1", "splitting": "C2", "exact": "C3", "dop853": "C4",
-              "mujoco Euler": "C5", "mujoco RK4": "C6", "mujoco implicit": "C7", "mujoco implicitfast": "C8"}
+    colors = {
+        "euler": "C0",
+        "rk4": "C1",
+        "splitting": "C2",
+        "exact": "C3",
+        "dop853": "C4",
+        "mujoco Euler": "C5",
+        "mujoco RK4": "C6",
+        "mujoco implicit": "C7",
+        "mujoco implicitfast": "C8",
+    }
     for ax, key in zip(axes[0], keys):
         for c in (c for c in result["convergence"] if c["case"] == key):
             pts = c["points"]
@@ -679,30 +937,72 @@ def _tolerance_cases():
 
 def main(argv=None) -> int:
     keys = [c.key for c in CASES]
-    parser = ArgumentParser(prog="rbenvs bench accuracy", description="Error, invariant drift, cost and order of every integrator on every system; a recommended integrator per scene.")
-    parser.add_argument("--quick", action="store_true", help="short grids and long runs of 1e4 steps; no scenes (CI)")
+    parser = ArgumentParser(
+        prog="rbenvs bench accuracy",
+        description="Error, invariant drift, cost and order of every integrator on every system; a recommended integrator per scene.",
+    )
+    parser.add_argument(
+        "--quick",
+        action="store_true",
+        help="short grids and long runs of 1e4 steps; no scenes (CI)",
+    )
     parser.add_argument("--json", metavar="PATH", help="also write every figure as JSON")
-    parser.add_argument("--plot", metavar="PATH", help="draw the work-precision figure to this PNG (needs matplotlib)")
-    parser.add_argument("--system", action="append", choices=keys, help="restrict to these cases (repeatable; default all)")
-    parser.add_argument("--scenes", action=argparse.BooleanOptionalAction, default=None, help="the per-scene recommendation (default: on, off with --quick)")
-    parser.add_argument("--mujoco", action=argparse.BooleanOptionalAction, default=True,
-                        help="MuJoCo's integrators on the free body when mujoco is installed (the mujoco extra; default: on)")
-    parser.add_argument("--tolerance", action="store_true",
-                        help="only the tolerance= table (rbenvs.bench.tolerance): per extreme and requested tolerance 1e-3, 1e-6, 1e-9, the error "
-                             "achieved against the reference, the steps taken, and the cheapest fixed substeps meeting it")
-    parser.add_argument("--case", action="append", metavar="KEY",
-                        help="with --tolerance: only these cases' rows (repeatable; default all): " + ", ".join(c.key for c in _tolerance_cases())
-                        + ", and scene:NAME for each shipped scene")
-    parser.add_argument("--roundoff", action="store_true",
-                        help="only the roundoff table (rbenvs.bench.roundoff): two rk4 runs at 200 and 400 substeps near the free body's "
-                             "intermediate axis, summed plainly and with compensation (a tolerance's), apart and against the exact solution")
-    parser.add_argument("--floor", action="store_true",
-                        help="only the float64 floor table (rbenvs.bench.floor): tolerance_check=True from 0.0001-0.01 rad/s off "
-                             "the free body's intermediate axis at 1e-8 to 1e-12, every period returned against mpmath's Taylor solution (needs mpmath)")
-    parser.add_argument("--tippe", action="store_true",
-                        help="only the tippe top's work-precision against MuJoCo (rbenvs.bench.tippe_accuracy): t90 against the slip regularisation, "
-                             "every scheme, step and fidelity level and MuJoCo's integrators and cones at several dt, cost per simulated second "
-                             "against Jellett drift and the t90 error")
+    parser.add_argument(
+        "--plot",
+        metavar="PATH",
+        help="draw the work-precision figure to this PNG (needs matplotlib)",
+    )
+    parser.add_argument(
+        "--system",
+        action="append",
+        choices=keys,
+        help="restrict to these cases (repeatable; default all)",
+    )
+    parser.add_argument(
+        "--scenes",
+        action=argparse.BooleanOptionalAction,
+        default=None,
+        help="the per-scene recommendation (default: on, off with --quick)",
+    )
+    parser.add_argument(
+        "--mujoco",
+        action=argparse.BooleanOptionalAction,
+        default=True,
+        help="MuJoCo's integrators on the free body when mujoco is installed (the mujoco extra; default: on)",
+    )
+    parser.add_argument(
+        "--tolerance",
+        action="store_true",
+        help="only the tolerance= table (rbenvs.bench.tolerance): per extreme and requested tolerance 1e-3, 1e-6, 1e-9, the error "
+        "achieved against the reference, the steps taken, and the cheapest fixed substeps meeting it",
+    )
+    parser.add_argument(
+        "--case",
+        action="append",
+        metavar="KEY",
+        help="with --tolerance: only these cases' rows (repeatable; default all): "
+        + ", ".join(c.key for c in _tolerance_cases())
+        + ", and scene:NAME for each shipped scene",
+    )
+    parser.add_argument(
+        "--roundoff",
+        action="store_true",
+        help="only the roundoff table (rbenvs.bench.roundoff): two rk4 runs at 200 and 400 substeps near the free body's "
+        "intermediate axis, summed plainly and with compensation (a tolerance's), apart and against the exact solution",
+    )
+    parser.add_argument(
+        "--floor",
+        action="store_true",
+        help="only the float64 floor table (rbenvs.bench.floor): tolerance_check=True from 0.0001-0.01 rad/s off "
+        "the free body's intermediate axis at 1e-8 to 1e-12, every period returned against mpmath's Taylor solution (needs mpmath)",
+    )
+    parser.add_argument(
+        "--tippe",
+        action="store_true",
+        help="only the tippe top's work-precision against MuJoCo (rbenvs.bench.tippe_accuracy): t90 against the slip regularisation, "
+        "every scheme, step and fidelity level and MuJoCo's integrators and cones at several dt, cost per simulated second "
+        "against Jellett drift and the t90 error",
+    )
     parser.add_argument("--no-progress", action="store_true", help="no progress on stderr")
     args = parser.parse_args(argv)
     if args.case and not args.tolerance:
@@ -728,9 +1028,16 @@ def main(argv=None) -> int:
             if key not in known:
                 parser.error(f"--case {key!r}: not a case of the --tolerance table; one of {known}")
         cases = [c for c in everything if not args.case or c.key in args.case]
-        return _table(args, "--tolerance", sum(len(c.tolerances) for c in cases), lambda progress: run_tolerance(keys=args.case, progress=progress),
-                      print_tolerance)
-    if args.plot and plot_unavailable("rbenvs bench accuracy"):  # fail before the long run, not after it
+        return _table(
+            args,
+            "--tolerance",
+            sum(len(c.tolerances) for c in cases),
+            lambda progress: run_tolerance(keys=args.case, progress=progress),
+            print_tolerance,
+        )
+    if args.plot and plot_unavailable(
+        "rbenvs bench accuracy"
+    ):  # fail before the long run, not after it
         return 2
     scenes = (not args.quick) if args.scenes is None else args.scenes
     if scenes:
@@ -740,7 +1047,11 @@ def main(argv=None) -> int:
     bar.close()
     if scenes:
         result["scenes"] = run_scenes()
-    result["settings"] = {"quick": args.quick, "target": TARGET, "fit_range": [FIT_FLOOR, FIT_CEILING]}
+    result["settings"] = {
+        "quick": args.quick,
+        "target": TARGET,
+        "fit_range": [FIT_FLOOR, FIT_CEILING],
+    }
     print_report(result)
     if args.plot:
         plot(result, args.plot)

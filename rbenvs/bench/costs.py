@@ -75,33 +75,96 @@ def _summary(tail: str) -> str:
 
 
 def main(argv=None) -> int:
-    parser = ArgumentParser(prog="rbenvs bench costs", description="The README's costs measured here: the venv's size, the main job's "
-                                     "time, the test suite's wall and CPU time (empty and filled kernel cache) and verify --quick's time")
-    parser.add_argument("--skip-tests", action="store_true", help="leave out the test suite's two runs (most of the time: the README's block says how long they took)")
-    parser.add_argument("--root", default=".", help="the repository whose tests run (default: the current folder)")
+    parser = ArgumentParser(
+        prog="rbenvs bench costs",
+        description="The README's costs measured here: the venv's size, the main job's "
+        "time, the test suite's wall and CPU time (empty and filled kernel cache) and verify --quick's time",
+    )
+    parser.add_argument(
+        "--skip-tests",
+        action="store_true",
+        help="leave out the test suite's two runs (most of the time: the README's block says how long they took)",
+    )
+    parser.add_argument(
+        "--root", default=".", help="the repository whose tests run (default: the current folder)"
+    )
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     args = parser.parse_args(argv)
     root = Path(args.root).resolve()
     if not args.skip_tests and not (root / "tests").is_dir():
-        parser.error(f"{root} has no tests/ folder: run in the repository (or --root PATH), or pass --skip-tests")
+        parser.error(
+            f"{root} has no tests/ folder: run in the repository (or --root PATH), or pass --skip-tests"
+        )
     bindir = Path(sys.executable).parent
     rows = [("venv (`sys.prefix`)", f"{folder_bytes(sys.prefix) / 1e9:.2f} GB", "")]
     scratch = tempfile.mkdtemp(prefix="rbenvs-bench-costs-")
-    bar = Progress(2 + (0 if args.skip_tests else 2), enabled=not args.no_progress, desc="bench costs")
+    bar = Progress(
+        2 + (0 if args.skip_tests else 2), enabled=not args.no_progress, desc="bench costs"
+    )
     try:
         train = shutil.which("rbenvs-train", path=str(bindir)) or "rbenvs-train"
-        wall, cpu, _ = _timed([train, "--algo", "ppo", "--scene", "default", "--seed", "0", "--out", os.path.join(scratch, "run"), "--no-progress"], cwd=scratch)
-        rows.append(("main job: `rbenvs-train --algo ppo --scene default --seed 0`", _minutes(wall), f"CPU {_minutes(cpu)}"))
+        wall, cpu, _ = _timed(
+            [
+                train,
+                "--algo",
+                "ppo",
+                "--scene",
+                "default",
+                "--seed",
+                "0",
+                "--out",
+                os.path.join(scratch, "run"),
+                "--no-progress",
+            ],
+            cwd=scratch,
+        )
+        rows.append(
+            (
+                "main job: `rbenvs-train --algo ppo --scene default --seed 0`",
+                _minutes(wall),
+                f"CPU {_minutes(cpu)}",
+            )
+        )
         bar.update()
         if not args.skip_tests:
             env = dict(os.environ, RBENVS_CACHE_DIR=os.path.join(scratch, "kernels"))
-            pytest = [sys.executable, "-m", "pytest", "-q", "-n", "auto", "--maxprocesses", "8", "-p", "no:cacheprovider"]
-            for label in ("empty kernel cache (a clean clone)", "kernel cache filled by the run before"):
+            pytest = [
+                sys.executable,
+                "-m",
+                "pytest",
+                "-q",
+                "-n",
+                "auto",
+                "--maxprocesses",
+                "8",
+                "-p",
+                "no:cacheprovider",
+            ]
+            for label in (
+                "empty kernel cache (a clean clone)",
+                "kernel cache filled by the run before",
+            ):
                 wall, cpu, tail = _timed(pytest, cwd=root, env=env)
-                rows.append((f"test suite, {label}", _minutes(wall), f"CPU {_minutes(cpu)}; {_summary(tail)}"))
+                rows.append(
+                    (
+                        f"test suite, {label}",
+                        _minutes(wall),
+                        f"CPU {_minutes(cpu)}; {_summary(tail)}",
+                    )
+                )
                 bar.update()
         rbenvs = shutil.which("rbenvs", path=str(bindir)) or "rbenvs"
-        wall, cpu, _ = _timed([rbenvs, "verify", "--quick", "--no-progress", "--json", os.path.join(scratch, "verify.json")], cwd=scratch)
+        wall, cpu, _ = _timed(
+            [
+                rbenvs,
+                "verify",
+                "--quick",
+                "--no-progress",
+                "--json",
+                os.path.join(scratch, "verify.json"),
+            ],
+            cwd=scratch,
+        )
         rows.append(("`rbenvs verify --quick`", _minutes(wall), f"CPU {_minutes(cpu)}"))
         bar.update()
     except RuntimeError as exc:
@@ -110,7 +173,9 @@ def main(argv=None) -> int:
     finally:
         bar.close()
         shutil.rmtree(scratch, ignore_errors=True)
-    print(f"What the README's two commands cost on this machine ({os.cpu_count()} cores, {platform.machine()}); each step a new process, run once.\n")
+    print(
+        f"What the README's two commands cost on this machine ({os.cpu_count()} cores, {platform.machine()}); each step a new process, run once.\n"
+    )
     print("| what | wall time / size | also |")
     print("|---|---:|---|")
     for what, figure, also in rows:

@@ -64,7 +64,15 @@ def run(levels=LEVELS, repeat=5, progress: bool = False) -> list[dict]:
 
         reset_s = _best(lambda: env.reset(seed=0), repeat)
         step_s = (_best(block, repeat) - reset_s) / BLOCK
-        rows.append({"level": label, "components": system.dim, "rhs_us": rhs_s * 1e6, "internal_steps": substeps, "env_step_us": step_s * 1e6})
+        rows.append(
+            {
+                "level": label,
+                "components": system.dim,
+                "rhs_us": rhs_s * 1e6,
+                "internal_steps": substeps,
+                "env_step_us": step_s * 1e6,
+            }
+        )
         bar.update()
     bar.close()
     peer = rows[0]["env_step_us"]
@@ -75,7 +83,11 @@ def run(levels=LEVELS, repeat=5, progress: bool = False) -> list[dict]:
 
 def main(progress: bool = True) -> int:
     rows = run(progress=progress)
-    print(f"{'level':<18} {'components':>10} {'rhs us':>8} {'internal steps':>15} {'env step us':>12} {'vs gliding':>11}")
+    print(
+        f"{'level':<18} {'components':>10} {'rhs us':>8} {'internal steps':>15} {'env step us':>12} {'vs gliding':>11}"
+    )
     for r in rows:
-        print(f"{r['level']:<18} {r['components']:>10d} {r['rhs_us']:>8.2f} {r['internal_steps']:>15d} {r['env_step_us']:>12.1f} {r['vs_gliding']:>11.3f}")
+        print(
+            f"{r['level']:<18} {r['components']:>10d} {r['rhs_us']:>8.2f} {r['internal_steps']:>15d} {r['env_step_us']:>12.1f} {r['vs_gliding']:>11.3f}"
+        )
     return 0

@@ -29,7 +29,13 @@ __all__ = ["INERTIA", "SPIN", "OFF", "TOLERANCES", "PERIODS", "run_floor", "prin
 INERTIA = (2.0, 1.5, 1.0)
 SPIN = 5.0  # |Omega| about the intermediate axis [rad/s]
 OFF = (1e-4, 3e-4, 1e-3, 1e-2)  # the start's Omega_1 [rad/s] (Omega_3 = 0.7 of it)
-TOLERANCES = (1e-8, 1e-9, 1e-10, 1e-11, 1e-12)  # (down to rbenvs.stepsize.controller.TOLERANCE_FLOOR)
+TOLERANCES = (
+    1e-8,
+    1e-9,
+    1e-10,
+    1e-11,
+    1e-12,
+)  # (down to rbenvs.stepsize.controller.TOLERANCE_FLOOR)
 PERIODS = 400  # the free body's episode (20 s)
 # an error below this is roundoff of the comparison itself, not of the run (the estimate/error column)
 ERROR_FLOOR = 1e-13
@@ -40,9 +46,19 @@ def _episode(w, tol, reference):
     from ..envs import FreeRigidBodyEnv
 
     with warnings.catch_warnings():
-        warnings.simplefilter("ignore")  # (the unstable-motion warning, the ended episode's: measured here)
-        env = FreeRigidBodyEnv(inertia=INERTIA, axis=0, max_torque=0.0, integrator="rk4", max_angular_velocity=10.0 * SPIN, tolerance=tol,
-                               tolerance_horizon=PERIODS, tolerance_check=True)
+        warnings.simplefilter(
+            "ignore"
+        )  # (the unstable-motion warning, the ended episode's: measured here)
+        env = FreeRigidBodyEnv(
+            inertia=INERTIA,
+            axis=0,
+            max_torque=0.0,
+            integrator="rk4",
+            max_angular_velocity=10.0 * SPIN,
+            tolerance=tol,
+            tolerance_horizon=PERIODS,
+            tolerance_check=True,
+        )
         env.reset(seed=0, options={"state": {"angular_momentum": np.array(INERTIA) * np.array(w)}})
         a = np.zeros(env.action_space.shape, np.float32)
         worst, ratio, steps, end = 0.0, np.inf, 0, None
@@ -53,7 +69,10 @@ def _episode(w, tol, reference):
             if terminated:
                 end = k + 1
                 break
-            err = float(np.linalg.norm(np.subtract(env.state_components, reference[k])) / np.linalg.norm(reference[k]))
+            err = float(
+                np.linalg.norm(np.subtract(env.state_components, reference[k]))
+                / np.linalg.norm(reference[k])
+            )
             worst = max(worst, err)
             if err > ERROR_FLOOR:
                 ratio = min(ratio, info["global_error_estimate"] / err)
@@ -67,7 +86,9 @@ def run_floor(progress=None) -> dict:
     rows = []
     for off in OFF:
         w = (off, SPIN, 0.7 * off)
-        reference = taylor_solution(INERTIA, np.array(INERTIA) * np.array(w), [0.05 * (k + 1) for k in range(PERIODS)])
+        reference = taylor_solution(
+            INERTIA, np.array(INERTIA) * np.array(w), [0.05 * (k + 1) for k in range(PERIODS)]
+        )
         for tol in TOLERANCES:
             rows.append({"off": off, "tolerance": tol, **_episode(w, tol, reference)})
             if progress:
@@ -77,13 +98,28 @@ def run_floor(progress=None) -> dict:
 
 def print_floor(result, file=None) -> None:
     rows = result["rows"]
-    print(f"tolerance_check near the separatrix: body {INERTIA}, {SPIN:g} rad/s about the intermediate axis, {PERIODS} periods, rk4; "
-          "error against mpmath's Taylor solution (32 digits) on every period returned", file=file)
-    print(f"{'off axis':>9} {'tolerance':>10} {'end':>5} {'worst / tol':>12} {'estimate / error':>17} {'steps':>9}", file=file)
+    print(
+        f"tolerance_check near the separatrix: body {INERTIA}, {SPIN:g} rad/s about the intermediate axis, {PERIODS} periods, rk4; "
+        "error against mpmath's Taylor solution (32 digits) on every period returned",
+        file=file,
+    )
+    print(
+        f"{'off axis':>9} {'tolerance':>10} {'end':>5} {'worst / tol':>12} {'estimate / error':>17} {'steps':>9}",
+        file=file,
+    )
     for r in rows:
         end = "-" if r["end"] is None else str(r["end"])
         ratio = "-" if not np.isfinite(r["ratio"]) else f"{r['ratio']:.2f}"
-        print(f"{r['off']:>9g} {r['tolerance']:>10g} {end:>5} {r['worst'] / r['tolerance']:>12.2f} {ratio:>17} {r['steps']:>9}", file=file)
+        print(
+            f"{r['off']:>9g} {r['tolerance']:>10g} {end:>5} {r['worst'] / r['tolerance']:>12.2f} {ratio:>17} {r['steps']:>9}",
+            file=file,
+        )
     outside = [r for r in rows if r["worst"] > r["tolerance"]]
-    print(f"within the tolerance on every period returned: {len(rows) - len(outside)} of {len(rows)}"
-          + "".join(f"; outside: {r['off']:g} off at {r['tolerance']:g}, {r['worst'] / r['tolerance']:.2f} times" for r in outside), file=file)
+    print(
+        f"within the tolerance on every period returned: {len(rows) - len(outside)} of {len(rows)}"
+        + "".join(
+            f"; outside: {r['off']:g} off at {r['tolerance']:g}, {r['worst'] / r['tolerance']:.2f} times"
+            for r in outside
+        ),
+        file=file,
+    )

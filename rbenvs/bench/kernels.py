@@ -68,12 +68,29 @@ def run(sizes=(1, 16, 256, 4096), seed=0, progress: bool = False) -> list[dict]:
         ours = _time(lambda: rk4.step(system, y, u, h))
         peer = _time(lambda: _cross_rk4(inertia_arr, pi, tau, h))
         # same numbers: the two kernels agree to round-off
-        diff = float(np.max(np.abs(np.array(rk4.step(system, y, u, h)).reshape(3, -1).T - _cross_rk4(inertia_arr, pi, tau, h))))
-        row = {"n": n, "components_us": ours * 1e6, "cross_n3_us": peer * 1e6, "ratio": peer / ours, "max_abs_difference": diff}
+        diff = float(
+            np.max(
+                np.abs(
+                    np.array(rk4.step(system, y, u, h)).reshape(3, -1).T
+                    - _cross_rk4(inertia_arr, pi, tau, h)
+                )
+            )
+        )
+        row = {
+            "n": n,
+            "components_us": ours * 1e6,
+            "cross_n3_us": peer * 1e6,
+            "ratio": peer / ours,
+            "max_abs_difference": diff,
+        }
         if available():
             step, params = rk4.kernel_step(system)
             advance = physics_kernel(step, 3, 3)
-            Y, U, Ynew = np.ascontiguousarray(pi.T), tuple(np.ascontiguousarray(tau.T)), np.empty((3, n))
+            Y, U, Ynew = (
+                np.ascontiguousarray(pi.T),
+                tuple(np.ascontiguousarray(tau.T)),
+                np.empty((3, n)),
+            )
             advance(Y, Ynew, U, h, 1, params)  # compiles on the first call
             row["compiled_us"] = _time(lambda: advance(Y, Ynew, U, h, 1, params)) * 1e6
             want = np.array(rk4.step(system, tuple(Y), U, h)).reshape(3, -1)

@@ -61,9 +61,17 @@ def main(argv=None) -> int:
 
     import rbenvs  # (registers the ids)
 
-    parser = ArgumentParser(prog="rbenvs bench render", description="Milliseconds per rgb_array frame (480x480) for every system, "
-                                     f"beside {PEER}'s pygame frame (same run)")
-    parser.add_argument("--frames", type=int, default=100, help="frames per env and round, their median taken (default: %(default)s)")
+    parser = ArgumentParser(
+        prog="rbenvs bench render",
+        description="Milliseconds per rgb_array frame (480x480) for every system, "
+        f"beside {PEER}'s pygame frame (same run)",
+    )
+    parser.add_argument(
+        "--frames",
+        type=int,
+        default=100,
+        help="frames per env and round, their median taken (default: %(default)s)",
+    )
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     args = parser.parse_args(argv)
     if args.frames < 1:
@@ -83,15 +91,21 @@ def main(argv=None) -> int:
         for env_id, env in envs.items():
             render, both = frame_ms(env, args.frames, rng)
             old = best.get(env_id)
-            best[env_id] = (render, both) if old is None else (min(old[0], render), min(old[1], both))
+            best[env_id] = (
+                (render, both) if old is None else (min(old[0], render), min(old[1], both))
+            )
             bar.update()
     bar.close()
     shapes = {env_id: env.render().shape for env_id, env in envs.items()}
     for env in envs.values():
         env.close()
     peer = best.get(PEER)
-    print(f"Milliseconds per rgb_array frame: median over {args.frames} frames along an episode under random actions, best of {ROUNDS} rounds; "
-          f"ratio: over {PEER}'s frame" + ("" if peer else f" ({PEER} not measured: pygame is not installed)") + ".\n")
+    print(
+        f"Milliseconds per rgb_array frame: median over {args.frames} frames along an episode under random actions, best of {ROUNDS} rounds; "
+        f"ratio: over {PEER}'s frame"
+        + ("" if peer else f" ({PEER} not measured: pygame is not installed)")
+        + ".\n"
+    )
     print("| env | frame | render (ms) | step + render (ms) | / Pendulum |")
     print("|---|---|---:|---:|---:|")
     for env_id, (render, both) in best.items():

@@ -23,7 +23,17 @@ import warnings
 
 import numpy as np
 
-__all__ = ["INERTIA", "SPIN", "OFF", "STARTS", "PERIODS", "COARSE", "FINE", "run_roundoff", "print_roundoff"]
+__all__ = [
+    "INERTIA",
+    "SPIN",
+    "OFF",
+    "STARTS",
+    "PERIODS",
+    "COARSE",
+    "FINE",
+    "run_roundoff",
+    "print_roundoff",
+]
 
 INERTIA = (2.0, 1.5, 1.0)
 SPIN = 5.0  # |Omega| about the intermediate axis [rad/s]
@@ -38,16 +48,27 @@ def _run(w, substeps: int, tolerance):
     from ..envs import FreeRigidBodyEnv
 
     with warnings.catch_warnings():
-        warnings.simplefilter("ignore")  # (the unstable-motion warning: this is the motion measured)
-        env = FreeRigidBodyEnv(inertia=INERTIA, axis=0, max_torque=0.0, integrator="rk4", max_angular_velocity=10.0 * SPIN, substeps=substeps,
-                               tolerance=tolerance)
+        warnings.simplefilter(
+            "ignore"
+        )  # (the unstable-motion warning: this is the motion measured)
+        env = FreeRigidBodyEnv(
+            inertia=INERTIA,
+            axis=0,
+            max_torque=0.0,
+            integrator="rk4",
+            max_angular_velocity=10.0 * SPIN,
+            substeps=substeps,
+            tolerance=tolerance,
+        )
     env.reset(seed=0, options={"state": {"angular_momentum": np.array(INERTIA) * np.array(w)}})
     a = np.zeros(env.action_space.shape, np.float32)
     out = []
     for _ in range(PERIODS):
         _, _, _, _, info = env.step(a)
         if info["internal_step"] != env.dt / substeps:
-            raise RuntimeError(f"the guard took {env.dt / info['internal_step']:.0f} steps, not the {substeps} substeps")
+            raise RuntimeError(
+                f"the guard took {env.dt / info['internal_step']:.0f} steps, not the {substeps} substeps"
+            )
         out.append(env.state_components)
     return np.array(out), env.dt
 
@@ -68,7 +89,9 @@ def run_roundoff(progress=None) -> dict:
                 apart.append(float(np.max(np.linalg.norm(coarse - fine, axis=1) / scale)))
                 if w not in exact:
                     pi0 = np.array(INERTIA) * np.array(w)
-                    exact[w] = np.array([exact_solution(INERTIA, pi0, (k + 1) * dt) for k in range(PERIODS)])
+                    exact[w] = np.array(
+                        [exact_solution(INERTIA, pi0, (k + 1) * dt) for k in range(PERIODS)]
+                    )
                 to_exact.append(float(np.max(np.linalg.norm(exact[w] - fine, axis=1) / scale)))
                 if progress:
                     progress()
@@ -77,10 +100,18 @@ def run_roundoff(progress=None) -> dict:
 
 
 def print_roundoff(result, file=None) -> None:
-    print(f"roundoff near the intermediate axis: body {INERTIA}, {SPIN:g} rad/s, {PERIODS} periods, rk4; {STARTS} starts per distance "
-          f"(min to max); plain: fixed substeps, no tolerance; compensated: tolerance={COMPENSATED_TOLERANCE:g} (its counts are the substeps)",
-          file=file)
-    print(f"{'off axis':>9} {'sum':>12} {f'{COARSE} vs {FINE} substeps':>22} {f'{FINE} vs exact':>22}", file=file)
+    print(
+        f"roundoff near the intermediate axis: body {INERTIA}, {SPIN:g} rad/s, {PERIODS} periods, rk4; {STARTS} starts per distance "
+        f"(min to max); plain: fixed substeps, no tolerance; compensated: tolerance={COMPENSATED_TOLERANCE:g} (its counts are the substeps)",
+        file=file,
+    )
+    print(
+        f"{'off axis':>9} {'sum':>12} {f'{COARSE} vs {FINE} substeps':>22} {f'{FINE} vs exact':>22}",
+        file=file,
+    )
     for r in result["rows"]:
         span = lambda v: f"{min(v):.1e} to {max(v):.1e}"  # noqa: E731
-        print(f"{r['off']:>9g} {r['mode']:>12} {span(r['apart']):>22} {span(r['exact']):>22}", file=file)
+        print(
+            f"{r['off']:>9g} {r['mode']:>12} {span(r['apart']):>22} {span(r['exact']):>22}",
+            file=file,
+        )

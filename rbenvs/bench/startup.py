@@ -35,7 +35,11 @@ from ..progress import Progress
 
 __all__ = ["main", "SYSTEMS", "VECTOR_ENVS"]
 
-SYSTEMS = (("free_body", "rbenvs/FreeRigidBody-v0"), ("heavy_top", "rbenvs/LagrangeTop-v0"), ("tippe_top", "rbenvs/TippeTop-v0"))
+SYSTEMS = (
+    ("free_body", "rbenvs/FreeRigidBody-v0"),
+    ("heavy_top", "rbenvs/LagrangeTop-v0"),
+    ("tippe_top", "rbenvs/TippeTop-v0"),
+)
 VECTOR_ENVS = 64
 ASYNC_WORKERS = 4
 
@@ -109,7 +113,12 @@ def _compile_bytecode() -> None:
     import rbenvs
 
     folder = os.path.dirname(rbenvs.__file__)
-    subprocess.run([sys.executable, "-m", "compileall", "-q", folder], env=_environment(), capture_output=True, timeout=600)
+    subprocess.run(
+        [sys.executable, "-m", "compileall", "-q", folder],
+        env=_environment(),
+        capture_output=True,
+        timeout=600,
+    )
 
 
 def _run(source: str, args: list, cache: str | None, script_dir: str | None = None) -> dict:
@@ -125,7 +134,9 @@ def _run(source: str, args: list, cache: str | None, script_dir: str | None = No
         cmd = [sys.executable, "-c", source, *map(str, args)]
     out = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=1800)
     if out.returncode != 0:
-        raise RuntimeError(f"bench startup: {' '.join(map(str, args))} failed:\n{out.stderr[-2000:]}")
+        raise RuntimeError(
+            f"bench startup: {' '.join(map(str, args))} failed:\n{out.stderr[-2000:]}"
+        )
     return json.loads(out.stdout.strip().splitlines()[-1])
 
 
@@ -135,23 +146,47 @@ def _mujoco_installed() -> bool:
     return importlib.util.find_spec("mujoco") is not None
 
 
-def _row(label: str, kind: str, cold: dict | None, warm: list[dict], reference: float | None) -> str:
-    w = {k: statistics.median(r[k] for r in warm) for k in ("import", "make", "reset", "step", "total")}
+def _row(
+    label: str, kind: str, cold: dict | None, warm: list[dict], reference: float | None
+) -> str:
+    w = {
+        k: statistics.median(r[k] for r in warm)
+        for k in ("import", "make", "reset", "step", "total")
+    }
     cold_total = f"{cold['total']:.2f}" if cold is not None else "-"
     kernels = ""
     if cold is not None and cold["stats"]:
         kernels = f"{cold['stats'].get('compiled', 0)}/{warm[0]['stats'].get('loaded', 0)}"
     ratio = f"{w['total'] / reference:.1f}" if reference else "-"
-    return (f"| {label} | {kind} | {cold_total} | {w['import']:.2f} | {w['make']:.2f} | {w['reset']:.3f} | {w['step']:.3f} | **{w['total']:.2f}** | "
-            f"{ratio} | {kernels} |")
+    return (
+        f"| {label} | {kind} | {cold_total} | {w['import']:.2f} | {w['make']:.2f} | {w['reset']:.3f} | {w['step']:.3f} | **{w['total']:.2f}** | "
+        f"{ratio} | {kernels} |"
+    )
 
 
 def main(argv=None) -> int:
-    parser = ArgumentParser(prog="rbenvs bench startup", description="Seconds from a fresh process to its first step: each system's single env and "
-                                     f"vector env at {VECTOR_ENVS}, cold and warm kernel cache, beside Pendulum-v1, CartPole-v1's vector env and MuJoCo (same run)")
-    parser.add_argument("--system", action="append", choices=[s for s, _ in SYSTEMS], help="restrict to these systems (repeatable; default all)")
-    parser.add_argument("--repeat", type=int, default=3, help="warm processes per row, their median taken (default: %(default)s)")
-    parser.add_argument("--no-async", action="store_true", help=f"skip the AsyncVectorEnv(context='spawn') rows ({ASYNC_WORKERS} workers each)")
+    parser = ArgumentParser(
+        prog="rbenvs bench startup",
+        description="Seconds from a fresh process to its first step: each system's single env and "
+        f"vector env at {VECTOR_ENVS}, cold and warm kernel cache, beside Pendulum-v1, CartPole-v1's vector env and MuJoCo (same run)",
+    )
+    parser.add_argument(
+        "--system",
+        action="append",
+        choices=[s for s, _ in SYSTEMS],
+        help="restrict to these systems (repeatable; default all)",
+    )
+    parser.add_argument(
+        "--repeat",
+        type=int,
+        default=3,
+        help="warm processes per row, their median taken (default: %(default)s)",
+    )
+    parser.add_argument(
+        "--no-async",
+        action="store_true",
+        help=f"skip the AsyncVectorEnv(context='spawn') rows ({ASYNC_WORKERS} workers each)",
+    )
     parser.add_argument("--json", metavar="PATH", help="also write the figures as JSON")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     args = parser.parse_args(argv)
@@ -160,11 +195,16 @@ def main(argv=None) -> int:
     systems = [(s, i) for s, i in SYSTEMS if not args.system or s in args.system]
     mujoco = _mujoco_installed()
     n_rows = 2 * len(systems) + 2 + mujoco
-    bar = Progress(n_rows * (1 + args.repeat) + (0 if args.no_async else len(systems)), enabled=not args.no_progress, desc="bench startup")
+    bar = Progress(
+        n_rows * (1 + args.repeat) + (0 if args.no_async else len(systems)),
+        enabled=not args.no_progress,
+        desc="bench startup",
+    )
     results: dict = {}
     root = tempfile.mkdtemp(prefix="rbenvs-bench-startup-")
     _compile_bytecode()
     try:
+
         def measure(key, source, argv_, cache):
             # an empty cache of its own, then the same cache warm (peers: no cache, no cold row)
             cold = _run(source, argv_, cache) if cache is not None else None
@@ -176,7 +216,9 @@ def main(argv=None) -> int:
             results[key] = {"cold": cold, "warm": warm}
 
         measure(("Pendulum-v1", "single"), _PROCESS, ["Pendulum-v1", 0], None)
-        measure(("CartPole-v1", f"vector {VECTOR_ENVS}"), _PROCESS, ["CartPole-v1", VECTOR_ENVS], None)
+        measure(
+            ("CartPole-v1", f"vector {VECTOR_ENVS}"), _PROCESS, ["CartPole-v1", VECTOR_ENVS], None
+        )
         if mujoco:
             measure(("MuJoCo (XML model)", "single"), _MUJOCO, [], None)
         for name, env_id in systems:
@@ -186,25 +228,50 @@ def main(argv=None) -> int:
         if not args.no_async:
             for name, env_id in systems:
                 cache = os.path.join(root, f"{name}-0")  # warm: the single env's kernels
-                spawn[env_id] = _run(_ASYNC, [env_id, ASYNC_WORKERS], cache, script_dir=root)["reset"]
+                spawn[env_id] = _run(_ASYNC, [env_id, ASYNC_WORKERS], cache, script_dir=root)[
+                    "reset"
+                ]
                 bar.update()
     finally:
         shutil.rmtree(root, ignore_errors=True)
         bar.close()
     reference = statistics.median(r["total"] for r in results[("Pendulum-v1", "single")]["warm"])
-    print(f"Seconds from a fresh process to its first step (import gymnasium and the package, make, reset, one step); warm: median of {args.repeat} "
-          "processes on the kernel cache the cold process filled; ratio: warm total over Pendulum-v1's; kernels: compiled cold / loaded warm.\n")
-    print("| env | kind | cold total | import | make | reset | first step | warm total | / Pendulum | kernels |")
+    print(
+        f"Seconds from a fresh process to its first step (import gymnasium and the package, make, reset, one step); warm: median of {args.repeat} "
+        "processes on the kernel cache the cold process filled; ratio: warm total over Pendulum-v1's; kernels: compiled cold / loaded warm.\n"
+    )
+    print(
+        "| env | kind | cold total | import | make | reset | first step | warm total | / Pendulum | kernels |"
+    )
     print("|---|---|---:|---:|---:|---:|---:|---:|---:|---:|")
     for (label, kind), r in results.items():
-        print(_row(label if not label.startswith("rbenvs/") else f"`{label}`", kind, r["cold"], r["warm"], reference if label != "Pendulum-v1" else None))
+        print(
+            _row(
+                label if not label.startswith("rbenvs/") else f"`{label}`",
+                kind,
+                r["cold"],
+                r["warm"],
+                reference if label != "Pendulum-v1" else None,
+            )
+        )
     if spawn:
-        print(f"\ngymnasium's AsyncVectorEnv(context=\"spawn\") with {ASYNC_WORKERS} workers, warm cache: seconds until reset returns\n")
+        print(
+            f'\ngymnasium\'s AsyncVectorEnv(context="spawn") with {ASYNC_WORKERS} workers, warm cache: seconds until reset returns\n'
+        )
         print("| id | reset returned |")
         print("|---|---:|")
         for env_id, seconds in spawn.items():
             print(f"| `{env_id}` | {seconds:.2f} |")
     if args.json:
         with open(args.json, "w") as f:
-            json.dump({"rows": [{"env": label, "kind": kind, **r} for (label, kind), r in results.items()], "async_spawn": spawn}, f, indent=1)
+            json.dump(
+                {
+                    "rows": [
+                        {"env": label, "kind": kind, **r} for (label, kind), r in results.items()
+                    ],
+                    "async_spawn": spawn,
+                },
+                f,
+                indent=1,
+            )
     return 0

@@ -26,7 +26,14 @@ import numpy as np
 from .. import ENVIRONMENTS
 from ..extras import ArgumentParser
 from ..progress import Progress
-from .throughput import ALTERNATIONS, Peers, counting_stepper, random_actions, stagger_clocks, timed_counting
+from .throughput import (
+    ALTERNATIONS,
+    Peers,
+    counting_stepper,
+    random_actions,
+    stagger_clocks,
+    timed_counting,
+)
 
 __all__ = ["main", "run_threads", "trajectory_digest"]
 
@@ -41,7 +48,9 @@ def _make(env_id: str, n: int, threads, **kwargs):
 
     import rbenvs  # noqa: F401  (registers the ids)
 
-    return gym.make_vec(env_id, num_envs=n, vectorization_mode="vector_entry_point", num_threads=threads, **kwargs)
+    return gym.make_vec(
+        env_id, num_envs=n, vectorization_mode="vector_entry_point", num_threads=threads, **kwargs
+    )
 
 
 def trajectory_digest(env_id: str, n: int, threads, steps: int = BITS_STEPS, seed: int = 0) -> str:
@@ -50,13 +59,31 @@ def trajectory_digest(env_id: str, n: int, threads, steps: int = BITS_STEPS, see
     digest = hashlib.sha256(env.reset(seed=seed)[0].tobytes())
     for a in random_actions(env.action_space, seed, steps):
         obs, reward, terminated, truncated, info = env.step(a)
-        for x in (obs, reward, terminated, truncated, *(info[k] for k in sorted(info) if isinstance(info[k], np.ndarray) and info[k].dtype != object)):
+        for x in (
+            obs,
+            reward,
+            terminated,
+            truncated,
+            *(
+                info[k]
+                for k in sorted(info)
+                if isinstance(info[k], np.ndarray) and info[k].dtype != object
+            ),
+        ):
             digest.update(np.ascontiguousarray(x).tobytes())
     env.close()
     return digest.hexdigest()
 
 
-def run_threads(num_envs: int = NUM_ENVS, counts=None, min_time: float = 0.2, repeat: int = 3, budget: float = 1.0, ids=IDS, progress=None) -> list[dict]:
+def run_threads(
+    num_envs: int = NUM_ENVS,
+    counts=None,
+    min_time: float = 0.2,
+    repeat: int = 3,
+    budget: float = 1.0,
+    ids=IDS,
+    progress=None,
+) -> list[dict]:
     """One row per id and thread count (``counts``: 1, 2 and every usable core by default)."""
     from ..vector.threads import usable_cores
 
@@ -73,14 +100,26 @@ def run_threads(num_envs: int = NUM_ENVS, counts=None, min_time: float = 0.2, re
         best = dict.fromkeys(counts, float("inf"))
         for _ in range(ALTERNATIONS):
             for t, (step, count) in steppers.items():
-                best[t] = min(best[t], timed_counting(step, count, min_time, repeat, budget)["seconds"])
+                best[t] = min(
+                    best[t], timed_counting(step, count, min_time, repeat, budget)["seconds"]
+                )
         cartpole = peers.cartpole_rate(num_envs)["env_steps_per_s"]
         reference = trajectory_digest(env_id, num_envs, counts[0])
         for t in counts:
             rate = num_envs / best[t]
-            rows.append({"id": env_id, "num_envs": num_envs, "threads": t, "env_steps_per_s": rate, "speedup": best[counts[0]] / best[t],
-                         "cartpole_env_steps_per_s": cartpole, "ratio_to_cartpole": rate / cartpole,
-                         "same_bits": t == counts[0] or trajectory_digest(env_id, num_envs, t) == reference})
+            rows.append(
+                {
+                    "id": env_id,
+                    "num_envs": num_envs,
+                    "threads": t,
+                    "env_steps_per_s": rate,
+                    "speedup": best[counts[0]] / best[t],
+                    "cartpole_env_steps_per_s": cartpole,
+                    "ratio_to_cartpole": rate / cartpole,
+                    "same_bits": t == counts[0]
+                    or trajectory_digest(env_id, num_envs, t) == reference,
+                }
+            )
         if progress is not None:
             progress()
     peers.close()
@@ -88,10 +127,23 @@ def run_threads(num_envs: int = NUM_ENVS, counts=None, min_time: float = 0.2, re
 
 
 def main(argv=None) -> int:
-    parser = ArgumentParser(prog="rbenvs bench threads", description="The vector env's env-steps per second with num_threads 1, 2 and every "
-                                     "usable core, against CartPole-v1's native vector env at the same size, and whether the bits agree.")
-    parser.add_argument("--num-envs", type=int, default=NUM_ENVS, metavar="N", help="sub-envs of each vector env (default: %(default)s)")
-    parser.add_argument("--threads", metavar="LIST", help="comma-separated thread counts (default: 1, 2 and every usable core)")
+    parser = ArgumentParser(
+        prog="rbenvs bench threads",
+        description="The vector env's env-steps per second with num_threads 1, 2 and every "
+        "usable core, against CartPole-v1's native vector env at the same size, and whether the bits agree.",
+    )
+    parser.add_argument(
+        "--num-envs",
+        type=int,
+        default=NUM_ENVS,
+        metavar="N",
+        help="sub-envs of each vector env (default: %(default)s)",
+    )
+    parser.add_argument(
+        "--threads",
+        metavar="LIST",
+        help="comma-separated thread counts (default: 1, 2 and every usable core)",
+    )
     parser.add_argument("--json", metavar="PATH", help="also write the figures as JSON")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     args = parser.parse_args(argv)
@@ -107,17 +159,23 @@ def main(argv=None) -> int:
     bar.close()
     from ..vector.threads import usable_cores
 
-    print(f"Vector env at N = {args.num_envs}, random actions, staggered clocks; {usable_cores()} usable cores; speedup: over the first row's rate; "
-          "bits: the same observations, rewards, ends and info as the first row's, byte for byte.\n")
+    print(
+        f"Vector env at N = {args.num_envs}, random actions, staggered clocks; {usable_cores()} usable cores; speedup: over the first row's rate; "
+        "bits: the same observations, rewards, ends and info as the first row's, byte for byte.\n"
+    )
     from ..vector.threads import launch_us
 
     layer, launch = launch_us(max(2, max(r["threads"] for r in rows)))
-    print(f"numba's threading layer: {layer}; a parallel region of empty chunks (a split step runs two): {launch:.1f} us.\n")
+    print(
+        f"numba's threading layer: {layer}; a parallel region of empty chunks (a split step runs two): {launch:.1f} us.\n"
+    )
     print("| id | threads | env-steps/s | speedup | CartPole-v1/s | ratio | bits |")
     print("|---|---:|---:|---:|---:|---:|---|")
     for r in rows:
-        print(f"| `{r['id']}` | {r['threads']} | {r['env_steps_per_s']:.4g} | {r['speedup']:.2f} | {r['cartpole_env_steps_per_s']:.4g} | "
-              f"{r['ratio_to_cartpole']:.3f} | {'same' if r['same_bits'] else 'DIFFER'} |")
+        print(
+            f"| `{r['id']}` | {r['threads']} | {r['env_steps_per_s']:.4g} | {r['speedup']:.2f} | {r['cartpole_env_steps_per_s']:.4g} | "
+            f"{r['ratio_to_cartpole']:.3f} | {'same' if r['same_bits'] else 'DIFFER'} |"
+        )
     if args.json:
         with open(args.json, "w") as f:
             json.dump(rows, f, indent=1)

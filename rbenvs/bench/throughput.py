@@ -97,8 +97,24 @@ from ..extras import ArgumentParser
 from ..progress import Progress
 
 __all__ = [
-    "run_tasks", "task_settings", "measure_setting", "kernel_time", "stagger_clocks", "random_actions", "counting_stepper", "print_tasks",
-    "run_single", "run_vector", "run_scaling", "run_sb3", "run_check", "print_check", "timed", "timed_budget", "episode_stepper", "main",
+    "run_tasks",
+    "task_settings",
+    "measure_setting",
+    "kernel_time",
+    "stagger_clocks",
+    "random_actions",
+    "counting_stepper",
+    "print_tasks",
+    "run_single",
+    "run_vector",
+    "run_scaling",
+    "run_sb3",
+    "run_check",
+    "print_check",
+    "timed",
+    "timed_budget",
+    "episode_stepper",
+    "main",
 ]
 
 SIZES = (1, 16, 256, 4096)
@@ -111,11 +127,11 @@ SYSTEMS = (
 LARGEST = {"dop853": 256, "exact": 4096}
 
 
-
 def _accuracy(integrator: str) -> dict:
     """Euler runs unchecked (``tolerance=None``): the default accuracy refuses a scheme whose
     error it cannot estimate; every other scheme runs at its default."""
     return {"tolerance": None} if integrator == "euler" else {}
+
 
 def timed(fn, min_time: float, repeat: int) -> float:
     """Best seconds per call of ``fn`` over ``repeat`` rounds of at least ``min_time``."""
@@ -198,13 +214,23 @@ def run_single(systems=SYSTEMS, min_time=0.2, repeat=5, progress=None, budget=No
                 if k < rounds:
                     t_ours = min(t_ours, timed(ours, min_time / repeat, 1))
                 t_pend = min(t_pend, timed(p_step, min_time / repeat, 1))
-            rows.append({"id": env_id, "integrator": integ, "step_us": t_ours * 1e6, "pendulum_step_us": t_pend * 1e6, "ratio_to_pendulum": t_ours / t_pend})
+            rows.append(
+                {
+                    "id": env_id,
+                    "integrator": integ,
+                    "step_us": t_ours * 1e6,
+                    "pendulum_step_us": t_pend * 1e6,
+                    "ratio_to_pendulum": t_ours / t_pend,
+                }
+            )
             if progress:
                 progress()
     return rows
 
 
-def run_vector(systems=SYSTEMS, sizes=SIZES, min_time=0.2, repeat=3, progress=None, budget=None) -> list[dict]:
+def run_vector(
+    systems=SYSTEMS, sizes=SIZES, min_time=0.2, repeat=3, progress=None, budget=None
+) -> list[dict]:
     """The vector env per system, integrator and N against CartPole-v1's (constant action).
     ``budget`` (seconds): where one step outlasts ``min_time``, fewer rounds (:func:`timed_budget`)."""
     import gymnasium as gym
@@ -222,7 +248,9 @@ def run_vector(systems=SYSTEMS, sizes=SIZES, min_time=0.2, repeat=3, progress=No
     # (id, integrator, info read-outs, compiled): every combination on the path it takes by
     # default; the free body with rk4 also on the numpy path (the compiled kernel's
     # justification, measured) and without info's physical read-outs
-    combos = [(env_id, integ, True, "auto") for env_id, integrators in systems for integ in integrators]
+    combos = [
+        (env_id, integ, True, "auto") for env_id, integrators in systems for integ in integrators
+    ]
     for env_id, integrators in systems:
         if env_id == SYSTEMS[0][0] and "rk4" in integrators:
             # (without numba the default rows are the numpy path already)
@@ -232,8 +260,15 @@ def run_vector(systems=SYSTEMS, sizes=SIZES, min_time=0.2, repeat=3, progress=No
         for n in sizes:
             if n > LARGEST.get(integ, max(sizes)):
                 continue
-            venv = gym.make_vec(env_id, num_envs=n, vectorization_mode="vector_entry_point", integrator=integ, info_readouts=readouts, compiled=compiled,
-                                **_accuracy(integ))
+            venv = gym.make_vec(
+                env_id,
+                num_envs=n,
+                vectorization_mode="vector_entry_point",
+                integrator=integ,
+                info_readouts=readouts,
+                compiled=compiled,
+                **_accuracy(integ),
+            )
             path = "compiled" if venv.unwrapped.compiled else "numpy"
             venv.reset(seed=0)
             a = np.zeros(venv.action_space.shape, dtype=np.float32)
@@ -243,8 +278,18 @@ def run_vector(systems=SYSTEMS, sizes=SIZES, min_time=0.2, repeat=3, progress=No
                 t = timed_budget(lambda: venv.step(a), min_time, repeat, budget)
             rate = n / t
             label = integ if readouts else f"{integ}, lean info"
-            rows.append({"id": env_id, "integrator": label, "path": path, "num_envs": n, "env_steps_per_s": rate, "ns_per_env_step": 1e9 * t / n,
-                         "cartpole_env_steps_per_s": cart_rate[n], "ratio_to_cartpole": rate / cart_rate[n]})
+            rows.append(
+                {
+                    "id": env_id,
+                    "integrator": label,
+                    "path": path,
+                    "num_envs": n,
+                    "env_steps_per_s": rate,
+                    "ns_per_env_step": 1e9 * t / n,
+                    "cartpole_env_steps_per_s": cart_rate[n],
+                    "ratio_to_cartpole": rate / cart_rate[n],
+                }
+            )
             venv.close()
             if progress:
                 progress()
@@ -266,15 +311,27 @@ def run_scaling(sizes=SCALING_SIZES, min_time=0.2, repeat=3, progress=None) -> l
     rows = []
     for compiled in ([True] if available() else []) + [False]:
         for n in sizes:
-            venv = gym.make_vec(env_id, num_envs=n, vectorization_mode="vector_entry_point", compiled=compiled)
+            venv = gym.make_vec(
+                env_id, num_envs=n, vectorization_mode="vector_entry_point", compiled=compiled
+            )
             venv.reset(seed=0)
             a = np.zeros(venv.action_space.shape, dtype=np.float32)
             obs, reward, terminated, truncated, info = venv.step(a)
             state = sum(v.nbytes for v in venv.unwrapped.get_state().values())
-            arrays = [obs, reward, terminated, truncated, a] + [v for v in info.values() if isinstance(v, np.ndarray)]
+            arrays = [obs, reward, terminated, truncated, a] + [
+                v for v in info.values() if isinstance(v, np.ndarray)
+            ]
             moved = 2 * state + sum(x.nbytes for x in arrays)
             t = timed(lambda: venv.step(a), min_time, repeat)
-            rows.append({"path": "compiled" if compiled else "numpy", "num_envs": n, "ns_per_env_step": 1e9 * t / n, "bytes_per_env_step": moved / n, "megabytes_per_step": moved / 1e6})
+            rows.append(
+                {
+                    "path": "compiled" if compiled else "numpy",
+                    "num_envs": n,
+                    "ns_per_env_step": 1e9 * t / n,
+                    "bytes_per_env_step": moved / n,
+                    "megabytes_per_step": moved / 1e6,
+                }
+            )
             venv.close()
             if progress:
                 progress()
@@ -301,15 +358,27 @@ def run_sb3(sizes=(16, 256), min_time=0.2, repeat=3) -> list[dict]:
             a = np.zeros((n,) + venv.action_space.shape, dtype=np.float32)
             rates.append(n / timed(lambda: venv.step(a), min_time, repeat))
             venv.close()
-        rows.append({"id": env_id, "num_envs": n, "sb3_native_env_steps_per_s": rates[0], "sb3_dummy_env_steps_per_s": rates[1], "ratio": rates[0] / rates[1]})
+        rows.append(
+            {
+                "id": env_id,
+                "num_envs": n,
+                "sb3_native_env_steps_per_s": rates[0],
+                "sb3_dummy_env_steps_per_s": rates[1],
+                "ratio": rates[0] / rates[1],
+            }
+        )
     return rows
 
 
 CHECK_TOLERANCE = 1e-6
 CHECK_NUM_ENVS = (8, 256)
 # (label, id, scene or None): the check table's settings
-CHECK_SETTINGS = (("free body", "rbenvs/FreeRigidBody-v0", None), ("heavy top", "rbenvs/LagrangeTop-v0", None), ("tippe top", "rbenvs/TippeTop-v0", None),
-                  ("scene tippe_hop", None, "tippe_hop"))
+CHECK_SETTINGS = (
+    ("free body", "rbenvs/FreeRigidBody-v0", None),
+    ("heavy top", "rbenvs/LagrangeTop-v0", None),
+    ("tippe top", "rbenvs/TippeTop-v0", None),
+    ("scene tippe_hop", None, "tippe_hop"),
+)
 
 
 def _checked_env(env_id, scene, vector: int = 0, **kw):
@@ -330,11 +399,15 @@ def _checked_env(env_id, scene, vector: int = 0, **kw):
             loaded = load_scene(scene)
             env_id, kw = loaded.env_id, dict(loaded.kwargs, **kw)
         if vector:
-            return gym.make_vec(env_id, num_envs=vector, vectorization_mode="vector_entry_point", **kw)
+            return gym.make_vec(
+                env_id, num_envs=vector, vectorization_mode="vector_entry_point", **kw
+            )
         return gym.make(env_id, **kw)
 
 
-def run_check(settings=CHECK_SETTINGS, min_time=0.2, repeat=3, budget=1.0, progress=None) -> list[dict]:
+def run_check(
+    settings=CHECK_SETTINGS, min_time=0.2, repeat=3, budget=1.0, progress=None
+) -> list[dict]:
     """The ``check`` table: per setting, one single-env step (us) without ``tolerance_check``,
     with it compiled and with it on floats, Pendulum-v1 timed after each; the vector env's
     env-steps/s at each N of :data:`CHECK_NUM_ENVS` without the check and with it (runs compiled,
@@ -342,11 +415,16 @@ def run_check(settings=CHECK_SETTINGS, min_time=0.2, repeat=3, budget=1.0, progr
     peers = Peers(min_time, repeat)
     rows = []
     with warnings.catch_warnings():
-        warnings.simplefilter("ignore")  # (the hopping top's check ends episodes: NumericalFailureWarning)
+        warnings.simplefilter(
+            "ignore"
+        )  # (the hopping top's check ends episodes: NumericalFailureWarning)
         for label, env_id, scene in settings:
             row = {"setting": label}
-            for key, kw in (("plain_us", dict(tolerance_check=False)), ("check_us", dict(tolerance_check=True)),
-                            ("check_floats_us", dict(tolerance_check=True, compiled=False))):
+            for key, kw in (
+                ("plain_us", dict(tolerance_check=False)),
+                ("check_us", dict(tolerance_check=True)),
+                ("check_floats_us", dict(tolerance_check=True, compiled=False)),
+            ):
                 env = _checked_env(env_id, scene, **kw)
                 env.reset(seed=0)
                 zero = np.zeros(env.action_space.shape, dtype=np.float32)
@@ -360,8 +438,14 @@ def run_check(settings=CHECK_SETTINGS, min_time=0.2, repeat=3, budget=1.0, progr
             row["vector"] = []
             for size in CHECK_NUM_ENVS:
                 vrow = {"num_envs": size}
-                for key, compiled, check in (("plain", "auto", False), ("check", "auto", True), ("check_numpy", False, True)):
-                    venv = _checked_env(env_id, scene, vector=size, tolerance_check=check, compiled=compiled)
+                for key, compiled, check in (
+                    ("plain", "auto", False),
+                    ("check", "auto", True),
+                    ("check_numpy", False, True),
+                ):
+                    venv = _checked_env(
+                        env_id, scene, vector=size, tolerance_check=check, compiled=compiled
+                    )
                     venv.reset(seed=0)
                     action = np.zeros(venv.action_space.shape, dtype=np.float32)
                     venv.step(action)
@@ -378,21 +462,37 @@ def run_check(settings=CHECK_SETTINGS, min_time=0.2, repeat=3, budget=1.0, progr
 
 
 def print_check(rows) -> None:
-    print(f"\ntolerance_check=True in time: rk4, tolerance={CHECK_TOLERANCE:g}, zero action; one step of the single env (us) without the check, "
-          "with it (its runs compiled) and with it on floats (compiled=False), against Pendulum-v1 (timed after each, same run)")
-    print(f"{'setting':<18} {'no check':>9} {'check':>9} {'floats':>10} {'floats/check':>12} {'check/Pendulum':>14}")
+    print(
+        f"\ntolerance_check=True in time: rk4, tolerance={CHECK_TOLERANCE:g}, zero action; one step of the single env (us) without the check, "
+        "with it (its runs compiled) and with it on floats (compiled=False), against Pendulum-v1 (timed after each, same run)"
+    )
+    print(
+        f"{'setting':<18} {'no check':>9} {'check':>9} {'floats':>10} {'floats/check':>12} {'check/Pendulum':>14}"
+    )
     for r in rows:
-        print(f"{r['setting']:<18} {r['plain_us']:>9.1f} {r['check_us']:>9.1f} {r['check_floats_us']:>10.1f} {r['check_floats_us'] / r['check_us']:>12.1f} "
-              f"{r['check_us'] / r['pendulum_check_us']:>14.1f}")
-    print("vector env (env-steps/s): without the check (compiled), with it (its runs compiled, one loop over the sub-envs) and with "
-          "it on numpy (compiled=False), against CartPole-v1's vector env at the same N (timed after each, same run)")
-    print(f"{'setting':<18} {'num_envs':>8} {'no check':>11} {'check':>11} {'numpy':>11} {'check/numpy':>12} {'CartPole':>11} "
-          f"{'CartPole/no check':>17} {'CartPole/check':>14}")
+        print(
+            f"{r['setting']:<18} {r['plain_us']:>9.1f} {r['check_us']:>9.1f} {r['check_floats_us']:>10.1f} {r['check_floats_us'] / r['check_us']:>12.1f} "
+            f"{r['check_us'] / r['pendulum_check_us']:>14.1f}"
+        )
+    print(
+        "vector env (env-steps/s): without the check (compiled), with it (its runs compiled, one loop over the sub-envs) and with "
+        "it on numpy (compiled=False), against CartPole-v1's vector env at the same N (timed after each, same run)"
+    )
+    print(
+        f"{'setting':<18} {'num_envs':>8} {'no check':>11} {'check':>11} {'numpy':>11} {'check/numpy':>12} {'CartPole':>11} "
+        f"{'CartPole/no check':>17} {'CartPole/check':>14}"
+    )
     for r in rows:
         for v in r["vector"]:
-            p, c, n = v["plain_env_steps_per_s"], v["check_env_steps_per_s"], v["check_numpy_env_steps_per_s"]
+            p, c, n = (
+                v["plain_env_steps_per_s"],
+                v["check_env_steps_per_s"],
+                v["check_numpy_env_steps_per_s"],
+            )
             cart_p, cart = v["cartpole_plain"], v["cartpole_check"]
-            print(f"{r['setting']:<18} {v['num_envs']:>8d} {p:>11.4g} {c:>11.4g} {n:>11.4g} {c / n:>12.1f} {cart:>11.4g} {cart_p / p:>17.4g} {cart / c:>14.4g}")
+            print(
+                f"{r['setting']:<18} {v['num_envs']:>8d} {p:>11.4g} {c:>11.4g} {n:>11.4g} {c / n:>12.1f} {cart:>11.4g} {cart_p / p:>17.4g} {cart / c:>14.4g}"
+            )
 
 
 def compiled_speedup(vector_rows) -> list[tuple[int, float]]:
@@ -401,7 +501,11 @@ def compiled_speedup(vector_rows) -> list[tuple[int, float]]:
     for r in vector_rows:
         if r["integrator"] == "rk4" and r["id"] == SYSTEMS[0][0]:
             by_path[(r["path"], r["num_envs"])] = r["env_steps_per_s"]
-    return [(n, by_path[("compiled", n)] / by_path[("numpy", n)]) for (p, n) in sorted(by_path) if p == "compiled" and ("numpy", n) in by_path]
+    return [
+        (n, by_path[("compiled", n)] / by_path[("numpy", n)])
+        for (p, n) in sorted(by_path)
+        if p == "compiled" and ("numpy", n) in by_path
+    ]
 
 
 # ------------------------------------------------------------------------------ task table
@@ -444,7 +548,15 @@ def task_settings(only: str | None = None, scenes: bool = True) -> tuple[list[di
     notes, out = [], []
     for env_id in rbenvs.ENVIRONMENTS:
         for task in env_class(env_id).tasks:
-            out.append({"setting": f"{_short(env_id)} {task}", "id": env_id, "task": task, "scene": None, "kwargs": {"task": task}})
+            out.append(
+                {
+                    "setting": f"{_short(env_id)} {task}",
+                    "id": env_id,
+                    "task": task,
+                    "scene": None,
+                    "kwargs": {"task": task},
+                }
+            )
     if scenes:
         from ..extras import MissingExtra
         from ..scenes import list_scenes, load_scene
@@ -458,7 +570,15 @@ def task_settings(only: str | None = None, scenes: bool = True) -> tuple[list[di
         if scenes and not loaded and not notes:
             notes.append("named scenes skipped: none found")
         for s in loaded:
-            out.append({"setting": f"scene {s.name}", "id": s.env_id, "task": s.kwargs.get("task"), "scene": s.name, "kwargs": dict(s.kwargs)})
+            out.append(
+                {
+                    "setting": f"scene {s.name}",
+                    "id": s.env_id,
+                    "task": s.kwargs.get("task"),
+                    "scene": s.name,
+                    "kwargs": dict(s.kwargs),
+                }
+            )
     out = [s for s in out if _matches(only, s["setting"], s["id"], s["task"], s["scene"])]
     return out, notes
 
@@ -512,7 +632,10 @@ def stagger_clocks(venv, seed: int = 0) -> bool:
     if not limit:
         venv.reset(seed=seed)
         return False
-    venv.reset(seed=seed, options={"elapsed_steps": np.random.default_rng(seed).integers(0, limit, venv.num_envs)})
+    venv.reset(
+        seed=seed,
+        options={"elapsed_steps": np.random.default_rng(seed).integers(0, limit, venv.num_envs)},
+    )
     return True
 
 
@@ -522,7 +645,12 @@ def no_kernel_reason(env_id: str, kwargs: dict) -> str:
     import gymnasium as gym
 
     try:
-        venv = gym.make_vec(env_id, num_envs=1, vectorization_mode="vector_entry_point", **(kwargs | {"compiled": True}))
+        venv = gym.make_vec(
+            env_id,
+            num_envs=1,
+            vectorization_mode="vector_entry_point",
+            **(kwargs | {"compiled": True}),
+        )
     except ValueError as exc:
         return str(exc).removeprefix("compiled=True but ")
     venv.close()
@@ -547,16 +675,24 @@ def kernel_time(venv, action, min_time: float, repeat: int, budget: float | None
     saved = [np.array(c, copy=True) for c in before]
     Y = np.stack(before)
     Y_saved = Y.copy()
-    columns = tuple(np.ascontiguousarray(np.clip(np.asarray(action, dtype=np.float64), -1.0, 1.0).T))
+    columns = tuple(
+        np.ascontiguousarray(np.clip(np.asarray(action, dtype=np.float64), -1.0, 1.0).T)
+    )
     u_norm, u = env.model.actuator.control(columns)
 
     def full(cs):  # (n,) float64 arrays, as the env hands the kernel
-        return tuple(np.ascontiguousarray(np.broadcast_to(np.asarray(c, dtype=np.float64), (n,))) for c in cs)
+        return tuple(
+            np.ascontiguousarray(np.broadcast_to(np.asarray(c, dtype=np.float64), (n,))) for c in cs
+        )
 
     u, u_norm = full(u), full(u_norm)
     h, substeps = env.engine.h, env.engine.substeps
-    check = not getattr(env.engine, "plain", True)  # the guard per sub-env where the env runs one, as the env calls it
-    if check and env.engine.gated(before) is not None:  # (the default accuracy's gate holds every state: the env's periods are plain)
+    check = not getattr(
+        env.engine, "plain", True
+    )  # the guard per sub-env where the env runs one, as the env calls it
+    if (
+        check and env.engine.gated(before) is not None
+    ):  # (the default accuracy's gate holds every state: the env's periods are plain)
         check = False
 
     def call():
@@ -573,7 +709,13 @@ def kernel_time(venv, action, min_time: float, repeat: int, budget: float | None
         and np.array_equal(Y, Y_saved)
         and not any(np.shares_memory(out[0], c) for c in (Y, *after))
     )
-    return {"seconds": t, "ns_per_env_step": 1e9 * t / n, "bad": int(out[1]), "check": check, "state_unchanged": bool(unchanged)}
+    return {
+        "seconds": t,
+        "ns_per_env_step": 1e9 * t / n,
+        "bad": int(out[1]),
+        "check": check,
+        "state_unchanged": bool(unchanged),
+    }
 
 
 class Peers:
@@ -615,8 +757,19 @@ class Peers:
             cart.close()
 
 
-def measure_setting(setting: dict, peers: Peers, num_envs: int, min_time: float, repeat: int, budget: float, stagger: bool = True,
-                    slow_step_s: float | None = None, slow_num_envs: int | None = None, seed: int = 0, progress=None) -> dict:
+def measure_setting(
+    setting: dict,
+    peers: Peers,
+    num_envs: int,
+    min_time: float,
+    repeat: int,
+    budget: float,
+    stagger: bool = True,
+    slow_step_s: float | None = None,
+    slow_num_envs: int | None = None,
+    seed: int = 0,
+    progress=None,
+) -> dict:
     """One row of the task table (see the module docstring); ``progress()`` is called four
     times (single env, zero action, random actions, then the kernel and numpy path).
     ``stagger=False`` leaves the headline random-action run's clocks together too."""
@@ -646,7 +799,11 @@ def measure_setting(setting: dict, peers: Peers, num_envs: int, min_time: float,
                 t_ours = min(t_ours, timed(ours, min_time / max(repeat, 2), 1))
             t_pend = min(t_pend, timed(peers.pendulum_step, min_time / max(repeat, 2), 1))
     env.close()
-    row.update(single_step_us=t_ours * 1e6, pendulum_step_us=t_pend * 1e6, single_ratio_to_pendulum=t_ours / t_pend)
+    row.update(
+        single_step_us=t_ours * 1e6,
+        pendulum_step_us=t_pend * 1e6,
+        single_ratio_to_pendulum=t_ours / t_pend,
+    )
     tick()
     # -- vector env: zero action from a fresh reset, then random actions with ends
     n = num_envs
@@ -679,27 +836,59 @@ def measure_setting(setting: dict, peers: Peers, num_envs: int, min_time: float,
             cart = c_ if cart is None or c_["env_steps_per_s"] > cart["env_steps_per_s"] else cart
         rate = cart["env_steps_per_s"]
         row.update(
-            random_env_steps_per_s=random["rate"], random_ns_per_env_step=1e9 / random["rate"], episode_ends=random["ends"],
-            episode_ends_total=random["ends_total"], random_calls_timed=random["calls"], clocks_staggered=random["staggered"],
-            cartpole_env_steps_per_s=rate, cartpole_episode_ends=cart["episode_ends"], ratio_to_cartpole=random["rate"] / rate,
-            zero_ratio_to_cartpole=row["zero_env_steps_per_s"] / rate, sync_random_env_steps_per_s=sync["rate"], sync_episode_ends=sync["ends"],
-            sync_random_calls_timed=sync["calls"], sync_ratio_to_cartpole=sync["rate"] / rate,
+            random_env_steps_per_s=random["rate"],
+            random_ns_per_env_step=1e9 / random["rate"],
+            episode_ends=random["ends"],
+            episode_ends_total=random["ends_total"],
+            random_calls_timed=random["calls"],
+            clocks_staggered=random["staggered"],
+            cartpole_env_steps_per_s=rate,
+            cartpole_episode_ends=cart["episode_ends"],
+            ratio_to_cartpole=random["rate"] / rate,
+            zero_ratio_to_cartpole=row["zero_env_steps_per_s"] / rate,
+            sync_random_env_steps_per_s=sync["rate"],
+            sync_episode_ends=sync["ends"],
+            sync_random_calls_timed=sync["calls"],
+            sync_ratio_to_cartpole=sync["rate"] / rate,
         )
         tick()
         # -- the kernel alone on the states the random run left, then the numpy path
-        row.update(kernel_ns_per_env_step=None, gap=None, gap_zero=None, kernel_state_unchanged=None, kernel_bad=None, kernel_guard_checked=None, no_kernel_reason=None,
-                   numpy_random_env_steps_per_s=None, numpy_episode_ends=None, compiled_over_numpy=None)
+        row.update(
+            kernel_ns_per_env_step=None,
+            gap=None,
+            gap_zero=None,
+            kernel_state_unchanged=None,
+            kernel_bad=None,
+            kernel_guard_checked=None,
+            no_kernel_reason=None,
+            numpy_random_env_steps_per_s=None,
+            numpy_episode_ends=None,
+            compiled_over_numpy=None,
+        )
         if compiled:
             k = kernel_time(venv, actions[0], min_time, repeat, budget)
-            row.update(kernel_ns_per_env_step=k["ns_per_env_step"], gap=row["random_ns_per_env_step"] / k["ns_per_env_step"],
-                       gap_zero=row["zero_ns_per_env_step"] / k["ns_per_env_step"], kernel_state_unchanged=k["state_unchanged"], kernel_bad=k["bad"],
-                       kernel_guard_checked=k["check"])
+            row.update(
+                kernel_ns_per_env_step=k["ns_per_env_step"],
+                gap=row["random_ns_per_env_step"] / k["ns_per_env_step"],
+                gap_zero=row["zero_ns_per_env_step"] / k["ns_per_env_step"],
+                kernel_state_unchanged=k["state_unchanged"],
+                kernel_bad=k["bad"],
+                kernel_guard_checked=k["check"],
+            )
             venv.close()
-            numpy_env = gym.make_vec(env_id, num_envs=n, vectorization_mode="vector_entry_point", **(kwargs | {"compiled": False}))
+            numpy_env = gym.make_vec(
+                env_id,
+                num_envs=n,
+                vectorization_mode="vector_entry_point",
+                **(kwargs | {"compiled": False}),
+            )
             numpy_random = _random_rate(numpy_env, actions, min_time, repeat, budget, stagger, seed)
             numpy_env.close()
-            row.update(numpy_random_env_steps_per_s=numpy_random["rate"], numpy_episode_ends=numpy_random["ends"],
-                       compiled_over_numpy=random["rate"] / numpy_random["rate"])
+            row.update(
+                numpy_random_env_steps_per_s=numpy_random["rate"],
+                numpy_episode_ends=numpy_random["ends"],
+                compiled_over_numpy=random["rate"] / numpy_random["rate"],
+            )
         else:
             venv.close()
             row["no_kernel_reason"] = no_kernel_reason(env_id, kwargs)
@@ -719,11 +908,28 @@ def _random_rate(venv, actions, min_time, repeat, budget, stagger, seed) -> dict
     step, count = counting_stepper(venv, actions)
     step()  # a kernel compiles on its first call: not timed
     best = timed_counting(step, count, min_time, repeat, budget)
-    return {"rate": n / best["seconds"], "ends": best["ends"], "ends_total": best["ends_total"], "calls": best["calls"], "staggered": staggered}
+    return {
+        "rate": n / best["seconds"],
+        "ends": best["ends"],
+        "ends_total": best["ends_total"],
+        "calls": best["calls"],
+        "staggered": staggered,
+    }
 
 
-def run_tasks(settings=None, num_envs: int = TASK_NUM_ENVS, min_time: float = 0.2, repeat: int = 3, budget: float = 1.0, only: str | None = None,
-              stagger: bool = True, slow_step_s: float | None = None, slow_num_envs: int | None = None, seed: int = 0, progress=None) -> tuple[list[dict], list[str]]:
+def run_tasks(
+    settings=None,
+    num_envs: int = TASK_NUM_ENVS,
+    min_time: float = 0.2,
+    repeat: int = 3,
+    budget: float = 1.0,
+    only: str | None = None,
+    stagger: bool = True,
+    slow_step_s: float | None = None,
+    slow_num_envs: int | None = None,
+    seed: int = 0,
+    progress=None,
+) -> tuple[list[dict], list[str]]:
     """The task table: ``(rows, notes)``, one row per setting (default: :func:`task_settings`
     with ``only``), each measured by :func:`measure_setting` against the same peers."""
     import rbenvs  # noqa: F401  (registers the ids)
@@ -732,7 +938,22 @@ def run_tasks(settings=None, num_envs: int = TASK_NUM_ENVS, min_time: float = 0.
     if settings is None:
         settings, notes = task_settings(only)
     peers = Peers(min_time, repeat, seed)
-    rows = [measure_setting(s, peers, num_envs, min_time, repeat, budget, stagger, slow_step_s, slow_num_envs, seed, progress) for s in settings]
+    rows = [
+        measure_setting(
+            s,
+            peers,
+            num_envs,
+            min_time,
+            repeat,
+            budget,
+            stagger,
+            slow_step_s,
+            slow_num_envs,
+            seed,
+            progress,
+        )
+        for s in settings
+    ]
     peers.close()
     return rows, notes
 
@@ -744,17 +965,33 @@ def _g(x, fmt=".3g"):
 def print_tasks(rows, notes) -> None:
     """The task table, its footnotes (why a setting has no kernel) and the scenes' arguments."""
     ns = sorted({r["num_envs"] for r in rows})
-    clocks = "episode clocks spread over max_episode_steps" if all(r["clocks_staggered"] for r in rows) else "episode clocks NOT spread: see the note below"
+    clocks = (
+        "episode clocks spread over max_episode_steps"
+        if all(r["clocks_staggered"] for r in rows)
+        else "episode clocks NOT spread: see the note below"
+    )
     print("tasks: every (id, task) at its defaults and every named scene")
-    print("  single: one step of gymnasium.make against Pendulum-v1 (zero action; us, interleaved, same run)")
-    print(f"  vector: make_vec at N = {', '.join(map(str, ns)) or '-'}; env-steps/s with zero action, and with seeded random actions in [-1, 1]")
+    print(
+        "  single: one step of gymnasium.make against Pendulum-v1 (zero action; us, interleaved, same run)"
+    )
+    print(
+        f"  vector: make_vec at N = {', '.join(map(str, ns)) or '-'}; env-steps/s with zero action, and with seeded random actions in [-1, 1]"
+    )
     print(f"          ({clocks}; 'ends': episode ends in the timed window, resets included),")
-    print("          that rate over CartPole-v1's native vector env (random actions) at the same N, same run;")
-    print("          sync/s: the same actions from reset, every episode clock together (restarts all at once, at the limit);")
-    print("          numpy/s and c/np: the same env with compiled=False; kernel: the compiled BatchStep alone")
+    print(
+        "          that rate over CartPole-v1's native vector env (random actions) at the same N, same run;"
+    )
+    print(
+        "          sync/s: the same actions from reset, every episode clock together (restarts all at once, at the limit);"
+    )
+    print(
+        "          numpy/s and c/np: the same env with compiled=False; kernel: the compiled BatchStep alone"
+    )
     print("          (ns per env-step), gap = env time per env-step (random actions) / kernel time")
     w = max([25] + [len(r["setting"]) + 1 for r in rows])
-    print(f"{'setting':<{w}} {'single us':>9} {'/Pend':>6} {'N':>5} {'path':<8} {'zero/s':>9} {'random/s':>9} {'ends':>6} {'/Cart':>6} {'sync/s':>9} {'/Cart':>6} {'numpy/s':>9} {'c/np':>5} {'kernel ns':>9} {'gap':>6}")
+    print(
+        f"{'setting':<{w}} {'single us':>9} {'/Pend':>6} {'N':>5} {'path':<8} {'zero/s':>9} {'random/s':>9} {'ends':>6} {'/Cart':>6} {'sync/s':>9} {'/Cart':>6} {'numpy/s':>9} {'c/np':>5} {'kernel ns':>9} {'gap':>6}"
+    )
     reasons = {}
     for r in rows:
         kernel, gap = _g(r["kernel_ns_per_env_step"], ".2f"), _g(r["gap"], ".2f")
@@ -763,55 +1000,95 @@ def print_tasks(rows, notes) -> None:
             kernel = f"-[{mark}]"
         if r["kernel_state_unchanged"] is False:
             kernel += "!"
-        print(f"{r['setting']:<{w}} {r['single_step_us']:>9.2f} {r['single_ratio_to_pendulum']:>6.3f} {r['num_envs']:>5d} {r['path']:<8} "
-              f"{r['zero_env_steps_per_s']:>9.3g} {r['random_env_steps_per_s']:>9.3g} {r['episode_ends']:>6d} {r['ratio_to_cartpole']:>6.3f} "
-              f"{r['sync_random_env_steps_per_s']:>9.3g} {r['sync_ratio_to_cartpole']:>6.3f} "
-              f"{_g(r['numpy_random_env_steps_per_s']):>9} {_g(r['compiled_over_numpy'], '.2f'):>5} {kernel:>9} {gap:>6}")
+        print(
+            f"{r['setting']:<{w}} {r['single_step_us']:>9.2f} {r['single_ratio_to_pendulum']:>6.3f} {r['num_envs']:>5d} {r['path']:<8} "
+            f"{r['zero_env_steps_per_s']:>9.3g} {r['random_env_steps_per_s']:>9.3g} {r['episode_ends']:>6d} {r['ratio_to_cartpole']:>6.3f} "
+            f"{r['sync_random_env_steps_per_s']:>9.3g} {r['sync_ratio_to_cartpole']:>6.3f} "
+            f"{_g(r['numpy_random_env_steps_per_s']):>9} {_g(r['compiled_over_numpy'], '.2f'):>5} {kernel:>9} {gap:>6}"
+        )
     if rows:
         pend = min(r["pendulum_step_us"] for r in rows)
         carts = {}
         for r in rows:
             carts.setdefault(r["num_envs"], []).append(r["cartpole_env_steps_per_s"])
-        print(f"peers: Pendulum-v1 step {pend:.2f} us (best of the run); CartPole-v1 vector env (measured beside each row) " + ", ".join(
-            f"{min(c):.3g}-{max(c):.3g}/s at N = {n}" for n, c in sorted(carts.items())))
+        print(
+            f"peers: Pendulum-v1 step {pend:.2f} us (best of the run); CartPole-v1 vector env (measured beside each row) "
+            + ", ".join(f"{min(c):.3g}-{max(c):.3g}/s at N = {n}" for n, c in sorted(carts.items()))
+        )
     for reason, mark in reasons.items():
         which = ", ".join(r["setting"] for r in rows if r["no_kernel_reason"] == reason)
         print(f"[{mark}] no compiled step ({which}): {reason}")
     if any(r["kernel_state_unchanged"] is False for r in rows):
         print("! the kernel call changed the env's state (it must write new arrays only)")
     if any(r["kernel_bad"] for r in rows if r["kernel_bad"] is not None):
-        print("kernel: non-finite new states in " + ", ".join(r["setting"] for r in rows if r["kernel_bad"]))
+        print(
+            "kernel: non-finite new states in "
+            + ", ".join(r["setting"] for r in rows if r["kernel_bad"])
+        )
     small = [r["setting"] for r in rows if r["num_envs"] < max(ns)]
     if small:
         print(f"at N = {min(ns)} (a slow single step, --quick): " + ", ".join(small))
     unspread = [r["setting"] for r in rows if not r["clocks_staggered"]]
     if unspread:
-        print("episode clocks not spread (not asked, or the env keeps no per-sub-env step count or has no time limit): " + ", ".join(unspread))
+        print(
+            "episode clocks not spread (not asked, or the env keeps no per-sub-env step count or has no time limit): "
+            + ", ".join(unspread)
+        )
     for note in notes:
         print(note)
     scenes = [r for r in rows if r["scene"]]
     if scenes:
         print("scenes:")
         for r in scenes:
-            print(f"  {r['scene']}: {r['id']} " + ", ".join(f"{k}={v}" for k, v in r["kwargs"].items()))
+            print(
+                f"  {r['scene']}: {r['id']} "
+                + ", ".join(f"{k}={v}" for k, v in r["kwargs"].items())
+            )
 
 
 TABLES = ("tasks", "integrators", "scaling", "sb3", "check")
-QUICK_TABLES = ("tasks", "sb3")  # --quick: a smoke run well under a minute (the kernels' compilation is most of it)
+QUICK_TABLES = (
+    "tasks",
+    "sb3",
+)  # --quick: a smoke run well under a minute (the kernels' compilation is most of it)
 
 
 def main(argv=None) -> int:
-    parser = ArgumentParser(prog="rbenvs bench throughput", description="Env-steps per second against Pendulum-v1 and CartPole-v1's native vector env: "
-                                     "every (id, task) and named scene, with the compiled kernel's time beside (the gap to the limit), then per integrator.")
+    parser = ArgumentParser(
+        prog="rbenvs bench throughput",
+        description="Env-steps per second against Pendulum-v1 and CartPole-v1's native vector env: "
+        "every (id, task) and named scene, with the compiled kernel's time beside (the gap to the limit), then per integrator.",
+    )
     parser.add_argument("--json", metavar="PATH", help="also write the figures as JSON")
-    parser.add_argument("--quick", action="store_true", help=f"shorter timings: the task table at N = {QUICK_NUM_ENVS} (slow settings at {QUICK_SLOW_NUM_ENVS}) "
-                        "and the SB3 rows by default; an integrator table asked for with --tables at sizes 1 and 256; never the scaling table")
-    parser.add_argument("--num-envs", type=int, metavar="N", help=f"task table: sub-envs of the vector env (default: {TASK_NUM_ENVS}, {QUICK_NUM_ENVS} with --quick)")
-    parser.add_argument("--only", metavar="SUBSTRING", help="only the rows whose id, task, scene name or integrator contains SUBSTRING (any case)")
-    parser.add_argument("--tables", metavar="LIST", help=f"comma-separated tables to run, of {', '.join(TABLES)} (default: all; with --quick: {','.join(QUICK_TABLES)})")
+    parser.add_argument(
+        "--quick",
+        action="store_true",
+        help=f"shorter timings: the task table at N = {QUICK_NUM_ENVS} (slow settings at {QUICK_SLOW_NUM_ENVS}) "
+        "and the SB3 rows by default; an integrator table asked for with --tables at sizes 1 and 256; never the scaling table",
+    )
+    parser.add_argument(
+        "--num-envs",
+        type=int,
+        metavar="N",
+        help=f"task table: sub-envs of the vector env (default: {TASK_NUM_ENVS}, {QUICK_NUM_ENVS} with --quick)",
+    )
+    parser.add_argument(
+        "--only",
+        metavar="SUBSTRING",
+        help="only the rows whose id, task, scene name or integrator contains SUBSTRING (any case)",
+    )
+    parser.add_argument(
+        "--tables",
+        metavar="LIST",
+        help=f"comma-separated tables to run, of {', '.join(TABLES)} (default: all; with --quick: {','.join(QUICK_TABLES)})",
+    )
     parser.add_argument("--no-progress", action="store_true", help="no progress on stderr")
     args = parser.parse_args(argv)
-    tables = [t.strip() for t in (args.tables or ",".join(QUICK_TABLES if args.quick else TABLES)).split(",") if t.strip()]
+    tables = [
+        t.strip()
+        for t in (args.tables or ",".join(QUICK_TABLES if args.quick else TABLES)).split(",")
+        if t.strip()
+    ]
     unknown = [t for t in tables if t not in TABLES]
     if unknown:
         raise ValueError(f"--tables: unknown table {unknown[0]!r}; choose from {', '.join(TABLES)}")
@@ -829,26 +1106,60 @@ def main(argv=None) -> int:
     do_scaling = "scaling" in tables and not args.quick and _matches(only, free, "rk4")
     do_sb3 = "sb3" in tables and _matches(only, free, "rk4")
     settings, notes = task_settings(only) if "tasks" in tables else ([], [])
-    checks = tuple(c for c in CHECK_SETTINGS if _matches(only, c[0], c[1] or "", c[2] or "")) if "check" in tables else ()
+    checks = (
+        tuple(c for c in CHECK_SETTINGS if _matches(only, c[0], c[1] or "", c[2] or ""))
+        if "check" in tables
+        else ()
+    )
     if not (settings or systems or do_scaling or do_sb3 or checks):
         raise ValueError(f"--only {only!r} matches no row of the tables {', '.join(tables)}")
     n_tasks = 4 * len(settings)
     n_single = sum(len(i) for _, i in systems)
-    combos_extra = (2 if available() else 1) if any(i == free and "rk4" in ints for i, ints in systems) else 0
-    n_vector = sum(1 for _, ints in systems for i in ints for n in sizes if n <= LARGEST.get(i, max(sizes))) + combos_extra * len(sizes)
+    combos_extra = (
+        (2 if available() else 1) if any(i == free and "rk4" in ints for i, ints in systems) else 0
+    )
+    n_vector = sum(
+        1 for _, ints in systems for i in ints for n in sizes if n <= LARGEST.get(i, max(sizes))
+    ) + combos_extra * len(sizes)
     n_scaling = (2 if available() else 1) * len(SCALING_SIZES) if do_scaling else 0
-    bar = Progress(n_tasks + n_single + n_vector + n_scaling + (3 + 3 * len(CHECK_NUM_ENVS)) * len(checks), not args.no_progress, "bench throughput")
+    bar = Progress(
+        n_tasks + n_single + n_vector + n_scaling + (3 + 3 * len(CHECK_NUM_ENVS)) * len(checks),
+        not args.no_progress,
+        "bench throughput",
+    )
     tasks, task_notes = [], notes
     if settings:
         # --quick: a smoke run, its figures rough (23 settings, each timed seven ways)
-        tasks, _ = run_tasks(settings, num_envs=num_envs, min_time=0.02 if args.quick else min_time, repeat=2 if args.quick else 3, budget=budget,
-                             slow_step_s=QUICK_SLOW_STEP_S if args.quick else None, slow_num_envs=QUICK_SLOW_NUM_ENVS if args.quick else None, progress=bar.update)
-    legacy_budget = budget if args.quick else None  # the full run times the earlier tables as before
-    single = run_single(systems, min_time=min_time, progress=bar.update, budget=legacy_budget) if systems else []
-    vector = run_vector(systems, sizes=sizes, min_time=min_time, progress=bar.update, budget=legacy_budget) if systems else []
+        tasks, _ = run_tasks(
+            settings,
+            num_envs=num_envs,
+            min_time=0.02 if args.quick else min_time,
+            repeat=2 if args.quick else 3,
+            budget=budget,
+            slow_step_s=QUICK_SLOW_STEP_S if args.quick else None,
+            slow_num_envs=QUICK_SLOW_NUM_ENVS if args.quick else None,
+            progress=bar.update,
+        )
+    legacy_budget = (
+        budget if args.quick else None
+    )  # the full run times the earlier tables as before
+    single = (
+        run_single(systems, min_time=min_time, progress=bar.update, budget=legacy_budget)
+        if systems
+        else []
+    )
+    vector = (
+        run_vector(
+            systems, sizes=sizes, min_time=min_time, progress=bar.update, budget=legacy_budget
+        )
+        if systems
+        else []
+    )
     scaling = run_scaling(min_time=min_time, progress=bar.update) if do_scaling else []
     sb3 = run_sb3(sizes=(16, 256), min_time=min_time) if do_sb3 else []
-    check = run_check(checks, min_time=min_time, budget=budget, progress=bar.update) if checks else []
+    check = (
+        run_check(checks, min_time=min_time, budget=budget, progress=bar.update) if checks else []
+    )
     bar.close()
     if tasks:
         print_tasks(tasks, task_notes)
@@ -858,30 +1169,58 @@ def main(argv=None) -> int:
         print("\nsingle env: one step of gymnasium.make(id) against Pendulum-v1, same run (us)")
         print(f"{'id':<26} {'integrator':<10} {'ours':>9} {'Pendulum':>9} {'ratio':>7}")
         for r in single:
-            print(f"{r['id']:<26} {r['integrator']:<10} {r['step_us']:>9.2f} {r['pendulum_step_us']:>9.2f} {r['ratio_to_pendulum']:>7.3f}")
+            print(
+                f"{r['id']:<26} {r['integrator']:<10} {r['step_us']:>9.2f} {r['pendulum_step_us']:>9.2f} {r['ratio_to_pendulum']:>7.3f}"
+            )
     if vector:
-        print("\nvector env (vector_entry_point, zero action) against CartPole-v1's native vector env, same run")
-        print(f"{'id':<26} {'integrator':<16} {'path':<9} {'num_envs':>8} {'env-steps/s':>13} {'ns/env':>9} {'CartPole/s':>13} {'ratio':>8}")
+        print(
+            "\nvector env (vector_entry_point, zero action) against CartPole-v1's native vector env, same run"
+        )
+        print(
+            f"{'id':<26} {'integrator':<16} {'path':<9} {'num_envs':>8} {'env-steps/s':>13} {'ns/env':>9} {'CartPole/s':>13} {'ratio':>8}"
+        )
         for r in vector:
-            print(f"{r['id']:<26} {r['integrator']:<16} {r['path']:<9} {r['num_envs']:>8d} {r['env_steps_per_s']:>13.4g} {r['ns_per_env_step']:>9.1f} {r['cartpole_env_steps_per_s']:>13.4g} {r['ratio_to_cartpole']:>8.3f}")
+            print(
+                f"{r['id']:<26} {r['integrator']:<16} {r['path']:<9} {r['num_envs']:>8d} {r['env_steps_per_s']:>13.4g} {r['ns_per_env_step']:>9.1f} {r['cartpole_env_steps_per_s']:>13.4g} {r['ratio_to_cartpole']:>8.3f}"
+            )
     paths = compiled_speedup(vector)
     if paths:
         print("\ncompiled step against the numpy path of the same env (free body, rk4), same run")
         for n, ratio in paths:
             print(f"  num_envs {n:>5d}: {ratio:.2f}x")
     if scaling:
-        print("\nscaling: the free body with rk4, time per env-step against num_envs, and the arrays one step moves")
+        print(
+            "\nscaling: the free body with rk4, time per env-step against num_envs, and the arrays one step moves"
+        )
         print(f"{'path':<9} {'num_envs':>8} {'ns/env':>9} {'bytes/env':>10} {'MB/step':>9}")
         for r in scaling:
-            print(f"{r['path']:<9} {r['num_envs']:>8d} {r['ns_per_env_step']:>9.1f} {r['bytes_per_env_step']:>10.0f} {r['megabytes_per_step']:>9.3f}")
+            print(
+                f"{r['path']:<9} {r['num_envs']:>8d} {r['ns_per_env_step']:>9.1f} {r['bytes_per_env_step']:>10.0f} {r['megabytes_per_step']:>9.3f}"
+            )
     if sb3:
-        print("\nstable-baselines3 VecEnv.step: the native adapter (rbenvs.vector.sb3) against DummyVecEnv, same run")
+        print(
+            "\nstable-baselines3 VecEnv.step: the native adapter (rbenvs.vector.sb3) against DummyVecEnv, same run"
+        )
         print(f"{'id':<26} {'num_envs':>8} {'native/s':>12} {'Dummy/s':>12} {'ratio':>8}")
         for r in sb3:
-            print(f"{r['id']:<26} {r['num_envs']:>8d} {r['sb3_native_env_steps_per_s']:>12.4g} {r['sb3_dummy_env_steps_per_s']:>12.4g} {r['ratio']:>8.2f}")
+            print(
+                f"{r['id']:<26} {r['num_envs']:>8d} {r['sb3_native_env_steps_per_s']:>12.4g} {r['sb3_dummy_env_steps_per_s']:>12.4g} {r['ratio']:>8.2f}"
+            )
     if check:
         print_check(check)
     if args.json:
         with open(args.json, "w") as f:
-            json.dump({"tasks": tasks, "task_notes": task_notes, "single": single, "vector": vector, "scaling": scaling, "sb3": sb3, "check": check}, f, indent=1)
+            json.dump(
+                {
+                    "tasks": tasks,
+                    "task_notes": task_notes,
+                    "single": single,
+                    "vector": vector,
+                    "scaling": scaling,
+                    "sb3": sb3,
+                    "check": check,
+                },
+                f,
+                indent=1,
+            )
     return 0

@@ -49,16 +49,39 @@ import numpy as np
 
 from . import tippe_steps
 
-__all__ = ["limit_of", "equivalent_eps", "STARTS", "COUNTS", "MUJOCO_DTS", "REPEATS", "reference", "rbenvs_rows", "mujoco_rows", "run", "print_report", "plot", "headline"]
+__all__ = [
+    "limit_of",
+    "equivalent_eps",
+    "STARTS",
+    "COUNTS",
+    "MUJOCO_DTS",
+    "REPEATS",
+    "reference",
+    "rbenvs_rows",
+    "mujoco_rows",
+    "run",
+    "print_report",
+    "plot",
+    "headline",
+]
 
 PERIOD = 0.01  # s, the env's control period: every run is read at this rate
-STARTS = {"default": ("rest", 150.0), "leine_glocker": ("rest", 180.0), "rolling": ("rolling", 150.0)}
+STARTS = {
+    "default": ("rest", 150.0),
+    "leine_glocker": ("rest", 180.0),
+    "rolling": ("rolling", 150.0),
+}
 EPS0 = 1e-3  # m/s, the env's slip regularisation
 BASE_COUNT = 320  # rk4 steps a period that converge t90 at EPS0 (1e-10 s; doubled as the check)
 HORIZON = 3.0  # runs stop at this multiple of t90_same
 REPEATS = 5
 # fixed internal steps per 10 ms (guard off), per scheme: from unstable/too few to converged
-COUNTS = {"rk4": (20, 40, 80, 160, 320), "euler": (400, 1600, 6400), "ros2": (10, 20, 40, 80, 160), "ros34pw2": (10, 20, 40, 80)}
+COUNTS = {
+    "rk4": (20, 40, 80, 160, 320),
+    "euler": (400, 1600, 6400),
+    "ros2": (10, 20, 40, 80, 160),
+    "ros34pw2": (10, 20, 40, 80),
+}
 QUICK_COUNTS = {"rk4": (40, 80), "euler": (1600,)}
 MUJOCO_INTEGRATORS = ("implicitfast", "RK4", "implicit", "Euler")
 MUJOCO_DTS = (1e-4, 2e-4, 5e-4, 1e-3, 2e-3)
@@ -81,8 +104,16 @@ def reference(start="default", ks=range(5), progress=None) -> dict:
         eps, n = EPS0 / 2**k, BASE_COUNT * 2**k
         a = tippe_steps.inversion(kind, spin, n, slip_regularization=eps, max_periods=4000)
         b = tippe_steps.inversion(kind, spin, 2 * n, slip_regularization=eps, max_periods=4000)
-        seq.append({"eps": eps, "count": n, "t90": a["t90"], "step_check": abs(a["t90"] - b["t90"]), "ended": a["ended"],
-                    "least_normal": a["least_normal"]})
+        seq.append(
+            {
+                "eps": eps,
+                "count": n,
+                "t90": a["t90"],
+                "step_check": abs(a["t90"] - b["t90"]),
+                "ended": a["ended"],
+                "least_normal": a["least_normal"],
+            }
+        )
         if progress:
             progress()
         if a["ended"] is not None:
@@ -104,7 +135,11 @@ def limit_of(eps, t90) -> dict:
     finite = all(math.isfinite(x) for x in t90)
     if finite and len(ratios) >= 1 and all(abs(r) < 0.75 for r in ratios):
         rich = [2.0 * b - a for a, b in zip(t90, t90[1:])]
-        out.update(converges=True, limit=rich[-1], limit_error=abs(rich[-1] - rich[-2]) if len(rich) > 1 else abs(diffs[-1]))
+        out.update(
+            converges=True,
+            limit=rich[-1],
+            limit_error=abs(rich[-1] - rich[-2]) if len(rich) > 1 else abs(diffs[-1]),
+        )
     else:
         out.update(converges=False, limit=None, limit_error=None)
         pts = [(e, x) for e, x in zip(eps, t90) if math.isfinite(x)]
@@ -120,15 +155,39 @@ def _rbenvs_row(start, t90_same, label, scheme, setting, level="gliding", law="c
     substeps = {"accuracy": "accuracy", "stability": None}.get(setting, setting)
     max_periods = int(math.ceil(HORIZON * t90_same / PERIOD))
     if scheme == "dop853":
-        max_periods = min(max_periods, int(math.ceil(1.05 * t90_same / PERIOD)) + 1)  # (slow: up to the turn only)
+        max_periods = min(
+            max_periods, int(math.ceil(1.05 * t90_same / PERIOD)) + 1
+        )  # (slow: up to the turn only)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        r = tippe_steps.inversion(kind, spin, substeps, tippe_steps._scheme(scheme), law, max_periods=max_periods,
-                                  timing_repeats=0 if scheme == "dop853" else REPEATS, **options)
-    per_period = r.get("us_per_period_best", r["us_per_period"])  # dop853 (~10 s per simulated s): its one measured run
-    return {"engine": "rbenvs", "start": start, "scheme": label, "setting": str(setting), "fidelity": level, "t90": r["t90"], "ended": r["ended"],
-            "t90_error": abs(r["t90"] - t90_same) if r["ended"] is None else None, "jellett": r["drift"], "steps": r["steps"],
-            "cost": per_period * 1e-6 / PERIOD, "least_normal": r["least_normal"], "periods": r["periods"]}
+        r = tippe_steps.inversion(
+            kind,
+            spin,
+            substeps,
+            tippe_steps._scheme(scheme),
+            law,
+            max_periods=max_periods,
+            timing_repeats=0 if scheme == "dop853" else REPEATS,
+            **options,
+        )
+    per_period = r.get(
+        "us_per_period_best", r["us_per_period"]
+    )  # dop853 (~10 s per simulated s): its one measured run
+    return {
+        "engine": "rbenvs",
+        "start": start,
+        "scheme": label,
+        "setting": str(setting),
+        "fidelity": level,
+        "t90": r["t90"],
+        "ended": r["ended"],
+        "t90_error": abs(r["t90"] - t90_same) if r["ended"] is None else None,
+        "jellett": r["drift"],
+        "steps": r["steps"],
+        "cost": per_period * 1e-6 / PERIOD,
+        "least_normal": r["least_normal"],
+        "periods": r["periods"],
+    }
 
 
 def rbenvs_rows(start, t90_same, quick=False, progress=None) -> list[dict]:
@@ -137,7 +196,12 @@ def rbenvs_rows(start, t90_same, quick=False, progress=None) -> list[dict]:
     if quick:
         jobs += [(s, n) for s, counts in QUICK_COUNTS.items() for n in counts]
     else:
-        jobs += [("rk4", "stability"), ("euler", "stability"), ("ros2", "accuracy"), ("ros34pw2", "accuracy")]
+        jobs += [
+            ("rk4", "stability"),
+            ("euler", "stability"),
+            ("ros2", "accuracy"),
+            ("ros34pw2", "accuracy"),
+        ]
         jobs += [(s, n) for s, counts in COUNTS.items() for n in counts]
         jobs += [("dop853", 1)]
     rows = []
@@ -153,7 +217,19 @@ def rbenvs_rows(start, t90_same, quick=False, progress=None) -> list[dict]:
             if (fidelity == "rolling") != (kind == "rolling"):
                 continue  # rolling: only from the rolling start; the others with slip
             law = opts.pop("law", "coulomb")
-            rows.append(_rbenvs_row(start, t90_same, "rk4", "rk4", "accuracy", level=level, law=law, fidelity=fidelity, **opts))
+            rows.append(
+                _rbenvs_row(
+                    start,
+                    t90_same,
+                    "rk4",
+                    "rk4",
+                    "accuracy",
+                    level=level,
+                    law=law,
+                    fidelity=fidelity,
+                    **opts,
+                )
+            )
             if progress:
                 progress()
     return rows
@@ -177,7 +253,9 @@ def mujoco_rows(start, t90_same, quick=False, progress=None) -> list[dict]:
     problem = problem_of(system)
     j0 = oracle_jellett(system, y0)[0]
     max_periods = int(math.ceil(HORIZON * t90_same / PERIOD))
-    integrators, dts = (("implicitfast", "RK4"), (1e-3,)) if quick else (MUJOCO_INTEGRATORS, MUJOCO_DTS)
+    integrators, dts = (
+        (("implicitfast", "RK4"), (1e-3,)) if quick else (MUJOCO_INTEGRATORS, MUJOCO_DTS)
+    )
     rows = []
     for name in integrators:
         for cone in CONES:
@@ -198,7 +276,10 @@ def mujoco_rows(start, t90_same, quick=False, progress=None) -> list[dict]:
                             break
                         drift = max(drift, abs(j - j0) / abs(j0))
                         if tilt > math.pi / 2:
-                            t90, ended = (k - 1 + (math.pi / 2 - prev) / (tilt - prev)) * PERIOD, None
+                            t90, ended = (
+                                (k - 1 + (math.pi / 2 - prev) / (tilt - prev)) * PERIOD,
+                                None,
+                            )
                             break
                         prev = tilt
                 best = math.inf
@@ -209,9 +290,24 @@ def mujoco_rows(start, t90_same, quick=False, progress=None) -> list[dict]:
                     for _ in range(k):
                         mujoco.mj_step(m, d, nstep)
                     best = min(best, time.perf_counter() - clock)
-                rows.append({"engine": "mujoco", "start": start, "scheme": f"mujoco {name} {cone}", "setting": f"dt={dt:g}", "dt": dt, "fidelity": "soft contact",
-                             "t90": t90, "ended": ended, "t90_error": abs(t90 - t90_same) if ended is None else None, "jellett": drift, "steps": nstep,
-                             "cost": best / (k * PERIOD), "least_normal": None, "periods": k})
+                rows.append(
+                    {
+                        "engine": "mujoco",
+                        "start": start,
+                        "scheme": f"mujoco {name} {cone}",
+                        "setting": f"dt={dt:g}",
+                        "dt": dt,
+                        "fidelity": "soft contact",
+                        "t90": t90,
+                        "ended": ended,
+                        "t90_error": abs(t90 - t90_same) if ended is None else None,
+                        "jellett": drift,
+                        "steps": nstep,
+                        "cost": best / (k * PERIOD),
+                        "least_normal": None,
+                        "periods": k,
+                    }
+                )
                 if progress:
                     progress()
     return rows
@@ -220,7 +316,17 @@ def mujoco_rows(start, t90_same, quick=False, progress=None) -> list[dict]:
 # ------------------------------------------------------------------------------ the run
 def run(quick=False, starts=None, progress=None, mujoco=True) -> dict:
     starts = (["default"] if quick else list(STARTS)) if starts is None else starts
-    out = {"starts": {}, "rows": [], "settings": {"quick": quick, "period": PERIOD, "eps0": EPS0, "horizon": HORIZON, "repeats": REPEATS}}
+    out = {
+        "starts": {},
+        "rows": [],
+        "settings": {
+            "quick": quick,
+            "period": PERIOD,
+            "eps0": EPS0,
+            "horizon": HORIZON,
+            "repeats": REPEATS,
+        },
+    }
     for start in starts:
         ref = reference(start, range(4) if quick else range(5), progress=progress)
         out["starts"][start] = ref
@@ -233,7 +339,14 @@ def run(quick=False, starts=None, progress=None, mujoco=True) -> dict:
 def progress_total(quick=False) -> int:
     if quick:
         return 4 + 2 + sum(len(c) for c in QUICK_COUNTS.values()) + 4
-    per = 5 + 6 + sum(len(c) for c in COUNTS.values()) + 1 + 3 + len(MUJOCO_INTEGRATORS) * len(CONES) * len(MUJOCO_DTS)
+    per = (
+        5
+        + 6
+        + sum(len(c) for c in COUNTS.values())
+        + 1
+        + 3
+        + len(MUJOCO_INTEGRATORS) * len(CONES) * len(MUJOCO_DTS)
+    )
     return per * len(STARTS)
 
 
@@ -245,21 +358,42 @@ def headline(result, start="default") -> str | None:
     """The issue's comparison: rbenvs' default env (rk4, accuracy bound) against MuJoCo
     implicitfast (elliptic cone) at dt = 1e-3, per simulated second, with each one's t90 error."""
     rows = [r for r in result["rows"] if r["start"] == start]
-    ours = next((r for r in rows if r["scheme"] == "rk4" and r["setting"] == "accuracy" and r["fidelity"] == "gliding"), None)
-    theirs = next((r for r in rows if r["scheme"] == "mujoco implicitfast elliptic" and r["setting"] == "dt=0.001"), None)
+    ours = next(
+        (
+            r
+            for r in rows
+            if r["scheme"] == "rk4" and r["setting"] == "accuracy" and r["fidelity"] == "gliding"
+        ),
+        None,
+    )
+    theirs = next(
+        (
+            r
+            for r in rows
+            if r["scheme"] == "mujoco implicitfast elliptic" and r["setting"] == "dt=0.001"
+        ),
+        None,
+    )
     if ours is None or theirs is None:
         return None
-    return (f"{start} start: rbenvs default env (rk4, friction_bound='accuracy') {ours['cost']:.2e} s per simulated s, "
-            f"MuJoCo implicitfast (elliptic, dt = 1e-3) {theirs['cost']:.2e} s: rbenvs / MuJoCo = {ours['cost'] / theirs['cost']:.2f}; "
-            f"t90 error against t90_same: rbenvs {_g(ours['t90_error'])} s, MuJoCo {_g(theirs['t90_error'])} s; "
-            f"Jellett drift: rbenvs {ours['jellett']:.1e}, MuJoCo {theirs['jellett']:.1e}")
+    return (
+        f"{start} start: rbenvs default env (rk4, friction_bound='accuracy') {ours['cost']:.2e} s per simulated s, "
+        f"MuJoCo implicitfast (elliptic, dt = 1e-3) {theirs['cost']:.2e} s: rbenvs / MuJoCo = {ours['cost'] / theirs['cost']:.2f}; "
+        f"t90 error against t90_same: rbenvs {_g(ours['t90_error'])} s, MuJoCo {_g(theirs['t90_error'])} s; "
+        f"Jellett drift: rbenvs {ours['jellett']:.1e}, MuJoCo {theirs['jellett']:.1e}"
+    )
 
 
 def equivalent_eps(ref, row):
     """For a MuJoCo row that inverts, where the reference does not converge: the slip
     regularisation at which the fit ``t0 + c / eps`` of rbenvs' model gives the row's ``t90``
     (what MuJoCo's soft contact amounts to, read through that fit; ``None`` outside it)."""
-    if row["engine"] != "mujoco" or row["ended"] is not None or "fit_c" not in ref or row["t90"] <= ref["fit_t0"]:
+    if (
+        row["engine"] != "mujoco"
+        or row["ended"] is not None
+        or "fit_c" not in ref
+        or row["t90"] <= ref["fit_t0"]
+    ):
         return None
     return ref["fit_c"] / (row["t90"] - ref["fit_t0"])
 
@@ -267,30 +401,55 @@ def equivalent_eps(ref, row):
 def print_report(result, file=None):
     file = sys.stdout if file is None else file
     for start, ref in result["starts"].items():
-        print(f"\ntippe top, start {start} ({ref['kind']}, {ref['spin']:g} rad/s, tilt 0.1 rad), no action; "
-              f"t90 of rbenvs' regularised Coulomb model against the slip regularisation eps (rk4 converged in the step):", file=file)
-        print(f"{'eps [m/s]':>10} {'steps/10ms':>10} {'t90 [s]':>14} {'step check':>10} {'difference':>11} {'ratio':>6}", file=file)
+        print(
+            f"\ntippe top, start {start} ({ref['kind']}, {ref['spin']:g} rad/s, tilt 0.1 rad), no action; "
+            f"t90 of rbenvs' regularised Coulomb model against the slip regularisation eps (rk4 converged in the step):",
+            file=file,
+        )
+        print(
+            f"{'eps [m/s]':>10} {'steps/10ms':>10} {'t90 [s]':>14} {'step check':>10} {'difference':>11} {'ratio':>6}",
+            file=file,
+        )
         for i, s in enumerate(ref["sequence"]):
             diff = ref["differences"][i - 1] if i >= 1 and i - 1 < len(ref["differences"]) else None
             ratio = ref["ratios"][i - 2] if i >= 2 and i - 2 < len(ref["ratios"]) else None
             t90 = f"{s['t90']:.9f}" if s["ended"] is None else f"({s['ended']})"
-            print(f"{s['eps']:>10.4g} {s['count']:>10d} {t90:>14} {_g(s['step_check']):>10} {_g(diff, '+.4f'):>11} {_g(ratio, '.2f'):>6}", file=file)
+            print(
+                f"{s['eps']:>10.4g} {s['count']:>10d} {t90:>14} {_g(s['step_check']):>10} {_g(diff, '+.4f'):>11} {_g(ratio, '.2f'):>6}",
+                file=file,
+            )
         if ref["converges"]:
-            print(f"hard-Coulomb limit (eps -> 0, Richardson, first order): t90 = {ref['limit']:.6f} s, error estimate {ref['limit_error']:.1e} s", file=file)
+            print(
+                f"hard-Coulomb limit (eps -> 0, Richardson, first order): t90 = {ref['limit']:.6f} s, error estimate {ref['limit_error']:.1e} s",
+                file=file,
+            )
         else:
-            fit = f"; fitted t90 = {ref['fit_t0']:.3f} s + {ref['fit_c']:.3e} m / eps" if "fit_c" in ref else ""
-            print(f"hard-Coulomb limit: none; t90 grows as eps falls (each halving adds about twice the last: ~1/eps){fit}. "
-                  f"The top enters a near-rolling phase whose slip stays below eps and whose creep, at a rate proportional to eps, "
-                  f"is what raises it; under hard Coulomb it rolls without slipping there and does not pass 90 degrees. "
-                  f"Errors below are against t90_same = {ref['t90_same']:.9f} s (eps = {EPS0:g}, the env's)", file=file)
-        print(f"{'engine/scheme':<30} {'setting':<10} {'fidelity':<15} {'steps/10ms':>10} {'cost s/s':>9} {'t90 [s]':>12} {'t90 err':>8} {'Jellett':>8}  note", file=file)
+            fit = (
+                f"; fitted t90 = {ref['fit_t0']:.3f} s + {ref['fit_c']:.3e} m / eps"
+                if "fit_c" in ref
+                else ""
+            )
+            print(
+                f"hard-Coulomb limit: none; t90 grows as eps falls (each halving adds about twice the last: ~1/eps){fit}. "
+                f"The top enters a near-rolling phase whose slip stays below eps and whose creep, at a rate proportional to eps, "
+                f"is what raises it; under hard Coulomb it rolls without slipping there and does not pass 90 degrees. "
+                f"Errors below are against t90_same = {ref['t90_same']:.9f} s (eps = {EPS0:g}, the env's)",
+                file=file,
+            )
+        print(
+            f"{'engine/scheme':<30} {'setting':<10} {'fidelity':<15} {'steps/10ms':>10} {'cost s/s':>9} {'t90 [s]':>12} {'t90 err':>8} {'Jellett':>8}  note",
+            file=file,
+        )
         for r in (r for r in result["rows"] if r["start"] == start):
             t90 = f"{r['t90']:.6f}" if r["ended"] is None else "-"
             note = "" if r["ended"] is None else f"{r['ended']} (in {r['periods'] * PERIOD:.2f} s)"
             eq = equivalent_eps(ref, r)
             if eq is not None:
                 note = f"t90 of rbenvs' model at eps = {eq:.1e} m/s (the fit)"
-            print(f"{r['scheme']:<30} {r['setting']:<10} {r['fidelity']:<15} {r['steps']:>10.1f} {r['cost']:>9.2e} {t90:>12} {_g(r['t90_error']):>8} {_g(r['jellett']):>8}  {note}", file=file)
+            print(
+                f"{r['scheme']:<30} {r['setting']:<10} {r['fidelity']:<15} {r['steps']:>10.1f} {r['cost']:>9.2e} {t90:>12} {_g(r['t90_error']):>8} {_g(r['jellett']):>8}  {note}",
+                file=file,
+            )
         line = headline(result, start)
         if line:
             print(line, file=file)
@@ -309,7 +468,11 @@ def plot(result, path):
     starts = list(result["starts"])
     fig, axes = plt.subplots(len(starts), 2, figsize=(11, 4.0 * len(starts)), squeeze=False)
     for row, start in zip(axes, starts):
-        rows = [r for r in result["rows"] if r["start"] == start and r["fidelity"] in ("gliding", "soft contact")]
+        rows = [
+            r
+            for r in result["rows"]
+            if r["start"] == start and r["fidelity"] in ("gliding", "soft contact")
+        ]
         groups = {}
         for r in rows:
             kind = r["setting"] if r["setting"] in ("accuracy", "stability") else "fixed"
@@ -317,11 +480,19 @@ def plot(result, path):
         names = sorted({n for n, _ in groups})
         for (name, kind), grp in sorted(groups.items()):
             grp = sorted(grp, key=lambda r: r["cost"])
-            color = matplotlib.colormaps["tab20"](names.index(name) % 20)  # (14 names: C0-C9 repeated colours)
-            style = {"accuracy": "*", "stability": "^"}.get(kind, "s--" if name.startswith("mujoco") else "o-")
+            color = matplotlib.colormaps["tab20"](
+                names.index(name) % 20
+            )  # (14 names: C0-C9 repeated colours)
+            style = {"accuracy": "*", "stability": "^"}.get(
+                kind, "s--" if name.startswith("mujoco") else "o-"
+            )
             label = name if kind == "fixed" else f"{name} guard, {kind} bound"
             for ax, key, floor in ((row[0], "jellett", 1e-16), (row[1], "t90_error", 1e-12)):
-                pts = [(r["cost"], max(r[key], floor)) for r in grp if r[key] is not None and math.isfinite(r[key])]
+                pts = [
+                    (r["cost"], max(r[key], floor))
+                    for r in grp
+                    if r[key] is not None and math.isfinite(r[key])
+                ]
                 if pts:
                     x, y = zip(*pts)
                     ax.loglog(x, y, style, color=color, ms=9 if kind != "fixed" else 3, label=label)

@@ -39,14 +39,37 @@ def _scheme(name):
     return {"ros2": Ros2(), "ros34pw2": Ros34pw2()}.get(name, name)
 
 
-def _make(start, spin, law, integrator, substeps, guard, compiled, max_periods, friction_bound="stability", **options):
+def _make(
+    start,
+    spin,
+    law,
+    integrator,
+    substeps,
+    guard,
+    compiled,
+    max_periods,
+    friction_bound="stability",
+    **options,
+):
     import gymnasium as gym
 
     import rbenvs  # noqa: F401  (registers the ids)
 
     options.setdefault("friction", {"coulomb": 0.3, "viscous": 30.0}[law])
-    return gym.make(ID, start=start, spin=spin, tilt=0.1, friction_law=law, integrator=_scheme(integrator), substeps=substeps, guard=guard,
-                    compiled=compiled, max_episode_steps=max_periods + 1, friction_bound=friction_bound, **options).unwrapped
+    return gym.make(
+        ID,
+        start=start,
+        spin=spin,
+        tilt=0.1,
+        friction_law=law,
+        integrator=_scheme(integrator),
+        substeps=substeps,
+        guard=guard,
+        compiled=compiled,
+        max_episode_steps=max_periods + 1,
+        friction_bound=friction_bound,
+        **options,
+    ).unwrapped
 
 
 def tight_count(start, spin, law="coulomb") -> int:
@@ -60,11 +83,23 @@ def tight_count(start, spin, law="coulomb") -> int:
     system, y = env.system, env.state_components
     rate = system.implicit.rate(system.form_params, y, None)
     spin_rate = tippe_rotation_rate((system._w, env.params.gravity_rate()), y)
-    return max(1, math.ceil(env.dt * rate / RK4_REAL_INTERVAL), math.ceil(env.dt * spin_rate / SPIN_STEP))
+    return max(
+        1, math.ceil(env.dt * rate / RK4_REAL_INTERVAL), math.ceil(env.dt * spin_rate / SPIN_STEP)
+    )
 
 
-def inversion(start="rest", spin=180.0, substeps=None, integrator="rk4", law="coulomb", compiled="auto", max_periods=2000,
-              friction_bound="stability", timing_repeats=0, **options) -> dict:
+def inversion(
+    start="rest",
+    spin=180.0,
+    substeps=None,
+    integrator="rk4",
+    law="coulomb",
+    compiled="auto",
+    max_periods=2000,
+    friction_bound="stability",
+    timing_repeats=0,
+    **options,
+) -> dict:
     """One inversion: ``substeps`` a count (fixed, guard off), ``None`` (the env's guard) or
     ``"tight"`` (:func:`tight_count`); ``"accuracy"``: the env's guard with
     ``friction_bound="accuracy"``; ``options``: more env keywords (``friction``, ...). Returns ``t90`` [s] (``nan``: no inversion, with
@@ -78,7 +113,18 @@ def inversion(start="rest", spin=180.0, substeps=None, integrator="rk4", law="co
     if substeps == "accuracy":
         substeps, friction_bound = None, "accuracy"
     guard = "subdivide" if substeps is None else "off"
-    env = _make(start, spin, law, integrator, substeps or 1, guard, compiled, max_periods, friction_bound, **options)
+    env = _make(
+        start,
+        spin,
+        law,
+        integrator,
+        substeps or 1,
+        guard,
+        compiled,
+        max_periods,
+        friction_bound,
+        **options,
+    )
     action = np.zeros(env.action_space.shape, dtype=np.float32)
     env.reset(seed=0)
     env.step(action)  # (builds the compiled step outside the timing)
@@ -95,7 +141,9 @@ def inversion(start="rest", spin=180.0, substeps=None, integrator="rk4", law="co
         _, _, terminated, truncated, info = env.step(action)
         steps += round(env.dt / info["internal_step"])
         if terminated or truncated or info["numerical_failure"]:
-            ended = info.get("terminal_reason") or ("numerical failure" if info["numerical_failure"] else "truncated")
+            ended = info.get("terminal_reason") or (
+                "numerical failure" if info["numerical_failure"] else "truncated"
+            )
             break
         drift = max(drift, abs(info["jellett"] - j0) / abs(j0))
         rise = max(rise, info["energy"] - e_prev)
@@ -106,7 +154,16 @@ def inversion(start="rest", spin=180.0, substeps=None, integrator="rk4", law="co
             break
         prev = info["tilt"]
     wall = time.perf_counter() - clock
-    out = {"t90": t90, "ended": ended, "drift": drift, "rise": rise, "least_normal": least, "steps": steps / k, "periods": k, "us_per_period": 1e6 * wall / k}
+    out = {
+        "t90": t90,
+        "ended": ended,
+        "drift": drift,
+        "rise": rise,
+        "least_normal": least,
+        "steps": steps / k,
+        "periods": k,
+        "us_per_period": 1e6 * wall / k,
+    }
     if timing_repeats:
         best = math.inf
         for _ in range(timing_repeats):
@@ -124,23 +181,41 @@ def rows(starts, laws, counts, schemes, reference=640) -> list[dict]:
     out = []
     for start, spin in starts:
         for law in laws:
-            ref = inversion(start, spin, reference if reference != "dop853" else 1, "rk4" if reference != "dop853" else "dop853", law)
+            ref = inversion(
+                start,
+                spin,
+                reference if reference != "dop853" else 1,
+                "rk4" if reference != "dop853" else "dop853",
+                law,
+            )
             for scheme in schemes:
                 for count in counts:
                     r = inversion(start, spin, count, scheme, law)
-                    r.update(start=start, spin=spin, law=law, scheme=scheme, count=count, error=abs(r["t90"] - ref["t90"]), reference=ref["t90"])
+                    r.update(
+                        start=start,
+                        spin=spin,
+                        law=law,
+                        scheme=scheme,
+                        count=count,
+                        error=abs(r["t90"] - ref["t90"]),
+                        reference=ref["t90"],
+                    )
                     out.append(r)
     return out
 
 
 def table(results) -> str:
-    lines = ["| start | spin [rad/s] | law | scheme | count | steps/period | t90 [s] | error [s] | Jellett drift | energy rise [J] | min N / mg | us / 10 ms |",
-             "|---|---|---|---|---|---|---|---|---|---|---|---|"]
+    lines = [
+        "| start | spin [rad/s] | law | scheme | count | steps/period | t90 [s] | error [s] | Jellett drift | energy rise [J] | min N / mg | us / 10 ms |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|",
+    ]
     for r in results:
         t90 = f"{r['t90']:.9f}" if r["ended"] is None else f"n/a ({r['ended']})"
         err = f"{r['error']:.1e}" if r["ended"] is None else "n/a"
-        lines.append(f"| {r['start']} | {r['spin']:g} | {r['law']} | {r['scheme']} | {r['count'] if r['count'] is not None else 'guard'} | {r['steps']:.1f} | "
-                     f"{t90} | {err} | {r['drift']:.1e} | {r['rise']:.1e} | {r['least_normal']:.3f} | {r['us_per_period']:.0f} |")
+        lines.append(
+            f"| {r['start']} | {r['spin']:g} | {r['law']} | {r['scheme']} | {r['count'] if r['count'] is not None else 'guard'} | {r['steps']:.1f} | "
+            f"{t90} | {err} | {r['drift']:.1e} | {r['rise']:.1e} | {r['least_normal']:.3f} | {r['us_per_period']:.0f} |"
+        )
     return "\n".join(lines)
 
 
@@ -151,16 +226,38 @@ def _count(text):
 
 
 def main(argv=None) -> int:
-    parser = ArgumentParser(prog="python -m rbenvs.bench.tippe_steps", description=__doc__.splitlines()[0])
-    parser.add_argument("--starts", default="rest:180,rolling:150,vertical:180", help="start:spin,... (a negative spin turns the other way)")
+    parser = ArgumentParser(
+        prog="python -m rbenvs.bench.tippe_steps", description=__doc__.splitlines()[0]
+    )
+    parser.add_argument(
+        "--starts",
+        default="rest:180,rolling:150,vertical:180",
+        help="start:spin,... (a negative spin turns the other way)",
+    )
     parser.add_argument("--laws", default="coulomb", help="coulomb,viscous")
-    parser.add_argument("--counts", default="guard,tight,40,80,160", help="internal steps a period: numbers, guard, tight, accuracy (the guard with friction_bound='accuracy')")
+    parser.add_argument(
+        "--counts",
+        default="guard,tight,40,80,160",
+        help="internal steps a period: numbers, guard, tight, accuracy (the guard with friction_bound='accuracy')",
+    )
     parser.add_argument("--schemes", default="rk4", help="rk4,euler,ros2,ros34pw2")
-    parser.add_argument("--reference", default="640", help="rk4 steps a period of the converged value, or dop853")
+    parser.add_argument(
+        "--reference", default="640", help="rk4 steps a period of the converged value, or dop853"
+    )
     a = parser.parse_args(argv)
     starts = [(s.split(":")[0], float(s.split(":")[1])) for s in a.starts.split(",")]
     reference = a.reference if a.reference == "dop853" else int(a.reference)
-    print(table(rows(starts, a.laws.split(","), [_count(c) for c in a.counts.split(",")], a.schemes.split(","), reference)))
+    print(
+        table(
+            rows(
+                starts,
+                a.laws.split(","),
+                [_count(c) for c in a.counts.split(",")],
+                a.schemes.split(","),
+                reference,
+            )
+        )
+    )
     return 0
 
 

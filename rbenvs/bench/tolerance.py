@@ -46,7 +46,15 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-__all__ = ["TOLERANCES", "TOLERANCE_CASES", "ToleranceCase", "scene_cases", "all_cases", "run_tolerance", "print_tolerance"]
+__all__ = [
+    "TOLERANCES",
+    "TOLERANCE_CASES",
+    "ToleranceCase",
+    "scene_cases",
+    "all_cases",
+    "run_tolerance",
+    "print_tolerance",
+]
 
 TOLERANCES = (1e-3, 1e-6, 1e-9)
 MAX_FIXED = 2**20  # the bisection's largest substeps
@@ -69,7 +77,10 @@ class ToleranceCase:
 
 def _top(spin, tilt, side=0.0):
     inertia = np.array([0.45, 0.45, 0.3])
-    return {"angular_momentum": np.array([side, 0.0, spin]) * inertia, "vertical": np.array([math.sin(tilt), 0.0, math.cos(tilt)])}
+    return {
+        "angular_momentum": np.array([side, 0.0, spin]) * inertia,
+        "vertical": np.array([math.sin(tilt), 0.0, math.cos(tilt)]),
+    }
 
 
 def _body(inertia, omega):
@@ -77,48 +88,192 @@ def _body(inertia, omega):
 
 
 TOLERANCE_CASES = (
-    ToleranceCase("fb_fast", "free body, rk4, |Omega| 5e3-1e4 rad/s (random)", "free_body",
-                  dict(task="detumble", spin_rate=1e4, max_angular_velocity=2e4, max_torque=0.0, integrator="rk4"), (0, 1, 2), 4),
-    ToleranceCase("fb_separatrix", "free body, rk4, 1e-6 off the separatrix, 1 rad/s", "free_body",
-                  dict(max_torque=0.0, integrator="rk4"), (_body((2.0, 1.5, 1.0), (1e-6, 1.0, 1e-6)), _body((2.0, 1.5, 1.0), (0.05, 1.0, 0.0))), 400),
-    ToleranceCase("fb_equal", "free body, rk4, moments equal to 1e-9, 10 rad/s", "free_body",
-                  dict(inertia=(1.5, 1.5 * (1 + 1e-9), 1.0), axis=0, max_torque=0.0, integrator="rk4", max_angular_velocity=20.0),
-                  (_body((1.5, 1.5 * (1 + 1e-9), 1.0), (6.0, 6.0, 5.0)),), 400),
+    ToleranceCase(
+        "fb_fast",
+        "free body, rk4, |Omega| 5e3-1e4 rad/s (random)",
+        "free_body",
+        dict(
+            task="detumble",
+            spin_rate=1e4,
+            max_angular_velocity=2e4,
+            max_torque=0.0,
+            integrator="rk4",
+        ),
+        (0, 1, 2),
+        4,
+    ),
+    ToleranceCase(
+        "fb_separatrix",
+        "free body, rk4, 1e-6 off the separatrix, 1 rad/s",
+        "free_body",
+        dict(max_torque=0.0, integrator="rk4"),
+        (_body((2.0, 1.5, 1.0), (1e-6, 1.0, 1e-6)), _body((2.0, 1.5, 1.0), (0.05, 1.0, 0.0))),
+        400,
+    ),
+    ToleranceCase(
+        "fb_equal",
+        "free body, rk4, moments equal to 1e-9, 10 rad/s",
+        "free_body",
+        dict(
+            inertia=(1.5, 1.5 * (1 + 1e-9), 1.0),
+            axis=0,
+            max_torque=0.0,
+            integrator="rk4",
+            max_angular_velocity=20.0,
+        ),
+        (_body((1.5, 1.5 * (1 + 1e-9), 1.0), (6.0, 6.0, 5.0)),),
+        400,
+    ),
     # beside the bench's: a nearly symmetric body and the default body at 5 rad/s, from near a
     # stable axis, 0.002-0.004 off the separatrix and in between (error_rate's sigma term)
-    ToleranceCase("fb_near_symmetric", "free body, rk4, moments (1.5, 1.45, 1), 5 rad/s, 3 starts", "free_body",
-                  dict(inertia=(1.5, 1.45, 1.0), axis=0, max_torque=0.0, integrator="rk4", max_angular_velocity=50.0),
-                  tuple(_body((1.5, 1.45, 1.0), w) for w in ((5.0, 1.0, 0.5), (0.01, 5.0, 0.01), (3.0, 3.0, 3.0))), 200),
-    ToleranceCase("fb_triaxial", "free body, rk4, moments (2, 1.5, 1), 5 rad/s, 3 starts (one 0.002 off the separatrix)", "free_body",
-                  dict(inertia=(2.0, 1.5, 1.0), axis=0, max_torque=0.0, integrator="rk4", max_angular_velocity=50.0),
-                  tuple(_body((2.0, 1.5, 1.0), w) for w in ((5.0, 3.0, 0.05), (0.01, 5.0, 0.01), (-2.0, 4.0, 6.0))), 200),
+    ToleranceCase(
+        "fb_near_symmetric",
+        "free body, rk4, moments (1.5, 1.45, 1), 5 rad/s, 3 starts",
+        "free_body",
+        dict(
+            inertia=(1.5, 1.45, 1.0),
+            axis=0,
+            max_torque=0.0,
+            integrator="rk4",
+            max_angular_velocity=50.0,
+        ),
+        tuple(
+            _body((1.5, 1.45, 1.0), w)
+            for w in ((5.0, 1.0, 0.5), (0.01, 5.0, 0.01), (3.0, 3.0, 3.0))
+        ),
+        200,
+    ),
+    ToleranceCase(
+        "fb_triaxial",
+        "free body, rk4, moments (2, 1.5, 1), 5 rad/s, 3 starts (one 0.002 off the separatrix)",
+        "free_body",
+        dict(
+            inertia=(2.0, 1.5, 1.0),
+            axis=0,
+            max_torque=0.0,
+            integrator="rk4",
+            max_angular_velocity=50.0,
+        ),
+        tuple(
+            _body((2.0, 1.5, 1.0), w)
+            for w in ((5.0, 3.0, 0.05), (0.01, 5.0, 0.01), (-2.0, 4.0, 6.0))
+        ),
+        200,
+    ),
     # the same starts over the free body's own episode (400 periods, 20 s): the start 0.002 off the
     # separatrix amplifies its error beyond a local estimate (docs/accuracy.md, "Unstable motions")
-    ToleranceCase("fb_triaxial_episode", "free body, rk4, moments (2, 1.5, 1), 5 rad/s, fb_triaxial's starts over 400 periods", "free_body",
-                  dict(inertia=(2.0, 1.5, 1.0), axis=0, max_torque=0.0, integrator="rk4", max_angular_velocity=50.0),
-                  tuple(_body((2.0, 1.5, 1.0), w) for w in ((5.0, 3.0, 0.05), (0.01, 5.0, 0.01), (-2.0, 4.0, 6.0))), 400),
-    ToleranceCase("fb_euler", "free body, euler, 1 rad/s", "free_body", dict(max_torque=0.0, integrator="euler"), (0, 1), 400,
-                  skip_fixed=(1e-6, 1e-9)),
-    ToleranceCase("fb_auto", "free body, integrator='auto', 1 rad/s (fb_euler's starts)", "free_body", dict(max_torque=0.0, integrator="auto"), (0, 1), 400,
-                  fixed_integrators=("euler", "rk4")),
-    ToleranceCase("top_100", "Lagrange top, rk4, 100 rad/s, tilt 0.1", "heavy_top", dict(integrator="rk4", max_torque=0.0, max_angular_velocity=300.0),
-                  (_top(100.0, 0.1), _top(100.0, 0.1, 3.0)), 50),
-    ToleranceCase("top_1e4", "Lagrange top, rk4, 1e4 rad/s, tilt 0.1", "heavy_top", dict(integrator="rk4", max_torque=0.0, max_angular_velocity=2.1e4),
-                  (_top(1e4, 0.1),), 2),
-    ToleranceCase("top_below", "Lagrange top, rk4, 5 rad/s (below the critical 9.9), tilt 0.05", "heavy_top", dict(integrator="rk4", max_torque=0.0),
-                  (_top(5.0, 0.05),), 50),
-    ToleranceCase("top_euler", "Lagrange top, euler, 20 rad/s (twice the critical), tilt 0.1", "heavy_top", dict(integrator="euler", max_torque=0.0),
-                  (_top(20.0, 0.1),), 50, skip_fixed=(1e-6, 1e-9)),
-    ToleranceCase("top_auto", "Lagrange top, integrator='auto', 20 rad/s, tilt 0.1 (top_euler's start)", "heavy_top", dict(integrator="auto", max_torque=0.0),
-                  (_top(20.0, 0.1),), 50, fixed_integrators=("euler", "rk4")),
+    ToleranceCase(
+        "fb_triaxial_episode",
+        "free body, rk4, moments (2, 1.5, 1), 5 rad/s, fb_triaxial's starts over 400 periods",
+        "free_body",
+        dict(
+            inertia=(2.0, 1.5, 1.0),
+            axis=0,
+            max_torque=0.0,
+            integrator="rk4",
+            max_angular_velocity=50.0,
+        ),
+        tuple(
+            _body((2.0, 1.5, 1.0), w)
+            for w in ((5.0, 3.0, 0.05), (0.01, 5.0, 0.01), (-2.0, 4.0, 6.0))
+        ),
+        400,
+    ),
+    ToleranceCase(
+        "fb_euler",
+        "free body, euler, 1 rad/s",
+        "free_body",
+        dict(max_torque=0.0, integrator="euler"),
+        (0, 1),
+        400,
+        skip_fixed=(1e-6, 1e-9),
+    ),
+    ToleranceCase(
+        "fb_auto",
+        "free body, integrator='auto', 1 rad/s (fb_euler's starts)",
+        "free_body",
+        dict(max_torque=0.0, integrator="auto"),
+        (0, 1),
+        400,
+        fixed_integrators=("euler", "rk4"),
+    ),
+    ToleranceCase(
+        "top_100",
+        "Lagrange top, rk4, 100 rad/s, tilt 0.1",
+        "heavy_top",
+        dict(integrator="rk4", max_torque=0.0, max_angular_velocity=300.0),
+        (_top(100.0, 0.1), _top(100.0, 0.1, 3.0)),
+        50,
+    ),
+    ToleranceCase(
+        "top_1e4",
+        "Lagrange top, rk4, 1e4 rad/s, tilt 0.1",
+        "heavy_top",
+        dict(integrator="rk4", max_torque=0.0, max_angular_velocity=2.1e4),
+        (_top(1e4, 0.1),),
+        2,
+    ),
+    ToleranceCase(
+        "top_below",
+        "Lagrange top, rk4, 5 rad/s (below the critical 9.9), tilt 0.05",
+        "heavy_top",
+        dict(integrator="rk4", max_torque=0.0),
+        (_top(5.0, 0.05),),
+        50,
+    ),
+    ToleranceCase(
+        "top_euler",
+        "Lagrange top, euler, 20 rad/s (twice the critical), tilt 0.1",
+        "heavy_top",
+        dict(integrator="euler", max_torque=0.0),
+        (_top(20.0, 0.1),),
+        50,
+        skip_fixed=(1e-6, 1e-9),
+    ),
+    ToleranceCase(
+        "top_auto",
+        "Lagrange top, integrator='auto', 20 rad/s, tilt 0.1 (top_euler's start)",
+        "heavy_top",
+        dict(integrator="auto", max_torque=0.0),
+        (_top(20.0, 0.1),),
+        50,
+        fixed_integrators=("euler", "rk4"),
+    ),
     # the tippe top: each seed its own spin and tilt (the scene's 150 rad/s at tilt 0.1 is inside);
     # from rest (sliding into rolling within the horizon) and rolling
-    ToleranceCase("tippe", "tippe top, rk4, Coulomb friction, from rest, 100-200 rad/s, tilt 0.05-0.6, seeds 0-2", "tippe_top",
-                  dict(integrator="rk4", max_torque=0.0, spin=(100.0, 200.0), tilt=(0.05, 0.6)), (0, 1, 2), 10),
-    ToleranceCase("tippe_rolling", "tippe top, rk4, Coulomb friction, rolling start, 100-200 rad/s, tilt 0.05-0.6, seeds 0-1", "tippe_top",
-                  dict(integrator="rk4", max_torque=0.0, spin=(100.0, 200.0), tilt=(0.05, 0.6), start="rolling"), (0, 1), 10),
-    ToleranceCase("tippe_viscous", "tippe top, rk4, viscous friction 3 s/m, from rest, 100-200 rad/s, tilt 0.05-0.6, seeds 0-2", "tippe_top",
-                  dict(integrator="rk4", max_torque=0.0, friction_law="viscous", friction=3.0, spin=(100.0, 200.0), tilt=(0.05, 0.6)), (0, 1, 2), 10),
+    ToleranceCase(
+        "tippe",
+        "tippe top, rk4, Coulomb friction, from rest, 100-200 rad/s, tilt 0.05-0.6, seeds 0-2",
+        "tippe_top",
+        dict(integrator="rk4", max_torque=0.0, spin=(100.0, 200.0), tilt=(0.05, 0.6)),
+        (0, 1, 2),
+        10,
+    ),
+    ToleranceCase(
+        "tippe_rolling",
+        "tippe top, rk4, Coulomb friction, rolling start, 100-200 rad/s, tilt 0.05-0.6, seeds 0-1",
+        "tippe_top",
+        dict(
+            integrator="rk4", max_torque=0.0, spin=(100.0, 200.0), tilt=(0.05, 0.6), start="rolling"
+        ),
+        (0, 1),
+        10,
+    ),
+    ToleranceCase(
+        "tippe_viscous",
+        "tippe top, rk4, viscous friction 3 s/m, from rest, 100-200 rad/s, tilt 0.05-0.6, seeds 0-2",
+        "tippe_top",
+        dict(
+            integrator="rk4",
+            max_torque=0.0,
+            friction_law="viscous",
+            friction=3.0,
+            spin=(100.0, 200.0),
+            tilt=(0.05, 0.6),
+        ),
+        (0, 1, 2),
+        10,
+    ),
 )
 
 
@@ -128,7 +283,11 @@ TOLERANCE_CASES = (
 # tolerance takes it, rk4 where not (the tops' default splitting), its substeps left to the rule
 SCENE_TIPPE_HORIZON = 4.0
 SCENE_PREFIX = "scene:"
-_SCENE_ENVS = {"rbenvs/FreeRigidBody-v0": "free_body", "rbenvs/LagrangeTop-v0": "heavy_top", "rbenvs/TippeTop-v0": "tippe_top"}
+_SCENE_ENVS = {
+    "rbenvs/FreeRigidBody-v0": "free_body",
+    "rbenvs/LagrangeTop-v0": "heavy_top",
+    "rbenvs/TippeTop-v0": "tippe_top",
+}
 
 
 def scene_cases(names=None) -> tuple:
@@ -148,7 +307,9 @@ def scene_cases(names=None) -> tuple:
         episode = probe.spec.max_episode_steps
         dt = probe.unwrapped.dt
         probe.close()
-        periods = min(episode, int(round(SCENE_TIPPE_HORIZON / dt))) if env == "tippe_top" else episode
+        periods = (
+            min(episode, int(round(SCENE_TIPPE_HORIZON / dt))) if env == "tippe_top" else episode
+        )
         starts = (0,) if env == "tippe_top" else (0, 1, 2)
         seeds = f"seeds {starts[0]}-{starts[-1]}" if len(starts) > 1 else f"seed {starts[0]}"
         label = f"scene {name}, rk4, uncontrolled, {periods} periods ({periods * dt:g} s{', its episode' if periods == episode else ''}), {seeds}"
@@ -164,7 +325,9 @@ CHECK_SUFFIX = "+check"
 
 
 def _checked(case):
-    return dataclasses.replace(case, key=case.key + CHECK_SUFFIX, label=case.label + ", tolerance_check=True", check=True)
+    return dataclasses.replace(
+        case, key=case.key + CHECK_SUFFIX, label=case.label + ", tolerance_check=True", check=True
+    )
 
 
 def _plain_key(key):
@@ -177,19 +340,35 @@ def all_cases(keys=None) -> tuple:
     (``<key>+check``)."""
     plain = None if keys is None else {_plain_key(k) for k in keys}
     cases = tuple(c for c in TOLERANCE_CASES if plain is None or c.key in plain)
-    scenes = None if plain is None else [k[len(SCENE_PREFIX):] for k in plain if k.startswith(SCENE_PREFIX)]
+    scenes = (
+        None
+        if plain is None
+        else [k[len(SCENE_PREFIX) :] for k in plain if k.startswith(SCENE_PREFIX)]
+    )
     if scenes is None or scenes:
         cases += scene_cases(scenes)
-    checked = tuple(_checked(c) for c in cases if c.key in CHECKED and (keys is None or c.key + CHECK_SUFFIX in keys))
+    checked = tuple(
+        _checked(c)
+        for c in cases
+        if c.key in CHECKED and (keys is None or c.key + CHECK_SUFFIX in keys)
+    )
     return tuple(c for c in cases if keys is None or c.key in keys) + checked
 
 
 def _env(case, **kw):
     from ..envs import FreeRigidBodyEnv, LagrangeTopEnv, TippeTopEnv, UnstableMotionWarning
 
-    cls = {"free_body": FreeRigidBodyEnv, "heavy_top": LagrangeTopEnv, "tippe_top": TippeTopEnv}[case.env]
-    kw = {"tolerance": None, **case.kwargs, **kw}  # (the rows without a tolerance and the fixed settings: unchecked)
-    with warnings.catch_warnings():  # (the bench measures what the warning says: the table shows it)
+    cls = {"free_body": FreeRigidBodyEnv, "heavy_top": LagrangeTopEnv, "tippe_top": TippeTopEnv}[
+        case.env
+    ]
+    kw = {
+        "tolerance": None,
+        **case.kwargs,
+        **kw,
+    }  # (the rows without a tolerance and the fixed settings: unchecked)
+    with (
+        warnings.catch_warnings()
+    ):  # (the bench measures what the warning says: the table shows it)
         warnings.simplefilter("ignore", UnstableMotionWarning)
         return cls(**kw)
 
@@ -212,12 +391,19 @@ def _references(case, env, starts):
         y0 = _reset(env, start)
         if case.env == "free_body" and not env.system.attitude:
             pi0 = np.array(y0)
-            refs.append([tuple(exact_solution(env.system.params.inertia, pi0, k * env.dt)) for k in range(1, case.periods + 1)])
+            refs.append(
+                [
+                    tuple(exact_solution(env.system.params.inertia, pi0, k * env.dt))
+                    for k in range(1, case.periods + 1)
+                ]
+            )
             continue
         if env.system.hybrid:
             # through the env's own switching layer (lift-off, touchdown, the stem's contact), as
             # every run compared with it: REFERENCE.step alone would integrate across a switch
-            ref_env = _env(dataclasses.replace(case, kwargs=dict(case.kwargs, integrator=REFERENCE)))
+            ref_env = _env(
+                dataclasses.replace(case, kwargs=dict(case.kwargs, integrator=REFERENCE))
+            )
             _reset(ref_env, start)
             a = np.zeros(ref_env.action_space.shape, np.float32)
             out = []
@@ -259,11 +445,17 @@ def _episode(case, env, starts, refs):
             for k, r in enumerate(ref):
                 _, _, term, _, info = env.step(a)
                 n = int(round(env.dt / info["internal_step"]))
-                steps += n + (companion_steps(n) if checked else 0)  # (the companion: n / 2 steps of 2 h)
+                steps += n + (
+                    companion_steps(n) if checked else 0
+                )  # (the companion: n / 2 steps of 2 h)
                 est += info.get("error_estimate") or 0.0  # (None: not estimated)
                 if info["numerical_failure"]:
                     if failure is None:
-                        by = "the global error estimate passed the tolerance" if "global_error_estimate" in info else "a numerical failure"
+                        by = (
+                            "the global error estimate passed the tolerance"
+                            if "global_error_estimate" in info
+                            else "a numerical failure"
+                        )
                         failure = f"ended: {by} at period {k + 1} of start {i}"
                     if "global_error_estimate" not in info:
                         err = math.inf
@@ -290,7 +482,11 @@ def _cheapest_fixed(case, tol, starts, refs, hint, limit=None):
         err, _, steps, failure = _episode(case, env, starts, refs)
         return (err <= tol and failure is None), steps
 
-    top = min(MAX_FIXED, MAX_INTERNAL_STEPS) if limit is None else min(MAX_FIXED, MAX_INTERNAL_STEPS, max(1, int(limit)))
+    top = (
+        min(MAX_FIXED, MAX_INTERNAL_STEPS)
+        if limit is None
+        else min(MAX_FIXED, MAX_INTERNAL_STEPS, max(1, int(limit)))
+    )
     hi = min(max(1, hint), top)
     ok, steps_hi = run(hi)
     while not ok:
@@ -316,38 +512,87 @@ def run_tolerance(keys=None, progress=None, fixed=True) -> dict:
     from ..integrators import INTEGRATORS, get_integrator
     from ..integrators.error import measure_error_constant
 
-    constants = {name: {"declared": cls.error_constant, "measured": measure_error_constant(name)}
-                 for name, cls in INTEGRATORS.items() if cls.error_constant is not None}
+    constants = {
+        name: {"declared": cls.error_constant, "measured": measure_error_constant(name)}
+        for name, cls in INTEGRATORS.items()
+        if cls.error_constant is not None
+    }
     rows = []
     for case in all_cases(keys):
         # (integrator="auto" needs a tolerance: the row without one runs the last of the fixed schemes, rk4)
-        base = _env(case if not case.fixed_integrators else dataclasses.replace(case, kwargs=dict(case.kwargs, integrator=case.fixed_integrators[-1])))
+        base = _env(
+            case
+            if not case.fixed_integrators
+            else dataclasses.replace(
+                case, kwargs=dict(case.kwargs, integrator=case.fixed_integrators[-1])
+            )
+        )
         refs = _references(case, base, case.starts)
         base_err, _, base_steps, base_fail = _episode(case, base, case.starts, refs)
-        rows.append({"case": case.key, "label": case.label, "periods": case.periods, "tolerance": None, "error": base_err, "steps": base_steps,
-                     "failure": base_fail})
+        rows.append(
+            {
+                "case": case.key,
+                "label": case.label,
+                "periods": case.periods,
+                "tolerance": None,
+                "error": base_err,
+                "steps": base_steps,
+                "failure": base_fail,
+            }
+        )
         for tol in case.tolerances:
             t0 = time.perf_counter()
             try:
-                env = _env(case, tolerance=tol, tolerance_horizon=case.periods, **({"tolerance_check": case.check} if case.check else {}))
+                env = _env(
+                    case,
+                    tolerance=tol,
+                    tolerance_horizon=case.periods,
+                    **({"tolerance_check": case.check} if case.check else {}),
+                )
             except ValueError as e:
-                rows.append({"case": case.key, "label": case.label, "periods": case.periods, "tolerance": tol, "refused": str(e)})
+                rows.append(
+                    {
+                        "case": case.key,
+                        "label": case.label,
+                        "periods": case.periods,
+                        "tolerance": tol,
+                        "refused": str(e),
+                    }
+                )
                 continue
             err, est, steps, failure = _episode(case, env, case.starts, refs)
-            row = {"case": case.key, "label": case.label, "periods": case.periods, "tolerance": tol, "error": err, "estimate": est, "steps": steps,
-                   "failure": failure, "seconds": time.perf_counter() - t0, "integrator": env.integrator.name}
+            row = {
+                "case": case.key,
+                "label": case.label,
+                "periods": case.periods,
+                "tolerance": tol,
+                "error": err,
+                "estimate": est,
+                "steps": steps,
+                "failure": failure,
+                "seconds": time.perf_counter() - t0,
+                "integrator": env.integrator.name,
+            }
             # (an episode ended by a numerical failure ran fewer periods: no cost to compare)
             if fixed and tol not in case.skip_fixed and not (failure or "").startswith("ended"):
                 per_period = max(1, steps // (case.periods * len(case.starts)))
                 if case.fixed_integrators:  # the cheapest scheme too, in rhs evaluations
                     chosen = get_integrator(row["integrator"]).evaluations
                     best = None
-                    for name in sorted(case.fixed_integrators, key=lambda n: n != row["integrator"]):  # the chosen scheme first
+                    for name in sorted(
+                        case.fixed_integrators, key=lambda n: n != row["integrator"]
+                    ):  # the chosen scheme first
                         evaluations = get_integrator(name).evaluations
                         sub = dataclasses.replace(case, kwargs=dict(case.kwargs, integrator=name))
                         # a scheme is searched only up to the substeps whose rhs evaluations would cost what the best so far costs
-                        limit = None if best is None else best[2] / (evaluations * case.periods * len(case.starts))
-                        found = _cheapest_fixed(sub, tol, case.starts, refs, max(1, per_period // 4), limit)
+                        limit = (
+                            None
+                            if best is None
+                            else best[2] / (evaluations * case.periods * len(case.starts))
+                        )
+                        found = _cheapest_fixed(
+                            sub, tol, case.starts, refs, max(1, per_period // 4), limit
+                        )
                         if found is not None and (best is None or found[1] * evaluations < best[2]):
                             best = (name, found, found[1] * evaluations)
                     if best is not None:
@@ -371,31 +616,55 @@ def _g(x, fmt=".1e"):
 
 def print_tolerance(result, file=None):
     file = sys.stdout if file is None else file
-    print("error constants C (global error C lambda T (lambda h)^p on a rotation), measured against declared:", file=file)
+    print(
+        "error constants C (global error C lambda T (lambda h)^p on a rotation), measured against declared:",
+        file=file,
+    )
     for name, c in result["constants"].items():
         print(f"  {name:<6} measured {c['measured']:.6g}  declared {c['declared']:g}", file=file)
-    print("\ntolerance=: worst relative error of the state over the horizon against the reference, summed estimate, internal steps;", file=file)
-    print("fixed: the fewest equal substeps (no tolerance) that meet the same tolerance on every start; cost x = steps / fixed steps", file=file)
+    print(
+        "\ntolerance=: worst relative error of the state over the horizon against the reference, summed estimate, internal steps;",
+        file=file,
+    )
+    print(
+        "fixed: the fewest equal substeps (no tolerance) that meet the same tolerance on every start; cost x = steps / fixed steps",
+        file=file,
+    )
     w = max([14] + [len(r["case"]) for r in result["rows"]])
-    print(f"{'case':<{w}} {'periods':>7} {'tolerance':>9} {'error':>8} {'estimate':>8} {'steps':>10} {'fixed':>7} {'fixed steps':>11} {'cost x':>6}  note", file=file)
+    print(
+        f"{'case':<{w}} {'periods':>7} {'tolerance':>9} {'error':>8} {'estimate':>8} {'steps':>10} {'fixed':>7} {'fixed steps':>11} {'cost x':>6}  note",
+        file=file,
+    )
     for r in result["rows"]:
         tol = "none" if r["tolerance"] is None else f"{r['tolerance']:.0e}"
         if "refused" in r:
             reason = r["refused"]
             if "cannot be met" in reason:
-                short = reason.split(" internal steps")[0].replace(f"tolerance={r['tolerance']!r} cannot be met: at the start the integrator ", "")
+                short = reason.split(" internal steps")[0].replace(
+                    f"tolerance={r['tolerance']!r} cannot be met: at the start the integrator ", ""
+                )
                 short += " internal steps a period"
             else:  # a scheme tolerance= does not take (its error in the amplitude)
                 short = reason.split("(or integrator='auto'): ")[-1].split(", which")[0]
-            print(f"{r['case']:<{w}} {r['periods']:>7} {tol:>9} {'refused':>8} {'':>8} {'':>10} {'':>7} {'':>11} {'':>6}  {short}", file=file)
+            print(
+                f"{r['case']:<{w}} {r['periods']:>7} {tol:>9} {'refused':>8} {'':>8} {'':>10} {'':>7} {'':>11} {'':>6}  {short}",
+                file=file,
+            )
             continue
         note = r.get("failure") or ""
         if r["tolerance"] is not None and (not note or note.startswith("ended")):
-            note = ("within" if r["error"] <= r["tolerance"] else "OUTSIDE the tolerance") + (f" until {note}" if note else "")
-        if r.get("fixed_integrator"):  # integrator="auto": both sides' schemes, cost in rhs evaluations
+            note = ("within" if r["error"] <= r["tolerance"] else "OUTSIDE the tolerance") + (
+                f" until {note}" if note else ""
+            )
+        if r.get(
+            "fixed_integrator"
+        ):  # integrator="auto": both sides' schemes, cost in rhs evaluations
             note += f" (auto: {r['integrator']}; fixed: {r['fixed_integrator']}; cost x in rhs evaluations)"
         fixed = r.get("fixed_substeps")
-        print(f"{r['case']:<{w}} {r['periods']:>7} {tol:>9} {_g(r['error']):>8} {_g(r.get('estimate')):>8} {r['steps']:>10} {_g(fixed, 'd'):>7} "
-              f"{_g(r.get('fixed_steps'), 'd'):>11} {_g(r.get('cost_ratio'), '.2f'):>6}  {note}", file=file)
+        print(
+            f"{r['case']:<{w}} {r['periods']:>7} {tol:>9} {_g(r['error']):>8} {_g(r.get('estimate')):>8} {r['steps']:>10} {_g(fixed, 'd'):>7} "
+            f"{_g(r.get('fixed_steps'), 'd'):>11} {_g(r.get('cost_ratio'), '.2f'):>6}  {note}",
+            file=file,
+        )
     shown = {r["case"]: r["label"] for r in result["rows"]}
     print("\ncases: " + "; ".join(f"{k}: {label}" for k, label in shown.items()), file=file)

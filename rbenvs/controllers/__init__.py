@@ -4,7 +4,17 @@ from .free_body import DetumbleDamping, ReorientPD, SpinLQR, ZeroController
 from .heavy_top import PrecessionTracking, UprightLQR
 from .tippe_top import SlipCancelling
 
-__all__ = ["ZeroController", "SpinLQR", "DetumbleDamping", "ReorientPD", "UprightLQR", "PrecessionTracking", "SlipCancelling", "controller_for"]
+__all__ = [
+    "ZeroController",
+    "SpinLQR",
+    "DetumbleDamping",
+    "ReorientPD",
+    "UprightLQR",
+    "PrecessionTracking",
+    "SlipCancelling",
+    "controller_for",
+]
+
 
 def controller_for(env):
     """The analytic controller for ``env``'s task: the one its task names (``task.controller``,

@@ -17,7 +17,12 @@ __all__ = ["UprightLQR", "PrecessionTracking"]
 
 def _unwrap(env):
     e = env.unwrapped
-    return e, np.array(e.params.inertia), np.array(e.params.com_direction), np.array(e.torque_directions)
+    return (
+        e,
+        np.array(e.params.inertia),
+        np.array(e.params.com_direction),
+        np.array(e.torque_directions),
+    )
 
 
 def _jacobian(system, y0, h=1e-6):
@@ -29,7 +34,9 @@ def _jacobian(system, y0, h=1e-6):
         yp, ym = np.array(y0, dtype=float), np.array(y0, dtype=float)
         yp[j] += h
         ym[j] -= h
-        jac[:, j] = (np.array(system.rhs(tuple(yp), None)) - np.array(system.rhs(tuple(ym), None))) / (2.0 * h)
+        jac[:, j] = (
+            np.array(system.rhs(tuple(yp), None)) - np.array(system.rhs(tuple(ym), None))
+        ) / (2.0 * h)
     return jac
 
 
@@ -39,7 +46,11 @@ def _turn(v, rotation_vector):
     if angle == 0.0:
         return v
     k = rotation_vector / angle
-    return v * np.cos(angle) + np.cross(k, v) * np.sin(angle) + k * float(k @ v) * (1.0 - np.cos(angle))
+    return (
+        v * np.cos(angle)
+        + np.cross(k, v) * np.sin(angle)
+        + k * float(k @ v) * (1.0 - np.cos(angle))
+    )
 
 
 class UprightLQR:
@@ -62,7 +73,9 @@ class UprightLQR:
         prm = e.params
         k = int(np.argmax(np.abs(chi)))
         if np.count_nonzero(chi) != 1:
-            raise ValueError("UprightLQR needs com_direction along a principal axis (an upright equilibrium with spin)")
+            raise ValueError(
+                "UprightLQR needs com_direction along a principal axis (an upright equilibrium with spin)"
+            )
         self.chi = chi
         self.inertia = inertia
         self.max_torque = e.max_torque
@@ -88,7 +101,9 @@ class UprightLQR:
             a = proj @ jac @ proj.T
             leak = np.linalg.norm(jac @ proj.T - proj.T @ a)
             if leak > 1e-6 * max(1.0, np.linalg.norm(jac)):
-                raise ValueError("the transverse subspace is not invariant for this top; UprightLQR does not apply")
+                raise ValueError(
+                    "the transverse subspace is not invariant for this top; UprightLQR does not apply"
+                )
             if self.max_torque == 0.0:
                 gains.append(np.zeros((2, 4)))
                 continue
@@ -164,7 +179,11 @@ class PrecessionTracking:
         spin = float(omega @ chi)
         cos_t = float(np.clip(gamma @ chi, -1.0, 1.0))
         task = self.task
-        p = task.target_rate if task.target_rate is not None else slow_precession_rate(self.env.system, spin, task.target_tilt)
+        p = (
+            task.target_rate
+            if task.target_rate is not None
+            else slow_precession_rate(self.env.system, spin, task.target_tilt)
+        )
         ref = p * gamma + (spin - p * cos_t) * chi
         gamma_dot = np.cross(gamma, omega)
         ref_dot = p * gamma_dot - p * float(gamma_dot @ chi) * chi
@@ -174,7 +193,12 @@ class PrecessionTracking:
             theta = float(np.arctan2(sin_t, cos_t))
             ref = ref + self.tilt_rate * (task.target_tilt - theta) * cross / sin_t
         pi = inertia * omega
-        torque = inertia * ref_dot - np.cross(pi, omega) - np.cross(gamma, self.weight) - self.damping * inertia * (omega - ref)
+        torque = (
+            inertia * ref_dot
+            - np.cross(pi, omega)
+            - np.cross(gamma, self.weight)
+            - self.damping * inertia * (omega - ref)
+        )
         torque = _turn(torque, -0.5 * self.dt * omega)
         a = self.basis @ torque / self.max_torque
         if self.axial:

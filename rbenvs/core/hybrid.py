@@ -82,7 +82,15 @@ class Switching:
             if event.function(y_prev) < 0.0:
                 t, y_at = 0.0, y_prev
             else:
-                t, y_at = locate(y_prev, y, f_end, lambda z, dt: integ.step(system, z, u, dt), h, event.function, event.tolerance)
+                t, y_at = locate(
+                    y_prev,
+                    y,
+                    f_end,
+                    lambda z, dt: integ.step(system, z, u, dt),
+                    h,
+                    event.function,
+                    event.tolerance,
+                )
             y_new = event.switch(y_at)
             return integ.step(system, y_new, u, h - t) if t < h else y_new
         return y

@@ -81,21 +81,62 @@ class Model:
         require_parts(self.actuator, Actuator, "actuator")
         region: StepRegion = self.integrator.region
         rates = self.system.guard_rates(region, self.speed_ceiling)
-        zero = self.actuator.control((0.0,) * self.actuator.size)[1] if self.tolerance is not None else ()
-        object.__setattr__(self, "step_rule", StepRule.build(rates, region, self.dt, self.guard, self.integrator, self.tolerance, self.horizon, self.system, zero,
-                                                                gate_steps=self.substeps if self.accuracy == "default" else None))
+        zero = (
+            self.actuator.control((0.0,) * self.actuator.size)[1]
+            if self.tolerance is not None
+            else ()
+        )
+        object.__setattr__(
+            self,
+            "step_rule",
+            StepRule.build(
+                rates,
+                region,
+                self.dt,
+                self.guard,
+                self.integrator,
+                self.tolerance,
+                self.horizon,
+                self.system,
+                zero,
+                gate_steps=self.substeps if self.accuracy == "default" else None,
+            ),
+        )
         floor = float(self.task.reward_floor(self.system, self.observation_high))
         if not math.isfinite(floor):
-            raise ValueError(f"the task's reward floor must be finite, got {floor} (task {type(self.task).__name__})")
-        object.__setattr__(self, "failure_charge", min(floor, 0.0) * self.episode_steps if self.episode_steps else 0.0)
+            raise ValueError(
+                f"the task's reward floor must be finite, got {floor} (task {type(self.task).__name__})"
+            )
+        object.__setattr__(
+            self,
+            "failure_charge",
+            min(floor, 0.0) * self.episode_steps if self.episode_steps else 0.0,
+        )
         object.__setattr__(self, "draw_kinds", self.task.draw_kinds + self.system.start_draw_kinds)
         object.__setattr__(self, "system_draws", len(self.system.start_draw_kinds))
 
     def __reduce__(self):
         """Pickled as its parts and settings; the derived rule is made again on loading (it holds
         the system's pure forms, which may be functions made at run time)."""
-        return (Model, (self.system, self.task, self.integrator, self.actuator, self.dt, self.substeps, self.guard, self.observation_high,
-                        self.speed_ceiling, self.tolerance, self.horizon, self.episode_steps, self.check, self.accuracy))
+        return (
+            Model,
+            (
+                self.system,
+                self.task,
+                self.integrator,
+                self.actuator,
+                self.dt,
+                self.substeps,
+                self.guard,
+                self.observation_high,
+                self.speed_ceiling,
+                self.tolerance,
+                self.horizon,
+                self.episode_steps,
+                self.check,
+                self.accuracy,
+            ),
+        )
 
     @property
     def h(self) -> float:
@@ -154,7 +195,9 @@ def _start_form(task_start, complete, k: int, m: int):
         return "(" + "".join(f"d[{j}], " for j in range(a, b)) + ")"
 
     src = f"def start(P, d):\n    return complete(P[1], task_start(P[0], {items(0, k)}), {items(k, k + m)})\n"
-    namespace = generate(src, f"start k={k} m={m}", {"task_start": task_start, "complete": complete})
+    namespace = generate(
+        src, f"start k={k} m={m}", {"task_start": task_start, "complete": complete}
+    )
     return jitable(namespace["start"])
 
 

@@ -11,7 +11,15 @@ import numpy as np
 
 from ..jit import compiled_form, jitable
 
-__all__ = ["REASONS", "end_code", "reason_names", "reason_strings", "reason_code_points", "ReasonPool", "terminal_reason"]
+__all__ = [
+    "REASONS",
+    "end_code",
+    "reason_names",
+    "reason_strings",
+    "reason_code_points",
+    "ReasonPool",
+    "terminal_reason",
+]
 
 # Why an episode ended, as a code (what the compiled vector step writes per sub-env) and as the
 # name ``info["terminal_reason"]`` reports: code k is REASONS[k], the system's terminal event's

@@ -105,7 +105,12 @@ class Engine:
 
     def __init__(self, model, compiled="auto"):
         m = self.model = model
-        self.system, self.task, self.integrator, self.actuator = m.system, m.task, m.integrator, m.actuator
+        self.system, self.task, self.integrator, self.actuator = (
+            m.system,
+            m.task,
+            m.integrator,
+            m.actuator,
+        )
         self.dt, self.substeps, self.guard, self.rule = m.dt, m.substeps, m.guard, m.step_rule
         self.control = m.actuator.control  # bound once: the hot path calls it every step
         self.h = m.dt / m.substeps
@@ -114,7 +119,9 @@ class Engine:
         # lift-off without free flight) and its switches (free flight: hops)
         self.event = system.terminal_event() if system.hybrid else None
         self.event_name = None if self.event is None else self.event[0]
-        self.switching = Switching(system, m.integrator) if system.hybrid and system.switches else None
+        self.switching = (
+            Switching(system, m.integrator) if system.hybrid and system.switches else None
+        )
         # where the system gives the vector field and the event's value from one evaluation and
         # the scheme takes its first stage, the check at a new state is the next first stage
         # (the tippe top's lift-off: one contact solve per stage instead of one more per step)
@@ -127,7 +134,9 @@ class Engine:
         # (advance(comp=), companion(comp=); the single env's in comp)
         # (a default accuracy sums plainly: its scenes keep their bits; the companion's runs need it)
         compensate = m.tolerance is not None and (m.accuracy == "explicit" or m.check)
-        self.step_c = m.integrator.bind(system, system.dim, compensated=True) if compensate else None
+        self.step_c = (
+            m.integrator.bind(system, system.dim, compensated=True) if compensate else None
+        )
         # a run's compensation at its start (zeros; None where the steps sum plainly)
         self.fresh_comp = (0.0,) * system.dim if self.step_c is not None else None
         self.comp = self.fresh_comp  # the single env's run's
@@ -144,7 +153,12 @@ class Engine:
         # the observation bounds can trip the guard; a step that ends outside them drops to the
         # checked path until the next reset (the single env's and the vector env's rule); a
         # compensated sum runs on the checked path
-        self.plain = self.event is None and self.switching is None and self.rule.idle(m.substeps) and self.step_c is None
+        self.plain = (
+            self.event is None
+            and self.switching is None
+            and self.rule.idle(m.substeps)
+            and self.step_c is None
+        )
         self.bound_step = m.integrator.bind(system, system.dim)  # the hot path's step, same bits
         self.high = np.asarray(m.observation_high, dtype=np.float64)
         self.high32 = self.high.astype(np.float32)
@@ -169,7 +183,14 @@ class Engine:
         # stability bound alone never asks for more than substeps: a state within the cheap bound
         # takes the plain loop, its estimate the bound's (the compiled paths test it themselves)
         self.gate = None
-        if self.rule.gate is not None and not m.check and self.event is None and self.switching is None and self.step_c is None and self.rule.stable(m.substeps):
+        if (
+            self.rule.gate is not None
+            and not m.check
+            and self.event is None
+            and self.switching is None
+            and self.step_c is None
+            and self.rule.stable(m.substeps)
+        ):
             self.gate = self.rule.gate
         # tolerance_check: every period takes an even count (its companion half as many steps of
         # twice the size: rbenvs.stepsize.controller), so neither the plain loop (substeps steps) nor
@@ -183,7 +204,10 @@ class Engine:
         # a tolerance's one-state count and error estimate from one evaluation of the rates, compiled
         # (rbenvs.compiled.PeriodPlan; the float path: StepRule.plan): "auto" where numba is
         # installed and every part has a pure form, built on first use
-        self._plan, self._plan_tried = None, m.tolerance is None or compiled is False or self.rule.rotation is None
+        self._plan, self._plan_tried = (
+            None,
+            m.tolerance is None or compiled is False or self.rule.rotation is None,
+        )
         if m.check:
             self.plain, self._state_step, self._state_step_tried = False, None, True
             self._runs_tried = compiled is False
@@ -191,7 +215,11 @@ class Engine:
                 self._runs = self._build_runs(required=True)
 
     def __reduce__(self):  # generated and compiled functions are made again, not pickled
-        return (Engine, (self.model, self.compiled), {"comp": self.comp})  # (the single env's run goes on as it was)
+        return (
+            Engine,
+            (self.model, self.compiled),
+            {"comp": self.comp},
+        )  # (the single env's run goes on as it was)
 
     @property
     def state_step(self):
@@ -211,8 +239,11 @@ class Engine:
         parts = self.kernel_parts() if _compiled.available() else None
         if parts is None:
             if required:
-                why = (f"numba is not installed (the 'fast' extra) or {_compiled.DISABLE_VARIABLE}=0 is set" if not _compiled.available() else
-                       f"integrator {self.integrator.name!r} with task {self.task.name!r} and these settings has no compiled step")
+                why = (
+                    f"numba is not installed (the 'fast' extra) or {_compiled.DISABLE_VARIABLE}=0 is set"
+                    if not _compiled.available()
+                    else f"integrator {self.integrator.name!r} with task {self.task.name!r} and these settings has no compiled step"
+                )
                 raise ValueError(f"compiled=True but {why}")
             return None
         m = self.model
@@ -228,7 +259,17 @@ class Engine:
         if inputs is None:
             return None
         parts, sizes = inputs
-        return _compiled.StateStep(parts, *sizes, self.high_list, self.h, self.dt, self.substeps, self.metric_names, self.readout_names, self.rule.error)
+        return _compiled.StateStep(
+            parts,
+            *sizes,
+            self.high_list,
+            self.h,
+            self.dt,
+            self.substeps,
+            self.metric_names,
+            self.readout_names,
+            self.rule.error,
+        )
 
     @property
     def checked_runs(self):
@@ -271,11 +312,17 @@ class Engine:
             r, lam_d, a = plan.batch(*self._plan_inputs(plan, y, u, Y))
             return (tuple(r) if rule.motion else r[0]), lam_d, a
         lam = rule.rate(y, u)
-        lam = tuple(np.array(v, dtype=np.float64) for v in lam) if rule.motion else np.array(lam, dtype=np.float64)
+        lam = (
+            tuple(np.array(v, dtype=np.float64) for v in lam)
+            if rule.motion
+            else np.array(lam, dtype=np.float64)
+        )
         lam_d, a = 0.0, 1.0
         if rule.dissipation is not None:
             lam_d = np.array(rule.dissipation_rate(y, u), dtype=np.float64)
-            with np.errstate(over="ignore", invalid="ignore", divide="ignore"):  # (a blown-up element is reported by its step)
+            with np.errstate(
+                over="ignore", invalid="ignore", divide="ignore"
+            ):  # (a blown-up element is reported by its step)
                 a = np.array(rule.dissipation_share(y, u, lam_d), dtype=np.float64)
             a = np.where(lam_d > 0.0, a, 1.0)  # (StepRule.plan's: no decaying mode, no share of it)
         return lam, lam_d, a
@@ -284,7 +331,9 @@ class Engine:
         """``(Y, U)``: a batch's states and controls as the compiled plan takes them."""
         Y = np.ascontiguousarray(np.stack(y) if Y is None else Y, dtype=np.float64)
         U = np.zeros((plan.layout.n_control, Y.shape[1]))
-        for j, c in enumerate(self.rule.zero_control if u is None else u):  # (None: the zero action's, as StepRule.rate reads it)
+        for j, c in enumerate(
+            self.rule.zero_control if u is None else u
+        ):  # (None: the zero action's, as StepRule.rate reads it)
             U[j] = c
         return Y, U
 
@@ -333,7 +382,9 @@ class Engine:
                 n = self.rule.count(self.plan_one(y, u)[0] if ratio is None else ratio, n)
             if n > self.substeps and self.guard == "refuse":
                 raise self.refusal(n)
-            if self.check:  # an even count: the companion takes half as many steps of twice the size
+            if (
+                self.check
+            ):  # an even count: the companion takes half as many steps of twice the size
                 n += n & 1
             if n > MAX_INTERNAL_STEPS:
                 # a state beyond what the scheme can resolve in a period: NaN (a numerical
@@ -354,7 +405,9 @@ class Engine:
         refused = n > MAX_INTERNAL_STEPS
         if refused.any():
             y = tuple(np.where(refused, np.nan, c) for c in y)
-            y, fired, h, comp = self.advance(y, u, False, refused if skip is None else (skip | refused), comp=comp)
+            y, fired, h, comp = self.advance(
+                y, u, False, refused if skip is None else (skip | refused), comp=comp
+            )
             return y, fired, np.where(refused, self.dt / n, h), comp
         uniform = bool(np.all(n == n.flat[0]))
         if self.integrator.uniform_step_only and not uniform:
@@ -365,7 +418,9 @@ class Engine:
             for k in np.unique(n):
                 idx = np.flatnonzero(n == k)
                 sub_u = None if u is None else tuple(c[idx] if np.ndim(c) else c for c in u)
-                sub_y, sub_fired, _ = self._loop(tuple(c[idx] for c in y), sub_u, np.full(len(idx), k), self.dt / int(k), None)
+                sub_y, sub_fired, _ = self._loop(
+                    tuple(c[idx] for c in y), sub_u, np.full(len(idx), k), self.dt / int(k), None
+                )
                 for o, c in zip(out, sub_y):
                     o[idx] = c
                 fired[idx] = sub_fired
@@ -388,7 +443,9 @@ class Engine:
         event ending them early: ``(y, fired, comp)``. ``comp``: the run's compensation at
         ``y`` (a tolerance: the compensated step carries it; it starts again from zero after a
         switch); ``None``: the plain step."""
-        if self.check and comp is not None:  # (the checked period's runs, compiled where they can be)
+        if (
+            self.check and comp is not None
+        ):  # (the checked period's runs, compiled where they can be)
             runs = self._runs if self._runs_tried else self.checked_runs
             if runs is not None:
                 return runs(y, comp, u, n, h)
@@ -449,7 +506,9 @@ class Engine:
         """A batch's internal steps: element ``i`` takes ``n[i]`` steps of ``h`` (``h[i]``) and is
         frozen after them or at its terminal event: ``(y, fired, comp)``. ``comp``: each
         element's compensation, carried as :meth:`_run_one` carries it (``None``: plain)."""
-        if self.check and comp is not None:  # (the checked period's runs, compiled where they can be)
+        if (
+            self.check and comp is not None
+        ):  # (the checked period's runs, compiled where they can be)
             runs = self._runs if self._runs_tried else self.checked_runs
             if runs is not None and u is not None:
                 return self._run_each(runs, y, u, n, h, comp)
@@ -464,7 +523,9 @@ class Engine:
                 y_new, comp = step_c(y, comp, u, h)
             if post is not None:
                 y_post = post.after_step(y, y_new, u, h)
-                if y_post is not y_new and step_c is not None:  # the elements that switched start their sum afresh
+                if (
+                    y_post is not y_new and step_c is not None
+                ):  # the elements that switched start their sum afresh
                     moved = np.zeros(n.shape, dtype=bool)
                     for a, b in zip(y_post, y_new):
                         moved |= a != b
@@ -521,7 +582,9 @@ class Engine:
         compensation, as its single env takes them (the same bits as the arrays' loop)."""
         size = n.size
 
-        def rows(values):  # (a component may be one float for every element: a fresh compensation, a shared control)
+        def rows(
+            values,
+        ):  # (a component may be one float for every element: a fresh compensation, a shared control)
             out = np.empty((len(values), size))
             for j, c in enumerate(values):
                 out[j] = c
@@ -559,7 +622,9 @@ class Engine:
             else:
                 over = any(not -b <= v <= b for v, b in zip(comps, self.high_list))
             if over:
-                return np.clip(np.asarray(comps, dtype=np.float64), -self.high, self.high).astype(np.float32), True
+                return np.clip(np.asarray(comps, dtype=np.float64), -self.high, self.high).astype(
+                    np.float32
+                ), True
             return np.array(comps, dtype=np.float32), False
         # a batch: the float32 copy checked against the float32 bounds with <; rounding to
         # float32 is monotone, so float32(v) < float32(hi) implies v < hi and passing means
@@ -627,7 +692,9 @@ class Engine:
         compensation as it was)."""
         obs, over = self.observe(y)
         if over:
-            raise ValueError("the initial state lies outside the observation bounds; raise the limit parameters")
+            raise ValueError(
+                "the initial state lies outside the observation bounds; raise the limit parameters"
+            )
         _, _, metrics = self.evaluate(y, self.actuator.control((0.0,) * self.actuator.size)[0])
         return obs, self.info_one(y, None, False, self.h, metrics, failed=False)
 
@@ -645,13 +712,21 @@ class Engine:
             e = None  # (the period's error estimate: a kernel with a tolerance's returns it last)
             if self.comp is None:
                 if one.estimated:
-                    status, count, h, fired, y, o, over, r, q, e = one(y0, u, u_norm, not plain, self.guard == "refuse")
+                    status, count, h, fired, y, o, over, r, q, e = one(
+                        y0, u, u_norm, not plain, self.guard == "refuse"
+                    )
                 else:
-                    status, count, h, fired, y, o, over, r, q = one(y0, u, u_norm, not plain, self.guard == "refuse")
+                    status, count, h, fired, y, o, over, r, q = one(
+                        y0, u, u_norm, not plain, self.guard == "refuse"
+                    )
             elif one.estimated:  # (the run's compensation in and out)
-                status, count, h, fired, y, o, over, r, q, comp, e = one.compensated(y0, self.comp, u, u_norm, not plain, self.guard == "refuse")
+                status, count, h, fired, y, o, over, r, q, comp, e = one.compensated(
+                    y0, self.comp, u, u_norm, not plain, self.guard == "refuse"
+                )
             else:
-                status, count, h, fired, y, o, over, r, q, comp = one.compensated(y0, self.comp, u, u_norm, not plain, self.guard == "refuse")
+                status, count, h, fired, y, o, over, r, q, comp = one.compensated(
+                    y0, self.comp, u, u_norm, not plain, self.guard == "refuse"
+                )
             if status:
                 if status < 0:
                     raise self.refusal(count)
@@ -660,21 +735,32 @@ class Engine:
                 return out
             if self.comp is not None:
                 self.comp = comp
-            obs, reward, terminated, info = np.array(o, dtype=np.float32), r[0], r[1], one.info(q, r, h, e)
+            obs, reward, terminated, info = (
+                np.array(o, dtype=np.float32),
+                r[0],
+                r[1],
+                one.info(q, r, h, e),
+            )
             if fired or over or terminated:
-                info["terminal_reason"] = terminal_reason(False, fired, over, terminated, self.event_name)
+                info["terminal_reason"] = terminal_reason(
+                    False, fired, over, terminated, self.event_name
+                )
                 terminated = True
                 if not info["is_success"]:
                     reward += self.failure_charge
                 if over:
                     plain = False
             return y, obs, reward, terminated, info, u, plain
-        lam = estimate = None  # a tolerance's float path: the rates at y0 give the count and the estimate
+        lam = estimate = (
+            None  # a tolerance's float path: the rates at y0 give the count and the estimate
+        )
         if self.tolerance is not None and ratio is None:
             estimate = self.gated(y0)
             if estimate is None:
                 ratio, lam, lam_d, share = self.plan_one(y0, u)
-        if plain or estimate is not None:  # fixed substeps, nothing watched: the loop inline (the hot path)
+        if (
+            plain or estimate is not None
+        ):  # fixed substeps, nothing watched: the loop inline (the hot path)
             step, h, comp = self.bound_step, self.h, None
             y = step(y0, u, h)
             if self.substeps != 1:
@@ -701,12 +787,16 @@ class Engine:
             obs, over = self.observe(y)
             reward, terminated, metrics = self.evaluate(y, u_norm)
             info = self.info_one(y, u, fired, h, metrics, failed=False)
-        if lam is not None:  # (the period's estimated relative error: rbenvs.stepsize.forms.error_estimate)
+        if (
+            lam is not None
+        ):  # (the period's estimated relative error: rbenvs.stepsize.forms.error_estimate)
             info["error_estimate"] = float(self.rule.estimate(lam, h, lam_d, share))
         elif estimate is not None:
             info["error_estimate"] = estimate
         if fired or over or terminated:  # (the common case tests three bools and goes on)
-            info["terminal_reason"] = terminal_reason(False, fired, over, terminated, self.event_name)
+            info["terminal_reason"] = terminal_reason(
+                False, fired, over, terminated, self.event_name
+            )
             terminated = True
             if not info["is_success"]:  # an end without success: ending early never pays
                 reward += self.failure_charge
@@ -748,11 +838,13 @@ class Engine:
         return out
 
     def _inaccurate_text(self, estimate, periods) -> str:
-        return (f"the global error estimate {float(estimate):.3g} passed tolerance={self.tolerance!r} after {int(periods)} periods "
-                f"({int(periods) * self.dt:.6g} s; tolerance_check: a companion run at twice the step measures the error the state "
-                f"carries, errors the motion amplified included, which the steps' estimate does not budget for; more steps per period "
-                f"hold it longer: a tighter tolerance= or substeps= (the least count), and 'rbenvs bench accuracy --tolerance' shows "
-                f"the counts that hold each shipped scene)")
+        return (
+            f"the global error estimate {float(estimate):.3g} passed tolerance={self.tolerance!r} after {int(periods)} periods "
+            f"({int(periods) * self.dt:.6g} s; tolerance_check: a companion run at twice the step measures the error the state "
+            f"carries, errors the motion amplified included, which the steps' estimate does not budget for; more steps per period "
+            f"hold it longer: a tighter tolerance= or substeps= (the least count), and 'rbenvs bench accuracy --tolerance' shows "
+            f"the counts that hold each shipped scene)"
+        )
 
     def _failed_one(self, y0, u_norm, u, h, plain, what=None, kept="the last finite state"):
         if what is None:
@@ -784,7 +876,9 @@ class Engine:
             finite &= np.isfinite(c)
         failed = ~finite & ~skip
         if failed.any():
-            cap = self._cap_text(np.asarray(h)[failed]) if np.ndim(h) else ""  # (the single env's words)
+            cap = (
+                self._cap_text(np.asarray(h)[failed]) if np.ndim(h) else ""
+            )  # (the single env's words)
             cap = f" (periods refused{cap})" if cap else ""
             warnings.warn(
                 f"sub-envs {np.flatnonzero(failed).tolist()} became non-finite with integrator {self.integrator.name!r}{cap}; "
@@ -805,7 +899,9 @@ class Engine:
                 )
                 failed = failed | late
                 kept = finite & ~late
-        return tuple(np.where(kept, c, c0) for c, c0 in zip(y, y0)), (failed if failed.any() else None)
+        return tuple(np.where(kept, c, c0) for c, c0 in zip(y, y0)), (
+            failed if failed.any() else None
+        )
 
     # ------------------------------------------------------------------ pure forms
     def _generated_finish(self):
@@ -820,7 +916,9 @@ class Engine:
         (observe, po), (evaluate, pe) = kernels(self.system)
         f, pr = readouts
         high = tuple(self.high_list)
-        fn = state_finish(observe, len(high), evaluate, self.metric_names, f, self.readout_names, high)
+        fn = state_finish(
+            observe, len(high), evaluate, self.metric_names, f, self.readout_names, high
+        )
         return fn, po, pe, pr
 
     def kernel_parts(self):
@@ -831,7 +929,11 @@ class Engine:
         (free flight)."""
         system, task = self.system, self.task
         step = self.integrator.kernel_step(system)
-        step_c = self.integrator.kernel_step(system, compensated=True) if self.step_c is not None else None
+        step_c = (
+            self.integrator.kernel_step(system, compensated=True)
+            if self.step_c is not None
+            else None
+        )
         readouts = system.kernel_readouts
         if step is None or task.kernels is None or readouts is None:
             return None
@@ -862,9 +964,23 @@ class Engine:
         if rule.active:  # checked only where asked (a period that may not take the plain loop)
             rotation, dissipation = rule.rotation, rule.dissipation
         observe, evaluate = task.kernels(system)
-        return KernelParts(step, observe, evaluate, readouts, rotation, rule.params, dissipation, rule.dissipation_step, event, rhs_event, tuple(switches),
-                           rule.motion and rotation is not None, rule.share if dissipation is not None else None, step_c,
-                           rule.gate if rotation is not None and dissipation is None else None)
+        return KernelParts(
+            step,
+            observe,
+            evaluate,
+            readouts,
+            rotation,
+            rule.params,
+            dissipation,
+            rule.dissipation_step,
+            event,
+            rhs_event,
+            tuple(switches),
+            rule.motion and rotation is not None,
+            rule.share if dissipation is not None else None,
+            step_c,
+            rule.gate if rotation is not None and dissipation is None else None,
+        )
 
 
 class KernelParts(NamedTuple):
@@ -892,7 +1008,9 @@ class KernelParts(NamedTuple):
     rhs_event: tuple | None = None
     switches: tuple = ()
     motion: bool = False  # rotation is (fn, P) with fn(P, y, u) -> (lambda, mu): step_ratio_motion
-    share: tuple | None = None  # (fn, P): the decaying mode's share of its error term (StepRule.share)
+    share: tuple | None = (
+        None  # (fn, P): the decaying mode's share of its error term (StepRule.share)
+    )
     # (fn, P): step's compensated form (a tolerance: Engine.step_c), fn(PS, y, c, u, h) -> (y, c)
     # (with rhs_event fn(PS, y, c, k0, u, h)); None: the plain step
     step_c: tuple | None = None

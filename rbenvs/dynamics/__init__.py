@@ -4,4 +4,12 @@ from .free_body import FreeBody, FreeBodyOrbit, FreeBodyParams
 from .heavy_top import HeavyTop, HeavyTopParams
 from .tippe_top import TippeTop, TippeTopParams
 
-__all__ = ["FreeBody", "FreeBodyOrbit", "FreeBodyParams", "HeavyTop", "HeavyTopParams", "TippeTop", "TippeTopParams"]
+__all__ = [
+    "FreeBody",
+    "FreeBodyOrbit",
+    "FreeBodyParams",
+    "HeavyTop",
+    "HeavyTopParams",
+    "TippeTop",
+    "TippeTopParams",
+]

@@ -131,7 +131,9 @@ class FrictionLaw:
     def pure_forms(self) -> tuple:
         """``(coefficient, stiffness)`` as functions of the methods' arguments: the pure ones,
         or the bound methods of a law that has none (floats and arrays only)."""
-        coefficient = self.kernel_coefficient if self.kernel_coefficient is not None else self.coefficient
+        coefficient = (
+            self.kernel_coefficient if self.kernel_coefficient is not None else self.coefficient
+        )
         stiffness = self.kernel_stiffness if self.kernel_stiffness is not None else self.stiffness
         return coefficient, stiffness
 

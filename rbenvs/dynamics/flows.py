@@ -67,13 +67,21 @@ def _axis_rotation_lines(i, vectors, quaternion, dim, rate: str, y: str, out: st
         r = ["0.0", "0.0", "0.0"]
         r[i] = "sh"
         lines.append("sh, ch = sincos(0.5 * w)")
-        lines.append(f"qn = quat_multiply(({y}[{a}], {y}[{a + 1}], {y}[{a + 2}], {y}[{a + 3}]), (ch, {', '.join(r)}))")
+        lines.append(
+            f"qn = quat_multiply(({y}[{a}], {y}[{a + 1}], {y}[{a + 2}], {y}[{a + 3}]), (ch, {', '.join(r)}))"
+        )
         items[a : a + 4] = [f"qn[{m}]" for m in range(4)]
     lines.append(f"{out} = ({', '.join(items)},)")
     return lines
 
 
-_NAMESPACE = {"sincos": sincos, "half_turn": half_turn, "quat_multiply": quat_multiply, "quat_rotate": quat_rotate, "sqrt": sqrt}
+_NAMESPACE = {
+    "sincos": sincos,
+    "half_turn": half_turn,
+    "quat_multiply": quat_multiply,
+    "quat_rotate": quat_rotate,
+    "sqrt": sqrt,
+}
 
 
 @lru_cache(maxsize=None)
@@ -104,7 +112,9 @@ def _symmetric_rotation(k: int, vectors: tuple, quaternion, dim: int):
         items[o : o + 3] = [f"v{o}[{m}]" for m in range(3)]
     if quaternion is not None:
         a = quaternion
-        lines.append(f"q = quat_multiply((y[{a}], y[{a + 1}], y[{a + 2}], y[{a + 3}]), (ch, tx * s, ty * s, tz * s))")
+        lines.append(
+            f"q = quat_multiply((y[{a}], y[{a + 1}], y[{a + 2}], y[{a + 3}]), (ch, tx * s, ty * s, tz * s))"
+        )
         items[a : a + 4] = [f"q[{m}]" for m in range(4)]
     lines.append(f"z = ({', '.join(items)},)")
     lines += _axis_rotation_lines(k, vectors, quaternion, dim, "axial_rate", "z", "z")
@@ -131,7 +141,9 @@ class AxisRotation:
     @property
     def kernel(self):
         """``(flow, rate)`` with ``flow(rate, y, u, h)`` pure (floats, arrays, compiled)."""
-        return _axis_rotation(self.i, tuple(self.vectors), self.quaternion, _state_size(self.vectors, self.quaternion)), self.rate
+        return _axis_rotation(
+            self.i, tuple(self.vectors), self.quaternion, _state_size(self.vectors, self.quaternion)
+        ), self.rate
 
     def __call__(self, y, u, h):
         fn, p = self.kernel
@@ -161,12 +173,16 @@ class SymmetricFreeRotation:
     axial_rate: float = field(init=False, repr=False, compare=False)
 
     def __post_init__(self):
-        object.__setattr__(self, "axial_rate", 1.0 / self.axial_inertia - 1.0 / self.transverse_inertia)
+        object.__setattr__(
+            self, "axial_rate", 1.0 / self.axial_inertia - 1.0 / self.transverse_inertia
+        )
 
     @property
     def kernel(self):
         """``(flow, (I_t, rate_k))`` with ``flow(P, y, u, h)`` pure (floats, arrays, compiled)."""
-        fn = _symmetric_rotation(self.k, tuple(self.vectors), self.quaternion, _state_size(self.vectors, self.quaternion))
+        fn = _symmetric_rotation(
+            self.k, tuple(self.vectors), self.quaternion, _state_size(self.vectors, self.quaternion)
+        )
         return fn, (self.transverse_inertia, self.axial_rate)
 
     def __call__(self, y, u, h):

@@ -28,7 +28,23 @@ from .flows import AxisRotation
 from .state import export_layout, import_layout, start_as_drawn
 from .validation import require_inertia
 
-__all__ = ["FreeBodyParams", "FreeBody", "FreeBodyOrbit", "euler_rhs", "kinetic_energy", "momentum_norm", "angular_velocity", "rotation_rate", "jacobian_rate", "error_rate", "error_rate_params", "free_body_readouts", "attitude_rhs", "attitude_normalize", "free_body_kick"]
+__all__ = [
+    "FreeBodyParams",
+    "FreeBody",
+    "FreeBodyOrbit",
+    "euler_rhs",
+    "kinetic_energy",
+    "momentum_norm",
+    "angular_velocity",
+    "rotation_rate",
+    "jacobian_rate",
+    "error_rate",
+    "error_rate_params",
+    "free_body_readouts",
+    "attitude_rhs",
+    "attitude_normalize",
+    "free_body_kick",
+]
 
 _CYCLIC = {(0, 1, 2), (1, 2, 0), (2, 0, 1)}
 
@@ -49,7 +65,11 @@ class FreeBodyParams:
     def __post_init__(self):
         i1, i2, i3 = require_inertia("inertia", self.inertia)
         object.__setattr__(self, "inertia", (i1, i2, i3))
-        object.__setattr__(self, "coefficients", ((i2 - i3) / (i2 * i3), (i3 - i1) / (i3 * i1), (i1 - i2) / (i1 * i2)))
+        object.__setattr__(
+            self,
+            "coefficients",
+            ((i2 - i3) / (i2 * i3), (i3 - i1) / (i3 * i1), (i1 - i2) / (i1 * i2)),
+        )
         object.__setattr__(self, "inverse", (1.0 / i1, 1.0 / i2, 1.0 / i3))
 
     @property
@@ -165,7 +185,9 @@ def error_rate(p, y):
     e1, e2, e3 = _cross(p1, p2, p3, b1, b2, b3)
     c1, c2, c3 = c1 + e1, c2 + e2, c3 + e3
     d1, d2, d3 = j1 * c1, j2 * c2, j3 * c3  # ddOmega
-    f1, f2, f3 = _cross(c1, c2, c3, w1, w2, w3)  # dddPi = ddPi x Omega + 2 dPi x dOmega + Pi x ddOmega
+    f1, f2, f3 = _cross(
+        c1, c2, c3, w1, w2, w3
+    )  # dddPi = ddPi x Omega + 2 dPi x dOmega + Pi x ddOmega
     g1, g2, g3 = _cross(a1, a2, a3, b1, b2, b3)
     k1, k2, k3 = _cross(p1, p2, p3, d1, d2, d3)
     f1, f2, f3 = f1 + 2.0 * g1 + k1, f2 + 2.0 * g2 + k2, f3 + 2.0 * g3 + k3
@@ -173,7 +195,10 @@ def error_rate(p, y):
     norm = sqrt(p1 * p1 + p2 * p2 + p3 * p3)
     bound = spread * norm
     moving = speed2 > 0.0
-    lam = sqrt(sqrt((f1 * f1 + f2 * f2 + f3 * f3) / select(moving, speed2, 0.0 * speed2 + 1.0))) + sigma * norm
+    lam = (
+        sqrt(sqrt((f1 * f1 + f2 * f2 + f3 * f3) / select(moving, speed2, 0.0 * speed2 + 1.0)))
+        + sigma * norm
+    )
     lam = select(moving, lam, bound)
     return select(lam < bound, lam, bound)
 
@@ -289,7 +314,12 @@ class FreeBody:
         # without a quaternion there is nothing to project: integrators may skip normalize()
         self.needs_projection = self.attitude
         self.layout = {"angular_momentum": (0, 3)} | ({"attitude": (3, 7)} if self.attitude else {})
-        self._split = (self.kick, self.axis_rotation(0), self.axis_rotation(1), self.axis_rotation(2))
+        self._split = (
+            self.kick,
+            self.axis_rotation(0),
+            self.axis_rotation(1),
+            self.axis_rotation(2),
+        )
         # the hot path reads these on every call: plain attributes, not params.<field> chains
         self._coefficients = params.coefficients
         self._inverse = params.inverse
@@ -334,7 +364,9 @@ class FreeBody:
         if "attitude" in arrays:
             n = float(np.linalg.norm(arrays["attitude"]))
             if abs(n - 1.0) > 1e-6:
-                raise ValueError(f"state['attitude'] must be a unit quaternion (|q| = 1 within 1e-6), got |q| = {n}")
+                raise ValueError(
+                    f"state['attitude'] must be a unit quaternion (|q| = 1 within 1e-6), got |q| = {n}"
+                )
         return y
 
     def guard_rates(self, region, speed_ceiling: float = math.inf) -> GuardRates:
@@ -351,8 +383,14 @@ class FreeBody:
         inv, spread, _ = error_rate_params(self._inverse)
         # (the default accuracy's gate: error_rate is capped at the Jacobian's bound s |Pi|)
         bound = (jacobian_rate, (spread,)) if accuracy is not None else None
-        return GuardRates(rotation=(rotation_rate, (self._inverse, 1.0, 0.0)), ceiling=speed_ceiling, text="lambda = |Omega|", accuracy=accuracy,
-                          speed=(period_speed, (inv, spread)), accuracy_bound=bound)
+        return GuardRates(
+            rotation=(rotation_rate, (self._inverse, 1.0, 0.0)),
+            ceiling=speed_ceiling,
+            text="lambda = |Omega|",
+            accuracy=accuracy,
+            speed=(period_speed, (inv, spread)),
+            accuracy_bound=bound,
+        )
 
     # ------------------------------------------------------------------ vector field
     def rhs(self, y, u):
@@ -485,7 +523,11 @@ class FreeBodyOrbit:
         x_ = np.where((x_ == 0.0) & (y_ == 0.0), 1.0, x_)  # a spin exactly about c: phase 0
         self.tau0 = elliptic_f_sc(y_, x_, m, m1)
         self.nu, self.m, self.m1 = nu, m, m1
-        self.amp = (np.where(st, 0.0, s_a * amp_a), np.where(st, 0.0, amp_b), np.where(st, 0.0, s_c * amp_c))
+        self.amp = (
+            np.where(st, 0.0, s_a * amp_a),
+            np.where(st, 0.0, amp_b),
+            np.where(st, 0.0, s_c * amp_c),
+        )
         self.inertia_abc = (Ia, Ib, Ic)
         self.sigma = sigma
         self._pi0 = p
@@ -613,7 +655,9 @@ class FreeBodyOrbit:
             om_norm = np.sqrt(om[0] * om[0] + om[1] * om[1] + om[2] * om[2])
             angle = om_norm * h
             with np.errstate(invalid="ignore", divide="ignore"):
-                scale = np.where(om_norm > 0.0, np.sin(0.5 * angle) / np.where(om_norm > 0.0, om_norm, 1.0), 0.0)
+                scale = np.where(
+                    om_norm > 0.0, np.sin(0.5 * angle) / np.where(om_norm > 0.0, om_norm, 1.0), 0.0
+                )
             steady = (np.cos(0.5 * angle), om[0] * scale, om[1] * scale, om[2] * scale)
             r = tuple(np.where(self.stationary, s_, r_) for s_, r_ in zip(steady, r))
         return r

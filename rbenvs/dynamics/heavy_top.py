@@ -28,11 +28,28 @@ import numpy as np
 from ..contracts import GuardRates
 from ..draws import draw
 from ..jit import jitable
-from ..rotations import atan2, expm1, quat_conjugate, quat_from_two_vectors, quat_multiply, quat_normalize, quat_rate, quat_rotate, quat_to_euler_zxz, sqrt
+from ..rotations import (
+    atan2,
+    expm1,
+    quat_conjugate,
+    quat_from_two_vectors,
+    quat_multiply,
+    quat_normalize,
+    quat_rate,
+    quat_rotate,
+    quat_to_euler_zxz,
+    sqrt,
+)
 from .free_body import angular_velocity, rotation_rate
 from .state import export_layout, import_layout, start_as_drawn
 from .flows import AxisRotation, SymmetricFreeRotation
-from .validation import require_finite_nonnegative, require_finite_positive, require_finite_result, require_inertia, require_real_vector
+from .validation import (
+    require_finite_nonnegative,
+    require_finite_positive,
+    require_finite_result,
+    require_inertia,
+    require_real_vector,
+)
 
 __all__ = [
     "HeavyTopParams",
@@ -214,7 +231,13 @@ def heavy_top_readouts(p, y, u, fired):
     chi, extra)``, ``extra`` the constant read-outs (``(critical_spin,)`` of a Lagrange top, or
     ``()``). The control and the event flag play no part."""
     inv, weight, chi, extra = p
-    return (heavy_top_energy(inv, weight, y), pi_dot_gamma(y), vertical_norm(y), top_tilt(chi, y), top_spin(inv, chi, y)) + extra
+    return (
+        heavy_top_energy(inv, weight, y),
+        pi_dot_gamma(y),
+        vertical_norm(y),
+        top_tilt(chi, y),
+        top_spin(inv, chi, y),
+    ) + extra
 
 
 @jitable
@@ -278,10 +301,16 @@ class HeavyTopParams:
         length = require_finite_positive("length", self.length)
         gravity = require_finite_positive("gravity", self.gravity)
         friction = require_finite_nonnegative("spin_friction", self.spin_friction)
-        chi = np.asarray(require_real_vector("com_direction", self.com_direction, 3, " (a nonzero direction in the body frame)"))
+        chi = np.asarray(
+            require_real_vector(
+                "com_direction", self.com_direction, 3, " (a nonzero direction in the body frame)"
+            )
+        )
         norm = float(np.linalg.norm(chi))
         if not 0.0 < norm < math.inf:
-            raise ValueError(f"com_direction must be a finite nonzero 3-vector, got {self.com_direction!r}")
+            raise ValueError(
+                f"com_direction must be a finite nonzero 3-vector, got {self.com_direction!r}"
+            )
         chi = chi / norm
         # products the dynamics forms: refused here, by name, rather than overflowing later
         require_finite_result("mass, length and gravity", mass * length * gravity, "M g l [N m]")
@@ -297,14 +326,22 @@ class HeavyTopParams:
         set_(self, "gravity", gravity)
         set_(self, "spin_friction", friction)
         set_(self, "com_direction", chi_t)
-        set_(self, "coefficients", ((i2 - i3) / (i2 * i3), (i3 - i1) / (i3 * i1), (i1 - i2) / (i1 * i2)))
+        set_(
+            self,
+            "coefficients",
+            ((i2 - i3) / (i2 * i3), (i3 - i1) / (i3 * i1), (i1 - i2) / (i1 * i2)),
+        )
         set_(self, "inverse", (1.0 / i1, 1.0 / i2, 1.0 / i3))
         mgl = mass * gravity * length
         set_(self, "weight", tuple(mgl * c for c in chi_t))
         axis = None
         for k in range(3):
             a, b = (k + 1) % 3, (k + 2) % 3
-            if chi_t[k] != 0.0 and chi_t[a] == chi_t[b] == 0.0 and self.inertia[a] == self.inertia[b]:
+            if (
+                chi_t[k] != 0.0
+                and chi_t[a] == chi_t[b] == 0.0
+                and self.inertia[a] == self.inertia[b]
+            ):
                 axis = k
         set_(self, "symmetry_axis", axis)
 
@@ -367,17 +404,29 @@ class HeavyTop:
         self.params = params
         self.attitude = bool(attitude)
         self.dim = 10 if self.attitude else 6
-        self.layout = {"angular_momentum": (0, 3), "vertical": (3, 6)} | ({"attitude": (6, 10)} if self.attitude else {})
+        self.layout = {"angular_momentum": (0, 3), "vertical": (3, 6)} | (
+            {"attitude": (6, 10)} if self.attitude else {}
+        )
         vectors, quat = (0, 3), (6 if self.attitude else None)
         k = params.symmetry_axis
         if k is not None:
             # Lagrange top: the free flow of a symmetric body is two commuting rotations, exact.
-            free = (SymmetricFreeRotation(k, params.inertia[(k + 1) % 3], params.inertia[k], vectors, quat),)
+            free = (
+                SymmetricFreeRotation(
+                    k, params.inertia[(k + 1) % 3], params.inertia[k], vectors, quat
+                ),
+            )
         else:
             free = tuple(AxisRotation(i, params.inverse[i], vectors, quat) for i in range(3))
         self._split = (self.kick,) + free
         # the pure forms (rbenvs.contracts.System): the methods below call them too
-        rhs_p = (params.coefficients, params.inverse, params.weight, params.spin_friction, params.com_direction)
+        rhs_p = (
+            params.coefficients,
+            params.inverse,
+            params.weight,
+            params.spin_friction,
+            params.com_direction,
+        )
         extra = (params.critical_spin,) if params.is_lagrange else ()
         readout_p = (params.inverse, params.weight, params.com_direction, extra)
         if self.attitude:
@@ -445,15 +494,21 @@ class HeavyTop:
         g = arrays["vertical"]
         n = float(np.linalg.norm(g))
         if abs(n - 1.0) > 1e-6:
-            raise ValueError(f"state['vertical'] must be a unit vector (|Gamma| = 1 within 1e-6), got |Gamma| = {n}")
+            raise ValueError(
+                f"state['vertical'] must be a unit vector (|Gamma| = 1 within 1e-6), got |Gamma| = {n}"
+            )
         if "attitude" in arrays:
             q = arrays["attitude"]
             nq = float(np.linalg.norm(q))
             if abs(nq - 1.0) > 1e-6:
-                raise ValueError(f"state['attitude'] must be a unit quaternion (|q| = 1 within 1e-6), got |q| = {nq}")
+                raise ValueError(
+                    f"state['attitude'] must be a unit quaternion (|q| = 1 within 1e-6), got |q| = {nq}"
+                )
             gz = np.array(quat_rotate(quat_conjugate(tuple(q / nq)), (0.0, 0.0, 1.0)))
             if np.max(np.abs(gz - g)) > 1e-6:
-                raise ValueError(f"state['vertical'] must equal R(attitude)^T e_z within 1e-6; the attitude gives {gz.tolist()}")
+                raise ValueError(
+                    f"state['vertical'] must equal R(attitude)^T e_z within 1e-6; the attitude gives {gz.tolist()}"
+                )
         return y
 
     def guard_rates(self, region, speed_ceiling: float = math.inf) -> GuardRates:
@@ -471,11 +526,17 @@ class HeavyTop:
         kappa = prm.spin_friction * (j1 * x1 * x1 + j2 * x2 * x2 + j3 * x3 * x3)
         if region.exact_subflows:
             weight, fixed = (0.0 if prm.is_lagrange else 1.0), omega_g
-            text = ("lambda = omega_g" if prm.is_lagrange else "lambda = |Omega| + omega_g") + f" (omega_g = sqrt(M g l / I_min) = {omega_g:.6g} rad/s)"
+            text = (
+                "lambda = omega_g" if prm.is_lagrange else "lambda = |Omega| + omega_g"
+            ) + f" (omega_g = sqrt(M g l / I_min) = {omega_g:.6g} rad/s)"
         else:
             weight, fixed = 1.0, omega_g + kappa
             text = f"lambda = |Omega| + omega_g + kappa (omega_g = {omega_g:.6g} rad/s, kappa = {kappa:.6g} 1/s)"
-        return GuardRates(rotation=(rotation_rate, (prm.inverse, weight, fixed)), ceiling=weight * speed_ceiling + fixed, text=text)
+        return GuardRates(
+            rotation=(rotation_rate, (prm.inverse, weight, fixed)),
+            ceiling=weight * speed_ceiling + fixed,
+            text=text,
+        )
 
     # ------------------------------------------------------------------ vector field
     def rhs(self, y, u):

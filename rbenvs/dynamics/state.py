@@ -33,7 +33,9 @@ def import_layout(layout: dict, dim: int, state) -> tuple[tuple, dict]:
     """``(components as floats, {name: float64 array})`` from a state dict; ``ValueError``
     (``TypeError`` for entries that are not real numbers) naming the entry otherwise."""
     if not isinstance(state, dict):
-        raise ValueError(f"options['state'] must be a dict of named arrays, got {type(state).__name__}")
+        raise ValueError(
+            f"options['state'] must be a dict of named arrays, got {type(state).__name__}"
+        )
     unknown = sorted(set(state) - set(layout))
     missing = sorted(set(layout) - set(state))
     if unknown or missing:

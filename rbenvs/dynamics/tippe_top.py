@@ -78,7 +78,15 @@ from ..jit import jitable
 from ..rotations import atan2, maximum, power, quat_normalize, quat_rate, select, sqrt
 from .contact import FRICTION_LAWS, no_friction
 from .state import start_as_drawn
-from .validation import did_you_mean, real_array, require_choice, require_finite_nonnegative, require_finite_positive, require_finite_result, require_real_vector
+from .validation import (
+    did_you_mean,
+    real_array,
+    require_choice,
+    require_finite_nonnegative,
+    require_finite_positive,
+    require_finite_result,
+    require_real_vector,
+)
 
 
 class Event(NamedTuple):
@@ -209,36 +217,73 @@ class TippeTopParams:
         g = require_finite_positive("gravity", self.gravity)
         alpha = require_finite_positive("offset", self.offset)
         if not alpha < 1.0:
-            raise ValueError(f"offset (alpha = h/R, centre-of-mass offset over radius) must lie in (0, 1), got {self.offset!r}")
-        big_a, big_c = require_real_vector("inertia", self.inertia, 2, " (A, C): the transverse and axial moments about the centre of mass")
+            raise ValueError(
+                f"offset (alpha = h/R, centre-of-mass offset over radius) must lie in (0, 1), got {self.offset!r}"
+            )
+        big_a, big_c = require_real_vector(
+            "inertia",
+            self.inertia,
+            2,
+            " (A, C): the transverse and axial moments about the centre of mass",
+        )
         big_a = require_finite_positive("inertia[0] (A)", big_a)
         big_c = require_finite_positive("inertia[1] (C)", big_c)
         if big_c > 2.0 * big_a:
-            raise ValueError(f"inertia must satisfy C <= 2 A (triangle inequality of a real body), got A={big_a!r}, C={big_c!r}")
+            raise ValueError(
+                f"inertia must satisfy C <= 2 A (triangle inequality of a real body), got A={big_a!r}, C={big_c!r}"
+            )
         mu = require_finite_nonnegative("friction", self.friction)
         require_choice("friction_law", self.friction_law, FRICTION_LAWS)
         eps = require_finite_positive("slip_regularization", self.slip_regularization)
         # products the dynamics forms: refused here, by name, rather than overflowing in a step
-        require_finite_result("mass, radius and inertia", m * a * a + big_a + big_c, "m a^2 + A + C [kg m^2]")
-        require_finite_result("radius and inertia", (a + alpha * a) * (a + alpha * a) / min(big_a, big_c), "(a + h)^2 / min(A, C) [1/kg]")
+        require_finite_result(
+            "mass, radius and inertia", m * a * a + big_a + big_c, "m a^2 + A + C [kg m^2]"
+        )
+        require_finite_result(
+            "radius and inertia",
+            (a + alpha * a) * (a + alpha * a) / min(big_a, big_c),
+            "(a + h)^2 / min(A, C) [1/kg]",
+        )
         require_finite_result("mass and gravity", m * g * a, "m g a [J]")
         stem = self.stem
         if stem is not None:
-            b, d = require_real_vector("stem", stem, 2, " (b, d): the stem tip's radius and the distance of its centre from the centre of mass [m]")
+            b, d = require_real_vector(
+                "stem",
+                stem,
+                2,
+                " (b, d): the stem tip's radius and the distance of its centre from the centre of mass [m]",
+            )
             b = require_finite_positive("stem[0] (b)", b)
             d = require_finite_positive("stem[1] (d)", d)
             h = alpha * a
             if not b < a:
-                raise ValueError(f"stem radius b must be below the sphere's radius a = {a!r} m, got {b!r}")
+                raise ValueError(
+                    f"stem radius b must be below the sphere's radius a = {a!r} m, got {b!r}"
+                )
             if not d > h:
-                raise ValueError(f"stem distance d must exceed h = alpha a = {h!r} m (the stem's centre lies beyond the sphere's centre), got {d!r}")
+                raise ValueError(
+                    f"stem distance d must exceed h = alpha a = {h!r} m (the stem's centre lies beyond the sphere's centre), got {d!r}"
+                )
             if not d - h + b > a:
-                raise ValueError(f"the stem must protrude past the sphere (d - h + b > a): d - h + b = {d - h + b!r} m, a = {a!r} m")
-            require_finite_result("stem", (b + d) * (b + d) / min(big_a, big_c), "(b + d)^2 / min(A, C) [1/kg]")
+                raise ValueError(
+                    f"the stem must protrude past the sphere (d - h + b > a): d - h + b = {d - h + b!r} m, a = {a!r} m"
+                )
+            require_finite_result(
+                "stem", (b + d) * (b + d) / min(big_a, big_c), "(b + d)^2 / min(A, C) [1/kg]"
+            )
             stem = (b, d)
         set_ = object.__setattr__
-        for name, value in (("radius", a), ("mass", m), ("gravity", g), ("offset", alpha), ("inertia", (big_a, big_c)),
-                            ("friction", mu), ("slip_regularization", eps), ("stem", stem), ("height", alpha * a)):
+        for name, value in (
+            ("radius", a),
+            ("mass", m),
+            ("gravity", g),
+            ("offset", alpha),
+            ("inertia", (big_a, big_c)),
+            ("friction", mu),
+            ("slip_regularization", eps),
+            ("stem", stem),
+            ("height", alpha * a),
+        ):
             set_(self, name, value)
 
     @property
@@ -276,18 +321,38 @@ class TippeTopParams:
         b, d = self.stem
         return math.acos(-(self.radius - b) / (d - self.height))
 
+
 # ------------------------------------------------------------------------------------------
 # Pure forms: the top's arithmetic as functions of (P, state[, control]); the methods of TippeTop
 # call them on floats or arrays, compiled code on floats. ``P`` is one flat tuple per top.
-PURE_PARAMETERS = ("radius", "height", "mass", "gravity", "A", "C", "friction", "slip_regularization", "contact_mobility")
+PURE_PARAMETERS = (
+    "radius",
+    "height",
+    "mass",
+    "gravity",
+    "A",
+    "C",
+    "friction",
+    "slip_regularization",
+    "contact_mobility",
+)
 
 
 def pure_parameters(params: TippeTopParams) -> tuple:
     """``P`` of every pure form: the floats named in :data:`PURE_PARAMETERS` (``friction`` is
     the coefficient a control ``u = None`` means; ``contact_mobility`` the guard's ``|M|``)."""
     big_a, big_c = params.inertia
-    p = (params.radius, params.height, params.mass, params.gravity, big_a, big_c, params.friction, params.slip_regularization,
-         params.contact_mobility())
+    p = (
+        params.radius,
+        params.height,
+        params.mass,
+        params.gravity,
+        big_a,
+        big_c,
+        params.friction,
+        params.slip_regularization,
+        params.contact_mobility(),
+    )
     if params.stem is not None:  # (b, d) after the nine: the stem's layout (stem_forms) reads them
         p = p + (params.stem[0], params.stem[1])
     return p
@@ -302,16 +367,26 @@ def tippe_frame(qw, qx, qy, qz):
     xy, xz, yz = qx * qy, qx * qz, qy * qz
     wx, wy, wz = qw * qx, qw * qy, qw * qz
     return (
-        1.0 - 2.0 * (yy + zz), 2.0 * (xy - wz), 2.0 * (xz + wy),
-        2.0 * (xy + wz), 1.0 - 2.0 * (xx + zz), 2.0 * (yz - wx),
-        2.0 * (xz - wy), 2.0 * (yz + wx), 1.0 - 2.0 * (xx + yy),
+        1.0 - 2.0 * (yy + zz),
+        2.0 * (xy - wz),
+        2.0 * (xz + wy),
+        2.0 * (xy + wz),
+        1.0 - 2.0 * (xx + zz),
+        2.0 * (yz - wx),
+        2.0 * (xz - wy),
+        2.0 * (yz + wx),
+        1.0 - 2.0 * (xx + yy),
     )
 
 
 @jitable
 def to_space(rm, v1, v2, v3):
     """``R v``: a body-frame vector in space."""
-    return (rm[0] * v1 + rm[1] * v2 + rm[2] * v3, rm[3] * v1 + rm[4] * v2 + rm[5] * v3, rm[6] * v1 + rm[7] * v2 + rm[8] * v3)
+    return (
+        rm[0] * v1 + rm[1] * v2 + rm[2] * v3,
+        rm[3] * v1 + rm[4] * v2 + rm[5] * v3,
+        rm[6] * v1 + rm[7] * v2 + rm[8] * v3,
+    )
 
 
 @jitable
@@ -354,7 +429,9 @@ def vertical_tilt(g1, g2, g3):
 def tippe_energy(p, v1, v2, v3, w1, w2, w3, z):
     """Kinetic (``G`` at ``v``, rotation about ``G``) plus potential ``m g z`` energy [J]."""
     m, g, big_a, big_c = p[2], p[3], p[4], p[5]
-    kin = 0.5 * m * (v1 * v1 + v2 * v2 + v3 * v3) + 0.5 * (big_a * (w1 * w1 + w2 * w2) + big_c * w3 * w3)
+    kin = 0.5 * m * (v1 * v1 + v2 * v2 + v3 * v3) + 0.5 * (
+        big_a * (w1 * w1 + w2 * w2) + big_c * w3 * w3
+    )
     return kin + m * g * z
 
 
@@ -375,7 +452,14 @@ def applied_rate(p, u, w1, w2, w3):
         ax, ay, mu, t1, t2, t3 = 0.0, 0.0, p[6], 0.0, 0.0, 0.0
     else:
         ax, ay, mu, t1, t2, t3 = u
-    return ax, ay, mu, ((big_a - big_c) * w2 * w3 + t1) / big_a, ((big_c - big_a) * w3 * w1 + t2) / big_a, t3 / big_c
+    return (
+        ax,
+        ay,
+        mu,
+        ((big_a - big_c) * w2 * w3 + t1) / big_a,
+        ((big_c - big_a) * w3 * w1 + t2) / big_a,
+        t3 / big_c,
+    )
 
 
 @jitable
@@ -422,9 +506,16 @@ def rolling_contact(p, y, u):
     f1, f2, f3 = l1 - n * g1, l2 - n * g2, l3 - n * g3  # the tangential part: friction
     vb1, vb2, vb3 = -(w2 * r3 - w3 * r2), -(w3 * r1 - w1 * r3), -(w1 * r2 - w2 * r1)  # v_P = 0
     return (
-        n, rm[0] * f1 + rm[1] * f2 + rm[2] * f3, rm[3] * f1 + rm[4] * f2 + rm[5] * f3,
-        w01 + d1 * (r2 * l3 - r3 * l2), w02 + d2 * (r3 * l1 - r1 * l3), w03 + d3 * (r1 * l2 - r2 * l1),
-        ax, ay, rm[0] * vb1 + rm[1] * vb2 + rm[2] * vb3, rm[3] * vb1 + rm[4] * vb2 + rm[5] * vb3,
+        n,
+        rm[0] * f1 + rm[1] * f2 + rm[2] * f3,
+        rm[3] * f1 + rm[4] * f2 + rm[5] * f3,
+        w01 + d1 * (r2 * l3 - r3 * l2),
+        w02 + d2 * (r3 * l1 - r1 * l3),
+        w03 + d3 * (r1 * l2 - r2 * l1),
+        ax,
+        ay,
+        rm[0] * vb1 + rm[1] * vb2 + rm[2] * vb3,
+        rm[3] * vb1 + rm[4] * vb2 + rm[5] * vb3,
     )
 
 
@@ -432,13 +523,19 @@ def rolling_contact(p, y, u):
 def sliding_derivative(p, y, c):
     """``dy/dt`` (gliding or frictionless, 11 components) from the contact tuple ``c``."""
     m = p[2]
-    return (c[8], c[9], c[1] / m - c[6], c[2] / m - c[7]) + quat_rate((y[4], y[5], y[6], y[7]), (y[8], y[9], y[10])) + (c[3], c[4], c[5])
+    return (
+        (c[8], c[9], c[1] / m - c[6], c[2] / m - c[7])
+        + quat_rate((y[4], y[5], y[6], y[7]), (y[8], y[9], y[10]))
+        + (c[3], c[4], c[5])
+    )
 
 
 @jitable
 def rolling_derivative(p, y, c):
     """``dy/dt`` (rolling, 9 components): ``v_G = -omega x r`` is not integrated."""
-    return (c[8], c[9]) + quat_rate((y[2], y[3], y[4], y[5]), (y[6], y[7], y[8])) + (c[3], c[4], c[5])
+    return (
+        (c[8], c[9]) + quat_rate((y[2], y[3], y[4], y[5]), (y[6], y[7], y[8])) + (c[3], c[4], c[5])
+    )
 
 
 @jitable
@@ -452,8 +549,17 @@ def flight_derivative(p, y, c):
     flag = y[13]
     zero = 0.0 * flag
     return (
-        c[8], c[9], flag * c[10] + (1.0 - flag) * y[5], c[1] / m - c[6], c[2] / m - c[7], c[0] / m - g,
-    ) + quat_rate((y[6], y[7], y[8], y[9]), (y[10], y[11], y[12])) + (c[3], c[4], c[5], zero, zero)
+        (
+            c[8],
+            c[9],
+            flag * c[10] + (1.0 - flag) * y[5],
+            c[1] / m - c[6],
+            c[2] / m - c[7],
+            c[0] / m - g,
+        )
+        + quat_rate((y[6], y[7], y[8], y[9]), (y[10], y[11], y[12]))
+        + (c[3], c[4], c[5], zero, zero)
+    )
 
 
 @jitable
@@ -633,7 +739,9 @@ def _state_forms(rolling: bool, flight: bool) -> tuple:
         w1, w2, w3 = y[W], y[W + 1], y[W + 2]
         r = contact_arm(p, rm[6], rm[7], rm[8])
         vx, vy = (y[3], y[4]) if flight else (y[2], y[3])
-        s1, s2, s3 = slip_velocity(rm, r, vx, vy, constraint_vertical_velocity(p, rm, w1, w2), w1, w2, w3)
+        s1, s2, s3 = slip_velocity(
+            rm, r, vx, vy, constraint_vertical_velocity(p, rm, w1, w2), w1, w2, w3
+        )
         return sqrt(s1 * s1 + s2 * s2 + s3 * s3)
 
     @jitable
@@ -664,9 +772,22 @@ def _state_forms(rolling: bool, flight: bool) -> tuple:
         else:
             airborne, lifted = 0.0 * y[0] != 0.0, fired
             count = 0 if isinstance(y[0], float) else _zero_counts_arrays(y[0])
-        return (energy(p, y), jellett(p, y), tilt(p, y), n, slip_speed(p, y), lifted, airborne, count, gap(p, y), spin(p, y))
+        return (
+            energy(p, y),
+            jellett(p, y),
+            tilt(p, y),
+            n,
+            slip_speed(p, y),
+            lifted,
+            airborne,
+            count,
+            gap(p, y),
+            spin(p, y),
+        )
 
-    normalize = flight_normalize if flight else (rolling_normalize if rolling else sliding_normalize)
+    normalize = (
+        flight_normalize if flight else (rolling_normalize if rolling else sliding_normalize)
+    )
 
     @jitable
     def state(p, x, y0, q, w, v=None):
@@ -687,7 +808,20 @@ def _state_forms(rolling: bool, flight: bool) -> tuple:
             return normalize(p, (x, y0, zero, vx, vy, zero) + q + w + (zero + 1.0, zero))
         return (x, y0, vx, vy) + q + w
 
-    return (frame, angular_velocity, velocity, height, gap, slip_speed, energy, jellett, tilt, spin, normalize, state), state_readouts
+    return (
+        frame,
+        angular_velocity,
+        velocity,
+        height,
+        gap,
+        slip_speed,
+        energy,
+        jellett,
+        tilt,
+        spin,
+        normalize,
+        state,
+    ), state_readouts
 
 
 @lru_cache(maxsize=None)
@@ -697,8 +831,26 @@ def pure_forms(coefficient, stiffness, rolling: bool, flight: bool) -> TippeForm
     :func:`~rbenvs.dynamics.contact.no_friction` and ``None`` without friction), ``rolling`` and
     ``flight``. Made once per combination (the functions close over the law's functions, which
     compiled code then calls as constants)."""
-    (frame, angular_velocity, velocity, height, gap, slip_speed, energy, jellett, tilt, spin, normalize, state), state_readouts = _state_forms(rolling, flight)
-    derivative = flight_derivative if flight else (rolling_derivative if rolling else sliding_derivative)
+    (
+        (
+            frame,
+            angular_velocity,
+            velocity,
+            height,
+            gap,
+            slip_speed,
+            energy,
+            jellett,
+            tilt,
+            spin,
+            normalize,
+            state,
+        ),
+        state_readouts,
+    ) = _state_forms(rolling, flight)
+    derivative = (
+        flight_derivative if flight else (rolling_derivative if rolling else sliding_derivative)
+    )
 
     @jitable
     def sliding_contact(p, y, u):
@@ -706,9 +858,29 @@ def pure_forms(coefficient, stiffness, rolling: bool, flight: bool) -> TippeForm
         of ``z_G = a - h Gamma.e3`` zero (linear in ``N``: the friction law scales with it)."""
         _, h, m, g, big_a, big_c, _, eps, _ = p
         if flight:
-            vx, vy, qw, qx, qy, qz, w1, w2, w3 = y[3], y[4], y[6], y[7], y[8], y[9], y[10], y[11], y[12]
+            vx, vy, qw, qx, qy, qz, w1, w2, w3 = (
+                y[3],
+                y[4],
+                y[6],
+                y[7],
+                y[8],
+                y[9],
+                y[10],
+                y[11],
+                y[12],
+            )
         else:
-            vx, vy, qw, qx, qy, qz, w1, w2, w3 = y[2], y[3], y[4], y[5], y[6], y[7], y[8], y[9], y[10]
+            vx, vy, qw, qx, qy, qz, w1, w2, w3 = (
+                y[2],
+                y[3],
+                y[4],
+                y[5],
+                y[6],
+                y[7],
+                y[8],
+                y[9],
+                y[10],
+            )
         rm = tippe_frame(qw, qx, qy, qz)
         g1, g2, g3 = rm[6], rm[7], rm[8]
         r = contact_arm(p, g1, g2, g3)
@@ -734,8 +906,17 @@ def pure_forms(coefficient, stiffness, rolling: bool, flight: bool) -> TippeForm
             n = y[13] * n
         fb1, fb2, fb3 = n * f1, n * f2, n * f3
         return (
-            n, rm[0] * fb1 + rm[1] * fb2 + rm[2] * fb3, rm[3] * fb1 + rm[4] * fb2 + rm[5] * fb3,
-            w01 + n * a11, w02 + n * a12, w03 + n * a13, ax, ay, vx, vy, vz,
+            n,
+            rm[0] * fb1 + rm[1] * fb2 + rm[2] * fb3,
+            rm[3] * fb1 + rm[4] * fb2 + rm[5] * fb3,
+            w01 + n * a11,
+            w02 + n * a12,
+            w03 + n * a13,
+            ax,
+            ay,
+            vx,
+            vy,
+            vz,
         )
 
     contact = rolling_contact if rolling else sliding_contact
@@ -770,10 +951,28 @@ def pure_forms(coefficient, stiffness, rolling: bool, flight: bool) -> TippeForm
             load = np.maximum(m * g, contact(p, y, u)[0])
             return stiffness(mu, 2.0 * load, mobility, eps)
 
-    forms = TippeForms(frame, angular_velocity, velocity, height, gap, slip_speed, energy, jellett, tilt, spin, normalize, contact,
-                       derivative, rhs, rhs_normal, normal, readouts, friction_rate, state)
+    forms = TippeForms(
+        frame,
+        angular_velocity,
+        velocity,
+        height,
+        gap,
+        slip_speed,
+        energy,
+        jellett,
+        tilt,
+        spin,
+        normalize,
+        contact,
+        derivative,
+        rhs,
+        rhs_normal,
+        normal,
+        readouts,
+        friction_rate,
+        state,
+    )
     return forms
-
 
 
 # ------------------------------------------------------------------------------------------
@@ -866,7 +1065,23 @@ def stem_forms(coefficient, stiffness) -> TippeForms:
     k)`` (:func:`stem_jellett` gives the stem's), and as ``gap`` the sphere's gap (0 while it
     presses)."""
     base = pure_forms(coefficient, stiffness, False, False)
-    (frame, angular_velocity, velocity0, height0, _, slip0, energy0, jellett, tilt, spin, normalize, state0), _ = _state_forms(False, False)
+    (
+        (
+            frame,
+            angular_velocity,
+            velocity0,
+            height0,
+            _,
+            slip0,
+            energy0,
+            jellett,
+            tilt,
+            spin,
+            normalize,
+            state0,
+        ),
+        _,
+    ) = _state_forms(False, False)
     contact0, friction_rate0 = base.contact, base.friction_rate
 
     @jitable
@@ -915,8 +1130,18 @@ def stem_forms(coefficient, stiffness) -> TippeForms:
     @jitable
     def readouts(p, y, u, fired):
         count = 0 if isinstance(y[0], float) else _zero_counts_arrays(y[0])
-        return (energy(p, y), jellett(p, y), tilt(p, y), contact(p, y, u)[0], slip_speed(p, y), fired, 0.0 * y[0] != 0.0, count,
-                gap(p, y), spin(p, y))
+        return (
+            energy(p, y),
+            jellett(p, y),
+            tilt(p, y),
+            contact(p, y, u)[0],
+            slip_speed(p, y),
+            fired,
+            0.0 * y[0] != 0.0,
+            count,
+            gap(p, y),
+            spin(p, y),
+        )
 
     friction_rate = None
     if friction_rate0 is not None:
@@ -925,15 +1150,40 @@ def stem_forms(coefficient, stiffness) -> TippeForms:
         def friction_rate(p, y, u):
             return friction_rate0(stem_params(p, y[11]), y, u)
 
-    return TippeForms(frame, angular_velocity, velocity, height, gap, slip_speed, energy, jellett, tilt, spin, normalize, contact,
-                      stem_derivative, rhs, rhs_normal, normal, readouts, friction_rate, state)
+    return TippeForms(
+        frame,
+        angular_velocity,
+        velocity,
+        height,
+        gap,
+        slip_speed,
+        energy,
+        jellett,
+        tilt,
+        spin,
+        normalize,
+        contact,
+        stem_derivative,
+        rhs,
+        rhs_normal,
+        normal,
+        readouts,
+        friction_rate,
+        state,
+    )
 
 
 @jitable
 def stem_jellett(p, y):
     """The stem's Jellett integral ``L.(b z_hat - d k)`` [kg m^2/s] (conserved while the stem
     alone presses, as the sphere's while the sphere does)."""
-    return tippe_jellett((p[9], p[10], p[2], p[3], p[4], p[5]), tippe_frame(y[4], y[5], y[6], y[7]), y[8], y[9], y[10])
+    return tippe_jellett(
+        (p[9], p[10], p[2], p[3], p[4], p[5]),
+        tippe_frame(y[4], y[5], y[6], y[7]),
+        y[8],
+        y[9],
+        y[10],
+    )
 
 
 @lru_cache(maxsize=None)
@@ -965,9 +1215,15 @@ def stem_accuracy_rate(accuracy_rate0):
 def _mat_mul(a, b):
     """The product of two 3x3 matrices given row by row (9-tuples)."""
     return (
-        a[0] * b[0] + a[1] * b[3] + a[2] * b[6], a[0] * b[1] + a[1] * b[4] + a[2] * b[7], a[0] * b[2] + a[1] * b[5] + a[2] * b[8],
-        a[3] * b[0] + a[4] * b[3] + a[5] * b[6], a[3] * b[1] + a[4] * b[4] + a[5] * b[7], a[3] * b[2] + a[4] * b[5] + a[5] * b[8],
-        a[6] * b[0] + a[7] * b[3] + a[8] * b[6], a[6] * b[1] + a[7] * b[4] + a[8] * b[7], a[6] * b[2] + a[7] * b[5] + a[8] * b[8],
+        a[0] * b[0] + a[1] * b[3] + a[2] * b[6],
+        a[0] * b[1] + a[1] * b[4] + a[2] * b[7],
+        a[0] * b[2] + a[1] * b[5] + a[2] * b[8],
+        a[3] * b[0] + a[4] * b[3] + a[5] * b[6],
+        a[3] * b[1] + a[4] * b[4] + a[5] * b[7],
+        a[3] * b[2] + a[4] * b[5] + a[5] * b[8],
+        a[6] * b[0] + a[7] * b[3] + a[8] * b[6],
+        a[6] * b[1] + a[7] * b[4] + a[8] * b[7],
+        a[6] * b[2] + a[7] * b[5] + a[8] * b[8],
     )
 
 
@@ -978,9 +1234,15 @@ def _mat_inverse(a):
     det = a[0] * c00 + a[1] * c01 + a[2] * c02
     inv = 1.0 / det
     return (
-        c00 * inv, (a[2] * a[7] - a[1] * a[8]) * inv, (a[1] * a[5] - a[2] * a[4]) * inv,
-        c01 * inv, (a[0] * a[8] - a[2] * a[6]) * inv, (a[2] * a[3] - a[0] * a[5]) * inv,
-        c02 * inv, (a[1] * a[6] - a[0] * a[7]) * inv, (a[0] * a[4] - a[1] * a[3]) * inv,
+        c00 * inv,
+        (a[2] * a[7] - a[1] * a[8]) * inv,
+        (a[1] * a[5] - a[2] * a[4]) * inv,
+        c01 * inv,
+        (a[0] * a[8] - a[2] * a[6]) * inv,
+        (a[2] * a[3] - a[0] * a[5]) * inv,
+        c02 * inv,
+        (a[1] * a[6] - a[0] * a[7]) * inv,
+        (a[0] * a[4] - a[1] * a[3]) * inv,
     )
 
 
@@ -1025,9 +1287,15 @@ def frame_derivative(qw, qx, qy, qz, dw, dx, dy, dz):
     xy, xz, yz = dx * qy + qx * dy, dx * qz + qx * dz, dy * qz + qy * dz
     wx, wy, wz = dw * qx + qw * dx, dw * qy + qw * dy, dw * qz + qw * dz
     return (
-        -2.0 * (yy + zz), 2.0 * (xy - wz), 2.0 * (xz + wy),
-        2.0 * (xy + wz), -2.0 * (xx + zz), 2.0 * (yz - wx),
-        2.0 * (xz - wy), 2.0 * (yz + wx), -2.0 * (xx + yy),
+        -2.0 * (yy + zz),
+        2.0 * (xy - wz),
+        2.0 * (xz + wy),
+        2.0 * (xy + wz),
+        -2.0 * (xx + zz),
+        2.0 * (yz - wx),
+        2.0 * (xz - wy),
+        2.0 * (yz + wx),
+        -2.0 * (xx + yy),
     )
 
 
@@ -1068,7 +1336,9 @@ class ImplicitForms(NamedTuple):
 
 
 @lru_cache(maxsize=None)
-def implicit_forms(coefficient, stiffness, slope, rolling: bool, flight: bool, saturates: bool = False) -> ImplicitForms:
+def implicit_forms(
+    coefficient, stiffness, slope, rolling: bool, flight: bool, saturates: bool = False
+) -> ImplicitForms:
     """The :class:`ImplicitForms` of a law's pure ``coefficient``, ``stiffness`` and ``slope``
     (:mod:`rbenvs.dynamics.contact`; ``slope is None``: no friction, ``W = I``); ``saturates``:
     the law's (:attr:`~rbenvs.dynamics.contact.FrictionLaw.saturates`), which ``share`` reads."""
@@ -1105,14 +1375,25 @@ def implicit_forms(coefficient, stiffness, slope, rolling: bool, flight: bool, s
         c = gam * contact(p, y, u)[0]
         ck, cs = c * k, c * sl
         dm = (
-            ck * (1.0 - g1 * g1) + cs * s1 * s1, -ck * g1 * g2 + cs * s1 * s2, -ck * g1 * g3 + cs * s1 * s3,
-            -ck * g2 * g1 + cs * s2 * s1, ck * (1.0 - g2 * g2) + cs * s2 * s2, -ck * g2 * g3 + cs * s2 * s3,
-            -ck * g3 * g1 + cs * s3 * s1, -ck * g3 * g2 + cs * s3 * s2, ck * (1.0 - g3 * g3) + cs * s3 * s3,
+            ck * (1.0 - g1 * g1) + cs * s1 * s1,
+            -ck * g1 * g2 + cs * s1 * s2,
+            -ck * g1 * g3 + cs * s1 * s3,
+            -ck * g2 * g1 + cs * s2 * s1,
+            ck * (1.0 - g2 * g2) + cs * s2 * s2,
+            -ck * g2 * g3 + cs * s2 * s3,
+            -ck * g3 * g1 + cs * s3 * s1,
+            -ck * g3 * g2 + cs * s3 * s2,
+            ck * (1.0 - g3 * g3) + cs * s3 * s3,
         )
         pmp, _ = tangential_mobility(p, g1, g2, g3)
         e = _mat_mul(pmp, dm)
         e = (1.0 - e[0], -e[1], -e[2], -e[3], 1.0 - e[4], -e[5], -e[6], -e[7], 1.0 - e[8])
-        return rm + r + _mat_mul(dm, _mat_inverse(e)) + (y[Q], y[Q + 1], y[Q + 2], y[Q + 3], y[V], y[V + 1], vz, w1, w2, w3)
+        return (
+            rm
+            + r
+            + _mat_mul(dm, _mat_inverse(e))
+            + (y[Q], y[Q + 1], y[Q + 2], y[Q + 3], y[V], y[V + 1], vz, w1, w2, w3)
+        )
 
     @jitable
     def slip_change(p, rm, r1, r2, r3, qw, qx, qy, qz, v1, v2, v3, w1, w2, w3, x):
@@ -1124,9 +1405,39 @@ def implicit_forms(coefficient, stiffness, slope, rolling: bool, flight: bool, s
         xv1, xv2, o1, o2, o3 = x[V], x[V + 1], x[W], x[W + 1], x[W + 2]
         dr = frame_derivative(qw, qx, qy, qz, x[Q], x[Q + 1], x[Q + 2], x[Q + 3])
         e1, e2, e3 = -a * dr[6], -a * dr[7], -a * dr[8]
-        t1 = rm[0] * xv1 + rm[3] * xv2 + o2 * r3 - o3 * r2 + dr[0] * v1 + dr[3] * v2 + dr[6] * v3 + w2 * e3 - w3 * e2
-        t2 = rm[1] * xv1 + rm[4] * xv2 + o3 * r1 - o1 * r3 + dr[1] * v1 + dr[4] * v2 + dr[7] * v3 + w3 * e1 - w1 * e3
-        t3 = rm[2] * xv1 + rm[5] * xv2 + o1 * r2 - o2 * r1 + dr[2] * v1 + dr[5] * v2 + dr[8] * v3 + w1 * e2 - w2 * e1
+        t1 = (
+            rm[0] * xv1
+            + rm[3] * xv2
+            + o2 * r3
+            - o3 * r2
+            + dr[0] * v1
+            + dr[3] * v2
+            + dr[6] * v3
+            + w2 * e3
+            - w3 * e2
+        )
+        t2 = (
+            rm[1] * xv1
+            + rm[4] * xv2
+            + o3 * r1
+            - o1 * r3
+            + dr[1] * v1
+            + dr[4] * v2
+            + dr[7] * v3
+            + w3 * e1
+            - w1 * e3
+        )
+        t3 = (
+            rm[2] * xv1
+            + rm[5] * xv2
+            + o1 * r2
+            - o2 * r1
+            + dr[2] * v1
+            + dr[5] * v2
+            + dr[8] * v3
+            + w1 * e2
+            - w2 * e1
+        )
         return t1, t2, t3
 
     @jitable
@@ -1145,10 +1456,30 @@ def implicit_forms(coefficient, stiffness, slope, rolling: bool, flight: bool, s
         # B F: dv_G = R F / m (horizontal: F is in the table's plane), dOmega = I^-1 (r x F)
         dv1 = (rm[0] * f1 + rm[1] * f2 + rm[2] * f3) / m
         dv2 = (rm[3] * f1 + rm[4] * f2 + rm[5] * f3) / m
-        dw1, dw2, dw3 = (r2 * f3 - r3 * f2) / big_a, (r3 * f1 - r1 * f3) / big_a, (r1 * f2 - r2 * f1) / big_c
+        dw1, dw2, dw3 = (
+            (r2 * f3 - r3 * f2) / big_a,
+            (r3 * f1 - r1 * f3) / big_a,
+            (r1 * f2 - r2 * f1) / big_c,
+        )
         v1, v2, w1, w2, w3 = xv1 + dv1, xv2 + dv2, o1 + dw1, o2 + dw2, o3 + dw3
         if flight:  # (each layout written out: compiled code slices tuples by literals only)
-            return (x[0], x[1], x[2], v1, v2, x[5], x[6], x[7], x[8], x[9], w1, w2, w3, x[13], x[14])
+            return (
+                x[0],
+                x[1],
+                x[2],
+                v1,
+                v2,
+                x[5],
+                x[6],
+                x[7],
+                x[8],
+                x[9],
+                w1,
+                w2,
+                w3,
+                x[13],
+                x[14],
+            )
         return (x[0], x[1], v1, v2, x[4], x[5], x[6], x[7], w1, w2, w3)
 
     rate = None
@@ -1192,7 +1523,24 @@ def implicit_forms(coefficient, stiffness, slope, rolling: bool, flight: bool, s
             g1, g2, g3 = rm[6], rm[7], rm[8]
             w1, w2, w3 = y[W], y[W + 1], y[W + 2]
             f = vector_field(p, y, u)
-            t1, t2, t3 = slip_change(p, rm, r1, r2, r3, y[Q], y[Q + 1], y[Q + 2], y[Q + 3], y[V], y[V + 1], vz, w1, w2, w3, f)
+            t1, t2, t3 = slip_change(
+                p,
+                rm,
+                r1,
+                r2,
+                r3,
+                y[Q],
+                y[Q + 1],
+                y[Q + 2],
+                y[Q + 3],
+                y[V],
+                y[V + 1],
+                vz,
+                w1,
+                w2,
+                w3,
+                f,
+            )
             tn = t1 * g1 + t2 * g2 + t3 * g3
             t1, t2, t3 = t1 - tn * g1, t2 - tn * g2, t3 - tn * g3
             # kappa: the law's stiffness at the smallest slip the period can reach, over its value
@@ -1203,7 +1551,9 @@ def implicit_forms(coefficient, stiffness, slope, rolling: bool, flight: bool, s
             reach = ns + 2.0 * dt * select(closing < 0.0, closing, 0.0 * closing)
             reach = select(reach > 0.0, reach, 0.0 * reach)
             k0 = coefficient(mu, 0.0 * ns, 0.0 * ns, 0.0 * ns, eps)
-            kappa = coefficient(mu, reach, 0.0 * ns, 0.0 * ns, eps) / select(k0 < 0.0, k0, 0.0 * k0 - 1.0)
+            kappa = coefficient(mu, reach, 0.0 * ns, 0.0 * ns, eps) / select(
+                k0 < 0.0, k0, 0.0 * k0 - 1.0
+            )
             # the mode at its local stiffness kappa lambda_d (lambda_d the law's at zero slip, the
             # guard's rate at least), as large as the state
             _, top = tangential_mobility(p, g1, g2, g3)
@@ -1216,7 +1566,9 @@ def implicit_forms(coefficient, stiffness, slope, rolling: bool, flight: bool, s
             c1, c2, c3 = t1 + w2 * s3 - w3 * s2, t2 + w3 * s1 - w1 * s3, t3 + w1 * s2 - w2 * s1
             speed = sqrt(y[V] * y[V] + y[V + 1] * y[V + 1])
             scale = lam * maximum(speed, 0.0 * speed + eps)
-            transient = full * (sqrt(c1 * c1 + c2 * c2 + c3 * c3) / maximum(scale, 0.0 * scale + 1e-300))
+            transient = full * (
+                sqrt(c1 * c1 + c2 * c2 + c3 * c3) / maximum(scale, 0.0 * scale + 1e-300)
+            )
             # ... and the forced part: the contact turning at w drives the stiff mode; the scheme's
             # error in following it is c_f (kappa lambda_d h)^2 (w h)^2 of the velocity (rk4's
             # forced_error_constant), counted in units of C (forced_ratio = c_f / C)
@@ -1249,7 +1601,12 @@ def implicit_forms(coefficient, stiffness, slope, rolling: bool, flight: bool, s
                 # v_G's scale. Measured (rbenvs bench accuracy --tolerance): the top that inverts
                 # from rest ended 85-100 times outside 1e-6 and 1e-9 with the share at v_G's scale,
                 # and ends within them at the cost of the cheapest fixed steps that meet them
-                return a * (p[2] * top) * maximum(speed, 0.0 * speed + eps) / maximum(ns, 0.0 * ns + eps)
+                return (
+                    a
+                    * (p[2] * top)
+                    * maximum(speed, 0.0 * speed + eps)
+                    / maximum(ns, 0.0 * ns + eps)
+                )
             return select(a < 1.0, a, 0.0 * a + 1.0)
 
     return ImplicitForms(factor, solve, rate, accuracy_rate, share)
@@ -1269,30 +1626,59 @@ class TippeTop:
     floats and arrays).
     """
 
-    def __init__(self, params: TippeTopParams, fidelity: str = "gliding", flight: bool = False, friction_bound: str = "stability"):
+    def __init__(
+        self,
+        params: TippeTopParams,
+        fidelity: str = "gliding",
+        flight: bool = False,
+        friction_bound: str = "stability",
+    ):
         self._memo = None  # the last contact solve (see _contact)
         if fidelity not in FIDELITIES:
-            raise ValueError(f"fidelity must be one of {list(FIDELITIES)}, got {fidelity!r}{did_you_mean(fidelity, FIDELITIES)}")
+            raise ValueError(
+                f"fidelity must be one of {list(FIDELITIES)}, got {fidelity!r}{did_you_mean(fidelity, FIDELITIES)}"
+            )
         if friction_bound not in FRICTION_BOUNDS:
-            raise ValueError(f"friction_bound must be one of {list(FRICTION_BOUNDS)}, got {friction_bound!r}{did_you_mean(friction_bound, FRICTION_BOUNDS)}")
+            raise ValueError(
+                f"friction_bound must be one of {list(FRICTION_BOUNDS)}, got {friction_bound!r}{did_you_mean(friction_bound, FRICTION_BOUNDS)}"
+            )
         self.friction_bound = friction_bound
         self.fidelity = fidelity
         self.rolling = fidelity == "rolling"
         self.flight = bool(flight)
         if self.flight and self.rolling:
-            raise ValueError("flight=True needs fidelity 'gliding' or 'frictionless' (a rolling top has no slip to resume after a touchdown)")
+            raise ValueError(
+                "flight=True needs fidelity 'gliding' or 'frictionless' (a rolling top has no slip to resume after a touchdown)"
+            )
         self.stem = params.stem is not None
         if self.stem and self.rolling:
-            raise ValueError("stem needs fidelity 'gliding' or 'frictionless' (the rolling limit has no slip to resume after the stem's touchdown)")
+            raise ValueError(
+                "stem needs fidelity 'gliding' or 'frictionless' (the rolling limit has no slip to resume after the stem's touchdown)"
+            )
         if self.stem and self.flight:
-            raise ValueError("stem with flight=True is not modelled: a touchdown from flight could meet both contacts at once, "
-                             "which needs a two-contact impact law (docs/physics.md §3, 'The stem')")
+            raise ValueError(
+                "stem with flight=True is not modelled: a touchdown from flight could meet both contacts at once, "
+                "which needs a two-contact impact law (docs/physics.md §3, 'The stem')"
+            )
         if self.stem:
-            self.layout = {"position": (0, 2), "velocity": (2, 4), "attitude": (4, 8), "angular_velocity": (8, 11), "contact": (11, 12)}
+            self.layout = {
+                "position": (0, 2),
+                "velocity": (2, 4),
+                "attitude": (4, 8),
+                "angular_velocity": (8, 11),
+                "contact": (11, 12),
+            }
             self.dim = 12
             self._q, self._w = 4, 8
         elif self.flight:
-            self.layout = {"position": (0, 3), "velocity": (3, 6), "attitude": (6, 10), "angular_velocity": (10, 13), "contact": (13, 14), "hops": (14, 15)}
+            self.layout = {
+                "position": (0, 3),
+                "velocity": (3, 6),
+                "attitude": (6, 10),
+                "angular_velocity": (10, 13),
+                "contact": (13, 14),
+                "hops": (14, 15),
+            }
             self.dim = 15
             self._q, self._w = 6, 10
         elif self.rolling:
@@ -1300,7 +1686,12 @@ class TippeTop:
             self.dim = 9
             self._q, self._w = 2, 6
         else:
-            self.layout = {"position": (0, 2), "velocity": (2, 4), "attitude": (4, 8), "angular_velocity": (8, 11)}
+            self.layout = {
+                "position": (0, 2),
+                "velocity": (2, 4),
+                "attitude": (4, 8),
+                "angular_velocity": (8, 11),
+            }
             self.dim = 11
             self._q, self._w = 4, 8
         self.params = params  # (sets the law and the pure forms: see the setter)
@@ -1315,12 +1706,18 @@ class TippeTop:
     @params.setter
     def params(self, params: TippeTopParams):
         if (params.stem is not None) != getattr(self, "stem", params.stem is not None):
-            raise ValueError("params must keep the stem as it is (a stem changes the state's layout)")
+            raise ValueError(
+                "params must keep the stem as it is (a stem changes the state's layout)"
+            )
         self._params = params
         self._memo = None
         self.friction_law = None if self.fidelity != "gliding" else params.friction_law  # its name
-        self.friction = None if self.friction_law is None else FRICTION_LAWS[self.friction_law]  # the law (dynamics.contact)
-        coefficient, stiffness = (no_friction, None) if self.friction is None else self.friction.pure_forms()
+        self.friction = (
+            None if self.friction_law is None else FRICTION_LAWS[self.friction_law]
+        )  # the law (dynamics.contact)
+        coefficient, stiffness = (
+            (no_friction, None) if self.friction is None else self.friction.pure_forms()
+        )
         if self.stem:
             self.forms = forms = stem_forms(coefficient, stiffness)
         else:
@@ -1353,13 +1750,19 @@ class TippeTop:
         self.implicit = None
         if self.friction is None or (slope is not None and compilable):
             saturates = self.friction is not None and self.friction.saturates
-            self.implicit = implicit_forms(coefficient, stiffness, slope, self.rolling, self.flight, saturates)
-        self.kernel_implicit = None if self.implicit is None else (self.implicit.factor, self.implicit.solve, p)
+            self.implicit = implicit_forms(
+                coefficient, stiffness, slope, self.rolling, self.flight, saturates
+            )
+        self.kernel_implicit = (
+            None if self.implicit is None else (self.implicit.factor, self.implicit.solve, p)
+        )
         if self.stem and self.implicit is not None:
             # with the stem: the accuracy rate at the pressing contact; no W-matrix (the linearly
             # implicit schemes are not offered: their solve is written for the 11 components)
             rate = self.implicit.accuracy_rate
-            self.implicit = ImplicitForms(None, None, None, None if rate is None else stem_accuracy_rate(rate))
+            self.implicit = ImplicitForms(
+                None, None, None, None if rate is None else stem_accuracy_rate(rate)
+            )
             self.kernel_implicit = None
         self.kernel_switches = None
         if self.stem and compilable:
@@ -1370,16 +1773,44 @@ class TippeTop:
             )
         if self.flight and compilable:
             self.kernel_switches = (
-                ((flight_on_table, ()), (forms.normal, p), LIFT_OFF_TOL * params.mass * params.gravity, (flight_take_off, ())),
-                ((flight_airborne, ()), (flight_gap, p), TOUCHDOWN_TOL * params.radius, (flight_touch_down, p)),
+                (
+                    (flight_on_table, ()),
+                    (forms.normal, p),
+                    LIFT_OFF_TOL * params.mass * params.gravity,
+                    (flight_take_off, ()),
+                ),
+                (
+                    (flight_airborne, ()),
+                    (flight_gap, p),
+                    TOUCHDOWN_TOL * params.radius,
+                    (flight_touch_down, p),
+                ),
             )
 
     # what the parameters' setter derives: the pure forms are functions made per combination
     # (closures, which pickle cannot carry), so a pickle carries the parameters and the setter
     # makes the rest again on loading
-    _DERIVED = ("friction_law", "friction", "forms", "form_params", "kernel_rhs", "kernel_rhs_normal", "kernel_normalize", "kernel_readouts",
-                "kernel_normal", "kernel_gap", "kernel_take_off", "kernel_touch_down", "kernel_on_table", "kernel_airborne", "kernel_event",
-                "kernel_rhs_event", "kernel_switches", "implicit", "kernel_implicit")
+    _DERIVED = (
+        "friction_law",
+        "friction",
+        "forms",
+        "form_params",
+        "kernel_rhs",
+        "kernel_rhs_normal",
+        "kernel_normalize",
+        "kernel_readouts",
+        "kernel_normal",
+        "kernel_gap",
+        "kernel_take_off",
+        "kernel_touch_down",
+        "kernel_on_table",
+        "kernel_airborne",
+        "kernel_event",
+        "kernel_rhs_event",
+        "kernel_switches",
+        "implicit",
+        "kernel_implicit",
+    )
 
     def __getstate__(self):
         state = {k: v for k, v in self.__dict__.items() if k not in self._DERIVED}
@@ -1500,7 +1931,18 @@ class TippeTop:
         (``kernel_normal``, called directly: the step after it does not go through :meth:`rhs`)."""
         return self.forms.normal(self.form_params, y, u) < 0.0
 
-    readout_names = ("energy", "jellett", "tilt", "normal_force", "slip_speed", "lifted_off", "airborne", "hops", "gap", "spin")
+    readout_names = (
+        "energy",
+        "jellett",
+        "tilt",
+        "normal_force",
+        "slip_speed",
+        "lifted_off",
+        "airborne",
+        "hops",
+        "gap",
+        "spin",
+    )
 
     def readouts(self, y, u=None, fired=False) -> tuple:
         """The read-outs in :attr:`readout_names` order under the control ``u`` that acted
@@ -1544,8 +1986,10 @@ class TippeTop:
             def switch(z):
                 return stem_switch(p, z)
 
-            return (Event("stem_touchdown", self.on_sphere, other_gap, tol, switch),
-                    Event("sphere_touchdown", self.on_stem, other_gap, tol, switch))
+            return (
+                Event("stem_touchdown", self.on_sphere, other_gap, tol, switch),
+                Event("sphere_touchdown", self.on_stem, other_gap, tol, switch),
+            )
         if not self.flight:
             return ()
         prm = self.params
@@ -1554,8 +1998,12 @@ class TippeTop:
         def normal(z):  # (the pure normal force: after every internal step, no method between)
             return forms_normal(p, z, u)
 
-        lift_off = Event("lift_off", self.on_table, normal, LIFT_OFF_TOL * prm.mass * prm.gravity, self.take_off)
-        touchdown = Event("touchdown", self.airborne, self.gap, TOUCHDOWN_TOL * prm.radius, self.touch_down)
+        lift_off = Event(
+            "lift_off", self.on_table, normal, LIFT_OFF_TOL * prm.mass * prm.gravity, self.take_off
+        )
+        touchdown = Event(
+            "touchdown", self.airborne, self.gap, TOUCHDOWN_TOL * prm.radius, self.touch_down
+        )
         return (lift_off, touchdown)
 
     @staticmethod
@@ -1642,7 +2090,9 @@ class TippeTop:
         that)."""
         pos = tuple(position)[:2]
         v = None if velocity is None else tuple(velocity)[:2]
-        return self.forms.state(self.form_params, pos[0], pos[1], tuple(attitude), tuple(angular_velocity), v)
+        return self.forms.state(
+            self.form_params, pos[0], pos[1], tuple(attitude), tuple(angular_velocity), v
+        )
 
     def no_slip_velocity(self, attitude, angular_velocity):
         """``v_G = -omega x r`` in space [m/s]: the velocity that puts the contact point at rest."""
@@ -1669,10 +2119,16 @@ class TippeTop:
         angular velocity require. ``ValueError`` naming the entry otherwise."""
         names = ("position", "velocity", "attitude", "angular_velocity")
         if not isinstance(state, dict):
-            raise ValueError(f"options['state'] must be a dict of named arrays, got {type(state).__name__}")
+            raise ValueError(
+                f"options['state'] must be a dict of named arrays, got {type(state).__name__}"
+            )
         unknown, missing = sorted(set(state) - set(names)), sorted(set(names) - set(state))
         if unknown or missing:
-            raise ValueError(f"state must have exactly the names {sorted(names)}" + (f"; unknown: {unknown}" if unknown else "") + (f"; missing: {missing}" if missing else ""))
+            raise ValueError(
+                f"state must have exactly the names {sorted(names)}"
+                + (f"; unknown: {unknown}" if unknown else "")
+                + (f"; missing: {missing}" if missing else "")
+            )
         arrs = {}
         for name, size in zip(names, (3, 3, 4, 3)):
             arr = real_array(f"state[{name!r}]", state[name])
@@ -1683,7 +2139,9 @@ class TippeTop:
             arrs[name] = arr
         qn = float(np.linalg.norm(arrs["attitude"]))
         if abs(qn - 1.0) > 1e-6:
-            raise ValueError(f"state['attitude'] must be a unit quaternion (|q| = 1 within 1e-6), got |q| = {qn}")
+            raise ValueError(
+                f"state['attitude'] must be a unit quaternion (|q| = 1 within 1e-6), got |q| = {qn}"
+            )
         q = tuple(float(c) for c in arrs["attitude"])
         w = tuple(float(c) for c in arrs["angular_velocity"])
         pos = tuple(float(c) for c in arrs["position"])
@@ -1694,18 +2152,29 @@ class TippeTop:
             return self._place_flight_state(y, pos, vel)
         if self.stem:  # on the stem where its constraint's height is the one given
             on_stem = y[:11] + (1.0,)
-            if abs(pos[2] - self.height(on_stem)) <= 1e-9 * prm.radius + 1e-12 and self.other_gap(on_stem) >= 0.0:
+            if (
+                abs(pos[2] - self.height(on_stem)) <= 1e-9 * prm.radius + 1e-12
+                and self.other_gap(on_stem) >= 0.0
+            ):
                 y = on_stem
         z = self.height(y)
         if abs(pos[2] - z) > 1e-9 * prm.radius + 1e-12:
-            raise ValueError(f"state['position'][2] must be the contact height a - h cos(theta) = {z!r} m for this attitude (the sphere touches the table), got {pos[2]!r}")
+            raise ValueError(
+                f"state['position'][2] must be the contact height a - h cos(theta) = {z!r} m for this attitude (the sphere touches the table), got {pos[2]!r}"
+            )
         v_need = self.velocity(y)
         scale = 1e-9 * (1.0 + prm.radius * float(np.linalg.norm(w)))
         checked = range(3) if self.rolling else (2,)
         for i in checked:
             if abs(vel[i] - v_need[i]) > scale:
-                what = "the rolling velocity -omega x r" if self.rolling else "the vertical velocity the contact constraint gives"
-                raise ValueError(f"state['velocity'] must equal {what} ({list(v_need)}), got {list(vel)}")
+                what = (
+                    "the rolling velocity -omega x r"
+                    if self.rolling
+                    else "the vertical velocity the contact constraint gives"
+                )
+                raise ValueError(
+                    f"state['velocity'] must equal {what} ({list(v_need)}), got {list(vel)}"
+                )
         return y
 
     def _place_flight_state(self, y, pos, vel):
@@ -1717,7 +2186,9 @@ class TippeTop:
         air = y[:2] + (pos[2],) + y[3:5] + (vel[2],) + y[6:13] + (0.0, 0.0)
         gap = self.gap(air)
         if gap < -tol:
-            raise ValueError(f"state['position'][2] puts the sphere {-gap!r} m into the table (z_G must be >= a - h cos(theta) = {pos[2] - gap!r} m)")
+            raise ValueError(
+                f"state['position'][2] puts the sphere {-gap!r} m into the table (z_G must be >= a - h cos(theta) = {pos[2] - gap!r} m)"
+            )
         if gap > tol:
             return air
         v_need = self.velocity(y)[2]  # y is on the table: the constraint's v_z
@@ -1725,7 +2196,9 @@ class TippeTop:
         if vel[2] - v_need > scale:  # on the table and leaving it: in flight
             return air
         if abs(vel[2] - v_need) > scale:
-            raise ValueError(f"state['velocity'][2] must be the vertical velocity the contact constraint gives ({v_need!r}) or above it (leaving the table), got {vel[2]!r}")
+            raise ValueError(
+                f"state['velocity'][2] must be the vertical velocity the contact constraint gives ({v_need!r}) or above it (leaving the table), got {vel[2]!r}"
+            )
         return y
 
     # ------------------------------------------------------------------ step guard
@@ -1742,7 +2215,9 @@ class TippeTop:
         prm = self.params
         weight = prm.mass * prm.gravity
         load = weight if normal_force is None else np.maximum(weight, normal_force)
-        return self.friction.stiffness(mu, 2.0 * load, prm.contact_mobility(), prm.slip_regularization)
+        return self.friction.stiffness(
+            mu, 2.0 * load, prm.contact_mobility(), prm.slip_regularization
+        )
 
     def guard_rates(self, region, speed_ceiling: float = math.inf) -> GuardRates:
         """The contact geometry turns with the body: ``max(|Omega|, omega_g) h <= SPIN_STEP``
@@ -1756,27 +2231,54 @@ class TippeTop:
         ``ACCURACY_MARGIN`` of the interval (rk4 1.25); a law without a slope (no ``implicit``)
         keeps the stability bound."""
         omega_g = self.params.gravity_rate()
-        dissipation = (self.forms.friction_rate, self.form_params) if self.friction_law is not None else None
+        dissipation = (
+            (self.forms.friction_rate, self.form_params) if self.friction_law is not None else None
+        )
         margin = FRICTION_MARGIN
         text = f"lambda = max(|Omega|, omega_g) (omega_g = {omega_g:.6g} rad/s)"
-        if dissipation is not None and self.friction_bound == "accuracy" and self.implicit is not None and self.implicit.accuracy_rate is not None:
-            dissipation = (self.implicit.accuracy_rate, (self.form_params, self.friction.accuracy_scale, omega_g))
+        if (
+            dissipation is not None
+            and self.friction_bound == "accuracy"
+            and self.implicit is not None
+            and self.implicit.accuracy_rate is not None
+        ):
+            dissipation = (
+                self.implicit.accuracy_rate,
+                (self.form_params, self.friction.accuracy_scale, omega_g),
+            )
             margin = ACCURACY_MARGIN
             text += f", lambda_d = the {self.friction_law} law's stiffness at N and the mobility along the table (friction_bound='accuracy')"
         elif dissipation is not None:
             text += f", lambda_d = the {self.friction_law} law's stiffness at 2 max(m g, N)"
         share = None
-        if dissipation is not None and self.implicit is not None and self.implicit.share is not None:
-            share = (self.implicit.share, (self.form_params, omega_g))  # (the tolerance's relaxation share)
+        if (
+            dissipation is not None
+            and self.implicit is not None
+            and self.implicit.share is not None
+        ):
+            share = (
+                self.implicit.share,
+                (self.form_params, omega_g),
+            )  # (the tolerance's relaxation share)
         # tolerance=: the error is measured on v_G and Omega (the horizontal position drifts, the
         # contact flags are not measured), and the attitude turns at |Omega| / 2, integrating Omega
         # (motion_rates)
         measured = tuple(n for n in ("velocity", "angular_velocity") if n in self.layout)
-        return GuardRates(rotation=(tippe_rotation_rate, (self._w, omega_g)), rotation_bound=SPIN_STEP, dissipation=dissipation,
-                          dissipation_margin=margin, ceiling=max(speed_ceiling, omega_g), text=text, dissipation_share=share,
-                          error_blocks=measured, rotating_blocks=(("attitude", "angular_velocity"),))
+        return GuardRates(
+            rotation=(tippe_rotation_rate, (self._w, omega_g)),
+            rotation_bound=SPIN_STEP,
+            dissipation=dissipation,
+            dissipation_margin=margin,
+            ceiling=max(speed_ceiling, omega_g),
+            text=text,
+            dissipation_share=share,
+            error_blocks=measured,
+            rotating_blocks=(("attitude", "angular_velocity"),),
+        )
 
-    def max_stable_step(self, region, mu: float | None = None, normal_force: float | None = None) -> float:
+    def max_stable_step(
+        self, region, mu: float | None = None, normal_force: float | None = None
+    ) -> float:
         """The largest internal step [s] at which the friction law is stable for a scheme of
         ``region`` (a :class:`~rbenvs.contracts.StepRegion`, or an integrator declaring one):
         ``c / lambda_d``, ``c`` =

@@ -15,7 +15,9 @@ import numbers
 
 import numpy as np
 
-__all__ = ["did_you_mean", "unknown_keyword", 
+__all__ = [
+    "did_you_mean",
+    "unknown_keyword",
     "ParameterTypeError",
     "require_finite",
     "require_finite_positive",
@@ -76,7 +78,9 @@ def require_int_at_least(name: str, value, minimum: int) -> int:
     if isinstance(value, bool) or not isinstance(value, numbers.Integral):
         if isinstance(value, numbers.Real):
             raise ValueError(f"{name} must be an integer >= {minimum}, got {value!r}")
-        raise ParameterTypeError(f"{name} must be an integer >= {minimum}, got {value!r} ({_type_name(value)})")
+        raise ParameterTypeError(
+            f"{name} must be an integer >= {minimum}, got {value!r} ({_type_name(value)})"
+        )
     if value < minimum:
         raise ValueError(f"{name} must be an integer >= {minimum}, got {value!r}")
     return int(value)
@@ -95,7 +99,9 @@ def require_bool(name: str, value) -> bool:
     ``0`` or ``None`` for a flag are refused rather than read by their truth value."""
     if isinstance(value, (bool, np.bool_)):
         return bool(value)
-    raise ParameterTypeError(f"{name} must be True or False (a bool), got {value!r} ({_type_name(value)})")
+    raise ParameterTypeError(
+        f"{name} must be True or False (a bool), got {value!r} ({_type_name(value)})"
+    )
 
 
 def require_bool_mask(name: str, value, size: int, what: str = "") -> tuple[bool, ...]:
@@ -106,7 +112,9 @@ def require_bool_mask(name: str, value, size: int, what: str = "") -> tuple[bool
         raise ValueError(f"{label}, got {len(items)} entries: {value!r}")
     for item in items:
         if not isinstance(item, (bool, np.bool_)):
-            raise ParameterTypeError(f"{label}, got the entry {item!r} ({_type_name(item)}) in {value!r}")
+            raise ParameterTypeError(
+                f"{label}, got the entry {item!r} ({_type_name(item)}) in {value!r}"
+            )
     return tuple(bool(x) for x in items)
 
 
@@ -132,9 +140,13 @@ def did_you_mean(word, choices) -> str:
 def require_choice(name: str, value, choices) -> str:
     """One of the strings ``choices``."""
     if not isinstance(value, str):
-        raise ParameterTypeError(f"{name} must be one of {list(choices)}, got {value!r} ({_type_name(value)})")
+        raise ParameterTypeError(
+            f"{name} must be one of {list(choices)}, got {value!r} ({_type_name(value)})"
+        )
     if value not in choices:
-        raise ValueError(f"{name} must be one of {list(choices)}, got {value!r}{did_you_mean(value, choices)}")
+        raise ValueError(
+            f"{name} must be one of {list(choices)}, got {value!r}{did_you_mean(value, choices)}"
+        )
     return value
 
 
@@ -144,7 +156,9 @@ def unknown_keyword(owner: str, given, valid, where: str) -> TypeError | None:
     unknown = [k for k in given if k not in valid]
     if not unknown:
         return None
-    return TypeError(f"{owner} got an unexpected keyword argument {unknown[0]!r}{did_you_mean(unknown[0], valid)} (every keyword: {where})")
+    return TypeError(
+        f"{owner} got an unexpected keyword argument {unknown[0]!r}{did_you_mean(unknown[0], valid)} (every keyword: {where})"
+    )
 
 
 def require_real_vector(name: str, value, size: int, what: str = "") -> tuple[float, ...]:
@@ -157,7 +171,9 @@ def require_real_vector(name: str, value, size: int, what: str = "") -> tuple[fl
     out = []
     for item in items:
         if isinstance(item, (bool, np.bool_)) or not isinstance(item, numbers.Real):
-            raise ParameterTypeError(f"{label}, got the entry {item!r} ({_type_name(item)}) in {value!r}")
+            raise ParameterTypeError(
+                f"{label}, got the entry {item!r} ({_type_name(item)}) in {value!r}"
+            )
         v = float(item)
         if not math.isfinite(v):
             raise ValueError(f"{label}, got {value!r}")
@@ -171,8 +187,12 @@ def require_range(name: str, value) -> tuple[float, float]:
     if isinstance(value, numbers.Real) and not isinstance(value, (bool, np.bool_)):
         v = require_finite(name, value)
         return v, v
-    if not (isinstance(value, (list, tuple)) or (isinstance(value, np.ndarray) and value.ndim == 1)):
-        raise ParameterTypeError(f"{name} must be a number or a range (low, high), got {value!r} ({_type_name(value)})")
+    if not (
+        isinstance(value, (list, tuple)) or (isinstance(value, np.ndarray) and value.ndim == 1)
+    ):
+        raise ParameterTypeError(
+            f"{name} must be a number or a range (low, high), got {value!r} ({_type_name(value)})"
+        )
     if len(value) != 2:
         raise ValueError(f"{name} must be a number or a range (low, high), got {value!r}")
     lo, hi = require_finite(f"{name}[0]", value[0]), require_finite(f"{name}[1]", value[1])
@@ -193,10 +213,18 @@ def real_array(name: str, value, dtype=np.float64) -> np.ndarray:
     """``value`` as an array of ``dtype`` (``None``: its own real dtype), refusing what is not real numbers: strings (even numeric
     ones), complex numbers, dicts and other objects raise :class:`ParameterTypeError`
     (numpy would convert ``"0.5"`` quietly, or drop an imaginary part with a warning)."""
-    arr = value if isinstance(value, np.ndarray) else np.asarray(value) if not isinstance(value, (dict, set)) else None
+    arr = (
+        value
+        if isinstance(value, np.ndarray)
+        else np.asarray(value)
+        if not isinstance(value, (dict, set))
+        else None
+    )
     if arr is None or arr.dtype.kind not in "iuf":
         kind = _type_name(value) if arr is None else f"{_type_name(value)} of dtype {arr.dtype}"
-        raise ParameterTypeError(f"{name} must be real numbers (int or float), got {value!r} ({kind})")
+        raise ParameterTypeError(
+            f"{name} must be real numbers (int or float), got {value!r} ({kind})"
+        )
     return arr if dtype is None else arr.astype(dtype, copy=False)
 
 
@@ -212,13 +240,21 @@ def require_inertia(name: str, value) -> tuple[float, float, float]:
         raise ValueError(f"{name} is too large: the sum of the moments overflows, got {arr}")
     # A relative slack of a few ulp keeps an exactly flat plate (I3 = I1 + I2 in decimal) legal.
     slack = 4.0 * np.finfo(float).eps * (i1 + i2 + i3)
-    for (a, b, c), label in (((i1, i2, i3), "I1 + I2 >= I3"), ((i2, i3, i1), "I2 + I3 >= I1"), ((i3, i1, i2), "I3 + I1 >= I2")):
+    for (a, b, c), label in (
+        ((i1, i2, i3), "I1 + I2 >= I3"),
+        ((i2, i3, i1), "I2 + I3 >= I1"),
+        ((i3, i1, i2), "I3 + I1 >= I2"),
+    ):
         if a + b < c - slack:
-            raise ValueError(f"{name} must satisfy the triangle inequality {label} (a real body), got {tuple(arr)}")
+            raise ValueError(
+                f"{name} must satisfy the triangle inequality {label} (a real body), got {tuple(arr)}"
+            )
     return (i1, i2, i3)
 
 
 def _as_real(name: str, value) -> float:
     if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Real):
-        raise ParameterTypeError(f"{name} must be a real number, got {value!r} ({_type_name(value)})")
+        raise ParameterTypeError(
+            f"{name} must be a real number, got {value!r} ({_type_name(value)})"
+        )
     return float(value)

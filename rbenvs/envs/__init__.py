@@ -5,4 +5,11 @@ from .free_body import FreeRigidBodyEnv
 from .heavy_top import LagrangeTopEnv
 from .tippe_top import TippeTopEnv
 
-__all__ = ["RigidBodyEnv", "FreeRigidBodyEnv", "LagrangeTopEnv", "TippeTopEnv", "NumericalFailureWarning", "UnstableMotionWarning"]
+__all__ = [
+    "RigidBodyEnv",
+    "FreeRigidBodyEnv",
+    "LagrangeTopEnv",
+    "TippeTopEnv",
+    "NumericalFailureWarning",
+    "UnstableMotionWarning",
+]

@@ -22,8 +22,20 @@ import warnings
 import gymnasium as gym
 import numpy as np
 
-from ..stepsize.controller import (GUARDS, MAX_INTERNAL_STEPS, GlobalErrorCheck, StepRule, UnstableMotionWarning, default_accuracy, require_accuracy, require_guard,
-                                   require_tolerance, require_tolerance_check, takes_tolerance, unstable_motion_warning)
+from ..stepsize.controller import (
+    GUARDS,
+    MAX_INTERNAL_STEPS,
+    GlobalErrorCheck,
+    StepRule,
+    UnstableMotionWarning,
+    default_accuracy,
+    require_accuracy,
+    require_guard,
+    require_tolerance,
+    require_tolerance_check,
+    takes_tolerance,
+    unstable_motion_warning,
+)
 from ..stepsize.forms import relaxation_steps, stability_ratio, step_ratio
 from ..core.model import Model
 from ..core.step import Engine, NumericalFailureWarning, action_values
@@ -31,17 +43,31 @@ from ..dynamics.validation import require_finite_positive, require_int_in, unkno
 from ..integrators import get_integrator
 from .options import ParamRanges, Realism, noise_generator, noisy_observation, rekey
 
-__all__ = ["RigidBodyEnv", "NumericalFailureWarning", "UnstableMotionWarning", "MAX_INTERNAL_STEPS", "GUARDS", "FLOAT32_MAX", "require_float32_bound", "require_guard", "require_compiled"]
+__all__ = [
+    "RigidBodyEnv",
+    "NumericalFailureWarning",
+    "UnstableMotionWarning",
+    "MAX_INTERNAL_STEPS",
+    "GUARDS",
+    "FLOAT32_MAX",
+    "require_float32_bound",
+    "require_guard",
+    "require_compiled",
+]
 
 
-FLOAT32_MAX = float(np.finfo(np.float32).max)  # the largest observation value (and reward: RL libraries store float32)
+FLOAT32_MAX = float(
+    np.finfo(np.float32).max
+)  # the largest observation value (and reward: RL libraries store float32)
 
 
 def require_float32_bound(name: str, value) -> float:
     """An observation bound: finite, > 0 and representable in float32 (the observation dtype)."""
     v = require_finite_positive(name, value)
     if v > FLOAT32_MAX:
-        raise ValueError(f"{name} must be <= {FLOAT32_MAX:.3g} (float32 observations), got {value!r}")
+        raise ValueError(
+            f"{name} must be <= {FLOAT32_MAX:.3g} (float32 observations), got {value!r}"
+        )
     return v
 
 
@@ -66,7 +92,9 @@ def _caller_level() -> int:
     directly, by a vector env or by a wrapper of ours."""
     package = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
     frame, level = sys._getframe(1), 1
-    while frame is not None and os.path.abspath(frame.f_code.co_filename).startswith(package + os.sep):
+    while frame is not None and os.path.abspath(frame.f_code.co_filename).startswith(
+        package + os.sep
+    ):
         frame, level = frame.f_back, level + 1
     return level
 
@@ -78,7 +106,11 @@ class _SupportedSchemes:
     def __get__(self, obj, cls):
         from ..integrators import INTEGRATORS
 
-        return tuple(name for name, scheme in INTEGRATORS.items() if all(hasattr(cls.system_class, need) for need in scheme.requires))
+        return tuple(
+            name
+            for name, scheme in INTEGRATORS.items()
+            if all(hasattr(cls.system_class, need) for need in scheme.requires)
+        )
 
 
 class RigidBodyEnv(gym.Env):
@@ -96,9 +128,13 @@ class RigidBodyEnv(gym.Env):
     # tolerance="default": the relative error over an episode each env is held to unless told
     # otherwise, for the integrators a tolerance takes (None: unchecked)
     default_tolerance: float | None = 1e-3
-    _ranges = None  # the validated param_ranges (None: every episode has the constructor's parameters)
+    _ranges = (
+        None  # the validated param_ranges (None: every episode has the constructor's parameters)
+    )
     _realism = Realism(None, None, 0)  # noise, bias, delay: none
-    noiseless_observation = None  # with observation noise or bias: the last observation without them
+    noiseless_observation = (
+        None  # with observation noise or bias: the last observation without them
+    )
     _noise_rng = None  # the noise stream's generator (rbenvs.envs.options.rekey at each reset)
 
     def __init_subclass__(cls, **kwargs):
@@ -114,7 +150,12 @@ class RigidBodyEnv(gym.Env):
         @functools.wraps(init)
         def __init__(self, *args, **kw):
             if "_kwargs" not in self.__dict__:  # (the outermost class's keywords)
-                error = unknown_keyword(cls.__name__, kw, sig.parameters, f"help(rbenvs.envs.{cls.__name__}), docs/environments.md")
+                error = unknown_keyword(
+                    cls.__name__,
+                    kw,
+                    sig.parameters,
+                    f"help(rbenvs.envs.{cls.__name__}), docs/environments.md",
+                )
                 if error is not None:
                     raise error
                 bound = sig.bind(self, *args, **kw)
@@ -126,36 +167,88 @@ class RigidBodyEnv(gym.Env):
 
         cls.__init__ = __init__
 
-    def _setup(self, system, task, actuator, integrator, dt, substeps, observation_high, render_mode, guard="subdivide", compiled="auto",
-               tolerance="default", tolerance_horizon=None, tolerance_check=False):
+    def _setup(
+        self,
+        system,
+        task,
+        actuator,
+        integrator,
+        dt,
+        substeps,
+        observation_high,
+        render_mode,
+        guard="subdivide",
+        compiled="auto",
+        tolerance="default",
+        tolerance_horizon=None,
+        tolerance_check=False,
+    ):
         guard = require_guard(guard)
         tolerance = require_tolerance(tolerance)
         if tolerance is None and tolerance_horizon is not None:
-            raise ValueError(f"tolerance_horizon={tolerance_horizon!r} is the span of control periods that tolerance= covers, and tolerance is None: "
-                             "pass tolerance= with it, or leave tolerance_horizon out")
+            raise ValueError(
+                f"tolerance_horizon={tolerance_horizon!r} is the span of control periods that tolerance= covers, and tolerance is None: "
+                "pass tolerance= with it, or leave tolerance_horizon out"
+            )
         tolerance, accuracy = default_accuracy(tolerance, guard, self.default_tolerance)
         check = require_tolerance_check(tolerance_check, tolerance)
         horizon = self._tolerance_horizon(tolerance_horizon)
         compiled = require_compiled(compiled)
         dt = require_finite_positive("dt", dt)
-        substeps = require_int_in("substeps", substeps, 1, MAX_INTERNAL_STEPS, " (more internal steps in a control period is a numerical failure)")
+        substeps = require_int_in(
+            "substeps",
+            substeps,
+            1,
+            MAX_INTERNAL_STEPS,
+            " (more internal steps in a control period is a numerical failure)",
+        )
         if isinstance(integrator, str) and integrator == "auto":
-            integrator = self._cheapest_integrator(system, task, actuator, dt, substeps, guard, observation_high, tolerance, horizon)
+            integrator = self._cheapest_integrator(
+                system, task, actuator, dt, substeps, guard, observation_high, tolerance, horizon
+            )
         integrator = get_integrator(integrator)
         if not integrator.supports(system):
-            raise ValueError(f"integrator {integrator.name!r} is not available for {type(system).__name__}")
-        if getattr(integrator, "region", None) is None:  # declared, not probed: no region, no guard, no run
-            raise ValueError(f"integrator {integrator.name!r} declares no step region (StepRegion, rbenvs.contracts): it cannot be guarded")
-        if render_mode is not None and (not isinstance(render_mode, str) or render_mode not in self.metadata["render_modes"]):
-            raise ValueError(f"render_mode must be None or one of {self.metadata['render_modes']}, got {render_mode!r}")
-        tolerance, accuracy = require_accuracy(integrator, guard, tolerance, accuracy, type(self).__name__)
+            raise ValueError(
+                f"integrator {integrator.name!r} is not available for {type(system).__name__}"
+            )
+        if (
+            getattr(integrator, "region", None) is None
+        ):  # declared, not probed: no region, no guard, no run
+            raise ValueError(
+                f"integrator {integrator.name!r} declares no step region (StepRegion, rbenvs.contracts): it cannot be guarded"
+            )
+        if render_mode is not None and (
+            not isinstance(render_mode, str) or render_mode not in self.metadata["render_modes"]
+        ):
+            raise ValueError(
+                f"render_mode must be None or one of {self.metadata['render_modes']}, got {render_mode!r}"
+            )
+        tolerance, accuracy = require_accuracy(
+            integrator, guard, tolerance, accuracy, type(self).__name__
+        )
         if tolerance is not None and accuracy == "explicit":
             unstable = self._unstable_motion(system, task, horizon * dt)
             if unstable:
-                warnings.warn(unstable_motion_warning(tolerance, unstable, check), stacklevel=_caller_level())
+                warnings.warn(
+                    unstable_motion_warning(tolerance, unstable, check), stacklevel=_caller_level()
+                )
         high = tuple(float(v) for v in observation_high)
-        self.model = Model(system, task, integrator, actuator, dt, substeps, guard, high, self._speed_ceiling(), tolerance, horizon if tolerance is not None else None,
-                           self.registered_episode_steps(), check, accuracy)
+        self.model = Model(
+            system,
+            task,
+            integrator,
+            actuator,
+            dt,
+            substeps,
+            guard,
+            high,
+            self._speed_ceiling(),
+            tolerance,
+            horizon if tolerance is not None else None,
+            self.registered_episode_steps(),
+            check,
+            accuracy,
+        )
         self._require_float32_rewards()
         self.engine = Engine(self.model, compiled)
         self.render_mode = render_mode
@@ -177,25 +270,35 @@ class RigidBodyEnv(gym.Env):
         self._plain = self.engine.plain
         self._require_resolvable()
 
-    def _setup_options(self, param_ranges=None, observation_noise=None, observation_bias=None, action_delay=0):
+    def _setup_options(
+        self, param_ranges=None, observation_noise=None, observation_bias=None, action_delay=0
+    ):
         """Validate the robustness options (:mod:`rbenvs.envs.options`); with ``param_ranges``
         build the env at every corner of the ranges' box and its centre, each of which must pass
         every check of the constructor and keep the env's structure."""
-        self._realism = realism = Realism(observation_noise, observation_bias, action_delay, self.observation_space.high)
+        self._realism = realism = Realism(
+            observation_noise, observation_bias, action_delay, self.observation_space.high
+        )
         if param_ranges is not None:
             ranges = ParamRanges(type(self), self._kwargs, param_ranges)
             if self.engine.compiled is True:
-                raise ValueError("compiled=True cannot be had with param_ranges: each episode builds its model from drawn parameters and "
-                                 "a compiled step is built per parameter setting (about a second each); pass compiled='auto' or False")
+                raise ValueError(
+                    "compiled=True cannot be had with param_ranges: each episode builds its model from drawn parameters and "
+                    "a compiled step is built per parameter setting (about a second each); pass compiled='auto' or False"
+                )
             structure = self._structure()
             for label, values in ranges.corners():
                 try:
                     env = self._episode_env(values)
                 except (ValueError, TypeError) as err:
-                    raise type(err)(f"param_ranges: at the range's {label}: {err} (every value in each range must be valid)") from err
+                    raise type(err)(
+                        f"param_ranges: at the range's {label}: {err} (every value in each range must be valid)"
+                    ) from err
                 if env._structure() != structure:
-                    raise ValueError(f"param_ranges: at the range's {label} the env's structure changes (its spaces, read-outs or "
-                                     f"named axis differ from the keywords' values); narrow the ranges of {list(ranges.names)}")
+                    raise ValueError(
+                        f"param_ranges: at the range's {label} the env's structure changes (its spaces, read-outs or "
+                        f"named axis differ from the keywords' values); narrow the ranges of {list(ranges.names)}"
+                    )
             self._ranges = ranges
         if realism.active:
             if self.render_mode != "human":
@@ -218,14 +321,29 @@ class RigidBodyEnv(gym.Env):
     def _structure(self) -> tuple:
         """What a drawn parameter setting must leave unchanged: spaces, read-outs, metrics, the
         start's draws, the event and the env's named axis (the free body's)."""
-        return (tuple(self.observation_space.high.tolist()), self.action_space.shape, self.engine.readout_names, self.engine.metric_names,
-                self.model.draw_kinds, self.system.dim, self.engine.event_name, getattr(self, "axis", None))
+        return (
+            tuple(self.observation_space.high.tolist()),
+            self.action_space.shape,
+            self.engine.readout_names,
+            self.engine.metric_names,
+            self.model.draw_kinds,
+            self.system.dim,
+            self.engine.event_name,
+            getattr(self, "axis", None),
+        )
 
     def _episode_env(self, values: dict):
         """The env of one episode's drawn parameters: the constructor's keywords with ``values``,
         on the float path (its model and engine are what the episode runs)."""
         kw = dict(self._kwargs, **values)
-        kw.update(param_ranges=None, observation_noise=None, observation_bias=None, action_delay=0, render_mode=None, compiled=False)
+        kw.update(
+            param_ranges=None,
+            observation_noise=None,
+            observation_bias=None,
+            action_delay=0,
+            render_mode=None,
+            compiled=False,
+        )
         return type(self)(**kw)
 
     # The parts, read from the model (one place).
@@ -273,10 +391,15 @@ class RigidBodyEnv(gym.Env):
         """The least reward of a step and the failure charge must be float32 numbers: RL libraries
         store rewards in float32 (stable-baselines3's buffers), where a larger one is -inf. The
         control term sets them (a task's own reward is of order one)."""
-        floor, charge = self.model.task.reward_floor(self.model.system, self.model.observation_high), self.model.failure_charge
+        floor, charge = (
+            self.model.task.reward_floor(self.model.system, self.model.observation_high),
+            self.model.failure_charge,
+        )
         if not (abs(floor) <= FLOAT32_MAX and abs(charge) <= FLOAT32_MAX):
-            raise ValueError(f"control_cost={self.model.task.control_cost!r} makes the least reward of a step {floor:.3g} and the failure charge "
-                             f"{charge:.3g}, beyond float32's range (+-{FLOAT32_MAX:.3g}, in which RL libraries store rewards); lower control_cost")
+            raise ValueError(
+                f"control_cost={self.model.task.control_cost!r} makes the least reward of a step {floor:.3g} and the failure charge "
+                f"{charge:.3g}, beyond float32's range (+-{FLOAT32_MAX:.3g}, in which RL libraries store rewards); lower control_cost"
+            )
 
     def _tolerance_horizon(self, value) -> int:
         """``tolerance_horizon=``: the control periods ``tolerance`` covers; ``None``: the
@@ -284,30 +407,54 @@ class RigidBodyEnv(gym.Env):
         if value is None:
             value = self.registered_episode_steps()
             return 1000 if value is None else value
-        return require_int_in("tolerance_horizon", value, 1, 10**12, " (control periods over which tolerance holds)")
+        return require_int_in(
+            "tolerance_horizon", value, 1, 10**12, " (control periods over which tolerance holds)"
+        )
 
-    def _cheapest_integrator(self, system, task, actuator, dt, substeps, guard, observation_high, tolerance, horizon):
+    def _cheapest_integrator(
+        self, system, task, actuator, dt, substeps, guard, observation_high, tolerance, horizon
+    ):
         """``integrator="auto"``: of the schemes that ``tolerance=`` takes (an error constant, the
         leading error in the phase: :func:`~rbenvs.stepsize.controller.takes_tolerance`) and that take this system, the one
         whose internal steps at the fastest start, times its rhs evaluations a step, cost the least
         (ties: the first registered)."""
         if tolerance is None:
-            raise ValueError("integrator='auto' chooses the scheme that meets tolerance= at the least cost: pass tolerance= (a relative error per episode)")
+            raise ValueError(
+                "integrator='auto' chooses the scheme that meets tolerance= at the least cost: pass tolerance= (a relative error per episode)"
+            )
         best = None
         high = tuple(float(v) for v in observation_high)
         for cls in _registry().values():
             scheme = cls()
             if not takes_tolerance(cls) or not scheme.evaluations or not scheme.supports(system):
                 continue
-            self.model = Model(system, task, scheme, actuator, dt, substeps, guard, high, self._speed_ceiling(), tolerance, horizon,
-                               self.registered_episode_steps())
+            self.model = Model(
+                system,
+                task,
+                scheme,
+                actuator,
+                dt,
+                substeps,
+                guard,
+                high,
+                self._speed_ceiling(),
+                tolerance,
+                horizon,
+                self.registered_episode_steps(),
+            )
             x = self._start_steps()[0]
-            cost = max(substeps, math.ceil(x)) * scheme.evaluations if x <= MAX_INTERNAL_STEPS else math.inf
+            cost = (
+                max(substeps, math.ceil(x)) * scheme.evaluations
+                if x <= MAX_INTERNAL_STEPS
+                else math.inf
+            )
             if best is None or cost < best[0]:
                 best = (cost, scheme)
         self.model = None
         if best is None:
-            raise ValueError(f"integrator='auto' found no scheme with an error constant for {type(system).__name__}")
+            raise ValueError(
+                f"integrator='auto' found no scheme with an error constant for {type(system).__name__}"
+            )
         return best[1]
 
     def _unstable_motion(self, system, task, span: float) -> str | None:
@@ -327,26 +474,38 @@ class RigidBodyEnv(gym.Env):
         their own (exact flows, adaptive schemes) count one radian of the fastest rate per step."""
         region = self.integrator.region
         if not region.bounded:
-            region = dataclasses.replace(region, rotation=1.0, reason="one radian of the fastest rate per step")
+            region = dataclasses.replace(
+                region, rotation=1.0, reason="one radian of the fastest rate per step"
+            )
         rates = self.system.guard_rates(region, self._start_speed)
         m = self.model
-        rule = StepRule.build(rates, region, self.dt, "subdivide", self.integrator, m.tolerance, m.horizon)
+        rule = StepRule.build(
+            rates, region, self.dt, "subdivide", self.integrator, m.tolerance, m.horizon
+        )
         x = step_ratio(rule.params, rates.ceiling)
         lam_d = self._start_dissipation()
         d_stable = 0.0
         if rule.dissipation is not None and lam_d > 0.0:
             d_stable = self.dt / (rule.dissipation_step / lam_d)
             x = max(x, d_stable)
-            x = max(x, relaxation_steps(rule.params, lam_d, 1.0))  # (0 without a tolerance; the mode's full share: no state yet)
+            x = max(
+                x, relaxation_steps(rule.params, lam_d, 1.0)
+            )  # (0 without a tolerance; the mode's full share: no state yet)
         if rule.error is not None:
             stable = max(stability_ratio(*rule.params[:3], rates.ceiling), d_stable)
             if not stable <= MAX_INTERNAL_STEPS:
                 return x, rule.text, False
             # only the tolerance asks for more: say so, with the reason
             p = self.integrator.order
-            return x, (f"to keep the error of {m.horizon} periods within it ({rule.accuracy_text}): at a fixed step an order-{p} scheme's error "
-                       f"grows without bound, like lambda T (lambda h)^{p}, so the steps a tolerance costs grow like "
-                       f"(lambda T)^{(p + 1) / p:.3g} / tolerance^{1 / p:.3g}; raise tolerance, lower tolerance_horizon, or use a higher-order integrator"), True
+            return (
+                x,
+                (
+                    f"to keep the error of {m.horizon} periods within it ({rule.accuracy_text}): at a fixed step an order-{p} scheme's error "
+                    f"grows without bound, like lambda T (lambda h)^{p}, so the steps a tolerance costs grow like "
+                    f"(lambda T)^{(p + 1) / p:.3g} / tolerance^{1 / p:.3g}; raise tolerance, lower tolerance_horizon, or use a higher-order integrator"
+                ),
+                True,
+            )
         return x, rule.text, False
 
     def _require_resolvable(self) -> None:
@@ -361,8 +520,14 @@ class RigidBodyEnv(gym.Env):
         x, rule, by_tolerance = self._start_steps()
         if not x <= MAX_INTERNAL_STEPS:
             if by_tolerance:
-                default = (f" (tolerance='default': {type(self).__name__}'s default accuracy; tolerance=None runs unchecked, the stability "
-                           f"bound alone)") if self.model.accuracy != "explicit" else ""
+                default = (
+                    (
+                        f" (tolerance='default': {type(self).__name__}'s default accuracy; tolerance=None runs unchecked, the stability "
+                        f"bound alone)"
+                    )
+                    if self.model.accuracy != "explicit"
+                    else ""
+                )
                 raise ValueError(
                     f"tolerance={self.model.tolerance!r}{default} cannot be met: at the start the integrator {self.integrator.name!r} needs "
                     f"{x:.3g} internal steps per control period, more than MAX_INTERNAL_STEPS = {MAX_INTERNAL_STEPS}, {rule}"
@@ -374,7 +539,9 @@ class RigidBodyEnv(gym.Env):
             )
 
     @staticmethod
-    def _require_authority(name: str, change: float, bound_name: str, bound: float, unit: str) -> None:
+    def _require_authority(
+        name: str, change: float, bound_name: str, bound: float, unit: str
+    ) -> None:
         """An actuator whose full action over one control period can change an observed
         velocity by more than the width of its observation box (``2 * bound``) is refused.
 
@@ -397,12 +564,18 @@ class RigidBodyEnv(gym.Env):
         options = {} if options is None else dict(options)
         state = options.pop("state", None)
         if options:
-            raise ValueError(f"reset options must be a subset of {{'state'}}, got unknown {sorted(options)}")
+            raise ValueError(
+                f"reset options must be a subset of {{'state'}}, got unknown {sorted(options)}"
+            )
         params = None
         if self._ranges is not None:  # this episode's parameters, first from the generator
             values = self._ranges.draw(self.np_random)
             episode = self._episode_env(values)
-            self.model, self.engine, self._step_one = episode.model, episode.engine, episode.engine.step_one
+            self.model, self.engine, self._step_one = (
+                episode.model,
+                episode.engine,
+                episode.engine.step_one,
+            )
             params = self._ranges.info(values)
         self._plain = self.engine.plain
         self._u = None
@@ -412,7 +585,10 @@ class RigidBodyEnv(gym.Env):
             self._y = self.system.import_state(state)
         obs, info = self.engine.reset_one(self._y)
         if self._check is not None:
-            self._check.engine, self._step_one = self.engine, self._check.step_one  # (param_ranges: this episode's engine)
+            self._check.engine, self._step_one = (
+                self.engine,
+                self._check.step_one,
+            )  # (param_ranges: this episode's engine)
             self._check.restart(self._y)
             info["global_error_estimate"] = 0.0
         if self._realism.active:
@@ -431,7 +607,9 @@ class RigidBodyEnv(gym.Env):
             if self._noise_rng is None:
                 self._noise_rng = noise_generator()
             rekey(self._noise_rng, self.np_random)
-            self._bias = None if r.bias is None else r.bias * self._noise_rng.standard_normal(len(r.bias))
+            self._bias = (
+                None if r.bias is None else r.bias * self._noise_rng.standard_normal(len(r.bias))
+            )
             obs = self._noisy(obs)
         return obs
 
@@ -453,7 +631,9 @@ class RigidBodyEnv(gym.Env):
         if r.delay:
             self._queue.append(a)
             a = self._queue.popleft()
-        self._y, obs, reward, terminated, info, self._u, self._plain = self._step_one(self._y, a, self._plain)
+        self._y, obs, reward, terminated, info, self._u, self._plain = self._step_one(
+            self._y, a, self._plain
+        )
         if r.stream:
             obs = self._noisy(obs)
         return obs, reward, terminated, False, info
@@ -462,7 +642,9 @@ class RigidBodyEnv(gym.Env):
         if self._y is None:
             raise RuntimeError("call reset() before step()")
         a = action_values(action, self._action_shape)
-        self._y, obs, reward, terminated, info, self._u, self._plain = self._step_one(self._y, a, self._plain)
+        self._y, obs, reward, terminated, info, self._u, self._plain = self._step_one(
+            self._y, a, self._plain
+        )
         return obs, reward, terminated, False, info
 
     def internal_steps(self, y, u):
@@ -498,7 +680,9 @@ class RigidBodyEnv(gym.Env):
         and a warning, as in gymnasium.
         """
         if self.render_mode is None:
-            gym.logger.warn(f"{type(self).__name__}.render() called without a render_mode: pass render_mode='rgb_array' or 'human'")
+            gym.logger.warn(
+                f"{type(self).__name__}.render() called without a render_mode: pass render_mode='rgb_array' or 'human'"
+            )
             return None
         if self._y is None:
             raise RuntimeError("call reset() before render()")

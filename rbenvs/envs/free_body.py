@@ -240,7 +240,9 @@ class FreeRigidBodyEnv(RigidBodyEnv):
         if perturbation >= math.pi:
             raise ValueError(f"perturbation must be in [0, pi) rad, got {perturbation!r}")
         max_w = require_float32_bound("max_angular_velocity", max_angular_velocity)
-        self.actuated = require_bool_mask("actuated", actuated, 3, " (one per body axis: which take torque)")
+        self.actuated = require_bool_mask(
+            "actuated", actuated, 3, " (one per body axis: which take torque)"
+        )
         if not any(self.actuated):
             raise ValueError("actuated must enable at least one axis")
         target = _unit_quaternion("target_attitude", target_attitude)
@@ -249,7 +251,12 @@ class FreeRigidBodyEnv(RigidBodyEnv):
         # which a detumble or reorient scene may well have
         self.axis = _axis_index(axis, params) if task == "spin" else None
         if task == "spin":
-            task_obj = SpinTask(axis=self.axis, spin_rate=spin_rate, perturbation=perturbation, control_cost=control_cost)
+            task_obj = SpinTask(
+                axis=self.axis,
+                spin_rate=spin_rate,
+                perturbation=perturbation,
+                control_cost=control_cost,
+            )
             # |Omega| <= |Pi| / I_min, |Pi| = I_axis spin_rate
             start_speed = params.inertia[self.axis] * spin_rate / min(params.inertia)
             source = "spin_rate * I_axis / I_min"
@@ -260,18 +267,36 @@ class FreeRigidBodyEnv(RigidBodyEnv):
             task_obj = ReorientTask(target=target, spin_rate=spin_rate, control_cost=control_cost)
             start_speed, source = 0.1 * spin_rate, "0.1 spin_rate"
         if not start_speed < max_w:
-            raise ValueError(f"max_angular_velocity ({max_w!r} rad/s) must exceed the initial angular speed ({source} = {start_speed:.6g} rad/s): lower spin_rate or raise max_angular_velocity")
+            raise ValueError(
+                f"max_angular_velocity ({max_w!r} rad/s) must exceed the initial angular speed ({source} = {start_speed:.6g} rad/s): lower spin_rate or raise max_angular_velocity"
+            )
         system = FreeBody(params, attitude=task_obj.needs_attitude)
         self.max_torque = max_torque = require_finite_nonnegative("max_torque", max_torque)
         actuator = BodyTorque(max_torque, tuple(i for i in range(3) if self.actuated[i]))
         self._max_w = max_w
         self._start_speed = start_speed
         high = observation_bounds(task_obj, {"rad/s": max_w})
-        self._setup(system, task_obj, actuator, integrator, dt, substeps, high, render_mode, guard, compiled, tolerance, tolerance_horizon, tolerance_check)
+        self._setup(
+            system,
+            task_obj,
+            actuator,
+            integrator,
+            dt,
+            substeps,
+            high,
+            render_mode,
+            guard,
+            compiled,
+            tolerance,
+            tolerance_horizon,
+            tolerance_check,
+        )
         self.action_size = actuator.size
         # |Delta Omega| <= max_torque sqrt(k) dt / I_min over a period of full torque on k axes
         change = max_torque * math.sqrt(actuator.size) * self.dt / min(params.inertia)
-        self._require_authority("max_torque", change, "max_angular_velocity", max_w, "angular velocity [rad/s]")
+        self._require_authority(
+            "max_torque", change, "max_angular_velocity", max_w, "angular velocity [rad/s]"
+        )
         self._setup_options(param_ranges, observation_noise, observation_bias, action_delay)
 
     _rate_sources = "spin_rate and inertia"
@@ -293,8 +318,10 @@ class FreeRigidBodyEnv(RigidBodyEnv):
         growth = intermediate_axis_growth_rate(inertia, inertia[self.axis] * task.spin_rate)
         if not growth * span >= 1.0:
             return None
-        return (f"a spin about the intermediate axis (axis {self.axis}) is unstable: a perturbation grows at {growth:.3g} 1/s "
-                f"({growth * span:.3g} e-folds over the tolerance's horizon of {span:g} s) and the motion runs near the separatrix")
+        return (
+            f"a spin about the intermediate axis (axis {self.axis}) is unstable: a perturbation grows at {growth:.3g} 1/s "
+            f"({growth * span:.3g} e-folds over the tolerance's horizon of {span:g} s) and the motion runs near the separatrix"
+        )
 
     def _speed_ceiling(self):
         return math.sqrt(3.0) * self._max_w  # every Omega_i within +-max_angular_velocity
@@ -348,7 +375,9 @@ def _check_axis(axis) -> None:
         if not 0 <= int(axis) <= 2:
             raise ValueError(f"axis must be 0, 1, 2 or one of {list(AXIS_NAMES)}, got {axis!r}")
     elif not isinstance(axis, str):
-        raise ParameterTypeError(f"axis must be 0, 1, 2 or one of {list(AXIS_NAMES)}, got {axis!r} ({type(axis).__name__})")
+        raise ParameterTypeError(
+            f"axis must be 0, 1, 2 or one of {list(AXIS_NAMES)}, got {axis!r} ({type(axis).__name__})"
+        )
     elif axis not in AXIS_NAMES:
         raise ValueError(f"axis must be 0, 1, 2 or one of {list(AXIS_NAMES)}, got {axis!r}")
 
@@ -360,7 +389,9 @@ def _axis_index(axis, params: FreeBodyParams) -> int:
     i1, i2, i3 = params.inertia
     if len({i1, i2, i3}) < 3:
         # With a tie "major"/"minor"/"intermediate" can name two axes: demand an index.
-        raise ValueError(f"axis={axis!r} is ambiguous for inertia {params.inertia} with equal moments; give an index 0-2")
+        raise ValueError(
+            f"axis={axis!r} is ambiguous for inertia {params.inertia} with equal moments; give an index 0-2"
+        )
     return params.axis_order[AXIS_NAMES.index(axis)]
 
 

@@ -9,7 +9,14 @@ from functools import lru_cache
 import numpy as np
 
 from ..dynamics import HeavyTop, HeavyTopParams
-from ..dynamics.validation import require_bool, require_choice, require_finite, require_finite_nonnegative, require_finite_positive, require_range
+from ..dynamics.validation import (
+    require_bool,
+    require_choice,
+    require_finite,
+    require_finite_nonnegative,
+    require_finite_positive,
+    require_range,
+)
 from ..tasks import PrecessTask, UprightTask, slow_precession_rate, transverse_basis
 from ..core.codegen import generate
 from ..core.model import observation_bounds
@@ -210,7 +217,14 @@ class LagrangeTopEnv(RigidBodyEnv):
     # info keys of the quantities the uncontrolled, frictionless motion conserves
     invariants = ("energy", "pi_dot_gamma", "vertical_norm")
     system_class = HeavyTop
-    randomizable = ("inertia", "mass", "length", "gravity", "spin_friction", "max_torque")  # param_ranges keywords
+    randomizable = (
+        "inertia",
+        "mass",
+        "length",
+        "gravity",
+        "spin_friction",
+        "max_torque",
+    )  # param_ranges keywords
 
     def __init__(
         self,
@@ -252,11 +266,17 @@ class LagrangeTopEnv(RigidBodyEnv):
         control_cost = require_finite_nonnegative("control_cost", control_cost)
         perturbation = require_finite_nonnegative("perturbation", perturbation)
         max_w = require_float32_bound("max_angular_velocity", max_angular_velocity)
-        limit = _DEFAULT_TILT_LIMIT[task] if tilt_limit is None else require_finite_positive("tilt_limit", tilt_limit)
+        limit = (
+            _DEFAULT_TILT_LIMIT[task]
+            if tilt_limit is None
+            else require_finite_positive("tilt_limit", tilt_limit)
+        )
         if limit > math.pi:
             raise ValueError(f"tilt_limit must be in (0, pi] rad, got {tilt_limit!r}")
         if perturbation >= limit:
-            raise ValueError(f"perturbation must be below tilt_limit ({limit!r} rad), got {perturbation!r}")
+            raise ValueError(
+                f"perturbation must be below tilt_limit ({limit!r} rad), got {perturbation!r}"
+            )
         alpha = require_finite("target_tilt", target_tilt)
         if not 0.0 < alpha < math.pi:
             raise ValueError(f"target_tilt must lie in (0, pi) rad, got {target_tilt!r}")
@@ -265,11 +285,15 @@ class LagrangeTopEnv(RigidBodyEnv):
             if target_rate == 0.0:
                 raise ValueError("target_rate must be nonzero (or None for the torque-free rate)")
             if not abs(target_rate) < max_w:
-                raise ValueError(f"target_rate ({target_rate!r} rad/s) must be below max_angular_velocity ({max_w!r} rad/s) in magnitude")
+                raise ValueError(
+                    f"target_rate ({target_rate!r} rad/s) must be below max_angular_velocity ({max_w!r} rad/s) in magnitude"
+                )
         self.axial_torque = require_bool("axial_torque", axial_torque)
         attitude = require_bool("attitude", attitude)
         if task == "precess" and not params.is_lagrange:
-            raise ValueError("task='precess' needs a Lagrange top: two equal moments and com_direction along the third axis")
+            raise ValueError(
+                "task='precess' needs a Lagrange top: two equal moments and com_direction along the third axis"
+            )
         low, high = _spin_range(spin, task, params)
         if spin is None:
             source = f"spin=None: {'half' if task == 'upright' else 'twice'} the critical spin 2 sqrt(M g l I1) / I3, set by mass, length, gravity and inertia"
@@ -280,16 +304,27 @@ class LagrangeTopEnv(RigidBodyEnv):
             peak = max(abs(low), abs(high))
         else:
             if not (limit < alpha < math.pi - limit):
-                raise ValueError(f"target_tilt must lie in (tilt_limit, pi - tilt_limit) = ({limit!r}, {math.pi - limit!r}) rad, got {target_tilt!r}")
+                raise ValueError(
+                    f"target_tilt must lie in (tilt_limit, pi - tilt_limit) = ({limit!r}, {math.pi - limit!r}) rad, got {target_tilt!r}"
+                )
             if target_rate is None:
                 _require_real_precession(params, low, high, alpha)
             task_obj = PrecessTask(low, high, alpha, target_rate, perturbation, limit, control_cost)
             system = HeavyTop(params)
-            rates = [abs(task_obj.target_rate if target_rate is not None else slow_precession_rate(system, n, alpha)) for n in (low, high)]
+            rates = [
+                abs(
+                    task_obj.target_rate
+                    if target_rate is not None
+                    else slow_precession_rate(system, n, alpha)
+                )
+                for n in (low, high)
+            ]
             peak = max(2.0 * r + abs(n) for r, n in zip(rates, (low, high)))
             source += " and the precession rate (target_rate, or the torque-free rate of [T 3.82])"
         if not peak < max_w:
-            raise ValueError(f"max_angular_velocity ({max_w!r} rad/s) must exceed the initial angular speed ({peak:.6g} rad/s, from {source}); lower it or raise max_angular_velocity")
+            raise ValueError(
+                f"max_angular_velocity ({max_w!r} rad/s) must exceed the initial angular speed ({peak:.6g} rad/s, from {source}); lower it or raise max_angular_velocity"
+            )
         system = HeavyTop(params, attitude=attitude)
         t1, t2 = transverse_basis(params.com_direction)
         self.torque_directions = (t1, t2) + ((params.com_direction,) if self.axial_torque else ())
@@ -297,17 +332,37 @@ class LagrangeTopEnv(RigidBodyEnv):
         self._max_w = max_w
         self._start_speed = peak
         high = observation_bounds(task_obj, {"rad/s": max_w})
-        self._setup(system, task_obj, actuator, integrator, dt, substeps, high, render_mode, guard, compiled, tolerance, tolerance_horizon, tolerance_check)
+        self._setup(
+            system,
+            task_obj,
+            actuator,
+            integrator,
+            dt,
+            substeps,
+            high,
+            render_mode,
+            guard,
+            compiled,
+            tolerance,
+            tolerance_horizon,
+            tolerance_check,
+        )
         # the pivot's friction decays the spin about chi at the rate k / I_chi: faster than a
         # control period, it stops the spin within one step, a clamp rather than a friction
         i_chi = sum(i * c * c for i, c in zip(params.inertia, params.com_direction))
         if not params.spin_friction * self.dt <= i_chi:
-            raise ValueError(f"spin_friction must be at most I_chi / dt = {i_chi / self.dt:.6g} N m s (the spin's decay time I_chi / spin_friction at "
-                             f"least the control period dt = {self.dt!r} s; faster, the spin stops within one step), got {params.spin_friction!r}; "
-                             "lower spin_friction or dt")
+            raise ValueError(
+                f"spin_friction must be at most I_chi / dt = {i_chi / self.dt:.6g} N m s (the spin's decay time I_chi / spin_friction at "
+                f"least the control period dt = {self.dt!r} s; faster, the spin stops within one step), got {params.spin_friction!r}; "
+                "lower spin_friction or dt"
+            )
         # orthonormal torque directions: |tau| <= max_torque sqrt(k), |Delta Omega| <= |tau| dt / I_min
-        change = self.max_torque * math.sqrt(len(self.torque_directions)) * self.dt / min(params.inertia)
-        self._require_authority("max_torque", change, "max_angular_velocity", max_w, "angular velocity [rad/s]")
+        change = (
+            self.max_torque * math.sqrt(len(self.torque_directions)) * self.dt / min(params.inertia)
+        )
+        self._require_authority(
+            "max_torque", change, "max_angular_velocity", max_w, "angular velocity [rad/s]"
+        )
         self._setup_options(param_ranges, observation_noise, observation_bias, action_delay)
 
     _rate_sources = "mass, length, gravity, inertia, spin_friction and spin"
@@ -328,12 +383,20 @@ class LagrangeTopEnv(RigidBodyEnv):
         if not slowest < crit:
             return None
         i1, i3 = params.transverse_inertia, params.axial_inertia
-        growth = float(max(np.real(upright_eigenvalues(i1, i3, params.mass, params.length, params.gravity, slowest))))
+        growth = float(
+            max(
+                np.real(
+                    upright_eigenvalues(i1, i3, params.mass, params.length, params.gravity, slowest)
+                )
+            )
+        )
         if not growth * span >= 1.0:
             return None
-        return (f"the upright top is unstable below its critical spin {crit:.6g} rad/s (I3^2 spin^2 < 4 I1 M g l), "
-                f"and spin reaches {slowest:.6g} rad/s, where a tilt grows at {growth:.3g} 1/s ({growth * span:.3g} e-folds over the "
-                f"tolerance's horizon of {span:g} s)")
+        return (
+            f"the upright top is unstable below its critical spin {crit:.6g} rad/s (I3^2 spin^2 < 4 I1 M g l), "
+            f"and spin reaches {slowest:.6g} rad/s, where a tilt grows at {growth:.3g} 1/s ({growth * span:.3g} e-folds over the "
+            f"tolerance's horizon of {span:g} s)"
+        )
 
     @property
     def params(self) -> HeavyTopParams:

@@ -48,7 +48,15 @@ import numpy as np
 
 from ..dynamics.validation import ParameterTypeError, _as_real, real_array, require_int_in
 
-__all__ = ["ParamRanges", "Realism", "NOISE_BLOCK", "MAX_ACTION_DELAY", "noise_generator", "rekey", "noisy_observation"]
+__all__ = [
+    "ParamRanges",
+    "Realism",
+    "NOISE_BLOCK",
+    "MAX_ACTION_DELAY",
+    "noise_generator",
+    "rekey",
+    "noisy_observation",
+]
 
 NOISE_BLOCK = 64  # observations' noise a vector env draws per sub-env and Python call
 MAX_ACTION_DELAY = 10_000  # control periods
@@ -61,11 +69,15 @@ class ParamRanges:
 
     def __init__(self, env_class, nominal: dict, spec):
         if not isinstance(spec, dict):
-            raise ParameterTypeError(f"param_ranges must be None or a dict {{keyword: spread or (lo, hi)}}, got {spec!r} ({type(spec).__name__})")
+            raise ParameterTypeError(
+                f"param_ranges must be None or a dict {{keyword: spread or (lo, hi)}}, got {spec!r} ({type(spec).__name__})"
+            )
         allowed = env_class.randomizable
         unknown = [k for k in spec if k not in allowed]
         if unknown:
-            raise ValueError(f"param_ranges keys must be among {list(allowed)} (the physical keywords of {env_class.__name__}), got {unknown}")
+            raise ValueError(
+                f"param_ranges keys must be among {list(allowed)} (the physical keywords of {env_class.__name__}), got {unknown}"
+            )
         if not spec:
             raise ValueError("param_ranges must name at least one keyword (or be None)")
         self.names = tuple(k for k in allowed if k in spec)
@@ -115,7 +127,10 @@ class ParamRanges:
     def corners(self):
         """The settings the constructor checks, as ``(label, values)``: every corner of the box
         (each group at ``lo`` or exactly at ``hi``) and its centre."""
-        settings = [self._compose(lambda k, lo, hi, b=bits: hi if b[k] else lo) for bits in itertools.product((0, 1), repeat=self.count)]
+        settings = [
+            self._compose(lambda k, lo, hi, b=bits: hi if b[k] else lo)
+            for bits in itertools.product((0, 1), repeat=self.count)
+        ]
         settings.append(self._compose(lambda k, lo, hi: lo + 0.5 * (hi - lo)))
         for i, values in enumerate(settings):
             kind = "centre" if i == len(settings) - 1 else "corner"
@@ -123,7 +138,10 @@ class ParamRanges:
 
     def info(self, values: dict) -> dict:
         """``info["params"]`` of one episode: floats, float64 arrays for vector keywords."""
-        return {n: (np.array(values[n], dtype=np.float64) if self.vector[n] else float(values[n])) for n in self.names}
+        return {
+            n: (np.array(values[n], dtype=np.float64) if self.vector[n] else float(values[n]))
+            for n in self.names
+        }
 
 
 def _bounds(label: str, spec, v: tuple, vector: bool) -> tuple:
@@ -131,13 +149,21 @@ def _bounds(label: str, spec, v: tuple, vector: bool) -> tuple:
     if isinstance(spec, numbers.Real) and not isinstance(spec, (bool, np.bool_)):
         s = float(spec)
         if not (math.isfinite(s) and 0.0 <= s < 1.0):
-            raise ValueError(f"{label}: a relative spread must lie in [0, 1) (values in value * [1 - s, 1 + s]), got {spec!r}")
+            raise ValueError(
+                f"{label}: a relative spread must lie in [0, 1) (values in value * [1 - s, 1 + s]), got {spec!r}"
+            )
         lo = tuple(c * (1.0 - s) for c in v)
         hi = tuple(c * (1.0 + s) for c in v)
         return tuple(min(a, b) for a, b in zip(lo, hi)), tuple(max(a, b) for a, b in zip(lo, hi))
-    if isinstance(spec, (str, bytes, dict)) or not isinstance(spec, (tuple, list, np.ndarray)) or len(spec) != 2:
+    if (
+        isinstance(spec, (str, bytes, dict))
+        or not isinstance(spec, (tuple, list, np.ndarray))
+        or len(spec) != 2
+    ):
         shape = f"two vectors of {len(v)} numbers" if vector else "two numbers"
-        raise ParameterTypeError(f"{label} must be a relative spread in [0, 1) or a range (lo, hi) of {shape}, got {spec!r}")
+        raise ParameterTypeError(
+            f"{label} must be a relative spread in [0, 1) or a range (lo, hi) of {shape}, got {spec!r}"
+        )
     out = []
     for end, x in zip(("lo", "hi"), spec):
         arr = real_array(f"{label} {end}", x)
@@ -150,7 +176,9 @@ def _bounds(label: str, spec, v: tuple, vector: bool) -> tuple:
         out.append(tuple(float(c) for c in arr))
     lo, hi = out
     if any(a > b for a, b in zip(lo, hi)):
-        raise ValueError(f"{label}: the range must have lo <= hi in every component, got lo={lo}, hi={hi}")
+        raise ValueError(
+            f"{label}: the range must have lo <= hi in every component, got lo={lo}, hi={hi}"
+        )
     return lo, hi
 
 
@@ -162,23 +190,33 @@ def _std(name: str, value, high) -> np.ndarray | None:
         return None
     high = np.asarray(high, dtype=np.float64)
     size = high.shape[0]
-    if isinstance(value, (numbers.Real, np.ndarray, list, tuple)) and not isinstance(value, (bool, np.bool_)):
+    if isinstance(value, (numbers.Real, np.ndarray, list, tuple)) and not isinstance(
+        value, (bool, np.bool_)
+    ):
         if isinstance(value, numbers.Real):
             s = np.full(size, _as_real(name, value))
         else:
             s = real_array(name, value)
             if s.shape != (size,):
-                raise ValueError(f"{name} must be a number or {size} numbers (one per observation component), got shape {s.shape}")
+                raise ValueError(
+                    f"{name} must be a number or {size} numbers (one per observation component), got shape {s.shape}"
+                )
         if not (np.all(np.isfinite(s)) and np.all(s >= 0.0)):
-            raise ValueError(f"{name} must be finite and >= 0 in every component (a standard deviation in the observation's units), got {value!r}")
+            raise ValueError(
+                f"{name} must be finite and >= 0 in every component (a standard deviation in the observation's units), got {value!r}"
+            )
         if not np.all(s <= high):
             j = int(np.flatnonzero(~(s <= high))[0])
-            raise ValueError(f"{name} must be at most the observation's bound in every component (a standard deviation in its units; a wider "
-                             f"one leaves nothing of the observation, clipped to its bounds), got {s[j]!r} for component {j} whose bound is {high[j]:.6g}")
+            raise ValueError(
+                f"{name} must be at most the observation's bound in every component (a standard deviation in its units; a wider "
+                f"one leaves nothing of the observation, clipped to its bounds), got {s[j]!r} for component {j} whose bound is {high[j]:.6g}"
+            )
         s = s.astype(np.float64)
         s.flags.writeable = False
         return s
-    raise ParameterTypeError(f"{name} must be None, a number or {size} numbers (standard deviations), got {value!r} ({type(value).__name__})")
+    raise ParameterTypeError(
+        f"{name} must be None, a number or {size} numbers (standard deviations), got {value!r} ({type(value).__name__})"
+    )
 
 
 class Realism:
@@ -188,11 +226,19 @@ class Realism:
     def __init__(self, observation_noise, observation_bias, action_delay, high=()):
         self.noise = _std("observation_noise", observation_noise, high)
         self.bias = _std("observation_bias", observation_bias, high)
-        if isinstance(action_delay, (bool, np.bool_)) or not isinstance(action_delay, numbers.Integral):
+        if isinstance(action_delay, (bool, np.bool_)) or not isinstance(
+            action_delay, numbers.Integral
+        ):
             if isinstance(action_delay, numbers.Real):
-                raise ValueError(f"action_delay must be an integer in [0, {MAX_ACTION_DELAY}] (control periods), got {action_delay!r}")
-            raise ParameterTypeError(f"action_delay must be an integer in [0, {MAX_ACTION_DELAY}] (control periods), got {action_delay!r} ({type(action_delay).__name__})")
-        self.delay = require_int_in("action_delay", action_delay, 0, MAX_ACTION_DELAY, " (control periods)")
+                raise ValueError(
+                    f"action_delay must be an integer in [0, {MAX_ACTION_DELAY}] (control periods), got {action_delay!r}"
+                )
+            raise ParameterTypeError(
+                f"action_delay must be an integer in [0, {MAX_ACTION_DELAY}] (control periods), got {action_delay!r} ({type(action_delay).__name__})"
+            )
+        self.delay = require_int_in(
+            "action_delay", action_delay, 0, MAX_ACTION_DELAY, " (control periods)"
+        )
         self.stream = self.noise is not None or self.bias is not None  # a noise stream per episode
 
     @property
@@ -204,7 +250,9 @@ def noise_generator():
     """A generator for noise streams (``numpy.random.Philox``), made once per env or sub-env and
     given each episode's key by :func:`rekey` (a key set costs microseconds; a new generator
     tens of them)."""
-    return np.random.Generator(np.random.Philox(0))  # (a seed, not a key: no entropy read from the OS)
+    return np.random.Generator(
+        np.random.Philox(0)
+    )  # (a seed, not a key: no entropy read from the OS)
 
 
 def rekey(gen, rng) -> None:
@@ -213,7 +261,10 @@ def rekey(gen, rng) -> None:
     key = int(rng.integers(0, 2**63))
     gen.bit_generator.state = {
         "bit_generator": "Philox",
-        "state": {"counter": np.zeros(4, dtype=np.uint64), "key": np.array([key, 0], dtype=np.uint64)},
+        "state": {
+            "counter": np.zeros(4, dtype=np.uint64),
+            "key": np.array([key, 0], dtype=np.uint64),
+        },
         "buffer": np.zeros(4, dtype=np.uint64),
         "buffer_pos": 4,
         "has_uint32": 0,

@@ -10,7 +10,12 @@ import numpy as np
 
 from ..dynamics import TippeTop, TippeTopParams
 from ..dynamics.tippe_top import FIDELITIES, FRICTION_BOUNDS
-from ..dynamics.validation import require_bool, require_choice, require_finite_nonnegative, require_range
+from ..dynamics.validation import (
+    require_bool,
+    require_choice,
+    require_finite_nonnegative,
+    require_range,
+)
 from ..tasks import HoldTask, InvertTask
 from ..tasks.tippe_top import STARTS
 from ..core.codegen import generate
@@ -19,6 +24,7 @@ from ..jit import jitable
 from .base import RigidBodyEnv, require_float32_bound
 
 __all__ = ["TippeTopEnv", "TableActuator"]
+
 
 class TippeTopEnv(RigidBodyEnv):
     """A sphere with an offset centre of mass spinning on a table that the agent can move.
@@ -225,7 +231,16 @@ class TippeTopEnv(RigidBodyEnv):
     # default bound is sized over the tops the docs name (issue 44; its estimate costs the
     # friction's share a contact solve per stage of its own: measured first)
     default_tolerance = None
-    randomizable = ("radius", "mass", "offset", "inertia", "gravity", "friction", "max_table_acceleration", "max_torque")  # param_ranges keywords
+    randomizable = (
+        "radius",
+        "mass",
+        "offset",
+        "inertia",
+        "gravity",
+        "friction",
+        "max_table_acceleration",
+        "max_torque",
+    )  # param_ranges keywords
     fidelities = FIDELITIES
     # info keys of the quantities the motion keeps: Jellett always (no body torque), the energy
     # without friction
@@ -274,17 +289,33 @@ class TippeTopEnv(RigidBodyEnv):
         # every keyword is checked, whatever the task and options (an unused one must still be valid)
         task = require_choice("task", task, self.tasks)
         fidelity = require_choice("fidelity", fidelity, FIDELITIES)
-        params = TippeTopParams(radius, mass, offset, inertia, gravity, friction, friction_law, slip_regularization, stem)
+        params = TippeTopParams(
+            radius,
+            mass,
+            offset,
+            inertia,
+            gravity,
+            friction,
+            friction_law,
+            slip_regularization,
+            stem,
+        )
         spin_lo, spin_hi = require_range("spin", spin)
         tilt_lo, tilt_hi = require_range("tilt", tilt)
         if start is None:  # the literature's start; a rolling top's contact point never slips
             start = "rolling" if fidelity == "rolling" else "rest"
         start = require_choice("start", start, STARTS)
         if start != "rolling" and fidelity == "rolling":
-            raise ValueError(f"start={start!r} needs fidelity 'gliding' or 'frictionless': a rolling top's contact point never slips, so it starts rolling (start='rolling')")
+            raise ValueError(
+                f"start={start!r} needs fidelity 'gliding' or 'frictionless': a rolling top's contact point never slips, so it starts rolling (start='rolling')"
+            )
         if tilt_lo < 0.0 or tilt_hi >= math.pi / 2:
-            raise ValueError(f"tilt must lie in [0, pi/2) rad (a start on the broad end), got {tilt!r}")
-        self.max_table_acceleration = require_finite_nonnegative("max_table_acceleration", max_table_acceleration)
+            raise ValueError(
+                f"tilt must lie in [0, pi/2) rad (a start on the broad end), got {tilt!r}"
+            )
+        self.max_table_acceleration = require_finite_nonnegative(
+            "max_table_acceleration", max_table_acceleration
+        )
         self.max_torque = require_finite_nonnegative("max_torque", max_torque)
         control_cost = require_finite_nonnegative("control_cost", control_cost)
         self.friction_action = require_bool("friction_action", friction_action)
@@ -295,43 +326,83 @@ class TippeTopEnv(RigidBodyEnv):
         self.friction_range = (mu_lo, mu_hi)
         self.free_flight = require_bool("free_flight", free_flight)
         if self.free_flight and fidelity == "rolling":
-            raise ValueError("free_flight needs fidelity 'gliding' or 'frictionless' (a rolling top has no slip to resume after a touchdown)")
+            raise ValueError(
+                "free_flight needs fidelity 'gliding' or 'frictionless' (a rolling top has no slip to resume after a touchdown)"
+            )
         if stem is not None and (self.free_flight or fidelity == "rolling"):
-            raise ValueError("stem needs fidelity 'gliding' or 'frictionless' and free_flight=False (a touchdown from flight could meet "
-                             "both contacts at once, which needs a two-contact impact law; a rolling top has no slip to resume)")
+            raise ValueError(
+                "stem needs fidelity 'gliding' or 'frictionless' and free_flight=False (a touchdown from flight could meet "
+                "both contacts at once, which needs a two-contact impact law; a rolling top has no slip to resume)"
+            )
         if self.friction_action and fidelity != "gliding":
-            raise ValueError(f"friction_action needs fidelity='gliding' (there is no friction coefficient to set when {fidelity!r})")
+            raise ValueError(
+                f"friction_action needs fidelity='gliding' (there is no friction coefficient to set when {fidelity!r})"
+            )
         peak = max(abs(spin_lo), abs(spin_hi))
         if max_angular_velocity is None:
             max_w = 2.0 * peak + 50.0
             if not max_w <= float(np.finfo(np.float32).max):
-                raise ValueError(f"spin ({spin!r} rad/s) is too large for float32 observations (max_angular_velocity=None takes 2 max|spin| + 50 = {max_w:.6g} rad/s)")
+                raise ValueError(
+                    f"spin ({spin!r} rad/s) is too large for float32 observations (max_angular_velocity=None takes 2 max|spin| + 50 = {max_w:.6g} rad/s)"
+                )
         else:
             max_w = require_float32_bound("max_angular_velocity", max_angular_velocity)
         if not peak < max_w:
-            raise ValueError(f"max_angular_velocity ({max_w!r} rad/s) must exceed the initial spin (spin = {peak!r} rad/s); lower spin or raise max_angular_velocity")
+            raise ValueError(
+                f"max_angular_velocity ({max_w!r} rad/s) must exceed the initial spin (spin = {peak!r} rad/s); lower spin or raise max_angular_velocity"
+            )
         max_v = require_float32_bound("max_speed", max_speed)
         if not params.slip_regularization < max_v:
-            raise ValueError(f"slip_regularization must be below max_speed = {max_v!r} m/s, got {slip_regularization!r}: above every slip speed the env "
-                             "allows, the friction law weakens to a viscous one of vanishing rate (friction off in all but name)")
+            raise ValueError(
+                f"slip_regularization must be below max_speed = {max_v!r} m/s, got {slip_regularization!r}: above every slip speed the env "
+                "allows, the friction law weakens to a viscous one of vanishing rate (friction off in all but name)"
+            )
         if not params.radius * peak < max_v:
-            raise ValueError(f"max_speed must exceed the initial speed of the centre of mass (radius * spin = {params.radius * peak!r} m/s), got {max_speed!r}")
+            raise ValueError(
+                f"max_speed must exceed the initial speed of the centre of mass (radius * spin = {params.radius * peak!r} m/s), got {max_speed!r}"
+            )
         task_cls = InvertTask if task == "invert" else HoldTask
         task_obj = task_cls(spin_lo, spin_hi, tilt_lo, tilt_hi, control_cost, start=start)
         friction_bound = require_choice("friction_bound", friction_bound, FRICTION_BOUNDS)
         system = TippeTop(params, fidelity, flight=self.free_flight, friction_bound=friction_bound)
-        actuator = TableActuator(self.max_table_acceleration, params.friction, self.friction_range if self.friction_action else None,
-                                 self.max_torque if self.torque_action else None)
+        actuator = TableActuator(
+            self.max_table_acceleration,
+            params.friction,
+            self.friction_range if self.friction_action else None,
+            self.max_torque if self.torque_action else None,
+        )
         self._start_speed = peak
         self._max_w = max_w
         high = observation_bounds(task_obj, {"rad/s": max_w, "m/s": max_v})
-        self._setup(system, task_obj, actuator, integrator, dt, substeps, high, render_mode, guard, compiled, tolerance, tolerance_horizon, tolerance_check)
+        self._setup(
+            system,
+            task_obj,
+            actuator,
+            integrator,
+            dt,
+            substeps,
+            high,
+            render_mode,
+            guard,
+            compiled,
+            tolerance,
+            tolerance_horizon,
+            tolerance_check,
+        )
         # the table's acceleration moves v_G (relative to the table) by at most |a_T| dt per period;
         # a body torque moves Omega by at most |tau| dt / min(A, C)
-        self._require_authority("max_table_acceleration", self.max_table_acceleration * math.sqrt(2.0) * self.dt, "max_speed", max_v, "velocity of the centre of mass [m/s]")
+        self._require_authority(
+            "max_table_acceleration",
+            self.max_table_acceleration * math.sqrt(2.0) * self.dt,
+            "max_speed",
+            max_v,
+            "velocity of the centre of mass [m/s]",
+        )
         if self.torque_action:  # (without the torque action max_torque acts on nothing: validated above, no veto on the body)
             change = self.max_torque * math.sqrt(3.0) * self.dt / min(params.inertia)
-            self._require_authority("max_torque", change, "max_angular_velocity", max_w, "angular velocity [rad/s]")
+            self._require_authority(
+                "max_torque", change, "max_angular_velocity", max_w, "angular velocity [rad/s]"
+            )
         self._setup_options(param_ranges, observation_noise, observation_bias, action_delay)
 
     @property
@@ -349,16 +420,20 @@ class TippeTopEnv(RigidBodyEnv):
         if system.friction_law is None or p.friction == 0.0:
             return None
         try:
-            threshold = inversion_spin_threshold(p.inertia[0], p.inertia[1], p.offset, p.mass, p.gravity, p.radius)
+            threshold = inversion_spin_threshold(
+                p.inertia[0], p.inertia[1], p.offset, p.mass, p.gravity, p.radius
+            )
         except ValueError:  # no full inversion for these moments
             return None
         fastest = max(abs(task.spin_low), abs(task.spin_high))
         if not fastest > threshold:
             return None
-        return (f"the top inverts (the inversion criterion: spin above {threshold:.6g} rad/s, and spin reaches {fastest:.6g} rad/s), "
-                "and its rise amplifies errors (a slip leaving the friction band grows with its error; held at the slip's own "
-                "scale where the law saturates, which keeps the scenes' top inverting from rest at 150 rad/s within the tolerance, "
-                "not the one hopping at 180 rad/s)")
+        return (
+            f"the top inverts (the inversion criterion: spin above {threshold:.6g} rad/s, and spin reaches {fastest:.6g} rad/s), "
+            "and its rise amplifies errors (a slip leaving the friction band grows with its error; held at the slip's own "
+            "scale where the law saturates, which keeps the scenes' top inverting from rest at 150 rad/s within the tolerance, "
+            "not the one hopping at 180 rad/s)"
+        )
 
     def _speed_ceiling(self):
         return math.sqrt(3.0) * self._max_w
@@ -401,7 +476,11 @@ class TableActuator:
     def kernel_control(self):
         """``(control, (acc, mu, lo, hi, max_torque))``: the pure form of :meth:`control`,
         ``control(P, a) -> (u_norm, u)`` (generated for the action's entries)."""
-        lo, hi = (float(c) for c in self.friction_range) if self.friction_range is not None else (0.0, 0.0)
+        lo, hi = (
+            (float(c) for c in self.friction_range)
+            if self.friction_range is not None
+            else (0.0, 0.0)
+        )
         torque = float(self.max_torque) if self.max_torque is not None else 0.0
         form = _table_form(self.friction_range is not None, self.max_torque is not None)
         return form, (float(self.max_table_acceleration), float(self.friction), lo, hi, torque)
@@ -413,11 +492,19 @@ def _table_form(sets_friction: bool, torque: bool):
     affine in the next entry (``sets_friction``; else the fixed one), the body torque from the
     next three (``torque``; else zero)."""
     k = 2 + sets_friction + 3 * torque
-    lines = ["def control(P, a):", "    acc, mu, lo, hi, m = P", f"    un = ({', '.join(f'a[{j}]' for j in range(k))})",
-             "    ax, ay = acc * un[0], acc * un[1]"]
+    lines = [
+        "def control(P, a):",
+        "    acc, mu, lo, hi, m = P",
+        f"    un = ({', '.join(f'a[{j}]' for j in range(k))})",
+        "    ax, ay = acc * un[0], acc * un[1]",
+    ]
     if sets_friction:
         lines.append("    mu = lo + 0.5 * (un[2] + 1.0) * (hi - lo)")
     j = 2 + sets_friction
     tau = f"(m * un[{j}], m * un[{j + 1}], m * un[{j + 2}])" if torque else "(0.0, 0.0, 0.0)"
     lines.append(f"    return un, (ax, ay, mu) + {tau}")
-    return jitable(generate("\n".join(lines), f"table control friction={sets_friction} torque={torque}")["control"])
+    return jitable(
+        generate("\n".join(lines), f"table control friction={sets_friction} torque={torque}")[
+            "control"
+        ]
+    )

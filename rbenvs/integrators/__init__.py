@@ -26,9 +26,23 @@ from .reference import Dop853
 from .rosenbrock import Ros2
 from .splitting import Splitting
 
-__all__ = ["Integrator", "ButcherTableau", "ExplicitRungeKutta", "Euler", "RK4", "Splitting", "Exact", "Dop853", "Ros2", "INTEGRATORS", "get_integrator"]
+__all__ = [
+    "Integrator",
+    "ButcherTableau",
+    "ExplicitRungeKutta",
+    "Euler",
+    "RK4",
+    "Splitting",
+    "Exact",
+    "Dop853",
+    "Ros2",
+    "INTEGRATORS",
+    "get_integrator",
+]
 
-INTEGRATORS: dict[str, type[Integrator]] = {cls.name: cls for cls in (Euler, RK4, Splitting, Exact, Dop853)}
+INTEGRATORS: dict[str, type[Integrator]] = {
+    cls.name: cls for cls in (Euler, RK4, Splitting, Exact, Dop853)
+}
 
 
 def get_integrator(name: str | Integrator, **options) -> Integrator:
@@ -41,5 +55,7 @@ def get_integrator(name: str | Integrator, **options) -> Integrator:
     try:
         cls = INTEGRATORS[name]
     except (KeyError, TypeError):
-        raise ValueError(f"integrator must be one of {sorted(INTEGRATORS)}, got {name!r}{did_you_mean(name, INTEGRATORS)}") from None
+        raise ValueError(
+            f"integrator must be one of {sorted(INTEGRATORS)}, got {name!r}{did_you_mean(name, INTEGRATORS)}"
+        ) from None
     return cls(**options)

@@ -50,9 +50,16 @@ class Dop853(Integrator):
 
             def fun(_t, flat):
                 comps = tuple(flat.reshape(dim, -1))
-                return np.concatenate([np.broadcast_to(np.asarray(d, dtype=float), comps[0].shape) for d in system.rhs(comps, u)])
+                return np.concatenate(
+                    [
+                        np.broadcast_to(np.asarray(d, dtype=float), comps[0].shape)
+                        for d in system.rhs(comps, u)
+                    ]
+                )
 
-        from scipy.integrate import solve_ivp  # (here: importing it is a large share of every env's start; rbenvs bench startup)
+        from scipy.integrate import (
+            solve_ivp,
+        )  # (here: importing it is a large share of every env's start; rbenvs bench startup)
 
         sol = solve_ivp(fun, (0.0, float(h)), y0, method="DOP853", rtol=self.rtol, atol=self.atol)
         if not sol.success:

@@ -61,7 +61,11 @@ def transformed(alpha, gamma, b):
 
         W v_i = gamma_ii (f(y + h sum_j a_ij v_j) + sum_j c_ij v_j),   y_1 = y + h sum_i m_i v_i.
     """
-    alpha, gam, b = np.array(alpha, dtype=float), np.array(gamma, dtype=float), np.array(b, dtype=float)
+    alpha, gam, b = (
+        np.array(alpha, dtype=float),
+        np.array(gamma, dtype=float),
+        np.array(b, dtype=float),
+    )
     inv = np.linalg.inv(gam)
     return alpha @ inv, np.diag(1.0 / np.diag(gam)) - inv, b @ inv
 
@@ -89,17 +93,39 @@ def _body(scheme, dim: int) -> list[str]:
         if not a_terms:
             stage = "y"
         else:
-            stage = _tup([f"y{k} + h * (" + " + ".join(f"{c!r} * {n}_{k}" if c != 1.0 else f"{n}_{k}" for c, n in a_terms) + ")" for k in range(dim)])
+            stage = _tup(
+                [
+                    f"y{k} + h * ("
+                    + " + ".join(f"{c!r} * {n}_{k}" if c != 1.0 else f"{n}_{k}" for c, n in a_terms)
+                    + ")"
+                    for k in range(dim)
+                ]
+            )
         d_terms = combination(scheme.d[i], [f"v{j}" for j in range(i)])
         if scheme.scale == 1.0 and not d_terms:
             lines.append(f"{names(f'v{i}')} = solve(PI, w, f(P, {stage}, u))")
             continue
         lines.append(f"{names(f'f{i}')} = f(P, {stage}, u)")
-        head = (lambda k: f"f{i}_{k}") if scheme.scale == 1.0 else (lambda k: f"{float(scheme.scale)!r} * f{i}_{k}")
-        rhs = _tup([head(k) + "".join(f" + {c!r} * {n}_{k}" for c, n in d_terms) for k in range(dim)])
+        head = (
+            (lambda k: f"f{i}_{k}")
+            if scheme.scale == 1.0
+            else (lambda k: f"{float(scheme.scale)!r} * f{i}_{k}")
+        )
+        rhs = _tup(
+            [head(k) + "".join(f" + {c!r} * {n}_{k}" for c, n in d_terms) for k in range(dim)]
+        )
         lines.append(f"{names(f'v{i}')} = solve(PI, w, {rhs})")
     m_terms = [(c, f"v{i}") for i, c in enumerate(scheme.m) if c != 0.0]
-    lines.append("return normalize(N, " + _tup([f"y{k} + h * (" + " + ".join(f"{c!r} * {n}_{k}" for c, n in m_terms) + ")" for k in range(dim)]) + ")")
+    lines.append(
+        "return normalize(N, "
+        + _tup(
+            [
+                f"y{k} + h * (" + " + ".join(f"{c!r} * {n}_{k}" for c, n in m_terms) + ")"
+                for k in range(dim)
+            ]
+        )
+        + ")"
+    )
     return lines
 
 
@@ -108,8 +134,16 @@ def _generated(scheme: type, dim: int) -> dict:
     ns = _GENERATED.get(key)
     if ns is None:
         inner = "\n".join("        " + line for line in _body(scheme, dim))
-        src = "def make(f, P, factor, solve, PI, normalize, N):\n    def step(y, u, h):\n" + inner + "\n    return step\n"
-        src += "def pure(f, factor, solve, normalize):\n    def step(PS, y, u, h):\n        P, PI, N = PS\n" + inner + "\n    return step\n"
+        src = (
+            "def make(f, P, factor, solve, PI, normalize, N):\n    def step(y, u, h):\n"
+            + inner
+            + "\n    return step\n"
+        )
+        src += (
+            "def pure(f, factor, solve, normalize):\n    def step(PS, y, u, h):\n        P, PI, N = PS\n"
+            + inner
+            + "\n    return step\n"
+        )
         ns = _GENERATED[key] = generate(src, f"{scheme.name} dim={dim}")
     return ns
 
@@ -139,8 +173,11 @@ class RosenbrockW(Integrator):
     requires = ("kernel_implicit",)
 
     def supports(self, system) -> bool:
-        return getattr(system, "kernel_implicit", None) is not None and getattr(system, "kernel_rhs", None) is not None \
+        return (
+            getattr(system, "kernel_implicit", None) is not None
+            and getattr(system, "kernel_rhs", None) is not None
             and getattr(system, "kernel_normalize", None) is not None
+        )
 
     def _parts(self, system):
         f, p = system.kernel_rhs
@@ -181,17 +218,30 @@ class Ros2(RosenbrockW):
     # amplitude grows by about (lambda h)^4 / 8 a step (1.25e-5 at lambda h = 0.1, where its phase
     # error is (lambda h)^3 / 6 = 1.7e-4 rad): an accuracy bound. On the negative real axis, for
     # the decay the W-matrix carries, L-stable: no bound.
-    region = StepRegion(rotation=0.1, growth=0.02, dissipation=math.inf,
-                        reason="explicit (Heun) on rotations: accuracy bounds as euler's; L-stable for the implicit (friction) part")
+    region = StepRegion(
+        rotation=0.1,
+        growth=0.02,
+        dissipation=math.inf,
+        reason="explicit (Heun) on rotations: accuracy bounds as euler's; L-stable for the implicit (friction) part",
+    )
 
 
 # ROS34PW2 (Rang and Angermann 2005; their alpha, gamma, b): four stages, order
 # 3 for any W (a W-method), embedded order 2, L-stable and stiffly accurate (b_i = alpha_4i +
 # gamma_4i, b_4 = gamma); gamma the root of its L-stability polynomial, 0.4358665215084590
 _G = 0.43586652150845900
-_ALPHA = ((0.0, 0.0, 0.0, 0.0), (0.87173304301691801, 0.0, 0.0, 0.0), (0.84457060015369423, -0.11299064236484185, 0.0, 0.0), (0.0, 0.0, 1.0, 0.0))
-_GAMMA = ((_G, 0.0, 0.0, 0.0), (-0.87173304301691801, _G, 0.0, 0.0), (-0.90338057013044082, 0.054180672388095326, _G, 0.0),
-          (0.24212380706095346, -1.2232505839045147, 0.54526025533510214, _G))
+_ALPHA = (
+    (0.0, 0.0, 0.0, 0.0),
+    (0.87173304301691801, 0.0, 0.0, 0.0),
+    (0.84457060015369423, -0.11299064236484185, 0.0, 0.0),
+    (0.0, 0.0, 1.0, 0.0),
+)
+_GAMMA = (
+    (_G, 0.0, 0.0, 0.0),
+    (-0.87173304301691801, _G, 0.0, 0.0),
+    (-0.90338057013044082, 0.054180672388095326, _G, 0.0),
+    (0.24212380706095346, -1.2232505839045147, 0.54526025533510214, _G),
+)
 _B = (0.24212380706095346, -1.2232505839045147, 1.5452602553351020, _G)
 _B_HAT = (0.37810903145819369, -0.096042292212423178, 0.5, 0.21793326075422950)
 _A34, _C34, _M34 = transformed(_ALPHA, _GAMMA, _B)
@@ -212,5 +262,8 @@ class Ros34pw2(RosenbrockW):
     a = tuple(tuple(float(x) for x in _A34[i, :i]) for i in range(4))
     d = tuple(tuple(float(_G * x) for x in _C34[i, :i]) for i in range(4))
     m = tuple(float(x) for x in _M34)
-    region = StepRegion(rotation=0.5, dissipation=math.inf,
-                        reason="accuracy on rotations (explicit there, third order); L-stable for the implicit (friction) part")
+    region = StepRegion(
+        rotation=0.5,
+        dissipation=math.inf,
+        reason="accuracy on rotations (explicit there, third order); L-stable for the implicit (friction) part",
+    )

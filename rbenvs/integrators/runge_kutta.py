@@ -68,14 +68,22 @@ class ButcherTableau:
         c = tuple(_fraction(x) for x in self.c)
         s = len(b)
         if s == 0 or len(c) != s or len(a) != s:
-            raise ValueError(f"a Butcher tableau needs s rows of a, s weights b and s nodes c; got {len(a)}, {len(b)}, {len(c)}")
+            raise ValueError(
+                f"a Butcher tableau needs s rows of a, s weights b and s nodes c; got {len(a)}, {len(b)}, {len(c)}"
+            )
         for i, row in enumerate(a):
             if len(row) != i:
-                raise ValueError(f"an explicit scheme's a is strictly lower triangular: row {i} must have {i} entries, got {len(row)}")
+                raise ValueError(
+                    f"an explicit scheme's a is strictly lower triangular: row {i} must have {i} entries, got {len(row)}"
+                )
             if sum(row, Fraction(0)) != c[i]:
-                raise ValueError(f"row {i} of a must sum to its node c[{i}] = {c[i]}, got {sum(row, Fraction(0))}")
+                raise ValueError(
+                    f"row {i} of a must sum to its node c[{i}] = {c[i]}, got {sum(row, Fraction(0))}"
+                )
         if sum(b, Fraction(0)) != 1:
-            raise ValueError(f"the weights b must sum to 1 (a consistent scheme), got {sum(b, Fraction(0))}")
+            raise ValueError(
+                f"the weights b must sum to 1 (a consistent scheme), got {sum(b, Fraction(0))}"
+            )
         object.__setattr__(self, "a", a)
         object.__setattr__(self, "b", b)
         object.__setattr__(self, "c", c)
@@ -92,7 +100,9 @@ def _literal(x: Fraction) -> str:
     return f"({x.numerator}.0 / {x.denominator}.0)"
 
 
-def _body(tableau: ButcherTableau, dim: int, call: str, project: bool, compensated: bool = False) -> list[str]:
+def _body(
+    tableau: ButcherTableau, dim: int, call: str, project: bool, compensated: bool = False
+) -> list[str]:
     """The lines of one step of ``tableau`` for states of ``dim`` components (see the module;
     ``compensated``: the step that also takes and returns the sum's compensation ``c``)."""
 
@@ -113,7 +123,11 @@ def _body(tableau: ButcherTableau, dim: int, call: str, project: bool, compensat
         if coef not in scaled:
             name = f"h_{len(scaled)}"
             scaled[coef] = name
-            value = f"{_literal(coef)} * h" if float(coef) == coef else f"h * {coef.numerator}.0 / {coef.denominator}.0"
+            value = (
+                f"{_literal(coef)} * h"
+                if float(coef) == coef
+                else f"h * {coef.numerator}.0 / {coef.denominator}.0"
+            )
             lines.append(f"{name} = {value}")
         return scaled[coef]
 
@@ -129,7 +143,12 @@ def _body(tableau: ButcherTableau, dim: int, call: str, project: bool, compensat
             hs = step_of(a)
             inputs = [f"y{i} + {hs} * k{j}_{i}" for i in range(dim)]
         else:
-            inputs = ["y{i} + h * (".format(i=i) + " + ".join(f"{_literal(a)} * k{j}_{i}" for j, a in terms) + ")" for i in range(dim)]
+            inputs = [
+                "y{i} + h * (".format(i=i)
+                + " + ".join(f"{_literal(a)} * k{j}_{i}" for j, a in terms)
+                + ")"
+                for i in range(dim)
+            ]
         lines.append(f"{names(s)} = {call}{tup(inputs)}, u)")
     denominator = math.lcm(*(w.denominator for w in tableau.b))
     numerators = [int(w * denominator) for w in tableau.b]
@@ -161,8 +180,13 @@ def _body(tableau: ButcherTableau, dim: int, call: str, project: bool, compensat
     if compensated:  # y + (increment + c), and what that sum rounded away (module docstring)
         lines += [f"z{i} = {hd} * {scaled_sum(i)} + c{i}" for i in range(dim)]
         lines += [f"t{i} = y{i} + z{i}" for i in range(dim)]
-        result, lost = tup([f"t{i}" for i in range(dim)]), tup([f"z{i} - (t{i} - y{i})" for i in range(dim)])
-        lines.append(f"return normalize({result}), {lost}" if project else f"return {result}, {lost}")
+        result, lost = (
+            tup([f"t{i}" for i in range(dim)]),
+            tup([f"z{i} - (t{i} - y{i})" for i in range(dim)]),
+        )
+        lines.append(
+            f"return normalize({result}), {lost}" if project else f"return {result}, {lost}"
+        )
         return lines
     result = tup([f"y{i} + {hd} * {scaled_sum(i)}" for i in range(dim)])
     lines.append(f"return normalize({result})" if project else f"return {result}")
@@ -194,18 +218,42 @@ def _generate(tableau: ButcherTableau, label: str, dim: int, project: bool, para
             body[-1] = body[-1].replace("return normalize(", "return normalize(N, ", 1)
         inner = "\n".join("        " + line for line in body)
         if params:  # f(P, y, u) [and normalize(N, y)]: bound to P [and N], or pure with them first
-            bound, unpack = ("f, P, normalize, N", "        P, N = PS\n") if project else ("f, P", "")
-            src += f"def make{suffix}({bound}):\n    def step(y, {c_arg}u, h):\n" + inner + "\n    return step\n"
+            bound, unpack = (
+                ("f, P, normalize, N", "        P, N = PS\n") if project else ("f, P", "")
+            )
+            src += (
+                f"def make{suffix}({bound}):\n    def step(y, {c_arg}u, h):\n"
+                + inner
+                + "\n    return step\n"
+            )
             pure_args = "f, normalize" if project else "f"
             pure_params = "PS" if project else "P"
-            src += f"def pure{suffix}({pure_args}):\n    def step({pure_params}, y, {c_arg}u, h):\n" + unpack + inner + "\n    return step\n"
+            src += (
+                f"def pure{suffix}({pure_args}):\n    def step({pure_params}, y, {c_arg}u, h):\n"
+                + unpack
+                + inner
+                + "\n    return step\n"
+            )
             # the same step with its first stage given (k0 = f(P, y, u), evaluated by the caller:
             # a kernel that needs f at the new state anyway, for an event, passes it on)
             first = inner.replace(f"= {call}y, u)", "= k0", 1)
-            src += f"def pure_first{suffix}({pure_args}):\n    def step({pure_params}, y, {c_arg}k0, u, h):\n" + unpack + first + "\n    return step\n"
+            src += (
+                f"def pure_first{suffix}({pure_args}):\n    def step({pure_params}, y, {c_arg}k0, u, h):\n"
+                + unpack
+                + first
+                + "\n    return step\n"
+            )
         else:
-            src += f"def step{suffix}(f, normalize, y, {c_arg}u, h):\n" + "\n".join("    " + line for line in body) + "\n"
-            src += f"def make{suffix}(f, normalize):\n    def step(y, {c_arg}u, h):\n" + inner + "\n    return step\n"
+            src += (
+                f"def step{suffix}(f, normalize, y, {c_arg}u, h):\n"
+                + "\n".join("    " + line for line in body)
+                + "\n"
+            )
+            src += (
+                f"def make{suffix}(f, normalize):\n    def step(y, {c_arg}u, h):\n"
+                + inner
+                + "\n    return step\n"
+            )
     flavour = ("" if project else " no projection") + (" pure" if params else "")
     return generate(src, f"{label} dim={dim}{flavour}")
 
@@ -237,7 +285,9 @@ class ExplicitRungeKutta(Integrator):
     tableau: ClassVar[ButcherTableau]
 
     def step(self, system, y, u, h):
-        return _generated(type(self), len(y), True, False)["step"](system.rhs, system.normalize, y, u, h)
+        return _generated(type(self), len(y), True, False)["step"](
+            system.rhs, system.normalize, y, u, h
+        )
 
     def _overridden(self) -> bool:
         return type(self).step is not ExplicitRungeKutta.step  # a subclass that changes step
@@ -247,13 +297,17 @@ class ExplicitRungeKutta(Integrator):
             return super().bind(system, dim, compensated)
         make = "make_c" if compensated else "make"
         pure = getattr(system, "kernel_rhs", None)
-        if pure is not None:  # the pure vector field (and projection): the same step the kernel runs
+        if (
+            pure is not None
+        ):  # the pure vector field (and projection): the same step the kernel runs
             f, params = pure
             project = getattr(system, "kernel_normalize", None)
             if project is None:
                 return _generated(type(self), dim, False, True)[make](f, params)
             return _generated(type(self), dim, True, True)[make](f, params, *project)
-        return _generated(type(self), dim, getattr(system, "needs_projection", True), False)[make](system.rhs, system.normalize)
+        return _generated(type(self), dim, getattr(system, "needs_projection", True), False)[make](
+            system.rhs, system.normalize
+        )
 
     def kernel_step(self, system, compensated=False):
         return self._pure(system, _pure_step, compensated)
@@ -289,8 +343,12 @@ class Euler(ExplicitRungeKutta):
     # No stability interval on the imaginary axis: a rotation grows by sqrt(1 + (lambda h)^2)
     # a step (0.5 % at 0.1), by at most exp(lambda^2 h dt / 2) a period (1 % at 0.02); on the
     # negative real axis stable for |lambda h| <= 2.
-    region = StepRegion(rotation=0.1, growth=0.02, dissipation=2.0,
-                        reason="accuracy bounds: no stability interval on the imaginary axis; real-axis interval 2")
+    region = StepRegion(
+        rotation=0.1,
+        growth=0.02,
+        dissipation=2.0,
+        reason="accuracy bounds: no stability interval on the imaginary axis; real-axis interval 2",
+    )
     # measured (rbenvs.integrators.error): 0.50013, rounded up (theory 1/2: the amplitude grows by z^2 / 2 a step)
     error_constant = 0.501
 
@@ -309,8 +367,11 @@ class RK4(ExplicitRungeKutta):
     evaluations = 4
     # Stability interval 2 sqrt(2) = 2.83 on the imaginary axis (at 1.0 a rotation's amplitude
     # and phase errors are 0.61 % and 0.56 % a step) and 2.78 on the negative real axis.
-    region = StepRegion(rotation=1.0, dissipation=2.78,
-                        reason="imaginary-axis interval 2.83 (1.0 kept: 0.6 % amplitude error a step), real-axis interval 2.78")
+    region = StepRegion(
+        rotation=1.0,
+        dissipation=2.78,
+        reason="imaginary-axis interval 2.83 (1.0 kept: 0.6 % amplitude error a step), real-axis interval 2.78",
+    )
     # measured (rbenvs.integrators.error): 0.0083333, rounded up (theory 1/120: the phase lags by z^5 / 120 a step)
     error_constant = 0.00834
     # |R(i z)| = 1 - z^6 / 144 + ...: the amplitude's error is an order above the phase's

@@ -14,7 +14,11 @@ __all__ = ["Splitting"]
 def _order(n: int) -> list[tuple[int, str]]:
     """``(flow, step)`` of the symmetric composition of ``n`` flows: half steps out and back
     around a full step of the last."""
-    return [(i, "hh") for i in range(n - 1)] + [(n - 1, "h")] + [(i, "hh") for i in reversed(range(n - 1))]
+    return (
+        [(i, "hh") for i in range(n - 1)]
+        + [(n - 1, "h")]
+        + [(i, "hh") for i in reversed(range(n - 1))]
+    )
 
 
 @lru_cache(maxsize=None)
@@ -56,7 +60,9 @@ class Splitting(Integrator):
     requires = ("split_flows",)
     # Every piece is exact (nothing blows up at any h); past about a radian per step the
     # composed pieces stop following the motion (second order in lambda h): an accuracy bound.
-    region = StepRegion(rotation=1.0, exact_subflows=True, reason="accuracy: exact pieces, second order in lambda h")
+    region = StepRegion(
+        rotation=1.0, exact_subflows=True, reason="accuracy: exact pieces, second order in lambda h"
+    )
 
     def step(self, system, y, u, h):
         flows = system.split_flows()
@@ -70,7 +76,9 @@ class Splitting(Integrator):
 
     def bind(self, system, dim, compensated=False):
         pure = getattr(system, "kernel_split_flows", None)
-        if compensated or pure is None or type(self).step is not Splitting.step:  # (no compensated form)
+        if (
+            compensated or pure is None or type(self).step is not Splitting.step
+        ):  # (no compensated form)
             return super().bind(system, dim, compensated)
         fns, params = zip(*pure)
         return _composition(len(fns))["make"](*fns, *params)

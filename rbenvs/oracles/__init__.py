@@ -15,8 +15,20 @@ from .free_body import (
     orbit_period,
 )
 
-from .heavy_top import critical_spin, fast_top_nutation, regular_precession_rates, upright_eigenvalues
-from .tippe_top import energy_star, final_tilt, inversion_criterion, inversion_spin_threshold, jellett, jellett_upright
+from .heavy_top import (
+    critical_spin,
+    fast_top_nutation,
+    regular_precession_rates,
+    upright_eigenvalues,
+)
+from .tippe_top import (
+    energy_star,
+    final_tilt,
+    inversion_criterion,
+    inversion_spin_threshold,
+    jellett,
+    jellett_upright,
+)
 
 __all__ = [
     "free_body",

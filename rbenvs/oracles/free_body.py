@@ -31,7 +31,9 @@ def _params(inertia) -> FreeBodyParams:
 def _momentum(pi) -> tuple:
     arr = np.asarray(pi, dtype=float)
     if arr.shape[:1] != (3,):
-        raise ValueError(f"pi must have a leading axis of length 3 (Pi1, Pi2, Pi3), got shape {arr.shape}")
+        raise ValueError(
+            f"pi must have a leading axis of length 3 (Pi1, Pi2, Pi3), got shape {arr.shape}"
+        )
     if not np.all(np.isfinite(arr)):
         raise ValueError("pi must be finite")
     return tuple(arr)
@@ -90,6 +92,7 @@ def linearization(inertia, pi_star):
     i = np.asarray(_params(inertia).inertia)
     p = np.asarray(_momentum(pi_star))
     w = p / i
+
     # d/dPi (Pi x I^-1 Pi) = hat(Pi) I^-1 - hat(I^-1 Pi)
     def hat(v):
         return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
@@ -139,5 +142,7 @@ def intermediate_axis_growth_rate(inertia, p: float) -> float:
     ii = sorted(_params(inertia).inertia, reverse=True)
     i1, i2, i3 = ii
     if not (i1 > i2 > i3):
-        raise ValueError(f"inertia must have three distinct moments for an intermediate axis, got {tuple(inertia)}")
+        raise ValueError(
+            f"inertia must have three distinct moments for an intermediate axis, got {tuple(inertia)}"
+        )
     return abs(p) / i2 * float(np.sqrt((i1 - i2) * (i2 - i3) / (i1 * i3)))

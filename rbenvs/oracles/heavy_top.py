@@ -45,11 +45,12 @@ __all__ = [
 # validation helpers (ValueError naming the parameter and the rule, as rbenvs.dynamics.validation)
 
 
-
 def _require_tilt(name: str, value) -> float:
     v = require_finite(name, value)
     if not (0.0 <= v <= math.pi):
-        raise ValueError(f"{name} must lie in [0, pi] (angle from the upward vertical), got {value!r}")
+        raise ValueError(
+            f"{name} must lie in [0, pi] (angle from the upward vertical), got {value!r}"
+        )
     return v
 
 
@@ -58,7 +59,6 @@ def _require_nonzero(name: str, value) -> float:
     if v == 0.0:
         raise ValueError(f"{name} must be finite and nonzero, got {value!r}")
     return v
-
 
 
 # --------------------------------------------------------------------------------------------
@@ -75,7 +75,9 @@ def critical_spin(I1, I3, mass, length, gravity) -> float:
     ``|Omega3|``) the linearization :func:`upright_eigenvalues` is purely imaginary; below it two
     eigenvalues have positive real part.
     """
-    I1, I3, mass, length, gravity = require_all_positive(I1=I1, I3=I3, mass=mass, length=length, gravity=gravity)
+    I1, I3, mass, length, gravity = require_all_positive(
+        I1=I1, I3=I3, mass=mass, length=length, gravity=gravity
+    )
     return 2.0 * math.sqrt(mass * gravity * length * I1) / I3
 
 
@@ -103,7 +105,9 @@ def upright_eigenvalues(I1, I3, mass, length, gravity, spin) -> np.ndarray:
     Returns a complex array of shape ``(4,)`` [1/s], sorted by real part then imaginary part
     (``numpy.sort_complex``).
     """
-    I1, I3, mass, length, gravity = require_all_positive(I1=I1, I3=I3, mass=mass, length=length, gravity=gravity)
+    I1, I3, mass, length, gravity = require_all_positive(
+        I1=I1, I3=I3, mass=mass, length=length, gravity=gravity
+    )
     w = require_finite("spin", spin)
     mgl = mass * gravity * length
     w2 = w * w
@@ -172,7 +176,9 @@ def regular_precession_rates(A, C, mass, length, gravity, spin, tilt) -> Regular
     Raises ``ValueError`` (naming ``spin``) when ``(C n)^2 < 4 A m g h cos(alpha)``: the top
     spins too slowly for any real regular precession at this tilt.
     """
-    A, C, mass, length, gravity = require_all_positive(A=A, C=C, mass=mass, length=length, gravity=gravity)
+    A, C, mass, length, gravity = require_all_positive(
+        A=A, C=C, mass=mass, length=length, gravity=gravity
+    )
     n = require_finite("spin", spin)
     alpha = _require_tilt("tilt", tilt)
     mgh = mass * gravity * length
@@ -180,7 +186,9 @@ def regular_precession_rates(A, C, mass, length, gravity, spin, tilt) -> Regular
     K = C * n
     if abs(cos_a) <= _COS_ZERO:
         if K == 0.0:
-            raise ValueError("spin must be nonzero for a regular precession of a horizontal top (tilt = pi/2), got 0")
+            raise ValueError(
+                "spin must be nonzero for a regular precession of a horizontal top (tilt = pi/2), got 0"
+            )
         return RegularPrecession(mgh / K, math.nan)
     disc = K * K - 4.0 * A * mgh * cos_a
     if disc < 0.0:
@@ -233,7 +241,9 @@ def fast_top_nutation(A, C, mass, length, gravity, spin, tilt) -> FastTopNutatio
 
     ``spin`` must be finite and nonzero (the formulas divide by ``C n``).
     """
-    A, C, mass, length, gravity = require_all_positive(A=A, C=C, mass=mass, length=length, gravity=gravity)
+    A, C, mass, length, gravity = require_all_positive(
+        A=A, C=C, mass=mass, length=length, gravity=gravity
+    )
     n = _require_nonzero("spin", spin)
     alpha = _require_tilt("tilt", tilt)
     mgh = mass * gravity * length

@@ -67,13 +67,13 @@ _FINAL_TILT_GRID = 4097  # grid points on [0, pi] before the local refinement
 # validation
 
 
-
 def _require_alpha(value) -> float:
     v = require_finite("alpha", value)
     if not (0.0 < v < 1.0):
-        raise ValueError(f"alpha (= h/R, centre-of-mass offset over radius) must lie in (0, 1), got {value!r}")
+        raise ValueError(
+            f"alpha (= h/R, centre-of-mass offset over radius) must lie in (0, 1), got {value!r}"
+        )
     return v
-
 
 
 def _finite_array(name: str, value) -> np.ndarray:
@@ -89,7 +89,9 @@ def _finite_array(name: str, value) -> np.ndarray:
 def _vector_array(name: str, value) -> np.ndarray:
     arr = _finite_array(name, value)
     if arr.ndim < 1 or arr.shape[-1] != 3:
-        raise ValueError(f"{name} must have a last axis of length 3 (x, y, z), got shape {arr.shape}")
+        raise ValueError(
+            f"{name} must have a last axis of length 3 (x, y, z), got shape {arr.shape}"
+        )
     return arr
 
 
@@ -138,7 +140,9 @@ def _d_theta(theta, alpha, A, C):
 
 
 def _energy_star(theta, J, m, g, R, alpha, A, C):
-    return J * J / (2.0 * R * R * _d_theta(theta, alpha, A, C)) + m * g * R * (1.0 - alpha * np.cos(theta))
+    return J * J / (2.0 * R * R * _d_theta(theta, alpha, A, C)) + m * g * R * (
+        1.0 - alpha * np.cos(theta)
+    )
 
 
 def _slope_factor(theta, J, m, g, R, alpha, A, C):
@@ -237,7 +241,9 @@ def inversion_criterion(A, C, alpha, m=None, g=None, R=None, J=None) -> Inversio
         m, g, R = require_all_positive(m=m, g=g, R=R)
     if J is not None:
         if not have_scale:
-            raise ValueError("J needs m, g and R (the thresholds it is compared with depend on them)")
+            raise ValueError(
+                "J needs m, g and R (the thresholds it is compared with depend on them)"
+            )
         J = require_finite("J", J)
 
     gamma = A / C
@@ -264,7 +270,9 @@ def inversion_criterion(A, C, alpha, m=None, g=None, R=None, J=None) -> Inversio
         label = FULL_INVERSION
     else:
         label = PARTIAL_INVERSION
-    return InversionCriterion(gamma, upright_unstable, inverted_can_be_stable, J_min, J_upright, label, J)
+    return InversionCriterion(
+        gamma, upright_unstable, inverted_can_be_stable, J_min, J_upright, label, J
+    )
 
 
 def inversion_spin_threshold(A, C, alpha, m, g, R) -> float:
@@ -323,11 +331,17 @@ def final_tilt(J, m, g, R, alpha, A, C) -> float:
     if F[-1] <= 0.0:
         candidates.append(math.pi)
     for i in np.flatnonzero((F[:-1] < 0.0) & (F[1:] > 0.0)):
-        candidates.append(optimize.brentq(factor, grid[i], grid[i + 1], xtol=1e-15, rtol=4.0 * np.finfo(float).eps))
+        candidates.append(
+            optimize.brentq(
+                factor, grid[i], grid[i + 1], xtol=1e-15, rtol=4.0 * np.finfo(float).eps
+            )
+        )
     if not candidates:  # not expected: a continuous E* has a minimum; guard against rounding
         values = _energy_star(grid, *args)
         i = int(np.argmin(values))
         lo, hi = grid[max(i - 1, 0)], grid[min(i + 1, grid.size - 1)]
-        res = optimize.minimize_scalar(energy, bounds=(lo, hi), method="bounded", options={"xatol": 1e-12})
+        res = optimize.minimize_scalar(
+            energy, bounds=(lo, hi), method="bounded", options={"xatol": 1e-12}
+        )
         candidates = [float(res.x), float(grid[i])]
     return float(min(candidates, key=energy))

@@ -148,7 +148,9 @@ class Renderer:
                 _told.append(True)
                 logging.getLogger("rbenvs").warning(
                     "render_mode='human' shows nothing here: %s. To watch an episode, record it: render_mode='rgb_array' "
-                    "and gymnasium.wrappers.RecordVideo (docs/rendering.md)", self._headless)
+                    "and gymnasium.wrappers.RecordVideo (docs/rendering.md)",
+                    self._headless,
+                )
         return not self._headless
 
     def show(self, frame: np.ndarray, fps: float) -> None:

@@ -58,7 +58,9 @@ def momentum_orbit(inertia, pi, n: int = 240):
     out = np.empty((n, 3))
     out[:, i] = np.sqrt(rhs / ci) * np.cos(phi)
     out[:, j] = np.sqrt(rhs / cj) * np.sin(phi)
-    out[:, k] = np.copysign(np.sqrt(np.maximum(r2 - out[:, i] ** 2 - out[:, j] ** 2, 0.0)), p[k] if p[k] != 0.0 else 1.0)
+    out[:, k] = np.copysign(
+        np.sqrt(np.maximum(r2 - out[:, i] ** 2 - out[:, j] ** 2, 0.0)), p[k] if p[k] != 0.0 else 1.0
+    )
     return out
 
 
@@ -96,17 +98,40 @@ def scene(system, y) -> dict:
     for ax in range(3):
         e = np.zeros(3)
         e[ax] = 1.3 * max(half[ax], 0.5)
-        lines.append({"points": np.array([-e, e]) @ rot.T, "color": COLORS["axis"][ax], "width": 1.5, "label": f"axis {ax + 1} (I = {inertia[ax]:.3g})"})
+        lines.append(
+            {
+                "points": np.array([-e, e]) @ rot.T,
+                "color": COLORS["axis"][ax],
+                "width": 1.5,
+                "label": f"axis {ax + 1} (I = {inertia[ax]:.3g})",
+            }
+        )
     norm = float(np.linalg.norm(pi))
     arrows = []
     if norm > 0.0:
         scale = _ARROW / norm
         orbit = momentum_orbit(inertia, pi)
         if orbit is not None and not space:
-            lines.append({"points": orbit * scale, "color": COLORS["momentum"], "width": 0.8, "style": ":"})
+            lines.append(
+                {"points": orbit * scale, "color": COLORS["momentum"], "width": 0.8, "style": ":"}
+            )
         i_mean = float(inertia.mean())
-        arrows.append({"origin": np.zeros(3), "vector": rot @ pi * scale, "color": COLORS["momentum"], "label": "angular momentum"})
-        arrows.append({"origin": np.zeros(3), "vector": scaled_arrow(rot @ omega, scale * i_mean, 2.0 * _ARROW), "color": COLORS["angular_velocity"], "label": "angular velocity (x mean I)"})
+        arrows.append(
+            {
+                "origin": np.zeros(3),
+                "vector": rot @ pi * scale,
+                "color": COLORS["momentum"],
+                "label": "angular momentum",
+            }
+        )
+        arrows.append(
+            {
+                "origin": np.zeros(3),
+                "vector": scaled_arrow(rot @ omega, scale * i_mean, 2.0 * _ARROW),
+                "color": COLORS["angular_velocity"],
+                "label": "angular velocity (x mean I)",
+            }
+        )
     return {
         "center": np.zeros(3),
         "extent": 1.9,
@@ -115,4 +140,3 @@ def scene(system, y) -> dict:
         "lines": lines,
         "arrows": arrows,
     }
-

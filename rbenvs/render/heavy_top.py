@@ -61,7 +61,9 @@ def scene(system, y) -> dict:
     t1, t2, k = _body_basis(chi)
     # cone from the pivot to the disc at the centre of mass, and the disc, in body coordinates
     ang = np.linspace(0.0, 2.0 * np.pi, _SECTORS + 1)
-    rim = np.array([length * k + _DISC * length * (math.cos(a) * t1 + math.sin(a) * t2) for a in ang])
+    rim = np.array(
+        [length * k + _DISC * length * (math.cos(a) * t1 + math.sin(a) * t2) for a in ang]
+    )
     centre = length * k
     faces, colors = [], []
     for s in range(_SECTORS):
@@ -75,22 +77,69 @@ def scene(system, y) -> dict:
     com = rot @ centre
     reach = 1.9 * length
     lines = [
-        {"points": np.array([[0.0, 0.0, 0.0], [0.0, 0.0, reach]]), "color": "#777777", "width": 1.0, "style": "--", "label": "vertical"},
-        {"points": np.array([np.zeros(3), axis_end]), "color": COLORS["axis"][2], "width": 2.0, "label": "symmetry axis"},
+        {
+            "points": np.array([[0.0, 0.0, 0.0], [0.0, 0.0, reach]]),
+            "color": "#777777",
+            "width": 1.0,
+            "style": "--",
+            "label": "vertical",
+        },
+        {
+            "points": np.array([np.zeros(3), axis_end]),
+            "color": COLORS["axis"][2],
+            "width": 2.0,
+            "label": "symmetry axis",
+        },
     ]
     # ground circle under the pivot, for depth
     circ = np.linspace(0.0, 2.0 * np.pi, 49)
-    lines.append({"points": np.stack([reach * np.cos(circ), reach * np.sin(circ), -0.6 * length * np.ones_like(circ)], axis=1), "color": COLORS["grid"], "width": 0.6})
-    lines.append({"points": np.array([[0.0, 0.0, -0.6 * length], [0.0, 0.0, 0.0]]), "color": "#444444", "width": 3.0})
+    lines.append(
+        {
+            "points": np.stack(
+                [reach * np.cos(circ), reach * np.sin(circ), -0.6 * length * np.ones_like(circ)],
+                axis=1,
+            ),
+            "color": COLORS["grid"],
+            "width": 0.6,
+        }
+    )
+    lines.append(
+        {
+            "points": np.array([[0.0, 0.0, -0.6 * length], [0.0, 0.0, 0.0]]),
+            "color": "#444444",
+            "width": 3.0,
+        }
+    )
     pi = np.array(y[0:3])
     omega = np.array(system.angular_velocity(y), dtype=float)
     norm = float(np.linalg.norm(pi))
-    arrows = [{"origin": com, "vector": np.array([0.0, 0.0, -0.5 * length]), "color": COLORS["gravity"], "label": "gravity"}]
+    arrows = [
+        {
+            "origin": com,
+            "vector": np.array([0.0, 0.0, -0.5 * length]),
+            "color": COLORS["gravity"],
+            "label": "gravity",
+        }
+    ]
     if norm > 0.0:
         scale = 1.6 * length / norm
-        arrows.append({"origin": np.zeros(3), "vector": rot @ pi * scale, "color": COLORS["momentum"], "label": "angular momentum"})
+        arrows.append(
+            {
+                "origin": np.zeros(3),
+                "vector": rot @ pi * scale,
+                "color": COLORS["momentum"],
+                "label": "angular momentum",
+            }
+        )
         i_ref = float(prm.inertia[int(np.argmax(np.abs(chi)))])
-        arrows.append({"origin": np.zeros(3), "vector": scaled_arrow(rot @ omega, scale * i_ref, 2.2 * length), "color": COLORS["angular_velocity"], "label": "angular velocity (x I3)"})
+        arrows.append(
+            {
+                "origin": np.zeros(3),
+                "vector": scaled_arrow(rot @ omega, scale * i_ref, 2.2 * length),
+                "color": COLORS["angular_velocity"],
+                "label": "angular velocity (x I3)",
+            }
+        )
     return {
         "center": np.array([0.0, 0.0, 0.3 * length]),
         "extent": 1.6 * length,

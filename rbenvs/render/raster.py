@@ -49,11 +49,15 @@ class _View:
     def __init__(self, scene: dict, size):
         self.h, self.w = size
         elev, azim = (math.radians(a) for a in scene.get("view", (20.0, -60.0)))
-        self.eye = np.array([math.cos(elev) * math.cos(azim), math.cos(elev) * math.sin(azim), math.sin(elev)])
+        self.eye = np.array(
+            [math.cos(elev) * math.cos(azim), math.cos(elev) * math.sin(azim), math.sin(elev)]
+        )
         self.right = np.array([-math.sin(azim), math.cos(azim), 0.0])
         self.up = np.cross(self.eye, self.right)
         self.center = np.asarray(scene["center"], dtype=float)
-        self.scale = 0.5 * min(self.h, self.w) / (_FIT * float(scene["extent"]))  # pixels per world unit
+        self.scale = (
+            0.5 * min(self.h, self.w) / (_FIT * float(scene["extent"]))
+        )  # pixels per world unit
 
     def project(self, points):
         p = np.asarray(points, dtype=float) - self.center
@@ -111,7 +115,9 @@ def _polyline(frame, x, y, rgb, width=1.0, dashed=False):
     if not np.all(np.isfinite(length)):
         return
     h, w = frame.shape[:2]
-    m = np.ceil(np.minimum(length, 2 * (h + w))).astype(int) + 1  # samples per segment, both ends included (a segment far longer than the frame: sparser)
+    m = (
+        np.ceil(np.minimum(length, 2 * (h + w))).astype(int) + 1
+    )  # samples per segment, both ends included (a segment far longer than the frame: sparser)
     seg = np.repeat(np.arange(len(m)), m)
     start = np.cumsum(m) - m
     t = (np.arange(seg.size) - start[seg]) / np.maximum(m[seg] - 1, 1)
@@ -122,7 +128,9 @@ def _polyline(frame, x, y, rgb, width=1.0, dashed=False):
         xs, ys, seg = xs[keep], ys[keep], seg[keep]
     r = max(int(round(0.5 * (width - 1.0))), 0)
     ix, iy = np.floor(xs).astype(int), np.floor(ys).astype(int)
-    steep = (np.abs(dy) > np.abs(dx))[seg] if r else None  # widened across the segment: sideways where it is steep
+    steep = (
+        (np.abs(dy) > np.abs(dx))[seg] if r else None
+    )  # widened across the segment: sideways where it is steep
     pixels, color = _pixels(frame), _pixel(rgb)
     for o in range(-r, r + 1):
         cx, cy = (ix + o * steep, iy + o * ~steep) if o else (ix, iy)
@@ -142,7 +150,14 @@ def _checker(frame, view, table):
     each pixel mapped back onto the plane (orthographic: an affine map)."""
     cx, cy = (float(v) for v in table["center"])
     half, tile = float(table["half"]), float(table["tile"])
-    corners = np.array([[cx - half, cy - half, 0.0], [cx + half, cy - half, 0.0], [cx + half, cy + half, 0.0], [cx - half, cy + half, 0.0]])
+    corners = np.array(
+        [
+            [cx - half, cy - half, 0.0],
+            [cx + half, cy - half, 0.0],
+            [cx + half, cy + half, 0.0],
+            [cx - half, cy + half, 0.0],
+        ]
+    )
     px, py = view.project(corners)
     box = _box(px.tolist(), py.tolist(), frame.shape[0], frame.shape[1])
     if box is None:
@@ -163,7 +178,9 @@ def _checker(frame, view, table):
     v = f32(inv[1, 0] / tile) * ra + (f32(inv[1, 1] / tile) * rb - f32(ky))
     lo_x, lo_y, n = f32(x0 - kx), f32(y0 - ky), f32(2.0 * half / tile)
     on = (u >= lo_x) & (u <= lo_x + n) & (v >= lo_y) & (v <= lo_y + n)
-    odd = ((u.astype(np.int32) + v.astype(np.int32) + (kx + ky)) & 1).astype(bool)  # (u, v >= 0 on the table: truncation is the floor)
+    odd = ((u.astype(np.int32) + v.astype(np.int32) + (kx + ky)) & 1).astype(
+        bool
+    )  # (u, v >= 0 on the table: truncation is the floor)
     region = _pixels(frame)[rows, cols]
     even_color, odd_color = table["colors"]
     np.copyto(region, _pixel(to_rgb(even_color)), where=on)
@@ -189,14 +206,24 @@ def _sphere(frame, view, sphere):
     # the surface normal n = a right + b up + c eye (space), and R^T n (body) from R^T of each
     rot = np.asarray(sphere["rotation"], dtype=float)
     (ra, rb, rc) = (rot.T @ view.right, rot.T @ view.up, rot.T @ view.eye)
-    bx, by, bz = (a * np.float32(ra[i]) + b * np.float32(rb[i]) + c * np.float32(rc[i]) for i in range(3))
+    bx, by, bz = (
+        a * np.float32(ra[i]) + b * np.float32(rb[i]) + c * np.float32(rc[i]) for i in range(3)
+    )
     sectors = int(sphere.get("sectors", 16))
-    odd = (np.arctan2(by, bx) * np.float32(sectors / (2.0 * math.pi)) + np.float32(sectors)).astype(np.int32) & 1
+    odd = (np.arctan2(by, bx) * np.float32(sectors / (2.0 * math.pi)) + np.float32(sectors)).astype(
+        np.int32
+    ) & 1
     light = _LIGHT / np.linalg.norm(_LIGHT)
-    lit = a * np.float32(view.right @ light) + b * np.float32(view.up @ light) + c * np.float32(view.eye @ light)
+    lit = (
+        a * np.float32(view.right @ light)
+        + b * np.float32(view.up @ light)
+        + c * np.float32(view.eye @ light)
+    )
     level = (np.clip(lit, 0.0, 1.0) * np.float32(_SHADES - 1)).astype(np.int32)
-    index = ((2 * (bz > 0.0) + odd) * _SHADES + level)
-    _pixels(frame)[rows, cols][inside] = _shaded_palette(tuple(color for half in sphere["colors"] for color in half))[index]
+    index = (2 * (bz > 0.0) + odd) * _SHADES + level
+    _pixels(frame)[rows, cols][inside] = _shaded_palette(
+        tuple(color for half in sphere["colors"] for color in half)
+    )[index]
 
 
 @functools.lru_cache(maxsize=16)
@@ -216,12 +243,16 @@ def draw(scene: dict, size) -> np.ndarray:
         _checker(frame, view, scene["table"])
     for poly in scene.get("polygons", ()):
         faces = [np.asarray(f, dtype=float) for f in poly["faces"]]
-        if poly.get("solid"):  # a closed convex solid: its faces turned away are hidden, the rest do not overlap
+        if poly.get(
+            "solid"
+        ):  # a closed convex solid: its faces turned away are hidden, the rest do not overlap
             # each face's normal from its first three vertices (a convex face lies in one plane)
             p0, p1, p2 = (np.array([f[i] for f in faces]) for i in range(3))
             normal = np.cross(p1 - p0, p2 - p0)
             centre = np.array([f.mean(axis=0) for f in faces])
-            outward = np.sign(np.einsum("ij,ij->i", normal, centre - np.mean(np.concatenate(faces), axis=0)))
+            outward = np.sign(
+                np.einsum("ij,ij->i", normal, centre - np.mean(np.concatenate(faces), axis=0))
+            )
             shown = np.flatnonzero(outward * (normal @ view.eye) > 0.0)
         else:  # far to near: the painter's order
             shown = np.argsort([float(np.mean(f @ view.eye)) for f in faces])
@@ -248,8 +279,19 @@ def draw(scene: dict, size) -> np.ndarray:
             head = min(14.0, n / 3.0)
             ux, uy = dx / n, dy / n
             bx, by = x[1] - head * ux, y[1] - head * uy
-            _fill_convex(frame, [x[1], bx - 0.45 * head * uy, bx + 0.45 * head * uy], [y[1], by + 0.45 * head * ux, by - 0.45 * head * ux], rgb)
+            _fill_convex(
+                frame,
+                [x[1], bx - 0.45 * head * uy, bx + 0.45 * head * uy],
+                [y[1], by + 0.45 * head * ux, by - 0.45 * head * ux],
+                rgb,
+            )
     for point in scene.get("points", ()):
         x, y = view.project(np.asarray(point["position"], dtype=float)[None, :])
-        _disc(frame, x[0], y[0], 0.5 * math.sqrt(float(point.get("size", 20))) + 1.0, to_rgb(point.get("color", "#000000")))
+        _disc(
+            frame,
+            x[0],
+            y[0],
+            0.5 * math.sqrt(float(point.get("size", 20))) + 1.0,
+            to_rgb(point.get("color", "#000000")),
+        )
     return frame

@@ -32,9 +32,22 @@ def scene(system, y) -> dict:
     contact = o - np.array([0.0, 0.0, a])
     half = _EXTENT * a
     # the table a little inside the view, so that its corners stay in the frame
-    table = {"center": (o[0], o[1]), "half": 0.8 * half, "tile": a, "colors": (COLORS["table"], rgba(COLORS["table"], 1.0, lighten=0.5))}
+    table = {
+        "center": (o[0], o[1]),
+        "half": 0.8 * half,
+        "tile": a,
+        "colors": (COLORS["table"], rgba(COLORS["table"], 1.0, lighten=0.5)),
+    }
     # the broad half (body z < 0) yellow, the stem half blue, alternating over the longitudes
-    spheres = [{"center": o, "radius": a, "rotation": rot, "colors": (COLORS["body"], COLORS["body_alt"]), "sectors": _LON}]
+    spheres = [
+        {
+            "center": o,
+            "radius": a,
+            "rotation": rot,
+            "colors": (COLORS["body"], COLORS["body_alt"]),
+            "sectors": _LON,
+        }
+    ]
     w_body = np.asarray(st["angular_velocity"], dtype=float)
     l_body = np.array([big_a * w_body[0], big_a * w_body[1], big_c * w_body[2]])
     l_space, w_space = rot @ l_body, rot @ w_body
@@ -42,9 +55,31 @@ def scene(system, y) -> dict:
     arrows = []
     if norm > 0.0:
         scale = 2.8 * a / norm
-        arrows.append({"origin": g, "vector": l_space * scale, "color": COLORS["momentum"], "label": "angular momentum about G"})
-        arrows.append({"origin": g, "vector": scaled_arrow(w_space, scale * big_c, 3.2 * a), "color": COLORS["angular_velocity"], "label": "angular velocity (x C)"})
-    lines = [{"points": np.array([o - a * k, o + a * k]), "color": COLORS["axis"][2], "width": 1.2, "style": "--", "label": "symmetry axis k"}]
+        arrows.append(
+            {
+                "origin": g,
+                "vector": l_space * scale,
+                "color": COLORS["momentum"],
+                "label": "angular momentum about G",
+            }
+        )
+        arrows.append(
+            {
+                "origin": g,
+                "vector": scaled_arrow(w_space, scale * big_c, 3.2 * a),
+                "color": COLORS["angular_velocity"],
+                "label": "angular velocity (x C)",
+            }
+        )
+    lines = [
+        {
+            "points": np.array([o - a * k, o + a * k]),
+            "color": COLORS["axis"][2],
+            "width": 1.2,
+            "style": "--",
+            "label": "symmetry axis k",
+        }
+    ]
     points = [
         {"position": contact, "color": COLORS["contact"], "size": 30, "label": "contact point"},
         {"position": g, "color": COLORS["gravity"], "size": 18, "label": "centre of mass"},

@@ -97,13 +97,40 @@ import numpy as np
 
 from ..dynamics.validation import did_you_mean
 from ..rotations import power
-from .forms import (accuracy_steps, error_estimate, motion_error_estimate, motion_rates, relaxation_estimate, relaxation_steps, step_ratio,
-                    step_ratio_motion, whole_root)
+from .forms import (
+    accuracy_steps,
+    error_estimate,
+    motion_error_estimate,
+    motion_rates,
+    relaxation_estimate,
+    relaxation_steps,
+    step_ratio,
+    step_ratio_motion,
+    whole_root,
+)
 
-__all__ = ["MAX_INTERNAL_STEPS", "GUARDS", "DEFAULT_TOLERANCE", "TOLERANCE_FLOOR", "MARGIN", "UnstableMotionWarning", "StepRule", "GlobalErrorCheck",
-           "require_guard", "require_tolerance", "require_tolerance_check", "default_accuracy", "takes_tolerance", "tolerance_schemes",
-           "require_accuracy", "unstable_motion_warning", "tolerance_blocks", "companion_ratio", "companion_steps",
-           "relative_difference"]
+__all__ = [
+    "MAX_INTERNAL_STEPS",
+    "GUARDS",
+    "DEFAULT_TOLERANCE",
+    "TOLERANCE_FLOOR",
+    "MARGIN",
+    "UnstableMotionWarning",
+    "StepRule",
+    "GlobalErrorCheck",
+    "require_guard",
+    "require_tolerance",
+    "require_tolerance_check",
+    "default_accuracy",
+    "takes_tolerance",
+    "tolerance_schemes",
+    "require_accuracy",
+    "unstable_motion_warning",
+    "tolerance_blocks",
+    "companion_ratio",
+    "companion_steps",
+    "relative_difference",
+]
 
 # More internal steps than this in one control period is treated as a numerical failure.
 MAX_INTERNAL_STEPS = 1_000_000
@@ -124,7 +151,9 @@ class UnstableMotionWarning(UserWarning):
 
 def require_guard(guard) -> str:
     if not isinstance(guard, str) or guard not in GUARDS:
-        raise ValueError(f"guard must be one of {list(GUARDS)}, got {guard!r}{did_you_mean(guard, GUARDS)}")
+        raise ValueError(
+            f"guard must be one of {list(GUARDS)}, got {guard!r}{did_you_mean(guard, GUARDS)}"
+        )
     return guard
 
 
@@ -140,17 +169,23 @@ def require_tolerance(tolerance):
     or a finite number with ``TOLERANCE_FLOOR <= tolerance < 1`` (a relative error per episode)."""
     if tolerance is None or (isinstance(tolerance, str) and tolerance == DEFAULT_TOLERANCE):
         return tolerance
-    rule = (f"{DEFAULT_TOLERANCE!r} (the env's default accuracy), None (unchecked: the stability bound alone) or a finite number with "
-            f"{TOLERANCE_FLOOR:g} <= tolerance < 1 (the relative error allowed over an episode)")
-    if isinstance(tolerance, (bool, np.bool_)) or not isinstance(tolerance, (int, float, np.integer, np.floating)):
+    rule = (
+        f"{DEFAULT_TOLERANCE!r} (the env's default accuracy), None (unchecked: the stability bound alone) or a finite number with "
+        f"{TOLERANCE_FLOOR:g} <= tolerance < 1 (the relative error allowed over an episode)"
+    )
+    if isinstance(tolerance, (bool, np.bool_)) or not isinstance(
+        tolerance, (int, float, np.integer, np.floating)
+    ):
         raise TypeError(f"tolerance must be {rule}, got {tolerance!r} ({type(tolerance).__name__})")
     tol = float(tolerance)
     if not (math.isfinite(tol) and 0.0 < tol < 1.0):
         raise ValueError(f"tolerance must be {rule}, got {tolerance!r}")
     if tol < TOLERANCE_FLOOR:
-        raise ValueError(f"tolerance={tolerance!r} is below what float64 carries over an episode ({TOLERANCE_FLOOR:g}: near an unstable "
-                         f"motion the sums' roundoff alone reaches 1e-13-1e-12, 'rbenvs bench accuracy --roundoff'); pass tolerance >= "
-                         f"{TOLERANCE_FLOOR:g}, or integrate in extended precision outside the env (rbenvs.oracles.taylor_solution)")
+        raise ValueError(
+            f"tolerance={tolerance!r} is below what float64 carries over an episode ({TOLERANCE_FLOOR:g}: near an unstable "
+            f"motion the sums' roundoff alone reaches 1e-13-1e-12, 'rbenvs bench accuracy --roundoff'); pass tolerance >= "
+            f"{TOLERANCE_FLOOR:g}, or integrate in extended precision outside the env (rbenvs.oracles.taylor_solution)"
+        )
     return tol
 
 
@@ -159,7 +194,9 @@ def default_accuracy(tolerance, guard: str, default):
     (``"default"``: ``accuracy="default"``; none with ``guard="off"``, which takes ``substeps``
     steps whatever, or where the env declares none) or the user's (``"explicit"``)."""
     if isinstance(tolerance, str):
-        return (default, "default") if guard != "off" and default is not None else (None, "explicit")
+        return (
+            (default, "default") if guard != "off" and default is not None else (None, "explicit")
+        )
     return tolerance, "explicit"
 
 
@@ -177,9 +214,11 @@ def tolerance_schemes() -> list:
 
 
 def _amplitude_reason(integrator) -> str:
-    return (f"integrator {integrator.name!r} errs in the amplitude (each step grows a rotation by sqrt(1 + (lambda h)^2)), which on a "
-            f"nonlinear rotation moves the frequency, so its phase error grows like T^2 and no per-period estimate bounds it without "
-            f"overestimating it many times (measured: 15 times the steps of its cheapest fixed substeps meeting the same tolerance)")
+    return (
+        f"integrator {integrator.name!r} errs in the amplitude (each step grows a rotation by sqrt(1 + (lambda h)^2)), which on a "
+        f"nonlinear rotation moves the frequency, so its phase error grows like T^2 and no per-period estimate bounds it without "
+        f"overestimating it many times (measured: 15 times the steps of its cheapest fixed substeps meeting the same tolerance)"
+    )
 
 
 def require_accuracy(integrator, guard: str, tolerance, accuracy: str, env_name: str):
@@ -193,12 +232,15 @@ def require_accuracy(integrator, guard: str, tolerance, accuracy: str, env_name:
                 f"integrator {integrator.name!r} cannot be held to {env_name}'s default accuracy (tolerance='default': "
                 f"{tolerance!r} relative over an episode): {_amplitude_reason(integrator)}. Pass tolerance=None to run it "
                 f"unchecked (the stability bound alone, info['error_estimate'] None), or an integrator that takes a tolerance, "
-                f"{tolerance_schemes()}")
+                f"{tolerance_schemes()}"
+            )
         return None, "explicit"
     if tolerance is None or accuracy != "explicit":
         return tolerance, accuracy
     if guard == "off":
-        raise ValueError(f"tolerance={tolerance!r} needs guard='subdivide' or 'refuse': guard='off' takes substeps steps whatever the error")
+        raise ValueError(
+            f"tolerance={tolerance!r} needs guard='subdivide' or 'refuse': guard='off' takes substeps steps whatever the error"
+        )
     if getattr(integrator, "error_constant", None) is None:
         raise ValueError(
             f"tolerance={tolerance!r} needs an integrator whose error it can estimate, {tolerance_schemes()} (or integrator='auto'): one that declares an "
@@ -222,14 +264,18 @@ def require_accuracy(integrator, guard: str, tolerance, accuracy: str, env_name:
 def unstable_motion_warning(tolerance: float, unstable: str, check: bool) -> UnstableMotionWarning:
     """The construction warning for an explicit ``tolerance`` on a motion ``unstable`` by the
     system's own theorem (the env says why), and what the check does about it."""
-    then = ("tolerance_check=True: a companion run estimates the episode's global error (info['global_error_estimate']) "
-            "and the episode ends as a numerical failure where it passes the tolerance" if check else
-            "over a horizon that spans it the error can end above the tolerance (tolerance_check=True estimates it and ends "
-            "the episode as a numerical failure where it passes the tolerance)")
+    then = (
+        "tolerance_check=True: a companion run estimates the episode's global error (info['global_error_estimate']) "
+        "and the episode ends as a numerical failure where it passes the tolerance"
+        if check
+        else "over a horizon that spans it the error can end above the tolerance (tolerance_check=True estimates it and ends "
+        "the episode as a numerical failure where it passes the tolerance)"
+    )
     return UnstableMotionWarning(
         f"tolerance={tolerance!r}: {unstable}. The steps hold the error they commit within the tolerance, but an unstable "
         f"motion amplifies errors already made; {then} ('rbenvs bench accuracy --tolerance' measures it per scene; "
-        f"docs/integrators.md, 'Unstable motions')")
+        f"docs/integrators.md, 'Unstable motions')"
+    )
 
 
 @dataclass(frozen=True)
@@ -263,7 +309,19 @@ class StepRule:
     gate: tuple | None = None
 
     @classmethod
-    def build(cls, rates, region, dt: float, guard: str, integrator=None, tolerance=None, horizon=None, system=None, zero_control=(), gate_steps=None) -> "StepRule":
+    def build(
+        cls,
+        rates,
+        region,
+        dt: float,
+        guard: str,
+        integrator=None,
+        tolerance=None,
+        horizon=None,
+        system=None,
+        zero_control=(),
+        gate_steps=None,
+    ) -> "StepRule":
         """The rule for ``rates`` (the system's :class:`~rbenvs.contracts.GuardRates` for
         ``region``) at control period ``dt`` under ``guard``; with ``tolerance`` (a relative
         error over ``horizon`` periods) also the accuracy bound of ``integrator`` (its
@@ -273,7 +331,11 @@ class StepRule:
             bound, growth = rates.rotation_bound, math.inf
         else:
             bound, growth = region.rotation, region.growth
-        step_d = rates.dissipation_margin * region.dissipation if rates.dissipation is not None else math.inf
+        step_d = (
+            rates.dissipation_margin * region.dissipation
+            if rates.dissipation is not None
+            else math.inf
+        )
         dissipation = rates.dissipation if step_d != math.inf else None
         k, p, kd, error, accuracy = 0.0, 1.0, 0.0, None, ""
         if tolerance is not None:
@@ -286,14 +348,26 @@ class StepRule:
             if dissipation is not None:
                 kd = c / (share * math.log1p(tolerance))
             half = "half of " if dissipation is not None else ""
-            accuracy = (f"error C lambda dt (lambda h)^{integrator.order} <= {half}log(1 + tolerance) / {horizon} per period"
-                        + (f" and C (lambda_d h)^{integrator.order} <= half of log(1 + tolerance)" if dissipation is not None else "")
-                        + f" (tolerance={tolerance!r} over tolerance_horizon={horizon} periods; {integrator.name}: order {integrator.order}, "
-                        f"error constant C = {c:g})")
-        active = guard != "off" and (bound != math.inf or growth != math.inf or dissipation is not None or error is not None)
+            accuracy = (
+                f"error C lambda dt (lambda h)^{integrator.order} <= {half}log(1 + tolerance) / {horizon} per period"
+                + (
+                    f" and C (lambda_d h)^{integrator.order} <= half of log(1 + tolerance)"
+                    if dissipation is not None
+                    else ""
+                )
+                + f" (tolerance={tolerance!r} over tolerance_horizon={horizon} periods; {integrator.name}: order {integrator.order}, "
+                f"error constant C = {c:g})"
+            )
+        active = guard != "off" and (
+            bound != math.inf or growth != math.inf or dissipation is not None or error is not None
+        )
         text = rates.text
         if bound != math.inf:
-            text = f"lambda h <= {bound}" + (f" and lambda^2 h dt <= {growth}" if growth != math.inf else "") + f", {text}"
+            text = (
+                f"lambda h <= {bound}"
+                + (f" and lambda^2 h dt <= {growth}" if growth != math.inf else "")
+                + f", {text}"
+            )
         if dissipation is not None:
             text += f"; h <= {step_d:.6g} / lambda_d"
         if accuracy:
@@ -301,51 +375,116 @@ class StepRule:
         rotation, motion, gate = rates.rotation, False, None
         rhs = getattr(system, "kernel_rhs", None)
         named = rates.error_blocks is not None
-        if error is not None and rhs is not None and (named or not system.hybrid) and getattr(integrator, "error_in_phase", False):
+        if (
+            error is not None
+            and rhs is not None
+            and (named or not system.hybrid)
+            and getattr(integrator, "error_in_phase", False)
+        ):
             # the state's own speed in the estimate (motion_rates), for a scheme whose leading
             # error is in the phase; a hybrid system keeps the rate alone unless it names the
             # blocks its error is measured on (its contact flags are not)
             names = rates.error_blocks if named else tuple(system.layout)
             blocks = tuple(tuple(system.layout[n]) for n in names)
-            rotating = tuple((tuple(system.layout[q]), tuple(system.layout[d])) for q, d in rates.rotating_blocks)
-            span = (float(horizon) + 1.0) * float(dt) / 2.0  # (the mean time to the horizon's end: motion_rates)
+            rotating = tuple(
+                (tuple(system.layout[q]), tuple(system.layout[d])) for q, d in rates.rotating_blocks
+            )
+            span = (
+                (float(horizon) + 1.0) * float(dt) / 2.0
+            )  # (the mean time to the horizon's end: motion_rates)
             mu_text = f"; mu = min(lambda, max over the state's blocks{' ' + ', '.join(names) if named else ''} of |dy_b/dt| / |y_b|)"
             for q, d in rates.rotating_blocks:
-                mu_text += (f", with {q} (turning at its own speed m, driven by {d}): max(mu over the others, mu_{d} + a_{d} m {span:g} s "
-                            f"+ m (m / lambda)^{integrator.order}), a_{d} = |{d} . d{d}/dt| / |{d}|^2 (the error {q} carries: {d}'s along itself)")
-            extra = {"rotating": rotating, "order": float(integrator.order), "span": span} if rotating else {}
+                mu_text += (
+                    f", with {q} (turning at its own speed m, driven by {d}): max(mu over the others, mu_{d} + a_{d} m {span:g} s "
+                    f"+ m (m / lambda)^{integrator.order}), a_{d} = |{d} . d{d}/dt| / |{d}|^2 (the error {q} carries: {d}'s along itself)"
+                )
+            extra = (
+                {"rotating": rotating, "order": float(integrator.order), "span": span}
+                if rotating
+                else {}
+            )
             if rates.speed is not None:  # the system's bound of its speed over a period
                 extra.update(speed_bound=rates.speed[0], dt=float(dt))
                 mu_text += f"; over the period at most {rates.speed[0].__name__}'s bound (the motion's own)"
             tail = (rates.speed[1],) if rates.speed is not None else ()
-            if gate_steps is not None and not rotating and (rates.accuracy is None or rates.accuracy_bound is not None):
+            if (
+                gate_steps is not None
+                and not rotating
+                and (rates.accuracy is None or rates.accuracy_bound is not None)
+            ):
                 # the default accuracy: a cheap bound first (motion_rates' gate)
-                bound_fn, bound_p = rates.accuracy_bound if rates.accuracy is not None else (None, ())
+                bound_fn, bound_p = (
+                    rates.accuracy_bound if rates.accuracy is not None else (None, ())
+                )
                 extra.update(gate=True, gate_rate=bound_fn)
                 test = (float(dt), p + 1.0, float(gate_steps) ** p / k)
                 tail += (test + (bound_p,),)
-                gate = (bound_fn, bound_p, test) if bound_fn is not None else (rates.rotation[0], rates.rotation[1], test)
-                mu_text += (f"; first the bound C L dt (L dt / {gate_steps})^{integrator.order}, L = "
-                            + (f"{bound_fn.__name__}" if bound_fn is not None else "lambda") + " (the default accuracy: where it holds, reported)")
+                gate = (
+                    (bound_fn, bound_p, test)
+                    if bound_fn is not None
+                    else (rates.rotation[0], rates.rotation[1], test)
+                )
+                mu_text += (
+                    f"; first the bound C L dt (L dt / {gate_steps})^{integrator.order}, L = "
+                    + (f"{bound_fn.__name__}" if bound_fn is not None else "lambda")
+                    + " (the default accuracy: where it holds, reported)"
+                )
             if rates.accuracy is not None:  # the system's sharper rate of the error (lambda_e)
-                rotation = (motion_rates(rates.rotation[0], rhs[0], blocks, rates.accuracy[0], **extra), (rates.rotation[1], rhs[1], rates.accuracy[1]) + tail)
-                accuracy, text = (t.replace("(lambda h)^", "(lambda_e h)^") for t in (accuracy, text))
-                mu_text = ("; lambda_e = the system's bound of its Jacobian (" + rates.accuracy[0].__name__ + ")"
-                           + mu_text.replace("min(lambda,", "min(lambda_e,").replace("/ lambda)^", "/ lambda_e)^"))
+                rotation = (
+                    motion_rates(rates.rotation[0], rhs[0], blocks, rates.accuracy[0], **extra),
+                    (rates.rotation[1], rhs[1], rates.accuracy[1]) + tail,
+                )
+                accuracy, text = (
+                    t.replace("(lambda h)^", "(lambda_e h)^") for t in (accuracy, text)
+                )
+                mu_text = (
+                    "; lambda_e = the system's bound of its Jacobian ("
+                    + rates.accuracy[0].__name__
+                    + ")"
+                    + mu_text.replace("min(lambda,", "min(lambda_e,").replace(
+                        "/ lambda)^", "/ lambda_e)^"
+                    )
+                )
             else:
-                rotation = (motion_rates(rates.rotation[0], rhs[0], blocks, None, **extra), (rates.rotation[1], rhs[1], ()) + tail)
+                rotation = (
+                    motion_rates(rates.rotation[0], rhs[0], blocks, None, **extra),
+                    (rates.rotation[1], rhs[1], ()) + tail,
+                )
             motion = True
             accuracy = accuracy.replace("error C lambda dt", "error C mu dt") + mu_text
             text = text.replace("error C lambda dt", "error C mu dt") + mu_text
-        mode_share = rates.dissipation_share if error is not None and dissipation is not None else None
+        mode_share = (
+            rates.dissipation_share if error is not None and dissipation is not None else None
+        )
         if mode_share is not None:
             # the system's parameters with the scheme's forced-mode error constant (over C; 0: none)
             forced = getattr(integrator, "forced_error_constant", None)
-            mode_share = (mode_share[0], (mode_share[1], 0.0 if forced is None else float(forced) / c))
-            accuracy, text = (t.replace("C (lambda_d h)^", "C a (lambda_d h)^") + " (a = the decaying mode's share of it, "
-                              + mode_share[0].__name__ + ")" for t in (accuracy, text))
-        return cls(rotation, (float(dt), float(bound), float(growth), float(k), float(p), float(kd)), dissipation, step_d, rates.ceiling, text, active, error,
-                   accuracy, motion, tuple(zero_control), mode_share, gate)
+            mode_share = (
+                mode_share[0],
+                (mode_share[1], 0.0 if forced is None else float(forced) / c),
+            )
+            accuracy, text = (
+                t.replace("C (lambda_d h)^", "C a (lambda_d h)^")
+                + " (a = the decaying mode's share of it, "
+                + mode_share[0].__name__
+                + ")"
+                for t in (accuracy, text)
+            )
+        return cls(
+            rotation,
+            (float(dt), float(bound), float(growth), float(k), float(p), float(kd)),
+            dissipation,
+            step_d,
+            rates.ceiling,
+            text,
+            active,
+            error,
+            accuracy,
+            motion,
+            tuple(zero_control),
+            mode_share,
+            gate,
+        )
 
     def rate(self, y, u=None):
         """``lambda`` at ``y`` (the rate both the bounds and the error estimate use); with
@@ -383,7 +522,11 @@ class StepRule:
         if self.error is None:
             return None
         # (the compiled vector step's estimate calls the same functions: rbenvs.compiled.vector_kernel)
-        e = motion_error_estimate(self.error, lam, h) if self.motion else error_estimate(self.error, lam, h)
+        e = (
+            motion_error_estimate(self.error, lam, h)
+            if self.motion
+            else error_estimate(self.error, lam, h)
+        )
         if self.dissipation is None:
             return e
         return e + relaxation_estimate(self.error, lam_d, a, h)
@@ -404,7 +547,9 @@ class StepRule:
         rate = self.dissipation_rate(y, u) if u is not None else 0.0
         if rate > 0.0:
             stability = max(stability, dt / (self.dissipation_step / rate))
-            accuracy = max(accuracy, relaxation_steps(self.params, rate, self.dissipation_share(y, u, rate)))
+            accuracy = max(
+                accuracy, relaxation_steps(self.params, rate, self.dissipation_share(y, u, rate))
+            )
         if not accuracy > stability:
             return f"the stability bound ({self.text})"
         return f"the tolerance ({self.accuracy_text})"
@@ -452,17 +597,24 @@ class StepRule:
                 if rate > 0.0:
                     x = max(x, dt / (self.dissipation_step / rate))
                     if self.params[5] != 0.0:
-                        x = max(x, relaxation_steps(self.params, rate, self.dissipation_share(y, u, rate)))
+                        x = max(
+                            x,
+                            relaxation_steps(self.params, rate, self.dissipation_share(y, u, rate)),
+                        )
             else:
                 with np.errstate(divide="ignore", invalid="ignore"):
-                    h_d = np.where(rate > 0.0, self.dissipation_step / np.where(rate > 0.0, rate, 1.0), np.inf)
+                    h_d = np.where(
+                        rate > 0.0, self.dissipation_step / np.where(rate > 0.0, rate, 1.0), np.inf
+                    )
                     x = np.maximum(x, dt / h_d)
                     if self.params[5] != 0.0:
                         _, _, _, _, p, kd = self.params
                         positive = rate > 0.0
                         r = np.where(positive, rate, 0.0)
                         a = self.dissipation_share(y, u, r)
-                        x = np.maximum(x, np.where(positive, whole_root(kd * (a * power(dt * r, p)), p), 0.0))
+                        x = np.maximum(
+                            x, np.where(positive, whole_root(kd * (a * power(dt * r, p)), p), 0.0)
+                        )
         return x
 
     def idle(self, substeps: int) -> bool:
@@ -506,7 +658,11 @@ class StepRule:
         if not self.active:
             return np.full(np.shape(x), substeps, dtype=np.int64)
         with np.errstate(invalid="ignore"):
-            n = np.where(x <= MAX_INTERNAL_STEPS, np.ceil(np.where(x <= MAX_INTERNAL_STEPS, x, 0.0)), MAX_INTERNAL_STEPS + 1)
+            n = np.where(
+                x <= MAX_INTERNAL_STEPS,
+                np.ceil(np.where(x <= MAX_INTERNAL_STEPS, x, 0.0)),
+                MAX_INTERNAL_STEPS + 1,
+            )
         return np.maximum(substeps, n).astype(np.int64)
 
 
@@ -518,14 +674,20 @@ def require_tolerance_check(check, tolerance):
     """``tolerance_check=``: ``False`` or ``True`` (a companion run checks the episode's global
     error against ``tolerance=``, which it then needs)."""
     if isinstance(check, str) and check == "refine":
-        raise ValueError("tolerance_check='refine' was removed (2026-11-29: each replay ran the episode again from its start); use "
-                         "tolerance_check=True, which ends the episode, flagged, where the estimate passes the tolerance, with a tighter "
-                         "tolerance= to hold it longer")
+        raise ValueError(
+            "tolerance_check='refine' was removed (2026-11-29: each replay ran the episode again from its start); use "
+            "tolerance_check=True, which ends the episode, flagged, where the estimate passes the tolerance, with a tighter "
+            "tolerance= to hold it longer"
+        )
     if not (check is True or check is False):
-        raise ValueError("tolerance_check must be False or True (a companion run checks the episode's global error and ends the episode "
-                         f"where it passes the tolerance), got {check!r}")
+        raise ValueError(
+            "tolerance_check must be False or True (a companion run checks the episode's global error and ends the episode "
+            f"where it passes the tolerance), got {check!r}"
+        )
     if check and tolerance is None:
-        raise ValueError("tolerance_check=True needs tolerance= (the relative error per episode the global error estimate is checked against)")
+        raise ValueError(
+            "tolerance_check=True needs tolerance= (the relative error per episode the global error estimate is checked against)"
+        )
     return check
 
 
@@ -534,7 +696,11 @@ def tolerance_blocks(system) -> tuple:
     of the layout, less a hybrid system's horizontal position (it drifts along the table: its
     size is no scale of the motion) and its contact flags and hop counts (counts, not
     quantities)."""
-    return tuple(tuple(span) for name, span in system.layout.items() if not (system.hybrid and name in ("position", "contact", "hops")))
+    return tuple(
+        tuple(span)
+        for name, span in system.layout.items()
+        if not (system.hybrid and name in ("position", "contact", "hops"))
+    )
 
 
 def companion_ratio(p: float) -> float:
@@ -582,11 +748,13 @@ def relative_difference(blocks, y, yc):
     for lo, hi in blocks:
         d2, s2 = block_sums(y, yc, lo, hi)
         with np.errstate(divide="ignore", invalid="ignore"):
-            r = np.where(d2 == 0.0, 0.0, np.where(s2 > 0.0, np.sqrt(d2 / np.where(s2 > 0.0, s2, 1.0)), np.inf))
+            r = np.where(
+                d2 == 0.0,
+                0.0,
+                np.where(s2 > 0.0, np.sqrt(d2 / np.where(s2 > 0.0, s2, 1.0)), np.inf),
+            )
         out = np.maximum(out, np.where(r == r, r, np.inf))
     return out
-
-
 
 
 class GlobalErrorCheck:
@@ -607,7 +775,9 @@ class GlobalErrorCheck:
         """The companion starts at ``y`` (a batch: at the rows ``mask`` of ``y``, or all)."""
         if mask is None or self.runs is None:
             self.runs = (y, self.engine.fresh_comp)
-            self.periods = np.zeros(len(y[0]), dtype=np.int64) if isinstance(y[0], np.ndarray) else 0
+            self.periods = (
+                np.zeros(len(y[0]), dtype=np.int64) if isinstance(y[0], np.ndarray) else 0
+            )
             return
         yc, cc = self.runs
         yc = tuple(np.where(mask, c, r) for c, r in zip(y, yc))
@@ -640,6 +810,8 @@ class GlobalErrorCheck:
         e = self.period(out[0], out[5], n)
         if e > engine.tolerance:  # the companion and the run stay with the state kept
             self.runs, self.periods = runs0, self.periods - 1
-            return engine.inaccurate_one(y0, a, info["internal_step"], plain, e, self.periods + 1, comp0)
+            return engine.inaccurate_one(
+                y0, a, info["internal_step"], plain, e, self.periods + 1, comp0
+            )
         info["global_error_estimate"] = e
         return out

@@ -15,8 +15,19 @@ from ..core.codegen import generate
 from ..jit import jitable
 from ..rotations import every, maximum, power, select, sqrt
 
-__all__ = ["ceiling", "whole_root", "accuracy_steps", "relaxation_steps", "error_estimate", "motion_error_estimate", "relaxation_estimate",
-           "stability_ratio", "step_ratio_motion", "motion_rates", "step_ratio"]
+__all__ = [
+    "ceiling",
+    "whole_root",
+    "accuracy_steps",
+    "relaxation_steps",
+    "error_estimate",
+    "motion_error_estimate",
+    "relaxation_estimate",
+    "stability_ratio",
+    "step_ratio_motion",
+    "motion_rates",
+    "step_ratio",
+]
 
 
 @jitable
@@ -36,7 +47,9 @@ def _ceil_arrays(x):
 def whole_root(y, p):
     """The fewest whole ``n >= 0`` with ``n^p >= y`` (floats or arrays): the root's guess moved to
     the exact answer of the integer-power test, so every path gives the same count."""
-    if isinstance(y, float) and 0.0 < y <= 1.0:  # (one step is enough: the common case, without a root)
+    if (
+        isinstance(y, float) and 0.0 < y <= 1.0
+    ):  # (one step is enough: the common case, without a root)
         return 1.0
     n = ceiling(y ** (1.0 / p))
     m = n - 1.0
@@ -118,8 +131,19 @@ def step_ratio_motion(g, rates):
 
 
 @lru_cache(maxsize=None)
-def motion_rates(rotation, rhs, blocks: tuple, accuracy=None, rotating: tuple = (), order: float = 1.0, span: float = 0.0, speed_bound=None, dt: float = 0.0,
-                 gate: bool = False, gate_rate=None):
+def motion_rates(
+    rotation,
+    rhs,
+    blocks: tuple,
+    accuracy=None,
+    rotating: tuple = (),
+    order: float = 1.0,
+    span: float = 0.0,
+    speed_bound=None,
+    dt: float = 0.0,
+    gate: bool = False,
+    gate_rate=None,
+):
     """``rates(P, y, u) -> (lambda, mu, lambda_e)`` (generated, pure), ``P = (P_rotation, P_rhs)``
     (``(P_rotation, P_rhs, P_accuracy)`` with ``accuracy``): the guard's rate ``lambda =
     rotation(P_rotation, y)``, the error's rate ``lambda_e = accuracy(P_accuracy, y)`` (a bound
@@ -195,11 +219,17 @@ def motion_rates(rotation, rhs, blocks: tuple, accuracy=None, rotating: tuple = 
     evaluated. Without rotating blocks only (their carried term is not bounded by ``Lambda``)."""
     lines = ["def rates(P, y, u):", "    lam = rotation(P[0], y)"]
     if gate:
-        lines += [f"    G = P[{4 if speed_bound is not None else 3}]", "    big = gate_rate(G[3], y)" if gate_rate is not None else "    big = lam",
-                  "    cheap = power(big * G[0], G[1]) <= G[2]",
-                  "    if every(cheap):",  # (the sharp rates only where the bound does not hold: a batch, for all)
-                  "        return (lam, big, big)"]
-    lines += ["    f = rhs(P[1], y, u)", "    lam_e = accuracy(P[2], y)" if accuracy is not None else "    lam_e = lam"]
+        lines += [
+            f"    G = P[{4 if speed_bound is not None else 3}]",
+            "    big = gate_rate(G[3], y)" if gate_rate is not None else "    big = lam",
+            "    cheap = power(big * G[0], G[1]) <= G[2]",
+            "    if every(cheap):",  # (the sharp rates only where the bound does not hold: a batch, for all)
+            "        return (lam, big, big)",
+        ]
+    lines += [
+        "    f = rhs(P[1], y, u)",
+        "    lam_e = accuracy(P[2], y)" if accuracy is not None else "    lam_e = lam",
+    ]
 
     def speed(a, b):
         ny = " + ".join(f"y[{i}] * y[{i}]" for i in range(a, b))
@@ -211,7 +241,9 @@ def motion_rates(rotation, rhs, blocks: tuple, accuracy=None, rotating: tuple = 
     if speed_bound is not None:
         lines.append(f"    bound = speed_bound(P[3], y, u, {float(dt)!r})")
     for j, (a, b) in enumerate(others):
-        lines.append(f"    mu = {speed(a, b)}" if j == 0 else f"    mu = maximum(mu, {speed(a, b)})")
+        lines.append(
+            f"    mu = {speed(a, b)}" if j == 0 else f"    mu = maximum(mu, {speed(a, b)})"
+        )
     if not others:
         lines.append("    mu = 0.0 * lam")
     elif speed_bound is not None:
@@ -220,20 +252,42 @@ def motion_rates(rotation, rhs, blocks: tuple, accuracy=None, rotating: tuple = 
     for (a, b), (c, d) in rotating:
         ny = " + ".join(f"y[{i}] * y[{i}]" for i in range(c, d))
         dot = " + ".join(f"y[{i}] * f[{i}]" for i in range(c, d))
-        lines += [f"    m = {speed(a, b)}", "    m = select(m < lam_e, m, lam_e)", f"    md = {speed(c, d)}"]
+        lines += [
+            f"    m = {speed(a, b)}",
+            "    m = select(m < lam_e, m, lam_e)",
+            f"    md = {speed(c, d)}",
+        ]
         if speed_bound is not None:
             lines.append("    md = maximum(md, bound)")
-        lines += ["    md = select(md < lam_e, md, lam_e)",
-                  f"    ma = abs({dot}) / maximum({ny}, 1e-300)", "    ma = select(ma < md, ma, md)",
-                  f"    mq = md + ma * m * {float(span)!r} + m * power(m / maximum(lam_e, 1e-300), {float(order)!r})",
-                  "    mu = maximum(mu, mq)"]
+        lines += [
+            "    md = select(md < lam_e, md, lam_e)",
+            f"    ma = abs({dot}) / maximum({ny}, 1e-300)",
+            "    ma = select(ma < md, ma, md)",
+            f"    mq = md + ma * m * {float(span)!r} + m * power(m / maximum(lam_e, 1e-300), {float(order)!r})",
+            "    mu = maximum(mu, mq)",
+        ]
     if gate:  # (a batch: the bound where it holds)
         lines += ["    return (lam, select(cheap, big, mu), select(cheap, big, lam_e))"]
     else:
         lines += ["    return (lam, mu, lam_e)"]
-    namespace = generate("\n".join(lines) + "\n", f"motion rates of {len(blocks)} blocks" + (f" and {len(rotating)} rotating" if rotating else "") + (" gated" if gate else ""),
-                         {"rotation": rotation, "rhs": rhs, "accuracy": accuracy, "speed_bound": speed_bound, "gate_rate": gate_rate, "sqrt": sqrt, "maximum": maximum,
-                          "select": select, "every": every, "power": power})
+    namespace = generate(
+        "\n".join(lines) + "\n",
+        f"motion rates of {len(blocks)} blocks"
+        + (f" and {len(rotating)} rotating" if rotating else "")
+        + (" gated" if gate else ""),
+        {
+            "rotation": rotation,
+            "rhs": rhs,
+            "accuracy": accuracy,
+            "speed_bound": speed_bound,
+            "gate_rate": gate_rate,
+            "sqrt": sqrt,
+            "maximum": maximum,
+            "select": select,
+            "every": every,
+            "power": power,
+        },
+    )
     return jitable(namespace["rates"])
 
 

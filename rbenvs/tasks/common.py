@@ -45,7 +45,9 @@ class TwoStageStart:
 
     def initial_state(self, system, rng, shape=()):
         if tuple(shape) != ():
-            raise ValueError("initial_state draws one state; a batch draws per sub-env (initial_draws) and converts at once (initial_from_draws)")
+            raise ValueError(
+                "initial_state draws one state; a batch draws per sub-env (initial_draws) and converts at once (initial_from_draws)"
+            )
         return self.initial_from_draws(system, self.initial_draws(rng))
 
 
@@ -53,7 +55,13 @@ def speed_bound(task, observation_high) -> float:
     """An upper bound of ``|Omega|`` [rad/s] over the states inside the observation bounds: the
     norm of the bounds of the task's ``rad/s`` components (the episode ends, at the observation
     limit, once one leaves its bound)."""
-    return math.sqrt(sum(float(h) ** 2 for h, unit in zip(observation_high, task.observation_units) if unit == "rad/s"))
+    return math.sqrt(
+        sum(
+            float(h) ** 2
+            for h, unit in zip(observation_high, task.observation_units)
+            if unit == "rad/s"
+        )
+    )
 
 
 @jitable

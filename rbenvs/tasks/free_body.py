@@ -17,7 +17,17 @@ from .common import TwoStageStart, effort, speed_bound
 from ..dynamics.free_body import angular_velocity, momentum_norm
 from ..rotations import quat_angle, quat_conjugate, quat_from_uniforms, quat_multiply, select, sqrt
 
-__all__ = ["SpinTask", "DetumbleTask", "ReorientTask", "AXIS_NAMES", "spin_evaluate", "detumble_evaluate", "attitude_error", "reorient_observe", "reorient_evaluate"]
+__all__ = [
+    "SpinTask",
+    "DetumbleTask",
+    "ReorientTask",
+    "AXIS_NAMES",
+    "spin_evaluate",
+    "detumble_evaluate",
+    "attitude_error",
+    "reorient_observe",
+    "reorient_evaluate",
+]
 
 AXIS_NAMES = ("major", "intermediate", "minor")
 
@@ -66,7 +76,15 @@ def reorient_start(p, d):
     q = quat_from_uniforms(d[0], d[1], d[2])
     n = _directions(d[3], d[4], d[5])
     s = spin_rate * (0.0 + 0.1 * d[6])
-    return inertia[0] * s * n[0], inertia[1] * s * n[1], inertia[2] * s * n[2], q[0], q[1], q[2], q[3]
+    return (
+        inertia[0] * s * n[0],
+        inertia[1] * s * n[1],
+        inertia[2] * s * n[2],
+        q[0],
+        q[1],
+        q[2],
+        q[3],
+    )
 
 
 # The tasks' arithmetic as pure functions of (parameters, state, action): the methods below
@@ -155,7 +173,11 @@ class SpinTask(TwoStageStart):
 
     def kernel_start(self, system):
         """``(spin_start, P)``: the pure form of :meth:`initial_from_draws`."""
-        return spin_start, (int(self.axis), system.params.inertia[self.axis] * self.spin_rate, float(self.perturbation))
+        return spin_start, (
+            int(self.axis),
+            system.params.inertia[self.axis] * self.spin_rate,
+            float(self.perturbation),
+        )
 
     metric_names = ("alignment", "is_success")
 
@@ -177,7 +199,9 @@ class SpinTask(TwoStageStart):
 
     def __post_init__(self):
         object.__setattr__(self, "cos_success", math.cos(self.success_angle))
-        object.__setattr__(self, "_params", (int(self.axis), float(self.control_cost), self.cos_success))
+        object.__setattr__(
+            self, "_params", (int(self.axis), float(self.control_cost), self.cos_success)
+        )
 
 
 @dataclass(frozen=True)
@@ -206,7 +230,10 @@ class DetumbleTask(TwoStageStart):
 
     def kernel_start(self, system):
         """``(detumble_start, P)``: the pure form of :meth:`initial_from_draws`."""
-        return detumble_start, (tuple(float(c) for c in system.params.inertia), float(self.spin_rate))
+        return detumble_start, (
+            tuple(float(c) for c in system.params.inertia),
+            float(self.spin_rate),
+        )
 
     metric_names = ("angular_speed", "is_success")
 
@@ -224,10 +251,17 @@ class DetumbleTask(TwoStageStart):
 
     def reward_floor(self, system, observation_high) -> float:
         """The least reward of a step inside the observation bounds, at full effort."""
-        return -speed_bound(self, observation_high) / float(self.spin_rate) - float(self.control_cost)
+        return -speed_bound(self, observation_high) / float(self.spin_rate) - float(
+            self.control_cost
+        )
 
     def _params(self, system):
-        return (system.params.inverse, float(self.spin_rate), float(self.control_cost), float(self.tolerance))
+        return (
+            system.params.inverse,
+            float(self.spin_rate),
+            float(self.control_cost),
+            float(self.tolerance),
+        )
 
 
 @dataclass(frozen=True)
@@ -263,7 +297,10 @@ class ReorientTask(TwoStageStart):
 
     def kernel_start(self, system):
         """``(reorient_start, P)``: the pure form of :meth:`initial_from_draws`."""
-        return reorient_start, (tuple(float(c) for c in system.params.inertia), float(self.spin_rate))
+        return reorient_start, (
+            tuple(float(c) for c in system.params.inertia),
+            float(self.spin_rate),
+        )
 
     def error(self, y):
         """The error quaternion (:func:`attitude_error`)."""
@@ -279,15 +316,29 @@ class ReorientTask(TwoStageStart):
 
     def kernels(self, system):
         """``((observe, P), (evaluate, P))`` for :mod:`rbenvs.compiled`."""
-        return (reorient_observe, (system.params.inverse, self._target)), (reorient_evaluate, self._params(system))
+        return (reorient_observe, (system.params.inverse, self._target)), (
+            reorient_evaluate,
+            self._params(system),
+        )
 
     def reward_floor(self, system, observation_high) -> float:
         """The least reward of a step inside the observation bounds: upside down (angle pi) at
         the bound's speed, at full effort."""
-        return -1.0 - float(self.rate_cost) * speed_bound(self, observation_high) / float(self.spin_rate) - float(self.control_cost)
+        return (
+            -1.0
+            - float(self.rate_cost) * speed_bound(self, observation_high) / float(self.spin_rate)
+            - float(self.control_cost)
+        )
 
     def _params(self, system):
-        return (system.params.inverse, self._target, float(self.spin_rate), float(self.rate_cost), float(self.control_cost), float(self.success_angle))
+        return (
+            system.params.inverse,
+            self._target,
+            float(self.spin_rate),
+            float(self.rate_cost),
+            float(self.control_cost),
+            float(self.success_angle),
+        )
 
     def __post_init__(self):
         object.__setattr__(self, "_target", tuple(float(c) for c in self.target))

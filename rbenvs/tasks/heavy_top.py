@@ -74,7 +74,11 @@ def vertical_in_cone(p, u_tilt, u_azimuth):
     theta = low + (high - low) * u_tilt
     phi = 0.0 + 2.0 * np.pi * u_azimuth
     a, b, c = np.sin(theta) * np.cos(phi), np.sin(theta) * np.sin(phi), np.cos(theta)
-    return (a * t1[0] + b * t2[0] + c * chi[0], a * t1[1] + b * t2[1] + c * chi[1], a * t1[2] + b * t2[2] + c * chi[2]), theta
+    return (
+        a * t1[0] + b * t2[0] + c * chi[0],
+        a * t1[1] + b * t2[1] + c * chi[1],
+        a * t1[2] + b * t2[2] + c * chi[2],
+    ), theta
 
 
 def _cone_params(chi, low, high) -> tuple:
@@ -107,7 +111,11 @@ def precess_start(p, d):
     n = spin_low + (spin_high - spin_low) * d[2]
     rate = target_rate if fixed else slow_precession_root(root, n)
     axial = n - rate * np.cos(tilt)
-    w1, w2, w3 = rate * gamma[0] + axial * chi[0], rate * gamma[1] + axial * chi[1], rate * gamma[2] + axial * chi[2]
+    w1, w2, w3 = (
+        rate * gamma[0] + axial * chi[0],
+        rate * gamma[1] + axial * chi[1],
+        rate * gamma[2] + axial * chi[2],
+    )
     return (inertia[0] * w1, inertia[1] * w2, inertia[2] * w3) + gamma
 
 
@@ -117,7 +125,9 @@ def precess_start(p, d):
 def top_observe(inv, y):
     """``(Gamma / |Gamma|, Omega)``: a unit vector (clipped against round-off) and [rad/s]."""
     n = vertical_norm(y)
-    return (clip_unit(y[3] / n), clip_unit(y[4] / n), clip_unit(y[5] / n)) + angular_velocity(inv, y)
+    return (clip_unit(y[3] / n), clip_unit(y[4] / n), clip_unit(y[5] / n)) + angular_velocity(
+        inv, y
+    )
 
 
 @jitable
@@ -169,7 +179,14 @@ def precess_evaluate(p, y, u):
     # capped at 1 (the axis exactly upright has rate 0: error 1); NaN counts as 1
     rate_err = select(rate_err <= 1.0, rate_err, 1.0)
     reward = 1.0 - tilt_err / tilt_limit - rate_err - control_cost * effort(u)
-    return reward, tilt_err > tilt_limit, rate, target, tilt_err, (tilt_err < success_tilt) & (rate_err < 0.1)
+    return (
+        reward,
+        tilt_err > tilt_limit,
+        rate,
+        target,
+        tilt_err,
+        (tilt_err < success_tilt) & (rate_err < 0.1),
+    )
 
 
 def _root_params(system, tilt):
@@ -180,7 +197,10 @@ def _root_params(system, tilt):
 def slow_precession_rate(system, spin, tilt):
     """Slow root of [T 3.82] ``A cos(a) p^2 - C n p + M g l = 0`` for arrays/floats of ``spin``
     (:func:`slow_precession_root`)."""
-    p = slow_precession_root(_root_params(system, tilt), float(spin) if np.ndim(spin) == 0 else np.asarray(spin, dtype=np.float64))
+    p = slow_precession_root(
+        _root_params(system, tilt),
+        float(spin) if np.ndim(spin) == 0 else np.asarray(spin, dtype=np.float64),
+    )
     return float(p) if np.ndim(p) == 0 else p
 
 
@@ -215,7 +235,12 @@ class UprightTask(TwoStageStart):
         """``(upright_start, P)``: the pure form of :meth:`initial_from_draws`."""
         prm = system.params
         cone = _cone_params(prm.com_direction, 0.0, self.perturbation)
-        return upright_start, (cone, float(self.spin_low), float(self.spin_high), tuple(float(c) for c in prm.inertia))
+        return upright_start, (
+            cone,
+            float(self.spin_low),
+            float(self.spin_high),
+            tuple(float(c) for c in prm.inertia),
+        )
 
     def observe(self, system, y):
         return top_observe(system.params.inverse, tuple(y))
@@ -236,8 +261,12 @@ class UprightTask(TwoStageStart):
 
     def _params(self, system):
         limit, success = float(self.tilt_limit), float(self.success_tilt)
-        return (system.params.com_direction, float(self.control_cost), (math.cos(limit), math.sin(limit), limit < math.pi),
-                (math.cos(success), math.sin(success)))
+        return (
+            system.params.com_direction,
+            float(self.control_cost),
+            (math.cos(limit), math.sin(limit), limit < math.pi),
+            (math.cos(success), math.sin(success)),
+        )
 
 
 @dataclass(frozen=True)
@@ -285,19 +314,37 @@ class PrecessTask(TwoStageStart):
     def kernel_start(self, system):
         """``(precess_start, P)``: the pure form of :meth:`initial_from_draws`."""
         prm = system.params
-        cone = _cone_params(prm.com_direction, self.target_tilt - self.perturbation, self.target_tilt + self.perturbation)
+        cone = _cone_params(
+            prm.com_direction,
+            self.target_tilt - self.perturbation,
+            self.target_tilt + self.perturbation,
+        )
         fixed = self.target_rate is not None
         rate = float(self.target_rate) if fixed else 0.0
-        return precess_start, (cone, float(self.spin_low), float(self.spin_high), fixed, rate, _root_params(system, self.target_tilt),
-                               tuple(float(c) for c in prm.inertia))
+        return precess_start, (
+            cone,
+            float(self.spin_low),
+            float(self.spin_high),
+            fixed,
+            rate,
+            _root_params(system, self.target_tilt),
+            tuple(float(c) for c in prm.inertia),
+        )
 
     def observe(self, system, y):
         return top_observe(system.params.inverse, tuple(y))
 
     def evaluate(self, system, y, u):
         """``(reward, terminated, metrics)`` with the errors computed once."""
-        reward, terminated, rate, target, tilt_err, success = precess_evaluate(self._params(system), tuple(y), u)
-        metrics = {"precession_rate": rate, "target_precession_rate": target, "tilt_error": tilt_err, "is_success": success}
+        reward, terminated, rate, target, tilt_err, success = precess_evaluate(
+            self._params(system), tuple(y), u
+        )
+        metrics = {
+            "precession_rate": rate,
+            "target_precession_rate": target,
+            "tilt_error": tilt_err,
+            "is_success": success,
+        }
         return reward, terminated, metrics
 
     def kernels(self, system):
@@ -313,5 +360,14 @@ class PrecessTask(TwoStageStart):
         prm = system.params
         fixed = self.target_rate is not None
         rate = float(self.target_rate) if fixed else 0.0
-        return (prm.inverse, prm.com_direction, float(self.target_tilt), fixed, rate, _root_params(system, self.target_tilt),
-                float(self.tilt_limit), float(self.success_tilt), float(self.control_cost))
+        return (
+            prm.inverse,
+            prm.com_direction,
+            float(self.target_tilt),
+            fixed,
+            rate,
+            _root_params(system, self.target_tilt),
+            float(self.tilt_limit),
+            float(self.success_tilt),
+            float(self.control_cost),
+        )

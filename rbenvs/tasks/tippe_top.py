@@ -26,7 +26,16 @@ from ..jit import jitable
 from ..rotations import quat_multiply
 from .common import TwoStageStart, effort
 
-__all__ = ["InvertTask", "HoldTask", "STARTS", "tilted_spin_state", "unit_component", "observation_form", "invert_form", "hold_form"]
+__all__ = [
+    "InvertTask",
+    "HoldTask",
+    "STARTS",
+    "tilted_spin_state",
+    "unit_component",
+    "observation_form",
+    "invert_form",
+    "hold_form",
+]
 
 
 # The starts (docs/physics.md §3, "Starts"): how a top is spun before it is let go.
@@ -48,9 +57,17 @@ def tilted_spin_state(system, d, spin_low, spin_high, tilt_low, tilt_high, start
 def spun_start(system, spin_low, spin_high, tilt_low, tilt_high, start="rolling") -> tuple:
     """``(start, P)``: the pure form of :func:`tilted_spin_state` for ``system``'s layout."""
     if start not in STARTS:
-        raise ValueError(f"start must be one of {list(STARTS)}, got {start!r}{did_you_mean(start, STARTS)}")
+        raise ValueError(
+            f"start must be one of {list(STARTS)}, got {start!r}{did_you_mean(start, STARTS)}"
+        )
     form = spun_start_form(system.forms.state, start != "rolling", start == "vertical")
-    return form, (system.form_params, float(spin_low), float(spin_high), float(tilt_low), float(tilt_high))
+    return form, (
+        system.form_params,
+        float(spin_low),
+        float(spin_high),
+        float(tilt_low),
+        float(tilt_high),
+    )
 
 
 @lru_cache(maxsize=None)
@@ -113,9 +130,14 @@ def observation_form(frame, angular_velocity, velocity):
         w1, w2, w3 = angular_velocity(p, y)
         v = velocity(p, y)
         return (
-            unit_component(rm[2]), unit_component(rm[5]), unit_component(rm[8]),
-            rm[0] * w1 + rm[1] * w2 + rm[2] * w3, rm[3] * w1 + rm[4] * w2 + rm[5] * w3, rm[6] * w1 + rm[7] * w2 + rm[8] * w3,
-            v[0], v[1],
+            unit_component(rm[2]),
+            unit_component(rm[5]),
+            unit_component(rm[8]),
+            rm[0] * w1 + rm[1] * w2 + rm[2] * w3,
+            rm[3] * w1 + rm[4] * w2 + rm[5] * w3,
+            rm[6] * w1 + rm[7] * w2 + rm[8] * w3,
+            v[0],
+            v[1],
         )
 
     return observe
@@ -154,7 +176,9 @@ def hold_form(frame):
 def observe(system, y):
     """The observation of the tippe-top tasks at ``y`` (floats or arrays)."""
     forms = system.forms
-    return observation_form(forms.frame, forms.angular_velocity, forms.velocity)(system.form_params, y)
+    return observation_form(forms.frame, forms.angular_velocity, forms.velocity)(
+        system.form_params, y
+    )
 
 
 class _SpunTop(TwoStageStart):
@@ -171,7 +195,9 @@ class _SpunTop(TwoStageStart):
 
     def kernel_start(self, system):
         """``(start, P)``: the pure form of :meth:`initial_from_draws` (:func:`tilted_spin_state`)."""
-        return spun_start(system, self.spin_low, self.spin_high, self.tilt_low, self.tilt_high, self.start)
+        return spun_start(
+            system, self.spin_low, self.spin_high, self.tilt_low, self.tilt_high, self.start
+        )
 
     def observe(self, system, y):
         return observe(system, y)
@@ -181,11 +207,16 @@ class _SpunTop(TwoStageStart):
         :meth:`evaluate` for this system (:class:`rbenvs.contracts.Task`)."""
         forms = system.forms
         observe_fn = observation_form(forms.frame, forms.angular_velocity, forms.velocity)
-        return (observe_fn, system.form_params), (self._form(forms.frame), self._evaluate_params(system))
+        return (observe_fn, system.form_params), (
+            self._form(forms.frame),
+            self._evaluate_params(system),
+        )
 
     def evaluate(self, system, y, u):
         """``(reward, terminated, metrics)`` with the tilt computed once."""
-        reward, terminated, success = self._form(system.forms.frame)(self._evaluate_params(system), y, u)
+        reward, terminated, success = self._form(system.forms.frame)(
+            self._evaluate_params(system), y, u
+        )
         return reward, terminated, {"is_success": success}
 
 
@@ -255,7 +286,12 @@ class HoldTask(_SpunTop):
     _form = staticmethod(hold_form)
 
     def _evaluate_params(self, system):
-        return (system.form_params, float(self.control_cost), float(self.fall_tilt), float(self.success_tilt))
+        return (
+            system.form_params,
+            float(self.control_cost),
+            float(self.fall_tilt),
+            float(self.success_tilt),
+        )
 
     def reward_floor(self, system, observation_high) -> float:
         """The least reward of a step: inverted at full effort."""

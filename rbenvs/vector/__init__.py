@@ -86,7 +86,13 @@ from ..envs.options import NOISE_BLOCK, noise_generator, noisy_observation, reke
 from ..dynamics.validation import real_array, require_bool, require_int_at_least, unknown_keyword
 from .threads import resolve_num_threads
 
-__all__ = ["RigidBodyVectorEnv", "vector_class", "FreeRigidBodyVectorEnv", "LagrangeTopVectorEnv", "TippeTopVectorEnv"]
+__all__ = [
+    "RigidBodyVectorEnv",
+    "vector_class",
+    "FreeRigidBodyVectorEnv",
+    "LagrangeTopVectorEnv",
+    "TippeTopVectorEnv",
+]
 
 
 class RigidBodyVectorEnv(VectorEnv):
@@ -94,11 +100,28 @@ class RigidBodyVectorEnv(VectorEnv):
 
     env_class: type = None
 
-    def __init__(self, num_envs: int = 1, max_episode_steps: int | None = None, autoreset_mode=AutoresetMode.NEXT_STEP, info_readouts: bool = True, compiled="auto",
-                 num_threads=1, **kwargs):
-        valid = [k for f in (self.env_class.__init__, RigidBodyVectorEnv.__init__) for k in inspect.signature(f).parameters if k not in ("self", "kwargs")]
-        error = unknown_keyword(type(self).__name__, kwargs, valid,
-                                f"help(rbenvs.vector.{type(self).__name__}) and help(rbenvs.envs.{self.env_class.__name__}), docs/vector.md")
+    def __init__(
+        self,
+        num_envs: int = 1,
+        max_episode_steps: int | None = None,
+        autoreset_mode=AutoresetMode.NEXT_STEP,
+        info_readouts: bool = True,
+        compiled="auto",
+        num_threads=1,
+        **kwargs,
+    ):
+        valid = [
+            k
+            for f in (self.env_class.__init__, RigidBodyVectorEnv.__init__)
+            for k in inspect.signature(f).parameters
+            if k not in ("self", "kwargs")
+        ]
+        error = unknown_keyword(
+            type(self).__name__,
+            kwargs,
+            valid,
+            f"help(rbenvs.vector.{type(self).__name__}) and help(rbenvs.envs.{self.env_class.__name__}), docs/vector.md",
+        )
         if error is not None:
             raise error
         self.num_envs = require_int_at_least("num_envs", num_envs, 1)
@@ -111,13 +134,19 @@ class RigidBodyVectorEnv(VectorEnv):
         try:
             mode = AutoresetMode(autoreset_mode)
         except ValueError:
-            raise ValueError(f"autoreset_mode must be one of {[m.value for m in AutoresetMode if m is not AutoresetMode.DISABLED]}, got {autoreset_mode!r}") from None
+            raise ValueError(
+                f"autoreset_mode must be one of {[m.value for m in AutoresetMode if m is not AutoresetMode.DISABLED]}, got {autoreset_mode!r}"
+            ) from None
         if mode is AutoresetMode.DISABLED:
-            raise ValueError("autoreset_mode must be NextStep or SameStep (Disabled is not supported)")
+            raise ValueError(
+                "autoreset_mode must be NextStep or SameStep (Disabled is not supported)"
+            )
         self.autoreset_mode = mode
         # the single env's constructor validates the arguments and builds the model; only its
         # public model, spaces and metadata are read
-        env = self.env_class(**kwargs, **({"compiled": False} if compiled is False else {}))  # (False: no compiled code, the checked runs' neither)
+        env = self.env_class(
+            **kwargs, **({"compiled": False} if compiled is False else {})
+        )  # (False: no compiled code, the checked runs' neither)
         self.model, self.engine = env.model, env.engine
         self.metadata = dict(env.metadata, autoreset_mode=mode)
         self.render_mode = env.render_mode
@@ -125,7 +154,11 @@ class RigidBodyVectorEnv(VectorEnv):
         self.single_action_space = env.action_space
         self.observation_space = batch_space(env.observation_space, self.num_envs)
         self.action_space = batch_space(env.action_space, self.num_envs)
-        self.system, self.task, self.integrator = self.model.system, self.model.task, self.model.integrator
+        self.system, self.task, self.integrator = (
+            self.model.system,
+            self.model.task,
+            self.model.integrator,
+        )
         # the robustness options (rbenvs.envs.options), validated by the single env
         self._template, self._ranges, self._realism = env, env.param_ranges, env.realism
         # tolerance_check: the companion run of every sub-env (rbenvs.stepsize.controller), on the
@@ -137,9 +170,11 @@ class RigidBodyVectorEnv(VectorEnv):
         self._global = None  # the last step's global error estimates
         if self._check is not None:
             if compiled is True:
-                raise ValueError("compiled=True cannot be had with tolerance_check=True: the checked period (an even count of steps "
-                                 "and the companion run) runs on numpy, its runs in a compiled loop over the sub-envs (where numba is installed); "
-                                 "pass compiled='auto' or False")
+                raise ValueError(
+                    "compiled=True cannot be had with tolerance_check=True: the checked period (an even count of steps "
+                    "and the companion run) runs on numpy, its runs in a compiled loop over the sub-envs (where numba is installed); "
+                    "pass compiled='auto' or False"
+                )
             compiled = False
         self._options = self._ranges is not None or self._realism.active
         self._episode_checks = self._estimates = None  # (param_ranges: below)
@@ -147,8 +182,10 @@ class RigidBodyVectorEnv(VectorEnv):
             # each sub-env's episode has its own model (its drawn parameters), stepped on the float
             # path: no batched or compiled step of a model per row exists
             if compiled is True:
-                raise ValueError("compiled=True cannot be had with param_ranges: each sub-env's episode has its own model (drawn "
-                                 "parameters), stepped one sub-env at a time on the float path; pass compiled='auto' or False")
+                raise ValueError(
+                    "compiled=True cannot be had with param_ranges: each sub-env's episode has its own model (drawn "
+                    "parameters), stepped one sub-env at a time on the float path; pass compiled='auto' or False"
+                )
             compiled = False
             self._episodes = [None] * self.num_envs  # each sub-env's episode engine
             # with a tolerance each episode engine estimates its own periods (info["error_estimate"]),
@@ -165,7 +202,9 @@ class RigidBodyVectorEnv(VectorEnv):
         self._y2d = None  # the (dim, n) array whose rows are self._y, when the kernel made it
         # with a tolerance: each sub-env's compensation (dim, n), carried from period to period
         # as the single env's run carries its own (rbenvs.core.step.Engine.advance), zero at a start
-        self._cc = np.zeros((self.system.dim, self.num_envs)) if self.engine.step_c is not None else None
+        self._cc = (
+            np.zeros((self.system.dim, self.num_envs)) if self.engine.step_c is not None else None
+        )
         self._u = None  # the controls of the last step (None after a reset)
         self._last_h = None  # the internal step of the last period, per sub-env
         self._plain = self.engine.plain
@@ -193,9 +232,11 @@ class RigidBodyVectorEnv(VectorEnv):
         self._build_compiled(compiled)
         if self._vector_step is None:
             if num_threads != "auto" and threads > 1:
-                raise ValueError(f"num_threads={num_threads} splits the compiled vector step, and this env steps on numpy (compiled=False, "
-                                 "param_ranges, tolerance_check, an integrator without a pure form, or numba not installed: the 'fast' extra); "
-                                 "pass num_threads=1, or 'auto' (1 where the step is not compiled)")
+                raise ValueError(
+                    f"num_threads={num_threads} splits the compiled vector step, and this env steps on numpy (compiled=False, "
+                    "param_ranges, tolerance_check, an integrator without a pure form, or numba not installed: the 'fast' extra); "
+                    "pass num_threads=1, or 'auto' (1 where the step is not compiled)"
+                )
             self.num_threads = 1
 
     def _build_compiled(self, compiled) -> None:
@@ -207,9 +248,15 @@ class RigidBodyVectorEnv(VectorEnv):
         # per step where the generators can be handed to compiled code
         self._vector_step = None
         if self._batch_step is not None and self._use_table:
-            self._vector_step = _compiled.VectorStep(self.engine.kernel_parts(), self.model, self.single_observation_space.shape[0], self.engine.high,
-                                                     self.max_episode_steps,
-                                                     error=self.engine.rule.error, threads=self.num_threads)
+            self._vector_step = _compiled.VectorStep(
+                self.engine.kernel_parts(),
+                self.model,
+                self.single_observation_space.shape[0],
+                self.engine.high,
+                self.max_episode_steps,
+                error=self.engine.rule.error,
+                threads=self.num_threads,
+            )
 
     def __getstate__(self):
         """Everything but numba's objects (the generator tables' typed lists, the compiled steps)
@@ -268,7 +315,16 @@ class RigidBodyVectorEnv(VectorEnv):
             actuator = self.model.actuator
             u_norm, u = actuator.control((0.0,) * actuator.size)
             sample = self.model.initial_state(np.random.default_rng(0))
-            return _compiled.BatchStep(parts, self.system.dim, self.single_observation_space.shape[0], len(u), sample, self.engine.high, len(u_norm), self.model.dt)
+            return _compiled.BatchStep(
+                parts,
+                self.system.dim,
+                self.single_observation_space.shape[0],
+                len(u),
+                sample,
+                self.engine.high,
+                len(u_norm),
+                self.model.dt,
+            )
         if compiled is True:
             raise ValueError(f"compiled=True but {reason}")
         return None
@@ -294,13 +350,17 @@ class RigidBodyVectorEnv(VectorEnv):
         else:
             seeds = list(seed)
             if len(seeds) != n:
-                raise ValueError(f"seed must be an int, None or a list of {n} seeds, got {len(seeds)}")
+                raise ValueError(
+                    f"seed must be an int, None or a list of {n} seeds, got {len(seeds)}"
+                )
         options = {} if options is None else dict(options)
         state = options.pop("state", None)
         mask = options.pop("reset_mask", None)
         elapsed = options.pop("elapsed_steps", None)
         if options:
-            raise ValueError(f"reset options must be a subset of {{'state', 'reset_mask', 'elapsed_steps'}}, got unknown {sorted(options)}")
+            raise ValueError(
+                f"reset options must be a subset of {{'state', 'reset_mask', 'elapsed_steps'}}, got unknown {sorted(options)}"
+            )
         if elapsed is not None:
             elapsed = self._elapsed_steps(elapsed)
         if mask is None:
@@ -317,7 +377,9 @@ class RigidBodyVectorEnv(VectorEnv):
         if self._use_table and self._table is None and all(r is not None for r in self._rngs):
             self._table = GeneratorTable(self._rngs)
         if state is not None:
-            if self._ranges is not None:  # the episodes' parameters first, as the single env draws them
+            if (
+                self._ranges is not None
+            ):  # the episodes' parameters first, as the single env draws them
                 self._new_episodes(np.flatnonzero(mask))
             self._set_rows(self._rows_from_state(state, mask))
         else:
@@ -325,9 +387,13 @@ class RigidBodyVectorEnv(VectorEnv):
         self._steps[mask] = 0 if elapsed is None else elapsed[mask]
         self._prev_done = self._prev_done & ~mask
         self._plain = self.engine.plain
-        obs, over, metrics, physical = self._fresh(self._y, np.arange(n), started=mask, compiled=False)
+        obs, over, metrics, physical = self._fresh(
+            self._y, np.arange(n), started=mask, compiled=False
+        )
         if np.any(over & mask):
-            raise ValueError("an initial state lies outside the observation bounds; raise the limit parameters")
+            raise ValueError(
+                "an initial state lies outside the observation bounds; raise the limit parameters"
+            )
         self._u = None  # as the single env after reset: nothing acted yet (a table at rest)
         self._last_h = np.full(n, self.engine.h)
         info = self._info(self._y, None, self._false, self._false, metrics, physical)
@@ -350,9 +416,13 @@ class RigidBodyVectorEnv(VectorEnv):
             raise ValueError("options['elapsed_steps'] needs a time limit (max_episode_steps)")
         k = np.asarray(elapsed)
         if k.shape != (self.num_envs,) or not np.issubdtype(k.dtype, np.integer):
-            raise ValueError(f"options['elapsed_steps'] must be an integer array of shape ({self.num_envs},), got {k.dtype} {k.shape}")
+            raise ValueError(
+                f"options['elapsed_steps'] must be an integer array of shape ({self.num_envs},), got {k.dtype} {k.shape}"
+            )
         if k.min() < 0 or k.max() >= self.max_episode_steps:
-            raise ValueError(f"options['elapsed_steps'] must lie in [0, max_episode_steps) = [0, {self.max_episode_steps}), got [{k.min()}, {k.max()}]")
+            raise ValueError(
+                f"options['elapsed_steps'] must lie in [0, max_episode_steps) = [0, {self.max_episode_steps}), got [{k.min()}, {k.max()}]"
+            )
         return k.astype(np.int64)
 
     def _fresh(self, y, idx, started=None, compiled=True):
@@ -388,7 +458,9 @@ class RigidBodyVectorEnv(VectorEnv):
             return
         if self._ranges is not None:
             self._new_episodes(idx)
-            starts = [self._episodes[i].model.initial_state(self._rngs[i]) for i in idx]  # (the single env's draws)
+            starts = [
+                self._episodes[i].model.initial_state(self._rngs[i]) for i in idx
+            ]  # (the single env's draws)
             comps = tuple(np.array([float(c) for c in col]) for col in zip(*starts))
         elif self._table is not None:
             task_raw, system_raw = self.model.split_draws(self._table.draws(idx, self._codes))
@@ -402,7 +474,11 @@ class RigidBodyVectorEnv(VectorEnv):
             for j, v in enumerate(comps):
                 self._y2d[j, idx] = v
             return
-        y = [c.copy() for c in self._y] if self._y is not None else [np.zeros(self.num_envs) for _ in range(self.system.dim)]
+        y = (
+            [c.copy() for c in self._y]
+            if self._y is not None
+            else [np.zeros(self.num_envs) for _ in range(self.system.dim)]
+        )
         for c, v in zip(y, comps):
             c[idx] = v
         self._y = tuple(y)
@@ -420,17 +496,28 @@ class RigidBodyVectorEnv(VectorEnv):
 
     def _rows_from_state(self, state, mask) -> dict:
         if not isinstance(state, dict):
-            raise ValueError(f"options['state'] must be a dict of arrays batched along axis 0, got {type(state).__name__}")
+            raise ValueError(
+                f"options['state'] must be a dict of arrays batched along axis 0, got {type(state).__name__}"
+            )
         n = self.num_envs
         arrays = {}
         for name, value in state.items():
             arr = real_array(f"state[{name!r}]", value)
             if arr.ndim < 1 or arr.shape[0] != n:
-                raise ValueError(f"state[{name!r}] must be batched along a leading axis of length num_envs = {n}, got shape {arr.shape}")
+                raise ValueError(
+                    f"state[{name!r}] must be batched along a leading axis of length num_envs = {n}, got shape {arr.shape}"
+                )
             arrays[name] = arr
         # each row validated by the system's own checks (its episode's system), as the single env's
-        system = (lambda i: self._episodes[i].system) if self._ranges is not None else (lambda i: self.system)
-        return {i: system(i).import_state({k: v[i] for k, v in arrays.items()}) for i in np.flatnonzero(mask)}
+        system = (
+            (lambda i: self._episodes[i].system)
+            if self._ranges is not None
+            else (lambda i: self.system)
+        )
+        return {
+            i: system(i).import_state({k: v[i] for k, v in arrays.items()})
+            for i in np.flatnonzero(mask)
+        }
 
     def _set_rows(self, rows: dict) -> None:
         if self._y is None:
@@ -459,24 +546,43 @@ class RigidBodyVectorEnv(VectorEnv):
             # not estimated (the single env's None): NaN, its mask False
             info["error_estimate"], info["_error_estimate"] = self._unestimated, self._false
             if "final_info" in info:
-                info["final_info"]["error_estimate"], info["final_info"]["_error_estimate"] = self._unestimated, self._false
+                info["final_info"]["error_estimate"], info["final_info"]["_error_estimate"] = (
+                    self._unestimated,
+                    self._false,
+                )
             return out
         # with a tolerance: each period's estimated error, from the rate at its start and the
         # step it took (the single env's rule); 0 where no period ran (a sub-env restarted)
         vstep = self._vector_step
-        if self._ranges is None and not self._checked and vstep is not None and self._table is not None and vstep.layout.estimate:
+        if (
+            self._ranges is None
+            and not self._checked
+            and vstep is not None
+            and self._table is not None
+            and vstep.layout.estimate
+        ):
             # the compiled step writes the estimates (before the period, a restart's 0: a step handed
             # to the numpy path has them too); they go into its info last, as on the numpy path
             self._estimates = None
-            return self._estimated(self._step(actions), self._estimates, self._false, None, None, None, actions)
-        restart = self._prev_done.copy() if self.autoreset_mode is AutoresetMode.NEXT_STEP else self._false
+            return self._estimated(
+                self._step(actions), self._estimates, self._false, None, None, None, actions
+            )
+        restart = (
+            self._prev_done.copy()
+            if self.autoreset_mode is AutoresetMode.NEXT_STEP
+            else self._false
+        )
         # the estimates come from the step where it writes them (param_ranges: each sub-env's
         # episode engine, _step_episodes; the compiled vector step, from the rates at each
         # period's start as StepRule.plan's), else from the rates of the states before the step
         # (the numpy path, whose controls are made once for the rates and the step, and a
         # compiled step that handed a non-finite state to it)
         y0, y2d0, control = self._y, self._y2d, None
-        written = self._ranges is not None or (self._vector_step is not None and self._table is not None and self._vector_step.layout.estimate)
+        written = self._ranges is not None or (
+            self._vector_step is not None
+            and self._table is not None
+            and self._vector_step.layout.estimate
+        )
         if not written:
             control = self.model.actuator.control(action_columns(actions, self.action_space.shape))
         self._estimates = None
@@ -485,8 +591,9 @@ class RigidBodyVectorEnv(VectorEnv):
         if gated is not None:
             gated = np.broadcast_to(gated, (self.num_envs,)).astype(np.float64)
         out = self._step(actions, control, True if gated is not None else None)
-        return self._estimated(out, self._estimates if gated is None else gated, restart, control, y0, y2d0, actions)
-
+        return self._estimated(
+            out, self._estimates if gated is None else gated, restart, control, y0, y2d0, actions
+        )
 
     def _estimated(self, out, estimate, restart, control, y0, y2d0, actions):
         """The step's ``out`` with each period's ``estimate`` in its info (``None``: from the rates
@@ -496,10 +603,14 @@ class RigidBodyVectorEnv(VectorEnv):
         rule = self.engine.rule
         if estimate is None:
             if control is None:
-                control = self.model.actuator.control(action_columns(actions, self.action_space.shape))
+                control = self.model.actuator.control(
+                    action_columns(actions, self.action_space.shape)
+                )
             u = control[1] if rule.motion or rule.dissipation is not None else None
             lam, lam_d, share = self.engine.rates_batch(y0, u, y2d0)
-            estimate = np.broadcast_to(rule.estimate(lam, self._period_h, lam_d, share), (self.num_envs,)).astype(np.float64)
+            estimate = np.broadcast_to(
+                rule.estimate(lam, self._period_h, lam_d, share), (self.num_envs,)
+            ).astype(np.float64)
         if restart is not self._false:  # (a compiled step wrote a restart's 0 itself)
             estimate[restart] = 0.0
         if "final_info" in info:  # SAME_STEP: the ended periods' estimates go with their final info
@@ -532,7 +643,11 @@ class RigidBodyVectorEnv(VectorEnv):
         # NEXT_STEP: the sub-envs whose episode ended last step are reset, not stepped.
         restart = self._prev_done if self.autoreset_mode is AutoresetMode.NEXT_STEP else self._false
         any_restart = bool(restart.any())
-        u_norm, u = self.model.actuator.control(action_columns(actions, self.action_space.shape)) if control is None else control
+        u_norm, u = (
+            self.model.actuator.control(action_columns(actions, self.action_space.shape))
+            if control is None
+            else control
+        )
         y0 = self._y
         fast = None
         plain = self._plain if plain is None else plain
@@ -542,7 +657,9 @@ class RigidBodyVectorEnv(VectorEnv):
                 y, fast, fired, h = self._compiled_advance(y0, u, u_norm, restart, plain)
             else:
                 comp = None if self._cc is None else tuple(self._cc)
-                y, fired, h, comp = engine.advance(y0, u, plain, restart if any_restart else None, comp)
+                y, fired, h, comp = engine.advance(
+                    y0, u, plain, restart if any_restart else None, comp
+                )
                 if comp is not None:
                     cc = self._cc = np.empty((len(comp), self.num_envs))
                     for j, c in enumerate(comp):  # (a component may be one float for every sub-env)
@@ -550,7 +667,9 @@ class RigidBodyVectorEnv(VectorEnv):
                 if fired is False:
                     fired = self._false
         inaccurate = None
-        if self._check is not None:  # the companions' period; a restarting sub-env's is discarded (it restarts below)
+        if (
+            self._check is not None
+        ):  # the companions' period; a restarting sub-env's is discarded (it restarts below)
             n = np.rint(engine.dt / np.broadcast_to(h, (self.num_envs,))).astype(np.int64)
             with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
                 self._global = np.where(restart, 0.0, self._check.period(y, u, n))
@@ -566,7 +685,9 @@ class RigidBodyVectorEnv(VectorEnv):
             if not over.any():
                 over = self._false
             metrics = dict(zip(self.task.metric_names, metrics))
-            return self._finish(obs, over, reward, terminated, fired, None, metrics, restart, any_restart, physical)
+            return self._finish(
+                obs, over, reward, terminated, fired, None, metrics, restart, any_restart, physical
+            )
         return self._numpy_finish(y0, y, u_norm, fired, restart, any_restart, inaccurate)
 
     def _numpy_finish(self, y0, y, u_norm, fired, restart, any_restart, inaccurate=None):
@@ -575,14 +696,18 @@ class RigidBodyVectorEnv(VectorEnv):
         observation, evaluation, then :meth:`_finish`."""
         engine = self.engine
         self._y2d = None
-        y, failed = engine.settle(y0, y, restart, self._last_h, inaccurate, self._global, self._check)
+        y, failed = engine.settle(
+            y0, y, restart, self._last_h, inaccurate, self._global, self._check
+        )
         self._y = y
         obs, over = engine.observe(y)
         reward, terminated, metrics = engine.evaluate(y, u_norm)
         if failed is not None:
             reward = np.where(failed, 0.0, reward)
             terminated = terminated | failed
-        return self._finish(obs, over, reward, terminated, fired, failed, metrics, restart, any_restart)
+        return self._finish(
+            obs, over, reward, terminated, fired, failed, metrics, restart, any_restart
+        )
 
     def _compiled_step_all(self, actions):
         """:meth:`step` as one compiled call (:class:`rbenvs.compiled.VectorStep`): the same
@@ -591,7 +716,12 @@ class RigidBodyVectorEnv(VectorEnv):
         to the numpy path's failure handling, a refusal or a bad action raises as there."""
         shape = self.action_space.shape
         a = actions
-        if not (type(a) is np.ndarray and a.dtype in _REAL_FLOATS and a.shape == shape and a.flags.c_contiguous):
+        if not (
+            type(a) is np.ndarray
+            and a.dtype in _REAL_FLOATS
+            and a.shape == shape
+            and a.flags.c_contiguous
+        ):
             a = real_array("actions", actions, dtype=None)
             if a.shape != shape:
                 raise ValueError(f"actions must have shape {shape}, got {a.shape}")
@@ -609,30 +739,54 @@ class RigidBodyVectorEnv(VectorEnv):
             done, restart, skip = np.empty(self.num_envs, dtype=bool), self._false, self._false
         reasons, rz, clear, entry = self._reasons.take()
         # (compiled arithmetic raises no floating-point warnings: no errstate needed here)
-        r = vstep(a, Y, self._steps, done, skip, self._table.list, not self._plain, engine.guard == "refuse", next_step, (rz, self._reasons.names, clear), self._cc)
-        if r.status == -2:  # a non-finite action: the numpy path's check raises, naming the sub-envs
+        r = vstep(
+            a,
+            Y,
+            self._steps,
+            done,
+            skip,
+            self._table.list,
+            not self._plain,
+            engine.guard == "refuse",
+            next_step,
+            (rz, self._reasons.names, clear),
+            self._cc,
+        )
+        if (
+            r.status == -2
+        ):  # a non-finite action: the numpy path's check raises, naming the sub-envs
             action_columns(actions, shape)
-            raise AssertionError("the compiled step found a non-finite action that action_columns accepted")
+            raise AssertionError(
+                "the compiled step found a non-finite action that action_columns accepted"
+            )
         if r.status == -1:
             over = (r.counts > engine.substeps) & ~restart
-            raise engine.refusal(int(r.counts[over].max()), f" of sub-envs {np.flatnonzero(over).tolist()}")
+            raise engine.refusal(
+                int(r.counts[over].max()), f" of sub-envs {np.flatnonzero(over).tolist()}"
+            )
         # the controls that acted: made from the actions where a failure needs them
         self._u, self._last_h = None, r.h
         if r.status > 0:  # non-finite new states: the numpy path's failure handling
-            if engine.tolerance is not None:  # (the estimate's step: _step_estimated; a SAME_STEP restart rewrites r.h's restarted rows)
+            if (
+                engine.tolerance is not None
+            ):  # (the estimate's step: _step_estimated; a SAME_STEP restart rewrites r.h's restarted rows)
                 self._period_h = np.array(r.h, dtype=np.float64)
                 self._estimates = r.estimate
             fired = r.fired if r.fired.any() else self._false
             u_norm, self._u = self.model.actuator.control(action_columns(a, shape))
             with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
-                return self._numpy_finish(self._y, tuple(r.Y), u_norm, fired, restart, bool(restart.any()))
+                return self._numpy_finish(
+                    self._y, tuple(r.Y), u_norm, fired, restart, bool(restart.any())
+                )
         self._reasons.written(entry, r.written)
         self._y2d, self._y = r.Y, tuple(r.Y)
         self._estimates = r.estimate
         info = self._kernel_info(r, done, reasons)
         obs, reward = r.obs, r.reward  # (the failure charge is in: the kernel adds it)
         if next_step:
-            if r.n_restarted and not vstep.restarts:  # (no pure start: restarted here; else in the step)
+            if (
+                r.n_restarted and not vstep.restarts
+            ):  # (no pure start: restarted here; else in the step)
                 obs, info = self._restart(restart, obs, info)
         elif r.n_ended:
             obs, info = self._same_step_reset(done, obs, info, r)
@@ -652,13 +806,31 @@ class RigidBodyVectorEnv(VectorEnv):
             template.update(numerical_failure=self._false, _numerical_failure=self._true)
             self._info_template, self._info_names = template, names
         info = template.copy()
-        info.update(zip(self._info_names, (*r.readouts, r.h, *r.metrics) if self.info_readouts else r.metrics))
+        info.update(
+            zip(
+                self._info_names,
+                (*r.readouts, r.h, *r.metrics) if self.info_readouts else r.metrics,
+            )
+        )
         if r.n_ended:
             info["terminal_reason"] = reasons
             info["_terminal_reason"] = done.copy()
         return info
 
-    def _finish(self, obs, over, reward, terminated, fired, failed, metrics, restart, any_restart, physical=None, charged=False):
+    def _finish(
+        self,
+        obs,
+        over,
+        reward,
+        terminated,
+        fired,
+        failed,
+        metrics,
+        restart,
+        any_restart,
+        physical=None,
+        charged=False,
+    ):
         """Info, truncation, terminal reasons, the failure charge (unless the rewards are
         ``charged`` already) and autoreset: the rest of :meth:`step`."""
         # (a sub-env that left the observation bounds restarts before it is stepped again, so
@@ -667,16 +839,24 @@ class RigidBodyVectorEnv(VectorEnv):
         lifted = fired & ~failed_mask if fired is not self._false else self._false
         info = self._info(self._y, failed, lifted, over, metrics, physical)
         self._steps += 1
-        truncated = self._false.copy() if self.max_episode_steps is None else self._steps >= self.max_episode_steps  # as TimeLimit
+        truncated = (
+            self._false.copy()
+            if self.max_episode_steps is None
+            else self._steps >= self.max_episode_steps
+        )  # as TimeLimit
         ended = terminated | over | lifted
         stopped = ended | truncated
         # (NEXT_STEP: a restarting sub-env's period is discarded; it ends nothing)
         if (stopped & ~restart if any_restart else stopped).any():
-            info["terminal_reason"] = terminal_reason(failed_mask, lifted, over, terminated, self.engine.event_name)
+            info["terminal_reason"] = terminal_reason(
+                failed_mask, lifted, over, terminated, self.engine.event_name
+            )
             info["_terminal_reason"] = stopped
             terminated = ended
             if not charged:
-                reward = self._charged(reward, ended & ~restart if any_restart else ended, metrics["is_success"])
+                reward = self._charged(
+                    reward, ended & ~restart if any_restart else ended, metrics["is_success"]
+                )
         if any_restart:
             obs, info = self._restart(restart, obs, info)
             reward = np.where(restart, 0.0, reward)
@@ -709,16 +889,35 @@ class RigidBodyVectorEnv(VectorEnv):
         Y = self._y2d if self._y2d is not None else np.stack(y)
         # controls as (n,) float64 arrays (an unactuated axis is a 0.0 for every sub-env)
         u = tuple(c if type(c) is np.ndarray else np.full(n, c, dtype=np.float64) for c in u)
-        u_norm = tuple(c if type(c) is np.ndarray else np.full(n, c, dtype=np.float64) for c in u_norm)
-        out = self._batch_step(Y, u, u_norm, engine.h, engine.substeps, not plain, restart, engine.guard == "refuse", self._cc)
+        u_norm = tuple(
+            c if type(c) is np.ndarray else np.full(n, c, dtype=np.float64) for c in u_norm
+        )
+        out = self._batch_step(
+            Y,
+            u,
+            u_norm,
+            engine.h,
+            engine.substeps,
+            not plain,
+            restart,
+            engine.guard == "refuse",
+            self._cc,
+        )
         if out.status < 0:
             over = (out.counts > engine.substeps) & ~restart
-            raise engine.refusal(int(out.counts[over].max()), f" of sub-envs {np.flatnonzero(over).tolist()}")
+            raise engine.refusal(
+                int(out.counts[over].max()), f" of sub-envs {np.flatnonzero(over).tolist()}"
+            )
         fired = out.fired if out.fired.any() else self._false
         y = tuple(out.Y)
         if out.status:
             return y, None, fired, out.h
-        return y, (out.Y, out.obs, out.over, out.reward, out.terminated, out.metrics, out.readouts), fired, out.h
+        return (
+            y,
+            (out.Y, out.obs, out.over, out.reward, out.terminated, out.metrics, out.readouts),
+            fired,
+            out.h,
+        )
 
     def _restart(self, which, obs, info):
         """NEXT_STEP autoreset of the sub-envs in ``which``: new initial states, and their rows of
@@ -734,14 +933,18 @@ class RigidBodyVectorEnv(VectorEnv):
         values = {}
         if self.info_readouts:
             if physical is None:
-                values = self.engine.readouts(y, None, np.zeros(len(idx), dtype=bool), self.engine.h)
+                values = self.engine.readouts(
+                    y, None, np.zeros(len(idx), dtype=bool), self.engine.h
+                )
             else:
                 values = dict(zip(self.engine.readout_names, physical), internal_step=self.engine.h)
         values.update(metrics)
         values["numerical_failure"] = False
         for key, value in values.items():
             column = info[key]
-            if not column.flags.writeable:  # a shared mask (info's other arrays are this step's own)
+            if (
+                not column.flags.writeable
+            ):  # a shared mask (info's other arrays are this step's own)
                 column = info[key] = column.copy()
             column[idx] = value
         if "terminal_reason" in info:
@@ -758,7 +961,18 @@ class RigidBodyVectorEnv(VectorEnv):
         if compiled is not None and self._vector_step.restarts:
             r = compiled
             idx = np.flatnonzero(done)
-            self._vector_step.rows(idx, np.ones(len(idx), dtype=bool), r.Y, self._table.list, obs, r.over, r.h, self._steps, r.metrics, r.readouts)
+            self._vector_step.rows(
+                idx,
+                np.ones(len(idx), dtype=bool),
+                r.Y,
+                self._table.list,
+                obs,
+                r.over,
+                r.h,
+                self._steps,
+                r.metrics,
+                r.readouts,
+            )
             if self._cc is not None:  # (new runs)
                 self._cc[:, idx] = 0.0
             if "terminal_reason" in info:  # (every ended sub-env restarts)
@@ -783,7 +997,9 @@ class RigidBodyVectorEnv(VectorEnv):
             values = self._ranges.draw(self._rngs[i])
             self._episodes[i] = self._template.episode_env(values).engine
             self._plains[i] = self._episodes[i].plain
-            if self._episode_checks is not None:  # (started at the episode's state: _restart_companion)
+            if (
+                self._episode_checks is not None
+            ):  # (started at the episode's state: _restart_companion)
                 self._episode_checks[i] = GlobalErrorCheck(self._episodes[i])
             for name, v in self._ranges.info(values).items():
                 column = self._param_values.get(name)
@@ -803,8 +1019,14 @@ class RigidBodyVectorEnv(VectorEnv):
             o, info = start(tuple(float(c[j]) for c in y))
             obs[j] = o
             infos.append(info)
-        metrics = {name: self._column(name, [info[name] for info in infos]) for name in self.task.metric_names}
-        physical = [np.array([info[name] for info in infos], dtype=np.float64) for name in self.engine.readout_names]
+        metrics = {
+            name: self._column(name, [info[name] for info in infos])
+            for name in self.task.metric_names
+        }
+        physical = [
+            np.array([info[name] for info in infos], dtype=np.float64)
+            for name in self.engine.readout_names
+        ]
         return obs, over, metrics, physical
 
     def _column(self, name, values):
@@ -814,7 +1036,11 @@ class RigidBodyVectorEnv(VectorEnv):
         dtype = self._metric_dtypes.get(name)
         if dtype is None:
             v = next((x for x in values if x is not None), 0.0)
-            dtype = self._metric_dtypes[name] = np.bool_ if isinstance(v, bool) else (np.int64 if isinstance(v, int) else np.float64)
+            dtype = self._metric_dtypes[name] = (
+                np.bool_
+                if isinstance(v, bool)
+                else (np.int64 if isinstance(v, int) else np.float64)
+            )
         return np.array([dtype(0) if x is None else x for x in values], dtype=dtype)
 
     def _step_episodes(self, actions):
@@ -831,7 +1057,10 @@ class RigidBodyVectorEnv(VectorEnv):
         terminated, over, fired, failed = (np.zeros(n, dtype=bool) for _ in range(4))
         h = np.full(n, self.engine.h)
         names, readouts = self.task.metric_names, self.engine.readout_names
-        metric_rows, physical = {name: [None] * n for name in names}, [np.zeros(n) for _ in readouts]
+        metric_rows, physical = (
+            {name: [None] * n for name in names},
+            [np.zeros(n) for _ in readouts],
+        )
         y_new = [c.copy() for c in self._y]
         us = [None] * n
         event = self.engine.event_name
@@ -846,7 +1075,9 @@ class RigidBodyVectorEnv(VectorEnv):
             if restart[i]:  # (NEXT_STEP: reset below, the period discarded)
                 continue
             yi = tuple(float(c[i]) for c in self._y)
-            step_one = self._episodes[i].step_one if checks is None else checks[i].step_one  # (the single env's step)
+            step_one = (
+                self._episodes[i].step_one if checks is None else checks[i].step_one
+            )  # (the single env's step)
             y, o, r, _, info, u, plain = step_one(yi, rows[i], bool(self._plains[i]))
             self._plains[i] = plain
             if estimated:
@@ -867,11 +1098,26 @@ class RigidBodyVectorEnv(VectorEnv):
                 column[i] = info[name]
         self._y, self._y2d = tuple(y_new), None
         size = next((len(u) for u in us if u is not None), None)
-        self._u = None if size is None else tuple(np.array([0.0 if u is None else u[j] for u in us]) for j in range(size))
+        self._u = (
+            None
+            if size is None
+            else tuple(np.array([0.0 if u is None else u[j] for u in us]) for j in range(size))
+        )
         self._last_h = h
         metrics = {name: self._column(name, metric_rows[name]) for name in names}
-        return self._finish(obs, over, reward, terminated, fired if fired.any() else self._false, failed if failed.any() else None, metrics, restart,
-                            any_restart, physical, charged=True)
+        return self._finish(
+            obs,
+            over,
+            reward,
+            terminated,
+            fired if fired.any() else self._false,
+            failed if failed.any() else None,
+            metrics,
+            restart,
+            any_restart,
+            physical,
+            charged=True,
+        )
 
     def _step_options(self, actions):
         """:meth:`step` with the robustness options: the action queue (``action_delay``) gives the
@@ -885,7 +1131,9 @@ class RigidBodyVectorEnv(VectorEnv):
         next_step = self.autoreset_mode is AutoresetMode.NEXT_STEP
         restart = self._prev_done.copy() if next_step else None
         if r.delay:
-            a = np.stack(action_columns(actions, self.action_space.shape), axis=1)  # checked and clipped, as the single env's
+            a = np.stack(
+                action_columns(actions, self.action_space.shape), axis=1
+            )  # checked and clipped, as the single env's
             actions = self._queue[self._head].copy()
             self._queue[self._head] = a
             self._head = (self._head + 1) % r.delay
@@ -907,11 +1155,19 @@ class RigidBodyVectorEnv(VectorEnv):
             if same_step and len(idx):
                 final = info["final_obs"].copy()
                 last = np.stack([final[i] for i in idx])
-                noisy = noisy_observation(last, None if self._bias is None else self._bias[idx], r.noise, self._noise_rows(idx), high)
+                noisy = noisy_observation(
+                    last,
+                    None if self._bias is None else self._bias[idx],
+                    r.noise,
+                    self._noise_rows(idx),
+                    high,
+                )
                 for j, i in enumerate(idx):
                     final[i] = noisy[j]
                 info["final_obs"] = final
-            for i in idx:  # the new episodes' streams, keyed from their generators after their starts
+            for (
+                i
+            ) in idx:  # the new episodes' streams, keyed from their generators after their starts
                 g = self._noise_gen[i]
                 rekey(g, self._rngs[i])
                 if self._bias is not None:
@@ -919,7 +1175,9 @@ class RigidBodyVectorEnv(VectorEnv):
                 if r.noise is not None and self._noise_table is None:
                     self._zpos[i] = NOISE_BLOCK
             self.noiseless_observation = obs
-            obs = noisy_observation(obs, self._bias, r.noise, self._noise_rows(np.arange(self.num_envs)), high)
+            obs = noisy_observation(
+                obs, self._bias, r.noise, self._noise_rows(np.arange(self.num_envs)), high
+            )
         if self._ranges is not None and len(idx):
             params = {}
             for name, column in self._param_values.items():
@@ -968,7 +1226,9 @@ class RigidBodyVectorEnv(VectorEnv):
             if type(value) is not np.ndarray:
                 value = np.asarray(value)
             if value.shape != (n,):
-                value = np.full(n, value) if value.ndim == 0 else np.broadcast_to(value, (n,)).copy()
+                value = (
+                    np.full(n, value) if value.ndim == 0 else np.broadcast_to(value, (n,)).copy()
+                )
             elif id(value) in own:
                 value = value.copy()
             info[key] = value
@@ -982,7 +1242,10 @@ class RigidBodyVectorEnv(VectorEnv):
         """The physical state of every sub-env: the single env's names, batched on axis 0."""
         if self._y is None:
             raise RuntimeError("call reset() before get_state()")
-        return {k: np.array(v, dtype=np.float64).T.copy() for k, v in self.system.export_state(self._y).items()}
+        return {
+            k: np.array(v, dtype=np.float64).T.copy()
+            for k, v in self.system.export_state(self._y).items()
+        }
 
     @property
     def state_components(self) -> tuple:
@@ -997,7 +1260,10 @@ class RigidBodyVectorEnv(VectorEnv):
         (gymnasium's vector convention), each the single env's frame of that state (the env
         class's scene); ``"human"``: sub-env 0 in a window, ``None``. The batch is only read."""
         if self.render_mode is None:
-            warnings.warn(f"{type(self).__name__}.render() called without a render_mode: pass render_mode='rgb_array' or 'human'", stacklevel=2)
+            warnings.warn(
+                f"{type(self).__name__}.render() called without a render_mode: pass render_mode='rgb_array' or 'human'",
+                stacklevel=2,
+            )
             return None
         if self._y is None:
             raise RuntimeError("call reset() before render()")
@@ -1035,7 +1301,11 @@ def vector_class(env_class: type) -> type:
     if cls is None:
         name = env_class.__name__[: -len("Env")] + "VectorEnv"
         doc = f"The vector env of :class:`{env_class.__module__}.{env_class.__name__}` (see :mod:`rbenvs.vector`)."
-        cls = _MADE[env_class] = type(name, (RigidBodyVectorEnv,), {"env_class": env_class, "__doc__": doc, "__module__": __name__})
+        cls = _MADE[env_class] = type(
+            name,
+            (RigidBodyVectorEnv,),
+            {"env_class": env_class, "__doc__": doc, "__module__": __name__},
+        )
     return cls
 
 

@@ -22,7 +22,9 @@ from __future__ import annotations
 import gymnasium as gym
 import numpy as np
 from gymnasium.vector import AutoresetMode
-from stable_baselines3.common.vec_env.base_vec_env import VecEnv  # the agents extra (this module is imported on demand)
+from stable_baselines3.common.vec_env.base_vec_env import (
+    VecEnv,
+)  # the agents extra (this module is imported on demand)
 
 __all__ = ["SB3VecEnv", "make_sb3_vec_env"]
 
@@ -33,7 +35,9 @@ class SB3VecEnv(VecEnv):
     def __init__(self, venv, info_keys=()):
         venv = getattr(venv, "unwrapped", venv)
         if venv.metadata.get("autoreset_mode") is not AutoresetMode.SAME_STEP:
-            raise ValueError("SB3VecEnv needs a vector env made with autoreset_mode='SameStep' (SB3 resets in the ending step)")
+            raise ValueError(
+                "SB3VecEnv needs a vector env made with autoreset_mode='SameStep' (SB3 resets in the ending step)"
+            )
         self.venv = venv
         self.info_keys = tuple(info_keys)
         super().__init__(venv.num_envs, venv.single_observation_space, venv.single_action_space)
@@ -79,7 +83,9 @@ class SB3VecEnv(VecEnv):
         return [value for _ in self._get_indices(indices)]
 
     def set_attr(self, attr_name, value, indices=None):
-        raise AttributeError("SB3VecEnv: sub-environments share one configuration; set attributes on the vector env itself")
+        raise AttributeError(
+            "SB3VecEnv: sub-environments share one configuration; set attributes on the vector env itself"
+        )
 
     def env_method(self, method_name, *method_args, indices=None, **method_kwargs):
         """The vector env's method (the sub-envs share one configuration), once per index."""
@@ -97,11 +103,19 @@ class SB3VecEnv(VecEnv):
         return indices
 
 
-def make_sb3_vec_env(env_id: str, num_envs: int, seed: int | None = None, info_keys=(), **kwargs) -> SB3VecEnv:
+def make_sb3_vec_env(
+    env_id: str, num_envs: int, seed: int | None = None, info_keys=(), **kwargs
+) -> SB3VecEnv:
     """``SB3VecEnv`` over ``gymnasium.make_vec(env_id, num_envs, vector_entry_point, SameStep)``."""
     import rbenvs  # noqa: F401  (registers the ids)
 
-    venv = gym.make_vec(env_id, num_envs=num_envs, vectorization_mode="vector_entry_point", autoreset_mode="SameStep", **kwargs)
+    venv = gym.make_vec(
+        env_id,
+        num_envs=num_envs,
+        vectorization_mode="vector_entry_point",
+        autoreset_mode="SameStep",
+        **kwargs,
+    )
     env = SB3VecEnv(venv, info_keys=info_keys)
     if seed is not None:
         env.seed(seed)

@@ -59,7 +59,9 @@ def _after_fork_in_child() -> None:
     _forked_after_omp = _forked_after_omp or _omp_started()
 
 
-os.register_at_fork(after_in_child=_after_fork_in_child) if hasattr(os, "register_at_fork") else None
+os.register_at_fork(after_in_child=_after_fork_in_child) if hasattr(
+    os, "register_at_fork"
+) else None
 _warned = False
 
 
@@ -71,9 +73,13 @@ def splits() -> bool:
         return True
     if not _warned:
         _warned = True
-        warnings.warn("num_threads: this process was forked from one that ran numba's GNU OpenMP threads, which cannot start in a forked "
-                      "child; its vector steps run on one thread (the same results). Start such workers with 'spawn' or 'forkserver' "
-                      "(AsyncVectorEnv(..., context='spawn')) to run them on threads.", RuntimeWarning, stacklevel=4)
+        warnings.warn(
+            "num_threads: this process was forked from one that ran numba's GNU OpenMP threads, which cannot start in a forked "
+            "child; its vector steps run on one thread (the same results). Start such workers with 'spawn' or 'forkserver' "
+            "(AsyncVectorEnv(..., context='spawn')) to run them on threads.",
+            RuntimeWarning,
+            stacklevel=4,
+        )
     return False
 
 

@@ -80,7 +80,9 @@ TOLERANCE_CASES = (2, 6)  # free bodies run with tolerance= (rbenvs.verify.toler
 HEAVY_TOP_CASES = (1, 6)
 
 
-def run_checks(systems=SYSTEMS, integrators=None, quick=False, seed=0, show_progress=True, simulators=None) -> list[Check]:
+def run_checks(
+    systems=SYSTEMS, integrators=None, quick=False, seed=0, show_progress=True, simulators=None
+) -> list[Check]:
     """Every check of ``systems`` for ``integrators`` (default: all registered), in that order;
     or, given ``simulators`` (:class:`~rbenvs.verify.simulator.Simulator` objects), for those:
     each at its own step, the rows it cannot run reading n/a."""
@@ -99,14 +101,23 @@ def run_checks(systems=SYSTEMS, integrators=None, quick=False, seed=0, show_prog
     n_fb, n_fast = FREE_BODY_CASES[0 if quick else 1], FAST_TUMBLE_BODIES[0 if quick else 1]
     n_ht, n_small = HEAVY_TOP_CASES[0 if quick else 1], SMALL_TOP_CASES[0 if quick else 1]
     n_tol = TOLERANCE_CASES[0 if quick else 1]
-    total = len(fb) * (n_fb + 1 + n_fast) + len(tolerance_integrators(fb)) * n_tol * 3 + len(ht) * (n_ht + n_small) + _tippe.progress_total(tt, quick=quick)
+    total = (
+        len(fb) * (n_fb + 1 + n_fast)
+        + len(tolerance_integrators(fb)) * n_tol * 3
+        + len(ht) * (n_ht + n_small)
+        + _tippe.progress_total(tt, quick=quick)
+    )
     progress = Progress(total=total, enabled=show_progress, desc="verify")
     checks = list(unverified)
     if fb:
-        checks += free_body_checks(fb, seed=seed, n_cases=n_fb, progress=progress.update, n_fast=n_fast)
+        checks += free_body_checks(
+            fb, seed=seed, n_cases=n_fb, progress=progress.update, n_fast=n_fast
+        )
         checks += tolerance_checks(fb, seed=seed, n_cases=n_tol, progress=progress.update)
     if ht:
-        checks += heavy_top_checks(ht, seed=seed, n_tops=n_ht, progress=progress.update, n_small=n_small)
+        checks += heavy_top_checks(
+            ht, seed=seed, n_tops=n_ht, progress=progress.update, n_small=n_small
+        )
     if tt:
         checks += tippe_top_checks(tt, seed=seed, quick=quick, progress=progress.update)
     progress.close()
@@ -120,15 +131,32 @@ def _run_simulators(systems, sims, quick, seed, show_progress) -> list[Check]:
     n_fb, n_fast = FREE_BODY_CASES[0 if quick else 1], FAST_TUMBLE_BODIES[0 if quick else 1]
     n_ht, n_small = HEAVY_TOP_CASES[0 if quick else 1], SMALL_TOP_CASES[0 if quick else 1]
     own = [s.integrator.name if s.dt is None else reference_scheme(s.order) for s in sims]
-    total = len(sims) * ((n_fb + 1 + n_fast) * ("free_body" in systems) + (n_ht + n_small) * ("heavy_top" in systems))
+    total = len(sims) * (
+        (n_fb + 1 + n_fast) * ("free_body" in systems) + (n_ht + n_small) * ("heavy_top" in systems)
+    )
     total += _tippe.progress_total(own, quick=quick) if "tippe_top" in systems else 0
     progress = Progress(total=total, enabled=show_progress, desc="verify")
     checks: list[Check] = []
     # one simulator at a time, each from the same seed: every simulator meets the same random
     # bodies and starts, so that a comparison's columns are the same cases
-    for system, family in (("free_body", lambda sim: free_body_checks([sim], seed=seed, n_cases=n_fb, progress=progress.update, n_fast=n_fast)),
-                           ("heavy_top", lambda sim: heavy_top_checks([sim], seed=seed, n_tops=n_ht, progress=progress.update, n_small=n_small)),
-                           ("tippe_top", lambda sim: tippe_top_checks([sim], seed=seed, quick=quick, progress=progress.update))):
+    for system, family in (
+        (
+            "free_body",
+            lambda sim: free_body_checks(
+                [sim], seed=seed, n_cases=n_fb, progress=progress.update, n_fast=n_fast
+            ),
+        ),
+        (
+            "heavy_top",
+            lambda sim: heavy_top_checks(
+                [sim], seed=seed, n_tops=n_ht, progress=progress.update, n_small=n_small
+            ),
+        ),
+        (
+            "tippe_top",
+            lambda sim: tippe_top_checks([sim], seed=seed, quick=quick, progress=progress.update),
+        ),
+    ):
         if system in systems:
             for sim in sims:
                 checks += family(sim)
@@ -142,14 +170,26 @@ def _unverified(systems, integrators) -> list[Check]:
     from ..dynamics import FreeBody, HeavyTop, TippeTop
 
     rows = []
-    tables = {"free_body": (FreeBody, FREE_BODY_SETTINGS), "heavy_top": (HeavyTop, HEAVY_TOP_SETTINGS), "tippe_top": (TippeTop, TIPPE_TOP_SETTINGS)}
+    tables = {
+        "free_body": (FreeBody, FREE_BODY_SETTINGS),
+        "heavy_top": (HeavyTop, HEAVY_TOP_SETTINGS),
+        "tippe_top": (TippeTop, TIPPE_TOP_SETTINGS),
+    }
     for system in systems:
         system_class, settings = tables[system]
         for name in integrators:
             integ = get_integrator(name)
             if name not in settings and all(hasattr(system_class, need) for need in integ.requires):
-                rows.append(Check(system, name, f"verification settings for {name!r} (none: add a row to the {system} settings)",
-                                  0.0, math.nan, 0.0))
+                rows.append(
+                    Check(
+                        system,
+                        name,
+                        f"verification settings for {name!r} (none: add a row to the {system} settings)",
+                        0.0,
+                        math.nan,
+                        0.0,
+                    )
+                )
     return rows
 
 
@@ -174,7 +214,9 @@ def print_table(checks, file=None):
             rows.append((c.system, c.integrator, c.check, "-", "-", "-", f"n/a ({c.reason})"))
             continue
         tol = f"{c.tolerance:.0e}" + (" rel" if c.relative else "")
-        rows.append((c.system, c.integrator, c.check, _fmt(c.predicted), _fmt(c.measured), tol, c.result))
+        rows.append(
+            (c.system, c.integrator, c.check, _fmt(c.predicted), _fmt(c.measured), tol, c.result)
+        )
     widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
     for n, r in enumerate(rows):
         print("  ".join(x.ljust(w) for x, w in zip(r, widths)).rstrip(), file=file)
@@ -182,7 +224,11 @@ def print_table(checks, file=None):
             print("  ".join("-" * w for w in widths), file=file)
     failed = [c for c in checks if not c.passed]
     na = sum(not c.applies for c in checks)
-    print(f"\n{len(checks) - len(failed) - na} passed, {len(failed)} failed" + (f", {na} n/a" if na else ""), file=file)
+    print(
+        f"\n{len(checks) - len(failed) - na} passed, {len(failed)} failed"
+        + (f", {na} n/a" if na else ""),
+        file=file,
+    )
     for c in failed:
         print(f"FAILED {c.system}/{c.integrator}/{c.check}: replay with {c.case}", file=file)
 
@@ -190,22 +236,48 @@ def print_table(checks, file=None):
 def main(argv=None) -> int:
     from ..extras import ArgumentParser  # (suggests the closest choice)
 
-    parser = ArgumentParser(prog="rbenvs verify", description="Simulate what the theorems speak of and compare with the oracles.")
+    parser = ArgumentParser(
+        prog="rbenvs verify",
+        description="Simulate what the theorems speak of and compare with the oracles.",
+    )
     parser.add_argument("--quick", action="store_true", help="fewer random cases, for CI")
-    parser.add_argument("--seed", type=int, default=0, help="seed of the random cases (default: %(default)s)")
-    parser.add_argument("--system", action="append", choices=SYSTEMS, help="restrict to these systems (repeatable; default all)")
-    parser.add_argument("--integrator", action="append", help="restrict to these integrators (repeatable)")
-    parser.add_argument("--simulator", action="append", metavar="SPEC",
-                        help="run the checks on another simulator at its own step (repeatable): mujoco[:integrator=RK4+implicitfast,dt=1e-3,...], "
-                             "rbenvs[:integrator=rk4,dt=1e-3] or module:function[,dt=1e-3,order=1] (docs/verification.md)")
-    parser.add_argument("--comparison", action="store_true",
-                        help="with --simulator: print, instead of the rows, one Markdown table (a row per check, a column per simulator) "
-                             "and exit 0 whatever it shows: a report, not a gate (--docs PAGE writes it into the page)")
+    parser.add_argument(
+        "--seed", type=int, default=0, help="seed of the random cases (default: %(default)s)"
+    )
+    parser.add_argument(
+        "--system",
+        action="append",
+        choices=SYSTEMS,
+        help="restrict to these systems (repeatable; default all)",
+    )
+    parser.add_argument(
+        "--integrator", action="append", help="restrict to these integrators (repeatable)"
+    )
+    parser.add_argument(
+        "--simulator",
+        action="append",
+        metavar="SPEC",
+        help="run the checks on another simulator at its own step (repeatable): mujoco[:integrator=RK4+implicitfast,dt=1e-3,...], "
+        "rbenvs[:integrator=rk4,dt=1e-3] or module:function[,dt=1e-3,order=1] (docs/verification.md)",
+    )
+    parser.add_argument(
+        "--comparison",
+        action="store_true",
+        help="with --simulator: print, instead of the rows, one Markdown table (a row per check, a column per simulator) "
+        "and exit 0 whatever it shows: a report, not a gate (--docs PAGE writes it into the page)",
+    )
     parser.add_argument("--json", metavar="PATH", help="also write a machine-readable report")
     parser.add_argument("--no-progress", action="store_true", help="no progress on stderr")
-    parser.add_argument("--sweep", action="store_true",
-                        help="instead of the checks: the tippe top's final tilt over a grid of A/C and alpha, predicted against simulated")
-    parser.add_argument("--plot", metavar="PATH", help="with --sweep: also draw the sweep to this PNG (needs matplotlib)")
+    parser.add_argument(
+        "--sweep",
+        action="store_true",
+        help="instead of the checks: the tippe top's final tilt over a grid of A/C and alpha, predicted against simulated",
+    )
+    parser.add_argument(
+        "--plot",
+        metavar="PATH",
+        help="with --sweep: also draw the sweep to this PNG (needs matplotlib)",
+    )
     args = parser.parse_args(argv)
     if args.plot and not args.sweep:
         parser.error("--plot needs --sweep")
@@ -218,13 +290,27 @@ def main(argv=None) -> int:
     if args.comparison and not args.simulator:
         parser.error("--comparison needs --simulator")
     if args.simulator and args.integrator:
-        parser.error("--integrator picks rbenvs' integrators: with --simulator name them as rbenvs:integrator=NAME")
-    sims = [sim for spec in args.simulator for sim in parse_simulator(spec)] if args.simulator else None
-    checks = run_checks(systems=tuple(args.system or SYSTEMS), integrators=args.integrator, quick=args.quick, seed=args.seed,
-                        show_progress=not args.no_progress, simulators=sims)
+        parser.error(
+            "--integrator picks rbenvs' integrators: with --simulator name them as rbenvs:integrator=NAME"
+        )
+    sims = (
+        [sim for spec in args.simulator for sim in parse_simulator(spec)]
+        if args.simulator
+        else None
+    )
+    checks = run_checks(
+        systems=tuple(args.system or SYSTEMS),
+        integrators=args.integrator,
+        quick=args.quick,
+        seed=args.seed,
+        show_progress=not args.no_progress,
+        simulators=sims,
+    )
     if args.json:
         with open(args.json, "w") as f:
-            json.dump([asdict(c) | {"passed": c.passed, "result": c.result} for c in checks], f, indent=1)
+            json.dump(
+                [asdict(c) | {"passed": c.passed, "result": c.result} for c in checks], f, indent=1
+            )
     if args.comparison:
         from .comparison import comparison_table
 

@@ -6,8 +6,18 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
-__all__ = ["Check", "ROUND_OFF", "RATE_TOL", "MOMENTUM_BOUND", "ENERGY_BOUND", "ANGLE_BOUND", "worst", "not_applicable",
-           "reference_scheme", "scaled_tolerance"]
+__all__ = [
+    "Check",
+    "ROUND_OFF",
+    "RATE_TOL",
+    "MOMENTUM_BOUND",
+    "ENERGY_BOUND",
+    "ANGLE_BOUND",
+    "worst",
+    "not_applicable",
+    "reference_scheme",
+    "scaled_tolerance",
+]
 
 ROUND_OFF = 1e-13  # relative; for the invariants an integrator declares it conserves
 
@@ -55,7 +65,10 @@ class Check:
 
 def not_applicable(system: str, simulator: str, checks, reason: str) -> list[Check]:
     """``n/a`` rows for the named ``checks`` a simulator cannot run, with the ``reason``."""
-    return [Check(system, simulator, name, math.nan, math.nan, math.nan, applies=False, reason=reason) for name in checks]
+    return [
+        Check(system, simulator, name, math.nan, math.nan, math.nan, applies=False, reason=reason)
+        for name in checks
+    ]
 
 
 def worst(candidates: list[Check]) -> Check:
@@ -101,10 +114,14 @@ def reference_scheme(order: int) -> str:
     return "rk4" if order >= 4 else "euler"
 
 
-def scaled_tolerance(tolerance: float, step: float, reference_step: float, order: int, steps: int, bound: float) -> float:
+def scaled_tolerance(
+    tolerance: float, step: float, reference_step: float, order: int, steps: int, bound: float
+) -> float:
     """``tolerance`` (the reference scheme's at ``reference_step``) at ``step``, both as ``omega h``
     of the same run: ``min(tolerance (step / reference_step)^p, bound)`` with ``p`` the reference
     scheme's order and ``bound`` the row's physical bound (:data:`MOMENTUM_BOUND`,
     :data:`ENERGY_BOUND`, :data:`ANGLE_BOUND`, :data:`RATE_TOL`), plus ``ROUND_OFF sqrt(steps)``."""
     p = 4 if reference_scheme(order) == "rk4" else 1
-    return min(tolerance * (step / reference_step) ** p, bound) + ROUND_OFF * math.sqrt(max(steps, 1))
+    return min(tolerance * (step / reference_step) ** p, bound) + ROUND_OFF * math.sqrt(
+        max(steps, 1)
+    )

@@ -40,11 +40,15 @@ def comparison_table(checks) -> list[str]:
     header = [f"`{s}`" + (versions if s.startswith("mujoco") else "") for s in sims]
     lines = ["| system | check | " + " | ".join(header) + " |", "|---|---|" + "---|" * len(sims)]
     for system, check in keys:
-        row = [_cell(cells[(system, check, s)]) if (system, check, s) in cells else "-" for s in sims]
+        row = [
+            _cell(cells[(system, check, s)]) if (system, check, s) in cells else "-" for s in sims
+        ]
         lines.append(f"| {system} | {check.replace('|', '&#124;')} | " + " | ".join(row) + " |")
     counts = []
     for s in sims:
         mine = [c for c in checks if c.integrator == s]
-        counts.append(f"{sum(c.passed and c.applies for c in mine)} / {sum(not c.passed for c in mine)} / {sum(not c.applies for c in mine)}")
+        counts.append(
+            f"{sum(c.passed and c.applies for c in mine)} / {sum(not c.passed for c in mine)} / {sum(not c.applies for c in mine)}"
+        )
     lines.append("| all | passed / failed / n/a | " + " | ".join(counts) + " |")
     return lines

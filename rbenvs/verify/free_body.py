@@ -39,7 +39,15 @@ import numpy as np
 
 from ..dynamics import FreeBody, FreeBodyParams
 from ..oracles import exact_solution, intermediate_axis_growth_rate, orbit_period
-from .common import ENERGY_BOUND, MOMENTUM_BOUND, ROUND_OFF, Check, not_applicable, reference_scheme, scaled_tolerance
+from .common import (
+    ENERGY_BOUND,
+    MOMENTUM_BOUND,
+    ROUND_OFF,
+    Check,
+    not_applicable,
+    reference_scheme,
+    scaled_tolerance,
+)
 from .simulator import advance, as_simulators, start
 
 __all__ = ["FREE_BODY_SETTINGS", "FAST_TUMBLE_SETTINGS", "FAST_TUMBLE_BODIES", "free_body_checks"]
@@ -93,7 +101,9 @@ def _random_inertia(rng, n, distinct=0.0):
     return np.array(out)
 
 
-def free_body_checks(integrators, seed=0, n_cases=6, horizon=10.0, progress=None, n_fast=0) -> list[Check]:
+def free_body_checks(
+    integrators, seed=0, n_cases=6, horizon=10.0, progress=None, n_fast=0
+) -> list[Check]:
     """The free-body rows of each of ``integrators``: rbenvs integrator names or
     :class:`~rbenvs.verify.simulator.Simulator` objects (at their own step, the tolerance rule of
     :func:`~rbenvs.verify.common.scaled_tolerance`); ``n_fast`` bodies tumble fast (``rbenvs verify``:
@@ -108,7 +118,11 @@ def free_body_checks(integrators, seed=0, n_cases=6, horizon=10.0, progress=None
             checks.extend(_checks_of(sim, inertias, axis_inertias, rng, horizon, progress))
         except NotImplementedError as exc:
             names = [EXACT_ROW.format(horizon=horizon), ENERGY_ROW, MOMENTUM_ROW, TORQUE_ROW]
-            names += [AXIS_ROWS[label] for _ in axis_inertias for label in ("major", "intermediate", "minor")]
+            names += [
+                AXIS_ROWS[label]
+                for _ in axis_inertias
+                for label in ("major", "intermediate", "minor")
+            ]
             checks.extend(not_applicable("free_body", sim.name, names, str(exc)))
             if progress:
                 progress(len(inertias) + 1)
@@ -125,11 +139,17 @@ EXACT_ROW = "exact solution over {horizon:g} s (max rel. error)"
 ENERGY_ROW = "energy drift (rel.)"
 MOMENTUM_ROW = "|Pi| drift (rel.)"
 TORQUE_ROW = "torque: d|Pi|^2 = 2 Pi.tau dt over 2 s"
-AXIS_ROWS = {"major": "major axis: max transverse |Pi| / initial (stable)", "intermediate": "intermediate axis: growth rate [1/s]",
-             "minor": "minor axis: max transverse |Pi| / initial (stable)"}
+AXIS_ROWS = {
+    "major": "major axis: max transverse |Pi| / initial (stable)",
+    "intermediate": "intermediate axis: growth rate [1/s]",
+    "minor": "minor axis: max transverse |Pi| / initial (stable)",
+}
 _FAST = f"fast tumble ({FAST_SPIN:g} rad/s, {FAST_HORIZON:g} s)"
-FAST_ROWS = {"exact": f"{_FAST}: exact solution (max rel. error)", "energy": f"{_FAST}: energy drift (rel.)",
-             "momentum": f"{_FAST}: |Pi| drift (rel.)"}
+FAST_ROWS = {
+    "exact": f"{_FAST}: exact solution (max rel. error)",
+    "energy": f"{_FAST}: energy drift (rel.)",
+    "momentum": f"{_FAST}: |Pi| drift (rel.)",
+}
 
 
 def _sampled(run, steps, every, u, h, last=False):
@@ -184,10 +204,22 @@ def _checks_of(sim, inertias, axis_inertias, rng, horizon, progress) -> list[Che
         worst_err, worst_e, worst_p = max(worst_err, err), max(worst_e, de), max(worst_p, dp)
         if progress:
             progress()
-    checks = [Check("free_body", name, EXACT_ROW.format(horizon=horizon), 0.0, worst_err, tol_exact, case=worst_case)]
+    checks = [
+        Check(
+            "free_body",
+            name,
+            EXACT_ROW.format(horizon=horizon),
+            0.0,
+            worst_err,
+            tol_exact,
+            case=worst_case,
+        )
+    ]
     conserves = sim.integrator.conserves if own else ()
     tol_e = ROUND_OFF * steps**0.5 if "energy" in conserves else tol_inv
-    tol_p = ROUND_OFF * steps**0.5 if "casimirs" in conserves else tol_inv_p  # |Pi|: the free body's Casimir
+    tol_p = (
+        ROUND_OFF * steps**0.5 if "casimirs" in conserves else tol_inv_p
+    )  # |Pi|: the free body's Casimir
     checks.append(Check("free_body", name, ENERGY_ROW, 0.0, worst_e, tol_e))
     checks.append(Check("free_body", name, MOMENTUM_ROW, 0.0, worst_p, tol_p))
     try:
@@ -224,9 +256,21 @@ def _torque_balance_check(sim, inertia, h, rng) -> Check:
     measured = float(np.dot(y, y) - np.dot(pi0, pi0))
     # Tolerance relative to the scale of the balance, 2 |Pi| |tau| T, not to its value (which a
     # random draw can make nearly zero).
-    scale = 2.0 * max(np.linalg.norm(pi0), float(np.linalg.norm(y))) * float(np.linalg.norm(tau)) * horizon
-    return Check("free_body", sim.name, TORQUE_ROW, predicted, measured, 1e-3 * scale,
-                 case={"inertia": inertia.tolist(), "pi0": pi0.tolist(), "tau": tau.tolist(), "h": h})
+    scale = (
+        2.0
+        * max(np.linalg.norm(pi0), float(np.linalg.norm(y)))
+        * float(np.linalg.norm(tau))
+        * horizon
+    )
+    return Check(
+        "free_body",
+        sim.name,
+        TORQUE_ROW,
+        predicted,
+        measured,
+        1e-3 * scale,
+        case={"inertia": inertia.tolist(), "pi0": pi0.tolist(), "tau": tau.tolist(), "h": h},
+    )
 
 
 def _axis_checks(sim, inertias, h) -> list[Check]:
@@ -255,9 +299,23 @@ def _axis_checks(sim, inertias, h) -> list[Check]:
                 ts, amp = np.array(ts), np.array(amp)
                 # fit after 2/lambda (the decaying mode has died out) while still linear
                 sel = (ts > 2.0 / lam) & (amp < 1e-4)
-                rate = float(np.polyfit(ts[sel], np.log(amp[sel]), 1)[0]) if sel.sum() >= 5 else float("nan")
-                out.append(Check("free_body", sim.name, AXIS_ROWS[label], lam, rate, 0.02, relative=True,
-                                 case={"inertia": inertia.tolist(), "axis": int(j), "h": h}))
+                rate = (
+                    float(np.polyfit(ts[sel], np.log(amp[sel]), 1)[0])
+                    if sel.sum() >= 5
+                    else float("nan")
+                )
+                out.append(
+                    Check(
+                        "free_body",
+                        sim.name,
+                        AXIS_ROWS[label],
+                        lam,
+                        rate,
+                        0.02,
+                        relative=True,
+                        case={"inertia": inertia.tolist(), "axis": int(j), "h": h},
+                    )
+                )
             else:
                 eps = 1e-3
                 pi0 = np.zeros(3)
@@ -274,9 +332,18 @@ def _axis_checks(sim, inertias, h) -> list[Check]:
                 ref = exact_solution(inertia, pi0, np.linspace(0.0, period, 4001))
                 predicted = float(np.max(np.hypot(ref[a], ref[b])))
                 measured_max = worst
-                out.append(Check("free_body", sim.name, AXIS_ROWS[label],
-                                 predicted / (math.sqrt(2) * eps * p), measured_max / (math.sqrt(2) * eps * p), 0.02, relative=True,
-                                 case={"inertia": inertia.tolist(), "axis": int(j), "h": h}))
+                out.append(
+                    Check(
+                        "free_body",
+                        sim.name,
+                        AXIS_ROWS[label],
+                        predicted / (math.sqrt(2) * eps * p),
+                        measured_max / (math.sqrt(2) * eps * p),
+                        0.02,
+                        relative=True,
+                        case={"inertia": inertia.tolist(), "axis": int(j), "h": h},
+                    )
+                )
     return out
 
 
@@ -317,12 +384,21 @@ def _fast_tumble_checks(sim, cases, progress) -> list[Check]:
         for k, y in _sampled(run, steps, max(1, steps // 50), None, h, last=True):
             exact = exact_solution(inertia, pi0, k * h)
             errors["exact"] = max(errors["exact"], float(np.max(np.abs(np.array(y) - exact) / p0)))
-            errors["energy"] = max(errors["energy"], float(np.max(np.abs(system.energy(y) - e0) / e0)))
-            errors["momentum"] = max(errors["momentum"], float(np.max(np.abs(system.momentum_norm(y) - p0) / p0)))
+            errors["energy"] = max(
+                errors["energy"], float(np.max(np.abs(system.energy(y) - e0) / e0))
+            )
+            errors["momentum"] = max(
+                errors["momentum"], float(np.max(np.abs(system.momentum_norm(y) - p0) / p0))
+            )
         # the signed changes over the run (a loss is damping, a gain Euler's outward drift)
-        case = {"inertia": inertia.tolist(), "pi0": pi0.T.tolist(), "h": h, "T": FAST_HORIZON,
-                "energy change at T (rel.)": (np.asarray(system.energy(y)) / e0 - 1.0).tolist(),
-                "|Pi| change at T (rel.)": (np.asarray(system.momentum_norm(y)) / p0 - 1.0).tolist()}
+        case = {
+            "inertia": inertia.tolist(),
+            "pi0": pi0.T.tolist(),
+            "h": h,
+            "T": FAST_HORIZON,
+            "energy change at T (rel.)": (np.asarray(system.energy(y)) / e0 - 1.0).tolist(),
+            "|Pi| change at T (rel.)": (np.asarray(system.momentum_norm(y)) / p0 - 1.0).tolist(),
+        }
         for key, err in errors.items():
             if not err <= worst[key][0]:  # a nan is kept
                 worst[key] = (err, case)
@@ -331,11 +407,23 @@ def _fast_tumble_checks(sim, cases, progress) -> list[Check]:
     conserves = sim.integrator.conserves if own else ()
     round_off = ROUND_OFF * steps**0.5
     if own:
-        tols = {"exact": tol_exact, "energy": round_off if "energy" in conserves else tol_inv,
-                "momentum": round_off if "casimirs" in conserves else tol_inv}
+        tols = {
+            "exact": tol_exact,
+            "energy": round_off if "energy" in conserves else tol_inv,
+            "momentum": round_off if "casimirs" in conserves else tol_inv,
+        }
     else:
         omega_dt = FAST_SPIN * h
-        tols = {"exact": scaled_tolerance(tol_exact, omega_dt, omega_h, sim.order, steps, MOMENTUM_BOUND),
-                "energy": scaled_tolerance(tol_inv, omega_dt, omega_h, sim.order, steps, ENERGY_BOUND),
-                "momentum": scaled_tolerance(tol_inv, omega_dt, omega_h, sim.order, steps, MOMENTUM_BOUND)}
-    return [Check("free_body", name, FAST_ROWS[key], 0.0, worst[key][0], tols[key], case=worst[key][1]) for key in FAST_ROWS]
+        tols = {
+            "exact": scaled_tolerance(
+                tol_exact, omega_dt, omega_h, sim.order, steps, MOMENTUM_BOUND
+            ),
+            "energy": scaled_tolerance(tol_inv, omega_dt, omega_h, sim.order, steps, ENERGY_BOUND),
+            "momentum": scaled_tolerance(
+                tol_inv, omega_dt, omega_h, sim.order, steps, MOMENTUM_BOUND
+            ),
+        }
+    return [
+        Check("free_body", name, FAST_ROWS[key], 0.0, worst[key][0], tols[key], case=worst[key][1])
+        for key in FAST_ROWS
+    ]

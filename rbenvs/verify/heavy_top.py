@@ -97,9 +97,24 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..dynamics import HeavyTop, HeavyTopParams
-from ..oracles import critical_spin, fast_top_nutation, regular_precession_rates, upright_eigenvalues
-from .common import (ANGLE_BOUND, ENERGY_BOUND, MOMENTUM_BOUND, RATE_TOL, ROUND_OFF, Check, not_applicable, reference_scheme,
-                     scaled_tolerance, worst)
+from ..oracles import (
+    critical_spin,
+    fast_top_nutation,
+    regular_precession_rates,
+    upright_eigenvalues,
+)
+from .common import (
+    ANGLE_BOUND,
+    ENERGY_BOUND,
+    MOMENTUM_BOUND,
+    RATE_TOL,
+    ROUND_OFF,
+    Check,
+    not_applicable,
+    reference_scheme,
+    scaled_tolerance,
+    worst,
+)
 from .simulator import advance, as_simulators, start
 
 __all__ = ["HEAVY_TOP_SETTINGS", "SMALL_TOP_CASES", "TopSetting", "heavy_top_checks", "random_tops"]
@@ -179,14 +194,62 @@ class TopSetting:
 #   [4.9e-5]; Pi.Gamma and |Gamma| to round-off.
 # * dop853 (rtol 1e-12 per step, omega T <= 500 radians): 1e-10 [9.5e-13].
 HEAVY_TOP_SETTINGS = {
-    "euler": TopSetting(upright_step=3e-3, precession_step=3e-4, nutation_step=1e-4, invariant_step=5e-4,
-                        batch=1, periods=2, nods=3, held=1e-2, rate=1e-2, nutation_drift=0.1, energy=3e-2, casimir=2e-2),
-    "rk4": TopSetting(upright_step=0.1, precession_step=0.1, nutation_step=0.1, invariant_step=0.1,
-                      batch=1, periods=5, nods=10, held=5e-5, rate=5e-6, nutation_drift=0.0, energy=1e-6, casimir=5e-6),
-    "splitting": TopSetting(upright_step=0.05, precession_step=0.05, nutation_step=0.05, invariant_step=0.05,
-                            batch=1, periods=5, nods=10, held=3e-3, rate=3e-3, nutation_drift=0.0, energy=1e-3, casimir=None),
-    "dop853": TopSetting(upright_step=2.0, precession_step=1.0, nutation_step=0.25, invariant_step=2.0,
-                         batch=63, periods=5, nods=10, held=1e-10, rate=1e-10, nutation_drift=0.0, energy=1e-10, casimir=1e-10),
+    "euler": TopSetting(
+        upright_step=3e-3,
+        precession_step=3e-4,
+        nutation_step=1e-4,
+        invariant_step=5e-4,
+        batch=1,
+        periods=2,
+        nods=3,
+        held=1e-2,
+        rate=1e-2,
+        nutation_drift=0.1,
+        energy=3e-2,
+        casimir=2e-2,
+    ),
+    "rk4": TopSetting(
+        upright_step=0.1,
+        precession_step=0.1,
+        nutation_step=0.1,
+        invariant_step=0.1,
+        batch=1,
+        periods=5,
+        nods=10,
+        held=5e-5,
+        rate=5e-6,
+        nutation_drift=0.0,
+        energy=1e-6,
+        casimir=5e-6,
+    ),
+    "splitting": TopSetting(
+        upright_step=0.05,
+        precession_step=0.05,
+        nutation_step=0.05,
+        invariant_step=0.05,
+        batch=1,
+        periods=5,
+        nods=10,
+        held=3e-3,
+        rate=3e-3,
+        nutation_drift=0.0,
+        energy=1e-3,
+        casimir=None,
+    ),
+    "dop853": TopSetting(
+        upright_step=2.0,
+        precession_step=1.0,
+        nutation_step=0.25,
+        invariant_step=2.0,
+        batch=63,
+        periods=5,
+        nods=10,
+        held=1e-10,
+        rate=1e-10,
+        nutation_drift=0.0,
+        energy=1e-10,
+        casimir=1e-10,
+    ),
 }
 
 # Sampling of the fixed-step runs, as omega dt: the tilt moves on the nutation time ~ 1/(r omega).
@@ -227,7 +290,12 @@ class _Lagrange:
 
     def describe(self) -> dict:
         p = self.params
-        return {"inertia": list(p.inertia), "mass": p.mass, "length": p.length, "gravity": p.gravity}
+        return {
+            "inertia": list(p.inertia),
+            "mass": p.mass,
+            "length": p.length,
+            "gravity": p.gravity,
+        }
 
 
 @dataclass(frozen=True)
@@ -254,19 +322,23 @@ def _random_cases(rng, n) -> list[_Top]:
         ml2 = mass * length**2
         a_g = float(rng.uniform(1.0, 3.0)) * ml2
         c_g = float(rng.uniform(1.0, 2.0)) * a_g
-        params = HeavyTopParams(inertia=(a_g + ml2, a_g + ml2, c_g), mass=mass, length=length, gravity=GRAVITY)
+        params = HeavyTopParams(
+            inertia=(a_g + ml2, a_g + ml2, c_g), mass=mass, length=length, gravity=GRAVITY
+        )
         gamma = rng.standard_normal(3)
         direction = rng.standard_normal(3)
-        out.append(_Top(
-            params=params,
-            precession_tilt=float(rng.uniform(0.2, 1.2)),
-            precession_factor=float(rng.uniform(1.1, 1.5)),
-            nutation_tilt=float(rng.uniform(0.2, 1.2)),
-            nutation_eps=float(math.exp(rng.uniform(math.log(5e-4), math.log(2e-3)))),
-            gamma0=tuple((gamma / np.linalg.norm(gamma)).tolist()),
-            omega_dir=tuple((direction / np.linalg.norm(direction)).tolist()),
-            omega_scale=float(rng.uniform(1.0, 4.0)),
-        ))
+        out.append(
+            _Top(
+                params=params,
+                precession_tilt=float(rng.uniform(0.2, 1.2)),
+                precession_factor=float(rng.uniform(1.1, 1.5)),
+                nutation_tilt=float(rng.uniform(0.2, 1.2)),
+                nutation_eps=float(math.exp(rng.uniform(math.log(5e-4), math.log(2e-3)))),
+                gamma0=tuple((gamma / np.linalg.norm(gamma)).tolist()),
+                omega_dir=tuple((direction / np.linalg.norm(direction)).tolist()),
+                omega_scale=float(rng.uniform(1.0, 4.0)),
+            )
+        )
     return out
 
 
@@ -280,8 +352,12 @@ def _random_small_tops(rng, n) -> list[_Lagrange]:
         rho = float(rng.uniform(*SMALL_RADIUS)) * length
         a_g = mass * rho**2 / 4.0
         c_g = float(rng.uniform(*SMALL_AXIAL)) * mass * rho**2 / 2.0
-        params = HeavyTopParams(inertia=(a_g + mass * length**2, a_g + mass * length**2, c_g), mass=mass, length=length,
-                                gravity=GRAVITY)
+        params = HeavyTopParams(
+            inertia=(a_g + mass * length**2, a_g + mass * length**2, c_g),
+            mass=mass,
+            length=length,
+            gravity=GRAVITY,
+        )
         out.append(_Lagrange(params))
     return out
 
@@ -291,7 +367,9 @@ def _lagrange_state(top: _Lagrange, tilt, spin, precession=0.0):
     precession rate ``p``: ``Omega = p Gamma + (n - p cos(tilt)) chi``, ``Gamma = (sin, 0, cos)``.
     Floats or arrays."""
     s, c = np.sin(tilt), np.cos(tilt)
-    state = np.broadcast_arrays(top.A * precession * s, 0.0 * s, top.C * np.asarray(spin, dtype=float), s, 0.0 * s, c)
+    state = np.broadcast_arrays(
+        top.A * precession * s, 0.0 * s, top.C * np.asarray(spin, dtype=float), s, 0.0 * s, c
+    )
     if state[0].shape == ():
         return tuple(float(v) for v in state)
     return tuple(np.array(v, dtype=float) for v in state)
@@ -376,10 +454,19 @@ def _bisect_critical_spin(system, sim, setting, top):
     first bracket does not hold it (the low end stands or the high end falls)."""
     lo, hi = (f * top.spin_scale for f in BRACKET)
     k = setting.batch if getattr(sim, "batched", False) else 1
-    ends = _falls(system, sim, setting, top, np.array([lo, hi])) if k > 1 else \
-        np.array([_falls(system, sim, setting, top, lo), _falls(system, sim, setting, top, hi)])
+    ends = (
+        _falls(system, sim, setting, top, np.array([lo, hi]))
+        if k > 1
+        else np.array(
+            [_falls(system, sim, setting, top, lo), _falls(system, sim, setting, top, hi)]
+        )
+    )
     if not ends[0] or ends[1]:
-        return math.nan, {"bracket": [lo, hi], "low end falls": bool(ends[0]), "high end falls": bool(ends[1])}
+        return math.nan, {
+            "bracket": [lo, hi],
+            "low end falls": bool(ends[0]),
+            "high end falls": bool(ends[1]),
+        }
     runs = 2
     while hi - lo > BISECTION_WIDTH * lo:
         grid = lo + (hi - lo) * np.arange(1, k + 1) / (k + 1)
@@ -401,7 +488,16 @@ def _upright_max_tilt(system, sim, setting, top, spin):
         worst = max(worst, float(system.tilt(y)))
         return False
 
-    h, _ = _run(system, sim, y, HORIZON * top.t_g, spin + 2.0 / top.t_g, setting.upright_step, SAMPLE["upright"], observe)
+    h, _ = _run(
+        system,
+        sim,
+        y,
+        HORIZON * top.t_g,
+        spin + 2.0 / top.t_g,
+        setting.upright_step,
+        SAMPLE["upright"],
+        observe,
+    )
     return worst, h
 
 
@@ -418,8 +514,14 @@ def _upright_growth_rate(system, sim, setting, top, spin):
 
     # the fit window lasts ln(100)/sigma ~ 5 t_g: dop853, sampled at its call interval, is
     # called 4x as often here as in the other upright runs (~30 samples in the window)
-    omega_h = setting.upright_step / 4.0 if sim.dt is None and sim.integrator.name == "dop853" else setting.upright_step
-    h, _ = _run(system, sim, y, HORIZON * top.t_g, spin + 2.0 / top.t_g, omega_h, SAMPLE["upright"], observe)
+    omega_h = (
+        setting.upright_step / 4.0
+        if sim.dt is None and sim.integrator.name == "dop853"
+        else setting.upright_step
+    )
+    h, _ = _run(
+        system, sim, y, HORIZON * top.t_g, spin + 2.0 / top.t_g, omega_h, SAMPLE["upright"], observe
+    )
     ts, tilts = np.array(ts), np.array(tilts)
     sel = (tilts >= 1e-6) & (tilts <= 1e-4)
     if sel.sum() < 5:
@@ -451,13 +553,24 @@ def _regular_precession(system, sim, setting, top):
 
     horizon = setting.periods * 2.0 * math.pi / abs(p)
     omega = math.hypot(n, p * math.sin(alpha))
-    h, steps = _run(system, sim, y, horizon, omega, setting.precession_step, SAMPLE["precession"], observe)
+    h, steps = _run(
+        system, sim, y, horizon, omega, setting.precession_step, SAMPLE["precession"], observe
+    )
     ts, tilts, rates = np.array(ts), np.array(tilts), np.array(rates)
     held = float(np.max(np.abs(tilts - alpha)))
     mean_rate = float(np.trapezoid(rates, ts) / ts[-1])
-    case = top.describe() | {"tilt": alpha, "spin": n, "precession_rate": p, "periods": setting.periods, "h": h, "T": horizon}
-    tolerances = tuple(_tolerance(sim, tol, setting.precession_step, omega, h, steps, bound)
-                       for tol, bound in ((setting.held, ANGLE_BOUND), (setting.rate, RATE_TOL)))
+    case = top.describe() | {
+        "tilt": alpha,
+        "spin": n,
+        "precession_rate": p,
+        "periods": setting.periods,
+        "h": h,
+        "T": horizon,
+    }
+    tolerances = tuple(
+        _tolerance(sim, tol, setting.precession_step, omega, h, steps, bound)
+        for tol, bound in ((setting.held, ANGLE_BOUND), (setting.rate, RATE_TOL))
+    )
     return p, held, mean_rate, case, tolerances
 
 
@@ -478,8 +591,18 @@ def _fast_top(system, sim, setting, top):
     # Released at rest, a heavy top first falls: its first turn is a maximum of the tilt. A
     # top whose axis rises first (gravity pulling up) gets a negative amplitude.
     sign = -1.0 if len(t_min) and (not len(t_max) or t_min[0] < t_max[0]) else 1.0
-    t_min, v_min = np.concatenate([[0.0], t_min]), np.concatenate([[alpha], v_min])  # released at a cusp
-    case = top.describe() | {"tilt": alpha, "spin": n, "eps": eps, "nods": setting.nods, "h": h, "T": horizon}
+    t_min, v_min = (
+        np.concatenate([[0.0], t_min]),
+        np.concatenate([[alpha], v_min]),
+    )  # released at a cusp
+    case = top.describe() | {
+        "tilt": alpha,
+        "spin": n,
+        "eps": eps,
+        "nods": setting.nods,
+        "h": h,
+        "T": horizon,
+    }
     nods = min(len(t_max), len(t_min) - 1)
     if nods < 2:
         return oracle, (math.nan, math.nan, math.nan), case
@@ -511,12 +634,16 @@ def _invariants(system, sim, setting, top):
 
     horizon = INVARIANT_HORIZON * top.t_g
     omega = float(np.linalg.norm(omega0)) + 2.0 / top.t_g
-    h, steps = _run(system, sim, y, horizon, omega, setting.invariant_step, SAMPLE["invariants"], observe)
+    h, steps = _run(
+        system, sim, y, horizon, omega, setting.invariant_step, SAMPLE["invariants"], observe
+    )
     case = top.describe() | {"pi0": pi0.tolist(), "gamma0": gamma.tolist(), "h": h, "T": horizon}
     return worst, steps, case, omega
 
 
-def heavy_top_checks(integrators, seed=0, n_tops=3, system_class=HeavyTop, progress=None, n_small=0) -> list[Check]:
+def heavy_top_checks(
+    integrators, seed=0, n_tops=3, system_class=HeavyTop, progress=None, n_small=0
+) -> list[Check]:
     """The heavy-top rows for each of ``integrators``: rbenvs integrator names (left out where
     the top does not offer what they need, as for ``exact``) or
     :class:`~rbenvs.verify.simulator.Simulator` objects at their own step, held to the settings
@@ -529,7 +656,9 @@ def heavy_top_checks(integrators, seed=0, n_tops=3, system_class=HeavyTop, progr
     for sim in as_simulators(integrators):
         if sim.dt is None:
             integ = sim.integrator
-            if integ.name not in HEAVY_TOP_SETTINGS or not integ.supports(system_class((tops or small)[0].params)):
+            if integ.name not in HEAVY_TOP_SETTINGS or not integ.supports(
+                system_class((tops or small)[0].params)
+            ):
                 continue
             setting = HEAVY_TOP_SETTINGS[integ.name]
         else:
@@ -549,19 +678,32 @@ def heavy_top_checks(integrators, seed=0, n_tops=3, system_class=HeavyTop, progr
                 if progress:
                     progress()
         except NotImplementedError as exc:
-            checks.extend(not_applicable(SYSTEM, sim.name, ROWS + (SMALL_ROWS if small else ()), str(exc)))
+            checks.extend(
+                not_applicable(SYSTEM, sim.name, ROWS + (SMALL_ROWS if small else ()), str(exc))
+            )
             continue
         checks.extend(worst(c) for c in rows.values())
     return checks
 
 
-ROWS = ("critical spin by bisection [rad/s]", "upright at 1.2 x critical: max tilt [rad] from 1e-3",
-        "upright at 0.5 x critical: growth rate [1/s]", "regular precession held: max |tilt - alpha| [rad]",
-        "regular precession: mean rate [rad/s]", "fast top: nutation amplitude [rad]", "fast top: nutation period [s]",
-        "fast top: mean precession rate [rad/s]", "energy drift (rel.)", "Pi.Gamma drift (rel. to |Pi|)", "| |Gamma| - 1 |")
-SMALL_ROWS = ("small fast top: critical spin by bisection [rad/s]",
-              f"small fast top at {ABOVE_CRITICAL:g} x critical: max tilt [rad] from 1e-3",
-              f"small fast top at {SMALL_BELOW:g} x critical: growth rate [1/s]")
+ROWS = (
+    "critical spin by bisection [rad/s]",
+    "upright at 1.2 x critical: max tilt [rad] from 1e-3",
+    "upright at 0.5 x critical: growth rate [1/s]",
+    "regular precession held: max |tilt - alpha| [rad]",
+    "regular precession: mean rate [rad/s]",
+    "fast top: nutation amplitude [rad]",
+    "fast top: nutation period [s]",
+    "fast top: mean precession rate [rad/s]",
+    "energy drift (rel.)",
+    "Pi.Gamma drift (rel. to |Pi|)",
+    "| |Gamma| - 1 |",
+)
+SMALL_ROWS = (
+    "small fast top: critical spin by bisection [rad/s]",
+    f"small fast top at {ABOVE_CRITICAL:g} x critical: max tilt [rad] from 1e-3",
+    f"small fast top at {SMALL_BELOW:g} x critical: growth rate [1/s]",
+)
 
 
 def threshold_checks(system, sim, setting, top, add, rows=SMALL_ROWS, slow=SMALL_BELOW):
@@ -572,15 +714,48 @@ def threshold_checks(system, sim, setting, top, add, rows=SMALL_ROWS, slow=SMALL
     base = top.describe()
     n_c = critical_spin(*top.oracle_args())
     measured, info = _bisect_critical_spin(system, sim, setting, top)
-    add(Check(SYSTEM, name, rows[0], n_c, measured, 0.01, relative=True,
-              case=base | info | {"start tilt": START_TILT, "fall tilt": FALL_TILT, "T": HORIZON * top.t_g}))
+    add(
+        Check(
+            SYSTEM,
+            name,
+            rows[0],
+            n_c,
+            measured,
+            0.01,
+            relative=True,
+            case=base
+            | info
+            | {"start tilt": START_TILT, "fall tilt": FALL_TILT, "T": HORIZON * top.t_g},
+        )
+    )
     spin = ABOVE_CRITICAL * n_c
     worst_tilt, h = _upright_max_tilt(system, sim, setting, top, spin)
-    add(Check(SYSTEM, name, rows[1], 0.0, worst_tilt, STABLE_BOUND, case=base | {"spin": spin, "h": h, "T": HORIZON * top.t_g}))
+    add(
+        Check(
+            SYSTEM,
+            name,
+            rows[1],
+            0.0,
+            worst_tilt,
+            STABLE_BOUND,
+            case=base | {"spin": spin, "h": h, "T": HORIZON * top.t_g},
+        )
+    )
     spin = slow * n_c
     sigma = float(np.max(upright_eigenvalues(*top.oracle_args(), spin).real))
     rate, h = _upright_growth_rate(system, sim, setting, top, spin)
-    add(Check(SYSTEM, name, rows[2], sigma, rate, 0.02, relative=True, case=base | {"spin": spin, "h": h}))
+    add(
+        Check(
+            SYSTEM,
+            name,
+            rows[2],
+            sigma,
+            rate,
+            0.02,
+            relative=True,
+            case=base | {"spin": spin, "h": h},
+        )
+    )
 
 
 def checks_for_top(system, sim, setting, top, add):
@@ -596,17 +771,32 @@ def checks_for_top(system, sim, setting, top, add):
     drift = (n * h) * (n * oracle.period) * math.cos(case["tilt"]) / (4.0 * eps)
     # the formulas' 5 eps, plus a first-order scheme's drift: at most what a rate may be off by
     tol = NUTATION_TOL * eps + min(setting.nutation_drift * drift, RATE_TOL)
-    add(Check(SYSTEM, name, ROWS[5], oracle.angle_amplitude, amplitude, tol, relative=True, case=case))
+    add(
+        Check(
+            SYSTEM, name, ROWS[5], oracle.angle_amplitude, amplitude, tol, relative=True, case=case
+        )
+    )
     add(Check(SYSTEM, name, ROWS[6], oracle.period, period, tol, relative=True, case=case))
-    add(Check(SYSTEM, name, ROWS[7], oracle.mean_precession_rate, rate, tol, relative=True, case=case))
+    add(
+        Check(
+            SYSTEM, name, ROWS[7], oracle.mean_precession_rate, rate, tol, relative=True, case=case
+        )
+    )
 
     (d_energy, d_casimir, d_norm), steps, case, omega = _invariants(system, sim, setting, top)
     round_off = ROUND_OFF * steps**0.5
-    tol_energy = _tolerance(sim, setting.energy, setting.invariant_step, omega, case["h"], steps, ENERGY_BOUND)
+    tol_energy = _tolerance(
+        sim, setting.energy, setting.invariant_step, omega, case["h"], steps, ENERGY_BOUND
+    )
     if sim.dt is None:
-        tol_casimir, tol_norm = (round_off if setting.casimir is None else setting.casimir), round_off
+        tol_casimir, tol_norm = (
+            (round_off if setting.casimir is None else setting.casimir),
+            round_off,
+        )
     else:  # |Gamma| is a Casimir as Pi.Gamma is: a simulator that does not keep it is held alike
-        tol_casimir = tol_norm = _tolerance(sim, setting.casimir, setting.invariant_step, omega, case["h"], steps, MOMENTUM_BOUND)
+        tol_casimir = tol_norm = _tolerance(
+            sim, setting.casimir, setting.invariant_step, omega, case["h"], steps, MOMENTUM_BOUND
+        )
     add(Check(SYSTEM, name, ROWS[8], 0.0, d_energy, tol_energy, case=case))
     add(Check(SYSTEM, name, ROWS[9], 0.0, d_casimir, tol_casimir, case=case))
     add(Check(SYSTEM, name, ROWS[10], 0.0, d_norm, tol_norm, case=case))

@@ -54,17 +54,33 @@ class MujocoSimulator:
 
     batched = False
 
-    def __init__(self, integrator="RK4", dt=1e-3, cone="elliptic", timeconst=None, dampratio=1.0, impratio=1.0, noslip=0):
+    def __init__(
+        self,
+        integrator="RK4",
+        dt=1e-3,
+        cone="elliptic",
+        timeconst=None,
+        dampratio=1.0,
+        impratio=1.0,
+        noslip=0,
+    ):
         import mujoco  # noqa: F401  (fails here, with the extra's name, when it is missing)
 
         if integrator not in MUJOCO_INTEGRATORS:
-            raise ValueError(f"mujoco integrator must be one of {list(MUJOCO_INTEGRATORS)}, got {integrator!r}")
+            raise ValueError(
+                f"mujoco integrator must be one of {list(MUJOCO_INTEGRATORS)}, got {integrator!r}"
+            )
         if cone not in ("elliptic", "pyramidal"):
             raise ValueError(f"mujoco cone must be 'elliptic' or 'pyramidal', got {cone!r}")
         if not (dt > 0.0 and math.isfinite(dt)):
             raise ValueError(f"dt must be a positive number of seconds, got {dt!r}")
         self.integrator, self.dt, self.order = integrator, float(dt), MUJOCO_INTEGRATORS[integrator]
-        self.cone, self.dampratio, self.impratio, self.noslip = cone, float(dampratio), float(impratio), int(noslip)
+        self.cone, self.dampratio, self.impratio, self.noslip = (
+            cone,
+            float(dampratio),
+            float(impratio),
+            int(noslip),
+        )
         self.timeconst = 2.0 * self.dt if timeconst is None else float(timeconst)
         self.name = f"mujoco {integrator} dt={dt:g}"
         self._models: dict = {}
@@ -85,40 +101,66 @@ class MujocoSimulator:
         option = f'integrator="{self.integrator}" timestep="{_f(self.dt)}"'
         if problem.system == "free_body":
             i1, i2, i3 = p.inertia
-            return (f'<mujoco><option {option} gravity="0 0 0"/><worldbody><body><freejoint/>'
-                    f'<inertial pos="0 0 0" mass="1" diaginertia="{_f(i1)} {_f(i2)} {_f(i3)}"/></body></worldbody></mujoco>')
+            return (
+                f'<mujoco><option {option} gravity="0 0 0"/><worldbody><body><freejoint/>'
+                f'<inertial pos="0 0 0" mass="1" diaginertia="{_f(i1)} {_f(i2)} {_f(i3)}"/></body></worldbody></mujoco>'
+            )
         if problem.system == "heavy_top":
             if p.spin_friction != 0.0:
                 raise NotImplementedError("the pivot's spin friction is not modelled")
             chi = np.array(p.com_direction)
             inertia_g = np.diag(p.inertia) - p.mass * p.length**2 * (np.eye(3) - np.outer(chi, chi))
-            full = " ".join(_f(v) for v in (inertia_g[0, 0], inertia_g[1, 1], inertia_g[2, 2], inertia_g[0, 1], inertia_g[0, 2], inertia_g[1, 2]))
+            full = " ".join(
+                _f(v)
+                for v in (
+                    inertia_g[0, 0],
+                    inertia_g[1, 1],
+                    inertia_g[2, 2],
+                    inertia_g[0, 1],
+                    inertia_g[0, 2],
+                    inertia_g[1, 2],
+                )
+            )
             pos = " ".join(_f(v) for v in p.length * chi)
-            return (f'<mujoco><option {option} gravity="0 0 {_f(-p.gravity)}"/><worldbody><body><joint type="ball"/>'
-                    f'<inertial pos="{pos}" mass="{_f(p.mass)}" fullinertia="{full}"/></body></worldbody></mujoco>')
+            return (
+                f'<mujoco><option {option} gravity="0 0 {_f(-p.gravity)}"/><worldbody><body><joint type="ball"/>'
+                f'<inertial pos="{pos}" mass="{_f(p.mass)}" fullinertia="{full}"/></body></worldbody></mujoco>'
+            )
         if problem.system == "tippe_top":
             if problem.fidelity == "rolling":
-                raise NotImplementedError("pure rolling: MuJoCo's soft friction cone lets the contact slip")
+                raise NotImplementedError(
+                    "pure rolling: MuJoCo's soft friction cone lets the contact slip"
+                )
             frictionless = problem.fidelity == "frictionless"
             if not frictionless and p.friction_law != "coulomb":
-                raise NotImplementedError(f"{p.friction_law} friction: MuJoCo's contacts have Coulomb friction only")
+                raise NotImplementedError(
+                    f"{p.friction_law} friction: MuJoCo's contacts have Coulomb friction only"
+                )
             big_a, big_c = p.inertia
             mu = 0.0 if frictionless else p.friction
-            contact = (f'condim="{1 if frictionless else 3}" friction="{_f(mu)} 0 0" '
-                       f'solref="{_f(self.timeconst)} {_f(self.dampratio)}"')
-            return (f'<mujoco><option {option} gravity="0 0 {_f(-p.gravity)}" cone="{self.cone}" impratio="{_f(self.impratio)}" '
-                    f'noslip_iterations="{self.noslip}"/><worldbody><geom type="plane" size="0 0 1" {contact}/>'
-                    f'<body><freejoint/><inertial pos="0 0 0" mass="{_f(p.mass)}" diaginertia="{_f(big_a)} {_f(big_a)} {_f(big_c)}"/>'
-                    f'<geom type="sphere" size="{_f(p.radius)}" pos="0 0 {_f(p.height)}" {contact}/></body></worldbody></mujoco>')
+            contact = (
+                f'condim="{1 if frictionless else 3}" friction="{_f(mu)} 0 0" '
+                f'solref="{_f(self.timeconst)} {_f(self.dampratio)}"'
+            )
+            return (
+                f'<mujoco><option {option} gravity="0 0 {_f(-p.gravity)}" cone="{self.cone}" impratio="{_f(self.impratio)}" '
+                f'noslip_iterations="{self.noslip}"/><worldbody><geom type="plane" size="0 0 1" {contact}/>'
+                f'<body><freejoint/><inertial pos="0 0 0" mass="{_f(p.mass)}" diaginertia="{_f(big_a)} {_f(big_a)} {_f(big_c)}"/>'
+                f'<geom type="sphere" size="{_f(p.radius)}" pos="0 0 {_f(p.height)}" {contact}/></body></worldbody></mujoco>'
+            )
         raise NotImplementedError(f"no MuJoCo model of {problem.system!r}")
 
 
 def _matrix(q):
     """The rotation matrix of the unit quaternion ``q = (w, x, y, z)``, body -> space."""
     w, x, y, z = q
-    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-                     [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-                     [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
+    return np.array(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+            [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+            [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
+        ]
+    )
 
 
 class _Run:
@@ -127,7 +169,13 @@ class _Run:
     def __init__(self, model, problem, dt):
         import mujoco
 
-        self.mujoco, self.model, self.data, self.problem, self.dt = mujoco, model, mujoco.MjData(model), problem, dt
+        self.mujoco, self.model, self.data, self.problem, self.dt = (
+            mujoco,
+            model,
+            mujoco.MjData(model),
+            problem,
+            dt,
+        )
 
     def set_state(self, y):
         d, p, system = self.data, self.problem.params, self.problem.system
@@ -142,7 +190,11 @@ class _Run:
             q, w = np.array(y[4:8]), np.array(y[8:11])
             rm = _matrix(q)
             k, w_space = rm[:, 2], rm @ w
-            d.qpos[0:3] = (x, yy, p.radius - p.height * k[2])  # the sphere's centre O = G + h k at z = R
+            d.qpos[0:3] = (
+                x,
+                yy,
+                p.radius - p.height * k[2],
+            )  # the sphere's centre O = G + h k at z = R
             d.qpos[3:7] = q
             d.qvel[0:3] = (vx, vy, -p.height * np.cross(w_space, k)[2])
             d.qvel[3:6] = w
@@ -154,7 +206,9 @@ class _Run:
             return tuple(float(v) for v in d.qvel[3:6] * np.array(p.inertia))
         if system == "heavy_top":
             gamma = _matrix(d.qpos[0:4])[2]  # R^T e_z: the last row
-            return tuple(float(v) for v in d.qvel[0:3] * np.array(p.inertia)) + tuple(float(v) for v in gamma)
+            return tuple(float(v) for v in d.qvel[0:3] * np.array(p.inertia)) + tuple(
+                float(v) for v in gamma
+            )
         return tuple(float(v) for v in (*d.qpos[0:2], *d.qvel[0:2], *d.qpos[3:7], *d.qvel[3:6]))
 
     def _control(self, u, h):
@@ -166,7 +220,9 @@ class _Run:
         elif self.problem.system == "free_body":
             d.qfrc_applied[3:6] = u  # the free joint's rotational forces: body-frame torques
         else:
-            raise NotImplementedError(f"a control on the {self.problem.system} (a moving table) is not modelled")
+            raise NotImplementedError(
+                f"a control on the {self.problem.system} (a moving table) is not modelled"
+            )
 
     def step(self, u, h):
         self._control(u, h)
@@ -184,8 +240,13 @@ def mujoco_simulators(options: dict) -> list[MujocoSimulator]:
     from .protocol import no_more_options, take_option
 
     names = take_option(options, "integrator", str, "+".join(DEFAULT_INTEGRATORS)).split("+")
-    settings = dict(dt=take_option(options, "dt", float, 1e-3), cone=take_option(options, "cone", str, "elliptic"),
-                    timeconst=take_option(options, "timeconst", float, None), dampratio=take_option(options, "dampratio", float, 1.0),
-                    impratio=take_option(options, "impratio", float, 1.0), noslip=take_option(options, "noslip", int, 0))
+    settings = dict(
+        dt=take_option(options, "dt", float, 1e-3),
+        cone=take_option(options, "cone", str, "elliptic"),
+        timeconst=take_option(options, "timeconst", float, None),
+        dampratio=take_option(options, "dampratio", float, 1.0),
+        impratio=take_option(options, "impratio", float, 1.0),
+        noslip=take_option(options, "noslip", int, 0),
+    )
     no_more_options(options, "mujoco")
     return [MujocoSimulator(name, **settings) for name in names]

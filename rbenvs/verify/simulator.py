@@ -20,8 +20,23 @@ import numpy as np
 from ..integrators import Integrator, get_integrator
 from .protocol import Problem, Run, Simulator, no_more_options, take_option
 
-__all__ = ["Problem", "Run", "Simulator", "IntegratorSimulator", "CallableSimulator", "problem_of", "advance", "start",
-           "as_simulators", "parse_simulator", "take_option", "no_more_options", "ADAPTERS", "LAYOUTS", "SimulatorFunctionError"]
+__all__ = [
+    "Problem",
+    "Run",
+    "Simulator",
+    "IntegratorSimulator",
+    "CallableSimulator",
+    "problem_of",
+    "advance",
+    "start",
+    "as_simulators",
+    "parse_simulator",
+    "take_option",
+    "no_more_options",
+    "ADAPTERS",
+    "LAYOUTS",
+    "SimulatorFunctionError",
+]
 
 
 def problem_of(model) -> Problem:
@@ -101,12 +116,16 @@ class IntegratorSimulator:
         self.integrator: Integrator = get_integrator(integrator)
         self.dt = None if dt is None else float(dt)
         self.order = self.integrator.order
-        self.name = self.integrator.name if dt is None else f"rbenvs {self.integrator.name} dt={dt:g}"
+        self.name = (
+            self.integrator.name if dt is None else f"rbenvs {self.integrator.name} dt={dt:g}"
+        )
 
     def start(self, problem: Problem, y0) -> Run:
         model = problem.model
         if not self.integrator.supports(model):
-            raise NotImplementedError(f"{self.integrator.name} needs {list(self.integrator.requires)}, which this system lacks")
+            raise NotImplementedError(
+                f"{self.integrator.name} needs {list(self.integrator.requires)}, which this system lacks"
+            )
         return _IntegratorRun(self.integrator, model, y0)
 
 
@@ -134,8 +153,14 @@ def _user_frames(error: BaseException) -> str:
     import traceback
 
     here = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-    frames = [f for f in traceback.extract_tb(error.__traceback__) if not os.path.abspath(f.filename).startswith(here)]
-    return "".join(traceback.format_list(frames)) + "".join(traceback.format_exception_only(type(error), error))
+    frames = [
+        f
+        for f in traceback.extract_tb(error.__traceback__)
+        if not os.path.abspath(f.filename).startswith(here)
+    ]
+    return "".join(traceback.format_list(frames)) + "".join(
+        traceback.format_exception_only(type(error), error)
+    )
 
 
 class _CallableRun:
@@ -149,14 +174,18 @@ class _CallableRun:
         except NotImplementedError:
             raise
         except Exception as error:
-            raise SimulatorFunctionError(f"the simulator function {call} raised {type(error).__name__}; its traceback:\n{_user_frames(error)}") from error
+            raise SimulatorFunctionError(
+                f"the simulator function {call} raised {type(error).__name__}; its traceback:\n{_user_frames(error)}"
+            ) from error
         expected = f"a flat tuple of {len(self.y)} floats {LAYOUTS[self.problem.system]}"
         try:
             y = tuple(float(c) for c in out)
         except (TypeError, ValueError):
             y = None
         if y is None or len(y) != len(self.y):
-            raise SimulatorFunctionError(f"the simulator function {call} returned {_short(out)}: expected {expected}")
+            raise SimulatorFunctionError(
+                f"the simulator function {call} returned {_short(out)}: expected {expected}"
+            )
         self.y = y
         return y
 
@@ -202,7 +231,9 @@ def _options(text: str) -> dict[str, str]:
     for part in filter(None, text.split(",")):
         key, sep, value = part.partition("=")
         if not sep or not key.strip():
-            raise ValueError(f"simulator options are key=value pairs separated by commas, got {part!r}")
+            raise ValueError(
+                f"simulator options are key=value pairs separated by commas, got {part!r}"
+            )
         out[key.strip()] = value.strip()
     return out
 
@@ -218,8 +249,11 @@ def _rbenvs(options) -> list:
 
 def _mujoco(options) -> list:
     from ..extras import require
+
     require("mujoco")
-    from .mujoco_adapter import mujoco_simulators  # the only import of the mujoco adapter (and of mujoco)
+    from .mujoco_adapter import (
+        mujoco_simulators,
+    )  # the only import of the mujoco adapter (and of mujoco)
 
     return mujoco_simulators(options)
 
@@ -240,7 +274,9 @@ def parse_simulator(spec: str) -> list:
     if head in ADAPTERS:
         return ADAPTERS[head](_options(tail))
     if not tail:
-        raise ValueError(f"simulator must be one of {sorted(ADAPTERS)} or module:function, got {spec!r}")
+        raise ValueError(
+            f"simulator must be one of {sorted(ADAPTERS)} or module:function, got {spec!r}"
+        )
     attr, _, rest = tail.partition(",")
     options = _options(rest)
     # the current folder, as `python -m rbenvs` has it (an installed `rbenvs` script does not)
@@ -258,7 +294,11 @@ def parse_simulator(spec: str) -> list:
     if isinstance(obj, Simulator):
         no_more_options(options, spec)
         return [obj]
-    sim = CallableSimulator(obj, dt=take_option(options, "dt", float, 1e-3), order=take_option(options, "order", int, 1),
-                            name=take_option(options, "name", str, None))
+    sim = CallableSimulator(
+        obj,
+        dt=take_option(options, "dt", float, 1e-3),
+        order=take_option(options, "order", int, 1),
+        name=take_option(options, "name", str, None),
+    )
     no_more_options(options, spec)
     return [sim]

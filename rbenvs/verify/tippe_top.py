@@ -97,7 +97,16 @@ from ..dynamics import TippeTop, TippeTopParams
 from ..integrators import get_integrator
 from ..oracles import final_tilt, inversion_criterion, jellett
 from ..rotations import quat_multiply, quat_rotate
-from .common import ENERGY_BOUND, MOMENTUM_BOUND, ROUND_OFF, Check, not_applicable, reference_scheme, scaled_tolerance, worst
+from .common import (
+    ENERGY_BOUND,
+    MOMENTUM_BOUND,
+    ROUND_OFF,
+    Check,
+    not_applicable,
+    reference_scheme,
+    scaled_tolerance,
+    worst,
+)
 from .simulator import as_simulators, start
 
 __all__ = [
@@ -136,11 +145,15 @@ FINAL_TILT_TOL = math.radians(0.5)
 
 INVARIANT_HORIZON = 40.0  # t_g
 SHORT_HORIZON = 10.0  # t_g: Coulomb friction (stiff near zero slip) and dop853 (costly per step)
-DOP853_SLIP = 0.1  # x sqrt(g R): dop853's Coulomb regularisation (the others run the default 1e-3 m/s)
+DOP853_SLIP = (
+    0.1  # x sqrt(g R): dop853's Coulomb regularisation (the others run the default 1e-3 m/s)
+)
 INVARIANT_SAMPLE = 0.5  # t_g between samples of the invariants
 MAX_DRAWS = 5  # states drawn for one that stays on the table past its first sample
 T90_TOL = 1e-4  # s
-T90_ORDER_TOL = 0.5  # on the observed order (measured 4.18: the differences are 2.0e-6 s and 1.1e-7 s)
+T90_ORDER_TOL = (
+    0.5  # on the observed order (measured 4.18: the differences are 2.0e-6 s and 1.1e-7 s)
+)
 
 
 @dataclass(frozen=True)
@@ -199,12 +212,37 @@ class TippeSetting:
 #   [1.4e-12, 7.4e-13], rise 1e-11 [0]. Coulomb friction regularised at 0.1 sqrt(g R) (DOP853_SLIP):
 #   at 1e-3 m/s the stiffness costs ~4e5 evaluations per 10 t_g. Settling at rtol 1e-8.
 TIPPE_TOP_SETTINGS = {
-    "euler": TippeSetting(invariant_step=1e-2, settle_step=0.03, states=(1, 2), regimes=(("inside",), ("inside",)),
-                          inversion_tops=(1, 2), jellett=0.1, energy=0.04, rise=1e-4, alpha_max=0.3),
-    "rk4": TippeSetting(invariant_step=0.1, settle_step=0.1, states=(2, 4), regimes=(REGIMES, REGIMES),
-                        inversion_tops=(1, 2), jellett=1e-6, energy=1e-7, rise=1e-8),
-    "dop853": TippeSetting(invariant_step=0.0, settle_step=0.0, states=(1, 2), regimes=(("above",), REGIMES),
-                           inversion_tops=(1, 1), jellett=1e-10, energy=1e-10, rise=1e-11),
+    "euler": TippeSetting(
+        invariant_step=1e-2,
+        settle_step=0.03,
+        states=(1, 2),
+        regimes=(("inside",), ("inside",)),
+        inversion_tops=(1, 2),
+        jellett=0.1,
+        energy=0.04,
+        rise=1e-4,
+        alpha_max=0.3,
+    ),
+    "rk4": TippeSetting(
+        invariant_step=0.1,
+        settle_step=0.1,
+        states=(2, 4),
+        regimes=(REGIMES, REGIMES),
+        inversion_tops=(1, 2),
+        jellett=1e-6,
+        energy=1e-7,
+        rise=1e-8,
+    ),
+    "dop853": TippeSetting(
+        invariant_step=0.0,
+        settle_step=0.0,
+        states=(1, 2),
+        regimes=(("above",), REGIMES),
+        inversion_tops=(1, 1),
+        jellett=1e-10,
+        energy=1e-10,
+        rise=1e-11,
+    ),
 }
 
 
@@ -241,7 +279,11 @@ class RandomTop:
     @property
     def J_c(self) -> float:
         a = self.alpha
-        return math.sqrt(self.mass * self.gravity * self.radius**3 * self.C * a) * (1.0 + a) ** 2 / math.sqrt(0.4 * a)
+        return (
+            math.sqrt(self.mass * self.gravity * self.radius**3 * self.C * a)
+            * (1.0 + a) ** 2
+            / math.sqrt(0.4 * a)
+        )
 
     @property
     def spin(self) -> float:
@@ -253,12 +295,27 @@ class RandomTop:
         ``mu* = MU_STAR/alpha``)."""
         if mu is None:
             mu = settling_friction(self.alpha, self.radius, self.gravity)
-        return TippeTopParams(radius=self.radius, mass=self.mass, offset=self.alpha, inertia=(self.A, self.C),
-                              gravity=self.gravity, friction=mu, friction_law=law)
+        return TippeTopParams(
+            radius=self.radius,
+            mass=self.mass,
+            offset=self.alpha,
+            inertia=(self.A, self.C),
+            gravity=self.gravity,
+            friction=mu,
+            friction_law=law,
+        )
 
     def describe(self) -> dict:
-        return {"regime": self.regime, "radius": self.radius, "mass": self.mass, "offset": self.alpha,
-                "inertia": [self.A, self.C], "gravity": self.gravity, "A/C": self.gamma, "J/J_c": self.k}
+        return {
+            "regime": self.regime,
+            "radius": self.radius,
+            "mass": self.mass,
+            "offset": self.alpha,
+            "inertia": [self.A, self.C],
+            "gravity": self.gravity,
+            "A/C": self.gamma,
+            "J/J_c": self.k,
+        }
 
 
 def ball_bound(alpha, gamma) -> float:
@@ -384,7 +441,9 @@ def _random_states(rng, top, system, n, slip):
             v0 = system.no_slip_velocity(q, w)
             v = (v0[0] + slip_v[0], v0[1] + slip_v[1])
         out.append(system.state((0.0, 0.0), q, w, v))
-        cases.append({"attitude": [float(c) for c in q], "angular_velocity": list(w), "slip": list(slip_v)})
+        cases.append(
+            {"attitude": [float(c) for c in q], "angular_velocity": list(w), "slip": list(slip_v)}
+        )
     return out, cases
 
 
@@ -461,7 +520,15 @@ def _run_invariants(system, sim, setting, y, horizon, u_of):
         if lift_off is not None:
             break
     steps = int(round(t / h))
-    return np.array(js), np.array(scales), np.array(energies), np.array(normals), h, lift_off, (omega * h, steps)
+    return (
+        np.array(js),
+        np.array(scales),
+        np.array(energies),
+        np.array(normals),
+        h,
+        lift_off,
+        (omega * h, steps),
+    )
 
 
 def _invariant_rows(sim, setting, tops, rng, n_states, system_class, progress):
@@ -474,7 +541,11 @@ def _invariant_rows(sim, setting, tops, rng, n_states, system_class, progress):
 
     def tolerance(tol, run, bound):
         """The setting's tolerance; for a simulator at its own step, scaled to it, at most ``bound``."""
-        return tol if sim.dt is None else scaled_tolerance(tol, run[0], setting.invariant_step, sim.order, run[1], bound)
+        return (
+            tol
+            if sim.dt is None
+            else scaled_tolerance(tol, run[0], setting.invariant_step, sim.order, run[1], bound)
+        )
 
     for top in tops:
         for variant in VARIANTS:
@@ -485,38 +556,95 @@ def _invariant_rows(sim, setting, tops, rng, n_states, system_class, progress):
                 mu = float(rng.uniform(0.1, 0.5)) / math.sqrt(top.gravity * top.radius)
             params = top.params(variant.law or "viscous", mu if mu is not None else 0.0)
             if dop853 and variant.law == "coulomb":  # ~50x less stiff near zero slip
-                params = dataclasses.replace(params, slip_regularization=DOP853_SLIP * math.sqrt(top.gravity * top.radius))
+                params = dataclasses.replace(
+                    params, slip_regularization=DOP853_SLIP * math.sqrt(top.gravity * top.radius)
+                )
             system = system_class(params, variant.fidelity)
             u_of, motion = _table_motion(rng, top) if variant.moving else (None, {})
-            horizon = (SHORT_HORIZON if dop853 or variant.law == "coulomb" else INVARIANT_HORIZON) * top.t_g
+            horizon = (
+                SHORT_HORIZON if dop853 or variant.law == "coulomb" else INVARIANT_HORIZON
+            ) * top.t_g
             for n in range(n_states):
                 try:
-                    for _ in range(MAX_DRAWS):  # a state that lifts off before its second sample is drawn again
-                        (y,), (desc,) = _random_states(rng, top, system, 1, slip=variant.fidelity == "gliding")
-                        js, scales, energies, normals, h, lift_off, run = _run_invariants(system, sim, setting, y, horizon, u_of)
+                    for _ in range(
+                        MAX_DRAWS
+                    ):  # a state that lifts off before its second sample is drawn again
+                        (y,), (desc,) = _random_states(
+                            rng, top, system, 1, slip=variant.fidelity == "gliding"
+                        )
+                        js, scales, energies, normals, h, lift_off, run = _run_invariants(
+                            system, sim, setting, y, horizon, u_of
+                        )
                         if len(js) >= 2:
                             break
-                except NotImplementedError as exc:  # not modelled: n/a rows (the states drawn as for the others)
+                except (
+                    NotImplementedError
+                ) as exc:  # not modelled: n/a rows (the states drawn as for the others)
                     for _ in range(n + 1, n_states):
                         _random_states(rng, top, system, 1, slip=variant.fidelity == "gliding")
-                    for row in not_applicable(SYSTEM, name, _variant_rows(variant), f"{variant.label}: {exc}"):
+                    for row in not_applicable(
+                        SYSTEM, name, _variant_rows(variant), f"{variant.label}: {exc}"
+                    ):
                         add(row)
                     break
-                case = top.describe() | {"fidelity": variant.fidelity, "friction_law": variant.law,
-                                         "friction": params.friction, "h": h, "T": horizon} | desc | motion
+                case = (
+                    top.describe()
+                    | {
+                        "fidelity": variant.fidelity,
+                        "friction_law": variant.law,
+                        "friction": params.friction,
+                        "h": h,
+                        "T": horizon,
+                    }
+                    | desc
+                    | motion
+                )
                 case["min N/(m g)"] = float(np.min(normals)) if len(normals) else math.nan
                 case["lift-off at"] = lift_off
                 if len(js) < 2:  # MAX_DRAWS states in a row lifted off at once: a FAIL row (nan)
                     js = scales = energies = np.full(2, math.nan)
                 drift = float(np.max(np.abs(js - js[0])) / scales[0])
-                jellett_row, energy_row = _variant_rows(variant) + ((None,) if variant.moving else ())
-                add(Check(SYSTEM, name, jellett_row, 0.0, drift, tolerance(setting.jellett, run, MOMENTUM_BOUND), case=case))
+                jellett_row, energy_row = _variant_rows(variant) + (
+                    (None,) if variant.moving else ()
+                )
+                add(
+                    Check(
+                        SYSTEM,
+                        name,
+                        jellett_row,
+                        0.0,
+                        drift,
+                        tolerance(setting.jellett, run, MOMENTUM_BOUND),
+                        case=case,
+                    )
+                )
                 if variant.dissipative:
-                    rise = float(np.max(np.append(np.diff(energies), 0.0)) / energies[0])  # nan stays nan
-                    add(Check(SYSTEM, name, energy_row, 0.0, rise, tolerance(setting.rise, run, ENERGY_BOUND), case=case))
+                    rise = float(
+                        np.max(np.append(np.diff(energies), 0.0)) / energies[0]
+                    )  # nan stays nan
+                    add(
+                        Check(
+                            SYSTEM,
+                            name,
+                            energy_row,
+                            0.0,
+                            rise,
+                            tolerance(setting.rise, run, ENERGY_BOUND),
+                            case=case,
+                        )
+                    )
                 elif not variant.moving:
-                    add(Check(SYSTEM, name, energy_row, 0.0, float(np.max(np.abs(energies - energies[0])) / energies[0]),
-                              tolerance(setting.energy, run, ENERGY_BOUND), case=case))
+                    add(
+                        Check(
+                            SYSTEM,
+                            name,
+                            energy_row,
+                            0.0,
+                            float(np.max(np.abs(energies - energies[0])) / energies[0]),
+                            tolerance(setting.energy, run, ENERGY_BOUND),
+                            case=case,
+                        )
+                    )
         if progress:
             progress()
     return rows
@@ -560,7 +688,9 @@ def upright_start(system, spin, tilt=START_TILT):
     return system.state((0.0, 0.0), _tilted_attitude(tilt), (0.0, 0.0, spin))
 
 
-def settle(system, integ, spin, omega_h=0.1, rtol=1e-8, horizon=SETTLE_HORIZON, record=False) -> Settled:
+def settle(
+    system, integ, spin, omega_h=0.1, rtol=1e-8, horizon=SETTLE_HORIZON, record=False
+) -> Settled:
     """Run the upright start of ``system`` at ``spin`` until settled (module docstring) or
     ``horizon`` t_g. ``integ``: an rbenvs integrator (name) or a simulator (at its own step);
     ``omega_h``: ``|Omega| h`` of a fixed-step scheme; ``rtol``: dop853's (one ``solve_ivp`` call
@@ -607,13 +737,24 @@ def settle(system, integ, spin, omega_h=0.1, rtol=1e-8, horizon=SETTLE_HORIZON, 
             lift_off = k * sample
             break
         if k % per_window == 0:
-            last = tilts[-per_window - 1:]
-            if max(last) - min(last) < SETTLE_BAND and system.slip_speed(y) < SETTLE_SLIP * prm.radius * abs(spin):
+            last = tilts[-per_window - 1 :]
+            if max(last) - min(last) < SETTLE_BAND and system.slip_speed(
+                y
+            ) < SETTLE_SLIP * prm.radius * abs(spin):
                 settled = True
                 break
     J1, _ = oracle_jellett(system, y)
-    return Settled(float(tilts[-1]) if lift_off is None else math.nan, settled, k * sample, min_n,
-                   float(abs(J1 - J0) / scale), h, t90, lift_off, tilts if record else [])
+    return Settled(
+        float(tilts[-1]) if lift_off is None else math.nan,
+        settled,
+        k * sample,
+        min_n,
+        float(abs(J1 - J0) / scale),
+        h,
+        t90,
+        lift_off,
+        tilts if record else [],
+    )
 
 
 def prediction(params: TippeTopParams, J: float):
@@ -647,27 +788,62 @@ def _inversion_rows(sim, setting, tops, system_class, progress):
         y0 = upright_start(system, top.spin)
         J0 = float(oracle_jellett(system, y0)[0])
         label, tilt = prediction(params, J0)
-        what = {"below": "A/C < 1 - alpha", "inside": "1 - alpha < A/C < 1 + alpha", "above": "A/C > 1 + alpha"}[top.regime]
-        names = (f"inversion class, {what} (0 none, 1 partial, 2 full)", f"final tilt [deg] = argmin E*, {what}")
+        what = {
+            "below": "A/C < 1 - alpha",
+            "inside": "1 - alpha < A/C < 1 + alpha",
+            "above": "A/C > 1 + alpha",
+        }[top.regime]
+        names = (
+            f"inversion class, {what} (0 none, 1 partial, 2 full)",
+            f"final tilt [deg] = argmin E*, {what}",
+        )
         try:
             res = settle(system, sim, top.spin, setting.settle_step, setting.settle_rtol)
         except NotImplementedError as exc:
-            na = not_applicable(SYSTEM, name, names, f"viscous friction (the settling runs'): {exc}")
+            na = not_applicable(
+                SYSTEM, name, names, f"viscous friction (the settling runs'): {exc}"
+            )
             rows.setdefault(f"c{top.regime}", []).append(na[0])
             rows.setdefault(f"t{top.regime}", []).append(na[1])
             continue
         got = measured_class(res.tilt)
-        case = top.describe() | {"friction_law": "viscous", "friction": params.friction, "spin": top.spin,
-                                 "start tilt": START_TILT, "J": J0, "predicted": label, "simulated": got,
-                                 "settled": res.settled, "t": res.t, "h": res.h, "min N/(m g)": res.min_normal,
-                                 "lift-off at": res.lift_off,
-                                 "J drift": res.jellett_drift}
-        rows.setdefault(f"c{top.regime}", []).append(Check(
-            SYSTEM, name, names[0], CLASS_CODE[label],
-            CLASS_CODE.get(got, math.nan), 0.0, case=case))
-        rows.setdefault(f"t{top.regime}", []).append(Check(
-            SYSTEM, name, names[1], math.degrees(tilt), math.degrees(res.tilt),
-            math.degrees(FINAL_TILT_TOL), case=case))
+        case = top.describe() | {
+            "friction_law": "viscous",
+            "friction": params.friction,
+            "spin": top.spin,
+            "start tilt": START_TILT,
+            "J": J0,
+            "predicted": label,
+            "simulated": got,
+            "settled": res.settled,
+            "t": res.t,
+            "h": res.h,
+            "min N/(m g)": res.min_normal,
+            "lift-off at": res.lift_off,
+            "J drift": res.jellett_drift,
+        }
+        rows.setdefault(f"c{top.regime}", []).append(
+            Check(
+                SYSTEM,
+                name,
+                names[0],
+                CLASS_CODE[label],
+                CLASS_CODE.get(got, math.nan),
+                0.0,
+                case=case,
+            )
+        )
+        rows.setdefault(f"t{top.regime}", []).append(
+            Check(
+                SYSTEM,
+                name,
+                names[1],
+                math.degrees(tilt),
+                math.degrees(res.tilt),
+                math.degrees(FINAL_TILT_TOL),
+                case=case,
+            )
+        )
         if progress:
             progress()
     return rows
@@ -705,16 +881,29 @@ def _t90_rows(order=True, system_class=TippeTop):
     ``h``, ``h/2``, ``h/4``: ``log2((t(h) - t(h/2)) / (t(h/2) - t(h/4)))``, 4 for rk4."""
     t_h, h = leine_glocker_t90(1.0, system_class=system_class)
     t_h2, _ = leine_glocker_t90(0.5, system_class=system_class)
-    case = {k: v for k, v in TippeTopParams().__dict__.items()} | {"spin": 150.0, "start tilt": START_TILT, "h": h,
-                                                                   "t90(h)": t_h, "t90(h/2)": t_h2}
-    rows = [Check(SYSTEM, "rk4", T90_ROW, t_h2, t_h, T90_TOL,
-                  case=case)]
+    case = {k: v for k, v in TippeTopParams().__dict__.items()} | {
+        "spin": 150.0,
+        "start tilt": START_TILT,
+        "h": h,
+        "t90(h)": t_h,
+        "t90(h/2)": t_h2,
+    }
+    rows = [Check(SYSTEM, "rk4", T90_ROW, t_h2, t_h, T90_TOL, case=case)]
     if order:
         t_h4, _ = leine_glocker_t90(0.25, system_class=system_class)
         ratio = (t_h - t_h2) / (t_h2 - t_h4) if t_h2 != t_h4 else math.nan
         measured = math.log2(ratio) if ratio > 0 else math.nan
-        rows.append(Check(SYSTEM, "rk4", "order of convergence of t90 from h, h/2, h/4", 4.0, measured, T90_ORDER_TOL,
-                          case=case | {"t90(h/4)": t_h4}))
+        rows.append(
+            Check(
+                SYSTEM,
+                "rk4",
+                "order of convergence of t90 from h, h/2, h/4",
+                4.0,
+                measured,
+                T90_ORDER_TOL,
+                case=case | {"t90(h/4)": t_h4},
+            )
+        )
     return rows
 
 
@@ -759,12 +948,23 @@ def _inversion_jellett_row(sim, system_class=TippeTop) -> Check:
         tol = INVERSION_JELLETT
     elif reference_scheme(sim.order) == "rk4":
         omega = INVERSION_SPIN
-        tol = scaled_tolerance(INVERSION_JELLETT, omega * h, omega * rk4_h, sim.order, steps, MOMENTUM_BOUND)
+        tol = scaled_tolerance(
+            INVERSION_JELLETT, omega * h, omega * rk4_h, sim.order, steps, MOMENTUM_BOUND
+        )
     else:
         tol = MOMENTUM_BOUND + ROUND_OFF * math.sqrt(steps)
-    case = {k: v for k, v in TippeTopParams().__dict__.items() if k in ("radius", "mass", "offset", "inertia", "friction")}
-    case |= {"spin": INVERSION_SPIN, "start tilt": START_TILT, "h": h, "T": INVERSION_HORIZON,
-             "max tilt [deg]": math.degrees(max(tilts)) if tilts else math.nan}
+    case = {
+        k: v
+        for k, v in TippeTopParams().__dict__.items()
+        if k in ("radius", "mass", "offset", "inertia", "friction")
+    }
+    case |= {
+        "spin": INVERSION_SPIN,
+        "start tilt": START_TILT,
+        "h": h,
+        "T": INVERSION_HORIZON,
+        "max tilt [deg]": math.degrees(max(tilts)) if tilts else math.nan,
+    }
     return Check(SYSTEM, sim.name, INVERSION_ROW, 0.0, drift, tol, case=case)
 
 
@@ -789,11 +989,20 @@ def _hop_rows(system_class=TippeTop):
     case = dict(HOP_CASE)
     # the rolling start (its centre of mass moving at R n sin(theta)) and the stability bound's
     # steps: the case as measured (the system under test below is built with that bound)
-    env = TippeTopEnv(spin=case["spin"], friction=case["friction"], tilt=case["tilt"], free_flight=True, max_speed=40.0, start="rolling",
-                      friction_bound="stability")
+    env = TippeTopEnv(
+        spin=case["spin"],
+        friction=case["friction"],
+        tilt=case["tilt"],
+        free_flight=True,
+        max_speed=40.0,
+        start="rolling",
+        friction_bound="stability",
+    )
     # the env's model with the system under test (a mutant in the tests), run by the step core
     # the env runs (its hybrid layer makes the switches between internal steps)
-    engine = Engine(dataclasses.replace(env.model, system=system_class(env.params, "gliding", flight=True)))
+    engine = Engine(
+        dataclasses.replace(env.model, system=system_class(env.params, "gliding", flight=True))
+    )
     y = tuple(float(c) for c in engine.model.initial_state(seeding.np_random(0)[0]))
     _, info = engine.reset_one(y)
     j0, e0 = info["jellett"], info["energy"]
@@ -811,9 +1020,24 @@ def _hop_rows(system_class=TippeTop):
             break
     case["hops"] = info["hops"]
     rows = [
-        Check(SYSTEM, "rk4", f"hops ({case['hops']}): Jellett held, max |dJ| / |J|", 0.0, dj / abs(j0), HOP_JELLETT_TOL, case=case),
-        Check(SYSTEM, "rk4", "hops: energy never rises in a control period, max rise / E0", 0.0, max(rise, 0.0) / e0, 1e-13,
-              case=case),
+        Check(
+            SYSTEM,
+            "rk4",
+            f"hops ({case['hops']}): Jellett held, max |dJ| / |J|",
+            0.0,
+            dj / abs(j0),
+            HOP_JELLETT_TOL,
+            case=case,
+        ),
+        Check(
+            SYSTEM,
+            "rk4",
+            "hops: energy never rises in a control period, max rise / E0",
+            0.0,
+            max(rise, 0.0) / e0,
+            1e-13,
+            case=case,
+        ),
     ]
     system = engine.system
     rng = np.random.default_rng(0)
@@ -829,8 +1053,16 @@ def _hop_rows(system_class=TippeTop):
         loss = system.energy(y) - system.energy(after)
         expected = 0.5 * lam * lam * m_zz
         worst_loss = max(worst_loss, abs(loss / expected - 1.0) if expected > 0.0 else math.inf)
-    rows.append(Check(SYSTEM, "rk4", "plastic impact: energy loss / (lambda^2 M_zz / 2) - 1, 20 touchdowns", 0.0, worst_loss,
-                      IMPACT_TOL))
+    rows.append(
+        Check(
+            SYSTEM,
+            "rk4",
+            "plastic impact: energy loss / (lambda^2 M_zz / 2) - 1, 20 touchdowns",
+            0.0,
+            worst_loss,
+            IMPACT_TOL,
+        )
+    )
     return rows
 
 
@@ -850,8 +1082,9 @@ def _touchdown_state(system, rng):
 # all rows
 
 
-def tippe_top_checks(integrators, seed=0, quick=False, system_class=TippeTop, progress=None, t90=True,
-                     regimes=None) -> list[Check]:
+def tippe_top_checks(
+    integrators, seed=0, quick=False, system_class=TippeTop, progress=None, t90=True, regimes=None
+) -> list[Check]:
     """The tippe-top rows for each of ``integrators``: rbenvs integrator names in
     :data:`TIPPE_TOP_SETTINGS` (others are left out), or
     :class:`~rbenvs.verify.simulator.Simulator` objects at their own step, on the random tops of
@@ -870,15 +1103,29 @@ def tippe_top_checks(integrators, seed=0, quick=False, system_class=TippeTop, pr
                 continue
             setting = TIPPE_TOP_SETTINGS[name]
             if name == "dop853":
-                sim = as_simulators([get_integrator(name, rtol=setting.rtol, atol=setting.rtol * 1e-2)])[0]
+                sim = as_simulators(
+                    [get_integrator(name, rtol=setting.rtol, atol=setting.rtol * 1e-2)]
+                )[0]
         else:
             name = reference_scheme(sim.order)
             setting = TIPPE_TOP_SETTINGS[name]
         rng = np.random.default_rng([seed, 3, list(TIPPE_TOP_SETTINGS).index(name)])
-        rows = _invariant_rows(sim, setting, random_tops(rng, 1, "inside"), rng, setting.states[mode], system_class, progress)
+        rows = _invariant_rows(
+            sim,
+            setting,
+            random_tops(rng, 1, "inside"),
+            rng,
+            setting.states[mode],
+            system_class,
+            progress,
+        )
         for regime in setting.regimes[mode] if regimes is None else regimes:
-            tops = random_tops(np.random.default_rng([seed, 4, REGIMES.index(regime)]), setting.inversion_tops[mode], regime,
-                               setting.alpha_max)
+            tops = random_tops(
+                np.random.default_rng([seed, 4, REGIMES.index(regime)]),
+                setting.inversion_tops[mode],
+                regime,
+                setting.alpha_max,
+            )
             rows |= _inversion_rows(sim, setting, tops, system_class, progress)
         checks.extend(worst(c) for c in rows.values())
         if sim.dt is not None or (name == "rk4" and t90):
@@ -887,11 +1134,21 @@ def tippe_top_checks(integrators, seed=0, quick=False, system_class=TippeTop, pr
             except NotImplementedError as exc:
                 checks.extend(not_applicable(SYSTEM, sim.name, [INVERSION_ROW], str(exc)))
         if sim.dt is not None:
-            own = ["hops: Jellett held, max |dJ| / |J|", "hops: energy never rises in a control period, max rise / E0",
-                   "plastic impact: energy loss / (lambda^2 M_zz / 2) - 1, 20 touchdowns"]
+            own = [
+                "hops: Jellett held, max |dJ| / |J|",
+                "hops: energy never rises in a control period, max rise / E0",
+                "plastic impact: energy loss / (lambda^2 M_zz / 2) - 1, 20 touchdowns",
+            ]
             if name == "rk4" and t90:
                 own.insert(0, T90_ROW)
-            checks.extend(not_applicable(SYSTEM, sim.name, own, "a row of rbenvs' own model (its free flight, its rk4's convergence)"))
+            checks.extend(
+                not_applicable(
+                    SYSTEM,
+                    sim.name,
+                    own,
+                    "a row of rbenvs' own model (its free flight, its rk4's convergence)",
+                )
+            )
             continue
         if name == "rk4" and t90:
             checks.extend(_t90_rows(order=not quick, system_class=system_class))
@@ -910,7 +1167,11 @@ def progress_total(integrators, quick=False, t90=True) -> int:
     for name in integrators:
         if name in TIPPE_TOP_SETTINGS:
             s = TIPPE_TOP_SETTINGS[name]
-            total += 1 + len(s.regimes[mode]) * s.inversion_tops[mode] + (1 if name == "rk4" and t90 else 0)
+            total += (
+                1
+                + len(s.regimes[mode]) * s.inversion_tops[mode]
+                + (1 if name == "rk4" and t90 else 0)
+            )
             total += 1 if name == "rk4" else 0  # the hop rows
     return total
 
@@ -950,12 +1211,24 @@ class SweepPoint:
 
     @property
     def passed(self) -> bool:
-        return bool(math.isfinite(self.difference) and self.difference <= math.degrees(FINAL_TILT_TOL)
-                    and measured_class(math.radians(self.simulated_tilt)) == self.predicted_class)
+        return bool(
+            math.isfinite(self.difference)
+            and self.difference <= math.degrees(FINAL_TILT_TOL)
+            and measured_class(math.radians(self.simulated_tilt)) == self.predicted_class
+        )
 
 
-def sweep(alphas=SWEEP_ALPHAS, offsets=SWEEP_OFFSETS, integrator="rk4", k=1.3, c=0.4, radius=0.015, mass=0.006,
-          progress=None, system_class=TippeTop) -> list[SweepPoint]:
+def sweep(
+    alphas=SWEEP_ALPHAS,
+    offsets=SWEEP_OFFSETS,
+    integrator="rk4",
+    k=1.3,
+    c=0.4,
+    radius=0.015,
+    mass=0.006,
+    progress=None,
+    system_class=TippeTop,
+) -> list[SweepPoint]:
     """The final tilt over a grid of ``A/C = 1 + s alpha`` (``s`` in ``offsets``) and ``alpha``.
 
     Every point is the same toy top (``radius``, ``mass``, ``C = c m R^2``; the defaults those of
@@ -978,9 +1251,23 @@ def sweep(alphas=SWEEP_ALPHAS, offsets=SWEEP_OFFSETS, integrator="rk4", k=1.3, c
             J0 = float(oracle_jellett(system, upright_start(system, top.spin))[0])
             label, tilt = prediction(params, J0)
             res = settle(system, integ, top.spin, setting.settle_step, setting.settle_rtol)
-            out.append(SweepPoint(alpha, top.gamma, top.C, radius, mass, J0, top.spin, label, math.degrees(tilt),
-                                  math.degrees(res.tilt),
-                                  res.settled, res.t, res.min_normal))
+            out.append(
+                SweepPoint(
+                    alpha,
+                    top.gamma,
+                    top.C,
+                    radius,
+                    mass,
+                    J0,
+                    top.spin,
+                    label,
+                    math.degrees(tilt),
+                    math.degrees(res.tilt),
+                    res.settled,
+                    res.t,
+                    res.min_normal,
+                )
+            )
             if progress:
                 progress()
     return out
@@ -990,19 +1277,45 @@ def print_sweep(points, file=None):
     import sys
 
     file = sys.stdout if file is None else file
-    rows = [("alpha", "A/C", "J [kg m^2/s]", "spin", "predicted", "predicted [deg]", "simulated [deg]", "|diff| [deg]",
-             "settled at [s]", "result")]
+    rows = [
+        (
+            "alpha",
+            "A/C",
+            "J [kg m^2/s]",
+            "spin",
+            "predicted",
+            "predicted [deg]",
+            "simulated [deg]",
+            "|diff| [deg]",
+            "settled at [s]",
+            "result",
+        )
+    ]
     for p in points:
-        rows.append((f"{p.alpha:.2f}", f"{p.gamma:.3f}", f"{p.J:.3e}", f"{p.spin:.0f}", p.predicted_class,
-                     f"{p.predicted_tilt:.2f}", f"{p.simulated_tilt:.2f}", f"{p.difference:.3f}",
-                     f"{p.t:.1f}" if p.settled else f"> {p.t:.0f}", "PASS" if p.passed else "FAIL"))
+        rows.append(
+            (
+                f"{p.alpha:.2f}",
+                f"{p.gamma:.3f}",
+                f"{p.J:.3e}",
+                f"{p.spin:.0f}",
+                p.predicted_class,
+                f"{p.predicted_tilt:.2f}",
+                f"{p.simulated_tilt:.2f}",
+                f"{p.difference:.3f}",
+                f"{p.t:.1f}" if p.settled else f"> {p.t:.0f}",
+                "PASS" if p.passed else "FAIL",
+            )
+        )
     widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
     for n, r in enumerate(rows):
         print("  ".join(x.ljust(w) for x, w in zip(r, widths)).rstrip(), file=file)
         if n == 0:
             print("  ".join("-" * w for w in widths), file=file)
     failed = sum(not p.passed for p in points)
-    print(f"\n{len(points) - failed} passed, {failed} failed (tolerance {math.degrees(FINAL_TILT_TOL):.1f} deg)", file=file)
+    print(
+        f"\n{len(points) - failed} passed, {failed} failed (tolerance {math.degrees(FINAL_TILT_TOL):.1f} deg)",
+        file=file,
+    )
 
 
 def plot_sweep(points, path):
@@ -1027,10 +1340,28 @@ def plot_sweep(points, path):
         p0 = pts[0]
         lo, hi = min(g[0], 1 - 1.5 * alpha), max(g[-1], 1 + 1.5 * alpha)
         fine = np.linspace(max(lo, 0.5 + 1e-9), hi, 600)
-        pred = [math.degrees(prediction(TippeTopParams(radius=p0.radius, mass=p0.mass, offset=alpha,
-                                                       inertia=(x * p0.C, p0.C)), p0.J)[1]) for x in fine]
-        ax.plot(fine, pred, "-", color=color, lw=1.2, label=f"alpha = {alpha:g}: argmin E* (predicted)")
-        ax.plot(g, [p.simulated_tilt for p in pts], "o", color=color, mfc="none", label=f"alpha = {alpha:g}: simulated")
+        pred = [
+            math.degrees(
+                prediction(
+                    TippeTopParams(
+                        radius=p0.radius, mass=p0.mass, offset=alpha, inertia=(x * p0.C, p0.C)
+                    ),
+                    p0.J,
+                )[1]
+            )
+            for x in fine
+        ]
+        ax.plot(
+            fine, pred, "-", color=color, lw=1.2, label=f"alpha = {alpha:g}: argmin E* (predicted)"
+        )
+        ax.plot(
+            g,
+            [p.simulated_tilt for p in pts],
+            "o",
+            color=color,
+            mfc="none",
+            label=f"alpha = {alpha:g}: simulated",
+        )
     ax.set_xlabel("A/C")
     ax.set_ylabel("final tilt [deg]")
     ax.set_ylim(-5, 185)

@@ -74,17 +74,31 @@ def tolerance_checks(integrators, seed=0, n_cases=2, progress=None) -> list[Chec
         for inertia, d in zip(inertias, directions):
             omega = SPIN * d / np.linalg.norm(d)
             pi0 = inertia * omega
-            case = {"inertia": inertia.tolist(), "angular_momentum": pi0.tolist(), "integrator": name, "tolerance": TOLERANCE}
+            case = {
+                "inertia": inertia.tolist(),
+                "angular_momentum": pi0.tolist(),
+                "integrator": name,
+                "tolerance": TOLERANCE,
+            }
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore", UnstableMotionWarning)
-                env = FreeRigidBodyEnv(inertia=tuple(inertia), max_torque=0.0, integrator=name, max_angular_velocity=10.0 * SPIN,
-                                       tolerance=TOLERANCE, tolerance_horizon=PERIODS, tolerance_check=True)
+                env = FreeRigidBodyEnv(
+                    inertia=tuple(inertia),
+                    max_torque=0.0,
+                    integrator=name,
+                    max_angular_velocity=10.0 * SPIN,
+                    tolerance=TOLERANCE,
+                    tolerance_horizon=PERIODS,
+                    tolerance_check=True,
+                )
             env.reset(seed=seed, options={"state": {"angular_momentum": pi0}})
             blocks = tolerance_blocks(env.system)
             a = np.zeros(env.action_space.shape, np.float32)
             error = shortfall = 0.0
             with warnings.catch_warnings():
-                warnings.simplefilter("ignore")  # (an episode the estimate ends warns: counted here)
+                warnings.simplefilter(
+                    "ignore"
+                )  # (an episode the estimate ends warns: counted here)
                 for k in range(1, PERIODS + 1):
                     _, _, terminated, _, info = env.step(a)
                     if info["numerical_failure"]:
@@ -93,7 +107,9 @@ def tolerance_checks(integrators, seed=0, n_cases=2, progress=None) -> list[Chec
                     err = float(relative_difference(blocks, ref, env.state_components))
                     error = max(error, err)
                     if err > ROUND_OFF_ERROR:
-                        shortfall = max(shortfall, (err - info["global_error_estimate"]) / TOLERANCE)
+                        shortfall = max(
+                            shortfall, (err - info["global_error_estimate"]) / TOLERANCE
+                        )
                     if terminated:
                         break
             for key, value in (("error", error), ("bound", shortfall)):
@@ -101,10 +117,38 @@ def tolerance_checks(integrators, seed=0, n_cases=2, progress=None) -> list[Chec
                     worst[key] = (value, case)
             if progress:
                 progress()
-        out.append(Check("free_body", name, ROWS["error"], 0.0, worst["error"][0], TOLERANCE, case=worst["error"][1]))
-        out.append(Check("free_body", name, ROWS["bound"], 0.0, max(worst["bound"][0], 0.0), 0.0, case=worst["bound"][1]))
-        out.append(_separatrix_check(name, inertias, seed, progress, ROWS["near"], NEAR_TOLERANCE, NEAR_OFF))
-        out.append(_separatrix_check(name, inertias, seed, progress, ROWS["floor"], FLOOR_TOLERANCE, FLOOR_OFF))
+        out.append(
+            Check(
+                "free_body",
+                name,
+                ROWS["error"],
+                0.0,
+                worst["error"][0],
+                TOLERANCE,
+                case=worst["error"][1],
+            )
+        )
+        out.append(
+            Check(
+                "free_body",
+                name,
+                ROWS["bound"],
+                0.0,
+                max(worst["bound"][0], 0.0),
+                0.0,
+                case=worst["bound"][1],
+            )
+        )
+        out.append(
+            _separatrix_check(
+                name, inertias, seed, progress, ROWS["near"], NEAR_TOLERANCE, NEAR_OFF
+            )
+        )
+        out.append(
+            _separatrix_check(
+                name, inertias, seed, progress, ROWS["floor"], FLOOR_TOLERANCE, FLOOR_OFF
+            )
+        )
     return out
 
 
@@ -118,23 +162,46 @@ def _separatrix_check(name, inertias, seed, progress, row, tolerance, off) -> Ch
         omega = np.full(3, off)
         omega[int(np.argsort(inertia)[1])] = SPIN  # about the intermediate axis
         pi0 = inertia * omega
-        case = {"inertia": inertia.tolist(), "angular_momentum": pi0.tolist(), "integrator": name, "tolerance": tolerance,
-                "tolerance_check": True}
+        case = {
+            "inertia": inertia.tolist(),
+            "angular_momentum": pi0.tolist(),
+            "integrator": name,
+            "tolerance": tolerance,
+            "tolerance_check": True,
+        }
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", UnstableMotionWarning)
-            env = FreeRigidBodyEnv(inertia=tuple(inertia), max_torque=0.0, integrator=name, max_angular_velocity=10.0 * SPIN,
-                                   tolerance=tolerance, tolerance_horizon=PERIODS, tolerance_check=True)
+            env = FreeRigidBodyEnv(
+                inertia=tuple(inertia),
+                max_torque=0.0,
+                integrator=name,
+                max_angular_velocity=10.0 * SPIN,
+                tolerance=tolerance,
+                tolerance_horizon=PERIODS,
+                tolerance_check=True,
+            )
         env.reset(seed=seed, options={"state": {"angular_momentum": pi0}})
         blocks = tolerance_blocks(env.system)
         a = np.zeros(env.action_space.shape, np.float32)
         error = 0.0
         with warnings.catch_warnings():
-            warnings.simplefilter("ignore")  # (an episode the estimate ends warns: the contract, measured up to there)
+            warnings.simplefilter(
+                "ignore"
+            )  # (an episode the estimate ends warns: the contract, measured up to there)
             for k in range(1, PERIODS + 1):
                 _, _, terminated, _, info = env.step(a)
                 if info["numerical_failure"]:
                     break
-                error = max(error, float(relative_difference(blocks, exact_solution(tuple(inertia), pi0, k * env.dt), env.state_components)))
+                error = max(
+                    error,
+                    float(
+                        relative_difference(
+                            blocks,
+                            exact_solution(tuple(inertia), pi0, k * env.dt),
+                            env.state_components,
+                        )
+                    ),
+                )
                 if terminated:
                     break
         if not error <= worst:  # (NaN too)
