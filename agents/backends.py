@@ -10,8 +10,9 @@ command, or a running one joined by its address.
 
 from __future__ import annotations
 
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import Callable, Protocol, Sequence
+from typing import Protocol
 
 from .grid import Cell, CellResult, run_cell
 
@@ -23,7 +24,8 @@ class Backend(Protocol):
         self, cells: Sequence[Cell], on_result: Callable[[CellResult], None] | None = None
     ) -> list[CellResult]:
         """The results of ``cells``, in their order; ``on_result`` is called with each result as
-        soon as it is in (in the order the cells finish: ``rbenvs-results --records`` keeps them)."""
+        soon as it is in (in the order the cells finish: ``rbenvs-results --records`` keeps
+        them)."""
 
 
 @dataclass(frozen=True)

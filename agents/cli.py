@@ -161,7 +161,8 @@ def _train(argv) -> int:
         tensorboard=args.tensorboard,
     )
     print(
-        f"trained {args.algo} on '{scene.name}' for {info['timesteps']} steps in {info['wall_time_s']:.1f} s -> {out / 'model.zip'}"
+        f"trained {args.algo} on '{scene.name}' for {info['timesteps']} steps in "
+        f"{info['wall_time_s']:.1f} s -> {out / 'model.zip'}"
     )
     if "tensorboard" in info:
         print(
@@ -182,7 +183,8 @@ def _train(argv) -> int:
             args.eval_seeds,
         )
         print(
-            f"\nevaluation on '{scene.name}' ({scene.description}), {args.eval_episodes} episodes x seeds {args.eval_seeds}:"
+            f"\nevaluation on '{scene.name}' ({scene.description}), {args.eval_episodes} episodes x "
+            f"seeds {args.eval_seeds}:"
         )
         print(_table(rows, ("agent", "return (mean +- std over seeds)", "success")))
         # the run's record keeps its evaluation: a finished run can be compared without rerunning
@@ -336,7 +338,8 @@ def _results(argv) -> int:
         results = [kept.get(cell) for cell in cells]
         todo = [cell for cell, result in zip(cells, results) if result is None]
         print(
-            f"rbenvs-results: {len(cells) - len(todo)} of {len(cells)} cells from {args.records}; running {len(todo)}",
+            f"rbenvs-results: {len(cells) - len(todo)} of {len(cells)} cells from {args.records}; "
+            f"running {len(todo)}",
             file=sys.stderr,
         )
         ran = iter(backend.run(todo, on_result=kept.add))

@@ -44,7 +44,8 @@ def ray_cluster(address: str | None = None, num_cpus: int | None = None):
     require("ray")
     if address is not None and num_cpus is not None:
         raise ValueError(
-            "--num-cpus sizes the embedded local cluster; a cluster joined with --address has its own CPUs"
+            "--num-cpus sizes the embedded local cluster; a cluster joined with --address has its "
+            "own CPUs"
         )
     if num_cpus is not None and num_cpus < 1:
         raise ValueError(f"--num-cpus must be >= 1, got {num_cpus}")

@@ -192,7 +192,8 @@ def heldout_outside(scene, train: dict | None, heldout: dict) -> None:
         )
         if not apart:
             raise ValueError(
-                f"scene {scene.name!r}: robustness.heldout {heldout!r} meets {label} ({train!r}): a held-out range must "
+                f"scene {scene.name!r}: robustness.heldout {heldout!r} meets {label} ({train!r}): a "
+                "held-out range must "
                 f"lie outside them in at least one parameter"
             )
 
@@ -213,9 +214,9 @@ def grid_cells(seeds, quick: bool = False, only=None) -> list[Cell]:
     """The cells of ``configs/agents/results.yml`` for training seeds ``seeds``, scene by scene:
     the baselines, then each algorithm, each on every seed, then (with ``robustness:``) each
     algorithm trained with randomization. ``quick``: 1/20 of each budget (at least 1000 steps,
-    and 1000 past ``learning_starts``) and 2 evaluation episodes. ``only``: the scenes of the grid to run (None: all). Every scene,
-    configuration and range is loaded and checked here, so a bad one is reported before
-    anything runs."""
+    and 1000 past ``learning_starts``) and 2 evaluation episodes. ``only``: the scenes of the grid
+    to run (None: all). Every scene, configuration and range is loaded and checked here, so a bad
+    one is reported before anything runs."""
     import yaml
 
     from rbenvs.scenes import load_scene
@@ -228,7 +229,8 @@ def grid_cells(seeds, quick: bool = False, only=None) -> list[Cell]:
         unknown = sorted(set(only) - {entry["scene"] for entry in runs})
         if unknown:
             raise ValueError(
-                f"--scene: not in results.yml: {unknown} (its scenes: {[entry['scene'] for entry in runs]})"
+                f"--scene: not in results.yml: {unknown} (its scenes: "
+                f"{[entry['scene'] for entry in runs]})"
             )
         runs = [entry for entry in runs if entry["scene"] in set(only)]
     scenes = [load_scene(entry["scene"]) for entry in runs]
@@ -238,7 +240,8 @@ def grid_cells(seeds, quick: bool = False, only=None) -> list[Cell]:
         robust = entry.get("robustness") or {}
         if robust and set(robust) != {"train", "heldout"}:
             raise ValueError(
-                f"results.yml, scene {scene.name!r}: robustness must have exactly 'train' and 'heldout' (param_ranges), got {sorted(robust)}"
+                f"results.yml, scene {scene.name!r}: robustness must have exactly 'train' and "
+                f"'heldout' (param_ranges), got {sorted(robust)}"
             )
         train_ranges, heldout = robust.get("train"), robust.get("heldout")
         if robust:
@@ -380,7 +383,8 @@ def grid_table(records: list[dict], n_seeds: int) -> str:
     if heldout:
         lines += [
             "",
-            f"Robustness: every agent on held-out parameters, outside every training range (the same episodes for every agent of a scene; {n_seeds} seeds):",
+            "Robustness: every agent on held-out parameters, outside every training range (the "
+            f"same episodes for every agent of a scene; {n_seeds} seeds):",
             "",
         ]
         header = (
@@ -436,8 +440,10 @@ def grid_cost(records: list[dict], n_seeds: int) -> str:
     )
     rows = f"{len(trained)} row{'s' if len(trained) > 1 else ''} x {n_seeds} seed{'s' if n_seeds > 1 else ''}"
     return (
-        f"Training cost (this run's wall times): {len(trained) * n_seeds} trained cell{'s' if len(trained) * n_seeds > 1 else ''} ({rows}), "
-        f"{_duration(total)} in all; the longest, {longest['agent']} on {longest['scene']}, {longest['wall_time_s']:.0f} s a seed. "
+        f"Training cost (this run's wall times): {len(trained) * n_seeds} trained "
+        f"cell{'s' if len(trained) * n_seeds > 1 else ''} ({rows}), "
+        f"{_duration(total)} in all; the longest, {longest['agent']} on {longest['scene']}, "
+        f"{longest['wall_time_s']:.0f} s a seed. "
         f"Spread over free CPUs (training only, a lower bound): {spread}."
     )
 

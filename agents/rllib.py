@@ -12,7 +12,8 @@ imports rbenvs, which registers the ids, before it makes the env. Its ``config``
 ``env_config``: ``env_id`` and the env's keyword arguments (a scene's), plus the ``num_envs``
 RLlib adds for a vector env.
 
-    with ray_cluster(num_cpus=2):                    # rbenvs_agents.cluster: NUMBA_NUM_THREADS=1 per worker
+    with ray_cluster(num_cpus=2):                    # rbenvs_agents.cluster: NUMBA_NUM_THREADS=1
+    per worker
         algo = ppo_config(load_scene("top_upright")).build_algo()
         for _ in range(10):
             result = algo.train()
@@ -139,8 +140,10 @@ def main(argv=None) -> int:
                 for i in range(args.iterations):
                     s = iteration_summary(algo.train())
                     print(
-                        f"iteration {i + 1}: {s['env_steps']} env steps, episode return {s['episode_return_mean']:.1f}, "
-                        f"loss {s['total_loss']:.3g} (policy {s['policy_loss']:.3g}, value {s['vf_loss']:.3g})",
+                        f"iteration {i + 1}: {s['env_steps']} env steps, episode return "
+                        f"{s['episode_return_mean']:.1f}, "
+                        f"loss {s['total_loss']:.3g} (policy {s['policy_loss']:.3g}, value "
+                        f"{s['vf_loss']:.3g})",
                         flush=True,
                     )
             finally:

@@ -83,7 +83,8 @@ class SweepResult:
 def _distribution(name: str, value, path) -> tuple:
     if not (isinstance(value, dict) and len(value) == 1 and next(iter(value)) in DISTRIBUTIONS):
         raise ValueError(
-            f"{path}: space.{name} must be one of {{{': ..., '.join(DISTRIBUTIONS)}: ...}}, got {value!r}"
+            f"{path}: space.{name} must be one of {{{': ..., '.join(DISTRIBUTIONS)}: ...}}, got "
+            f"{value!r}"
         )
     kind, args = next(iter(value.items()))
     if kind == "choice":
@@ -143,7 +144,8 @@ def load_sweep(algo: str, trials: int | None = None, timesteps: int | None = Non
     seeds = tuple(int(s) for s in data.get("seeds", [0]))
     if trials < 1 or (timesteps is not None and int(timesteps) < 1) or not seeds:
         raise ValueError(
-            f"a sweep needs trials >= 1, timesteps >= 1 and at least one seed (got {trials}, {timesteps}, {list(seeds)})"
+            f"a sweep needs trials >= 1, timesteps >= 1 and at least one seed (got {trials}, "
+            f"{timesteps}, {list(seeds)})"
         )
     return SweepSpec(
         algo,
@@ -300,13 +302,17 @@ def zoo_config(results: list[SweepResult]) -> str:
         scenes[scene.name] = best.hyperparams
         budget = f"{r.spec.timesteps:,} steps" if r.spec.timesteps else "the configured budget"
         notes.append(
-            f"# {scene.name} ({scene.env_id}): return {best.return_mean:.1f}, success {best.success_mean:.0%}, best of {len(r.trials)} trials "
-            f"at {budget}, training seeds {list(r.spec.seeds)}, {r.spec.eval_episodes} episodes of evaluation seeds 200 + seed"
+            f"# {scene.name} ({scene.env_id}): return {best.return_mean:.1f}, success "
+            f"{best.success_mean:.0%}, best of {len(r.trials)} trials "
+            f"at {budget}, training seeds {list(r.spec.seeds)}, {r.spec.eval_episodes} episodes of "
+            "evaluation seeds 200 + seed"
         )
     algo = results[0].spec.algo
     header = [
-        f"# {algo.upper()} hyperparameters found by rbenvs-sweep (Ray Tune, Optuna's TPE sampler), in rl-baselines3-zoo's format:",
-        "# each env id's complete block, and under `scenes:` the values found per scene (an rbenvs extension).",
+        f"# {algo.upper()} hyperparameters found by rbenvs-sweep (Ray Tune, Optuna's TPE sampler), "
+        "in rl-baselines3-zoo's format:",
+        "# each env id's complete block, and under `scenes:` the values found per scene (an rbenvs "
+        "extension).",
         *notes,
     ]
     body = yaml.safe_dump(blocks | {"scenes": scenes}, sort_keys=False, default_flow_style=None)

@@ -3,7 +3,8 @@
 * ``rbenvs list``: every registered id with its tasks, ``max_episode_steps`` and reward threshold.
 * ``rbenvs scenes``: the named scenes under ``configs/scenes`` (shipped as ``rbenvs.configs``;
   ``$RBENVS_CONFIGS`` replaces them, see :func:`rbenvs.configs.configs_root`).
-* ``rbenvs run [--scene NAME ...] [--episodes N] [--seed S]``: the analytic baselines. Runs scenes (by
+* ``rbenvs run [--scene NAME ...] [--episodes N] [--seed S]``: the analytic baselines. Runs scenes
+(by
   default the headline scene of each system) with their analytic controller and with no
   control, and prints an episode summary per scene (return, success, the task's final
   measure, and the invariants at start and end).
@@ -17,9 +18,10 @@
   vector env run into that cache ahead (container images, CI caches).
 * ``rbenvs bench kernels``: the layout measurement behind the component kernels.
 * ``rbenvs bench fidelity``: the tippe top's fidelity levels, each against gliding friction.
-* ``rbenvs bench throughput [--quick] [--json PATH] [--num-envs N] [--only TEXT] [--tables LIST]``: env-steps per
-  second of every task and scene, single and vector (random actions, restarts included), against Pendulum-v1
-  and CartPole-v1's native vector env, with the compiled kernel's own time.
+* ``rbenvs bench throughput [--quick] [--json PATH] [--num-envs N] [--only TEXT] [--tables LIST]``:
+env-steps per
+  second of every task and scene, single and vector (random actions, restarts included), against
+  Pendulum-v1 and CartPole-v1's native vector env, with the compiled kernel's own time.
 * ``rbenvs bench startup [--system NAME] [--repeat N]``: seconds from a fresh process to its first
   step, cold and warm kernel cache, single env and vector env, against Pendulum-v1, CartPole-v1's
   vector env and MuJoCo; ``AsyncVectorEnv(context="spawn")``'s reset.
@@ -29,7 +31,8 @@
   the main job, the test suite's wall and CPU time, ``verify --quick``; :mod:`rbenvs.bench.costs`).
 * ``rbenvs bench render [--frames N]``: milliseconds per ``rgb_array`` frame, beside
   ``Pendulum-v1``'s (:mod:`rbenvs.bench.render`).
-* ``rbenvs bench accuracy [--quick] [--json PATH] [--plot PNG] [--system NAME] [--tippe]``: error, order,
+* ``rbenvs bench accuracy [--quick] [--json PATH] [--plot PNG] [--system NAME] [--tippe]``: error,
+order,
   invariant drift and cost of every integrator on every system, and a recommended integrator
   per scene (:mod:`rbenvs.bench.accuracy`).
 * ``rbenvs plot [WHAT ...] [--out DIR] [--quick]``: PNG figures (:mod:`rbenvs.plotting`; needs
@@ -37,9 +40,10 @@
   frame per system) or ``all`` (the default; the pictures under ``docs/``).
 
 Every command takes ``--docs PAGE``: its output is written into the page's block for the same
-command line (:mod:`rbenvs.docblocks`). A command that needs an extra it lacks (``scenes``, ``run`` and the scenes of ``bench accuracy``
-need ``cli``, for PyYAML; ``plot`` needs ``plot``) says which in one line and exits with status 2,
-as does bad input such as an unknown scene (:func:`rbenvs.extras.run_command`).
+command line (:mod:`rbenvs.docblocks`). A command that needs an extra it lacks (``scenes``, ``run``
+and the scenes of ``bench accuracy`` need ``cli``, for PyYAML; ``plot`` needs ``plot``) says which
+in one line and exits with status 2, as does bad input such as an unknown scene
+(:func:`rbenvs.extras.run_command`).
 """
 
 from __future__ import annotations
@@ -131,7 +135,8 @@ def _run_scene(scene, args, progress) -> None:
     print(f"scene {scene.name!r}: {scene.description}")
     print(f"  {scene.env_id} {scene.kwargs}")
     print(
-        f"  dt = {env.unwrapped.dt} s, {env.spec.max_episode_steps} steps, integrator {env.unwrapped.integrator.name}, {args.episodes} episodes from seed {args.seed}\n"
+        f"  dt = {env.unwrapped.dt} s, {env.spec.max_episode_steps} steps, integrator "
+        f"{env.unwrapped.integrator.name}, {args.episodes} episodes from seed {args.seed}\n"
     )
     invariants = env.unwrapped.invariants
     rows = [
@@ -192,7 +197,8 @@ def _cmd_cache(args) -> int:
     info = kernel_cache.info()
     if info["root"] is None:
         print(
-            f"the kernel cache is off (${kernel_cache.CACHE_VARIABLE} is empty): kernels are compiled in memory in every process"
+            f"the kernel cache is off (${kernel_cache.CACHE_VARIABLE} is empty): kernels are "
+            "compiled in memory in every process"
         )
         return 0
     print(f"root: {info['root']} (${kernel_cache.CACHE_VARIABLE} overrides)")
@@ -229,7 +235,8 @@ def _cmd_warmup(args) -> int:
 
     if not available():
         print(
-            "numba is not installed (or RBENVS_COMPILED=0): the envs run on numpy, nothing to compile; install the fast extra"
+            "numba is not installed (or RBENVS_COMPILED=0): the envs run on numpy, nothing to "
+            "compile; install the fast extra"
         )
         return 0
     systems = args.system or list(SYSTEM_IDS)
@@ -270,7 +277,8 @@ def _cmd_warmup(args) -> int:
     progress.close()
     _print_table(rows)
     print(
-        "(a kernel already made in this process, by an earlier row, is neither compiled nor loaded again)"
+        "(a kernel already made in this process, by an earlier row, is neither compiled nor loaded "
+        "again)"
     )
     folder = kernel_cache.kernel_folder()
     print(
@@ -351,7 +359,8 @@ def build_parser() -> argparse.ArgumentParser:
         prog="rbenvs",
         description="Rotating rigid body environments: list, run, check.",
         epilog="Every command also takes --docs PAGE: it runs as usual and writes what it printed into the block of "
-        "PAGE that names the same command line (<!-- rbenvs:output COMMAND -->; docs/ are written this way).",
+        "PAGE that names the same command line (<!-- rbenvs:output COMMAND -->; docs/ are written "
+        "this way).",
     )
     sub = parser.add_subparsers(dest="command", required=True)
     sub.add_parser("list", help="registered environment ids").set_defaults(func=_cmd_list)
@@ -425,7 +434,8 @@ def build_parser() -> argparse.ArgumentParser:
     )
     fidelity.add_argument("--no-progress", action="store_true", help="no progress bar")
     fidelity.set_defaults(func=_cmd_bench_fidelity)
-    # `bench throughput` has its own parser (rbenvs.bench.throughput.main); main() hands it the rest.
+    # `bench throughput` has its own parser (rbenvs.bench.throughput.main); main() hands it the
+    # rest.
     bench_sub.add_parser(
         "throughput",
         help="env-steps/s against Pendulum-v1 and CartPole-v1's vector env (see its --help)",

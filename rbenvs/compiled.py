@@ -40,8 +40,9 @@ first use in a process (about a second) and reused by every env of the same layo
 
 from __future__ import annotations
 
-from functools import lru_cache
-from typing import Callable, NamedTuple
+from collections.abc import Callable
+from functools import cache
+from typing import NamedTuple
 
 from .core.codegen import generate
 from .jit import DISABLE_VARIABLE, available, jitable
@@ -159,11 +160,10 @@ def _physics_lines(dim: int, u: str) -> list[str]:
     ]
 
 
-@lru_cache(maxsize=None)
+@cache
 def physics_kernel(step, dim: int, n_control: int):
     """The physics loops alone, compiled: ``advance(Y, Ynew, U, h, substeps, PS)`` (the batch
     kernel's first part; ``rbenvs bench kernels`` times it)."""
-    import numba
 
     _tune_llvm()
     _register_all()
@@ -182,8 +182,8 @@ class Layout(NamedTuple):
     -> (reward, terminated, m_1..m_k)`` (``k = n_metrics``); ``readouts(PR, y, u, fired) ->
     (r_1..r_m)`` (``m = n_readouts``); the guard's ``rotation(PA, y) -> lambda`` and
     ``dissipation(PD, y, u) -> lambda_d`` (or ``None``: no such rate; with ``share``, the
-    tolerance's share ``share(PD[1], y, u, dt, p, lambda_d) -> a`` of that mode's error, ``PD = (P_d,
-    P_a)``); the terminal ``event(PV,
+    tolerance's share ``share(PD[1], y, u, dt, p, lambda_d) -> a`` of that mode's error, ``PD =
+    (P_d, P_a)``); the terminal ``event(PV,
     y, u) -> g`` checked after every internal step, firing where ``g < 0`` (or ``None``); and
     ``rhs_event(PV, y, u) -> (dy, g)``: the vector field and the event from one evaluation (or
     ``None``), with which ``step`` is the integrator's step given its first stage,
@@ -469,13 +469,12 @@ def _finish_lines(
     ]
 
 
-@lru_cache(maxsize=None)
+@cache
 def finish_kernel(layout: Layout):
     """The batch kernel's finish alone, for states that have just been reset (an autoreset's
     rows, a reset batch): ``finish(Y, PO, PE, PR, HI, obs, over, reward, terminated, M_1..M_k,
     R_1..R_m)`` with no control acted yet (read-outs under ``u = None``, the single env's rule),
     the task's evaluation at zero action, no event."""
-    import numba
 
     L = layout
     metrics = [f"M{j}" for j in range(L.n_metrics)]
@@ -538,7 +537,7 @@ def _namespace(L: Layout) -> dict:
     return namespace
 
 
-@lru_cache(maxsize=None)
+@cache
 def batch_kernel(layout: Layout):
     """The compiled step of a batch for one :class:`Layout` (cached per process). Signature::
 
@@ -567,7 +566,6 @@ def batch_kernel(layout: Layout):
     observation is clipped to ``HI`` (``over`` where the state left the bounds; the single
     env's rule), then the task's evaluation and the read-outs fill their arrays; 0 returned.
     """
-    import numba
 
     L = layout
     metrics = [f"M{j}" for j in range(L.n_metrics)]
@@ -669,7 +667,8 @@ def _lockstep_passes(L: Layout, u: str, h: str) -> list[str]:
         if compensated
         else f"yn = step(PS, {args.replace('cc, ', '')}, {h})"
     ]
-    stop = [  # (the event fired or the state went non-finite: the sub-env stops; all stopped: the passes end)
+    # (the event fired or the state went non-finite: the sub-env stops; all stopped: the passes end)
+    stop = [
         "        kn, g = rhs_event(PV, yn, u)",
         f"        fin = {finite}",
         "        hit = fin & (g < 0.0)",
@@ -724,7 +723,8 @@ def _period_and_finish(
 
 def _estimate_expression(L: Layout) -> str:
     """The period's error estimate from the rates ``er`` (``rate``, ``a``) and the step ``hi``:
-    the functions :meth:`rbenvs.stepsize.controller.StepRule.estimate` calls, ``PEE`` its ``(C, p, dt)``."""
+    the functions :meth:`rbenvs.stepsize.controller.StepRule.estimate` calls, ``PEE`` its ``(C, p,
+    dt)``."""
     estimate = "motion_error_estimate(PEE, er, hi)" if L.motion else "error_estimate(PEE, er, hi)"
     if L.dissipation is not None:
         estimate += " + relaxation_estimate(PEE, rate, a, hi)"
@@ -746,7 +746,8 @@ def _checked_period(
     ``estimate``: the count's loop also writes each period's error estimate into ``EST`` from the
     same rates (0 for a restarting sub-env, ``next_step`` and ``skip``: no period of its own ran)
     and the step its count gives, the step the period takes (one evaluation of the rates).
-    ``gate`` (with ``estimate``; :class:`VectorLayout`'s, its scheme's order ``p``, 0: none): first every sub-env's cheap bound
+    ``gate`` (with ``estimate``; :class:`VectorLayout`'s, its scheme's order ``p``, 0: none): first
+    every sub-env's cheap bound
     ``Lambda = gate(PGT[0], y)``, its count ``substeps`` and its estimate ``C Lambda dt (Lambda
     h)^p`` (the rates :func:`rbenvs.stepsize.forms.motion_rates` returns there), in one loop without
     branches; the count's loop then runs only if a sub-env's bound does not hold, on those alone."""
@@ -772,7 +773,8 @@ def _checked_period(
             "        z = big * h",
             f"        EST[i] = PEE[0] * big * PEE[2] * {_products('z', gate)}",
             f"        ng += not ({test})",
-            "    if next_step:",  # (a restart ran no period of its own: apart, so that the loop above has no branch)
+            # (a restart ran no period of its own: apart, so that the loop above has no branch)
+            "    if next_step:",
             "        for i in range(n):",
             "            if skip[i]:",
             "                EST[i] = 0.0",
@@ -899,7 +901,7 @@ def _start_lines(V: VectorLayout, dest: str) -> list[str]:
     ]
 
 
-@lru_cache(maxsize=None)
+@cache
 def rows_kernel(V: VectorLayout):
     """Rows of a batch started or finished outside a step: ``rows(idx, draw, Y, GEN, PI, PO, PE,
     PR, HI, h, obs, over, hstep, steps, M_1..M_k, R_1..R_m)``. For each sub-env ``i = idx[m]``:
@@ -909,7 +911,6 @@ def rows_kernel(V: VectorLayout):
     the observation (clipped; ``over`` where outside), the metrics at zero action and the
     read-outs with no control acted and no event (the single env's rules after a reset), and
     ``hstep = h``: the restarts of a vector step (autoreset) and a reset's finish."""
-    import numba
 
     L = V.batch
     metrics = [f"M{j}" for j in range(L.n_metrics)]
@@ -970,7 +971,7 @@ def rows_kernel(V: VectorLayout):
     return _cached_njit(namespace["rows"], "rows", error_model="numpy")
 
 
-@lru_cache(maxsize=None)
+@cache
 def _act(control, n_in: int):
     """``act(PC, A, i) -> (un, u)``: sub-env ``i``'s action, clipped to ``[-1, 1]`` (the single
     env's rule, :func:`rbenvs.core.step.action_values`), through the actuator's pure form."""
@@ -995,8 +996,8 @@ def _vector_namespace(V: VectorLayout) -> dict:
             _register(fn)
     namespace.update(act=act, start=V.start, end_code=end_code, np=np, gate=V.gate)
     if V.estimate:
-        from .stepsize.forms import error_estimate, motion_error_estimate, relaxation_estimate
         from .rotations import power
+        from .stepsize.forms import error_estimate, motion_error_estimate, relaxation_estimate
 
         namespace.update(
             error_estimate=error_estimate,
@@ -1066,12 +1067,13 @@ def _vector_args(L: Layout) -> list[str]:
     )
 
 
-@lru_cache(maxsize=None)
+@cache
 def vector_kernel(V: VectorLayout, chunked: bool = False):
     """A vector env's whole step, compiled: one call per step with no Python per sub-env.
     Signature (arrays ``(n,)`` unless said; see :func:`batch_kernel` for the period's)::
 
-        vstep(i_lo, i_hi, phase, A, Y, Ynew, CC, h, dt, substeps, check, refuse, next_step, max_steps,
+        vstep(i_lo, i_hi, phase, A, Y, Ynew, CC, h, dt, substeps, check, refuse, next_step,
+        max_steps,
               FC, steps, done, skip, GEN, PC, PI, PS, PO, PE, PR, PG, PA, PD, CD, PV, PW, HI, PEE,
               counts, hstep, fired, obs, over, reward, terminated, truncated, RZ, RN, clear, ends,
               codes, EST, PGT, M_1..M_k, R_1..R_m) -> (status, k, m, r)
@@ -1085,8 +1087,9 @@ def vector_kernel(V: VectorLayout, chunked: bool = False):
     sub-env's arithmetic is the same whichever its chunk, so any split gives the same bits.
 
     1. the actions ``A`` ``(n, n_in)`` (float32 or float64): every entry finite (else ``(-2,
-       i, 0, 0)`` for the first bad sub-env ``i``, nothing else written), clipped to ``[-1, 1]`` (the
-       single env's rule), mapped by the actuator's pure form into the rows of ``UN`` and ``U``;
+       i, 0, 0)`` for the first bad sub-env ``i``, nothing else written), clipped to ``[-1, 1]``
+       (the single env's rule), mapped by the actuator's pure form into the rows of ``UN`` and
+       ``U``;
     2. the period and finish of :func:`batch_kernel` (``(-1, 0, 0, 0)``: refused; ``(bad, 0,
        0, 0)``: ``bad`` new states non-finite, the caller's failure path takes over, nothing
        drawn; sub-envs in ``skip`` take ``substeps``); with ``next_step`` and a pure start, the
@@ -1108,14 +1111,13 @@ def vector_kernel(V: VectorLayout, chunked: bool = False):
     5. with ``V.estimate`` (a tolerance), each period's error estimate into ``EST`` (0 for a
        restarting sub-env: no period ran), written in 2's count loop from the rates it counts
        with (:func:`_checked_period`) and the step the count gives, through the functions
-       :meth:`rbenvs.stepsize.controller.StepRule.estimate` calls, ``PEE`` its ``(C, p, dt)`` (unread
-       otherwise): every sub-env's rates, counted or not.
+       :meth:`rbenvs.stepsize.controller.StepRule.estimate` calls, ``PEE`` its ``(C, p, dt)``
+       (unread otherwise): every sub-env's rates, counted or not.
 
     ``k``: the number of sub-envs whose step had an end or a truncation (restarting ones never:
     their period is discarded); ``ends[:m]`` the sub-envs whose row of ``RZ`` may have been
     written (``codes[:m]`` their codes); ``r`` the number of restarting sub-envs.
     """
-    import numba
 
     L = V.batch
     args = _vector_args(L)
@@ -1187,7 +1189,8 @@ def vector_kernel(V: VectorLayout, chunked: bool = False):
     lines += [
         "    k = 0",
         "    m = 0",
-        "    if phase == 0:",  # the pooled reason array's last rows (a split step: the caller's, between the phases)
+        # the pooled reason array's last rows (a split step: the caller's, between the phases)
+        "    if phase == 0:",
         "        for j in range(clear.shape[0]):",
         "            for w in range(RZ.shape[1]):",
         "                RZ[clear[j], w] = 0",
@@ -1199,7 +1202,8 @@ def vector_kernel(V: VectorLayout, chunked: bool = False):
         "        s = steps[i] + 1",
         "        e = terminated[i] | over[i] | fired[i]",
         "        t = (max_steps >= 0) & (s >= max_steps)",
-        "        k += (e | t) & (not (next_step & skip[i]))",  # (a restart's discarded period ends nothing)
+        # (a restart's discarded period ends nothing)
+        "        k += (e | t) & (not (next_step & skip[i]))",
         "        steps[i] = s",
         "        codes[i] = end_code(False, fired[i], over[i], terminated[i])",
         "        terminated[i] = e",
@@ -1207,8 +1211,10 @@ def vector_kernel(V: VectorLayout, chunked: bool = False):
         "        done[i] = e | t",
         "    for i in range(n):",
         "        c = codes[i]",
-        "        if c != 0:",  # (i_lo + m <= i: the compaction overwrites only rows it has read, in its own range)
-        "            ends[i_lo + m] = np.int64(i)",  # (i unsigned in the chunked form: cast, not converted silently)
+        # (i_lo + m <= i: the compaction overwrites only rows it has read, in its own range)
+        "        if c != 0:",
+        # (i unsigned in the chunked form: cast, not converted silently)
+        "            ends[i_lo + m] = np.int64(i)",
         "            codes[i_lo + m] = c",
         "            m += 1",
         # the reasons' names, UCS-4 code points into the rows of the (zero-filled) array
@@ -1277,7 +1283,7 @@ def flat_leaves(value) -> tuple:
     return tuple(leaf for v in value for leaf in flat_leaves(v))
 
 
-@lru_cache(maxsize=None)
+@cache
 def split_kernel(V: VectorLayout, shape: tuple):
     """A vector step split over threads, in one call: ``vsplit(cuts, S, width, *leaves)`` runs
     the chunked :func:`vector_kernel`'s phase 1 on every chunk ``[cuts[c], cuts[c + 1])`` at once
@@ -1337,13 +1343,14 @@ def split_kernel(V: VectorLayout, shape: tuple):
     return _cached_njit(namespace["vsplit"], "vsplit", error_model="numpy", parallel=True)
 
 
-@lru_cache(maxsize=None)
+@cache
 def state_kernel(layout: Layout, estimate: bool = False):
     """The compiled period and finish of ONE state (the single env's step where numba is
     installed): the batch kernel's lines for one sub-env, on tuples of floats. Signature::
 
         one(y, u, un, check, refuse, P) -> (status, count, h, fired, y, obs, over, r, q)
-        one(y, cc, u, un, check, refuse, P) -> (status, count, h, fired, y, obs, over, r, q, cc)  (with step_c)
+        one(y, cc, u, un, check, refuse, P) -> (status, count, h, fired, y, obs, over, r, q, cc)
+        (with step_c)
 
     ``P = (h, dt, substeps, PS, PO, PE, PR, PG, PA, PD, CD, PV, PW, HI)`` (:class:`StateStep`);
     ``status`` 0, 1 (the new state is non-finite: the caller's failure path takes over) or -1
@@ -1356,7 +1363,6 @@ def state_kernel(layout: Layout, estimate: bool = False):
     and the period's error estimate ``e`` is returned last, from the rates the count reads
     (evaluated every period, counted or not: :func:`_checked_period`'s).
     """
-    import numba
     from .stepsize.controller import MAX_INTERNAL_STEPS
 
     L = layout
@@ -1426,7 +1432,7 @@ def state_kernel(layout: Layout, estimate: bool = False):
     return _cached_njit(namespace["one"], "one", **KERNEL_OPTIONS)
 
 
-@lru_cache(maxsize=None)
+@cache
 def run_kernel(layout: Layout):
     """The compiled internal steps of ONE state's run with a given count and step (the checked
     period's, ``tolerance_check``: the main run's even count, the companion's half as many steps
@@ -1438,7 +1444,6 @@ def run_kernel(layout: Layout):
     ``P = (PS, PV, PW)``; ``c`` steps of ``hi`` from ``y`` with the compensation ``cc``, the
     switches after each, the terminal event ending them (``fired``), a non-finite state
     stopping them (returned as it is: the caller's failure path takes over)."""
-    import numba
 
     L = layout
     lines = ["def run(y, cc, u, c, hi, P):", "    PS, PV, PW = P", "    f = False"]
@@ -1449,7 +1454,7 @@ def run_kernel(layout: Layout):
     return _cached_njit(namespace["run"], "run", **KERNEL_OPTIONS)
 
 
-@lru_cache(maxsize=None)
+@cache
 def runs_kernel(layout: Layout):
     """:func:`run_kernel` for a batch in one compiled loop (the vector env's checked runs): as
     passes over the batch (:func:`_lockstep_passes`) for a layout without switches whose event,
@@ -1460,7 +1465,6 @@ def runs_kernel(layout: Layout):
     ``Y``, ``CC``: ``(dim, n)`` states and compensations, advanced in place; ``U``: ``(n_control,
     n)`` controls; ``counts``, ``H``: each sub-env's steps and step; ``fired``: ``(n,)`` bools
     written (the terminal event); ``P = (PS, PV, PW)``."""
-    import numba
 
     L = layout
     event = L.rhs_event is not None
@@ -1518,18 +1522,18 @@ def runs_kernel(layout: Layout):
     return _cached_njit(namespace["runs"], "runs", **KERNEL_OPTIONS)
 
 
-@lru_cache(maxsize=None)
+@cache
 def plan_kernel(layout: Layout):
     """The guard's ratio and the rates of ONE state's period, compiled (a tolerance's single-env
     step: its count and its ``info["error_estimate"]`` from one evaluation;
-    :meth:`rbenvs.stepsize.controller.StepRule.plan`, whose values it returns bit for bit). Signature::
+    :meth:`rbenvs.stepsize.controller.StepRule.plan`, whose values it returns bit for bit).
+    Signature::
 
         plan(y, u, P) -> (x, r, rate, a)
 
     ``P = (PG, PA, PD, CD)``; ``x`` the ratio (the period needs ``ceil(x)`` steps), ``r`` the
     rate(s) (``(lambda, mu, lambda_e)`` with the state's own speed), ``rate`` the decaying rate
     (0 where it is not positive) and ``a`` its share (1 where ``rate`` is 0)."""
-    import numba
 
     L = layout
     lines = ["def plan(y, u, P):", "    PG, PA, PD, CD = P", "    dt = PG[0]"]
@@ -1540,7 +1544,7 @@ def plan_kernel(layout: Layout):
     return _cached_njit(namespace["plan"], "plan", **KERNEL_OPTIONS)
 
 
-@lru_cache(maxsize=None)
+@cache
 def plans_kernel(layout: Layout, ratio: bool = False):
     """:func:`plan_kernel` for a batch, sub-env by sub-env in one compiled loop: the rates (the
     vector env's error estimate) or, with ``ratio``, the guard's ratio alone (its checked
@@ -1551,7 +1555,6 @@ def plans_kernel(layout: Layout, ratio: bool = False):
     ``Y``: ``(dim, n)`` states; ``U``: ``(n_control, n)`` controls; ``P = (PG, PA, PD, CD)``;
     written: ``RATE``, ``A`` ``(n,)`` and ``R`` ``(3, n)`` (the rates ``(lambda, mu,
     lambda_e)`` with the state's own speed) or ``(1, n)``; ``X`` ``(n,)``."""
-    import numba
 
     L = layout
     lines = [
@@ -1784,7 +1787,7 @@ class StateStep:
         return out
 
 
-@lru_cache(maxsize=None)
+@cache
 def info_function(readout_names: tuple, metric_names: tuple):
     """``info(q, r, h, e=None)``: the single env's ``info`` from the read-outs ``q``, the evaluation
     ``r = (reward, terminated, metrics...)``, the internal step ``h`` and the period's error
@@ -1803,7 +1806,7 @@ def info_function(readout_names: tuple, metric_names: tuple):
     ]
 
 
-@lru_cache(maxsize=None)
+@cache
 def state_finish(
     observe, n_obs: int, evaluate, metric_names: tuple, readouts, readout_names: tuple, high: tuple
 ):
@@ -2035,7 +2038,8 @@ class VectorResult(NamedTuple):
     h: object
     counts: object
     n_restarted: int
-    estimate: object = None  # each period's error estimate (a layout with VectorLayout.estimate), 0 where no period ran
+    # each period's error estimate (a layout with VectorLayout.estimate), 0 where no period ran
+    estimate: object = None
 
 
 # a split step's chunks start at multiples of this many sub-envs (no cache line of a bool
@@ -2061,10 +2065,10 @@ class VectorStep:
     :class:`rbenvs.core.model.Model` (its actuator's and start's pure forms, its draw kinds);
     ``n_obs``: the observation size, ``obs_high`` its bounds; ``max_steps``: the time limit
     (``None``: none); ``error``: a tolerance's ``(C, p, dt)``
-    (:attr:`rbenvs.stepsize.controller.StepRule.error`), with which the step also returns each period's
-    error estimate (``None``: none). The call goes through the compiled overload's entry point
-    after the first (numba's per-call typing of forty arguments costs more than a small batch's
-    step); the actions must then be C-contiguous float32 or float64 (the caller converts).
+    (:attr:`rbenvs.stepsize.controller.StepRule.error`), with which the step also returns each
+    period's error estimate (``None``: none). The call goes through the compiled overload's entry
+    point after the first (numba's per-call typing of forty arguments costs more than a small
+    batch's step); the actions must then be C-contiguous float32 or float64 (the caller converts).
     ``threads`` > 1: each step's sub-envs split into that many chunks, run at once
     (:class:`rbenvs.vector.threads.ThreadTeam`), with the same bits as one call."""
 

@@ -22,8 +22,9 @@ This module is the bottom of the package's layers: it imports nothing from rbenv
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, Callable, NamedTuple, Protocol, runtime_checkable
+from typing import Any, NamedTuple, Protocol, runtime_checkable
 
 __all__ = [
     "PureFunction",
@@ -45,7 +46,8 @@ PureFunction = tuple[Callable[..., Any], tuple]
 @dataclass(frozen=True)
 class StepRegion:
     """Where an integrator's step ``h`` can be trusted, in units of a rate ``lambda`` of the
-    dynamics: what the step guard reads to size the internal step (:mod:`rbenvs.stepsize.controller`).
+    dynamics: what the step guard reads to size the internal step
+    (:mod:`rbenvs.stepsize.controller`).
 
     * ``rotation``: the largest ``|lambda| h`` for an oscillatory rate (eigenvalues on the
       imaginary axis: a rotation), a stability or an accuracy bound (``inf``: none);
@@ -70,7 +72,7 @@ class StepRegion:
     reason: str = ""
 
     @classmethod
-    def unbounded(cls, reason: str, exact_subflows: bool = False) -> "StepRegion":
+    def unbounded(cls, reason: str, exact_subflows: bool = False) -> StepRegion:
         """No bound: an exact flow, or a scheme that controls its own error (adaptive)."""
         return cls(exact_subflows=exact_subflows, reason=reason)
 
@@ -371,7 +373,8 @@ def require_parts(obj, protocol, role: str) -> None:
     missing = [name for name in _members(protocol) if not hasattr(obj, name)]
     if missing:
         raise TypeError(
-            f"{role} {type(obj).__name__} does not provide {missing} ({protocol.__name__} contract, rbenvs.contracts)"
+            f"{role} {type(obj).__name__} does not provide {missing} ({protocol.__name__} contract, "
+            "rbenvs.contracts)"
         )
 
 

@@ -32,7 +32,8 @@ def kind_codes(kinds: str) -> np.ndarray:
     unknown = set(kinds) - set(_CODES)
     if unknown:
         raise ValueError(
-            f"draw kinds must be {UNIFORM!r} (uniform) or {NORMAL!r} (normal), got {sorted(unknown)}"
+            f"draw kinds must be {UNIFORM!r} (uniform) or {NORMAL!r} (normal), got "
+            f"{sorted(unknown)}"
         )
     return np.array([_CODES[k] for k in kinds], dtype=np.int8)
 
@@ -69,7 +70,8 @@ def _table_kernels() -> dict:
     :mod:`rbenvs.kernel_cache`): ``draw(generators, idx, codes, out)``, and the typed list's
     ``make(rng)``, ``append(table, rng)`` and ``put(table, i, rng)``. The list is built by these
     rather than by ``numba.typed.List(rngs)``, whose methods numba compiles again in every
-    process (most of a vector env's start once its own kernels come from the disk; rbenvs bench startup)."""
+    process (most of a vector env's start once its own kernels come from the disk; rbenvs bench
+    startup)."""
     if not _kernels:
         from numba.typed import List
 

@@ -28,7 +28,8 @@ EXTRAS = {
     "tensorboard": (("tensorboard", "tensorboard"),),
     # gymnasium's RecordVideo writes its files through moviepy.
     "video": (("moviepy", "moviepy"),),
-    # `rbenvs bench accuracy --floor`: mpmath's Taylor series as the reference (rbenvs.oracles.taylor_solution)
+    # `rbenvs bench accuracy --floor`: mpmath's Taylor series as the reference
+    # (rbenvs.oracles.taylor_solution)
     "reference": (("mpmath", "mpmath"),),
     # `rbenvs verify --simulator mujoco`: MuJoCo's models beside ours (rbenvs.verify.mujoco_adapter)
     "mujoco": (("mujoco", "mujoco"),),
@@ -84,7 +85,8 @@ class ArgumentParser(argparse.ArgumentParser):
             choices = ", ".join(map(repr, action.choices))
             raise argparse.ArgumentError(
                 action,
-                f"invalid choice: {value!r} (choose from {choices}){did_you_mean(value, action.choices)}",
+                f"invalid choice: {value!r} (choose from "
+                f"{choices}){did_you_mean(value, action.choices)}",
             )
 
 

@@ -80,7 +80,8 @@ def headline(root: str | Path = ".") -> str:
     passed = sum(1 for c in checks if c["passed"])
     systems = sorted({c["system"] for c in checks})
     lines = [
-        f"- **Verification** (`rbenvs verify`, {_date(root, 'verify')}): {passed} of {len(checks)} checks pass, on "
+        f"- **Verification** (`rbenvs verify`, {_date(root, 'verify')}): {passed} of {len(checks)} "
+        "checks pass, on "
         f"{', '.join(systems)} ([verification](docs/verification.md))."
     ]
 
@@ -103,8 +104,10 @@ def headline(root: str | Path = ".") -> str:
     ]
     n = rows[0]["num_envs"] if rows else 0
     text = (
-        f"- **Speed** (`rbenvs bench throughput`, {_date(root, 'throughput')}; [throughput](docs/vector.md#throughput)): one step of the "
-        f"single env against one `Pendulum-v1` step: {single}. At {n} sub-envs with random actions and restarts, against "
+        f"- **Speed** (`rbenvs bench throughput`, {_date(root, 'throughput')}; "
+        "[throughput](docs/vector.md#throughput)): one step of the "
+        f"single env against one `Pendulum-v1` step: {single}. At {n} sub-envs with random actions "
+        "and restarts, against "
         f"`CartPole-v1`'s native vector env: {vector}"
     )
     if tippe:
@@ -118,8 +121,10 @@ def headline(root: str | Path = ".") -> str:
     scenes = list(dict.fromkeys(r["scene"] for r in results))  # (the table's order)
     covered = [s for s in scenes if any(r["scene"] == s for r in learned)]
     text = (
-        f"- **Agents** (`rbenvs-results`, {_date(root, 'results')}; [baseline agents](docs/agents.md)): learned agents on "
-        f"{len(covered)} of {len(scenes)} scenes, {seeds} seeds each; per scene the best learned agent's success and return "
+        f"- **Agents** (`rbenvs-results`, {_date(root, 'results')}; [baseline "
+        "agents](docs/agents.md)): learned agents on "
+        f"{len(covered)} of {len(scenes)} scenes, {seeds} seeds each; per scene the best learned "
+        "agent's success and return "
         f"against the analytic controller's: "
     )
     best = []
@@ -173,7 +178,8 @@ def main(argv=None) -> int:
     except ValueError as exc:
         p.exit(
             2,
-            f"rbenvs headline: {exc} (the records are the repository's docs/, not part of an installed package: run it in a clone, "
+            f"rbenvs headline: {exc} (the records are the repository's docs/, not part of an "
+            "installed package: run it in a clone, "
             "or pass --root PATH)\n",
         )
     return 0

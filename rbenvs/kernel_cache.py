@@ -1,11 +1,12 @@
 """Compiled kernels kept on disk, so that a new process loads what an earlier one compiled.
 
 Why: numba compiles a kernel the first time a process calls it (seconds for a vector env's
-step: ``rbenvs warmup`` prints each), and rbenvs' kernels are generated per layout (:mod:`rbenvs.compiled`), so
-numba's own ``cache=True``, which finds a function by its source file, cannot keep them. Every
-kernel rbenvs compiles goes through :func:`njit`, which gives the dispatcher a cache of its own:
-numba's compile results (the object code and what it needs to be linked again), one file per
-kernel and argument types, named by a key over everything that changes the machine code.
+step: ``rbenvs warmup`` prints each), and rbenvs' kernels are generated per layout
+(:mod:`rbenvs.compiled`), so numba's own ``cache=True``, which finds a function by its source file,
+cannot keep them. Every kernel rbenvs compiles goes through :func:`njit`, which gives the dispatcher
+a cache of its own: numba's compile results (the object code and what it needs to be linked again),
+one file per kernel and argument types, named by a key over everything that changes the machine
+code.
 
 The key:
 
@@ -28,8 +29,9 @@ folder that cannot be made or written (read-only, full) turns the cache off for 
 with one :class:`KernelCacheWarning`; the kernels are then compiled in memory as before.
 
 Where: ``$RBENVS_CACHE_DIR`` if set, else the platform's cache folder (``$XDG_CACHE_HOME/rbenvs``
-or ``~/.cache/rbenvs`` on Linux, ``~/Library/Caches/rbenvs`` on macOS, ``%LOCALAPPDATA%\\rbenvs\\Cache``
-on Windows). ``RBENVS_CACHE_DIR=`` (empty) turns the disk cache off. ``rbenvs cache info`` and
+or ``~/.cache/rbenvs`` on Linux, ``~/Library/Caches/rbenvs`` on macOS,
+``%LOCALAPPDATA%\\rbenvs\\Cache`` on Windows). ``RBENVS_CACHE_DIR=`` (empty) turns the disk cache
+off. ``rbenvs cache info`` and
 ``rbenvs cache clear`` show and empty it; ``rbenvs warmup`` fills it ahead.
 """
 
@@ -45,7 +47,7 @@ import time
 import types
 import uuid
 import warnings
-from functools import lru_cache
+from functools import cache
 from pathlib import Path
 
 __all__ = [
@@ -70,7 +72,8 @@ _SUFFIX = ".nbk"
 
 _lock = threading.Lock()
 _stats = {"loaded": 0, "compiled": 0, "rejected": 0, "saved": 0}
-_log: list = []  # (label, argument types, "loaded" or "compiled", seconds) of this process's kernels
+# (label, argument types, "loaded" or "compiled", seconds) of this process's kernels
+_log: list = []
 _off_reason: list = []  # why the disk cache is off in this process (the warning given once)
 
 
@@ -114,7 +117,7 @@ NOT_COMPILED = (
 )
 
 
-@lru_cache(maxsize=None)
+@cache
 def _source_hash() -> str:
     """SHA-256 over rbenvs' own source files (paths and contents), the package as installed,
     but the modules :data:`NOT_COMPILED`."""
@@ -133,7 +136,7 @@ def _hash_sources(package: Path) -> str:
     return h.hexdigest()
 
 
-@lru_cache(maxsize=None)
+@cache
 def environment() -> dict:
     """What the compiled machine code depends on besides the kernel itself: versions, CPU and
     rbenvs' source (a hash). Its :func:`_environment_key` names the folder of this process's

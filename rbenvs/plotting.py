@@ -178,7 +178,8 @@ def plot_free_body(path, inertia=(2.0, 1.5, 1.0), dt=0.02, max_time=60.0, integr
     ax.set_ylabel("Pi2")
     ax.set_zlabel("Pi3")
     ax.set_title(
-        f"Free rigid body: Pi on the sphere |Pi| = 1, inertia {inertia}\n(FreeRigidBody-v0, zero torque, {integrator}, dt = {dt} s; hidden side faint)",
+        f"Free rigid body: Pi on the sphere |Pi| = 1, inertia {inertia}\n(FreeRigidBody-v0, zero "
+        f"torque, {integrator}, dt = {dt} s; hidden side faint)",
         fontsize=10,
     )
     ax.legend(loc="lower left", fontsize=7)
@@ -272,8 +273,10 @@ def plot_heavy_top(path, spin_factor=4.0, tilt=0.5, duration=3.0, dt=0.002):
     ax2.set_ylabel("precession rate [rad/s]")
     ax2.set_xlabel("time [s]")
     ax1.set_title(
-        f"Lagrange top (LagrangeTop-v0, zero torque), spin n = {n:.3g} rad/s = {spin_factor:g} x critical, alpha = {tilt} rad\n"
-        f"nutation period 2 pi A/(C n) = {nut.period:.3g} s, expansion parameter {nut.expansion_parameter:.2g}",
+        f"Lagrange top (LagrangeTop-v0, zero torque), spin n = {n:.3g} rad/s = {spin_factor:g} x "
+        f"critical, alpha = {tilt} rad\n"
+        f"nutation period 2 pi A/(C n) = {nut.period:.3g} s, expansion parameter "
+        f"{nut.expansion_parameter:.2g}",
         fontsize=9,
     )
     for ax in (ax1, ax2):
@@ -417,9 +420,12 @@ def describe_tippe_top(figures: dict) -> str:
         return "-" if x is None else f"{x:.2f} s"
 
     return (
-        f"tippe top, zero action, {figures['duration']:.2f} s: 90 deg at {at(figures['t90'])}, 150 deg at {at(figures['t150'])}; "
-        f"Jellett's largest relative change {figures['jellett_turn_over']:.2g} through the turn-over (to 120 deg), "
-        f"{figures['jellett_run']:.2g} over the run; predicted final tilt {figures['final_tilt']:.1f} deg"
+        f"tippe top, zero action, {figures['duration']:.2f} s: 90 deg at {at(figures['t90'])}, 150 "
+        f"deg at {at(figures['t150'])}; "
+        f"Jellett's largest relative change {figures['jellett_turn_over']:.2g} through the "
+        "turn-over (to 120 deg), "
+        f"{figures['jellett_run']:.2g} over the run; predicted final tilt "
+        f"{figures['final_tilt']:.1f} deg"
     )
 
 

@@ -70,7 +70,8 @@ def load_scene(name_or_path: str) -> Scene:
         known = list_scenes()
         hint = f"known scenes: {', '.join(known)}" if known else no_scenes_found()
         raise ValueError(
-            f"scene {name_or_path!r} not found (looked for {path}){did_you_mean(name_or_path, known)} ({hint})"
+            f"scene {name_or_path!r} not found (looked for "
+            f"{path}){did_you_mean(name_or_path, known)} ({hint})"
         )
     data = yaml.safe_load(path.read_text())
     if not isinstance(data, dict) or "id" not in data:

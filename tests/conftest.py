@@ -114,7 +114,8 @@ def check_info_row(vinfo, i, single_info, skip=()):
 
 def lockstep(env_id, n, seed, steps, mode, max_steps, kwargs, action_scale=2.0, vector_kwargs=None):
     """Run a vector env and ``n`` single envs on the float path side by side; assert sub-env ``i``
-    equals single env ``i`` (seeded ``seed + i``) bit for bit. Returns (#terminations, #truncations, infos).
+    equals single env ``i`` (seeded ``seed + i``) bit for bit. Returns (#terminations, #truncations,
+    infos).
     ``vector_kwargs``: arguments of the vector env alone (``compiled``)."""
     venv = make_vec(
         env_id,

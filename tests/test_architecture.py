@@ -220,7 +220,7 @@ def test_a_registered_scheme_is_in_every_env_it_supports_and_verify_reports_it_u
 def test_vector_classes_come_from_the_registration():
     from rbenvs import vector
 
-    for env_id, cls in (
+    for _env_id, cls in (
         ("rbenvs/FreeRigidBody-v0", FreeRigidBodyEnv),
         ("rbenvs/LagrangeTop-v0", LagrangeTopEnv),
         ("rbenvs/TippeTop-v0", TippeTopEnv),

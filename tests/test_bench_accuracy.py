@@ -200,7 +200,7 @@ def test_a_block_zero_in_start_and_reference_is_no_error_unless_the_state_leaves
 
     system = TippeTop(TippeTopParams(), fidelity="frictionless")
     layout = system.layout
-    (va, vb), (wa, _) = layout["velocity"], layout["angular_velocity"]
+    (va, _vb), (wa, _) = layout["velocity"], layout["angular_velocity"]
     y0 = [[0.0] for _ in range(system.dim)]
     y0[layout["attitude"][0]] = [1.0]
     y0[wa + 2] = [150.0]

@@ -9,15 +9,13 @@ import json
 import math
 import time
 
-import gymnasium as gym
 import numpy as np
 import pytest
+from conftest import FREE, env_class, make_vec
 
 import rbenvs
 from rbenvs.bench import throughput as T
 from rbenvs.cli import main as cli_main
-
-from conftest import FREE, env_class, make_vec
 
 COLUMNS = {
     "setting",

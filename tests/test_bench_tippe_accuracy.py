@@ -11,14 +11,16 @@ import pytest
 from rbenvs.bench import tippe_accuracy as ta
 
 
-# ------------------------------------------------------------------ the eps -> 0 analysis, synthetic
+# ------------------------------------------------------------------ the eps -> 0 analysis,
+# synthetic
 def test_limit_of_extrapolates_a_sequence_that_converges():
     eps = [1e-3 / 2**k for k in range(5)]
     t90 = [2.0 + 300.0 * e + 4e4 * e**2 for e in eps]  # limit 2, first order in eps
     out = ta.limit_of(eps, t90)
     assert out["converges"]
     assert all(0.4 < r < 0.75 for r in out["ratios"])
-    # Richardson removes the first-order term: what is left is second order, and the estimate bounds it
+    # Richardson removes the first-order term: what is left is second order, and the estimate bounds
+    # it
     assert abs(out["limit"] - 2.0) <= out["limit_error"]
     assert abs(out["limit"] - 2.0) < abs(t90[-1] - 2.0) / 10
 
@@ -35,7 +37,8 @@ def test_limit_of_says_a_sequence_growing_like_one_over_eps_has_no_limit():
     assert not out["converges"] and out["fit_c"] == pytest.approx(9e-4)
 
 
-# ------------------------------------------------------------------ the model's own sequence (quick subset)
+# ------------------------------------------------------------------ the model's own sequence (quick
+# subset)
 @pytest.fixture(scope="module")
 def ref():
     return ta.reference("default", ks=range(3))
@@ -44,7 +47,8 @@ def ref():
 def test_reference_sequence_is_converged_in_the_step_and_monotone(ref):
     seq = ref["sequence"]
     assert len(seq) == 3 and all(s["ended"] is None for s in seq)
-    # each t90 is converged in the step (count against twice the count) far below its change with eps
+    # each t90 is converged in the step (count against twice the count) far below its change with
+    # eps
     for s in seq:
         assert s["step_check"] < 1e-8, s
     diffs = ref["differences"]
@@ -66,7 +70,8 @@ def test_default_env_meets_issue_18_accuracy_line(ref):
     assert row["cost"] > 0.0 and row["steps"] < ta.BASE_COUNT  # fewer steps than the reference's
 
 
-# ------------------------------------------------------------------ MuJoCo (skipped only without it)
+# ------------------------------------------------------------------ MuJoCo (skipped only without
+# it)
 def test_mujoco_rows_cover_both_cones_and_report_what_they_measure(ref):
     pytest.importorskip("mujoco")
     rows = ta.mujoco_rows("default", ref["t90_same"], quick=True)

@@ -4,9 +4,9 @@ on stderr and exits with status 2: no traceback (rbenvs.extras)."""
 import pathlib
 import subprocess
 import sys
-import tomllib
 
 import pytest
+import tomllib
 
 from rbenvs.cli import main
 from rbenvs.extras import EXTRAS, TORCH_EXTRAS, TORCH_PIN, MissingExtra, require

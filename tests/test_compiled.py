@@ -11,11 +11,10 @@ import warnings
 import gymnasium as gym
 import numpy as np
 import pytest
+from conftest import FREE, LAGRANGE, TIPPE, lockstep, make_singles, make_vec, same
 
 from rbenvs import compiled, vector
 from rbenvs.envs import NumericalFailureWarning
-
-from conftest import FREE, LAGRANGE, TIPPE, lockstep, make_singles, make_vec, same
 
 # (numba is in the dev extra, so CI runs these; RBENVS_COMPILED=0 runs the rest on numpy)
 needs_numba = pytest.mark.skipif(

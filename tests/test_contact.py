@@ -5,14 +5,13 @@ import math
 
 import numpy as np
 import pytest
+from conftest import HalfViscous
 
 from rbenvs.dynamics import contact
 from rbenvs.dynamics.contact import FRICTION_LAWS, Coulomb, Viscous
 from rbenvs.dynamics.tippe_top import TippeTop, TippeTopParams
 from rbenvs.envs import TippeTopEnv
 from rbenvs.integrators import get_integrator
-
-from conftest import HalfViscous
 
 
 def test_coulomb_and_viscous_coefficients_and_stiffness():

@@ -12,13 +12,14 @@ import numpy as np
 import pytest
 
 import rbenvs
-from rbenvs.stepsize.controller import UnstableMotionWarning
 from rbenvs.envs.free_body import FreeRigidBodyEnv
 from rbenvs.envs.heavy_top import LagrangeTopEnv
 from rbenvs.envs.tippe_top import TippeTopEnv
 from rbenvs.scenes import load_scene
+from rbenvs.stepsize.controller import UnstableMotionWarning
 
-# the issue's extreme: |Pi| = 2e4 along the intermediate axis of moments (3, 2, 1), |Omega| 1e4 rad/s
+# the issue's extreme: |Pi| = 2e4 along the intermediate axis of moments (3, 2, 1), |Omega| 1e4
+# rad/s
 EXTREME = dict(inertia=(3.0, 2.0, 1.0), integrator="rk4", max_angular_velocity=3e4)
 EXTREME_PI = np.array([1e-3, 2e4, 1e-3])
 
@@ -148,7 +149,8 @@ def test_the_gate_keeps_the_sharp_counts_and_bounds_their_estimate(cls, kwargs):
     """The default accuracy tests a cheap bound Lambda >= lambda_e >= mu first (motion_rates' gate):
     where it holds the period within its budget the rates are (lambda, Lambda, Lambda). From states
     over six decades of speed, both sides of the gate: the counts are those of the sharp rates (an
-    explicit tolerance of the same size, ungated), and the estimate reported bounds the sharp one."""
+    explicit tolerance of the same size, ungated), and the estimate reported bounds the sharp
+    one."""
     gated = cls(**kwargs)
     sharp = cls(tolerance=gated.model.tolerance, **kwargs)
     rule, reference = gated.engine.rule, sharp.engine.rule

@@ -67,7 +67,8 @@ def test_physics_page_sections_named_by_the_code_exist():
             )
             for section in re.findall(r"§(\d+)", m.group(2)):
                 assert section in headings, (
-                    f"{path.relative_to(ROOT)} cites docs/physics.md §{section}, which does not exist"
+                    f"{path.relative_to(ROOT)} cites docs/physics.md §{section}, which does not "
+                    "exist"
                 )
                 named += 1
     assert named >= 40
@@ -151,7 +152,8 @@ def test_every_figure_block_is_written_by_a_command():
             if lang == "" and not any(a <= at < b for a, b in spans):
                 loose.append(f"{page.relative_to(ROOT)}:{text[:at].count(chr(10)) + 1}")
     assert not loose, (
-        f"figure blocks not written by a command (wrap them in <!-- rbenvs:output CMD --> ... <!-- rbenvs:end -->): {loose}"
+        "figure blocks not written by a command (wrap them in <!-- rbenvs:output CMD --> ... <!-- "
+        f"rbenvs:end -->): {loose}"
     )
 
 
@@ -227,7 +229,8 @@ def _commands_in_text():
         for span in re.findall(r"`([^`\n]+)`", text):
             if span.startswith("pip install ") or (
                 re.match(
-                    r"(rbenvs|rbenvs-train|rbenvs-eval|rbenvs-results|rbenvs-sweep|make|python -m rl_zoo3) ",
+                    r"(rbenvs|rbenvs-train|rbenvs-eval|rbenvs-results|rbenvs-sweep|make|python -m "
+                    r"rl_zoo3) ",
                     span,
                 )
                 and not re.search(r"[\[\]{}]|\.\.\.|PATH|NAME|DIR\b", span)
@@ -261,7 +264,8 @@ def test_every_command_in_the_docs_is_one_the_project_accepts(where, command, mo
             command
         )  # the standard library's venv; python reading a here-document
     elif argv[:3] == ["python", "-m", "rbenvs_agents.rllib"]:
-        # needs the ray extra (its own venv: tests/test_ray.py runs it); here: the module and its main exist
+        # needs the ray extra (its own venv: tests/test_ray.py runs it); here: the module and its
+        # main exist
         assert "def main(" in (ROOT / "agents" / "rllib.py").read_text(), command
     elif argv[0] == "make":
         targets = set(re.findall(r"^([a-z][a-z-]*):", (ROOT / "Makefile").read_text(), flags=re.M))
@@ -314,7 +318,8 @@ def test_docs_flag_writes_the_output_into_the_named_block(tmp_path, capsys):
         "old" not in text and text.startswith("before\n") and text.endswith("<!-- rbenvs:end -->\n")
     )
     assert re.search(
-        r"`prog x 'a b'` \(20\d\d-\d\d-\d\d, \d+ cores, .*\):\n\n```\nfigures of \['x', 'a b', '--no-progress'\]\n```\n",
+        r"`prog x 'a b'` \(20\d\d-\d\d-\d\d, \d+ cores, .*\):\n\n```\nfigures of \['x', 'a b', "
+        r"'--no-progress'\]\n```\n",
         text,
     )
 

@@ -132,7 +132,7 @@ def test_record_video_records_an_episode_of_every_env(env_id, tmp_path):
     )
     env.reset(seed=0)
     size = env.render().shape  # (height, width, 3)
-    for step in range(steps - 1):
+    for _step in range(steps - 1):
         _, _, terminated, truncated, _ = env.step(env.action_space.sample())
         assert not (terminated or truncated)
     assert len(env.recorded_frames) == steps  # the reset's frame and one per step so far
@@ -216,7 +216,8 @@ def test_scene_overrides_are_a_top_level_block_the_zoo_never_reads(tmp_path, mon
 
     (tmp_path / "agents").mkdir()
     (tmp_path / "agents" / "ppo.yml").write_text(
-        "default: &default\n  policy: MlpPolicy\n  n_timesteps: 100\n  gamma: 0.9\n  policy_kwargs: {net_arch: [8]}\n"
+        "default: &default\n  policy: MlpPolicy\n  n_timesteps: 100\n  gamma: 0.9\n  policy_kwargs: "
+        "{net_arch: [8]}\n"
         "rbenvs/FreeRigidBody-v0:\n  <<: *default\n  n_timesteps: 200\n"
         "scenes:\n  reorient:\n    gamma: 0.5\n"
     )
@@ -274,7 +275,8 @@ def test_rbenvs_results_prints_a_finished_runs_table_from_its_json(tmp_path, cap
     lines = capsys.readouterr().out.strip().splitlines()
     assert (
         lines[0].endswith(
-            "| return (mean +- std, 3 seeds) | success | env steps/s | with policy steps/s | training steps/s |"
+            "| return (mean +- std, 3 seeds) | success | env steps/s | with policy steps/s | "
+            "training steps/s |"
         )
         and len(lines) == 6
     )
@@ -320,7 +322,8 @@ def test_an_id_with_its_module_steps_from_a_script_that_never_imports_rbenvs(tmp
         "env = gym.make('rbenvs:rbenvs/TippeTop-v0')\n"
         "env.reset(seed=0)\n"
         "obs, *_ = env.step(np.zeros(env.action_space.shape, np.float32))\n"
-        "venv = gym.make_vec('rbenvs:rbenvs/FreeRigidBody-v0', num_envs=2, vectorization_mode='vector_entry_point')\n"
+        "venv = gym.make_vec('rbenvs:rbenvs/FreeRigidBody-v0', num_envs=2, "
+        "vectorization_mode='vector_entry_point')\n"
         "venv.reset(seed=0)\n"
         "vobs, *_ = venv.step(np.zeros(venv.action_space.shape, np.float32))\n"
         "print(obs.shape, vobs.shape, 'rbenvs' in sys.modules)\n"

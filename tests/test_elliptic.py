@@ -108,7 +108,8 @@ def test_identities_near_m_one(m1):
     np.testing.assert_allclose(sn * sn + cn * cn, 1.0, atol=4 * EPS)
     # dn^2 + m sn^2 = cn^2 + (m + m1) sn^2 = 1 up to a few ulp (m + m1 = 1 to one ulp).
     np.testing.assert_allclose(dn * dn + m * sn * sn, 1.0, atol=8 * EPS)
-    # Central difference: truncation h^2/6 |sn'''| <= ~1e-11 (|sn'''| <= ~6), rounding eps/h ~ 2e-11.
+    # Central difference: truncation h^2/6 |sn'''| <= ~1e-11 (|sn'''| <= ~6), rounding eps/h ~
+    # 2e-11.
     h = 1e-5
     sp, _, _ = jacobi_sn_cn_dn(u + h, m, m1)
     sm, _, _ = jacobi_sn_cn_dn(u - h, m, m1)

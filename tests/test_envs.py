@@ -6,10 +6,9 @@ import warnings
 import gymnasium as gym
 import numpy as np
 import pytest
+from conftest import ENV_IDS, all_variants, unchecked
 from gymnasium.utils.env_checker import check_env
 from stable_baselines3.common.env_checker import check_env as sb3_check_env
-
-from conftest import ENV_IDS, all_variants, unchecked
 
 VARIANTS = all_variants()
 
@@ -35,7 +34,8 @@ def test_step_types_and_info(env_id, task, integrator):
         for key in env.unwrapped.invariants + ("numerical_failure", "is_success"):
             assert key in info
         assert np.isfinite(info["energy"]) and info["numerical_failure"] is False
-        # (error_estimate is None where nothing is estimated: tolerance=None, a scheme without an error constant)
+        # (error_estimate is None where nothing is estimated: tolerance=None, a scheme without an
+        # error constant)
     assert all(
         type(v) in (float, bool, int, str) or (k == "error_estimate" and v is None)
         for k, v in info.items()

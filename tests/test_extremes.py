@@ -5,7 +5,8 @@ the bound stated (and justified) at each test, and every refusal is a ``ValueErr
 parameter. Oracles: the stability functions of euler and rk4 on an exact linear rotation (the
 symmetric free body), the exact elliptic flow and DOP853 at rtol 1e-12, equilibria that must
 stay put to the last bit, Jellett's integral for the tippe top. The guard's tests run
-unchecked (``tolerance=None``): the default accuracy at the extremes is tests/test_default_accuracy.py's.
+unchecked (``tolerance=None``): the default accuracy at the extremes is
+tests/test_default_accuracy.py's.
 """
 
 import math

@@ -12,16 +12,19 @@ import numpy as np
 import pytest
 from gymnasium.utils.env_checker import check_env
 
-from rbenvs.stepsize.controller import companion_ratio, relative_difference, tolerance_blocks
 from rbenvs.core.step import NumericalFailureWarning
 from rbenvs.envs import FreeRigidBodyEnv, TippeTopEnv, UnstableMotionWarning
 from rbenvs.oracles import exact_solution, taylor_solution
+from rbenvs.stepsize.controller import companion_ratio, relative_difference, tolerance_blocks
 
 # Tests here set tolerances on motions the systems call unstable (the intermediate axis, a top
 # below its critical spin, an inverting tippe top) on purpose: their UnstableMotionWarning is
-# expected, and asserted where it is the subject: test_the_unstable_motion_warning_names_the_check_and_the_callers_line
+# expected, and asserted where it is the subject:
 # (pytest.warns sees it whatever this filter says). Every other warning fails the run
+# test_the_unstable_motion_warning_names_the_check_and_the_callers_line (pytest.warns sees it
 # (pyproject.toml: filterwarnings = error).
+# whatever this filter says). Every other warning fails the ru (pyproject.toml: filterwarnings =
+# error)
 pytestmark = pytest.mark.filterwarnings("ignore::rbenvs.stepsize.controller.UnstableMotionWarning")
 
 INERTIA = (2.0, 1.5, 1.0)
@@ -397,7 +400,6 @@ def hop_reference():
     """The hopping tippe top (scene tippe_hop, seed 0) through DOP853 at rtol 1e-13, the env's
     switching layer included: the state after each of its first 300 periods (of 400; the
     checked episode below ends at period 250)."""
-    import dataclasses
 
     from rbenvs.bench.tolerance import _env, _references, scene_cases
 
@@ -492,7 +494,9 @@ def test_the_vector_env_checks_each_sub_env_as_its_single_env(mode, compiled):
                     assert info["global_error_estimate"][ended[0]] == 0.0
                 elif (
                     since >= 1
-                ):  # the restarted companion measures the new episode alone (a start drawn from the seed)
+                    # the restarted companion measures the new episode alone (a start drawn from the
+                    # seed)
+                ):
                     assert 0.0 < info["global_error_estimate"][ended[0]] < 1e-9
             else:
                 rows = range(len(STARTS))

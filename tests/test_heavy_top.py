@@ -343,7 +343,7 @@ ORDER_H = {
 FORCING = ("free", "friction", "friction+torque")
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _order_case(kind, attitude, forcing):
     seed = (
         200 + 10 * ("lagrange", "general").index(kind) + 2 * FORCING.index(forcing) + int(attitude)

@@ -16,9 +16,13 @@ from rbenvs import kernel_cache
 pytest.importorskip("numba")
 
 # A fresh process: makes and steps an env (or a vector env), prints the cache's counts and the
-# step's observation (to compare across processes: a loaded kernel computes what a compiled one does).
-# env_id "small": a small generated kernel instead (through the same rbenvs.kernel_cache.njit), n its
+# step's observation (to compare across processes: a loaded kernel computes what a compiled one
+# env_id "small": a small generated kernel instead (through the same rbenvs.kernel_cache.njit), n
+# its
+# does). env_id "small": a small generated kernel instead (through the same
 # constant: the tests of the files' handling need a kernel, not an env's seconds of compiling
+# rbenvs.kernel_cache.njit), n it constant: the tests of the files' handling need a kernel, not an
+# env's seconds of compilin
 SCRIPT = r"""
 import json, sys, warnings
 import numpy as np
@@ -162,7 +166,8 @@ def test_a_folder_that_cannot_be_written_compiles_in_memory_with_one_warning(tmp
 
 
 def test_a_full_disk_turns_the_cache_off_with_one_warning(tmp_path, monkeypatch):
-    # in this process: the write fails as on a full disk (ENOSPC); the kernel still runs, compiled in memory
+    # in this process: the write fails as on a full disk (ENOSPC); the kernel still runs, compiled
+    # in memory
     import errno
 
     monkeypatch.setenv(kernel_cache.CACHE_VARIABLE, str(tmp_path))

@@ -183,7 +183,8 @@ def run(env, policy, seed=None, options=None, steps=None):
         (dict(max_angular_velocity=NAN), "max_angular_velocity"),
         (dict(max_angular_velocity=1e300), "max_angular_velocity"),  # beyond float32 observations
         # below the initial angular speed: 0.5 critical = 4.95 rad/s, a spin range's largest |n|,
-        # the precession's |n| + 2 |p*| (21.56 rad/s at the defaults; 19.81 + 3 with target_rate 1.5)
+        # the precession's |n| + 2 |p*| (21.56 rad/s at the defaults; 19.81 + 3 with target_rate
+        # 1.5)
         (dict(max_angular_velocity=4.0), "max_angular_velocity"),
         (dict(spin=(-20.0, 5.0), max_angular_velocity=10.0), "max_angular_velocity"),
         (dict(task="precess", max_angular_velocity=20.0), "max_angular_velocity"),
@@ -254,7 +255,8 @@ def test_action_shape_and_torque_on_body_axes_for_a_lagrange_top(axial):
     env.step(a)
     got = np.array(flat(env.get_state()))
     want = one_step_reference(env, start, tau)
-    # Same scheme, same state: only the order of the torque sum differs (round-off, |tau| dt ~ 0.03).
+    # Same scheme, same state: only the order of the torque sum differs (round-off, |tau| dt ~
+    # 0.03).
     np.testing.assert_allclose(got, want, rtol=0, atol=1e-14)
     # ...and the torque mattered far beyond that tolerance.
     assert np.max(np.abs(got - one_step_reference(env, start, np.zeros(3)))) > 1e-3
@@ -661,7 +663,8 @@ def test_unknown_reset_option_raises():
         LagrangeTopEnv().reset(options={"stat": {}})
 
 
-# ---------------------------------------------------------------------------------- 5. starting states
+# ---------------------------------------------------------------------------------- 5. starting
+# states
 
 SEEDS = range(200)
 
@@ -934,7 +937,8 @@ def test_precession_tracking_holds_a_forced_rate(seed):
     assert abs(infos0[-1]["precession_rate"] / 1.5 - 1.0) > 0.5
 
 
-# ---------------------------------------------------------------------------------- 8. non-finite state
+# ---------------------------------------------------------------------------------- 8. non-finite
+# state
 
 
 def test_observation_limit_terminates_with_clipped_observation():

@@ -82,10 +82,12 @@ def test_rbenvs_comes_from_the_wheel(wheel_venv):
         "import rbenvs, rbenvs.configs, rbenvs_agents\n"
         "from rbenvs.scenes import scenes_dir\n"
         "from rbenvs_agents.config import agent_config\n"
-        "print(rbenvs.__file__); print(rbenvs.configs.__file__); print(rbenvs_agents.__file__); print(scenes_dir())\n"
+        "print(rbenvs.__file__); print(rbenvs.configs.__file__); print(rbenvs_agents.__file__); "
+        "print(scenes_dir())\n"
         "from rbenvs_agents.sweep import load_sweep\n"
         "assert load_sweep('ppo').space\n"  # the sweeps' search spaces shipped too
-        "print(agent_config('ppo', 'rbenvs/FreeRigidBody-v0', 'default').n_timesteps)\n"  # the hyperparameters shipped too
+        # the hyperparameters shipped too
+        "print(agent_config('ppo', 'rbenvs/FreeRigidBody-v0', 'default').n_timesteps)\n"
     )
     out = _run([bindir / "python", "-c", code], cwd=work, env=env)
     assert out.returncode == 0, out.stderr
@@ -132,7 +134,8 @@ def test_an_empty_configs_folder_is_an_error_saying_where_it_looked(wheel_venv, 
     out = _run([bindir / "rbenvs", "scenes"], cwd=work, env=env | {"RBENVS_CONFIGS": str(tmp_path)})
     assert out.returncode == 2 and out.stdout == ""
     assert out.stderr.splitlines() == [
-        f"rbenvs: error: no scenes found in {tmp_path / 'scenes'} ($RBENVS_CONFIGS is set: unset it or point it at a folder with scenes/*.yml)"
+        f"rbenvs: error: no scenes found in {tmp_path / 'scenes'} ($RBENVS_CONFIGS is set: unset it "
+        "or point it at a folder with scenes/*.yml)"
     ]
 
 

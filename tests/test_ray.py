@@ -256,7 +256,8 @@ def test_the_env_creator_registers_the_ids_in_a_fresh_process():
         "from rbenvs_agents.rllib import env_creator\n"
         "venv = env_creator({'env_id': 'rbenvs/TippeTop-v0', 'task': 'hold', 'num_envs': 3})\n"
         "env = env_creator({'env_id': 'rbenvs/TippeTop-v0', 'task': 'hold'})\n"
-        "print(type(venv).__name__, venv.num_envs, venv.max_episode_steps, type(env.unwrapped).__name__)\n"
+        "print(type(venv).__name__, venv.num_envs, venv.max_episode_steps, "
+        "type(env.unwrapped).__name__)\n"
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert out.returncode == 0, out.stderr

@@ -8,9 +8,9 @@ import warnings
 import gymnasium as gym
 import numpy as np
 import pytest
+from conftest import ENV_IDS, env_class
 from gymnasium.utils.env_checker import check_env
 
-from conftest import ENV_IDS, env_class
 from rbenvs.render import FRAME_SIZE
 
 # a state of each system far from its default start, to see the frame change
@@ -379,7 +379,8 @@ def test_tippe_plot_reports_the_figures_of_its_caption(tmp_path):
         and figures["t150"] is None
         and figures["duration"] == pytest.approx(2.0, abs=0.011)
     )
-    # through the turn-over within issue 18's 1e-8 (1.1e-9); past 120 degrees the slow climb adds rk4's drift (1.2e-8 by 2 s)
+    # through the turn-over within issue 18's 1e-8 (1.1e-9); past 120 degrees the slow climb adds
+    # rk4's drift (1.2e-8 by 2 s)
     assert (
         0.0 < figures["jellett_turn_over"] < 1e-8
         and figures["jellett_turn_over"] <= figures["jellett_run"] < 1e-7

@@ -129,7 +129,8 @@ def test_analytic_controller_and_agents_see_the_same_episodes(robust_results):
             assert mine.starts == theirs.starts, (label, kind)
             assert mine.params == theirs.params, (label, kind)
         assert len(result.heldout.params) == 3 and all(result.heldout.params)  # drawn, not empty
-    # ... and the evaluations are not all alike: the analytic controller holds the spin, zero action does not
+    # ... and the evaluations are not all alike: the analytic controller holds the spin, zero action
+    # does not
     assert (
         analytic.evaluation.success_rate == 1.0
         and by_label["zero action"].evaluation.return_mean < analytic.evaluation.return_mean
@@ -203,7 +204,8 @@ def test_grid_cells_train_each_algorithm_twice_with_robustness(tmp_path, monkeyp
         tmp_path,
         monkeypatch,
         "runs:\n  - scene: default\n    algos: [ppo]\n    robustness:\n"
-        f"      train: {json.dumps(TRAIN)}\n      heldout: {json.dumps(HELD)}\n  - scene: spin_major\n    algos: []\n",
+        f"      train: {json.dumps(TRAIN)}\n      heldout: {json.dumps(HELD)}\n  - scene: "
+        "spin_major\n    algos: []\n",
     )
     cells = grid_cells([0, 1], quick=True)
     labels = [(c.scene.name, c.label, c.seed) for c in cells]

@@ -12,12 +12,11 @@ import math
 import gymnasium as gym
 import numpy as np
 import pytest
+from conftest import FREE, LAGRANGE, TIPPE, lockstep, make_vec
 
 from rbenvs.envs import FreeRigidBodyEnv, LagrangeTopEnv, TippeTopEnv
 from rbenvs.envs.options import MAX_ACTION_DELAY, NOISE_BLOCK
 from rbenvs.oracles.heavy_top import critical_spin
-
-from conftest import FREE, LAGRANGE, TIPPE, lockstep, make_vec
 
 Z = 5.3  # two-sided normal bound: P(|N(0, 1)| > 5.3) = 1.2e-7
 
@@ -63,7 +62,8 @@ def test_draws_cover_each_range_and_keep_a_symmetric_top_symmetric():
         v = np.array([d[name] for d in draws])
         lo, hi = np.asarray(lo), np.asarray(hi)
         assert np.all(v >= lo) and np.all(v < hi), name
-        # U(lo, hi): 400 draws leave no gap of 5 % of the range at either end (P = 2 (0.95)^400 < 1e-8)
+        # U(lo, hi): 400 draws leave no gap of 5 % of the range at either end (P = 2 (0.95)^400 <
+        # 1e-8)
         width = hi - lo
         assert np.all(v.min(axis=0) < lo + 0.05 * width + (width == 0)) and np.all(
             v.max(axis=0) > hi - 0.05 * width

@@ -200,7 +200,8 @@ def test_angle_near_zero_and_pi(shape):
         q = quat_from_axis_angle(axis, theta)
         # Near 0: 2 atan2(|v|, |w|) ~ 2|v| is relatively accurate (acos(w) would give 0 or ~1e-8).
         np.testing.assert_allclose(quat_angle(q), small, rtol=1e-14)
-        # Near pi: pi - small, where acos would lose the small part; here only absolute rounding of pi.
+        # Near pi: pi - small, where acos would lose the small part; here only absolute rounding of
+        # pi.
         q = quat_from_axis_angle(axis, np.pi - theta)
         np.testing.assert_allclose(np.pi - quat_angle(q), small, atol=4 * EPS * np.pi, rtol=1e-10)
         # q and -q are the same rotation: same angle (no 2 pi - angle jump).
@@ -376,7 +377,8 @@ def _compiled_sincos(xs):
 
 def test_an_elementwise_loop_is_compiled_only_once_it_has_run_on_enough_elements(monkeypatch):
     """A one-off call (a reset's rows) runs the numpy form and compiles nothing; once
-    ``COMPILE_AFTER`` elements have gone through it, the loop is built, with the numpy form's bits."""
+    ``COMPILE_AFTER`` elements have gone through it, the loop is built, with the numpy form's
+    bits."""
     from rbenvs import compiled, jit
     from rbenvs.rotations import _atan2_arrays, atan2
 

@@ -96,7 +96,8 @@ def _t90(refine, spin=180.0, start="rest", **kwargs):
         _, _, terminated, truncated, info = env.step(action)
         if terminated or truncated:
             raise EpisodeEnded(
-                f"ended at {k * env.dt:.3f} s, tilt {math.degrees(info['tilt']):.1f} deg: {info.get('terminal_reason')}"
+                f"ended at {k * env.dt:.3f} s, tilt {math.degrees(info['tilt']):.1f} deg: "
+                f"{info.get('terminal_reason')}"
             )
         drift = max(drift, abs(info["jellett"] - j0) / abs(j0))
         rise = max(rise, info["energy"] - e_prev)
@@ -161,9 +162,9 @@ def test_default_top_jellett_through_the_turn_over_and_the_slow_climb():
     """Issue 18 measures Jellett's drift "over an inversion" as the turn-over: the old default
     (rolling start, stability bound) drifted 3.8e-10 to 90 degrees and through 123 degrees, the
     figure the issue quotes (5e-10), but 6.4e-8 by the task's end at 150 degrees (17.3 s). The
-    new default turns over within 1e-8 (at most 1.1e-9 through 120 degrees, measured). The slow climb
-    from about 125 to 150 degrees that follows (17 s) accumulates rk4's error on the stiff slip
-    mode at about 1.2e-7 a second at the accuracy bound's steps: 2.05e-6 by 150 degrees
+    new default turns over within 1e-8 (at most 1.1e-9 through 120 degrees, measured). The slow
+    climb from about 125 to 150 degrees that follows (17 s) accumulates rk4's error on the stiff
+    slip mode at about 1.2e-7 a second at the accuracy bound's steps: 2.05e-6 by 150 degrees
     (measured; the stability bound's steps 1.2e-7, 400 steps a period 3.0e-9). This test keeps
     both figures: the turn-over's within the issue's 1e-8, the whole episode's within 5e-6."""
     env = gym.make(ID)

@@ -241,7 +241,8 @@ def test_ros34pw2_is_stiffly_accurate():
 def test_rosenbrock_w_stability_and_order(scheme):
     """L-stable (``|R(z)| <= 1`` on the negative real axis, ``R(-inf) -> 0``), and the declared
     order on a nonlinear problem for ``J = 0`` (the explicit limit), an arbitrary ``J`` and the
-    exact Jacobian at the start (fitted over two halvings from 160 steps, against scipy's DOP853 at rtol 1e-13)."""
+    exact Jacobian at the start (fitted over two halvings from 160 steps, against scipy's DOP853 at
+    rtol 1e-13)."""
     for z in (-1e-3, -0.5, -1.0, -2.785, -10.0, -1e3, -1e6):
         assert abs(scheme.step(_Linear(z), (1.0,), None, 1.0)[0]) <= 1.0
     assert abs(scheme.step(_Linear(-1e12), (1.0,), None, 1.0)[0]) < 1e-10
@@ -441,7 +442,9 @@ def test_accuracy_bound_inverts_as_the_converged_model_with_fewer_steps(start, s
         # at the default friction the stability term sets most counts (0.90-0.99 of the guard's,
         # measured); at 0.1 the friction is softer and the accuracy term sets them (1.47 times)
         assert fast["steps"] < (1.0 if friction == 0.3 else 1.6) * base["steps"]
-    else:  # viscous (620/s here): the spin bound sets the default count; the rule's mixed term adds steps (1.57 times)
+    # viscous (620/s here): the spin bound sets the default count; the rule's mixed term adds steps
+    # (1.57 times)
+    else:
         assert base["steps"] < fast["steps"] < 2.0 * base["steps"]
 
 

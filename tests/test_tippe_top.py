@@ -121,9 +121,9 @@ def newton_euler(params, fidelity, y, u=None):
     Unknowns gliding/frictionless: ``dv_G`` (3), ``domega`` (3), ``N`` with the contact force
     ``N (z_hat + f)``, ``f`` the friction per unit normal force from the slip ``v_P``;
     ``m dv = N (z + f) - m g z - m a_T``, ``I domega = -omega x I omega + r x N (z + f) + R tau``,
-    and the height constraint twice differentiated, ``dv_z = -h (domega x k + omega x (omega x k))_z``.
-    Rolling: the contact force ``Lambda`` (3) instead, with ``dv + domega x r = -omega x (h omega x k)``
-    (``d/dt v_P = 0``, ``dr/dt = h omega x k``).
+    and the height constraint twice differentiated, ``dv_z = -h (domega x k + omega x (omega x
+    k))_z``. Rolling: the contact force ``Lambda`` (3) instead, with ``dv + domega x r = -omega x (h
+    omega x k)`` (``d/dt v_P = 0``, ``dr/dt = h omega x k``).
     """
     y = np.asarray(y, dtype=float)
     a, h, m, g = params.radius, params.offset * params.radius, params.mass, params.gravity
@@ -555,7 +555,7 @@ def test_jellett_conserved_on_an_accelerating_table(fidelity):
     t_end, levels = 0.2, 3
     n, h = steps_for(t_end, stable_step(system, 200.0 * math.sqrt(1.01), mu=0.3))
 
-    def controls(k, zero=np.zeros(16)):
+    def controls(k, zero=np.zeros(16)):  # noqa: B008  (one array, read only, for every call)
         return (
             rng.uniform(-5, 5, 16),
             rng.uniform(-5, 5, 16),
@@ -632,7 +632,7 @@ def test_energy_balance_equals_friction_work(law):
     _assert_fourth_order(errs, [n * 2**k for k in range(levels)])
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _coulomb_inversion(h, track_energy=False):
     """The default top (spin 150 rad/s, tilt 0.1) under Coulomb mu = 0.2 until it passes 150 deg:
     crossing times of 90 and 150 deg, and (optionally) the largest one-step energy increase and
@@ -1041,7 +1041,8 @@ def test_fast_spin_near_upright():
     (j1, rise1, lift1, n1, e0), (j2, rise2, lift2, n2, _) = results
     # No energy gain while the top is on the table (measured: none at all, in either run).
     assert rise1 <= 4 * EPS * e0 and rise2 <= 4 * EPS * e0, (rise1, rise2)
-    # Jellett: fourth order (measured drifts 1e-9 at the rule's step, over 0.5 s, and ~20x less at h/2).
+    # Jellett: fourth order (measured drifts 1e-9 at the rule's step, over 0.5 s, and ~20x less at
+    # h/2).
     assert j2 <= j1 / 10.0 + 16 * EPS * math.sqrt(n2), (j1, j2)
     assert j1 > 100 * 16 * EPS * math.sqrt(n1)  # resolved above rounding: the ratio means something
     # Lift-off (N < 0) is a prediction of the model, detected and reported by the env; recorded

@@ -12,13 +12,12 @@ import warnings
 import gymnasium as gym
 import numpy as np
 import pytest
+from conftest import rotation
 from gymnasium.utils.env_checker import check_env
 from stable_baselines3.common.env_checker import check_env as sb3_check_env
 
 from rbenvs.envs import NumericalFailureWarning, TippeTopEnv
 from rbenvs.integrators import RK4, get_integrator
-
-from conftest import rotation
 
 ID = "rbenvs/TippeTop-v0"
 NAN, INF = float("nan"), float("inf")
@@ -893,7 +892,8 @@ def test_state_from_own_formulas_is_accepted(fidelity):
         np.testing.assert_allclose(got["velocity"], v, rtol=1e-13, atol=1e-15)
 
 
-# ---------------------------------------------------------------------------------- 6. lift-off, inversion
+# ---------------------------------------------------------------------------------- 6. lift-off,
+# inversion
 
 
 def test_fast_top_lifts_off():
@@ -911,7 +911,8 @@ def test_fast_top_lifts_off():
     assert all("terminal_reason" not in i and i["lifted_off"] is False for i in infos[:-1])
     normals = np.array([i["normal_force"] for i in infos])
     assert np.all(normals[:-1] > 0.0)
-    # detected at the first internal step with N < 0 (h ~ 6e-5 s): just below zero (measured -0.0026 m g)
+    # detected at the first internal step with N < 0 (h ~ 6e-5 s): just below zero (measured -0.0026
+    # m g)
     assert -0.05 * MG < normals[-1] < 0.0
     assert all(np.all(np.isfinite(v)) for v in env.unwrapped.get_state().values())
     assert last["tilt"] < math.pi / 2
@@ -1013,7 +1014,8 @@ def test_without_sliding_friction_the_top_does_not_invert(fidelity):
     assert max(i["tilt"] for i in infos) < 0.1 + 1e-3
 
 
-# ---------------------------------------------------------------------------------- 7. tasks, start states
+# ---------------------------------------------------------------------------------- 7. tasks, start
+# states
 
 
 @pytest.mark.parametrize("task", ["invert", "hold"])
@@ -1107,7 +1109,8 @@ def test_fixed_spin_and_tilt():
     assert info["spin"] == 150.0 and info["tilt"] == pytest.approx(0.1, abs=1e-14)
 
 
-# ---------------------------------------------------------------------------------- 8. failures, limits
+# ---------------------------------------------------------------------------------- 8. failures,
+# limits
 
 
 @pytest.mark.parametrize("fidelity", FIDELITIES)
@@ -1229,7 +1232,7 @@ def test_slip_cancelling_keeps_the_top_on_its_broad_end():
     # the same start without action falls past 90 deg within those 9 s
     env.reset(seed=0)
     zero = np.zeros(env.action_space.shape, dtype=np.float32)
-    for k in range(steps):
+    for _k in range(steps):
         _, _, terminated, _, info = env.step(zero)
         if terminated:
             break

@@ -12,12 +12,12 @@ import math
 import gymnasium as gym
 import numpy as np
 import pytest
+from conftest import rotation  # the body-to-space matrix, the tests' own formula
 
 import rbenvs  # noqa: F401  (registers the ids)
 from rbenvs.dynamics import TippeTop, TippeTopParams
 from rbenvs.dynamics.tippe_top import TOUCHDOWN_TOL
 from rbenvs.envs import TippeTopEnv
-from conftest import rotation  # the body-to-space matrix, the tests' own formula
 
 ZERO = np.zeros(2, dtype=np.float32)
 
@@ -348,6 +348,7 @@ def test_euler_hops_too():
     infos, observations = run(env, 20)
     assert all(np.all(np.isfinite(o)) for o in observations)
     assert infos[-1]["hops"] > 0
-    # explicit Euler itself gains energy in free rotation (O(h) per unit time): bounded, not monotone
+    # explicit Euler itself gains energy in free rotation (O(h) per unit time): bounded, not
+    # monotone
     energy = np.array([i["energy"] for i in infos])
     assert np.max(np.abs(energy - energy[0])) < 1e-4 * energy[0]

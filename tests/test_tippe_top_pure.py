@@ -6,6 +6,7 @@ import math
 
 import numpy as np
 import pytest
+from conftest import HalfViscous
 
 from rbenvs import compiled
 from rbenvs.dynamics import contact
@@ -21,8 +22,6 @@ from rbenvs.dynamics.contact import (
 from rbenvs.dynamics.tippe_top import TippeTop, TippeTopParams, pure_forms
 from rbenvs.integrators import get_integrator
 from rbenvs.tasks import HoldTask, InvertTask
-
-from conftest import HalfViscous
 
 needs_numba = pytest.mark.skipif(
     not compiled.available(),
@@ -447,7 +446,8 @@ def test_systems_and_envs_pickle_into_a_new_process(tmp_path):
         "import numpy as np\n"
         f"system, y, env = pickle.loads(open({str(path)!r}, 'rb').read())\n"
         "fn, p = env.unwrapped.model.step_rule.dissipation\n"
-        "print(repr(system.rhs(y, None)), repr(fn(p, env.unwrapped.state_components, None)), env.step(np.zeros(2, np.float32))[1])\n"
+        "print(repr(system.rhs(y, None)), repr(fn(p, env.unwrapped.state_components, None)), "
+        "env.step(np.zeros(2, np.float32))[1])\n"
     )
     out = subprocess.run(
         [sys.executable, "-c", script], capture_output=True, text=True, check=True

@@ -1,9 +1,9 @@
 """``tolerance=``: the guard bounds the error of an episode, not only stability (issue 19).
 
-The rule (rbenvs.stepsize.controller): a period of ``n`` steps at rate ``lambda`` commits ``e = C lambda dt
-(lambda h)^p``; every period is held to ``log(1 + tolerance) / N`` (``N = tolerance_horizon``),
-so the episode's error stays within ``tolerance``. Checked here against the references (the
-exact elliptic solution of the free body, DOP853 at rtol 1e-13 for the heavy top) at
+The rule (rbenvs.stepsize.controller): a period of ``n`` steps at rate ``lambda`` commits ``e = C
+lambda dt (lambda h)^p``; every period is held to ``log(1 + tolerance) / N`` (``N =
+tolerance_horizon``), so the episode's error stays within ``tolerance``. Checked here against the
+references (the exact elliptic solution of the free body, DOP853 at rtol 1e-13 for the heavy top) at
 tolerances 1e-3, 1e-6 and 1e-9, from several starts and at the extremes the issue names: the
 free body at 1e4 rad/s, fast heavy tops at 100 to 1e4 rad/s, euler above the critical spin.
 Without a tolerance each of these cases is measurably wrong (asserted too: the tests can fail).
@@ -16,19 +16,20 @@ import numpy as np
 import pytest
 
 from rbenvs.bench.accuracy import REFERENCE
-from rbenvs.stepsize.controller import MAX_INTERNAL_STEPS
-from rbenvs.stepsize.forms import accuracy_steps, error_estimate, step_ratio
 from rbenvs.dynamics.heavy_top import top_tilt
 from rbenvs.envs import FreeRigidBodyEnv, LagrangeTopEnv, TippeTopEnv, UnstableMotionWarning
 from rbenvs.integrators import INTEGRATORS, get_integrator
 from rbenvs.integrators.error import measure_error_constant
 from rbenvs.oracles import exact_solution
+from rbenvs.stepsize.controller import MAX_INTERNAL_STEPS
+from rbenvs.stepsize.forms import accuracy_steps, error_estimate, step_ratio
 
 # Tests here set tolerances on motions the systems call unstable (the intermediate axis, a top
 # below its critical spin, an inverting tippe top) on purpose: their UnstableMotionWarning is
-# expected, and asserted where it is the subject: test_a_tolerance_on_an_unstable_motion_warns_with_the_theorem
+# expected, and asserted where it is the subject:
 # (pytest.warns sees it whatever this filter says). Every other warning fails the run
-# (pyproject.toml: filterwarnings = error).
+# test_a_tolerance_on_an_unstable_motion_warns_with_the_theorem (pytest.warns sees it whatever this
+# filter says). Every other warning fails the ru (pyproject.toml: filterwarnings = error).
 pytestmark = pytest.mark.filterwarnings("ignore::rbenvs.stepsize.controller.UnstableMotionWarning")
 
 TOLERANCES = (1e-3, 1e-6, 1e-9)
@@ -455,7 +456,8 @@ LOCKSTEP = [
 
 
 # the numpy path in both modes for every setting; the compiled vector step (a kernel build each,
-# ~10-30 s) for two: SAME_STEP, whose restarts rewrite the period's steps in the kernel, and NEXT_STEP
+# ~10-30 s) for two: SAME_STEP, whose restarts rewrite the period's steps in the kernel, and
+# NEXT_STEP
 VECTOR_PATHS = [
     (i, mode, False) for i in range(len(LOCKSTEP)) for mode in ("NextStep", "SameStep")
 ] + [(0, "SameStep", True), (1, "NextStep", True), (2, "NextStep", True), (3, "SameStep", True)]
@@ -671,7 +673,7 @@ def test_tippe_tops_relaxation_share_is_its_local_stiffness():
     zero = np.zeros(env.action_space.shape, np.float32)
     env.reset(seed=0)
     states, shares = [], []
-    for k in range(8):
+    for _k in range(8):
         y = tuple(env.state_components)
         lam_g = rule.dissipation_rate(y, None)
         shares.append(rule.dissipation_share(y, None, lam_g))
@@ -998,7 +1000,9 @@ BODIES = [
 ]
 
 
-@pytest.mark.parametrize("inertia,starts", BODIES, ids=["%g-%g-%g" % b for b, _ in BODIES])
+@pytest.mark.parametrize(
+    "inertia,starts", BODIES, ids=["{:g}-{:g}-{:g}".format(*b) for b, _ in BODIES]
+)
 @pytest.mark.parametrize("tol", (1e-6, 1e-9))
 def test_triaxial_and_nearly_symmetric_bodies_within_the_tolerance_from_several_starts(
     inertia, starts, tol
@@ -1089,7 +1093,8 @@ def test_a_tolerance_on_an_unstable_motion_warns_with_the_theorem():
         LagrangeTopEnv(integrator="rk4", task="precess", tolerance=1e-6)
         LagrangeTopEnv(integrator="rk4")
         FreeRigidBodyEnv(axis="major", tolerance=1e-6)
-        # moments equal to 1e-9: the middle axis is unstable, at ~1e-5 |Pi| 1/s: not one e-fold in an episode
+        # moments equal to 1e-9: the middle axis is unstable, at ~1e-5 |Pi| 1/s: not one e-fold in
+        # an episode
         FreeRigidBodyEnv(
             inertia=(1.5, 1.5 * (1 + 1e-9), 1.0), axis=0, max_angular_velocity=20.0, tolerance=1e-6
         )
@@ -1186,9 +1191,9 @@ def test_the_tippe_tops_attitude_counts_its_own_speed_and_carries_the_angular_ve
 
 def test_the_viscous_tippe_top_stays_within_the_tolerance_over_4_s():
     """The attitude integrates Omega's error, a phase error growing like the horizon squared:
-    counted (the rotating block's a_Omega m span), a viscous top (3 s/m, tilt up to 1, 100-200 rad/s)
-    over 400 periods (4 s) stays within 1e-6 of DOP853 (with lambda alone for every block it ended
-    2.4 times outside: 2.4e-6)."""
+    counted (the rotating block's a_Omega m span), a viscous top (3 s/m, tilt up to 1, 100-200
+    rad/s) over 400 periods (4 s) stays within 1e-6 of DOP853 (with lambda alone for every block it
+    ended 2.4 times outside: 2.4e-6)."""
     from rbenvs.bench.tolerance import ToleranceCase, _env, _episode, _references
 
     case = ToleranceCase(
@@ -1232,8 +1237,9 @@ def test_the_bench_measures_each_episode_until_it_ends():
 def test_the_tippe_tops_reference_runs_through_its_switches():
     """The bench's tippe-top reference (DOP853 at rtol 1e-13) is stepped through the env's own
     switching layer: the top with its stem lands on the stem within 4 s (the contact flag
-    switches in the reference, first at 3.88 s), and tolerance=1e-3 is within 1e-3 of it (~1 min). Integrated across the
-    switch by REFERENCE.step alone, the reference had stayed on the sphere, 1.3 off."""
+    switches in the reference, first at 3.88 s), and tolerance=1e-3 is within 1e-3 of it (~1 min).
+    Integrated across the switch by REFERENCE.step alone, the reference had stayed on the sphere,
+    1.3 off."""
     import dataclasses
 
     from rbenvs.bench.tolerance import _env, _episode, _references, scene_cases

@@ -12,13 +12,6 @@ import warnings
 import gymnasium as gym
 import numpy as np
 import pytest
-from gymnasium.vector import AutoresetMode
-from gymnasium.vector.utils import batch_space
-
-import rbenvs
-from rbenvs.envs import NumericalFailureWarning
-from rbenvs.jit import available as compiled_available
-
 from conftest import (
     ENV_IDS,
     FREE,
@@ -34,6 +27,12 @@ from conftest import (
     same,
     same_state,
 )
+from gymnasium.vector import AutoresetMode
+from gymnasium.vector.utils import batch_space
+
+import rbenvs
+from rbenvs.envs import NumericalFailureWarning
+from rbenvs.jit import available as compiled_available
 
 
 @pytest.mark.parametrize("env_id", ENV_IDS)
@@ -134,7 +133,8 @@ EQUIVALENCE = [
     (TIPPE, dict(fidelity="frictionless", spin=(100.0, 200.0)), 4, 10),
     (TIPPE, dict(fidelity="rolling", task="hold", torque_action=True), 4, 10),
     (TIPPE, dict(friction_law="viscous", integrator="euler", tolerance=None), 4, 10),
-    # default gliding (regularised Coulomb, rk4); the spin range makes the internal step counts differ
+    # default gliding (regularised Coulomb, rk4); the spin range makes the internal step counts
+    # differ
     (TIPPE, dict(spin=(100.0, 200.0)), 3, 7),
     (TIPPE, dict(spin=(120.0, 160.0), friction_action=True, torque_action=True), 3, 5),
 ]
@@ -206,7 +206,8 @@ def test_tippe_top_autoreset_info_equals_reset_info(mode):
 @pytest.mark.parametrize("n_ending", [1, 2])
 def test_same_step_final_obs_is_a_1d_array_of_float32_observations(n_ending):
     """Both sub-envs truncate at step 2 (``n_ending == 2``), or only sub-env 0 (sub-env 1 was
-    reset one step later, ``n_ending == 1``): final_obs holds one float32 observation per ended sub-env."""
+    reset one step later, ``n_ending == 1``): final_obs holds one float32 observation per ended
+    sub-env."""
     venv = make_vec(FREE, 2, autoreset_mode="SameStep", max_episode_steps=2)
     venv.reset(seed=0)
     zero = np.zeros((2, 3), dtype=np.float32)
@@ -369,7 +370,8 @@ def test_reset_mask_resets_only_the_masked_sub_envs(env_id):
         venv.reset(options={"no_such_option": 1})
 
 
-# ----------------------------------------------------------------------------------- 4. state access
+# ----------------------------------------------------------------------------------- 4. state
+# access
 
 STATE_CASES = [
     (FREE, dict(task="spin")),
@@ -414,7 +416,7 @@ def test_get_state_shapes_and_round_trip(env_id, kwargs):
     for i in range(n):
         o, _ = single.reset(options={"state": {k: v[i] for k, v in state.items()}})
         assert same(o, obs0[i])
-        for a, (obs, r, te, tr) in zip(actions, run2):
+        for a, (obs, r, te, _tr) in zip(actions, run2):
             so, sr, ste, _, _ = single.step(a[i])
             assert same(so, obs[i]) and sr == r[i] and ste == te[i]
 

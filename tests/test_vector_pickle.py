@@ -9,7 +9,6 @@ import numpy as np
 import pytest
 from conftest import FREE, LAGRANGE, TIPPE, make_vec, same
 
-
 CASES = [
     (FREE, {}),
     (FREE, {"compiled": False}),

@@ -262,7 +262,6 @@ class WrongImpact(tp.TippeTop):
     writing the impact law, and which gains energy."""
 
     def impact(self, y):
-        prm = self.params
         rm = self.frame(y)
         w = self.angular_velocity(y)
         r = self._contact_arm(rm[6], rm[7], rm[8])
@@ -488,7 +487,8 @@ def test_the_tolerance_rows_pass_and_catch_an_estimate_that_falls_short(monkeypa
     never below the error, and tolerance_check=True near the separatrix (1e-9) and, ten times
     closer, at 1e-10, is within the tolerance on every period it returns; an estimate scaled
     down (its margin 0.3 instead of 1.25: 0.24 of the classical estimate, which measures 0.88-2
-    of the error) is caught by the second row; euler, which a tolerance does not take, has no rows."""
+    of the error) is caught by the second row; euler, which a tolerance does not take, has no
+    rows."""
     from rbenvs.stepsize import controller
     from rbenvs.verify.tolerance import ROWS, tolerance_checks
 

@@ -80,7 +80,8 @@ def test_simulator_specs(tmp_path, monkeypatch):
     assert sim.dt == 0.02 and sim.order == 4
     assert [s.name for s in parse_simulator("rbenvs:integrator=euler+rk4")] == ["euler", "rk4"]
     (tmp_path / "my_engine.py").write_text(
-        "import numpy as np\n\ndef step(problem, y, u, dt):\n    raise NotImplementedError('nothing')\n"
+        "import numpy as np\n\ndef step(problem, y, u, dt):\n    raise "
+        "NotImplementedError('nothing')\n"
     )
     monkeypatch.syspath_prepend(str(tmp_path))
     (sim,) = parse_simulator("my_engine:step,dt=0.5,order=2,name=mine")
@@ -210,7 +211,8 @@ def test_mujoco_tippe_top_rows_and_what_it_does_not_model():
 # ---------------------------------------------------------------------------------------------
 # rows at rates where a step of 1e-3 matters; the physical bound on the step-scaled tolerances
 
-from rbenvs.verify import free_body as fb, heavy_top as ht  # noqa: E402
+from rbenvs.verify import free_body as fb  # noqa: E402
+from rbenvs.verify import heavy_top as ht  # noqa: E402
 from rbenvs.verify.common import ENERGY_BOUND, MOMENTUM_BOUND, ROUND_OFF, scaled_tolerance  # noqa: E402
 from rbenvs.verify.simulator import CallableSimulator, as_simulators  # noqa: E402
 
@@ -356,7 +358,8 @@ def nests(problem, y, u, dt):
         (
             "unpacks_two",
             [
-                r"the simulator function usersim\.unpacks_two\(problem\[heavy_top\], y, u, 0\.01\) raised ValueError; its traceback:",
+                r"the simulator function usersim\.unpacks_two\(problem\[heavy_top\], y, u, 0\.01\) "
+                r"raised ValueError; its traceback:",
                 r'File ".*usersim\.py", line 3, in unpacks_two',
                 r"pi, gamma = y",
                 r"ValueError: too many values to unpack",
@@ -365,7 +368,8 @@ def nests(problem, y, u, dt):
         (
             "nests",
             [
-                r"the simulator function usersim\.nests\(problem\[heavy_top\], y, u, 0\.01\) returned \(\(.*\)\) \(tuple\): "
+                r"the simulator function usersim\.nests\(problem\[heavy_top\], y, u, 0\.01\) "
+                r"returned \(\(.*\)\) \(tuple\): "
                 r"expected a flat tuple of 6 floats \(Pi1, Pi2, Pi3, Gamma1, Gamma2, Gamma3\)"
             ],
         ),

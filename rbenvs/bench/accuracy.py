@@ -60,8 +60,9 @@ states (seeds 0 to 2); error = the worst over the episode and the seeds of the p
 relative error (relative to the block's largest norm along the reference). Cost = one env
 step, measured. :data:`TARGET` is the accuracy asked for; the cheapest pair meeting it is the
 recommendation (a scene that already meets it changes only for a pair at most :data:`SAVING`
-of its cost: smaller savings are within the timing noise). The tippe top's scenes are checked over their first :data:`TIPPE_HORIZON`
-seconds (their reference costs ~10 s per simulated second under Coulomb friction).
+of its cost: smaller savings are within the timing noise). The tippe top's scenes are checked over
+their first :data:`TIPPE_HORIZON` seconds (their reference costs ~10 s per simulated second under
+Coulomb friction).
 """
 
 from __future__ import annotations
@@ -76,12 +77,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..extras import ArgumentParser, require
 from ..integrators import get_integrator
 from ..integrators.reference import REFERENCE, Dop853
 from ..progress import Progress
-from .throughput import episode_stepper, timed
 from ..render.common import plot_unavailable
-from ..extras import ArgumentParser, require
+from .throughput import episode_stepper, timed
 
 __all__ = [
     "CASES",
@@ -366,7 +367,8 @@ def convergence(case, name, quick=False, min_time=0.05, progress=None, setup=Non
 
 def drift(case, name, steps, setup=None, short=1000, samples=1000):
     """Largest relative change of each invariant over the first ``short`` steps and over
-    ``steps`` steps at ``case.drift_h``; stops where it passes :data:`DIVERGED` or goes non-finite."""
+    ``steps`` steps at ``case.drift_h``; stops where it passes :data:`DIVERGED` or goes
+    non-finite."""
     system, y0, invariants = setup or _setup(case.key)
     integ = get_integrator(name)
     h = case.drift_h
@@ -482,8 +484,10 @@ def mujoco_free_body(quick=False, min_time=0.1):
 
     def model(integrator, h):
         xml = (
-            f'<mujoco><option gravity="0 0 0" integrator="{integrator}" timestep="{float(h)!r}"/><worldbody><body><freejoint/>'
-            f'<inertial pos="0 0 0" mass="1" diaginertia="{float(inertia[0])!r} {float(inertia[1])!r} {float(inertia[2])!r}"/></body></worldbody></mujoco>'
+            f'<mujoco><option gravity="0 0 0" integrator="{integrator}" '
+            f'timestep="{float(h)!r}"/><worldbody><body><freejoint/>'
+            f'<inertial pos="0 0 0" mass="1" diaginertia="{float(inertia[0])!r} '
+            f'{float(inertia[1])!r} {float(inertia[2])!r}"/></body></worldbody></mujoco>'
         )
         m = mujoco.MjModel.from_xml_string(xml)
         return m, mujoco.MjData(m)
@@ -744,11 +748,13 @@ def print_report(result, file=None):
             else f"; ref. check (rtol 1e-12 vs 1e-13): {info['reference_check']:.1e}"
         )
         print(
-            f"\n{key}: {info['label']}; {info['states']} states; error after T = {info['horizon']:g} s against the {info['reference']}{chk}",
+            f"\n{key}: {info['label']}; {info['states']} states; error after T = "
+            f"{info['horizon']:g} s against the {info['reference']}{chk}",
             file=file,
         )
         print(
-            f"{'integrator':<10} {'order':>6} {'declared':>8} {'rhs/step':>8} {'us/step':>8}  error at h = ...",
+            f"{'integrator':<10} {'order':>6} {'declared':>8} {'rhs/step':>8} {'us/step':>8}  "
+            "error at h = ...",
             file=file,
         )
         for c in (c for c in result["convergence"] if c["case"] == key):
@@ -762,7 +768,8 @@ def print_report(result, file=None):
             us = min(p["seconds_per_step"] for p in pts) * 1e6
             errs = "  ".join(f"{p['h']:.2e}:{p['error']:.1e}" for p in pts)
             print(
-                f"{c['integrator']:<10} {order:>6} {c['declared_order']:>8} {rhs:>8} {us:>8.2f}  {errs}",
+                f"{c['integrator']:<10} {order:>6} {c['declared_order']:>8} {rhs:>8} {us:>8.2f}  "
+                f"{errs}",
                 file=file,
             )
         _print_mujoco_ratios([c for c in result["convergence"] if c["case"] == key], file)
@@ -776,7 +783,8 @@ def print_report(result, file=None):
         print(f"{'integrator':<10} {'long steps':>10}  {head}  note", file=file)
         for d in drifts:
             cols = "  ".join(
-                f"{_g(d['drift_short'][n]) if d['drift_short'] else '-':>13} {_g(d['drift_long'][n]):>14}"
+                f"{_g(d['drift_short'][n]) if d['drift_short'] else '-':>13} "
+                f"{_g(d['drift_long'][n]):>14}"
                 for n in names
             )
             note = f"diverged at step {d['diverged_at']}" if d["diverged_at"] else ""
@@ -807,19 +815,22 @@ def _print_mujoco_ratios(rows, file):
         return
     ours = [c for c in rows if not c["integrator"].startswith("mujoco")]
     print(
-        "cost to reach a relative error at T (CPU s per simulated s, the cheapest grid point of each side):",
+        "cost to reach a relative error at T (CPU s per simulated s, the cheapest grid point of "
+        "each side):",
         file=file,
     )
     for tol in COST_TARGETS:
         a, b = cheapest(ours, tol), cheapest(theirs, tol)
         if a is None or b is None:
             print(
-                f"  error <= {tol:.0e}: rbenvs {a[0] if a else 'none'}, MuJoCo {b[0] if b else 'none on the grid'}",
+                f"  error <= {tol:.0e}: rbenvs {a[0] if a else 'none'}, MuJoCo "
+                f"{b[0] if b else 'none on the grid'}",
                 file=file,
             )
             continue
         print(
-            f"  error <= {tol:.0e}: rbenvs {a[0]} {a[1]:.2e} s, MuJoCo {b[0][7:]} {b[1]:.2e} s: MuJoCo / rbenvs = {b[1] / a[1]:.1f}",
+            f"  error <= {tol:.0e}: rbenvs {a[0]} {a[1]:.2e} s, MuJoCo {b[0][7:]} {b[1]:.2e} s: "
+            f"MuJoCo / rbenvs = {b[1] / a[1]:.1f}",
             file=file,
         )
 
@@ -828,12 +839,14 @@ def print_scenes(rows, file=None):
     file = sys.stdout if file is None else file
     target = rows[0]["target"]
     print(
-        f"\nscenes: worst relative state error over an episode (random actions, {SCENE_SEEDS} seeds) against dop853 at rtol 1e-13; "
+        f"\nscenes: worst relative state error over an episode (random actions, {SCENE_SEEDS} "
+        "seeds) against dop853 at rtol 1e-13; "
         f"target {target:g}; cost = one env step (us); tippe top: first {TIPPE_HORIZON:g} s",
         file=file,
     )
     print(
-        f"{'scene':<20} {'dt':>6} {'current':<14} {'error':>8} {'us':>7}   {'recommended':<14} {'error':>8} {'us':>7}   candidates (integrator x substeps: error)",
+        f"{'scene':<20} {'dt':>6} {'current':<14} {'error':>8} {'us':>7}   {'recommended':<14} "
+        f"{'error':>8} {'us':>7}   candidates (integrator x substeps: error)",
         file=file,
     )
     for r in rows:
@@ -860,9 +873,12 @@ def print_scenes(rows, file=None):
             f"{c['integrator']}x{c['substeps']}:{c['error']:.0e}" for c in r["candidates"]
         )
         print(
-            f"{r['scene']:<20} {r['dt']:>6g} {cur['integrator'] + ' x' + str(cur['substeps']):<14} {_g(None if cur_c is None else cur_c['error']):>8} "
-            f"{_g(None if cur_c is None else cur_c['step_us'], '.1f'):>7}   {'none' if rec is None else rec['integrator'] + ' x' + str(rec['substeps']):<14} "
-            f"{_g(None if rec_c is None else rec_c['error']):>8} {_g(None if rec_c is None else rec_c['step_us'], '.1f'):>7}   {cand}",
+            f"{r['scene']:<20} {r['dt']:>6g} {cur['integrator'] + ' x' + str(cur['substeps']):<14} "
+            f"{_g(None if cur_c is None else cur_c['error']):>8} "
+            f"{_g(None if cur_c is None else cur_c['step_us'], '.1f'):>7}   "
+            f"{'none' if rec is None else rec['integrator'] + ' x' + str(rec['substeps']):<14} "
+            f"{_g(None if rec_c is None else rec_c['error']):>8} "
+            f"{_g(None if rec_c is None else rec_c['step_us'], '.1f'):>7}   {cand}",
             file=file,
         )
 
@@ -974,7 +990,8 @@ def main(argv=None) -> int:
         "--tolerance",
         action="store_true",
         help="only the tolerance= table (rbenvs.bench.tolerance): per extreme and requested tolerance 1e-3, 1e-6, 1e-9, the error "
-        "achieved against the reference, the steps taken, and the cheapest fixed substeps meeting it",
+        "achieved against the reference, the steps taken, and the cheapest fixed substeps meeting "
+        "it",
     )
     parser.add_argument(
         "--case",
@@ -988,19 +1005,22 @@ def main(argv=None) -> int:
         "--roundoff",
         action="store_true",
         help="only the roundoff table (rbenvs.bench.roundoff): two rk4 runs at 200 and 400 substeps near the free body's "
-        "intermediate axis, summed plainly and with compensation (a tolerance's), apart and against the exact solution",
+        "intermediate axis, summed plainly and with compensation (a tolerance's), apart and "
+        "against the exact solution",
     )
     parser.add_argument(
         "--floor",
         action="store_true",
         help="only the float64 floor table (rbenvs.bench.floor): tolerance_check=True from 0.0001-0.01 rad/s off "
-        "the free body's intermediate axis at 1e-8 to 1e-12, every period returned against mpmath's Taylor solution (needs mpmath)",
+        "the free body's intermediate axis at 1e-8 to 1e-12, every period returned against "
+        "mpmath's Taylor solution (needs mpmath)",
     )
     parser.add_argument(
         "--tippe",
         action="store_true",
         help="only the tippe top's work-precision against MuJoCo (rbenvs.bench.tippe_accuracy): t90 against the slip regularisation, "
-        "every scheme, step and fidelity level and MuJoCo's integrators and cones at several dt, cost per simulated second "
+        "every scheme, step and fidelity level and MuJoCo's integrators and cones at several dt, "
+        "cost per simulated second "
         "against Jellett drift and the t90 error",
     )
     parser.add_argument("--no-progress", action="store_true", help="no progress on stderr")
@@ -1019,7 +1039,7 @@ def main(argv=None) -> int:
         require("reference")  # mpmath, the reference: say so before the run, not after it
         return _table(args, "--floor", len(OFF) * len(TOLERANCES), run_floor, print_floor)
     if args.tolerance:
-        from .tolerance import all_cases, run_tolerance, print_tolerance
+        from .tolerance import all_cases, print_tolerance, run_tolerance
 
         require("cli")  # the scenes' rows read the scenes' YAML
         everything = all_cases()

@@ -78,7 +78,8 @@ def main(argv=None) -> int:
     parser = ArgumentParser(
         prog="rbenvs bench costs",
         description="The README's costs measured here: the venv's size, the main job's "
-        "time, the test suite's wall and CPU time (empty and filled kernel cache) and verify --quick's time",
+        "time, the test suite's wall and CPU time (empty and filled kernel cache) and verify "
+        "--quick's time",
     )
     parser.add_argument(
         "--skip-tests",
@@ -93,7 +94,8 @@ def main(argv=None) -> int:
     root = Path(args.root).resolve()
     if not args.skip_tests and not (root / "tests").is_dir():
         parser.error(
-            f"{root} has no tests/ folder: run in the repository (or --root PATH), or pass --skip-tests"
+            f"{root} has no tests/ folder: run in the repository (or --root PATH), or pass "
+            "--skip-tests"
         )
     bindir = Path(sys.executable).parent
     rows = [("venv (`sys.prefix`)", f"{folder_bytes(sys.prefix) / 1e9:.2f} GB", "")]
@@ -174,7 +176,8 @@ def main(argv=None) -> int:
         bar.close()
         shutil.rmtree(scratch, ignore_errors=True)
     print(
-        f"What the README's two commands cost on this machine ({os.cpu_count()} cores, {platform.machine()}); each step a new process, run once.\n"
+        f"What the README's two commands cost on this machine ({os.cpu_count()} cores, "
+        f"{platform.machine()}); each step a new process, run once.\n"
     )
     print("| what | wall time / size | also |")
     print("|---|---:|---|")

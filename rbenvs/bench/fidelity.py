@@ -84,10 +84,12 @@ def run(levels=LEVELS, repeat=5, progress: bool = False) -> list[dict]:
 def main(progress: bool = True) -> int:
     rows = run(progress=progress)
     print(
-        f"{'level':<18} {'components':>10} {'rhs us':>8} {'internal steps':>15} {'env step us':>12} {'vs gliding':>11}"
+        f"{'level':<18} {'components':>10} {'rhs us':>8} {'internal steps':>15} {'env step us':>12} "
+        f"{'vs gliding':>11}"
     )
     for r in rows:
         print(
-            f"{r['level']:<18} {r['components']:>10d} {r['rhs_us']:>8.2f} {r['internal_steps']:>15d} {r['env_step_us']:>12.1f} {r['vs_gliding']:>11.3f}"
+            f"{r['level']:<18} {r['components']:>10d} {r['rhs_us']:>8.2f} "
+            f"{r['internal_steps']:>15d} {r['env_step_us']:>12.1f} {r['vs_gliding']:>11.3f}"
         )
     return 0

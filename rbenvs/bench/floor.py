@@ -7,9 +7,10 @@ check must then end the episode, saying so, and never return a period outside th
 the companion's estimate counts the steps' error, and the episode ends where it passes the
 tolerance, before the roundoff does (:mod:`rbenvs.stepsize.controller`). For the default-like body
 ``INERTIA`` at ``SPIN`` rad/s about its intermediate axis and ``OFF`` rad/s about the others
-(the third at 0.7 of it) and each tolerance of ``TOLERANCES``, one episode of ``PERIODS`` periods, compared on every period it returns with mpmath's Taylor-series
-solution (:func:`rbenvs.oracles.taylor_solution`, 32 digits; float64's elliptic solution is not
-exact enough here: it needs mpmath, the ``reference`` extra).
+(the third at 0.7 of it) and each tolerance of ``TOLERANCES``, one episode of ``PERIODS`` periods,
+compared on every period it returns with mpmath's Taylor-series solution
+(:func:`rbenvs.oracles.taylor_solution`, 32 digits; float64's elliptic solution is not exact enough
+here: it needs mpmath, the ``reference`` extra).
 
 Columns: ``end`` the period the episode ended at (a numerical failure) or ``-`` (ran its
 horizon); ``worst / tol`` the largest relative error over the periods returned over the
@@ -37,13 +38,14 @@ TOLERANCES = (
     1e-12,
 )  # (down to rbenvs.stepsize.controller.TOLERANCE_FLOOR)
 PERIODS = 400  # the free body's episode (20 s)
-# an error below this is roundoff of the comparison itself, not of the run (the estimate/error column)
+# an error below this is roundoff of the comparison itself, not of the run (the estimate/error
+# column)
 ERROR_FLOOR = 1e-13
 
 
 def _episode(w, tol, reference):
-    from ..stepsize.controller import companion_steps
     from ..envs import FreeRigidBodyEnv
+    from ..stepsize.controller import companion_steps
 
     with warnings.catch_warnings():
         warnings.simplefilter(
@@ -99,26 +101,30 @@ def run_floor(progress=None) -> dict:
 def print_floor(result, file=None) -> None:
     rows = result["rows"]
     print(
-        f"tolerance_check near the separatrix: body {INERTIA}, {SPIN:g} rad/s about the intermediate axis, {PERIODS} periods, rk4; "
+        f"tolerance_check near the separatrix: body {INERTIA}, {SPIN:g} rad/s about the "
+        f"intermediate axis, {PERIODS} periods, rk4; "
         "error against mpmath's Taylor solution (32 digits) on every period returned",
         file=file,
     )
     print(
-        f"{'off axis':>9} {'tolerance':>10} {'end':>5} {'worst / tol':>12} {'estimate / error':>17} {'steps':>9}",
+        f"{'off axis':>9} {'tolerance':>10} {'end':>5} {'worst / tol':>12} "
+        f"{'estimate / error':>17} {'steps':>9}",
         file=file,
     )
     for r in rows:
         end = "-" if r["end"] is None else str(r["end"])
         ratio = "-" if not np.isfinite(r["ratio"]) else f"{r['ratio']:.2f}"
         print(
-            f"{r['off']:>9g} {r['tolerance']:>10g} {end:>5} {r['worst'] / r['tolerance']:>12.2f} {ratio:>17} {r['steps']:>9}",
+            f"{r['off']:>9g} {r['tolerance']:>10g} {end:>5} {r['worst'] / r['tolerance']:>12.2f} "
+            f"{ratio:>17} {r['steps']:>9}",
             file=file,
         )
     outside = [r for r in rows if r["worst"] > r["tolerance"]]
     print(
         f"within the tolerance on every period returned: {len(rows) - len(outside)} of {len(rows)}"
         + "".join(
-            f"; outside: {r['off']:g} off at {r['tolerance']:g}, {r['worst'] / r['tolerance']:.2f} times"
+            f"; outside: {r['off']:g} off at {r['tolerance']:g}, {r['worst'] / r['tolerance']:.2f} "
+            "times"
             for r in outside
         ),
         file=file,

@@ -67,7 +67,8 @@ def _run(w, substeps: int, tolerance):
         _, _, _, _, info = env.step(a)
         if info["internal_step"] != env.dt / substeps:
             raise RuntimeError(
-                f"the guard took {env.dt / info['internal_step']:.0f} steps, not the {substeps} substeps"
+                f"the guard took {env.dt / info['internal_step']:.0f} steps, not the {substeps} "
+                "substeps"
             )
         out.append(env.state_components)
     return np.array(out), env.dt
@@ -101,12 +102,15 @@ def run_roundoff(progress=None) -> dict:
 
 def print_roundoff(result, file=None) -> None:
     print(
-        f"roundoff near the intermediate axis: body {INERTIA}, {SPIN:g} rad/s, {PERIODS} periods, rk4; {STARTS} starts per distance "
-        f"(min to max); plain: fixed substeps, no tolerance; compensated: tolerance={COMPENSATED_TOLERANCE:g} (its counts are the substeps)",
+        f"roundoff near the intermediate axis: body {INERTIA}, {SPIN:g} rad/s, {PERIODS} periods, "
+        f"rk4; {STARTS} starts per distance "
+        "(min to max); plain: fixed substeps, no tolerance; compensated: "
+        f"tolerance={COMPENSATED_TOLERANCE:g} (its counts are the substeps)",
         file=file,
     )
     print(
-        f"{'off axis':>9} {'sum':>12} {f'{COARSE} vs {FINE} substeps':>22} {f'{FINE} vs exact':>22}",
+        f"{'off axis':>9} {'sum':>12} {f'{COARSE} vs {FINE} substeps':>22} "
+        f"{f'{FINE} vs exact':>22}",
         file=file,
     )
     for r in result["rows"]:

@@ -159,7 +159,8 @@ def _row(
         kernels = f"{cold['stats'].get('compiled', 0)}/{warm[0]['stats'].get('loaded', 0)}"
     ratio = f"{w['total'] / reference:.1f}" if reference else "-"
     return (
-        f"| {label} | {kind} | {cold_total} | {w['import']:.2f} | {w['make']:.2f} | {w['reset']:.3f} | {w['step']:.3f} | **{w['total']:.2f}** | "
+        f"| {label} | {kind} | {cold_total} | {w['import']:.2f} | {w['make']:.2f} | "
+        f"{w['reset']:.3f} | {w['step']:.3f} | **{w['total']:.2f}** | "
         f"{ratio} | {kernels} |"
     )
 
@@ -168,7 +169,8 @@ def main(argv=None) -> int:
     parser = ArgumentParser(
         prog="rbenvs bench startup",
         description="Seconds from a fresh process to its first step: each system's single env and "
-        f"vector env at {VECTOR_ENVS}, cold and warm kernel cache, beside Pendulum-v1, CartPole-v1's vector env and MuJoCo (same run)",
+        f"vector env at {VECTOR_ENVS}, cold and warm kernel cache, beside Pendulum-v1, "
+        "CartPole-v1's vector env and MuJoCo (same run)",
     )
     parser.add_argument(
         "--system",
@@ -237,11 +239,14 @@ def main(argv=None) -> int:
         bar.close()
     reference = statistics.median(r["total"] for r in results[("Pendulum-v1", "single")]["warm"])
     print(
-        f"Seconds from a fresh process to its first step (import gymnasium and the package, make, reset, one step); warm: median of {args.repeat} "
-        "processes on the kernel cache the cold process filled; ratio: warm total over Pendulum-v1's; kernels: compiled cold / loaded warm.\n"
+        "Seconds from a fresh process to its first step (import gymnasium and the package, make, "
+        f"reset, one step); warm: median of {args.repeat} "
+        "processes on the kernel cache the cold process filled; ratio: warm total over "
+        "Pendulum-v1's; kernels: compiled cold / loaded warm.\n"
     )
     print(
-        "| env | kind | cold total | import | make | reset | first step | warm total | / Pendulum | kernels |"
+        "| env | kind | cold total | import | make | reset | first step | warm total | / Pendulum | "
+        "kernels |"
     )
     print("|---|---|---:|---:|---:|---:|---:|---:|---:|---:|")
     for (label, kind), r in results.items():
@@ -256,7 +261,8 @@ def main(argv=None) -> int:
         )
     if spawn:
         print(
-            f'\ngymnasium\'s AsyncVectorEnv(context="spawn") with {ASYNC_WORKERS} workers, warm cache: seconds until reset returns\n'
+            f'\ngymnasium\'s AsyncVectorEnv(context="spawn") with {ASYNC_WORKERS} workers, warm '
+            "cache: seconds until reset returns\n"
         )
         print("| id | reset returned |")
         print("|---|---:|")

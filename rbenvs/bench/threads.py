@@ -130,7 +130,8 @@ def main(argv=None) -> int:
     parser = ArgumentParser(
         prog="rbenvs bench threads",
         description="The vector env's env-steps per second with num_threads 1, 2 and every "
-        "usable core, against CartPole-v1's native vector env at the same size, and whether the bits agree.",
+        "usable core, against CartPole-v1's native vector env at the same size, and whether the "
+        "bits agree.",
     )
     parser.add_argument(
         "--num-envs",
@@ -160,20 +161,23 @@ def main(argv=None) -> int:
     from ..vector.threads import usable_cores
 
     print(
-        f"Vector env at N = {args.num_envs}, random actions, staggered clocks; {usable_cores()} usable cores; speedup: over the first row's rate; "
+        f"Vector env at N = {args.num_envs}, random actions, staggered clocks; {usable_cores()} "
+        "usable cores; speedup: over the first row's rate; "
         "bits: the same observations, rewards, ends and info as the first row's, byte for byte.\n"
     )
     from ..vector.threads import launch_us
 
     layer, launch = launch_us(max(2, max(r["threads"] for r in rows)))
     print(
-        f"numba's threading layer: {layer}; a parallel region of empty chunks (a split step runs two): {launch:.1f} us.\n"
+        f"numba's threading layer: {layer}; a parallel region of empty chunks (a split step runs "
+        f"two): {launch:.1f} us.\n"
     )
     print("| id | threads | env-steps/s | speedup | CartPole-v1/s | ratio | bits |")
     print("|---|---:|---:|---:|---:|---:|---|")
     for r in rows:
         print(
-            f"| `{r['id']}` | {r['threads']} | {r['env_steps_per_s']:.4g} | {r['speedup']:.2f} | {r['cartpole_env_steps_per_s']:.4g} | "
+            f"| `{r['id']}` | {r['threads']} | {r['env_steps_per_s']:.4g} | {r['speedup']:.2f} | "
+            f"{r['cartpole_env_steps_per_s']:.4g} | "
             f"{r['ratio_to_cartpole']:.3f} | {'same' if r['same_bits'] else 'DIFFER'} |"
         )
     if args.json:

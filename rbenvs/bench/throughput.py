@@ -232,7 +232,8 @@ def run_vector(
     systems=SYSTEMS, sizes=SIZES, min_time=0.2, repeat=3, progress=None, budget=None
 ) -> list[dict]:
     """The vector env per system, integrator and N against CartPole-v1's (constant action).
-    ``budget`` (seconds): where one step outlasts ``min_time``, fewer rounds (:func:`timed_budget`)."""
+    ``budget`` (seconds): where one step outlasts ``min_time``, fewer rounds
+    (:func:`timed_budget`)."""
     import gymnasium as gym
 
     import rbenvs  # noqa: F401
@@ -388,6 +389,7 @@ def _checked_env(env_id, scene, vector: int = 0, **kw):
     import gymnasium as gym
 
     import rbenvs  # noqa: F401
+
     from ..envs import UnstableMotionWarning
 
     kw = dict(kw, tolerance=CHECK_TOLERANCE, integrator="rk4")
@@ -463,23 +465,30 @@ def run_check(
 
 def print_check(rows) -> None:
     print(
-        f"\ntolerance_check=True in time: rk4, tolerance={CHECK_TOLERANCE:g}, zero action; one step of the single env (us) without the check, "
-        "with it (its runs compiled) and with it on floats (compiled=False), against Pendulum-v1 (timed after each, same run)"
+        f"\ntolerance_check=True in time: rk4, tolerance={CHECK_TOLERANCE:g}, zero action; one step "
+        "of the single env (us) without the check, "
+        "with it (its runs compiled) and with it on floats (compiled=False), against Pendulum-v1 "
+        "(timed after each, same run)"
     )
     print(
-        f"{'setting':<18} {'no check':>9} {'check':>9} {'floats':>10} {'floats/check':>12} {'check/Pendulum':>14}"
+        f"{'setting':<18} {'no check':>9} {'check':>9} {'floats':>10} {'floats/check':>12} "
+        f"{'check/Pendulum':>14}"
     )
     for r in rows:
         print(
-            f"{r['setting']:<18} {r['plain_us']:>9.1f} {r['check_us']:>9.1f} {r['check_floats_us']:>10.1f} {r['check_floats_us'] / r['check_us']:>12.1f} "
+            f"{r['setting']:<18} {r['plain_us']:>9.1f} {r['check_us']:>9.1f} "
+            f"{r['check_floats_us']:>10.1f} {r['check_floats_us'] / r['check_us']:>12.1f} "
             f"{r['check_us'] / r['pendulum_check_us']:>14.1f}"
         )
     print(
-        "vector env (env-steps/s): without the check (compiled), with it (its runs compiled, one loop over the sub-envs) and with "
-        "it on numpy (compiled=False), against CartPole-v1's vector env at the same N (timed after each, same run)"
+        "vector env (env-steps/s): without the check (compiled), with it (its runs compiled, one "
+        "loop over the sub-envs) and with "
+        "it on numpy (compiled=False), against CartPole-v1's vector env at the same N (timed after "
+        "each, same run)"
     )
     print(
-        f"{'setting':<18} {'num_envs':>8} {'no check':>11} {'check':>11} {'numpy':>11} {'check/numpy':>12} {'CartPole':>11} "
+        f"{'setting':<18} {'num_envs':>8} {'no check':>11} {'check':>11} {'numpy':>11} "
+        f"{'check/numpy':>12} {'CartPole':>11} "
         f"{'CartPole/no check':>17} {'CartPole/check':>14}"
     )
     for r in rows:
@@ -491,7 +500,8 @@ def print_check(rows) -> None:
             )
             cart_p, cart = v["cartpole_plain"], v["cartpole_check"]
             print(
-                f"{r['setting']:<18} {v['num_envs']:>8d} {p:>11.4g} {c:>11.4g} {n:>11.4g} {c / n:>12.1f} {cart:>11.4g} {cart_p / p:>17.4g} {cart / c:>14.4g}"
+                f"{r['setting']:<18} {v['num_envs']:>8d} {p:>11.4g} {c:>11.4g} {n:>11.4g} "
+                f"{c / n:>12.1f} {cart:>11.4g} {cart_p / p:>17.4g} {cart / c:>14.4g}"
             )
 
 
@@ -663,7 +673,8 @@ def kernel_time(venv, action, min_time: float, repeat: int, budget: float | None
     mapped by ``model.actuator.control``; unactuated axes as arrays of 0.0), with the env's
     internal step and substeps, the guard checked per sub-env where the env's periods are not
     plain (as the env calls it: not where the default accuracy's gate holds every state,
-    :meth:`rbenvs.core.step.Engine.gated`): ``{"seconds", "ns_per_env_step", "bad", "check", "state_unchanged"}``.
+    :meth:`rbenvs.core.step.Engine.gated`): ``{"seconds", "ns_per_env_step", "bad", "check",
+    "state_unchanged"}``.
     ``state_unchanged``: the env's states (and ``Y``) equal what they were before the calls,
     and the kernel's new states share no memory with them."""
     env = venv.unwrapped
@@ -972,25 +983,32 @@ def print_tasks(rows, notes) -> None:
     )
     print("tasks: every (id, task) at its defaults and every named scene")
     print(
-        "  single: one step of gymnasium.make against Pendulum-v1 (zero action; us, interleaved, same run)"
+        "  single: one step of gymnasium.make against Pendulum-v1 (zero action; us, interleaved, "
+        "same run)"
     )
     print(
-        f"  vector: make_vec at N = {', '.join(map(str, ns)) or '-'}; env-steps/s with zero action, and with seeded random actions in [-1, 1]"
+        f"  vector: make_vec at N = {', '.join(map(str, ns)) or '-'}; env-steps/s with zero action, "
+        "and with seeded random actions in [-1, 1]"
     )
     print(f"          ({clocks}; 'ends': episode ends in the timed window, resets included),")
     print(
-        "          that rate over CartPole-v1's native vector env (random actions) at the same N, same run;"
+        "          that rate over CartPole-v1's native vector env (random actions) at the same N, "
+        "same run;"
     )
     print(
-        "          sync/s: the same actions from reset, every episode clock together (restarts all at once, at the limit);"
+        "          sync/s: the same actions from reset, every episode clock together (restarts all "
+        "at once, at the limit);"
     )
     print(
-        "          numpy/s and c/np: the same env with compiled=False; kernel: the compiled BatchStep alone"
+        "          numpy/s and c/np: the same env with compiled=False; kernel: the compiled "
+        "BatchStep alone"
     )
     print("          (ns per env-step), gap = env time per env-step (random actions) / kernel time")
     w = max([25] + [len(r["setting"]) + 1 for r in rows])
     print(
-        f"{'setting':<{w}} {'single us':>9} {'/Pend':>6} {'N':>5} {'path':<8} {'zero/s':>9} {'random/s':>9} {'ends':>6} {'/Cart':>6} {'sync/s':>9} {'/Cart':>6} {'numpy/s':>9} {'c/np':>5} {'kernel ns':>9} {'gap':>6}"
+        f"{'setting':<{w}} {'single us':>9} {'/Pend':>6} {'N':>5} {'path':<8} {'zero/s':>9} "
+        f"{'random/s':>9} {'ends':>6} {'/Cart':>6} {'sync/s':>9} {'/Cart':>6} {'numpy/s':>9} "
+        f"{'c/np':>5} {'kernel ns':>9} {'gap':>6}"
     )
     reasons = {}
     for r in rows:
@@ -1001,10 +1019,13 @@ def print_tasks(rows, notes) -> None:
         if r["kernel_state_unchanged"] is False:
             kernel += "!"
         print(
-            f"{r['setting']:<{w}} {r['single_step_us']:>9.2f} {r['single_ratio_to_pendulum']:>6.3f} {r['num_envs']:>5d} {r['path']:<8} "
-            f"{r['zero_env_steps_per_s']:>9.3g} {r['random_env_steps_per_s']:>9.3g} {r['episode_ends']:>6d} {r['ratio_to_cartpole']:>6.3f} "
+            f"{r['setting']:<{w}} {r['single_step_us']:>9.2f} {r['single_ratio_to_pendulum']:>6.3f} "
+            f"{r['num_envs']:>5d} {r['path']:<8} "
+            f"{r['zero_env_steps_per_s']:>9.3g} {r['random_env_steps_per_s']:>9.3g} "
+            f"{r['episode_ends']:>6d} {r['ratio_to_cartpole']:>6.3f} "
             f"{r['sync_random_env_steps_per_s']:>9.3g} {r['sync_ratio_to_cartpole']:>6.3f} "
-            f"{_g(r['numpy_random_env_steps_per_s']):>9} {_g(r['compiled_over_numpy'], '.2f'):>5} {kernel:>9} {gap:>6}"
+            f"{_g(r['numpy_random_env_steps_per_s']):>9} {_g(r['compiled_over_numpy'], '.2f'):>5} "
+            f"{kernel:>9} {gap:>6}"
         )
     if rows:
         pend = min(r["pendulum_step_us"] for r in rows)
@@ -1012,7 +1033,8 @@ def print_tasks(rows, notes) -> None:
         for r in rows:
             carts.setdefault(r["num_envs"], []).append(r["cartpole_env_steps_per_s"])
         print(
-            f"peers: Pendulum-v1 step {pend:.2f} us (best of the run); CartPole-v1 vector env (measured beside each row) "
+            f"peers: Pendulum-v1 step {pend:.2f} us (best of the run); CartPole-v1 vector env "
+            "(measured beside each row) "
             + ", ".join(f"{min(c):.3g}-{max(c):.3g}/s at N = {n}" for n, c in sorted(carts.items()))
         )
     for reason, mark in reasons.items():
@@ -1031,8 +1053,8 @@ def print_tasks(rows, notes) -> None:
     unspread = [r["setting"] for r in rows if not r["clocks_staggered"]]
     if unspread:
         print(
-            "episode clocks not spread (not asked, or the env keeps no per-sub-env step count or has no time limit): "
-            + ", ".join(unspread)
+            "episode clocks not spread (not asked, or the env keeps no per-sub-env step count or "
+            "has no time limit): " + ", ".join(unspread)
         )
     for note in notes:
         print(note)
@@ -1057,14 +1079,16 @@ def main(argv=None) -> int:
     parser = ArgumentParser(
         prog="rbenvs bench throughput",
         description="Env-steps per second against Pendulum-v1 and CartPole-v1's native vector env: "
-        "every (id, task) and named scene, with the compiled kernel's time beside (the gap to the limit), then per integrator.",
+        "every (id, task) and named scene, with the compiled kernel's time beside (the gap to the "
+        "limit), then per integrator.",
     )
     parser.add_argument("--json", metavar="PATH", help="also write the figures as JSON")
     parser.add_argument(
         "--quick",
         action="store_true",
         help=f"shorter timings: the task table at N = {QUICK_NUM_ENVS} (slow settings at {QUICK_SLOW_NUM_ENVS}) "
-        "and the SB3 rows by default; an integrator table asked for with --tables at sizes 1 and 256; never the scaling table",
+        "and the SB3 rows by default; an integrator table asked for with --tables at sizes 1 and "
+        "256; never the scaling table",
     )
     parser.add_argument(
         "--num-envs",
@@ -1170,18 +1194,23 @@ def main(argv=None) -> int:
         print(f"{'id':<26} {'integrator':<10} {'ours':>9} {'Pendulum':>9} {'ratio':>7}")
         for r in single:
             print(
-                f"{r['id']:<26} {r['integrator']:<10} {r['step_us']:>9.2f} {r['pendulum_step_us']:>9.2f} {r['ratio_to_pendulum']:>7.3f}"
+                f"{r['id']:<26} {r['integrator']:<10} {r['step_us']:>9.2f} "
+                f"{r['pendulum_step_us']:>9.2f} {r['ratio_to_pendulum']:>7.3f}"
             )
     if vector:
         print(
-            "\nvector env (vector_entry_point, zero action) against CartPole-v1's native vector env, same run"
+            "\nvector env (vector_entry_point, zero action) against CartPole-v1's native vector "
+            "env, same run"
         )
         print(
-            f"{'id':<26} {'integrator':<16} {'path':<9} {'num_envs':>8} {'env-steps/s':>13} {'ns/env':>9} {'CartPole/s':>13} {'ratio':>8}"
+            f"{'id':<26} {'integrator':<16} {'path':<9} {'num_envs':>8} {'env-steps/s':>13} "
+            f"{'ns/env':>9} {'CartPole/s':>13} {'ratio':>8}"
         )
         for r in vector:
             print(
-                f"{r['id']:<26} {r['integrator']:<16} {r['path']:<9} {r['num_envs']:>8d} {r['env_steps_per_s']:>13.4g} {r['ns_per_env_step']:>9.1f} {r['cartpole_env_steps_per_s']:>13.4g} {r['ratio_to_cartpole']:>8.3f}"
+                f"{r['id']:<26} {r['integrator']:<16} {r['path']:<9} {r['num_envs']:>8d} "
+                f"{r['env_steps_per_s']:>13.4g} {r['ns_per_env_step']:>9.1f} "
+                f"{r['cartpole_env_steps_per_s']:>13.4g} {r['ratio_to_cartpole']:>8.3f}"
             )
     paths = compiled_speedup(vector)
     if paths:
@@ -1190,21 +1219,25 @@ def main(argv=None) -> int:
             print(f"  num_envs {n:>5d}: {ratio:.2f}x")
     if scaling:
         print(
-            "\nscaling: the free body with rk4, time per env-step against num_envs, and the arrays one step moves"
+            "\nscaling: the free body with rk4, time per env-step against num_envs, and the arrays "
+            "one step moves"
         )
         print(f"{'path':<9} {'num_envs':>8} {'ns/env':>9} {'bytes/env':>10} {'MB/step':>9}")
         for r in scaling:
             print(
-                f"{r['path']:<9} {r['num_envs']:>8d} {r['ns_per_env_step']:>9.1f} {r['bytes_per_env_step']:>10.0f} {r['megabytes_per_step']:>9.3f}"
+                f"{r['path']:<9} {r['num_envs']:>8d} {r['ns_per_env_step']:>9.1f} "
+                f"{r['bytes_per_env_step']:>10.0f} {r['megabytes_per_step']:>9.3f}"
             )
     if sb3:
         print(
-            "\nstable-baselines3 VecEnv.step: the native adapter (rbenvs.vector.sb3) against DummyVecEnv, same run"
+            "\nstable-baselines3 VecEnv.step: the native adapter (rbenvs.vector.sb3) against "
+            "DummyVecEnv, same run"
         )
         print(f"{'id':<26} {'num_envs':>8} {'native/s':>12} {'Dummy/s':>12} {'ratio':>8}")
         for r in sb3:
             print(
-                f"{r['id']:<26} {r['num_envs']:>8d} {r['sb3_native_env_steps_per_s']:>12.4g} {r['sb3_dummy_env_steps_per_s']:>12.4g} {r['ratio']:>8.2f}"
+                f"{r['id']:<26} {r['num_envs']:>8d} {r['sb3_native_env_steps_per_s']:>12.4g} "
+                f"{r['sb3_dummy_env_steps_per_s']:>12.4g} {r['ratio']:>8.2f}"
             )
     if check:
         print_check(check)

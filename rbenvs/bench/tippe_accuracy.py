@@ -377,9 +377,12 @@ def headline(result, start="default") -> str | None:
     if ours is None or theirs is None:
         return None
     return (
-        f"{start} start: rbenvs default env (rk4, friction_bound='accuracy') {ours['cost']:.2e} s per simulated s, "
-        f"MuJoCo implicitfast (elliptic, dt = 1e-3) {theirs['cost']:.2e} s: rbenvs / MuJoCo = {ours['cost'] / theirs['cost']:.2f}; "
-        f"t90 error against t90_same: rbenvs {_g(ours['t90_error'])} s, MuJoCo {_g(theirs['t90_error'])} s; "
+        f"{start} start: rbenvs default env (rk4, friction_bound='accuracy') {ours['cost']:.2e} s "
+        "per simulated s, "
+        f"MuJoCo implicitfast (elliptic, dt = 1e-3) {theirs['cost']:.2e} s: rbenvs / MuJoCo = "
+        f"{ours['cost'] / theirs['cost']:.2f}; "
+        f"t90 error against t90_same: rbenvs {_g(ours['t90_error'])} s, MuJoCo "
+        f"{_g(theirs['t90_error'])} s; "
         f"Jellett drift: rbenvs {ours['jellett']:.1e}, MuJoCo {theirs['jellett']:.1e}"
     )
 
@@ -402,12 +405,15 @@ def print_report(result, file=None):
     file = sys.stdout if file is None else file
     for start, ref in result["starts"].items():
         print(
-            f"\ntippe top, start {start} ({ref['kind']}, {ref['spin']:g} rad/s, tilt 0.1 rad), no action; "
-            f"t90 of rbenvs' regularised Coulomb model against the slip regularisation eps (rk4 converged in the step):",
+            f"\ntippe top, start {start} ({ref['kind']}, {ref['spin']:g} rad/s, tilt 0.1 rad), no "
+            "action; "
+            "t90 of rbenvs' regularised Coulomb model against the slip regularisation eps (rk4 "
+            "converged in the step):",
             file=file,
         )
         print(
-            f"{'eps [m/s]':>10} {'steps/10ms':>10} {'t90 [s]':>14} {'step check':>10} {'difference':>11} {'ratio':>6}",
+            f"{'eps [m/s]':>10} {'steps/10ms':>10} {'t90 [s]':>14} {'step check':>10} "
+            f"{'difference':>11} {'ratio':>6}",
             file=file,
         )
         for i, s in enumerate(ref["sequence"]):
@@ -415,12 +421,14 @@ def print_report(result, file=None):
             ratio = ref["ratios"][i - 2] if i >= 2 and i - 2 < len(ref["ratios"]) else None
             t90 = f"{s['t90']:.9f}" if s["ended"] is None else f"({s['ended']})"
             print(
-                f"{s['eps']:>10.4g} {s['count']:>10d} {t90:>14} {_g(s['step_check']):>10} {_g(diff, '+.4f'):>11} {_g(ratio, '.2f'):>6}",
+                f"{s['eps']:>10.4g} {s['count']:>10d} {t90:>14} {_g(s['step_check']):>10} "
+                f"{_g(diff, '+.4f'):>11} {_g(ratio, '.2f'):>6}",
                 file=file,
             )
         if ref["converges"]:
             print(
-                f"hard-Coulomb limit (eps -> 0, Richardson, first order): t90 = {ref['limit']:.6f} s, error estimate {ref['limit_error']:.1e} s",
+                f"hard-Coulomb limit (eps -> 0, Richardson, first order): t90 = {ref['limit']:.6f} "
+                f"s, error estimate {ref['limit_error']:.1e} s",
                 file=file,
             )
         else:
@@ -430,14 +438,19 @@ def print_report(result, file=None):
                 else ""
             )
             print(
-                f"hard-Coulomb limit: none; t90 grows as eps falls (each halving adds about twice the last: ~1/eps){fit}. "
-                f"The top enters a near-rolling phase whose slip stays below eps and whose creep, at a rate proportional to eps, "
-                f"is what raises it; under hard Coulomb it rolls without slipping there and does not pass 90 degrees. "
-                f"Errors below are against t90_same = {ref['t90_same']:.9f} s (eps = {EPS0:g}, the env's)",
+                "hard-Coulomb limit: none; t90 grows as eps falls (each halving adds about twice "
+                f"the last: ~1/eps){fit}. "
+                "The top enters a near-rolling phase whose slip stays below eps and whose creep, "
+                "at a rate proportional to eps, "
+                "is what raises it; under hard Coulomb it rolls without slipping there and does "
+                "not pass 90 degrees. "
+                f"Errors below are against t90_same = {ref['t90_same']:.9f} s (eps = {EPS0:g}, the "
+                "env's)",
                 file=file,
             )
         print(
-            f"{'engine/scheme':<30} {'setting':<10} {'fidelity':<15} {'steps/10ms':>10} {'cost s/s':>9} {'t90 [s]':>12} {'t90 err':>8} {'Jellett':>8}  note",
+            f"{'engine/scheme':<30} {'setting':<10} {'fidelity':<15} {'steps/10ms':>10} "
+            f"{'cost s/s':>9} {'t90 [s]':>12} {'t90 err':>8} {'Jellett':>8}  note",
             file=file,
         )
         for r in (r for r in result["rows"] if r["start"] == start):
@@ -447,7 +460,9 @@ def print_report(result, file=None):
             if eq is not None:
                 note = f"t90 of rbenvs' model at eps = {eq:.1e} m/s (the fit)"
             print(
-                f"{r['scheme']:<30} {r['setting']:<10} {r['fidelity']:<15} {r['steps']:>10.1f} {r['cost']:>9.2e} {t90:>12} {_g(r['t90_error']):>8} {_g(r['jellett']):>8}  {note}",
+                f"{r['scheme']:<30} {r['setting']:<10} {r['fidelity']:<15} {r['steps']:>10.1f} "
+                f"{r['cost']:>9.2e} {t90:>12} {_g(r['t90_error']):>8} {_g(r['jellett']):>8}  "
+                f"{note}",
                 file=file,
             )
         line = headline(result, start)

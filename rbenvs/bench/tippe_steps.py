@@ -25,6 +25,7 @@ import math
 import time
 
 import numpy as np
+
 from ..extras import ArgumentParser
 
 __all__ = ["inversion", "rows", "table", "main"]
@@ -102,7 +103,8 @@ def inversion(
 ) -> dict:
     """One inversion: ``substeps`` a count (fixed, guard off), ``None`` (the env's guard) or
     ``"tight"`` (:func:`tight_count`); ``"accuracy"``: the env's guard with
-    ``friction_bound="accuracy"``; ``options``: more env keywords (``friction``, ...). Returns ``t90`` [s] (``nan``: no inversion, with
+    ``friction_bound="accuracy"``; ``options``: more env keywords (``friction``, ...). Returns
+    ``t90`` [s] (``nan``: no inversion, with
     ``ended`` saying why), ``drift``, ``rise`` [J], ``least_normal`` [m g], ``steps`` (mean
     internal steps a period), ``periods`` (control periods run) and ``us_per_period`` (wall time
     per control period of that run, its read-outs included). With ``timing_repeats = k > 0`` the
@@ -206,15 +208,18 @@ def rows(starts, laws, counts, schemes, reference=640) -> list[dict]:
 
 def table(results) -> str:
     lines = [
-        "| start | spin [rad/s] | law | scheme | count | steps/period | t90 [s] | error [s] | Jellett drift | energy rise [J] | min N / mg | us / 10 ms |",
+        "| start | spin [rad/s] | law | scheme | count | steps/period | t90 [s] | error [s] | "
+        "Jellett drift | energy rise [J] | min N / mg | us / 10 ms |",
         "|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for r in results:
         t90 = f"{r['t90']:.9f}" if r["ended"] is None else f"n/a ({r['ended']})"
         err = f"{r['error']:.1e}" if r["ended"] is None else "n/a"
         lines.append(
-            f"| {r['start']} | {r['spin']:g} | {r['law']} | {r['scheme']} | {r['count'] if r['count'] is not None else 'guard'} | {r['steps']:.1f} | "
-            f"{t90} | {err} | {r['drift']:.1e} | {r['rise']:.1e} | {r['least_normal']:.3f} | {r['us_per_period']:.0f} |"
+            f"| {r['start']} | {r['spin']:g} | {r['law']} | {r['scheme']} | "
+            f"{r['count'] if r['count'] is not None else 'guard'} | {r['steps']:.1f} | "
+            f"{t90} | {err} | {r['drift']:.1e} | {r['rise']:.1e} | {r['least_normal']:.3f} | "
+            f"{r['us_per_period']:.0f} |"
         )
     return "\n".join(lines)
 

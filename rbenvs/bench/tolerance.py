@@ -2,11 +2,11 @@
 
 For each extreme of issue 19 (fast spins to 1e4 rad/s, the separatrix, nearly equal moments,
 heavy tops above and below the critical spin, euler where its error grows without bound (refused
-with a tolerance), the tippe top from several starts) and each requested tolerance (1e-3, 1e-6, 1e-9), the env is
-built with ``tolerance=tol`` and ``tolerance_horizon`` = the case's periods, run without
-control from the case's starts until the episode ends (the horizon, or the task's termination:
-a fallen top, an inverted tippe top; the tolerance is per episode), and compared period by
-period with the reference (the free
+with a tolerance), the tippe top from several starts) and each requested tolerance (1e-3, 1e-6,
+1e-9), the env is built with ``tolerance=tol`` and ``tolerance_horizon`` = the case's periods, run
+without control from the case's starts until the episode ends (the horizon, or the task's
+termination: a fallen top, an inverted tippe top; the tolerance is per episode), and compared period
+by period with the reference (the free
 body: the exact elliptic solution; the others: DOP853 at ``rtol = 1e-13``, as
 :mod:`rbenvs.bench.accuracy`). Printed per row:
 
@@ -72,7 +72,8 @@ class ToleranceCase:
     skip_fixed: tuple = field(default_factory=tuple)  # tolerances whose fixed search is too costly
     # with integrator="auto": the schemes the fixed setting is chosen from (cost in rhs evaluations)
     fixed_integrators: tuple = ()
-    check: bool = False  # tolerance_check= with each tolerance (True: the companion run's global error estimate)
+    # tolerance_check= with each tolerance (True: the companion run's global error estimate)
+    check: bool = False
 
 
 def _top(spin, tilt, side=0.0):
@@ -261,7 +262,8 @@ TOLERANCE_CASES = (
     ),
     ToleranceCase(
         "tippe_viscous",
-        "tippe top, rk4, viscous friction 3 s/m, from rest, 100-200 rad/s, tilt 0.05-0.6, seeds 0-2",
+        "tippe top, rk4, viscous friction 3 s/m, from rest, 100-200 rad/s, tilt 0.05-0.6, seeds "
+        "0-2",
         "tippe_top",
         dict(
             integrator="rk4",
@@ -277,8 +279,8 @@ TOLERANCE_CASES = (
 )
 
 
-# the scenes' rows: each shipped scene (configs/scenes) uncontrolled from seeds 0-2 (the tippe top: seed
-# 0) over its own episode (the tippe top: SCENE_TIPPE_HORIZON s, through the inversion of the
+# the scenes' rows: each shipped scene (configs/scenes) uncontrolled from seeds 0-2 (the tippe top:
+# seed 0) over its own episode (the tippe top: SCENE_TIPPE_HORIZON s, through the inversion of the
 # inverting scenes, whose default top passes 90 degrees near 2.7 s); the scene's scheme where a
 # tolerance takes it, rk4 where not (the tops' default splitting), its substeps left to the rule
 SCENE_TIPPE_HORIZON = 4.0
@@ -383,8 +385,8 @@ def _reset(env, start):
 
 def _references(case, env, starts):
     """Per start, the reference state after each period."""
-    from ..oracles import exact_solution
     from ..integrators.reference import REFERENCE
+    from ..oracles import exact_solution
 
     refs = []
     for start in starts:
@@ -460,10 +462,11 @@ def _episode(case, env, starts, refs):
                     if "global_error_estimate" not in info:
                         err = math.inf
                     break
-                # per block |y_b - ref_b| / |ref_b|, as the companion measures (a block the reference
-                # keeps at zero, a top at rest: 0 where the state does too)
+                # per block |y_b - ref_b| / |ref_b|, as the companion measures (a block the
+                # reference keeps at zero, a top at rest: 0 where the state does too)
                 err = max(err, relative_difference(blocks, r, env.state_components))
-                if term:  # the episode ends here: the tolerance is per episode (a task's end is no failure)
+                # the episode ends here: the tolerance is per episode (a task's end is no failure)
+                if term:
                     if info.get("terminal_reason") not in (None, "task") and failure is None:
                         failure = info["terminal_reason"]
                     break
@@ -519,7 +522,8 @@ def run_tolerance(keys=None, progress=None, fixed=True) -> dict:
     }
     rows = []
     for case in all_cases(keys):
-        # (integrator="auto" needs a tolerance: the row without one runs the last of the fixed schemes, rk4)
+        # (integrator="auto" needs a tolerance: the row without one runs the last of the fixed
+        # schemes, rk4)
         base = _env(
             case
             if not case.fixed_integrators
@@ -584,7 +588,8 @@ def run_tolerance(keys=None, progress=None, fixed=True) -> dict:
                     ):  # the chosen scheme first
                         evaluations = get_integrator(name).evaluations
                         sub = dataclasses.replace(case, kwargs=dict(case.kwargs, integrator=name))
-                        # a scheme is searched only up to the substeps whose rhs evaluations would cost what the best so far costs
+                        # a scheme is searched only up to the substeps whose rhs evaluations would
+                        # cost what the best so far costs
                         limit = (
                             None
                             if best is None
@@ -617,22 +622,26 @@ def _g(x, fmt=".1e"):
 def print_tolerance(result, file=None):
     file = sys.stdout if file is None else file
     print(
-        "error constants C (global error C lambda T (lambda h)^p on a rotation), measured against declared:",
+        "error constants C (global error C lambda T (lambda h)^p on a rotation), measured against "
+        "declared:",
         file=file,
     )
     for name, c in result["constants"].items():
         print(f"  {name:<6} measured {c['measured']:.6g}  declared {c['declared']:g}", file=file)
     print(
-        "\ntolerance=: worst relative error of the state over the horizon against the reference, summed estimate, internal steps;",
+        "\ntolerance=: worst relative error of the state over the horizon against the reference, "
+        "summed estimate, internal steps;",
         file=file,
     )
     print(
-        "fixed: the fewest equal substeps (no tolerance) that meet the same tolerance on every start; cost x = steps / fixed steps",
+        "fixed: the fewest equal substeps (no tolerance) that meet the same tolerance on every "
+        "start; cost x = steps / fixed steps",
         file=file,
     )
     w = max([14] + [len(r["case"]) for r in result["rows"]])
     print(
-        f"{'case':<{w}} {'periods':>7} {'tolerance':>9} {'error':>8} {'estimate':>8} {'steps':>10} {'fixed':>7} {'fixed steps':>11} {'cost x':>6}  note",
+        f"{'case':<{w}} {'periods':>7} {'tolerance':>9} {'error':>8} {'estimate':>8} {'steps':>10} "
+        f"{'fixed':>7} {'fixed steps':>11} {'cost x':>6}  note",
         file=file,
     )
     for r in result["rows"]:
@@ -647,7 +656,8 @@ def print_tolerance(result, file=None):
             else:  # a scheme tolerance= does not take (its error in the amplitude)
                 short = reason.split("(or integrator='auto'): ")[-1].split(", which")[0]
             print(
-                f"{r['case']:<{w}} {r['periods']:>7} {tol:>9} {'refused':>8} {'':>8} {'':>10} {'':>7} {'':>11} {'':>6}  {short}",
+                f"{r['case']:<{w}} {r['periods']:>7} {tol:>9} {'refused':>8} {'':>8} {'':>10} "
+                f"{'':>7} {'':>11} {'':>6}  {short}",
                 file=file,
             )
             continue
@@ -662,7 +672,8 @@ def print_tolerance(result, file=None):
             note += f" (auto: {r['integrator']}; fixed: {r['fixed_integrator']}; cost x in rhs evaluations)"
         fixed = r.get("fixed_substeps")
         print(
-            f"{r['case']:<{w}} {r['periods']:>7} {tol:>9} {_g(r['error']):>8} {_g(r.get('estimate')):>8} {r['steps']:>10} {_g(fixed, 'd'):>7} "
+            f"{r['case']:<{w}} {r['periods']:>7} {tol:>9} {_g(r['error']):>8} "
+            f"{_g(r.get('estimate')):>8} {r['steps']:>10} {_g(fixed, 'd'):>7} "
             f"{_g(r.get('fixed_steps'), 'd'):>11} {_g(r.get('cost_ratio'), '.2f'):>6}  {note}",
             file=file,
         )

@@ -74,7 +74,8 @@ class UprightLQR:
         k = int(np.argmax(np.abs(chi)))
         if np.count_nonzero(chi) != 1:
             raise ValueError(
-                "UprightLQR needs com_direction along a principal axis (an upright equilibrium with spin)"
+                "UprightLQR needs com_direction along a principal axis (an upright equilibrium with "
+                "spin)"
             )
         self.chi = chi
         self.inertia = inertia
@@ -102,7 +103,8 @@ class UprightLQR:
             leak = np.linalg.norm(jac @ proj.T - proj.T @ a)
             if leak > 1e-6 * max(1.0, np.linalg.norm(jac)):
                 raise ValueError(
-                    "the transverse subspace is not invariant for this top; UprightLQR does not apply"
+                    "the transverse subspace is not invariant for this top; UprightLQR does not "
+                    "apply"
                 )
             if self.max_torque == 0.0:
                 gains.append(np.zeros((2, 4)))
@@ -149,10 +151,10 @@ class PrecessionTracking:
     control period while the body turns under it (by ``|Omega| dt``, 0.4 rad at the default
     precession); it is therefore computed for the middle of the period: turned by
     ``-Omega dt / 2`` like any space-fixed vector seen from the body. Without that the hold
-    lags the rotating demand by half a period and leaves a steady tilt and rate offset. On the torque-free precession
-    it is exactly zero; off it, the tracking error decays at rate ``damping`` and the axis walks
-    back to the target tilt at rate ``tilt_rate``; a forced rate (``target_rate`` not a root of
-    [T 3.82]) gets the torque it needs, as far as ``max_torque`` allows.
+    lags the rotating demand by half a period and leaves a steady tilt and rate offset. On the
+    torque-free precession it is exactly zero; off it, the tracking error decays at rate ``damping``
+    and the axis walks back to the target tilt at rate ``tilt_rate``; a forced rate (``target_rate``
+    not a root of [T 3.82]) gets the torque it needs, as far as ``max_torque`` allows.
     """
 
     def __init__(self, env, tilt_rate: float = 2.0, damping: float = 10.0):

@@ -11,13 +11,13 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from functools import lru_cache
+from functools import cache
 
 from ..contracts import Actuator, HybridSystem, Integrator, StepRegion, System, Task, require_parts
 from ..draws import batch_draws
 from ..jit import jitable
-from .codegen import generate
 from ..stepsize.controller import StepRule
+from .codegen import generate
 
 __all__ = ["Model", "observation_bounds"]
 
@@ -105,7 +105,8 @@ class Model:
         floor = float(self.task.reward_floor(self.system, self.observation_high))
         if not math.isfinite(floor):
             raise ValueError(
-                f"the task's reward floor must be finite, got {floor} (task {type(self.task).__name__})"
+                f"the task's reward floor must be finite, got {floor} (task "
+                f"{type(self.task).__name__})"
             )
         object.__setattr__(
             self,
@@ -186,7 +187,7 @@ class Model:
         return self.actuator.kernel_control
 
 
-@lru_cache(maxsize=None)
+@cache
 def _start_form(task_start, complete, k: int, m: int):
     """``start((PT, PC), d) = complete(PC, task_start(PT, d[:k]), d[k:k + m])`` (generated: the
     draws as tuples of floats in compiled code, rows of a batch on numpy)."""

@@ -5,7 +5,7 @@ strings, pooled for the compiled step to write into)."""
 from __future__ import annotations
 
 import sys
-from functools import lru_cache
+from functools import cache
 
 import numpy as np
 
@@ -54,7 +54,7 @@ def reason_names(event_name) -> tuple:
     return REASONS[:3] + (event_name or "",) + REASONS[4:]
 
 
-@lru_cache(maxsize=None)
+@cache
 def _reason_array(event_name):
     names = np.array(reason_names(event_name))
     names.flags.writeable = False

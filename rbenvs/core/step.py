@@ -7,7 +7,8 @@ on a tuple of arrays, one per component. Each part of the step is here once:
 1. the action: validated and clipped (:func:`action_values`, :func:`action_columns`), mapped to
    controls by the model's actuator;
 2. the period (:meth:`Engine.advance`): ``substeps`` equal internal steps, or as many as the step
-   guard asks for per state (:mod:`rbenvs.stepsize.controller`; each element of a batch takes its own
+   guard asks for per state (:mod:`rbenvs.stepsize.controller`; each element of a batch takes its
+   own
    ``h`` and is frozen after its own count), the hybrid layer's switches after every internal
    step (:mod:`rbenvs.core.hybrid`) and the system's terminal event (the tippe top's lift-off
    without free flight) ending a period early;
@@ -132,7 +133,8 @@ class Engine:
         # part of a run's state: it starts at zero at a reset and after a switch, and each run
         # (the env's, the companion) carries its own from period to period
         # (advance(comp=), companion(comp=); the single env's in comp)
-        # (a default accuracy sums plainly: its scenes keep their bits; the companion's runs need it)
+        # (a default accuracy sums plainly: its scenes keep their bits; the companion's runs need
+        # it)
         compensate = m.tolerance is not None and (m.accuracy == "explicit" or m.check)
         self.step_c = (
             m.integrator.bind(system, system.dim, compensated=True) if compensate else None
@@ -193,16 +195,17 @@ class Engine:
         ):
             self.gate = self.rule.gate
         # tolerance_check: every period takes an even count (its companion half as many steps of
-        # twice the size: rbenvs.stepsize.controller), so neither the plain loop (substeps steps) nor
-        # the compiled single-state step (the guard's count) runs
+        # twice the size: rbenvs.stepsize.controller), so neither the plain loop (substeps steps)
+        # nor the compiled single-state step (the guard's count) runs
         self.check = m.check
         # the checked period's runs of one state, compiled (rbenvs.compiled.CheckedRuns: the main
         # run's count and the companion's, each a given count and step): "auto" uses
         # them where numba is installed and every part has a pure form, built on the first run;
         # the period's count and rates come from its plan (below), the finish stays on floats
         self._runs, self._runs_tried = None, True
-        # a tolerance's one-state count and error estimate from one evaluation of the rates, compiled
+        # a tolerance's one-state count and error estimate from one evaluation of the rates,
         # (rbenvs.compiled.PeriodPlan; the float path: StepRule.plan): "auto" where numba is
+        # compiled (rbenvs.compiled.PeriodPlan; the float path: StepRule.plan): "auto" where numba i
         # installed and every part has a pure form, built on first use
         self._plan, self._plan_tried = (
             None,
@@ -240,7 +243,8 @@ class Engine:
         if parts is None:
             if required:
                 why = (
-                    f"numba is not installed (the 'fast' extra) or {_compiled.DISABLE_VARIABLE}=0 is set"
+                    f"numba is not installed (the 'fast' extra) or {_compiled.DISABLE_VARIABLE}=0 "
+                    "is set"
                     if not _compiled.available()
                     else f"integrator {self.integrator.name!r} with task {self.task.name!r} and these settings has no compiled step"
                 )
@@ -584,7 +588,8 @@ class Engine:
 
         def rows(
             values,
-        ):  # (a component may be one float for every element: a fresh compensation, a shared control)
+            # (a component may be one float for every element: a fresh compensation, a shared control)
+        ):
             out = np.empty((len(values), size))
             for j, c in enumerate(values):
                 out[j] = c
@@ -601,8 +606,10 @@ class Engine:
     def refusal(self, n, where: str = "") -> ValueError:
         """The ``guard="refuse"`` error for a period that needs ``n`` internal steps."""
         return ValueError(
-            f"guard='refuse' and the state{where} needs {n} internal steps per control period, more than "
-            f"substeps={self.substeps} (dt={self.dt!r}, integrator {self.integrator.name!r}: {self.rule.text}); "
+            f"guard='refuse' and the state{where} needs {n} internal steps per control period, more "
+            "than "
+            f"substeps={self.substeps} (dt={self.dt!r}, integrator {self.integrator.name!r}: "
+            f"{self.rule.text}); "
             f"raise substeps to at least {n} or lower dt, or pass guard='subdivide'"
         )
 
@@ -807,8 +814,8 @@ class Engine:
     def gated(self, y):
         """The default accuracy's gate at the states ``y`` (:attr:`gate`; floats or arrays): where
         every state lies within the cheap bound ``Lambda``, their periods' estimates ``C Lambda dt
-        (Lambda h)^p`` at ``substeps`` steps (the rates :func:`rbenvs.stepsize.forms.motion_rates` gives
-        there); else (or without a gate) ``None``."""
+        (Lambda h)^p`` at ``substeps`` steps (the rates :func:`rbenvs.stepsize.forms.motion_rates`
+        gives there); else (or without a gate) ``None``."""
         if self.gate is None:
             return None
         fn, p, (dt, q, top) = self.gate
@@ -839,10 +846,14 @@ class Engine:
 
     def _inaccurate_text(self, estimate, periods) -> str:
         return (
-            f"the global error estimate {float(estimate):.3g} passed tolerance={self.tolerance!r} after {int(periods)} periods "
-            f"({int(periods) * self.dt:.6g} s; tolerance_check: a companion run at twice the step measures the error the state "
-            f"carries, errors the motion amplified included, which the steps' estimate does not budget for; more steps per period "
-            f"hold it longer: a tighter tolerance= or substeps= (the least count), and 'rbenvs bench accuracy --tolerance' shows "
+            f"the global error estimate {float(estimate):.3g} passed tolerance={self.tolerance!r} "
+            f"after {int(periods)} periods "
+            f"({int(periods) * self.dt:.6g} s; tolerance_check: a companion run at twice the step "
+            "measures the error the state "
+            "carries, errors the motion amplified included, which the steps' estimate does not "
+            "budget for; more steps per period "
+            "hold it longer: a tighter tolerance= or substeps= (the least count), and 'rbenvs "
+            "bench accuracy --tolerance' shows "
             f"the counts that hold each shipped scene)"
         )
 
@@ -851,7 +862,8 @@ class Engine:
             cap = self._cap_text(h, y0, u)
             what = "the period was refused" + cap if cap else "the state became non-finite"
         warnings.warn(
-            f"{what} with integrator {self.integrator.name!r} (internal step h = {float(np.max(h)):g} s); "
+            f"{what} with integrator {self.integrator.name!r} (internal step h = "
+            f"{float(np.max(h)):g} s); "
             f"the episode ends and {kept} is kept",
             NumericalFailureWarning,
             stacklevel=5,
@@ -881,7 +893,8 @@ class Engine:
             )  # (the single env's words)
             cap = f" (periods refused{cap})" if cap else ""
             warnings.warn(
-                f"sub-envs {np.flatnonzero(failed).tolist()} became non-finite with integrator {self.integrator.name!r}{cap}; "
+                f"sub-envs {np.flatnonzero(failed).tolist()} became non-finite with integrator "
+                f"{self.integrator.name!r}{cap}; "
                 "their episodes end and their last finite states are kept",
                 NumericalFailureWarning,
                 stacklevel=3,
@@ -892,7 +905,9 @@ class Engine:
             if late.any():
                 idx = np.flatnonzero(late)
                 warnings.warn(
-                    f"sub-envs {idx.tolist()}: {self._inaccurate_text(np.max(estimate[late]), np.min(check.periods[late]))}; their episodes end "
+                    f"sub-envs {idx.tolist()}: "
+                    f"{self._inaccurate_text(np.max(estimate[late]), np.min(check.periods[late]))}; "
+                    "their episodes end "
                     "and their last states within the tolerance are kept",
                     NumericalFailureWarning,
                     stacklevel=3,
@@ -992,8 +1007,8 @@ class KernelParts(NamedTuple):
     ``dissipation_step`` (``h <= c / lambda_d``), the terminal ``event`` (or ``None``; it fires
     where its value is negative) and ``rhs_event``, the vector field and the event's value from
     one evaluation (then ``step`` takes its first stage: ``step(PS, y, k0, u, h)``), or ``None``;
-    ``switches``: a hybrid system's switches, ``((applies, P), (function, P), tolerance, (switch, P))``
-    each (``kernel_switches``), made after every internal step as :mod:`rbenvs.core.hybrid`
+    ``switches``: a hybrid system's switches, ``((applies, P), (function, P), tolerance, (switch,
+    P))`` each (``kernel_switches``), made after every internal step as :mod:`rbenvs.core.hybrid`
     makes them."""
 
     step: tuple

@@ -123,7 +123,8 @@ class FrictionLaw:
 
     def slope(self, mu, s1, s2, s3, eps):
         """``2 dk/d|s|^2``: the slope of the force per unit normal force is ``dF/ds = k I +
-        slope s s^T`` (what a linearly implicit scheme needs, :mod:`rbenvs.integrators.rosenbrock`)."""
+        slope s s^T`` (what a linearly implicit scheme needs,
+        :mod:`rbenvs.integrators.rosenbrock`)."""
         if self.kernel_slope is None:
             raise NotImplementedError
         return self.kernel_slope(mu, s1, s2, s3, eps)

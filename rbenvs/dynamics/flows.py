@@ -17,9 +17,8 @@ kernels, and that calling the object runs too.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
-from functools import lru_cache
+from functools import cache
 
 import numpy as np
 
@@ -68,7 +67,8 @@ def _axis_rotation_lines(i, vectors, quaternion, dim, rate: str, y: str, out: st
         r[i] = "sh"
         lines.append("sh, ch = sincos(0.5 * w)")
         lines.append(
-            f"qn = quat_multiply(({y}[{a}], {y}[{a + 1}], {y}[{a + 2}], {y}[{a + 3}]), (ch, {', '.join(r)}))"
+            f"qn = quat_multiply(({y}[{a}], {y}[{a + 1}], {y}[{a + 2}], {y}[{a + 3}]), (ch, "
+            f"{', '.join(r)}))"
         )
         items[a : a + 4] = [f"qn[{m}]" for m in range(4)]
     lines.append(f"{out} = ({', '.join(items)},)")
@@ -84,7 +84,7 @@ _NAMESPACE = {
 }
 
 
-@lru_cache(maxsize=None)
+@cache
 def _axis_rotation(i: int, vectors: tuple, quaternion, dim: int):
     """The pure flow ``flow(rate, y, u, h)`` of :class:`AxisRotation` for one layout (generated:
     a state of ``dim`` components is a tuple of that size for compiled code)."""
@@ -94,7 +94,7 @@ def _axis_rotation(i: int, vectors: tuple, quaternion, dim: int):
     return jitable(generate(src, label, dict(_NAMESPACE))["flow"])
 
 
-@lru_cache(maxsize=None)
+@cache
 def _symmetric_rotation(k: int, vectors: tuple, quaternion, dim: int):
     """The pure flow ``flow((I_t, rate_k), y, u, h)`` of :class:`SymmetricFreeRotation`."""
     lines = [
@@ -113,7 +113,8 @@ def _symmetric_rotation(k: int, vectors: tuple, quaternion, dim: int):
     if quaternion is not None:
         a = quaternion
         lines.append(
-            f"q = quat_multiply((y[{a}], y[{a + 1}], y[{a + 2}], y[{a + 3}]), (ch, tx * s, ty * s, tz * s))"
+            f"q = quat_multiply((y[{a}], y[{a + 1}], y[{a + 2}], y[{a + 3}]), (ch, tx * s, ty * s, "
+            "tz * s))"
         )
         items[a : a + 4] = [f"q[{m}]" for m in range(4)]
     lines.append(f"z = ({', '.join(items)},)")

@@ -58,7 +58,8 @@ class FreeBodyParams:
     """
 
     inertia: tuple[float, float, float]
-    # Derived coefficients of Euler's equations, dPi1/dt = c1 Pi2 Pi3 + tau1 etc. (docs/physics.md §1)
+    # Derived coefficients of Euler's equations, dPi1/dt = c1 Pi2 Pi3 + tau1 etc. (docs/physics.md
+    # §1)
     coefficients: tuple[float, float, float] = field(init=False, repr=False)
     inverse: tuple[float, float, float] = field(init=False, repr=False)
 
@@ -173,8 +174,8 @@ def error_rate(p, y):
     coefficient times :data:`SEPARATRIX_MARGIN`, and its rate is added. The Jacobian's bound
     caps it. Measured against the exact solution (``rbenvs bench accuracy --tolerance``,
     ``tests/test_tolerance.py``): fast tumbles, the separatrix, nearly equal moments and
-    triaxial bodies from several starts, within every tolerance. A state at rest in the body frame (``dPi = 0``, a steady spin) commits no
-    error (``mu = 0``); there the bound is returned."""
+    triaxial bodies from several starts, within every tolerance. A state at rest in the body frame
+    (``dPi = 0``, a steady spin) commits no error (``mu = 0``); there the bound is returned."""
     inv, spread, sigma = p
     j1, j2, j3 = inv
     p1, p2, p3 = y[0], y[1], y[2]
@@ -365,7 +366,8 @@ class FreeBody:
             n = float(np.linalg.norm(arrays["attitude"]))
             if abs(n - 1.0) > 1e-6:
                 raise ValueError(
-                    f"state['attitude'] must be a unit quaternion (|q| = 1 within 1e-6), got |q| = {n}"
+                    "state['attitude'] must be a unit quaternion (|q| = 1 within 1e-6), got |q| = "
+                    f"{n}"
                 )
         return y
 
@@ -459,9 +461,11 @@ class FreeBodyOrbit:
 
     ``Omega_a = A cn(u), Omega_b = B sn(u), Omega_c = C dn(u)``, ``u = tau0 + nu t``,
 
-    ``A^2 = (2 H I_c - |Pi|^2) / (I_a (I_c - I_a))``, ``B^2 = (2 H I_c - |Pi|^2) / (I_b (I_c - I_b))``,
+    ``A^2 = (2 H I_c - |Pi|^2) / (I_a (I_c - I_a))``, ``B^2 = (2 H I_c - |Pi|^2) / (I_b (I_c -
+    I_b))``,
     ``C^2 = (|Pi|^2 - 2 H I_a) / (I_c (I_c - I_a))``, ``m = (I_b - I_a)(2 H I_c - |Pi|^2) /
-    ((I_c - I_b)(|Pi|^2 - 2 H I_a))`` and ``|nu|^2 = (I_c - I_b)(|Pi|^2 - 2 H I_a) / (I_a I_b I_c)``.
+    ((I_c - I_b)(|Pi|^2 - 2 H I_a))`` and ``|nu|^2 = (I_c - I_b)(|Pi|^2 - 2 H I_a) / (I_a I_b
+    I_c)``.
 
     The signs of ``C`` (and of ``A`` on the separatrix) come from the initial state and the sign
     of ``nu`` from Euler's equations. Each combination ``2 H I_k - |Pi|^2`` is formed as a sum

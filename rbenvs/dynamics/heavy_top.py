@@ -40,9 +40,9 @@ from ..rotations import (
     quat_to_euler_zxz,
     sqrt,
 )
+from .flows import AxisRotation, SymmetricFreeRotation
 from .free_body import angular_velocity, rotation_rate
 from .state import export_layout, import_layout, start_as_drawn
-from .flows import AxisRotation, SymmetricFreeRotation
 from .validation import (
     require_finite_nonnegative,
     require_finite_positive,
@@ -163,7 +163,8 @@ def heavy_top_kick(p, y, u, h):
 @jitable
 def attitude_from_vertical(gamma, heading):
     """A quaternion ``q`` with ``R(q)^T e_z = Gamma`` and the given heading [rad]: the shortest
-    turn taking ``Gamma`` to ``e_z``, then a turn by ``heading`` about ``e_z`` (floats or arrays)."""
+    turn taking ``Gamma`` to ``e_z``, then a turn by ``heading`` about ``e_z`` (floats or
+    arrays)."""
     one = 1.0 + 0.0 * gamma[0]
     zero = 0.0 * gamma[0]
     r = quat_from_two_vectors(gamma, (zero, zero, one))
@@ -278,7 +279,8 @@ class HeavyTopParams:
       those of a real body: removing the parallel-axis term leaves the inertia about the centre
       of mass ``I - M l^2 (1 - chi chi^T)``, which must be positive semi-definite with
       eigenvalues obeying the triangle inequality.
-    * ``mass`` ``M`` [kg], ``length`` ``l`` = pivot to centre of mass [m], ``gravity`` ``g`` [m/s^2].
+    * ``mass`` ``M`` [kg], ``length`` ``l`` = pivot to centre of mass [m], ``gravity`` ``g``
+    [m/s^2].
     * ``com_direction``: ``chi``, the direction from the pivot to the centre of mass in the body
       frame (any nonzero vector; normalised).
     * ``spin_friction``: ``k`` [N m s] of the pivot's viscous torque ``-k (Omega . chi) chi``.
@@ -384,9 +386,12 @@ def _require_physical_inertia(inertia, mass, length, chi):
     if ev[0] < -slack or ev[0] + ev[1] < ev[2] - slack:
         raise ValueError(
             "inertia must be the principal moments about the pivot of a real body: "
-            "inertia - mass*length^2*(1 - chi chi^T) (the inertia about the centre of mass) must have "
-            f"eigenvalues >= 0 obeying the triangle inequality; got {ev.tolist()} for inertia={tuple(inertia)}, "
-            f"mass={mass}, length={length} (the transverse moments about the pivot must be at least mass*length^2)"
+            "inertia - mass*length^2*(1 - chi chi^T) (the inertia about the centre of mass) must "
+            "have "
+            f"eigenvalues >= 0 obeying the triangle inequality; got {ev.tolist()} for "
+            f"inertia={tuple(inertia)}, "
+            f"mass={mass}, length={length} (the transverse moments about the pivot must be at least "
+            "mass*length^2)"
         )
 
 
@@ -495,19 +500,22 @@ class HeavyTop:
         n = float(np.linalg.norm(g))
         if abs(n - 1.0) > 1e-6:
             raise ValueError(
-                f"state['vertical'] must be a unit vector (|Gamma| = 1 within 1e-6), got |Gamma| = {n}"
+                "state['vertical'] must be a unit vector (|Gamma| = 1 within 1e-6), got |Gamma| = "
+                f"{n}"
             )
         if "attitude" in arrays:
             q = arrays["attitude"]
             nq = float(np.linalg.norm(q))
             if abs(nq - 1.0) > 1e-6:
                 raise ValueError(
-                    f"state['attitude'] must be a unit quaternion (|q| = 1 within 1e-6), got |q| = {nq}"
+                    "state['attitude'] must be a unit quaternion (|q| = 1 within 1e-6), got |q| = "
+                    f"{nq}"
                 )
             gz = np.array(quat_rotate(quat_conjugate(tuple(q / nq)), (0.0, 0.0, 1.0)))
             if np.max(np.abs(gz - g)) > 1e-6:
                 raise ValueError(
-                    f"state['vertical'] must equal R(attitude)^T e_z within 1e-6; the attitude gives {gz.tolist()}"
+                    "state['vertical'] must equal R(attitude)^T e_z within 1e-6; the attitude "
+                    f"gives {gz.tolist()}"
                 )
         return y
 

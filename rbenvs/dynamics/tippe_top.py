@@ -37,10 +37,10 @@ in flight (``c = 0``) no contact force acts: ``G`` falls freely and the rotation
 :meth:`events` and made between internal steps by the hybrid layer (:mod:`rbenvs.core.hybrid`,
 which alone calls the integrator): lift-off when ``N < 0`` and touchdown when the sphere
 reaches the table, each located inside the step to round-off by regula falsi on the
-integrator's own step; a touchdown is followed by a plastic, frictionless impact (:meth:`impact`): the normal
-impulse stops the contact point's vertical motion, removes ``lambda^2 M_zz / 2`` of energy and
-keeps Jellett's integral exactly (an impulse at the contact point has no moment about ``r``).
-State ``(x, y, z, vx, vy, vz, q, Omega, c, hops)``: 15 components.
+integrator's own step; a touchdown is followed by a plastic, frictionless impact (:meth:`impact`):
+the normal impulse stops the contact point's vertical motion, removes ``lambda^2 M_zz / 2`` of
+energy and keeps Jellett's integral exactly (an impulse at the contact point has no moment about
+``r``). State ``(x, y, z, vx, vy, vz, q, Omega, c, hops)``: 15 components.
 
 In every level the equations are written in the table's frame. Controls ``u`` are
 ``(a_x, a_y, mu, tau1, tau2, tau3)``: the table's horizontal acceleration [m/s^2] (a moving
@@ -66,9 +66,10 @@ Components are floats (one state) or arrays of one batch shape (many states at o
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from functools import lru_cache
-from typing import Callable, NamedTuple
+from functools import cache
+from typing import NamedTuple
 
 import numpy as np
 
@@ -218,7 +219,8 @@ class TippeTopParams:
         alpha = require_finite_positive("offset", self.offset)
         if not alpha < 1.0:
             raise ValueError(
-                f"offset (alpha = h/R, centre-of-mass offset over radius) must lie in (0, 1), got {self.offset!r}"
+                "offset (alpha = h/R, centre-of-mass offset over radius) must lie in (0, 1), got "
+                f"{self.offset!r}"
             )
         big_a, big_c = require_real_vector(
             "inertia",
@@ -230,7 +232,8 @@ class TippeTopParams:
         big_c = require_finite_positive("inertia[1] (C)", big_c)
         if big_c > 2.0 * big_a:
             raise ValueError(
-                f"inertia must satisfy C <= 2 A (triangle inequality of a real body), got A={big_a!r}, C={big_c!r}"
+                "inertia must satisfy C <= 2 A (triangle inequality of a real body), got "
+                f"A={big_a!r}, C={big_c!r}"
             )
         mu = require_finite_nonnegative("friction", self.friction)
         require_choice("friction_law", self.friction_law, FRICTION_LAWS)
@@ -251,7 +254,8 @@ class TippeTopParams:
                 "stem",
                 stem,
                 2,
-                " (b, d): the stem tip's radius and the distance of its centre from the centre of mass [m]",
+                " (b, d): the stem tip's radius and the distance of its centre from the centre of "
+                "mass [m]",
             )
             b = require_finite_positive("stem[0] (b)", b)
             d = require_finite_positive("stem[1] (d)", d)
@@ -262,11 +266,13 @@ class TippeTopParams:
                 )
             if not d > h:
                 raise ValueError(
-                    f"stem distance d must exceed h = alpha a = {h!r} m (the stem's centre lies beyond the sphere's centre), got {d!r}"
+                    f"stem distance d must exceed h = alpha a = {h!r} m (the stem's centre lies "
+                    f"beyond the sphere's centre), got {d!r}"
                 )
             if not d - h + b > a:
                 raise ValueError(
-                    f"the stem must protrude past the sphere (d - h + b > a): d - h + b = {d - h + b!r} m, a = {a!r} m"
+                    "the stem must protrude past the sphere (d - h + b > a): d - h + b = "
+                    f"{d - h + b!r} m, a = {a!r} m"
                 )
             require_finite_result(
                 "stem", (b + d) * (b + d) / min(big_a, big_c), "(b + d)^2 / min(A, C) [1/kg]"
@@ -667,8 +673,9 @@ class TippeForms(NamedTuple):
     tuple ``(N, F_x, F_y, dOmega1, dOmega2, dOmega3, a_x, a_y, v_x, v_y[, v_z])`` (normal force,
     friction in space, angular acceleration, the table's acceleration and the velocity of ``G``
     the vector field uses: sliding, the state's horizontal part and the constraint's ``v_z``;
-    rolling, the horizontal part of ``-omega x r``); ``derivative(P, y, contact) -> dy``; ``rhs`` (``dy``), ``rhs_normal``
-    (``(dy, N)`` from one solve), ``normal`` (``N``; 0 in flight), ``friction_rate`` (the guard's
+    rolling, the horizontal part of ``-omega x r``); ``derivative(P, y, contact) -> dy``; ``rhs``
+    (``dy``), ``rhs_normal`` (``(dy, N)`` from one solve), ``normal`` (``N``; 0 in flight),
+    ``friction_rate`` (the guard's
     ``lambda_d``; ``None`` without friction) and ``readouts(P, y, u, fired)``.
     """
 
@@ -693,7 +700,7 @@ class TippeForms(NamedTuple):
     state: Callable
 
 
-@lru_cache(maxsize=None)
+@cache
 def _state_forms(rolling: bool, flight: bool) -> tuple:
     """The state functions of :class:`TippeForms` for one layout (no friction law in them). The
     layout is a constant of each function (``rolling``, ``flight``, the offsets ``Q`` of the
@@ -824,7 +831,7 @@ def _state_forms(rolling: bool, flight: bool) -> tuple:
     ), state_readouts
 
 
-@lru_cache(maxsize=None)
+@cache
 def pure_forms(coefficient, stiffness, rolling: bool, flight: bool) -> TippeForms:
     """The :class:`TippeForms` of one combination: the friction law's pure ``coefficient(mu, s1,
     s2, s3, eps)`` and ``stiffness(mu, N, mobility, eps)`` (:mod:`rbenvs.dynamics.contact`;
@@ -1056,7 +1063,7 @@ def stem_derivative(p, y, c):
     return sliding_derivative(p, y, c) + (0.0 * y[11],)
 
 
-@lru_cache(maxsize=None)
+@cache
 def stem_forms(coefficient, stiffness) -> TippeForms:
     """The :class:`TippeForms` of a gliding or frictionless top with the stem (``P`` of
     :func:`pure_parameters` with ``(b, d)``; state: the gliding one and the contact flag): the
@@ -1186,7 +1193,7 @@ def stem_jellett(p, y):
     )
 
 
-@lru_cache(maxsize=None)
+@cache
 def stem_accuracy_rate(accuracy_rate0):
     """The guard's rate with ``friction_bound="accuracy"`` with the stem: the sphere's
     (:func:`implicit_forms`' ``accuracy_rate``) at the pressing contact's parameters."""
@@ -1310,7 +1317,8 @@ class ImplicitForms(NamedTuple):
     * ``rate(P, y, u) -> lambda_d``: the tight stiffness, the law's at the actual normal force
       and the largest tangential mobility (:func:`tangential_mobility`), at zero slip;
     * ``accuracy_rate((P, K, omega_g), y, u)``: the guard's rate with ``friction_bound="accuracy"``;
-    * ``share(((P, omega_g), c_f / C), y, u, dt, p, lambda_g) -> a``: the share of ``C (lambda_g h)^p``
+    * ``share(((P, omega_g), c_f / C), y, u, dt, p, lambda_g) -> a``: the share of ``C (lambda_g
+    h)^p``
       (``lambda_g`` the friction guard's rate at ``y``) that the slip relaxation's error is in a
       period ``dt`` from ``y`` under ``u``, for a scheme of order ``p`` (docs/accuracy.md):
       at most ``(kappa lambda_d / lambda_g)^p``, ``kappa = k(s_min) / k(0)`` the law's
@@ -1318,12 +1326,13 @@ class ImplicitForms(NamedTuple):
       present rate) over its value at zero slip: the law's stiffness there is ``kappa
       lambda_d``, and a sliding top's saturated Coulomb friction (``|s| >> eps``) is not stiff
       until its slip reaches the band ``|s| ~ eps`` (viscous: ``kappa = 1``). With rk4 (``p =
-      4``, a scheme declaring ``c_f``) the transient, that bound times the slip's distance from its slow manifold
-      ``|ds/dt + Omega x s| / lambda_d`` against ``|v_G|`` (``eps`` at least), plus the forced
-      part, ``c_f (kappa lambda_d h)^2 (w h)^2`` (the contact turning at ``w = max(|Omega|,
-      omega_g)`` drives the stiff mode; the whole velocity counted as the drive; ``c_f`` the
-      scheme's ``forced_error_constant``, ``q``'s second item ``c_f / C``, given by the guard).
-      The tolerance's relaxation term (:func:`rbenvs.stepsize.forms.relaxation_steps`) takes it.
+      4``, a scheme declaring ``c_f``) the transient, that bound times the slip's distance from its
+      slow manifold ``|ds/dt + Omega x s| / lambda_d`` against ``|v_G|`` (``eps`` at least), plus
+      the forced part, ``c_f (kappa lambda_d h)^2 (w h)^2`` (the contact turning at ``w =
+      max(|Omega|, omega_g)`` drives the stiff mode; the whole velocity counted as the drive;
+      ``c_f`` the scheme's ``forced_error_constant``, ``q``'s second item ``c_f / C``, given by the
+      guard). The tolerance's relaxation term (:func:`rbenvs.stepsize.forms.relaxation_steps`) takes
+      it.
 
     Without friction (frictionless, rolling, in flight ``N = 0``) ``W = I``.
     """
@@ -1335,7 +1344,7 @@ class ImplicitForms(NamedTuple):
     share: Callable | None = None
 
 
-@lru_cache(maxsize=None)
+@cache
 def implicit_forms(
     coefficient, stiffness, slope, rolling: bool, flight: bool, saturates: bool = False
 ) -> ImplicitForms:
@@ -1636,11 +1645,13 @@ class TippeTop:
         self._memo = None  # the last contact solve (see _contact)
         if fidelity not in FIDELITIES:
             raise ValueError(
-                f"fidelity must be one of {list(FIDELITIES)}, got {fidelity!r}{did_you_mean(fidelity, FIDELITIES)}"
+                f"fidelity must be one of {list(FIDELITIES)}, got "
+                f"{fidelity!r}{did_you_mean(fidelity, FIDELITIES)}"
             )
         if friction_bound not in FRICTION_BOUNDS:
             raise ValueError(
-                f"friction_bound must be one of {list(FRICTION_BOUNDS)}, got {friction_bound!r}{did_you_mean(friction_bound, FRICTION_BOUNDS)}"
+                f"friction_bound must be one of {list(FRICTION_BOUNDS)}, got "
+                f"{friction_bound!r}{did_you_mean(friction_bound, FRICTION_BOUNDS)}"
             )
         self.friction_bound = friction_bound
         self.fidelity = fidelity
@@ -1648,16 +1659,19 @@ class TippeTop:
         self.flight = bool(flight)
         if self.flight and self.rolling:
             raise ValueError(
-                "flight=True needs fidelity 'gliding' or 'frictionless' (a rolling top has no slip to resume after a touchdown)"
+                "flight=True needs fidelity 'gliding' or 'frictionless' (a rolling top has no slip "
+                "to resume after a touchdown)"
             )
         self.stem = params.stem is not None
         if self.stem and self.rolling:
             raise ValueError(
-                "stem needs fidelity 'gliding' or 'frictionless' (the rolling limit has no slip to resume after the stem's touchdown)"
+                "stem needs fidelity 'gliding' or 'frictionless' (the rolling limit has no slip to "
+                "resume after the stem's touchdown)"
             )
         if self.stem and self.flight:
             raise ValueError(
-                "stem with flight=True is not modelled: a touchdown from flight could meet both contacts at once, "
+                "stem with flight=True is not modelled: a touchdown from flight could meet both "
+                "contacts at once, "
                 "which needs a two-contact impact law (docs/physics.md §3, 'The stem')"
             )
         if self.stem:
@@ -1904,10 +1918,10 @@ class TippeTop:
     def impact(self, y):
         """Touchdown of a state at the table (gap 0, approaching): a plastic, frictionless
         impact. The normal impulse ``lambda z_hat`` at the contact point ends the vertical motion
-        of the contact point, ``lambda = -v_Pz / M_zz``, ``M_zz = 1/m + (r x Gamma).I^-1(r x Gamma)``;
-        the energy drops by ``lambda^2 M_zz / 2`` and Jellett's integral ``-L.r`` is unchanged
-        (``(r x Gamma).r = 0``). Returns the state in contact (``c = 1``) and ``lambda`` [N s]
-        (:func:`flight_impact`; one state of floats)."""
+        of the contact point, ``lambda = -v_Pz / M_zz``, ``M_zz = 1/m + (r x Gamma).I^-1(r x
+        Gamma)``; the energy drops by ``lambda^2 M_zz / 2`` and Jellett's integral ``-L.r`` is
+        unchanged (``(r x Gamma).r = 0``). Returns the state in contact (``c = 1``) and ``lambda``
+        [N s] (:func:`flight_impact`; one state of floats)."""
         return flight_impact(self.form_params, y)
 
     # ------------------------------------------------------------------ hybrid system
@@ -2104,7 +2118,8 @@ class TippeTop:
 
     def export_state(self, y) -> dict:
         """Named arrays: ``position`` (3, with ``z_G`` from the constraint), ``velocity`` (3,
-        space, table frame), ``attitude`` (4, w x y z, body to space), ``angular_velocity`` (3, body)."""
+        space, table frame), ``attitude`` (4, w x y z, body to space), ``angular_velocity`` (3,
+        body)."""
         o = self._q
         return {
             "position": np.array([y[0], y[1], self.height(y)], dtype=np.float64),
@@ -2160,7 +2175,8 @@ class TippeTop:
         z = self.height(y)
         if abs(pos[2] - z) > 1e-9 * prm.radius + 1e-12:
             raise ValueError(
-                f"state['position'][2] must be the contact height a - h cos(theta) = {z!r} m for this attitude (the sphere touches the table), got {pos[2]!r}"
+                f"state['position'][2] must be the contact height a - h cos(theta) = {z!r} m for "
+                f"this attitude (the sphere touches the table), got {pos[2]!r}"
             )
         v_need = self.velocity(y)
         scale = 1e-9 * (1.0 + prm.radius * float(np.linalg.norm(w)))
@@ -2187,7 +2203,8 @@ class TippeTop:
         gap = self.gap(air)
         if gap < -tol:
             raise ValueError(
-                f"state['position'][2] puts the sphere {-gap!r} m into the table (z_G must be >= a - h cos(theta) = {pos[2] - gap!r} m)"
+                f"state['position'][2] puts the sphere {-gap!r} m into the table (z_G must be >= a "
+                f"- h cos(theta) = {pos[2] - gap!r} m)"
             )
         if gap > tol:
             return air
@@ -2197,7 +2214,8 @@ class TippeTop:
             return air
         if abs(vel[2] - v_need) > scale:
             raise ValueError(
-                f"state['velocity'][2] must be the vertical velocity the contact constraint gives ({v_need!r}) or above it (leaving the table), got {vel[2]!r}"
+                "state['velocity'][2] must be the vertical velocity the contact constraint gives "
+                f"({v_need!r}) or above it (leaving the table), got {vel[2]!r}"
             )
         return y
 
@@ -2225,7 +2243,8 @@ class TippeTop:
         :meth:`TippeTopParams.gravity_rate`), and, with friction, ``h <= c / lambda_d``
         (:meth:`friction_stiffness`) with ``c`` half the scheme's real-axis interval (euler
         1.0, rk4 1.39; none for dop853). With ``friction_bound="accuracy"``: ``lambda_a =
-        max(lambda_d, K sqrt(lambda_d w))`` (``K`` the law's ``accuracy_scale``; :func:`implicit_forms`'
+        max(lambda_d, K sqrt(lambda_d w))`` (``K`` the law's ``accuracy_scale``;
+        :func:`implicit_forms`'
         ``accuracy_rate``; ``lambda_d`` the tight rate: the law's stiffness at the actual ``N`` and
         the largest mobility along the table; ``w = max(|Omega|, omega_g)``) and ``c``
         ``ACCURACY_MARGIN`` of the interval (rk4 1.25); a law without a slope (no ``implicit``)

@@ -157,7 +157,8 @@ def unknown_keyword(owner: str, given, valid, where: str) -> TypeError | None:
     if not unknown:
         return None
     return TypeError(
-        f"{owner} got an unexpected keyword argument {unknown[0]!r}{did_you_mean(unknown[0], valid)} (every keyword: {where})"
+        f"{owner} got an unexpected keyword argument "
+        f"{unknown[0]!r}{did_you_mean(unknown[0], valid)} (every keyword: {where})"
     )
 
 
@@ -247,7 +248,8 @@ def require_inertia(name: str, value) -> tuple[float, float, float]:
     ):
         if a + b < c - slack:
             raise ValueError(
-                f"{name} must satisfy the triangle inequality {label} (a real body), got {tuple(arr)}"
+                f"{name} must satisfy the triangle inequality {label} (a real body), got "
+                f"{tuple(arr)}"
             )
     return (i1, i2, i3)
 

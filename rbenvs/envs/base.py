@@ -22,6 +22,10 @@ import warnings
 import gymnasium as gym
 import numpy as np
 
+from ..core.model import Model
+from ..core.step import Engine, NumericalFailureWarning, action_values
+from ..dynamics.validation import require_finite_positive, require_int_in, unknown_keyword
+from ..integrators import get_integrator
 from ..stepsize.controller import (
     GUARDS,
     MAX_INTERNAL_STEPS,
@@ -37,10 +41,6 @@ from ..stepsize.controller import (
     unstable_motion_warning,
 )
 from ..stepsize.forms import relaxation_steps, stability_ratio, step_ratio
-from ..core.model import Model
-from ..core.step import Engine, NumericalFailureWarning, action_values
-from ..dynamics.validation import require_finite_positive, require_int_in, unknown_keyword
-from ..integrators import get_integrator
 from .options import ParamRanges, Realism, noise_generator, noisy_observation, rekey
 
 __all__ = [
@@ -187,7 +187,8 @@ class RigidBodyEnv(gym.Env):
         tolerance = require_tolerance(tolerance)
         if tolerance is None and tolerance_horizon is not None:
             raise ValueError(
-                f"tolerance_horizon={tolerance_horizon!r} is the span of control periods that tolerance= covers, and tolerance is None: "
+                f"tolerance_horizon={tolerance_horizon!r} is the span of control periods that "
+                "tolerance= covers, and tolerance is None: "
                 "pass tolerance= with it, or leave tolerance_horizon out"
             )
         tolerance, accuracy = default_accuracy(tolerance, guard, self.default_tolerance)
@@ -215,13 +216,15 @@ class RigidBodyEnv(gym.Env):
             getattr(integrator, "region", None) is None
         ):  # declared, not probed: no region, no guard, no run
             raise ValueError(
-                f"integrator {integrator.name!r} declares no step region (StepRegion, rbenvs.contracts): it cannot be guarded"
+                f"integrator {integrator.name!r} declares no step region (StepRegion, "
+                "rbenvs.contracts): it cannot be guarded"
             )
         if render_mode is not None and (
             not isinstance(render_mode, str) or render_mode not in self.metadata["render_modes"]
         ):
             raise ValueError(
-                f"render_mode must be None or one of {self.metadata['render_modes']}, got {render_mode!r}"
+                f"render_mode must be None or one of {self.metadata['render_modes']}, got "
+                f"{render_mode!r}"
             )
         tolerance, accuracy = require_accuracy(
             integrator, guard, tolerance, accuracy, type(self).__name__
@@ -283,8 +286,10 @@ class RigidBodyEnv(gym.Env):
             ranges = ParamRanges(type(self), self._kwargs, param_ranges)
             if self.engine.compiled is True:
                 raise ValueError(
-                    "compiled=True cannot be had with param_ranges: each episode builds its model from drawn parameters and "
-                    "a compiled step is built per parameter setting (about a second each); pass compiled='auto' or False"
+                    "compiled=True cannot be had with param_ranges: each episode builds its model "
+                    "from drawn parameters and "
+                    "a compiled step is built per parameter setting (about a second each); pass "
+                    "compiled='auto' or False"
                 )
             structure = self._structure()
             for label, values in ranges.corners():
@@ -292,12 +297,15 @@ class RigidBodyEnv(gym.Env):
                     env = self._episode_env(values)
                 except (ValueError, TypeError) as err:
                     raise type(err)(
-                        f"param_ranges: at the range's {label}: {err} (every value in each range must be valid)"
+                        f"param_ranges: at the range's {label}: {err} (every value in each range "
+                        "must be valid)"
                     ) from err
                 if env._structure() != structure:
                     raise ValueError(
-                        f"param_ranges: at the range's {label} the env's structure changes (its spaces, read-outs or "
-                        f"named axis differ from the keywords' values); narrow the ranges of {list(ranges.names)}"
+                        f"param_ranges: at the range's {label} the env's structure changes (its "
+                        "spaces, read-outs or "
+                        "named axis differ from the keywords' values); narrow the ranges of "
+                        f"{list(ranges.names)}"
                     )
             self._ranges = ranges
         if realism.active:
@@ -397,8 +405,10 @@ class RigidBodyEnv(gym.Env):
         )
         if not (abs(floor) <= FLOAT32_MAX and abs(charge) <= FLOAT32_MAX):
             raise ValueError(
-                f"control_cost={self.model.task.control_cost!r} makes the least reward of a step {floor:.3g} and the failure charge "
-                f"{charge:.3g}, beyond float32's range (+-{FLOAT32_MAX:.3g}, in which RL libraries store rewards); lower control_cost"
+                f"control_cost={self.model.task.control_cost!r} makes the least reward of a step "
+                f"{floor:.3g} and the failure charge "
+                f"{charge:.3g}, beyond float32's range (+-{FLOAT32_MAX:.3g}, in which RL libraries "
+                "store rewards); lower control_cost"
             )
 
     def _tolerance_horizon(self, value) -> int:
@@ -415,12 +425,13 @@ class RigidBodyEnv(gym.Env):
         self, system, task, actuator, dt, substeps, guard, observation_high, tolerance, horizon
     ):
         """``integrator="auto"``: of the schemes that ``tolerance=`` takes (an error constant, the
-        leading error in the phase: :func:`~rbenvs.stepsize.controller.takes_tolerance`) and that take this system, the one
-        whose internal steps at the fastest start, times its rhs evaluations a step, cost the least
-        (ties: the first registered)."""
+        leading error in the phase: :func:`~rbenvs.stepsize.controller.takes_tolerance`) and that
+        take this system, the one whose internal steps at the fastest start, times its rhs
+        evaluations a step, cost the least (ties: the first registered)."""
         if tolerance is None:
             raise ValueError(
-                "integrator='auto' chooses the scheme that meets tolerance= at the least cost: pass tolerance= (a relative error per episode)"
+                "integrator='auto' chooses the scheme that meets tolerance= at the least cost: pass "
+                "tolerance= (a relative error per episode)"
             )
         best = None
         high = tuple(float(v) for v in observation_high)
@@ -453,7 +464,8 @@ class RigidBodyEnv(gym.Env):
         self.model = None
         if best is None:
             raise ValueError(
-                f"integrator='auto' found no scheme with an error constant for {type(system).__name__}"
+                "integrator='auto' found no scheme with an error constant for "
+                f"{type(system).__name__}"
             )
         return best[1]
 
@@ -500,9 +512,12 @@ class RigidBodyEnv(gym.Env):
             return (
                 x,
                 (
-                    f"to keep the error of {m.horizon} periods within it ({rule.accuracy_text}): at a fixed step an order-{p} scheme's error "
-                    f"grows without bound, like lambda T (lambda h)^{p}, so the steps a tolerance costs grow like "
-                    f"(lambda T)^{(p + 1) / p:.3g} / tolerance^{1 / p:.3g}; raise tolerance, lower tolerance_horizon, or use a higher-order integrator"
+                    f"to keep the error of {m.horizon} periods within it ({rule.accuracy_text}): at "
+                    f"a fixed step an order-{p} scheme's error "
+                    f"grows without bound, like lambda T (lambda h)^{p}, so the steps a tolerance "
+                    "costs grow like "
+                    f"(lambda T)^{(p + 1) / p:.3g} / tolerance^{1 / p:.3g}; raise tolerance, lower "
+                    "tolerance_horizon, or use a higher-order integrator"
                 ),
                 True,
             )
@@ -522,19 +537,24 @@ class RigidBodyEnv(gym.Env):
             if by_tolerance:
                 default = (
                     (
-                        f" (tolerance='default': {type(self).__name__}'s default accuracy; tolerance=None runs unchecked, the stability "
+                        f" (tolerance='default': {type(self).__name__}'s default accuracy; "
+                        "tolerance=None runs unchecked, the stability "
                         f"bound alone)"
                     )
                     if self.model.accuracy != "explicit"
                     else ""
                 )
                 raise ValueError(
-                    f"tolerance={self.model.tolerance!r}{default} cannot be met: at the start the integrator {self.integrator.name!r} needs "
-                    f"{x:.3g} internal steps per control period, more than MAX_INTERNAL_STEPS = {MAX_INTERNAL_STEPS}, {rule}"
+                    f"tolerance={self.model.tolerance!r}{default} cannot be met: at the start the "
+                    f"integrator {self.integrator.name!r} needs "
+                    f"{x:.3g} internal steps per control period, more than MAX_INTERNAL_STEPS = "
+                    f"{MAX_INTERNAL_STEPS}, {rule}"
                 )
             raise ValueError(
-                f"dt={self.dt!r} s cannot be resolved: at the start the integrator {self.integrator.name!r} needs "
-                f"{x:.3g} internal steps per control period ({rule}), more than MAX_INTERNAL_STEPS = {MAX_INTERNAL_STEPS}; "
+                f"dt={self.dt!r} s cannot be resolved: at the start the integrator "
+                f"{self.integrator.name!r} needs "
+                f"{x:.3g} internal steps per control period ({rule}), more than MAX_INTERNAL_STEPS "
+                f"= {MAX_INTERNAL_STEPS}; "
                 f"lower dt, or check {self._rate_sources}, which set the fastest rate"
             )
 
@@ -554,8 +574,10 @@ class RigidBodyEnv(gym.Env):
         few steps is legal: the episode ends there (``observation_limit``)."""
         if not change <= 2.0 * bound:
             raise ValueError(
-                f"{name} is too large: its full action can change the {unit} by {change:.6g} in one control period, more "
-                f"than the width of the observation box (2 * {bound_name} = {2.0 * bound:.6g}); lower {name} or dt, or raise {bound_name}"
+                f"{name} is too large: its full action can change the {unit} by {change:.6g} in one "
+                "control period, more "
+                f"than the width of the observation box (2 * {bound_name} = {2.0 * bound:.6g}); "
+                f"lower {name} or dt, or raise {bound_name}"
             )
 
     # ------------------------------------------------------------------ gymnasium API
@@ -599,7 +621,8 @@ class RigidBodyEnv(gym.Env):
 
     def _reset_realism(self, obs):
         """A new episode's actuator queue (``action_delay`` zero actions) and noise stream (its
-        key drawn from the env's generator after the start; the bias, then the observation's noise)."""
+        key drawn from the env's generator after the start; the bias, then the observation's
+        noise)."""
         r = self._realism
         if r.delay:
             self._queue = collections.deque([[0.0] * self._action_shape[0] for _ in range(r.delay)])
@@ -681,7 +704,8 @@ class RigidBodyEnv(gym.Env):
         """
         if self.render_mode is None:
             gym.logger.warn(
-                f"{type(self).__name__}.render() called without a render_mode: pass render_mode='rgb_array' or 'human'"
+                f"{type(self).__name__}.render() called without a render_mode: pass "
+                "render_mode='rgb_array' or 'human'"
             )
             return None
         if self._y is None:

@@ -4,10 +4,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from functools import lru_cache
+from functools import cache
 
 import numpy as np
 
+from ..core.codegen import generate
+from ..core.model import observation_bounds
 from ..dynamics import FreeBody, FreeBodyParams
 from ..dynamics.validation import (
     ParameterTypeError,
@@ -17,10 +19,8 @@ from ..dynamics.validation import (
     require_finite_positive,
     require_real_vector,
 )
-from ..tasks import AXIS_NAMES, DetumbleTask, ReorientTask, SpinTask
-from ..core.codegen import generate
-from ..core.model import observation_bounds
 from ..jit import jitable
+from ..tasks import AXIS_NAMES, DetumbleTask, ReorientTask, SpinTask
 from .base import RigidBodyEnv, require_float32_bound
 
 __all__ = ["FreeRigidBodyEnv", "BodyTorque"]
@@ -45,8 +45,9 @@ class FreeRigidBodyEnv(RigidBodyEnv):
     ## Observation space (float32)
     | task | components | unit | bounds |
     |---|---|---|---|
-    | spin, detumble | ``Omega1, Omega2, Omega3`` (body angular velocity) | rad/s | ``+-max_angular_velocity`` |
-    | reorient | ``Omega1..3``, then error quaternion ``conj(target) * q`` (``w >= 0``) | rad/s, 1 | ``+-max_angular_velocity``, ``+-1`` |
+    | spin, detumble | ``Omega1, Omega2, Omega3`` (body angular velocity) | rad/s |
+    ``+-max_angular_velocity`` | | reorient | ``Omega1..3``, then error quaternion ``conj(target) *
+    q`` (``w >= 0``) | rad/s, 1 | ``+-max_angular_velocity``, ``+-1`` |
 
     ## Rewards (per step; ``u`` = clipped action on all three axes, 0 if unactuated)
     * ``spin``: ``Pi_axis / |Pi| - control_cost * mean(u^2)``: alignment of the angular
@@ -101,12 +102,13 @@ class FreeRigidBodyEnv(RigidBodyEnv):
       error control picks its own steps).
 
     ``guard="subdivide"`` (default) takes the fewest equal steps ``n >= substeps`` that meet the
-    bounds (``n = max(substeps, ceil(dt |Omega| / bound), ceil((dt |Omega|)^2 / 0.02))``); ``"refuse"`` raises ``ValueError`` from ``step`` (naming ``substeps`` and the ``n``
-    needed) instead, leaving the state unchanged; ``"off"`` always takes ``substeps`` (euler then
-    grows without bound at large ``|Omega| dt``: a non-finite state ends the episode as a
-    numerical failure). More than ``MAX_INTERNAL_STEPS`` (1e6) steps in a period is a numerical
-    failure. When no state inside the observation bounds (``|Omega| <= sqrt(3)
-    max_angular_velocity``) can exceed the bound, no check runs: at the defaults ``rk4`` and
+    bounds (``n = max(substeps, ceil(dt |Omega| / bound), ceil((dt |Omega|)^2 / 0.02))``);
+    ``"refuse"`` raises ``ValueError`` from ``step`` (naming ``substeps`` and the ``n`` needed)
+    instead, leaving the state unchanged; ``"off"`` always takes ``substeps`` (euler then grows
+    without bound at large ``|Omega| dt``: a non-finite state ends the episode as a numerical
+    failure). More than ``MAX_INTERNAL_STEPS`` (1e6) steps in a period is a numerical failure. When
+    no state inside the observation bounds (``|Omega| <= sqrt(3) max_angular_velocity``) can exceed
+    the bound, no check runs: at the defaults ``rk4`` and
     ``splitting`` cost nothing extra (``0.05 * sqrt(3) * 10 = 0.87 <= 1``). The guard keeps every
     step stable; it does not make a low-order scheme accurate at fast spin: rk4 inside its
     interval damps a rotation slightly (``|R(i x)| <= 1``); use ``exact`` (or ``splitting``
@@ -268,7 +270,9 @@ class FreeRigidBodyEnv(RigidBodyEnv):
             start_speed, source = 0.1 * spin_rate, "0.1 spin_rate"
         if not start_speed < max_w:
             raise ValueError(
-                f"max_angular_velocity ({max_w!r} rad/s) must exceed the initial angular speed ({source} = {start_speed:.6g} rad/s): lower spin_rate or raise max_angular_velocity"
+                f"max_angular_velocity ({max_w!r} rad/s) must exceed the initial angular speed "
+                f"({source} = {start_speed:.6g} rad/s): lower spin_rate or raise "
+                "max_angular_velocity"
             )
         system = FreeBody(params, attitude=task_obj.needs_attitude)
         self.max_torque = max_torque = require_finite_nonnegative("max_torque", max_torque)
@@ -309,7 +313,8 @@ class FreeRigidBodyEnv(RigidBodyEnv):
         """A spin about the intermediate axis: unstable (the rigid body stability theorem,
         :func:`rbenvs.oracles.free_body.axis_stability`), a perturbation growing at
         :func:`~rbenvs.oracles.free_body.intermediate_axis_growth_rate`; said where that is at
-        least one e-fold over the horizon (not for moments equal to 1e-9, whose rate is ~1e-5 |Pi|)."""
+        least one e-fold over the horizon (not for moments equal to 1e-9, whose rate is ~1e-5
+        |Pi|)."""
         from ..oracles.free_body import axis_stability, intermediate_axis_growth_rate
 
         inertia = system.params.inertia
@@ -319,8 +324,10 @@ class FreeRigidBodyEnv(RigidBodyEnv):
         if not growth * span >= 1.0:
             return None
         return (
-            f"a spin about the intermediate axis (axis {self.axis}) is unstable: a perturbation grows at {growth:.3g} 1/s "
-            f"({growth * span:.3g} e-folds over the tolerance's horizon of {span:g} s) and the motion runs near the separatrix"
+            f"a spin about the intermediate axis (axis {self.axis}) is unstable: a perturbation "
+            f"grows at {growth:.3g} 1/s "
+            f"({growth * span:.3g} e-folds over the tolerance's horizon of {span:g} s) and the "
+            "motion runs near the separatrix"
         )
 
     def _speed_ceiling(self):
@@ -358,7 +365,7 @@ class BodyTorque:
         return _body_torque_form(tuple(int(i) for i in self.axes)), float(self.max_torque)
 
 
-@lru_cache(maxsize=None)
+@cache
 def _body_torque_form(axes: tuple):
     """``control(tau, a)`` for the actuated ``axes``: the action on them, 0.0 elsewhere."""
     items = ["0.0"] * 3
@@ -376,7 +383,8 @@ def _check_axis(axis) -> None:
             raise ValueError(f"axis must be 0, 1, 2 or one of {list(AXIS_NAMES)}, got {axis!r}")
     elif not isinstance(axis, str):
         raise ParameterTypeError(
-            f"axis must be 0, 1, 2 or one of {list(AXIS_NAMES)}, got {axis!r} ({type(axis).__name__})"
+            f"axis must be 0, 1, 2 or one of {list(AXIS_NAMES)}, got {axis!r} "
+            f"({type(axis).__name__})"
         )
     elif axis not in AXIS_NAMES:
         raise ValueError(f"axis must be 0, 1, 2 or one of {list(AXIS_NAMES)}, got {axis!r}")
@@ -390,7 +398,8 @@ def _axis_index(axis, params: FreeBodyParams) -> int:
     if len({i1, i2, i3}) < 3:
         # With a tie "major"/"minor"/"intermediate" can name two axes: demand an index.
         raise ValueError(
-            f"axis={axis!r} is ambiguous for inertia {params.inertia} with equal moments; give an index 0-2"
+            f"axis={axis!r} is ambiguous for inertia {params.inertia} with equal moments; give an "
+            "index 0-2"
         )
     return params.axis_order[AXIS_NAMES.index(axis)]
 

@@ -4,10 +4,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from functools import lru_cache
+from functools import cache
 
 import numpy as np
 
+from ..core.codegen import generate
+from ..core.model import observation_bounds
 from ..dynamics import HeavyTop, HeavyTopParams
 from ..dynamics.validation import (
     require_bool,
@@ -17,10 +19,8 @@ from ..dynamics.validation import (
     require_finite_positive,
     require_range,
 )
-from ..tasks import PrecessTask, UprightTask, slow_precession_rate, transverse_basis
-from ..core.codegen import generate
-from ..core.model import observation_bounds
 from ..jit import jitable
+from ..tasks import PrecessTask, UprightTask, slow_precession_rate, transverse_basis
 from .base import RigidBodyEnv, require_float32_bound
 
 __all__ = ["LagrangeTopEnv", "PivotTorque"]
@@ -38,7 +38,8 @@ class LagrangeTopEnv(RigidBodyEnv):
     is the Lagrange top (``I1 = I2``, centre of mass on the symmetry axis ``chi = e3``); any
     inertia and centre-of-mass direction are allowed. Without torque the upright ("sleeping") top
     is stable only above the critical spin ``2 sqrt(M g l I1) / I3`` (heavy top stability
-    theorem, [MR 15.10.1]); below it, it falls. Euler angles are never integrated (singular upright).
+    theorem, [MR 15.10.1]); below it, it falls. Euler angles are never integrated (singular
+    upright).
 
     ## Action space
     ``Box(-1, 1, (2,) or (3,), float32)``: body torque ``max_torque * (a0 t1 + a1 t2 [+ a2 chi])``
@@ -60,7 +61,8 @@ class LagrangeTopEnv(RigidBodyEnv):
 
     ## Starting state (drawn from the env's seeded generator)
     * spin ``n ~ U(spin)`` about ``chi`` (a number gives a fixed spin);
-    * ``upright``: the vertical tilted from ``chi`` by ``U(0, perturbation)`` rad, ``Omega = n chi``;
+    * ``upright``: the vertical tilted from ``chi`` by ``U(0, perturbation)`` rad, ``Omega = n
+    chi``;
     * ``precess``: tilt ``target_tilt + U(-perturbation, perturbation)`` and the angular velocity
       of the regular precession at the target rate, ``Omega = p* Gamma + (n - p* cos(tilt)) chi``;
     * azimuths (and the heading, with ``attitude=True``) uniform.
@@ -141,8 +143,9 @@ class LagrangeTopEnv(RigidBodyEnv):
     * ``dt=0.02``: control period [s]; ``substeps=1``: integrator steps per control period.
     * ``integrator="splitting"``: ``euler``, ``rk4``, ``splitting`` or ``dop853`` (``exact`` does
       not exist for the heavy top); ``"auto"`` with ``tolerance``: the scheme with an error
-      constant whose steps at the fastest start, times its rhs evaluations, cost least. The default splitting applies the free flow of a Lagrange
-      top exactly (fast spin costs nothing in accuracy) and keeps both Casimirs to round-off;
+      constant whose steps at the fastest start, times its rhs evaluations, cost least. The default
+      splitting applies the free flow of a Lagrange top exactly (fast spin costs nothing in
+      accuracy) and keeps both Casimirs to round-off;
       ``euler``, ``rk4`` and ``dop853`` project ``Gamma`` (and ``q``) back to unit length after
       each step; their energy and ``Pi.Gamma`` drift (``task="precess"`` with zero torque,
       seed 0, one 10 s episode: rk4 1.6e-4 and 2.1e-3 relative, splitting 7e-8 and 1e-15).
@@ -176,7 +179,8 @@ class LagrangeTopEnv(RigidBodyEnv):
       With ``tolerance_check`` the step is not one call (``compiled`` is ``False``): its
       period's runs are compiled instead (the main run's and the companion's).
     * ``param_ranges=None``: domain randomization, ``{keyword: spread or (lo, hi)}`` over
-      ``inertia``, ``mass``, ``length``, ``gravity``, ``spin_friction``, ``max_torque``, drawn at each reset from the env's generator and reported in
+      ``inertia``, ``mass``, ``length``, ``gravity``, ``spin_friction``, ``max_torque``, drawn at
+      each reset from the env's generator and reported in
       ``info["params"]``; each range is checked at construction (every corner of the box must be
       a valid env). ``observation_noise=None``, ``observation_bias=None``: Gaussian standard
       deviations in the observation's units (a number or one per component; the bias is drawn
@@ -186,7 +190,8 @@ class LagrangeTopEnv(RigidBodyEnv):
       docs/environments.md, "Robustness options", and :mod:`rbenvs.envs.options`.
     * ``max_torque=2.0``: N m per torque direction (``>= 0``); ``axial_torque=False``.
     * ``spin_friction=0.0``: N m s, viscous pivot torque ``-k (Omega.chi) chi``.
-    * ``control_cost=0.01`` (its rewards must fit float32); ``max_angular_velocity=100.0`` rad/s (observation bound);
+    * ``control_cost=0.01`` (its rewards must fit float32); ``max_angular_velocity=100.0`` rad/s
+    (observation bound);
       ``attitude=False``: also integrate the attitude quaternion (heading, Euler angles).
 
     Every keyword is checked at construction, whatever the task (one the task ignores, such as
@@ -286,13 +291,15 @@ class LagrangeTopEnv(RigidBodyEnv):
                 raise ValueError("target_rate must be nonzero (or None for the torque-free rate)")
             if not abs(target_rate) < max_w:
                 raise ValueError(
-                    f"target_rate ({target_rate!r} rad/s) must be below max_angular_velocity ({max_w!r} rad/s) in magnitude"
+                    f"target_rate ({target_rate!r} rad/s) must be below max_angular_velocity "
+                    f"({max_w!r} rad/s) in magnitude"
                 )
         self.axial_torque = require_bool("axial_torque", axial_torque)
         attitude = require_bool("attitude", attitude)
         if task == "precess" and not params.is_lagrange:
             raise ValueError(
-                "task='precess' needs a Lagrange top: two equal moments and com_direction along the third axis"
+                "task='precess' needs a Lagrange top: two equal moments and com_direction along the "
+                "third axis"
             )
         low, high = _spin_range(spin, task, params)
         if spin is None:
@@ -305,7 +312,8 @@ class LagrangeTopEnv(RigidBodyEnv):
         else:
             if not (limit < alpha < math.pi - limit):
                 raise ValueError(
-                    f"target_tilt must lie in (tilt_limit, pi - tilt_limit) = ({limit!r}, {math.pi - limit!r}) rad, got {target_tilt!r}"
+                    f"target_tilt must lie in (tilt_limit, pi - tilt_limit) = ({limit!r}, "
+                    f"{math.pi - limit!r}) rad, got {target_tilt!r}"
                 )
             if target_rate is None:
                 _require_real_precession(params, low, high, alpha)
@@ -323,7 +331,8 @@ class LagrangeTopEnv(RigidBodyEnv):
             source += " and the precession rate (target_rate, or the torque-free rate of [T 3.82])"
         if not peak < max_w:
             raise ValueError(
-                f"max_angular_velocity ({max_w!r} rad/s) must exceed the initial angular speed ({peak:.6g} rad/s, from {source}); lower it or raise max_angular_velocity"
+                f"max_angular_velocity ({max_w!r} rad/s) must exceed the initial angular speed "
+                f"({peak:.6g} rad/s, from {source}); lower it or raise max_angular_velocity"
             )
         system = HeavyTop(params, attitude=attitude)
         t1, t2 = transverse_basis(params.com_direction)
@@ -352,11 +361,14 @@ class LagrangeTopEnv(RigidBodyEnv):
         i_chi = sum(i * c * c for i, c in zip(params.inertia, params.com_direction))
         if not params.spin_friction * self.dt <= i_chi:
             raise ValueError(
-                f"spin_friction must be at most I_chi / dt = {i_chi / self.dt:.6g} N m s (the spin's decay time I_chi / spin_friction at "
-                f"least the control period dt = {self.dt!r} s; faster, the spin stops within one step), got {params.spin_friction!r}; "
+                f"spin_friction must be at most I_chi / dt = {i_chi / self.dt:.6g} N m s (the "
+                "spin's decay time I_chi / spin_friction at "
+                f"least the control period dt = {self.dt!r} s; faster, the spin stops within one "
+                f"step), got {params.spin_friction!r}; "
                 "lower spin_friction or dt"
             )
-        # orthonormal torque directions: |tau| <= max_torque sqrt(k), |Delta Omega| <= |tau| dt / I_min
+        # orthonormal torque directions: |tau| <= max_torque sqrt(k), |Delta Omega| <= |tau| dt /
+        # I_min
         change = (
             self.max_torque * math.sqrt(len(self.torque_directions)) * self.dt / min(params.inertia)
         )
@@ -393,8 +405,10 @@ class LagrangeTopEnv(RigidBodyEnv):
         if not growth * span >= 1.0:
             return None
         return (
-            f"the upright top is unstable below its critical spin {crit:.6g} rad/s (I3^2 spin^2 < 4 I1 M g l), "
-            f"and spin reaches {slowest:.6g} rad/s, where a tilt grows at {growth:.3g} 1/s ({growth * span:.3g} e-folds over the "
+            f"the upright top is unstable below its critical spin {crit:.6g} rad/s (I3^2 spin^2 < 4 "
+            "I1 M g l), "
+            f"and spin reaches {slowest:.6g} rad/s, where a tilt grows at {growth:.3g} 1/s "
+            f"({growth * span:.3g} e-folds over the "
             f"tolerance's horizon of {span:g} s)"
         )
 
@@ -442,7 +456,7 @@ class PivotTorque:
         return _pivot_torque_form(len(directions)), (float(self.max_torque), directions)
 
 
-@lru_cache(maxsize=None)
+@cache
 def _pivot_torque_form(k: int):
     """``control((m, d), a)`` for ``k`` directions: ``tau_i = sum_j m a_j d_j[i]``, summed from
     0.0 in the directions' order."""
@@ -469,7 +483,9 @@ def _require_real_precession(params, low, high, alpha):
     n_min = math.sqrt(max(need, 0.0)) / c
     if need > 0.0 and (low * high <= 0.0 or min(abs(low), abs(high)) <= n_min):
         raise ValueError(
-            f"spin must satisfy (I3 spin)^2 > 4 I1 M g l cos(target_tilt) for a torque-free regular precession "
-            f"(|spin| > {n_min:.6g} rad/s at target_tilt={alpha!r}, one sign); got the range ({low!r}, {high!r}). "
+            "spin must satisfy (I3 spin)^2 > 4 I1 M g l cos(target_tilt) for a torque-free regular "
+            "precession "
+            f"(|spin| > {n_min:.6g} rad/s at target_tilt={alpha!r}, one sign); got the range "
+            f"({low!r}, {high!r}). "
             "Raise the spin or give target_rate"
         )

@@ -70,13 +70,15 @@ class ParamRanges:
     def __init__(self, env_class, nominal: dict, spec):
         if not isinstance(spec, dict):
             raise ParameterTypeError(
-                f"param_ranges must be None or a dict {{keyword: spread or (lo, hi)}}, got {spec!r} ({type(spec).__name__})"
+                f"param_ranges must be None or a dict {{keyword: spread or (lo, hi)}}, got {spec!r} "
+                f"({type(spec).__name__})"
             )
         allowed = env_class.randomizable
         unknown = [k for k in spec if k not in allowed]
         if unknown:
             raise ValueError(
-                f"param_ranges keys must be among {list(allowed)} (the physical keywords of {env_class.__name__}), got {unknown}"
+                f"param_ranges keys must be among {list(allowed)} (the physical keywords of "
+                f"{env_class.__name__}), got {unknown}"
             )
         if not spec:
             raise ValueError("param_ranges must name at least one keyword (or be None)")
@@ -150,7 +152,8 @@ def _bounds(label: str, spec, v: tuple, vector: bool) -> tuple:
         s = float(spec)
         if not (math.isfinite(s) and 0.0 <= s < 1.0):
             raise ValueError(
-                f"{label}: a relative spread must lie in [0, 1) (values in value * [1 - s, 1 + s]), got {spec!r}"
+                f"{label}: a relative spread must lie in [0, 1) (values in value * [1 - s, 1 + s]), "
+                f"got {spec!r}"
             )
         lo = tuple(c * (1.0 - s) for c in v)
         hi = tuple(c * (1.0 + s) for c in v)
@@ -162,7 +165,8 @@ def _bounds(label: str, spec, v: tuple, vector: bool) -> tuple:
     ):
         shape = f"two vectors of {len(v)} numbers" if vector else "two numbers"
         raise ParameterTypeError(
-            f"{label} must be a relative spread in [0, 1) or a range (lo, hi) of {shape}, got {spec!r}"
+            f"{label} must be a relative spread in [0, 1) or a range (lo, hi) of {shape}, got "
+            f"{spec!r}"
         )
     out = []
     for end, x in zip(("lo", "hi"), spec):
@@ -199,23 +203,28 @@ def _std(name: str, value, high) -> np.ndarray | None:
             s = real_array(name, value)
             if s.shape != (size,):
                 raise ValueError(
-                    f"{name} must be a number or {size} numbers (one per observation component), got shape {s.shape}"
+                    f"{name} must be a number or {size} numbers (one per observation component), "
+                    f"got shape {s.shape}"
                 )
         if not (np.all(np.isfinite(s)) and np.all(s >= 0.0)):
             raise ValueError(
-                f"{name} must be finite and >= 0 in every component (a standard deviation in the observation's units), got {value!r}"
+                f"{name} must be finite and >= 0 in every component (a standard deviation in the "
+                f"observation's units), got {value!r}"
             )
         if not np.all(s <= high):
             j = int(np.flatnonzero(~(s <= high))[0])
             raise ValueError(
-                f"{name} must be at most the observation's bound in every component (a standard deviation in its units; a wider "
-                f"one leaves nothing of the observation, clipped to its bounds), got {s[j]!r} for component {j} whose bound is {high[j]:.6g}"
+                f"{name} must be at most the observation's bound in every component (a standard "
+                "deviation in its units; a wider "
+                f"one leaves nothing of the observation, clipped to its bounds), got {s[j]!r} for "
+                f"component {j} whose bound is {high[j]:.6g}"
             )
         s = s.astype(np.float64)
         s.flags.writeable = False
         return s
     raise ParameterTypeError(
-        f"{name} must be None, a number or {size} numbers (standard deviations), got {value!r} ({type(value).__name__})"
+        f"{name} must be None, a number or {size} numbers (standard deviations), got {value!r} "
+        f"({type(value).__name__})"
     )
 
 
@@ -231,10 +240,12 @@ class Realism:
         ):
             if isinstance(action_delay, numbers.Real):
                 raise ValueError(
-                    f"action_delay must be an integer in [0, {MAX_ACTION_DELAY}] (control periods), got {action_delay!r}"
+                    f"action_delay must be an integer in [0, {MAX_ACTION_DELAY}] (control periods), "
+                    f"got {action_delay!r}"
                 )
             raise ParameterTypeError(
-                f"action_delay must be an integer in [0, {MAX_ACTION_DELAY}] (control periods), got {action_delay!r} ({type(action_delay).__name__})"
+                f"action_delay must be an integer in [0, {MAX_ACTION_DELAY}] (control periods), got "
+                f"{action_delay!r} ({type(action_delay).__name__})"
             )
         self.delay = require_int_in(
             "action_delay", action_delay, 0, MAX_ACTION_DELAY, " (control periods)"

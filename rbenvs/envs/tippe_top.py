@@ -4,10 +4,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from functools import lru_cache
+from functools import cache
 
 import numpy as np
 
+from ..core.codegen import generate
+from ..core.model import observation_bounds
 from ..dynamics import TippeTop, TippeTopParams
 from ..dynamics.tippe_top import FIDELITIES, FRICTION_BOUNDS
 from ..dynamics.validation import (
@@ -16,11 +18,9 @@ from ..dynamics.validation import (
     require_finite_nonnegative,
     require_range,
 )
+from ..jit import jitable
 from ..tasks import HoldTask, InvertTask
 from ..tasks.tippe_top import STARTS
-from ..core.codegen import generate
-from ..core.model import observation_bounds
-from ..jit import jitable
 from .base import RigidBodyEnv, require_float32_bound
 
 __all__ = ["TippeTopEnv", "TableActuator"]
@@ -125,9 +125,10 @@ class TippeTopEnv(RigidBodyEnv):
     field's stiffest decay rate near zero slip): for rk4 ``h_f = min(1.25 / lambda_d, 1.25 /
     (K sqrt(lambda_d w)))``, ``w = max(|Omega|, omega_g)``, ``K`` the law's ``accuracy_scale``
     (Coulomb 19, viscous 10.4; :mod:`rbenvs.dynamics.contact`): about 0.9 of the stability
-    bound's steps for the default top, the time to 90 degrees within 1e-4 s of the converged value and Jellett's drift
-    at most 3e-9 per simulated second on every top of a sweep across the inversion band
-    (tests/test_tippe_stiff.py; ``python -m rbenvs.bench.tippe_steps``). ``n`` is set from the state at the start of each period;
+    bound's steps for the default top, the time to 90 degrees within 1e-4 s of the converged value
+    and Jellett's drift at most 3e-9 per simulated second on every top of a sweep across the
+    inversion band (tests/test_tippe_stiff.py; ``python -m rbenvs.bench.tippe_steps``). ``n`` is set
+    from the state at the start of each period;
     ``info["internal_step"]`` reports ``dt / n``. ``guard="refuse"`` raises ``ValueError`` from
     ``step`` (naming ``substeps`` and the ``n`` needed) when ``n > substeps``, leaving the state
     unchanged; ``guard="off"`` always takes ``substeps`` steps (an explicit scheme may then
@@ -138,7 +139,8 @@ class TippeTopEnv(RigidBodyEnv):
     * ``radius=0.015`` m, ``mass=0.006`` kg, ``offset=0.2`` (``alpha``), ``inertia=(8e-7, 7e-7)``
       (``A, C`` about the centre of mass, kg m^2), ``gravity=9.81``: the Leine-Glocker top.
     * ``friction=0.3``, ``friction_law="coulomb"`` or ``"viscous"``,
-      ``slip_regularization=1e-3`` m/s (below ``max_speed``), ``fidelity="gliding"``, ``"frictionless"`` or ``"rolling"``.
+      ``slip_regularization=1e-3`` m/s (below ``max_speed``), ``fidelity="gliding"``,
+      ``"frictionless"`` or ``"rolling"``.
     * ``free_flight=False``: model hops (gliding or frictionless) instead of ending the episode
       at lift-off; about 1.15x the gliding level's cost per step on the table (the contact
       flag is carried and the switch tested at every internal step; ``rbenvs bench fidelity``).
@@ -160,7 +162,8 @@ class TippeTopEnv(RigidBodyEnv):
       stays above 0.55 m g and passes 90 degrees at 2.71 s (tests/test_tippe_starts.py).
     * ``start=None``: how the top was spun, ``"rest"``, ``"rolling"`` or ``"vertical"``
       (``None``: ``"rest"``, or ``"rolling"`` with ``fidelity="rolling"``; Starting state).
-    * ``dt=0.01`` s, ``substeps=1`` (a minimum), ``integrator="rk4"`` (``euler``, ``rk4``, ``dop853``;
+    * ``dt=0.01`` s, ``substeps=1`` (a minimum), ``integrator="rk4"`` (``euler``, ``rk4``,
+    ``dop853``;
       ``"auto"`` with ``tolerance``: the cheapest scheme a tolerance takes, ``rk4`` today).
     * ``guard="subdivide"``: ``"subdivide"``, ``"refuse"`` or ``"off"`` (Internal step).
     * ``tolerance="default"``: the relative error allowed over ``tolerance_horizon`` control
@@ -168,13 +171,15 @@ class TippeTopEnv(RigidBodyEnv):
       ``error_constant`` with their leading error in the phase (``rk4``; ``euler`` errs in the
       amplitude and is refused with a tolerance). ``"default"``: the tippe top has no default
       accuracy yet (``default_tolerance = None``): like ``None``, unchecked (the stability and
-      friction bounds' steps), ``info["error_estimate"]`` ``None``. The rule, the refusals and the estimate:
+      friction bounds' steps), ``info["error_estimate"]`` ``None``. The rule, the refusals and the
+      estimate:
       :mod:`rbenvs.stepsize.controller` and docs/integrators.md ("Accuracy: tolerance=").
     * ``tolerance_horizon=None``: control periods the tolerance covers (an integer >= 1;
       ``None``: the registered ``max_episode_steps``, one episode; a ``max_episode_steps``
       given to ``gymnasium.make`` is not seen by the env: pass ``tolerance_horizon`` with it);
       refused with ``tolerance=None``.
-    * ``friction_bound="accuracy"``: or ``"stability"``, what sizes the step under friction (Internal step).
+    * ``friction_bound="accuracy"``: or ``"stability"``, what sizes the step under friction
+    (Internal step).
     * ``tolerance_check=False``: with ``tolerance``, ``True`` estimates the episode's global error
       with a companion run (the same periods at twice the step: about half the steps again;
       :mod:`rbenvs.stepsize.controller`), reports it as ``info["global_error_estimate"]`` and ends
@@ -189,7 +194,9 @@ class TippeTopEnv(RigidBodyEnv):
       With ``tolerance_check`` the step is not one call (``compiled`` is ``False``): its
       period's runs are compiled instead (the main run's and the companion's).
     * ``param_ranges=None``: domain randomization, ``{keyword: spread or (lo, hi)}`` over
-      ``radius``, ``mass``, ``offset``, ``inertia``, ``gravity``, ``friction``, ``max_table_acceleration``, ``max_torque``, drawn at each reset from the env's generator and reported in
+      ``radius``, ``mass``, ``offset``, ``inertia``, ``gravity``, ``friction``,
+      ``max_table_acceleration``, ``max_torque``, drawn at each reset from the env's generator and
+      reported in
       ``info["params"]``; each range is checked at construction (every corner of the box must be
       a valid env). ``observation_noise=None``, ``observation_bias=None``: Gaussian standard
       deviations in the observation's units (a number or one per component; the bias is drawn
@@ -197,7 +204,8 @@ class TippeTopEnv(RigidBodyEnv):
       ``info`` stay noiseless (``env.unwrapped.noiseless_observation``). ``action_delay=0``: an
       action first acts ``action_delay`` control periods later (zero actions before). See
       docs/environments.md, "Robustness options", and :mod:`rbenvs.envs.options`.
-    * ``max_table_acceleration=2.0`` m/s^2; ``friction_action=False``, ``friction_range=(0.0, 0.6)``;
+    * ``max_table_acceleration=2.0`` m/s^2; ``friction_action=False``, ``friction_range=(0.0,
+    0.6)``;
       ``torque_action=False``, ``max_torque=1e-4`` N m; ``control_cost=0.01``.
     * ``max_angular_velocity=None`` (``2 max|spin| + 50``) rad/s, ``max_speed=5.0`` m/s.
 
@@ -286,7 +294,8 @@ class TippeTopEnv(RigidBodyEnv):
         action_delay: int = 0,
         stem=None,
     ):
-        # every keyword is checked, whatever the task and options (an unused one must still be valid)
+        # every keyword is checked, whatever the task and options (an unused one must still be
+        # valid)
         task = require_choice("task", task, self.tasks)
         fidelity = require_choice("fidelity", fidelity, FIDELITIES)
         params = TippeTopParams(
@@ -307,7 +316,8 @@ class TippeTopEnv(RigidBodyEnv):
         start = require_choice("start", start, STARTS)
         if start != "rolling" and fidelity == "rolling":
             raise ValueError(
-                f"start={start!r} needs fidelity 'gliding' or 'frictionless': a rolling top's contact point never slips, so it starts rolling (start='rolling')"
+                f"start={start!r} needs fidelity 'gliding' or 'frictionless': a rolling top's "
+                "contact point never slips, so it starts rolling (start='rolling')"
             )
         if tilt_lo < 0.0 or tilt_hi >= math.pi / 2:
             raise ValueError(
@@ -327,39 +337,48 @@ class TippeTopEnv(RigidBodyEnv):
         self.free_flight = require_bool("free_flight", free_flight)
         if self.free_flight and fidelity == "rolling":
             raise ValueError(
-                "free_flight needs fidelity 'gliding' or 'frictionless' (a rolling top has no slip to resume after a touchdown)"
+                "free_flight needs fidelity 'gliding' or 'frictionless' (a rolling top has no slip "
+                "to resume after a touchdown)"
             )
         if stem is not None and (self.free_flight or fidelity == "rolling"):
             raise ValueError(
-                "stem needs fidelity 'gliding' or 'frictionless' and free_flight=False (a touchdown from flight could meet "
-                "both contacts at once, which needs a two-contact impact law; a rolling top has no slip to resume)"
+                "stem needs fidelity 'gliding' or 'frictionless' and free_flight=False (a touchdown "
+                "from flight could meet "
+                "both contacts at once, which needs a two-contact impact law; a rolling top has no "
+                "slip to resume)"
             )
         if self.friction_action and fidelity != "gliding":
             raise ValueError(
-                f"friction_action needs fidelity='gliding' (there is no friction coefficient to set when {fidelity!r})"
+                "friction_action needs fidelity='gliding' (there is no friction coefficient to set "
+                f"when {fidelity!r})"
             )
         peak = max(abs(spin_lo), abs(spin_hi))
         if max_angular_velocity is None:
             max_w = 2.0 * peak + 50.0
             if not max_w <= float(np.finfo(np.float32).max):
                 raise ValueError(
-                    f"spin ({spin!r} rad/s) is too large for float32 observations (max_angular_velocity=None takes 2 max|spin| + 50 = {max_w:.6g} rad/s)"
+                    f"spin ({spin!r} rad/s) is too large for float32 observations "
+                    f"(max_angular_velocity=None takes 2 max|spin| + 50 = {max_w:.6g} rad/s)"
                 )
         else:
             max_w = require_float32_bound("max_angular_velocity", max_angular_velocity)
         if not peak < max_w:
             raise ValueError(
-                f"max_angular_velocity ({max_w!r} rad/s) must exceed the initial spin (spin = {peak!r} rad/s); lower spin or raise max_angular_velocity"
+                f"max_angular_velocity ({max_w!r} rad/s) must exceed the initial spin (spin = "
+                f"{peak!r} rad/s); lower spin or raise max_angular_velocity"
             )
         max_v = require_float32_bound("max_speed", max_speed)
         if not params.slip_regularization < max_v:
             raise ValueError(
-                f"slip_regularization must be below max_speed = {max_v!r} m/s, got {slip_regularization!r}: above every slip speed the env "
-                "allows, the friction law weakens to a viscous one of vanishing rate (friction off in all but name)"
+                f"slip_regularization must be below max_speed = {max_v!r} m/s, got "
+                f"{slip_regularization!r}: above every slip speed the env "
+                "allows, the friction law weakens to a viscous one of vanishing rate (friction off "
+                "in all but name)"
             )
         if not params.radius * peak < max_v:
             raise ValueError(
-                f"max_speed must exceed the initial speed of the centre of mass (radius * spin = {params.radius * peak!r} m/s), got {max_speed!r}"
+                "max_speed must exceed the initial speed of the centre of mass (radius * spin = "
+                f"{params.radius * peak!r} m/s), got {max_speed!r}"
             )
         task_cls = InvertTask if task == "invert" else HoldTask
         task_obj = task_cls(spin_lo, spin_hi, tilt_lo, tilt_hi, control_cost, start=start)
@@ -398,7 +417,9 @@ class TippeTopEnv(RigidBodyEnv):
             max_v,
             "velocity of the centre of mass [m/s]",
         )
-        if self.torque_action:  # (without the torque action max_torque acts on nothing: validated above, no veto on the body)
+        # (without the torque action max_torque acts on nothing: validated above, no veto on the
+        # body)
+        if self.torque_action:
             change = self.max_torque * math.sqrt(3.0) * self.dt / min(params.inertia)
             self._require_authority(
                 "max_torque", change, "max_angular_velocity", max_w, "angular velocity [rad/s]"
@@ -413,7 +434,8 @@ class TippeTopEnv(RigidBodyEnv):
 
     def _unstable_motion(self, system, task, span):
         """A top with friction spun above the inversion threshold: its upright start is left and
-        the top inverts (the inversion criterion, :func:`rbenvs.oracles.tippe_top.inversion_spin_threshold`)."""
+        the top inverts (the inversion criterion,
+        :func:`rbenvs.oracles.tippe_top.inversion_spin_threshold`)."""
         from ..oracles.tippe_top import inversion_spin_threshold
 
         p = system.params
@@ -429,9 +451,12 @@ class TippeTopEnv(RigidBodyEnv):
         if not fastest > threshold:
             return None
         return (
-            f"the top inverts (the inversion criterion: spin above {threshold:.6g} rad/s, and spin reaches {fastest:.6g} rad/s), "
-            "and its rise amplifies errors (a slip leaving the friction band grows with its error; held at the slip's own "
-            "scale where the law saturates, which keeps the scenes' top inverting from rest at 150 rad/s within the tolerance, "
+            f"the top inverts (the inversion criterion: spin above {threshold:.6g} rad/s, and spin "
+            f"reaches {fastest:.6g} rad/s), "
+            "and its rise amplifies errors (a slip leaving the friction band grows with its error; "
+            "held at the slip's own "
+            "scale where the law saturates, which keeps the scenes' top inverting from rest at 150 "
+            "rad/s within the tolerance, "
             "not the one hopping at 180 rad/s)"
         )
 
@@ -486,7 +511,7 @@ class TableActuator:
         return form, (float(self.max_table_acceleration), float(self.friction), lo, hi, torque)
 
 
-@lru_cache(maxsize=None)
+@cache
 def _table_form(sets_friction: bool, torque: bool):
     """``control(P, a)``: the table's acceleration from ``a[0:2]``, the friction coefficient
     affine in the next entry (``sets_friction``; else the fixed one), the body torque from the

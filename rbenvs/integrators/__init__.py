@@ -21,9 +21,9 @@ from __future__ import annotations
 from ..dynamics.validation import did_you_mean
 from .base import Integrator
 from .exact import Exact
-from .runge_kutta import RK4, ButcherTableau, Euler, ExplicitRungeKutta
 from .reference import Dop853
 from .rosenbrock import Ros2
+from .runge_kutta import RK4, ButcherTableau, Euler, ExplicitRungeKutta
 from .splitting import Splitting
 
 __all__ = [
@@ -56,6 +56,7 @@ def get_integrator(name: str | Integrator, **options) -> Integrator:
         cls = INTEGRATORS[name]
     except (KeyError, TypeError):
         raise ValueError(
-            f"integrator must be one of {sorted(INTEGRATORS)}, got {name!r}{did_you_mean(name, INTEGRATORS)}"
+            f"integrator must be one of {sorted(INTEGRATORS)}, got "
+            f"{name!r}{did_you_mean(name, INTEGRATORS)}"
         ) from None
     return cls(**options)

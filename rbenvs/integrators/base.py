@@ -42,10 +42,11 @@ class Integrator:
         region: where its step can be trusted (:class:`~rbenvs.contracts.StepRegion`): what the
             step guard reads. A scheme without one cannot be guarded: the envs refuse it.
         error_constant: ``C`` of its global error ``C lambda T (lambda h)^order`` on a rotation
-            at rate ``lambda`` (measured by :func:`rbenvs.integrators.error.measure_error_constant`):
-            what ``tolerance=`` turns into a step count. ``None``: no such constant (exact
-            sub-flows, whose error comes from the system's commutators rather than one rate;
-            adaptive schemes, which control their own): ``tolerance=`` is refused.
+            at rate ``lambda`` (measured by
+            :func:`rbenvs.integrators.error.measure_error_constant`): what ``tolerance=`` turns into
+            a step count. ``None``: no such constant (exact sub-flows, whose error comes from the
+            system's commutators rather than one rate; adaptive schemes, which control their own):
+            ``tolerance=`` is refused.
     """
 
     # Class-level constants, not dataclass fields: a field's default would be stamped onto

@@ -1,7 +1,8 @@
 """The error constant of a scheme, measured: what ``tolerance=`` turns into a step count.
 
 A scheme of order ``p`` with step ``h`` on the rotation ``dy/dt = i lambda y`` (the mode of the
-dynamics whose rate the step guard bounds, :mod:`rbenvs.stepsize.controller`) commits a local error of
+dynamics whose rate the step guard bounds, :mod:`rbenvs.stepsize.controller`) commits a local error
+of
 ``C (lambda h)^(p+1) |y|`` per step to leading order; rotations neither amplify nor damp an
 error to leading order, so after a time ``T`` the error is the sum of the local ones:
 

@@ -18,11 +18,11 @@ holds its coefficients in the form without ``J`` products (:func:`transformed`).
 
 Here ``J`` is the friction's linearisation alone (:func:`rbenvs.dynamics.tippe_top.implicit_forms`:
 the slip's relaxation, ``B N D C``, with the normal force and the geometry frozen at the step's
-start; the slip's change through the attitude included), so the scheme is implicit exactly where the tippe top is stiff (regularised Coulomb
-friction near zero slip relaxes the slip at ``mu N |M| / eps``, about 6000/s for the default top)
-and explicit elsewhere: with ``J = 0`` ROS2 is Heun's method (explicit trapezoidal rule). ``W^-1``
-is a 3x3 solve (Woodbury), made once per step. Two (ROS2) or four (ROS34PW2) vector-field
-evaluations per step.
+start; the slip's change through the attitude included), so the scheme is implicit exactly where the
+tippe top is stiff (regularised Coulomb friction near zero slip relaxes the slip at ``mu N |M| /
+eps``, about 6000/s for the default top) and explicit elsewhere: with ``J = 0`` ROS2 is Heun's
+method (explicit trapezoidal rule). ``W^-1`` is a 3x3 solve (Woodbury), made once per step. Two
+(ROS2) or four (ROS34PW2) vector-field evaluations per step.
 
 Measured (``python -m rbenvs.bench.tippe_steps``, docs/accuracy.md "Stiff friction"): near
 zero slip neither is more accurate than rk4 at the counts where it would pay, so neither is
@@ -39,7 +39,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from functools import lru_cache
+from functools import cache
 from typing import ClassVar
 
 import numpy as np
@@ -106,10 +106,11 @@ def _body(scheme, dim: int) -> list[str]:
             lines.append(f"{names(f'v{i}')} = solve(PI, w, f(P, {stage}, u))")
             continue
         lines.append(f"{names(f'f{i}')} = f(P, {stage}, u)")
+        # (a stage's component names: called in this iteration only)
         head = (
-            (lambda k: f"f{i}_{k}")
+            (lambda k: f"f{i}_{k}")  # noqa: B023
             if scheme.scale == 1.0
-            else (lambda k: f"{float(scheme.scale)!r} * f{i}_{k}")
+            else (lambda k: f"{float(scheme.scale)!r} * f{i}_{k}")  # noqa: B023
         )
         rhs = _tup(
             [head(k) + "".join(f" + {c!r} * {n}_{k}" for c, n in d_terms) for k in range(dim)]
@@ -140,9 +141,8 @@ def _generated(scheme: type, dim: int) -> dict:
             + "\n    return step\n"
         )
         src += (
-            "def pure(f, factor, solve, normalize):\n    def step(PS, y, u, h):\n        P, PI, N = PS\n"
-            + inner
-            + "\n    return step\n"
+            "def pure(f, factor, solve, normalize):\n    def step(PS, y, u, h):\n        P, PI, N = "
+            "PS\n" + inner + "\n    return step\n"
         )
         ns = _GENERATED[key] = generate(src, f"{scheme.name} dim={dim}")
     return ns
@@ -151,7 +151,7 @@ def _generated(scheme: type, dim: int) -> dict:
 _GENERATED: dict = {}
 
 
-@lru_cache(maxsize=None)
+@cache
 def _pure_step(scheme: type, dim: int, f, factor, solve, normalize):
     """The pure step ``step((P, PI, N), y, u, h)``; one function per combination (compiled
     kernels key on it)."""

@@ -37,7 +37,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from fractions import Fraction
-from functools import lru_cache
+from functools import cache
 from typing import ClassVar
 
 from ..core.codegen import generate
@@ -69,16 +69,19 @@ class ButcherTableau:
         s = len(b)
         if s == 0 or len(c) != s or len(a) != s:
             raise ValueError(
-                f"a Butcher tableau needs s rows of a, s weights b and s nodes c; got {len(a)}, {len(b)}, {len(c)}"
+                f"a Butcher tableau needs s rows of a, s weights b and s nodes c; got {len(a)}, "
+                f"{len(b)}, {len(c)}"
             )
         for i, row in enumerate(a):
             if len(row) != i:
                 raise ValueError(
-                    f"an explicit scheme's a is strictly lower triangular: row {i} must have {i} entries, got {len(row)}"
+                    f"an explicit scheme's a is strictly lower triangular: row {i} must have {i} "
+                    f"entries, got {len(row)}"
                 )
             if sum(row, Fraction(0)) != c[i]:
                 raise ValueError(
-                    f"row {i} of a must sum to its node c[{i}] = {c[i]}, got {sum(row, Fraction(0))}"
+                    f"row {i} of a must sum to its node c[{i}] = {c[i]}, got "
+                    f"{sum(row, Fraction(0))}"
                 )
         if sum(b, Fraction(0)) != 1:
             raise ValueError(
@@ -144,9 +147,7 @@ def _body(
             inputs = [f"y{i} + {hs} * k{j}_{i}" for i in range(dim)]
         else:
             inputs = [
-                "y{i} + h * (".format(i=i)
-                + " + ".join(f"{_literal(a)} * k{j}_{i}" for j, a in terms)
-                + ")"
+                f"y{i} + h * (" + " + ".join(f"{_literal(a)} * k{j}_{i}" for j, a in terms) + ")"
                 for i in range(dim)
             ]
         lines.append(f"{names(s)} = {call}{tup(inputs)}, u)")
@@ -238,10 +239,8 @@ def _generate(tableau: ButcherTableau, label: str, dim: int, project: bool, para
             # a kernel that needs f at the new state anyway, for an event, passes it on)
             first = inner.replace(f"= {call}y, u)", "= k0", 1)
             src += (
-                f"def pure_first{suffix}({pure_args}):\n    def step({pure_params}, y, {c_arg}k0, u, h):\n"
-                + unpack
-                + first
-                + "\n    return step\n"
+                f"def pure_first{suffix}({pure_args}):\n    def step({pure_params}, y, {c_arg}k0, "
+                "u, h):\n" + unpack + first + "\n    return step\n"
             )
         else:
             src += (
@@ -258,7 +257,7 @@ def _generate(tableau: ButcherTableau, label: str, dim: int, project: bool, para
     return generate(src, f"{label} dim={dim}{flavour}")
 
 
-@lru_cache(maxsize=None)
+@cache
 def _pure_step(scheme: type, dim: int, f, normalize, compensated: bool = False):
     """The pure step ``step(PS, y, u, h)`` of ``scheme`` for the pure vector field ``f`` (and the
     pure projection ``normalize``, or ``None``); one function per combination, as compiled
@@ -268,7 +267,7 @@ def _pure_step(scheme: type, dim: int, f, normalize, compensated: bool = False):
     return ns[name](f) if normalize is None else ns[name](f, normalize)
 
 
-@lru_cache(maxsize=None)
+@cache
 def _pure_first_step(scheme: type, dim: int, f, normalize, compensated: bool = False):
     """:func:`_pure_step` with the first stage given: ``step(PS, y, k0, u, h)`` (compensated:
     ``step(PS, y, c, k0, u, h) -> (y, c)``)."""
@@ -349,7 +348,8 @@ class Euler(ExplicitRungeKutta):
         dissipation=2.0,
         reason="accuracy bounds: no stability interval on the imaginary axis; real-axis interval 2",
     )
-    # measured (rbenvs.integrators.error): 0.50013, rounded up (theory 1/2: the amplitude grows by z^2 / 2 a step)
+    # measured (rbenvs.integrators.error): 0.50013, rounded up (theory 1/2: the amplitude grows by
+    # z^2 / 2 a step)
     error_constant = 0.501
 
 
@@ -372,13 +372,14 @@ class RK4(ExplicitRungeKutta):
         dissipation=2.78,
         reason="imaginary-axis interval 2.83 (1.0 kept: 0.6 % amplitude error a step), real-axis interval 2.78",
     )
-    # measured (rbenvs.integrators.error): 0.0083333, rounded up (theory 1/120: the phase lags by z^5 / 120 a step)
+    # measured (rbenvs.integrators.error): 0.0083333, rounded up (theory 1/120: the phase lags by
+    # z^5 / 120 a step)
     error_constant = 0.00834
     # |R(i z)| = 1 - z^6 / 144 + ...: the amplitude's error is an order above the phase's
     error_in_phase = True
     # following a stiff mode ds/dt = -lambda (s - phi) driven at frequency w (phi ~ exp(i w t)),
-    # rk4's periodic solution errs by c(lambda h) (lambda h)^2 (w h)^2 of phi, c rising with lambda h
-    # to 0.02022 at lambda h = 1.39 (half the real-axis interval, the largest a friction guard
+    # rk4's periodic solution errs by c(lambda h) (lambda h)^2 (w h)^2 of phi, c rising with lambda
+    # h to 0.02022 at lambda h = 1.39 (half the real-axis interval, the largest a friction guard
     # allows); computed from the stage equations in tests/test_tolerance.py. tolerance= counts a
     # driven stiff mode's error with it (GuardRates.dissipation_share: the tippe top's slip).
     forced_error_constant = 0.0203

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import lru_cache
+from functools import cache
 
 from ..core.codegen import generate
 from .base import Integrator, StepRegion
@@ -21,7 +21,7 @@ def _order(n: int) -> list[tuple[int, str]]:
     )
 
 
-@lru_cache(maxsize=None)
+@cache
 def _composition(n: int) -> dict:
     """The generated composition of ``n`` pure flows ``f_i(P_i, y, u, h)``: ``make(f.., P..)``
     gives the step with the parameters bound (the single env), ``pure(f..)`` the step
@@ -35,7 +35,7 @@ def _composition(n: int) -> dict:
     return generate(src, f"splitting of {n} flows")
 
 
-@lru_cache(maxsize=None)
+@cache
 def _pure_step(fns: tuple):
     return _composition(len(fns))["pure"](*fns)
 

@@ -8,13 +8,12 @@ from . import free_body, heavy_top, tippe_top
 from .free_body import (
     axis_stability,
     exact_solution,
-    taylor_solution,
     intermediate_axis_growth_rate,
     linearization,
     linearization_eigenvalues,
     orbit_period,
+    taylor_solution,
 )
-
 from .heavy_top import (
     critical_spin,
     fast_top_nutation,

@@ -45,7 +45,8 @@ def exact_solution(inertia, pi0, t):
     Args:
         inertia: principal moments ``(I1, I2, I3)`` (any order; equal moments allowed).
         pi0: ``(3, ...)`` initial ``Pi``; trailing axes are a batch.
-        t: times [s], broadcast against the batch (e.g. shape ``(..., nt)`` with ``pi0[..., None]``).
+        t: times [s], broadcast against the batch (e.g. shape ``(..., nt)`` with ``pi0[...,
+        None]``).
 
     Returns:
         ``(3, ...)`` array. Both orbit families, the symmetric case (``m = 0``), the separatrix
@@ -137,12 +138,14 @@ def axis_stability(inertia) -> tuple[str, str, str]:
 
 def intermediate_axis_growth_rate(inertia, p: float) -> float:
     """Growth rate [1/s] of a perturbation of the spin ``Pi = p e_mid`` about the middle axis:
-    ``lambda = (|p| / I2) sqrt((I1 - I2)(I2 - I3) / (I1 I3))`` with ``I1 > I2 > I3`` (docs/physics.md §1).
-    Raises ``ValueError`` when the moments are not distinct (no intermediate axis)."""
+    ``lambda = (|p| / I2) sqrt((I1 - I2)(I2 - I3) / (I1 I3))`` with ``I1 > I2 > I3``
+    (docs/physics.md §1). Raises ``ValueError`` when the moments are not distinct (no intermediate
+    axis)."""
     ii = sorted(_params(inertia).inertia, reverse=True)
     i1, i2, i3 = ii
     if not (i1 > i2 > i3):
         raise ValueError(
-            f"inertia must have three distinct moments for an intermediate axis, got {tuple(inertia)}"
+            "inertia must have three distinct moments for an intermediate axis, got "
+            f"{tuple(inertia)}"
         )
     return abs(p) / i2 * float(np.sqrt((i1 - i2) * (i2 - i3) / (i1 * i3)))

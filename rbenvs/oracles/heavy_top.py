@@ -84,8 +84,8 @@ def critical_spin(I1, I3, mass, length, gravity) -> float:
 def upright_eigenvalues(I1, I3, mass, length, gravity, spin) -> np.ndarray:
     """Eigenvalues of the heavy top linearized about the upright spinning state.
 
-    System [MR 15.10.1-2]: ``dPi/dt = Pi x Omega + M g l Gamma x chi``, ``dGamma/dt = Gamma x Omega``
-    with ``I = diag(I1, I1, I3)`` about the pivot and ``chi = e3``; equilibrium
+    System [MR 15.10.1-2]: ``dPi/dt = Pi x Omega + M g l Gamma x chi``, ``dGamma/dt = Gamma x
+    Omega`` with ``I = diag(I1, I1, I3)`` about the pivot and ``chi = e3``; equilibrium
     ``Gamma = e3``, ``Pi = (0, 0, I3 spin)``. On the 4-dimensional tangent space to the coadjoint
     orbit ([MR 15.10.14]; the linearized flow leaves ``dPi3`` and ``dGamma3`` fixed, so the full 6x6
     Jacobian has these four eigenvalues plus two zeros) the characteristic polynomial is
@@ -124,7 +124,8 @@ def upright_eigenvalues(I1, I3, mass, length, gravity, spin) -> np.ndarray:
 def _quadratic_roots(b: complex, c: complex, disc: complex) -> tuple[complex, complex]:
     """Roots of ``x^2 + b x + c`` given its discriminant ``b^2 - 4c``, without cancellation."""
     s = np.sqrt(disc)
-    # pick the sign that adds |b| and |s| (citardauq form); q = 0 only when b = disc = 0 (then c = 0)
+    # pick the sign that adds |b| and |s| (citardauq form); q = 0 only when b = disc = 0 (then c =
+    # 0)
     if (b.conjugate() * s).real < 0.0:
         s = -s
     q = -0.5 * (b + s)
@@ -187,7 +188,8 @@ def regular_precession_rates(A, C, mass, length, gravity, spin, tilt) -> Regular
     if abs(cos_a) <= _COS_ZERO:
         if K == 0.0:
             raise ValueError(
-                "spin must be nonzero for a regular precession of a horizontal top (tilt = pi/2), got 0"
+                "spin must be nonzero for a regular precession of a horizontal top (tilt = pi/2), "
+                "got 0"
             )
         return RegularPrecession(mgh / K, math.nan)
     disc = K * K - 4.0 * A * mgh * cos_a

@@ -163,7 +163,8 @@ def energy_star(theta, J, m, g, R, alpha, A, C):
     """Least energy [J] at tilt ``theta`` [rad] and Jellett integral ``J`` [kg m^3/s]:
 
     ``E*(theta) = J^2/(2 R^2 D(theta)) + m g R (1 - alpha cos(theta))``,
-    ``D = A sin^2(theta) + C (alpha - cos(theta))^2`` (docs/physics.md §3; see the module docstring).
+    ``D = A sin^2(theta) + C (alpha - cos(theta))^2`` (docs/physics.md §3; see the module
+    docstring).
 
     ``theta`` and ``J`` broadcast (any shapes); a float comes back for scalar inputs. Energy zero:
     the centre of mass at the table (potential ``m g (R - h cos(theta))``).
@@ -287,7 +288,8 @@ def inversion_spin_threshold(A, C, alpha, m, g, R) -> float:
     crit = inversion_criterion(A, C, alpha, m=m, g=g, R=R)
     if crit.J_min is None:
         raise ValueError(
-            f"A must satisfy 1 - alpha < A/C < 1 + alpha for a full inversion, got A/C = {crit.gamma!r} with alpha = {alpha!r}"
+            "A must satisfy 1 - alpha < A/C < 1 + alpha for a full inversion, got A/C = "
+            f"{crit.gamma!r} with alpha = {alpha!r}"
         )
     return crit.J_min / (float(R) * float(C) * (1.0 - float(alpha)))
 

@@ -147,7 +147,8 @@ class Renderer:
             if self._headless and not _told:
                 _told.append(True)
                 logging.getLogger("rbenvs").warning(
-                    "render_mode='human' shows nothing here: %s. To watch an episode, record it: render_mode='rgb_array' "
+                    "render_mode='human' shows nothing here: %s. To watch an episode, record it: "
+                    "render_mode='rgb_array' "
                     "and gymnasium.wrappers.RecordVideo (docs/rendering.md)",
                     self._headless,
                 )

@@ -31,7 +31,8 @@ def rgba(color: str, alpha: float = 1.0, lighten: float = 0.0) -> tuple:
 __all__ = ["draw", "to_rgb"]
 
 _LIGHT = np.array([0.35, -0.45, 0.82])  # world direction of the light for the spheres' shading
-_FIT = 1.25  # the cube's projected half-width is at most sqrt(2) extents sideways; this fills the frame
+# the cube's projected half-width is at most sqrt(2) extents sideways; this fills the frame
+_FIT = 1.25
 _SHADES = 64  # the spheres' Lambert shading, quantised
 
 

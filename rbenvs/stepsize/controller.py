@@ -45,12 +45,12 @@ no step bounds it for long.
 
 Everything here works on floats (one state) and arrays (a batch) with the same IEEE
 operations, so a sub-env of a vector env takes exactly its single env's steps; the pure
-:func:`~rbenvs.stepsize.forms.step_ratio` is what the compiled batch step calls (the accuracy term's fractional power
-is corrected to the exact whole count by integer powers, so a last-bit difference between
-libm's ``pow`` and numpy's cannot change a count).
+:func:`~rbenvs.stepsize.forms.step_ratio` is what the compiled batch step calls (the accuracy term's
+fractional power is corrected to the exact whole count by integer powers, so a last-bit difference
+between libm's ``pow`` and numpy's cannot change a count).
 
-**The measured check** (``tolerance_check=True``, :class:`GlobalErrorCheck`). The error bound above holds
-the error each period *commits*. A motion that is unstable by
+**The measured check** (``tolerance_check=True``, :class:`GlobalErrorCheck`). The error bound above
+holds the error each period *commits*. A motion that is unstable by
 its own theorem (a tippe top that inverts, a top below its critical spin, a spin near the
 intermediate axis) amplifies errors already made, by a factor no local estimate knows in
 advance, so the error at the end of an episode can pass the tolerance although every period
@@ -160,7 +160,8 @@ def require_guard(guard) -> str:
 # ``tolerance=``'s default: the env's default accuracy (RigidBodyEnv.default_tolerance)
 DEFAULT_TOLERANCE = "default"
 # the least tolerance float64 carries over an episode: near the free body's separatrix the motion
-# amplifies the (compensated) sums' roundoff to about this (rbenvs bench accuracy --roundoff, --floor)
+# amplifies the (compensated) sums' roundoff to about this (rbenvs bench accuracy --roundoff,
+# --floor)
 TOLERANCE_FLOOR = 1e-12
 
 
@@ -170,7 +171,8 @@ def require_tolerance(tolerance):
     if tolerance is None or (isinstance(tolerance, str) and tolerance == DEFAULT_TOLERANCE):
         return tolerance
     rule = (
-        f"{DEFAULT_TOLERANCE!r} (the env's default accuracy), None (unchecked: the stability bound alone) or a finite number with "
+        f"{DEFAULT_TOLERANCE!r} (the env's default accuracy), None (unchecked: the stability bound "
+        "alone) or a finite number with "
         f"{TOLERANCE_FLOOR:g} <= tolerance < 1 (the relative error allowed over an episode)"
     )
     if isinstance(tolerance, (bool, np.bool_)) or not isinstance(
@@ -182,9 +184,12 @@ def require_tolerance(tolerance):
         raise ValueError(f"tolerance must be {rule}, got {tolerance!r}")
     if tol < TOLERANCE_FLOOR:
         raise ValueError(
-            f"tolerance={tolerance!r} is below what float64 carries over an episode ({TOLERANCE_FLOOR:g}: near an unstable "
-            f"motion the sums' roundoff alone reaches 1e-13-1e-12, 'rbenvs bench accuracy --roundoff'); pass tolerance >= "
-            f"{TOLERANCE_FLOOR:g}, or integrate in extended precision outside the env (rbenvs.oracles.taylor_solution)"
+            f"tolerance={tolerance!r} is below what float64 carries over an episode "
+            f"({TOLERANCE_FLOOR:g}: near an unstable "
+            "motion the sums' roundoff alone reaches 1e-13-1e-12, 'rbenvs bench accuracy "
+            "--roundoff'); pass tolerance >= "
+            f"{TOLERANCE_FLOOR:g}, or integrate in extended precision outside the env "
+            "(rbenvs.oracles.taylor_solution)"
         )
     return tol
 
@@ -215,9 +220,12 @@ def tolerance_schemes() -> list:
 
 def _amplitude_reason(integrator) -> str:
     return (
-        f"integrator {integrator.name!r} errs in the amplitude (each step grows a rotation by sqrt(1 + (lambda h)^2)), which on a "
-        f"nonlinear rotation moves the frequency, so its phase error grows like T^2 and no per-period estimate bounds it without "
-        f"overestimating it many times (measured: 15 times the steps of its cheapest fixed substeps meeting the same tolerance)"
+        f"integrator {integrator.name!r} errs in the amplitude (each step grows a rotation by "
+        "sqrt(1 + (lambda h)^2)), which on a "
+        "nonlinear rotation moves the frequency, so its phase error grows like T^2 and no "
+        "per-period estimate bounds it without "
+        "overestimating it many times (measured: 15 times the steps of its cheapest fixed substeps "
+        "meeting the same tolerance)"
     )
 
 
@@ -229,9 +237,12 @@ def require_accuracy(integrator, guard: str, tolerance, accuracy: str, env_name:
     if tolerance is not None and accuracy != "explicit" and not takes_tolerance(type(integrator)):
         if integrator.error_constant is not None:  # (euler: its error is in the amplitude)
             raise ValueError(
-                f"integrator {integrator.name!r} cannot be held to {env_name}'s default accuracy (tolerance='default': "
-                f"{tolerance!r} relative over an episode): {_amplitude_reason(integrator)}. Pass tolerance=None to run it "
-                f"unchecked (the stability bound alone, info['error_estimate'] None), or an integrator that takes a tolerance, "
+                f"integrator {integrator.name!r} cannot be held to {env_name}'s default accuracy "
+                "(tolerance='default': "
+                f"{tolerance!r} relative over an episode): {_amplitude_reason(integrator)}. Pass "
+                "tolerance=None to run it "
+                "unchecked (the stability bound alone, info['error_estimate'] None), or an "
+                "integrator that takes a tolerance, "
                 f"{tolerance_schemes()}"
             )
         return None, "explicit"
@@ -239,14 +250,18 @@ def require_accuracy(integrator, guard: str, tolerance, accuracy: str, env_name:
         return tolerance, accuracy
     if guard == "off":
         raise ValueError(
-            f"tolerance={tolerance!r} needs guard='subdivide' or 'refuse': guard='off' takes substeps steps whatever the error"
+            f"tolerance={tolerance!r} needs guard='subdivide' or 'refuse': guard='off' takes "
+            "substeps steps whatever the error"
         )
     if getattr(integrator, "error_constant", None) is None:
         raise ValueError(
-            f"tolerance={tolerance!r} needs an integrator whose error it can estimate, {tolerance_schemes()} (or integrator='auto'): one that declares an "
-            f"error constant (its error C lambda T (lambda h)^order on a rotation, rbenvs.integrators.error) with its leading error in the "
+            f"tolerance={tolerance!r} needs an integrator whose error it can estimate, "
+            f"{tolerance_schemes()} (or integrator='auto'): one that declares an "
+            "error constant (its error C lambda T (lambda h)^order on a rotation, "
+            "rbenvs.integrators.error) with its leading error in the "
             f"phase; integrator {integrator.name!r} declares none "
-            f"(exact sub-flows err by the system's commutators, not by one rate; an adaptive scheme controls its own error)"
+            "(exact sub-flows err by the system's commutators, not by one rate; an adaptive scheme "
+            "controls its own error)"
         )
     if not integrator.error_in_phase:
         # euler: its leading error grows a rotation's amplitude (by sqrt(1 + (lambda h)^2) a
@@ -255,8 +270,10 @@ def require_accuracy(integrator, guard: str, tolerance, accuracy: str, env_name:
         # 2.7 times the tolerance) or overestimates it (with lambda: 16 times the error, 15
         # times the steps of the cheapest fixed substeps; docs/integrators.md)
         raise ValueError(
-            f"tolerance={tolerance!r} needs an integrator whose leading error on a rotation is in the phase, {tolerance_schemes()} "
-            f"(or integrator='auto'): {_amplitude_reason(integrator)}; with tolerance=None it runs at the guard's stability bound"
+            f"tolerance={tolerance!r} needs an integrator whose leading error on a rotation is in "
+            f"the phase, {tolerance_schemes()} "
+            f"(or integrator='auto'): {_amplitude_reason(integrator)}; with tolerance=None it runs "
+            "at the guard's stability bound"
         )
     return tolerance, accuracy
 
@@ -265,15 +282,18 @@ def unstable_motion_warning(tolerance: float, unstable: str, check: bool) -> Uns
     """The construction warning for an explicit ``tolerance`` on a motion ``unstable`` by the
     system's own theorem (the env says why), and what the check does about it."""
     then = (
-        "tolerance_check=True: a companion run estimates the episode's global error (info['global_error_estimate']) "
+        "tolerance_check=True: a companion run estimates the episode's global error "
+        "(info['global_error_estimate']) "
         "and the episode ends as a numerical failure where it passes the tolerance"
         if check
         else "over a horizon that spans it the error can end above the tolerance (tolerance_check=True estimates it and ends "
         "the episode as a numerical failure where it passes the tolerance)"
     )
     return UnstableMotionWarning(
-        f"tolerance={tolerance!r}: {unstable}. The steps hold the error they commit within the tolerance, but an unstable "
-        f"motion amplifies errors already made; {then} ('rbenvs bench accuracy --tolerance' measures it per scene; "
+        f"tolerance={tolerance!r}: {unstable}. The steps hold the error they commit within the "
+        "tolerance, but an unstable "
+        f"motion amplifies errors already made; {then} ('rbenvs bench accuracy --tolerance' "
+        "measures it per scene; "
         f"docs/integrators.md, 'Unstable motions')"
     )
 
@@ -304,8 +324,11 @@ class StepRule:
     # forced_error_constant, 0 if none), fn(Q, y, u, dt, p, lambda_d) -> a in [0, 1], the share of
     # C (lambda_d h)^p its decaying mode's error is (relaxation_steps); None: a = 1
     share: tuple | None = None
-    # the default accuracy's gate (motion_rates'): (fn, P, (dt, p + 1, substeps^p / k)), fn(P, y) -> Lambda,
-    # a cheap bound of the error's rate; a batch tests it first (rbenvs.compiled's gate loop); None: no gate
+    # the default accuracy's gate (motion_rates'): (fn, P, (dt, p + 1, substeps^p / k)), fn(P, y) ->
+    # a cheap bound of the error's rate; a batch tests it first (rbenvs.compiled's gate loop); None:
+    # no gate
+    # Lambda, a cheap bound of the error's rate; a batch tests it first (rbenvs.compiled's gate
+    # loop); None: no gat
     gate: tuple | None = None
 
     @classmethod
@@ -321,7 +344,7 @@ class StepRule:
         system=None,
         zero_control=(),
         gate_steps=None,
-    ) -> "StepRule":
+    ) -> StepRule:
         """The rule for ``rates`` (the system's :class:`~rbenvs.contracts.GuardRates` for
         ``region``) at control period ``dt`` under ``guard``; with ``tolerance`` (a relative
         error over ``horizon`` periods) also the accuracy bound of ``integrator`` (its
@@ -349,7 +372,8 @@ class StepRule:
                 kd = c / (share * math.log1p(tolerance))
             half = "half of " if dissipation is not None else ""
             accuracy = (
-                f"error C lambda dt (lambda h)^{integrator.order} <= {half}log(1 + tolerance) / {horizon} per period"
+                f"error C lambda dt (lambda h)^{integrator.order} <= {half}log(1 + tolerance) / "
+                f"{horizon} per period"
                 + (
                     f" and C (lambda_d h)^{integrator.order} <= half of log(1 + tolerance)"
                     if dissipation is not None
@@ -395,8 +419,10 @@ class StepRule:
             mu_text = f"; mu = min(lambda, max over the state's blocks{' ' + ', '.join(names) if named else ''} of |dy_b/dt| / |y_b|)"
             for q, d in rates.rotating_blocks:
                 mu_text += (
-                    f", with {q} (turning at its own speed m, driven by {d}): max(mu over the others, mu_{d} + a_{d} m {span:g} s "
-                    f"+ m (m / lambda)^{integrator.order}), a_{d} = |{d} . d{d}/dt| / |{d}|^2 (the error {q} carries: {d}'s along itself)"
+                    f", with {q} (turning at its own speed m, driven by {d}): max(mu over the "
+                    f"others, mu_{d} + a_{d} m {span:g} s "
+                    f"+ m (m / lambda)^{integrator.order}), a_{d} = |{d} . d{d}/dt| / |{d}|^2 (the "
+                    f"error {q} carries: {d}'s along itself)"
                 )
             extra = (
                 {"rotating": rotating, "order": float(integrator.order), "span": span}
@@ -521,7 +547,8 @@ class StepRule:
         ``C a (lam_d h)^p`` where the system has a decaying rate (``None`` without a tolerance)."""
         if self.error is None:
             return None
-        # (the compiled vector step's estimate calls the same functions: rbenvs.compiled.vector_kernel)
+        # (the compiled vector step's estimate calls the same functions:
+        # rbenvs.compiled.vector_kernel)
         e = (
             motion_error_estimate(self.error, lam, h)
             if self.motion
@@ -675,18 +702,22 @@ def require_tolerance_check(check, tolerance):
     error against ``tolerance=``, which it then needs)."""
     if isinstance(check, str) and check == "refine":
         raise ValueError(
-            "tolerance_check='refine' was removed (2026-11-29: each replay ran the episode again from its start); use "
-            "tolerance_check=True, which ends the episode, flagged, where the estimate passes the tolerance, with a tighter "
+            "tolerance_check='refine' was removed (2026-11-29: each replay ran the episode again "
+            "from its start); use "
+            "tolerance_check=True, which ends the episode, flagged, where the estimate passes the "
+            "tolerance, with a tighter "
             "tolerance= to hold it longer"
         )
     if not (check is True or check is False):
         raise ValueError(
-            "tolerance_check must be False or True (a companion run checks the episode's global error and ends the episode "
+            "tolerance_check must be False or True (a companion run checks the episode's global "
+            "error and ends the episode "
             f"where it passes the tolerance), got {check!r}"
         )
     if check and tolerance is None:
         raise ValueError(
-            "tolerance_check=True needs tolerance= (the relative error per episode the global error estimate is checked against)"
+            "tolerance_check=True needs tolerance= (the relative error per episode the global error "
+            "estimate is checked against)"
         )
     return check
 
@@ -728,7 +759,8 @@ def block_sums(y, yc, lo, hi):
 def block_difference(blocks, y, yc):
     """:func:`relative_difference` of one state (floats). A block whose difference is NaN (a
     companion that went non-finite beside a finite run)
-    counts as ``inf``: the check cannot vouch for the state, so its estimate passes any tolerance."""
+    counts as ``inf``: the check cannot vouch for the state, so its estimate passes any
+    tolerance."""
     out = 0.0
     for lo, hi in blocks:
         d2, s2 = block_sums(y, yc, lo, hi)

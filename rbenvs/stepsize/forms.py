@@ -7,7 +7,7 @@ the single env's steps. The rules they implement are the controller's docstring'
 from __future__ import annotations
 
 import math
-from functools import lru_cache
+from functools import cache
 
 import numpy as np
 
@@ -130,7 +130,7 @@ def step_ratio_motion(g, rates):
     return x
 
 
-@lru_cache(maxsize=None)
+@cache
 def motion_rates(
     rotation,
     rhs,
@@ -223,7 +223,8 @@ def motion_rates(
             f"    G = P[{4 if speed_bound is not None else 3}]",
             "    big = gate_rate(G[3], y)" if gate_rate is not None else "    big = lam",
             "    cheap = power(big * G[0], G[1]) <= G[2]",
-            "    if every(cheap):",  # (the sharp rates only where the bound does not hold: a batch, for all)
+            # (the sharp rates only where the bound does not hold: a batch, for all)
+            "    if every(cheap):",
             "        return (lam, big, big)",
         ]
     lines += [
@@ -263,7 +264,8 @@ def motion_rates(
             "    md = select(md < lam_e, md, lam_e)",
             f"    ma = abs({dot}) / maximum({ny}, 1e-300)",
             "    ma = select(ma < md, ma, md)",
-            f"    mq = md + ma * m * {float(span)!r} + m * power(m / maximum(lam_e, 1e-300), {float(order)!r})",
+            f"    mq = md + ma * m * {float(span)!r} + m * power(m / maximum(lam_e, 1e-300), "
+            f"{float(order)!r})",
             "    mu = maximum(mu, mq)",
         ]
     if gate:  # (a batch: the bound where it holds)

@@ -46,7 +46,8 @@ class TwoStageStart:
     def initial_state(self, system, rng, shape=()):
         if tuple(shape) != ():
             raise ValueError(
-                "initial_state draws one state; a batch draws per sub-env (initial_draws) and converts at once (initial_from_draws)"
+                "initial_state draws one state; a batch draws per sub-env (initial_draws) and "
+                "converts at once (initial_from_draws)"
             )
         return self.initial_from_draws(system, self.initial_draws(rng))
 

@@ -12,10 +12,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..jit import jitable
-from .common import TwoStageStart, effort, speed_bound
 from ..dynamics.free_body import angular_velocity, momentum_norm
+from ..jit import jitable
 from ..rotations import quat_angle, quat_conjugate, quat_from_uniforms, quat_multiply, select, sqrt
+from .common import TwoStageStart, effort, speed_bound
 
 __all__ = [
     "SpinTask",

@@ -12,8 +12,8 @@ top (``Pi = I Omega``); the heading about the vertical does not enter the dynami
 from __future__ import annotations
 
 import math
-from functools import lru_cache
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 

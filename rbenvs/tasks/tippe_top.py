@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from functools import lru_cache
+from functools import cache
 
 import numpy as np
 
@@ -70,7 +70,7 @@ def spun_start(system, spin_low, spin_high, tilt_low, tilt_high, start="rolling"
     )
 
 
-@lru_cache(maxsize=None)
+@cache
 def spun_start_form(state, at_rest: bool = False, about_vertical: bool = False):
     """``start(P, d)`` of :func:`tilted_spin_state` on the system's pure ``state`` builder:
     ``at_rest``, the centre of mass at rest (else the contact point); ``about_vertical``, the
@@ -119,7 +119,7 @@ def _unit_component_arrays(c):
 # The tasks' arithmetic as pure functions of (parameters, state[, action]), made once per layout
 # of the system (its pure ``frame``, ``angular_velocity`` and ``velocity``: constants of the
 # functions, as compiled code needs them). ``P`` is the system's (TippeTop.form_params).
-@lru_cache(maxsize=None)
+@cache
 def observation_form(frame, angular_velocity, velocity):
     """``observe(P, y)``: the symmetry axis ``k`` (clamped), ``omega`` in space and the horizontal
     velocity of ``G`` (8 components), from the system's pure state functions."""
@@ -143,7 +143,7 @@ def observation_form(frame, angular_velocity, velocity):
     return observe
 
 
-@lru_cache(maxsize=None)
+@cache
 def invert_form(frame):
     """``evaluate(PE, y, u_norm) -> (reward, terminated, is_success)`` of :class:`InvertTask`,
     ``PE = (P, control_cost, goal_tilt)``."""
@@ -158,7 +158,7 @@ def invert_form(frame):
     return evaluate
 
 
-@lru_cache(maxsize=None)
+@cache
 def hold_form(frame):
     """``evaluate(PE, y, u_norm) -> (reward, terminated, is_success)`` of :class:`HoldTask`,
     ``PE = (P, control_cost, fall_tilt, success_tilt)``."""

@@ -77,13 +77,13 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
 from .. import compiled as _compiled
-from ..stepsize.controller import GlobalErrorCheck
 from ..core.reasons import ReasonPool, terminal_reason
 from ..core.step import _REAL_FLOATS, action_columns
 from ..draws import GeneratorTable, kind_codes
+from ..dynamics.validation import real_array, require_bool, require_int_at_least, unknown_keyword
 from ..envs.base import require_compiled
 from ..envs.options import NOISE_BLOCK, noise_generator, noisy_observation, rekey
-from ..dynamics.validation import real_array, require_bool, require_int_at_least, unknown_keyword
+from ..stepsize.controller import GlobalErrorCheck
 from .threads import resolve_num_threads
 
 __all__ = [
@@ -120,7 +120,8 @@ class RigidBodyVectorEnv(VectorEnv):
             type(self).__name__,
             kwargs,
             valid,
-            f"help(rbenvs.vector.{type(self).__name__}) and help(rbenvs.envs.{self.env_class.__name__}), docs/vector.md",
+            f"help(rbenvs.vector.{type(self).__name__}) and "
+            f"help(rbenvs.envs.{self.env_class.__name__}), docs/vector.md",
         )
         if error is not None:
             raise error
@@ -135,7 +136,9 @@ class RigidBodyVectorEnv(VectorEnv):
             mode = AutoresetMode(autoreset_mode)
         except ValueError:
             raise ValueError(
-                f"autoreset_mode must be one of {[m.value for m in AutoresetMode if m is not AutoresetMode.DISABLED]}, got {autoreset_mode!r}"
+                "autoreset_mode must be one of "
+                f"{[m.value for m in AutoresetMode if m is not AutoresetMode.DISABLED]}, got "
+                f"{autoreset_mode!r}"
             ) from None
         if mode is AutoresetMode.DISABLED:
             raise ValueError(
@@ -171,8 +174,10 @@ class RigidBodyVectorEnv(VectorEnv):
         if self._check is not None:
             if compiled is True:
                 raise ValueError(
-                    "compiled=True cannot be had with tolerance_check=True: the checked period (an even count of steps "
-                    "and the companion run) runs on numpy, its runs in a compiled loop over the sub-envs (where numba is installed); "
+                    "compiled=True cannot be had with tolerance_check=True: the checked period (an "
+                    "even count of steps "
+                    "and the companion run) runs on numpy, its runs in a compiled loop over the "
+                    "sub-envs (where numba is installed); "
                     "pass compiled='auto' or False"
                 )
             compiled = False
@@ -183,14 +188,19 @@ class RigidBodyVectorEnv(VectorEnv):
             # path: no batched or compiled step of a model per row exists
             if compiled is True:
                 raise ValueError(
-                    "compiled=True cannot be had with param_ranges: each sub-env's episode has its own model (drawn "
-                    "parameters), stepped one sub-env at a time on the float path; pass compiled='auto' or False"
+                    "compiled=True cannot be had with param_ranges: each sub-env's episode has its "
+                    "own model (drawn "
+                    "parameters), stepped one sub-env at a time on the float path; pass "
+                    "compiled='auto' or False"
                 )
             compiled = False
             self._episodes = [None] * self.num_envs  # each sub-env's episode engine
-            # with a tolerance each episode engine estimates its own periods (info["error_estimate"]),
+            # with a tolerance each episode engine estimates its own periods
             # and with tolerance_check each sub-env has its episode's companion (the single env's
+            # (info["error_estimate"]), and with tolerance_check each sub-env has its episode's
             # GlobalErrorCheck.step_one): no batch check of the nominal model
+            # companion (the single env' GlobalErrorCheck.step_one): no batch check of the nominal
+            # mode
             self._episode_checks = [None] * self.num_envs if self._checked else None
             self._check = None
             self._plains = np.ones(self.num_envs, dtype=bool)
@@ -233,8 +243,10 @@ class RigidBodyVectorEnv(VectorEnv):
         if self._vector_step is None:
             if num_threads != "auto" and threads > 1:
                 raise ValueError(
-                    f"num_threads={num_threads} splits the compiled vector step, and this env steps on numpy (compiled=False, "
-                    "param_ranges, tolerance_check, an integrator without a pure form, or numba not installed: the 'fast' extra); "
+                    f"num_threads={num_threads} splits the compiled vector step, and this env steps "
+                    "on numpy (compiled=False, "
+                    "param_ranges, tolerance_check, an integrator without a pure form, or numba not "
+                    "installed: the 'fast' extra); "
                     "pass num_threads=1, or 'auto' (1 where the step is not compiled)"
                 )
             self.num_threads = 1
@@ -307,8 +319,10 @@ class RigidBodyVectorEnv(VectorEnv):
             reason = f"numba is not installed (the 'fast' extra) or {_compiled.DISABLE_VARIABLE}=0 is set"
         elif parts is None:
             reason = (
-                f"{self.env_class.__name__} with integrator {self.integrator.name!r}, task {self.task.name!r} "
-                "and these settings has no compiled step (the integrator, system and task need pure forms; "
+                f"{self.env_class.__name__} with integrator {self.integrator.name!r}, task "
+                f"{self.task.name!r} "
+                "and these settings has no compiled step (the integrator, system and task need pure "
+                "forms; "
                 "events and hybrid switching never compile)"
             )
         else:
@@ -359,7 +373,8 @@ class RigidBodyVectorEnv(VectorEnv):
         elapsed = options.pop("elapsed_steps", None)
         if options:
             raise ValueError(
-                f"reset options must be a subset of {{'state', 'reset_mask', 'elapsed_steps'}}, got unknown {sorted(options)}"
+                f"reset options must be a subset of {{'state', 'reset_mask', 'elapsed_steps'}}, got "
+                f"unknown {sorted(options)}"
             )
         if elapsed is not None:
             elapsed = self._elapsed_steps(elapsed)
@@ -417,11 +432,13 @@ class RigidBodyVectorEnv(VectorEnv):
         k = np.asarray(elapsed)
         if k.shape != (self.num_envs,) or not np.issubdtype(k.dtype, np.integer):
             raise ValueError(
-                f"options['elapsed_steps'] must be an integer array of shape ({self.num_envs},), got {k.dtype} {k.shape}"
+                f"options['elapsed_steps'] must be an integer array of shape ({self.num_envs},), "
+                f"got {k.dtype} {k.shape}"
             )
         if k.min() < 0 or k.max() >= self.max_episode_steps:
             raise ValueError(
-                f"options['elapsed_steps'] must lie in [0, max_episode_steps) = [0, {self.max_episode_steps}), got [{k.min()}, {k.max()}]"
+                "options['elapsed_steps'] must lie in [0, max_episode_steps) = [0, "
+                f"{self.max_episode_steps}), got [{k.min()}, {k.max()}]"
             )
         return k.astype(np.int64)
 
@@ -497,7 +514,8 @@ class RigidBodyVectorEnv(VectorEnv):
     def _rows_from_state(self, state, mask) -> dict:
         if not isinstance(state, dict):
             raise ValueError(
-                f"options['state'] must be a dict of arrays batched along axis 0, got {type(state).__name__}"
+                "options['state'] must be a dict of arrays batched along axis 0, got "
+                f"{type(state).__name__}"
             )
         n = self.num_envs
         arrays = {}
@@ -505,7 +523,8 @@ class RigidBodyVectorEnv(VectorEnv):
             arr = real_array(f"state[{name!r}]", value)
             if arr.ndim < 1 or arr.shape[0] != n:
                 raise ValueError(
-                    f"state[{name!r}] must be batched along a leading axis of length num_envs = {n}, got shape {arr.shape}"
+                    f"state[{name!r}] must be batched along a leading axis of length num_envs = "
+                    f"{n}, got shape {arr.shape}"
                 )
             arrays[name] = arr
         # each row validated by the system's own checks (its episode's system), as the single env's
@@ -561,8 +580,10 @@ class RigidBodyVectorEnv(VectorEnv):
             and self._table is not None
             and vstep.layout.estimate
         ):
-            # the compiled step writes the estimates (before the period, a restart's 0: a step handed
+            # the compiled step writes the estimates (before the period, a restart's 0: a step
             # to the numpy path has them too); they go into its info last, as on the numpy path
+            # handed to the numpy path has them too); they go into its info last, as on the numpy
+            # pat
             self._estimates = None
             return self._estimated(
                 self._step(actions), self._estimates, self._false, None, None, None, actions
@@ -586,7 +607,8 @@ class RigidBodyVectorEnv(VectorEnv):
         if not written:
             control = self.model.actuator.control(action_columns(actions, self.action_space.shape))
         self._estimates = None
-        # (the default accuracy's gate: every sub-env within it takes substeps, its estimate the bound's)
+        # (the default accuracy's gate: every sub-env within it takes substeps, its estimate the
+        # bound's)
         gated = None if written or self._checked else self.engine.gated(y0)
         if gated is not None:
             gated = np.broadcast_to(gated, (self.num_envs,)).astype(np.float64)
@@ -619,7 +641,9 @@ class RigidBodyVectorEnv(VectorEnv):
             estimate[info["_final_info"]] = 0.0
         info["error_estimate"] = estimate
         info["_error_estimate"] = self._true
-        if self._checked:  # (0 where no period ran, as the estimate's; SAME_STEP: the ended ones' go with their final info)
+        # (0 where no period ran, as the estimate's; SAME_STEP: the ended ones' go with their final
+        # info)
+        if self._checked:
             global_ = np.where(restart, 0.0, self._global)
             if "final_info" in info:
                 info["final_info"]["global_error_estimate"] = global_.copy()
@@ -769,7 +793,9 @@ class RigidBodyVectorEnv(VectorEnv):
         if r.status > 0:  # non-finite new states: the numpy path's failure handling
             if (
                 engine.tolerance is not None
-            ):  # (the estimate's step: _step_estimated; a SAME_STEP restart rewrites r.h's restarted rows)
+                # (the estimate's step: _step_estimated; a SAME_STEP restart rewrites r.h's restarted
+                # rows)
+            ):
                 self._period_h = np.array(r.h, dtype=np.float64)
                 self._estimates = r.estimate
             fired = r.fired if r.fired.any() else self._false
@@ -1261,7 +1287,8 @@ class RigidBodyVectorEnv(VectorEnv):
         class's scene); ``"human"``: sub-env 0 in a window, ``None``. The batch is only read."""
         if self.render_mode is None:
             warnings.warn(
-                f"{type(self).__name__}.render() called without a render_mode: pass render_mode='rgb_array' or 'human'",
+                f"{type(self).__name__}.render() called without a render_mode: pass "
+                "render_mode='rgb_array' or 'human'",
                 stacklevel=2,
             )
             return None

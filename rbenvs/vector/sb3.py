@@ -36,7 +36,8 @@ class SB3VecEnv(VecEnv):
         venv = getattr(venv, "unwrapped", venv)
         if venv.metadata.get("autoreset_mode") is not AutoresetMode.SAME_STEP:
             raise ValueError(
-                "SB3VecEnv needs a vector env made with autoreset_mode='SameStep' (SB3 resets in the ending step)"
+                "SB3VecEnv needs a vector env made with autoreset_mode='SameStep' (SB3 resets in "
+                "the ending step)"
             )
         self.venv = venv
         self.info_keys = tuple(info_keys)
@@ -84,7 +85,8 @@ class SB3VecEnv(VecEnv):
 
     def set_attr(self, attr_name, value, indices=None):
         raise AttributeError(
-            "SB3VecEnv: sub-environments share one configuration; set attributes on the vector env itself"
+            "SB3VecEnv: sub-environments share one configuration; set attributes on the vector env "
+            "itself"
         )
 
     def env_method(self, method_name, *method_args, indices=None, **method_kwargs):

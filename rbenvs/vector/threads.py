@@ -74,8 +74,10 @@ def splits() -> bool:
     if not _warned:
         _warned = True
         warnings.warn(
-            "num_threads: this process was forked from one that ran numba's GNU OpenMP threads, which cannot start in a forked "
-            "child; its vector steps run on one thread (the same results). Start such workers with 'spawn' or 'forkserver' "
+            "num_threads: this process was forked from one that ran numba's GNU OpenMP threads, "
+            "which cannot start in a forked "
+            "child; its vector steps run on one thread (the same results). Start such workers with "
+            "'spawn' or 'forkserver' "
             "(AsyncVectorEnv(..., context='spawn')) to run them on threads.",
             RuntimeWarning,
             stacklevel=4,

@@ -15,7 +15,8 @@ Systems (``--system``, repeatable; default all):
   error estimate's bound on it, against the exact solution;
 * ``heavy_top``: :mod:`rbenvs.verify.heavy_top` (docs/physics.md §2): critical spin by bisection,
   upright stable above / unstable below with the growth rate, regular precession held, fast
-  top nutation, invariants; the threshold of small fast tops (critical spin ~100 rad/s). Not for ``exact`` (the heavy top has no exact flow).
+  top nutation, invariants; the threshold of small fast tops (critical spin ~100 rad/s). Not for
+  ``exact`` (the heavy top has no exact flow).
 * ``tippe_top``: :mod:`rbenvs.verify.tippe_top` (docs/physics.md §3): Jellett's integral held under
   Coulomb and viscous friction, without friction, rolling and on a moving table; the energy
   non-increasing under friction and conserved without; inversion where the criterion says and
@@ -24,12 +25,12 @@ Systems (``--system``, repeatable; default all):
   For euler, rk4 and dop853 (the tippe top has no splitting or exact flow).
 
 ``--simulator SPEC`` (repeatable) runs the same checks on another engine through the
-:class:`~rbenvs.verify.simulator.Simulator` contract: ``mujoco[:integrator=RK4+implicitfast,dt=1e-3,...]``
-(:mod:`rbenvs.verify.mujoco_adapter`, the ``mujoco`` extra), ``rbenvs[:integrator=rk4,dt=...]`` or
-a user's step function ``module:function[,dt=...,order=...]``; rows an engine cannot run read
-n/a, tolerances are scaled to its step (docs/verification.md, "Any simulator"), and
-``--comparison`` prints one table with a column per simulator. :func:`rbenvs.testing.verify` is
-the same for a user's test suite.
+:class:`~rbenvs.verify.simulator.Simulator` contract:
+``mujoco[:integrator=RK4+implicitfast,dt=1e-3,...]`` (:mod:`rbenvs.verify.mujoco_adapter`, the
+``mujoco`` extra), ``rbenvs[:integrator=rk4,dt=...]`` or a user's step function
+``module:function[,dt=...,order=...]``; rows an engine cannot run read n/a, tolerances are scaled to
+its step (docs/verification.md, "Any simulator"), and ``--comparison`` prints one table with a
+column per simulator. :func:`rbenvs.testing.verify` is the same for a user's test suite.
 
 ``--sweep`` (with ``--system tippe_top`` or alone) runs, instead of the checks, the sweep of the
 tippe top's final tilt over a grid of ``A/C`` (below, inside and above the window) and
@@ -47,14 +48,14 @@ from dataclasses import asdict
 
 from ..integrators import INTEGRATORS, get_integrator
 from ..progress import Progress
+from ..render.common import plot_unavailable
+from . import tippe_top as _tippe
 from .common import ROUND_OFF, Check, reference_scheme
-from .simulator import parse_simulator
 from .free_body import FAST_TUMBLE_BODIES, FREE_BODY_SETTINGS, free_body_checks
 from .heavy_top import HEAVY_TOP_SETTINGS, SMALL_TOP_CASES, heavy_top_checks
-from . import tippe_top as _tippe
+from .simulator import parse_simulator
 from .tippe_top import TIPPE_TOP_SETTINGS, tippe_top_checks
 from .tolerance import tolerance_checks, tolerance_integrators
-from ..render.common import plot_unavailable
 
 __all__ = [
     "Check",
@@ -184,7 +185,8 @@ def _unverified(systems, integrators) -> list[Check]:
                     Check(
                         system,
                         name,
-                        f"verification settings for {name!r} (none: add a row to the {system} settings)",
+                        f"verification settings for {name!r} (none: add a row to the {system} "
+                        "settings)",
                         0.0,
                         math.nan,
                         0.0,
@@ -258,7 +260,8 @@ def main(argv=None) -> int:
         action="append",
         metavar="SPEC",
         help="run the checks on another simulator at its own step (repeatable): mujoco[:integrator=RK4+implicitfast,dt=1e-3,...], "
-        "rbenvs[:integrator=rk4,dt=1e-3] or module:function[,dt=1e-3,order=1] (docs/verification.md)",
+        "rbenvs[:integrator=rk4,dt=1e-3] or module:function[,dt=1e-3,order=1] "
+        "(docs/verification.md)",
     )
     parser.add_argument(
         "--comparison",
@@ -291,7 +294,8 @@ def main(argv=None) -> int:
         parser.error("--comparison needs --simulator")
     if args.simulator and args.integrator:
         parser.error(
-            "--integrator picks rbenvs' integrators: with --simulator name them as rbenvs:integrator=NAME"
+            "--integrator picks rbenvs' integrators: with --simulator name them as "
+            "rbenvs:integrator=NAME"
         )
     sims = (
         [sim for spec in args.simulator for sim in parse_simulator(spec)]

@@ -48,7 +48,8 @@ def comparison_table(checks) -> list[str]:
     for s in sims:
         mine = [c for c in checks if c.integrator == s]
         counts.append(
-            f"{sum(c.passed and c.applies for c in mine)} / {sum(not c.passed for c in mine)} / {sum(not c.applies for c in mine)}"
+            f"{sum(c.passed and c.applies for c in mine)} / {sum(not c.passed for c in mine)} / "
+            f"{sum(not c.applies for c in mine)}"
         )
     lines.append("| all | passed / failed / n/a | " + " | ".join(counts) + " |")
     return lines

@@ -7,8 +7,8 @@ random bodies:
 * ``axis <name>: growth rate``: the exponential rate of a ``1e-8`` perturbation of a spin
   about the intermediate axis, fitted from the simulation, against ``lambda`` of the theorem;
 * ``torque: d|Pi|^2 = 2 Pi.tau dt``: the momentum balance under a constant torque (catches a
-  torque with the wrong sign, axis or scale; tolerance 1e-3 of ``2 |Pi| |tau| T``: the Simpson quadrature
-  of the sampled power and the scheme's own error are both below 1e-4 at these steps);
+  torque with the wrong sign, axis or scale; tolerance 1e-3 of ``2 |Pi| |tau| T``: the Simpson
+  quadrature of the sampled power and the scheme's own error are both below 1e-4 at these steps);
 * ``<major|minor> axis: max transverse |Pi|``: about the stable axes a ``1e-3`` perturbation
   stays bounded over 50 rotations (Lyapunov stability), and its largest size matches that of
   the exact orbit through the same state within 2%;
@@ -77,7 +77,8 @@ FREE_BODY_SETTINGS = {
 FAST_SPIN = 30.0
 FAST_HORIZON = 5.0
 FAST_TUMBLE_BODIES = (1, 3)
-FAST_DISTINCT = 0.2  # each moment at least 1.2 times the next smaller: a tumbling body, not a near-symmetric spinner
+# each moment at least 1.2 times the next smaller: a tumbling body, not a near-symmetric spinner
+FAST_DISTINCT = 0.2
 FAST_TUMBLE_SETTINGS = {
     #            omega h  exact tol  invariant tol
     "euler": (5e-4, 2e-2, 2e-2),
@@ -106,7 +107,8 @@ def free_body_checks(
 ) -> list[Check]:
     """The free-body rows of each of ``integrators``: rbenvs integrator names or
     :class:`~rbenvs.verify.simulator.Simulator` objects (at their own step, the tolerance rule of
-    :func:`~rbenvs.verify.common.scaled_tolerance`); ``n_fast`` bodies tumble fast (``rbenvs verify``:
+    :func:`~rbenvs.verify.common.scaled_tolerance`); ``n_fast`` bodies tumble fast (``rbenvs
+    verify``:
     :data:`FAST_TUMBLE_BODIES`)."""
     rng = np.random.default_rng(seed)
     checks: list[Check] = []

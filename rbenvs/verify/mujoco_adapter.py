@@ -103,7 +103,8 @@ class MujocoSimulator:
             i1, i2, i3 = p.inertia
             return (
                 f'<mujoco><option {option} gravity="0 0 0"/><worldbody><body><freejoint/>'
-                f'<inertial pos="0 0 0" mass="1" diaginertia="{_f(i1)} {_f(i2)} {_f(i3)}"/></body></worldbody></mujoco>'
+                f'<inertial pos="0 0 0" mass="1" diaginertia="{_f(i1)} {_f(i2)} '
+                f'{_f(i3)}"/></body></worldbody></mujoco>'
             )
         if problem.system == "heavy_top":
             if p.spin_friction != 0.0:
@@ -123,8 +124,10 @@ class MujocoSimulator:
             )
             pos = " ".join(_f(v) for v in p.length * chi)
             return (
-                f'<mujoco><option {option} gravity="0 0 {_f(-p.gravity)}"/><worldbody><body><joint type="ball"/>'
-                f'<inertial pos="{pos}" mass="{_f(p.mass)}" fullinertia="{full}"/></body></worldbody></mujoco>'
+                f'<mujoco><option {option} gravity="0 0 {_f(-p.gravity)}"/><worldbody><body><joint '
+                'type="ball"/>'
+                f'<inertial pos="{pos}" mass="{_f(p.mass)}" '
+                f'fullinertia="{full}"/></body></worldbody></mujoco>'
             )
         if problem.system == "tippe_top":
             if problem.fidelity == "rolling":
@@ -143,10 +146,14 @@ class MujocoSimulator:
                 f'solref="{_f(self.timeconst)} {_f(self.dampratio)}"'
             )
             return (
-                f'<mujoco><option {option} gravity="0 0 {_f(-p.gravity)}" cone="{self.cone}" impratio="{_f(self.impratio)}" '
-                f'noslip_iterations="{self.noslip}"/><worldbody><geom type="plane" size="0 0 1" {contact}/>'
-                f'<body><freejoint/><inertial pos="0 0 0" mass="{_f(p.mass)}" diaginertia="{_f(big_a)} {_f(big_a)} {_f(big_c)}"/>'
-                f'<geom type="sphere" size="{_f(p.radius)}" pos="0 0 {_f(p.height)}" {contact}/></body></worldbody></mujoco>'
+                f'<mujoco><option {option} gravity="0 0 {_f(-p.gravity)}" cone="{self.cone}" '
+                f'impratio="{_f(self.impratio)}" '
+                f'noslip_iterations="{self.noslip}"/><worldbody><geom type="plane" size="0 0 1" '
+                f"{contact}/>"
+                f'<body><freejoint/><inertial pos="0 0 0" mass="{_f(p.mass)}" '
+                f'diaginertia="{_f(big_a)} {_f(big_a)} {_f(big_c)}"/>'
+                f'<geom type="sphere" size="{_f(p.radius)}" pos="0 0 {_f(p.height)}" '
+                f"{contact}/></body></worldbody></mujoco>"
             )
         raise NotImplementedError(f"no MuJoCo model of {problem.system!r}")
 

@@ -11,17 +11,17 @@ tippe top's fidelity) and a start state, and returns a :class:`Run` that advance
 * ``free_body``: ``y = Pi``, the body angular momentum in the principal body frame
   (``Omega = Pi / params.inertia``); ``u``: a body-frame torque [N m] or ``None``.
 * ``heavy_top``: ``y = (Pi1, Pi2, Pi3, Gamma1, Gamma2, Gamma3)`` (one flat tuple, as every
-  state is: :data:`rbenvs.verify.simulator.LAYOUTS`): ``Pi`` about the pivot in the principal body frame
-  (``params.inertia`` are the moments about the pivot), ``Gamma = R^T e_z`` the upward vertical
-  seen from the body; the centre of mass at ``params.length`` along ``params.com_direction``;
-  gravity ``-params.gravity e_z``; ``u`` is ``None``.
+  state is: :data:`rbenvs.verify.simulator.LAYOUTS`): ``Pi`` about the pivot in the principal body
+  frame (``params.inertia`` are the moments about the pivot), ``Gamma = R^T e_z`` the upward
+  vertical seen from the body; the centre of mass at ``params.length`` along
+  ``params.com_direction``; gravity ``-params.gravity e_z``; ``u`` is ``None``.
 * ``tippe_top`` (a sphere of ``params.radius`` whose centre of mass ``G`` lies ``h = offset R``
   below its centre along the body axis ``e3``; moments ``(A, A, C)`` about ``G``): fidelity
   ``gliding`` (friction ``params.friction_law``, coefficient ``params.friction``) and
   ``frictionless``: ``y = (x, y, vx, vy, qw, qx, qy, qz, W1, W2, W3)``: horizontal position and
   velocity of ``G`` on the table ``z = 0``, the attitude body -> space, the body angular
-  velocity; ``rolling`` (no slip): ``y = (x, y, qw, qx, qy, qz, W1, W2, W3)``. ``u``: ``None``, or the moving
-  table's ``(a_x, a_y, mu, tau1, tau2, tau3)``.
+  velocity; ``rolling`` (no slip): ``y = (x, y, qw, qx, qy, qz, W1, W2, W3)``. ``u``: ``None``, or
+  the moving table's ``(a_x, a_y, mu, tau1, tau2, tau3)``.
 
 A system, fidelity or control an engine does not model is declined by raising
 ``NotImplementedError`` (from :meth:`Simulator.start` or :meth:`Run.step`) with the reason: its

@@ -13,7 +13,7 @@ import importlib
 import math
 import os
 import sys
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
 
@@ -124,7 +124,8 @@ class IntegratorSimulator:
         model = problem.model
         if not self.integrator.supports(model):
             raise NotImplementedError(
-                f"{self.integrator.name} needs {list(self.integrator.requires)}, which this system lacks"
+                f"{self.integrator.name} needs {list(self.integrator.requires)}, which this system "
+                "lacks"
             )
         return _IntegratorRun(self.integrator, model, y0)
 
@@ -175,7 +176,8 @@ class _CallableRun:
             raise
         except Exception as error:
             raise SimulatorFunctionError(
-                f"the simulator function {call} raised {type(error).__name__}; its traceback:\n{_user_frames(error)}"
+                f"the simulator function {call} raised {type(error).__name__}; its "
+                f"traceback:\n{_user_frames(error)}"
             ) from error
         expected = f"a flat tuple of {len(self.y)} floats {LAYOUTS[self.problem.system]}"
         try:
@@ -266,7 +268,8 @@ def parse_simulator(spec: str) -> list:
 
     * ``rbenvs[:integrator=rk4+euler,dt=1e-3]``: rbenvs' own integrators (all by default; without
       ``dt`` at their verify settings, as the default table);
-    * ``mujoco[:integrator=RK4+implicitfast,dt=1e-3,...]``: MuJoCo (:mod:`rbenvs.verify.mujoco_adapter`);
+    * ``mujoco[:integrator=RK4+implicitfast,dt=1e-3,...]``: MuJoCo
+    (:mod:`rbenvs.verify.mujoco_adapter`);
     * ``module:function[,dt=1e-3,order=1,name=...]``: a step function ``f(problem, y, u, dt)``
       (:class:`CallableSimulator`), or an object that already is a :class:`Simulator`.
     """

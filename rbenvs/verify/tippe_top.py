@@ -196,7 +196,8 @@ class TippeSetting:
 # * euler (order 1), omega_h = 1e-2: an error ~ (Omega h) per radian turned, over Omega T ~ 500
 #   radians: J 0.1 [1.8e-2], energy 0.04 [6.1e-3] (ENERGY_BOUND), rise per sample 1e-4 [1.8e-6].
 #   J's 0.1 is above MOMENTUM_BOUND (2%, rbenvs.verify.common): the worst measured at this step
-#   comes within 10% of the bound, and a step small enough to hold it with a margin costs 3x. Settling:
+# comes within 10% of the bound, and a step small enough to hold it with a margin costs 3x.
+# Settling:
 #   omega_h = 0.03, inside the window and alpha <= 0.3 only. Euler turns every rotating vector
 #   outward, a growth rate ~ w^2 h / 2 for a vector turning at w; friction damps the final
 #   states slowly. A top that stays upright (below the window; w = |C/A - 1| n, up to 0.8 n)
@@ -1313,14 +1314,16 @@ def print_sweep(points, file=None):
             print("  ".join("-" * w for w in widths), file=file)
     failed = sum(not p.passed for p in points)
     print(
-        f"\n{len(points) - failed} passed, {failed} failed (tolerance {math.degrees(FINAL_TILT_TOL):.1f} deg)",
+        f"\n{len(points) - failed} passed, {failed} failed (tolerance "
+        f"{math.degrees(FINAL_TILT_TOL):.1f} deg)",
         file=file,
     )
 
 
 def plot_sweep(points, path):
     """Predicted (lines, on a fine grid of ``A/C`` at each row's ``J``) and simulated (markers)
-    final tilt against ``A/C``, one colour per ``alpha``, the window ``1 +- alpha`` shaded. Needs matplotlib (the ``plot`` extra):
+    final tilt against ``A/C``, one colour per ``alpha``, the window ``1 +- alpha`` shaded. Needs
+    matplotlib (the ``plot`` extra):
     ``RuntimeError`` with a message if it is missing."""
     try:
         import matplotlib

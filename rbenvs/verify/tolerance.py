@@ -30,8 +30,8 @@ import warnings
 
 import numpy as np
 
-from ..stepsize.controller import relative_difference, tolerance_blocks
 from ..oracles import exact_solution
+from ..stepsize.controller import relative_difference, tolerance_blocks
 from .common import Check
 from .free_body import _random_inertia
 
@@ -54,8 +54,8 @@ ROWS = {
 
 def tolerance_integrators(integrators) -> list[str]:
     """The named integrators that ``tolerance=`` takes."""
-    from ..stepsize.controller import takes_tolerance
     from ..integrators import get_integrator
+    from ..stepsize.controller import takes_tolerance
 
     return [name for name in integrators if takes_tolerance(type(get_integrator(name)))]
 
