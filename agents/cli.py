@@ -37,7 +37,8 @@ def _scene(name):
 
 
 def _policy_factory(agent: str, algo_hint: str | None = None):
-    """``analytic``, ``zero`` or a path to an SB3 ``model.zip`` (its ``run.json`` names the algorithm)."""
+    """``analytic``, ``zero`` or a path to an SB3 ``model.zip`` (its ``run.json`` names the
+    algorithm)."""
     from .evaluate import analytic_policy, sb3_policy, zero_policy
 
     if agent == "analytic":
@@ -104,7 +105,9 @@ def _train(argv) -> int:
 
     p = ArgumentParser(
         prog="rbenvs-train",
-        description="Train an SB3 agent on a scene, then evaluate it against the analytic controller.",
+        description=(
+            "Train an SB3 agent on a scene, then evaluate it against the analytic controller."
+        ),
     )
     p.add_argument("--algo", choices=ALGORITHMS, default="ppo")
     p.add_argument(
@@ -140,7 +143,10 @@ def _train(argv) -> int:
         type=Path,
         default=None,
         metavar="DIR",
-        help="also write TensorBoard logs into DIR (the tensorboard extra; view with: tensorboard --logdir DIR)",
+        help=(
+            "also write TensorBoard logs into DIR (the tensorboard extra; view with: "
+            "tensorboard --logdir DIR)"
+        ),
     )
     p.add_argument("--no-progress", action="store_true")
     args = p.parse_args(argv)
@@ -183,7 +189,8 @@ def _train(argv) -> int:
             args.eval_seeds,
         )
         print(
-            f"\nevaluation on '{scene.name}' ({scene.description}), {args.eval_episodes} episodes x "
+            f"\nevaluation on '{scene.name}' ({scene.description}), "
+            f"{args.eval_episodes} episodes x "
             f"seeds {args.eval_seeds}:"
         )
         print(_table(rows, ("agent", "return (mean +- std over seeds)", "success")))
@@ -238,7 +245,10 @@ def results_main(argv=None) -> int:
 def _results(argv) -> int:
     p = ArgumentParser(
         prog="rbenvs-results",
-        description="The README's results table: train and evaluate every (scene, algorithm) of configs/agents/results.yml.",
+        description=(
+            "The README's results table: train and evaluate every (scene, algorithm) of "
+            "configs/agents/results.yml."
+        ),
     )
     p.add_argument("--seeds", type=int, default=None, help="seeds per (scene, agent) (default: 3)")
     p.add_argument(
@@ -252,21 +262,28 @@ def _results(argv) -> int:
         type=Path,
         default=None,
         metavar="PATH",
-        help="print the table of a finished run's records (its --json) without training: the docs' table is written this way",
+        help=(
+            "print the table of a finished run's records (its --json) without training: the "
+            "docs' table is written this way"
+        ),
     )
     p.add_argument(
         "--scene",
         action="append",
         default=None,
         metavar="NAME",
-        help="run only this scene of results.yml, repeatable (default: every scene); the grid's other rows are left out",
+        help=(
+            "run only this scene of results.yml, repeatable (default: every scene); the grid's "
+            "other rows are left out"
+        ),
     )
     p.add_argument(
         "--records",
         type=Path,
         default=None,
         metavar="PATH",
-        help="keep every finished cell in this JSON Lines file as it finishes, and run only the cells it does not hold yet: "
+        help="keep every finished cell in this JSON Lines file as it finishes, and run only the "
+        "cells it does not hold yet: "
         "a stopped run resumes where it stopped (rbenvs_agents.records)",
     )
     p.add_argument("--no-progress", action="store_true")
@@ -274,7 +291,10 @@ def _results(argv) -> int:
         "--backend",
         choices=("serial", "ray"),
         default="serial",
-        help="serial: one cell after another here (default); ray: one Ray task per (scene, agent, seed), the ray extra",
+        help=(
+            "serial: one cell after another here (default); ray: one Ray task per (scene, agent, "
+            "seed), the ray extra"
+        ),
     )
     p.add_argument(
         "--address",
@@ -362,7 +382,10 @@ def _sweep(argv) -> int:
 
     p = ArgumentParser(
         prog="rbenvs-sweep",
-        description="Hyperparameter search on Ray Tune (Optuna's sampler): the best configuration per scene, in the zoo's format.",
+        description=(
+            "Hyperparameter search on Ray Tune (Optuna's sampler): the best configuration per "
+            "scene, in the zoo's format."
+        ),
     )
     p.add_argument("--algo", choices=ALGORITHMS, default="ppo")
     p.add_argument(
@@ -404,7 +427,10 @@ def _sweep(argv) -> int:
         "--storage",
         type=Path,
         default=None,
-        help="Tune's folder for its records: one every node reaches, on a cluster of several machines (default: tune/ beside --out)",
+        help=(
+            "Tune's folder for its records: one every node reaches, on a cluster of several "
+            "machines (default: tune/ beside --out)"
+        ),
     )
     args = p.parse_args(argv)
     require("agents")

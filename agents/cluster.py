@@ -1,4 +1,5 @@
-"""Ray: start an embedded local cluster or join a running one, with the environment its workers need.
+"""Ray: start an embedded local cluster or join a running one, with the environment its workers
+need.
 
 Used by ``rbenvs-results --backend ray``, ``rbenvs-sweep`` and the RLlib recipe
 (:mod:`rbenvs_agents.rllib`). Ray is imported here, lazily, and only after

@@ -53,7 +53,8 @@ RESERVED = (
 
 
 def configs_dir():
-    """The folder of the hyperparameter files: ``agents/`` of :func:`rbenvs.configs.configs_root`."""
+    """The folder of the hyperparameter files: ``agents/`` of
+    :func:`rbenvs.configs.configs_root`."""
     return configs_root() / "agents"
 
 

@@ -61,7 +61,8 @@ class Evaluation:
 
 
 def _plain(params: dict) -> dict:
-    """``info["params"]`` as plain numbers (vector keywords as tuples): comparable and JSON-ready."""
+    """``info["params"]`` as plain numbers (vector keywords as tuples): comparable and
+    JSON-ready."""
     return {
         k: tuple(float(c) for c in np.atleast_1d(v)) if np.ndim(v) else float(v)
         for k, v in params.items()

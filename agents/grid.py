@@ -192,14 +192,16 @@ def heldout_outside(scene, train: dict | None, heldout: dict) -> None:
         )
         if not apart:
             raise ValueError(
-                f"scene {scene.name!r}: robustness.heldout {heldout!r} meets {label} ({train!r}): a "
+                f"scene {scene.name!r}: robustness.heldout {heldout!r} meets {label} "
+                f"({train!r}): a "
                 "held-out range must "
                 f"lie outside them in at least one parameter"
             )
 
 
 def in_box(params: dict, box: dict) -> bool:
-    """Whether one episode's drawn ``params`` (``info["params"]``) lie in ``box`` (:func:`ranges_box`)."""
+    """Whether one episode's drawn ``params`` (``info["params"]``) lie in ``box``
+    (:func:`ranges_box`)."""
     import numpy as np
 
     for name, (lo, hi) in box.items():
@@ -438,7 +440,10 @@ def grid_cost(records: list[dict], n_seeds: int) -> str:
         f"{k} CPU{'s' if k > 1 else ''} {_duration(max(total / k, longest['wall_time_s']))}"
         for k in COST_CPUS
     )
-    rows = f"{len(trained)} row{'s' if len(trained) > 1 else ''} x {n_seeds} seed{'s' if n_seeds > 1 else ''}"
+    rows = (
+        f"{len(trained)} row{'s' if len(trained) > 1 else ''} x "
+        f"{n_seeds} seed{'s' if n_seeds > 1 else ''}"
+    )
     return (
         f"Training cost (this run's wall times): {len(trained) * n_seeds} trained "
         f"cell{'s' if len(trained) * n_seeds > 1 else ''} ({rows}), "

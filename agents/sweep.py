@@ -158,7 +158,8 @@ def load_sweep(algo: str, trials: int | None = None, timesteps: int | None = Non
 
 
 def trial_overrides(spec: SweepSpec, point: dict) -> dict:
-    """A point of Tune's space (choices as indices) as overrides of the algorithm's configuration."""
+    """A point of Tune's space (choices as indices) as overrides of the algorithm's
+    configuration."""
     overrides: dict = {}
     for name, (kind, args) in spec.space.items():
         value = args[point[name]] if kind == "choice" else point[name]

@@ -358,7 +358,8 @@ def build_parser() -> argparse.ArgumentParser:
     parser = ArgumentParser(
         prog="rbenvs",
         description="Rotating rigid body environments: list, run, check.",
-        epilog="Every command also takes --docs PAGE: it runs as usual and writes what it printed into the block of "
+        epilog="Every command also takes --docs PAGE: it runs as usual and writes what it "
+        "printed into the block of "
         "PAGE that names the same command line (<!-- rbenvs:output COMMAND -->; docs/ are written "
         "this way).",
     )
@@ -367,7 +368,8 @@ def build_parser() -> argparse.ArgumentParser:
     sub.add_parser("scenes", help="named scenes in configs/scenes").set_defaults(func=_cmd_scenes)
     run = sub.add_parser(
         "run",
-        help="the analytic baselines: scenes with their analytic controller and with no control (the main job, "
+        help="the analytic baselines: scenes with their analytic controller and with no control "
+        "(the main job, "
         "training, is rbenvs-train: make run)",
     )
     run.add_argument(
@@ -375,7 +377,9 @@ def build_parser() -> argparse.ArgumentParser:
         action="extend",
         nargs="+",
         metavar="NAME",
-        help=f"scene names or YAML paths, several or repeated (default: {' and '.join(MAIN_SCENES)})",
+        help=(
+            f"scene names or YAML paths, several or repeated (default: {' and '.join(MAIN_SCENES)})"
+        ),
     )
     run.add_argument(
         "--episodes", type=int, default=3, help="episodes per controller (default: %(default)s)"
@@ -392,7 +396,10 @@ def build_parser() -> argparse.ArgumentParser:
     # `headline` too (rbenvs.headline.main).
     sub.add_parser(
         "headline",
-        help="the README's headline figures from the measuring commands' records (see rbenvs headline --help)",
+        help=(
+            "the README's headline figures from the measuring commands' records "
+            "(see rbenvs headline --help)"
+        ),
     )
     cache = sub.add_parser(
         "cache", help="the compiled kernels kept on disk: where, how many, and clearing them"
@@ -405,7 +412,10 @@ def build_parser() -> argparse.ArgumentParser:
     cache.add_argument(
         "--stale",
         action="store_true",
-        help="with clear: only the kernels of other environments (rbenvs, numba, Python versions or CPUs)",
+        help=(
+            "with clear: only the kernels of other environments (rbenvs, numba, Python versions "
+            "or CPUs)"
+        ),
     )
     cache.set_defaults(func=_cmd_cache)
     warmup = sub.add_parser(
@@ -443,31 +453,49 @@ def build_parser() -> argparse.ArgumentParser:
     # `bench startup` too (rbenvs.bench.startup.main).
     bench_sub.add_parser(
         "startup",
-        help="seconds from a fresh process to its first step, cold and warm kernel cache, against Pendulum-v1 and MuJoCo (see its --help)",
+        help=(
+            "seconds from a fresh process to its first step, cold and warm kernel cache, against "
+            "Pendulum-v1 and MuJoCo (see its --help)"
+        ),
     )
     # `bench threads` too (rbenvs.bench.threads.main).
     bench_sub.add_parser(
         "threads",
-        help="the vector env's rate with num_threads 1, 2 and every core, against CartPole-v1's vector env (see its --help)",
+        help=(
+            "the vector env's rate with num_threads 1, 2 and every core, against CartPole-v1's "
+            "vector env (see its --help)"
+        ),
     )
     # `bench costs` too (rbenvs.bench.costs.main).
     bench_sub.add_parser(
         "costs",
-        help="the README's costs measured here: venv size, main job, test suite (wall and CPU), verify --quick (see its --help)",
+        help=(
+            "the README's costs measured here: venv size, main job, test suite (wall and CPU), "
+            "verify --quick (see its --help)"
+        ),
     )
     # `bench render` too (rbenvs.bench.render.main).
     bench_sub.add_parser(
         "render",
-        help="milliseconds per rgb_array frame of every system, against Pendulum-v1's (see its --help)",
+        help=(
+            "milliseconds per rgb_array frame of every system, against Pendulum-v1's "
+            "(see its --help)"
+        ),
     )
     # `bench accuracy` too (rbenvs.bench.accuracy.main).
     bench_sub.add_parser(
         "accuracy",
-        help="error, order, drift and cost per integrator and system; a step per scene (see its --help)",
+        help=(
+            "error, order, drift and cost per integrator and system; a step per scene "
+            "(see its --help)"
+        ),
     )
     plot = sub.add_parser(
         "plot",
-        help="PNG figures of the three systems against their oracles, and rendered frames (plot extra)",
+        help=(
+            "PNG figures of the three systems against their oracles, and rendered frames "
+            "(plot extra)"
+        ),
     )
     plot.add_argument(
         "what",
@@ -478,7 +506,10 @@ def build_parser() -> argparse.ArgumentParser:
     plot.add_argument(
         "--out",
         default="plots",
-        help="output folder (default: %(default)s in the current folder; the figures of docs/ come from --out docs)",
+        help=(
+            "output folder (default: %(default)s in the current folder; the figures of docs/ "
+            "come from --out docs)"
+        ),
     )
     plot.add_argument(
         "--quick",

@@ -349,9 +349,9 @@ def _period_lines(L: Layout) -> list[str]:
 
 
 def _steps_lines(L: Layout) -> list[str]:
-    """Lines that take ``c`` internal steps ``hi`` from ``y`` under ``u`` (:meth:`rbenvs.core.step.Engine._run_one`):
-    the switches after each, the terminal event ending them (``f = True``), a non-finite state
-    stopping them."""
+    """Lines that take ``c`` internal steps ``hi`` from ``y`` under ``u``
+    (:meth:`rbenvs.core.step.Engine._run_one`): the switches after each, the terminal event ending
+    them (``f = True``), a non-finite state stopping them."""
     finite = "    if not (" + " and ".join(f"isfinite(y[{j}])" for j in range(L.dim)) + "):"
     # one internal step from y (kk: its first stage), plain or carrying the compensation cc
     # (cc: the run's compensation, set by the caller and carried on)
@@ -2350,7 +2350,8 @@ class VectorStep:
         )
 
     def _rows_args(self, idx, draw, Y, GEN, obs, over, hstep, steps, metrics, readouts) -> tuple:
-        """:func:`rows_kernel`'s arguments, the start's, task's and read-outs' parameters in place."""
+        """:func:`rows_kernel`'s arguments, the start's, task's and read-outs' parameters in
+        place."""
         pi, po, pe, pr = self.params[1], self.params[3], self.params[4], self.params[5]
         return (
             idx,

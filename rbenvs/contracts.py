@@ -373,8 +373,8 @@ def require_parts(obj, protocol, role: str) -> None:
     missing = [name for name in _members(protocol) if not hasattr(obj, name)]
     if missing:
         raise TypeError(
-            f"{role} {type(obj).__name__} does not provide {missing} ({protocol.__name__} contract, "
-            "rbenvs.contracts)"
+            f"{role} {type(obj).__name__} does not provide {missing} "
+            f"({protocol.__name__} contract, rbenvs.contracts)"
         )
 
 

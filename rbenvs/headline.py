@@ -1,4 +1,5 @@
-"""``rbenvs headline``: the README's headline figures, from the records the measuring commands wrote.
+"""``rbenvs headline``: the README's headline figures, from the records the measuring commands
+wrote.
 
 The README quotes a few figures (checks passed, speed against the peers, agents that succeed).
 Typed by hand they go stale the first time a measuring command runs again; so they are made
@@ -168,8 +169,8 @@ def main(argv=None) -> int:
     p.add_argument(
         "--root",
         default=None,
-        help="the repository (default: the current folder if it holds docs/verify.json, else the checkout "
-        "rbenvs runs from)",
+        help="the repository (default: the current folder if it holds docs/verify.json, else the "
+        "checkout rbenvs runs from)",
     )
     args = p.parse_args(argv)
     root = Path(args.root) if args.root is not None else default_root()

@@ -151,7 +151,10 @@ def environment() -> dict:
     return {
         "rbenvs": __version__,
         "rbenvs_source": _source_hash()[:16],
-        "python": f"{sys.implementation.name}-{sys.version_info[0]}.{sys.version_info[1]}.{sys.version_info[2]}",
+        "python": (
+            f"{sys.implementation.name}-{sys.version_info[0]}.{sys.version_info[1]}."
+            f"{sys.version_info[2]}"
+        ),
         "numba": numba.__version__,
         "llvmlite": llvmlite.__version__,
         "numpy": numpy.__version__,
@@ -256,7 +259,10 @@ def _feed(obj, h, seen: dict) -> None:
         return
     if isinstance(obj, (types.BuiltinFunctionType, type)):
         h.update(
-            f"{type(obj).__name__}:{getattr(obj, '__module__', '')}.{getattr(obj, '__qualname__', obj)};".encode()
+            (
+                f"{type(obj).__name__}:{getattr(obj, '__module__', '')}."
+                f"{getattr(obj, '__qualname__', obj)};"
+            ).encode()
         )
         return
     if isinstance(obj, tuple):

@@ -27,7 +27,10 @@ class _TextBar:
 
     def _write(self, final: bool = False) -> None:
         share = f" ({100 * self.count / self.total:.0f}%)" if self.total else ""
-        line = f"{self.desc or 'progress'}: {self.count}/{self.total if self.total else '?'}{share} {time.monotonic() - self.start:.0f} s"
+        line = (
+            f"{self.desc or 'progress'}: {self.count}/{self.total if self.total else '?'}{share} "
+            f"{time.monotonic() - self.start:.0f} s"
+        )
         end = "\n" if final or not self.terminal else ""
         self.stream.write(("\r" + line if self.terminal else line) + end)
         self.stream.flush()

@@ -78,7 +78,10 @@ CASES = [
 )
 def test_a_missing_extra_is_one_line_naming_it(prog, entry, argv, blocked, extra, tmp_path):
     module, func = entry.split(":")
-    code = f"import sys\nfor m in {blocked!r}:\n    sys.modules[m] = None\nfrom {module} import {func}\nsys.exit({func}({argv!r}))\n"
+    code = (
+        f"import sys\nfor m in {blocked!r}:\n    sys.modules[m] = None\n"
+        f"from {module} import {func}\nsys.exit({func}({argv!r}))\n"
+    )
     out = subprocess.run(
         [sys.executable, "-c", code], capture_output=True, text=True, cwd=tmp_path, timeout=120
     )

@@ -63,7 +63,8 @@ def euler_reference(f, y, u, h):
 
 
 def rk4_reference(f, y, u, h):
-    """Classical RK4 as it was written by hand: stages at y + (h/2) k, the sum h/6 (a + 2 (b + c) + d)."""
+    """Classical RK4 as it was written by hand: stages at y + (h/2) k, the sum h/6 (a + 2 (b + c) +
+    d)."""
     hh = 0.5 * h
     a = f(y, u)
     b = f(tuple(p + hh * q for p, q in zip(y, a)), u)
@@ -203,7 +204,8 @@ def test_a_tableau_integrates_at_its_order(scheme):
 
 
 def test_a_new_tableau_needs_nothing_else():
-    """Kutta3 runs in an env (guarded by its region), as a bound step and as a compiled pure step."""
+    """Kutta3 runs in an env (guarded by its region), as a bound step and as a compiled pure
+    step."""
     from rbenvs.envs import FreeRigidBodyEnv
 
     env = FreeRigidBodyEnv(integrator=Kutta3())

@@ -367,7 +367,9 @@ def test_headline_counts_what_the_records_say(tmp_path):
 
     with pytest.raises(
         ValueError,
-        match="docs/verify.json is missing: it is written by `rbenvs verify --json docs/verify.json`",
+        match=(
+            "docs/verify.json is missing: it is written by `rbenvs verify --json docs/verify.json`"
+        ),
     ):
         headline(tmp_path)
     docs = tmp_path / "docs"

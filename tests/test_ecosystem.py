@@ -216,8 +216,8 @@ def test_scene_overrides_are_a_top_level_block_the_zoo_never_reads(tmp_path, mon
 
     (tmp_path / "agents").mkdir()
     (tmp_path / "agents" / "ppo.yml").write_text(
-        "default: &default\n  policy: MlpPolicy\n  n_timesteps: 100\n  gamma: 0.9\n  policy_kwargs: "
-        "{net_arch: [8]}\n"
+        "default: &default\n  policy: MlpPolicy\n  n_timesteps: 100\n  gamma: 0.9\n"
+        "  policy_kwargs: {net_arch: [8]}\n"
         "rbenvs/FreeRigidBody-v0:\n  <<: *default\n  n_timesteps: 200\n"
         "scenes:\n  reorient:\n    gamma: 0.5\n"
     )
@@ -283,11 +283,13 @@ def test_rbenvs_results_prints_a_finished_runs_table_from_its_json(tmp_path, cap
     # (records of a run from before the throughput columns show "-" there)
     assert (
         lines[2]
-        == "| FreeRigidBody-v0 | spin (default) | zero action | - | - | 150.1 +- 42.0 | 3% | - | - | - |"
+        == "| FreeRigidBody-v0 | spin (default) | zero action | - | - | 150.1 +- 42.0 | 3% | "
+        "- | - | - |"
     )
     assert (
         lines[3]
-        == "| LagrangeTop-v0 | upright (top_upright) | PPO | 100,000 | 17 s | 499.9 +- 0.0 | 100% | - | - | - |"
+        == "| LagrangeTop-v0 | upright (top_upright) | PPO | 100,000 | 17 s | 499.9 +- 0.0 | "
+        "100% | - | - | - |"
     )
     # under the table, the run's training cost (the trained row's seeds)
     assert lines[4] == "" and lines[5].startswith(

@@ -23,7 +23,8 @@ NEAR_ONE_M1 = [1e-8, 1e-12, 1e-16, 1e-30]
 
 @pytest.fixture(autouse=True)
 def _mpmath_precision():
-    """60 digits so that 1 - m keeps ~16 digits of m1 = 1e-30 (30 + 16 and margin); restored after."""
+    """60 digits so that 1 - m keeps ~16 digits of m1 = 1e-30 (30 + 16 and margin); restored
+    after."""
     try:
         import mpmath
     except ImportError:
@@ -99,7 +100,8 @@ def test_elliptic_f_and_k_near_m_one_match_mpmath(m1):
 
 @pytest.mark.parametrize("m1", [0.5, 1e-4, 1e-8, 1e-12, 1e-16, 1e-30])
 def test_identities_near_m_one(m1):
-    """Checks that need no reference: Pythagorean identities, sn' = cn dn, and sn(F(phi)) = sin phi."""
+    """Checks that need no reference: Pythagorean identities, sn' = cn dn, and sn(F(phi)) = sin
+    phi."""
     m = 1.0 - m1
     k = elliptic_k(m1)
     u = np.linspace(-k, 2.0 * k, 201)

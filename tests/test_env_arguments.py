@@ -373,12 +373,18 @@ def test_a_misspelled_keyword_is_answered_with_the_closest_one(env_id, misspelle
     cls = gym.spec(env_id).entry_point.split(":")[1]
     with pytest.raises(
         TypeError,
-        match=rf"{cls} got an unexpected keyword argument '{misspelled}'; did you mean '{meant}'\? \(every keyword: help\(rbenvs.envs.{cls}\)",
+        match=(
+            rf"{cls} got an unexpected keyword argument '{misspelled}'; "
+            rf"did you mean '{meant}'\? \(every keyword: help\(rbenvs.envs.{cls}\)"
+        ),
     ):
         gym.make(env_id, **{misspelled: 1})
     with pytest.raises(
         TypeError,
-        match=rf"{cls.replace('Env', 'VectorEnv')} got an unexpected keyword argument 'num_thread'; did you mean 'num_threads'\?",
+        match=(
+            rf"{cls.replace('Env', 'VectorEnv')} got an unexpected keyword argument 'num_thread'; "
+            r"did you mean 'num_threads'\?"
+        ),
     ):
         gym.make_vec(env_id, num_envs=2, vectorization_mode="vector_entry_point", num_thread=2)
     with pytest.raises(

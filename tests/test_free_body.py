@@ -1,4 +1,5 @@
-"""The free rigid body (docs/physics.md §1): vector field, parameters, exact elliptic flow, attitude.
+"""The free rigid body (docs/physics.md §1): vector field, parameters, exact elliptic flow,
+attitude.
 
 References are independent of the code under test: the DOP853 reference integrates a
 numpy-cross-product form of Euler's equations, not ``FreeBody.rhs``.
@@ -38,7 +39,8 @@ def random_momentum(rng, inertia, omega):
 
 
 def euler_cross(inertia, pi):
-    """dPi/dt = Pi x Omega (docs/physics.md §1) written with np.cross, independent of FreeBody.rhs."""
+    """dPi/dt = Pi x Omega (docs/physics.md §1) written with np.cross, independent of
+    FreeBody.rhs."""
     return np.cross(pi, pi / np.asarray(inertia))
 
 
@@ -364,7 +366,8 @@ def test_period_matches_dop853_zero_crossings(seed):
     "inertia, axis", [((1.0, 1.0, 0.5), 2), ((0.7, 0.9, 0.9), 0), ((2.0, 1.5, 2.0), 1)]
 )
 def test_symmetric_body_precesses_uniformly(inertia, axis):
-    """Two equal moments: Pi_axis constant, the other pair rotates at lambda = (I1-I3)/(I1 I3) Pi3."""
+    """Two equal moments: Pi_axis constant, the other pair rotates at lambda = (I1-I3)/(I1 I3)
+    Pi3."""
     rng = np.random.default_rng(21)
     pi0 = random_momentum(rng, inertia, 2.0)
     j, k = (axis + 1) % 3, (axis + 2) % 3

@@ -1,4 +1,5 @@
-"""FreeRigidBody-v0 specifics: validation, state dict, bad input, actuation, theorems at env level."""
+"""FreeRigidBody-v0 specifics: validation, state dict, bad input, actuation, theorems at env
+level."""
 
 import math
 

@@ -17,14 +17,12 @@ from rbenvs.envs import FreeRigidBodyEnv, TippeTopEnv, UnstableMotionWarning
 from rbenvs.oracles import exact_solution, taylor_solution
 from rbenvs.stepsize.controller import companion_ratio, relative_difference, tolerance_blocks
 
-# Tests here set tolerances on motions the systems call unstable (the intermediate axis, a top
-# below its critical spin, an inverting tippe top) on purpose: their UnstableMotionWarning is
-# expected, and asserted where it is the subject:
-# (pytest.warns sees it whatever this filter says). Every other warning fails the run
+# Tests here set tolerances on motions the systems call unstable (the intermediate axis, a top below
+# its critical spin, an inverting tippe top) on purpose: their UnstableMotionWarning is expected,
+# and asserted where it is the subject:
 # test_the_unstable_motion_warning_names_the_check_and_the_callers_line (pytest.warns sees it
-# (pyproject.toml: filterwarnings = error).
-# whatever this filter says). Every other warning fails the ru (pyproject.toml: filterwarnings =
-# error)
+# whatever this filter says). Every other warning fails the run (pyproject.toml: filterwarnings =
+# error).
 pytestmark = pytest.mark.filterwarnings("ignore::rbenvs.stepsize.controller.UnstableMotionWarning")
 
 INERTIA = (2.0, 1.5, 1.0)

@@ -54,7 +54,8 @@ def lagrange_params(rng, friction_rate=0.0):
 
 
 def _rotation_matrix(q):
-    """R(q) of a unit quaternion (w, x, y, z), written out here (independent of rbenvs.rotations)."""
+    """R(q) of a unit quaternion (w, x, y, z), written out here (independent of
+    rbenvs.rotations)."""
     w, x, y, z = q
     return np.array(
         [
@@ -971,7 +972,8 @@ FAST_TOP_COEFFICIENTS = {"angle_amplitude": 3.0, "period": 2.0, "mean_precession
 
 
 def test_fast_top_nutation_asymptotics():
-    """[T 3.76-3.80] at eps = A m g h/(C n)^2 = 1e-2 and 1e-3, random tops and tilts in [0.5, 1.2]."""
+    """[T 3.76-3.80] at eps = A m g h/(C n)^2 = 1e-2 and 1e-3, random tops and tilts in [0.5,
+    1.2]."""
     rng = np.random.default_rng(900)
     for _ in range(2):
         params = lagrange_params(rng)

@@ -17,12 +17,9 @@ pytest.importorskip("numba")
 
 # A fresh process: makes and steps an env (or a vector env), prints the cache's counts and the
 # step's observation (to compare across processes: a loaded kernel computes what a compiled one
-# env_id "small": a small generated kernel instead (through the same rbenvs.kernel_cache.njit), n
-# its
 # does). env_id "small": a small generated kernel instead (through the same
-# constant: the tests of the files' handling need a kernel, not an env's seconds of compiling
-# rbenvs.kernel_cache.njit), n it constant: the tests of the files' handling need a kernel, not an
-# env's seconds of compilin
+# rbenvs.kernel_cache.njit), n its constant: the tests of the files' handling need a kernel, not an
+# env's seconds of compiling
 SCRIPT = r"""
 import json, sys, warnings
 import numpy as np
@@ -32,7 +29,10 @@ with warnings.catch_warnings(record=True) as caught:
     warnings.simplefilter("always")
     if env_id == "small":
         from rbenvs.core.codegen import generate
-        f = kernel_cache.njit(generate("def f(x):\n    return x * K + 1.0\n", "cache test", {"K": float(n)})["f"], "cache test")
+        f = kernel_cache.njit(
+            generate("def f(x):\n    return x * K + 1.0\n", "cache test", {"K": float(n)})["f"],
+            "cache test",
+        )
         obs = [f(0.3 * j) for j in range(3)]
     else:
         import gymnasium as gym
@@ -46,7 +46,8 @@ with warnings.catch_warnings(record=True) as caught:
         for _ in range(3):
             obs = env.step(np.full(env.action_space.shape, 0.3, dtype=env.action_space.dtype))[0]
 print(json.dumps({"stats": kernel_cache.stats(), "obs": np.asarray(obs).tolist(),
-                  "warnings": [str(w.message) for w in caught if issubclass(w.category, kernel_cache.KernelCacheWarning)]}))
+                  "warnings": [str(w.message) for w in caught
+                               if issubclass(w.category, kernel_cache.KernelCacheWarning)]}))
 """
 
 

@@ -37,7 +37,8 @@ def zero_policy(env):
 
 
 def flat(state):
-    """State dict -> the flat component tuple (layout order: angular_momentum, vertical, attitude)."""
+    """State dict -> the flat component tuple (layout order: angular_momentum, vertical,
+    attitude)."""
     return tuple(
         float(x)
         for name in ("angular_momentum", "vertical", "attitude")
@@ -66,7 +67,8 @@ def vertical_of(q):
 
 
 def tilted_state(inertia, spin, tilt):
-    """``Omega = spin e3`` (chi = e3), the vertical tilted by ``tilt`` from e3 in the e1-e3 plane."""
+    """``Omega = spin e3`` (chi = e3), the vertical tilted by ``tilt`` from e3 in the e1-e3
+    plane."""
     return {
         "angular_momentum": np.array([0.0, 0.0, inertia[2] * spin]),
         "vertical": np.array([math.sin(tilt), 0.0, math.cos(tilt)]),

@@ -134,8 +134,8 @@ def test_an_empty_configs_folder_is_an_error_saying_where_it_looked(wheel_venv, 
     out = _run([bindir / "rbenvs", "scenes"], cwd=work, env=env | {"RBENVS_CONFIGS": str(tmp_path)})
     assert out.returncode == 2 and out.stdout == ""
     assert out.stderr.splitlines() == [
-        f"rbenvs: error: no scenes found in {tmp_path / 'scenes'} ($RBENVS_CONFIGS is set: unset it "
-        "or point it at a folder with scenes/*.yml)"
+        f"rbenvs: error: no scenes found in {tmp_path / 'scenes'} "
+        "($RBENVS_CONFIGS is set: unset it or point it at a folder with scenes/*.yml)"
     ]
 
 

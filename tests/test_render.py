@@ -176,7 +176,8 @@ def test_rendering_off_costs_nothing():
         "    env.reset(seed=0)\n"
         "    env.step(env.action_space.sample())\n"
         "    assert 'step' not in vars(env.unwrapped) and env.unwrapped._renderer is None\n"
-        "print(sorted(m for m in sys.modules if m.split('.')[0] in ('matplotlib', 'mpl_toolkits')))\n"
+        "print(sorted(m for m in sys.modules "
+        "if m.split('.')[0] in ('matplotlib', 'mpl_toolkits')))\n"
     )
     out = subprocess.run(
         [sys.executable, "-c", code], capture_output=True, text=True, check=True

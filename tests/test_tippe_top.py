@@ -202,9 +202,10 @@ def friction_power(system, y, u):
 
 
 def crossing_time(system, y, u, h, t, value, fn, iters=60):
-    """The time in ``[t, t + h]`` where ``fn`` reaches ``value`` (``fn(y) < value <= fn(step(y, h))``):
-    bisection on the size of one rk4 step from ``y`` (its own dense output, local error O(s^5), so
-    the crossing keeps the scheme's fourth order; linear interpolation would be second order)."""
+    """The time in ``[t, t + h]`` where ``fn`` reaches ``value``
+    (``fn(y) < value <= fn(step(y, h))``): bisection on the size of one rk4 step from ``y`` (its own
+    dense output, local error O(s^5), so the crossing keeps the scheme's fourth order; linear
+    interpolation would be second order)."""
     lo, hi = 0.0, h
     for _ in range(iters):
         mid = 0.5 * (lo + hi)

@@ -80,7 +80,8 @@ def same_state(a, b):
 
 
 def run(env, policy, seed=None, options=None, steps=None):
-    """One episode (or ``steps`` steps): (steps, infos incl. reset, rewards, terminated, truncated)."""
+    """One episode (or ``steps`` steps): (steps, infos incl. reset, rewards, terminated,
+    truncated)."""
     obs, info = env.reset(seed=seed, options=options)
     infos, rewards, k = [info], [], 0
     while True:

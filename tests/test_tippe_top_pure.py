@@ -453,5 +453,8 @@ def test_systems_and_envs_pickle_into_a_new_process(tmp_path):
         [sys.executable, "-c", script], capture_output=True, text=True, check=True
     ).stdout
     fn, p = env.unwrapped.model.step_rule.dissipation
-    want = f"{system.rhs(y, None)!r} {fn(p, env.unwrapped.state_components, None)!r} {env.step(np.zeros(2, np.float32))[1]}"
+    want = (
+        f"{system.rhs(y, None)!r} {fn(p, env.unwrapped.state_components, None)!r} "
+        f"{env.step(np.zeros(2, np.float32))[1]}"
+    )
     assert out.strip() == want

@@ -24,12 +24,11 @@ from rbenvs.oracles import exact_solution
 from rbenvs.stepsize.controller import MAX_INTERNAL_STEPS
 from rbenvs.stepsize.forms import accuracy_steps, error_estimate, step_ratio
 
-# Tests here set tolerances on motions the systems call unstable (the intermediate axis, a top
-# below its critical spin, an inverting tippe top) on purpose: their UnstableMotionWarning is
-# expected, and asserted where it is the subject:
-# (pytest.warns sees it whatever this filter says). Every other warning fails the run
+# Tests here set tolerances on motions the systems call unstable (the intermediate axis, a top below
+# its critical spin, an inverting tippe top) on purpose: their UnstableMotionWarning is expected,
+# and asserted where it is the subject:
 # test_a_tolerance_on_an_unstable_motion_warns_with_the_theorem (pytest.warns sees it whatever this
-# filter says). Every other warning fails the ru (pyproject.toml: filterwarnings = error).
+# filter says). Every other warning fails the run (pyproject.toml: filterwarnings = error).
 pytestmark = pytest.mark.filterwarnings("ignore::rbenvs.stepsize.controller.UnstableMotionWarning")
 
 TOLERANCES = (1e-3, 1e-6, 1e-9)
@@ -102,7 +101,10 @@ def test_the_count_meets_the_budget_and_one_fewer_does_not():
 def test_tolerance_is_validated_at_construction(bad):
     with pytest.raises(
         (ValueError, TypeError),
-        match=r"tolerance must be 'default' \(the env's default accuracy\), None \(unchecked.*\) or a finite number with 1e-12 <= tolerance < 1",
+        match=(
+            r"tolerance must be 'default' \(the env's default accuracy\), None \(unchecked.*\) "
+            r"or a finite number with 1e-12 <= tolerance < 1"
+        ),
     ):
         FreeRigidBodyEnv(tolerance=bad)
 
@@ -131,7 +133,10 @@ def test_tolerance_needs_a_guard_and_a_scheme_with_an_error_constant():
         # (the way out names only the schemes a tolerance takes: not euler, refused as well)
         with pytest.raises(
             ValueError,
-            match=rf"tolerance=0.001 needs an integrator whose error it can estimate, \['rk4'\] .*'{integ}' declares none",
+            match=(
+                r"tolerance=0.001 needs an integrator whose error it can estimate, \['rk4'\] "
+                rf".*'{integ}' declares none"
+            ),
         ):
             FreeRigidBodyEnv(tolerance=1e-3, integrator=integ)
     for bad in (0, -3, 2.5, "10"):
@@ -141,7 +146,10 @@ def test_tolerance_needs_a_guard_and_a_scheme_with_an_error_constant():
     for cls in (FreeRigidBodyEnv, LagrangeTopEnv, TippeTopEnv):
         with pytest.raises(
             ValueError,
-            match=r"tolerance_horizon=50 is the span of control periods that tolerance= covers, and tolerance is None",
+            match=(
+                r"tolerance_horizon=50 is the span of control periods that tolerance= covers, "
+                r"and tolerance is None"
+            ),
         ):
             cls(tolerance_horizon=50, tolerance=None)
 
@@ -293,7 +301,10 @@ def test_heavy_top_with_euler_above_the_critical_spin_stays_up_or_is_refused():
     periods = 500
     with pytest.raises(
         ValueError,
-        match=r"'euler' cannot be held to LagrangeTopEnv's default accuracy.*tolerance=None to run it unchecked",
+        match=(
+            r"'euler' cannot be held to LagrangeTopEnv's default accuracy.*"
+            r"tolerance=None to run it unchecked"
+        ),
     ):
         LagrangeTopEnv(integrator="euler", max_torque=0.0)  # (the default accuracy refuses it)
     fallen = LagrangeTopEnv(integrator="euler", max_torque=0.0, tolerance=None)
@@ -301,7 +312,8 @@ def test_heavy_top_with_euler_above_the_critical_spin_stays_up_or_is_refused():
     for tol in (1e-2, 1e-6):
         with pytest.raises(
             ValueError,
-            match=rf"tolerance={tol!r} needs an integrator whose leading error on a rotation is in the phase, \['rk4'\].*"
+            match=rf"tolerance={tol!r} needs an integrator whose leading error on a rotation "
+            r"is in the phase, \['rk4'\].*"
             r"'euler' errs in the amplitude.*grows like T\^2",
         ):
             LagrangeTopEnv(integrator="euler", max_torque=0.0, tolerance=tol)
@@ -323,7 +335,8 @@ def test_free_body_with_euler_is_refused_with_the_reason():
         for tol in (0.5, 1e-3, 1e-9):
             with pytest.raises(
                 ValueError,
-                match=rf"tolerance={tol!r} needs an integrator whose leading error on a rotation is in the phase.*"
+                match=rf"tolerance={tol!r} needs an integrator whose leading error on a rotation "
+                r"is in the phase.*"
                 r"'euler' errs in the amplitude",
             ):
                 FreeRigidBodyEnv(integrator="euler", tolerance=tol, **kwargs)
@@ -348,15 +361,18 @@ def test_refuse_names_the_substeps_needed():
 
 
 def test_a_period_past_the_cap_is_a_numerical_failure_naming_the_tolerance():
-    """A start the construction check did not see (a reset state 3.3 times as fast as the task's fastest;
-    2.4 times was enough before the error took the Jacobian's rate, about 0.8 |Omega| there)
-    needs more than MAX_INTERNAL_STEPS for the tolerance: a numerical failure whose warning
+    """A start the construction check did not see (a reset state 3.3 times as fast as the task's
+    fastest; 2.4 times was enough before the error took the Jacobian's rate, about 0.8 |Omega|
+    there) needs more than MAX_INTERNAL_STEPS for the tolerance: a numerical failure whose warning
     says that the tolerance asked for them."""
     env = _free_body(1e-9, None, compiled=False)
     env.reset(seed=0, options={"state": {"angular_momentum": np.array([3.8e4, 2.9e4, 1.9e4])}})
     with pytest.warns(
         Warning,
-        match=r"refused: the period needs more than MAX_INTERNAL_STEPS = 1000000 internal steps to meet the tolerance",
+        match=(
+            r"refused: the period needs more than MAX_INTERNAL_STEPS = 1000000 internal steps "
+            r"to meet the tolerance"
+        ),
     ):
         _, reward, term, _, info = env.step(np.zeros(3, np.float32))
     assert (
@@ -467,7 +483,10 @@ VECTOR_PATHS = [
     "case,mode,vector_compiled",
     VECTOR_PATHS,
     ids=[
-        f"{LOCKSTEP[i][0].split('/')[1]}-{LOCKSTEP[i][1]['integrator']}-{m}-{'compiled' if c else 'numpy'}"
+        (
+            f"{LOCKSTEP[i][0].split('/')[1]}-{LOCKSTEP[i][1]['integrator']}-"
+            f"{m}-{'compiled' if c else 'numpy'}"
+        )
         for i, m, c in VECTOR_PATHS
     ],
 )
@@ -496,11 +515,12 @@ def test_tolerance_lockstep_vector_equals_single_envs_bit_for_bit(case, mode, ve
 
 @pytest.mark.parametrize("case", [0, 2, 3], ids=["free_body", "heavy_top", "tippe_top"])
 def test_the_compiled_vector_step_writes_the_estimate_and_its_fallback_gives_the_same(case):
-    """With a tolerance the compiled vector step writes each period's estimate itself, in its count's
-    loop (the rates at the period's start, the step it took: StepRule.estimate's functions), no
-    Python pass over the batch; where it hands the period to the numpy path (a non-finite new state:
-    simulated here) the estimate it wrote before the period goes on with it. Both give the bits of
-    the numpy vector env, whose estimate comes from the rates of the states before the step."""
+    """With a tolerance the compiled vector step writes each period's estimate itself, in its
+    count's loop (the rates at the period's start, the step it took: StepRule.estimate's functions),
+    no Python pass over the batch; where it hands the period to the numpy path (a non-finite new
+    state: simulated here) the estimate it wrote before the period goes on with it. Both give the
+    bits of the numpy vector env, whose estimate comes from the rates of the states before the
+    step."""
     from rbenvs import compiled
     from rbenvs.vector import FreeRigidBodyVectorEnv, LagrangeTopVectorEnv, TippeTopVectorEnv
 
@@ -649,10 +669,10 @@ def _rk4_forced_error(z, theta):
 
 
 def test_rk4s_forced_stiff_error_constant():
-    """rk4's ``forced_error_constant``: rk4 following a stiff mode driven at ``w`` errs by ``c (lambda h)^2 (w
-    h)^2`` of the drive, ``c`` rising with ``lambda h``; the constant bounds it up to the
-    guard's largest ``lambda h`` (1.39) for every ``w h`` up to the contact's bound (0.1 rad),
-    tightly (within 1 %)."""
+    """rk4's ``forced_error_constant``: rk4 following a stiff mode driven at ``w`` errs by ``c
+    (lambda h)^2 (w h)^2`` of the drive, ``c`` rising with ``lambda h``; the constant bounds it up
+    to the guard's largest ``lambda h`` (1.39) for every ``w h`` up to the contact's bound (0.1
+    rad), tightly (within 1 %)."""
     forced = get_integrator("rk4").forced_error_constant
     worst = 0.0
     for z in np.linspace(0.05, 1.39, 28):
@@ -735,7 +755,10 @@ def test_integrator_auto_takes_the_cheapest_scheme_meeting_the_tolerance():
     )
     with pytest.raises(
         ValueError,
-        match=r"integrator='auto' chooses the scheme that meets tolerance= at the least cost: pass tolerance=",
+        match=(
+            r"integrator='auto' chooses the scheme that meets tolerance= at the least cost: "
+            r"pass tolerance="
+        ),
     ):
         FreeRigidBodyEnv(integrator="auto", tolerance=None)
     assert FreeRigidBodyEnv(integrator="auto").integrator.name == "rk4"  # (the default accuracy)
@@ -1067,14 +1090,20 @@ def test_a_tolerance_on_an_unstable_motion_warns_with_the_theorem():
     crit = LagrangeTopEnv().critical_spin
     with pytest.warns(
         UnstableMotionWarning,
-        match=rf"critical spin {crit:.6g} rad/s.*spin reaches 4\.95227 rad/s.*amplifies errors already made",
+        match=(
+            rf"critical spin {crit:.6g} rad/s.*spin reaches 4\.95227 rad/s.*"
+            r"amplifies errors already made"
+        ),
     ):
         LagrangeTopEnv(
             integrator="rk4", tolerance=1e-6
         )  # the default upright start: half the critical spin
     with pytest.warns(
         UnstableMotionWarning,
-        match=r"intermediate axis \(axis 1\) is unstable: a perturbation grows at 0\.354 1/s \(7\.07 e-folds",
+        match=(
+            r"intermediate axis \(axis 1\) is unstable: a perturbation grows at 0\.354 1/s "
+            r"\(7\.07 e-folds"
+        ),
     ):
         FreeRigidBodyEnv(tolerance=1e-6)
     top = TippeTopEnv()

@@ -102,7 +102,8 @@ def test_cli_with_a_step_function_writes_json_and_fails_on_failure(tmp_path, mon
     module = tmp_path / "broken_engine.py"
     module.write_text(
         "import numpy as np\n\ndef step(problem, y, u, dt):\n"
-        "    if problem.system != 'free_body':\n        raise NotImplementedError('free body only')\n"
+        "    if problem.system != 'free_body':\n"
+        "        raise NotImplementedError('free body only')\n"
         "    return tuple(np.array(y) + dt * (np.zeros(3) if u is None else np.array(u)))\n"
     )
     monkeypatch.syspath_prepend(str(tmp_path))

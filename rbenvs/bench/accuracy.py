@@ -939,7 +939,8 @@ def _table(args, flag: str, total: int, run_table, print_table) -> int:
 
 
 def _write_json(path, result) -> None:
-    """Every figure of ``result`` as JSON at ``path`` (``--json``; nothing where ``path`` is None)."""
+    """Every figure of ``result`` as JSON at ``path`` (``--json``; nothing where ``path`` is
+    None)."""
     if path:
         with open(path, "w") as f:
             json.dump(result, f, indent=1, default=float)
@@ -955,7 +956,10 @@ def main(argv=None) -> int:
     keys = [c.key for c in CASES]
     parser = ArgumentParser(
         prog="rbenvs bench accuracy",
-        description="Error, invariant drift, cost and order of every integrator on every system; a recommended integrator per scene.",
+        description=(
+            "Error, invariant drift, cost and order of every integrator on every system; a "
+            "recommended integrator per scene."
+        ),
     )
     parser.add_argument(
         "--quick",
@@ -984,12 +988,16 @@ def main(argv=None) -> int:
         "--mujoco",
         action=argparse.BooleanOptionalAction,
         default=True,
-        help="MuJoCo's integrators on the free body when mujoco is installed (the mujoco extra; default: on)",
+        help=(
+            "MuJoCo's integrators on the free body when mujoco is installed (the mujoco extra; "
+            "default: on)"
+        ),
     )
     parser.add_argument(
         "--tolerance",
         action="store_true",
-        help="only the tolerance= table (rbenvs.bench.tolerance): per extreme and requested tolerance 1e-3, 1e-6, 1e-9, the error "
+        help="only the tolerance= table (rbenvs.bench.tolerance): per extreme and requested "
+        "tolerance 1e-3, 1e-6, 1e-9, the error "
         "achieved against the reference, the steps taken, and the cheapest fixed substeps meeting "
         "it",
     )
@@ -1004,21 +1012,24 @@ def main(argv=None) -> int:
     parser.add_argument(
         "--roundoff",
         action="store_true",
-        help="only the roundoff table (rbenvs.bench.roundoff): two rk4 runs at 200 and 400 substeps near the free body's "
+        help="only the roundoff table (rbenvs.bench.roundoff): two rk4 runs at 200 and 400 "
+        "substeps near the free body's "
         "intermediate axis, summed plainly and with compensation (a tolerance's), apart and "
         "against the exact solution",
     )
     parser.add_argument(
         "--floor",
         action="store_true",
-        help="only the float64 floor table (rbenvs.bench.floor): tolerance_check=True from 0.0001-0.01 rad/s off "
+        help="only the float64 floor table (rbenvs.bench.floor): tolerance_check=True from "
+        "0.0001-0.01 rad/s off "
         "the free body's intermediate axis at 1e-8 to 1e-12, every period returned against "
         "mpmath's Taylor solution (needs mpmath)",
     )
     parser.add_argument(
         "--tippe",
         action="store_true",
-        help="only the tippe top's work-precision against MuJoCo (rbenvs.bench.tippe_accuracy): t90 against the slip regularisation, "
+        help="only the tippe top's work-precision against MuJoCo (rbenvs.bench.tippe_accuracy): "
+        "t90 against the slip regularisation, "
         "every scheme, step and fidelity level and MuJoCo's integrators and cones at several dt, "
         "cost per simulated second "
         "against Jellett drift and the t90 error",

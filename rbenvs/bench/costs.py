@@ -84,7 +84,10 @@ def main(argv=None) -> int:
     parser.add_argument(
         "--skip-tests",
         action="store_true",
-        help="leave out the test suite's two runs (most of the time: the README's block says how long they took)",
+        help=(
+            "leave out the test suite's two runs (most of the time: the README's block says how "
+            "long they took)"
+        ),
     )
     parser.add_argument(
         "--root", default=".", help="the repository whose tests run (default: the current folder)"

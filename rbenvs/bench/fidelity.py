@@ -84,7 +84,8 @@ def run(levels=LEVELS, repeat=5, progress: bool = False) -> list[dict]:
 def main(progress: bool = True) -> int:
     rows = run(progress=progress)
     print(
-        f"{'level':<18} {'components':>10} {'rhs us':>8} {'internal steps':>15} {'env step us':>12} "
+        f"{'level':<18} {'components':>10} {'rhs us':>8} {'internal steps':>15} "
+        f"{'env step us':>12} "
         f"{'vs gliding':>11}"
     )
     for r in rows:

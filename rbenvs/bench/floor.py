@@ -1,5 +1,5 @@
-"""``rbenvs bench accuracy --floor``: ``tolerance_check=True`` where float64's roundoff sets the floor,
-near the free body's separatrix (docs/accuracy.md, "Roundoff").
+"""``rbenvs bench accuracy --floor``: ``tolerance_check=True`` where float64's roundoff sets the
+floor, near the free body's separatrix (docs/accuracy.md, "Roundoff").
 
 Near the intermediate axis the motion amplifies the roundoff of every passage by the saddle, and
 from a start close enough to the separatrix no step count holds a tight tolerance in float64. The
@@ -82,7 +82,8 @@ def _episode(w, tol, reference):
 
 
 def run_floor(progress=None) -> dict:
-    """Every row (see the module): ``{"rows": [{"off", "tolerance", "end", "worst", "ratio", "steps"}]}``."""
+    """Every row (see the module):
+    ``{"rows": [{"off", "tolerance", "end", "worst", "ratio", "steps"}]}``."""
     from ..oracles import taylor_solution
 
     rows = []

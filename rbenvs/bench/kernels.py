@@ -105,10 +105,16 @@ def main(args=None, progress: bool = True) -> int:
     rows = run(progress=progress)
     print("RK4 step of Euler's equations with torque, microseconds per call (best of 5)")
     compiled = "compiled_us" in rows[0]
-    head = f"{'n':>6}  {'components (ours)':>18}  {'np.cross on (n,3)':>18}  {'peer/ours':>9}  {'max |diff|':>10}"
+    head = (
+        f"{'n':>6}  {'components (ours)':>18}  {'np.cross on (n,3)':>18}  "
+        f"{'peer/ours':>9}  {'max |diff|':>10}"
+    )
     print(head + (f"  {'compiled (ours)':>16}  {'same bits':>9}" if compiled else ""))
     for r in rows:
-        line = f"{r['n']:>6}  {r['components_us']:>18.2f}  {r['cross_n3_us']:>18.2f}  {r['ratio']:>9.2f}  {r['max_abs_difference']:>10.1e}"
+        line = (
+            f"{r['n']:>6}  {r['components_us']:>18.2f}  {r['cross_n3_us']:>18.2f}  "
+            f"{r['ratio']:>9.2f}  {r['max_abs_difference']:>10.1e}"
+        )
         if compiled:
             line += f"  {r['compiled_us']:>16.2f}  {str(r['compiled_equals_components']):>9}"
         print(line)

@@ -101,7 +101,8 @@ def main(argv=None) -> int:
         env.close()
     peer = best.get(PEER)
     print(
-        f"Milliseconds per rgb_array frame: median over {args.frames} frames along an episode under "
+        f"Milliseconds per rgb_array frame: median over {args.frames} frames along an episode "
+        "under "
         f"random actions, best of {ROUNDS} rounds; "
         f"ratio: over {PEER}'s frame"
         + ("" if peer else f" ({PEER} not measured: pygame is not installed)")

@@ -75,7 +75,8 @@ def _run(w, substeps: int, tolerance):
 
 
 def run_roundoff(progress=None) -> dict:
-    """Every row (see the module): ``{"rows": [{"off", "mode", "apart": [...], "exact": [...]}]}``."""
+    """Every row (see the module):
+    ``{"rows": [{"off", "mode", "apart": [...], "exact": [...]}]}``."""
     from ..oracles import exact_solution
 
     rows = []

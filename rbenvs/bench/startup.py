@@ -61,13 +61,20 @@ else:
 t2 = time.perf_counter()
 env.reset(seed=0)
 t3 = time.perf_counter()
-env.step(np.zeros(env.action_space.shape, dtype=env.action_space.dtype) if env.action_space.dtype.kind == "f" else env.action_space.sample())
+env.step(
+    np.zeros(env.action_space.shape, dtype=env.action_space.dtype)
+    if env.action_space.dtype.kind == "f"
+    else env.action_space.sample()
+)
 t4 = time.perf_counter()
 stats = {}
 if what.startswith("rbenvs/"):
     from rbenvs import kernel_cache
     stats = kernel_cache.stats()
-print(json.dumps({"import": t1 - t0, "make": t2 - t1, "reset": t3 - t2, "step": t4 - t3, "total": t4 - t0, "stats": stats}))
+print(json.dumps({
+    "import": t1 - t0, "make": t2 - t1, "reset": t3 - t2, "step": t4 - t3, "total": t4 - t0,
+    "stats": stats,
+}))
 """
 
 _MUJOCO = r"""
@@ -75,14 +82,20 @@ import json, time
 t0 = time.perf_counter()
 import mujoco
 t1 = time.perf_counter()
-model = mujoco.MjModel.from_xml_string('<mujoco><worldbody><body><freejoint/><geom type="box" size=".3 .2 .1"/></body></worldbody></mujoco>')
+model = mujoco.MjModel.from_xml_string(
+    '<mujoco><worldbody><body><freejoint/><geom type="box" size=".3 .2 .1"/></body>'
+    '</worldbody></mujoco>'
+)
 data = mujoco.MjData(model)
 t2 = time.perf_counter()
 mujoco.mj_resetData(model, data)
 t3 = time.perf_counter()
 mujoco.mj_step(model, data)
 t4 = time.perf_counter()
-print(json.dumps({"import": t1 - t0, "make": t2 - t1, "reset": t3 - t2, "step": t4 - t3, "total": t4 - t0, "stats": {}}))
+print(json.dumps({
+    "import": t1 - t0, "make": t2 - t1, "reset": t3 - t2, "step": t4 - t3, "total": t4 - t0,
+    "stats": {},
+}))
 """
 
 _ASYNC = r"""
@@ -245,8 +258,8 @@ def main(argv=None) -> int:
         "Pendulum-v1's; kernels: compiled cold / loaded warm.\n"
     )
     print(
-        "| env | kind | cold total | import | make | reset | first step | warm total | / Pendulum | "
-        "kernels |"
+        "| env | kind | cold total | import | make | reset | first step | warm total | "
+        "/ Pendulum | kernels |"
     )
     print("|---|---|---:|---:|---:|---:|---:|---:|---:|---:|")
     for (label, kind), r in results.items():

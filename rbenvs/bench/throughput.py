@@ -465,7 +465,8 @@ def run_check(
 
 def print_check(rows) -> None:
     print(
-        f"\ntolerance_check=True in time: rk4, tolerance={CHECK_TOLERANCE:g}, zero action; one step "
+        f"\ntolerance_check=True in time: rk4, tolerance={CHECK_TOLERANCE:g}, zero action; "
+        "one step "
         "of the single env (us) without the check, "
         "with it (its runs compiled) and with it on floats (compiled=False), against Pendulum-v1 "
         "(timed after each, same run)"
@@ -987,7 +988,8 @@ def print_tasks(rows, notes) -> None:
         "same run)"
     )
     print(
-        f"  vector: make_vec at N = {', '.join(map(str, ns)) or '-'}; env-steps/s with zero action, "
+        f"  vector: make_vec at N = {', '.join(map(str, ns)) or '-'}; env-steps/s with zero "
+        "action, "
         "and with seeded random actions in [-1, 1]"
     )
     print(f"          ({clocks}; 'ends': episode ends in the timed window, resets included),")
@@ -1019,7 +1021,8 @@ def print_tasks(rows, notes) -> None:
         if r["kernel_state_unchanged"] is False:
             kernel += "!"
         print(
-            f"{r['setting']:<{w}} {r['single_step_us']:>9.2f} {r['single_ratio_to_pendulum']:>6.3f} "
+            f"{r['setting']:<{w}} {r['single_step_us']:>9.2f} "
+            f"{r['single_ratio_to_pendulum']:>6.3f} "
             f"{r['num_envs']:>5d} {r['path']:<8} "
             f"{r['zero_env_steps_per_s']:>9.3g} {r['random_env_steps_per_s']:>9.3g} "
             f"{r['episode_ends']:>6d} {r['ratio_to_cartpole']:>6.3f} "
@@ -1086,7 +1089,8 @@ def main(argv=None) -> int:
     parser.add_argument(
         "--quick",
         action="store_true",
-        help=f"shorter timings: the task table at N = {QUICK_NUM_ENVS} (slow settings at {QUICK_SLOW_NUM_ENVS}) "
+        help=f"shorter timings: the task table at N = {QUICK_NUM_ENVS} "
+        f"(slow settings at {QUICK_SLOW_NUM_ENVS}) "
         "and the SB3 rows by default; an integrator table asked for with --tables at sizes 1 and "
         "256; never the scaling table",
     )
@@ -1094,7 +1098,10 @@ def main(argv=None) -> int:
         "--num-envs",
         type=int,
         metavar="N",
-        help=f"task table: sub-envs of the vector env (default: {TASK_NUM_ENVS}, {QUICK_NUM_ENVS} with --quick)",
+        help=(
+            f"task table: sub-envs of the vector env (default: {TASK_NUM_ENVS}, "
+            f"{QUICK_NUM_ENVS} with --quick)"
+        ),
     )
     parser.add_argument(
         "--only",
@@ -1104,7 +1111,10 @@ def main(argv=None) -> int:
     parser.add_argument(
         "--tables",
         metavar="LIST",
-        help=f"comma-separated tables to run, of {', '.join(TABLES)} (default: all; with --quick: {','.join(QUICK_TABLES)})",
+        help=(
+            f"comma-separated tables to run, of {', '.join(TABLES)} "
+            f"(default: all; with --quick: {','.join(QUICK_TABLES)})"
+        ),
     )
     parser.add_argument("--no-progress", action="store_true", help="no progress on stderr")
     args = parser.parse_args(argv)

@@ -1,4 +1,5 @@
-"""``rbenvs bench accuracy --tippe``: work-precision of the tippe top, rbenvs beside MuJoCo, in one run.
+"""``rbenvs bench accuracy --tippe``: work-precision of the tippe top, rbenvs beside MuJoCo, in one
+run.
 
 The top is the default ``TippeTop-v0`` one (Leine-Glocker's: ``m = 6 g``, ``a = 15 mm``,
 ``alpha = 0.2``, ``mu = 0.3``), tilt 0.1 rad, no action, from the starts of :data:`STARTS`:

@@ -243,7 +243,10 @@ def main(argv=None) -> int:
     parser.add_argument(
         "--counts",
         default="guard,tight,40,80,160",
-        help="internal steps a period: numbers, guard, tight, accuracy (the guard with friction_bound='accuracy')",
+        help=(
+            "internal steps a period: numbers, guard, tight, accuracy (the guard with "
+            "friction_bound='accuracy')"
+        ),
     )
     parser.add_argument("--schemes", default="rk4", help="rk4,euler,ros2,ros34pw2")
     parser.add_argument(

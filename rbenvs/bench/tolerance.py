@@ -314,7 +314,10 @@ def scene_cases(names=None) -> tuple:
         )
         starts = (0,) if env == "tippe_top" else (0, 1, 2)
         seeds = f"seeds {starts[0]}-{starts[-1]}" if len(starts) > 1 else f"seed {starts[0]}"
-        label = f"scene {name}, rk4, uncontrolled, {periods} periods ({periods * dt:g} s{', its episode' if periods == episode else ''}), {seeds}"
+        label = (
+            f"scene {name}, rk4, uncontrolled, {periods} periods "
+            f"({periods * dt:g} s{', its episode' if periods == episode else ''}), {seeds}"
+        )
         cases.append(ToleranceCase(SCENE_PREFIX + name, label, env, kwargs, starts, periods))
     return tuple(cases)
 
@@ -669,7 +672,10 @@ def print_tolerance(result, file=None):
         if r.get(
             "fixed_integrator"
         ):  # integrator="auto": both sides' schemes, cost in rhs evaluations
-            note += f" (auto: {r['integrator']}; fixed: {r['fixed_integrator']}; cost x in rhs evaluations)"
+            note += (
+                f" (auto: {r['integrator']}; fixed: {r['fixed_integrator']}; "
+                "cost x in rhs evaluations)"
+            )
         fixed = r.get("fixed_substeps")
         print(
             f"{r['case']:<{w}} {r['periods']:>7} {tol:>9} {_g(r['error']):>8} "

@@ -74,8 +74,8 @@ class UprightLQR:
         k = int(np.argmax(np.abs(chi)))
         if np.count_nonzero(chi) != 1:
             raise ValueError(
-                "UprightLQR needs com_direction along a principal axis (an upright equilibrium with "
-                "spin)"
+                "UprightLQR needs com_direction along a principal axis (an upright equilibrium "
+                "with spin)"
             )
         self.chi = chi
         self.inertia = inertia

@@ -195,7 +195,10 @@ def _start_form(task_start, complete, k: int, m: int):
     def items(a, b):
         return "(" + "".join(f"d[{j}], " for j in range(a, b)) + ")"
 
-    src = f"def start(P, d):\n    return complete(P[1], task_start(P[0], {items(0, k)}), {items(k, k + m)})\n"
+    src = (
+        "def start(P, d):\n"
+        f"    return complete(P[1], task_start(P[0], {items(0, k)}), {items(k, k + m)})\n"
+    )
     namespace = generate(
         src, f"start k={k} m={m}", {"task_start": task_start, "complete": complete}
     )

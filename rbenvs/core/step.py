@@ -204,9 +204,8 @@ class Engine:
         # the period's count and rates come from its plan (below), the finish stays on floats
         self._runs, self._runs_tried = None, True
         # a tolerance's one-state count and error estimate from one evaluation of the rates,
-        # (rbenvs.compiled.PeriodPlan; the float path: StepRule.plan): "auto" where numba is
-        # compiled (rbenvs.compiled.PeriodPlan; the float path: StepRule.plan): "auto" where numba i
-        # installed and every part has a pure form, built on first use
+        # compiled (rbenvs.compiled.PeriodPlan; the float path: StepRule.plan): "auto" where numba
+        # is installed and every part has a pure form, built on first use
         self._plan, self._plan_tried = (
             None,
             m.tolerance is None or compiled is False or self.rule.rotation is None,
@@ -246,7 +245,8 @@ class Engine:
                     f"numba is not installed (the 'fast' extra) or {_compiled.DISABLE_VARIABLE}=0 "
                     "is set"
                     if not _compiled.available()
-                    else f"integrator {self.integrator.name!r} with task {self.task.name!r} and these settings has no compiled step"
+                    else f"integrator {self.integrator.name!r} with task {self.task.name!r} "
+                    "and these settings has no compiled step"
                 )
                 raise ValueError(f"compiled=True but {why}")
             return None
@@ -342,7 +342,8 @@ class Engine:
         return Y, U
 
     def _counts(self, y, u):
-        """A batch's guard counts (:meth:`StepRule.steps`), their ratios compiled where they can be."""
+        """A batch's guard counts (:meth:`StepRule.steps`), their ratios compiled where they can
+        be."""
         rule, plan = self.rule, self._plan if self._plan_tried else self.planner
         if plan is None or not rule.active:
             return np.broadcast_to(np.asarray(rule.steps(y, u, self.substeps)), np.shape(y[0]))
@@ -581,14 +582,16 @@ class Engine:
 
     @staticmethod
     def _run_each(runs, y, u, n, h, comp):
-        """:meth:`_loop` through the compiled runs (``tolerance_check``, :meth:`rbenvs.compiled.CheckedRuns.batch`):
-        element ``i`` takes its ``n[i]`` steps of ``h`` (``h[i]``) from its state and
-        compensation, as its single env takes them (the same bits as the arrays' loop)."""
+        """:meth:`_loop` through the compiled runs (``tolerance_check``,
+        :meth:`rbenvs.compiled.CheckedRuns.batch`): element ``i`` takes its ``n[i]`` steps of ``h``
+        (``h[i]``) from its state and compensation, as its single env takes them (the same bits as
+        the arrays' loop)."""
         size = n.size
 
         def rows(
             values,
-            # (a component may be one float for every element: a fresh compensation, a shared control)
+            # (a component may be one float for every element: a fresh compensation, a shared
+            # control)
         ):
             out = np.empty((len(values), size))
             for j, c in enumerate(values):
@@ -606,8 +609,8 @@ class Engine:
     def refusal(self, n, where: str = "") -> ValueError:
         """The ``guard="refuse"`` error for a period that needs ``n`` internal steps."""
         return ValueError(
-            f"guard='refuse' and the state{where} needs {n} internal steps per control period, more "
-            "than "
+            f"guard='refuse' and the state{where} needs {n} internal steps per control period, "
+            "more than "
             f"substeps={self.substeps} (dt={self.dt!r}, integrator {self.integrator.name!r}: "
             f"{self.rule.text}); "
             f"raise substeps to at least {n} or lower dt, or pass guard='subdivide'"
@@ -830,7 +833,10 @@ class Engine:
         if not float(np.min(h)) * MAX_INTERNAL_STEPS < self.dt:
             return ""
         bound = self.rule.binding(y0, u) if y0 is not None else f"the step bound ({self.rule.text})"
-        return f": the period needs more than MAX_INTERNAL_STEPS = {MAX_INTERNAL_STEPS} internal steps to meet {bound}"
+        return (
+            f": the period needs more than MAX_INTERNAL_STEPS = {MAX_INTERNAL_STEPS} internal "
+            f"steps to meet {bound}"
+        )
 
     def inaccurate_one(self, y0, a, h, plain, estimate, periods, comp):
         """The end of an episode whose global error estimate (``tolerance_check``) passed the
@@ -906,8 +912,8 @@ class Engine:
                 idx = np.flatnonzero(late)
                 warnings.warn(
                     f"sub-envs {idx.tolist()}: "
-                    f"{self._inaccurate_text(np.max(estimate[late]), np.min(check.periods[late]))}; "
-                    "their episodes end "
+                    f"{self._inaccurate_text(np.max(estimate[late]), np.min(check.periods[late]))}"
+                    "; their episodes end "
                     "and their last states within the tolerance are kept",
                     NumericalFailureWarning,
                     stacklevel=3,

@@ -126,7 +126,8 @@ def _symmetric_rotation(k: int, vectors: tuple, quaternion, dim: int):
 
 @dataclass(frozen=True)
 class AxisRotation:
-    """Exact flow ``flow(y, u, h)`` of ``H_i = rate * Pi_i^2 / 2``: a rotation about body axis ``i``.
+    """Exact flow ``flow(y, u, h)`` of ``H_i = rate * Pi_i^2 / 2``: a rotation about body axis
+    ``i``.
 
     ``Pi_i`` is constant, so ``Omega = rate * Pi_i e_i`` is too (``rate = 1 / I_i`` for the
     Lie-Poisson splitting of docs/physics.md §4; a difference of inverse moments for a symmetric

@@ -249,7 +249,8 @@ def period_speed(p, y, u, dt):
 
 @jitable
 def _segment_end(t, d, x):
-    """``min(t, x / -d)`` where ``d < 0`` (the segment ``x + t d`` leaves ``x >= 0``), else ``t``."""
+    """``min(t, x / -d)`` where ``d < 0`` (the segment ``x + t d`` leaves ``x >= 0``), else
+    ``t``."""
     return select(d < 0.0, select(x < -d * t, x / select(d < 0.0, -d, 1.0), t), t)
 
 
@@ -396,7 +397,8 @@ class FreeBody:
 
     # ------------------------------------------------------------------ vector field
     def rhs(self, y, u):
-        """``dy/dt``: ``dPi/dt = Pi x Omega + tau`` [MR 15.3.9-10], ``dq/dt = q * (0, Omega) / 2``."""
+        """``dy/dt``: ``dPi/dt = Pi x Omega + tau`` [MR 15.3.9-10],
+        ``dq/dt = q * (0, Omega) / 2``."""
         return self.kernel_rhs[0](self.kernel_rhs[1], y, u)
 
     def normalize(self, y):

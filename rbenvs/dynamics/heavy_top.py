@@ -390,8 +390,8 @@ def _require_physical_inertia(inertia, mass, length, chi):
             "have "
             f"eigenvalues >= 0 obeying the triangle inequality; got {ev.tolist()} for "
             f"inertia={tuple(inertia)}, "
-            f"mass={mass}, length={length} (the transverse moments about the pivot must be at least "
-            "mass*length^2)"
+            f"mass={mass}, length={length} (the transverse moments about the pivot must be at "
+            "least mass*length^2)"
         )
 
 
@@ -489,7 +489,8 @@ class HeavyTop:
         return (start_with_attitude if self.attitude else start_as_drawn), ()
 
     def export_state(self, y) -> dict:
-        """``{"angular_momentum": Pi, "vertical": Gamma, "attitude": q (with attitude)}``, float64 copies."""
+        """``{"angular_momentum": Pi, "vertical": Gamma, "attitude": q (with attitude)}``, float64
+        copies."""
         return export_layout(self.layout, y)
 
     def import_state(self, state: dict) -> tuple:
@@ -539,7 +540,10 @@ class HeavyTop:
             ) + f" (omega_g = sqrt(M g l / I_min) = {omega_g:.6g} rad/s)"
         else:
             weight, fixed = 1.0, omega_g + kappa
-            text = f"lambda = |Omega| + omega_g + kappa (omega_g = {omega_g:.6g} rad/s, kappa = {kappa:.6g} 1/s)"
+            text = (
+                f"lambda = |Omega| + omega_g + kappa (omega_g = {omega_g:.6g} rad/s, "
+                f"kappa = {kappa:.6g} 1/s)"
+            )
         return GuardRates(
             rotation=(rotation_rate, (prm.inverse, weight, fixed)),
             ceiling=weight * speed_ceiling + fixed,

@@ -1860,7 +1860,8 @@ class TippeTop:
         return self.forms.velocity(self.form_params, y)
 
     def height(self, y):
-        """``z_G`` [m]: ``a - h cos(theta)`` on the table (the constraint); with flight, the state's."""
+        """``z_G`` [m]: ``a - h cos(theta)`` on the table (the constraint); with flight, the
+        state's."""
         return self.forms.height(self.form_params, y)
 
     def gap(self, y):
@@ -2080,11 +2081,13 @@ class TippeTop:
         return self.forms.slip_speed(self.form_params, y)
 
     def energy(self, y):
-        """Kinetic (translation + rotation about ``G``) plus potential ``m g z_G`` [J], table frame."""
+        """Kinetic (translation + rotation about ``G``) plus potential ``m g z_G`` [J], table
+        frame."""
         return self.forms.energy(self.form_params, y)
 
     def jellett(self, y):
-        """``J = L . (a z_hat - h k)`` [kg m^2/s] [T 3.106], in the body frame ``L.(a Gamma - h e3)``."""
+        """``J = L . (a z_hat - h k)`` [kg m^2/s] [T 3.106], in the body frame
+        ``L.(a Gamma - h e3)``."""
         return self.forms.jellett(self.form_params, y)
 
     def tilt(self, y):
@@ -2266,7 +2269,10 @@ class TippeTop:
                 (self.form_params, self.friction.accuracy_scale, omega_g),
             )
             margin = ACCURACY_MARGIN
-            text += f", lambda_d = the {self.friction_law} law's stiffness at N and the mobility along the table (friction_bound='accuracy')"
+            text += (
+                f", lambda_d = the {self.friction_law} law's stiffness at N and the mobility "
+                "along the table (friction_bound='accuracy')"
+            )
         elif dissipation is not None:
             text += f", lambda_d = the {self.friction_law} law's stiffness at 2 max(m g, N)"
         share = None

@@ -211,9 +211,10 @@ def require_finite_result(names: str, value: float, what: str) -> float:
 
 
 def real_array(name: str, value, dtype=np.float64) -> np.ndarray:
-    """``value`` as an array of ``dtype`` (``None``: its own real dtype), refusing what is not real numbers: strings (even numeric
-    ones), complex numbers, dicts and other objects raise :class:`ParameterTypeError`
-    (numpy would convert ``"0.5"`` quietly, or drop an imaginary part with a warning)."""
+    """``value`` as an array of ``dtype`` (``None``: its own real dtype), refusing what is not real
+    numbers: strings (even numeric ones), complex numbers, dicts and other objects raise
+    :class:`ParameterTypeError` (numpy would convert ``"0.5"`` quietly, or drop an imaginary part
+    with a warning)."""
     arr = (
         value
         if isinstance(value, np.ndarray)

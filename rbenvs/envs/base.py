@@ -314,7 +314,8 @@ class RigidBodyEnv(gym.Env):
 
     @property
     def param_ranges(self):
-        """The validated ``param_ranges`` (:class:`rbenvs.envs.options.ParamRanges`), or ``None``."""
+        """The validated ``param_ranges`` (:class:`rbenvs.envs.options.ParamRanges`), or
+        ``None``."""
         return self._ranges
 
     @property
@@ -430,8 +431,8 @@ class RigidBodyEnv(gym.Env):
         evaluations a step, cost the least (ties: the first registered)."""
         if tolerance is None:
             raise ValueError(
-                "integrator='auto' chooses the scheme that meets tolerance= at the least cost: pass "
-                "tolerance= (a relative error per episode)"
+                "integrator='auto' chooses the scheme that meets tolerance= at the least cost: "
+                "pass tolerance= (a relative error per episode)"
             )
         best = None
         high = tuple(float(v) for v in observation_high)
@@ -512,8 +513,8 @@ class RigidBodyEnv(gym.Env):
             return (
                 x,
                 (
-                    f"to keep the error of {m.horizon} periods within it ({rule.accuracy_text}): at "
-                    f"a fixed step an order-{p} scheme's error "
+                    f"to keep the error of {m.horizon} periods within it ({rule.accuracy_text}): "
+                    f"at a fixed step an order-{p} scheme's error "
                     f"grows without bound, like lambda T (lambda h)^{p}, so the steps a tolerance "
                     "costs grow like "
                     f"(lambda T)^{(p + 1) / p:.3g} / tolerance^{1 / p:.3g}; raise tolerance, lower "
@@ -574,8 +575,8 @@ class RigidBodyEnv(gym.Env):
         few steps is legal: the episode ends there (``observation_limit``)."""
         if not change <= 2.0 * bound:
             raise ValueError(
-                f"{name} is too large: its full action can change the {unit} by {change:.6g} in one "
-                "control period, more "
+                f"{name} is too large: its full action can change the {unit} by {change:.6g} "
+                "in one control period, more "
                 f"than the width of the observation box (2 * {bound_name} = {2.0 * bound:.6g}); "
                 f"lower {name} or dt, or raise {bound_name}"
             )

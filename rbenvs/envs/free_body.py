@@ -372,7 +372,10 @@ def _body_torque_form(axes: tuple):
     for j, i in enumerate(axes):
         items[i] = f"a[{j}]"
     un = ", ".join(items)
-    src = f"def control(tau, a):\n    un = ({un})\n    return un, (tau * un[0], tau * un[1], tau * un[2])\n"
+    src = (
+        f"def control(tau, a):\n    un = ({un})\n"
+        "    return un, (tau * un[0], tau * un[1], tau * un[2])\n"
+    )
     return jitable(generate(src, f"body torque control axes={axes}")["control"])
 
 

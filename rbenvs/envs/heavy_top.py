@@ -298,12 +298,15 @@ class LagrangeTopEnv(RigidBodyEnv):
         attitude = require_bool("attitude", attitude)
         if task == "precess" and not params.is_lagrange:
             raise ValueError(
-                "task='precess' needs a Lagrange top: two equal moments and com_direction along the "
-                "third axis"
+                "task='precess' needs a Lagrange top: two equal moments and com_direction "
+                "along the third axis"
             )
         low, high = _spin_range(spin, task, params)
         if spin is None:
-            source = f"spin=None: {'half' if task == 'upright' else 'twice'} the critical spin 2 sqrt(M g l I1) / I3, set by mass, length, gravity and inertia"
+            source = (
+                f"spin=None: {'half' if task == 'upright' else 'twice'} the critical spin "
+                "2 sqrt(M g l I1) / I3, set by mass, length, gravity and inertia"
+            )
         else:
             source = "spin"
         if task == "upright":
@@ -405,8 +408,8 @@ class LagrangeTopEnv(RigidBodyEnv):
         if not growth * span >= 1.0:
             return None
         return (
-            f"the upright top is unstable below its critical spin {crit:.6g} rad/s (I3^2 spin^2 < 4 "
-            "I1 M g l), "
+            f"the upright top is unstable below its critical spin {crit:.6g} rad/s "
+            "(I3^2 spin^2 < 4 I1 M g l), "
             f"and spin reaches {slowest:.6g} rad/s, where a tilt grows at {growth:.3g} 1/s "
             f"({growth * span:.3g} e-folds over the "
             f"tolerance's horizon of {span:g} s)"

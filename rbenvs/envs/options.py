@@ -70,8 +70,8 @@ class ParamRanges:
     def __init__(self, env_class, nominal: dict, spec):
         if not isinstance(spec, dict):
             raise ParameterTypeError(
-                f"param_ranges must be None or a dict {{keyword: spread or (lo, hi)}}, got {spec!r} "
-                f"({type(spec).__name__})"
+                f"param_ranges must be None or a dict {{keyword: spread or (lo, hi)}}, "
+                f"got {spec!r} ({type(spec).__name__})"
             )
         allowed = env_class.randomizable
         unknown = [k for k in spec if k not in allowed]
@@ -123,7 +123,8 @@ class ParamRanges:
         return self._compose(lambda k, lo, hi: lo + (hi - lo) * float(u[k]))
 
     def draw(self, rng) -> dict:
-        """One episode's keyword values from ``rng`` (``count`` numbers of ``rng.random``'s stream)."""
+        """One episode's keyword values from ``rng`` (``count`` numbers of ``rng.random``'s
+        stream)."""
         return self.values(rng.random(self.count))
 
     def corners(self):
@@ -152,8 +153,8 @@ def _bounds(label: str, spec, v: tuple, vector: bool) -> tuple:
         s = float(spec)
         if not (math.isfinite(s) and 0.0 <= s < 1.0):
             raise ValueError(
-                f"{label}: a relative spread must lie in [0, 1) (values in value * [1 - s, 1 + s]), "
-                f"got {spec!r}"
+                f"{label}: a relative spread must lie in [0, 1) "
+                f"(values in value * [1 - s, 1 + s]), got {spec!r}"
             )
         lo = tuple(c * (1.0 - s) for c in v)
         hi = tuple(c * (1.0 + s) for c in v)
@@ -240,12 +241,12 @@ class Realism:
         ):
             if isinstance(action_delay, numbers.Real):
                 raise ValueError(
-                    f"action_delay must be an integer in [0, {MAX_ACTION_DELAY}] (control periods), "
-                    f"got {action_delay!r}"
+                    f"action_delay must be an integer in [0, {MAX_ACTION_DELAY}] "
+                    f"(control periods), got {action_delay!r}"
                 )
             raise ParameterTypeError(
-                f"action_delay must be an integer in [0, {MAX_ACTION_DELAY}] (control periods), got "
-                f"{action_delay!r} ({type(action_delay).__name__})"
+                f"action_delay must be an integer in [0, {MAX_ACTION_DELAY}] (control periods), "
+                f"got {action_delay!r} ({type(action_delay).__name__})"
             )
         self.delay = require_int_in(
             "action_delay", action_delay, 0, MAX_ACTION_DELAY, " (control periods)"

@@ -342,8 +342,8 @@ class TippeTopEnv(RigidBodyEnv):
             )
         if stem is not None and (self.free_flight or fidelity == "rolling"):
             raise ValueError(
-                "stem needs fidelity 'gliding' or 'frictionless' and free_flight=False (a touchdown "
-                "from flight could meet "
+                "stem needs fidelity 'gliding' or 'frictionless' and free_flight=False "
+                "(a touchdown from flight could meet "
                 "both contacts at once, which needs a two-contact impact law; a rolling top has no "
                 "slip to resume)"
             )
@@ -430,7 +430,10 @@ class TippeTopEnv(RigidBodyEnv):
     def params(self) -> TippeTopParams:
         return self.system.params
 
-    _rate_sources = "spin, gravity, mass, inertia, radius, offset, friction, friction_range and slip_regularization"
+    _rate_sources = (
+        "spin, gravity, mass, inertia, radius, offset, friction, friction_range and "
+        "slip_regularization"
+    )
 
     def _unstable_motion(self, system, task, span):
         """A top with friction spun above the inversion threshold: its upright start is left and

@@ -141,8 +141,8 @@ def _generated(scheme: type, dim: int) -> dict:
             + "\n    return step\n"
         )
         src += (
-            "def pure(f, factor, solve, normalize):\n    def step(PS, y, u, h):\n        P, PI, N = "
-            "PS\n" + inner + "\n    return step\n"
+            "def pure(f, factor, solve, normalize):\n    def step(PS, y, u, h):\n"
+            "        P, PI, N = PS\n" + inner + "\n    return step\n"
         )
         ns = _GENERATED[key] = generate(src, f"{scheme.name} dim={dim}")
     return ns
@@ -222,7 +222,8 @@ class Ros2(RosenbrockW):
         rotation=0.1,
         growth=0.02,
         dissipation=math.inf,
-        reason="explicit (Heun) on rotations: accuracy bounds as euler's; L-stable for the implicit (friction) part",
+        reason="explicit (Heun) on rotations: accuracy bounds as euler's; L-stable for the "
+        "implicit (friction) part",
     )
 
 
@@ -265,5 +266,6 @@ class Ros34pw2(RosenbrockW):
     region = StepRegion(
         rotation=0.5,
         dissipation=math.inf,
-        reason="accuracy on rotations (explicit there, third order); L-stable for the implicit (friction) part",
+        reason="accuracy on rotations (explicit there, third order); L-stable for the implicit "
+        "(friction) part",
     )

@@ -370,7 +370,8 @@ class RK4(ExplicitRungeKutta):
     region = StepRegion(
         rotation=1.0,
         dissipation=2.78,
-        reason="imaginary-axis interval 2.83 (1.0 kept: 0.6 % amplitude error a step), real-axis interval 2.78",
+        reason="imaginary-axis interval 2.83 (1.0 kept: 0.6 % amplitude error a step), "
+        "real-axis interval 2.78",
     )
     # measured (rbenvs.integrators.error): 0.0083333, rounded up (theory 1/120: the phase lags by
     # z^5 / 120 a step)

@@ -31,7 +31,10 @@ def _composition(n: int) -> dict:
     body = ["hh = 0.5 * h"] + [f"y = f{i}(P{i}, y, u, {h})" for i, h in _order(n)] + ["return y"]
     inner = "".join(f"        {line}\n" for line in body)
     src = f"def make({', '.join(fs + ps)}):\n    def step(y, u, h):\n{inner}    return step\n"
-    src += f"def pure({', '.join(fs)}):\n    def step(PS, y, u, h):\n        {', '.join(ps)}, = PS\n{inner}    return step\n"
+    src += (
+        f"def pure({', '.join(fs)}):\n    def step(PS, y, u, h):\n"
+        f"        {', '.join(ps)}, = PS\n{inner}    return step\n"
+    )
     return generate(src, f"splitting of {n} flows")
 
 

@@ -1,4 +1,5 @@
-"""Oracles for the free rigid body (docs/physics.md §1): the exact solution and the stability theorem.
+"""Oracles for the free rigid body (docs/physics.md §1): the exact solution and the stability
+theorem.
 
 Pure functions of the moments of inertia and the angular momentum, no dependency on the
 environments. The exact solution is the elliptic-function motion of [MR 15.8] (implemented

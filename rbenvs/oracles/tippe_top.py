@@ -146,7 +146,8 @@ def _energy_star(theta, J, m, g, R, alpha, A, C):
 
 
 def _slope_factor(theta, J, m, g, R, alpha, A, C):
-    """``dE*/dtheta = sin(theta) * factor``, ``factor = m g R alpha - J^2 ((A - C) cos + C alpha)/(R^2 D^2)``.
+    """``dE*/dtheta = sin(theta) * factor``,
+    ``factor = m g R alpha - J^2 ((A - C) cos + C alpha)/(R^2 D^2)``.
 
     ``d^2E*/dtheta^2`` is ``factor(0)`` at ``theta = 0`` and ``-factor(pi)`` at ``theta = pi``.
     """

@@ -82,7 +82,8 @@ def _paint(frame, rows, cols, mask, rgb):
 
 
 def _box(x, y, h, w, pad=0.0):
-    """The pixel window ``(rows, cols, xs, ys)`` covering the few points ``x, y`` (clipped), or ``None``."""
+    """The pixel window ``(rows, cols, xs, ys)`` covering the few points ``x, y`` (clipped), or
+    ``None``."""
     c0, c1 = max(math.floor(min(x) - pad), 0), min(math.ceil(max(x) + pad) + 1, w)
     r0, r1 = max(math.floor(min(y) - pad), 0), min(math.ceil(max(y) + pad) + 1, h)
     if c0 >= c1 or r0 >= r1:
@@ -91,7 +92,8 @@ def _box(x, y, h, w, pad=0.0):
 
 
 def _fill_convex(frame, x, y, rgb):
-    """Fill the convex polygon with pixel vertices ``x, y`` (lists of floats, either orientation)."""
+    """Fill the convex polygon with pixel vertices ``x, y`` (lists of floats, either
+    orientation)."""
     k = len(x)
     area = sum(x[i] * y[(i + 1) % k] - x[(i + 1) % k] * y[i] for i in range(k))
     box = _box(x, y, frame.shape[0], frame.shape[1])

@@ -286,7 +286,8 @@ def unstable_motion_warning(tolerance: float, unstable: str, check: bool) -> Uns
         "(info['global_error_estimate']) "
         "and the episode ends as a numerical failure where it passes the tolerance"
         if check
-        else "over a horizon that spans it the error can end above the tolerance (tolerance_check=True estimates it and ends "
+        else "over a horizon that spans it the error can end above the tolerance "
+        "(tolerance_check=True estimates it and ends "
         "the episode as a numerical failure where it passes the tolerance)"
     )
     return UnstableMotionWarning(
@@ -324,11 +325,9 @@ class StepRule:
     # forced_error_constant, 0 if none), fn(Q, y, u, dt, p, lambda_d) -> a in [0, 1], the share of
     # C (lambda_d h)^p its decaying mode's error is (relaxation_steps); None: a = 1
     share: tuple | None = None
-    # the default accuracy's gate (motion_rates'): (fn, P, (dt, p + 1, substeps^p / k)), fn(P, y) ->
-    # a cheap bound of the error's rate; a batch tests it first (rbenvs.compiled's gate loop); None:
-    # no gate
-    # Lambda, a cheap bound of the error's rate; a batch tests it first (rbenvs.compiled's gate
-    # loop); None: no gat
+    # the default accuracy's gate (motion_rates'): (fn, P, (dt, p + 1, substeps^p / k)), fn(P, y)
+    # -> Lambda, a cheap bound of the error's rate; a batch tests it first (rbenvs.compiled's gate
+    # loop); None: no gate
     gate: tuple | None = None
 
     @classmethod
@@ -379,7 +378,8 @@ class StepRule:
                     if dissipation is not None
                     else ""
                 )
-                + f" (tolerance={tolerance!r} over tolerance_horizon={horizon} periods; {integrator.name}: order {integrator.order}, "
+                + f" (tolerance={tolerance!r} over tolerance_horizon={horizon} periods; "
+                f"{integrator.name}: order {integrator.order}, "
                 f"error constant C = {c:g})"
             )
         active = guard != "off" and (
@@ -416,7 +416,10 @@ class StepRule:
             span = (
                 (float(horizon) + 1.0) * float(dt) / 2.0
             )  # (the mean time to the horizon's end: motion_rates)
-            mu_text = f"; mu = min(lambda, max over the state's blocks{' ' + ', '.join(names) if named else ''} of |dy_b/dt| / |y_b|)"
+            mu_text = (
+                "; mu = min(lambda, max over the state's blocks"
+                f"{' ' + ', '.join(names) if named else ''} of |dy_b/dt| / |y_b|)"
+            )
             for q, d in rates.rotating_blocks:
                 mu_text += (
                     f", with {q} (turning at its own speed m, driven by {d}): max(mu over the "
@@ -431,7 +434,10 @@ class StepRule:
             )
             if rates.speed is not None:  # the system's bound of its speed over a period
                 extra.update(speed_bound=rates.speed[0], dt=float(dt))
-                mu_text += f"; over the period at most {rates.speed[0].__name__}'s bound (the motion's own)"
+                mu_text += (
+                    f"; over the period at most {rates.speed[0].__name__}'s bound "
+                    "(the motion's own)"
+                )
             tail = (rates.speed[1],) if rates.speed is not None else ()
             if (
                 gate_steps is not None
@@ -657,7 +663,8 @@ class StepRule:
         return self._bounded((dt, bound, growth, 0.0, 1.0, 0.0), substeps)
 
     def _bounded(self, params, substeps: int) -> bool:
-        """Whether :func:`step_ratio` with ``params`` stays within ``substeps`` up to the rate's ceiling."""
+        """Whether :func:`step_ratio` with ``params`` stays within ``substeps`` up to the rate's
+        ceiling."""
         if not self.active:
             return True
         if self.dissipation is not None:
@@ -716,8 +723,8 @@ def require_tolerance_check(check, tolerance):
         )
     if check and tolerance is None:
         raise ValueError(
-            "tolerance_check=True needs tolerance= (the relative error per episode the global error "
-            "estimate is checked against)"
+            "tolerance_check=True needs tolerance= (the relative error per episode the global "
+            "error estimate is checked against)"
         )
     return check
 

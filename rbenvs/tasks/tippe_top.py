@@ -194,7 +194,8 @@ class _SpunTop(TwoStageStart):
     draw_kinds = "uuuu"  # tilt, azimuth, heading, spin
 
     def kernel_start(self, system):
-        """``(start, P)``: the pure form of :meth:`initial_from_draws` (:func:`tilted_spin_state`)."""
+        """``(start, P)``: the pure form of :meth:`initial_from_draws`
+        (:func:`tilted_spin_state`)."""
         return spun_start(
             system, self.spin_low, self.spin_high, self.tilt_low, self.tilt_high, self.start
         )

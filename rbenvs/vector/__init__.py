@@ -196,11 +196,9 @@ class RigidBodyVectorEnv(VectorEnv):
             compiled = False
             self._episodes = [None] * self.num_envs  # each sub-env's episode engine
             # with a tolerance each episode engine estimates its own periods
-            # and with tolerance_check each sub-env has its episode's companion (the single env's
             # (info["error_estimate"]), and with tolerance_check each sub-env has its episode's
-            # GlobalErrorCheck.step_one): no batch check of the nominal model
-            # companion (the single env' GlobalErrorCheck.step_one): no batch check of the nominal
-            # mode
+            # companion (the single env's GlobalErrorCheck.step_one): no batch check of the nominal
+            # model
             self._episode_checks = [None] * self.num_envs if self._checked else None
             self._check = None
             self._plains = np.ones(self.num_envs, dtype=bool)
@@ -243,10 +241,10 @@ class RigidBodyVectorEnv(VectorEnv):
         if self._vector_step is None:
             if num_threads != "auto" and threads > 1:
                 raise ValueError(
-                    f"num_threads={num_threads} splits the compiled vector step, and this env steps "
-                    "on numpy (compiled=False, "
-                    "param_ranges, tolerance_check, an integrator without a pure form, or numba not "
-                    "installed: the 'fast' extra); "
+                    f"num_threads={num_threads} splits the compiled vector step, and this env "
+                    "steps on numpy (compiled=False, "
+                    "param_ranges, tolerance_check, an integrator without a pure form, or numba "
+                    "not installed: the 'fast' extra); "
                     "pass num_threads=1, or 'auto' (1 where the step is not compiled)"
                 )
             self.num_threads = 1
@@ -316,13 +314,16 @@ class RigidBodyVectorEnv(VectorEnv):
             return None
         parts = self.engine.kernel_parts()
         if not _compiled.available():
-            reason = f"numba is not installed (the 'fast' extra) or {_compiled.DISABLE_VARIABLE}=0 is set"
+            reason = (
+                f"numba is not installed (the 'fast' extra) or {_compiled.DISABLE_VARIABLE}=0 "
+                "is set"
+            )
         elif parts is None:
             reason = (
                 f"{self.env_class.__name__} with integrator {self.integrator.name!r}, task "
                 f"{self.task.name!r} "
-                "and these settings has no compiled step (the integrator, system and task need pure "
-                "forms; "
+                "and these settings has no compiled step (the integrator, system and task need "
+                "pure forms; "
                 "events and hybrid switching never compile)"
             )
         else:
@@ -373,8 +374,8 @@ class RigidBodyVectorEnv(VectorEnv):
         elapsed = options.pop("elapsed_steps", None)
         if options:
             raise ValueError(
-                f"reset options must be a subset of {{'state', 'reset_mask', 'elapsed_steps'}}, got "
-                f"unknown {sorted(options)}"
+                f"reset options must be a subset of {{'state', 'reset_mask', 'elapsed_steps'}}, "
+                f"got unknown {sorted(options)}"
             )
         if elapsed is not None:
             elapsed = self._elapsed_steps(elapsed)
@@ -502,7 +503,8 @@ class RigidBodyVectorEnv(VectorEnv):
         self._restart_companion(idx)
 
     def _restart_companion(self, idx) -> None:
-        """The companions of the sub-envs ``idx`` start at their new states (``tolerance_check``)."""
+        """The companions of the sub-envs ``idx`` start at their new states
+        (``tolerance_check``)."""
         if self._ranges is not None and self._checked:  # (each its episode's)
             for i in idx:
                 self._episode_checks[i].restart(tuple(float(c[i]) for c in self._y))
@@ -558,7 +560,8 @@ class RigidBodyVectorEnv(VectorEnv):
         return self._step_estimated(actions)
 
     def _step_estimated(self, actions):
-        """The step of ``actions`` (those that act) with, under a tolerance, each period's error estimate."""
+        """The step of ``actions`` (those that act) with, under a tolerance, each period's error
+        estimate."""
         if self.engine.tolerance is None or self._y is None:
             out = self._step(actions)
             info = out[4]
@@ -581,9 +584,8 @@ class RigidBodyVectorEnv(VectorEnv):
             and vstep.layout.estimate
         ):
             # the compiled step writes the estimates (before the period, a restart's 0: a step
-            # to the numpy path has them too); they go into its info last, as on the numpy path
             # handed to the numpy path has them too); they go into its info last, as on the numpy
-            # pat
+            # path
             self._estimates = None
             return self._estimated(
                 self._step(actions), self._estimates, self._false, None, None, None, actions
@@ -793,8 +795,8 @@ class RigidBodyVectorEnv(VectorEnv):
         if r.status > 0:  # non-finite new states: the numpy path's failure handling
             if (
                 engine.tolerance is not None
-                # (the estimate's step: _step_estimated; a SAME_STEP restart rewrites r.h's restarted
-                # rows)
+                # (the estimate's step: _step_estimated; a SAME_STEP restart rewrites r.h's
+                # restarted rows)
             ):
                 self._period_h = np.array(r.h, dtype=np.float64)
                 self._estimates = r.estimate
@@ -1056,7 +1058,8 @@ class RigidBodyVectorEnv(VectorEnv):
         return obs, over, metrics, physical
 
     def _column(self, name, values):
-        """A metric's values as an array of its type in the single env's info (bool, int or float)."""
+        """A metric's values as an array of its type in the single env's info (bool, int or
+        float)."""
         if self._metric_dtypes is None:
             self._metric_dtypes = {}
         dtype = self._metric_dtypes.get(name)
@@ -1327,7 +1330,10 @@ def vector_class(env_class: type) -> type:
     cls = _MADE.get(env_class)
     if cls is None:
         name = env_class.__name__[: -len("Env")] + "VectorEnv"
-        doc = f"The vector env of :class:`{env_class.__module__}.{env_class.__name__}` (see :mod:`rbenvs.vector`)."
+        doc = (
+            f"The vector env of :class:`{env_class.__module__}.{env_class.__name__}` "
+            "(see :mod:`rbenvs.vector`)."
+        )
         cls = _MADE[env_class] = type(
             name,
             (RigidBodyVectorEnv,),

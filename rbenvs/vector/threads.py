@@ -50,8 +50,13 @@ def pool_size() -> int:
 def _omp_started() -> bool:
     import sys
 
-    parallel = sys.modules.get("numba.np.ufunc.parallel")
-    return parallel is not None and parallel._is_initialized and parallel._threading_layer == "omp"
+    numba = sys.modules.get("numba")  # (not imported here: a process without numba has no threads)
+    if numba is None:
+        return False
+    try:
+        return numba.threading_layer() == "omp"
+    except ValueError:  # no parallel region has run yet
+        return False
 
 
 def _after_fork_in_child() -> None:

@@ -196,7 +196,8 @@ def _unverified(systems, integrators) -> list[Check]:
 
 
 def run_sweep(quick=False, show_progress=True):
-    """The tippe top's final-tilt sweep (:func:`rbenvs.verify.tippe_top.sweep`); ``quick``: 3 points."""
+    """The tippe top's final-tilt sweep (:func:`rbenvs.verify.tippe_top.sweep`); ``quick``: 3
+    points."""
     alphas, offsets = _tippe.SWEEP_QUICK if quick else (_tippe.SWEEP_ALPHAS, _tippe.SWEEP_OFFSETS)
     progress = Progress(total=len(alphas) * len(offsets), enabled=show_progress, desc="sweep")
     points = _tippe.sweep(alphas, offsets, progress=progress.update)
@@ -259,14 +260,16 @@ def main(argv=None) -> int:
         "--simulator",
         action="append",
         metavar="SPEC",
-        help="run the checks on another simulator at its own step (repeatable): mujoco[:integrator=RK4+implicitfast,dt=1e-3,...], "
+        help="run the checks on another simulator at its own step (repeatable): "
+        "mujoco[:integrator=RK4+implicitfast,dt=1e-3,...], "
         "rbenvs[:integrator=rk4,dt=1e-3] or module:function[,dt=1e-3,order=1] "
         "(docs/verification.md)",
     )
     parser.add_argument(
         "--comparison",
         action="store_true",
-        help="with --simulator: print, instead of the rows, one Markdown table (a row per check, a column per simulator) "
+        help="with --simulator: print, instead of the rows, one Markdown table "
+        "(a row per check, a column per simulator) "
         "and exit 0 whatever it shows: a report, not a gate (--docs PAGE writes it into the page)",
     )
     parser.add_argument("--json", metavar="PATH", help="also write a machine-readable report")
@@ -274,7 +277,8 @@ def main(argv=None) -> int:
     parser.add_argument(
         "--sweep",
         action="store_true",
-        help="instead of the checks: the tippe top's final tilt over a grid of A/C and alpha, predicted against simulated",
+        help="instead of the checks: the tippe top's final tilt over a grid of A/C and alpha, "
+        "predicted against simulated",
     )
     parser.add_argument(
         "--plot",

@@ -1,4 +1,5 @@
-"""Heavy-top checks of ``rbenvs verify`` (docs/physics.md §2), per integrator, on random Lagrange tops.
+"""Heavy-top checks of ``rbenvs verify`` (docs/physics.md §2), per integrator, on random Lagrange
+tops.
 
 Every top is a Lagrange top (``I1 = I2 = A`` and ``I3 = C`` about the pivot, centre of mass on
 the symmetry axis ``chi = e3``) drawn from these ranges (``--seed``):
@@ -530,7 +531,8 @@ def _upright_growth_rate(system, sim, setting, top, spin):
 
 
 def _recorder(system):
-    """Lists of times, tilts and precession rates, and the callback of :func:`_run` that fills them."""
+    """Lists of times, tilts and precession rates, and the callback of :func:`_run` that fills
+    them."""
     ts, tilts, rates = [], [], []
 
     def observe(t, y):

@@ -243,7 +243,8 @@ class _Run:
 
 
 def mujoco_simulators(options: dict) -> list[MujocoSimulator]:
-    """The simulators of ``--simulator mujoco:...`` options (module docstring), one per integrator."""
+    """The simulators of ``--simulator mujoco:...`` options (module docstring), one per
+    integrator."""
     from .protocol import no_more_options, take_option
 
     names = take_option(options, "integrator", str, "+".join(DEFAULT_INTEGRATORS)).split("+")

@@ -72,7 +72,8 @@ class Simulator(Protocol):
     order: int
 
     def start(self, problem: Problem, y0: tuple) -> Run:
-        """A run from ``y0``; ``NotImplementedError`` (with the reason) for a problem not modelled."""
+        """A run from ``y0``; ``NotImplementedError`` (with the reason) for a problem not
+        modelled."""
         ...
 
 

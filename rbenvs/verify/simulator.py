@@ -138,7 +138,9 @@ class IntegratorSimulator:
 LAYOUTS = {
     "free_body": "(Pi1, Pi2, Pi3)",
     "heavy_top": "(Pi1, Pi2, Pi3, Gamma1, Gamma2, Gamma3)",
-    "tippe_top": "(x, y, vx, vy, qw, qx, qy, qz, W1, W2, W3) (rolling: (x, y, qw, qx, qy, qz, W1, W2, W3))",
+    "tippe_top": (
+        "(x, y, vx, vy, qw, qx, qy, qz, W1, W2, W3) (rolling: (x, y, qw, qx, qy, qz, W1, W2, W3))"
+    ),
 }
 
 
@@ -216,7 +218,10 @@ class CallableSimulator:
 
     @property
     def _qualname(self) -> str:
-        return f"{getattr(self.fn, '__module__', '?')}.{getattr(self.fn, '__qualname__', getattr(self.fn, '__name__', repr(self.fn)))}"
+        return (
+            f"{getattr(self.fn, '__module__', '?')}."
+            f"{getattr(self.fn, '__qualname__', getattr(self.fn, '__name__', repr(self.fn)))}"
+        )
 
 
 # ------------------------------------------------------------------------------------------
@@ -224,7 +229,8 @@ class CallableSimulator:
 
 
 def as_simulators(items) -> list:
-    """Integrator names, :class:`~rbenvs.integrators.Integrator` objects and simulators, as simulators."""
+    """Integrator names, :class:`~rbenvs.integrators.Integrator` objects and simulators, as
+    simulators."""
     return [item if isinstance(item, Simulator) else IntegratorSimulator(item) for item in items]
 
 

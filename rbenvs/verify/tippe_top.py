@@ -541,7 +541,8 @@ def _invariant_rows(sim, setting, tops, rng, n_states, system_class, progress):
         rows.setdefault(check.check, []).append(check)
 
     def tolerance(tol, run, bound):
-        """The setting's tolerance; for a simulator at its own step, scaled to it, at most ``bound``."""
+        """The setting's tolerance; for a simulator at its own step, scaled to it, at most
+        ``bound``."""
         return (
             tol
             if sim.dt is None
@@ -914,7 +915,10 @@ def _t90_rows(order=True, system_class=TippeTop):
 INVERSION_SPIN = 150.0  # rad/s: the default top's, as for t90
 INVERSION_HORIZON = 10.0  # s: past the inversion (t90 ~ 7 s in rbenvs' model)
 INVERSION_SAMPLE = 0.05  # s between samples of J
-INVERSION_ROW = f"Jellett held through an inversion (default top, {INVERSION_SPIN:g} rad/s, coulomb, {INVERSION_HORIZON:g} s): max |dJ| / (|L| (R+h))"
+INVERSION_ROW = (
+    f"Jellett held through an inversion (default top, {INVERSION_SPIN:g} rad/s, coulomb, "
+    f"{INVERSION_HORIZON:g} s): max |dJ| / (|L| (R+h))"
+)
 # rk4 at max_stable_step (h = 6.3e-5 s, |Omega| h ~ 0.01; 1.6e5 steps): measured 1.4e-8 (quick
 # and full run the same case)
 INVERSION_JELLETT = 1e-7

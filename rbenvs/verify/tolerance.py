@@ -47,8 +47,14 @@ ROUND_OFF_ERROR = 1e-11  # errors below this are roundoff: the estimate is not h
 ROWS = {
     "error": f"tolerance={TOLERANCE:g} over {PERIODS} periods: max |Pi - Pi_exact| / |Pi_exact|",
     "bound": "tolerance_check: max (error - global error estimate) / tolerance",
-    "near": f"tolerance_check=True at {NEAR_TOLERANCE:g}, {NEAR_OFF:g} rad/s off the intermediate axis: max |Pi - Pi_exact| / |Pi_exact|",
-    "floor": f"tolerance_check=True at {FLOOR_TOLERANCE:g}, {FLOOR_OFF:g} rad/s off the intermediate axis: max |Pi - Pi_exact| / |Pi_exact|",
+    "near": (
+        f"tolerance_check=True at {NEAR_TOLERANCE:g}, {NEAR_OFF:g} rad/s off the intermediate "
+        "axis: max |Pi - Pi_exact| / |Pi_exact|"
+    ),
+    "floor": (
+        f"tolerance_check=True at {FLOOR_TOLERANCE:g}, {FLOOR_OFF:g} rad/s off the intermediate "
+        "axis: max |Pi - Pi_exact| / |Pi_exact|"
+    ),
 }
 
 
@@ -153,8 +159,8 @@ def tolerance_checks(integrators, seed=0, n_cases=2, progress=None) -> list[Chec
 
 
 def _separatrix_check(name, inertias, seed, progress, row, tolerance, off) -> Check:
-    """A near-separatrix row (the module's ``row``: ``tolerance`` at ``off`` rad/s off the intermediate
-    axis) of integrator ``name``, the worst of the bodies ``inertias``."""
+    """A near-separatrix row (the module's ``row``: ``tolerance`` at ``off`` rad/s off the
+    intermediate axis) of integrator ``name``, the worst of the bodies ``inertias``."""
     from ..envs import FreeRigidBodyEnv, UnstableMotionWarning
 
     worst, worst_case = 0.0, {}
