@@ -30,6 +30,7 @@ __all__ = [
     "PureFunction",
     "StepRegion",
     "GuardRates",
+    "Steppable",
     "System",
     "HybridSystem",
     "Task",
@@ -148,15 +149,38 @@ class GuardRates:
 
 
 @runtime_checkable
-class System(Protocol):
+class Steppable(Protocol):
+    """What an integrator steps: a vector field on ``dim`` components and its projection.
+
+    ``needs_projection``: whether :meth:`normalize` does anything (false: it is the identity
+    and a step may skip it); ``kernel_rhs`` and ``kernel_normalize``: their pure forms, or
+    ``None`` (see :class:`System`). A test problem (:class:`rbenvs.integrators.error.Rotation`)
+    declares these alone."""
+
+    dim: int
+    needs_projection: bool
+    kernel_rhs: Any
+    kernel_normalize: Any
+
+    def rhs(self, y, u):
+        """``dy/dt`` at ``y`` under ``u`` (components)."""
+
+    def normalize(self, y):
+        """``y`` projected back onto the state manifold (unit quaternions, unit vectors)."""
+
+
+@runtime_checkable
+class System(Steppable, Protocol):
     """The physics of one rigid-body system: a vector field, its exact pieces, read-outs.
 
     Attributes: ``dim`` (number of state components), ``layout`` (name -> ``(start, stop)``
     slices of the components, the names of ``get_state``), ``readout_names`` (the ``info`` keys
     of :meth:`readouts`), ``params`` (a frozen parameter object), ``hybrid`` (whether its
-    contact can switch: then it is a :class:`HybridSystem`). Optional capabilities an
-    integrator may require (its ``requires``): ``split_flows`` (exact sub-flows, for the
-    splitting), ``free_flow`` and ``kick`` (the exact flow).
+    contact can switch: then it is a :class:`HybridSystem`). ``provides``: the optional
+    capabilities it has, by name, which an integrator's ``requires`` names (a class attribute:
+    an env's choice of integrators reads it before any system exists): ``"split_flows"``
+    (exact sub-flows, for the splitting), ``"free_flow"`` and ``"kick"`` (the exact flow),
+    ``"implicit"`` (the Rosenbrock schemes' linear solve, :attr:`kernel_implicit`).
 
     **Pure forms** (``(fn, P)`` pairs, or ``None`` where the system has none; what generated
     steps and compiled kernels call, and what the methods call too, so there is one
@@ -168,26 +192,22 @@ class System(Protocol):
     * ``kernel_readouts``: ``fn(P, y, u, fired) -> (r_1, ...)`` in ``readout_names`` order, equal
       to :meth:`readouts` (``u`` the control that acted, ``fired`` the period's terminal event);
     * ``kernel_split_flows`` (with ``split_flows``): the exact sub-flows as ``((fn, P), ...)``,
-      ``fn(P, y, u, h) -> y``, in :meth:`split_flows` order.
+      ``fn(P, y, u, h) -> y``, in :meth:`split_flows` order;
+    * ``kernel_implicit`` (with ``implicit``): ``(factor, solve, P)``, the linear solve of a
+      Rosenbrock-W stage (:mod:`rbenvs.integrators.rosenbrock`).
 
     Every pure function is marked :func:`rbenvs.jit.jitable`: arithmetic on floats and tuples
     of floats that also runs on numpy arrays (``isinstance(x, float)`` and ``x is None``
     branches are resolved when compiled).
     """
 
-    dim: int
     layout: dict
     readout_names: tuple
     hybrid: bool
-    kernel_rhs: Any
-    kernel_normalize: Any
+    provides: frozenset
     kernel_readouts: Any
-
-    def rhs(self, y, u):
-        """``dy/dt`` at ``y`` under ``u`` (components)."""
-
-    def normalize(self, y):
-        """``y`` projected back onto the state manifold (unit quaternions, unit vectors)."""
+    kernel_split_flows: Any
+    kernel_implicit: Any
 
     def readouts(self, y, u, fired):
         """The physical read-outs in ``readout_names`` order at ``y`` after a period under
@@ -240,6 +260,9 @@ class HybridSystem(System, Protocol):
     """
 
     switches: bool
+    kernel_event: Any
+    kernel_rhs_event: Any
+    kernel_switches: Any
 
     def terminal_event(self):
         """``(name, fn)`` with ``fn(y, u)`` true where the episode ends, or ``None``."""
@@ -302,8 +325,11 @@ class Integrator(Protocol):
 
     Attributes: ``name``; ``order`` (global order for smooth problems); ``evaluations`` (rhs
     calls per step, ``None`` if not rhs-based: the cost); ``conserves`` (invariants kept to
-    round-off); ``requires`` (system capabilities it needs); ``region`` (:class:`StepRegion`);
-    ``uniform_step_only`` (one scalar step for a whole batch: adaptive schemes).
+    round-off); ``requires`` (system capabilities it needs, of the system's ``provides``);
+    ``region`` (:class:`StepRegion`); ``uniform_step_only`` (one scalar step for a whole batch:
+    adaptive schemes); ``error_constant``, ``error_in_phase`` and ``forced_error_constant``
+    (what ``tolerance=`` reads, ``None``/false where the scheme has none:
+    :class:`rbenvs.integrators.base.Integrator`).
     """
 
     name: str
@@ -313,6 +339,9 @@ class Integrator(Protocol):
     requires: tuple
     region: StepRegion
     uniform_step_only: bool
+    error_constant: Any
+    error_in_phase: bool
+    forced_error_constant: Any
 
     def supports(self, system) -> bool:
         """Whether ``system`` offers everything this scheme needs."""
@@ -326,6 +355,10 @@ class Integrator(Protocol):
 
     def kernel_step(self, system, compensated: bool = False):
         """``(step, P)``, a pure form of :meth:`bind`'s step for compiled code, or ``None``."""
+
+    def kernel_step_first_stage(self, system, compensated: bool = False):
+        """``(step, P)`` with ``step(P, y, k0, u, h)``: the step given its first stage (a
+        hybrid system's event shares it), or ``None``."""
 
 
 @runtime_checkable

@@ -184,6 +184,10 @@ class WithIntegral:
     """``system`` plus a last component integrating ``rate(system, y, u)`` along the same
     trajectory, with the same scheme (a work or a torque, to the scheme's order)."""
 
+    # (what an integrator reads of a system, rbenvs.contracts.Steppable: no pure forms)
+    needs_projection = True
+    kernel_rhs = kernel_normalize = None
+
     def __init__(self, system, rate):
         self.system, self.rate = system, rate
 

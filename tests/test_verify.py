@@ -264,7 +264,7 @@ class WrongImpact(tp.TippeTop):
     def impact(self, y):
         rm = self.frame(y)
         w = self.angular_velocity(y)
-        r = self._contact_arm(rm[6], rm[7], rm[8])
+        r = self.contact_arm(rm[6], rm[7], rm[8])
         t = np.cross(r, rm[6:9])
         rot = float(np.dot(w, t))
         flipped = y[:5] + (y[5] - 2.0 * rot,) + y[6:]  # so that the true law sees v_z - rot

@@ -639,7 +639,7 @@ def stagger_clocks(venv, seed: int = 0) -> bool:
     (``reset(options={"elapsed_steps": k})``, sub-env ``i`` as if ``k_i`` steps into its
     episode): the steady state of a long run whose sub-envs have drifted apart. False (a plain
     reset) where the env has no time limit."""
-    limit = getattr(venv.unwrapped, "max_episode_steps", None)
+    limit = venv.unwrapped.max_episode_steps
     if not limit:
         venv.reset(seed=seed)
         return False
@@ -699,9 +699,7 @@ def kernel_time(venv, action, min_time: float, repeat: int, budget: float | None
 
     u, u_norm = full(u), full(u_norm)
     h, substeps = env.engine.h, env.engine.substeps
-    check = not getattr(
-        env.engine, "plain", True
-    )  # the guard per sub-env where the env runs one, as the env calls it
+    check = not env.engine.plain  # the guard per sub-env where the env runs one, as the env does
     if (
         check and env.engine.gated(before) is not None
     ):  # (the default accuracy's gate holds every state: the env's periods are plain)
@@ -794,7 +792,7 @@ def measure_setting(
     # -- single env, interleaved with Pendulum
     env = gym.make(env_id, **kwargs)
     env.reset(seed=seed)
-    row["task"] = row["task"] or getattr(getattr(env.unwrapped, "task", None), "name", None)
+    row["task"] = row["task"] or env.unwrapped.task.name
     ours = episode_stepper(env, np.zeros(env.action_space.shape, dtype=env.action_space.dtype))
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
@@ -827,7 +825,7 @@ def measure_setting(
         venv = gym.make_vec(env_id, num_envs=n, vectorization_mode="vector_entry_point", **kwargs)
         compiled = bool(venv.unwrapped.compiled)
         row["path"] = "compiled" if compiled else "numpy"
-        row["max_episode_steps"] = getattr(venv.unwrapped, "max_episode_steps", None)
+        row["max_episode_steps"] = venv.unwrapped.max_episode_steps
         venv.reset(seed=seed)
         zero = np.zeros(venv.action_space.shape, dtype=venv.action_space.dtype)
         venv.step(zero)  # a kernel compiles on its first call: not timed

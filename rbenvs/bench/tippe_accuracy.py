@@ -165,7 +165,7 @@ def _rbenvs_row(start, t90_same, label, scheme, setting, level="gliding", law="c
             kind,
             spin,
             substeps,
-            tippe_steps._scheme(scheme),
+            tippe_steps.scheme(scheme),
             law,
             max_periods=max_periods,
             timing_repeats=0 if scheme == "dop853" else REPEATS,
@@ -248,7 +248,7 @@ def mujoco_rows(start, t90_same, quick=False, progress=None) -> list[dict]:
     from ..verify.tippe_top import oracle_jellett
 
     kind, spin = STARTS[start]
-    env = tippe_steps._make(kind, spin, "coulomb", "rk4", 1, "subdivide", False, 1)
+    env = tippe_steps.make_env(kind, spin, "coulomb", "rk4", 1, "subdivide", False, 1)
     env.reset(seed=0)
     system, y0 = env.system, tuple(float(c) for c in env.state_components)
     problem = problem_of(system)

@@ -28,19 +28,19 @@ import numpy as np
 
 from ..extras import ArgumentParser
 
-__all__ = ["inversion", "rows", "table", "main"]
+__all__ = ["inversion", "rows", "table", "main", "make_env", "scheme"]
 
 ID = "rbenvs/TippeTop-v0"
 RK4_REAL_INTERVAL = 2.785  # rk4's stability interval on the negative real axis
 
 
-def _scheme(name):
+def scheme(name):
     from ..integrators.rosenbrock import Ros2, Ros34pw2
 
     return {"ros2": Ros2(), "ros34pw2": Ros34pw2()}.get(name, name)
 
 
-def _make(
+def make_env(
     start,
     spin,
     law,
@@ -63,7 +63,7 @@ def _make(
         spin=spin,
         tilt=0.1,
         friction_law=law,
-        integrator=_scheme(integrator),
+        integrator=scheme(integrator),
         substeps=substeps,
         guard=guard,
         compiled=compiled,
@@ -79,11 +79,13 @@ def tight_count(start, spin, law="coulomb") -> int:
     omega_g)`` a step) the guard keeps for every scheme."""
     from ..dynamics.tippe_top import SPIN_STEP, tippe_rotation_rate
 
-    env = _make(start, spin, law, "rk4", 1, "off", False, 1)
+    env = make_env(start, spin, law, "rk4", 1, "off", False, 1)
     env.reset(seed=0)
     system, y = env.system, env.state_components
     rate = system.implicit.rate(system.form_params, y, None)
-    spin_rate = tippe_rotation_rate((system._w, env.params.gravity_rate()), y)
+    spin_rate = tippe_rotation_rate(
+        (system.layout["angular_velocity"][0], env.params.gravity_rate()), y
+    )
     return max(
         1, math.ceil(env.dt * rate / RK4_REAL_INTERVAL), math.ceil(env.dt * spin_rate / SPIN_STEP)
     )
@@ -115,7 +117,7 @@ def inversion(
     if substeps == "accuracy":
         substeps, friction_bound = None, "accuracy"
     guard = "subdivide" if substeps is None else "off"
-    env = _make(
+    env = make_env(
         start,
         spin,
         law,

@@ -438,7 +438,7 @@ def _episode(case, env, starts, refs):
     a = np.zeros(env.action_space.shape, np.float32)
     from ..stepsize.controller import companion_steps, relative_difference, tolerance_blocks
 
-    checked = getattr(env, "_check", None) is not None
+    checked = bool(env.engine.check)  # (tolerance_check: a companion run beside the state)
     # the measured blocks: the tippe top's horizontal position (it drifts) and its contact flags
     # (counts, not quantities) left out
     blocks = tolerance_blocks(env.system)

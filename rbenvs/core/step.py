@@ -144,13 +144,12 @@ class Engine:
         self.comp = self.fresh_comp  # the single env's run's
         self.shared, self.shared_c = None, None
         if self.event is not None:
-            rhs_event = getattr(system, "kernel_rhs_event", None)
-            first = getattr(m.integrator, "kernel_step_first_stage", None)
-            shared = first(system) if rhs_event is not None and first is not None else None
+            rhs_event = system.kernel_rhs_event  # (an event is a hybrid system's)
+            shared = m.integrator.kernel_step_first_stage(system) if rhs_event is not None else None
             if shared is not None:
                 self.shared = (shared, rhs_event)
                 if compensate:
-                    self.shared_c = first(system, compensated=True)
+                    self.shared_c = m.integrator.kernel_step_first_stage(system, compensated=True)
         # the plain loop (substeps equal steps, nothing watched) is exact when no state inside
         # the observation bounds can trip the guard; a step that ends outside them drops to the
         # checked path until the next reset (the single env's and the vector env's rule); a
@@ -960,19 +959,20 @@ class Engine:
             return None
         switches = ()
         if self.switching is not None:  # hybrid switching: the system's switches in pure forms
-            switches = getattr(system, "kernel_switches", None)
+            switches = system.kernel_switches  # (switching is a hybrid system's)
             if switches is None:
                 return None
         event = rhs_event = None
         if self.event is not None:
-            event = getattr(system, "kernel_event", None)
+            event = system.kernel_event  # (an event is a hybrid system's)
             if event is None:
                 return None
             # the event's evaluation shared with the next step's first stage, where both the
             # system (the vector field and the event from one evaluation) and the scheme allow
-            rhs_event = getattr(system, "kernel_rhs_event", None)
-            first = getattr(self.integrator, "kernel_step_first_stage", None)
-            first = first(system) if rhs_event is not None and first is not None else None
+            rhs_event = system.kernel_rhs_event
+            first = (
+                self.integrator.kernel_step_first_stage(system) if rhs_event is not None else None
+            )
             if first is not None:
                 step = first
                 step_c = self.shared_c

@@ -339,6 +339,9 @@ class FreeBody:
 
     # a smooth system: no events, no switches (rbenvs.contracts.HybridSystem)
     hybrid = False
+    # the optional capabilities (rbenvs.contracts.System): exact sub-flows and the exact flow
+    provides = frozenset({"split_flows", "free_flow", "kick"})
+    kernel_implicit = None
 
     def readouts(self, y, u=None, fired=False):
         """``(energy, momentum_norm)`` (:attr:`readout_names`); the control plays no part."""

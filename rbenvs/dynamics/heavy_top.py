@@ -460,6 +460,11 @@ class HeavyTop:
 
     # a smooth system: no events, no switches (rbenvs.contracts.HybridSystem)
     hybrid = False
+    # the optional capabilities (rbenvs.contracts.System): exact sub-flows (no closed-form
+    # free flow: the exact integrator is the free body's alone)
+    provides = frozenset({"split_flows", "kick"})
+    kernel_implicit = None
+    needs_projection = True  # (Gamma's length, and the quaternion's)
 
     def readouts(self, y, u=None, fired=False) -> tuple:
         """The read-outs in :attr:`readout_names` order (floats or arrays; ``u`` plays no part)."""

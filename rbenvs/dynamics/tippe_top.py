@@ -73,7 +73,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ..contracts import GuardRates
+from ..contracts import GuardRates, StepRegion
 from ..draws import draw
 from ..jit import jitable
 from ..rotations import atan2, maximum, power, quat_normalize, quat_rate, select, sqrt
@@ -1719,7 +1719,7 @@ class TippeTop:
 
     @params.setter
     def params(self, params: TippeTopParams):
-        if (params.stem is not None) != getattr(self, "stem", params.stem is not None):
+        if (params.stem is not None) != self.stem:  # (set first by __init__ and __setstate__)
             raise ValueError(
                 "params must keep the stem as it is (a stem changes the state's layout)"
             )
@@ -1851,7 +1851,7 @@ class TippeTop:
         rm = self.frame(y)
         return (rm[6], rm[7], rm[8])
 
-    def _contact_arm(self, g1, g2, g3):
+    def contact_arm(self, g1, g2, g3):
         """``r = P - G = h e3 - a Gamma`` in the body frame."""
         return contact_arm(self.form_params, g1, g2, g3)
 
@@ -1929,6 +1929,11 @@ class TippeTop:
     # (rbenvs.contracts.HybridSystem) A contact that can open: without free flight a lift-off
     # ends the episode (the terminal event); with it the top flies and lands (the switches).
     hybrid = True
+    # the optional capabilities (rbenvs.contracts.System): the Rosenbrock-W schemes' linear
+    # solve (kernel_implicit, None with a stem); no exact sub-flows
+    provides = frozenset({"implicit"})
+    kernel_split_flows = None
+    needs_projection = True  # (the quaternion)
 
     @property
     def switches(self) -> bool:
@@ -2311,7 +2316,8 @@ class TippeTop:
         2.78: ``c = 1.39``), ``lambda_d`` from :meth:`friction_stiffness` at ``mu`` (default:
         the parameter's) and ``normal_force`` (default ``m g``). ``inf`` without friction, when
         rolling, and for schemes without a real-axis bound (dop853). Arrays in, array out."""
-        region = getattr(region, "region", region)  # an integrator, or its region
+        if not isinstance(region, StepRegion):  # an integrator: its region
+            region = region.region
         c = FRICTION_MARGIN * region.dissipation
         if self.friction_law is None or c == math.inf:
             return math.inf

@@ -22,6 +22,7 @@ import warnings
 import gymnasium as gym
 import numpy as np
 
+from ..contracts import Integrator, require_parts
 from ..core.model import Model
 from ..core.step import Engine, NumericalFailureWarning, action_values
 from ..dynamics.validation import require_finite_positive, require_int_in, unknown_keyword
@@ -109,7 +110,7 @@ class _SupportedSchemes:
         return tuple(
             name
             for name, scheme in INTEGRATORS.items()
-            if all(hasattr(cls.system_class, need) for need in scheme.requires)
+            if set(scheme.requires) <= cls.system_class.provides
         )
 
 
@@ -136,6 +137,8 @@ class RigidBodyEnv(gym.Env):
         None  # with observation noise or bias: the last observation without them
     )
     _noise_rng = None  # the noise stream's generator (rbenvs.envs.options.rekey at each reset)
+    axis = None  # the env's named axis (the free body's spin tasks), else None
+    _renderer = None  # made by the first render() (a close before __init__ ends finds None)
 
     def __init_subclass__(cls, **kwargs):
         """Each env records its constructor's keyword arguments (defaults applied) in
@@ -208,13 +211,12 @@ class RigidBodyEnv(gym.Env):
                 system, task, actuator, dt, substeps, guard, observation_high, tolerance, horizon
             )
         integrator = get_integrator(integrator)
+        require_parts(integrator, Integrator, "integrator")  # (what it declares, read below)
         if not integrator.supports(system):
             raise ValueError(
                 f"integrator {integrator.name!r} is not available for {type(system).__name__}"
             )
-        if (
-            getattr(integrator, "region", None) is None
-        ):  # declared, not probed: no region, no guard, no run
+        if integrator.region is None:  # no region, no guard, no run
             raise ValueError(
                 f"integrator {integrator.name!r} declares no step region (StepRegion, "
                 "rbenvs.contracts): it cannot be guarded"
@@ -291,7 +293,7 @@ class RigidBodyEnv(gym.Env):
                     "a compiled step is built per parameter setting (about a second each); pass "
                     "compiled='auto' or False"
                 )
-            structure = self._structure()
+            structure = self.structure()
             for label, values in ranges.corners():
                 try:
                     env = self._episode_env(values)
@@ -300,7 +302,7 @@ class RigidBodyEnv(gym.Env):
                         f"param_ranges: at the range's {label}: {err} (every value in each range "
                         "must be valid)"
                     ) from err
-                if env._structure() != structure:
+                if env.structure() != structure:
                     raise ValueError(
                         f"param_ranges: at the range's {label} the env's structure changes (its "
                         "spaces, read-outs or "
@@ -327,7 +329,7 @@ class RigidBodyEnv(gym.Env):
         """The env of one episode's drawn parameters ``values`` (see :meth:`_episode_env`)."""
         return self._episode_env(values)
 
-    def _structure(self) -> tuple:
+    def structure(self) -> tuple:
         """What a drawn parameter setting must leave unchanged: spaces, read-outs, metrics, the
         start's draws, the event and the env's named axis (the free body's)."""
         return (
@@ -338,7 +340,7 @@ class RigidBodyEnv(gym.Env):
             self.model.draw_kinds,
             self.system.dim,
             self.engine.event_name,
-            getattr(self, "axis", None),
+            self.axis,
         )
 
     def _episode_env(self, values: dict):
@@ -740,7 +742,7 @@ class RigidBodyEnv(gym.Env):
         return out
 
     def close(self):
-        renderer = getattr(self, "_renderer", None)
+        renderer = self._renderer
         if renderer is not None:
             renderer.close()
             self._renderer = None

@@ -55,19 +55,23 @@ class Integrator:
     order: ClassVar[int] = 0
     evaluations: ClassVar[int | None] = None
     conserves: ClassVar[tuple[str, ...]] = ()
-    requires: ClassVar[tuple[str, ...]] = ("rhs",)
+    # the system's optional capabilities the scheme needs (of its ``provides``)
+    requires: ClassVar[tuple[str, ...]] = ()
     region: ClassVar[StepRegion | None] = None
     error_constant: ClassVar[float | None] = None
     # whether the leading error on a rotation is in the phase (|R(i z)| = 1 + O(z^(p+2))): then
     # tolerance= may count the state's own speed (rbenvs.stepsize.forms.motion_rates)
     error_in_phase: ClassVar[bool] = False
+    # the error constant of a forced (decaying) mode, where it differs from error_constant's
+    # (rbenvs.stepsize.forms.relaxation_steps); None: none declared
+    forced_error_constant: ClassVar[float | None] = None
     # one scalar step for a whole batch (an adaptive solve whose step follows all members): a
     # batch whose members need different step counts runs in groups of equal counts
     uniform_step_only: ClassVar[bool] = False
 
     def supports(self, system) -> bool:
         """Whether ``system`` offers everything this scheme needs."""
-        return all(hasattr(system, attr) for attr in self.requires)
+        return set(self.requires) <= system.provides
 
     def step(self, system, y, u, h):
         """Advance ``y`` by ``h`` under control ``u`` (``None`` = zero)."""
@@ -91,6 +95,12 @@ class Integrator:
         ``system`` (for :mod:`rbenvs.compiled`), or ``None`` where this scheme or this system
         offers none (the batch then runs on numpy arrays); ``compensated``: the pure form of
         :meth:`bind`'s compensated step, ``step(P, y, c, u, h) -> (y, c)``, or ``None``."""
+        return None
+
+    def kernel_step_first_stage(self, system, compensated: bool = False):
+        """``(step, P)`` with ``step(P, y, k0, u, h)`` equal to :meth:`kernel_step`'s step given
+        its first stage ``k0 = f(y, u)``, or ``None`` (a scheme whose first stage is not the
+        vector field at ``y``, or one without a pure form)."""
         return None
 
     def step_counted(self, system, y, u, h):

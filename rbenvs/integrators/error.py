@@ -30,6 +30,7 @@ class Rotation:
 
     dim = 2
     needs_projection = False
+    kernel_rhs = kernel_normalize = None  # (no pure forms: the integrators' float path)
 
     def __init__(self, rate: float = 1.0):
         self.rate = float(rate)

@@ -170,13 +170,15 @@ class RosenbrockW(Integrator):
     a: ClassVar[tuple]
     d: ClassVar[tuple]
     m: ClassVar[tuple]
-    requires = ("kernel_implicit",)
+    requires = ("implicit",)
 
     def supports(self, system) -> bool:
+        # (the instance's forms: a tippe top with a stem has no implicit solve)
         return (
-            getattr(system, "kernel_implicit", None) is not None
-            and getattr(system, "kernel_rhs", None) is not None
-            and getattr(system, "kernel_normalize", None) is not None
+            super().supports(system)
+            and system.kernel_implicit is not None
+            and system.kernel_rhs is not None
+            and system.kernel_normalize is not None
         )
 
     def _parts(self, system):

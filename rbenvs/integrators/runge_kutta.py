@@ -295,16 +295,16 @@ class ExplicitRungeKutta(Integrator):
         if self._overridden():
             return super().bind(system, dim, compensated)
         make = "make_c" if compensated else "make"
-        pure = getattr(system, "kernel_rhs", None)
+        pure = system.kernel_rhs
         if (
             pure is not None
         ):  # the pure vector field (and projection): the same step the kernel runs
             f, params = pure
-            project = getattr(system, "kernel_normalize", None)
+            project = system.kernel_normalize
             if project is None:
                 return _generated(type(self), dim, False, True)[make](f, params)
             return _generated(type(self), dim, True, True)[make](f, params, *project)
-        return _generated(type(self), dim, getattr(system, "needs_projection", True), False)[make](
+        return _generated(type(self), dim, system.needs_projection, False)[make](
             system.rhs, system.normalize
         )
 
@@ -319,11 +319,11 @@ class ExplicitRungeKutta(Integrator):
 
     def _pure(self, system, flavour, compensated=False):
         """``(flavour's step of the system's pure parts, PS)``, or ``None`` without them."""
-        pure = getattr(system, "kernel_rhs", None)
+        pure = system.kernel_rhs
         if pure is None or self._overridden():
             return None
         f, params = pure
-        project = getattr(system, "kernel_normalize", None)
+        project = system.kernel_normalize
         if project is None:
             return flavour(type(self), system.dim, f, None, compensated), params
         normalize, n_params = project

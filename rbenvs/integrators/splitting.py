@@ -78,7 +78,7 @@ class Splitting(Integrator):
         return y
 
     def bind(self, system, dim, compensated=False):
-        pure = getattr(system, "kernel_split_flows", None)
+        pure = system.kernel_split_flows
         if (
             compensated or pure is None or type(self).step is not Splitting.step
         ):  # (no compensated form)
@@ -87,7 +87,7 @@ class Splitting(Integrator):
         return _composition(len(fns))["make"](*fns, *params)
 
     def kernel_step(self, system, compensated=False):
-        pure = getattr(system, "kernel_split_flows", None)
+        pure = system.kernel_split_flows
         if compensated or pure is None or type(self).step is not Splitting.step:
             return None
         fns, params = zip(*pure)

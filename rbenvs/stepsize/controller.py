@@ -208,7 +208,7 @@ def default_accuracy(tolerance, guard: str, default):
 def takes_tolerance(cls) -> bool:
     """Whether ``tolerance=`` takes the scheme ``cls``: an error constant, and its leading error on
     a rotation in the phase (:func:`require_accuracy` says why)."""
-    return getattr(cls, "error_constant", None) is not None and cls.error_in_phase
+    return cls.error_constant is not None and cls.error_in_phase
 
 
 def tolerance_schemes() -> list:
@@ -253,7 +253,7 @@ def require_accuracy(integrator, guard: str, tolerance, accuracy: str, env_name:
             f"tolerance={tolerance!r} needs guard='subdivide' or 'refuse': guard='off' takes "
             "substeps steps whatever the error"
         )
-    if getattr(integrator, "error_constant", None) is None:
+    if integrator.error_constant is None:
         raise ValueError(
             f"tolerance={tolerance!r} needs an integrator whose error it can estimate, "
             f"{tolerance_schemes()} (or integrator='auto'): one that declares an "
@@ -397,13 +397,13 @@ class StepRule:
         if accuracy:
             text += f"; {accuracy}"
         rotation, motion, gate = rates.rotation, False, None
-        rhs = getattr(system, "kernel_rhs", None)
+        rhs = None if system is None else system.kernel_rhs
         named = rates.error_blocks is not None
         if (
             error is not None
             and rhs is not None
             and (named or not system.hybrid)
-            and getattr(integrator, "error_in_phase", False)
+            and integrator.error_in_phase
         ):
             # the state's own speed in the estimate (motion_rates), for a scheme whose leading
             # error is in the phase; a hybrid system keeps the rate alone unless it names the
@@ -490,7 +490,7 @@ class StepRule:
         )
         if mode_share is not None:
             # the system's parameters with the scheme's forced-mode error constant (over C; 0: none)
-            forced = getattr(integrator, "forced_error_constant", None)
+            forced = integrator.forced_error_constant
             mode_share = (
                 mode_share[0],
                 (mode_share[1], 0.0 if forced is None else float(forced) / c),

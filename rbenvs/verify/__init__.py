@@ -180,7 +180,7 @@ def _unverified(systems, integrators) -> list[Check]:
         system_class, settings = tables[system]
         for name in integrators:
             integ = get_integrator(name)
-            if name not in settings and all(hasattr(system_class, need) for need in integ.requires):
+            if name not in settings and set(integ.requires) <= system_class.provides:
                 rows.append(
                     Check(
                         system,

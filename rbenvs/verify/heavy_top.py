@@ -116,6 +116,7 @@ from .common import (
     scaled_tolerance,
     worst,
 )
+from .protocol import batched
 from .simulator import advance, as_simulators, start
 
 __all__ = ["HEAVY_TOP_SETTINGS", "SMALL_TOP_CASES", "TopSetting", "heavy_top_checks", "random_tops"]
@@ -454,7 +455,7 @@ def _bisect_critical_spin(system, sim, setting, top):
     """The spin where the upright top stops falling, bracketed to BISECTION_WIDTH; nan if the
     first bracket does not hold it (the low end stands or the high end falls)."""
     lo, hi = (f * top.spin_scale for f in BRACKET)
-    k = setting.batch if getattr(sim, "batched", False) else 1
+    k = setting.batch if batched(sim) else 1
     ends = (
         _falls(system, sim, setting, top, np.array([lo, hi]))
         if k > 1

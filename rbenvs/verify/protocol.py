@@ -33,7 +33,16 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any, Protocol, runtime_checkable
 
-__all__ = ["Problem", "Run", "Simulator", "take_option", "no_more_options"]
+__all__ = [
+    "Problem",
+    "Run",
+    "Simulator",
+    "ManyStepsRun",
+    "BatchedSimulator",
+    "batched",
+    "take_option",
+    "no_more_options",
+]
 
 
 @dataclass(frozen=True)
@@ -75,6 +84,28 @@ class Simulator(Protocol):
         """A run from ``y0``; ``NotImplementedError`` (with the reason) for a problem not
         modelled."""
         ...
+
+
+@runtime_checkable
+class ManyStepsRun(Run, Protocol):
+    """A run that takes ``n`` steps in one call (an engine that loops in compiled code)."""
+
+    def advance(self, n: int, u, h: float) -> tuple:
+        """The state after ``n`` steps of ``h`` under ``u``."""
+        ...
+
+
+@runtime_checkable
+class BatchedSimulator(Simulator, Protocol):
+    """A simulator that declares whether it steps components that are arrays (many states) at
+    once (``batched``); one that does not declare it is stepped state by state."""
+
+    batched: bool
+
+
+def batched(sim) -> bool:
+    """Whether ``sim`` steps a batch at once (:class:`BatchedSimulator` with ``batched`` true)."""
+    return isinstance(sim, BatchedSimulator) and sim.batched
 
 
 def take_option(options, key, kind, default):

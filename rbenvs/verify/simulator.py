@@ -18,7 +18,15 @@ from collections.abc import Callable
 import numpy as np
 
 from ..integrators import Integrator, get_integrator
-from .protocol import Problem, Run, Simulator, no_more_options, take_option
+from .protocol import (
+    ManyStepsRun,
+    Problem,
+    Run,
+    Simulator,
+    batched,
+    no_more_options,
+    take_option,
+)
 
 __all__ = [
     "Problem",
@@ -41,22 +49,23 @@ __all__ = [
 
 def problem_of(model) -> Problem:
     """The :class:`Problem` of an rbenvs system object (a subclass of one, as the tests' broken
-    simulators are, or one wrapped for dop853 with its ``system`` attribute)."""
+    simulators are, or one wrapped in the hybrid layer's :class:`rbenvs.core.hybrid.Switching`)."""
+    from ..core.hybrid import Switching
     from ..dynamics import FreeBody, HeavyTop, TippeTop
 
-    base = getattr(model, "system", model)
+    base = model.system if isinstance(model, Switching) else model
     for name, cls in (("free_body", FreeBody), ("heavy_top", HeavyTop), ("tippe_top", TippeTop)):
         if isinstance(base, cls):
-            return Problem(name, base.params, getattr(base, "fidelity", None), model)
+            fidelity = base.fidelity if isinstance(base, TippeTop) else None
+            return Problem(name, base.params, fidelity, model)
     raise TypeError(f"not an rbenvs system: {type(base).__name__}")
 
 
 def advance(run, n: int, u, h: float):
     """``n`` steps of ``h`` under ``u``; the last state (a run's own ``advance`` when it has one:
     an engine may step many times per call)."""
-    many = getattr(run, "advance", None)
-    if many is not None:
-        return many(n, u, h)
+    if isinstance(run, ManyStepsRun):
+        return run.advance(n, u, h)
     y = None
     for _ in range(n):
         y = run.step(u, h)
@@ -67,7 +76,7 @@ def start(sim: Simulator, model, y0) -> Run:
     """``sim``'s run of the system ``model`` from ``y0``; components that are arrays (a batch) go
     to an adapter that is not ``batched`` column by column."""
     problem = problem_of(model)
-    if getattr(sim, "batched", False) or all(isinstance(c, float) for c in y0):
+    if batched(sim) or all(isinstance(c, float) for c in y0):
         return sim.start(problem, tuple(y0))
     columns = np.broadcast_arrays(*(np.asarray(c, dtype=float) for c in y0))
     shape = columns[0].shape
