@@ -44,7 +44,7 @@ from collections.abc import Callable
 from functools import cache
 from typing import NamedTuple
 
-from .core.codegen import generate
+from .codegen import generate
 from .jit import DISABLE_VARIABLE, available, jitable
 from .jit import register as _register
 from .jit import register_all as _register_all

@@ -145,7 +145,7 @@ def elementwise(fn, n_in: int, n_out: int):
 
 
 def _elementwise_loop(fn, n_in: int, n_out: int):
-    from .core.codegen import generate
+    from .codegen import generate
     from .kernel_cache import njit
 
     register_all()

@@ -101,7 +101,7 @@ def test_no_capability_is_probed():
 
 
 def test_exec_appears_in_one_module_only():
-    """Generated code is compiled in rbenvs/core/codegen.py alone."""
+    """Generated code is compiled in rbenvs/codegen.py alone."""
     users = set()
     for path, tree in _trees(PACKAGE):
         for node in ast.walk(tree):
@@ -111,7 +111,7 @@ def test_exec_appears_in_one_module_only():
                 and node.func.id in ("exec", "eval")
             ):
                 users.add(path.relative_to(ROOT).as_posix())
-    assert users == {"rbenvs/core/codegen.py"}, users
+    assert users == {"rbenvs/codegen.py"}, users
 
 
 def _module_imports() -> dict:
@@ -141,6 +141,14 @@ def _module_imports() -> dict:
             deps.update(c for c in candidates if c in modules and c != name)
         graph[name] = deps
     return graph
+
+
+def test_the_bottom_layer_imports_nothing_above_it():
+    """Code generation and the contracts are the bottom layer (issue 45): every layer may use
+    them, and they import nothing from rbenvs."""
+    graph = _module_imports()
+    for bottom in ("rbenvs.codegen", "rbenvs.contracts"):
+        assert graph[bottom] == set(), (bottom, graph[bottom])
 
 
 def test_no_import_cycle_in_rbenvs():

@@ -1,4 +1,4 @@
-"""The one code generator (rbenvs.core.codegen) and explicit Runge-Kutta schemes from their
+"""The one code generator (rbenvs.codegen) and explicit Runge-Kutta schemes from their
 Butcher tableaus (rbenvs.integrators.runge_kutta)."""
 
 import inspect
@@ -11,7 +11,7 @@ from fractions import Fraction
 import numpy as np
 import pytest
 
-from rbenvs.core import codegen
+from rbenvs import codegen
 from rbenvs.dynamics import (
     FreeBody,
     FreeBodyParams,

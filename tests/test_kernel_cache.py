@@ -28,7 +28,7 @@ env_id, n = sys.argv[1], int(sys.argv[2])
 with warnings.catch_warnings(record=True) as caught:
     warnings.simplefilter("always")
     if env_id == "small":
-        from rbenvs.core.codegen import generate
+        from rbenvs.codegen import generate
         f = kernel_cache.njit(
             generate("def f(x):\n    return x * K + 1.0\n", "cache test", {"K": float(n)})["f"],
             "cache test",
@@ -238,7 +238,7 @@ def test_the_fingerprint_follows_closures_constants_and_called_functions():
     assert fp(_adder((1.0, 2.0))) != fp(_adder((1.0, 2.5)))
     assert fp(_adder(np.array([1.0, 2.0]))) != fp(_adder(np.array([1.0, 2.5])))
 
-    from rbenvs.core.codegen import generate
+    from rbenvs.codegen import generate
 
     one = generate("def f(x):\n    return x + 1.0\n", "fingerprint test")["f"]
     two = generate("def f(x):\n    return x + 2.0\n", "fingerprint test")["f"]

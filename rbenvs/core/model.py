@@ -13,11 +13,11 @@ import math
 from dataclasses import dataclass, field
 from functools import cache
 
+from ..codegen import generate
 from ..contracts import Actuator, HybridSystem, Integrator, StepRegion, System, Task, require_parts
 from ..draws import batch_draws
 from ..jit import jitable
 from ..stepsize.controller import StepRule
-from .codegen import generate
 
 __all__ = ["Model", "observation_bounds"]
 

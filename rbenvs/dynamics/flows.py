@@ -22,7 +22,7 @@ from functools import cache
 
 import numpy as np
 
-from ..core.codegen import generate
+from ..codegen import generate
 from ..jit import jitable
 from ..rotations import quat_multiply, quat_rotate, sincos, sqrt
 

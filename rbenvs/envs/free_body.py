@@ -8,7 +8,7 @@ from functools import cache
 
 import numpy as np
 
-from ..core.codegen import generate
+from ..codegen import generate
 from ..core.model import observation_bounds
 from ..dynamics import FreeBody, FreeBodyParams
 from ..dynamics.validation import (

@@ -44,7 +44,7 @@ from typing import ClassVar
 
 import numpy as np
 
-from ..core.codegen import generate
+from ..codegen import generate
 from .base import Integrator, StepRegion
 
 __all__ = ["RosenbrockW", "Ros2", "Ros34pw2", "ROS2_GAMMA", "transformed"]

@@ -2,7 +2,7 @@
 
 A scheme is its coefficient table (:class:`ButcherTableau`): stage ``i`` evaluates the vector
 field at ``y + h sum_j a_ij k_j`` and the step is ``y + h sum_i b_i k_i``. The step is
-generated from the table (:mod:`rbenvs.core.codegen`), unrolled per state dimension: on a
+generated from the table (:mod:`rbenvs.codegen`), unrolled per state dimension: on a
 single state of plain floats a loop form's generator and zip overhead costs twice the physics
 (unrolled, a free-body RK4 step takes about 1.1 us instead of 2.9). Every stage calls the
 system's one ``rhs``, on floats or on arrays alike.
@@ -40,7 +40,7 @@ from fractions import Fraction
 from functools import cache
 from typing import ClassVar
 
-from ..core.codegen import generate
+from ..codegen import generate
 from .base import Integrator, StepRegion
 
 __all__ = ["ButcherTableau", "ExplicitRungeKutta", "Euler", "RK4"]

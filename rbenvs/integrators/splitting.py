@@ -5,7 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from functools import cache
 
-from ..core.codegen import generate
+from ..codegen import generate
 from .base import Integrator, StepRegion
 
 __all__ = ["Splitting"]

@@ -11,7 +11,7 @@ from functools import cache
 
 import numpy as np
 
-from ..core.codegen import generate
+from ..codegen import generate
 from ..jit import jitable
 from ..rotations import every, maximum, power, select, sqrt
 
