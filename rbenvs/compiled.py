@@ -19,7 +19,8 @@ specialised away), selections instead of branches (the compiled forms of
 :mod:`rbenvs.jit`), unit-stride loads and stores (the observation goes through scratch
 rows), and the same run-time alias checks LLVM needs allowed (:data:`LLVM_OPTIONS`).
 
-The same pure parts also make the single env's read-out function (:func:`state_finish`):
+The same pure parts also make the single env's read-out function
+(:func:`rbenvs.core.finish.state_finish`):
 plain Python, generated per layout, one call instead of a method per part.
 
 What is compiled is not a second implementation. The pure functions the single env runs on
@@ -45,6 +46,7 @@ from functools import cache
 from typing import NamedTuple
 
 from .codegen import generate
+from .core.finish import info_function
 from .jit import DISABLE_VARIABLE, available, jitable
 from .jit import register as _register
 from .jit import register_all as _register_all
@@ -67,8 +69,6 @@ __all__ = [
     "plan_kernel",
     "plans_kernel",
     "PeriodPlan",
-    "state_finish",
-    "info_function",
     "BatchStep",
     "BatchResult",
     "VectorStep",
@@ -76,6 +76,7 @@ __all__ = [
     "StateStep",
     "DISABLE_VARIABLE",
     "LLVM_OPTIONS",
+    "Backend",
 ]
 
 # How every kernel is compiled. error_model="numpy": a float division by zero gives inf/nan as
@@ -1787,75 +1788,6 @@ class StateStep:
         return out
 
 
-@cache
-def info_function(readout_names: tuple, metric_names: tuple):
-    """``info(q, r, h, e=None)``: the single env's ``info`` from the read-outs ``q``, the evaluation
-    ``r = (reward, terminated, metrics...)``, the internal step ``h`` and the period's error
-    estimate ``e`` (``None``: not estimated), as one dict display (the order and keys of
-    :func:`state_finish`'s)."""
-    items = [f"{name!r}: q[{j}]" for j, name in enumerate(readout_names)] + [
-        "'internal_step': h",
-        "'error_estimate': e",
-    ]
-    items += [f"{name!r}: r[{j + 2}]" for j, name in enumerate(metric_names)] + [
-        "'numerical_failure': False"
-    ]
-    src = "def info(q, r, h, e=None):\n    return {" + ", ".join(items) + "}\n"
-    return generate(src, f"info of {len(readout_names)} read-outs and {len(metric_names)} metrics")[
-        "info"
-    ]
-
-
-@cache
-def state_finish(
-    observe, n_obs: int, evaluate, metric_names: tuple, readouts, readout_names: tuple, high: tuple
-):
-    """The single env's counterpart of the batch kernel's task loops, for one state of floats:
-    ``finish(y, u_norm, PO, PE, PR, h, u, fired) -> (obs, over, reward, terminated, info)``
-    (``u``: the control that acted, ``fired``: the period's terminal event; read-out inputs).
-
-    Plain Python, generated per layout like the kernel: it calls the same pure functions
-    (observation, reward and metrics, read-outs) and builds ``info`` as one dict display (the
-    single env's step costs a few microseconds; a method call per part costs about a tenth
-    of one each). ``high``: the observation bounds; a state outside them gets the clipped
-    observation and ``over`` true.
-    """
-    import numpy as np
-
-    lines = ["def finish(y, u_norm, PO, PE, PR, h, u=None, fired=False):", "    o = observe(PO, y)"]
-    inside = " and ".join(f"{-hi!r} <= o[{j}] <= {hi!r}" for j, hi in enumerate(high))
-    lines += [
-        f"    if {inside}:",
-        "        obs, over = array(o, F32), False",
-        "    else:",
-        "        obs, over = clip(array(o, F64), LOW, HIGH).astype(F32), True",
-        "    r = evaluate(PE, y, u_norm)",
-        "    v = readouts(PR, y, u, fired)",
-    ]
-    items = [f"{name!r}: v[{j}]" for j, name in enumerate(readout_names)] + [
-        "'internal_step': h",
-        "'error_estimate': None",
-    ]
-    items += [f"{name!r}: r[{j + 2}]" for j, name in enumerate(metric_names)] + [
-        "'numerical_failure': False"
-    ]
-    lines += ["    return obs, over, float(r[0]), bool(r[1]), {" + ", ".join(items) + "}"]
-    namespace = {
-        "observe": observe,
-        "evaluate": evaluate,
-        "readouts": readouts,
-        "array": np.array,
-        "clip": np.clip,
-        "F32": np.dtype(np.float32),
-        "F64": np.dtype(np.float64),
-        "LOW": -np.asarray(high),
-        "HIGH": np.asarray(high),
-    }
-    assert len(high) == n_obs
-    generate("\n".join(lines), f"state finish n_obs={n_obs}", namespace)
-    return namespace["finish"]
-
-
 class BatchResult(NamedTuple):
     """What :class:`BatchStep` returns. ``status``: 0, the number of non-finite new states (the
     task outputs are then unset), or -1 when ``refuse`` was set and a sub-env needs more than
@@ -2396,3 +2328,14 @@ class VectorStep:
             readouts,
         )
         return obs, over, metrics, readouts
+
+
+class Backend:
+    """What the step core builds from this module (:class:`rbenvs.core.step.Engine` takes a
+    loader of it, :class:`rbenvs.contracts.CompiledBackend`): the core imports no compiled code."""
+
+    StateStep = StateStep
+    CheckedRuns = CheckedRuns
+    PeriodPlan = PeriodPlan
+    DISABLE_VARIABLE = DISABLE_VARIABLE
+    available = staticmethod(available)

@@ -37,6 +37,7 @@ __all__ = [
     "Integrator",
     "Actuator",
     "StepResult",
+    "CompiledBackend",
     "require_parts",
 ]
 
@@ -376,6 +377,22 @@ class Actuator(Protocol):
 
     def control(self, a) -> tuple:
         """``(u_norm, u)`` for the action components ``a``."""
+
+
+class CompiledBackend(Protocol):
+    """The compiled forms of one state's step the step core builds from a model's pure parts
+    (:class:`rbenvs.compiled.Backend`; the core is given a loader of it and imports no compiled
+    code): ``StateStep`` (the period and finish), ``CheckedRuns`` (``tolerance_check``'s runs),
+    ``PeriodPlan`` (a tolerance's count and rates), ``available()`` (numba installed and not
+    disabled by the environment variable ``DISABLE_VARIABLE``)."""
+
+    StateStep: Any
+    CheckedRuns: Any
+    PeriodPlan: Any
+    DISABLE_VARIABLE: str
+
+    def available(self) -> bool:
+        """Whether compiled code can run in this process."""
 
 
 class StepResult(NamedTuple):

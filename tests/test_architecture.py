@@ -151,6 +151,16 @@ def test_the_bottom_layer_imports_nothing_above_it():
         assert graph[bottom] == set(), (bottom, graph[bottom])
 
 
+def test_the_core_imports_no_compiled_code():
+    """The compiled code is a backend (issue 45): the step core and the step controller are
+    given a loader of it (rbenvs.contracts.CompiledBackend) and import neither rbenvs.compiled
+    nor the kernel cache, whose modules import the core."""
+    graph = _module_imports()
+    for name, deps in graph.items():
+        if name.startswith(("rbenvs.core", "rbenvs.stepsize")):
+            assert not deps & {"rbenvs.compiled", "rbenvs.kernel_cache"}, (name, deps)
+
+
 def test_no_import_cycle_in_rbenvs():
     """No module of rbenvs/ reaches itself through its imports (issue 44): each layer imports
     only below it, so a module can be read, tested and changed without the ones above it."""

@@ -39,6 +39,7 @@ from typing import NamedTuple
 import numpy as np
 
 from ..dynamics.validation import real_array
+from ..jit import DISABLE_VARIABLE
 from ..rotations import every, power
 from ..stepsize.controller import MAX_INTERNAL_STEPS
 from .hybrid import Switching
@@ -104,8 +105,11 @@ def _to_python(v):
 class Engine:
     """The step of one :class:`~rbenvs.core.model.Model` (floats or arrays; see the module)."""
 
-    def __init__(self, model, compiled="auto"):
+    def __init__(self, model, compiled="auto", backend=None):
         m = self.model = model
+        # a loader of the compiled backend (rbenvs.contracts.CompiledBackend), called where a
+        # compiled form is first wanted; None: the float path only
+        self.backend = backend
         self.system, self.task, self.integrator, self.actuator = (
             m.system,
             m.task,
@@ -218,7 +222,7 @@ class Engine:
     def __reduce__(self):  # generated and compiled functions are made again, not pickled
         return (
             Engine,
-            (self.model, self.compiled),
+            (self.model, self.compiled, self.backend),
             {"comp": self.comp},
         )  # (the single env's run goes on as it was)
 
@@ -235,15 +239,14 @@ class Engine:
         (:class:`rbenvs.compiled.StateStep`, :class:`rbenvs.compiled.CheckedRuns`): the pure parts
         (:meth:`kernel_parts`), ``(dim, n_obs, n_control, n_action, sample)``; ``None`` where numba
         is missing or a part has no pure form (``required``: a ``ValueError`` saying which)."""
-        from .. import compiled as _compiled
-
-        parts = self.kernel_parts() if _compiled.available() else None
+        backend = None if self.backend is None else self.backend()
+        usable = backend is not None and backend.available()
+        parts = self.kernel_parts() if usable else None
         if parts is None:
             if required:
                 why = (
-                    f"numba is not installed (the 'fast' extra) or {_compiled.DISABLE_VARIABLE}=0 "
-                    "is set"
-                    if not _compiled.available()
+                    f"numba is not installed (the 'fast' extra) or {DISABLE_VARIABLE}=0 is set"
+                    if not usable
                     else f"integrator {self.integrator.name!r} with task {self.task.name!r} "
                     "and these settings has no compiled step"
                 )
@@ -255,14 +258,12 @@ class Engine:
         return parts, (self.system.dim, len(self.high_list), len(u), len(u_norm), sample)
 
     def _build_state_step(self, required: bool):
-        from .. import compiled as _compiled
-
         self._state_step_tried = True
         inputs = self._compiled_inputs(required)
         if inputs is None:
             return None
         parts, sizes = inputs
-        return _compiled.StateStep(
+        return self.backend().StateStep(
             parts,
             *sizes,
             self.high_list,
@@ -288,11 +289,11 @@ class Engine:
         ``None`` (the float path's :meth:`StepRule.plan`; always without a tolerance); built
         on first use."""
         if not self._plan_tried:
-            from .. import compiled as _compiled
-
             self._plan_tried = True
             inputs = self._compiled_inputs(required=False)
-            self._plan = None if inputs is None else _compiled.PeriodPlan(inputs[0], *inputs[1])
+            self._plan = (
+                None if inputs is None else self.backend().PeriodPlan(inputs[0], *inputs[1])
+            )
         return self._plan
 
     def plan_one(self, y, u):
@@ -349,11 +350,9 @@ class Engine:
         return rule.counts(plan.ratios(*self._plan_inputs(plan, y, u)), self.substeps)
 
     def _build_runs(self, required: bool):
-        from .. import compiled as _compiled
-
         self._runs_tried = True
         inputs = self._compiled_inputs(required)
-        return None if inputs is None else _compiled.CheckedRuns(inputs[0], *inputs[1])
+        return None if inputs is None else self.backend().CheckedRuns(inputs[0], *inputs[1])
 
     # ------------------------------------------------------------------ the period
     def advance(self, y, u, plain: bool, skip=None, comp=None, ratio=None):
@@ -926,9 +925,9 @@ class Engine:
     # ------------------------------------------------------------------ pure forms
     def _generated_finish(self):
         """``(finish, PO, PE, PR)``: steps 4-5 for one state of floats as one generated
-        function of the task's and system's pure forms (:func:`rbenvs.compiled.state_finish`),
+        function of the task's and system's pure forms (:func:`rbenvs.core.finish.state_finish`),
         or ``None`` where a part has none (the methods then run)."""
-        from ..compiled import state_finish
+        from .finish import state_finish
 
         kernels, readouts = self.task.kernels, self.system.kernel_readouts
         if kernels is None or readouts is None or self.system.hybrid:

@@ -81,6 +81,14 @@ def require_compiled(compiled):
     raise ValueError(f"compiled must be True, False or 'auto', got {compiled!r}")
 
 
+def compiled_backend():
+    """The compiled backend (:class:`rbenvs.compiled.Backend`), loaded where the step core first
+    wants a compiled form (the core imports no compiled code: it is given this loader)."""
+    from ..compiled import Backend
+
+    return Backend
+
+
 def _registry() -> dict:
     from ..integrators import INTEGRATORS
 
@@ -255,7 +263,7 @@ class RigidBodyEnv(gym.Env):
             accuracy,
         )
         self._require_float32_rewards()
-        self.engine = Engine(self.model, compiled)
+        self.engine = Engine(self.model, compiled, backend=compiled_backend)
         self.render_mode = render_mode
         self._renderer = None  # built by the first render(): matplotlib is imported only then
         if render_mode == "human":  # draw after every reset and step; the class's step is untouched

@@ -990,6 +990,7 @@ def _hop_rows(system_class=TippeTop):
     from ..contracts import StepResult
     from ..core.step import Engine
     from ..envs import TippeTopEnv
+    from ..envs.base import compiled_backend
 
     case = dict(HOP_CASE)
     # the rolling start (its centre of mass moving at R n sin(theta)) and the stability bound's
@@ -1006,7 +1007,8 @@ def _hop_rows(system_class=TippeTop):
     # the env's model with the system under test (a mutant in the tests), run by the step core
     # the env runs (its hybrid layer makes the switches between internal steps)
     engine = Engine(
-        dataclasses.replace(env.model, system=system_class(env.params, "gliding", flight=True))
+        dataclasses.replace(env.model, system=system_class(env.params, "gliding", flight=True)),
+        backend=compiled_backend,
     )
     y = tuple(float(c) for c in engine.model.initial_state(seeding.np_random(0)[0]))
     _, info = engine.reset_one(y)
