@@ -11,7 +11,7 @@ from rbenvs.dynamics import HeavyTopParams, TippeTopParams
 from rbenvs.dynamics import free_body as fb
 from rbenvs.dynamics import heavy_top as ht
 from rbenvs.dynamics import tippe_top as tp
-from rbenvs.verify.tippe_top import _hop_rows
+from rbenvs.verify.tippe_top.hops import _hop_rows
 
 
 def failed(checks):

@@ -325,7 +325,7 @@ def test_mujoco_at_1e_3_damps_the_fast_tumble_and_its_euler_family_misses_the_th
     assert all(r.passed for r in _small_top(sims["RK4"]))
     # Jellett's integral through a whole inversion of the default top: the Euler family drifts
     # beyond the 2% bound, RK4 keeps it
-    from rbenvs.verify.tippe_top import _inversion_jellett_row
+    from rbenvs.verify.tippe_top.inversion import _inversion_jellett_row
 
     row = _inversion_jellett_row(sims["implicitfast"])
     assert (
