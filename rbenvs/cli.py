@@ -4,8 +4,7 @@
 * ``rbenvs scenes``: the named scenes under ``configs/scenes`` (shipped as ``rbenvs.configs``;
   ``$RBENVS_CONFIGS`` replaces them, see :func:`rbenvs.configs.configs_root`).
 * ``rbenvs run [--scene NAME ...] [--episodes N] [--seed S]``: the analytic baselines. Runs scenes
-(by
-  default the headline scene of each system) with their analytic controller and with no
+  (by default the headline scene of each system) with their analytic controller and with no
   control, and prints an episode summary per scene (return, success, the task's final
   measure, and the invariants at start and end).
 * ``rbenvs verify [--quick] [--json PATH] [--seed S] [--system NAME] [--sweep [--plot PNG]]``:
@@ -19,8 +18,8 @@
 * ``rbenvs bench kernels``: the layout measurement behind the component kernels.
 * ``rbenvs bench fidelity``: the tippe top's fidelity levels, each against gliding friction.
 * ``rbenvs bench throughput [--quick] [--json PATH] [--num-envs N] [--only TEXT] [--tables LIST]``:
-env-steps per
-  second of every task and scene, single and vector (random actions, restarts included), against
+  env-steps per second of every task and scene, single and vector (random actions, restarts
+  included), against
   Pendulum-v1 and CartPole-v1's native vector env, with the compiled kernel's own time.
 * ``rbenvs bench startup [--system NAME] [--repeat N]``: seconds from a fresh process to its first
   step, cold and warm kernel cache, single env and vector env, against Pendulum-v1, CartPole-v1's
@@ -32,8 +31,7 @@ env-steps per
 * ``rbenvs bench render [--frames N]``: milliseconds per ``rgb_array`` frame, beside
   ``Pendulum-v1``'s (:mod:`rbenvs.bench.render`).
 * ``rbenvs bench accuracy [--quick] [--json PATH] [--plot PNG] [--system NAME] [--tippe]``: error,
-order,
-  invariant drift and cost of every integrator on every system, and a recommended integrator
+  order, invariant drift and cost of every integrator on every system, and a recommended integrator
   per scene (:mod:`rbenvs.bench.accuracy`).
 * ``rbenvs plot [WHAT ...] [--out DIR] [--quick]``: PNG figures (:mod:`rbenvs.plotting`; needs
   the ``plot`` extra): ``free_body``, ``heavy_top``, ``tippe_top``, ``frames`` (one rendered

@@ -280,7 +280,7 @@ class HeavyTopParams:
       of mass ``I - M l^2 (1 - chi chi^T)``, which must be positive semi-definite with
       eigenvalues obeying the triangle inequality.
     * ``mass`` ``M`` [kg], ``length`` ``l`` = pivot to centre of mass [m], ``gravity`` ``g``
-    [m/s^2].
+      [m/s^2].
     * ``com_direction``: ``chi``, the direction from the pivot to the centre of mass in the body
       frame (any nonzero vector; normalised).
     * ``spin_friction``: ``k`` [N m s] of the pivot's viscous torque ``-k (Omega . chi) chi``.

@@ -62,7 +62,7 @@ class LagrangeTopEnv(RigidBodyEnv):
     ## Starting state (drawn from the env's seeded generator)
     * spin ``n ~ U(spin)`` about ``chi`` (a number gives a fixed spin);
     * ``upright``: the vertical tilted from ``chi`` by ``U(0, perturbation)`` rad, ``Omega = n
-    chi``;
+      chi``;
     * ``precess``: tilt ``target_tilt + U(-perturbation, perturbation)`` and the angular velocity
       of the regular precession at the target rate, ``Omega = p* Gamma + (n - p* cos(tilt)) chi``;
     * azimuths (and the heading, with ``attitude=True``) uniform.
@@ -191,8 +191,8 @@ class LagrangeTopEnv(RigidBodyEnv):
     * ``max_torque=2.0``: N m per torque direction (``>= 0``); ``axial_torque=False``.
     * ``spin_friction=0.0``: N m s, viscous pivot torque ``-k (Omega.chi) chi``.
     * ``control_cost=0.01`` (its rewards must fit float32); ``max_angular_velocity=100.0`` rad/s
-    (observation bound);
-      ``attitude=False``: also integrate the attitude quaternion (heading, Euler angles).
+      (observation bound); ``attitude=False``: also integrate the attitude quaternion (heading,
+      Euler angles).
 
     Every keyword is checked at construction, whatever the task (one the task ignores, such as
     ``target_tilt`` or ``target_rate`` for ``upright`` must still be a valid value): a wrong

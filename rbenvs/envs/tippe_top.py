@@ -163,8 +163,8 @@ class TippeTopEnv(RigidBodyEnv):
     * ``start=None``: how the top was spun, ``"rest"``, ``"rolling"`` or ``"vertical"``
       (``None``: ``"rest"``, or ``"rolling"`` with ``fidelity="rolling"``; Starting state).
     * ``dt=0.01`` s, ``substeps=1`` (a minimum), ``integrator="rk4"`` (``euler``, ``rk4``,
-    ``dop853``;
-      ``"auto"`` with ``tolerance``: the cheapest scheme a tolerance takes, ``rk4`` today).
+      ``dop853``; ``"auto"`` with ``tolerance``: the cheapest scheme a tolerance takes, ``rk4``
+      today).
     * ``guard="subdivide"``: ``"subdivide"``, ``"refuse"`` or ``"off"`` (Internal step).
     * ``tolerance="default"``: the relative error allowed over ``tolerance_horizon`` control
       periods, a finite number with ``0 < tolerance < 1``, for the schemes that declare
@@ -179,7 +179,7 @@ class TippeTopEnv(RigidBodyEnv):
       given to ``gymnasium.make`` is not seen by the env: pass ``tolerance_horizon`` with it);
       refused with ``tolerance=None``.
     * ``friction_bound="accuracy"``: or ``"stability"``, what sizes the step under friction
-    (Internal step).
+      (Internal step).
     * ``tolerance_check=False``: with ``tolerance``, ``True`` estimates the episode's global error
       with a companion run (the same periods at twice the step: about half the steps again;
       :mod:`rbenvs.stepsize.controller`), reports it as ``info["global_error_estimate"]`` and ends
@@ -205,8 +205,7 @@ class TippeTopEnv(RigidBodyEnv):
       action first acts ``action_delay`` control periods later (zero actions before). See
       docs/environments.md, "Robustness options", and :mod:`rbenvs.envs.options`.
     * ``max_table_acceleration=2.0`` m/s^2; ``friction_action=False``, ``friction_range=(0.0,
-    0.6)``;
-      ``torque_action=False``, ``max_torque=1e-4`` N m; ``control_cost=0.01``.
+      0.6)``; ``torque_action=False``, ``max_torque=1e-4`` N m; ``control_cost=0.01``.
     * ``max_angular_velocity=None`` (``2 max|spin| + 50``) rad/s, ``max_speed=5.0`` m/s.
 
     Every keyword is checked at construction, whatever the task (one the task ignores, such as

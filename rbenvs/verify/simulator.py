@@ -284,7 +284,7 @@ def parse_simulator(spec: str) -> list:
     * ``rbenvs[:integrator=rk4+euler,dt=1e-3]``: rbenvs' own integrators (all by default; without
       ``dt`` at their verify settings, as the default table);
     * ``mujoco[:integrator=RK4+implicitfast,dt=1e-3,...]``: MuJoCo
-    (:mod:`rbenvs.verify.mujoco_adapter`);
+      (:mod:`rbenvs.verify.mujoco_adapter`);
     * ``module:function[,dt=1e-3,order=1,name=...]``: a step function ``f(problem, y, u, dt)``
       (:class:`CallableSimulator`), or an object that already is a :class:`Simulator`.
     """

@@ -124,8 +124,8 @@ class ImplicitForms(NamedTuple):
       and the largest tangential mobility (:func:`tangential_mobility`), at zero slip;
     * ``accuracy_rate((P, K, omega_g), y, u)``: the guard's rate with ``friction_bound="accuracy"``;
     * ``share(((P, omega_g), c_f / C), y, u, dt, p, lambda_g) -> a``: the share of ``C (lambda_g
-    h)^p``
-      (``lambda_g`` the friction guard's rate at ``y``) that the slip relaxation's error is in a
+      h)^p`` (``lambda_g`` the friction guard's rate at ``y``) that the slip relaxation's error is
+      in a
       period ``dt`` from ``y`` under ``u``, for a scheme of order ``p`` (docs/accuracy.md):
       at most ``(kappa lambda_d / lambda_g)^p``, ``kappa = k(s_min) / k(0)`` the law's
       coefficient at the smallest slip the period can reach (``|s|`` closing at twice its
