@@ -43,6 +43,7 @@ from ..stepsize.controller import (
 )
 from ..stepsize.forms import relaxation_steps, stability_ratio, step_ratio
 from .options import ParamRanges, Realism, noise_generator, noisy_observation, rekey
+from .shared import shared_doc, shared_signature
 
 __all__ = [
     "RigidBodyEnv",
@@ -150,12 +151,16 @@ class RigidBodyEnv(gym.Env):
 
     def __init_subclass__(cls, **kwargs):
         """Each env records its constructor's keyword arguments (defaults applied) in
-        ``_kwargs``: ``param_ranges`` builds an episode's env from them with drawn values."""
+        ``_kwargs``: ``param_ranges`` builds an episode's env from them with drawn values. An
+        ``__init__`` that takes ``**options`` gets the keywords every env shares
+        (:mod:`rbenvs.envs.shared`) in its signature, their defaults and their docs."""
         super().__init_subclass__(**kwargs)
         init = cls.__dict__.get("__init__")
         if init is None:
             return
-        sig = inspect.signature(init)
+        takes = inspect.signature(init).parameters.values()
+        shared = any(p.kind == p.VAR_KEYWORD and p.name == "options" for p in takes)
+        sig = shared_signature(init, cls.shared_defaults) if shared else inspect.signature(init)
         first = next(iter(sig.parameters))
 
         @functools.wraps(init)
@@ -174,26 +179,64 @@ class RigidBodyEnv(gym.Env):
                 arguments = dict(bound.arguments)
                 arguments.pop(first)
                 self._kwargs = arguments
-            init(self, *args, **kw)
+            if shared:  # (every shared keyword reaches **options, defaults applied)
+                bound = sig.bind(self, *args, **kw)
+                bound.apply_defaults()
+                init(*bound.args, **bound.kwargs)
+            else:
+                init(self, *args, **kw)
 
+        if shared:
+            __init__.__signature__ = sig
+            # (the shared keywords' bullets before the Rendering section, else at the end)
+            doc, section = (
+                cls.__doc__ or "",
+                shared_doc(cls, cls.shared_defaults, cls._doc_fields()),
+            )
+            at = doc.find("\n    ## Rendering")
+            cls.__doc__ = doc + section if at < 0 else doc[:at] + section + doc[at:]
         cls.__init__ = __init__
 
-    def _setup(
-        self,
-        system,
-        task,
-        actuator,
-        integrator,
-        dt,
-        substeps,
-        observation_high,
-        render_mode,
-        guard="subdivide",
-        compiled="auto",
-        tolerance="default",
-        tolerance_horizon=None,
-        tolerance_check=False,
-    ):
+    # a shared keyword's default where this env's differs (rbenvs.envs.shared)
+    shared_defaults: dict = {}
+    # the shared keywords' docs: the section of the class's docstring on the guard, and what
+    # the env adds to the integrator's bullet
+    guard_section = "Guarded stepping"
+    integrator_note = ""
+
+    @classmethod
+    def _doc_fields(cls) -> dict:
+        names = [f"``{name}``" for name in cls.integrators]
+        if cls.default_tolerance is None:
+            default = (
+                '``"default"``: this env has no default accuracy yet (``default_tolerance = '
+                "None``): like ``None``, unchecked (the stability bounds' steps), "
+                '``info["error_estimate"]`` ``None``.'
+            )
+        else:
+            default = (
+                '``"default"``: the env\'s default accuracy, ``default_tolerance = '
+                f"{cls.default_tolerance!r}`` over an episode, enforced for ``rk4`` (the steps "
+                "subdivide where it asks: only at extremes, every shipped scene keeps its steps) "
+                'and reported in ``info["error_estimate"]`` every step; refused for ``euler`` '
+                "(pass ``tolerance=None``); schemes without an error constant (``splitting``, "
+                "``exact``, ``dop853``) run unchecked."
+            )
+        return {
+            "integrators": ", ".join(names[:-1]) + " or " + names[-1],
+            "integrator_note": (" " + cls.integrator_note) if cls.integrator_note else "",
+            "guard_section": cls.guard_section,
+            "default_accuracy": default,
+            "randomizable": ", ".join(f"``{k}``" for k in cls.randomizable),
+        }
+
+    def _setup(self, system, task, actuator, observation_high, options: dict):
+        """The model, engine and spaces of ``system``, ``task`` and ``actuator`` under the shared
+        keywords ``options`` (:mod:`rbenvs.envs.shared`), validated here."""
+        integrator, dt, substeps = options["integrator"], options["dt"], options["substeps"]
+        guard, compiled, render_mode = options["guard"], options["compiled"], options["render_mode"]
+        tolerance, tolerance_horizon = options["tolerance"], options["tolerance_horizon"]
+        tolerance_check = options["tolerance_check"]
         guard = require_guard(guard)
         tolerance = require_tolerance(tolerance)
         if tolerance is None and tolerance_horizon is not None:
@@ -283,14 +326,17 @@ class RigidBodyEnv(gym.Env):
         self._plain = self.engine.plain
         self._require_resolvable()
 
-    def _setup_options(
-        self, param_ranges=None, observation_noise=None, observation_bias=None, action_delay=0
-    ):
-        """Validate the robustness options (:mod:`rbenvs.envs.options`); with ``param_ranges``
-        build the env at every corner of the ranges' box and its centre, each of which must pass
-        every check of the constructor and keep the env's structure."""
+    def _setup_options(self, options: dict):
+        """Validate the robustness options (:mod:`rbenvs.envs.options`) of the shared keywords
+        ``options``; with ``param_ranges`` build the env at every corner of the ranges' box and its
+        centre, each of which must pass every check of the constructor and keep the env's
+        structure."""
+        param_ranges = options["param_ranges"]
         self._realism = realism = Realism(
-            observation_noise, observation_bias, action_delay, self.observation_space.high
+            options["observation_noise"],
+            options["observation_bias"],
+            options["action_delay"],
+            self.observation_space.high,
         )
         if param_ranges is not None:
             ranges = ParamRanges(type(self), self._kwargs, param_ranges)

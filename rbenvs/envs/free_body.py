@@ -127,48 +127,6 @@ class FreeRigidBodyEnv(RigidBodyEnv):
       index 0-2 (a name must be unambiguous: no tie in the moments).
     * ``spin_rate=1.0``: rad/s, the initial spin (spin) or angular-speed scale (detumble, reorient).
     * ``perturbation=0.05``: rad, largest initial tilt of the spin from its axis, in [0, pi).
-    * ``dt=0.05``: control period [s]; ``substeps=1``: integrator steps per control period.
-    * ``integrator="rk4"``: ``euler``, ``rk4``, ``splitting``, ``exact`` or ``dop853``; ``"auto"``
-      with ``tolerance``: the scheme with an error constant whose steps at the fastest start,
-      times its rhs evaluations, cost least.
-    * ``guard="subdivide"``: ``"subdivide"``, ``"refuse"`` or ``"off"`` (Guarded stepping).
-    * ``tolerance="default"``: the relative error allowed over ``tolerance_horizon`` control
-      periods, a finite number with ``0 < tolerance < 1``, for the schemes that declare
-      ``error_constant`` with their leading error in the phase (``rk4``; ``euler`` errs in the
-      amplitude and is refused with a tolerance). ``"default"``: the env's default accuracy,
-      ``default_tolerance = 1e-3`` over an episode, enforced for ``rk4`` (the steps subdivide where
-      it asks: only at extremes, every shipped scene keeps its steps) and reported in
-      ``info["error_estimate"]`` every step; refused for ``euler`` (pass ``tolerance=None``);
-      schemes without an error constant (``splitting``, ``exact``, ``dop853``) run unchecked.
-      ``None``: unchecked, the stability bound alone, ``info["error_estimate"]`` ``None``. The
-      rule, the refusals and the estimate: :mod:`rbenvs.stepsize.controller` and docs/integrators.md
-      ("Accuracy: tolerance=").
-    * ``tolerance_horizon=None``: control periods the tolerance covers (an integer >= 1;
-      ``None``: the registered ``max_episode_steps``, one episode; a ``max_episode_steps``
-      given to ``gymnasium.make`` is not seen by the env: pass ``tolerance_horizon`` with it);
-      refused with ``tolerance=None``.
-    * ``tolerance_check=False``: with ``tolerance``, ``True`` estimates the episode's global error
-      with a companion run (the same periods at twice the step: about half the steps again;
-      :mod:`rbenvs.stepsize.controller`), reports it as ``info["global_error_estimate"]`` and ends
-      the episode as a numerical failure, at the last state within it, where it passes the
-      tolerance: for motions that amplify errors (the ``UnstableMotionWarning``'s;
-      docs/integrators.md, "Unstable motions").
-    * ``compiled="auto"``: run each step as one compiled call of the same functions (numba, the
-      ``fast`` extra; built on the first step, about a second per setting and process), bit
-      for bit the float path, where numba is installed and the setting has pure forms (the
-      explicit schemes ``euler``, ``rk4``, ``splitting``); ``False``: the float path; ``True``:
-      demand it (``ValueError`` saying why it cannot be had). ``env.unwrapped.compiled`` tells.
-      With ``tolerance_check`` the step is not one call (``compiled`` is ``False``): its
-      period's runs are compiled instead (the main run's and the companion's).
-    * ``param_ranges=None``: domain randomization, ``{keyword: spread or (lo, hi)}`` over
-      ``inertia``, ``max_torque``, drawn at each reset from the env's generator and reported in
-      ``info["params"]``; each range is checked at construction (every corner of the box must be
-      a valid env). ``observation_noise=None``, ``observation_bias=None``: Gaussian standard
-      deviations in the observation's units (a number or one per component; the bias is drawn
-      once per episode), the noisy observation clipped to the bounds; the state, reward and
-      ``info`` stay noiseless (``env.unwrapped.noiseless_observation``). ``action_delay=0``: an
-      action first acts ``action_delay`` control periods later (zero actions before). See
-      docs/environments.md, "Robustness options", and :mod:`rbenvs.envs.options`.
     * ``max_torque=0.2``: N m per actuated axis (``>= 0``).
     * ``actuated=(True, True, True)``: which body axes take torque (at least one).
     * ``control_cost=0.01``: weight of ``mean(u^2)`` in the reward (``>= 0``; the rewards and
@@ -212,24 +170,12 @@ class FreeRigidBodyEnv(RigidBodyEnv):
         axis="intermediate",
         spin_rate: float = 1.0,
         perturbation: float = 0.05,
-        dt: float = 0.05,
-        substeps: int = 1,
-        integrator: str = "rk4",
         max_torque: float = 0.2,
         actuated=(True, True, True),
         control_cost: float = 0.01,
         max_angular_velocity: float = 10.0,
         target_attitude=(1.0, 0.0, 0.0, 0.0),
-        render_mode=None,
-        guard: str = "subdivide",
-        compiled="auto",
-        tolerance="default",
-        tolerance_horizon=None,
-        tolerance_check: bool | str = False,
-        param_ranges=None,
-        observation_noise=None,
-        observation_bias=None,
-        action_delay: int = 0,
+        **options,
     ):
         # every keyword is checked, whatever the task (a keyword the task ignores must still be
         # a valid value: a typo is reported, not silently kept)
@@ -280,28 +226,14 @@ class FreeRigidBodyEnv(RigidBodyEnv):
         self._max_w = max_w
         self._start_speed = start_speed
         high = observation_bounds(task_obj, {"rad/s": max_w})
-        self._setup(
-            system,
-            task_obj,
-            actuator,
-            integrator,
-            dt,
-            substeps,
-            high,
-            render_mode,
-            guard,
-            compiled,
-            tolerance,
-            tolerance_horizon,
-            tolerance_check,
-        )
+        self._setup(system, task_obj, actuator, high, options)
         self.action_size = actuator.size
         # |Delta Omega| <= max_torque sqrt(k) dt / I_min over a period of full torque on k axes
         change = max_torque * math.sqrt(actuator.size) * self.dt / min(params.inertia)
         self._require_authority(
             "max_torque", change, "max_angular_velocity", max_w, "angular velocity [rad/s]"
         )
-        self._setup_options(param_ranges, observation_noise, observation_bias, action_delay)
+        self._setup_options(options)
 
     _rate_sources = "spin_rate and inertia"
 

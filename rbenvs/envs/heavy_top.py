@@ -140,54 +140,6 @@ class LagrangeTopEnv(RigidBodyEnv):
     * ``target_tilt=0.5`` rad, ``target_rate=None`` rad/s (precess; ``None``: the slow root of
       [T 3.82], torque-free).
     * ``tilt_limit=None``: rad, see Episode end.
-    * ``dt=0.02``: control period [s]; ``substeps=1``: integrator steps per control period.
-    * ``integrator="splitting"``: ``euler``, ``rk4``, ``splitting`` or ``dop853`` (``exact`` does
-      not exist for the heavy top); ``"auto"`` with ``tolerance``: the scheme with an error
-      constant whose steps at the fastest start, times its rhs evaluations, cost least. The default
-      splitting applies the free flow of a Lagrange top exactly (fast spin costs nothing in
-      accuracy) and keeps both Casimirs to round-off;
-      ``euler``, ``rk4`` and ``dop853`` project ``Gamma`` (and ``q``) back to unit length after
-      each step; their energy and ``Pi.Gamma`` drift (``task="precess"`` with zero torque,
-      seed 0, one 10 s episode: rk4 1.6e-4 and 2.1e-3 relative, splitting 7e-8 and 1e-15).
-    * ``guard="subdivide"``: ``"subdivide"``, ``"refuse"`` or ``"off"`` (Guarded stepping).
-    * ``tolerance="default"``: the relative error allowed over ``tolerance_horizon`` control
-      periods, a finite number with ``0 < tolerance < 1``, for the schemes that declare
-      ``error_constant`` with their leading error in the phase (``rk4``; ``euler`` errs in the
-      amplitude and is refused with a tolerance). ``"default"``: the env's default accuracy,
-      ``default_tolerance = 1e-3`` over an episode, enforced for ``rk4`` (the steps subdivide where
-      it asks: only at extremes, every shipped scene keeps its steps) and reported in
-      ``info["error_estimate"]`` every step; refused for ``euler`` (pass ``tolerance=None``);
-      schemes without an error constant (``splitting``, ``exact``, ``dop853``) run unchecked.
-      ``None``: unchecked, the stability bound alone, ``info["error_estimate"]`` ``None``. The
-      rule, the refusals and the estimate: :mod:`rbenvs.stepsize.controller` and docs/integrators.md
-      ("Accuracy: tolerance=").
-    * ``tolerance_horizon=None``: control periods the tolerance covers (an integer >= 1;
-      ``None``: the registered ``max_episode_steps``, one episode; a ``max_episode_steps``
-      given to ``gymnasium.make`` is not seen by the env: pass ``tolerance_horizon`` with it);
-      refused with ``tolerance=None``.
-    * ``tolerance_check=False``: with ``tolerance``, ``True`` estimates the episode's global error
-      with a companion run (the same periods at twice the step: about half the steps again;
-      :mod:`rbenvs.stepsize.controller`), reports it as ``info["global_error_estimate"]`` and ends
-      the episode as a numerical failure, at the last state within it, where it passes the
-      tolerance: for motions that amplify errors (the ``UnstableMotionWarning``'s;
-      docs/integrators.md, "Unstable motions").
-    * ``compiled="auto"``: run each step as one compiled call of the same functions (numba, the
-      ``fast`` extra; built on the first step, about a second per setting and process), bit
-      for bit the float path, where numba is installed and the setting has pure forms (the
-      explicit schemes ``euler``, ``rk4``, ``splitting``); ``False``: the float path; ``True``:
-      demand it (``ValueError`` saying why it cannot be had). ``env.unwrapped.compiled`` tells.
-      With ``tolerance_check`` the step is not one call (``compiled`` is ``False``): its
-      period's runs are compiled instead (the main run's and the companion's).
-    * ``param_ranges=None``: domain randomization, ``{keyword: spread or (lo, hi)}`` over
-      ``inertia``, ``mass``, ``length``, ``gravity``, ``spin_friction``, ``max_torque``, drawn at
-      each reset from the env's generator and reported in
-      ``info["params"]``; each range is checked at construction (every corner of the box must be
-      a valid env). ``observation_noise=None``, ``observation_bias=None``: Gaussian standard
-      deviations in the observation's units (a number or one per component; the bias is drawn
-      once per episode), the noisy observation clipped to the bounds; the state, reward and
-      ``info`` stay noiseless (``env.unwrapped.noiseless_observation``). ``action_delay=0``: an
-      action first acts ``action_delay`` control periods later (zero actions before). See
-      docs/environments.md, "Robustness options", and :mod:`rbenvs.envs.options`.
     * ``max_torque=2.0``: N m per torque direction (``>= 0``); ``axial_torque=False``.
     * ``spin_friction=0.0``: N m s, viscous pivot torque ``-k (Omega.chi) chi``.
     * ``control_cost=0.01`` (its rewards must fit float32); ``max_angular_velocity=100.0`` rad/s
@@ -230,6 +182,14 @@ class LagrangeTopEnv(RigidBodyEnv):
         "spin_friction",
         "max_torque",
     )  # param_ranges keywords
+    shared_defaults = {"dt": 0.02, "integrator": "splitting"}
+    integrator_note = (
+        "The default splitting applies the free flow of a Lagrange top exactly (fast spin costs "
+        "nothing in accuracy) and keeps both Casimirs to round-off; ``euler``, ``rk4`` and "
+        "``dop853`` project ``Gamma`` (and ``q``) back to unit length after each step; their "
+        'energy and ``Pi.Gamma`` drift (``task="precess"`` with zero torque, seed 0, one 10 s '
+        "episode: rk4 1.6e-4 and 2.1e-3 relative, splitting 7e-8 and 1e-15)."
+    )
 
     def __init__(
         self,
@@ -244,25 +204,13 @@ class LagrangeTopEnv(RigidBodyEnv):
         target_tilt: float = 0.5,
         target_rate=None,
         tilt_limit=None,
-        dt: float = 0.02,
-        substeps: int = 1,
-        integrator: str = "splitting",
         max_torque: float = 2.0,
         axial_torque: bool = False,
         spin_friction: float = 0.0,
         control_cost: float = 0.01,
         max_angular_velocity: float = 100.0,
         attitude: bool = False,
-        render_mode=None,
-        guard: str = "subdivide",
-        compiled="auto",
-        tolerance="default",
-        tolerance_horizon=None,
-        tolerance_check: bool | str = False,
-        param_ranges=None,
-        observation_noise=None,
-        observation_bias=None,
-        action_delay: int = 0,
+        **options,
     ):
         # every keyword is checked, whatever the task (one the task ignores must still be valid)
         task = require_choice("task", task, self.tasks)
@@ -344,21 +292,7 @@ class LagrangeTopEnv(RigidBodyEnv):
         self._max_w = max_w
         self._start_speed = peak
         high = observation_bounds(task_obj, {"rad/s": max_w})
-        self._setup(
-            system,
-            task_obj,
-            actuator,
-            integrator,
-            dt,
-            substeps,
-            high,
-            render_mode,
-            guard,
-            compiled,
-            tolerance,
-            tolerance_horizon,
-            tolerance_check,
-        )
+        self._setup(system, task_obj, actuator, high, options)
         # the pivot's friction decays the spin about chi at the rate k / I_chi: faster than a
         # control period, it stops the spin within one step, a clamp rather than a friction
         i_chi = sum(i * c * c for i, c in zip(params.inertia, params.com_direction))
@@ -378,7 +312,7 @@ class LagrangeTopEnv(RigidBodyEnv):
         self._require_authority(
             "max_torque", change, "max_angular_velocity", max_w, "angular velocity [rad/s]"
         )
-        self._setup_options(param_ranges, observation_noise, observation_bias, action_delay)
+        self._setup_options(options)
 
     _rate_sources = "mass, length, gravity, inertia, spin_friction and spin"
 

@@ -162,48 +162,8 @@ class TippeTopEnv(RigidBodyEnv):
       stays above 0.55 m g and passes 90 degrees at 2.71 s (tests/test_tippe_starts.py).
     * ``start=None``: how the top was spun, ``"rest"``, ``"rolling"`` or ``"vertical"``
       (``None``: ``"rest"``, or ``"rolling"`` with ``fidelity="rolling"``; Starting state).
-    * ``dt=0.01`` s, ``substeps=1`` (a minimum), ``integrator="rk4"`` (``euler``, ``rk4``,
-      ``dop853``; ``"auto"`` with ``tolerance``: the cheapest scheme a tolerance takes, ``rk4``
-      today).
-    * ``guard="subdivide"``: ``"subdivide"``, ``"refuse"`` or ``"off"`` (Internal step).
-    * ``tolerance="default"``: the relative error allowed over ``tolerance_horizon`` control
-      periods, a finite number with ``0 < tolerance < 1``, for the schemes that declare
-      ``error_constant`` with their leading error in the phase (``rk4``; ``euler`` errs in the
-      amplitude and is refused with a tolerance). ``"default"``: the tippe top has no default
-      accuracy yet (``default_tolerance = None``): like ``None``, unchecked (the stability and
-      friction bounds' steps), ``info["error_estimate"]`` ``None``. The rule, the refusals and the
-      estimate:
-      :mod:`rbenvs.stepsize.controller` and docs/integrators.md ("Accuracy: tolerance=").
-    * ``tolerance_horizon=None``: control periods the tolerance covers (an integer >= 1;
-      ``None``: the registered ``max_episode_steps``, one episode; a ``max_episode_steps``
-      given to ``gymnasium.make`` is not seen by the env: pass ``tolerance_horizon`` with it);
-      refused with ``tolerance=None``.
     * ``friction_bound="accuracy"``: or ``"stability"``, what sizes the step under friction
       (Internal step).
-    * ``tolerance_check=False``: with ``tolerance``, ``True`` estimates the episode's global error
-      with a companion run (the same periods at twice the step: about half the steps again;
-      :mod:`rbenvs.stepsize.controller`), reports it as ``info["global_error_estimate"]`` and ends
-      the episode as a numerical failure, at the last state within it, where it passes the
-      tolerance: for motions that amplify errors (the ``UnstableMotionWarning``'s;
-      docs/integrators.md, "Unstable motions").
-    * ``compiled="auto"``: run each step as one compiled call of the same functions (numba, the
-      ``fast`` extra; built on the first step, about a second per setting and process), bit
-      for bit the float path, where numba is installed and the setting has pure forms (the
-      explicit schemes ``euler``, ``rk4``, ``splitting``); ``False``: the float path; ``True``:
-      demand it (``ValueError`` saying why it cannot be had). ``env.unwrapped.compiled`` tells.
-      With ``tolerance_check`` the step is not one call (``compiled`` is ``False``): its
-      period's runs are compiled instead (the main run's and the companion's).
-    * ``param_ranges=None``: domain randomization, ``{keyword: spread or (lo, hi)}`` over
-      ``radius``, ``mass``, ``offset``, ``inertia``, ``gravity``, ``friction``,
-      ``max_table_acceleration``, ``max_torque``, drawn at each reset from the env's generator and
-      reported in
-      ``info["params"]``; each range is checked at construction (every corner of the box must be
-      a valid env). ``observation_noise=None``, ``observation_bias=None``: Gaussian standard
-      deviations in the observation's units (a number or one per component; the bias is drawn
-      once per episode), the noisy observation clipped to the bounds; the state, reward and
-      ``info`` stay noiseless (``env.unwrapped.noiseless_observation``). ``action_delay=0``: an
-      action first acts ``action_delay`` control periods later (zero actions before). See
-      docs/environments.md, "Robustness options", and :mod:`rbenvs.envs.options`.
     * ``max_table_acceleration=2.0`` m/s^2; ``friction_action=False``, ``friction_range=(0.0,
       0.6)``; ``torque_action=False``, ``max_torque=1e-4`` N m; ``control_cost=0.01``.
     * ``max_angular_velocity=None`` (``2 max|spin| + 50``) rad/s, ``max_speed=5.0`` m/s.
@@ -248,6 +208,8 @@ class TippeTopEnv(RigidBodyEnv):
         "max_table_acceleration",
         "max_torque",
     )  # param_ranges keywords
+    shared_defaults = {"dt": 0.01}
+    guard_section = "Internal step"
     fidelities = FIDELITIES
     # info keys of the quantities the motion keeps: Jellett always (no body torque), the energy
     # without friction
@@ -268,9 +230,6 @@ class TippeTopEnv(RigidBodyEnv):
         spin=150.0,
         tilt=0.1,
         start=None,
-        dt: float = 0.01,
-        substeps: int = 1,
-        integrator: str = "rk4",
         max_table_acceleration: float = 2.0,
         friction_action: bool = False,
         friction_range=(0.0, 0.6),
@@ -280,18 +239,9 @@ class TippeTopEnv(RigidBodyEnv):
         max_angular_velocity=None,
         max_speed: float = 5.0,
         free_flight: bool = False,
-        render_mode=None,
-        guard: str = "subdivide",
-        compiled="auto",
-        tolerance="default",
-        tolerance_horizon=None,
-        tolerance_check: bool | str = False,
         friction_bound: str = "accuracy",
-        param_ranges=None,
-        observation_noise=None,
-        observation_bias=None,
-        action_delay: int = 0,
         stem=None,
+        **options,
     ):
         # every keyword is checked, whatever the task and options (an unused one must still be
         # valid)
@@ -392,21 +342,7 @@ class TippeTopEnv(RigidBodyEnv):
         self._start_speed = peak
         self._max_w = max_w
         high = observation_bounds(task_obj, {"rad/s": max_w, "m/s": max_v})
-        self._setup(
-            system,
-            task_obj,
-            actuator,
-            integrator,
-            dt,
-            substeps,
-            high,
-            render_mode,
-            guard,
-            compiled,
-            tolerance,
-            tolerance_horizon,
-            tolerance_check,
-        )
+        self._setup(system, task_obj, actuator, high, options)
         # the table's acceleration moves v_G (relative to the table) by at most |a_T| dt per period;
         # a body torque moves Omega by at most |tau| dt / min(A, C)
         self._require_authority(
@@ -423,7 +359,7 @@ class TippeTopEnv(RigidBodyEnv):
             self._require_authority(
                 "max_torque", change, "max_angular_velocity", max_w, "angular velocity [rad/s]"
             )
-        self._setup_options(param_ranges, observation_noise, observation_bias, action_delay)
+        self._setup_options(options)
 
     @property
     def params(self) -> TippeTopParams:

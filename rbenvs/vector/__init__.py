@@ -283,8 +283,8 @@ class RigidBodyVectorEnv(VectorEnv):
         self.__dict__.update(state)
         self._build_compiled(bool(state["compiled"]))
         self._table = GeneratorTable(self._rngs) if state["_table"] else None
-        if state.get("_noise_table"):
-            self._noise_table = GeneratorTable(self._noise_gen)
+        if "_noise_table" in state:  # (a table where there was one: None on the numpy path)
+            self._noise_table = GeneratorTable(self._noise_gen) if state["_noise_table"] else None
 
     def _init_realism(self) -> None:
         """The action queue (``(delay, n, k)``, a ring with one head for every sub-env) and the
