@@ -191,7 +191,7 @@ class RigidBodyEnv(gym.Env):
             # (the shared keywords' bullets before the Rendering section, else at the end)
             doc, section = (
                 cls.__doc__ or "",
-                shared_doc(cls, cls.shared_defaults, cls._doc_fields()),
+                shared_doc(cls),
             )
             at = doc.find("\n    ## Rendering")
             cls.__doc__ = doc + section if at < 0 else doc[:at] + section + doc[at:]
@@ -203,32 +203,6 @@ class RigidBodyEnv(gym.Env):
     # the env adds to the integrator's bullet
     guard_section = "Guarded stepping"
     integrator_note = ""
-
-    @classmethod
-    def _doc_fields(cls) -> dict:
-        names = [f"``{name}``" for name in cls.integrators]
-        if cls.default_tolerance is None:
-            default = (
-                '``"default"``: this env has no default accuracy yet (``default_tolerance = '
-                "None``): like ``None``, unchecked (the stability bounds' steps), "
-                '``info["error_estimate"]`` ``None``.'
-            )
-        else:
-            default = (
-                '``"default"``: the env\'s default accuracy, ``default_tolerance = '
-                f"{cls.default_tolerance!r}`` over an episode, enforced for ``rk4`` (the steps "
-                "subdivide where it asks: only at extremes, every shipped scene keeps its steps) "
-                'and reported in ``info["error_estimate"]`` every step; refused for ``euler`` '
-                "(pass ``tolerance=None``); schemes without an error constant (``splitting``, "
-                "``exact``, ``dop853``) run unchecked."
-            )
-        return {
-            "integrators": ", ".join(names[:-1]) + " or " + names[-1],
-            "integrator_note": (" " + cls.integrator_note) if cls.integrator_note else "",
-            "guard_section": cls.guard_section,
-            "default_accuracy": default,
-            "randomizable": ", ".join(f"``{k}``" for k in cls.randomizable),
-        }
 
     def _setup(self, system, task, actuator, observation_high, options: dict):
         """The model, engine and spaces of ``system``, ``task`` and ``actuator`` under the shared

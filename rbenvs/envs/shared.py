@@ -128,12 +128,15 @@ def shared_signature(init, defaults: dict) -> inspect.Signature:
     return inspect.Signature(params)
 
 
-def shared_doc(cls, defaults: dict, fields: dict) -> str:
-    """The shared keywords' bullets for ``cls``'s docstring (its defaults, ``fields`` filling the
-    docs' ``{...}``)."""
+def shared_doc(cls) -> str:
+    """The shared keywords' bullets for the env class ``cls``'s docstring (its defaults, its
+    integrators, accuracy and randomizable keywords filling the docs' ``{...}``)."""
+    defaults, fields = cls.shared_defaults, _doc_fields(cls)
     lines = ["", "    ## Keywords every env takes (rbenvs.envs.shared)"]
     for o in SHARED_OPTIONS:
-        text = f"``{o.name}={defaults.get(o.name, o.default)!r}``: " + o.doc.format(**fields)
+        value = defaults.get(o.name, o.default)
+        shown = f'"{value}"' if isinstance(value, str) else repr(value)  # (as the code writes it)
+        text = f"``{o.name}={shown}``: " + o.doc.format(**fields)
         words, line = text.split(), "    *"
         for word in words:
             if len(line) + 1 + len(word) > 96:
@@ -142,3 +145,30 @@ def shared_doc(cls, defaults: dict, fields: dict) -> str:
             line += " " + word
         lines.append(line)
     return "\n".join(lines) + "\n"
+
+
+def _doc_fields(cls) -> dict:
+    """The docs' ``{...}`` fields from the env class ``cls``."""
+    names = [f"``{name}``" for name in cls.integrators]
+    if cls.default_tolerance is None:
+        default = (
+            '``"default"``: this env has no default accuracy yet (``default_tolerance = '
+            "None``): like ``None``, unchecked (the stability bounds' steps), "
+            '``info["error_estimate"]`` ``None``.'
+        )
+    else:
+        default = (
+            '``"default"``: the env\'s default accuracy, ``default_tolerance = '
+            f"{cls.default_tolerance!r}`` over an episode, enforced for ``rk4`` (the steps "
+            "subdivide where it asks: only at extremes, every shipped scene keeps its steps) "
+            'and reported in ``info["error_estimate"]`` every step; refused for ``euler`` '
+            "(pass ``tolerance=None``); schemes without an error constant (``splitting``, "
+            "``exact``, ``dop853``) run unchecked."
+        )
+    return {
+        "integrators": ", ".join(names[:-1]) + " or " + names[-1],
+        "integrator_note": (" " + cls.integrator_note) if cls.integrator_note else "",
+        "guard_section": cls.guard_section,
+        "default_accuracy": default,
+        "randomizable": ", ".join(f"``{k}``" for k in cls.randomizable),
+    }
