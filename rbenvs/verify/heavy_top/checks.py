@@ -1,110 +1,20 @@
-"""Heavy-top checks of ``rbenvs verify`` (docs/physics.md §2), per integrator, on random Lagrange
-tops.
-
-Every top is a Lagrange top (``I1 = I2 = A`` and ``I3 = C`` about the pivot, centre of mass on
-the symmetry axis ``chi = e3``) drawn from these ranges (``--seed``):
-
-* mass ``M ~ U(0.5, 2)`` kg, pivot-to-centre-of-mass length ``l ~ U(0.05, 0.5)`` m,
-  ``g = 9.81`` m/s^2;
-* transverse inertia about the centre of mass ``A_G ~ U(1, 3) M l^2`` and axial
-  ``C_G ~ U(1, 2) A_G`` (oblate bodies, from a sphere to a thin disc: real tops);
-* about the pivot ``A = A_G + M l^2``, ``C = C_G``; so ``r = C/A`` lies in ``(0.5, 1.5)``.
-
-Why these ranges: the checks below are scale-free in the gravity time ``t_g = sqrt(A/(M g l))``
-(the tilt of a Lagrange top obeys an equation with the coefficients ``C n/A`` and ``M g l/A``
-alone), but the body-frame rates, which set the step, are the spin ``n ~ 2/(r t_g)`` at the
-threshold: a slender top (``r << 1``) needs ``1/r`` times more steps, ``1/r^2`` with Euler. The
-range keeps every integrator within the time of the command.
-
-Small fast tops (``n_small`` of them; ``--quick`` 1, full 3, :data:`SMALL_TOP_CASES`), toy tops
-at whose rates a step of 1e-3 s matters: a thin disc of radius ``rho = s l``, ``s ~ U(0.9,
-1.1)``, on a stem, the pivot at its tip ``l ~ U(1.5, 2.5)`` cm below the disc's centre, mass
-``M ~ U(20, 100)`` g, ``A_G = M rho^2/4``, ``C_G = c M rho^2/2`` with ``c ~ U(0.9, 0.98)`` (the
-stem's share of the axial moment neglected, and kept below a flat disc's ``2 A_G``). So ``C/A``
-lies in ``(0.3, 0.46)`` and the critical spin ``4 sqrt(g/l) sqrt(s^2/4 + 1)/(c s^2)`` in
-``(75, 155)`` rad/s. Rows: the critical spin by bisection, the tilt at 1.2 x critical and the
-growth rate at 0.8 x critical, as for the tops above (:func:`threshold_checks`). At 1.2 x
-critical the transverse components of ``Omega`` turn in the body at ``(1 - C/A) n ~ 80`` rad/s:
-a scheme that turns rotating vectors outward by ``sqrt(1 + (w h)^2)`` per step (explicit
-Euler) makes a stable top fall at ``h = 1e-3`` s (the tilt grows by ``exp((w h)^2 T/(2 h))``,
-``e^4`` to ``e^18`` over ``50 t_g``: past the 1e-2 rad bound from 1e-3), where the tops above,
-slower in the body, do not show it.
-
-Each run's step is ``h = (omega h)/omega`` with ``omega`` the run's fastest body rate (the
-initial ``|Omega|``, plus ``2/t_g`` where the top may fall) and ``omega h`` from
-:data:`HEAVY_TOP_SETTINGS`; ``dop853`` is adaptive (``rtol = 1e-12``) and is only sampled.
-One row per (integrator, check): the worst of the random cases (the one closest to, or
-farthest beyond, its tolerance), with its parameters for a replay.
-
-Checks:
-
-* ``critical spin by bisection``: start upright (``Pi = C n e3``) with a ``1e-3`` rad tilt;
-  the top *falls* if its tilt passes ``0.1`` rad within ``50 t_g``. Bisection (for ``dop853``,
-  whose cost is per call, a multisection over 63 spins at once) of the spin between
-  ``1`` and ``3 sqrt(M g l A)/C`` until the bracket is 0.1% of the spin; predicted:
-  :func:`~rbenvs.oracles.critical_spin`, tolerance 1% relative. The horizon: just below the
-  threshold, ``n = n_c (1 - delta)``, the tilt grows like ``exp(sigma t)`` with
-  ``sigma t_g = sqrt(1 - (n/n_c)^2) ~ sqrt(2 delta)`` (the roots of [MR 15.10.16]: the same for
-  every ``C/A``), so from ``1e-3`` to ``0.1`` rad it needs ``ln(100)/sigma`` plus
-  the slower nonlinear part: 31 t_g at ``delta = 0.5%``, 43 t_g at ``0.2%``, 49 t_g at
-  ``0.15%``. And a top with ``delta < 0.125%`` never passes ``0.1`` rad at all: its orbit from
-  the upright state turns at ``cos(theta_max) = 2 (n/n_c)^2 - 1``, ``theta_max ~ sqrt(8 delta)``.
-  So ``50 t_g`` puts the bisection ``0.1-0.2%`` below ``n_c``: well inside 1%, and any error of
-  the simulator's gravity, inertia or spin coupling larger than that shows.
-* ``upright stable at 1.2 x critical``: max tilt over ``50 t_g`` from a ``1e-3`` rad tilt
-  (theorem: bounded; the row passes below ``1e-2``).
-* ``upright growth rate at 0.5 x critical``: from a ``1e-8`` rad tilt, the exponential rate of
-  the tilt fitted while it grows from ``1e-6`` to ``1e-4`` rad (the decaying mode is then
-  ``1e-4`` of the growing one, and the motion still linear), against ``max Re`` of
-  :func:`~rbenvs.oracles.upright_eigenvalues`, 2% relative.
-* ``regular precession held``: tilt ``alpha ~ U(0.2, 1.2)``, spin ``n = k n_min``,
-  ``k ~ U(1.1, 1.5)`` (``n_min = 2 sqrt(A M g l cos(alpha))/C``: the least spin with a real
-  root), started on the slow root ``p`` of :func:`~rbenvs.oracles.regular_precession_rates`
-  (``Omega = p Gamma + (n - p cos(alpha)) chi``). Over :data:`HEAVY_TOP_SETTINGS` ``periods``
-  precession periods: ``max |tilt - alpha|`` (predicted 0) and the mean of
-  ``precession_rate`` against ``p``, with tolerances from the scheme's order at its step.
-* ``fast top``: released at ``alpha ~ U(0.2, 1.2)`` with ``Omega = n chi`` and
-  ``eps = A M g l/(C n)^2`` log-uniform in ``(5e-4, 2e-3)``, over ``nods`` nutation periods:
-  the nutation amplitude (the largest height of a nod above the mean of the cusps either side
-  of it: for the exact motion ``beta - alpha``, the cusps lying at ``alpha``; for Euler, whose
-  axis drifts outward at ``omega^2 h sin(2 alpha)/4`` per second, the drift cancels to first
-  order; negative if the axis first rises instead of falling), the
-  period (between the first and last maxima, each refined by a parabola through three
-  samples) and the mean precession rate (``phi`` from the trapezoid of ``precession_rate``, from
-  the release to the last cusp, where ``phi' = 0``), against
-  :func:`~rbenvs.oracles.fast_top_nutation`. Relative tolerance ``5 eps``: the formulas are the
-  first terms in ``eps``; the next are ``3 eps cos(alpha)`` for the amplitude (the cubic's root
-  and ``arccos`` to second order), ``2 eps cos(alpha)`` for the period (the small-oscillation
-  frequency ``C n/A (1 - 2 eps cos(alpha))``) and 1 to 1.5 ``eps`` for the mean rate (measured
-  with dop853), so ``5 eps`` leaves ``2 eps`` to the integrator and the peak interpolation.
-  Euler's tolerances add its own error at its step (``nutation_drift``), at most ``RATE_TOL``
-  (2%, :mod:`rbenvs.verify.common`: what a first-order scheme may add is bounded by what the
-  behaviour rows allow a rate, whatever its step).
-* invariants with zero torque, from a random state (``Gamma`` uniform on the sphere,
-  ``Omega`` of random direction and ``|Omega| ~ U(1, 4) sqrt(M g l A)/C``) over ``20 t_g``:
-  the energy drift (relative to ``1/2 Pi.Omega + M g l``), the ``Pi.Gamma`` drift (relative to
-  ``|Pi|``) and ``| |Gamma| - 1 |``, all as the max over the run. The splitting keeps both
-  Casimirs to round-off (its pieces are exact rotations and a kick normal to ``Gamma``):
-  tolerance ``ROUND_OFF sqrt(steps)``; the others project ``Gamma`` back to unit length after
-  each step, so ``|Gamma|`` is at round-off for them too, while their energy and ``Pi.Gamma``
-  drift by the order of the scheme at its step (:data:`HEAVY_TOP_SETTINGS`).
-"""
+"""The heavy top's rows: the critical spin, the upright top's growth, regular precession, the
+fast top, the invariants and the small fast tops' thresholds."""
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 
 import numpy as np
 
-from ..dynamics import HeavyTop, HeavyTopParams
-from ..oracles import (
+from ...dynamics import HeavyTop
+from ...oracles import (
     critical_spin,
     fast_top_nutation,
     regular_precession_rates,
     upright_eigenvalues,
 )
-from .common import (
+from ..common import (
     ANGLE_BOUND,
     ENERGY_BOUND,
     MOMENTUM_BOUND,
@@ -116,266 +26,26 @@ from .common import (
     scaled_tolerance,
     worst,
 )
-from .protocol import batched
-from .simulator import advance, as_simulators, start
-
-__all__ = ["HEAVY_TOP_SETTINGS", "SMALL_TOP_CASES", "TopSetting", "heavy_top_checks", "random_tops"]
-
-SYSTEM = "heavy_top"
-GRAVITY = 9.81
-START_TILT = 1e-3  # rad, the upright runs
-FALL_TILT = 0.1  # rad: past it the top has fallen
-HORIZON = 50.0  # t_g, the upright runs (see the module docstring)
-BRACKET = (1.0, 3.0)  # x sqrt(M g l A)/C, the bisection's first bracket (the theorem says 2)
-BISECTION_WIDTH = 1e-3  # relative width of the final bracket
-ABOVE_CRITICAL = 1.2  # x critical: the upright top stays up
-STABLE_BOUND = ANGLE_BOUND  # rad (1e-2): the upright top at ABOVE_CRITICAL stays below it
-NUTATION_TOL = 5.0  # x eps, the fast-top formulas' relative tolerance
-INVARIANT_HORIZON = 20.0  # t_g
-# the small fast tops (module docstring): ranges of the mass [kg], the pivot-to-centre length [m],
-# the disc's radius / length and its axial moment / that of a thin disc; tops (quick, full)
-SMALL_MASS = (0.02, 0.1)
-SMALL_LENGTH = (0.015, 0.025)
-SMALL_RADIUS = (0.9, 1.1)
-SMALL_AXIAL = (0.9, 0.98)
-SMALL_TOP_CASES = (1, 3)
-SMALL_BELOW = 0.8  # x critical: the small top falls
-
-
-@dataclass(frozen=True)
-class TopSetting:
-    """Steps and scheme tolerances of one integrator on the heavy top.
-
-    ``*_step``: ``omega h`` of a run (``omega`` its fastest body rate); for ``dop853`` the
-    sampling interval ``omega dt`` (the scheme adapts its own step). ``batch``: spins per
-    bisection run (1: plain bisection on floats, the cheapest for a fixed-step scheme).
-    ``periods``: precession periods held. ``nods``: nutation periods of the fast top.
-    Tolerances of the scheme's own error at these steps: ``held`` [rad] on ``max |tilt -
-    alpha|``, ``rate`` (relative) on the regular precession rate, ``energy`` and ``casimir``
-    on the relative drifts; ``nutation_drift`` times Euler's outward drift of the axis over
-    one nod, relative to the amplitude, ``D = omega^2 h T_n cos(alpha) / (4 eps)``, is added
-    to the fast top's ``5 eps`` (at most ``RATE_TOL``). Every tolerance here is at most the
-    row's physical bound of :mod:`rbenvs.verify.common`.
-    """
-
-    upright_step: float
-    precession_step: float
-    nutation_step: float
-    invariant_step: float
-    batch: int
-    periods: int
-    nods: int
-    held: float
-    rate: float
-    nutation_drift: float
-    energy: float
-    casimir: float | None  # None: kept to round-off
-
-
-# Steps and tolerances, from the orders (docs/physics.md §4) at the worst of the ranges above (the
-# measured worsts over 100 random tops, seeds 1, 11 and 12, in brackets):
-#
-# * euler (order 1) turns every rotation outward by sqrt(1 + (omega h)^2) per step: over omega T
-#   radians the log of an amplitude grows by E = (omega h)(omega T)/2. Upright runs: omega T
-#   <= 400, E <= 0.6 at omega h = 3e-3 (the tilt grows 1.8x at most: a stable top stays far
-#   below the 0.1 rad of a fall, and the growth rate at 0.5 x critical is off by < 0.1%). Regular
-#   precession, 2 periods: omega T <= 200, E <= 0.03 at 3e-4: held to 1e-2 rad (ANGLE_BOUND)
-#   [3.7e-3], rate to 1e-2 [4.3e-4]. Invariants: omega T <= 200, E <= 0.05 at 5e-4: energy 3e-2
-#   [3.8e-3], Pi.Gamma 2e-2 (MOMENTUM_BOUND) [8.6e-3].
-#   The fast top (3 nods, omega h = 1e-4): the axis drifts by D (TopSetting) of the amplitude
-#   per nod, D <= 0.6; the nod heights cancel it to ~3.5% of D (measured at the worst of the
-#   ranges), so 0.1 D is added to the tolerance, at most RATE_TOL (2%: 0.1 D reaches 6% at the
-#   worst corner of the ranges, where the measured 3.5% of D is 2.1%).
-# * rk4 (order 4): (omega h)^4 = 1e-4 per radian of rotation, mostly a phase error that the
-#   tilt does not see; the local error (omega h)^5/120 summed over the <= 5000 steps of a run
-#   bounds the rest by 4e-4: held 5e-5 [5.9e-6], rate 5e-6 [3.9e-7], energy 1e-6 [7.1e-8],
-#   Pi.Gamma 5e-6 [5.9e-7].
-# * splitting (order 2): the only error is splitting gravity from the (exact) free flow, an
-#   O((h/t_g)^2) perturbation of the Hamiltonian that stays bounded: h/t_g <= 0.057 at
-#   omega h = 0.05, so 3e-3 on the tilt [2.1e-4] and the rate [2.6e-4], 1e-3 on the energy
-#   [4.9e-5]; Pi.Gamma and |Gamma| to round-off.
-# * dop853 (rtol 1e-12 per step, omega T <= 500 radians): 1e-10 [9.5e-13].
-HEAVY_TOP_SETTINGS = {
-    "euler": TopSetting(
-        upright_step=3e-3,
-        precession_step=3e-4,
-        nutation_step=1e-4,
-        invariant_step=5e-4,
-        batch=1,
-        periods=2,
-        nods=3,
-        held=1e-2,
-        rate=1e-2,
-        nutation_drift=0.1,
-        energy=3e-2,
-        casimir=2e-2,
-    ),
-    "rk4": TopSetting(
-        upright_step=0.1,
-        precession_step=0.1,
-        nutation_step=0.1,
-        invariant_step=0.1,
-        batch=1,
-        periods=5,
-        nods=10,
-        held=5e-5,
-        rate=5e-6,
-        nutation_drift=0.0,
-        energy=1e-6,
-        casimir=5e-6,
-    ),
-    "splitting": TopSetting(
-        upright_step=0.05,
-        precession_step=0.05,
-        nutation_step=0.05,
-        invariant_step=0.05,
-        batch=1,
-        periods=5,
-        nods=10,
-        held=3e-3,
-        rate=3e-3,
-        nutation_drift=0.0,
-        energy=1e-3,
-        casimir=None,
-    ),
-    "dop853": TopSetting(
-        upright_step=2.0,
-        precession_step=1.0,
-        nutation_step=0.25,
-        invariant_step=2.0,
-        batch=63,
-        periods=5,
-        nods=10,
-        held=1e-10,
-        rate=1e-10,
-        nutation_drift=0.0,
-        energy=1e-10,
-        casimir=1e-10,
-    ),
-}
-
-# Sampling of the fixed-step runs, as omega dt: the tilt moves on the nutation time ~ 1/(r omega).
-SAMPLE = {"upright": 0.5, "precession": 0.25, "nutation": 0.05, "invariants": 1.0}
-
-
-# ------------------------------------------------------------------------------------------
-# cases
-
-
-@dataclass(frozen=True)
-class _Lagrange:
-    """A Lagrange top's parameters and the scales the upright runs use."""
-
-    params: HeavyTopParams
-
-    @property
-    def A(self) -> float:
-        return self.params.inertia[0]
-
-    @property
-    def C(self) -> float:
-        return self.params.inertia[2]
-
-    @property
-    def t_g(self) -> float:
-        """Gravity time ``sqrt(A/(M g l))`` [s]."""
-        return math.sqrt(self.A / self.params.mgl)
-
-    @property
-    def spin_scale(self) -> float:
-        """``sqrt(M g l A)/C`` [rad/s]: half the critical spin of the theorem."""
-        return math.sqrt(self.params.mgl * self.A) / self.C
-
-    def oracle_args(self):
-        p = self.params
-        return self.A, self.C, p.mass, p.length, p.gravity
-
-    def describe(self) -> dict:
-        p = self.params
-        return {
-            "inertia": list(p.inertia),
-            "mass": p.mass,
-            "length": p.length,
-            "gravity": p.gravity,
-        }
-
-
-@dataclass(frozen=True)
-class _Top(_Lagrange):
-    precession_tilt: float
-    precession_factor: float  # n / n_min
-    nutation_tilt: float
-    nutation_eps: float
-    gamma0: tuple  # invariants run: unit vertical
-    omega_dir: tuple  # and the direction and size of Omega, x sqrt(M g l A)/C
-    omega_scale: float
-
-
-def random_tops(rng, n) -> list[HeavyTopParams]:
-    """``n`` Lagrange tops from the ranges of the module docstring."""
-    return [t.params for t in _random_cases(rng, n)]
-
-
-def _random_cases(rng, n) -> list[_Top]:
-    out = []
-    for _ in range(n):
-        mass = float(rng.uniform(0.5, 2.0))
-        length = float(rng.uniform(0.05, 0.5))
-        ml2 = mass * length**2
-        a_g = float(rng.uniform(1.0, 3.0)) * ml2
-        c_g = float(rng.uniform(1.0, 2.0)) * a_g
-        params = HeavyTopParams(
-            inertia=(a_g + ml2, a_g + ml2, c_g), mass=mass, length=length, gravity=GRAVITY
-        )
-        gamma = rng.standard_normal(3)
-        direction = rng.standard_normal(3)
-        out.append(
-            _Top(
-                params=params,
-                precession_tilt=float(rng.uniform(0.2, 1.2)),
-                precession_factor=float(rng.uniform(1.1, 1.5)),
-                nutation_tilt=float(rng.uniform(0.2, 1.2)),
-                nutation_eps=float(math.exp(rng.uniform(math.log(5e-4), math.log(2e-3)))),
-                gamma0=tuple((gamma / np.linalg.norm(gamma)).tolist()),
-                omega_dir=tuple((direction / np.linalg.norm(direction)).tolist()),
-                omega_scale=float(rng.uniform(1.0, 4.0)),
-            )
-        )
-    return out
-
-
-def _random_small_tops(rng, n) -> list[_Lagrange]:
-    """``n`` small fast tops (module docstring): a thin disc of radius ``rho = s l`` on a stem,
-    the pivot at the stem's tip ``l`` below the disc's centre."""
-    out = []
-    for _ in range(n):
-        mass = float(rng.uniform(*SMALL_MASS))
-        length = float(rng.uniform(*SMALL_LENGTH))
-        rho = float(rng.uniform(*SMALL_RADIUS)) * length
-        a_g = mass * rho**2 / 4.0
-        c_g = float(rng.uniform(*SMALL_AXIAL)) * mass * rho**2 / 2.0
-        params = HeavyTopParams(
-            inertia=(a_g + mass * length**2, a_g + mass * length**2, c_g),
-            mass=mass,
-            length=length,
-            gravity=GRAVITY,
-        )
-        out.append(_Lagrange(params))
-    return out
-
-
-def _lagrange_state(top: _Lagrange, tilt, spin, precession=0.0):
-    """``(Pi, Gamma)`` with the axis at ``tilt`` from the vertical, spin ``n`` about ``chi`` and
-    precession rate ``p``: ``Omega = p Gamma + (n - p cos(tilt)) chi``, ``Gamma = (sin, 0, cos)``.
-    Floats or arrays."""
-    s, c = np.sin(tilt), np.cos(tilt)
-    state = np.broadcast_arrays(
-        top.A * precession * s, 0.0 * s, top.C * np.asarray(spin, dtype=float), s, 0.0 * s, c
-    )
-    if state[0].shape == ():
-        return tuple(float(v) for v in state)
-    return tuple(np.array(v, dtype=float) for v in state)
-
+from ..protocol import batched
+from ..simulator import advance, as_simulators, start
+from .settings import (
+    ABOVE_CRITICAL,
+    BISECTION_WIDTH,
+    BRACKET,
+    FALL_TILT,
+    HEAVY_TOP_SETTINGS,
+    HORIZON,
+    INVARIANT_HORIZON,
+    NUTATION_TOL,
+    SAMPLE,
+    SMALL_BELOW,
+    STABLE_BOUND,
+    START_TILT,
+    SYSTEM,
+    _lagrange_state,
+    _random_cases,
+    _random_small_tops,
+)
 
 # ------------------------------------------------------------------------------------------
 # running
