@@ -80,8 +80,8 @@ from .convergence import (
     convergence,
     drift,
     fit_order,
-    run,
 )
+from .measure import run
 from .mujoco import mujoco_free_body, progress_total
 from .report import cheapest, plot, print_report, print_scenes
 from .scenes import run_scenes

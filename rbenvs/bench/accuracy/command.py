@@ -7,7 +7,8 @@ import argparse
 from ...extras import ArgumentParser, require
 from ...progress import Progress
 from ...render.common import plot_unavailable
-from .convergence import CASES, FIT_CEILING, FIT_FLOOR, TARGET, run
+from .convergence import CASES, FIT_CEILING, FIT_FLOOR, TARGET
+from .measure import run
 from .mujoco import progress_total
 from .report import _write_json, plot, print_report
 from .scenes import _tippe_main, run_scenes
