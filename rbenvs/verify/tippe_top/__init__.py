@@ -103,7 +103,15 @@ from .settings import (
     random_tops,
     settling_friction,
 )
-from .sweep import SWEEP_ALPHAS, SWEEP_OFFSETS, SweepPoint, plot_sweep, print_sweep, sweep
+from .sweep import (
+    SWEEP_ALPHAS,
+    SWEEP_OFFSETS,
+    SWEEP_QUICK,
+    SweepPoint,
+    plot_sweep,
+    print_sweep,
+    sweep,
+)
 
 __all__ = [
     "TIPPE_TOP_SETTINGS",
@@ -118,6 +126,7 @@ __all__ = [
     "plot_sweep",
     "SWEEP_ALPHAS",
     "SWEEP_OFFSETS",
+    "SWEEP_QUICK",
     "oracle_jellett",
     "ball_bound",
     "inversion_criterion",
