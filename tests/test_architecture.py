@@ -314,3 +314,55 @@ def test_vector_classes_come_from_the_registration():
         assert getattr(vector, vcls.__name__) is vcls
     with pytest.raises(AttributeError):
         vector.NoSuchVectorEnv  # noqa: B018
+
+
+def test_every_name_read_off_a_module_of_rbenvs_exists():
+    """A name imported from a module of rbenvs, or read off one as an attribute (``module.name``,
+    ``alias.name``), exists there: a module split into a package keeps what its readers read (the
+    linter sees undefined names, not missing attributes of another module)."""
+    import importlib
+
+    modules = {}
+    for path, _ in _trees(PACKAGE):
+        parts = list(path.relative_to(ROOT).with_suffix("").parts)
+        modules[".".join(parts[:-1] if parts[-1] == "__init__" else parts)] = path
+    reads = set()
+    sources = list(_trees(PACKAGE)) + list(_trees(ROOT / "tests", "*.py"))
+    sources += list(_trees(ROOT / "agents"))
+    for path, tree in sources:
+        rel = path.relative_to(ROOT)
+        parts = list(rel.with_suffix("").parts)
+        package = ".".join(parts[:-1]) if parts[-1] != "__init__" else ".".join(parts[:-1])
+        aliases = {}
+        for node in ast.walk(tree):
+            if isinstance(node, ast.ImportFrom):
+                base = (
+                    package.split(".")[: len(package.split(".")) - node.level + 1]
+                    if node.level
+                    else []
+                )
+                source = ".".join(base + ([node.module] if node.module else []))
+                for alias in node.names:
+                    if f"{source}.{alias.name}" in modules:
+                        aliases[alias.asname or alias.name] = f"{source}.{alias.name}"
+                    elif source in modules and alias.name != "*":
+                        reads.add((source, alias.name, f"{rel}:{node.lineno}"))
+            elif isinstance(node, ast.Import):
+                for alias in node.names:
+                    if alias.asname and alias.name in modules:
+                        aliases[alias.asname] = alias.name
+        for node in ast.walk(tree):
+            if (
+                isinstance(node, ast.Attribute)
+                and isinstance(node.value, ast.Name)
+                and node.value.id in aliases
+            ):
+                reads.add((aliases[node.value.id], node.attr, f"{rel}:{node.lineno}"))
+    missing = []
+    for source, name, where in sorted(reads):
+        module = importlib.import_module(source)
+        if name.startswith("NoSuch"):  # (a test's deliberate miss)
+            continue
+        if not hasattr(module, name) and f"{source}.{name}" not in modules:
+            missing.append(f"{where}: {source}.{name}")
+    assert not missing, missing
