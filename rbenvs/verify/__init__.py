@@ -185,8 +185,8 @@ def _unverified(systems, integrators) -> list[Check]:
                     Check(
                         system,
                         name,
-                        f"verification settings for {name!r} (none: add a row to the {system} "
-                        "settings)",
+                        f"verification settings for {name!r} (none: add its row to the {system} "
+                        "table of rbenvs/verify/settings.py)",
                         0.0,
                         math.nan,
                         0.0,

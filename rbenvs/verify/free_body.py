@@ -48,21 +48,10 @@ from .common import (
     reference_scheme,
     scaled_tolerance,
 )
+from .settings import FAST_TUMBLE_SETTINGS, FREE_BODY_SETTINGS
 from .simulator import advance, as_simulators, start
 
 __all__ = ["FREE_BODY_SETTINGS", "FAST_TUMBLE_SETTINGS", "FAST_TUMBLE_BODIES", "free_body_checks"]
-
-
-# Step sizes per integrator (s) for |Omega| ~ 1 rad/s, and the accuracy each is held to over
-# the exact-solution horizon. The tolerances follow the order: error ~ (|Omega| h)^p |Omega| T.
-FREE_BODY_SETTINGS = {
-    #            h      exact-solution tol  invariant tol
-    "euler": (2e-4, 2e-2, 2e-2),  # first order: ~ |Omega|^2 h T = 2e-3..1e-2
-    "rk4": (2e-2, 1e-6, 1e-7),  # (|Omega| h)^4 |Omega| T ~ 2e-6 * 10 / 30 (small constant)
-    "splitting": (5e-3, 1e-3, 1e-4),  # (|Omega| h)^2 |Omega| T ~ 2.5e-4; |Pi| exact
-    "exact": (0.1, 1e-11, 1e-12),  # round-off
-    "dop853": (1.0, 1e-9, 1e-10),  # rtol 1e-12 per unit time
-}
 
 
 # The fast tumble (module docstring): |Omega| [rad/s], horizon [s], bodies (quick, full), and per
@@ -79,14 +68,6 @@ FAST_HORIZON = 5.0
 FAST_TUMBLE_BODIES = (1, 3)
 # each moment at least 1.2 times the next smaller: a tumbling body, not a near-symmetric spinner
 FAST_DISTINCT = 0.2
-FAST_TUMBLE_SETTINGS = {
-    #            omega h  exact tol  invariant tol
-    "euler": (5e-4, 2e-2, 2e-2),
-    "rk4": (2e-2, 1e-7, 1e-8),
-    "splitting": (1e-2, 1e-2, 1e-4),
-    "exact": (0.1, 1e-9, 1e-12),
-    "dop853": (1.0, 1e-9, 1e-10),
-}
 
 
 def _random_inertia(rng, n, distinct=0.0):

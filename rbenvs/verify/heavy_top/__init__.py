@@ -95,11 +95,10 @@ The package by concern: :mod:`.settings` (settings and random tops) and :mod:`.c
 from __future__ import annotations
 
 from ...dynamics import HeavyTop  # (the system the checks run, as the tests reach it)
+from ..settings import HEAVY_TOP_SETTINGS, TopSetting
 from .checks import checks_for_top, heavy_top_checks, threshold_checks
 from .settings import (
-    HEAVY_TOP_SETTINGS,
     SMALL_TOP_CASES,
-    TopSetting,
     _random_small_tops,
     random_tops,
 )

@@ -27,13 +27,13 @@ from ..common import (
     worst,
 )
 from ..protocol import batched
+from ..settings import HEAVY_TOP_SETTINGS
 from ..simulator import advance, as_simulators, start
 from .settings import (
     ABOVE_CRITICAL,
     BISECTION_WIDTH,
     BRACKET,
     FALL_TILT,
-    HEAVY_TOP_SETTINGS,
     HORIZON,
     INVARIANT_HORIZON,
     NUTATION_TOL,

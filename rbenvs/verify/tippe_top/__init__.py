@@ -91,13 +91,12 @@ The package by concern: :mod:`.settings` (settings, random tops, measurements),
 
 from __future__ import annotations
 
+from ..settings import TIPPE_TOP_SETTINGS, TippeSetting
 from .checks import progress_total, tippe_top_checks
 from .hops import HOP_CASE
 from .inversion import inversion_criterion, settle
 from .settings import (
-    TIPPE_TOP_SETTINGS,
     RandomTop,
-    TippeSetting,
     ball_bound,
     oracle_jellett,
     random_tops,

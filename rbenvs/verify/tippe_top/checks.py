@@ -12,11 +12,12 @@ from ..common import (
     reference_scheme,
     worst,
 )
+from ..settings import REGIMES, TIPPE_TOP_SETTINGS
 from ..simulator import as_simulators
 from .hops import _hop_rows
 from .invariants import _invariant_rows
 from .inversion import INVERSION_ROW, T90_ROW, _inversion_jellett_row, _inversion_rows, _t90_rows
-from .settings import REGIMES, SYSTEM, TIPPE_TOP_SETTINGS, random_tops
+from .settings import SYSTEM, random_tops
 
 # ------------------------------------------------------------------------------------------
 # all rows

@@ -11,10 +11,10 @@ from ...dynamics import TippeTopParams
 from ...integrators import get_integrator
 from ...oracles import jellett
 from ...rotations import quat_multiply, quat_rotate
+from ..settings import REGIMES
 
 SYSTEM = "tippe_top"
 GRAVITY = 9.81
-REGIMES = ("below", "inside", "above")
 CLASS_CODE = {"no inversion": 0, "partial inversion": 1, "full inversion": 2}
 CLASS_BOUNDS = (math.radians(30.0), math.radians(170.0))  # final tilt: none below, full above
 
@@ -41,97 +41,6 @@ T90_TOL = 1e-4  # s
 T90_ORDER_TOL = (
     0.5  # on the observed order (measured 4.18: the differences are 2.0e-6 s and 1.1e-7 s)
 )
-
-
-@dataclass(frozen=True)
-class TippeSetting:
-    """Steps and tolerances of one integrator on the tippe top.
-
-    ``invariant_step``, ``settle_step``: ``|Omega| h`` of the invariants and settling runs (the
-    step is also kept below :meth:`~rbenvs.dynamics.TippeTop.max_stable_step`); for dop853, which
-    adapts its own step, unused. ``states``: random states per top and law (quick, full);
-    ``regimes``: the regimes of the inversion rows (quick, full), one random top each per
-    ``inversion_tops``. Tolerances (relative): ``jellett`` on the drift of ``J`` (relative to
-    ``|L| (R + h)``), ``energy`` on the conserved energy's drift, ``rise`` on the largest rise of
-    a dissipated energy between samples. ``rtol``: dop853's tolerance in the invariant runs
-    (``settle_rtol`` in the settling runs: a final tilt needs far less). ``alpha_max``: the
-    largest ``alpha`` of the settling runs' tops.
-    """
-
-    invariant_step: float
-    settle_step: float
-    states: tuple[int, int]
-    regimes: tuple[tuple[str, ...], tuple[str, ...]]
-    inversion_tops: tuple[int, int]
-    jellett: float
-    energy: float
-    rise: float
-    rtol: float = 1e-12
-    settle_rtol: float = 1e-8
-    alpha_max: float = 0.4
-
-
-# Steps and tolerances. The step of a fixed-step run is ``h = omega_h / Omega_max`` with
-# ``Omega_max`` 1.5 times the largest rate the energy allows (:func:`_omega_bound`; 1.2 times
-# the spin for the settling runs), and never above ``max_stable_step`` (Coulomb friction near
-# zero slip is stiff: there the step is the stability bound, |Omega| h ~ 1e-3). The invariants
-# see a small part of a scheme's error at its step (most of it is a phase error along the
-# motion); the tolerances stand well above the worst measured over 20 seeds x 2 states per law
-# (in brackets), and far below what a wrong force does (tests: a flipped friction raises the
-# energy by ~1e-3 of E0 per sample, a contact arm on the wrong side moves J by ~1e-2):
-#
-# * euler (order 1), omega_h = 1e-2: an error ~ (Omega h) per radian turned, over Omega T ~ 500
-#   radians: J 0.1 [1.8e-2], energy 0.04 [6.1e-3] (ENERGY_BOUND), rise per sample 1e-4 [1.8e-6].
-#   J's 0.1 is above MOMENTUM_BOUND (2%, rbenvs.verify.common): the worst measured at this step
-# comes within 10% of the bound, and a step small enough to hold it with a margin costs 3x.
-# Settling:
-#   omega_h = 0.03, inside the window and alpha <= 0.3 only. Euler turns every rotating vector
-#   outward, a growth rate ~ w^2 h / 2 for a vector turning at w; friction damps the final
-#   states slowly. A top that stays upright (below the window; w = |C/A - 1| n, up to 0.8 n)
-#   nods ever wider and hops (seed 1: J off by 100% at 13 s); a partially inverted top rolls
-#   in a steady precession where friction hardly dissipates (J off by 7x at omega_h = 0.01 and
-#   the top hops; by 20% at 0.003, the tilt 5 degrees off after 3000 t_g); inside the window at
-#   alpha ~ 0.39 and A/C ~ 0.78 (2 of 30 tops; also at omega_h = 0.01) the climb hops. Below
-#   alpha 0.3 inside the window euler settles every top tried (30 of 30; J drifts 2e-3 to 4e-2:
-#   the final tilt of a full inversion does not depend on J).
-# * rk4 (order 4), omega_h = 0.1: local error (Omega h)^5/120 < 1e-7 per step. J 1e-6 [1.4e-8
-#   without table motion, 7.4e-8 with], energy 1e-7 [3.0e-9], rise 1e-8 [0: never rose].
-# * dop853 at rtol 1e-12 (atol 1e-14), sampled every t_g/2: 100 x rtol: J and energy 1e-10
-#   [1.4e-12, 7.4e-13], rise 1e-11 [0]. Coulomb friction regularised at 0.1 sqrt(g R) (DOP853_SLIP):
-#   at 1e-3 m/s the stiffness costs ~4e5 evaluations per 10 t_g. Settling at rtol 1e-8.
-TIPPE_TOP_SETTINGS = {
-    "euler": TippeSetting(
-        invariant_step=1e-2,
-        settle_step=0.03,
-        states=(1, 2),
-        regimes=(("inside",), ("inside",)),
-        inversion_tops=(1, 2),
-        jellett=0.1,
-        energy=0.04,
-        rise=1e-4,
-        alpha_max=0.3,
-    ),
-    "rk4": TippeSetting(
-        invariant_step=0.1,
-        settle_step=0.1,
-        states=(2, 4),
-        regimes=(REGIMES, REGIMES),
-        inversion_tops=(1, 2),
-        jellett=1e-6,
-        energy=1e-7,
-        rise=1e-8,
-    ),
-    "dop853": TippeSetting(
-        invariant_step=0.0,
-        settle_step=0.0,
-        states=(1, 2),
-        regimes=(("above",), REGIMES),
-        inversion_tops=(1, 1),
-        jellett=1e-10,
-        energy=1e-10,
-        rise=1e-11,
-    ),
-}
 
 
 # ------------------------------------------------------------------------------------------

@@ -9,8 +9,9 @@ import numpy as np
 
 from ...dynamics import TippeTop, TippeTopParams
 from ...integrators import get_integrator
+from ..settings import TIPPE_TOP_SETTINGS
 from .inversion import measured_class, prediction, settle, upright_start
-from .settings import FINAL_TILT_TOL, TIPPE_TOP_SETTINGS, RandomTop, oracle_jellett
+from .settings import FINAL_TILT_TOL, RandomTop, oracle_jellett
 
 # ------------------------------------------------------------------------------------------
 # the sweep
