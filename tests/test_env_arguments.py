@@ -476,3 +476,18 @@ def test_a_keyword_the_options_do_not_use_does_not_veto_the_body():
         TippeTopEnv(**light, torque_action=True)
     with pytest.raises(ValueError, match="max_torque"):
         TippeTopEnv(**light, max_torque=math.nan)
+
+
+@pytest.mark.parametrize("cls", list(TASKS))
+def test_the_shared_keywords_are_in_every_signature_and_docstring(cls):
+    """The keywords every env takes (rbenvs.envs.shared) appear in the signature users see,
+    keyword-only, at the env's own default where it names one, and in its docstring."""
+    from rbenvs.envs.shared import SHARED_OPTIONS
+
+    params = inspect.signature(cls.__init__).parameters
+    for option in SHARED_OPTIONS:
+        p = params[option.name]
+        assert p.kind is inspect.Parameter.KEYWORD_ONLY
+        assert p.default == cls.shared_defaults.get(option.name, option.default)
+        assert f"``{option.name}=" in cls.__doc__
+    assert "options" not in params

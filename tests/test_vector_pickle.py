@@ -61,3 +61,14 @@ def test_a_pickled_or_copied_vector_env_goes_on_bit_for_bit(env_id, kwargs):
             assert same(out[4], other[4])
     # and a reset of the copy draws what the original's draws
     assert all(same(x, y) for x, y in zip(env.reset(seed=3)[0], copies[0].reset(seed=3)[0]))
+
+
+def test_a_pickled_numpy_path_env_with_observation_noise_goes_on_bit_for_bit():
+    """Without the compiled step there is no noise table: the copy must come back without one
+    too (it came back as ``False`` and failed at its first step)."""
+    env = make_vec(FREE, 4, max_episode_steps=10, compiled=False, observation_noise=0.01)
+    env.reset(seed=3)
+    copy = pickle.loads(pickle.dumps(env))
+    a = np.full(env.action_space.shape, 0.3, dtype=np.float32)
+    for _ in range(12):
+        assert all(same(x, y) for x, y in zip(env.step(a)[:4], copy.step(a)[:4]))

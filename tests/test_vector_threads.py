@@ -212,3 +212,20 @@ def test_num_threads_argument():
     with pytest.raises(ValueError, match="num_threads=2 splits the compiled vector step"):
         make_vec(FREE, 4, num_threads=2, compiled=False)
     assert make_vec(FREE, 4, num_threads="auto", compiled=False).num_threads == 1
+
+
+def test_a_split_step_leaves_the_callers_numba_thread_count():
+    """The split kernel runs on as many of numba's threads as chunks and puts the calling
+    thread's count back (a user's own parallel code keeps its setting)."""
+    import numba
+
+    before = numba.get_num_threads()
+    numba.set_num_threads(1)
+    try:
+        env = make_vec(FREE, N, num_threads=2)
+        env.reset(seed=0)
+        env.step(np.zeros(env.action_space.shape, dtype=np.float32))
+        env.step(np.zeros(env.action_space.shape, dtype=np.float32))
+        assert numba.get_num_threads() == 1
+    finally:
+        numba.set_num_threads(before)
