@@ -15,8 +15,10 @@ import rbenvs
 from rbenvs.envs.free_body import FreeRigidBodyEnv
 from rbenvs.envs.heavy_top import LagrangeTopEnv
 from rbenvs.envs.tippe_top import TippeTopEnv
+from rbenvs.rotations import power
 from rbenvs.scenes import load_scene
 from rbenvs.stepsize.controller import UnstableMotionWarning
+from rbenvs.stepsize.forms import gate_limit, gated_estimate, motion_error_estimate
 
 # the issue's extreme: |Pi| = 2e4 along the intermediate axis of moments (3, 2, 1), |Omega| 1e4
 # rad/s
@@ -178,6 +180,43 @@ def test_the_gate_keeps_the_sharp_counts_and_bounds_their_estimate(cls, kwargs):
             else:
                 failed += 1
     assert held > 0 and failed > 0, (held, failed)
+
+
+@pytest.mark.parametrize(
+    "dt,q,top", [(0.05, 5.0, 2.9961e-4), (0.02, 5.0, 1.0), (1e-3, 2.0, 7.5e-9), (0.01, 9.0, 1e-30)]
+)
+def test_the_gate_limit_is_the_power_test(dt, q, top):
+    """The gate's threshold is its test ``power(L dt, q) <= top`` solved once: for rates on both
+    sides of it, the ulps around it, 0, NaN and inf, ``L <= limit`` answers as the test does (the
+    test is monotone in ``L``; a limit one ulp off fails at the ulps around it)."""
+    limit = gate_limit(dt, q, top)
+
+    def passes(L):
+        return power(L * dt, q) <= top
+
+    assert passes(limit) and not passes(math.nextafter(limit, math.inf))
+    rng = np.random.default_rng(3)
+    near = [limit]
+    for _ in range(8):
+        near = [math.nextafter(near[0], 0.0)] + near + [math.nextafter(near[-1], math.inf)]
+    rates = near + list(limit * rng.uniform(0.0, 2.0, 2000)) + [0.0, math.inf, math.nan]
+    for L in rates:
+        assert (L <= limit) == passes(L), L
+    arrays = np.array(rates)
+    assert np.array_equal(arrays <= limit, power(arrays * dt, q) <= top)
+
+
+def test_the_gated_estimate_is_the_motion_estimate():
+    """The gate's estimate, written out, gives :func:`motion_error_estimate`'s bits at the rates
+    ``(L, L, L)``, on floats and arrays."""
+    c, p, dt, h = 1.0 / 120.0, 4.0, 0.05, 0.05 / 3.0
+    estimate = gated_estimate(c, p, dt, h)
+    rates = np.random.default_rng(4).lognormal(0.0, 4.0, 500)
+    for L in rates.tolist():
+        assert estimate(L) == motion_error_estimate((c, p, dt), (L, L, L), h)
+    assert np.array_equal(estimate(rates), motion_error_estimate((c, p, dt), (rates,) * 3, h))
+    with pytest.raises(ValueError, match="whole order"):
+        gated_estimate(c, 4.5, dt, h)
 
 
 def test_the_gate_gives_every_path_the_same_estimates():

@@ -694,16 +694,15 @@ def _checked_period(
     if (
         estimate and gate
     ):  # (the sub-envs within the bound were counted and estimated in the gate's loop)
-        # (motion_rates' test power(Lambda dt, p + 1) <= substeps^p / k and motion_error_estimate's
-        # C Lambda dt (Lambda h)^p, their powers as products)
-        test = f"{_products('w', gate + 1)} <= PGT[1][2]"
+        # (motion_rates' test Lambda <= limit and motion_error_estimate's C Lambda dt (Lambda h)^p,
+        # its power as products)
+        test = "big <= PGT[1]"
         lines += [
             "    ng = 0",
             "    for i in range(n):",
             "        " + y_old,
             "        big = gate(PGT[0], y)",
             "        counts[i] = substeps",
-            "        w = big * PGT[1][0]",
             "        z = big * h",
             f"        EST[i] = PEE[0] * big * PEE[2] * {_products('z', gate)}",
             f"        ng += not ({test})",
@@ -719,7 +718,6 @@ def _checked_period(
             "    c = substeps",
             "    " + y_old,
             "    big = gate(PGT[0], y)",
-            "    w = big * PGT[1][0]",
             f"    if {test}:",
             "        continue",
         ]

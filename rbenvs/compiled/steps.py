@@ -514,8 +514,8 @@ class VectorStep:
             tuple(float(v) for v in error) if estimate else (0.0, 1.0, 0.0),
         )
         self.gate_params = (
-            (gate[1], gate[2]) if gate else ((), (0.0, 1.0, 0.0))
-        )  # (PGT: the gate's P and its test)
+            (gate[1], gate[2]) if gate else ((), 0.0)
+        )  # (PGT: the gate's P and its limit)
         self._calls = {}
         self._scratch = None
         self.threads = threads

@@ -100,6 +100,7 @@ from ..rotations import power
 from .forms import (
     accuracy_steps,
     error_estimate,
+    gate_limit,
     motion_error_estimate,
     motion_rates,
     relaxation_estimate,
@@ -325,9 +326,10 @@ class StepRule:
     # forced_error_constant, 0 if none), fn(Q, y, u, dt, p, lambda_d) -> a in [0, 1], the share of
     # C (lambda_d h)^p its decaying mode's error is (relaxation_steps); None: a = 1
     share: tuple | None = None
-    # the default accuracy's gate (motion_rates'): (fn, P, (dt, p + 1, substeps^p / k)), fn(P, y)
-    # -> Lambda, a cheap bound of the error's rate; a batch tests it first (rbenvs.compiled's gate
-    # loop); None: no gate
+    # the default accuracy's gate (motion_rates'): (fn, P, limit), fn(P, y) -> Lambda, a cheap
+    # bound of the error's rate, which holds the period within its budget at substeps steps where
+    # Lambda <= limit (forms.gate_limit); a batch tests it first (rbenvs.compiled's gate loop);
+    # None: no gate
     gate: tuple | None = None
 
     @classmethod
@@ -449,12 +451,14 @@ class StepRule:
                     rates.accuracy_bound if rates.accuracy is not None else (None, ())
                 )
                 extra.update(gate=True, gate_rate=bound_fn)
-                test = (float(dt), p + 1.0, float(gate_steps) ** p / k)
-                tail += (test + (bound_p,),)
+                # C L dt (L dt / substeps)^p <= budget, i.e. (L dt)^(p + 1) <= substeps^p / k,
+                # solved once for its largest L
+                limit = gate_limit(float(dt), p + 1.0, float(gate_steps) ** p / k)
+                tail += ((limit, bound_p),)
                 gate = (
-                    (bound_fn, bound_p, test)
+                    (bound_fn, bound_p, limit)
                     if bound_fn is not None
-                    else (rates.rotation[0], rates.rotation[1], test)
+                    else (rates.rotation[0], rates.rotation[1], limit)
                 )
                 mu_text += (
                     f"; first the bound C L dt (L dt / {gate_steps})^{integrator.order}, L = "

@@ -7,6 +7,7 @@ the single env's steps. The rules they implement are the controller's docstring'
 from __future__ import annotations
 
 import math
+import sys
 from functools import cache
 
 import numpy as np
@@ -27,6 +28,8 @@ __all__ = [
     "step_ratio_motion",
     "motion_rates",
     "step_ratio",
+    "gate_limit",
+    "gated_estimate",
 ]
 
 
@@ -209,7 +212,9 @@ def motion_rates(
     state by the intermediate axis runs its separatrix within the period), that bound is the
     speed of every block but the rotating ones.
 
-    Why ``gate`` (the default accuracy; ``P``'s last item ``(dt, p + 1, substeps^p / k, P_gate)``):
+    Why ``gate`` (the default accuracy; ``P``'s last item ``(limit, P_gate)``, ``limit`` the
+    largest ``Lambda`` with ``C Lambda dt (Lambda dt / substeps)^p`` within the budget:
+    :func:`gate_limit`):
     ``mu <= lambda_e <= Lambda``, ``Lambda`` a cheap bound of the error's rate (``gate_rate``, the
     system's ``accuracy_bound``; ``None``: ``lambda``, which is ``lambda_e`` without ``accuracy``),
     so ``C Lambda dt (Lambda h)^p`` bounds the estimate. Where that bound keeps the period's
@@ -221,8 +226,8 @@ def motion_rates(
     if gate:
         lines += [
             f"    G = P[{4 if speed_bound is not None else 3}]",
-            "    big = gate_rate(G[3], y)" if gate_rate is not None else "    big = lam",
-            "    cheap = power(big * G[0], G[1]) <= G[2]",
+            "    big = gate_rate(G[1], y)" if gate_rate is not None else "    big = lam",
+            "    cheap = big <= G[0]",
             # (the sharp rates only where the bound does not hold: a batch, for all)
             "    if every(cheap):",
             "        return (lam, big, big)",
@@ -291,6 +296,40 @@ def motion_rates(
         },
     )
     return jitable(namespace["rates"])
+
+
+def gate_limit(dt: float, q: float, top: float) -> float:
+    """The default accuracy's gate test ``power(L dt, q) <= top`` as a threshold: the largest float
+    ``limit`` that passes it. The test is monotone in ``L >= 0`` (a product of non-negative floats
+    rounds monotonically), so ``L <= limit`` is the same test, bit for bit, for every ``L``
+    (NaN and ``inf`` fail both), one comparison instead of ``q`` products a period."""
+    if not (dt > 0.0 and top >= 0.0 and math.isfinite(top)):
+        raise ValueError(f"gate_limit needs dt > 0 and a finite top >= 0, got {dt!r}, {top!r}")
+
+    def passes(L):
+        return power(L * dt, q) <= top
+
+    limit = top ** (1.0 / q) / dt
+    if not math.isfinite(limit):
+        limit = sys.float_info.max
+    while not passes(limit):  # (terminates: 0 passes)
+        limit = math.nextafter(limit, 0.0)
+    while passes(math.nextafter(limit, math.inf)):
+        limit = math.nextafter(limit, math.inf)
+    return limit
+
+
+@cache
+def gated_estimate(c: float, p: float, dt: float, h: float):
+    """``estimate(L) = C L dt (L h)^p``: :func:`motion_error_estimate` at the rates ``(L, L, L)``
+    and step ``h`` as one generated function of ``L`` (floats or arrays), the constants written in
+    and the power written out as products: the same operations in the same order, so the same bits
+    (the default accuracy's estimate where its gate holds; ``p`` a whole number)."""
+    if not float(p).is_integer() or p < 1:
+        raise ValueError(f"gated_estimate needs a whole order p >= 1, got {p!r}")
+    z = " * ".join(["z"] * int(p))
+    source = f"def estimate(big):\n    z = big * {h!r}\n    return {c!r} * big * {dt!r} * ({z})\n"
+    return generate(source, f"gated estimate p={int(p)}")["estimate"]
 
 
 @jitable

@@ -612,8 +612,8 @@ class RigidBodyVectorEnv(VectorEnv):
         # (the default accuracy's gate: every sub-env within it takes substeps, its estimate the
         # bound's)
         gated = None if written or self._checked else self.engine.gated(y0)
-        if gated is not None:
-            gated = np.broadcast_to(gated, (self.num_envs,)).astype(np.float64)
+        if gated is not None and np.shape(gated) != (self.num_envs,):  # (a batch's is its own)
+            gated = np.full(self.num_envs, gated, dtype=np.float64)
         out = self._step(actions, control, True if gated is not None else None)
         return self._estimated(
             out, self._estimates if gated is None else gated, restart, control, y0, y2d0, actions
