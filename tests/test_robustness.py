@@ -421,7 +421,7 @@ def test_vector_noise_without_numba_draws_blocks(monkeypatch):
     monkeypatch.setenv("RBENVS_COMPILED", "0")
     kwargs = dict(observation_noise=(0.01, 0.05, 0.1), observation_bias=0.01, action_delay=2)
     venv = make_vec(FREE, 2, **kwargs)
-    assert venv.unwrapped._noise_table is None and not venv.unwrapped.compiled
+    assert venv.unwrapped._realism_batch.table is None and not venv.unwrapped.compiled
     lockstep(FREE, 3, 5, 2 * NOISE_BLOCK + 20, "SameStep", NOISE_BLOCK + 30, kwargs)
 
 

@@ -82,8 +82,8 @@ from ..core.step import _REAL_FLOATS, action_columns
 from ..draws import GeneratorTable, kind_codes
 from ..dynamics.validation import real_array, require_bool, require_int_at_least, unknown_keyword
 from ..envs.base import require_compiled
-from ..envs.options import NOISE_BLOCK, noise_generator, noisy_observation, rekey
 from ..stepsize.controller import GlobalErrorCheck
+from .realism import BatchRealism
 from .threads import resolve_num_threads
 
 __all__ = [
@@ -204,7 +204,13 @@ class RigidBodyVectorEnv(VectorEnv):
             self._plains = np.ones(self.num_envs, dtype=bool)
             self._param_values = {}
             self._metric_dtypes = None
-        self._init_realism()
+        self._realism_batch = BatchRealism(
+            self._realism,
+            self.num_envs,
+            self.single_observation_space.shape[0],
+            self.single_action_space.shape,
+            _compiled.available(),
+        )
         self._renderer = None
         self._y = None  # the states: a tuple of (n,) arrays, one per component
         self._y2d = None  # the (dim, n) array whose rows are self._y, when the kernel made it
@@ -275,38 +281,12 @@ class RigidBodyVectorEnv(VectorEnv):
         state = self.__dict__.copy()
         state["_batch_step"] = state["_vector_step"] = state["_renderer"] = None
         state["_table"] = self._table is not None
-        if "_noise_table" in state:
-            state["_noise_table"] = self._noise_table is not None
         return state
 
     def __setstate__(self, state) -> None:
         self.__dict__.update(state)
         self._build_compiled(bool(state["compiled"]))
         self._table = GeneratorTable(self._rngs) if state["_table"] else None
-        if "_noise_table" in state:  # (a table where there was one: None on the numpy path)
-            self._noise_table = GeneratorTable(self._noise_gen) if state["_noise_table"] else None
-
-    def _init_realism(self) -> None:
-        """The action queue (``(delay, n, k)``, a ring with one head for every sub-env) and the
-        noise streams: per sub-env a generator, a block of ``NOISE_BLOCK`` observations' noise
-        and the position in it, and the episode's bias."""
-        r, n = self._realism, self.num_envs
-        if r.delay:
-            self._queue = np.zeros((r.delay, n) + self.single_action_space.shape)
-            self._head = 0
-        if r.stream:
-            k = self.single_observation_space.shape[0]
-            self._noise_gen = [noise_generator() for _ in range(n)]  # rekeyed per episode
-            self._bias = None if r.bias is None else np.zeros((n, k))
-            self._noise_table = None
-            if r.noise is not None:
-                if _compiled.available():  # one compiled call draws every sub-env's noise
-                    self._noise_table = GeneratorTable(self._noise_gen)
-                    self._noise_codes = kind_codes("n" * k)
-                else:  # blocks of NOISE_BLOCK observations per sub-env and Python call
-                    self._zbuf = np.zeros((n, NOISE_BLOCK, k))
-                    self._zpos = np.full(n, NOISE_BLOCK, dtype=np.int64)
-        self.noiseless_observation = None
 
     def _compiled_step(self, compiled):
         """The model's :class:`rbenvs.compiled.BatchStep`, or ``None`` for the numpy path."""
@@ -422,7 +402,7 @@ class RigidBodyVectorEnv(VectorEnv):
             info["global_error_estimate"] = np.zeros(n)
             info["_global_error_estimate"] = self._true
         if self._options:
-            obs, info = self._realism_after(obs, info, mask, reset=True)
+            obs, info = self._realism_after(obs, info, mask)
         return obs, info
 
     def _elapsed_steps(self, elapsed) -> np.ndarray:
@@ -1159,54 +1139,24 @@ class RigidBodyVectorEnv(VectorEnv):
         r = self._realism
         next_step = self.autoreset_mode is AutoresetMode.NEXT_STEP
         restart = self._prev_done.copy() if next_step else None
-        if r.delay:
-            a = np.stack(
-                action_columns(actions, self.action_space.shape), axis=1
-            )  # checked and clipped, as the single env's
-            actions = self._queue[self._head].copy()
-            self._queue[self._head] = a
-            self._head = (self._head + 1) % r.delay
+        if r.delay:  # (checked and clipped, as the single env's)
+            actions = self._realism_batch.delayed(
+                np.stack(action_columns(actions, self.action_space.shape), axis=1)
+            )
         obs, reward, terminated, truncated, info = self._step_estimated(actions)
         started = restart if next_step else (terminated | truncated)
-        obs, info = self._realism_after(obs, info, started, reset=False, same_step=not next_step)
+        obs, info = self._realism_after(obs, info, started, same_step=not next_step)
         return obs, reward, terminated, truncated, info
 
-    def _realism_after(self, obs, info, started, reset: bool, same_step: bool = False):
+    def _realism_after(self, obs, info, started, same_step: bool = False):
         """The options' part of a reset or step: ``started`` marks the sub-envs whose episode
-        began here. SAME_STEP: the ended episodes' last observations (``final_obs``) take their
-        noise from their old streams first. Returns ``(obs, info)``; ``info`` is updated."""
-        r = self._realism
+        began here (their queues, noise streams and biases: :meth:`BatchRealism.after`; with
+        ``param_ranges`` their drawn values in ``info["params"]``). Returns ``(obs, info)``;
+        ``info`` is updated."""
         idx = np.flatnonzero(started)
-        if r.delay and len(idx):
-            self._queue[:, idx] = 0.0
-        if r.stream:
-            high = self.engine.high
-            if same_step and len(idx):
-                final = info["final_obs"].copy()
-                last = np.stack([final[i] for i in idx])
-                noisy = noisy_observation(
-                    last,
-                    None if self._bias is None else self._bias[idx],
-                    r.noise,
-                    self._noise_rows(idx),
-                    high,
-                )
-                for j, i in enumerate(idx):
-                    final[i] = noisy[j]
-                info["final_obs"] = final
-            for (
-                i
-            ) in idx:  # the new episodes' streams, keyed from their generators after their starts
-                g = self._noise_gen[i]
-                rekey(g, self._rngs[i])
-                if self._bias is not None:
-                    self._bias[i] = r.bias * g.standard_normal(len(r.bias))
-                if r.noise is not None and self._noise_table is None:
-                    self._zpos[i] = NOISE_BLOCK
-            self.noiseless_observation = obs
-            obs = noisy_observation(
-                obs, self._bias, r.noise, self._noise_rows(np.arange(self.num_envs)), high
-            )
+        obs, info = self._realism_batch.after(
+            obs, info, idx, self._rngs, self.engine.high, same_step
+        )
         if self._ranges is not None and len(idx):
             params = {}
             for name, column in self._param_values.items():
@@ -1216,22 +1166,11 @@ class RigidBodyVectorEnv(VectorEnv):
             info["_params"] = started.copy()
         return obs, info
 
-    def _noise_rows(self, idx):
-        """The next observation's noise ``(len(idx), k)`` of the sub-envs ``idx`` (``None``
-        without observation noise): one compiled call over their streams, or from each one's
-        block, refilled from its stream when used up."""
-        if self._realism.noise is None:
-            return None
-        if self._noise_table is not None:
-            return self._noise_table.draws(idx, self._noise_codes).T
-        pos = self._zpos[idx]
-        for i in idx[pos == NOISE_BLOCK]:
-            self._zbuf[i] = self._noise_gen[i].standard_normal(self._zbuf.shape[1:])
-            self._zpos[i] = 0
-        pos = self._zpos[idx]
-        z = self._zbuf[idx, pos]
-        self._zpos[idx] = pos + 1
-        return z
+    @property
+    def noiseless_observation(self):
+        """The last observation before its noise (``None`` without observation noise or bias):
+        the single env's attribute."""
+        return self._realism_batch.noiseless_observation
 
     # ------------------------------------------------------------------ info
     def _info(self, y, failed, lifted, over, metrics, physical=None) -> dict:
