@@ -83,6 +83,7 @@ from ..draws import GeneratorTable, kind_codes
 from ..dynamics.validation import real_array, require_bool, require_int_at_least, unknown_keyword
 from ..envs.base import require_compiled
 from ..stepsize.controller import GlobalErrorCheck
+from .episodes import EpisodeBatch
 from .realism import BatchRealism
 from .threads import resolve_num_threads
 
@@ -163,7 +164,7 @@ class RigidBodyVectorEnv(VectorEnv):
             self.model.integrator,
         )
         # the robustness options (rbenvs.envs.options), validated by the single env
-        self._template, self._ranges, self._realism = env, env.param_ranges, env.realism
+        self._ranges, self._realism = env.param_ranges, env.realism
         # tolerance_check: the companion run of every sub-env (rbenvs.stepsize.controller), on the
         # numpy path, its runs (the main run's and the companion's) in one compiled loop
         # over the sub-envs where numba is installed (rbenvs.compiled.CheckedRuns.batch; with
@@ -182,7 +183,7 @@ class RigidBodyVectorEnv(VectorEnv):
                 )
             compiled = False
         self._options = self._ranges is not None or self._realism.active
-        self._episode_checks = self._estimates = None  # (param_ranges: below)
+        self._episodes = self._estimates = None  # (param_ranges: below)
         if self._ranges is not None:
             # each sub-env's episode has its own model (its drawn parameters), stepped on the float
             # path: no batched or compiled step of a model per row exists
@@ -194,16 +195,12 @@ class RigidBodyVectorEnv(VectorEnv):
                     "compiled='auto' or False"
                 )
             compiled = False
-            self._episodes = [None] * self.num_envs  # each sub-env's episode engine
-            # with a tolerance each episode engine estimates its own periods
-            # (info["error_estimate"]), and with tolerance_check each sub-env has its episode's
-            # companion (the single env's GlobalErrorCheck.step_one): no batch check of the nominal
-            # model
-            self._episode_checks = [None] * self.num_envs if self._checked else None
+            # each sub-env's episode engine (with a tolerance its own estimates, with
+            # tolerance_check its own companion: no batch check of the nominal model)
+            self._episodes = EpisodeBatch(
+                env, self._ranges, self.num_envs, self._checked, self.engine.tolerance is not None
+            )
             self._check = None
-            self._plains = np.ones(self.num_envs, dtype=bool)
-            self._param_values = {}
-            self._metric_dtypes = None
         self._realism_batch = BatchRealism(
             self._realism,
             self.num_envs,
@@ -376,7 +373,7 @@ class RigidBodyVectorEnv(VectorEnv):
             if (
                 self._ranges is not None
             ):  # the episodes' parameters first, as the single env draws them
-                self._new_episodes(np.flatnonzero(mask))
+                self._episodes.start(np.flatnonzero(mask), self._rngs)
             self._set_rows(self._rows_from_state(state, mask))
         else:
             self._draw_rows(np.flatnonzero(mask))
@@ -433,7 +430,7 @@ class RigidBodyVectorEnv(VectorEnv):
         ``compiled=False``: on numpy (a reset: its rows once per reset are not worth a kernel
         that is slow to compile; the same bits)."""
         if self._ranges is not None:
-            return self._fresh_episodes(y, idx, started)
+            return self._episodes.fresh(y, idx, started, self.single_observation_space.shape[0])
         if compiled and self._vector_step is not None and self._table is not None:
             obs, over, metrics, physical = self._vector_step.finish(np.stack(y), self._table.list)
             return obs, over, dict(zip(self.task.metric_names, metrics)), physical
@@ -455,11 +452,7 @@ class RigidBodyVectorEnv(VectorEnv):
         if len(idx) == 0:
             return
         if self._ranges is not None:
-            self._new_episodes(idx)
-            starts = [
-                self._episodes[i].model.initial_state(self._rngs[i]) for i in idx
-            ]  # (the single env's draws)
-            comps = tuple(np.array([float(c) for c in col]) for col in zip(*starts))
+            comps = self._episodes.initial_states(idx, self._rngs)
         elif self._table is not None:
             task_raw, system_raw = self.model.split_draws(self._table.draws(idx, self._codes))
         else:
@@ -485,9 +478,8 @@ class RigidBodyVectorEnv(VectorEnv):
     def _restart_companion(self, idx) -> None:
         """The companions of the sub-envs ``idx`` start at their new states
         (``tolerance_check``)."""
-        if self._ranges is not None and self._checked:  # (each its episode's)
-            for i in idx:
-                self._episode_checks[i].restart(tuple(float(c[i]) for c in self._y))
+        if self._ranges is not None:  # (each its episode's)
+            self._episodes.restart_checks(idx, self._y)
         if self._check is not None:
             mask = np.zeros(self.num_envs, dtype=bool)
             mask[idx] = True
@@ -510,11 +502,7 @@ class RigidBodyVectorEnv(VectorEnv):
                 )
             arrays[name] = arr
         # each row validated by the system's own checks (its episode's system), as the single env's
-        system = (
-            (lambda i: self._episodes[i].system)
-            if self._ranges is not None
-            else (lambda i: self.system)
-        )
+        system = self._episodes.system if self._ranges is not None else (lambda i: self.system)
         return {
             i: system(i).import_state({k: v[i] for k, v in arrays.items()})
             for i in np.flatnonzero(mask)
@@ -998,133 +986,34 @@ class RigidBodyVectorEnv(VectorEnv):
         return obs, info
 
     # ------------------------------------------------------------------ robustness options
-    def _new_episodes(self, idx) -> None:
-        """Each sub-env in ``idx`` draws its episode's parameters from its own generator (the
-        single env's first draws) and gets that episode's engine."""
-        for i in idx:
-            values = self._ranges.draw(self._rngs[i])
-            self._episodes[i] = self._template.episode_env(values).engine
-            self._plains[i] = self._episodes[i].plain
-            if (
-                self._episode_checks is not None
-            ):  # (started at the episode's state: _restart_companion)
-                self._episode_checks[i] = GlobalErrorCheck(self._episodes[i])
-            for name, v in self._ranges.info(values).items():
-                column = self._param_values.get(name)
-                if column is None:
-                    column = self._param_values[name] = np.zeros((self.num_envs,) + np.shape(v))
-                column[i] = v
-
-    def _fresh_episodes(self, y, idx, started=None):
-        """:meth:`_fresh` with each sub-env's episode engine (its own parameters)."""
-        k = self.single_observation_space.shape[0]
-        obs, over = np.zeros((len(idx), k), dtype=np.float32), np.zeros(len(idx), dtype=bool)
-        infos = []
-        for j, i in enumerate(idx):
-            engine = self._episodes[i]
-            # (a sub-env the reset leaves running goes on with its run's compensation)
-            start = engine.reset_one if started is None or started[i] else engine.fresh_one
-            o, info = start(tuple(float(c[j]) for c in y))
-            obs[j] = o
-            infos.append(info)
-        metrics = {
-            name: self._column(name, [info[name] for info in infos])
-            for name in self.task.metric_names
-        }
-        physical = [
-            np.array([info[name] for info in infos], dtype=np.float64)
-            for name in self.engine.readout_names
-        ]
-        return obs, over, metrics, physical
-
-    def _column(self, name, values):
-        """A metric's values as an array of its type in the single env's info (bool, int or
-        float)."""
-        if self._metric_dtypes is None:
-            self._metric_dtypes = {}
-        dtype = self._metric_dtypes.get(name)
-        if dtype is None:
-            v = next((x for x in values if x is not None), 0.0)
-            dtype = self._metric_dtypes[name] = (
-                np.bool_
-                if isinstance(v, bool)
-                else (np.int64 if isinstance(v, int) else np.float64)
-            )
-        return np.array([dtype(0) if x is None else x for x in values], dtype=dtype)
-
     def _step_episodes(self, actions):
         """A step of a batch whose sub-envs have their own parameters: each sub-env's period
-        and finish by its episode engine on floats (the single env's very step, so bit for bit),
-        then the batch's info, clocks and autoreset (:meth:`_finish`)."""
-        n, k = self.num_envs, self.single_observation_space.shape[0]
-        cols = action_columns(actions, self.action_space.shape)
-        rows = np.stack(cols, axis=1).tolist()
+        and finish by its episode engine on floats (:meth:`EpisodeBatch.step`, the single env's
+        very step, so bit for bit), then the batch's info, clocks and autoreset
+        (:meth:`_finish`)."""
+        rows = np.stack(action_columns(actions, self.action_space.shape), axis=1).tolist()
         restart = self._prev_done if self.autoreset_mode is AutoresetMode.NEXT_STEP else self._false
-        any_restart = bool(restart.any())
-        obs = np.zeros((n, k), dtype=np.float32)
-        reward = np.zeros(n)
-        terminated, over, fired, failed = (np.zeros(n, dtype=bool) for _ in range(4))
-        h = np.full(n, self.engine.h)
-        names, readouts = self.task.metric_names, self.engine.readout_names
-        metric_rows, physical = (
-            {name: [None] * n for name in names},
-            [np.zeros(n) for _ in readouts],
-        )
-        y_new = [c.copy() for c in self._y]
-        us = [None] * n
-        event = self.engine.event_name
-        checks = self._episode_checks
-        # with a tolerance: each period's estimates from its episode's engine (0 where none ran)
-        estimated = self.engine.tolerance is not None
-        if estimated:
-            self._estimates = np.zeros(n)
-        if checks is not None:
-            self._global = np.zeros(n)
-        for i in range(n):
-            if restart[i]:  # (NEXT_STEP: reset below, the period discarded)
-                continue
-            yi = tuple(float(c[i]) for c in self._y)
-            step_one = (
-                self._episodes[i].step_one if checks is None else checks[i].step_one
-            )  # (the single env's step)
-            y, o, r, _, info, u, plain = step_one(yi, rows[i], bool(self._plains[i]))
-            self._plains[i] = plain
-            if estimated:
-                self._estimates[i] = info["error_estimate"]
-            if checks is not None:
-                self._global[i] = info["global_error_estimate"]
-            for c, v in zip(y_new, y):
-                c[i] = v
-            obs[i], reward[i], us[i], h[i] = o, r, u, info["internal_step"]
-            reason = info.get("terminal_reason")
-            failed[i] = info["numerical_failure"]
-            over[i] = reason == "observation_limit"
-            fired[i] = event is not None and reason == event
-            terminated[i] = reason == "task" or failed[i]
-            for name in names:
-                metric_rows[name][i] = info[name]
-            for column, name in zip(physical, readouts):
-                column[i] = info[name]
-        self._y, self._y2d = tuple(y_new), None
-        size = next((len(u) for u in us if u is not None), None)
-        self._u = (
-            None
-            if size is None
-            else tuple(np.array([0.0 if u is None else u[j] for u in us]) for j in range(size))
-        )
-        self._last_h = h
-        metrics = {name: self._column(name, metric_rows[name]) for name in names}
-        return self._finish(
-            obs,
-            over,
-            reward,
-            terminated,
-            fired if fired.any() else self._false,
-            failed if failed.any() else None,
-            metrics,
+        r = self._episodes.step(
+            self._y,
+            rows,
             restart,
-            any_restart,
-            physical,
+            self.single_observation_space.shape[0],
+            self.engine.h,
+            self.engine.event_name,
+        )
+        self._y, self._y2d, self._u, self._last_h = r.y, None, r.u, r.h
+        self._estimates, self._global = r.estimates, r.global_
+        return self._finish(
+            r.obs,
+            r.over,
+            r.reward,
+            r.terminated,
+            r.fired if r.fired.any() else self._false,
+            r.failed if r.failed.any() else None,
+            r.metrics,
+            restart,
+            bool(restart.any()),
+            r.physical,
             charged=True,
         )
 
@@ -1158,11 +1047,7 @@ class RigidBodyVectorEnv(VectorEnv):
             obs, info, idx, self._rngs, self.engine.high, same_step
         )
         if self._ranges is not None and len(idx):
-            params = {}
-            for name, column in self._param_values.items():
-                params[name] = column.copy()
-                params["_" + name] = started.copy()
-            info["params"] = params
+            info["params"] = self._episodes.params_info(started)
             info["_params"] = started.copy()
         return obs, info
 
@@ -1244,7 +1129,7 @@ class RigidBodyVectorEnv(VectorEnv):
         frames = []
         for i in rows:
             y = tuple(float(c[i]) for c in self._y)
-            system = self.system if self._ranges is None else self._episodes[i].system
+            system = self.system if self._ranges is None else self._episodes.system(i)
             frames.append(self._renderer.frame(self.env_class.scene(system, y)))
         if self.render_mode == "human":
             if self._renderer.can_show():
