@@ -82,7 +82,7 @@ from ..core.step import _REAL_FLOATS, action_columns
 from ..draws import GeneratorTable, kind_codes
 from ..dynamics.validation import real_array, require_bool, require_int_at_least, unknown_keyword
 from ..envs.base import require_compiled
-from ..stepsize.controller import GlobalErrorCheck
+from ..stepsize.batch import BatchAccuracy
 from .episodes import EpisodeBatch
 from .realism import BatchRealism
 from .threads import resolve_num_threads
@@ -169,10 +169,8 @@ class RigidBodyVectorEnv(VectorEnv):
         # numpy path, its runs (the main run's and the companion's) in one compiled loop
         # over the sub-envs where numba is installed (rbenvs.compiled.CheckedRuns.batch; with
         # compiled=False on numpy); the batch kernel has no checked period
-        self._check = GlobalErrorCheck(self.engine) if env.model.check else None
-        self._checked = bool(env.model.check)
-        self._global = None  # the last step's global error estimates
-        if self._check is not None:
+        checked = bool(env.model.check)
+        if checked:
             if compiled is True:
                 raise ValueError(
                     "compiled=True cannot be had with tolerance_check=True: the checked period (an "
@@ -183,7 +181,7 @@ class RigidBodyVectorEnv(VectorEnv):
                 )
             compiled = False
         self._options = self._ranges is not None or self._realism.active
-        self._episodes = self._estimates = None  # (param_ranges: below)
+        self._episodes = None  # (param_ranges: below)
         if self._ranges is not None:
             # each sub-env's episode has its own model (its drawn parameters), stepped on the float
             # path: no batched or compiled step of a model per row exists
@@ -198,9 +196,13 @@ class RigidBodyVectorEnv(VectorEnv):
             # each sub-env's episode engine (with a tolerance its own estimates, with
             # tolerance_check its own companion: no batch check of the nominal model)
             self._episodes = EpisodeBatch(
-                env, self._ranges, self.num_envs, self._checked, self.engine.tolerance is not None
+                env, self._ranges, self.num_envs, checked, self.engine.tolerance is not None
             )
-            self._check = None
+        # what each step reports of its accuracy (info["error_estimate"], with tolerance_check
+        # info["global_error_estimate"] and the batch's companion)
+        self._accuracy = BatchAccuracy(
+            self.engine, self.num_envs, checked, checked and self._ranges is None
+        )
         self._realism_batch = BatchRealism(
             self._realism,
             self.num_envs,
@@ -230,14 +232,7 @@ class RigidBodyVectorEnv(VectorEnv):
         self._use_table = compiled is not False and _compiled.available()
         self._codes = kind_codes(self.model.draw_kinds)
         # shared read-only masks: every step's info reuses them instead of allocating
-        self._true = np.ones(self.num_envs, dtype=bool)
-        self._false = np.zeros(self.num_envs, dtype=bool)
-        # info["error_estimate"] where nothing is estimated (tolerance=None, a scheme without an
-        # error constant): NaN, its mask False; one read-only array, not a new one per step
-        self._unestimated = np.full(self.num_envs, np.nan)
-        self._unestimated.flags.writeable = False
-        self._true.flags.writeable = False
-        self._false.flags.writeable = False
+        self._true, self._false = self._accuracy.true, self._accuracy.false
         self._reasons = ReasonPool(self.num_envs, self.engine.event_name)
         self.num_threads = threads
         self._build_compiled(compiled)
@@ -390,14 +385,7 @@ class RigidBodyVectorEnv(VectorEnv):
         self._u = None  # as the single env after reset: nothing acted yet (a table at rest)
         self._last_h = np.full(n, self.engine.h)
         info = self._info(self._y, None, self._false, self._false, metrics, physical)
-        # no period yet: 0 with a tolerance (the single env's reset); without, not estimated (the
-        # single env's None): NaN, its mask False
-        estimated = self.engine.tolerance is not None
-        info["error_estimate"] = np.zeros(n) if estimated else self._unestimated
-        info["_error_estimate"] = self._true if estimated else self._false
-        if self._checked:
-            info["global_error_estimate"] = np.zeros(n)
-            info["_global_error_estimate"] = self._true
+        self._accuracy.reset_info(info)
         if self._options:
             obs, info = self._realism_after(obs, info, mask)
         return obs, info
@@ -480,10 +468,7 @@ class RigidBodyVectorEnv(VectorEnv):
         (``tolerance_check``)."""
         if self._ranges is not None:  # (each its episode's)
             self._episodes.restart_checks(idx, self._y)
-        if self._check is not None:
-            mask = np.zeros(self.num_envs, dtype=bool)
-            mask[idx] = True
-            self._check.restart(self._y, mask)
+        self._accuracy.restart(self._y, idx)
 
     def _rows_from_state(self, state, mask) -> dict:
         if not isinstance(state, dict):
@@ -528,100 +513,35 @@ class RigidBodyVectorEnv(VectorEnv):
         return self._step_estimated(actions)
 
     def _step_estimated(self, actions):
-        """The step of ``actions`` (those that act) with, under a tolerance, each period's error
-        estimate."""
-        if self.engine.tolerance is None or self._y is None:
-            out = self._step(actions)
-            info = out[4]
-            # not estimated (the single env's None): NaN, its mask False
-            info["error_estimate"], info["_error_estimate"] = self._unestimated, self._false
-            if "final_info" in info:
-                info["final_info"]["error_estimate"], info["final_info"]["_error_estimate"] = (
-                    self._unestimated,
-                    self._false,
-                )
-            return out
-        # with a tolerance: each period's estimated error, from the rate at its start and the
-        # step it took (the single env's rule); 0 where no period ran (a sub-env restarted)
+        """The step of ``actions`` (those that act) with each period's error estimate in its info
+        (:class:`rbenvs.stepsize.batch.BatchAccuracy`)."""
+        accuracy = self._accuracy
+        if not accuracy.estimated or self._y is None:
+            return accuracy.unestimated_report(self._step(actions))
+        accuracy.estimates = None
         vstep = self._vector_step
-        if (
-            self._ranges is None
-            and not self._checked
-            and vstep is not None
-            and self._table is not None
-            and vstep.layout.estimate
-        ):
-            # the compiled step writes the estimates (before the period, a restart's 0: a step
-            # handed to the numpy path has them too); they go into its info last, as on the numpy
-            # path
-            self._estimates = None
-            return self._estimated(
-                self._step(actions), self._estimates, self._false, None, None, None, actions
-            )
+        written = self._ranges is not None or (
+            vstep is not None and self._table is not None and vstep.layout.estimate
+        )
+        if written and self._ranges is None:
+            # the compiled step writes the estimates (a restart's 0 too, and a step handed to
+            # the numpy path has them)
+            return accuracy.report(self._step(actions), self._false)
         restart = (
             self._prev_done.copy()
             if self.autoreset_mode is AutoresetMode.NEXT_STEP
             else self._false
         )
-        # the estimates come from the step where it writes them (param_ranges: each sub-env's
-        # episode engine, _step_episodes; the compiled vector step, from the rates at each
-        # period's start as StepRule.plan's), else from the rates of the states before the step
-        # (the numpy path, whose controls are made once for the rates and the step, and a
-        # compiled step that handed a non-finite state to it)
-        y0, y2d0, control = self._y, self._y2d, None
-        written = self._ranges is not None or (
-            self._vector_step is not None
-            and self._table is not None
-            and self._vector_step.layout.estimate
-        )
+        # written by the step (param_ranges: each sub-env's episode engine), else from the rates
+        # of the states before the step (the numpy path, whose controls are made once for the
+        # rates and the step) or the default accuracy's gate, where every sub-env lies within it
+        # (its periods then take substeps unchecked)
+        y0, y2d0, control, gated = self._y, self._y2d, None, None
         if not written:
             control = self.model.actuator.control(action_columns(actions, self.action_space.shape))
-        self._estimates = None
-        # (the default accuracy's gate: every sub-env within it takes substeps, its estimate the
-        # bound's)
-        gated = None if written or self._checked else self.engine.gated(y0)
-        if gated is not None and np.shape(gated) != (self.num_envs,):  # (a batch's is its own)
-            gated = np.full(self.num_envs, gated, dtype=np.float64)
+            gated = None if accuracy.checked else accuracy.gated(y0)
         out = self._step(actions, control, True if gated is not None else None)
-        return self._estimated(
-            out, self._estimates if gated is None else gated, restart, control, y0, y2d0, actions
-        )
-
-    def _estimated(self, out, estimate, restart, control, y0, y2d0, actions):
-        """The step's ``out`` with each period's ``estimate`` in its info (``None``: from the rates
-        of the states ``y0`` (``y2d0``) before the step under ``control``, made from ``actions``
-        where ``None``): 0 where no period ran (``restart``), SAME_STEP's with the final info."""
-        obs, reward, terminated, truncated, info = out
-        rule = self.engine.rule
-        if estimate is None:
-            if control is None:
-                control = self.model.actuator.control(
-                    action_columns(actions, self.action_space.shape)
-                )
-            u = control[1] if rule.motion or rule.dissipation is not None else None
-            lam, lam_d, share = self.engine.rates_batch(y0, u, y2d0)
-            estimate = np.broadcast_to(
-                rule.estimate(lam, self._period_h, lam_d, share), (self.num_envs,)
-            ).astype(np.float64)
-        if restart is not self._false:  # (a compiled step wrote a restart's 0 itself)
-            estimate[restart] = 0.0
-        if "final_info" in info:  # SAME_STEP: the ended periods' estimates go with their final info
-            info["final_info"]["error_estimate"] = estimate.copy()
-            info["final_info"]["_error_estimate"] = self._true
-            estimate[info["_final_info"]] = 0.0
-        info["error_estimate"] = estimate
-        info["_error_estimate"] = self._true
-        # (0 where no period ran, as the estimate's; SAME_STEP: the ended ones' go with their final
-        # info)
-        if self._checked:
-            global_ = np.where(restart, 0.0, self._global)
-            if "final_info" in info:
-                info["final_info"]["global_error_estimate"] = global_.copy()
-                info["final_info"]["_global_error_estimate"] = self._true
-                global_[info["_final_info"]] = 0.0
-            info["global_error_estimate"] = global_
-            info["_global_error_estimate"] = self._true
-        return obs, reward, terminated, truncated, info
+        return accuracy.report(out, restart, gated, control, y0, y2d0)
 
     def _step(self, actions, control=None, plain=None):
         """The step of ``actions``; ``control``: their ``(u_norm, u)`` where the caller made them
@@ -660,19 +580,10 @@ class RigidBodyVectorEnv(VectorEnv):
                         cc[j] = c
                 if fired is False:
                     fired = self._false
-        inaccurate = None
-        if (
-            self._check is not None
-        ):  # the companions' period; a restarting sub-env's is discarded (it restarts below)
-            n = np.rint(engine.dt / np.broadcast_to(h, (self.num_envs,))).astype(np.int64)
-            with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
-                self._global = np.where(restart, 0.0, self._check.period(y, u, n))
-                inaccurate = self._global > engine.tolerance
-            if not inaccurate.any():
-                inaccurate = None
+        accuracy = self._accuracy
+        inaccurate = None if accuracy.check is None else accuracy.companion_period(y, u, h, restart)
         self._u, self._last_h = u, h
-        if engine.tolerance is not None:
-            self._period_h = np.array(h, dtype=np.float64)
+        accuracy.ran(h)
         if fast is not None:  # the kernel's read-outs: every new state finite
             self._y, self._y2d = y, fast[0]
             obs, over, reward, terminated, metrics, physical = fast[1:]
@@ -690,8 +601,9 @@ class RigidBodyVectorEnv(VectorEnv):
         observation, evaluation, then :meth:`_finish`."""
         engine = self.engine
         self._y2d = None
+        accuracy = self._accuracy
         y, failed = engine.settle(
-            y0, y, restart, self._last_h, inaccurate, self._global, self._check
+            y0, y, restart, self._last_h, inaccurate, accuracy.global_, accuracy.check
         )
         self._y = y
         obs, over = engine.observe(y)
@@ -761,13 +673,9 @@ class RigidBodyVectorEnv(VectorEnv):
         # the controls that acted: made from the actions where a failure needs them
         self._u, self._last_h = None, r.h
         if r.status > 0:  # non-finite new states: the numpy path's failure handling
-            if (
-                engine.tolerance is not None
-                # (the estimate's step: _step_estimated; a SAME_STEP restart rewrites r.h's
-                # restarted rows)
-            ):
-                self._period_h = np.array(r.h, dtype=np.float64)
-                self._estimates = r.estimate
+            # (the estimate's step; a SAME_STEP restart rewrites r.h's restarted rows)
+            self._accuracy.ran(r.h)
+            self._accuracy.estimates = r.estimate
             fired = r.fired if r.fired.any() else self._false
             u_norm, self._u = self.model.actuator.control(action_columns(a, shape))
             with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
@@ -776,7 +684,7 @@ class RigidBodyVectorEnv(VectorEnv):
                 )
         self._reasons.written(entry, r.written)
         self._y2d, self._y = r.Y, tuple(r.Y)
-        self._estimates = r.estimate
+        self._accuracy.estimates = r.estimate
         info = self._kernel_info(r, done, reasons)
         obs, reward = r.obs, r.reward  # (the failure charge is in: the kernel adds it)
         if next_step:
@@ -1002,7 +910,7 @@ class RigidBodyVectorEnv(VectorEnv):
             self.engine.event_name,
         )
         self._y, self._y2d, self._u, self._last_h = r.y, None, r.u, r.h
-        self._estimates, self._global = r.estimates, r.global_
+        self._accuracy.estimates, self._accuracy.global_ = r.estimates, r.global_
         return self._finish(
             r.obs,
             r.over,
