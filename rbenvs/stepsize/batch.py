@@ -66,6 +66,17 @@ class BatchAccuracy:
             inaccurate = self.global_ > engine.tolerance
         return inaccurate if inaccurate.any() else None
 
+    def begin(self) -> None:
+        """A step begins: nothing written yet."""
+        self.estimates = None
+
+    def wrote(self, estimates, global_=None) -> None:
+        """The step's path wrote its ``estimates`` (and, with its own companions, the global
+        ``global_``)."""
+        self.estimates = estimates
+        if global_ is not None:
+            self.global_ = global_
+
     def ran(self, h) -> None:
         """The period just run took the internal steps ``h`` (what the rates' estimate reads)."""
         if self.estimated:

@@ -518,7 +518,7 @@ class RigidBodyVectorEnv(VectorEnv):
         accuracy = self._accuracy
         if not accuracy.estimated or self._y is None:
             return accuracy.unestimated_report(self._step(actions))
-        accuracy.estimates = None
+        accuracy.begin()
         vstep = self._vector_step
         written = self._ranges is not None or (
             vstep is not None and self._table is not None and vstep.layout.estimate
@@ -675,7 +675,7 @@ class RigidBodyVectorEnv(VectorEnv):
         if r.status > 0:  # non-finite new states: the numpy path's failure handling
             # (the estimate's step; a SAME_STEP restart rewrites r.h's restarted rows)
             self._accuracy.ran(r.h)
-            self._accuracy.estimates = r.estimate
+            self._accuracy.wrote(r.estimate)
             fired = r.fired if r.fired.any() else self._false
             u_norm, self._u = self.model.actuator.control(action_columns(a, shape))
             with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
@@ -684,7 +684,7 @@ class RigidBodyVectorEnv(VectorEnv):
                 )
         self._reasons.written(entry, r.written)
         self._y2d, self._y = r.Y, tuple(r.Y)
-        self._accuracy.estimates = r.estimate
+        self._accuracy.wrote(r.estimate)
         info = self._kernel_info(r, done, reasons)
         obs, reward = r.obs, r.reward  # (the failure charge is in: the kernel adds it)
         if next_step:
@@ -910,7 +910,7 @@ class RigidBodyVectorEnv(VectorEnv):
             self.engine.event_name,
         )
         self._y, self._y2d, self._u, self._last_h = r.y, None, r.u, r.h
-        self._accuracy.estimates, self._accuracy.global_ = r.estimates, r.global_
+        self._accuracy.wrote(r.estimates, r.global_)
         return self._finish(
             r.obs,
             r.over,
