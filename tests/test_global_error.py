@@ -176,11 +176,11 @@ def test_tolerance_check_is_validated():
     if (
         compiled.available()
     ):  # the single env's checked period runs compiled (rbenvs.compiled.CheckedRuns)
-        assert _body(1e-6, compiled=True).engine.checked_runs is not None
+        assert _body(1e-6, compiled=True).engine.forms.checked_runs is not None
     else:
         with pytest.raises(ValueError, match="compiled=True but numba is not installed"):
             _body(1e-6, compiled=True)
-    assert _body(1e-6, compiled=False).engine.checked_runs is None
+    assert _body(1e-6, compiled=False).engine.forms.checked_runs is None
     from rbenvs.vector import FreeRigidBodyVectorEnv
 
     with pytest.raises(ValueError, match="compiled=True cannot be had with tolerance_check=True"):
@@ -272,8 +272,8 @@ def test_the_checked_periods_compiled_runs_are_the_float_paths_bits(scene):
         if scene is None
         else make(tolerance_check=True, compiled=False)
     ).engine
-    assert fast.checked_runs is not None and slow.checked_runs is None
-    assert fast.planner is not None and slow.planner is None
+    assert fast.forms.checked_runs is not None and slow.forms.checked_runs is None
+    assert fast.forms.planner is not None and slow.forms.planner is None
     rng = np.random.default_rng(5)
     switched = 0
     for y, comp, u, n in inputs:
@@ -281,9 +281,9 @@ def test_the_checked_periods_compiled_runs_are_the_float_paths_bits(scene):
             u,
             fast.control(tuple(float(c) for c in rng.uniform(-1.0, 1.0, fast.actuator.size)))[1],
         ):
-            plan = fast.plan_one(y, v)
-            assert plan == slow.plan_one(y, v) == slow.rule.plan(y, v), plan
-        count = fast.rule.count(fast.plan_one(y, u)[0], fast.substeps)
+            plan = fast.forms.plan_one(y, v)
+            assert plan == slow.forms.plan_one(y, v) == slow.rule.plan(y, v), plan
+        count = fast.rule.count(fast.forms.plan_one(y, u)[0], fast.substeps)
         assert count + (count & 1) == n  # (the inputs' count, the guard's made even, is the plan's)
         for c, h in ((n, fast.dt / n), (n // 2, 2.0 * fast.dt / n)):
             assert fast._run_one(y, u, c, h, comp) == slow._run_one(y, u, c, h, comp), c
@@ -305,8 +305,9 @@ def test_the_checked_periods_compiled_runs_are_the_float_paths_bits(scene):
     ids=["free_body", "heavy_top", "tippe_from_rest", "tippe_flight_hops", "tippe_stem_switches"],
 )
 def test_the_batchs_compiled_rates_are_numpys_bits(scene):
-    """The vector env's error estimate reads a batch's rates (:meth:`Engine.rates_batch`) and its
-    checked period counts the guard's steps (:meth:`Engine._counts`): compiled in one loop
+    """The vector env's error estimate reads a batch's rates
+    (:meth:`CompiledForms.rates_batch`) and its checked period counts the guard's steps
+    (:meth:`CompiledForms.counts`): compiled in one loop
     (:meth:`rbenvs.compiled.PeriodPlan.batch`, ``ratios``) they are numpy's bits and each
     element's are the single state's plan's (:meth:`StepRule.plan`, :meth:`StepRule.count`),
     over states along an episode (flight, the stem's landings) under random controls."""
@@ -360,13 +361,14 @@ def test_the_batchs_compiled_rates_are_numpys_bits(scene):
             for v in (*(lam if motion else (lam,)), lam_d, a)
         ]
 
-    got, want = columns(fast.rates_batch(y, u)), columns(slow.rates_batch(y, u))
-    assert fast.planner is not None and slow.planner is None
+    got, want = columns(fast.forms.rates_batch(y, u)), columns(slow.forms.rates_batch(y, u))
+    assert fast.forms.planner is not None and slow.forms.planner is None
     for g, w in zip(got, want):
         assert np.array_equal(g, w)
-    counts = fast._counts(y, u)  # (the vector env's checked period's count: the ratios compiled)
-    assert np.array_equal(counts, slow._counts(y, u)) and np.array_equal(
-        fast.planner.ratios(*fast._plan_inputs(fast.planner, y, u)),
+    # (the vector env's checked period's count: the ratios compiled)
+    counts = fast.forms.counts(y, u)
+    assert np.array_equal(counts, slow.forms.counts(y, u)) and np.array_equal(
+        fast.forms.planner.ratios(*fast.forms.plan_inputs(fast.forms.planner, y, u)),
         np.broadcast_to(slow.rule.ratio(y, u), (n,)),
     )
     for i, state in enumerate(states):  # (each element: the single state's plan)

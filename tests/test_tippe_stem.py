@@ -61,7 +61,9 @@ def test_scene_is_leine_and_glockers_top_with_its_stem():
     env = scene.make()
     env.reset(seed=0)
     assert env.unwrapped.system.stem and env.unwrapped.system.dim == 12
-    assert env.unwrapped.engine.state_step is not None  # the compiled single-state step runs it
+    assert (
+        env.unwrapped.engine.forms.state_step is not None
+    )  # the compiled single-state step runs it
 
 
 def test_stem_touch_tilt_from_the_geometry():

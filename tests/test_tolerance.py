@@ -608,8 +608,8 @@ def test_tolerance_single_env_compiled_equals_the_float_path(
     if not check:
         assert fast.unwrapped.compiled
     else:  # (a checked period is not one compiled call: its plan and its runs are)
-        assert "global_error_estimate" in i_f and engine.checked_runs is not None
-    assert engine.planner is not None and slow.unwrapped.engine.planner is None
+        assert "global_error_estimate" in i_f and engine.forms.checked_runs is not None
+    assert engine.forms.planner is not None and slow.unwrapped.engine.forms.planner is None
 
 
 @pytest.mark.parametrize(

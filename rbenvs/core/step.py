@@ -40,10 +40,10 @@ from typing import NamedTuple
 import numpy as np
 
 from ..dynamics.validation import real_array
-from ..jit import DISABLE_VARIABLE
 from ..rotations import every
 from ..stepsize.controller import MAX_INTERNAL_STEPS
 from ..stepsize.forms import gated_estimate
+from .compiled_forms import CompiledForms
 from .hybrid import Switching
 from .reasons import terminal_reason
 
@@ -177,14 +177,7 @@ class Engine:
         self.failure_charge = m.failure_charge  # added to the last reward of an episode that fails
         self.readout_names = tuple(system.readout_names)
         self.finish_one = self._generated_finish()
-        # the compiled single-state step (rbenvs.compiled.StateStep): "auto" uses it where numba
-        # is installed and every part has a pure form, built on the first step (compiling costs
-        # about a second per layout and process); False keeps the float path; True demands it
         self.compiled = compiled
-        self._state_step = None
-        self._state_step_tried = compiled is False
-        if compiled is True:
-            self._state_step = self._build_state_step(required=True)
         # with a tolerance every period reports its estimated error (info["error_estimate"]): the
         # rate at its start and the step it took; without one the step is untouched
         self.tolerance = m.tolerance
@@ -208,23 +201,11 @@ class Engine:
         # twice the size: rbenvs.stepsize.controller), so neither the plain loop (substeps steps)
         # nor the compiled single-state step (the guard's count) runs
         self.check = m.check
-        # the checked period's runs of one state, compiled (rbenvs.compiled.CheckedRuns: the main
-        # run's count and the companion's, each a given count and step): "auto" uses
-        # them where numba is installed and every part has a pure form, built on the first run;
-        # the period's count and rates come from its plan (below), the finish stays on floats
-        self._runs, self._runs_tried = None, True
-        # a tolerance's one-state count and error estimate from one evaluation of the rates,
-        # compiled (rbenvs.compiled.PeriodPlan; the float path: StepRule.plan): "auto" where numba
-        # is installed and every part has a pure form, built on first use
-        self._plan, self._plan_tried = (
-            None,
-            m.tolerance is None or compiled is False or self.rule.rotation is None,
-        )
         if m.check:
-            self.plain, self._state_step, self._state_step_tried = False, None, True
-            self._runs_tried = compiled is False
-            if compiled is True:
-                self._runs = self._build_runs(required=True)
+            self.plain = False
+        # the compiled forms of the step (the single-state step, the checked runs, the period
+        # plan), each built on first use where numba is installed and every part has a pure form
+        self.forms = CompiledForms(self, compiled)
 
     def __reduce__(self):  # generated and compiled functions are made again, not pickled
         return (
@@ -232,134 +213,6 @@ class Engine:
             (self.model, self.compiled, self.backend),
             {"comp": self.comp},
         )  # (the single env's run goes on as it was)
-
-    @property
-    def state_step(self):
-        """The compiled single-state step the single env runs (:class:`rbenvs.compiled.StateStep`),
-        or ``None`` (the float path); built on first use."""
-        if not self._state_step_tried:
-            self._state_step = self._build_state_step(required=False)
-        return self._state_step
-
-    def _compiled_inputs(self, required: bool):
-        """``(parts, sizes and sample)`` for a compiled form of this model's step
-        (:class:`rbenvs.compiled.StateStep`, :class:`rbenvs.compiled.CheckedRuns`): the pure parts
-        (:meth:`kernel_parts`), ``(dim, n_obs, n_control, n_action, sample)``; ``None`` where numba
-        is missing or a part has no pure form (``required``: a ``ValueError`` saying which)."""
-        backend = None if self.backend is None else self.backend()
-        usable = backend is not None and backend.available()
-        parts = self.kernel_parts() if usable else None
-        if parts is None:
-            if required:
-                why = (
-                    f"numba is not installed (the 'fast' extra) or {DISABLE_VARIABLE}=0 is set"
-                    if not usable
-                    else f"integrator {self.integrator.name!r} with task {self.task.name!r} "
-                    "and these settings has no compiled step"
-                )
-                raise ValueError(f"compiled=True but {why}")
-            return None
-        m = self.model
-        u_norm, u = m.actuator.control((0.0,) * m.actuator.size)
-        sample = tuple(float(c) for c in m.initial_state(np.random.default_rng(0)))
-        return parts, (self.system.dim, len(self.high_list), len(u), len(u_norm), sample)
-
-    def _build_state_step(self, required: bool):
-        self._state_step_tried = True
-        inputs = self._compiled_inputs(required)
-        if inputs is None:
-            return None
-        parts, sizes = inputs
-        return self.backend().StateStep(
-            parts,
-            *sizes,
-            self.high_list,
-            self.h,
-            self.dt,
-            self.substeps,
-            self.metric_names,
-            self.readout_names,
-            self.rule.error,
-        )
-
-    @property
-    def checked_runs(self):
-        """The compiled runs of the checked period (:class:`rbenvs.compiled.CheckedRuns`), or
-        ``None`` (the float path; always without ``tolerance_check``); built on first use."""
-        if not self._runs_tried:
-            self._runs = self._build_runs(required=False)
-        return self._runs
-
-    @property
-    def planner(self):
-        """The compiled plan of one state's period (:class:`rbenvs.compiled.PeriodPlan`), or
-        ``None`` (the float path's :meth:`StepRule.plan`; always without a tolerance); built
-        on first use."""
-        if not self._plan_tried:
-            self._plan_tried = True
-            inputs = self._compiled_inputs(required=False)
-            self._plan = (
-                None if inputs is None else self.backend().PeriodPlan(inputs[0], *inputs[1])
-            )
-        return self._plan
-
-    def plan_one(self, y, u):
-        """One state's ``(x, lam, lam_d, a)`` (:meth:`StepRule.plan`): the guard's ratio and
-        the rates its error estimate reads, compiled where it can be."""
-        plan = self._plan if self._plan_tried else self.planner
-        if plan is not None:
-            return plan(y, u)
-        return self.rule.plan(y, u)
-
-    def rates_batch(self, y, u, Y=None):
-        """A batch's ``(lam, lam_d, a)``, the rates its error estimate reads (arrays; ``lam`` a
-        tuple of three with the state's own speed; :meth:`StepRule.plan`'s per element, its ratio
-        not evaluated): compiled in one loop over the batch where it can be
-        (:meth:`rbenvs.compiled.PeriodPlan.batch`), else numpy's. ``u``: the batch's controls
-        (``None``: the zero action's); ``Y``: ``y`` as one ``(dim, n)`` float64 array where the
-        caller has it."""
-        rule, plan = self.rule, self._plan if self._plan_tried else self.planner
-        if plan is not None:
-            r, lam_d, a = plan.batch(*self._plan_inputs(plan, y, u, Y))
-            return (tuple(r) if rule.motion else r[0]), lam_d, a
-        lam = rule.rate(y, u)
-        lam = (
-            tuple(np.array(v, dtype=np.float64) for v in lam)
-            if rule.motion
-            else np.array(lam, dtype=np.float64)
-        )
-        lam_d, a = 0.0, 1.0
-        if rule.dissipation is not None:
-            lam_d = np.array(rule.dissipation_rate(y, u), dtype=np.float64)
-            with np.errstate(
-                over="ignore", invalid="ignore", divide="ignore"
-            ):  # (a blown-up element is reported by its step)
-                a = np.array(rule.dissipation_share(y, u, lam_d), dtype=np.float64)
-            a = np.where(lam_d > 0.0, a, 1.0)  # (StepRule.plan's: no decaying mode, no share of it)
-        return lam, lam_d, a
-
-    def _plan_inputs(self, plan, y, u, Y=None):
-        """``(Y, U)``: a batch's states and controls as the compiled plan takes them."""
-        Y = np.ascontiguousarray(np.stack(y) if Y is None else Y, dtype=np.float64)
-        U = np.zeros((plan.layout.n_control, Y.shape[1]))
-        for j, c in enumerate(
-            self.rule.zero_control if u is None else u
-        ):  # (None: the zero action's, as StepRule.rate reads it)
-            U[j] = c
-        return Y, U
-
-    def _counts(self, y, u):
-        """A batch's guard counts (:meth:`StepRule.steps`), their ratios compiled where they can
-        be."""
-        rule, plan = self.rule, self._plan if self._plan_tried else self.planner
-        if plan is None or not rule.active:
-            return np.broadcast_to(np.asarray(rule.steps(y, u, self.substeps)), np.shape(y[0]))
-        return rule.counts(plan.ratios(*self._plan_inputs(plan, y, u)), self.substeps)
-
-    def _build_runs(self, required: bool):
-        self._runs_tried = True
-        inputs = self._compiled_inputs(required)
-        return None if inputs is None else self.backend().CheckedRuns(inputs[0], *inputs[1])
 
     # ------------------------------------------------------------------ the period
     def advance(self, y, u, plain: bool, skip=None, comp=None, ratio=None):
@@ -375,7 +228,7 @@ class Engine:
         ``comp``: the run's compensation at ``y`` (a
         tolerance: :attr:`step_c`; ``None`` is zero), returned as it is after the period
         (``None`` without compensation; a refused period's is zero). ``ratio`` (one state): the
-        guard's ratio at ``y`` under ``u`` where the caller has it (:meth:`plan_one`).
+        guard's ratio at ``y`` under ``u`` where the caller has it (:meth:`CompiledForms.plan_one`).
         """
         if plain:
             step, h = self.bound_step, self.h
@@ -389,7 +242,7 @@ class Engine:
         if not isinstance(y[0], np.ndarray):  # one state: plain Python (no numpy call per period)
             n = self.substeps
             if self.rule.active:
-                n = self.rule.count(self.plan_one(y, u)[0] if ratio is None else ratio, n)
+                n = self.rule.count(self.forms.plan_one(y, u)[0] if ratio is None else ratio, n)
             if n > self.substeps and self.guard == "refuse":
                 raise self.refusal(n)
             if (
@@ -404,7 +257,7 @@ class Engine:
             y, fired, comp = self._run_one(y, u, n, h, comp)
             return y, fired, h, comp
         # a batch: the same rules per element (each takes its own count, then is frozen)
-        n = self._counts(y, u)
+        n = self.forms.counts(y, u)
         if self.check:
             n = n + (n & 1)
         if skip is not None:
@@ -456,7 +309,8 @@ class Engine:
         if (
             self.check and comp is not None
         ):  # (the checked period's runs, compiled where they can be)
-            runs = self._runs if self._runs_tried else self.checked_runs
+            forms = self.forms
+            runs = forms.runs if forms.runs_tried else forms.checked_runs
             if runs is not None:
                 return runs(y, comp, u, n, h)
         post, event = self.switching, self.event
@@ -519,7 +373,8 @@ class Engine:
         if (
             self.check and comp is not None
         ):  # (the checked period's runs, compiled where they can be)
-            runs = self._runs if self._runs_tried else self.checked_runs
+            forms = self.forms
+            runs = forms.runs if forms.runs_tried else forms.checked_runs
             if runs is not None and u is not None:
                 return self._run_each(runs, y, u, n, h, comp)
         step, post, event = self.bound_step, self.switching, self.event
@@ -719,10 +574,11 @@ class Engine:
         terminated, info, u, plain)``, ``u`` the control that acted and ``plain`` whether the
         next period may take the plain loop (a tuple, not the NamedTuple itself: making one
         costs 0.2 us, 4 % of a free-body step; ``StepResult._make`` names it off the hot path).
-        ``ratio``, ``control``: the guard's ratio at ``y0`` (:meth:`plan_one`) and ``control(a)``
-        where the caller has them."""
+        ``ratio``, ``control``: the guard's ratio at ``y0`` (:meth:`CompiledForms.plan_one`) and
+        ``control(a)`` where the caller has them."""
         u_norm, u = self.control(a) if control is None else control
-        one = self._state_step if self._state_step_tried else self.state_step
+        forms = self.forms
+        one = forms.one if forms.one_tried else forms.state_step
         if one is not None:  # the same period and finish, compiled: one call
             e = None  # (the period's error estimate: a kernel with a tolerance's returns it last)
             if self.comp is None:
@@ -772,7 +628,7 @@ class Engine:
         if self.tolerance is not None and ratio is None:
             estimate = self.gated(y0)
             if estimate is None:
-                ratio, lam, lam_d, share = self.plan_one(y0, u)
+                ratio, lam, lam_d, share = self.forms.plan_one(y0, u)
         if (
             plain or estimate is not None
         ):  # fixed substeps, nothing watched: the loop inline (the hot path)

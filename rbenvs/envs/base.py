@@ -398,7 +398,7 @@ class RigidBodyEnv(gym.Env):
     @property
     def compiled(self) -> bool:
         """Whether the steps run as one compiled call (``compiled=``; decided on the first step)."""
-        return self.engine.state_step is not None
+        return self.engine.forms.state_step is not None
 
     @property
     def dt(self) -> float:

@@ -111,7 +111,7 @@ class BatchAccuracy:
         if estimate is None:
             rule = self.engine.rule
             u = control[1] if rule.motion or rule.dissipation is not None else None
-            lam, lam_d, share = self.engine.rates_batch(y0, u, y2d0)
+            lam, lam_d, share = self.engine.forms.rates_batch(y0, u, y2d0)
             estimate = np.broadcast_to(
                 rule.estimate(lam, self.period_h, lam_d, share), (self.n,)
             ).astype(np.float64)
