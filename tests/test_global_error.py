@@ -222,8 +222,8 @@ def _checked_run_inputs(env, periods, every, switches=3):
 )
 def test_the_checked_periods_compiled_runs_are_the_float_paths_bits(scene):
     """The checked period's runs compiled (:class:`rbenvs.compiled.CheckedRuns`, the single env's
-    with numba) against the float path's :meth:`Engine._run_one`, bit for bit: the main run's
-    count and step, the companion's half as many of twice the size, from
+    with numba) against the float path's :meth:`rbenvs.core.period.Period._run_one`, bit for bit:
+    the main run's count and step, the companion's half as many of twice the size, from
     states along an episode (with free flight: every period with a take-off or touchdown inside
     it, a top hopping many times a period; with the stem: every period that lands on it or
     leaves it), compensations carried; and the period's plan (:class:`rbenvs.compiled.PeriodPlan`:
@@ -286,13 +286,15 @@ def test_the_checked_periods_compiled_runs_are_the_float_paths_bits(scene):
         count = fast.rule.count(fast.forms.plan_one(y, u)[0], fast.substeps)
         assert count + (count & 1) == n  # (the inputs' count, the guard's made even, is the plan's)
         for c, h in ((n, fast.dt / n), (n // 2, 2.0 * fast.dt / n)):
-            assert fast._run_one(y, u, c, h, comp) == slow._run_one(y, u, c, h, comp), c
+            assert fast.period._run_one(y, u, c, h, comp) == slow.period._run_one(
+                y, u, c, h, comp
+            ), c
         flag = slow.system.layout.get("hops", slow.system.layout.get("contact", (0, 0)))[
             0
         ]  # (flight: the hops it counts)
         switched += (
             scene in ("hops", "tippe_leine_glocker")
-            and slow._run_one(y, u, n, fast.dt / n, comp)[0][flag] != y[flag]
+            and slow.period._run_one(y, u, n, fast.dt / n, comp)[0][flag] != y[flag]
         )
     assert len(inputs) >= 5
     if scene in ("hops", "tippe_leine_glocker"):

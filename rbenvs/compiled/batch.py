@@ -147,7 +147,7 @@ class Layout(NamedTuple):
     # step's compensated form (a tolerance), stepc(PS, y, cc, u, h) -> (y, cc) (with rhs_event
     # stepc(PS, y, cc, k0, u, h)): the steps carry each run's compensation cc from period to
     # period (the kernels' CC, the state kernel's cc), from zero again after a switch
-    # (rbenvs.core.step.Engine.advance); None: the plain step
+    # (rbenvs.core.period.Period.advance); None: the plain step
     step_c: Callable | None = None
 
 
@@ -267,7 +267,7 @@ def _switch_lines(L: Layout) -> list[str]:
 
 def _period_lines(L: Layout) -> list[str]:
     """Lines that advance the state ``y`` under ``u`` by ``c`` internal steps (the step core's
-    period, :meth:`rbenvs.core.step.Engine.advance`): ``hi`` the internal step and ``f`` whether
+    period, :meth:`rbenvs.core.period.Period.advance`): ``hi`` the internal step and ``f`` whether
     the terminal event ended it; past the cap the period is refused (``y`` NaN)."""
     from ..stepsize.controller import MAX_INTERNAL_STEPS
 
@@ -284,7 +284,7 @@ def _period_lines(L: Layout) -> list[str]:
 
 def _steps_lines(L: Layout) -> list[str]:
     """Lines that take ``c`` internal steps ``hi`` from ``y`` under ``u``
-    (:meth:`rbenvs.core.step.Engine._run_one`): the switches after each, the terminal event ending
+    (:meth:`rbenvs.core.period.Period._run_one`): the switches after each, the terminal event ending
     them (``f = True``), a non-finite state stopping them."""
     finite = "    if not (" + " and ".join(f"isfinite(y[{j}])" for j in range(L.dim)) + "):"
     # one internal step from y (kk: its first stage), plain or carrying the compensation cc
@@ -484,7 +484,7 @@ def batch_kernel(layout: Layout):
     ``U``/``UN``: tuples of ``(n,)`` float64 control and normalised action components; ``h =
     dt / substeps``.
 
-    The period is the step core's (:meth:`rbenvs.core.step.Engine.advance`), per sub-env:
+    The period is the step core's (:meth:`rbenvs.core.period.Period.advance`), per sub-env:
     with ``check`` the guard counts its internal steps from its state (``x = step_ratio(PG,
     rotation(PA, y))``, raised to ``dt / (CD / dissipation(PD, y, u))`` where that is larger;
     ``max(substeps, ceil(x))``, or ``MAX_INTERNAL_STEPS + 1`` past the cap: a refused period,

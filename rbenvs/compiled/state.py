@@ -116,7 +116,7 @@ def state_kernel(layout: Layout, estimate: bool = False):
 def run_kernel(layout: Layout):
     """The compiled internal steps of ONE state's run with a given count and step (the checked
     period's, ``tolerance_check``: the main run's even count, the companion's half as many steps
-    of twice the size; :meth:`rbenvs.core.step.Engine._run_one`), on
+    of twice the size; :meth:`rbenvs.core.period.Period._run_one`), on
     tuples of floats, for a layout with ``step_c``. Signature::
 
         run(y, cc, u, c, hi, P) -> (y, fired, cc)

@@ -67,7 +67,7 @@ class CheckedRuns:
     """One env's compiled runs for ``tolerance_check`` (:func:`run_kernel`, the main run's and
     the companion's): calling it runs ``c`` steps of ``hi`` from ``y`` with the compensation
     ``cc`` and returns ``(y, fired, cc)``, the bits of the float path's
-    :meth:`rbenvs.core.step.Engine._run_one`. Each kernel's first call compiles it (about a
+    :meth:`rbenvs.core.period.Period._run_one`. Each kernel's first call compiles it (about a
     second per layout and process) and then takes its overload's entry point."""
 
     def __init__(self, parts, dim: int, n_obs: int, n_control: int, n_action: int, sample):

@@ -35,11 +35,15 @@ class CompiledForms:
             None,
             m.tolerance is None or compiled is False or engine.rule.rotation is None,
         )
-        if compiled is True:
-            if m.check:
-                self.runs = self._build_runs(required=True)
-            else:
-                self.one = self._build_one(required=True)
+
+    def require(self) -> None:
+        """``compiled=True``: the form the env runs built now (the checked runs under
+        ``tolerance_check``, else the single-state step), or a ``ValueError`` saying why it
+        cannot be had."""
+        if self.engine.model.check:
+            self.runs = self._build_runs(required=True)
+        else:
+            self.one = self._build_one(required=True)
 
     @property
     def state_step(self):

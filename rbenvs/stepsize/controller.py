@@ -81,7 +81,7 @@ size, but the check ends such an episode where the steps' error passes the toler
 roundoff does: ``rbenvs bench accuracy --floor`` (20 runs 0.0001-0.01 rad/s off the intermediate
 axis, tolerances 1e-8 to 1e-12, against mpmath's Taylor series) is within on every period
 returned. The runs (the main run's and the companion's) are the engine's
-(:meth:`rbenvs.core.step.Engine.companion`), compiled where numba is installed
+(:meth:`rbenvs.core.period.Period.companion`), compiled where numba is installed
 (:class:`rbenvs.compiled.CheckedRuns`, the float path's bits); ``D`` is measured as
 :mod:`rbenvs.bench.tolerance` measures the error against its reference: the largest over the
 state's blocks (:func:`tolerance_blocks`) of ``|y_b - yc_b| / |y_b|``, on one state (floats) or

@@ -214,7 +214,8 @@ class RigidBodyVectorEnv(VectorEnv):
         self._y = None  # the states: a tuple of (n,) arrays, one per component
         self._y2d = None  # the (dim, n) array whose rows are self._y, when the kernel made it
         # with a tolerance: each sub-env's compensation (dim, n), carried from period to period
-        # as the single env's run carries its own (rbenvs.core.step.Engine.advance), zero at a start
+        # as the single env's run carries its own (rbenvs.core.period.Period.advance), zero at a
+        # start
         self._cc = (
             np.zeros((self.system.dim, self.num_envs)) if self.engine.step_c is not None else None
         )
