@@ -489,7 +489,7 @@ def test_the_tolerance_rows_pass_and_catch_an_estimate_that_falls_short(monkeypa
     down (its margin 0.3 instead of 1.25: 0.24 of the classical estimate, which measures 0.88-2
     of the error) is caught by the second row; euler, which a tolerance does not take, has no
     rows."""
-    from rbenvs.stepsize import controller
+    from rbenvs.stepsize import check
     from rbenvs.verify.tolerance import ROWS, tolerance_checks
 
     rows = tolerance_checks(["rk4", "euler"], seed=0, n_cases=2)
@@ -503,6 +503,6 @@ def test_the_tolerance_rows_pass_and_catch_an_estimate_that_falls_short(monkeypa
     assert 0.0 < rows[0].measured <= 1e-6
     assert 1e-11 < rows[2].measured <= 1e-9 and rows[2].case["tolerance_check"] is True
     assert 1e-12 < rows[3].measured <= 1e-10
-    monkeypatch.setattr(controller, "MARGIN", 0.3)
+    monkeypatch.setattr(check, "MARGIN", 0.3)
     error, bound, _, _ = tolerance_checks(["rk4"], seed=0, n_cases=2)
     assert not bound.passed and bound.measured > 0.0 and bound.case["integrator"] == "rk4"

@@ -27,17 +27,16 @@ from ..core.model import Model
 from ..core.step import Engine, NumericalFailureWarning, action_values
 from ..dynamics.validation import require_finite_positive, require_int_in, unknown_keyword
 from ..integrators import get_integrator
+from ..stepsize.check import GlobalErrorCheck, require_tolerance_check
 from ..stepsize.controller import (
     GUARDS,
     MAX_INTERNAL_STEPS,
-    GlobalErrorCheck,
     StepRule,
     UnstableMotionWarning,
     default_accuracy,
     require_accuracy,
     require_guard,
     require_tolerance,
-    require_tolerance_check,
     takes_tolerance,
     unstable_motion_warning,
 )

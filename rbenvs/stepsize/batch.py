@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .controller import GlobalErrorCheck
+from .check import GlobalErrorCheck
 
 __all__ = ["BatchAccuracy"]
 

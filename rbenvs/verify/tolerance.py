@@ -31,7 +31,7 @@ import warnings
 import numpy as np
 
 from ..oracles import exact_solution
-from ..stepsize.controller import relative_difference, tolerance_blocks
+from ..stepsize.check import relative_difference, tolerance_blocks
 from .common import Check
 from .free_body import _random_inertia
 
