@@ -112,7 +112,7 @@ def _switch_parts(parts) -> tuple:
 
 def _layout(parts, dim: int, n_obs: int, n_control: int, n_action: int, sample) -> tuple:
     """``(layout, kernel parameters, sample evaluation, sample read-outs)`` of
-    :class:`rbenvs.core.step.KernelParts`: the functions for :class:`Layout`, their parameters
+    :class:`rbenvs.core.parts.KernelParts`: the functions for :class:`Layout`, their parameters
     ``(PS, PO, PE, PR, PG, PA, PD, CD, PV, PW)`` in the kernels' order, and the task's evaluation
     and the system's read-outs of the float state ``sample`` (their sizes and types)."""
     (step, ps), (observe, po), (evaluate, pe), (readouts, pr) = (
@@ -239,8 +239,8 @@ class BatchResult(NamedTuple):
 class BatchStep:
     """One env's compiled batch step: the kernel of its layout plus its parameters.
 
-    ``parts`` is :meth:`rbenvs.core.step.Engine.kernel_parts` (a
-    :class:`rbenvs.core.step.KernelParts`); ``dim`` the state size, ``n_obs`` the observation
+    ``parts`` is :func:`rbenvs.core.parts.kernel_parts` (a
+    :class:`rbenvs.core.parts.KernelParts`); ``dim`` the state size, ``n_obs`` the observation
     size, ``n_control`` the control size, ``n_action`` the normalised action's, ``sample`` any
     state (as floats) used once to learn the metrics' types, ``dt`` the control period.
     """
@@ -422,7 +422,7 @@ class VectorStep:
     """One vector env's compiled step (:func:`vector_kernel`) with its parameters, and its
     rows outside a step (:func:`rows_kernel`: a reset's finish, SAME_STEP restarts).
 
-    ``parts``: :meth:`rbenvs.core.step.Engine.kernel_parts`; ``model``: the env's
+    ``parts``: :func:`rbenvs.core.parts.kernel_parts`; ``model``: the env's
     :class:`rbenvs.core.model.Model` (its actuator's and start's pure forms, its draw kinds);
     ``n_obs``: the observation size, ``obs_high`` its bounds; ``max_steps``: the time limit
     (``None``: none); ``error``: a tolerance's ``(C, p, dt)``

@@ -8,7 +8,7 @@ from functools import cache
 
 from ..codegen import generate
 
-__all__ = ["state_finish", "info_function"]
+__all__ = ["state_finish", "info_function", "generated_finish"]
 
 
 @cache
@@ -78,3 +78,17 @@ def state_finish(
     assert len(high) == n_obs
     generate("\n".join(lines), f"state finish n_obs={n_obs}", namespace)
     return namespace["finish"]
+
+
+def generated_finish(task, system, high_list, metric_names, readout_names):
+    """``(finish, PO, PE, PR)``: the single env's finish (observation, evaluation, read-outs,
+    ``info``) as one generated function of ``task``'s and ``system``'s pure forms
+    (:func:`state_finish`), or ``None`` where a part has none (the engine's methods then run)."""
+    kernels, readouts = task.kernels, system.kernel_readouts
+    if kernels is None or readouts is None or system.hybrid:
+        return None
+    (observe, po), (evaluate, pe) = kernels(system)
+    f, pr = readouts
+    high = tuple(high_list)
+    fn = state_finish(observe, len(high), evaluate, metric_names, f, readout_names, high)
+    return fn, po, pe, pr

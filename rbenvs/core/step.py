@@ -34,7 +34,6 @@ from __future__ import annotations
 import functools
 import math
 import warnings
-from typing import NamedTuple
 
 import numpy as np
 
@@ -43,10 +42,12 @@ from ..rotations import every
 from ..stepsize.controller import MAX_INTERNAL_STEPS
 from ..stepsize.forms import gated_estimate
 from .compiled_forms import CompiledForms
+from .finish import generated_finish
+from .parts import kernel_parts
 from .period import Period
 from .reasons import terminal_reason
 
-__all__ = ["Engine", "KernelParts", "NumericalFailureWarning", "action_values", "action_columns"]
+__all__ = ["Engine", "NumericalFailureWarning", "action_values", "action_columns"]
 
 
 class NumericalFailureWarning(RuntimeWarning):
@@ -158,7 +159,9 @@ class Engine:
         self.metric_names = tuple(m.task.metric_names)
         self.failure_charge = m.failure_charge  # added to the last reward of an episode that fails
         self.readout_names = tuple(system.readout_names)
-        self.finish_one = self._generated_finish()
+        self.finish_one = generated_finish(
+            m.task, system, self.high_list, self.metric_names, self.readout_names
+        )
         self.compiled = compiled
         # with a tolerance every period reports its estimated error (info["error_estimate"]): the
         # rate at its start and the step it took; without one the step is untouched
@@ -500,116 +503,7 @@ class Engine:
         )
 
     # ------------------------------------------------------------------ pure forms
-    def _generated_finish(self):
-        """``(finish, PO, PE, PR)``: steps 4-5 for one state of floats as one generated
-        function of the task's and system's pure forms (:func:`rbenvs.core.finish.state_finish`),
-        or ``None`` where a part has none (the methods then run)."""
-        from .finish import state_finish
-
-        kernels, readouts = self.task.kernels, self.system.kernel_readouts
-        if kernels is None or readouts is None or self.system.hybrid:
-            return None
-        (observe, po), (evaluate, pe) = kernels(self.system)
-        f, pr = readouts
-        high = tuple(self.high_list)
-        fn = state_finish(
-            observe, len(high), evaluate, self.metric_names, f, self.readout_names, high
-        )
-        return fn, po, pe, pr
-
     def kernel_parts(self):
-        """What :class:`rbenvs.compiled.BatchStep` needs to run this model's period and finish on
-        a batch (:class:`KernelParts`), or ``None`` where a part has no pure form (the batch then
-        runs on numpy): the integrator's pure step, the task's observation and evaluation, the
-        system's read-outs, the guard's rates, and a hybrid system's terminal event or switches
-        (free flight)."""
-        system, task = self.system, self.task
-        step = self.integrator.kernel_step(system)
-        step_c = (
-            self.integrator.kernel_step(system, compensated=True)
-            if self.step_c is not None
-            else None
-        )
-        readouts = system.kernel_readouts
-        if step is None or task.kernels is None or readouts is None:
-            return None
-        switches = ()
-        if self.switching is not None:  # hybrid switching: the system's switches in pure forms
-            switches = system.kernel_switches  # (switching is a hybrid system's)
-            if switches is None:
-                return None
-        event = rhs_event = None
-        if self.event is not None:
-            event = system.kernel_event  # (an event is a hybrid system's)
-            if event is None:
-                return None
-            # the event's evaluation shared with the next step's first stage, where both the
-            # system (the vector field and the event from one evaluation) and the scheme allow
-            rhs_event = system.kernel_rhs_event
-            first = (
-                self.integrator.kernel_step_first_stage(system) if rhs_event is not None else None
-            )
-            if first is not None:
-                step = first
-                step_c = self.shared_c
-            else:
-                rhs_event = None
-        if self.step_c is not None and step_c is None:  # (the float path sums with compensation)
-            return None
-        rule = self.rule
-        rotation, dissipation = None, None
-        if rule.active:  # checked only where asked (a period that may not take the plain loop)
-            rotation, dissipation = rule.rotation, rule.dissipation
-        observe, evaluate = task.kernels(system)
-        return KernelParts(
-            step,
-            observe,
-            evaluate,
-            readouts,
-            rotation,
-            rule.params,
-            dissipation,
-            rule.dissipation_step,
-            event,
-            rhs_event,
-            tuple(switches),
-            rule.motion and rotation is not None,
-            rule.share if dissipation is not None else None,
-            step_c,
-            rule.gate if rotation is not None and dissipation is None else None,
-        )
-
-
-class KernelParts(NamedTuple):
-    """A model's step in pure forms, each ``(function, parameters)`` (:meth:`Engine.kernel_parts`):
-    ``step`` (the integrator's, ``step(PS, y, u, h)``), ``observe``, ``evaluate``, ``readouts``
-    (the task's and the system's), the guard's ``rotation`` rate (``None``: no check can be
-    needed) with ``guard_params`` (``(dt, bound, growth, k, p, kd)`` of
-    :func:`rbenvs.stepsize.forms.step_ratio`), its ``dissipation`` rate (or ``None``) with
-    ``dissipation_step`` (``h <= c / lambda_d``), the terminal ``event`` (or ``None``; it fires
-    where its value is negative) and ``rhs_event``, the vector field and the event's value from
-    one evaluation (then ``step`` takes its first stage: ``step(PS, y, k0, u, h)``), or ``None``;
-    ``switches``: a hybrid system's switches, ``((applies, P), (function, P), tolerance, (switch,
-    P))`` each (``kernel_switches``), made after every internal step as :mod:`rbenvs.core.hybrid`
-    makes them."""
-
-    step: tuple
-    observe: tuple
-    evaluate: tuple
-    readouts: tuple
-    rotation: tuple | None
-    guard_params: tuple
-    dissipation: tuple | None
-    dissipation_step: float
-    event: tuple | None
-    rhs_event: tuple | None = None
-    switches: tuple = ()
-    motion: bool = False  # rotation is (fn, P) with fn(P, y, u) -> (lambda, mu): step_ratio_motion
-    share: tuple | None = (
-        None  # (fn, P): the decaying mode's share of its error term (StepRule.share)
-    )
-    # (fn, P): step's compensated form (a tolerance: Engine.step_c), fn(PS, y, c, u, h) -> (y, c)
-    # (with rhs_event fn(PS, y, c, k0, u, h)); None: the plain step
-    step_c: tuple | None = None
-    # the default accuracy's gate (StepRule.gate): (fn, P, limit); None: none
-    gate: tuple | None = None
+        """The model's step in pure forms for the compiled backend (:func:`rbenvs.core.parts.
+        kernel_parts`), or ``None`` where a part has none."""
+        return kernel_parts(self.period, self.system, self.task)
