@@ -39,6 +39,7 @@ import numpy as np
 
 from ..dynamics.validation import real_array
 from ..rotations import every
+from ..stepsize.check import inaccurate_text
 from ..stepsize.controller import MAX_INTERNAL_STEPS
 from ..stepsize.forms import gated_estimate
 from .compiled_forms import CompiledForms
@@ -422,24 +423,11 @@ class Engine:
         ``y0``, the last state within it (the run's compensation ``comp`` at it kept with it),
         with a warning that says when."""
         self.comp = comp
-        what = self._inaccurate_text(estimate, periods)
+        what = inaccurate_text(estimate, periods, self.tolerance, self.dt)
         u_norm, u = self.control(a)
         out = self._failed_one(y0, u_norm, u, h, plain, what, "the last state within the tolerance")
         out[4]["global_error_estimate"] = estimate
         return out
-
-    def _inaccurate_text(self, estimate, periods) -> str:
-        return (
-            f"the global error estimate {float(estimate):.3g} passed tolerance={self.tolerance!r} "
-            f"after {int(periods)} periods "
-            f"({int(periods) * self.dt:.6g} s; tolerance_check: a companion run at twice the step "
-            "measures the error the state "
-            "carries, errors the motion amplified included, which the steps' estimate does not "
-            "budget for; more steps per period "
-            "hold it longer: a tighter tolerance= or substeps= (the least count), and 'rbenvs "
-            "bench accuracy --tolerance' shows "
-            f"the counts that hold each shipped scene)"
-        )
 
     def _failed_one(self, y0, u_norm, u, h, plain, what=None, kept="the last finite state"):
         if what is None:
@@ -488,10 +476,11 @@ class Engine:
             late = inaccurate & finite & ~skip
             if late.any():
                 idx = np.flatnonzero(late)
+                why = inaccurate_text(
+                    np.max(estimate[late]), np.min(check.periods[late]), self.tolerance, self.dt
+                )
                 warnings.warn(
-                    f"sub-envs {idx.tolist()}: "
-                    f"{self._inaccurate_text(np.max(estimate[late]), np.min(check.periods[late]))}"
-                    "; their episodes end "
+                    f"sub-envs {idx.tolist()}: {why}; their episodes end "
                     "and their last states within the tolerance are kept",
                     NumericalFailureWarning,
                     stacklevel=3,

@@ -53,6 +53,7 @@ __all__ = [
     "companion_ratio",
     "companion_steps",
     "relative_difference",
+    "inaccurate_text",
 ]
 
 # the reported estimate over the classical one (its next order's share: the module docstring)
@@ -209,3 +210,19 @@ class GlobalErrorCheck:
             )
         info["global_error_estimate"] = e
         return out
+
+
+def inaccurate_text(estimate, periods, tolerance, dt) -> str:
+    """Why an episode ended where its global error ``estimate`` passed ``tolerance`` after
+    ``periods`` control periods of ``dt``, and what holds it longer (the warning's words)."""
+    return (
+        f"the global error estimate {float(estimate):.3g} passed tolerance={tolerance!r} "
+        f"after {int(periods)} periods "
+        f"({int(periods) * dt:.6g} s; tolerance_check: a companion run at twice the step "
+        "measures the error the state "
+        "carries, errors the motion amplified included, which the steps' estimate does not "
+        "budget for; more steps per period "
+        "hold it longer: a tighter tolerance= or substeps= (the least count), and 'rbenvs "
+        "bench accuracy --tolerance' shows "
+        f"the counts that hold each shipped scene)"
+    )
