@@ -84,6 +84,7 @@ from ..dynamics.validation import real_array, require_bool, require_int_at_least
 from ..envs.base import require_compiled
 from ..stepsize.batch import BatchAccuracy
 from .episodes import EpisodeBatch
+from .info import BatchInfo
 from .realism import BatchRealism
 from .threads import resolve_num_threads
 
@@ -223,8 +224,6 @@ class RigidBodyVectorEnv(VectorEnv):
         self._last_h = None  # the internal step of the last period, per sub-env
         self._plain = self.engine.plain
         self._steps = np.zeros(self.num_envs, dtype=np.int64)
-        self._info_template = None  # the compiled step's info: its keys in order, masks set
-        self._info_names = ()  # (the template's value keys, in the order of the kernel's arrays)
         self._prev_done = np.zeros(self.num_envs, dtype=bool)
         self._rngs = [None] * self.num_envs
         # the generators as one compiled table (rbenvs.draws), made once every sub-env has one:
@@ -234,6 +233,9 @@ class RigidBodyVectorEnv(VectorEnv):
         self._codes = kind_codes(self.model.draw_kinds)
         # shared read-only masks: every step's info reuses them instead of allocating
         self._true, self._false = self._accuracy.true, self._accuracy.false
+        self._infos = BatchInfo(
+            self.engine, self.num_envs, self.info_readouts, self._true, self._false
+        )
         self._reasons = ReasonPool(self.num_envs, self.engine.event_name)
         self.num_threads = threads
         self._build_compiled(compiled)
@@ -385,7 +387,9 @@ class RigidBodyVectorEnv(VectorEnv):
             )
         self._u = None  # as the single env after reset: nothing acted yet (a table at rest)
         self._last_h = np.full(n, self.engine.h)
-        info = self._info(self._y, None, self._false, self._false, metrics, physical)
+        info = self._infos.of_batch(
+            self._y, self._u, self._last_h, None, self._false, self._false, metrics, physical
+        )
         self._accuracy.reset_info(info)
         if self._options:
             obs, info = self._realism_after(obs, info, mask)
@@ -686,7 +690,7 @@ class RigidBodyVectorEnv(VectorEnv):
         self._reasons.written(entry, r.written)
         self._y2d, self._y = r.Y, tuple(r.Y)
         self._accuracy.wrote(r.estimate)
-        info = self._kernel_info(r, done, reasons)
+        info = self._infos.of_kernel(r, done, reasons)
         obs, reward = r.obs, r.reward  # (the failure charge is in: the kernel adds it)
         if next_step:
             if (
@@ -696,31 +700,6 @@ class RigidBodyVectorEnv(VectorEnv):
         elif r.n_ended:
             obs, info = self._same_step_reset(done, obs, info, r)
         return obs, reward, r.terminated, r.truncated, info
-
-    def _kernel_info(self, r, done, reasons) -> dict:
-        """``info`` from a compiled step's arrays (the order and keys of :meth:`_info`): a copy of
-        a template holding the keys in order with their masks, the step's arrays put in."""
-        template = self._info_template
-        if template is None:  # (made once: the keys, their masks and the constant entries)
-            names = (*self.engine.readout_names, "internal_step") if self.info_readouts else ()
-            names += tuple(self.task.metric_names)
-            template = {}
-            for name in names:
-                template[name] = None
-                template["_" + name] = self._true
-            template.update(numerical_failure=self._false, _numerical_failure=self._true)
-            self._info_template, self._info_names = template, names
-        info = template.copy()
-        info.update(
-            zip(
-                self._info_names,
-                (*r.readouts, r.h, *r.metrics) if self.info_readouts else r.metrics,
-            )
-        )
-        if r.n_ended:
-            info["terminal_reason"] = reasons
-            info["_terminal_reason"] = done.copy()
-        return info
 
     def _finish(
         self,
@@ -742,7 +721,9 @@ class RigidBodyVectorEnv(VectorEnv):
         # the guard's static proof holds for every state this env steps: it stays plain)
         failed_mask = self._false if failed is None else failed
         lifted = fired & ~failed_mask if fired is not self._false else self._false
-        info = self._info(self._y, failed, lifted, over, metrics, physical)
+        info = self._infos.of_batch(
+            self._y, self._u, self._last_h, failed, lifted, over, metrics, physical
+        )
         self._steps += 1
         truncated = (
             self._false.copy()
@@ -965,39 +946,6 @@ class RigidBodyVectorEnv(VectorEnv):
         """The last observation before its noise (``None`` without observation noise or bias):
         the single env's attribute."""
         return self._realism_batch.noiseless_observation
-
-    # ------------------------------------------------------------------ info
-    def _info(self, y, failed, lifted, over, metrics, physical=None) -> dict:
-        """The batch's info in gymnasium's vector convention: read-outs (the engine's, or the
-        kernel's ``physical``) and metrics as arrays of length ``num_envs``, each with its mask."""
-        n = self.num_envs
-        if not self.info_readouts:
-            raw = {}
-        elif physical is None:
-            raw = self.engine.readouts(y, self._u, lifted, self._last_h)
-        else:
-            raw = dict(zip(self.engine.readout_names, physical))
-            raw["internal_step"] = self._last_h
-        raw.update(metrics)
-        info = {}
-        every = self._true
-        # never hand out the state (or the env's own arrays): those values are copied
-        own = {id(c) for c in y}
-        own.add(id(self._last_h))
-        for key, value in raw.items():
-            if type(value) is not np.ndarray:
-                value = np.asarray(value)
-            if value.shape != (n,):
-                value = (
-                    np.full(n, value) if value.ndim == 0 else np.broadcast_to(value, (n,)).copy()
-                )
-            elif id(value) in own:
-                value = value.copy()
-            info[key] = value
-            info["_" + key] = every
-        info["numerical_failure"] = failed.copy() if failed is not None else self._false
-        info["_numerical_failure"] = every
-        return info
 
     # ------------------------------------------------------------------ state access
     def get_state(self) -> dict[str, np.ndarray]:
