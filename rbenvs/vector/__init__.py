@@ -86,6 +86,7 @@ from ..stepsize.batch import BatchAccuracy
 from .episodes import EpisodeBatch
 from .info import BatchInfo
 from .realism import BatchRealism
+from .resets import reset_request, state_rows
 from .threads import resolve_num_threads
 
 __all__ = [
@@ -333,33 +334,7 @@ class RigidBodyVectorEnv(VectorEnv):
     # ------------------------------------------------------------------ reset
     def reset(self, *, seed=None, options=None):
         n = self.num_envs
-        if seed is None:
-            seeds = [None] * n
-        elif isinstance(seed, (int, np.integer)) and not isinstance(seed, bool):
-            seeds = [int(seed) + i for i in range(n)]
-        else:
-            seeds = list(seed)
-            if len(seeds) != n:
-                raise ValueError(
-                    f"seed must be an int, None or a list of {n} seeds, got {len(seeds)}"
-                )
-        options = {} if options is None else dict(options)
-        state = options.pop("state", None)
-        mask = options.pop("reset_mask", None)
-        elapsed = options.pop("elapsed_steps", None)
-        if options:
-            raise ValueError(
-                f"reset options must be a subset of {{'state', 'reset_mask', 'elapsed_steps'}}, "
-                f"got unknown {sorted(options)}"
-            )
-        if elapsed is not None:
-            elapsed = self._elapsed_steps(elapsed)
-        if mask is None:
-            mask = np.ones(n, dtype=bool)
-        else:
-            mask = np.asarray(mask)
-            if mask.shape != (n,) or mask.dtype != bool:
-                raise ValueError(f"options['reset_mask'] must be a boolean array of shape ({n},)")
+        seeds, state, mask, elapsed = reset_request(n, seed, options, self.max_episode_steps)
         for i in np.flatnonzero(mask):
             if seeds[i] is not None or self._rngs[i] is None:
                 self._rngs[i] = seeding.np_random(seeds[i])[0]
@@ -372,7 +347,9 @@ class RigidBodyVectorEnv(VectorEnv):
                 self._ranges is not None
             ):  # the episodes' parameters first, as the single env draws them
                 self._episodes.start(np.flatnonzero(mask), self._rngs)
-            self._set_rows(self._rows_from_state(state, mask))
+            # each row checked by its system (its episode's), as the single env checks its start
+            system_of = self._episodes.system if self._ranges is not None else self._system_of
+            self._set_rows(state_rows(state, mask, n, system_of))
         else:
             self._draw_rows(np.flatnonzero(mask))
         self._steps[mask] = 0 if elapsed is None else elapsed[mask]
@@ -394,24 +371,6 @@ class RigidBodyVectorEnv(VectorEnv):
         if self._options:
             obs, info = self._realism_after(obs, info, mask)
         return obs, info
-
-    def _elapsed_steps(self, elapsed) -> np.ndarray:
-        """``options["elapsed_steps"]`` checked: integers of shape ``(num_envs,)`` in
-        ``[0, max_episode_steps)`` (the env needs a time limit)."""
-        if self.max_episode_steps is None:
-            raise ValueError("options['elapsed_steps'] needs a time limit (max_episode_steps)")
-        k = np.asarray(elapsed)
-        if k.shape != (self.num_envs,) or not np.issubdtype(k.dtype, np.integer):
-            raise ValueError(
-                f"options['elapsed_steps'] must be an integer array of shape ({self.num_envs},), "
-                f"got {k.dtype} {k.shape}"
-            )
-        if k.min() < 0 or k.max() >= self.max_episode_steps:
-            raise ValueError(
-                "options['elapsed_steps'] must lie in [0, max_episode_steps) = [0, "
-                f"{self.max_episode_steps}), got [{k.min()}, {k.max()}]"
-            )
-        return k.astype(np.int64)
 
     def _fresh(self, y, idx, started=None, compiled=True):
         """``(obs, over, metrics, physical)`` of states ``y`` that have just been reset: no control
@@ -475,28 +434,9 @@ class RigidBodyVectorEnv(VectorEnv):
             self._episodes.restart_checks(idx, self._y)
         self._accuracy.restart(self._y, idx)
 
-    def _rows_from_state(self, state, mask) -> dict:
-        if not isinstance(state, dict):
-            raise ValueError(
-                "options['state'] must be a dict of arrays batched along axis 0, got "
-                f"{type(state).__name__}"
-            )
-        n = self.num_envs
-        arrays = {}
-        for name, value in state.items():
-            arr = real_array(f"state[{name!r}]", value)
-            if arr.ndim < 1 or arr.shape[0] != n:
-                raise ValueError(
-                    f"state[{name!r}] must be batched along a leading axis of length num_envs = "
-                    f"{n}, got shape {arr.shape}"
-                )
-            arrays[name] = arr
-        # each row validated by the system's own checks (its episode's system), as the single env's
-        system = self._episodes.system if self._ranges is not None else (lambda i: self.system)
-        return {
-            i: system(i).import_state({k: v[i] for k, v in arrays.items()})
-            for i in np.flatnonzero(mask)
-        }
+    def _system_of(self, i):
+        """Sub-env ``i``'s system (the model's: without param_ranges every sub-env shares it)."""
+        return self.system
 
     def _set_rows(self, rows: dict) -> None:
         if self._y is None:
