@@ -1289,6 +1289,6 @@ def test_the_lift_off_check_shares_the_next_stage_contact_solve():
         sys.setprofile(None)
     n = round(env.dt / info["internal_step"])
     assert len(calls) == 4 * n + 3, (len(calls), n)
-    ref.engine.shared = None  # the lift-off checked by a solve of its own after every step
+    ref.engine.period.shared = None  # the lift-off checked by a solve of its own after every step
     _, _, _, _, ref_info = ref.step(zeros(ref))
     assert same_state(env.get_state(), ref.get_state()) and info == ref_info

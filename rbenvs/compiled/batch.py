@@ -11,6 +11,7 @@ from ..codegen import generate
 from ..jit import register as _register
 from ..jit import register_all as _register_all
 from ..kernel_cache import njit as _cached_njit
+from ..stepsize.forms import products
 
 # How every kernel is compiled. error_model="numpy": a float division by zero gives inf/nan as
 # on arrays (and needs no per-element check, which would keep the loops out of SIMD
@@ -665,13 +666,6 @@ def _estimate_expression(L: Layout) -> str:
     return estimate
 
 
-def _products(x: str, k: int) -> str:
-    """``x^k`` written out as ``x * x * ... * x``: :func:`rbenvs.rotations.power`'s products in its
-    order (the same bits), which a loop over a batch keeps in SIMD registers (a power with a
-    run-time exponent is a loop of its own)."""
-    return "(" + " * ".join([x] * k) + ")"
-
-
 def _checked_period(
     L: Layout, u: str, more: str, estimate: bool = False, gate: int = 0
 ) -> list[str]:
@@ -704,7 +698,7 @@ def _checked_period(
             "        big = gate(PGT[0], y)",
             "        counts[i] = substeps",
             "        z = big * h",
-            f"        EST[i] = PEE[0] * big * PEE[2] * {_products('z', gate)}",
+            f"        EST[i] = PEE[0] * big * PEE[2] * {products('z', gate)}",
             f"        ng += not ({test})",
             # (a restart ran no period of its own: apart, so that the loop above has no branch)
             "    if next_step:",

@@ -319,6 +319,13 @@ def gate_limit(dt: float, q: float, top: float) -> float:
     return limit
 
 
+def products(x: str, k: int) -> str:
+    """The source of ``x^k`` written out as ``x * x * ... * x``: :func:`rbenvs.rotations.power`'s
+    products in its order (the same bits), for generated code (a power with a run-time exponent
+    is a loop of its own)."""
+    return "(" + " * ".join([x] * k) + ")"
+
+
 @cache
 def gated_estimate(c: float, p: float, dt: float, h: float):
     """``estimate(L) = C L dt (L h)^p``: :func:`motion_error_estimate` at the rates ``(L, L, L)``
@@ -327,8 +334,10 @@ def gated_estimate(c: float, p: float, dt: float, h: float):
     (the default accuracy's estimate where its gate holds; ``p`` a whole number)."""
     if not float(p).is_integer() or p < 1:
         raise ValueError(f"gated_estimate needs a whole order p >= 1, got {p!r}")
-    z = " * ".join(["z"] * int(p))
-    source = f"def estimate(big):\n    z = big * {h!r}\n    return {c!r} * big * {dt!r} * ({z})\n"
+    source = (
+        f"def estimate(big):\n    z = big * {h!r}\n"
+        f"    return {c!r} * big * {dt!r} * {products('z', int(p))}\n"
+    )
     return generate(source, f"gated estimate p={int(p)}")["estimate"]
 
 
