@@ -38,10 +38,8 @@ import warnings
 import numpy as np
 
 from ..dynamics.validation import real_array
-from ..rotations import every
 from ..stepsize.check import inaccurate_text
 from ..stepsize.controller import MAX_INTERNAL_STEPS
-from ..stepsize.forms import gated_estimate
 from .compiled_forms import CompiledForms
 from .finish import generated_finish
 from .parts import kernel_parts
@@ -93,6 +91,10 @@ def action_columns(actions, shape) -> tuple:
         bad = np.flatnonzero(~np.all(np.isfinite(a), axis=1))
         raise ValueError(f"actions must be finite; sub-envs {bad.tolist()} are not")
     return tuple(np.clip(a.T, -1.0, 1.0).astype(np.float64, order="C"))
+
+
+def _ungated(y):  # (an engine without the default accuracy's gate: every state is evaluated)
+    return None
 
 
 def _to_python(v):
@@ -161,10 +163,10 @@ class Engine:
         # with a tolerance every period reports its estimated error (info["error_estimate"]): the
         # rate at its start and the step it took; without one the step is untouched
         self.tolerance = m.tolerance
-        # the default accuracy's gate on the float and numpy paths (StepRule.gate), where the
+        # the default accuracy's gate on the float and numpy paths (StepRule.gated), where the
         # stability bound alone never asks for more than substeps: a state within the cheap bound
         # takes the plain loop, its estimate the bound's (the compiled paths test it themselves)
-        self.gate = None
+        self.gated = _ungated
         if (
             self.rule.gate is not None
             and not m.check
@@ -174,9 +176,7 @@ class Engine:
             and self.rule.dissipation is None
             and self.rule.stable(m.substeps)
         ):
-            self.gate = self.rule.gate
-            # (StepRule.estimate's value at the rates (Lambda, Lambda, Lambda), written out)
-            self._gate_estimate = gated_estimate(*self.rule.error[:2], self.dt, self.h)
+            self.gated = self.rule.gated
         # tolerance_check: every period takes an even count (its companion half as many steps of
         # twice the size: rbenvs.stepsize.controller), so neither the plain loop (substeps steps)
         # nor the compiled single-state step (the guard's count) runs
@@ -386,19 +386,6 @@ class Engine:
             if over:
                 plain = False  # outside the bounds the guard's static proof is void
         return y, obs, reward, terminated, info, u, plain
-
-    def gated(self, y):
-        """The default accuracy's gate at the states ``y`` (:attr:`gate`; floats or arrays): where
-        every state lies within the cheap bound ``Lambda``, their periods' estimates ``C Lambda dt
-        (Lambda h)^p`` at ``substeps`` steps (the rates :func:`rbenvs.stepsize.forms.motion_rates`
-        gives there); else (or without a gate) ``None``."""
-        if self.gate is None:
-            return None
-        fn, p, limit = self.gate
-        big = fn(p, y)
-        if not every(big <= limit):
-            return None
-        return self._gate_estimate(big)
 
     def _cap_text(self, h, y0=None, u=None) -> str:
         """Why a period failed when it was refused past the cap (``h < dt / MAX_INTERNAL_STEPS``):

@@ -83,7 +83,7 @@ class BatchAccuracy:
             self.period_h = np.array(h, dtype=np.float64)
 
     def gated(self, y):
-        """The default accuracy's gate over the batch ``y`` (:meth:`rbenvs.core.step.Engine.gated`):
+        """The default accuracy's gate over the batch ``y`` (:meth:`.controller.StepRule.gated`):
         every sub-env's estimate where each one lies within it (its periods then take
         ``substeps`` unchecked), else ``None``."""
         gated = self.engine.gated(y)

@@ -61,11 +61,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..dynamics.validation import did_you_mean
-from ..rotations import power
+from ..rotations import every, power
 from .forms import (
     accuracy_steps,
     error_estimate,
     gate_limit,
+    gated_estimate,
     motion_error_estimate,
     motion_rates,
     relaxation_estimate,
@@ -289,6 +290,8 @@ class StepRule:
     # Lambda <= limit (forms.gate_limit); a batch tests it first (rbenvs.compiled's gate loop);
     # None: no gate
     gate: tuple | None = None
+    # with the gate: estimate(Lambda) = C Lambda dt (Lambda h)^p at substeps steps (gated_estimate)
+    gate_estimate: object = None
 
     @classmethod
     def build(
@@ -313,157 +316,51 @@ class StepRule:
             bound, growth = rates.rotation_bound, math.inf
         else:
             bound, growth = region.rotation, region.growth
-        step_d = (
-            rates.dissipation_margin * region.dissipation
-            if rates.dissipation is not None
-            else math.inf
-        )
-        dissipation = rates.dissipation if step_d != math.inf else None
-        k, p, kd, error, accuracy = 0.0, 1.0, 0.0, None, ""
+        dissipation, step_d = None, math.inf
+        if rates.dissipation is not None and region.dissipation != math.inf:
+            dissipation = rates.dissipation
+            step_d = rates.dissipation_margin * region.dissipation
+        k, p, kd, error, share = 0.0, 1.0, 0.0, None, None
         if tolerance is not None:
             c, p = float(integrator.error_constant), float(integrator.order)
             # with a decaying rate the budget is shared: half for the rotation's error, which adds
             # up over the periods, half for the decaying mode's, which relaxes
-            share = 0.5 if dissipation is not None else 1.0
-            budget = share * math.log1p(tolerance) / horizon
-            k, error = c / budget, (c, p, float(dt))
+            half = 0.5 if dissipation is not None else 1.0
+            k, error = c / (half * math.log1p(tolerance) / horizon), (c, p, float(dt))
             if dissipation is not None:
-                kd = c / (share * math.log1p(tolerance))
-            half = "half of " if dissipation is not None else ""
-            accuracy = (
-                f"error C lambda dt (lambda h)^{integrator.order} <= {half}log(1 + tolerance) / "
-                f"{horizon} per period"
-                + (
-                    f" and C (lambda_d h)^{integrator.order} <= half of log(1 + tolerance)"
-                    if dissipation is not None
-                    else ""
-                )
-                + f" (tolerance={tolerance!r} over tolerance_horizon={horizon} periods; "
-                f"{integrator.name}: order {integrator.order}, "
-                f"error constant C = {c:g})"
-            )
+                kd = c / (half * math.log1p(tolerance))
+                share = _mode_share(rates, integrator, c)
         active = guard != "off" and (
             bound != math.inf or growth != math.inf or dissipation is not None or error is not None
         )
-        text = rates.text
-        if bound != math.inf:
-            text = (
-                f"lambda h <= {bound}"
-                + (f" and lambda^2 h dt <= {growth}" if growth != math.inf else "")
-                + f", {text}"
-            )
-        if dissipation is not None:
-            text += f"; h <= {step_d:.6g} / lambda_d"
-        if accuracy:
-            text += f"; {accuracy}"
-        rotation, motion, gate = rates.rotation, False, None
-        rhs = None if system is None else system.kernel_rhs
-        named = rates.error_blocks is not None
-        if (
+        motion = (
             error is not None
-            and rhs is not None
-            and (named or not system.hybrid)
+            and system is not None
+            and system.kernel_rhs is not None
+            and (rates.error_blocks is not None or not system.hybrid)
             and integrator.error_in_phase
-        ):
-            # the state's own speed in the estimate (motion_rates), for a scheme whose leading
-            # error is in the phase; a hybrid system keeps the rate alone unless it names the
-            # blocks its error is measured on (its contact flags are not)
-            names = rates.error_blocks if named else tuple(system.layout)
-            blocks = tuple(tuple(system.layout[n]) for n in names)
-            rotating = tuple(
-                (tuple(system.layout[q]), tuple(system.layout[d])) for q, d in rates.rotating_blocks
-            )
-            span = (
-                (float(horizon) + 1.0) * float(dt) / 2.0
-            )  # (the mean time to the horizon's end: motion_rates)
-            mu_text = (
-                "; mu = min(lambda, max over the state's blocks"
-                f"{' ' + ', '.join(names) if named else ''} of |dy_b/dt| / |y_b|)"
-            )
-            for q, d in rates.rotating_blocks:
-                mu_text += (
-                    f", with {q} (turning at its own speed m, driven by {d}): max(mu over the "
-                    f"others, mu_{d} + a_{d} m {span:g} s "
-                    f"+ m (m / lambda)^{integrator.order}), a_{d} = |{d} . d{d}/dt| / |{d}|^2 (the "
-                    f"error {q} carries: {d}'s along itself)"
-                )
-            extra = (
-                {"rotating": rotating, "order": float(integrator.order), "span": span}
-                if rotating
-                else {}
-            )
-            if rates.speed is not None:  # the system's bound of its speed over a period
-                extra.update(speed_bound=rates.speed[0], dt=float(dt))
-                mu_text += (
-                    f"; over the period at most {rates.speed[0].__name__}'s bound "
-                    "(the motion's own)"
-                )
-            tail = (rates.speed[1],) if rates.speed is not None else ()
-            if (
-                gate_steps is not None
-                and not rotating
-                and (rates.accuracy is None or rates.accuracy_bound is not None)
-            ):
-                # the default accuracy: a cheap bound first (motion_rates' gate)
-                bound_fn, bound_p = (
-                    rates.accuracy_bound if rates.accuracy is not None else (None, ())
-                )
-                extra.update(gate=True, gate_rate=bound_fn)
-                # C L dt (L dt / substeps)^p <= budget, i.e. (L dt)^(p + 1) <= substeps^p / k,
-                # solved once for its largest L
-                limit = gate_limit(float(dt), p + 1.0, float(gate_steps) ** p / k)
-                tail += ((limit, bound_p),)
-                gate = (
-                    (bound_fn, bound_p, limit)
-                    if bound_fn is not None
-                    else (rates.rotation[0], rates.rotation[1], limit)
-                )
-                mu_text += (
-                    f"; first the bound C L dt (L dt / {gate_steps})^{integrator.order}, L = "
-                    + (f"{bound_fn.__name__}" if bound_fn is not None else "lambda")
-                    + " (the default accuracy: where it holds, reported)"
-                )
-            if rates.accuracy is not None:  # the system's sharper rate of the error (lambda_e)
-                rotation = (
-                    motion_rates(rates.rotation[0], rhs[0], blocks, rates.accuracy[0], **extra),
-                    (rates.rotation[1], rhs[1], rates.accuracy[1]) + tail,
-                )
-                accuracy, text = (
-                    t.replace("(lambda h)^", "(lambda_e h)^") for t in (accuracy, text)
-                )
-                mu_text = (
-                    "; lambda_e = the system's bound of its Jacobian ("
-                    + rates.accuracy[0].__name__
-                    + ")"
-                    + mu_text.replace("min(lambda,", "min(lambda_e,").replace(
-                        "/ lambda)^", "/ lambda_e)^"
-                    )
-                )
-            else:
-                rotation = (
-                    motion_rates(rates.rotation[0], rhs[0], blocks, None, **extra),
-                    (rates.rotation[1], rhs[1], ()) + tail,
-                )
-            motion = True
-            accuracy = accuracy.replace("error C lambda dt", "error C mu dt") + mu_text
-            text = text.replace("error C lambda dt", "error C mu dt") + mu_text
-        mode_share = (
-            rates.dissipation_share if error is not None and dissipation is not None else None
         )
-        if mode_share is not None:
-            # the system's parameters with the scheme's forced-mode error constant (over C; 0: none)
-            forced = integrator.forced_error_constant
-            mode_share = (
-                mode_share[0],
-                (mode_share[1], 0.0 if forced is None else float(forced) / c),
-            )
-            accuracy, text = (
-                t.replace("C (lambda_d h)^", "C a (lambda_d h)^")
-                + " (a = the decaying mode's share of it, "
-                + mode_share[0].__name__
-                + ")"
-                for t in (accuracy, text)
-            )
+        rotation, gate = rates.rotation, None
+        if motion:
+            # the state's own speed in the estimate, for a scheme whose leading error is in the
+            # phase; a hybrid system keeps the rate alone unless it names the blocks its error is
+            # measured on (its contact flags are not)
+            rotation, gate = _motion_rates(rates, system, dt, horizon, p, k, gate_steps)
+        gate_estimate = None
+        if gate is not None:
+            gate_estimate = gated_estimate(error[0], p, float(dt), float(dt) / gate_steps)
+        step_text = step_d if dissipation is not None else None
+        text, accuracy = describe(
+            rates,
+            bound,
+            growth,
+            step_text,
+            integrator,
+            tolerance,
+            horizon,
+            motion,
+            share is not None,
+        )
         return cls(
             rotation,
             (float(dt), float(bound), float(growth), float(k), float(p), float(kd)),
@@ -476,9 +373,19 @@ class StepRule:
             accuracy,
             motion,
             tuple(zero_control),
-            mode_share,
+            share,
             gate,
+            gate_estimate,
         )
+
+    def gated(self, y):
+        """The default accuracy's gate at the states ``y`` (:attr:`gate`; floats or arrays): where
+        every state lies within the cheap bound ``Lambda``, their periods' estimates ``C Lambda dt
+        (Lambda h)^p`` at ``substeps`` steps (the rates :func:`motion_rates` gives there: the
+        period then takes ``substeps`` steps); else ``None``."""
+        fn, params, limit = self.gate
+        big = fn(params, y)
+        return self.gate_estimate(big) if every(big <= limit) else None
 
     def rate(self, y, u=None):
         """``lambda`` at ``y`` (the rate both the bounds and the error estimate use); with
@@ -660,3 +567,78 @@ class StepRule:
                 MAX_INTERNAL_STEPS + 1,
             )
         return np.maximum(substeps, n).astype(np.int64)
+
+
+def _mode_share(rates, integrator, c: float):
+    """The decaying mode's share of its error (``StepRule.share``): the system's declared
+    ``(fn, P)`` with the scheme's forced-mode error constant over ``C`` (0: none) added to ``P``;
+    ``None`` where the system declares none (the share is then 1)."""
+    if rates.dissipation_share is None:
+        return None
+    fn, params = rates.dissipation_share
+    forced = integrator.forced_error_constant
+    return fn, (params, 0.0 if forced is None else float(forced) / c)
+
+
+def _motion_rates(rates, system, dt: float, horizon: int, p: float, k: float, gate_steps):
+    """``(rotation, gate)`` of a rule whose estimate takes the state's own speed: the generated
+    :func:`motion_rates` with its parameters, and the default accuracy's gate ``(fn, P, limit)``
+    (``None`` without ``gate_steps``, or with rotating blocks, whose carried term no cheap bound
+    covers)."""
+    rhs, layout = system.kernel_rhs, system.layout
+    names = rates.error_blocks if rates.error_blocks is not None else tuple(layout)
+    blocks = tuple(tuple(layout[n]) for n in names)
+    rotating = tuple((tuple(layout[q]), tuple(layout[d])) for q, d in rates.rotating_blocks)
+    extra, tail, gate = {}, (), None
+    if rotating:  # (span: the mean time from a period to the horizon's end)
+        extra.update(rotating=rotating, order=p, span=(float(horizon) + 1.0) * float(dt) / 2.0)
+    if rates.speed is not None:  # the system's bound of its speed over a period
+        extra.update(speed_bound=rates.speed[0], dt=float(dt))
+        tail = (rates.speed[1],)
+    sharp = rates.accuracy is not None  # the system's sharper rate of the error, lambda_e
+    if gate_steps is not None and not rotating and (not sharp or rates.accuracy_bound is not None):
+        # C L dt (L dt / substeps)^p <= budget, i.e. (L dt)^(p + 1) <= substeps^p / k, solved
+        # once for its largest L (L: the system's cheap bound of lambda_e, else lambda)
+        fn, params = rates.accuracy_bound if sharp else rates.rotation
+        limit = gate_limit(float(dt), p + 1.0, float(gate_steps) ** p / k)
+        extra.update(gate=True, gate_rate=fn if sharp else None)
+        tail += ((limit, params if sharp else ()),)
+        gate = (fn, params, limit)
+    accuracy, accuracy_p = rates.accuracy if sharp else (None, ())
+    rate = motion_rates(rates.rotation[0], rhs[0], blocks, accuracy, **extra)
+    return (rate, (rates.rotation[1], rhs[1], accuracy_p) + tail), gate
+
+
+def describe(rates, bound, growth, step_d, integrator, tolerance, horizon, motion, share):
+    """``(text, accuracy_text)``: a rule in words for the messages that cite it (``step_d``: the
+    decaying rate's step bound, ``None`` without one), and its tolerance's part (``""``
+    without a tolerance)."""
+    text = rates.text
+    if bound != math.inf:
+        grows = f" and lambda^2 h dt <= {growth}" if growth != math.inf else ""
+        text = f"lambda h <= {bound}{grows}, {text}"
+    if step_d is not None:
+        text += f"; h <= {step_d:.6g} / lambda_d"
+    if tolerance is None:
+        return text, ""
+    p = integrator.order
+    sharp = motion and rates.accuracy is not None
+    half = "half of " if step_d is not None else ""
+    accuracy = (
+        f"error C {'mu' if motion else 'lambda'} dt ({'lambda_e' if sharp else 'lambda'} h)^{p} "
+        f"<= {half}log(1 + tolerance) / {horizon} per period"
+    )
+    if step_d is not None:
+        accuracy += f" and C {'a ' if share else ''}(lambda_d h)^{p} <= half of log(1 + tolerance)"
+    accuracy += (
+        f" (tolerance={tolerance!r} over tolerance_horizon={horizon} periods; {integrator.name}: "
+        f"order {p}, error constant C = {float(integrator.error_constant):g}"
+    )
+    if motion:
+        accuracy += "; mu: the state's own relative speed, rbenvs.stepsize.forms.motion_rates"
+    if sharp:
+        accuracy += f"; lambda_e: the system's bound of its Jacobian, {rates.accuracy[0].__name__}"
+    if share:
+        accuracy += "; a: the decaying mode's share of the error"
+    accuracy += ")"
+    return f"{text}; {accuracy}", accuracy
