@@ -113,14 +113,14 @@ def test_a_refusal_in_one_chunk_raises_and_changes_nothing(kwargs):
         out = trajectory(env, 3)
         _fast_sub_env(env, 170, (3e3, 2e3, 1e3))
         before = env.get_state()
-        cc = None if env._cc is None else env._cc.copy()
+        cc = None if env.run.cc is None else env.run.cc.copy()
         with pytest.raises(
             ValueError,
             match=r"guard='refuse' and the state of sub-envs \[170\] needs .* internal steps",
         ):
             env.step(np.zeros(env.action_space.shape, dtype=np.float32))
         assert same(env.get_state(), before)
-        assert cc is None or np.array_equal(env._cc, cc)
+        assert cc is None or np.array_equal(env.run.cc, cc)
         _fast_sub_env(env, 170, (0.1, 0.2, 0.3))
         for _ in range(5):
             out.append(env.step(np.full(env.action_space.shape, 0.3, dtype=np.float32)))

@@ -87,6 +87,7 @@ from .episodes import EpisodeBatch
 from .info import BatchInfo
 from .realism import BatchRealism
 from .resets import reset_request, state_rows
+from .run import BatchRun
 from .threads import resolve_num_threads
 
 __all__ = [
@@ -213,19 +214,10 @@ class RigidBodyVectorEnv(VectorEnv):
             _compiled.available(),
         )
         self._renderer = None
-        self._y = None  # the states: a tuple of (n,) arrays, one per component
-        self._y2d = None  # the (dim, n) array whose rows are self._y, when the kernel made it
-        # with a tolerance: each sub-env's compensation (dim, n), carried from period to period
-        # as the single env's run carries its own (rbenvs.core.period.Period.advance), zero at a
-        # start
-        self._cc = (
-            np.zeros((self.system.dim, self.num_envs)) if self.engine.step_c is not None else None
+        # the states, clocks and compensations of every sub-env
+        self.run = BatchRun(
+            self.num_envs, self.system.dim, self.engine.step_c is not None, self.engine.plain
         )
-        self._u = None  # the controls of the last step (None after a reset)
-        self._last_h = None  # the internal step of the last period, per sub-env
-        self._plain = self.engine.plain
-        self._steps = np.zeros(self.num_envs, dtype=np.int64)
-        self._prev_done = np.zeros(self.num_envs, dtype=bool)
         self._rngs = [None] * self.num_envs
         # the generators as one compiled table (rbenvs.draws), made once every sub-env has one:
         # restarts then draw with no Python per sub-env
@@ -352,20 +344,27 @@ class RigidBodyVectorEnv(VectorEnv):
             self._set_rows(state_rows(state, mask, n, system_of))
         else:
             self._draw_rows(np.flatnonzero(mask))
-        self._steps[mask] = 0 if elapsed is None else elapsed[mask]
-        self._prev_done = self._prev_done & ~mask
-        self._plain = self.engine.plain
+        self.run.steps[mask] = 0 if elapsed is None else elapsed[mask]
+        self.run.prev_done = self.run.prev_done & ~mask
+        self.run.plain = self.engine.plain
         obs, over, metrics, physical = self._fresh(
-            self._y, np.arange(n), started=mask, compiled=False
+            self.run.y, np.arange(n), started=mask, compiled=False
         )
         if np.any(over & mask):
             raise ValueError(
                 "an initial state lies outside the observation bounds; raise the limit parameters"
             )
-        self._u = None  # as the single env after reset: nothing acted yet (a table at rest)
-        self._last_h = np.full(n, self.engine.h)
+        self.run.u = None  # as the single env after reset: nothing acted yet (a table at rest)
+        self.run.last_h = np.full(n, self.engine.h)
         info = self._infos.of_batch(
-            self._y, self._u, self._last_h, None, self._false, self._false, metrics, physical
+            self.run.y,
+            self.run.u,
+            self.run.last_h,
+            None,
+            self._false,
+            self._false,
+            metrics,
+            physical,
         )
         self._accuracy.reset_info(info)
         if self._options:
@@ -411,44 +410,39 @@ class RigidBodyVectorEnv(VectorEnv):
             task_raw, system_raw = self.model.batch_draws([self._rngs[i] for i in idx])
         if self._ranges is None:
             comps = self.model.initial_from_draws(tuple(task_raw), tuple(system_raw))
-        if self._cc is not None:  # (new runs)
-            self._cc[:, idx] = 0.0
-        if self._y2d is not None:  # the rows of the kernel's (dim, n) state, which self._y views
+        if self.run.cc is not None:  # (new runs)
+            self.run.cc[:, idx] = 0.0
+        if (
+            self.run.y2d is not None
+        ):  # the rows of the kernel's (dim, n) state, which self.run.y views
             for j, v in enumerate(comps):
-                self._y2d[j, idx] = v
+                self.run.y2d[j, idx] = v
             return
         y = (
-            [c.copy() for c in self._y]
-            if self._y is not None
+            [c.copy() for c in self.run.y]
+            if self.run.y is not None
             else [np.zeros(self.num_envs) for _ in range(self.system.dim)]
         )
         for c, v in zip(y, comps):
             c[idx] = v
-        self._y = tuple(y)
+        self.run.y = tuple(y)
         self._restart_companion(idx)
 
     def _restart_companion(self, idx) -> None:
         """The companions of the sub-envs ``idx`` start at their new states
         (``tolerance_check``)."""
         if self._ranges is not None:  # (each its episode's)
-            self._episodes.restart_checks(idx, self._y)
-        self._accuracy.restart(self._y, idx)
+            self._episodes.restart_checks(idx, self.run.y)
+        self._accuracy.restart(self.run.y, idx)
 
     def _system_of(self, i):
         """Sub-env ``i``'s system (the model's: without param_ranges every sub-env shares it)."""
         return self.system
 
     def _set_rows(self, rows: dict) -> None:
-        if self._y is None:
-            self._y = tuple(np.zeros(self.num_envs) for _ in range(self.system.dim))
-        comps = [c.copy() for c in self._y]
-        for i, row in rows.items():
-            for c, v in zip(comps, row):
-                c[i] = v
-        self._y = tuple(comps)
-        self._y2d = None
-        if self._cc is not None:  # (new runs)
-            self._cc[:, list(rows)] = 0.0
+        if self.run.y is None:
+            self.run.y = tuple(np.zeros(self.num_envs) for _ in range(self.system.dim))
+        self.run.set_rows(rows)
         self._restart_companion(list(rows))
 
     # ------------------------------------------------------------------ step
@@ -461,7 +455,7 @@ class RigidBodyVectorEnv(VectorEnv):
         """The step of ``actions`` (those that act) with each period's error estimate in its info
         (:class:`rbenvs.stepsize.batch.BatchAccuracy`)."""
         accuracy = self._accuracy
-        if not accuracy.estimated or self._y is None:
+        if not accuracy.estimated or self.run.y is None:
             return accuracy.unestimated_report(self._step(actions))
         accuracy.begin()
         vstep = self._vector_step
@@ -473,7 +467,7 @@ class RigidBodyVectorEnv(VectorEnv):
             # the numpy path has them)
             return accuracy.report(self._step(actions), self._false)
         restart = (
-            self._prev_done.copy()
+            self.run.prev_done.copy()
             if self.autoreset_mode is AutoresetMode.NEXT_STEP
             else self._false
         )
@@ -481,7 +475,7 @@ class RigidBodyVectorEnv(VectorEnv):
         # of the states before the step (the numpy path, whose controls are made once for the
         # rates and the step) or the default accuracy's gate, where every sub-env lies within it
         # (its periods then take substeps unchecked)
-        y0, y2d0, control, gated = self._y, self._y2d, None, None
+        y0, y2d0, control, gated = self.run.y, self.run.y2d, None, None
         if not written:
             control = self.model.actuator.control(action_columns(actions, self.action_space.shape))
             gated = None if accuracy.checked else accuracy.gated(y0)
@@ -492,7 +486,7 @@ class RigidBodyVectorEnv(VectorEnv):
         """The step of ``actions``; ``control``: their ``(u_norm, u)`` where the caller made them
         (the numpy path's; the other paths make their own); ``plain``: the numpy path's periods
         take ``substeps`` unchecked (``None``: where the guard's static proof holds, ``_plain``)."""
-        if self._y is None:
+        if self.run.y is None:
             raise RuntimeError("call reset() before step()")
         if self._ranges is not None:
             return self._step_episodes(actions)
@@ -500,37 +494,39 @@ class RigidBodyVectorEnv(VectorEnv):
             return self._compiled_step_all(actions)
         engine = self.engine
         # NEXT_STEP: the sub-envs whose episode ended last step are reset, not stepped.
-        restart = self._prev_done if self.autoreset_mode is AutoresetMode.NEXT_STEP else self._false
+        restart = (
+            self.run.prev_done if self.autoreset_mode is AutoresetMode.NEXT_STEP else self._false
+        )
         any_restart = bool(restart.any())
         u_norm, u = (
             self.model.actuator.control(action_columns(actions, self.action_space.shape))
             if control is None
             else control
         )
-        y0 = self._y
+        y0 = self.run.y
         fast = None
-        plain = self._plain if plain is None else plain
+        plain = self.run.plain if plain is None else plain
         with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
             # a sub-env blowing up is reported once, below, as the single env does
             if self._batch_step is not None:
                 y, fast, fired, h = self._compiled_advance(y0, u, u_norm, restart, plain)
             else:
-                comp = None if self._cc is None else tuple(self._cc)
+                comp = None if self.run.cc is None else tuple(self.run.cc)
                 y, fired, h, comp = engine.advance(
                     y0, u, plain, restart if any_restart else None, comp
                 )
                 if comp is not None:
-                    cc = self._cc = np.empty((len(comp), self.num_envs))
+                    cc = self.run.cc = np.empty((len(comp), self.num_envs))
                     for j, c in enumerate(comp):  # (a component may be one float for every sub-env)
                         cc[j] = c
                 if fired is False:
                     fired = self._false
         accuracy = self._accuracy
         inaccurate = None if accuracy.check is None else accuracy.companion_period(y, u, h, restart)
-        self._u, self._last_h = u, h
+        self.run.u, self.run.last_h = u, h
         accuracy.ran(h)
         if fast is not None:  # the kernel's read-outs: every new state finite
-            self._y, self._y2d = y, fast[0]
+            self.run.y, self.run.y2d = y, fast[0]
             obs, over, reward, terminated, metrics, physical = fast[1:]
             if not over.any():
                 over = self._false
@@ -545,12 +541,12 @@ class RigidBodyVectorEnv(VectorEnv):
         (``inaccurate``: the sub-envs whose global error estimate passed the tolerance),
         observation, evaluation, then :meth:`_finish`."""
         engine = self.engine
-        self._y2d = None
+        self.run.y2d = None
         accuracy = self._accuracy
         y, failed = engine.settle(
-            y0, y, restart, self._last_h, inaccurate, accuracy.global_, accuracy.check
+            y0, y, restart, self.run.last_h, inaccurate, accuracy.global_, accuracy.check
         )
-        self._y = y
+        self.run.y = y
         obs, over = engine.observe(y)
         reward, terminated, metrics = engine.evaluate(y, u_norm)
         if failed is not None:
@@ -579,11 +575,11 @@ class RigidBodyVectorEnv(VectorEnv):
             a = np.ascontiguousarray(a, dtype=a.dtype if a.dtype in _REAL_FLOATS else np.float64)
         next_step = self.autoreset_mode is AutoresetMode.NEXT_STEP
         vstep, engine = self._vector_step, self.engine
-        Y = self._y2d if self._y2d is not None else np.stack(self._y)
+        Y = self.run.y2d if self.run.y2d is not None else np.stack(self.run.y)
         if next_step:
-            if not self._prev_done.flags.writeable:
-                self._prev_done = self._prev_done.copy()
-            done = self._prev_done  # in: the sub-envs to restart; out: those whose episode ended
+            if not self.run.prev_done.flags.writeable:
+                self.run.prev_done = self.run.prev_done.copy()
+            done = self.run.prev_done  # in: the sub-envs to restart; out: those whose episode ended
             restart = done.copy()
             skip = restart
         else:
@@ -593,15 +589,15 @@ class RigidBodyVectorEnv(VectorEnv):
         r = vstep(
             a,
             Y,
-            self._steps,
+            self.run.steps,
             done,
             skip,
             self._table.list,
-            not self._plain,
+            not self.run.plain,
             engine.guard == "refuse",
             next_step,
             (rz, self._reasons.names, clear),
-            self._cc,
+            self.run.cc,
         )
         if (
             r.status == -2
@@ -616,19 +612,19 @@ class RigidBodyVectorEnv(VectorEnv):
                 int(r.counts[over].max()), f" of sub-envs {np.flatnonzero(over).tolist()}"
             )
         # the controls that acted: made from the actions where a failure needs them
-        self._u, self._last_h = None, r.h
+        self.run.u, self.run.last_h = None, r.h
         if r.status > 0:  # non-finite new states: the numpy path's failure handling
             # (the estimate's step; a SAME_STEP restart rewrites r.h's restarted rows)
             self._accuracy.ran(r.h)
             self._accuracy.wrote(r.estimate)
             fired = r.fired if r.fired.any() else self._false
-            u_norm, self._u = self.model.actuator.control(action_columns(a, shape))
+            u_norm, self.run.u = self.model.actuator.control(action_columns(a, shape))
             with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
                 return self._numpy_finish(
-                    self._y, tuple(r.Y), u_norm, fired, restart, bool(restart.any())
+                    self.run.y, tuple(r.Y), u_norm, fired, restart, bool(restart.any())
                 )
         self._reasons.written(entry, r.written)
-        self._y2d, self._y = r.Y, tuple(r.Y)
+        self.run.y2d, self.run.y = r.Y, tuple(r.Y)
         self._accuracy.wrote(r.estimate)
         info = self._infos.of_kernel(r, done, reasons)
         obs, reward = r.obs, r.reward  # (the failure charge is in: the kernel adds it)
@@ -662,13 +658,13 @@ class RigidBodyVectorEnv(VectorEnv):
         failed_mask = self._false if failed is None else failed
         lifted = fired & ~failed_mask if fired is not self._false else self._false
         info = self._infos.of_batch(
-            self._y, self._u, self._last_h, failed, lifted, over, metrics, physical
+            self.run.y, self.run.u, self.run.last_h, failed, lifted, over, metrics, physical
         )
-        self._steps += 1
+        self.run.steps += 1
         truncated = (
             self._false.copy()
             if self.max_episode_steps is None
-            else self._steps >= self.max_episode_steps
+            else self.run.steps >= self.max_episode_steps
         )  # as TimeLimit
         ended = terminated | over | lifted
         stopped = ended | truncated
@@ -690,7 +686,7 @@ class RigidBodyVectorEnv(VectorEnv):
             truncated = truncated & ~restart
         done = terminated | truncated
         if self.autoreset_mode is AutoresetMode.NEXT_STEP:
-            self._prev_done = done
+            self.run.prev_done = done
         elif done.any():
             obs, info = self._same_step_reset(done, obs, info)
         return obs, reward, terminated, truncated, info
@@ -712,7 +708,7 @@ class RigidBodyVectorEnv(VectorEnv):
         sub-env (those about to restart take ``substeps``, as on the numpy path); with
         ``guard="refuse"`` a period it would subdivide raises before anything changes."""
         n, engine = self.num_envs, self.engine
-        Y = self._y2d if self._y2d is not None else np.stack(y)
+        Y = self.run.y2d if self.run.y2d is not None else np.stack(y)
         # controls as (n,) float64 arrays (an unactuated axis is a 0.0 for every sub-env)
         u = tuple(c if type(c) is np.ndarray else np.full(n, c, dtype=np.float64) for c in u)
         u_norm = tuple(
@@ -727,7 +723,7 @@ class RigidBodyVectorEnv(VectorEnv):
             not plain,
             restart,
             engine.guard == "refuse",
-            self._cc,
+            self.run.cc,
         )
         if out.status < 0:
             over = (out.counts > engine.substeps) & ~restart
@@ -751,8 +747,8 @@ class RigidBodyVectorEnv(VectorEnv):
         few restarts in a large batch cost a few rows, not another pass over the batch."""
         idx = np.flatnonzero(which)
         self._draw_rows(idx)
-        self._steps[which] = 0
-        y = tuple(c[idx] for c in self._y)
+        self.run.steps[which] = 0
+        y = tuple(c[idx] for c in self.run.y)
         new_obs, _, metrics, physical = self._fresh(y, idx)
         obs = obs.copy()
         obs[idx] = new_obs
@@ -795,12 +791,12 @@ class RigidBodyVectorEnv(VectorEnv):
                 obs,
                 r.over,
                 r.h,
-                self._steps,
+                self.run.steps,
                 r.metrics,
                 r.readouts,
             )
-            if self._cc is not None:  # (new runs)
-                self._cc[:, idx] = 0.0
+            if self.run.cc is not None:  # (new runs)
+                self.run.cc[:, idx] = 0.0
             if "terminal_reason" in info:  # (every ended sub-env restarts)
                 info["terminal_reason"] = np.where(done, "", info["terminal_reason"])
                 info["_terminal_reason"] = info["_terminal_reason"] & ~done
@@ -822,16 +818,18 @@ class RigidBodyVectorEnv(VectorEnv):
         very step, so bit for bit), then the batch's info, clocks and autoreset
         (:meth:`_finish`)."""
         rows = np.stack(action_columns(actions, self.action_space.shape), axis=1).tolist()
-        restart = self._prev_done if self.autoreset_mode is AutoresetMode.NEXT_STEP else self._false
+        restart = (
+            self.run.prev_done if self.autoreset_mode is AutoresetMode.NEXT_STEP else self._false
+        )
         r = self._episodes.step(
-            self._y,
+            self.run.y,
             rows,
             restart,
             self.single_observation_space.shape[0],
             self.engine.h,
             self.engine.event_name,
         )
-        self._y, self._y2d, self._u, self._last_h = r.y, None, r.u, r.h
+        self.run.y, self.run.y2d, self.run.u, self.run.last_h = r.y, None, r.u, r.h
         self._accuracy.wrote(r.estimates, r.global_)
         return self._finish(
             r.obs,
@@ -853,11 +851,11 @@ class RigidBodyVectorEnv(VectorEnv):
         zero-action queue, noise stream and ``info["params"]``, and every observation its noise
         (:meth:`_realism_after`). The same numbers, in the same order from the same generators,
         as the single env."""
-        if self._y is None:
+        if self.run.y is None:
             raise RuntimeError("call reset() before step()")
         r = self._realism
         next_step = self.autoreset_mode is AutoresetMode.NEXT_STEP
-        restart = self._prev_done.copy() if next_step else None
+        restart = self.run.prev_done.copy() if next_step else None
         if r.delay:  # (checked and clipped, as the single env's)
             actions = self._realism_batch.delayed(
                 np.stack(action_columns(actions, self.action_space.shape), axis=1)
@@ -890,19 +888,19 @@ class RigidBodyVectorEnv(VectorEnv):
     # ------------------------------------------------------------------ state access
     def get_state(self) -> dict[str, np.ndarray]:
         """The physical state of every sub-env: the single env's names, batched on axis 0."""
-        if self._y is None:
+        if self.run.y is None:
             raise RuntimeError("call reset() before get_state()")
         return {
             k: np.array(v, dtype=np.float64).T.copy()
-            for k, v in self.system.export_state(self._y).items()
+            for k, v in self.system.export_state(self.run.y).items()
         }
 
     @property
     def state_components(self) -> tuple:
         """The states as the components the model integrates (a tuple of ``(n,)`` arrays)."""
-        if self._y is None:
+        if self.run.y is None:
             raise RuntimeError("call reset() before reading the state")
-        return self._y
+        return self.run.y
 
     # ------------------------------------------------------------------ rendering
     def render(self):
@@ -916,7 +914,7 @@ class RigidBodyVectorEnv(VectorEnv):
                 stacklevel=2,
             )
             return None
-        if self._y is None:
+        if self.run.y is None:
             raise RuntimeError("call reset() before render()")
         if self._renderer is None:
             from ..render import Renderer
@@ -925,7 +923,7 @@ class RigidBodyVectorEnv(VectorEnv):
         rows = range(self.num_envs) if self.render_mode == "rgb_array" else (0,)
         frames = []
         for i in rows:
-            y = tuple(float(c[i]) for c in self._y)
+            y = tuple(float(c[i]) for c in self.run.y)
             system = self.system if self._ranges is None else self._episodes.system(i)
             frames.append(self._renderer.frame(self.env_class.scene(system, y)))
         if self.render_mode == "human":
