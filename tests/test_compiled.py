@@ -436,7 +436,9 @@ def test_compiled_argument_is_validated():
 def test_kernels_are_shared_by_envs_of_one_layout():
     a = vector.FreeRigidBodyVectorEnv(num_envs=2, inertia=(3.0, 2.0, 1.5))
     b = vector.FreeRigidBodyVectorEnv(num_envs=8, spin_rate=0.5, axis="major")
-    assert a._batch_step.kernel is b._batch_step.kernel  # parameters are arguments, not constants
+    assert (
+        a.compiled_path.batch.kernel is b.compiled_path.batch.kernel
+    )  # parameters are arguments, not constants
 
 
 def test_jitable_functions_stay_plain_python():
@@ -712,7 +714,7 @@ def test_the_whole_vector_step_compiled_equals_the_numpy_path_through_restarts(
         make_vec(env_id, 6, max_episode_steps=7, autoreset_mode=mode, compiled=c, **kwargs)
         for c in (False, True)
     ]
-    step = envs[1].unwrapped._vector_step
+    step = envs[1].unwrapped.compiled_path.whole
     assert step is not None and step.restarts
     _same_outputs(envs[0].reset(seed=5), envs[1].reset(seed=5), "reset")
     rng = np.random.default_rng(0)

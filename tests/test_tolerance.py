@@ -535,8 +535,8 @@ def test_the_compiled_vector_step_writes_the_estimate_and_its_fallback_gives_the
     # (no time limit: a step handed to the numpy path after the kernel's own bookkeeping would
     # count the episode clock twice, which a real hand-over, returned before it, does not)
     envs = kernel, handed, numpy = [cls(4, compiled=c, **kwargs) for c in (True, True, False)]
-    assert kernel._vector_step.layout.estimate
-    step = handed._vector_step
+    assert kernel.compiled_path.whole.layout.estimate
+    step = handed.compiled_path.whole
 
     class Handed:  # the same step, reported as if a new state were non-finite
         def __getattr__(self, name):
@@ -546,7 +546,7 @@ def test_the_compiled_vector_step_writes_the_estimate_and_its_fallback_gives_the
             r = step(*args, **kw)
             return r._replace(status=1) if r.status == 0 else r
 
-    handed._vector_step = Handed()
+    handed.compiled_path.whole = Handed()
     rng = np.random.default_rng(3)
     for e in envs:
         e.reset(seed=5)

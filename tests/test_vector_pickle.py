@@ -49,7 +49,9 @@ def test_a_pickled_or_copied_vector_env_goes_on_bit_for_bit(env_id, kwargs):
         env.step(actions())
     copies = [pickle.loads(pickle.dumps(env)), copy.deepcopy(env)]
     for c in copies:
-        assert c.compiled == env.compiled and (c._vector_step is None) == (env._vector_step is None)
+        assert c.compiled == env.compiled and (c.compiled_path.whole is None) == (
+            env.compiled_path.whole is None
+        )
     # past the episodes' ends, where the restarts draw from the generator tables made again
     # around the copied generators
     for _ in range(after):

@@ -79,7 +79,7 @@ def test_threads_give_the_bits_of_one_call(env_id, kwargs, steps):
     runs = []
     for threads in THREADS:
         env = make_vec(env_id, N, max_episode_steps=15, num_threads=threads, **kwargs)
-        assert env.num_threads == threads and env._vector_step is not None
+        assert env.num_threads == threads and env.compiled_path.whole is not None
         runs.append(trajectory(env, steps))
     assert identical(runs[0], runs[1]) and identical(runs[0], runs[2])
 

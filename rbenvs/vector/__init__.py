@@ -78,11 +78,12 @@ from gymnasium.vector.utils import batch_space
 
 from .. import compiled as _compiled
 from ..core.reasons import ReasonPool, terminal_reason
-from ..core.step import _REAL_FLOATS, action_columns
+from ..core.step import action_columns
 from ..draws import GeneratorTable, kind_codes
-from ..dynamics.validation import real_array, require_bool, require_int_at_least, unknown_keyword
+from ..dynamics.validation import require_bool, require_int_at_least, unknown_keyword
 from ..envs.base import require_compiled
 from ..stepsize.batch import BatchAccuracy
+from .compiled_path import CompiledPath
 from .episodes import EpisodeBatch
 from .info import BatchInfo
 from .realism import BatchRealism
@@ -231,8 +232,18 @@ class RigidBodyVectorEnv(VectorEnv):
         )
         self._reasons = ReasonPool(self.num_envs, self.engine.event_name)
         self.num_threads = threads
-        self._build_compiled(compiled)
-        if self._vector_step is None:
+        # the compiled parts (rbenvs.vector.compiled_path)
+        self.compiled_path = CompiledPath(
+            self.env_class.__name__,
+            self.engine,
+            self.single_observation_space.shape[0],
+            self.max_episode_steps,
+            compiled,
+            self._use_table,
+            self.num_threads,
+        )
+        self.compiled = self.compiled_path.batch is not None
+        if self.compiled_path.whole is None:
             if num_threads != "auto" and threads > 1:
                 raise ValueError(
                     f"num_threads={num_threads} splits the compiled vector step, and this env "
@@ -243,74 +254,18 @@ class RigidBodyVectorEnv(VectorEnv):
                 )
             self.num_threads = 1
 
-    def _build_compiled(self, compiled) -> None:
-        """The compiled parts, which hold numba's objects: made here and again when a pickled or
-        deep-copied env is loaded (:meth:`__setstate__`), from the env's settings alone."""
-        self._batch_step = self._compiled_step(compiled)
-        self.compiled = self._batch_step is not None
-        # the whole step compiled (actions, period, finish, episode clocks, restarts): one call
-        # per step where the generators can be handed to compiled code
-        self._vector_step = None
-        if self._batch_step is not None and self._use_table:
-            self._vector_step = _compiled.VectorStep(
-                self.engine.kernel_parts(),
-                self.model,
-                self.single_observation_space.shape[0],
-                self.engine.high,
-                self.max_episode_steps,
-                error=self.engine.rule.error,
-                threads=self.num_threads,
-            )
-
     def __getstate__(self):
-        """Everything but numba's objects (the generator tables' typed lists, the compiled steps)
-        and a figure: those are made again on loading, around the same generators, so that the
-        copy goes on bit for bit."""
+        """Everything but numba's objects (the generator tables' typed lists; the compiled steps
+        rebuild themselves) and a figure: those are made again on loading, around the same
+        generators, so that the copy goes on bit for bit."""
         state = self.__dict__.copy()
-        state["_batch_step"] = state["_vector_step"] = state["_renderer"] = None
+        state["_renderer"] = None
         state["_table"] = self._table is not None
         return state
 
     def __setstate__(self, state) -> None:
         self.__dict__.update(state)
-        self._build_compiled(bool(state["compiled"]))
         self._table = GeneratorTable(self._rngs) if state["_table"] else None
-
-    def _compiled_step(self, compiled):
-        """The model's :class:`rbenvs.compiled.BatchStep`, or ``None`` for the numpy path."""
-        if compiled is False:
-            return None
-        parts = self.engine.kernel_parts()
-        if not _compiled.available():
-            reason = (
-                f"numba is not installed (the 'fast' extra) or {_compiled.DISABLE_VARIABLE}=0 "
-                "is set"
-            )
-        elif parts is None:
-            reason = (
-                f"{self.env_class.__name__} with integrator {self.integrator.name!r}, task "
-                f"{self.task.name!r} "
-                "and these settings has no compiled step (the integrator, system and task need "
-                "pure forms; "
-                "events and hybrid switching never compile)"
-            )
-        else:
-            actuator = self.model.actuator
-            u_norm, u = actuator.control((0.0,) * actuator.size)
-            sample = self.model.initial_state(np.random.default_rng(0))
-            return _compiled.BatchStep(
-                parts,
-                self.system.dim,
-                self.single_observation_space.shape[0],
-                len(u),
-                sample,
-                self.engine.high,
-                len(u_norm),
-                self.model.dt,
-            )
-        if compiled is True:
-            raise ValueError(f"compiled=True but {reason}")
-        return None
 
     @property
     def dt(self) -> float:
@@ -321,7 +276,7 @@ class RigidBodyVectorEnv(VectorEnv):
         """The compiled :class:`rbenvs.compiled.BatchStep` this env steps with, or ``None`` on the
         numpy path (read-only; ``rbenvs bench throughput`` times it alone: the kernel's share of
         a step, without the Python around it)."""
-        return self._batch_step
+        return self.compiled_path.batch
 
     # ------------------------------------------------------------------ reset
     def reset(self, *, seed=None, options=None):
@@ -382,11 +337,13 @@ class RigidBodyVectorEnv(VectorEnv):
         that is slow to compile; the same bits)."""
         if self._ranges is not None:
             return self._episodes.fresh(y, idx, started, self.single_observation_space.shape[0])
-        if compiled and self._vector_step is not None and self._table is not None:
-            obs, over, metrics, physical = self._vector_step.finish(np.stack(y), self._table.list)
+        if compiled and self.compiled_path.whole is not None and self._table is not None:
+            obs, over, metrics, physical = self.compiled_path.whole.finish(
+                np.stack(y), self._table.list
+            )
             return obs, over, dict(zip(self.task.metric_names, metrics)), physical
-        if compiled and self._batch_step is not None:
-            obs, over, _, _, metrics, physical = self._batch_step.finish(np.stack(y))
+        if compiled and self.compiled_path.batch is not None:
+            obs, over, _, _, metrics, physical = self.compiled_path.batch.finish(np.stack(y))
             return obs, over, dict(zip(self.task.metric_names, metrics)), physical
         k = len(y[0])
         actuator = self.model.actuator
@@ -458,7 +415,7 @@ class RigidBodyVectorEnv(VectorEnv):
         if not accuracy.estimated or self.run.y is None:
             return accuracy.unestimated_report(self._step(actions))
         accuracy.begin()
-        vstep = self._vector_step
+        vstep = self.compiled_path.whole
         written = self._ranges is not None or (
             vstep is not None and self._table is not None and vstep.layout.estimate
         )
@@ -490,7 +447,7 @@ class RigidBodyVectorEnv(VectorEnv):
             raise RuntimeError("call reset() before step()")
         if self._ranges is not None:
             return self._step_episodes(actions)
-        if self._vector_step is not None and self._table is not None:
+        if self.compiled_path.whole is not None and self._table is not None:
             return self._compiled_step_all(actions)
         engine = self.engine
         # NEXT_STEP: the sub-envs whose episode ended last step are reset, not stepped.
@@ -508,8 +465,10 @@ class RigidBodyVectorEnv(VectorEnv):
         plain = self.run.plain if plain is None else plain
         with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
             # a sub-env blowing up is reported once, below, as the single env does
-            if self._batch_step is not None:
-                y, fast, fired, h = self._compiled_advance(y0, u, u_norm, restart, plain)
+            if self.compiled_path.batch is not None:
+                y, fast, fired, h = self.compiled_path.advance(
+                    self.run, u, u_norm, restart, plain, self._false
+                )
             else:
                 comp = None if self.run.cc is None else tuple(self.run.cc)
                 y, fired, h, comp = engine.advance(
@@ -562,55 +521,17 @@ class RigidBodyVectorEnv(VectorEnv):
         path, bit for bit; Python builds ``info`` from its arrays. A non-finite new state goes
         to the numpy path's failure handling, a refusal or a bad action raises as there."""
         shape = self.action_space.shape
-        a = actions
-        if not (
-            type(a) is np.ndarray
-            and a.dtype in _REAL_FLOATS
-            and a.shape == shape
-            and a.flags.c_contiguous
-        ):
-            a = real_array("actions", actions, dtype=None)
-            if a.shape != shape:
-                raise ValueError(f"actions must have shape {shape}, got {a.shape}")
-            a = np.ascontiguousarray(a, dtype=a.dtype if a.dtype in _REAL_FLOATS else np.float64)
         next_step = self.autoreset_mode is AutoresetMode.NEXT_STEP
-        vstep, engine = self._vector_step, self.engine
-        Y = self.run.y2d if self.run.y2d is not None else np.stack(self.run.y)
-        if next_step:
-            if not self.run.prev_done.flags.writeable:
-                self.run.prev_done = self.run.prev_done.copy()
-            done = self.run.prev_done  # in: the sub-envs to restart; out: those whose episode ended
-            restart = done.copy()
-            skip = restart
-        else:
-            done, restart, skip = np.empty(self.num_envs, dtype=bool), self._false, self._false
         reasons, rz, clear, entry = self._reasons.take()
-        # (compiled arithmetic raises no floating-point warnings: no errstate needed here)
-        r = vstep(
-            a,
-            Y,
-            self.run.steps,
-            done,
-            skip,
-            self._table.list,
-            not self.run.plain,
-            engine.guard == "refuse",
+        r, done, restart, a = self.compiled_path.step(
+            self.run,
+            actions,
+            shape,
             next_step,
+            self._table.list,
             (rz, self._reasons.names, clear),
-            self.run.cc,
+            self._false,
         )
-        if (
-            r.status == -2
-        ):  # a non-finite action: the numpy path's check raises, naming the sub-envs
-            action_columns(actions, shape)
-            raise AssertionError(
-                "the compiled step found a non-finite action that action_columns accepted"
-            )
-        if r.status == -1:
-            over = (r.counts > engine.substeps) & ~restart
-            raise engine.refusal(
-                int(r.counts[over].max()), f" of sub-envs {np.flatnonzero(over).tolist()}"
-            )
         # the controls that acted: made from the actions where a failure needs them
         self.run.u, self.run.last_h = None, r.h
         if r.status > 0:  # non-finite new states: the numpy path's failure handling
@@ -628,13 +549,11 @@ class RigidBodyVectorEnv(VectorEnv):
         self._accuracy.wrote(r.estimate)
         info = self._infos.of_kernel(r, done, reasons)
         obs, reward = r.obs, r.reward  # (the failure charge is in: the kernel adds it)
-        if next_step:
-            if (
-                r.n_restarted and not vstep.restarts
-            ):  # (no pure start: restarted here; else in the step)
-                obs, info = self._restart(restart, obs, info)
-        elif r.n_ended:
-            obs, info = self._same_step_reset(done, obs, info, r)
+        if not next_step:
+            if r.n_ended:
+                obs, info = self._same_step_reset(done, obs, info, r)
+        elif r.n_restarted and not self.compiled_path.whole.restarts:
+            obs, info = self._restart(restart, obs, info)  # (no pure start: restarted here)
         return obs, reward, r.terminated, r.truncated, info
 
     def _finish(
@@ -701,46 +620,6 @@ class RigidBodyVectorEnv(VectorEnv):
         fail = ended & ~np.asarray(success, dtype=bool)
         return np.where(fail, reward + charge, reward) if fail.any() else reward
 
-    def _compiled_advance(self, y, u, u_norm, restart, plain):
-        """The compiled period: ``(y, fast, fired, h)``; ``fast`` is ``(Y, obs, over, reward,
-        terminated, metrics, physical read-outs)``, or ``None`` when a new state is non-finite
-        (the numpy path then handles the failure from ``y``). The kernel runs the guard per
-        sub-env (those about to restart take ``substeps``, as on the numpy path); with
-        ``guard="refuse"`` a period it would subdivide raises before anything changes."""
-        n, engine = self.num_envs, self.engine
-        Y = self.run.y2d if self.run.y2d is not None else np.stack(y)
-        # controls as (n,) float64 arrays (an unactuated axis is a 0.0 for every sub-env)
-        u = tuple(c if type(c) is np.ndarray else np.full(n, c, dtype=np.float64) for c in u)
-        u_norm = tuple(
-            c if type(c) is np.ndarray else np.full(n, c, dtype=np.float64) for c in u_norm
-        )
-        out = self._batch_step(
-            Y,
-            u,
-            u_norm,
-            engine.h,
-            engine.substeps,
-            not plain,
-            restart,
-            engine.guard == "refuse",
-            self.run.cc,
-        )
-        if out.status < 0:
-            over = (out.counts > engine.substeps) & ~restart
-            raise engine.refusal(
-                int(out.counts[over].max()), f" of sub-envs {np.flatnonzero(over).tolist()}"
-            )
-        fired = out.fired if out.fired.any() else self._false
-        y = tuple(out.Y)
-        if out.status:
-            return y, None, fired, out.h
-        return (
-            y,
-            (out.Y, out.obs, out.over, out.reward, out.terminated, out.metrics, out.readouts),
-            fired,
-            out.h,
-        )
-
     def _restart(self, which, obs, info):
         """NEXT_STEP autoreset of the sub-envs in ``which``: new initial states, and their rows of
         ``obs`` and ``info`` as after :meth:`reset`. Only those rows are computed and written: a
@@ -780,10 +659,10 @@ class RigidBodyVectorEnv(VectorEnv):
         ``compiled``, the compiled restarts written into its arrays)."""
         final_obs = obs.copy()
         final_info = {k: (v.copy() if isinstance(v, np.ndarray) else v) for k, v in info.items()}
-        if compiled is not None and self._vector_step.restarts:
+        if compiled is not None and self.compiled_path.whole.restarts:
             r = compiled
             idx = np.flatnonzero(done)
-            self._vector_step.rows(
+            self.compiled_path.whole.rows(
                 idx,
                 np.ones(len(idx), dtype=bool),
                 r.Y,
