@@ -1049,7 +1049,9 @@ def test_batched_starts_equal_single_env_starts_bit_for_bit(env_id, kwargs, comp
     venv = make_vec(env_id, n, compiled=compiled, **kwargs)
     singles = make_singles(env_id, n, **kwargs)
     venv.reset(seed=7)
-    assert (venv.unwrapped._table is not None) == (compiled == "auto" and compiled_available())
+    assert (venv.unwrapped.starts.table is not None) == (
+        compiled == "auto" and compiled_available()
+    )
     for i, env in enumerate(singles):
         env.reset(seed=7 + i)
     for _ in range(2):

@@ -72,14 +72,12 @@ import inspect
 import warnings
 
 import numpy as np
-from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
 from .. import compiled as _compiled
 from ..core.reasons import ReasonPool, terminal_reason
 from ..core.step import action_columns
-from ..draws import GeneratorTable, kind_codes
 from ..dynamics.validation import require_bool, require_int_at_least, unknown_keyword
 from ..envs.base import require_compiled
 from ..stepsize.batch import BatchAccuracy
@@ -87,8 +85,9 @@ from .compiled_path import CompiledPath
 from .episodes import EpisodeBatch
 from .info import BatchInfo
 from .realism import BatchRealism
-from .resets import reset_request, state_rows
+from .resets import reset_request
 from .run import BatchRun
+from .starts import BatchStarts
 from .threads import resolve_num_threads
 
 __all__ = [
@@ -219,12 +218,7 @@ class RigidBodyVectorEnv(VectorEnv):
         self.run = BatchRun(
             self.num_envs, self.system.dim, self.engine.step_c is not None, self.engine.plain
         )
-        self._rngs = [None] * self.num_envs
-        # the generators as one compiled table (rbenvs.draws), made once every sub-env has one:
-        # restarts then draw with no Python per sub-env
-        self._table = None
-        self._use_table = compiled is not False and _compiled.available()
-        self._codes = kind_codes(self.model.draw_kinds)
+        tables = compiled is not False and _compiled.available()
         # shared read-only masks: every step's info reuses them instead of allocating
         self._true, self._false = self._accuracy.true, self._accuracy.false
         self._infos = BatchInfo(
@@ -239,10 +233,21 @@ class RigidBodyVectorEnv(VectorEnv):
             self.single_observation_space.shape[0],
             self.max_episode_steps,
             compiled,
-            self._use_table,
+            tables,
             self.num_threads,
         )
         self.compiled = self.compiled_path.batch is not None
+        # each sub-env's generator and its starts and restarts (rbenvs.vector.starts)
+        self.starts = BatchStarts(
+            self.engine,
+            self.num_envs,
+            self.single_observation_space.shape[0],
+            tables,
+            self.info_readouts,
+            self.compiled_path,
+            self._accuracy,
+            self._episodes,
+        )
         if self.compiled_path.whole is None:
             if num_threads != "auto" and threads > 1:
                 raise ValueError(
@@ -255,17 +260,9 @@ class RigidBodyVectorEnv(VectorEnv):
             self.num_threads = 1
 
     def __getstate__(self):
-        """Everything but numba's objects (the generator tables' typed lists; the compiled steps
-        rebuild themselves) and a figure: those are made again on loading, around the same
-        generators, so that the copy goes on bit for bit."""
-        state = self.__dict__.copy()
-        state["_renderer"] = None
-        state["_table"] = self._table is not None
-        return state
-
-    def __setstate__(self, state) -> None:
-        self.__dict__.update(state)
-        self._table = GeneratorTable(self._rngs) if state["_table"] else None
+        """Everything but a figure (the compiled parts and the generators' table rebuild
+        themselves on loading, around the same generators: the copy goes on bit for bit)."""
+        return dict(self.__dict__, _renderer=None)
 
     @property
     def dt(self) -> float:
@@ -282,27 +279,12 @@ class RigidBodyVectorEnv(VectorEnv):
     def reset(self, *, seed=None, options=None):
         n = self.num_envs
         seeds, state, mask, elapsed = reset_request(n, seed, options, self.max_episode_steps)
-        for i in np.flatnonzero(mask):
-            if seeds[i] is not None or self._rngs[i] is None:
-                self._rngs[i] = seeding.np_random(seeds[i])[0]
-                if self._table is not None:
-                    self._table[i] = self._rngs[i]
-        if self._use_table and self._table is None and all(r is not None for r in self._rngs):
-            self._table = GeneratorTable(self._rngs)
-        if state is not None:
-            if (
-                self._ranges is not None
-            ):  # the episodes' parameters first, as the single env draws them
-                self._episodes.start(np.flatnonzero(mask), self._rngs)
-            # each row checked by its system (its episode's), as the single env checks its start
-            system_of = self._episodes.system if self._ranges is not None else self._system_of
-            self._set_rows(state_rows(state, mask, n, system_of))
-        else:
-            self._draw_rows(np.flatnonzero(mask))
+        self.starts.seed(seeds, mask)
+        self.starts.start(self.run, state, mask)
         self.run.steps[mask] = 0 if elapsed is None else elapsed[mask]
         self.run.prev_done = self.run.prev_done & ~mask
         self.run.plain = self.engine.plain
-        obs, over, metrics, physical = self._fresh(
+        obs, over, metrics, physical = self.starts.fresh(
             self.run.y, np.arange(n), started=mask, compiled=False
         )
         if np.any(over & mask):
@@ -326,82 +308,6 @@ class RigidBodyVectorEnv(VectorEnv):
             obs, info = self._realism_after(obs, info, mask)
         return obs, info
 
-    def _fresh(self, y, idx, started=None, compiled=True):
-        """``(obs, over, metrics, physical)`` of states ``y`` that have just been reset: no control
-        acted yet (read-outs under ``u = None``, the single env's rule), the task's metrics at zero
-        action. Compiled where the step is (:meth:`rbenvs.compiled.VectorStep.finish`); on numpy
-        ``physical`` is ``None`` (the engine's read-outs are taken where needed). ``y``: the rows
-        ``idx`` of the batch; ``started``: the sub-envs that start an episode (``None``: every
-        one of ``idx``; a sub-env's episode engine keeps its run going where it does not);
-        ``compiled=False``: on numpy (a reset: its rows once per reset are not worth a kernel
-        that is slow to compile; the same bits)."""
-        if self._ranges is not None:
-            return self._episodes.fresh(y, idx, started, self.single_observation_space.shape[0])
-        if compiled and self.compiled_path.whole is not None and self._table is not None:
-            obs, over, metrics, physical = self.compiled_path.whole.finish(
-                np.stack(y), self._table.list
-            )
-            return obs, over, dict(zip(self.task.metric_names, metrics)), physical
-        if compiled and self.compiled_path.batch is not None:
-            obs, over, _, _, metrics, physical = self.compiled_path.batch.finish(np.stack(y))
-            return obs, over, dict(zip(self.task.metric_names, metrics)), physical
-        k = len(y[0])
-        actuator = self.model.actuator
-        zero = actuator.control(tuple(np.zeros(k) for _ in range(actuator.size)))[0]
-        obs, over = self.engine.observe(y)
-        return obs, over, self.engine.evaluate(y, zero)[2], None
-
-    def _draw_rows(self, idx) -> None:
-        """New initial states for the sub-envs ``idx``, each from its own generator: only the
-        generator calls run per sub-env (the model's ``draw_kinds``; one compiled loop over the
-        sub-envs where numba is installed, :class:`rbenvs.draws.GeneratorTable`), the
-        arithmetic once on the batch (``Model.initial_from_draws``). Sub-env ``i`` gets the
-        state a single env draws from the same generator (tested)."""
-        if len(idx) == 0:
-            return
-        if self._ranges is not None:
-            comps = self._episodes.initial_states(idx, self._rngs)
-        elif self._table is not None:
-            task_raw, system_raw = self.model.split_draws(self._table.draws(idx, self._codes))
-        else:
-            task_raw, system_raw = self.model.batch_draws([self._rngs[i] for i in idx])
-        if self._ranges is None:
-            comps = self.model.initial_from_draws(tuple(task_raw), tuple(system_raw))
-        if self.run.cc is not None:  # (new runs)
-            self.run.cc[:, idx] = 0.0
-        if (
-            self.run.y2d is not None
-        ):  # the rows of the kernel's (dim, n) state, which self.run.y views
-            for j, v in enumerate(comps):
-                self.run.y2d[j, idx] = v
-            return
-        y = (
-            [c.copy() for c in self.run.y]
-            if self.run.y is not None
-            else [np.zeros(self.num_envs) for _ in range(self.system.dim)]
-        )
-        for c, v in zip(y, comps):
-            c[idx] = v
-        self.run.y = tuple(y)
-        self._restart_companion(idx)
-
-    def _restart_companion(self, idx) -> None:
-        """The companions of the sub-envs ``idx`` start at their new states
-        (``tolerance_check``)."""
-        if self._ranges is not None:  # (each its episode's)
-            self._episodes.restart_checks(idx, self.run.y)
-        self._accuracy.restart(self.run.y, idx)
-
-    def _system_of(self, i):
-        """Sub-env ``i``'s system (the model's: without param_ranges every sub-env shares it)."""
-        return self.system
-
-    def _set_rows(self, rows: dict) -> None:
-        if self.run.y is None:
-            self.run.y = tuple(np.zeros(self.num_envs) for _ in range(self.system.dim))
-        self.run.set_rows(rows)
-        self._restart_companion(list(rows))
-
     # ------------------------------------------------------------------ step
     def step(self, actions):
         if self._options:  # (the delayed actions, then the estimate below, then the noise)
@@ -417,7 +323,7 @@ class RigidBodyVectorEnv(VectorEnv):
         accuracy.begin()
         vstep = self.compiled_path.whole
         written = self._ranges is not None or (
-            vstep is not None and self._table is not None and vstep.layout.estimate
+            vstep is not None and self.starts.table is not None and vstep.layout.estimate
         )
         if written and self._ranges is None:
             # the compiled step writes the estimates (a restart's 0 too, and a step handed to
@@ -447,7 +353,7 @@ class RigidBodyVectorEnv(VectorEnv):
             raise RuntimeError("call reset() before step()")
         if self._ranges is not None:
             return self._step_episodes(actions)
-        if self.compiled_path.whole is not None and self._table is not None:
+        if self.compiled_path.whole is not None and self.starts.table is not None:
             return self._compiled_step_all(actions)
         engine = self.engine
         # NEXT_STEP: the sub-envs whose episode ended last step are reset, not stepped.
@@ -528,7 +434,7 @@ class RigidBodyVectorEnv(VectorEnv):
             actions,
             shape,
             next_step,
-            self._table.list,
+            self.starts.table.list,
             (rz, self._reasons.names, clear),
             self._false,
         )
@@ -551,9 +457,9 @@ class RigidBodyVectorEnv(VectorEnv):
         obs, reward = r.obs, r.reward  # (the failure charge is in: the kernel adds it)
         if not next_step:
             if r.n_ended:
-                obs, info = self._same_step_reset(done, obs, info, r)
-        elif r.n_restarted and not self.compiled_path.whole.restarts:
-            obs, info = self._restart(restart, obs, info)  # (no pure start: restarted here)
+                obs, info = self.starts.same_step_reset(self.run, done, obs, info, r)
+        elif r.n_restarted and not self.compiled_path.whole.restarts:  # (no pure start)
+            obs, info = self.starts.restart(self.run, restart, obs, info)
         return obs, reward, r.terminated, r.truncated, info
 
     def _finish(
@@ -599,7 +505,7 @@ class RigidBodyVectorEnv(VectorEnv):
                     reward, ended & ~restart if any_restart else ended, metrics["is_success"]
                 )
         if any_restart:
-            obs, info = self._restart(restart, obs, info)
+            obs, info = self.starts.restart(self.run, restart, obs, info)
             reward = np.where(restart, 0.0, reward)
             terminated = terminated & ~restart
             truncated = truncated & ~restart
@@ -607,7 +513,7 @@ class RigidBodyVectorEnv(VectorEnv):
         if self.autoreset_mode is AutoresetMode.NEXT_STEP:
             self.run.prev_done = done
         elif done.any():
-            obs, info = self._same_step_reset(done, obs, info)
+            obs, info = self.starts.same_step_reset(self.run, done, obs, info)
         return obs, reward, terminated, truncated, info
 
     def _charged(self, reward, ended, success):
@@ -619,76 +525,6 @@ class RigidBodyVectorEnv(VectorEnv):
             return reward
         fail = ended & ~np.asarray(success, dtype=bool)
         return np.where(fail, reward + charge, reward) if fail.any() else reward
-
-    def _restart(self, which, obs, info):
-        """NEXT_STEP autoreset of the sub-envs in ``which``: new initial states, and their rows of
-        ``obs`` and ``info`` as after :meth:`reset`. Only those rows are computed and written: a
-        few restarts in a large batch cost a few rows, not another pass over the batch."""
-        idx = np.flatnonzero(which)
-        self._draw_rows(idx)
-        self.run.steps[which] = 0
-        y = tuple(c[idx] for c in self.run.y)
-        new_obs, _, metrics, physical = self._fresh(y, idx)
-        obs = obs.copy()
-        obs[idx] = new_obs
-        values = {}
-        if self.info_readouts:
-            if physical is None:
-                values = self.engine.readouts(
-                    y, None, np.zeros(len(idx), dtype=bool), self.engine.h
-                )
-            else:
-                values = dict(zip(self.engine.readout_names, physical), internal_step=self.engine.h)
-        values.update(metrics)
-        values["numerical_failure"] = False
-        for key, value in values.items():
-            column = info[key]
-            if (
-                not column.flags.writeable
-            ):  # a shared mask (info's other arrays are this step's own)
-                column = info[key] = column.copy()
-            column[idx] = value
-        if "terminal_reason" in info:
-            info["terminal_reason"] = np.where(which, "", info["terminal_reason"])
-            info["_terminal_reason"] = info["_terminal_reason"] & ~which
-        return obs, info
-
-    def _same_step_reset(self, done, obs, info, compiled=None):
-        """SAME_STEP autoreset of the sub-envs in ``done``: the last observation and info kept in
-        ``final_obs`` and ``final_info``, then :meth:`_restart` (or, after a compiled step
-        ``compiled``, the compiled restarts written into its arrays)."""
-        final_obs = obs.copy()
-        final_info = {k: (v.copy() if isinstance(v, np.ndarray) else v) for k, v in info.items()}
-        if compiled is not None and self.compiled_path.whole.restarts:
-            r = compiled
-            idx = np.flatnonzero(done)
-            self.compiled_path.whole.rows(
-                idx,
-                np.ones(len(idx), dtype=bool),
-                r.Y,
-                self._table.list,
-                obs,
-                r.over,
-                r.h,
-                self.run.steps,
-                r.metrics,
-                r.readouts,
-            )
-            if self.run.cc is not None:  # (new runs)
-                self.run.cc[:, idx] = 0.0
-            if "terminal_reason" in info:  # (every ended sub-env restarts)
-                info["terminal_reason"] = np.where(done, "", info["terminal_reason"])
-                info["_terminal_reason"] = info["_terminal_reason"] & ~done
-        else:
-            obs, info = self._restart(done, obs, info)
-        final = np.empty(self.num_envs, dtype=object)  # one float32 observation per ended sub-env
-        for i in np.flatnonzero(done):
-            final[i] = final_obs[i]
-        info["final_obs"] = final
-        info["_final_obs"] = done.copy()
-        info["final_info"] = final_info
-        info["_final_info"] = done.copy()
-        return obs, info
 
     # ------------------------------------------------------------------ robustness options
     def _step_episodes(self, actions):
@@ -751,7 +587,7 @@ class RigidBodyVectorEnv(VectorEnv):
         ``info`` is updated."""
         idx = np.flatnonzero(started)
         obs, info = self._realism_batch.after(
-            obs, info, idx, self._rngs, self.engine.high, same_step
+            obs, info, idx, self.starts.rngs, self.engine.high, same_step
         )
         if self._ranges is not None and len(idx):
             info["params"] = self._episodes.params_info(started)
