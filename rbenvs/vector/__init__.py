@@ -68,7 +68,6 @@ Conventions (gymnasium 1.x):
 
 from __future__ import annotations
 
-import inspect
 import warnings
 
 import numpy as np
@@ -78,9 +77,10 @@ from gymnasium.vector.utils import batch_space
 from .. import compiled as _compiled
 from ..core.reasons import ReasonPool, terminal_reason
 from ..core.step import action_columns
-from ..dynamics.validation import require_bool, require_int_at_least, unknown_keyword
+from ..dynamics.validation import require_bool, require_int_at_least
 from ..envs.base import require_compiled
 from ..stepsize.batch import BatchAccuracy
+from .arguments import batch_compiled, batch_threads, require_autoreset_mode, require_known
 from .compiled_path import CompiledPath
 from .episodes import EpisodeBatch
 from .info import BatchInfo
@@ -114,21 +114,7 @@ class RigidBodyVectorEnv(VectorEnv):
         num_threads=1,
         **kwargs,
     ):
-        valid = [
-            k
-            for f in (self.env_class.__init__, RigidBodyVectorEnv.__init__)
-            for k in inspect.signature(f).parameters
-            if k not in ("self", "kwargs")
-        ]
-        error = unknown_keyword(
-            type(self).__name__,
-            kwargs,
-            valid,
-            f"help(rbenvs.vector.{type(self).__name__}) and "
-            f"help(rbenvs.envs.{self.env_class.__name__}), docs/vector.md",
-        )
-        if error is not None:
-            raise error
+        require_known(type(self), RigidBodyVectorEnv.__init__, kwargs)
         self.num_envs = require_int_at_least("num_envs", num_envs, 1)
         threads = resolve_num_threads(num_threads)
         self.info_readouts = require_bool("info_readouts", info_readouts)
@@ -136,19 +122,7 @@ class RigidBodyVectorEnv(VectorEnv):
         if max_episode_steps is not None:
             max_episode_steps = require_int_at_least("max_episode_steps", max_episode_steps, 1)
         self.max_episode_steps = max_episode_steps
-        try:
-            mode = AutoresetMode(autoreset_mode)
-        except ValueError:
-            raise ValueError(
-                "autoreset_mode must be one of "
-                f"{[m.value for m in AutoresetMode if m is not AutoresetMode.DISABLED]}, got "
-                f"{autoreset_mode!r}"
-            ) from None
-        if mode is AutoresetMode.DISABLED:
-            raise ValueError(
-                "autoreset_mode must be NextStep or SameStep (Disabled is not supported)"
-            )
-        self.autoreset_mode = mode
+        self.autoreset_mode = mode = require_autoreset_mode(autoreset_mode)
         # the single env's constructor validates the arguments and builds the model; only its
         # public model, spaces and metadata are read
         env = self.env_class(
@@ -168,34 +142,14 @@ class RigidBodyVectorEnv(VectorEnv):
         )
         # the robustness options (rbenvs.envs.options), validated by the single env
         self._ranges, self._realism = env.param_ranges, env.realism
-        # tolerance_check: the companion run of every sub-env (rbenvs.stepsize.controller), on the
-        # numpy path, its runs (the main run's and the companion's) in one compiled loop
-        # over the sub-envs where numba is installed (rbenvs.compiled.CheckedRuns.batch; with
-        # compiled=False on numpy); the batch kernel has no checked period
+        # tolerance_check's companion runs and param_ranges' episodes step on numpy or floats
         checked = bool(env.model.check)
-        if checked:
-            if compiled is True:
-                raise ValueError(
-                    "compiled=True cannot be had with tolerance_check=True: the checked period (an "
-                    "even count of steps "
-                    "and the companion run) runs on numpy, its runs in a compiled loop over the "
-                    "sub-envs (where numba is installed); "
-                    "pass compiled='auto' or False"
-                )
-            compiled = False
+        compiled = batch_compiled(compiled, checked, self._ranges is not None)
         self._options = self._ranges is not None or self._realism.active
         self._episodes = None  # (param_ranges: below)
         if self._ranges is not None:
             # each sub-env's episode has its own model (its drawn parameters), stepped on the float
             # path: no batched or compiled step of a model per row exists
-            if compiled is True:
-                raise ValueError(
-                    "compiled=True cannot be had with param_ranges: each sub-env's episode has its "
-                    "own model (drawn "
-                    "parameters), stepped one sub-env at a time on the float path; pass "
-                    "compiled='auto' or False"
-                )
-            compiled = False
             # each sub-env's episode engine (with a tolerance its own estimates, with
             # tolerance_check its own companion: no batch check of the nominal model)
             self._episodes = EpisodeBatch(
@@ -248,16 +202,7 @@ class RigidBodyVectorEnv(VectorEnv):
             self._accuracy,
             self._episodes,
         )
-        if self.compiled_path.whole is None:
-            if num_threads != "auto" and threads > 1:
-                raise ValueError(
-                    f"num_threads={num_threads} splits the compiled vector step, and this env "
-                    "steps on numpy (compiled=False, "
-                    "param_ranges, tolerance_check, an integrator without a pure form, or numba "
-                    "not installed: the 'fast' extra); "
-                    "pass num_threads=1, or 'auto' (1 where the step is not compiled)"
-                )
-            self.num_threads = 1
+        self.num_threads = batch_threads(num_threads, threads, self.compiled_path.whole)
 
     def __getstate__(self):
         """Everything but a figure (the compiled parts and the generators' table rebuild
