@@ -75,13 +75,14 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
 from .. import compiled as _compiled
-from ..core.reasons import ReasonPool, terminal_reason
+from ..core.reasons import ReasonPool
 from ..core.step import action_columns
 from ..dynamics.validation import require_bool, require_int_at_least
 from ..envs.base import require_compiled
 from ..stepsize.batch import BatchAccuracy
 from .arguments import batch_compiled, batch_threads, require_autoreset_mode, require_known
 from .compiled_path import CompiledPath
+from .ends import BatchEnds
 from .episodes import EpisodeBatch
 from .info import BatchInfo
 from .realism import BatchRealism
@@ -135,74 +136,54 @@ class RigidBodyVectorEnv(VectorEnv):
         self.single_action_space = env.action_space
         self.observation_space = batch_space(env.observation_space, self.num_envs)
         self.action_space = batch_space(env.action_space, self.num_envs)
-        self.system, self.task, self.integrator = (
-            self.model.system,
-            self.model.task,
-            self.model.integrator,
-        )
+        m, engine, n = self.model, self.engine, self.num_envs
+        self.system, self.task, self.integrator = m.system, m.task, m.integrator
+        self._obs_dim = obs_dim = self.single_observation_space.shape[0]
         # the robustness options (rbenvs.envs.options), validated by the single env
         self._ranges, self._realism = env.param_ranges, env.realism
-        # tolerance_check's companion runs and param_ranges' episodes step on numpy or floats
-        checked = bool(env.model.check)
-        compiled = batch_compiled(compiled, checked, self._ranges is not None)
         self._options = self._ranges is not None or self._realism.active
-        self._episodes = None  # (param_ranges: below)
-        if self._ranges is not None:
-            # each sub-env's episode has its own model (its drawn parameters), stepped on the float
-            # path: no batched or compiled step of a model per row exists
-            # each sub-env's episode engine (with a tolerance its own estimates, with
-            # tolerance_check its own companion: no batch check of the nominal model)
-            self._episodes = EpisodeBatch(
-                env, self._ranges, self.num_envs, checked, self.engine.tolerance is not None
-            )
+        # tolerance_check's companion runs and param_ranges' episodes step on numpy or floats
+        checked = bool(m.check)
+        compiled = batch_compiled(compiled, checked, self._ranges is not None)
+        # param_ranges: each sub-env's episode has its own model (drawn parameters) and engine
+        # (with a tolerance its own estimates, with tolerance_check its own companion)
+        self._episodes = (
+            None
+            if self._ranges is None
+            else EpisodeBatch(env, self._ranges, n, checked, engine.tolerance is not None)
+        )
         # what each step reports of its accuracy (info["error_estimate"], with tolerance_check
         # info["global_error_estimate"] and the batch's companion)
-        self._accuracy = BatchAccuracy(
-            self.engine, self.num_envs, checked, checked and self._ranges is None
-        )
+        self._accuracy = BatchAccuracy(engine, n, checked, checked and self._ranges is None)
         self._realism_batch = BatchRealism(
-            self._realism,
-            self.num_envs,
-            self.single_observation_space.shape[0],
-            self.single_action_space.shape,
-            _compiled.available(),
+            self._realism, n, obs_dim, self.single_action_space.shape, _compiled.available()
         )
         self._renderer = None
-        # the states, clocks and compensations of every sub-env
-        self.run = BatchRun(
-            self.num_envs, self.system.dim, self.engine.step_c is not None, self.engine.plain
-        )
-        tables = compiled is not False and _compiled.available()
+        self.run = BatchRun(n, self.system.dim, engine.step_c is not None, engine.plain)
         # shared read-only masks: every step's info reuses them instead of allocating
         self._true, self._false = self._accuracy.true, self._accuracy.false
-        self._infos = BatchInfo(
-            self.engine, self.num_envs, self.info_readouts, self._true, self._false
-        )
-        self._reasons = ReasonPool(self.num_envs, self.engine.event_name)
-        self.num_threads = threads
-        # the compiled parts (rbenvs.vector.compiled_path)
+        self._infos = BatchInfo(engine, n, self.info_readouts, self._true, self._false)
+        self._reasons = ReasonPool(n, engine.event_name)
+        tables = compiled is not False and _compiled.available()
         self.compiled_path = CompiledPath(
-            self.env_class.__name__,
-            self.engine,
-            self.single_observation_space.shape[0],
-            self.max_episode_steps,
-            compiled,
-            tables,
-            self.num_threads,
+            self.env_class.__name__, engine, obs_dim, max_episode_steps, compiled, tables, threads
         )
         self.compiled = self.compiled_path.batch is not None
-        # each sub-env's generator and its starts and restarts (rbenvs.vector.starts)
+        self.num_threads = batch_threads(num_threads, threads, self.compiled_path.whole)
         self.starts = BatchStarts(
-            self.engine,
-            self.num_envs,
-            self.single_observation_space.shape[0],
+            engine,
+            n,
+            obs_dim,
             tables,
             self.info_readouts,
             self.compiled_path,
             self._accuracy,
             self._episodes,
         )
-        self.num_threads = batch_threads(num_threads, threads, self.compiled_path.whole)
+        next_step = mode is AutoresetMode.NEXT_STEP
+        self._ends = BatchEnds(
+            engine, self._infos, self.starts, max_episode_steps, next_step, self._false
+        )
 
     def __getstate__(self):
         """Everything but a figure (the compiled parts and the generators' table rebuild
@@ -238,16 +219,8 @@ class RigidBodyVectorEnv(VectorEnv):
             )
         self.run.u = None  # as the single env after reset: nothing acted yet (a table at rest)
         self.run.last_h = np.full(n, self.engine.h)
-        info = self._infos.of_batch(
-            self.run.y,
-            self.run.u,
-            self.run.last_h,
-            None,
-            self._false,
-            self._false,
-            metrics,
-            physical,
-        )
+        run, no = self.run, self._false
+        info = self._infos.of_batch(run.y, run.u, run.last_h, None, no, no, metrics, physical)
         self._accuracy.reset_info(info)
         if self._options:
             obs, info = self._realism_after(obs, info, mask)
@@ -255,6 +228,8 @@ class RigidBodyVectorEnv(VectorEnv):
 
     # ------------------------------------------------------------------ step
     def step(self, actions):
+        if self.run.y is None:
+            raise RuntimeError("call reset() before step()")
         if self._options:  # (the delayed actions, then the estimate below, then the noise)
             return self._step_options(actions)
         return self._step_estimated(actions)
@@ -263,7 +238,7 @@ class RigidBodyVectorEnv(VectorEnv):
         """The step of ``actions`` (those that act) with each period's error estimate in its info
         (:class:`rbenvs.stepsize.batch.BatchAccuracy`)."""
         accuracy = self._accuracy
-        if not accuracy.estimated or self.run.y is None:
+        if not accuracy.estimated:
             return accuracy.unestimated_report(self._step(actions))
         accuracy.begin()
         vstep = self.compiled_path.whole
@@ -294,8 +269,6 @@ class RigidBodyVectorEnv(VectorEnv):
         """The step of ``actions``; ``control``: their ``(u_norm, u)`` where the caller made them
         (the numpy path's; the other paths make their own); ``plain``: the numpy path's periods
         take ``substeps`` unchecked (``None``: where the guard's static proof holds, ``_plain``)."""
-        if self.run.y is None:
-            raise RuntimeError("call reset() before step()")
         if self._ranges is not None:
             return self._step_episodes(actions)
         if self.compiled_path.whole is not None and self.starts.table is not None:
@@ -341,15 +314,25 @@ class RigidBodyVectorEnv(VectorEnv):
             if not over.any():
                 over = self._false
             metrics = dict(zip(self.task.metric_names, metrics))
-            return self._finish(
-                obs, over, reward, terminated, fired, None, metrics, restart, any_restart, physical
+            return self._ends.finish(
+                self.run,
+                obs,
+                over,
+                reward,
+                terminated,
+                fired,
+                None,
+                metrics,
+                restart,
+                any_restart,
+                physical,
             )
         return self._numpy_finish(y0, y, u_norm, fired, restart, any_restart, inaccurate)
 
     def _numpy_finish(self, y0, y, u_norm, fired, restart, any_restart, inaccurate=None):
         """The rest of a step on numpy from the period's new states ``y``: numerical failure
         (``inaccurate``: the sub-envs whose global error estimate passed the tolerance),
-        observation, evaluation, then :meth:`_finish`."""
+        observation, evaluation, then :meth:`BatchEnds.finish`."""
         engine = self.engine
         self.run.y2d = None
         accuracy = self._accuracy
@@ -362,8 +345,8 @@ class RigidBodyVectorEnv(VectorEnv):
         if failed is not None:
             reward = np.where(failed, 0.0, reward)
             terminated = terminated | failed
-        return self._finish(
-            obs, over, reward, terminated, fired, failed, metrics, restart, any_restart
+        return self._ends.finish(
+            self.run, obs, over, reward, terminated, fired, failed, metrics, restart, any_restart
         )
 
     def _compiled_step_all(self, actions):
@@ -407,102 +390,23 @@ class RigidBodyVectorEnv(VectorEnv):
             obs, info = self.starts.restart(self.run, restart, obs, info)
         return obs, reward, r.terminated, r.truncated, info
 
-    def _finish(
-        self,
-        obs,
-        over,
-        reward,
-        terminated,
-        fired,
-        failed,
-        metrics,
-        restart,
-        any_restart,
-        physical=None,
-        charged=False,
-    ):
-        """Info, truncation, terminal reasons, the failure charge (unless the rewards are
-        ``charged`` already) and autoreset: the rest of :meth:`step`."""
-        # (a sub-env that left the observation bounds restarts before it is stepped again, so
-        # the guard's static proof holds for every state this env steps: it stays plain)
-        failed_mask = self._false if failed is None else failed
-        lifted = fired & ~failed_mask if fired is not self._false else self._false
-        info = self._infos.of_batch(
-            self.run.y, self.run.u, self.run.last_h, failed, lifted, over, metrics, physical
-        )
-        self.run.steps += 1
-        truncated = (
-            self._false.copy()
-            if self.max_episode_steps is None
-            else self.run.steps >= self.max_episode_steps
-        )  # as TimeLimit
-        ended = terminated | over | lifted
-        stopped = ended | truncated
-        # (NEXT_STEP: a restarting sub-env's period is discarded; it ends nothing)
-        if (stopped & ~restart if any_restart else stopped).any():
-            info["terminal_reason"] = terminal_reason(
-                failed_mask, lifted, over, terminated, self.engine.event_name
-            )
-            info["_terminal_reason"] = stopped
-            terminated = ended
-            if not charged:
-                reward = self._charged(
-                    reward, ended & ~restart if any_restart else ended, metrics["is_success"]
-                )
-        if any_restart:
-            obs, info = self.starts.restart(self.run, restart, obs, info)
-            reward = np.where(restart, 0.0, reward)
-            terminated = terminated & ~restart
-            truncated = truncated & ~restart
-        done = terminated | truncated
-        if self.autoreset_mode is AutoresetMode.NEXT_STEP:
-            self.run.prev_done = done
-        elif done.any():
-            obs, info = self.starts.same_step_reset(self.run, done, obs, info)
-        return obs, reward, terminated, truncated, info
-
-    def _charged(self, reward, ended, success):
-        """``reward`` with the model's failure charge added where an episode ``ended`` without
-        ``success`` (the single env's rule, :class:`rbenvs.core.model.Model`; the compiled step
-        adds it in its kernel)."""
-        charge = self.engine.failure_charge
-        if charge == 0.0:
-            return reward
-        fail = ended & ~np.asarray(success, dtype=bool)
-        return np.where(fail, reward + charge, reward) if fail.any() else reward
-
     # ------------------------------------------------------------------ robustness options
     def _step_episodes(self, actions):
         """A step of a batch whose sub-envs have their own parameters: each sub-env's period
         and finish by its episode engine on floats (:meth:`EpisodeBatch.step`, the single env's
         very step, so bit for bit), then the batch's info, clocks and autoreset
-        (:meth:`_finish`)."""
+        (:meth:`BatchEnds.finish`)."""
         rows = np.stack(action_columns(actions, self.action_space.shape), axis=1).tolist()
-        restart = (
-            self.run.prev_done if self.autoreset_mode is AutoresetMode.NEXT_STEP else self._false
-        )
-        r = self._episodes.step(
-            self.run.y,
-            rows,
-            restart,
-            self.single_observation_space.shape[0],
-            self.engine.h,
-            self.engine.event_name,
-        )
-        self.run.y, self.run.y2d, self.run.u, self.run.last_h = r.y, None, r.u, r.h
+        run, engine, no = self.run, self.engine, self._false
+        restart = run.prev_done if self.autoreset_mode is AutoresetMode.NEXT_STEP else no
+        r = self._episodes.step(run.y, rows, restart, self._obs_dim, engine.h, engine.event_name)
+        run.y, run.y2d, run.u, run.last_h = r.y, None, r.u, r.h
         self._accuracy.wrote(r.estimates, r.global_)
-        return self._finish(
-            r.obs,
-            r.over,
-            r.reward,
-            r.terminated,
-            r.fired if r.fired.any() else self._false,
-            r.failed if r.failed.any() else None,
-            r.metrics,
-            restart,
-            bool(restart.any()),
-            r.physical,
-            charged=True,
+        fired, failed = r.fired if r.fired.any() else no, r.failed if r.failed.any() else None
+        over, metrics, charged = r.over, r.metrics, True
+        ends = (restart, bool(restart.any()), r.physical, charged)
+        return self._ends.finish(
+            run, r.obs, over, r.reward, r.terminated, fired, failed, metrics, *ends
         )
 
     def _step_options(self, actions):
@@ -511,8 +415,6 @@ class RigidBodyVectorEnv(VectorEnv):
         zero-action queue, noise stream and ``info["params"]``, and every observation its noise
         (:meth:`_realism_after`). The same numbers, in the same order from the same generators,
         as the single env."""
-        if self.run.y is None:
-            raise RuntimeError("call reset() before step()")
         r = self._realism
         next_step = self.autoreset_mode is AutoresetMode.NEXT_STEP
         restart = self.run.prev_done.copy() if next_step else None
