@@ -11,7 +11,6 @@ overhead inside the integrator.
 from __future__ import annotations
 
 import collections
-import dataclasses
 import functools
 import inspect
 import math
@@ -27,20 +26,20 @@ from ..core.model import Model
 from ..core.step import Engine, NumericalFailureWarning, action_values
 from ..dynamics.validation import require_finite_positive, require_int_in, unknown_keyword
 from ..integrators import get_integrator
-from ..stepsize.check import GlobalErrorCheck, require_tolerance_check
+from ..stepsize.check import GlobalErrorCheck
 from ..stepsize.controller import (
     GUARDS,
     MAX_INTERNAL_STEPS,
-    StepRule,
     UnstableMotionWarning,
-    default_accuracy,
     require_accuracy,
     require_guard,
-    require_tolerance,
-    takes_tolerance,
     unstable_motion_warning,
 )
-from ..stepsize.forms import relaxation_steps, stability_ratio, step_ratio
+from ..stepsize.settings import (
+    accuracy_settings,
+    cheapest_scheme,
+    require_resolvable,
+)
 from .options import ParamRanges, Realism, noise_generator, noisy_observation, rekey
 from .shared import shared_doc, shared_signature
 
@@ -208,19 +207,15 @@ class RigidBodyEnv(gym.Env):
         keywords ``options`` (:mod:`rbenvs.envs.shared`), validated here."""
         integrator, dt, substeps = options["integrator"], options["dt"], options["substeps"]
         guard, compiled, render_mode = options["guard"], options["compiled"], options["render_mode"]
-        tolerance, tolerance_horizon = options["tolerance"], options["tolerance_horizon"]
-        tolerance_check = options["tolerance_check"]
         guard = require_guard(guard)
-        tolerance = require_tolerance(tolerance)
-        if tolerance is None and tolerance_horizon is not None:
-            raise ValueError(
-                f"tolerance_horizon={tolerance_horizon!r} is the span of control periods that "
-                "tolerance= covers, and tolerance is None: "
-                "pass tolerance= with it, or leave tolerance_horizon out"
-            )
-        tolerance, accuracy = default_accuracy(tolerance, guard, self.default_tolerance)
-        check = require_tolerance_check(tolerance_check, tolerance)
-        horizon = self._tolerance_horizon(tolerance_horizon)
+        tolerance, horizon, check, accuracy = accuracy_settings(
+            options["tolerance"],
+            options["tolerance_horizon"],
+            options["tolerance_check"],
+            guard,
+            self.default_tolerance,
+            self.registered_episode_steps(),
+        )
         compiled = require_compiled(compiled)
         dt = require_finite_positive("dt", dt)
         substeps = require_int_in(
@@ -230,10 +225,18 @@ class RigidBodyEnv(gym.Env):
             MAX_INTERNAL_STEPS,
             " (more internal steps in a control period is a numerical failure)",
         )
+        high = tuple(float(v) for v in observation_high)
+        episode_steps = self.registered_episode_steps()
+
+        def model_with(scheme, **accuracy_kw):
+            parts = (system, task, scheme, actuator, dt, substeps, guard, high)
+            limits = (self._speed_ceiling(), tolerance, horizon, episode_steps)
+            return Model(*parts, *limits, **accuracy_kw)
+
         if isinstance(integrator, str) and integrator == "auto":
-            integrator = self._cheapest_integrator(
-                system, task, actuator, dt, substeps, guard, observation_high, tolerance, horizon
-            )
+            schemes = [cls() for cls in _registry().values()]
+            speed, dissipation = self._start_speed, self._start_dissipation(system)
+            integrator = cheapest_scheme(schemes, system, tolerance, model_with, speed, dissipation)
         integrator = get_integrator(integrator)
         require_parts(integrator, Integrator, "integrator")  # (what it declares, read below)
         if not integrator.supports(system):
@@ -261,23 +264,9 @@ class RigidBodyEnv(gym.Env):
                 warnings.warn(
                     unstable_motion_warning(tolerance, unstable, check), stacklevel=_caller_level()
                 )
-        high = tuple(float(v) for v in observation_high)
-        self.model = Model(
-            system,
-            task,
-            integrator,
-            actuator,
-            dt,
-            substeps,
-            guard,
-            high,
-            self._speed_ceiling(),
-            tolerance,
-            horizon if tolerance is not None else None,
-            self.registered_episode_steps(),
-            check,
-            accuracy,
-        )
+        if tolerance is None:
+            horizon = None
+        self.model = model_with(integrator, check=check, accuracy=accuracy)
         self._require_float32_rewards()
         self.engine = Engine(self.model, compiled, backend=compiled_backend)
         self.render_mode = render_mode
@@ -297,7 +286,13 @@ class RigidBodyEnv(gym.Env):
         self._y = None  # the state: a tuple of floats
         self._u = None  # the control of the last step (None after a reset: nothing acted yet)
         self._plain = self.engine.plain
-        self._require_resolvable()
+        require_resolvable(
+            self.model,
+            self._start_speed,
+            self._start_dissipation(system),
+            type(self).__name__,
+            self._rate_sources,
+        )
 
     def _setup_options(self, options: dict):
         """Validate the robustness options (:mod:`rbenvs.envs.options`) of the shared keywords
@@ -441,152 +436,16 @@ class RigidBodyEnv(gym.Env):
                 "store rewards); lower control_cost"
             )
 
-    def _tolerance_horizon(self, value) -> int:
-        """``tolerance_horizon=``: the control periods ``tolerance`` covers; ``None``: the
-        registered ``max_episode_steps`` (an episode)."""
-        if value is None:
-            value = self.registered_episode_steps()
-            return 1000 if value is None else value
-        return require_int_in(
-            "tolerance_horizon", value, 1, 10**12, " (control periods over which tolerance holds)"
-        )
-
-    def _cheapest_integrator(
-        self, system, task, actuator, dt, substeps, guard, observation_high, tolerance, horizon
-    ):
-        """``integrator="auto"``: of the schemes that ``tolerance=`` takes (an error constant, the
-        leading error in the phase: :func:`~rbenvs.stepsize.controller.takes_tolerance`) and that
-        take this system, the one whose internal steps at the fastest start, times its rhs
-        evaluations a step, cost the least (ties: the first registered)."""
-        if tolerance is None:
-            raise ValueError(
-                "integrator='auto' chooses the scheme that meets tolerance= at the least cost: "
-                "pass tolerance= (a relative error per episode)"
-            )
-        best = None
-        high = tuple(float(v) for v in observation_high)
-        for cls in _registry().values():
-            scheme = cls()
-            if not takes_tolerance(cls) or not scheme.evaluations or not scheme.supports(system):
-                continue
-            self.model = Model(
-                system,
-                task,
-                scheme,
-                actuator,
-                dt,
-                substeps,
-                guard,
-                high,
-                self._speed_ceiling(),
-                tolerance,
-                horizon,
-                self.registered_episode_steps(),
-            )
-            x = self._start_steps()[0]
-            cost = (
-                max(substeps, math.ceil(x)) * scheme.evaluations
-                if x <= MAX_INTERNAL_STEPS
-                else math.inf
-            )
-            if best is None or cost < best[0]:
-                best = (cost, scheme)
-        self.model = None
-        if best is None:
-            raise ValueError(
-                "integrator='auto' found no scheme with an error constant for "
-                f"{type(system).__name__}"
-            )
-        return best[1]
-
     def _unstable_motion(self, system, task, span: float) -> str | None:
         """With ``tolerance=``: why the starts this env draws are unstable by the system's own
         theorem, enough to matter over the tolerance's horizon of ``span`` seconds (an
         :class:`UnstableMotionWarning` says so at construction), or ``None``."""
         return None
 
-    def _start_dissipation(self) -> float:
-        """The stiffest decaying rate at the start (0 where none): the tippe top's friction."""
+    def _start_dissipation(self, system) -> float:
+        """The stiffest decaying rate of ``system`` at the start (0 where none): the tippe top's
+        friction."""
         return 0.0
-
-    def _start_steps(self) -> tuple[float, str, bool]:
-        """``(x, rule, by_tolerance)``: the internal steps per control period (``ceil(x)``) that
-        the step rule asks for at the fastest start, the rule in words, and whether only the
-        tolerance asks for more than ``MAX_INTERNAL_STEPS``. Integrators without a bound of
-        their own (exact flows, adaptive schemes) count one radian of the fastest rate per step."""
-        region = self.integrator.region
-        if not region.bounded:
-            region = dataclasses.replace(
-                region, rotation=1.0, reason="one radian of the fastest rate per step"
-            )
-        rates = self.system.guard_rates(region, self._start_speed)
-        m = self.model
-        rule = StepRule.build(
-            rates, region, self.dt, "subdivide", self.integrator, m.tolerance, m.horizon
-        )
-        x = step_ratio(rule.params, rates.ceiling)
-        lam_d = self._start_dissipation()
-        d_stable = 0.0
-        if rule.dissipation is not None and lam_d > 0.0:
-            d_stable = self.dt / (rule.dissipation_step / lam_d)
-            x = max(x, d_stable)
-            x = max(
-                x, relaxation_steps(rule.params, lam_d, 1.0)
-            )  # (0 without a tolerance; the mode's full share: no state yet)
-        if rule.error is not None:
-            stable = max(stability_ratio(*rule.params[:3], rates.ceiling), d_stable)
-            if not stable <= MAX_INTERNAL_STEPS:
-                return x, rule.text, False
-            # only the tolerance asks for more: say so, with the reason
-            p = self.integrator.order
-            return (
-                x,
-                (
-                    f"to keep the error of {m.horizon} periods within it ({rule.accuracy_text}): "
-                    f"at a fixed step an order-{p} scheme's error "
-                    f"grows without bound, like lambda T (lambda h)^{p}, so the steps a tolerance "
-                    "costs grow like "
-                    f"(lambda T)^{(p + 1) / p:.3g} / tolerance^{1 / p:.3g}; raise tolerance, lower "
-                    "tolerance_horizon, or use a higher-order integrator"
-                ),
-                True,
-            )
-        return x, rule.text, False
-
-    def _require_resolvable(self) -> None:
-        """Refuse, at construction, a control period that no run could resolve: more than
-        ``MAX_INTERNAL_STEPS`` internal steps at the start would end the first step as a
-        numerical failure (``dt=1e300``; a friction, gravity or spin so large that its time
-        scale is far below the step). The error names the parameters that set the rate.
-        ``guard="off"`` opts out: it takes ``substeps`` steps whatever the state (a blow-up is
-        then reported as a numerical failure, as documented)."""
-        if self.guard == "off":
-            return
-        x, rule, by_tolerance = self._start_steps()
-        if not x <= MAX_INTERNAL_STEPS:
-            if by_tolerance:
-                default = (
-                    (
-                        f" (tolerance='default': {type(self).__name__}'s default accuracy; "
-                        "tolerance=None runs unchecked, the stability "
-                        f"bound alone)"
-                    )
-                    if self.model.accuracy != "explicit"
-                    else ""
-                )
-                raise ValueError(
-                    f"tolerance={self.model.tolerance!r}{default} cannot be met: at the start the "
-                    f"integrator {self.integrator.name!r} needs "
-                    f"{x:.3g} internal steps per control period, more than MAX_INTERNAL_STEPS = "
-                    f"{MAX_INTERNAL_STEPS}, {rule}"
-                )
-            raise ValueError(
-                f"dt={self.dt!r} s cannot be resolved: at the start the integrator "
-                f"{self.integrator.name!r} needs "
-                f"{x:.3g} internal steps per control period ({rule}), more than MAX_INTERNAL_STEPS "
-                f"= {MAX_INTERNAL_STEPS}; "
-                f"lower dt, or check {self._rate_sources}, which set the fastest rate"
-            )
 
     @staticmethod
     def _require_authority(

@@ -401,10 +401,10 @@ class TippeTopEnv(RigidBodyEnv):
     def _speed_ceiling(self):
         return math.sqrt(3.0) * self._max_w
 
-    def _start_dissipation(self):
+    def _start_dissipation(self, system):
         """The friction's stiffness at the start (``N = m g``) at the largest coefficient the env
         can use (``friction``, or ``friction_range``'s upper end with ``friction_action``)."""
-        return self.system.friction_stiffness(max(self.params.friction, self.friction_range[1]))
+        return system.friction_stiffness(max(system.params.friction, self.friction_range[1]))
 
     @staticmethod
     def scene(system, y):
