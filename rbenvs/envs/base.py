@@ -11,8 +11,6 @@ overhead inside the integrator.
 from __future__ import annotations
 
 import collections
-import functools
-import inspect
 import math
 import os
 import sys
@@ -21,11 +19,10 @@ import warnings
 import gymnasium as gym
 import numpy as np
 
-from ..contracts import Integrator, require_parts
 from ..core.model import Model
 from ..core.step import Engine, NumericalFailureWarning, action_values
-from ..dynamics.validation import require_finite_positive, require_int_in, unknown_keyword
-from ..integrators import get_integrator
+from ..dynamics.validation import require_finite_positive, require_int_in
+from ..integrators import integrator_for
 from ..stepsize.check import GlobalErrorCheck
 from ..stepsize.controller import (
     GUARDS,
@@ -41,7 +38,7 @@ from ..stepsize.settings import (
     require_resolvable,
 )
 from .options import ParamRanges, Realism, noise_generator, noisy_observation, rekey
-from .shared import shared_doc, shared_signature
+from .shared import keyword_init
 
 __all__ = [
     "RigidBodyEnv",
@@ -51,6 +48,8 @@ __all__ = [
     "GUARDS",
     "FLOAT32_MAX",
     "require_float32_bound",
+    "require_float32_rewards",
+    "require_authority",
     "require_guard",
     "require_compiled",
 ]
@@ -80,6 +79,12 @@ def require_compiled(compiled):
     raise ValueError(f"compiled must be True, False or 'auto', got {compiled!r}")
 
 
+def require_render_mode(mode, modes) -> None:
+    """``render_mode=``: ``None`` or one of the env's ``modes``."""
+    if mode is not None and (not isinstance(mode, str) or mode not in modes):
+        raise ValueError(f"render_mode must be None or one of {modes}, got {mode!r}")
+
+
 def compiled_backend():
     """The compiled backend (:class:`rbenvs.compiled.Backend`), loaded where the step core first
     wants a compiled form (the core imports no compiled code: it is given this loader)."""
@@ -105,6 +110,43 @@ def _caller_level() -> int:
     ):
         frame, level = frame.f_back, level + 1
     return level
+
+
+def require_float32_rewards(model) -> None:
+    """``model``'s least reward of a step and its failure charge must be float32 numbers: RL
+    libraries store rewards in float32 (stable-baselines3's buffers), where a larger one is -inf.
+    The control term sets them (a task's own reward is of order one)."""
+    floor, charge = (
+        model.task.reward_floor(model.system, model.observation_high),
+        model.failure_charge,
+    )
+    if not (abs(floor) <= FLOAT32_MAX and abs(charge) <= FLOAT32_MAX):
+        raise ValueError(
+            f"control_cost={model.task.control_cost!r} makes the least reward of a step "
+            f"{floor:.3g} and the failure charge "
+            f"{charge:.3g}, beyond float32's range (+-{FLOAT32_MAX:.3g}, in which RL libraries "
+            "store rewards); lower control_cost"
+        )
+
+
+def require_authority(name: str, change: float, bound_name: str, bound: float, unit: str) -> None:
+    """An actuator whose full action over one control period can change an observed
+    velocity by more than the width of its observation box (``2 * bound``) is refused.
+
+    Why the box: the guard sizes the internal step from the state at the start of a period,
+    which lies inside the box; under full action the velocity can grow by ``change``
+    within the period, and keeping that within one box width keeps the step inside the
+    scheme's region (rk4: ``|Omega| h <= 1`` at the start, below its stability limit 2.83
+    with the growth). It also keeps a huge value (``max_torque=1e300``) from overflowing
+    the state and the energy in one step. An actuator that merely leaves the box within a
+    few steps is legal: the episode ends there (``observation_limit``)."""
+    if not change <= 2.0 * bound:
+        raise ValueError(
+            f"{name} is too large: its full action can change the {unit} by {change:.6g} "
+            "in one control period, more "
+            f"than the width of the observation box (2 * {bound_name} = {2.0 * bound:.6g}); "
+            f"lower {name} or dt, or raise {bound_name}"
+        )
 
 
 class _SupportedSchemes:
@@ -148,52 +190,10 @@ class RigidBodyEnv(gym.Env):
     _renderer = None  # made by the first render() (a close before __init__ ends finds None)
 
     def __init_subclass__(cls, **kwargs):
-        """Each env records its constructor's keyword arguments (defaults applied) in
-        ``_kwargs``: ``param_ranges`` builds an episode's env from them with drawn values. An
-        ``__init__`` that takes ``**options`` gets the keywords every env shares
-        (:mod:`rbenvs.envs.shared`) in its signature, their defaults and their docs."""
+        """Each env's ``__init__`` wrapped once (:func:`rbenvs.envs.shared.keyword_init`): its
+        keywords recorded, the shared ones in its signature, their defaults and docs."""
         super().__init_subclass__(**kwargs)
-        init = cls.__dict__.get("__init__")
-        if init is None:
-            return
-        takes = inspect.signature(init).parameters.values()
-        shared = any(p.kind == p.VAR_KEYWORD and p.name == "options" for p in takes)
-        sig = shared_signature(init, cls.shared_defaults) if shared else inspect.signature(init)
-        first = next(iter(sig.parameters))
-
-        @functools.wraps(init)
-        def __init__(self, *args, **kw):
-            if "_kwargs" not in self.__dict__:  # (the outermost class's keywords)
-                error = unknown_keyword(
-                    cls.__name__,
-                    kw,
-                    sig.parameters,
-                    f"help(rbenvs.envs.{cls.__name__}), docs/environments.md",
-                )
-                if error is not None:
-                    raise error
-                bound = sig.bind(self, *args, **kw)
-                bound.apply_defaults()
-                arguments = dict(bound.arguments)
-                arguments.pop(first)
-                self._kwargs = arguments
-            if shared:  # (every shared keyword reaches **options, defaults applied)
-                bound = sig.bind(self, *args, **kw)
-                bound.apply_defaults()
-                init(*bound.args, **bound.kwargs)
-            else:
-                init(self, *args, **kw)
-
-        if shared:
-            __init__.__signature__ = sig
-            # (the shared keywords' bullets before the Rendering section, else at the end)
-            doc, section = (
-                cls.__doc__ or "",
-                shared_doc(cls),
-            )
-            at = doc.find("\n    ## Rendering")
-            cls.__doc__ = doc + section if at < 0 else doc[:at] + section + doc[at:]
-        cls.__init__ = __init__
+        keyword_init(cls)
 
     # a shared keyword's default where this env's differs (rbenvs.envs.shared)
     shared_defaults: dict = {}
@@ -237,24 +237,8 @@ class RigidBodyEnv(gym.Env):
             schemes = [cls() for cls in _registry().values()]
             speed, dissipation = self._start_speed, self._start_dissipation(system)
             integrator = cheapest_scheme(schemes, system, tolerance, model_with, speed, dissipation)
-        integrator = get_integrator(integrator)
-        require_parts(integrator, Integrator, "integrator")  # (what it declares, read below)
-        if not integrator.supports(system):
-            raise ValueError(
-                f"integrator {integrator.name!r} is not available for {type(system).__name__}"
-            )
-        if integrator.region is None:  # no region, no guard, no run
-            raise ValueError(
-                f"integrator {integrator.name!r} declares no step region (StepRegion, "
-                "rbenvs.contracts): it cannot be guarded"
-            )
-        if render_mode is not None and (
-            not isinstance(render_mode, str) or render_mode not in self.metadata["render_modes"]
-        ):
-            raise ValueError(
-                f"render_mode must be None or one of {self.metadata['render_modes']}, got "
-                f"{render_mode!r}"
-            )
+        integrator = integrator_for(integrator, system)
+        require_render_mode(render_mode, self.metadata["render_modes"])
         tolerance, accuracy = require_accuracy(
             integrator, guard, tolerance, accuracy, type(self).__name__
         )
@@ -267,7 +251,7 @@ class RigidBodyEnv(gym.Env):
         if tolerance is None:
             horizon = None
         self.model = model_with(integrator, check=check, accuracy=accuracy)
-        self._require_float32_rewards()
+        require_float32_rewards(self.model)
         self.engine = Engine(self.model, compiled, backend=compiled_backend)
         self.render_mode = render_mode
         self._renderer = None  # built by the first render(): matplotlib is imported only then
@@ -315,22 +299,7 @@ class RigidBodyEnv(gym.Env):
                     "a compiled step is built per parameter setting (about a second each); pass "
                     "compiled='auto' or False"
                 )
-            structure = self.structure()
-            for label, values in ranges.corners():
-                try:
-                    env = self._episode_env(values)
-                except (ValueError, TypeError) as err:
-                    raise type(err)(
-                        f"param_ranges: at the range's {label}: {err} (every value in each range "
-                        "must be valid)"
-                    ) from err
-                if env.structure() != structure:
-                    raise ValueError(
-                        f"param_ranges: at the range's {label} the env's structure changes (its "
-                        "spaces, read-outs or "
-                        "named axis differ from the keywords' values); narrow the ranges of "
-                        f"{list(ranges.names)}"
-                    )
+            ranges.require_corners(self.episode_env, self.structure())
             self._ranges = ranges
         if realism.active:
             if self.render_mode != "human":
@@ -347,10 +316,6 @@ class RigidBodyEnv(gym.Env):
         """The validated noise, bias and delay (:class:`rbenvs.envs.options.Realism`)."""
         return self._realism
 
-    def episode_env(self, values: dict):
-        """The env of one episode's drawn parameters ``values`` (see :meth:`_episode_env`)."""
-        return self._episode_env(values)
-
     def structure(self) -> tuple:
         """What a drawn parameter setting must leave unchanged: spaces, read-outs, metrics, the
         start's draws, the event and the env's named axis (the free body's)."""
@@ -365,7 +330,7 @@ class RigidBodyEnv(gym.Env):
             self.axis,
         )
 
-    def _episode_env(self, values: dict):
+    def episode_env(self, values: dict):
         """The env of one episode's drawn parameters: the constructor's keywords with ``values``,
         on the float path (its model and engine are what the episode runs)."""
         kw = dict(self._kwargs, **values)
@@ -420,22 +385,6 @@ class RigidBodyEnv(gym.Env):
                 return spec["max_episode_steps"]
         return None
 
-    def _require_float32_rewards(self) -> None:
-        """The least reward of a step and the failure charge must be float32 numbers: RL libraries
-        store rewards in float32 (stable-baselines3's buffers), where a larger one is -inf. The
-        control term sets them (a task's own reward is of order one)."""
-        floor, charge = (
-            self.model.task.reward_floor(self.model.system, self.model.observation_high),
-            self.model.failure_charge,
-        )
-        if not (abs(floor) <= FLOAT32_MAX and abs(charge) <= FLOAT32_MAX):
-            raise ValueError(
-                f"control_cost={self.model.task.control_cost!r} makes the least reward of a step "
-                f"{floor:.3g} and the failure charge "
-                f"{charge:.3g}, beyond float32's range (+-{FLOAT32_MAX:.3g}, in which RL libraries "
-                "store rewards); lower control_cost"
-            )
-
     def _unstable_motion(self, system, task, span: float) -> str | None:
         """With ``tolerance=``: why the starts this env draws are unstable by the system's own
         theorem, enough to matter over the tolerance's horizon of ``span`` seconds (an
@@ -446,28 +395,6 @@ class RigidBodyEnv(gym.Env):
         """The stiffest decaying rate of ``system`` at the start (0 where none): the tippe top's
         friction."""
         return 0.0
-
-    @staticmethod
-    def _require_authority(
-        name: str, change: float, bound_name: str, bound: float, unit: str
-    ) -> None:
-        """An actuator whose full action over one control period can change an observed
-        velocity by more than the width of its observation box (``2 * bound``) is refused.
-
-        Why the box: the guard sizes the internal step from the state at the start of a period,
-        which lies inside the box; under full action the velocity can grow by ``change``
-        within the period, and keeping that within one box width keeps the step inside the
-        scheme's region (rk4: ``|Omega| h <= 1`` at the start, below its stability limit 2.83
-        with the growth). It also keeps a huge value (``max_torque=1e300``) from overflowing
-        the state and the energy in one step. An actuator that merely leaves the box within a
-        few steps is legal: the episode ends there (``observation_limit``)."""
-        if not change <= 2.0 * bound:
-            raise ValueError(
-                f"{name} is too large: its full action can change the {unit} by {change:.6g} "
-                "in one control period, more "
-                f"than the width of the observation box (2 * {bound_name} = {2.0 * bound:.6g}); "
-                f"lower {name} or dt, or raise {bound_name}"
-            )
 
     # ------------------------------------------------------------------ gymnasium API
     def reset(self, *, seed=None, options=None):
@@ -481,12 +408,8 @@ class RigidBodyEnv(gym.Env):
         params = None
         if self._ranges is not None:  # this episode's parameters, first from the generator
             values = self._ranges.draw(self.np_random)
-            episode = self._episode_env(values)
-            self.model, self.engine, self._step_one = (
-                episode.model,
-                episode.engine,
-                episode.engine.step_one,
-            )
+            episode = self.episode_env(values).engine
+            self.model, self.engine, self._step_one = episode.model, episode, episode.step_one
             params = self._ranges.info(values)
         self._plain = self.engine.plain
         self._u = None
@@ -495,11 +418,8 @@ class RigidBodyEnv(gym.Env):
         else:
             self._y = self.system.import_state(state)
         obs, info = self.engine.reset_one(self._y)
-        if self._check is not None:
-            self._check.engine, self._step_one = (
-                self.engine,
-                self._check.step_one,
-            )  # (param_ranges: this episode's engine)
+        if self._check is not None:  # (param_ranges: this episode's engine)
+            self._check.engine, self._step_one = self.engine, self._check.step_one
             self._check.restart(self._y)
             info["global_error_estimate"] = 0.0
         if self._realism.active:

@@ -21,7 +21,7 @@ from ..dynamics.validation import (
 )
 from ..jit import jitable
 from ..tasks import AXIS_NAMES, DetumbleTask, ReorientTask, SpinTask
-from .base import RigidBodyEnv, require_float32_bound
+from .base import RigidBodyEnv, require_authority, require_float32_bound
 
 __all__ = ["FreeRigidBodyEnv", "BodyTorque"]
 
@@ -230,7 +230,7 @@ class FreeRigidBodyEnv(RigidBodyEnv):
         self.action_size = actuator.size
         # |Delta Omega| <= max_torque sqrt(k) dt / I_min over a period of full torque on k axes
         change = max_torque * math.sqrt(actuator.size) * self.dt / min(params.inertia)
-        self._require_authority(
+        require_authority(
             "max_torque", change, "max_angular_velocity", max_w, "angular velocity [rad/s]"
         )
         self._setup_options(options)

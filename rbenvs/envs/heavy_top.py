@@ -21,7 +21,7 @@ from ..dynamics.validation import (
 )
 from ..jit import jitable
 from ..tasks import PrecessTask, UprightTask, slow_precession_rate, transverse_basis
-from .base import RigidBodyEnv, require_float32_bound
+from .base import RigidBodyEnv, require_authority, require_float32_bound
 
 __all__ = ["LagrangeTopEnv", "PivotTorque"]
 
@@ -309,7 +309,7 @@ class LagrangeTopEnv(RigidBodyEnv):
         change = (
             self.max_torque * math.sqrt(len(self.torque_directions)) * self.dt / min(params.inertia)
         )
-        self._require_authority(
+        require_authority(
             "max_torque", change, "max_angular_velocity", max_w, "angular velocity [rad/s]"
         )
         self._setup_options(options)

@@ -139,6 +139,24 @@ class ParamRanges:
             kind = "centre" if i == len(settings) - 1 else "corner"
             yield f"{kind} " + ", ".join(f"{n}={values[n]!r}" for n in self.names), values
 
+    def require_corners(self, episode_env, structure) -> None:
+        """Every setting of :meth:`corners` must pass every check of the constructor
+        (``episode_env(values)`` builds it) and keep the env's ``structure``."""
+        for label, values in self.corners():
+            try:
+                env = episode_env(values)
+            except (ValueError, TypeError) as err:
+                raise type(err)(
+                    f"param_ranges: at the range's {label}: {err} (every value in each range must "
+                    "be valid)"
+                ) from err
+            if env.structure() != structure:
+                raise ValueError(
+                    f"param_ranges: at the range's {label} the env's structure changes (its "
+                    "spaces, read-outs or named axis differ from the keywords' values); narrow "
+                    f"the ranges of {list(self.names)}"
+                )
+
     def info(self, values: dict) -> dict:
         """``info["params"]`` of one episode: floats, float64 arrays for vector keywords."""
         return {

@@ -14,10 +14,13 @@ appends their docs to the class's. They are validated where they are used, once 
 
 from __future__ import annotations
 
+import functools
 import inspect
 from typing import NamedTuple
 
-__all__ = ["SharedOption", "SHARED_OPTIONS", "shared_signature", "shared_doc"]
+from ..dynamics.validation import unknown_keyword
+
+__all__ = ["SharedOption", "SHARED_OPTIONS", "shared_signature", "shared_doc", "keyword_init"]
 
 
 class SharedOption(NamedTuple):
@@ -172,3 +175,52 @@ def _doc_fields(cls) -> dict:
         "default_accuracy": default,
         "randomizable": ", ".join(f"``{k}``" for k in cls.randomizable),
     }
+
+
+def keyword_init(cls) -> None:
+    """Wrap ``cls.__init__`` (if ``cls`` defines one): the constructor's keyword arguments
+    (defaults applied) recorded in ``_kwargs`` (``param_ranges`` builds an episode's env from
+    them with drawn values), an unknown keyword refused with the nearest, and, for an ``__init__``
+    that takes ``**options``, the keywords every env shares in its signature, their defaults
+    (``cls.shared_defaults``) and their docs."""
+    init = cls.__dict__.get("__init__")
+    if init is None:
+        return
+    takes = inspect.signature(init).parameters.values()
+    shared = any(p.kind == p.VAR_KEYWORD and p.name == "options" for p in takes)
+    sig = shared_signature(init, cls.shared_defaults) if shared else inspect.signature(init)
+    first = next(iter(sig.parameters))
+
+    @functools.wraps(init)
+    def __init__(self, *args, **kw):
+        if "_kwargs" not in self.__dict__:  # (the outermost class's keywords)
+            error = unknown_keyword(
+                cls.__name__,
+                kw,
+                sig.parameters,
+                f"help(rbenvs.envs.{cls.__name__}), docs/environments.md",
+            )
+            if error is not None:
+                raise error
+            bound = sig.bind(self, *args, **kw)
+            bound.apply_defaults()
+            arguments = dict(bound.arguments)
+            arguments.pop(first)
+            self._kwargs = arguments
+        if shared:  # (every shared keyword reaches **options, defaults applied)
+            bound = sig.bind(self, *args, **kw)
+            bound.apply_defaults()
+            init(*bound.args, **bound.kwargs)
+        else:
+            init(self, *args, **kw)
+
+    if shared:
+        __init__.__signature__ = sig
+        # (the shared keywords' bullets before the Rendering section, else at the end)
+        doc, section = (
+            cls.__doc__ or "",
+            shared_doc(cls),
+        )
+        at = doc.find("\n    ## Rendering")
+        cls.__doc__ = doc + section if at < 0 else doc[:at] + section + doc[at:]
+    cls.__init__ = __init__

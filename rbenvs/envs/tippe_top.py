@@ -21,7 +21,7 @@ from ..dynamics.validation import (
 from ..jit import jitable
 from ..tasks import HoldTask, InvertTask
 from ..tasks.tippe_top import STARTS
-from .base import RigidBodyEnv, require_float32_bound
+from .base import RigidBodyEnv, require_authority, require_float32_bound
 
 __all__ = ["TippeTopEnv", "TableActuator"]
 
@@ -345,7 +345,7 @@ class TippeTopEnv(RigidBodyEnv):
         self._setup(system, task_obj, actuator, high, options)
         # the table's acceleration moves v_G (relative to the table) by at most |a_T| dt per period;
         # a body torque moves Omega by at most |tau| dt / min(A, C)
-        self._require_authority(
+        require_authority(
             "max_table_acceleration",
             self.max_table_acceleration * math.sqrt(2.0) * self.dt,
             "max_speed",
@@ -356,7 +356,7 @@ class TippeTopEnv(RigidBodyEnv):
         # body)
         if self.torque_action:
             change = self.max_torque * math.sqrt(3.0) * self.dt / min(params.inertia)
-            self._require_authority(
+            require_authority(
                 "max_torque", change, "max_angular_velocity", max_w, "angular velocity [rad/s]"
             )
         self._setup_options(options)

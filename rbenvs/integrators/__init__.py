@@ -60,3 +60,23 @@ def get_integrator(name: str | Integrator, **options) -> Integrator:
             f"{name!r}{did_you_mean(name, INTEGRATORS)}"
         ) from None
     return cls(**options)
+
+
+def integrator_for(name, system) -> Integrator:
+    """:func:`get_integrator`'s ``name`` for an env of ``system``: its declarations checked
+    (:class:`~rbenvs.contracts.Integrator`, read by the step), refused where it does not take
+    the system or declares no step region (nothing could guard its step)."""
+    from ..contracts import require_parts
+
+    integrator = get_integrator(name)
+    require_parts(integrator, Integrator, "integrator")
+    if not integrator.supports(system):
+        raise ValueError(
+            f"integrator {integrator.name!r} is not available for {type(system).__name__}"
+        )
+    if integrator.region is None:
+        raise ValueError(
+            f"integrator {integrator.name!r} declares no step region (StepRegion, "
+            "rbenvs.contracts): it cannot be guarded"
+        )
+    return integrator
