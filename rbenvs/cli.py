@@ -15,7 +15,6 @@
   (:mod:`rbenvs.kernel_cache`): the folder, its kernels per environment, deleting them.
 * ``rbenvs warmup [--system NAME ...]``: compiles what each system's default single env and
   vector env run into that cache ahead (container images, CI caches).
-* ``rbenvs bench kernels``: the layout measurement behind the component kernels.
 * ``rbenvs bench fidelity``: the tippe top's fidelity levels, each against gliding friction.
 * ``rbenvs bench throughput [--quick] [--json PATH] [--num-envs N] [--only TEXT] [--tables LIST]``:
   env-steps per second of every task and scene, single and vector (random actions, restarts
@@ -287,12 +286,6 @@ def _cmd_warmup(args) -> int:
     return 0
 
 
-def _cmd_bench_kernels(args) -> int:
-    from .bench.kernels import main as bench_main
-
-    return bench_main(progress=not args.no_progress)
-
-
 def _cmd_bench_fidelity(args) -> int:
     from .bench.fidelity import main as bench_main
 
@@ -432,11 +425,6 @@ def build_parser() -> argparse.ArgumentParser:
         "bench", help="benchmarks (each prints the peer measured in the same run)"
     )
     bench_sub = bench.add_subparsers(dest="bench", required=True)
-    kernels = bench_sub.add_parser(
-        "kernels", help="RK4 kernel: our (3, n) components vs np.cross on (n, 3)"
-    )
-    kernels.add_argument("--no-progress", action="store_true", help="no progress bar")
-    kernels.set_defaults(func=_cmd_bench_kernels)
     fidelity = bench_sub.add_parser(
         "fidelity", help="tippe top: cost of each fidelity level against gliding"
     )

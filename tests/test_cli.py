@@ -128,20 +128,6 @@ def test_verify_shows_progress_on_the_core_install_without_tqdm():
     assert "passed, 0 failed" in out.stdout
 
 
-def test_bench_kernels_agree_with_the_cross_product_form():
-    from rbenvs.bench.kernels import run
-
-    rows = run(sizes=(1, 8))
-    for r in rows:
-        # the component kernel and the np.cross kernel compute the same RK4 step
-        assert r["max_abs_difference"] < 1e-14
-        assert r["components_us"] > 0 and r["cross_n3_us"] > 0
-    from rbenvs.compiled import available
-
-    if available():  # the compiled column: the same step, the same bits
-        assert all(r["compiled_equals_components"] and r["compiled_us"] > 0 for r in rows)
-
-
 def test_bench_fidelity_measures_every_level_against_gliding():
     from rbenvs.bench.fidelity import run
 
@@ -193,7 +179,7 @@ def test_progress_without_tqdm_is_text_on_stderr(capsys, monkeypatch):
 
 
 def test_long_commands_show_progress_unless_asked_not_to(capsys):
-    """`rbenvs run`, `bench kernels` and `bench fidelity` take tens of seconds: each shows a bar
+    """`rbenvs run` and `bench fidelity` take tens of seconds: each shows a bar
     (on stderr, its total the work it will do) and `--no-progress` silences it."""
     assert main(["run", "--episodes", "1", "--scene", "detumble"]) == 0
     err = capsys.readouterr().err
@@ -201,15 +187,12 @@ def test_long_commands_show_progress_unless_asked_not_to(capsys):
     assert main(["run", "--episodes", "1", "--scene", "detumble", "--no-progress"]) == 0
     assert capsys.readouterr().err == ""
     from rbenvs.bench.fidelity import run as fidelity
-    from rbenvs.bench.kernels import run as kernels
 
-    kernels(sizes=(1,), progress=True)
-    assert "bench kernels: sizes" in capsys.readouterr().err
     fidelity(levels=(("gliding, coulomb", {}),), repeat=1, progress=True)
     assert "bench fidelity: levels" in capsys.readouterr().err
     from rbenvs.cli import build_parser
 
-    for argv in (["bench", "kernels", "--no-progress"], ["bench", "fidelity", "--no-progress"]):
+    for argv in (["bench", "fidelity", "--no-progress"],):
         assert build_parser().parse_args(argv).no_progress
 
 

@@ -54,7 +54,6 @@ from .batch import (
     Layout,
     batch_kernel,
     finish_kernel,
-    physics_kernel,
 )
 from .state import plan_kernel, plans_kernel, run_kernel, runs_kernel, state_kernel
 from .steps import (
@@ -79,7 +78,6 @@ __all__ = [
     "rows_kernel",
     "finish_kernel",
     "state_kernel",
-    "physics_kernel",
     "run_kernel",
     "runs_kernel",
     "CheckedRuns",

@@ -1,5 +1,5 @@
 """The batch kernels' parts (:class:`Layout`, the period's and finish's lines) and the batch step
-(:func:`batch_kernel`), the physics alone (:func:`physics_kernel`) and a reset's finish."""
+(:func:`batch_kernel`) and a reset's finish."""
 
 from __future__ import annotations
 
@@ -93,20 +93,6 @@ def _physics_lines(dim: int, u: str) -> list[str]:
         "            y = step(PS, y, u, h)",
         *[f"            Ynew[{j}, i] = y[{j}]" for j in range(dim)],
     ]
-
-
-@cache
-def physics_kernel(step, dim: int, n_control: int):
-    """The physics loops alone, compiled: ``advance(Y, Ynew, U, h, substeps, PS)`` (the batch
-    kernel's first part; ``rbenvs bench kernels`` times it)."""
-
-    _tune_llvm()
-    _register_all()
-    _register(step)
-    u = f"u = ({_comps('U[{j}][i]', n_control)})"
-    src = "def advance(Y, Ynew, U, h, substeps, PS):\n" + "\n".join(_physics_lines(dim, u)) + "\n"
-    namespace = generate(src, f"physics kernel dim={dim}", {"step": step})
-    return _cached_njit(namespace["advance"], "advance", **KERNEL_OPTIONS)
 
 
 class Layout(NamedTuple):
