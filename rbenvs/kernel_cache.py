@@ -11,9 +11,10 @@ code.
 The key:
 
 * the *environment*, one folder each (:func:`environment`): the Python, numba, llvmlite and
-  numpy versions, the CPU (LLVM's name and feature string) and a hash of rbenvs' own source
-  files (an edit of rbenvs starts a new folder: a kernel inlines the package's functions; the
-  modules no kernel calls into, :data:`NOT_COMPILED`, are left out);
+  numpy versions, numba's optimisation level and bounds checking, the CPU (LLVM's name and
+  feature string) and a hash of rbenvs' own source files (an edit of rbenvs starts a new folder:
+  a kernel inlines the package's functions; the modules no kernel calls into,
+  :data:`NOT_COMPILED`, are left out);
 * the *kernel*, one file name each (:func:`fingerprint`): the function's bytecode and constants,
   and, followed through closures, defaults and the globals its code names, every function it
   calls (a generated step's own source, the vector field it closes over, the parameters frozen
@@ -156,6 +157,8 @@ def environment() -> dict:
             f"{sys.version_info[2]}"
         ),
         "numba": numba.__version__,
+        # numba's process-wide settings that change the code it emits
+        "numba_settings": (int(numba.config.OPT), bool(numba.config.BOUNDSCHECK)),
         "llvmlite": llvmlite.__version__,
         "numpy": numpy.__version__,
         "cpu": llvm.get_host_cpu_name(),

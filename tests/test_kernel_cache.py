@@ -196,6 +196,18 @@ def test_a_full_disk_turns_the_cache_off_with_one_warning(tmp_path, monkeypatch)
     ]
 
 
+def test_numbas_optimisation_level_and_bounds_checking_key_their_own_folder():
+    """NUMBA_OPT and NUMBA_BOUNDSCHECK change the code numba emits (bounds checking also what
+    it raises): a process under either loads nothing another process compiled without it."""
+    here = kernel_cache.environment()["numba_settings"]
+    code = "from rbenvs import kernel_cache; print(kernel_cache.environment()['numba_settings'])"
+    for variable, value in (("NUMBA_OPT", "0"), ("NUMBA_BOUNDSCHECK", "1")):
+        env = dict(os.environ, **{variable: value})
+        out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True)
+        assert out.returncode == 0, out.stderr
+        assert out.stdout.strip() != str(here), (variable, out.stdout, here)
+
+
 def test_an_empty_cache_variable_turns_the_disk_cache_off(monkeypatch):
     monkeypatch.setenv(kernel_cache.CACHE_VARIABLE, "")
     assert kernel_cache.cache_root() is None and kernel_cache.kernel_folder() is None
