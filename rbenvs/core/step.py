@@ -233,12 +233,13 @@ class Engine:
         if not isinstance(y[0], np.ndarray):
             return float(reward), bool(terminated), metrics
         n = len(y[0])
+        # (a task may give one value for the whole batch: np.full, cheaper than broadcast_to's copy)
         reward = np.asarray(reward, dtype=np.float64)
         if reward.shape != (n,):
-            reward = np.broadcast_to(reward, (n,)).copy()
+            reward = np.full(n, reward, dtype=np.float64)
         terminated = np.asarray(terminated, dtype=bool)
         if terminated.shape != (n,):
-            terminated = np.broadcast_to(terminated, (n,)).copy()
+            terminated = np.full(n, terminated, dtype=bool)
         return reward, terminated, metrics
 
     def readouts(self, y, u, fired, h) -> dict:

@@ -260,7 +260,7 @@ class RigidBodyVectorEnv(VectorEnv):
         # (its periods then take substeps unchecked)
         y0, y2d0, control, gated = self.run.y, self.run.y2d, None, None
         if not written:
-            control = self.model.actuator.control(action_columns(actions, self.action_space.shape))
+            control = self.engine.control(action_columns(actions, self.action_space.shape))
             gated = None if accuracy.checked else accuracy.gated(y0)
         out = self._step(actions, control, True if gated is not None else None)
         return accuracy.report(out, restart, gated, control, y0, y2d0)
@@ -280,7 +280,7 @@ class RigidBodyVectorEnv(VectorEnv):
         )
         any_restart = bool(restart.any())
         u_norm, u = (
-            self.model.actuator.control(action_columns(actions, self.action_space.shape))
+            self.engine.control(action_columns(actions, self.action_space.shape))
             if control is None
             else control
         )
@@ -373,7 +373,7 @@ class RigidBodyVectorEnv(VectorEnv):
             self._accuracy.ran(r.h)
             self._accuracy.wrote(r.estimate)
             fired = r.fired if r.fired.any() else self._false
-            u_norm, self.run.u = self.model.actuator.control(action_columns(a, shape))
+            u_norm, self.run.u = self.engine.control(action_columns(a, shape))
             with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
                 return self._numpy_finish(
                     self.run.y, tuple(r.Y), u_norm, fired, restart, bool(restart.any())
