@@ -624,11 +624,8 @@ def _g(x, fmt=".1e"):
 
 def print_tolerance(result, file=None):
     file = sys.stdout if file is None else file
-    print(
-        "error constants C (global error C lambda T (lambda h)^p on a rotation), measured against "
-        "declared:",
-        file=file,
-    )
+    head = "error constants C (global error C lambda T (lambda h)^p on a rotation)"
+    print(f"{head}, measured against declared:", file=file)
     for name, c in result["constants"].items():
         print(f"  {name:<6} measured {c['measured']:.6g}  declared {c['declared']:g}", file=file)
     print(
@@ -669,9 +666,7 @@ def print_tolerance(result, file=None):
             note = ("within" if r["error"] <= r["tolerance"] else "OUTSIDE the tolerance") + (
                 f" until {note}" if note else ""
             )
-        if r.get(
-            "fixed_integrator"
-        ):  # integrator="auto": both sides' schemes, cost in rhs evaluations
+        if r.get("fixed_integrator"):  # integrator="auto": both schemes, cost in evaluations
             note += (
                 f" (auto: {r['integrator']}; fixed: {r['fixed_integrator']}; "
                 "cost x in rhs evaluations)"

@@ -26,6 +26,23 @@ from .base import RigidBodyEnv, require_authority, require_float32_bound
 __all__ = ["FreeRigidBodyEnv", "BodyTorque"]
 
 
+def _task(task, axis, spin_rate, perturbation, control_cost, target, params):
+    """``(task, start_speed, source)``: the task object, an upper bound of ``|Omega|`` over its
+    starts [rad/s] and the keywords that set it (for the message that compares it with
+    ``max_angular_velocity``)."""
+    if task == "spin":
+        spin = SpinTask(
+            axis=axis, spin_rate=spin_rate, perturbation=perturbation, control_cost=control_cost
+        )
+        # |Omega| <= |Pi| / I_min, |Pi| = I_axis spin_rate
+        speed = params.inertia[axis] * spin_rate / min(params.inertia)
+        return spin, speed, "spin_rate * I_axis / I_min"
+    if task == "detumble":
+        return DetumbleTask(spin_rate=spin_rate, control_cost=control_cost), spin_rate, "spin_rate"
+    reorient = ReorientTask(target=target, spin_rate=spin_rate, control_cost=control_cost)
+    return reorient, 0.1 * spin_rate, "0.1 spin_rate"
+
+
 class FreeRigidBodyEnv(RigidBodyEnv):
     """A rigid body turning freely about its centre of mass, driven by bounded body torques.
 
@@ -198,22 +215,9 @@ class FreeRigidBodyEnv(RigidBodyEnv):
         # the axis is resolved only where it is used: a name is ambiguous with equal moments,
         # which a detumble or reorient scene may well have
         self.axis = _axis_index(axis, params) if task == "spin" else None
-        if task == "spin":
-            task_obj = SpinTask(
-                axis=self.axis,
-                spin_rate=spin_rate,
-                perturbation=perturbation,
-                control_cost=control_cost,
-            )
-            # |Omega| <= |Pi| / I_min, |Pi| = I_axis spin_rate
-            start_speed = params.inertia[self.axis] * spin_rate / min(params.inertia)
-            source = "spin_rate * I_axis / I_min"
-        elif task == "detumble":
-            task_obj = DetumbleTask(spin_rate=spin_rate, control_cost=control_cost)
-            start_speed, source = spin_rate, "spin_rate"
-        else:
-            task_obj = ReorientTask(target=target, spin_rate=spin_rate, control_cost=control_cost)
-            start_speed, source = 0.1 * spin_rate, "0.1 spin_rate"
+        task_obj, start_speed, source = _task(
+            task, self.axis, spin_rate, perturbation, control_cost, target, params
+        )
         if not start_speed < max_w:
             raise ValueError(
                 f"max_angular_velocity ({max_w!r} rad/s) must exceed the initial angular speed "

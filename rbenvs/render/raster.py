@@ -246,9 +246,7 @@ def draw(scene: dict, size) -> np.ndarray:
         _checker(frame, view, scene["table"])
     for poly in scene.get("polygons", ()):
         faces = [np.asarray(f, dtype=float) for f in poly["faces"]]
-        if poly.get(
-            "solid"
-        ):  # a closed convex solid: its faces turned away are hidden, the rest do not overlap
+        if poly.get("solid"):  # a closed convex solid: faces turned away hidden, no overlaps
             # each face's normal from its first three vertices (a convex face lies in one plane)
             p0, p1, p2 = (np.array([f[i] for f in faces]) for i in range(3))
             normal = np.cross(p1 - p0, p2 - p0)
@@ -290,11 +288,6 @@ def draw(scene: dict, size) -> np.ndarray:
             )
     for point in scene.get("points", ()):
         x, y = view.project(np.asarray(point["position"], dtype=float)[None, :])
-        _disc(
-            frame,
-            x[0],
-            y[0],
-            0.5 * math.sqrt(float(point.get("size", 20))) + 1.0,
-            to_rgb(point.get("color", "#000000")),
-        )
+        radius = 0.5 * math.sqrt(float(point.get("size", 20))) + 1.0
+        _disc(frame, x[0], y[0], radius, to_rgb(point.get("color", "#000000")))
     return frame

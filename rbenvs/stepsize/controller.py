@@ -346,37 +346,14 @@ class StepRule:
             # phase; a hybrid system keeps the rate alone unless it names the blocks its error is
             # measured on (its contact flags are not)
             rotation, gate = _motion_rates(rates, system, dt, horizon, p, k, gate_steps)
-        gate_estimate = None
-        if gate is not None:
-            gate_estimate = gated_estimate(error[0], p, float(dt), float(dt) / gate_steps)
+        # with the gate, its estimate C L dt (L h)^p at substeps steps (None without)
+        gate_estimate = gate and gated_estimate(error[0], p, float(dt), float(dt) / gate_steps)
         step_text = step_d if dissipation is not None else None
-        text, accuracy = describe(
-            rates,
-            bound,
-            growth,
-            step_text,
-            integrator,
-            tolerance,
-            horizon,
-            motion,
-            share is not None,
-        )
-        return cls(
-            rotation,
-            (float(dt), float(bound), float(growth), float(k), float(p), float(kd)),
-            dissipation,
-            step_d,
-            rates.ceiling,
-            text,
-            active,
-            error,
-            accuracy,
-            motion,
-            tuple(zero_control),
-            share,
-            gate,
-            gate_estimate,
-        )
+        words = (rates, bound, growth, step_text, integrator, tolerance, horizon, motion, share)
+        text, accuracy = describe(*words)
+        params = (float(dt), float(bound), float(growth), float(k), float(p), float(kd))
+        fields = (rotation, params, dissipation, step_d, rates.ceiling, text, active, error)
+        return cls(*fields, accuracy, motion, tuple(zero_control), share, gate, gate_estimate)
 
     def gated(self, y):
         """The default accuracy's gate at the states ``y`` (:attr:`gate`; floats or arrays): where
@@ -611,8 +588,8 @@ def _motion_rates(rates, system, dt: float, horizon: int, p: float, k: float, ga
 
 def describe(rates, bound, growth, step_d, integrator, tolerance, horizon, motion, share):
     """``(text, accuracy_text)``: a rule in words for the messages that cite it (``step_d``: the
-    decaying rate's step bound, ``None`` without one), and its tolerance's part (``""``
-    without a tolerance)."""
+    decaying rate's step bound, ``None`` without one; ``share``: the decaying mode's share, if
+    the system declares one), and its tolerance's part (``""`` without a tolerance)."""
     text = rates.text
     if bound != math.inf:
         grows = f" and lambda^2 h dt <= {growth}" if growth != math.inf else ""

@@ -179,18 +179,7 @@ class EpisodeBatch:
             else tuple(np.array([0.0 if u is None else u[j] for u in us]) for j in range(size))
         )
         metrics = {name: self.column(name, metric_rows[name]) for name in self.metric_names}
+        flags = (terminated, over, fired, failed)
         return EpisodeStep(
-            tuple(y_new),
-            obs,
-            reward,
-            terminated,
-            over,
-            fired,
-            failed,
-            h,
-            u,
-            metrics,
-            physical,
-            estimates,
-            global_,
+            tuple(y_new), obs, reward, *flags, h, u, metrics, physical, estimates, global_
         )

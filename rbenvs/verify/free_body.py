@@ -396,15 +396,11 @@ def _fast_tumble_checks(sim, cases, progress) -> list[Check]:
             "momentum": round_off if "casimirs" in conserves else tol_inv,
         }
     else:
-        omega_dt = FAST_SPIN * h
+        scaled = (FAST_SPIN * h, omega_h, sim.order, steps)
         tols = {
-            "exact": scaled_tolerance(
-                tol_exact, omega_dt, omega_h, sim.order, steps, MOMENTUM_BOUND
-            ),
-            "energy": scaled_tolerance(tol_inv, omega_dt, omega_h, sim.order, steps, ENERGY_BOUND),
-            "momentum": scaled_tolerance(
-                tol_inv, omega_dt, omega_h, sim.order, steps, MOMENTUM_BOUND
-            ),
+            "exact": scaled_tolerance(tol_exact, *scaled, MOMENTUM_BOUND),
+            "energy": scaled_tolerance(tol_inv, *scaled, ENERGY_BOUND),
+            "momentum": scaled_tolerance(tol_inv, *scaled, MOMENTUM_BOUND),
         }
     return [
         Check("free_body", name, FAST_ROWS[key], 0.0, worst[key][0], tols[key], case=worst[key][1])

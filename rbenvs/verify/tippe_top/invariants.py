@@ -151,16 +151,8 @@ def _run_invariants(system, sim, setting, y, horizon, u_of):
         normals.append(normal)
         if lift_off is not None:
             break
-    steps = int(round(t / h))
-    return (
-        np.array(js),
-        np.array(scales),
-        np.array(energies),
-        np.array(normals),
-        h,
-        lift_off,
-        (omega * h, steps),
-    )
+    samples = tuple(np.array(v) for v in (js, scales, energies, normals))
+    return (*samples, h, lift_off, (omega * h, int(round(t / h))))
 
 
 def _invariant_rows(sim, setting, tops, rng, n_states, system_class, progress):
