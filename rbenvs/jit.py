@@ -16,6 +16,7 @@ import os
 __all__ = [
     "jitable",
     "compiled_form",
+    "scalar_form",
     "available",
     "register_all",
     "register",
@@ -71,6 +72,27 @@ def compiled_form(of):
     return mark
 
 
+def scalar_form(of, scalar: type = bool):
+    """Decorator: the decorated function is what compiled code runs for the jitable ``of`` when
+    its first argument is a ``scalar`` (``bool`` or ``float``: one state's), ``of`` itself
+    otherwise.
+
+    For functions that branch on ``isinstance(x, scalar)`` between one state and a batch: numba
+    types both branches before it prunes the dead one, so the batch branch's numpy calls were
+    compiled for every scalar signature (most of a second of a free body's first compiled
+    step). The scalar form is that branch's own code: the same operations, so the same bits."""
+
+    def mark(alt):
+        if id(of) in _done:
+            raise RuntimeError(
+                f"{of.__name__} was registered with numba before its scalar form was declared"
+            )
+        of.__scalar_form__ = (scalar, alt)
+        return alt
+
+    return mark
+
+
 def available() -> bool:
     """Whether compiled kernels can be used: numba importable and not disabled."""
     if os.environ.get(DISABLE_VARIABLE, "1") == "0":
@@ -89,7 +111,16 @@ def register(fn) -> None:
 
     # what numba.extending.register_jitable does, with the compiled form where one is declared
     impl = getattr(fn, "__compiled_form__", fn)
-    overload(fn, inline="never", strict=False)(lambda *args, **kwargs: impl)
+    scalar_form = getattr(fn, "__scalar_form__", None)
+    if scalar_form is None:
+        overload(fn, inline="never", strict=False)(lambda *args, **kwargs: impl)
+    else:  # (the form chosen by the first argument's numba type)
+        from numba.core import types
+
+        kind = {bool: types.Boolean, float: types.Float}[scalar_form[0]]
+        overload(fn, inline="never", strict=False)(
+            lambda x, *args, **kwargs: scalar_form[1] if isinstance(x, kind) else impl
+        )
     _done.add(id(fn))
 
 
