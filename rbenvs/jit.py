@@ -72,22 +72,22 @@ def compiled_form(of):
     return mark
 
 
-def scalar_form(of, scalar: type = bool):
+def scalar_form(of):
     """Decorator: the decorated function is what compiled code runs for the jitable ``of`` when
-    its first argument is a ``scalar`` (``bool`` or ``float``: one state's), ``of`` itself
-    otherwise.
+    its first argument is a bool (one state's condition), ``of`` itself otherwise.
 
-    For functions that branch on ``isinstance(x, scalar)`` between one state and a batch: numba
-    types both branches before it prunes the dead one, so the batch branch's numpy calls were
-    compiled for every scalar signature (most of a second of a free body's first compiled
-    step). The scalar form is that branch's own code: the same operations, so the same bits."""
+    For :func:`rbenvs.rotations.select` and ``every``, which branch on ``isinstance(cond, bool)``
+    between one state and a batch: inside the kernels numba compiled their batch branch
+    (``np.where`` and ``all`` on scalars) for every scalar signature, a cost ``rbenvs bench
+    startup``'s cold rows pay. The scalar form is the one-state branch's own code: the same
+    operations, so the same bits."""
 
     def mark(alt):
         if id(of) in _done:
             raise RuntimeError(
                 f"{of.__name__} was registered with numba before its scalar form was declared"
             )
-        of.__scalar_form__ = (scalar, alt)
+        of.__scalar_form__ = alt
         return alt
 
     return mark
@@ -117,9 +117,8 @@ def register(fn) -> None:
     else:  # (the form chosen by the first argument's numba type)
         from numba.core import types
 
-        kind = {bool: types.Boolean, float: types.Float}[scalar_form[0]]
         overload(fn, inline="never", strict=False)(
-            lambda x, *args, **kwargs: scalar_form[1] if isinstance(x, kind) else impl
+            lambda x, *args, **kwargs: scalar_form if isinstance(x, types.Boolean) else impl
         )
     _done.add(id(fn))
 

@@ -258,8 +258,8 @@ def _feed(obj, h, seen: dict) -> None:
             _feed(form, h, seen)
         scalar = getattr(obj, "__scalar_form__", None)  # (rbenvs.jit.scalar_form)
         if scalar is not None:
-            h.update(f"scalar form {scalar[0].__name__}:".encode())
-            _feed(scalar[1], h, seen)
+            h.update(b"scalar form:")
+            _feed(scalar, h, seen)
         return
     if isinstance(obj, types.ModuleType):
         h.update(f"module:{obj.__name__};".encode())

@@ -50,11 +50,6 @@ def maximum(a, b):
     return max(a, b) if isinstance(a, float) else np.maximum(a, b)
 
 
-@scalar_form(maximum, float)
-def _maximum_one(a, b):
-    return max(a, b)
-
-
 @jitable
 def power(x, p):
     """``x^p`` for a whole ``p >= 1`` (a float) by repeated products: the same bits on floats,
@@ -118,21 +113,11 @@ def _expm1_arrays(x):
     return np.vectorize(math.expm1, otypes=[np.float64])(x)
 
 
-@scalar_form(expm1, float)
-def _expm1_one(x):
-    return math.expm1(x)
-
-
 @jitable
 def sqrt(x):
     """Square root of a float or an array, with the same bits either way (IEEE sqrt is
     correctly rounded; ``x ** 0.5`` is libm ``pow`` for a float but SIMD sqrt for an array)."""
     return math.sqrt(x) if isinstance(x, float) else np.sqrt(x)
-
-
-@scalar_form(sqrt, float)
-def _sqrt_one(x):
-    return math.sqrt(x)
 
 
 # fdlibm's atan (Sun Microsystems, 1993; s_atan.c): the breakpoints of its argument reduction,

@@ -782,3 +782,30 @@ def test_actuators_pure_forms_are_their_formulas(env_id, kwargs):
     un_b, u_b = act.control(rows)
     assert all(np.asarray(p)[0] == q for p, q in zip(np.broadcast_arrays(*un_b), u_norm))
     assert all(np.broadcast_to(p, (2,))[0] == q for p, q in zip(u_b, u))
+
+
+@needs_numba
+def test_compiled_code_runs_the_scalar_form_for_a_bool():
+    """rbenvs.jit.scalar_form: compiled code calls the declared one-state form where the first
+    argument is a bool (a probe whose form is told apart from its own body: 2.0 against 1.0),
+    and a form declared after the function was registered is refused."""
+    import numba
+
+    from rbenvs import jit
+
+    def probe(cond):
+        if isinstance(cond, bool):
+            return 1.0 if cond else 0.0
+        return float(cond.all())
+
+    jit.jitable(probe)
+
+    @jit.scalar_form(probe)
+    def _probe_one(cond):
+        return 2.0 if cond else 0.0
+
+    jit.register_all()
+    assert numba.njit(lambda c: probe(c))(True) == 2.0
+    assert probe(True) == 1.0  # (Python keeps the function itself)
+    with pytest.raises(RuntimeError, match="registered with numba before"):
+        jit.scalar_form(probe)(_probe_one)

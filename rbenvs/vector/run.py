@@ -31,13 +31,6 @@ class BatchRun:
         self.cc = np.zeros((dim, n)) if compensated else None
         self.plain = plain
 
-    def __getstate__(self):
-        return {k: getattr(self, k) for k in self.__slots__}
-
-    def __setstate__(self, state) -> None:
-        for k, v in state.items():
-            setattr(self, k, v)
-
     def set_rows(self, rows: dict) -> None:
         """Sub-env ``i``'s state set to ``rows[i]`` (a tuple of floats) for each ``i``: a new run
         (its compensation zero)."""
