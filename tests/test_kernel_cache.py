@@ -17,14 +17,14 @@ pytest.importorskip("numba")
 
 # A fresh process: makes and steps an env (or a vector env), prints the cache's counts and the
 # step's observation (to compare across processes: a loaded kernel computes what a compiled one
-# does). env_id "small": a small generated kernel instead (through the same
+# does), and the kernels' labels. env_id "small": a small generated kernel instead (through the same
 # rbenvs.kernel_cache.njit), n its constant: the tests of the files' handling need a kernel, not an
 # env's seconds of compiling
 SCRIPT = r"""
 import json, sys, warnings
 import numpy as np
 from rbenvs import kernel_cache
-env_id, n = sys.argv[1], int(sys.argv[2])
+env_id, n, threads = sys.argv[1], int(sys.argv[2]), int(sys.argv[3])
 with warnings.catch_warnings(record=True) as caught:
     warnings.simplefilter("always")
     if env_id == "small":
@@ -38,7 +38,8 @@ with warnings.catch_warnings(record=True) as caught:
         import gymnasium as gym
         import rbenvs
         if n:
-            env = gym.make_vec(env_id, num_envs=n, vectorization_mode="vector_entry_point")
+            env = gym.make_vec(env_id, num_envs=n, vectorization_mode="vector_entry_point",
+                               num_threads=threads)
         else:
             env = gym.make(env_id)
         env.reset(seed=3)
@@ -46,15 +47,16 @@ with warnings.catch_warnings(record=True) as caught:
         for _ in range(3):
             obs = env.step(np.full(env.action_space.shape, 0.3, dtype=env.action_space.dtype))[0]
 print(json.dumps({"stats": kernel_cache.stats(), "obs": np.asarray(obs).tolist(),
+                  "labels": [k[0] for k in kernel_cache.kernels()],
                   "warnings": [str(w.message) for w in caught
                                if issubclass(w.category, kernel_cache.KernelCacheWarning)]}))
 """
 
 
-def run(cache_dir, env_id="small", n=1):
+def run(cache_dir, env_id="small", n=1, threads=1):
     env = dict(os.environ, RBENVS_CACHE_DIR=str(cache_dir))
     out = subprocess.run(
-        [sys.executable, "-c", SCRIPT, env_id, str(n)],
+        [sys.executable, "-c", SCRIPT, env_id, str(n), str(threads)],
         env=env,
         capture_output=True,
         text=True,
@@ -88,13 +90,26 @@ def test_a_second_process_loads_what_the_first_compiled(tmp_path):
 def test_the_vector_env_and_its_generator_table_load_too(tmp_path):
     first = run(tmp_path, "rbenvs/LagrangeTop-v0", 4)
     second = run(tmp_path, "rbenvs/LagrangeTop-v0", 4)
-    assert (
-        first["stats"]["compiled"] >= 3
-    )  # the vector step, the generator table's two (make, append)
+    # the vector step, the generator table's two (make, append)
+    assert first["stats"]["compiled"] >= 3
     assert (
         second["stats"]["compiled"] == 0 and second["stats"]["loaded"] == first["stats"]["compiled"]
     )
     assert second["obs"] == first["obs"]
+
+
+def test_a_threaded_vector_env_loads_its_split_step_and_shares_the_one_call_step(tmp_path):
+    # num_threads=2 on 128 sub-envs: the step split into two chunks (a parallel kernel over the
+    # one-call step); a second process loads both, and an unthreaded env loads the same step
+    first = run(tmp_path, "rbenvs/FreeRigidBody-v0", 128, threads=2)
+    assert first["labels"].count("vsplit") == 1 and first["labels"].count("vstep") == 1
+    second = run(tmp_path, "rbenvs/FreeRigidBody-v0", 128, threads=2)
+    # (the loaded split step carries the one-call step's code: nothing else to load)
+    assert second["stats"]["compiled"] == 0 and "vsplit" in second["labels"]
+    assert second["obs"] == first["obs"]
+    one_call = run(tmp_path, "rbenvs/FreeRigidBody-v0", 128)
+    assert one_call["stats"]["compiled"] == 0 and "vstep" in one_call["labels"]
+    assert one_call["obs"] == first["obs"]
 
 
 @pytest.mark.parametrize("damage", ["truncate", "flip", "empty", "swap"])
@@ -128,7 +143,7 @@ def test_four_processes_compiling_one_kernel_at_once(tmp_path):
     env = dict(os.environ, RBENVS_CACHE_DIR=str(tmp_path))
     procs = [
         subprocess.Popen(
-            [sys.executable, "-c", SCRIPT, "small", "1"],
+            [sys.executable, "-c", SCRIPT, "small", "1", "1"],
             env=env,
             stdout=subprocess.PIPE,
             stderr=subprocess.PIPE,

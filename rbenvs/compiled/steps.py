@@ -651,6 +651,7 @@ class VectorStep:
         ``(status, k, ends, r)`` as one call's: a refusal (-1) before a non-finite count;
         ``keep_cc``: the compensations, carried in place, put back on a refusal (one call writes
         none)."""
+        import numba
         import numpy as np
 
         from ..vector.threads import pool_size
@@ -671,12 +672,21 @@ class VectorStep:
         CC = args[3]
         saved = CC.copy() if keep_cc else None
         call = self._split_calls.get(dtype)
-        if call is None:  # (compiled or loaded on the first split)
-            kernel = split_kernel(self.layout, tuple_shape(args))
-            status = kernel(cuts, S, self._width, *leaves)
-            self._split_calls[dtype] = _entry_point(kernel, (cuts, S, self._width, *leaves))
-        else:
-            status = call(cuts, S, self._width, *leaves)
+        # the chunks run on this many of numba's threads (a setting of the calling thread, put
+        # back after; set only where it differs: setting and restoring costs 2 us a step)
+        before = numba.get_num_threads()
+        if before != self._width:
+            numba.set_num_threads(self._width)
+        try:
+            if call is None:  # (compiled or loaded on the first split)
+                kernel = split_kernel(self.layout, tuple_shape(args))
+                status = kernel(cuts, S, *leaves)
+                self._split_calls[dtype] = _entry_point(kernel, (cuts, S, *leaves))
+            else:
+                status = call(cuts, S, *leaves)
+        finally:
+            if before != self._width:
+                numba.set_num_threads(before)
         if status == -1 and saved is not None:
             CC[...] = saved
         if status != 0:

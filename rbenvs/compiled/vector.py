@@ -232,7 +232,7 @@ def _vector_args(L: Layout) -> list[str]:
 
 
 @cache
-def vector_kernel(V: VectorLayout, chunked: bool = False):
+def vector_kernel(V: VectorLayout):
     """A vector env's whole step, compiled: one call per step with no Python per sub-env.
     Signature (arrays ``(n,)`` unless said; see :func:`batch_kernel` for the period's)::
 
@@ -242,13 +242,13 @@ def vector_kernel(V: VectorLayout, chunked: bool = False):
               counts, hstep, fired, obs, over, reward, terminated, truncated, RZ, RN, clear, ends,
               codes, EST, PGT, M_1..M_k, R_1..R_m) -> (status, k, m, r)
 
-    on the sub-envs ``i_lo <= i < i_hi`` with ``chunked`` (every array is the whole batch's; without
-    it, on every sub-env, the bounds unread); ``phase`` 0 runs the
-    whole step below; a step split over threads (:class:`VectorStep`) runs phase 1 (1 and 2
-    below: the actions' check, the guard's counts, the period and its non-finite check) on
-    every chunk, then, when every chunk returned 0, phase 2 (the rest; the caller zeroes the
-    rows ``clear`` in between, and the compacted ``ends`` of a chunk start at ``i_lo``): each
-    sub-env's arithmetic is the same whichever its chunk, so any split gives the same bits.
+    on the sub-envs ``i_lo <= i < i_hi`` (every array is the whole batch's; one call's step: 0 and
+    ``n``); ``phase`` 0 runs the whole step below; a step split over threads (:class:`VectorStep`)
+    runs phase 1 (1 and 2 below: the actions' check, the guard's counts, the period and its
+    non-finite check) on every chunk, then, when every chunk returned 0, phase 2 (the rest; the
+    caller zeroes the rows ``clear`` in between, and the compacted ``ends`` of a chunk start at
+    ``i_lo``): each sub-env's arithmetic is the same whichever its chunk, so any split gives the
+    same bits.
 
     1. the actions ``A`` ``(n, n_in)`` (float32 or float64): every entry finite (else ``(-2,
        i, 0, 0)`` for the first bad sub-env ``i``, nothing else written), clipped to ``[-1, 1]``
@@ -377,7 +377,7 @@ def vector_kernel(V: VectorLayout, chunked: bool = False):
         "        c = codes[i]",
         # (i_lo + m <= i: the compaction overwrites only rows it has read, in its own range)
         "        if c != 0:",
-        # (i unsigned in the chunked form: cast, not converted silently)
+        # (i unsigned: cast, not converted silently)
         "            ends[i_lo + m] = np.int64(i)",
         "            codes[i_lo + m] = c",
         "            m += 1",
@@ -406,22 +406,17 @@ def vector_kernel(V: VectorLayout, chunked: bool = False):
     lines += ["    return 0, k, m, r"]
     namespace = _vector_namespace(V)
     source = "\n".join(lines)
-    if (
-        chunked
-    ):  # every loop over the sub-envs over the call's range [i_lo, i_hi): the threads' chunks
-        # (its own kernel: loops from a run-time start stay out of SIMD registers, so the
-        # one-call step keeps range(n) and ignores i_lo, i_hi)
-        # (unsigned bounds: an index numba cannot prove non-negative gets a wraparound select on
-        # every access, which keeps the loop out of SIMD registers)
-        source = source.replace(
-            "    n = Y.shape[1]\n",
-            "    n = Y.shape[1]\n    u_lo, u_hi = np.uint64(i_lo), np.uint64(i_hi)\n",
-            1,
-        )
-        source = source.replace(" in range(n):", " in range(u_lo, u_hi):")
-    generate(
-        source, f"vector step dim={L.dim} n_obs={L.n_obs}{' chunked' if chunked else ''}", namespace
+    # every loop over the sub-envs over the call's range [i_lo, i_hi): a thread's chunk, or the
+    # whole batch (unsigned bounds: an index numba cannot prove non-negative gets a wraparound
+    # select on every access, which keeps the loop out of SIMD registers; so bounded, one call's
+    # step runs as fast as over range(n): one kernel serves both)
+    source = source.replace(
+        "    n = Y.shape[1]\n",
+        "    n = Y.shape[1]\n    u_lo, u_hi = np.uint64(i_lo), np.uint64(i_hi)\n",
+        1,
     )
+    source = source.replace(" in range(n):", " in range(u_lo, u_hi):")
+    generate(source, f"vector step dim={L.dim} n_obs={L.n_obs}", namespace)
     # (nogil: envs stepped from several Python threads run at once)
     return _cached_njit(namespace["vstep"], "vstep", **KERNEL_OPTIONS, nogil=True)
 
@@ -449,15 +444,16 @@ def flat_leaves(value) -> tuple:
 
 @cache
 def split_kernel(V: VectorLayout, shape: tuple):
-    """A vector step split over threads, in one call: ``vsplit(cuts, S, width, *leaves)`` runs
-    the chunked :func:`vector_kernel`'s phase 1 on every chunk ``[cuts[c], cuts[c + 1])`` at once
-    (``prange`` on ``width`` of numba's threads), then, when every chunk returned 0, zeroes the
-    reason pool's rows ``clear`` and runs phase 2 the same way; ``S[c]`` is chunk ``c``'s
-    ``(status, k, m, r)``. Returns -1 if a chunk refused, else the sum of the phase-1 statuses
-    (0: phase 2 ran). ``leaves``: the chunked kernel's arguments after ``phase``, their tuples
-    flattened (``shape``: :func:`tuple_shape` of them), since a parallel loop's body takes no
-    nested tuple from outside; the body rebuilds them. The calling thread's thread count is
-    put back before it returns."""
+    """A vector step split over threads, in one call: ``vsplit(cuts, S, *leaves)`` runs
+    :func:`vector_kernel`'s phase 1 on every chunk ``[cuts[c], cuts[c + 1])`` at once (``prange`` on
+    the calling thread's number of numba's threads: the caller sets it), then, when every chunk
+    returned 0, zeroes the reason pool's rows ``clear`` and runs phase 2 the same way; ``S[c]`` is
+    chunk ``c``'s ``(status, k, m, r)``. Returns -1 if a chunk refused, else the sum of the phase-1
+    statuses (0: phase 2 ran). ``leaves``: the vector kernel's arguments after ``phase``, their
+    tuples flattened (``shape``: :func:`tuple_shape` of them), since a parallel loop's body takes no
+    nested tuple from outside; the body rebuilds them. (No numba.set_num_threads inside: its
+    compiled form reaches the threading layer through a run-time address, which numba cannot keep in
+    a cached kernel.)"""
     import numba
     import numpy as np
 
@@ -465,10 +461,8 @@ def split_kernel(V: VectorLayout, shape: tuple):
     exprs = [_rebuild(part, names) for part in shape]
     at = dict(zip(_vector_args(V.batch)[3:], exprs))
     lines = [
-        f"def vsplit(cuts, S, width, {', '.join(names)}):",
+        f"def vsplit(cuts, S, {', '.join(names)}):",
         "    nc = cuts.shape[0] - 1",
-        "    before = get_num_threads()",
-        "    set_num_threads(width)",
         "    status = 0",
         "    phase = 1",
         "    while phase != 0:",
@@ -491,14 +485,11 @@ def split_kernel(V: VectorLayout, shape: tuple):
         f"            for w in range({at['RZ']}.shape[1]):",
         f"                {at['RZ']}[{at['clear']}[j], w] = 0",
         "        phase = 2",
-        "    set_num_threads(before)",
         "    return status",
     ]
     namespace = {
-        "vstep": vector_kernel(V, chunked=True),
+        "vstep": vector_kernel(V),
         "prange": numba.prange,
-        "get_num_threads": numba.get_num_threads,
-        "set_num_threads": numba.set_num_threads,
         "np": np,
     }
     generate(

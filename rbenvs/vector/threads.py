@@ -99,18 +99,20 @@ def launch_us(threads: int = 2, calls: int = 2000) -> tuple[str, float]:
     import numpy as np
 
     @numba.njit(parallel=True)
-    def region(width, out):
-        before = numba.get_num_threads()
-        numba.set_num_threads(width)
+    def region(out):
         for c in numba.prange(out.shape[0]):
             out[c] += 1
-        numba.set_num_threads(before)
 
-    width = min(threads, pool_size())
     out = np.zeros(threads, dtype=np.int64)
-    for _ in range(20):
-        region(width, out)
-    start = time.perf_counter()
-    for _ in range(calls):
-        region(width, out)
-    return numba.threading_layer(), 1e6 * (time.perf_counter() - start) / calls
+    before = numba.get_num_threads()
+    numba.set_num_threads(min(threads, pool_size()))  # (as a split step sets it around its call)
+    try:
+        for _ in range(20):
+            region(out)
+        start = time.perf_counter()
+        for _ in range(calls):
+            region(out)
+        seconds = time.perf_counter() - start
+    finally:
+        numba.set_num_threads(before)
+    return numba.threading_layer(), 1e6 * seconds / calls
