@@ -289,7 +289,7 @@ def _cmd_warmup(args) -> int:
 def _cmd_bench_fidelity(args) -> int:
     from .bench.fidelity import main as bench_main
 
-    return bench_main(progress=not args.no_progress)
+    return bench_main(progress=not args.no_progress, quick=args.quick)
 
 
 PLOT_CHOICES = ("free_body", "heavy_top", "tippe_top", "frames", "all")
@@ -429,6 +429,9 @@ def build_parser() -> argparse.ArgumentParser:
         "fidelity", help="tippe top: cost of each fidelity level against gliding"
     )
     fidelity.add_argument("--no-progress", action="store_true", help="no progress bar")
+    fidelity.add_argument(
+        "--quick", action="store_true", help="each figure from one call (noisy: a smoke run)"
+    )
     fidelity.set_defaults(func=_cmd_bench_fidelity)
     # `bench throughput` has its own parser (rbenvs.bench.throughput.main); main() hands it the
     # rest.

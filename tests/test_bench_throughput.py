@@ -284,6 +284,7 @@ def test_the_check_table_times_the_checked_step_against_its_peers(tmp_path, caps
         "--only",
         "free body",
         "--no-progress",
+        "--quick",
         "--json",
         str(path),
     ]

@@ -34,12 +34,15 @@ LEVELS = (
 BLOCK = 50
 
 
-def _best(fn, repeat=5):
-    number, _ = timeit.Timer(fn).autorange()
+def _best(fn, repeat=5, number=None):
+    if number is None:  # (calls enough for 0.2 s a timing)
+        number, _ = timeit.Timer(fn).autorange()
     return min(timeit.repeat(fn, number=number, repeat=repeat)) / number
 
 
-def run(levels=LEVELS, repeat=5, progress: bool = False) -> list[dict]:
+def run(levels=LEVELS, repeat=5, progress: bool = False, quick: bool = False) -> list[dict]:
+    """A row per level; ``quick``: each figure from one call (noisy: for a check that the
+    command runs, not for the figures)."""
     from ..envs import TippeTopEnv
     from ..progress import Progress
 
@@ -50,7 +53,8 @@ def run(levels=LEVELS, repeat=5, progress: bool = False) -> list[dict]:
         env.reset(seed=0)
         y = env.state_components
         system = env.system
-        rhs_s = _best(lambda: system.rhs(y, None), repeat)
+        number = 1 if quick else None
+        rhs_s = _best(lambda: system.rhs(y, None), repeat, number)
         action = np.zeros(env.action_space.shape, dtype=np.float32)
         substeps = env.internal_steps(y, (0.0, 0.0, env.params.friction, 0.0, 0.0, 0.0))
 
@@ -62,8 +66,8 @@ def run(levels=LEVELS, repeat=5, progress: bool = False) -> list[dict]:
             for _ in range(BLOCK):
                 env.step(action)
 
-        reset_s = _best(lambda: env.reset(seed=0), repeat)
-        step_s = (_best(block, repeat) - reset_s) / BLOCK
+        reset_s = _best(lambda: env.reset(seed=0), repeat, number)
+        step_s = (_best(block, repeat, number) - reset_s) / BLOCK
         rows.append(
             {
                 "level": label,
@@ -81,8 +85,8 @@ def run(levels=LEVELS, repeat=5, progress: bool = False) -> list[dict]:
     return rows
 
 
-def main(progress: bool = True) -> int:
-    rows = run(progress=progress)
+def main(progress: bool = True, quick: bool = False) -> int:
+    rows = run(progress=progress, quick=quick)
     print(
         f"{'level':<18} {'components':>10} {'rhs us':>8} {'internal steps':>15} "
         f"{'env step us':>12} "
