@@ -220,10 +220,6 @@ def _cmd_cache(args) -> int:
 def _cmd_warmup(args) -> int:
     """Compile (or load) what each system's default single env and vector env run: its first
     steps, as a user's first process would take them."""
-    import time
-
-    import gymnasium as gym
-
     import rbenvs  # noqa: F401  (registers the ids)
 
     from . import kernel_cache
@@ -241,35 +237,7 @@ def _cmd_warmup(args) -> int:
     rows = [("system", "env", "compiled", "loaded", "s", "kernels (s each)")]
     for name in systems:
         for kind in ("single", "vector"):
-            before, first, t = (
-                kernel_cache.stats(),
-                len(kernel_cache.kernels()),
-                time.perf_counter(),
-            )
-            env = (
-                gym.make(SYSTEM_IDS[name])
-                if kind == "single"
-                else gym.make_vec(
-                    SYSTEM_IDS[name], num_envs=2, vectorization_mode="vector_entry_point"
-                )
-            )
-            env.reset(seed=0)
-            env.step(env.action_space.sample())
-            env.close()
-            after = kernel_cache.stats()
-            each = ", ".join(
-                f"{label} {seconds:.1f}" for label, _, _, seconds in kernel_cache.kernels()[first:]
-            )
-            rows.append(
-                (
-                    name,
-                    kind,
-                    str(after["compiled"] - before["compiled"]),
-                    str(after["loaded"] - before["loaded"]),
-                    f"{time.perf_counter() - t:.1f}",
-                    each,
-                )
-            )
+            rows.append(_warmup_row(name, kind))
             progress.update()
     progress.close()
     _print_table(rows)
@@ -284,6 +252,45 @@ def _cmd_warmup(args) -> int:
         else "the kernel cache is off: nothing was kept"
     )
     return 0
+
+
+def _warmup_row(name, kind) -> tuple:
+    """Take one env's first steps and return its warmup table row: kernels compiled and loaded
+    on the way, seconds, and each new kernel's own compile time."""
+    import time
+
+    from . import kernel_cache
+
+    before, first, t = (
+        kernel_cache.stats(),
+        len(kernel_cache.kernels()),
+        time.perf_counter(),
+    )
+    env = _make_warmup_env(name, kind)
+    env.reset(seed=0)
+    env.step(env.action_space.sample())
+    env.close()
+    after = kernel_cache.stats()
+    each = ", ".join(
+        f"{label} {seconds:.1f}" for label, _, _, seconds in kernel_cache.kernels()[first:]
+    )
+    return (
+        name,
+        kind,
+        str(after["compiled"] - before["compiled"]),
+        str(after["loaded"] - before["loaded"]),
+        f"{time.perf_counter() - t:.1f}",
+        each,
+    )
+
+
+def _make_warmup_env(name, kind):
+    """The system's default single env, or its vector env of two (the shape users start with)."""
+    import gymnasium as gym
+
+    if kind == "single":
+        return gym.make(SYSTEM_IDS[name])
+    return gym.make_vec(SYSTEM_IDS[name], num_envs=2, vectorization_mode="vector_entry_point")
 
 
 def _cmd_bench_fidelity(args) -> int:
@@ -355,8 +362,20 @@ def build_parser() -> argparse.ArgumentParser:
         "this way).",
     )
     sub = parser.add_subparsers(dest="command", required=True)
+    # The order of these calls is the order --help lists the sub-commands in.
     sub.add_parser("list", help="registered environment ids").set_defaults(func=_cmd_list)
     sub.add_parser("scenes", help="named scenes in configs/scenes").set_defaults(func=_cmd_scenes)
+    _add_run_parser(sub)
+    _add_verify_headline_parsers(sub)
+    _add_cache_parser(sub)
+    _add_warmup_parser(sub)
+    _add_bench_parsers(sub)
+    _add_plot_parser(sub)
+    return parser
+
+
+def _add_run_parser(sub) -> None:
+    """Add ``rbenvs run``: the analytic baselines on named scenes."""
     run = sub.add_parser(
         "run",
         help="the analytic baselines: scenes with their analytic controller and with no control "
@@ -380,6 +399,10 @@ def build_parser() -> argparse.ArgumentParser:
     )
     run.add_argument("--no-progress", action="store_true", help="no progress bar")
     run.set_defaults(func=_cmd_run)
+
+
+def _add_verify_headline_parsers(sub) -> None:
+    """Add ``verify`` and ``headline`` for --help only: their own modules parse their options."""
     # `verify` has its own parser (rbenvs.verify.main); main() hands it the rest of the line.
     sub.add_parser(
         "verify", help="check the simulator against the analytic oracles (see rbenvs verify --help)"
@@ -392,6 +415,10 @@ def build_parser() -> argparse.ArgumentParser:
             "(see rbenvs headline --help)"
         ),
     )
+
+
+def _add_cache_parser(sub) -> None:
+    """Add ``rbenvs cache info|clear``: the compiled kernels kept on disk."""
     cache = sub.add_parser(
         "cache", help="the compiled kernels kept on disk: where, how many, and clearing them"
     )
@@ -409,6 +436,10 @@ def build_parser() -> argparse.ArgumentParser:
         ),
     )
     cache.set_defaults(func=_cmd_cache)
+
+
+def _add_warmup_parser(sub) -> None:
+    """Add ``rbenvs warmup``: compile the default envs' kernels into the cache ahead."""
     warmup = sub.add_parser(
         "warmup",
         help="compile the default envs' kernels ahead into the cache (container images, CI caches)",
@@ -421,6 +452,10 @@ def build_parser() -> argparse.ArgumentParser:
     )
     warmup.add_argument("--no-progress", action="store_true", help="no progress bar")
     warmup.set_defaults(func=_cmd_warmup)
+
+
+def _add_bench_parsers(sub) -> None:
+    """Add ``rbenvs bench`` and its benchmarks; only ``fidelity`` is parsed here."""
     bench = sub.add_parser(
         "bench", help="benchmarks (each prints the peer measured in the same run)"
     )
@@ -433,6 +468,11 @@ def build_parser() -> argparse.ArgumentParser:
         "--quick", action="store_true", help="each figure from one call (noisy: a smoke run)"
     )
     fidelity.set_defaults(func=_cmd_bench_fidelity)
+    _add_bench_own_parsers(bench_sub)
+
+
+def _add_bench_own_parsers(bench_sub) -> None:
+    """Add the benchmarks with a parser of their own (listed in _OWN_PARSERS), for --help only."""
     # `bench throughput` has its own parser (rbenvs.bench.throughput.main); main() hands it the
     # rest.
     bench_sub.add_parser(
@@ -479,6 +519,10 @@ def build_parser() -> argparse.ArgumentParser:
             "(see its --help)"
         ),
     )
+
+
+def _add_plot_parser(sub) -> None:
+    """Add ``rbenvs plot``: PNG figures against the oracles, and rendered frames."""
     plot = sub.add_parser(
         "plot",
         help=(
@@ -506,7 +550,6 @@ def build_parser() -> argparse.ArgumentParser:
         help="short simulations (a smoke test; not the committed pictures)",
     )
     plot.set_defaults(func=_cmd_plot)
-    return parser
 
 
 def main(argv=None) -> int:

@@ -74,7 +74,7 @@ def _summary(tail: str) -> str:
     return lines[-1].split(" in ")[0] if lines else "?"
 
 
-def main(argv=None) -> int:
+def _parser():
     parser = ArgumentParser(
         prog="rbenvs bench costs",
         description="The README's costs measured here: the venv's size, the main job's "
@@ -93,6 +93,43 @@ def main(argv=None) -> int:
         "--root", default=".", help="the repository whose tests run (default: the current folder)"
     )
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+    return parser
+
+
+def _main_job_row(bindir: Path, scratch: str) -> tuple:
+    train = shutil.which("rbenvs-train", path=str(bindir)) or "rbenvs-train"
+    out = os.path.join(scratch, "run")
+    argv = [train, "--algo", "ppo", "--scene", "default", "--seed", "0", "--out", out]
+    wall, cpu, _ = _timed([*argv, "--no-progress"], cwd=scratch)
+    what = "main job: `rbenvs-train --algo ppo --scene default --seed 0`"
+    return what, _minutes(wall), f"CPU {_minutes(cpu)}"
+
+
+def _test_rows(root: Path, scratch: str, bar) -> list[tuple]:
+    """The suite twice on a kernel cache of its own: empty, then as the first run left it."""
+    env = dict(os.environ, RBENVS_CACHE_DIR=os.path.join(scratch, "kernels"))
+    pytest = [sys.executable, "-m", "pytest", "-q", "-n", "auto", "--maxprocesses", "8"]
+    rows = []
+    for label in ("empty kernel cache (a clean clone)", "kernel cache filled by the run before"):
+        wall, cpu, tail = _timed([*pytest, "-p", "no:cacheprovider"], cwd=root, env=env)
+        rows.append(
+            (f"test suite, {label}", _minutes(wall), f"CPU {_minutes(cpu)}; {_summary(tail)}")
+        )
+        bar.update()
+    return rows
+
+
+def _verify_row(bindir: Path, scratch: str) -> tuple:
+    rbenvs = shutil.which("rbenvs", path=str(bindir)) or "rbenvs"
+    report = os.path.join(scratch, "verify.json")
+    wall, cpu, _ = _timed(
+        [rbenvs, "verify", "--quick", "--no-progress", "--json", report], cwd=scratch
+    )
+    return "`rbenvs verify --quick`", _minutes(wall), f"CPU {_minutes(cpu)}"
+
+
+def main(argv=None) -> int:
+    parser = _parser()
     args = parser.parse_args(argv)
     root = Path(args.root).resolve()
     if not args.skip_tests and not (root / "tests").is_dir():
@@ -107,70 +144,11 @@ def main(argv=None) -> int:
         2 + (0 if args.skip_tests else 2), enabled=not args.no_progress, desc="bench costs"
     )
     try:
-        train = shutil.which("rbenvs-train", path=str(bindir)) or "rbenvs-train"
-        wall, cpu, _ = _timed(
-            [
-                train,
-                "--algo",
-                "ppo",
-                "--scene",
-                "default",
-                "--seed",
-                "0",
-                "--out",
-                os.path.join(scratch, "run"),
-                "--no-progress",
-            ],
-            cwd=scratch,
-        )
-        rows.append(
-            (
-                "main job: `rbenvs-train --algo ppo --scene default --seed 0`",
-                _minutes(wall),
-                f"CPU {_minutes(cpu)}",
-            )
-        )
+        rows.append(_main_job_row(bindir, scratch))
         bar.update()
         if not args.skip_tests:
-            env = dict(os.environ, RBENVS_CACHE_DIR=os.path.join(scratch, "kernels"))
-            pytest = [
-                sys.executable,
-                "-m",
-                "pytest",
-                "-q",
-                "-n",
-                "auto",
-                "--maxprocesses",
-                "8",
-                "-p",
-                "no:cacheprovider",
-            ]
-            for label in (
-                "empty kernel cache (a clean clone)",
-                "kernel cache filled by the run before",
-            ):
-                wall, cpu, tail = _timed(pytest, cwd=root, env=env)
-                rows.append(
-                    (
-                        f"test suite, {label}",
-                        _minutes(wall),
-                        f"CPU {_minutes(cpu)}; {_summary(tail)}",
-                    )
-                )
-                bar.update()
-        rbenvs = shutil.which("rbenvs", path=str(bindir)) or "rbenvs"
-        wall, cpu, _ = _timed(
-            [
-                rbenvs,
-                "verify",
-                "--quick",
-                "--no-progress",
-                "--json",
-                os.path.join(scratch, "verify.json"),
-            ],
-            cwd=scratch,
-        )
-        rows.append(("`rbenvs verify --quick`", _minutes(wall), f"CPU {_minutes(cpu)}"))
+            rows += _test_rows(root, scratch, bar)
+        rows.append(_verify_row(bindir, scratch))
         bar.update()
     except RuntimeError as exc:
         print(f"rbenvs bench costs: {exc}", file=sys.stderr)

@@ -178,7 +178,7 @@ def _row(
     )
 
 
-def main(argv=None) -> int:
+def _parser():
     parser = ArgumentParser(
         prog="rbenvs bench startup",
         description="Seconds from a fresh process to its first step: each system's single env and "
@@ -204,11 +204,12 @@ def main(argv=None) -> int:
     )
     parser.add_argument("--json", metavar="PATH", help="also write the figures as JSON")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
-    args = parser.parse_args(argv)
-    if args.repeat < 1:
-        parser.error("--repeat must be >= 1")
-    systems = [(s, i) for s, i in SYSTEMS if not args.system or s in args.system]
-    mujoco = _mujoco_installed()
+    return parser
+
+
+def _measure(args, systems, mujoco: bool) -> tuple[dict, dict]:
+    """Every row's processes, cold then warm (``results``), and the spawned workers' resets
+    (``spawn``), each system's kernels in a cache folder of its own, deleted after."""
     n_rows = 2 * len(systems) + 2 + mujoco
     bar = Progress(
         n_rows * (1 + args.repeat) + (0 if args.no_async else len(systems)),
@@ -216,6 +217,7 @@ def main(argv=None) -> int:
         desc="bench startup",
     )
     results: dict = {}
+    spawn: dict = {}
     root = tempfile.mkdtemp(prefix="rbenvs-bench-startup-")
     _compile_bytecode()
     try:
@@ -239,7 +241,6 @@ def main(argv=None) -> int:
         for name, env_id in systems:
             for n, kind in ((0, "single"), (VECTOR_ENVS, f"vector {VECTOR_ENVS}")):
                 measure((env_id, kind), _PROCESS, [env_id, n], os.path.join(root, f"{name}-{n}"))
-        spawn = {}
         if not args.no_async:
             for name, env_id in systems:
                 cache = os.path.join(root, f"{name}-0")  # warm: the single env's kernels
@@ -250,10 +251,14 @@ def main(argv=None) -> int:
     finally:
         shutil.rmtree(root, ignore_errors=True)
         bar.close()
+    return results, spawn
+
+
+def _print_tables(results: dict, spawn: dict, repeat: int) -> None:
     reference = statistics.median(r["total"] for r in results[("Pendulum-v1", "single")]["warm"])
     print(
         "Seconds from a fresh process to its first step (import gymnasium and the package, make, "
-        f"reset, one step); warm: median of {args.repeat} "
+        f"reset, one step); warm: median of {repeat} "
         "processes on the kernel cache the cold process filled; ratio: warm total over "
         "Pendulum-v1's; kernels: compiled cold / loaded warm.\n"
     )
@@ -281,6 +286,16 @@ def main(argv=None) -> int:
         print("|---|---:|")
         for env_id, seconds in spawn.items():
             print(f"| `{env_id}` | {seconds:.2f} |")
+
+
+def main(argv=None) -> int:
+    parser = _parser()
+    args = parser.parse_args(argv)
+    if args.repeat < 1:
+        parser.error("--repeat must be >= 1")
+    systems = [(s, i) for s, i in SYSTEMS if not args.system or s in args.system]
+    results, spawn = _measure(args, systems, _mujoco_installed())
+    _print_tables(results, spawn, args.repeat)
     if args.json:
         with open(args.json, "w") as f:
             json.dump(

@@ -236,7 +236,7 @@ def print_table(checks, file=None):
         print(f"FAILED {c.system}/{c.integrator}/{c.check}: replay with {c.case}", file=file)
 
 
-def main(argv=None) -> int:
+def _parser():
     from ..extras import ArgumentParser  # (suggests the closest choice)
 
     parser = ArgumentParser(
@@ -285,6 +285,11 @@ def main(argv=None) -> int:
         metavar="PATH",
         help="with --sweep: also draw the sweep to this PNG (needs matplotlib)",
     )
+    return parser
+
+
+def main(argv=None) -> int:
+    parser = _parser()
     args = parser.parse_args(argv)
     if args.plot and not args.sweep:
         parser.error("--plot needs --sweep")
