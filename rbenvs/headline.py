@@ -75,17 +75,23 @@ def _outcome(record) -> str:
 def headline(root: str | Path = ".") -> str:
     """The headline bullets (Markdown) from the records under ``root`` (the repository)."""
     root = Path(root)
+    return "\n".join((_verification_line(root), _speed_line(root), _agents_line(root)))
+
+
+def _verification_line(root: Path) -> str:
     checks = [
         c for c in _record(root, "verify") if c.get("applies", True)
     ]  # (a row that does not apply fails nothing)
     passed = sum(1 for c in checks if c["passed"])
     systems = sorted({c["system"] for c in checks})
-    lines = [
+    return (
         f"- **Verification** (`rbenvs verify`, {_date(root, 'verify')}): {passed} of {len(checks)} "
         "checks pass, on "
         f"{', '.join(systems)} ([verification](docs/verification.md))."
-    ]
+    )
 
+
+def _speed_line(root: Path) -> str:
     rows = [r for r in _record(root, "throughput")["tasks"] if r["scene"] is None]
     single = "; ".join(
         f"{label} {_span([r['single_ratio_to_pendulum'] for r in rows if r['id'].endswith(sid)])}"
@@ -113,8 +119,10 @@ def headline(root: str | Path = ".") -> str:
     )
     if tippe:
         text += f"; the tippe top {min(tippe):.1f}-{max(tippe):.1f}x its own numpy path"
-    lines.append(text + ".")
+    return text + "."
 
+
+def _agents_line(root: Path) -> str:
     # the evaluations on each scene's own parameters (the held-out ones are the robustness table's)
     results = [r for r in _record(root, "results") if r.get("evaluation", "nominal") == "nominal"]
     learned = [r for r in results if r["agent"] not in _BASELINES]
@@ -142,8 +150,7 @@ def headline(root: str | Path = ".") -> str:
     missing = sorted({(r["scene"], r["task"]) for r in results if r["scene"] not in covered})
     if missing:
         text += f"; no learned agent yet on {', '.join(f'`{s}` ({t})' for s, t in missing)}"
-    lines.append(text + ".")
-    return "\n".join(lines)
+    return text + "."
 
 
 def default_root() -> Path:
