@@ -79,21 +79,17 @@ def _box_faces(half):
     return faces, axes
 
 
-def scene(system, y) -> dict:
-    """Geometry of the state ``y`` of a :class:`rbenvs.dynamics.FreeBody` (see
-    :mod:`rbenvs.render.common` for the format)."""
-    y = tuple(float(v) for v in y)
-    inertia = np.asarray(system.params.inertia, dtype=float)
-    pi = np.array(y[0:3], dtype=float)
-    omega = np.array(system.angular_velocity(y), dtype=float)
-    space = bool(system.attitude)
-    rot = quat_to_matrix(y[3:7]) if space else np.eye(3)
-    half = box_half_sides(inertia)
+def _box_polygons(half, rot) -> dict:
+    """The box, each axis's faces in its colour, the + face lighter."""
     faces, normals = _box_faces(half)
     colors = []
-    for ax, sign in normals:  # each axis's faces in its colour, the + face lighter
+    for ax, sign in normals:
         colors.append(rgba(COLORS["axis"][ax], lighten=0.55 if sign > 0 else 0.2))
-    polygons = [{"faces": [f @ rot.T for f in faces], "colors": colors, "solid": True}]
+    return {"faces": [f @ rot.T for f in faces], "colors": colors, "solid": True}
+
+
+def _axis_lines(half, inertia, rot) -> list:
+    """The three principal axes through the box, labelled with their moments."""
     lines = []
     for ax in range(3):
         e = np.zeros(3)
@@ -106,37 +102,55 @@ def scene(system, y) -> dict:
                 "label": f"axis {ax + 1} (I = {inertia[ax]:.3g})",
             }
         )
+    return lines
+
+
+def _momentum_parts(inertia, pi, omega, rot, space):
+    """``(lines, arrows)``: the orbit of ``Pi`` (a body-frame curve, so drawn in the body frame
+    only), and the angular momentum and angular velocity arrows; none at rest."""
     norm = float(np.linalg.norm(pi))
-    arrows = []
-    if norm > 0.0:
-        scale = _ARROW / norm
-        orbit = momentum_orbit(inertia, pi)
-        if orbit is not None and not space:
-            lines.append(
-                {"points": orbit * scale, "color": COLORS["momentum"], "width": 0.8, "style": ":"}
-            )
-        i_mean = float(inertia.mean())
-        arrows.append(
-            {
-                "origin": np.zeros(3),
-                "vector": rot @ pi * scale,
-                "color": COLORS["momentum"],
-                "label": "angular momentum",
-            }
+    if not norm > 0.0:  # at rest, or a nan state: no arrows
+        return [], []
+    lines, scale = [], _ARROW / norm
+    orbit = momentum_orbit(inertia, pi)
+    if orbit is not None and not space:
+        lines.append(
+            {"points": orbit * scale, "color": COLORS["momentum"], "width": 0.8, "style": ":"}
         )
-        arrows.append(
-            {
-                "origin": np.zeros(3),
-                "vector": scaled_arrow(rot @ omega, scale * i_mean, 2.0 * _ARROW),
-                "color": COLORS["angular_velocity"],
-                "label": "angular velocity (x mean I)",
-            }
-        )
+    i_mean = float(inertia.mean())
+    arrows = [
+        {
+            "origin": np.zeros(3),
+            "vector": rot @ pi * scale,
+            "color": COLORS["momentum"],
+            "label": "angular momentum",
+        },
+        {
+            "origin": np.zeros(3),
+            "vector": scaled_arrow(rot @ omega, scale * i_mean, 2.0 * _ARROW),
+            "color": COLORS["angular_velocity"],
+            "label": "angular velocity (x mean I)",
+        },
+    ]
+    return lines, arrows
+
+
+def scene(system, y) -> dict:
+    """Geometry of the state ``y`` of a :class:`rbenvs.dynamics.FreeBody` (see
+    :mod:`rbenvs.render.common` for the format)."""
+    y = tuple(float(v) for v in y)
+    inertia = np.asarray(system.params.inertia, dtype=float)
+    pi = np.array(y[0:3], dtype=float)
+    omega = np.array(system.angular_velocity(y), dtype=float)
+    space = bool(system.attitude)
+    rot = quat_to_matrix(y[3:7]) if space else np.eye(3)
+    half = box_half_sides(inertia)
+    orbit_lines, arrows = _momentum_parts(inertia, pi, omega, rot, space)
     return {
         "center": np.zeros(3),
         "extent": 1.9,
         "view": (22.0, -55.0),
-        "polygons": polygons,
-        "lines": lines,
+        "polygons": [_box_polygons(half, rot)],
+        "lines": _axis_lines(half, inertia, rot) + orbit_lines,
         "arrows": arrows,
     }

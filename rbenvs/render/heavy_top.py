@@ -49,17 +49,10 @@ def _body_basis(chi):
     return t1, np.cross(chi, t1), chi
 
 
-def scene(system, y) -> dict:
-    """Geometry of the state ``y`` of a :class:`rbenvs.dynamics.HeavyTop` (format:
-    :mod:`rbenvs.render.common`)."""
-    prm = system.params
-    y = tuple(float(v) for v in y)
-    chi = np.asarray(prm.com_direction, dtype=float)
-    gamma = np.array(y[3:6])
-    rot = quat_to_matrix(y[6:10]) if system.attitude else display_rotation(gamma, chi)
-    length = float(prm.length)
+def _body_polygons(chi, length, rot) -> dict:
+    """The cone from the pivot to the disc at the centre of mass, and the disc, their sectors in
+    alternating shades (so the spin shows); built in body coordinates, returned in space."""
     t1, t2, k = _body_basis(chi)
-    # cone from the pivot to the disc at the centre of mass, and the disc, in body coordinates
     ang = np.linspace(0.0, 2.0 * np.pi, _SECTORS + 1)
     rim = np.array(
         [length * k + _DISC * length * (math.cos(a) * t1 + math.sin(a) * t2) for a in ang]
@@ -67,16 +60,22 @@ def scene(system, y) -> dict:
     centre = length * k
     faces, colors = [], []
     for s in range(_SECTORS):
-        shade = COLORS["body"][s % 2]
         faces.append(np.array([np.zeros(3), rim[s], rim[s + 1]]))
-        colors.append(shade)
+        colors.append(COLORS["body"][s % 2])
         faces.append(np.array([centre, rim[s], rim[s + 1]]))
         colors.append(COLORS["body_alt"][s % 2])
-    polygons = [{"faces": [f @ rot.T for f in faces], "colors": colors, "solid": True}]
-    axis_end = rot @ (1.35 * length * k)
-    com = rot @ centre
+    return {"faces": [f @ rot.T for f in faces], "colors": colors, "solid": True}
+
+
+def _lines(chi, length, rot) -> list:
+    """The vertical through the pivot, the symmetry axis, and, for depth, a ground circle under
+    the pivot with the post that holds it."""
     reach = 1.9 * length
-    lines = [
+    circ = np.linspace(0.0, 2.0 * np.pi, 49)
+    ground = np.stack(
+        [reach * np.cos(circ), reach * np.sin(circ), -0.6 * length * np.ones_like(circ)], axis=1
+    )
+    return [
         {
             "points": np.array([[0.0, 0.0, 0.0], [0.0, 0.0, reach]]),
             "color": "#777777",
@@ -85,37 +84,29 @@ def scene(system, y) -> dict:
             "label": "vertical",
         },
         {
-            "points": np.array([np.zeros(3), axis_end]),
+            "points": np.array([np.zeros(3), rot @ (1.35 * length * chi)]),
             "color": COLORS["axis"][2],
             "width": 2.0,
             "label": "symmetry axis",
         },
-    ]
-    # ground circle under the pivot, for depth
-    circ = np.linspace(0.0, 2.0 * np.pi, 49)
-    lines.append(
-        {
-            "points": np.stack(
-                [reach * np.cos(circ), reach * np.sin(circ), -0.6 * length * np.ones_like(circ)],
-                axis=1,
-            ),
-            "color": COLORS["grid"],
-            "width": 0.6,
-        }
-    )
-    lines.append(
+        {"points": ground, "color": COLORS["grid"], "width": 0.6},
         {
             "points": np.array([[0.0, 0.0, -0.6 * length], [0.0, 0.0, 0.0]]),
             "color": "#444444",
             "width": 3.0,
-        }
-    )
+        },
+    ]
+
+
+def _arrows(system, y, chi, length, rot) -> list:
+    """Gravity at the centre of mass, and the angular momentum and angular velocity about the
+    pivot (both at the momentum's scale; none when the top is at rest)."""
     pi = np.array(y[0:3])
     omega = np.array(system.angular_velocity(y), dtype=float)
     norm = float(np.linalg.norm(pi))
     arrows = [
         {
-            "origin": com,
+            "origin": rot @ (length * chi),
             "vector": np.array([0.0, 0.0, -0.5 * length]),
             "color": COLORS["gravity"],
             "label": "gravity",
@@ -131,7 +122,7 @@ def scene(system, y) -> dict:
                 "label": "angular momentum",
             }
         )
-        i_ref = float(prm.inertia[int(np.argmax(np.abs(chi)))])
+        i_ref = float(system.params.inertia[int(np.argmax(np.abs(chi)))])
         arrows.append(
             {
                 "origin": np.zeros(3),
@@ -140,12 +131,24 @@ def scene(system, y) -> dict:
                 "label": "angular velocity (x I3)",
             }
         )
+    return arrows
+
+
+def scene(system, y) -> dict:
+    """Geometry of the state ``y`` of a :class:`rbenvs.dynamics.HeavyTop` (format:
+    :mod:`rbenvs.render.common`)."""
+    prm = system.params
+    y = tuple(float(v) for v in y)
+    chi = np.asarray(prm.com_direction, dtype=float)
+    gamma = np.array(y[3:6])
+    rot = quat_to_matrix(y[6:10]) if system.attitude else display_rotation(gamma, chi)
+    length = float(prm.length)
     return {
         "center": np.array([0.0, 0.0, 0.3 * length]),
         "extent": 1.6 * length,
         "view": (18.0, -60.0),
-        "polygons": polygons,
-        "lines": lines,
-        "arrows": arrows,
+        "polygons": [_body_polygons(chi, length, rot)],
+        "lines": _lines(chi, length, rot),
+        "arrows": _arrows(system, y, chi, length, rot),
         "points": [{"position": np.zeros(3), "color": "#000000", "size": 25, "label": "pivot"}],
     }
