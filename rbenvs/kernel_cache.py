@@ -237,29 +237,7 @@ def _feed(obj, h, seen: dict) -> None:
             return
     seen[key] = len(seen)
     if isinstance(obj, types.FunctionType):
-        h.update(f"function:{obj.__module__}.{obj.__qualname__}:".encode())
-        _code_bytes(obj.__code__, h)
-        for value in obj.__defaults__ or ():
-            _feed(value, h, seen)
-        for cell in obj.__closure__ or ():
-            try:
-                content = cell.cell_contents
-            except ValueError:  # an empty cell
-                h.update(b"<empty cell>")
-                continue
-            _feed(content, h, seen)
-        for name in sorted(_code_names(obj.__code__, set())):
-            if name in obj.__globals__:
-                h.update(f"global {name}=".encode())
-                _feed(obj.__globals__[name], h, seen)
-        form = getattr(obj, "__compiled_form__", None)  # (rbenvs.jit.compiled_form)
-        if form is not None:
-            h.update(b"compiled form:")
-            _feed(form, h, seen)
-        scalar = getattr(obj, "__scalar_form__", None)  # (rbenvs.jit.scalar_form)
-        if scalar is not None:
-            h.update(b"scalar form:")
-            _feed(scalar, h, seen)
+        _feed_function(obj, h, seen)
         return
     if isinstance(obj, types.ModuleType):
         h.update(f"module:{obj.__name__};".encode())
@@ -278,6 +256,40 @@ def _feed(obj, h, seen: dict) -> None:
             _feed(item, h, seen)
         h.update(b")")
         return
+    _feed_value(obj, h)
+
+
+def _feed_function(fn, h, seen: dict) -> None:
+    """A function: its code, defaults, closure, the globals its code names, and its declared
+    compiled and scalar forms (what a kernel that calls it inlines)."""
+    h.update(f"function:{fn.__module__}.{fn.__qualname__}:".encode())
+    _code_bytes(fn.__code__, h)
+    for value in fn.__defaults__ or ():
+        _feed(value, h, seen)
+    for cell in fn.__closure__ or ():
+        try:
+            content = cell.cell_contents
+        except ValueError:  # an empty cell
+            h.update(b"<empty cell>")
+            continue
+        _feed(content, h, seen)
+    for name in sorted(_code_names(fn.__code__, set())):
+        if name in fn.__globals__:
+            h.update(f"global {name}=".encode())
+            _feed(fn.__globals__[name], h, seen)
+    form = getattr(fn, "__compiled_form__", None)  # (rbenvs.jit.compiled_form)
+    if form is not None:
+        h.update(b"compiled form:")
+        _feed(form, h, seen)
+    scalar = getattr(fn, "__scalar_form__", None)  # (rbenvs.jit.scalar_form)
+    if scalar is not None:
+        h.update(b"scalar form:")
+        _feed(scalar, h, seen)
+
+
+def _feed_value(obj, h) -> None:
+    """A leaf: an array or numpy scalar by its bytes, a callable or enum member by its name, a
+    plain value by its text, anything else by its type."""
     try:
         import numpy as np
     except ImportError:  # pragma: no cover - numba needs numpy
