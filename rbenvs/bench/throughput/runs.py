@@ -70,49 +70,17 @@ def run_vector(
     """The vector env per system, integrator and N against CartPole-v1's (constant action).
     ``budget`` (seconds): where one step outlasts ``min_time``, fewer rounds
     (:func:`timed_budget`)."""
-    import gymnasium as gym
-
     import rbenvs  # noqa: F401
 
-    cart_rate = {}
-    for n in sizes:
-        cart = gym.make_vec("CartPole-v1", num_envs=n, vectorization_mode="vector_entry_point")
-        cart.reset(seed=0)
-        a = np.ones(n, dtype=np.int64)
-        cart_rate[n] = n / timed(lambda: cart.step(a), min_time, repeat)
-        cart.close()
+    cart_rate = _cartpole_rates(sizes, min_time, repeat)
     rows = []
-    # (id, integrator, info read-outs, compiled): every combination on the path it takes by
-    # default; the free body with rk4 also on the numpy path (the compiled kernel's
-    # justification, measured) and without info's physical read-outs
-    combos = [
-        (env_id, integ, True, "auto") for env_id, integrators in systems for integ in integrators
-    ]
-    for env_id, integrators in systems:
-        if env_id == SYSTEMS[0][0] and "rk4" in integrators:
-            # (without numba the default rows are the numpy path already)
-            combos += [(env_id, "rk4", True, False)] if available() else []
-            combos += [(env_id, "rk4", False, "auto")]
-    for env_id, integ, readouts, compiled in combos:
+    for env_id, integ, readouts, compiled in _vector_combos(systems):
         for n in sizes:
             if n > LARGEST.get(integ, max(sizes)):
                 continue
-            venv = gym.make_vec(
-                env_id,
-                num_envs=n,
-                vectorization_mode="vector_entry_point",
-                integrator=integ,
-                info_readouts=readouts,
-                compiled=compiled,
-                **_accuracy(integ),
+            t, path = _vector_step_time(
+                env_id, integ, readouts, compiled, n, min_time, repeat, budget
             )
-            path = "compiled" if venv.unwrapped.compiled else "numpy"
-            venv.reset(seed=0)
-            a = np.zeros(venv.action_space.shape, dtype=np.float32)
-            venv.step(a)  # a kernel compiles on its first call: not timed
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore")
-                t = timed_budget(lambda: venv.step(a), min_time, repeat, budget)
             rate = n / t
             label = integ if readouts else f"{integ}, lean info"
             rows.append(
@@ -127,10 +95,64 @@ def run_vector(
                     "ratio_to_cartpole": rate / cart_rate[n],
                 }
             )
-            venv.close()
             if progress:
                 progress()
     return rows
+
+
+def _cartpole_rates(sizes, min_time, repeat) -> dict:
+    """CartPole-v1's native vector env, env-steps/s at each N of ``sizes`` (constant action)."""
+    import gymnasium as gym
+
+    cart_rate = {}
+    for n in sizes:
+        cart = gym.make_vec("CartPole-v1", num_envs=n, vectorization_mode="vector_entry_point")
+        cart.reset(seed=0)
+        a = np.ones(n, dtype=np.int64)
+        cart_rate[n] = n / timed(lambda: cart.step(a), min_time, repeat)
+        cart.close()
+    return cart_rate
+
+
+def _vector_combos(systems) -> list[tuple]:
+    """``(id, integrator, info read-outs, compiled)``: every combination on the path it takes by
+    default; the free body with rk4 also on the numpy path (the compiled kernel's
+    justification, measured) and without info's physical read-outs."""
+    combos = [
+        (env_id, integ, True, "auto") for env_id, integrators in systems for integ in integrators
+    ]
+    for env_id, integrators in systems:
+        if env_id == SYSTEMS[0][0] and "rk4" in integrators:
+            # (without numba the default rows are the numpy path already)
+            combos += [(env_id, "rk4", True, False)] if available() else []
+            combos += [(env_id, "rk4", False, "auto")]
+    return combos
+
+
+def _vector_step_time(
+    env_id, integ, readouts, compiled, n, min_time, repeat, budget
+) -> tuple[float, str]:
+    """``(seconds, path)``: one zero-action step of the vector env of ``n`` sub-envs."""
+    import gymnasium as gym
+
+    venv = gym.make_vec(
+        env_id,
+        num_envs=n,
+        vectorization_mode="vector_entry_point",
+        integrator=integ,
+        info_readouts=readouts,
+        compiled=compiled,
+        **_accuracy(integ),
+    )
+    path = "compiled" if venv.unwrapped.compiled else "numpy"
+    venv.reset(seed=0)
+    a = np.zeros(venv.action_space.shape, dtype=np.float32)
+    venv.step(a)  # a kernel compiles on its first call: not timed
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        t = timed_budget(lambda: venv.step(a), min_time, repeat, budget)
+    venv.close()
+    return t, path
 
 
 SCALING_SIZES = (1, 16, 256, 1024, 4096, 16384, 65536)

@@ -193,121 +193,183 @@ def measure_setting(
     row = {k: setting[k] for k in ("setting", "id", "task", "scene")}
     row["kwargs"] = kwargs
     tick = progress or (lambda: None)
-    # -- single env, interleaved with Pendulum
-    env = gym.make(env_id, **kwargs)
-    env.reset(seed=seed)
-    row["task"] = row["task"] or env.unwrapped.task.name
-    ours = episode_stepper(env, np.zeros(env.action_space.shape, dtype=env.action_space.dtype))
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        ours()  # the first step may generate code: not timed
-        t_ours = _time_once(ours)  # a probe; where one step outlasts a round, the first round
-        rounds = max(repeat, 2)
-        if t_ours > min_time / rounds:
-            rounds = _rounds(t_ours, min_time / rounds, rounds, budget) - 1
-        else:
-            t_ours = float("inf")
-        t_pend = float("inf")
-        for k in range(max(rounds, 1)):  # interleaved, so that machine load hits both alike
-            if k < rounds:
-                t_ours = min(t_ours, timed(ours, min_time / max(repeat, 2), 1))
-            t_pend = min(t_pend, timed(peers.pendulum_step, min_time / max(repeat, 2), 1))
-    env.close()
-    row.update(
-        single_step_us=t_ours * 1e6,
-        pendulum_step_us=t_pend * 1e6,
-        single_ratio_to_pendulum=t_ours / t_pend,
-    )
+    single, t_single = _single_figures(row, peers, min_time, repeat, budget, seed)
+    row.update(single)
     tick()
     # -- vector env: zero action from a fresh reset, then random actions with ends
     n = num_envs
-    if slow_step_s is not None and slow_num_envs is not None and t_ours > slow_step_s:
+    if slow_step_s is not None and slow_num_envs is not None and t_single > slow_step_s:
         n = min(n, slow_num_envs)
     row["num_envs"] = n
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         venv = gym.make_vec(env_id, num_envs=n, vectorization_mode="vector_entry_point", **kwargs)
-        compiled = bool(venv.unwrapped.compiled)
-        row["path"] = "compiled" if compiled else "numpy"
-        row["max_episode_steps"] = venv.unwrapped.max_episode_steps
-        venv.reset(seed=seed)
-        zero = np.zeros(venv.action_space.shape, dtype=venv.action_space.dtype)
-        venv.step(zero)  # a kernel compiles on its first call: not timed
-        t = timed_budget(lambda: venv.step(zero), min_time, repeat, budget)
-        row["zero_env_steps_per_s"] = n / t
-        row["zero_ns_per_env_step"] = 1e9 * t / n
+        row.update(_zero_action_figures(venv, min_time, repeat, budget, seed))
         tick()
         actions = random_actions(venv.action_space, seed)
-        # ours and the peer in turn, the best of each: on a shared host the speed drifts by
-        # tens of percent within seconds, and the best of alternating rounds compares like with like
-        sync = random = cart = None
-        for _ in range(ALTERNATIONS):
-            s_ = _random_rate(venv, actions, min_time, repeat, budget, False, seed)
-            r_ = _random_rate(venv, actions, min_time, repeat, budget, stagger, seed)
-            c_ = peers.cartpole_rate(n)
-            sync = s_ if sync is None or s_["rate"] > sync["rate"] else sync
-            random = r_ if random is None or r_["rate"] > random["rate"] else random
-            cart = c_ if cart is None or c_["env_steps_per_s"] > cart["env_steps_per_s"] else cart
-        rate = cart["env_steps_per_s"]
         row.update(
-            random_env_steps_per_s=random["rate"],
-            random_ns_per_env_step=1e9 / random["rate"],
-            episode_ends=random["ends"],
-            episode_ends_total=random["ends_total"],
-            random_calls_timed=random["calls"],
-            clocks_staggered=random["staggered"],
-            cartpole_env_steps_per_s=rate,
-            cartpole_episode_ends=cart["episode_ends"],
-            ratio_to_cartpole=random["rate"] / rate,
-            zero_ratio_to_cartpole=row["zero_env_steps_per_s"] / rate,
-            sync_random_env_steps_per_s=sync["rate"],
-            sync_episode_ends=sync["ends"],
-            sync_random_calls_timed=sync["calls"],
-            sync_ratio_to_cartpole=sync["rate"] / rate,
+            _random_action_figures(
+                venv,
+                actions,
+                peers,
+                row["zero_env_steps_per_s"],
+                min_time,
+                repeat,
+                budget,
+                stagger,
+                seed,
+            )
         )
         tick()
         # -- the kernel alone on the states the random run left, then the numpy path
         row.update(
-            kernel_ns_per_env_step=None,
-            gap=None,
-            gap_zero=None,
-            kernel_state_unchanged=None,
-            kernel_bad=None,
-            kernel_guard_checked=None,
-            no_kernel_reason=None,
-            numpy_random_env_steps_per_s=None,
-            numpy_episode_ends=None,
-            compiled_over_numpy=None,
+            _kernel_and_numpy_figures(venv, row, actions, min_time, repeat, budget, stagger, seed)
         )
-        if compiled:
-            k = kernel_time(venv, actions[0], min_time, repeat, budget)
-            row.update(
-                kernel_ns_per_env_step=k["ns_per_env_step"],
-                gap=row["random_ns_per_env_step"] / k["ns_per_env_step"],
-                gap_zero=row["zero_ns_per_env_step"] / k["ns_per_env_step"],
-                kernel_state_unchanged=k["state_unchanged"],
-                kernel_bad=k["bad"],
-                kernel_guard_checked=k["check"],
-            )
-            venv.close()
-            numpy_env = gym.make_vec(
-                env_id,
-                num_envs=n,
-                vectorization_mode="vector_entry_point",
-                **(kwargs | {"compiled": False}),
-            )
-            numpy_random = _random_rate(numpy_env, actions, min_time, repeat, budget, stagger, seed)
-            numpy_env.close()
-            row.update(
-                numpy_random_env_steps_per_s=numpy_random["rate"],
-                numpy_episode_ends=numpy_random["ends"],
-                compiled_over_numpy=random["rate"] / numpy_random["rate"],
-            )
-        else:
-            venv.close()
-            row["no_kernel_reason"] = no_kernel_reason(env_id, kwargs)
     tick()
     return row
+
+
+def _single_figures(row, peers, min_time, repeat, budget, seed) -> tuple[dict, float]:
+    """One step of ``gymnasium.make`` for ``row``'s setting (zero action) against Pendulum-v1's,
+    interleaved: ``(figures, seconds per step)``; ``task``: the row's, else the env's own."""
+    import gymnasium as gym
+
+    env = gym.make(row["id"], **row["kwargs"])
+    env.reset(seed=seed)
+    task = row["task"] or env.unwrapped.task.name
+    ours = episode_stepper(env, np.zeros(env.action_space.shape, dtype=env.action_space.dtype))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        ours()  # the first step may generate code: not timed
+        t_ours, t_pend = _interleaved(ours, peers.pendulum_step, min_time, repeat, budget)
+    env.close()
+    return {
+        "task": task,
+        "single_step_us": t_ours * 1e6,
+        "pendulum_step_us": t_pend * 1e6,
+        "single_ratio_to_pendulum": t_ours / t_pend,
+    }, t_ours
+
+
+def _interleaved(ours, pendulum_step, min_time, repeat, budget) -> tuple[float, float]:
+    """The best time of a call of ``ours`` and of ``pendulum_step``, timed in alternate rounds
+    (so that machine load hits both alike); a slow ``ours`` runs fewer rounds than Pendulum."""
+    t_ours = _time_once(ours)  # a probe; where one step outlasts a round, the first round
+    rounds = max(repeat, 2)
+    if t_ours > min_time / rounds:
+        rounds = _rounds(t_ours, min_time / rounds, rounds, budget) - 1
+    else:
+        t_ours = float("inf")
+    t_pend = float("inf")
+    for k in range(max(rounds, 1)):
+        if k < rounds:
+            t_ours = min(t_ours, timed(ours, min_time / max(repeat, 2), 1))
+        t_pend = min(t_pend, timed(pendulum_step, min_time / max(repeat, 2), 1))
+    return t_ours, t_pend
+
+
+def _zero_action_figures(venv, min_time, repeat, budget, seed) -> dict:
+    """The vector env's path and its env-steps/s with zero action from a fresh reset."""
+    n = venv.num_envs
+    figures = {
+        "path": "compiled" if venv.unwrapped.compiled else "numpy",
+        "max_episode_steps": venv.unwrapped.max_episode_steps,
+    }
+    venv.reset(seed=seed)
+    zero = np.zeros(venv.action_space.shape, dtype=venv.action_space.dtype)
+    venv.step(zero)  # a kernel compiles on its first call: not timed
+    t = timed_budget(lambda: venv.step(zero), min_time, repeat, budget)
+    figures["zero_env_steps_per_s"] = n / t
+    figures["zero_ns_per_env_step"] = 1e9 * t / n
+    return figures
+
+
+def _random_action_figures(
+    venv, actions, peers, zero_rate, min_time, repeat, budget, stagger, seed
+) -> dict:
+    """The vector env under ``actions``, clocks staggered (if asked) and together, against
+    CartPole-v1's at the same N; ``zero_rate``: the zero-action env-steps/s, put over it too."""
+    n = venv.num_envs
+    # ours and the peer in turn, the best of each: on a shared host the speed drifts by
+    # tens of percent within seconds, and the best of alternating rounds compares like with like
+    sync = random = cart = None
+    for _ in range(ALTERNATIONS):
+        s_ = _random_rate(venv, actions, min_time, repeat, budget, False, seed)
+        r_ = _random_rate(venv, actions, min_time, repeat, budget, stagger, seed)
+        c_ = peers.cartpole_rate(n)
+        sync = s_ if sync is None or s_["rate"] > sync["rate"] else sync
+        random = r_ if random is None or r_["rate"] > random["rate"] else random
+        cart = c_ if cart is None or c_["env_steps_per_s"] > cart["env_steps_per_s"] else cart
+    rate = cart["env_steps_per_s"]
+    return dict(
+        random_env_steps_per_s=random["rate"],
+        random_ns_per_env_step=1e9 / random["rate"],
+        episode_ends=random["ends"],
+        episode_ends_total=random["ends_total"],
+        random_calls_timed=random["calls"],
+        clocks_staggered=random["staggered"],
+        cartpole_env_steps_per_s=rate,
+        cartpole_episode_ends=cart["episode_ends"],
+        ratio_to_cartpole=random["rate"] / rate,
+        zero_ratio_to_cartpole=zero_rate / rate,
+        sync_random_env_steps_per_s=sync["rate"],
+        sync_episode_ends=sync["ends"],
+        sync_random_calls_timed=sync["calls"],
+        sync_ratio_to_cartpole=sync["rate"] / rate,
+    )
+
+
+# the row's kernel and numpy-path figures, None where the setting has no compiled step
+_KERNEL_KEYS = (
+    "kernel_ns_per_env_step",
+    "gap",
+    "gap_zero",
+    "kernel_state_unchanged",
+    "kernel_bad",
+    "kernel_guard_checked",
+    "no_kernel_reason",
+    "numpy_random_env_steps_per_s",
+    "numpy_episode_ends",
+    "compiled_over_numpy",
+)
+
+
+def _kernel_and_numpy_figures(venv, row, actions, min_time, repeat, budget, stagger, seed) -> dict:
+    """For a compiled ``venv`` (closed here): its kernel alone on its current states, then the
+    same setting with ``compiled=False`` under ``actions``; otherwise the env's reason why not.
+    ``row``: the figures so far (its id, kwargs, path, num_envs and random-action rate)."""
+    import gymnasium as gym
+
+    figures = dict.fromkeys(_KERNEL_KEYS)
+    env_id, kwargs = row["id"], row["kwargs"]
+    if row["path"] != "compiled":
+        venv.close()
+        figures["no_kernel_reason"] = no_kernel_reason(env_id, kwargs)
+        return figures
+    k = kernel_time(venv, actions[0], min_time, repeat, budget)
+    figures.update(
+        kernel_ns_per_env_step=k["ns_per_env_step"],
+        gap=row["random_ns_per_env_step"] / k["ns_per_env_step"],
+        gap_zero=row["zero_ns_per_env_step"] / k["ns_per_env_step"],
+        kernel_state_unchanged=k["state_unchanged"],
+        kernel_bad=k["bad"],
+        kernel_guard_checked=k["check"],
+    )
+    venv.close()
+    numpy_env = gym.make_vec(
+        env_id,
+        num_envs=row["num_envs"],
+        vectorization_mode="vector_entry_point",
+        **(kwargs | {"compiled": False}),
+    )
+    numpy_random = _random_rate(numpy_env, actions, min_time, repeat, budget, stagger, seed)
+    numpy_env.close()
+    figures.update(
+        numpy_random_env_steps_per_s=numpy_random["rate"],
+        numpy_episode_ends=numpy_random["ends"],
+        compiled_over_numpy=row["random_env_steps_per_s"] / numpy_random["rate"],
+    )
+    return figures
 
 
 def _random_rate(venv, actions, min_time, repeat, budget, stagger, seed) -> dict:
@@ -378,6 +440,14 @@ def _g(x, fmt=".3g"):
 
 def print_tasks(rows, notes) -> None:
     """The task table, its footnotes (why a setting has no kernel) and the scenes' arguments."""
+    _print_task_legend(rows)
+    reasons = _print_task_rows(rows)
+    _print_task_footnotes(rows, notes, reasons)
+    _print_scene_arguments(rows)
+
+
+def _print_task_legend(rows) -> None:
+    """The lines above the task table: what each column measures, at which N."""
     ns = sorted({r["num_envs"] for r in rows})
     clocks = (
         "episode clocks spread over max_episode_steps"
@@ -408,6 +478,10 @@ def print_tasks(rows, notes) -> None:
         "BatchStep alone"
     )
     print("          (ns per env-step), gap = env time per env-step (random actions) / kernel time")
+
+
+def _print_task_rows(rows) -> dict:
+    """The table's header and rows; returns the footnote mark of each reason for no kernel."""
     w = max([25] + [len(r["setting"]) + 1 for r in rows])
     print(
         f"{'setting':<{w}} {'single us':>9} {'/Pend':>6} {'N':>5} {'path':<8} {'zero/s':>9} "
@@ -432,6 +506,11 @@ def print_tasks(rows, notes) -> None:
             f"{_g(r['numpy_random_env_steps_per_s']):>9} {_g(r['compiled_over_numpy'], '.2f'):>5} "
             f"{kernel:>9} {gap:>6}"
         )
+    return reasons
+
+
+def _print_task_footnotes(rows, notes, reasons) -> None:
+    """The lines below the task table: the peers' figures, then every mark and exception."""
     if rows:
         pend = min(r["pendulum_step_us"] for r in rows)
         carts = {}
@@ -452,6 +531,7 @@ def print_tasks(rows, notes) -> None:
             "kernel: non-finite new states in "
             + ", ".join(r["setting"] for r in rows if r["kernel_bad"])
         )
+    ns = sorted({r["num_envs"] for r in rows})
     small = [r["setting"] for r in rows if r["num_envs"] < max(ns)]
     if small:
         print(f"at N = {min(ns)} (a slow single step, --quick): " + ", ".join(small))
@@ -463,6 +543,9 @@ def print_tasks(rows, notes) -> None:
         )
     for note in notes:
         print(note)
+
+
+def _print_scene_arguments(rows) -> None:
     scenes = [r for r in rows if r["scene"]]
     if scenes:
         print("scenes:")
