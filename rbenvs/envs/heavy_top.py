@@ -219,29 +219,8 @@ class LagrangeTopEnv(RigidBodyEnv):
         control_cost = require_finite_nonnegative("control_cost", control_cost)
         perturbation = require_finite_nonnegative("perturbation", perturbation)
         max_w = require_float32_bound("max_angular_velocity", max_angular_velocity)
-        limit = (
-            _DEFAULT_TILT_LIMIT[task]
-            if tilt_limit is None
-            else require_finite_positive("tilt_limit", tilt_limit)
-        )
-        if limit > math.pi:
-            raise ValueError(f"tilt_limit must be in (0, pi] rad, got {tilt_limit!r}")
-        if perturbation >= limit:
-            raise ValueError(
-                f"perturbation must be below tilt_limit ({limit!r} rad), got {perturbation!r}"
-            )
-        alpha = require_finite("target_tilt", target_tilt)
-        if not 0.0 < alpha < math.pi:
-            raise ValueError(f"target_tilt must lie in (0, pi) rad, got {target_tilt!r}")
-        if target_rate is not None:
-            target_rate = require_finite("target_rate", target_rate)
-            if target_rate == 0.0:
-                raise ValueError("target_rate must be nonzero (or None for the torque-free rate)")
-            if not abs(target_rate) < max_w:
-                raise ValueError(
-                    f"target_rate ({target_rate!r} rad/s) must be below max_angular_velocity "
-                    f"({max_w!r} rad/s) in magnitude"
-                )
+        limit = _tilt_limit(task, tilt_limit, perturbation)
+        alpha, target_rate = _targets(target_tilt, target_rate, max_w)
         self.axial_torque = require_bool("axial_torque", axial_torque)
         attitude = require_bool("attitude", attitude)
         if task == "precess" and not params.is_lagrange:
@@ -249,42 +228,10 @@ class LagrangeTopEnv(RigidBodyEnv):
                 "task='precess' needs a Lagrange top: two equal moments and com_direction "
                 "along the third axis"
             )
-        low, high = _spin_range(spin, task, params)
-        if spin is None:
-            source = (
-                f"spin=None: {'half' if task == 'upright' else 'twice'} the critical spin "
-                "2 sqrt(M g l I1) / I3, set by mass, length, gravity and inertia"
-            )
-        else:
-            source = "spin"
-        if task == "upright":
-            task_obj = UprightTask(low, high, perturbation, limit, control_cost)
-            peak = max(abs(low), abs(high))
-        else:
-            if not (limit < alpha < math.pi - limit):
-                raise ValueError(
-                    f"target_tilt must lie in (tilt_limit, pi - tilt_limit) = ({limit!r}, "
-                    f"{math.pi - limit!r}) rad, got {target_tilt!r}"
-                )
-            if target_rate is None:
-                _require_real_precession(params, low, high, alpha)
-            task_obj = PrecessTask(low, high, alpha, target_rate, perturbation, limit, control_cost)
-            system = HeavyTop(params)
-            rates = [
-                abs(
-                    task_obj.target_rate
-                    if target_rate is not None
-                    else slow_precession_rate(system, n, alpha)
-                )
-                for n in (low, high)
-            ]
-            peak = max(2.0 * r + abs(n) for r, n in zip(rates, (low, high)))
-            source += " and the precession rate (target_rate, or the torque-free rate of [T 3.82])"
-        if not peak < max_w:
-            raise ValueError(
-                f"max_angular_velocity ({max_w!r} rad/s) must exceed the initial angular speed "
-                f"({peak:.6g} rad/s, from {source}); lower it or raise max_angular_velocity"
-            )
+        tilts = (limit, alpha, target_tilt, target_rate)
+        task_obj, peak = _task_and_speed(
+            task, params, spin, perturbation, tilts, control_cost, max_w
+        )
         system = HeavyTop(params, attitude=attitude)
         t1, t2 = transverse_basis(params.com_direction)
         self.torque_directions = (t1, t2) + ((params.com_direction,) if self.axial_torque else ())
@@ -293,17 +240,7 @@ class LagrangeTopEnv(RigidBodyEnv):
         self._start_speed = peak
         high = observation_bounds(task_obj, {"rad/s": max_w})
         self._setup(system, task_obj, actuator, high, options)
-        # the pivot's friction decays the spin about chi at the rate k / I_chi: faster than a
-        # control period, it stops the spin within one step, a clamp rather than a friction
-        i_chi = sum(i * c * c for i, c in zip(params.inertia, params.com_direction))
-        if not params.spin_friction * self.dt <= i_chi:
-            raise ValueError(
-                f"spin_friction must be at most I_chi / dt = {i_chi / self.dt:.6g} N m s (the "
-                "spin's decay time I_chi / spin_friction at "
-                f"least the control period dt = {self.dt!r} s; faster, the spin stops within one "
-                f"step), got {params.spin_friction!r}; "
-                "lower spin_friction or dt"
-            )
+        _require_slow_spin_friction(params, self.dt)
         # orthonormal torque directions: |tau| <= max_torque sqrt(k), |Delta Omega| <= |tau| dt /
         # I_min
         change = (
@@ -425,4 +362,96 @@ def _require_real_precession(params, low, high, alpha):
             f"(|spin| > {n_min:.6g} rad/s at target_tilt={alpha!r}, one sign); got the range "
             f"({low!r}, {high!r}). "
             "Raise the spin or give target_rate"
+        )
+
+
+def _tilt_limit(task: str, tilt_limit, perturbation: float) -> float:
+    """``tilt_limit`` (the task's default for None) in (0, pi], above ``perturbation``."""
+    limit = (
+        _DEFAULT_TILT_LIMIT[task]
+        if tilt_limit is None
+        else require_finite_positive("tilt_limit", tilt_limit)
+    )
+    if limit > math.pi:
+        raise ValueError(f"tilt_limit must be in (0, pi] rad, got {tilt_limit!r}")
+    if perturbation >= limit:
+        raise ValueError(
+            f"perturbation must be below tilt_limit ({limit!r} rad), got {perturbation!r}"
+        )
+    return limit
+
+
+def _targets(target_tilt, target_rate, max_w: float) -> tuple:
+    """``(target_tilt, target_rate)`` checked: a tilt in (0, pi), a nonzero rate below
+    ``max_angular_velocity`` or None."""
+    alpha = require_finite("target_tilt", target_tilt)
+    if not 0.0 < alpha < math.pi:
+        raise ValueError(f"target_tilt must lie in (0, pi) rad, got {target_tilt!r}")
+    if target_rate is not None:
+        target_rate = require_finite("target_rate", target_rate)
+        if target_rate == 0.0:
+            raise ValueError("target_rate must be nonzero (or None for the torque-free rate)")
+        if not abs(target_rate) < max_w:
+            raise ValueError(
+                f"target_rate ({target_rate!r} rad/s) must be below max_angular_velocity "
+                f"({max_w!r} rad/s) in magnitude"
+            )
+    return alpha, target_rate
+
+
+def _task_and_speed(task, params, spin, perturbation, tilts, control_cost, max_w):
+    """The task's object and the fastest start's angular speed, refused where it reaches
+    ``max_angular_velocity`` (the message names what sets it); ``tilts``: the tilt limit, the
+    target tilt (checked, and as given) and the target rate."""
+    limit, alpha, target_tilt, target_rate = tilts
+    low, high = _spin_range(spin, task, params)
+    if spin is None:
+        source = (
+            f"spin=None: {'half' if task == 'upright' else 'twice'} the critical spin "
+            "2 sqrt(M g l I1) / I3, set by mass, length, gravity and inertia"
+        )
+    else:
+        source = "spin"
+    if task == "upright":
+        task_obj = UprightTask(low, high, perturbation, limit, control_cost)
+        peak = max(abs(low), abs(high))
+    else:
+        if not (limit < alpha < math.pi - limit):
+            raise ValueError(
+                f"target_tilt must lie in (tilt_limit, pi - tilt_limit) = ({limit!r}, "
+                f"{math.pi - limit!r}) rad, got {target_tilt!r}"
+            )
+        if target_rate is None:
+            _require_real_precession(params, low, high, alpha)
+        task_obj = PrecessTask(low, high, alpha, target_rate, perturbation, limit, control_cost)
+        system = HeavyTop(params)
+        rates = [
+            abs(
+                task_obj.target_rate
+                if target_rate is not None
+                else slow_precession_rate(system, n, alpha)
+            )
+            for n in (low, high)
+        ]
+        peak = max(2.0 * r + abs(n) for r, n in zip(rates, (low, high)))
+        source += " and the precession rate (target_rate, or the torque-free rate of [T 3.82])"
+    if not peak < max_w:
+        raise ValueError(
+            f"max_angular_velocity ({max_w!r} rad/s) must exceed the initial angular speed "
+            f"({peak:.6g} rad/s, from {source}); lower it or raise max_angular_velocity"
+        )
+    return task_obj, peak
+
+
+def _require_slow_spin_friction(params, dt: float) -> None:
+    # the pivot's friction decays the spin about chi at the rate k / I_chi: faster than a
+    # control period, it stops the spin within one step, a clamp rather than a friction
+    i_chi = sum(i * c * c for i, c in zip(params.inertia, params.com_direction))
+    if not params.spin_friction * dt <= i_chi:
+        raise ValueError(
+            f"spin_friction must be at most I_chi / dt = {i_chi / dt:.6g} N m s (the "
+            "spin's decay time I_chi / spin_friction at "
+            f"least the control period dt = {dt!r} s; faster, the spin stops within one "
+            f"step), got {params.spin_friction!r}; "
+            "lower spin_friction or dt"
         )
