@@ -243,35 +243,14 @@ class TippeTopEnv(RigidBodyEnv):
         stem=None,
         **options,
     ):
-        # every keyword is checked, whatever the task and options (an unused one must still be
-        # valid)
+        # every keyword is checked, whatever the task and options (an unused one must be valid)
         task = require_choice("task", task, self.tasks)
         fidelity = require_choice("fidelity", fidelity, FIDELITIES)
-        params = TippeTopParams(
-            radius,
-            mass,
-            offset,
-            inertia,
-            gravity,
-            friction,
-            friction_law,
-            slip_regularization,
-            stem,
-        )
+        body = (radius, mass, offset, inertia, gravity)
+        params = TippeTopParams(*body, friction, friction_law, slip_regularization, stem)
         spin_lo, spin_hi = require_range("spin", spin)
         tilt_lo, tilt_hi = require_range("tilt", tilt)
-        if start is None:  # the literature's start; a rolling top's contact point never slips
-            start = "rolling" if fidelity == "rolling" else "rest"
-        start = require_choice("start", start, STARTS)
-        if start != "rolling" and fidelity == "rolling":
-            raise ValueError(
-                f"start={start!r} needs fidelity 'gliding' or 'frictionless': a rolling top's "
-                "contact point never slips, so it starts rolling (start='rolling')"
-            )
-        if tilt_lo < 0.0 or tilt_hi >= math.pi / 2:
-            raise ValueError(
-                f"tilt must lie in [0, pi/2) rad (a start on the broad end), got {tilt!r}"
-            )
+        start = _start(start, fidelity, tilt, tilt_lo, tilt_hi)
         self.max_table_acceleration = require_finite_nonnegative(
             "max_table_acceleration", max_table_acceleration
         )
@@ -279,70 +258,33 @@ class TippeTopEnv(RigidBodyEnv):
         control_cost = require_finite_nonnegative("control_cost", control_cost)
         self.friction_action = require_bool("friction_action", friction_action)
         self.torque_action = require_bool("torque_action", torque_action)
-        mu_lo, mu_hi = require_range("friction_range", friction_range)
-        if mu_lo < 0.0:
-            raise ValueError(f"friction_range must lie in [0, inf), got {friction_range!r}")
-        self.friction_range = (mu_lo, mu_hi)
+        self.friction_range = _friction_range(friction_range)
         self.free_flight = require_bool("free_flight", free_flight)
-        if self.free_flight and fidelity == "rolling":
-            raise ValueError(
-                "free_flight needs fidelity 'gliding' or 'frictionless' (a rolling top has no slip "
-                "to resume after a touchdown)"
-            )
-        if stem is not None and (self.free_flight or fidelity == "rolling"):
-            raise ValueError(
-                "stem needs fidelity 'gliding' or 'frictionless' and free_flight=False "
-                "(a touchdown from flight could meet "
-                "both contacts at once, which needs a two-contact impact law; a rolling top has no "
-                "slip to resume)"
-            )
-        if self.friction_action and fidelity != "gliding":
-            raise ValueError(
-                "friction_action needs fidelity='gliding' (there is no friction coefficient to set "
-                f"when {fidelity!r})"
-            )
+        _require_modelled(fidelity, self.free_flight, stem, self.friction_action)
         peak = max(abs(spin_lo), abs(spin_hi))
-        if max_angular_velocity is None:
-            max_w = 2.0 * peak + 50.0
-            if not max_w <= float(np.finfo(np.float32).max):
-                raise ValueError(
-                    f"spin ({spin!r} rad/s) is too large for float32 observations "
-                    f"(max_angular_velocity=None takes 2 max|spin| + 50 = {max_w:.6g} rad/s)"
-                )
-        else:
-            max_w = require_float32_bound("max_angular_velocity", max_angular_velocity)
-        if not peak < max_w:
-            raise ValueError(
-                f"max_angular_velocity ({max_w!r} rad/s) must exceed the initial spin (spin = "
-                f"{peak!r} rad/s); lower spin or raise max_angular_velocity"
-            )
-        max_v = require_float32_bound("max_speed", max_speed)
-        if not params.slip_regularization < max_v:
-            raise ValueError(
-                f"slip_regularization must be below max_speed = {max_v!r} m/s, got "
-                f"{slip_regularization!r}: above every slip speed the env "
-                "allows, the friction law weakens to a viscous one of vanishing rate (friction off "
-                "in all but name)"
-            )
-        if not params.radius * peak < max_v:
-            raise ValueError(
-                "max_speed must exceed the initial speed of the centre of mass (radius * spin = "
-                f"{params.radius * peak!r} m/s), got {max_speed!r}"
-            )
+        max_w = _angular_velocity_bound(max_angular_velocity, spin, peak)
+        max_v = _speed_bound(max_speed, params, slip_regularization, peak)
         task_cls = InvertTask if task == "invert" else HoldTask
         task_obj = task_cls(spin_lo, spin_hi, tilt_lo, tilt_hi, control_cost, start=start)
         friction_bound = require_choice("friction_bound", friction_bound, FRICTION_BOUNDS)
         system = TippeTop(params, fidelity, flight=self.free_flight, friction_bound=friction_bound)
-        actuator = TableActuator(
+        actuator = self._actuator(params)
+        self._start_speed = peak
+        self._max_w = max_w
+        high = observation_bounds(task_obj, {"rad/s": max_w, "m/s": max_v})
+        self._setup(system, task_obj, actuator, high, options)
+        self._require_authority(params, max_w, max_v)
+        self._setup_options(options)
+
+    def _actuator(self, params) -> TableActuator:
+        return TableActuator(
             self.max_table_acceleration,
             params.friction,
             self.friction_range if self.friction_action else None,
             self.max_torque if self.torque_action else None,
         )
-        self._start_speed = peak
-        self._max_w = max_w
-        high = observation_bounds(task_obj, {"rad/s": max_w, "m/s": max_v})
-        self._setup(system, task_obj, actuator, high, options)
+
+    def _require_authority(self, params, max_w: float, max_v: float) -> None:
         # the table's acceleration moves v_G (relative to the table) by at most |a_T| dt per period;
         # a body torque moves Omega by at most |tau| dt / min(A, C)
         require_authority(
@@ -359,7 +301,6 @@ class TippeTopEnv(RigidBodyEnv):
             require_authority(
                 "max_torque", change, "max_angular_velocity", max_w, "angular velocity [rad/s]"
             )
-        self._setup_options(options)
 
     @property
     def params(self) -> TippeTopParams:
@@ -471,3 +412,86 @@ def _table_form(sets_friction: bool, torque: bool):
             "control"
         ]
     )
+
+
+def _friction_range(friction_range) -> tuple:
+    mu_lo, mu_hi = require_range("friction_range", friction_range)
+    if mu_lo < 0.0:
+        raise ValueError(f"friction_range must lie in [0, inf), got {friction_range!r}")
+    return mu_lo, mu_hi
+
+
+def _start(start, fidelity: str, tilt, tilt_lo: float, tilt_hi: float) -> str:
+    """``start`` checked (None: the literature's start; a rolling top's contact point never
+    slips, so it starts rolling), then the tilt's range."""
+    if start is None:
+        start = "rolling" if fidelity == "rolling" else "rest"
+    start = require_choice("start", start, STARTS)
+    if start != "rolling" and fidelity == "rolling":
+        raise ValueError(
+            f"start={start!r} needs fidelity 'gliding' or 'frictionless': a rolling top's "
+            "contact point never slips, so it starts rolling (start='rolling')"
+        )
+    if tilt_lo < 0.0 or tilt_hi >= math.pi / 2:
+        raise ValueError(f"tilt must lie in [0, pi/2) rad (a start on the broad end), got {tilt!r}")
+    return start
+
+
+def _require_modelled(fidelity: str, free_flight: bool, stem, friction_action: bool) -> None:
+    """Refuse options the fidelity level does not model."""
+    if free_flight and fidelity == "rolling":
+        raise ValueError(
+            "free_flight needs fidelity 'gliding' or 'frictionless' (a rolling top has no slip "
+            "to resume after a touchdown)"
+        )
+    if stem is not None and (free_flight or fidelity == "rolling"):
+        raise ValueError(
+            "stem needs fidelity 'gliding' or 'frictionless' and free_flight=False "
+            "(a touchdown from flight could meet "
+            "both contacts at once, which needs a two-contact impact law; a rolling top has no "
+            "slip to resume)"
+        )
+    if friction_action and fidelity != "gliding":
+        raise ValueError(
+            "friction_action needs fidelity='gliding' (there is no friction coefficient to set "
+            f"when {fidelity!r})"
+        )
+
+
+def _angular_velocity_bound(max_angular_velocity, spin, peak: float) -> float:
+    """The observation bound of the angular velocity (None: 2 max|spin| + 50 rad/s), above the
+    fastest start's spin ``peak``."""
+    if max_angular_velocity is None:
+        max_w = 2.0 * peak + 50.0
+        if not max_w <= float(np.finfo(np.float32).max):
+            raise ValueError(
+                f"spin ({spin!r} rad/s) is too large for float32 observations "
+                f"(max_angular_velocity=None takes 2 max|spin| + 50 = {max_w:.6g} rad/s)"
+            )
+    else:
+        max_w = require_float32_bound("max_angular_velocity", max_angular_velocity)
+    if not peak < max_w:
+        raise ValueError(
+            f"max_angular_velocity ({max_w!r} rad/s) must exceed the initial spin (spin = "
+            f"{peak!r} rad/s); lower spin or raise max_angular_velocity"
+        )
+    return max_w
+
+
+def _speed_bound(max_speed, params, slip_regularization, peak: float) -> float:
+    """The observation bound of the centre of mass's velocity, above the friction law's
+    regularisation and the fastest start's rolling speed."""
+    max_v = require_float32_bound("max_speed", max_speed)
+    if not params.slip_regularization < max_v:
+        raise ValueError(
+            f"slip_regularization must be below max_speed = {max_v!r} m/s, got "
+            f"{slip_regularization!r}: above every slip speed the env "
+            "allows, the friction law weakens to a viscous one of vanishing rate (friction off "
+            "in all but name)"
+        )
+    if not params.radius * peak < max_v:
+        raise ValueError(
+            "max_speed must exceed the initial speed of the centre of mass (radius * spin = "
+            f"{params.radius * peak!r} m/s), got {max_speed!r}"
+        )
+    return max_v
