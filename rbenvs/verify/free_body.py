@@ -149,10 +149,43 @@ def _sampled(run, steps, every, u, h, last=False):
 
 
 def _checks_of(sim, inertias, axis_inertias, rng, horizon, progress) -> list[Check]:
+    """The rows of ``sim`` but the fast tumble's: the exact solution and the invariants on the
+    bodies ``inertias``, the torque balance, and the axes of ``axis_inertias``."""
     name = sim.name
-    own = sim.dt is None  # rbenvs' integrator at its verify settings
+    h, steps, tol_exact, tol_e, tol_p = _run_tolerances(sim, horizon)
+    worst_err, worst_e, worst_p, worst_case = _exact_rows_worst(
+        sim, inertias, rng, h, steps, horizon, progress
+    )
+    checks = [
+        Check(
+            "free_body",
+            name,
+            EXACT_ROW.format(horizon=horizon),
+            0.0,
+            worst_err,
+            tol_exact,
+            case=worst_case,
+        ),
+        Check("free_body", name, ENERGY_ROW, 0.0, worst_e, tol_e),
+        Check("free_body", name, MOMENTUM_ROW, 0.0, worst_p, tol_p),
+    ]
+    try:
+        checks.append(_torque_balance_check(sim, inertias[0], h, rng))
+    except NotImplementedError as exc:
+        checks.extend(not_applicable("free_body", name, [TORQUE_ROW], str(exc)))
+    checks.extend(_axis_checks(sim, axis_inertias, h))
+    if progress:
+        progress()
+    return checks
+
+
+def _run_tolerances(sim, horizon):
+    """``(h, steps, exact, energy, |Pi|)``: the step and number of steps over ``horizon`` and the
+    tolerances of the exact-solution, energy and ``|Pi|`` rows (rbenvs' integrator at its verify
+    settings, round-off for an invariant it conserves; a simulator's scaled to its own step)."""
+    own = sim.dt is None
     if own:
-        h, tol_exact, tol_inv = FREE_BODY_SETTINGS[name]
+        h, tol_exact, tol_inv = FREE_BODY_SETTINGS[sim.name]
     else:
         ref_h, ref_exact, ref_inv = FREE_BODY_SETTINGS[reference_scheme(sim.order)]
         h = sim.dt
@@ -163,56 +196,49 @@ def _checks_of(sim, inertias, axis_inertias, rng, horizon, progress) -> list[Che
         tol_inv_p = scaled_tolerance(ref_inv, h, ref_h, sim.order, steps, MOMENTUM_BOUND)
     else:
         tol_inv_p = tol_inv
+    conserves = sim.integrator.conserves if own else ()
+    tol_e = ROUND_OFF * steps**0.5 if "energy" in conserves else tol_inv
+    # |Pi|: the free body's Casimir
+    tol_p = ROUND_OFF * steps**0.5 if "casimirs" in conserves else tol_inv_p
+    return h, steps, tol_exact, tol_e, tol_p
+
+
+def _exact_rows_worst(sim, inertias, rng, h, steps, horizon, progress):
+    """``(error, energy drift, |Pi| drift, case)``: the worst of each over the bodies
+    ``inertias`` (four random starts each), the case that of the largest error."""
     worst_err, worst_e, worst_p = 0.0, 0.0, 0.0
     worst_case = {}
     for inertia in inertias:
-        system = FreeBody(FreeBodyParams(tuple(inertia)))
-        # uniform directions of Omega, scaled to |Omega| = 1 rad/s (the tolerances assume it)
-        omega = rng.standard_normal((3, 4))
-        pi0 = omega / np.linalg.norm(omega, axis=0) * inertia[:, None]
-        y = tuple(pi0)
-        run = start(sim, system, y)
-        n_rec = 10
-        every = max(1, steps // n_rec)
-        err = 0.0
-        for k, y in _sampled(run, steps, every, None, h, last=True):
-            ref = exact_solution(inertia, pi0, k * h)
-            err = max(err, float(np.max(np.abs(np.array(y) - ref) / np.linalg.norm(pi0, axis=0))))
-        e0, e1 = system.energy(tuple(pi0)), system.energy(y)
-        p0, p1 = system.momentum_norm(tuple(pi0)), system.momentum_norm(y)
-        de = float(np.max(np.abs(e1 - e0) / e0))
-        dp = float(np.max(np.abs(p1 - p0) / p0))
+        err, de, dp, pi0 = _exact_run(sim, inertia, rng, h, steps)
         if err > worst_err:
             worst_case = {"inertia": inertia.tolist(), "pi0": pi0.T.tolist(), "h": h, "T": horizon}
         worst_err, worst_e, worst_p = max(worst_err, err), max(worst_e, de), max(worst_p, dp)
         if progress:
             progress()
-    checks = [
-        Check(
-            "free_body",
-            name,
-            EXACT_ROW.format(horizon=horizon),
-            0.0,
-            worst_err,
-            tol_exact,
-            case=worst_case,
-        )
-    ]
-    conserves = sim.integrator.conserves if own else ()
-    tol_e = ROUND_OFF * steps**0.5 if "energy" in conserves else tol_inv
-    tol_p = (
-        ROUND_OFF * steps**0.5 if "casimirs" in conserves else tol_inv_p
-    )  # |Pi|: the free body's Casimir
-    checks.append(Check("free_body", name, ENERGY_ROW, 0.0, worst_e, tol_e))
-    checks.append(Check("free_body", name, MOMENTUM_ROW, 0.0, worst_p, tol_p))
-    try:
-        checks.append(_torque_balance_check(sim, inertias[0], h, rng))
-    except NotImplementedError as exc:
-        checks.extend(not_applicable("free_body", name, [TORQUE_ROW], str(exc)))
-    checks.extend(_axis_checks(sim, axis_inertias, h))
-    if progress:
-        progress()
-    return checks
+    return worst_err, worst_e, worst_p, worst_case
+
+
+def _exact_run(sim, inertia, rng, h, steps):
+    """``(error, energy drift, |Pi| drift, Pi0)`` of four random starts of the body ``inertia``
+    run together: the largest error against the exact solution (relative to ``|Pi0|``, sampled
+    about ten times) and relative drifts after ``steps`` steps of ``h``."""
+    system = FreeBody(FreeBodyParams(tuple(inertia)))
+    # uniform directions of Omega, scaled to |Omega| = 1 rad/s (the tolerances assume it)
+    omega = rng.standard_normal((3, 4))
+    pi0 = omega / np.linalg.norm(omega, axis=0) * inertia[:, None]
+    y = tuple(pi0)
+    run = start(sim, system, y)
+    n_rec = 10
+    every = max(1, steps // n_rec)
+    err = 0.0
+    for k, y in _sampled(run, steps, every, None, h, last=True):
+        ref = exact_solution(inertia, pi0, k * h)
+        err = max(err, float(np.max(np.abs(np.array(y) - ref) / np.linalg.norm(pi0, axis=0))))
+    e0, e1 = system.energy(tuple(pi0)), system.energy(y)
+    p0, p1 = system.momentum_norm(tuple(pi0)), system.momentum_norm(y)
+    de = float(np.max(np.abs(e1 - e0) / e0))
+    dp = float(np.max(np.abs(p1 - p0) / p0))
+    return err, de, dp, pi0
 
 
 def _torque_balance_check(sim, inertia, h, rng) -> Check:
@@ -257,6 +283,8 @@ def _torque_balance_check(sim, inertia, h, rng) -> Check:
 
 
 def _axis_checks(sim, inertias, h) -> list[Check]:
+    """The three axes' rows of each body ``inertias``: the growth rate about the intermediate
+    axis, the bounded transverse ``|Pi|`` about the major and minor ones."""
     out = []
     names = ("major", "intermediate", "minor")
     for inertia in inertias:
@@ -264,70 +292,75 @@ def _axis_checks(sim, inertias, h) -> list[Check]:
         system = FreeBody(params)
         order = params.axis_order
         for label, j in zip(names, order):
-            a, b = (j + 1) % 3, (j + 2) % 3
-            p = inertia[j]  # |Omega| = 1 rad/s about the axis
             if label == "intermediate":
-                lam = intermediate_axis_growth_rate(inertia, p)
-                eps = 1e-8
-                pi0 = np.zeros(3)
-                pi0[j], pi0[a], pi0[b] = p, eps * p, eps * p
-                t_end = math.log(1e-3 / eps) / lam  # until the perturbation is ~1e-3 p
-                steps = int(math.ceil(t_end / h))
-                ts, amp = [], []
-                run = start(sim, system, tuple(pi0))
-                every = max(1, steps // 200)
-                for k, y in _sampled(run, steps, every, None, h):
-                    ts.append(k * h)
-                    amp.append(math.hypot(y[a], y[b]) / p)
-                ts, amp = np.array(ts), np.array(amp)
-                # fit after 2/lambda (the decaying mode has died out) while still linear
-                sel = (ts > 2.0 / lam) & (amp < 1e-4)
-                rate = (
-                    float(np.polyfit(ts[sel], np.log(amp[sel]), 1)[0])
-                    if sel.sum() >= 5
-                    else float("nan")
-                )
-                out.append(
-                    Check(
-                        "free_body",
-                        sim.name,
-                        AXIS_ROWS[label],
-                        lam,
-                        rate,
-                        0.02,
-                        relative=True,
-                        case={"inertia": inertia.tolist(), "axis": int(j), "h": h},
-                    )
-                )
+                out.append(_intermediate_axis_check(sim, system, inertia, j, h))
             else:
-                eps = 1e-3
-                pi0 = np.zeros(3)
-                pi0[j], pi0[a], pi0[b] = p, eps * p, eps * p
-                steps = int(math.ceil(50 * 2 * math.pi / h))  # 50 rotation periods at |Omega| = 1
-                run = start(sim, system, tuple(pi0))
-                worst = 0.0
-                every = max(1, steps // 500)
-                for _, y in _sampled(run, steps, every, None, h):
-                    worst = max(worst, math.hypot(y[a], y[b]))
-                # The theorem says bounded; the exact orbit says by how much (an ellipse around
-                # the axis whose size ratio grows as the moments approach each other).
-                period = float(orbit_period(inertia, pi0))
-                ref = exact_solution(inertia, pi0, np.linspace(0.0, period, 4001))
-                predicted = float(np.max(np.hypot(ref[a], ref[b])))
-                measured_max = worst
-                out.append(
-                    Check(
-                        "free_body",
-                        sim.name,
-                        AXIS_ROWS[label],
-                        predicted / (math.sqrt(2) * eps * p),
-                        measured_max / (math.sqrt(2) * eps * p),
-                        0.02,
-                        relative=True,
-                        case={"inertia": inertia.tolist(), "axis": int(j), "h": h},
-                    )
-                )
+                out.append(_stable_axis_check(sim, system, inertia, label, j, h))
     return out
+
+
+def _intermediate_axis_check(sim, system, inertia, j, h) -> Check:
+    """The growth rate of a ``1e-8`` perturbation of a spin about the intermediate axis ``j``,
+    fitted to the simulated amplitude, against ``lambda`` of the theorem."""
+    a, b = (j + 1) % 3, (j + 2) % 3
+    p = inertia[j]  # |Omega| = 1 rad/s about the axis
+    lam = intermediate_axis_growth_rate(inertia, p)
+    eps = 1e-8
+    pi0 = np.zeros(3)
+    pi0[j], pi0[a], pi0[b] = p, eps * p, eps * p
+    t_end = math.log(1e-3 / eps) / lam  # until the perturbation is ~1e-3 p
+    steps = int(math.ceil(t_end / h))
+    ts, amp = [], []
+    run = start(sim, system, tuple(pi0))
+    every = max(1, steps // 200)
+    for k, y in _sampled(run, steps, every, None, h):
+        ts.append(k * h)
+        amp.append(math.hypot(y[a], y[b]) / p)
+    ts, amp = np.array(ts), np.array(amp)
+    # fit after 2/lambda (the decaying mode has died out) while still linear
+    sel = (ts > 2.0 / lam) & (amp < 1e-4)
+    rate = float(np.polyfit(ts[sel], np.log(amp[sel]), 1)[0]) if sel.sum() >= 5 else float("nan")
+    return Check(
+        "free_body",
+        sim.name,
+        AXIS_ROWS["intermediate"],
+        lam,
+        rate,
+        0.02,
+        relative=True,
+        case={"inertia": inertia.tolist(), "axis": int(j), "h": h},
+    )
+
+
+def _stable_axis_check(sim, system, inertia, label, j, h) -> Check:
+    """The largest transverse ``|Pi|`` of a ``1e-3`` perturbation of a spin about the stable axis
+    ``j`` (``label``: major or minor) over 50 rotations, against the exact orbit's."""
+    a, b = (j + 1) % 3, (j + 2) % 3
+    p = inertia[j]  # |Omega| = 1 rad/s about the axis
+    eps = 1e-3
+    pi0 = np.zeros(3)
+    pi0[j], pi0[a], pi0[b] = p, eps * p, eps * p
+    steps = int(math.ceil(50 * 2 * math.pi / h))  # 50 rotation periods at |Omega| = 1
+    run = start(sim, system, tuple(pi0))
+    worst = 0.0
+    every = max(1, steps // 500)
+    for _, y in _sampled(run, steps, every, None, h):
+        worst = max(worst, math.hypot(y[a], y[b]))
+    # The theorem says bounded; the exact orbit says by how much (an ellipse around the axis
+    # whose size ratio grows as the moments approach each other).
+    period = float(orbit_period(inertia, pi0))
+    ref = exact_solution(inertia, pi0, np.linspace(0.0, period, 4001))
+    predicted = float(np.max(np.hypot(ref[a], ref[b])))
+    return Check(
+        "free_body",
+        sim.name,
+        AXIS_ROWS[label],
+        predicted / (math.sqrt(2) * eps * p),
+        worst / (math.sqrt(2) * eps * p),
+        0.02,
+        relative=True,
+        case={"inertia": inertia.tolist(), "axis": int(j), "h": h},
+    )
 
 
 def _fast_tumble_cases(rng, n) -> list[tuple[np.ndarray, np.ndarray]]:

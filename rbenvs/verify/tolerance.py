@@ -69,100 +69,93 @@ def tolerance_integrators(integrators) -> list[str]:
 def tolerance_checks(integrators, seed=0, n_cases=2, progress=None) -> list[Check]:
     """Four rows per integrator that ``tolerance=`` takes (the module's), each the worst of
     ``n_cases`` random bodies and starts (``progress`` called three times a body)."""
-    from ..envs import FreeRigidBodyEnv, UnstableMotionWarning
-
     rng = np.random.default_rng([seed, 2])
     inertias = _random_inertia(rng, n_cases, distinct=0.05)
     directions = rng.normal(size=(n_cases, 3))
     out = []
     for name in tolerance_integrators(integrators):
-        worst = {"error": (0.0, {}), "bound": (0.0, {})}
-        for inertia, d in zip(inertias, directions):
-            omega = SPIN * d / np.linalg.norm(d)
-            pi0 = inertia * omega
-            case = {
-                "inertia": inertia.tolist(),
-                "angular_momentum": pi0.tolist(),
-                "integrator": name,
-                "tolerance": TOLERANCE,
-            }
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore", UnstableMotionWarning)
-                env = FreeRigidBodyEnv(
-                    inertia=tuple(inertia),
-                    max_torque=0.0,
-                    integrator=name,
-                    max_angular_velocity=10.0 * SPIN,
-                    tolerance=TOLERANCE,
-                    tolerance_horizon=PERIODS,
-                    tolerance_check=True,
-                )
-            env.reset(seed=seed, options={"state": {"angular_momentum": pi0}})
-            blocks = tolerance_blocks(env.system)
-            a = np.zeros(env.action_space.shape, np.float32)
-            error = shortfall = 0.0
-            with warnings.catch_warnings():
-                warnings.simplefilter(
-                    "ignore"
-                )  # (an episode the estimate ends warns: counted here)
-                for k in range(1, PERIODS + 1):
-                    _, _, terminated, _, info = env.step(a)
-                    if info["numerical_failure"]:
-                        break  # (the state kept is the last one within: measured above)
-                    ref = exact_solution(tuple(inertia), pi0, k * env.dt)
-                    err = float(relative_difference(blocks, ref, env.state_components))
-                    error = max(error, err)
-                    if err > ROUND_OFF_ERROR:
-                        shortfall = max(
-                            shortfall, (err - info["global_error_estimate"]) / TOLERANCE
-                        )
-                    if terminated:
-                        break
-            for key, value in (("error", error), ("bound", shortfall)):
-                if not value <= worst[key][0]:  # (NaN too)
-                    worst[key] = (value, case)
-            if progress:
-                progress()
-        out.append(
-            Check(
-                "free_body",
-                name,
-                ROWS["error"],
-                0.0,
-                worst["error"][0],
-                TOLERANCE,
-                case=worst["error"][1],
-            )
-        )
-        out.append(
-            Check(
-                "free_body",
-                name,
-                ROWS["bound"],
-                0.0,
-                max(worst["bound"][0], 0.0),
-                0.0,
-                case=worst["bound"][1],
-            )
-        )
-        out.append(
-            _separatrix_check(
-                name, inertias, seed, progress, ROWS["near"], NEAR_TOLERANCE, NEAR_OFF
-            )
-        )
-        out.append(
-            _separatrix_check(
-                name, inertias, seed, progress, ROWS["floor"], FLOOR_TOLERANCE, FLOOR_OFF
-            )
-        )
+        out.extend(_random_start_checks(name, inertias, directions, seed, progress))
+        for row, tolerance, off in (
+            (ROWS["near"], NEAR_TOLERANCE, NEAR_OFF),
+            (ROWS["floor"], FLOOR_TOLERANCE, FLOOR_OFF),
+        ):
+            out.append(_separatrix_check(name, inertias, seed, progress, row, tolerance, off))
     return out
+
+
+def _random_start_checks(name, inertias, directions, seed, progress) -> list[Check]:
+    """The ``error`` and ``bound`` rows of integrator ``name``: the worst over the bodies
+    ``inertias`` started spinning along ``directions``."""
+    worst = {"error": (0.0, {}), "bound": (0.0, {})}
+    for inertia, d in zip(inertias, directions):
+        omega = SPIN * d / np.linalg.norm(d)
+        pi0 = inertia * omega
+        case = {
+            "inertia": inertia.tolist(),
+            "angular_momentum": pi0.tolist(),
+            "integrator": name,
+            "tolerance": TOLERANCE,
+        }
+        error, shortfall = _episode_error_and_shortfall(name, inertia, pi0, seed)
+        for key, value in (("error", error), ("bound", shortfall)):
+            if not value <= worst[key][0]:  # (NaN too)
+                worst[key] = (value, case)
+        if progress:
+            progress()
+    error, error_case = worst["error"]
+    shortfall, bound_case = worst["bound"]
+    return [
+        Check("free_body", name, ROWS["error"], 0.0, error, TOLERANCE, case=error_case),
+        Check("free_body", name, ROWS["bound"], 0.0, max(shortfall, 0.0), 0.0, case=bound_case),
+    ]
+
+
+def _checked_env(name, inertia, pi0, tolerance, seed):
+    """The free-body env of integrator ``name`` at ``tolerance`` with ``tolerance_check=True``,
+    reset to ``pi0``."""
+    from ..envs import FreeRigidBodyEnv, UnstableMotionWarning
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UnstableMotionWarning)
+        env = FreeRigidBodyEnv(
+            inertia=tuple(inertia),
+            max_torque=0.0,
+            integrator=name,
+            max_angular_velocity=10.0 * SPIN,
+            tolerance=tolerance,
+            tolerance_horizon=PERIODS,
+            tolerance_check=True,
+        )
+    env.reset(seed=seed, options={"state": {"angular_momentum": pi0}})
+    return env
+
+
+def _episode_error_and_shortfall(name, inertia, pi0, seed):
+    """``(max error, max (error - global error estimate) / tolerance)`` over the periods of an
+    episode at :data:`TOLERANCE` (the shortfall over the periods whose error is above roundoff)."""
+    env = _checked_env(name, inertia, pi0, TOLERANCE, seed)
+    blocks = tolerance_blocks(env.system)
+    a = np.zeros(env.action_space.shape, np.float32)
+    error = shortfall = 0.0
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # (an episode the estimate ends warns: counted here)
+        for k in range(1, PERIODS + 1):
+            _, _, terminated, _, info = env.step(a)
+            if info["numerical_failure"]:
+                break  # (the state kept is the last one within: measured above)
+            ref = exact_solution(tuple(inertia), pi0, k * env.dt)
+            err = float(relative_difference(blocks, ref, env.state_components))
+            error = max(error, err)
+            if err > ROUND_OFF_ERROR:
+                shortfall = max(shortfall, (err - info["global_error_estimate"]) / TOLERANCE)
+            if terminated:
+                break
+    return error, shortfall
 
 
 def _separatrix_check(name, inertias, seed, progress, row, tolerance, off) -> Check:
     """A near-separatrix row (the module's ``row``: ``tolerance`` at ``off`` rad/s off the
     intermediate axis) of integrator ``name``, the worst of the bodies ``inertias``."""
-    from ..envs import FreeRigidBodyEnv, UnstableMotionWarning
-
     worst, worst_case = 0.0, {}
     for inertia in inertias:
         omega = np.full(3, off)
@@ -175,43 +168,29 @@ def _separatrix_check(name, inertias, seed, progress, row, tolerance, off) -> Ch
             "tolerance": tolerance,
             "tolerance_check": True,
         }
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", UnstableMotionWarning)
-            env = FreeRigidBodyEnv(
-                inertia=tuple(inertia),
-                max_torque=0.0,
-                integrator=name,
-                max_angular_velocity=10.0 * SPIN,
-                tolerance=tolerance,
-                tolerance_horizon=PERIODS,
-                tolerance_check=True,
-            )
-        env.reset(seed=seed, options={"state": {"angular_momentum": pi0}})
-        blocks = tolerance_blocks(env.system)
-        a = np.zeros(env.action_space.shape, np.float32)
-        error = 0.0
-        with warnings.catch_warnings():
-            warnings.simplefilter(
-                "ignore"
-            )  # (an episode the estimate ends warns: the contract, measured up to there)
-            for k in range(1, PERIODS + 1):
-                _, _, terminated, _, info = env.step(a)
-                if info["numerical_failure"]:
-                    break
-                error = max(
-                    error,
-                    float(
-                        relative_difference(
-                            blocks,
-                            exact_solution(tuple(inertia), pi0, k * env.dt),
-                            env.state_components,
-                        )
-                    ),
-                )
-                if terminated:
-                    break
+        error = _episode_error(_checked_env(name, inertia, pi0, tolerance, seed), inertia, pi0)
         if not error <= worst:  # (NaN too)
             worst, worst_case = error, case
         if progress:
             progress()
     return Check("free_body", name, row, 0.0, worst, tolerance, case=worst_case)
+
+
+def _episode_error(env, inertia, pi0) -> float:
+    """The largest error of the periods ``env``'s episode runs from ``pi0``, against the exact
+    solution."""
+    blocks = tolerance_blocks(env.system)
+    a = np.zeros(env.action_space.shape, np.float32)
+    error = 0.0
+    with warnings.catch_warnings():
+        # (an episode the estimate ends warns: the contract, measured up to there)
+        warnings.simplefilter("ignore")
+        for k in range(1, PERIODS + 1):
+            _, _, terminated, _, info = env.step(a)
+            if info["numerical_failure"]:
+                break
+            ref = exact_solution(tuple(inertia), pi0, k * env.dt)
+            error = max(error, float(relative_difference(blocks, ref, env.state_components)))
+            if terminated:
+                break
+    return error

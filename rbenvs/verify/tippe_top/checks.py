@@ -38,68 +38,99 @@ def tippe_top_checks(
     checks: list[Check] = []
     mode = 0 if quick else 1
     for sim in as_simulators(integrators):
-        if sim.dt is None:
-            name = sim.integrator.name
-            if name not in TIPPE_TOP_SETTINGS:
-                continue
-            setting = TIPPE_TOP_SETTINGS[name]
-            if name == "dop853":
-                sim = as_simulators(
-                    [get_integrator(name, rtol=setting.rtol, atol=setting.rtol * 1e-2)]
-                )[0]
-        else:
-            name = reference_scheme(sim.order)
-            setting = TIPPE_TOP_SETTINGS[name]
-        rng = np.random.default_rng([seed, 3, list(TIPPE_TOP_SETTINGS).index(name)])
-        rows = _invariant_rows(
-            sim,
-            setting,
-            random_tops(rng, 1, "inside"),
-            rng,
-            setting.states[mode],
-            system_class,
-            progress,
-        )
-        for regime in setting.regimes[mode] if regimes is None else regimes:
-            tops = random_tops(
-                np.random.default_rng([seed, 4, REGIMES.index(regime)]),
-                setting.inversion_tops[mode],
-                regime,
-                setting.alpha_max,
-            )
-            rows |= _inversion_rows(sim, setting, tops, system_class, progress)
+        verified = _verified_setting(sim)
+        if verified is None:
+            continue
+        sim, name, setting = verified
+        rows = _random_top_rows(sim, name, setting, seed, mode, system_class, progress, regimes)
         checks.extend(worst(c) for c in rows.values())
         if sim.dt is not None or (name == "rk4" and t90):
-            try:
-                checks.append(_inversion_jellett_row(sim, system_class))
-            except NotImplementedError as exc:
-                checks.extend(not_applicable(SYSTEM, sim.name, [INVERSION_ROW], str(exc)))
+            checks.extend(_inversion_jellett_rows(sim, system_class))
         if sim.dt is not None:
-            own = [
-                "hops: Jellett held, max |dJ| / |J|",
-                "hops: energy never rises in a control period, max rise / E0",
-                "plastic impact: energy loss / (lambda^2 M_zz / 2) - 1, 20 touchdowns",
-            ]
-            if name == "rk4" and t90:
-                own.insert(0, T90_ROW)
-            checks.extend(
-                not_applicable(
-                    SYSTEM,
-                    sim.name,
-                    own,
-                    "a row of rbenvs' own model (its free flight, its rk4's convergence)",
-                )
-            )
-            continue
-        if name == "rk4" and t90:
-            checks.extend(_t90_rows(order=not quick, system_class=system_class))
-            if progress:
-                progress()
-        if name == "rk4":
-            checks.extend(_hop_rows(system_class))
-            if progress:
-                progress()
+            checks.extend(_own_model_na_rows(sim, name, t90))
+        else:
+            checks.extend(_own_model_rows(name, quick, t90, system_class, progress))
     return checks
+
+
+def _verified_setting(sim):
+    """``(sim, name, setting)``: the simulator to run (dop853 at its setting's tolerances), the
+    name of its settings' scheme (its reference scheme at its own step) and the settings; ``None``
+    for an rbenvs integrator without tippe-top settings."""
+    if sim.dt is not None:
+        name = reference_scheme(sim.order)
+        return sim, name, TIPPE_TOP_SETTINGS[name]
+    name = sim.integrator.name
+    if name not in TIPPE_TOP_SETTINGS:
+        return None
+    setting = TIPPE_TOP_SETTINGS[name]
+    if name == "dop853":
+        sim = as_simulators([get_integrator(name, rtol=setting.rtol, atol=setting.rtol * 1e-2)])[0]
+    return sim, name, setting
+
+
+def _random_top_rows(sim, name, setting, seed, mode, system_class, progress, regimes):
+    """The rows on random tops, by row (each a list of cases): the invariants' and the inversion
+    rows of each regime (``regimes``, else the setting's)."""
+    rng = np.random.default_rng([seed, 3, list(TIPPE_TOP_SETTINGS).index(name)])
+    rows = _invariant_rows(
+        sim,
+        setting,
+        random_tops(rng, 1, "inside"),
+        rng,
+        setting.states[mode],
+        system_class,
+        progress,
+    )
+    for regime in setting.regimes[mode] if regimes is None else regimes:
+        tops = random_tops(
+            np.random.default_rng([seed, 4, REGIMES.index(regime)]),
+            setting.inversion_tops[mode],
+            regime,
+            setting.alpha_max,
+        )
+        rows |= _inversion_rows(sim, setting, tops, system_class, progress)
+    return rows
+
+
+def _inversion_jellett_rows(sim, system_class) -> list[Check]:
+    """Jellett's integral through an inversion: its row, or n/a where it is not modelled."""
+    try:
+        return [_inversion_jellett_row(sim, system_class)]
+    except NotImplementedError as exc:
+        return not_applicable(SYSTEM, sim.name, [INVERSION_ROW], str(exc))
+
+
+def _own_model_na_rows(sim, name, t90) -> list[Check]:
+    """The n/a rows of a simulator at its own step for the rows of rbenvs' own model."""
+    own = [
+        "hops: Jellett held, max |dJ| / |J|",
+        "hops: energy never rises in a control period, max rise / E0",
+        "plastic impact: energy loss / (lambda^2 M_zz / 2) - 1, 20 touchdowns",
+    ]
+    if name == "rk4" and t90:
+        own.insert(0, T90_ROW)
+    return not_applicable(
+        SYSTEM,
+        sim.name,
+        own,
+        "a row of rbenvs' own model (its free flight, its rk4's convergence)",
+    )
+
+
+def _own_model_rows(name, quick, t90, system_class, progress) -> list[Check]:
+    """The rows of rbenvs' own model, run by its rk4 alone: ``t90`` (with ``t90``) and the
+    hops."""
+    out: list[Check] = []
+    if name == "rk4" and t90:
+        out.extend(_t90_rows(order=not quick, system_class=system_class))
+        if progress:
+            progress()
+    if name == "rk4":
+        out.extend(_hop_rows(system_class))
+        if progress:
+            progress()
+    return out
 
 
 def progress_total(integrators, quick=False, t90=True) -> int:

@@ -156,123 +156,131 @@ def _run_invariants(system, sim, setting, y, horizon, u_of):
 
 
 def _invariant_rows(sim, setting, tops, rng, n_states, system_class, progress):
-    name = sim.name
-    dop853 = sim.dt is None and sim.integrator.name == "dop853"
+    """The invariant rows of every variant (:data:`VARIANTS`) on each of ``tops``, by row name,
+    ``n_states`` random states each; ``progress`` called once a top."""
     rows: dict[str, list[Check]] = {}
-
-    def add(check):
-        rows.setdefault(check.check, []).append(check)
-
-    def tolerance(tol, run, bound):
-        """The setting's tolerance; for a simulator at its own step, scaled to it, at most
-        ``bound``."""
-        return (
-            tol
-            if sim.dt is None
-            else scaled_tolerance(tol, run[0], setting.invariant_step, sim.order, run[1], bound)
-        )
-
     for top in tops:
         for variant in VARIANTS:
-            mu = None
-            if variant.law == "coulomb":
-                mu = float(rng.uniform(0.2, 0.5))
-            elif variant.law == "viscous":
-                mu = float(rng.uniform(0.1, 0.5)) / math.sqrt(top.gravity * top.radius)
-            params = top.params(variant.law or "viscous", mu if mu is not None else 0.0)
-            if dop853 and variant.law == "coulomb":  # ~50x less stiff near zero slip
-                params = dataclasses.replace(
-                    params, slip_regularization=DOP853_SLIP * math.sqrt(top.gravity * top.radius)
-                )
-            system = system_class(params, variant.fidelity)
-            u_of, motion = _table_motion(rng, top) if variant.moving else (None, {})
-            horizon = (
-                SHORT_HORIZON if dop853 or variant.law == "coulomb" else INVARIANT_HORIZON
-            ) * top.t_g
-            for n in range(n_states):
-                try:
-                    for _ in range(
-                        MAX_DRAWS
-                    ):  # a state that lifts off before its second sample is drawn again
-                        (y,), (desc,) = _random_states(
-                            rng, top, system, 1, slip=variant.fidelity == "gliding"
-                        )
-                        js, scales, energies, normals, h, lift_off, run = _run_invariants(
-                            system, sim, setting, y, horizon, u_of
-                        )
-                        if len(js) >= 2:
-                            break
-                except (
-                    NotImplementedError
-                ) as exc:  # not modelled: n/a rows (the states drawn as for the others)
-                    for _ in range(n + 1, n_states):
-                        _random_states(rng, top, system, 1, slip=variant.fidelity == "gliding")
-                    for row in not_applicable(
-                        SYSTEM, name, _variant_rows(variant), f"{variant.label}: {exc}"
-                    ):
-                        add(row)
-                    break
-                case = (
-                    top.describe()
-                    | {
-                        "fidelity": variant.fidelity,
-                        "friction_law": variant.law,
-                        "friction": params.friction,
-                        "h": h,
-                        "T": horizon,
-                    }
-                    | desc
-                    | motion
-                )
-                case["min N/(m g)"] = float(np.min(normals)) if len(normals) else math.nan
-                case["lift-off at"] = lift_off
-                if len(js) < 2:  # MAX_DRAWS states in a row lifted off at once: a FAIL row (nan)
-                    js = scales = energies = np.full(2, math.nan)
-                drift = float(np.max(np.abs(js - js[0])) / scales[0])
-                jellett_row, energy_row = _variant_rows(variant) + (
-                    (None,) if variant.moving else ()
-                )
-                add(
-                    Check(
-                        SYSTEM,
-                        name,
-                        jellett_row,
-                        0.0,
-                        drift,
-                        tolerance(setting.jellett, run, MOMENTUM_BOUND),
-                        case=case,
-                    )
-                )
-                if variant.dissipative:
-                    rise = float(
-                        np.max(np.append(np.diff(energies), 0.0)) / energies[0]
-                    )  # nan stays nan
-                    add(
-                        Check(
-                            SYSTEM,
-                            name,
-                            energy_row,
-                            0.0,
-                            rise,
-                            tolerance(setting.rise, run, ENERGY_BOUND),
-                            case=case,
-                        )
-                    )
-                elif not variant.moving:
-                    add(
-                        Check(
-                            SYSTEM,
-                            name,
-                            energy_row,
-                            0.0,
-                            float(np.max(np.abs(energies - energies[0])) / energies[0]),
-                            tolerance(setting.energy, run, ENERGY_BOUND),
-                            case=case,
-                        )
-                    )
+            for check in _variant_checks(sim, setting, top, variant, rng, n_states, system_class):
+                rows.setdefault(check.check, []).append(check)
         if progress:
             progress()
     return rows
+
+
+def _is_dop853(sim) -> bool:
+    """Whether ``sim`` is rbenvs' dop853 at its verify settings."""
+    return sim.dt is None and sim.integrator.name == "dop853"
+
+
+def _variant_system(sim, top, variant, rng, system_class):
+    """``(params, system)`` of ``top`` under ``variant``, its friction coefficient drawn."""
+    mu = None
+    if variant.law == "coulomb":
+        mu = float(rng.uniform(0.2, 0.5))
+    elif variant.law == "viscous":
+        mu = float(rng.uniform(0.1, 0.5)) / math.sqrt(top.gravity * top.radius)
+    params = top.params(variant.law or "viscous", mu if mu is not None else 0.0)
+    if _is_dop853(sim) and variant.law == "coulomb":  # ~50x less stiff near zero slip
+        params = dataclasses.replace(
+            params, slip_regularization=DOP853_SLIP * math.sqrt(top.gravity * top.radius)
+        )
+    return params, system_class(params, variant.fidelity)
+
+
+def _variant_checks(sim, setting, top, variant, rng, n_states, system_class) -> list[Check]:
+    """The rows of ``variant`` on ``top``, in order: those of ``n_states`` random states, or its
+    n/a rows where the simulator does not model it."""
+    params, system = _variant_system(sim, top, variant, rng, system_class)
+    u_of, motion = _table_motion(rng, top) if variant.moving else (None, {})
+    short = _is_dop853(sim) or variant.law == "coulomb"
+    horizon = (SHORT_HORIZON if short else INVARIANT_HORIZON) * top.t_g
+    slip = variant.fidelity == "gliding"
+    out: list[Check] = []
+    for n in range(n_states):
+        try:
+            desc, result = _draw_run(sim, setting, rng, top, system, slip, horizon, u_of)
+        except NotImplementedError as exc:
+            # not modelled: n/a rows, the remaining states drawn as for the others (the draws
+            # that follow stay the same)
+            for _ in range(n + 1, n_states):
+                _random_states(rng, top, system, 1, slip=slip)
+            out.extend(
+                not_applicable(SYSTEM, sim.name, _variant_rows(variant), f"{variant.label}: {exc}")
+            )
+            break
+        case = _invariant_case(top, variant, params, horizon, desc | motion, result)
+        out.extend(_state_checks(sim, setting, variant, case, result))
+    return out
+
+
+def _draw_run(sim, setting, rng, top, system, slip, horizon, u_of):
+    """A random state's description and its run (:func:`_run_invariants`); a state that lifts off
+    before its second sample is drawn again, up to ``MAX_DRAWS`` times."""
+    for _ in range(MAX_DRAWS):
+        (y,), (desc,) = _random_states(rng, top, system, 1, slip=slip)
+        result = _run_invariants(system, sim, setting, y, horizon, u_of)
+        if len(result[0]) >= 2:
+            break
+    return desc, result
+
+
+def _invariant_case(top, variant, params, horizon, start, result) -> dict:
+    """The case of a run: the top, the variant, the step and horizon, the ``start`` (the state's
+    and the table's description), the lowest normal force and the lift-off."""
+    _, _, _, normals, h, lift_off, _ = result
+    case = (
+        top.describe()
+        | {
+            "fidelity": variant.fidelity,
+            "friction_law": variant.law,
+            "friction": params.friction,
+            "h": h,
+            "T": horizon,
+        }
+        | start
+    )
+    case["min N/(m g)"] = float(np.min(normals)) if len(normals) else math.nan
+    case["lift-off at"] = lift_off
+    return case
+
+
+def _state_checks(sim, setting, variant, case, result) -> list[Check]:
+    """One state's rows of ``variant``: Jellett's drift, and the energy's rise (dissipative) or
+    drift (conservative; none on the moving table, which works on the top)."""
+    js, scales, energies, _, _, _, run = result
+    if len(js) < 2:  # MAX_DRAWS states in a row lifted off at once: a FAIL row (nan)
+        js = scales = energies = np.full(2, math.nan)
+    drift = float(np.max(np.abs(js - js[0])) / scales[0])
+    jellett_row, energy_row = _variant_rows(variant) + ((None,) if variant.moving else ())
+    out = [
+        Check(
+            SYSTEM,
+            sim.name,
+            jellett_row,
+            0.0,
+            drift,
+            _tolerance(sim, setting, setting.jellett, run, MOMENTUM_BOUND),
+            case=case,
+        )
+    ]
+    if variant.dissipative:
+        rise = float(np.max(np.append(np.diff(energies), 0.0)) / energies[0])  # nan stays nan
+        tol = _tolerance(sim, setting, setting.rise, run, ENERGY_BOUND)
+        out.append(Check(SYSTEM, sim.name, energy_row, 0.0, rise, tol, case=case))
+    elif not variant.moving:
+        change = float(np.max(np.abs(energies - energies[0])) / energies[0])
+        tol = _tolerance(sim, setting, setting.energy, run, ENERGY_BOUND)
+        out.append(Check(SYSTEM, sim.name, energy_row, 0.0, change, tol, case=case))
+    return out
+
+
+def _tolerance(sim, setting, tol, run, bound):
+    """The setting's tolerance ``tol``; for a simulator at its own step, scaled to it (``run``:
+    ``omega h`` and the number of steps), at most ``bound``."""
+    if sim.dt is None:
+        return tol
+    return scaled_tolerance(tol, run[0], setting.invariant_step, sim.order, run[1], bound)
 
 
 def _variant_rows(variant) -> tuple[str, ...]:

@@ -72,10 +72,57 @@ def settle(
     ``horizon`` t_g. ``integ``: an rbenvs integrator (name) or a simulator (at its own step);
     ``omega_h``: ``|Omega| h`` of a fixed-step scheme; ``rtol``: dop853's (one ``solve_ivp`` call
     per sample, every ``DOP853_SETTLE_SAMPLE t_g``: each call costs a set-up)."""
-    prm = system.params
-    t_g = math.sqrt(prm.radius / prm.gravity)
     y = upright_start(system, spin)
     J0, scale = oracle_jellett(system, y)
+    sampling = _settle_sampling(system, integ, spin, omega_h, rtol)
+    end = _settle_run(system, start(sampling.sim, system, y), y, sampling, spin, horizon)
+    J1, _ = oracle_jellett(system, end.y)
+    return Settled(
+        float(end.tilts[-1]) if end.lift_off is None else math.nan,
+        end.settled,
+        end.samples * sampling.sample,
+        end.min_normal,
+        float(abs(J1 - J0) / scale),
+        sampling.h,
+        end.t90,
+        end.lift_off,
+        end.tilts if record else [],
+    )
+
+
+@dataclass(frozen=True)
+class _Sampling:
+    """How a settling run steps: ``sim`` takes ``every`` steps of ``h`` [s] per sample, every
+    ``sample`` [s] (``sample_tg`` t_g)."""
+
+    sim: object
+    h: float
+    every: int
+    sample: float
+    sample_tg: float
+
+
+@dataclass(frozen=True)
+class _SettleEnd:
+    """Where a settling run stopped: the state ``y`` after ``samples`` samples, the tilts sampled,
+    the lowest ``N/(m g)``, whether it settled, and the times of passing 90 degrees and of the
+    lift-off (``None``: none)."""
+
+    y: tuple
+    samples: int
+    tilts: list
+    min_normal: float
+    settled: bool
+    t90: float | None
+    lift_off: float | None
+
+
+def _settle_sampling(system, integ, spin, omega_h, rtol) -> _Sampling:
+    """The simulator and steps of a settling run (:func:`settle`'s arguments): dop853 one call a
+    sample, a simulator at its own step whole steps a sample, a fixed-step scheme at ``omega_h``
+    (the sample a whole number of its steps)."""
+    prm = system.params
+    t_g = math.sqrt(prm.radius / prm.gravity)
     (sim,) = as_simulators([integ])
     dop853 = sim.dt is None and sim.integrator.name == "dop853"
     sample_tg = DOP853_SETTLE_SAMPLE if dop853 else SETTLE_SAMPLE
@@ -92,9 +139,15 @@ def settle(
         h = _step_size(system, sim.integrator.name, omega_h, 1.2 * abs(spin))
         every = max(1, int(math.ceil(sample / h)))
         h = sample / every
-    run = start(sim, system, y)
-    per_window = int(round(SETTLE_WINDOW / sample_tg))
-    n_samples = int(math.ceil(horizon / sample_tg))
+    return _Sampling(sim, h, every, sample, sample_tg)
+
+
+def _settle_run(system, run, y, sampling, spin, horizon) -> _SettleEnd:
+    """Step ``run`` from ``y``, sample by sample, until settled, a lift-off (``N < 0``, or a state
+    that is not finite) or ``horizon`` t_g."""
+    prm = system.params
+    per_window = int(round(SETTLE_WINDOW / sampling.sample_tg))
+    n_samples = int(math.ceil(horizon / sampling.sample_tg))
     weight = prm.mass * prm.gravity
     tilts = [system.tilt(y)]
     min_n = float(system.contact_forces(y)[0]) / weight
@@ -102,36 +155,28 @@ def settle(
     t90 = lift_off = None
     k = 0
     for k in range(1, n_samples + 1):
-        for _ in range(every):
-            y = run.step(None, h)
+        for _ in range(sampling.every):
+            y = run.step(None, sampling.h)
         tilt = system.tilt(y)
         if t90 is None and tilt > 0.5 * math.pi:
-            t90 = k * sample
+            t90 = k * sampling.sample
         tilts.append(tilt)
         n_now = float(system.contact_forces(y)[0]) / weight
         min_n = n_now if not n_now >= 0.0 else min(min_n, n_now)  # a nan is kept
         if not min_n >= 0.0:  # the top would leave the table (or the state is not finite): stop
-            lift_off = k * sample
+            lift_off = k * sampling.sample
             break
-        if k % per_window == 0:
-            last = tilts[-per_window - 1 :]
-            if max(last) - min(last) < SETTLE_BAND and system.slip_speed(
-                y
-            ) < SETTLE_SLIP * prm.radius * abs(spin):
-                settled = True
-                break
-    J1, _ = oracle_jellett(system, y)
-    return Settled(
-        float(tilts[-1]) if lift_off is None else math.nan,
-        settled,
-        k * sample,
-        min_n,
-        float(abs(J1 - J0) / scale),
-        h,
-        t90,
-        lift_off,
-        tilts if record else [],
-    )
+        if k % per_window == 0 and _window_settled(system, y, tilts[-per_window - 1 :], spin):
+            settled = True
+            break
+    return _SettleEnd(y, k, tilts, min_n, settled, t90, lift_off)
+
+
+def _window_settled(system, y, last, spin) -> bool:
+    """Whether the tilts ``last`` of a window stay within ``SETTLE_BAND`` and the contact point
+    at ``y`` barely slips."""
+    calm = max(last) - min(last) < SETTLE_BAND
+    return calm and system.slip_speed(y) < SETTLE_SLIP * system.params.radius * abs(spin)
 
 
 def prediction(params: TippeTopParams, J: float):
@@ -156,74 +201,74 @@ def measured_class(tilt: float) -> str:
     return "partial inversion"
 
 
+# the inversion rows' name of each regime of A/C
+_REGIME_RANGES = {
+    "below": "A/C < 1 - alpha",
+    "inside": "1 - alpha < A/C < 1 + alpha",
+    "above": "A/C > 1 + alpha",
+}
+
+
 def _inversion_rows(sim, setting, tops, system_class, progress):
-    name = sim.name
+    """The class and final-tilt rows of a settling run of each of ``tops``, by row (``c`` and
+    ``t`` with the regime); ``progress`` called once a run."""
     rows: dict[str, list[Check]] = {}
     for top in tops:
-        params = top.params()
-        system = system_class(params, "gliding")
-        y0 = upright_start(system, top.spin)
-        J0 = float(oracle_jellett(system, y0)[0])
-        label, tilt = prediction(params, J0)
-        what = {
-            "below": "A/C < 1 - alpha",
-            "inside": "1 - alpha < A/C < 1 + alpha",
-            "above": "A/C > 1 + alpha",
-        }[top.regime]
-        names = (
-            f"inversion class, {what} (0 none, 1 partial, 2 full)",
-            f"final tilt [deg] = argmin E*, {what}",
-        )
-        try:
-            res = settle(system, sim, top.spin, setting.settle_step, setting.settle_rtol)
-        except NotImplementedError as exc:
-            na = not_applicable(
-                SYSTEM, name, names, f"viscous friction (the settling runs'): {exc}"
-            )
-            rows.setdefault(f"c{top.regime}", []).append(na[0])
-            rows.setdefault(f"t{top.regime}", []).append(na[1])
-            continue
-        got = measured_class(res.tilt)
-        case = top.describe() | {
-            "friction_law": "viscous",
-            "friction": params.friction,
-            "spin": top.spin,
-            "start tilt": START_TILT,
-            "J": J0,
-            "predicted": label,
-            "simulated": got,
-            "settled": res.settled,
-            "t": res.t,
-            "h": res.h,
-            "min N/(m g)": res.min_normal,
-            "lift-off at": res.lift_off,
-            "J drift": res.jellett_drift,
-        }
-        rows.setdefault(f"c{top.regime}", []).append(
-            Check(
-                SYSTEM,
-                name,
-                names[0],
-                CLASS_CODE[label],
-                CLASS_CODE.get(got, math.nan),
-                0.0,
-                case=case,
-            )
-        )
-        rows.setdefault(f"t{top.regime}", []).append(
-            Check(
-                SYSTEM,
-                name,
-                names[1],
-                math.degrees(tilt),
-                math.degrees(res.tilt),
-                math.degrees(FINAL_TILT_TOL),
-                case=case,
-            )
-        )
-        if progress:
+        ran, (class_row, tilt_row) = _top_inversion_checks(sim, setting, top, system_class)
+        rows.setdefault(f"c{top.regime}", []).append(class_row)
+        rows.setdefault(f"t{top.regime}", []).append(tilt_row)
+        if ran and progress:  # (a run the simulator declines counts none)
             progress()
     return rows
+
+
+def _top_inversion_checks(sim, setting, top, system_class) -> tuple[bool, tuple[Check, Check]]:
+    """``(ran, (class row, final-tilt row))`` of ``top``'s settling run against the criterion's
+    prediction; the rows n/a (``ran`` false) where the simulator does not model the run."""
+    params = top.params()
+    system = system_class(params, "gliding")
+    J0 = float(oracle_jellett(system, upright_start(system, top.spin))[0])
+    label, tilt = prediction(params, J0)
+    what = _REGIME_RANGES[top.regime]
+    names = (
+        f"inversion class, {what} (0 none, 1 partial, 2 full)",
+        f"final tilt [deg] = argmin E*, {what}",
+    )
+    try:
+        res = settle(system, sim, top.spin, setting.settle_step, setting.settle_rtol)
+    except NotImplementedError as exc:
+        reason = f"viscous friction (the settling runs'): {exc}"
+        class_na, tilt_na = not_applicable(SYSTEM, sim.name, names, reason)
+        return False, (class_na, tilt_na)
+    got = measured_class(res.tilt)
+    case = top.describe() | {
+        "friction_law": "viscous",
+        "friction": params.friction,
+        "spin": top.spin,
+        "start tilt": START_TILT,
+        "J": J0,
+        "predicted": label,
+        "simulated": got,
+        "settled": res.settled,
+        "t": res.t,
+        "h": res.h,
+        "min N/(m g)": res.min_normal,
+        "lift-off at": res.lift_off,
+        "J drift": res.jellett_drift,
+    }
+    class_row = Check(
+        SYSTEM, sim.name, names[0], CLASS_CODE[label], CLASS_CODE.get(got, math.nan), 0.0, case=case
+    )
+    tilt_row = Check(
+        SYSTEM,
+        sim.name,
+        names[1],
+        math.degrees(tilt),
+        math.degrees(res.tilt),
+        math.degrees(FINAL_TILT_TOL),
+        case=case,
+    )
+    return True, (class_row, tilt_row)
 
 
 # ------------------------------------------------------------------------------------------
