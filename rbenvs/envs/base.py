@@ -205,10 +205,43 @@ class RigidBodyEnv(gym.Env):
     def _setup(self, system, task, actuator, observation_high, options: dict):
         """The model, engine and spaces of ``system``, ``task`` and ``actuator`` under the shared
         keywords ``options`` (:mod:`rbenvs.envs.shared`), validated here."""
-        integrator, dt, substeps = options["integrator"], options["dt"], options["substeps"]
-        guard, compiled, render_mode = options["guard"], options["compiled"], options["render_mode"]
-        guard = require_guard(guard)
-        tolerance, horizon, check, accuracy = accuracy_settings(
+        integrator, render_mode = options["integrator"], options["render_mode"]
+        guard, compiled, dt, substeps, settings = self._checked_step_keywords(options)
+        tolerance, horizon, check, accuracy = settings
+        high = tuple(float(v) for v in observation_high)
+        episode_steps = self.registered_episode_steps()
+
+        # a closure over horizon: the final model reads it after a tolerance-free setting clears it
+        def model_with(scheme, **accuracy_kw):
+            parts = (system, task, scheme, actuator, dt, substeps, guard, high)
+            limits = (self._speed_ceiling(), tolerance, horizon, episode_steps)
+            return Model(*parts, *limits, **accuracy_kw)
+
+        integrator = self._chosen_integrator(integrator, system, tolerance, model_with)
+        require_render_mode(render_mode, self.metadata["render_modes"])
+        tolerance, accuracy = require_accuracy(
+            integrator, guard, tolerance, accuracy, type(self).__name__
+        )
+        if tolerance is not None and accuracy == "explicit":
+            self._warn_unstable_motion(system, task, tolerance, horizon * dt, check)
+        if tolerance is None:
+            horizon = None
+        self.model = model_with(integrator, check=check, accuracy=accuracy)
+        require_float32_rewards(self.model)
+        self._setup_engine(compiled, render_mode, dt, high, actuator, check)
+        require_resolvable(
+            self.model,
+            self._start_speed,
+            self._start_dissipation(system),
+            type(self).__name__,
+            self._rate_sources,
+        )
+
+    def _checked_step_keywords(self, options: dict) -> tuple:
+        """``(guard, compiled, dt, substeps, (tolerance, horizon, check, accuracy))``: the step's
+        shared keywords of ``options``, checked in the constructor's order."""
+        guard = require_guard(options["guard"])
+        settings = accuracy_settings(
             options["tolerance"],
             options["tolerance_horizon"],
             options["tolerance_check"],
@@ -216,42 +249,37 @@ class RigidBodyEnv(gym.Env):
             self.default_tolerance,
             self.registered_episode_steps(),
         )
-        compiled = require_compiled(compiled)
-        dt = require_finite_positive("dt", dt)
+        compiled = require_compiled(options["compiled"])
+        dt = require_finite_positive("dt", options["dt"])
         substeps = require_int_in(
             "substeps",
-            substeps,
+            options["substeps"],
             1,
             MAX_INTERNAL_STEPS,
             " (more internal steps in a control period is a numerical failure)",
         )
-        high = tuple(float(v) for v in observation_high)
-        episode_steps = self.registered_episode_steps()
+        return guard, compiled, dt, substeps, settings
 
-        def model_with(scheme, **accuracy_kw):
-            parts = (system, task, scheme, actuator, dt, substeps, guard, high)
-            limits = (self._speed_ceiling(), tolerance, horizon, episode_steps)
-            return Model(*parts, *limits, **accuracy_kw)
-
+    def _chosen_integrator(self, integrator, system, tolerance, model_with):
+        """The integrator of ``integrator=``: with ``"auto"`` the cheapest registered scheme
+        that meets ``tolerance`` (``model_with(scheme)`` builds each candidate's model)."""
         if isinstance(integrator, str) and integrator == "auto":
             schemes = [cls() for cls in _registry().values()]
             speed, dissipation = self._start_speed, self._start_dissipation(system)
             integrator = cheapest_scheme(schemes, system, tolerance, model_with, speed, dissipation)
-        integrator = integrator_for(integrator, system)
-        require_render_mode(render_mode, self.metadata["render_modes"])
-        tolerance, accuracy = require_accuracy(
-            integrator, guard, tolerance, accuracy, type(self).__name__
-        )
-        if tolerance is not None and accuracy == "explicit":
-            unstable = self._unstable_motion(system, task, horizon * dt)
-            if unstable:
-                warnings.warn(
-                    unstable_motion_warning(tolerance, unstable, check), stacklevel=_caller_level()
-                )
-        if tolerance is None:
-            horizon = None
-        self.model = model_with(integrator, check=check, accuracy=accuracy)
-        require_float32_rewards(self.model)
+        return integrator_for(integrator, system)
+
+    def _warn_unstable_motion(self, system, task, tolerance, span: float, check) -> None:
+        """Warn where the starts are unstable over ``span`` [s] (:meth:`_unstable_motion`): the
+        motion amplifies errors already made, so the global error can pass ``tolerance``."""
+        unstable = self._unstable_motion(system, task, span)
+        if unstable:
+            warnings.warn(
+                unstable_motion_warning(tolerance, unstable, check), stacklevel=_caller_level()
+            )
+
+    def _setup_engine(self, compiled, render_mode, dt, high, actuator, check) -> None:
+        """The engine of ``self.model``, the rendering, the spaces and the step's state."""
         self.engine = Engine(self.model, compiled, backend=compiled_backend)
         self.render_mode = render_mode
         self._renderer = None  # built by the first render(): matplotlib is imported only then
@@ -270,13 +298,6 @@ class RigidBodyEnv(gym.Env):
         self._y = None  # the state: a tuple of floats
         self._u = None  # the control of the last step (None after a reset: nothing acted yet)
         self._plain = self.engine.plain
-        require_resolvable(
-            self.model,
-            self._start_speed,
-            self._start_dissipation(system),
-            type(self).__name__,
-            self._rate_sources,
-        )
 
     def _setup_options(self, options: dict):
         """Validate the robustness options (:mod:`rbenvs.envs.options`) of the shared keywords

@@ -234,47 +234,55 @@ def inversion_criterion(A, C, alpha, m=None, g=None, R=None, J=None) -> Inversio
     """
     A, C = require_all_positive(A=A, C=C)
     alpha = _require_alpha(alpha)
-    given = {"m": m, "g": g, "R": R}
-    missing = [name for name, v in given.items() if v is None]
-    if missing and len(missing) < 3:
-        raise ValueError(f"m, g and R must be given together; missing {', '.join(missing)}")
-    have_scale = not missing
-    if have_scale:
-        m, g, R = require_all_positive(m=m, g=g, R=R)
-    if J is not None:
-        if not have_scale:
-            raise ValueError(
-                "J needs m, g and R (the thresholds it is compared with depend on them)"
-            )
-        J = require_finite("J", J)
-
+    mgr, J = _checked_scale(m, g, R, J)
     gamma = A / C
     upright_unstable = gamma > 1.0 - alpha
     inverted_can_be_stable = gamma < 1.0 + alpha
     J_min = J_upright = None
-    if have_scale:
+    if mgr is not None:
+        m, g, R = mgr
         scale = math.sqrt(m * g * R**3 * C * alpha)
         if upright_unstable:
             J_upright = scale * (1.0 - alpha) ** 2 / math.sqrt(gamma - 1.0 + alpha)
         if upright_unstable and inverted_can_be_stable:
             J_min = scale * (1.0 + alpha) ** 2 / math.sqrt(1.0 + alpha - gamma)
-
-    if J is None:
-        if not upright_unstable:
-            label = NO_INVERSION
-        elif inverted_can_be_stable:
-            label = FULL_INVERSION
-        else:
-            label = PARTIAL_INVERSION
-    elif not (upright_unstable and abs(J) > J_upright):
-        label = NO_INVERSION
-    elif inverted_can_be_stable and abs(J) > J_min:
-        label = FULL_INVERSION
-    else:
-        label = PARTIAL_INVERSION
+    label = _inversion_label(J, upright_unstable, inverted_can_be_stable, J_min, J_upright)
     return InversionCriterion(
         gamma, upright_unstable, inverted_can_be_stable, J_min, J_upright, label, J
     )
+
+
+def _checked_scale(m, g, R, J) -> tuple:
+    """``((m, g, R), J)`` of :func:`inversion_criterion`, checked: ``m``, ``g`` and ``R``
+    together (``None`` in place of the three without them) and ``J`` only with them."""
+    given = {"m": m, "g": g, "R": R}
+    missing = [name for name, v in given.items() if v is None]
+    if missing and len(missing) < 3:
+        raise ValueError(f"m, g and R must be given together; missing {', '.join(missing)}")
+    mgr = None if missing else require_all_positive(m=m, g=g, R=R)
+    if J is not None:
+        if missing:
+            raise ValueError(
+                "J needs m, g and R (the thresholds it is compared with depend on them)"
+            )
+        J = require_finite("J", J)
+    return mgr, J
+
+
+def _inversion_label(J, upright_unstable, inverted_can_be_stable, J_min, J_upright) -> str:
+    """The outcome of :func:`inversion_criterion`: the regime without ``J``, else the outcome
+    at ``J`` of a top that starts near ``theta = 0``."""
+    if J is None:
+        if not upright_unstable:
+            return NO_INVERSION
+        if inverted_can_be_stable:
+            return FULL_INVERSION
+        return PARTIAL_INVERSION
+    if not (upright_unstable and abs(J) > J_upright):
+        return NO_INVERSION
+    if inverted_can_be_stable and abs(J) > J_min:
+        return FULL_INVERSION
+    return PARTIAL_INVERSION
 
 
 def inversion_spin_threshold(A, C, alpha, m, g, R) -> float:

@@ -73,6 +73,18 @@ def derived_parts(params, fidelity: str, rolling: bool, flight: bool, stem: bool
         d.forms = forms = pure_forms(coefficient, stiffness, rolling, flight)
     d.form_params = p = pure_parameters(params)
     compilable = d.friction is None or d.friction.compilable
+    _set_kernel_pairs(d, p, compilable, flight, stem)
+    d.implicit, d.kernel_implicit = _implicit_parts(
+        d.friction, coefficient, stiffness, p, compilable, (rolling, flight, stem)
+    )
+    d.kernel_switches = _kernel_switches(params, forms, p, flight, stem, compilable)
+    return {name: getattr(d, name) for name in DERIVED}
+
+
+def _set_kernel_pairs(d, p, compilable: bool, flight: bool, stem: bool) -> None:
+    """Each ``kernel_*`` pair ``(fn, p)`` of ``d.forms`` on ``d``: ``None`` where the top has no
+    such form, or for a friction law that cannot be compiled."""
+    forms = d.forms
 
     def pair(fn, offered=True):
         return (fn, p) if compilable and offered else None
@@ -93,31 +105,42 @@ def derived_parts(params, fidelity: str, rolling: bool, flight: bool, stem: bool
     d.kernel_event = pair(forms.normal, not flight)
     # (with the stem the switches come between a step and the check: no shared first stage)
     d.kernel_rhs_event = pair(forms.rhs_normal, not flight and not stem)
-    # the friction's linearisation (ImplicitForms): the W-matrix of a linearly implicit
-    # scheme, (factor, solve, P); the tight stiffness rate; None for a law with no slope
-    slope = None if d.friction is None else d.friction.kernel_slope
-    d.implicit = None
-    if d.friction is None or (slope is not None and compilable):
-        saturates = d.friction is not None and d.friction.saturates
-        d.implicit = implicit_forms(coefficient, stiffness, slope, rolling, flight, saturates)
-    d.kernel_implicit = None if d.implicit is None else (d.implicit.factor, d.implicit.solve, p)
-    if stem and d.implicit is not None:
+
+
+def _implicit_parts(friction, coefficient, stiffness, p, compilable: bool, kinds: tuple):
+    """``(implicit, kernel_implicit)``: the friction's linearisation (ImplicitForms): the
+    W-matrix of a linearly implicit scheme, ``(factor, solve, P)``; the tight stiffness rate;
+    ``None`` for a law with no slope. ``kinds`` is ``(rolling, flight, stem)``."""
+    rolling, flight, stem = kinds
+    slope = None if friction is None else friction.kernel_slope
+    implicit = None
+    if friction is None or (slope is not None and compilable):
+        saturates = friction is not None and friction.saturates
+        implicit = implicit_forms(coefficient, stiffness, slope, rolling, flight, saturates)
+    kernel_implicit = None if implicit is None else (implicit.factor, implicit.solve, p)
+    if stem and implicit is not None:
         # with the stem: the accuracy rate at the pressing contact; no W-matrix (the linearly
         # implicit schemes are not offered: their solve is written for the 11 components)
-        rate = d.implicit.accuracy_rate
-        d.implicit = ImplicitForms(
+        rate = implicit.accuracy_rate
+        implicit = ImplicitForms(
             None, None, None, None if rate is None else stem_accuracy_rate(rate)
         )
-        d.kernel_implicit = None
-    d.kernel_switches = None
+        kernel_implicit = None
+    return implicit, kernel_implicit
+
+
+def _kernel_switches(params, forms, p, flight: bool, stem: bool, compilable: bool):
+    """The compiled switches ``(applies, function, tolerance, switch)`` of the stem's two
+    contacts or of free flight; ``None`` for neither or a law that cannot be compiled."""
+    switches = None
     if stem and compilable:
         tol = STEM_TOL * min(params.radius, params.stem[0])
-        d.kernel_switches = (
+        switches = (
             ((stem_on_sphere, ()), (stem_other_gap, p), tol, (stem_switch, p)),
             ((stem_on_stem, ()), (stem_other_gap, p), tol, (stem_switch, p)),
         )
     if flight and compilable:
-        d.kernel_switches = (
+        switches = (
             (
                 (flight_on_table, ()),
                 (forms.normal, p),
@@ -131,4 +154,4 @@ def derived_parts(params, fidelity: str, rolling: bool, flight: bool, stem: bool
                 (flight_touch_down, p),
             ),
         )
-    return {name: getattr(d, name) for name in DERIVED}
+    return switches

@@ -49,30 +49,7 @@ def guard_rates(system, region, speed_ceiling: float = math.inf) -> GuardRates:
     ``ACCURACY_MARGIN`` of the interval (rk4 1.25); a law without a slope (no ``implicit``)
     keeps the stability bound."""
     omega_g = system.params.gravity_rate()
-    dissipation = (
-        (system.forms.friction_rate, system.form_params)
-        if system.friction_law is not None
-        else None
-    )
-    margin = FRICTION_MARGIN
-    text = f"lambda = max(|Omega|, omega_g) (omega_g = {omega_g:.6g} rad/s)"
-    if (
-        dissipation is not None
-        and system.friction_bound == "accuracy"
-        and system.implicit is not None
-        and system.implicit.accuracy_rate is not None
-    ):
-        dissipation = (
-            system.implicit.accuracy_rate,
-            (system.form_params, system.friction.accuracy_scale, omega_g),
-        )
-        margin = ACCURACY_MARGIN
-        text += (
-            f", lambda_d = the {system.friction_law} law's stiffness at N and the mobility "
-            "along the table (friction_bound='accuracy')"
-        )
-    elif dissipation is not None:
-        text += f", lambda_d = the {system.friction_law} law's stiffness at 2 max(m g, N)"
+    dissipation, margin, text = _dissipation_bound(system, omega_g)
     share = None
     if (
         dissipation is not None
@@ -98,6 +75,38 @@ def guard_rates(system, region, speed_ceiling: float = math.inf) -> GuardRates:
         error_blocks=measured,
         rotating_blocks=(("attitude", "angular_velocity"),),
     )
+
+
+def _dissipation_bound(system, omega_g: float) -> tuple:
+    """``(dissipation, margin, text)``: the friction's rate form and its ``P`` (``None`` without
+    friction), the share of the real-axis interval a step may take of it, and the rule in words:
+    the stability bound, or with ``friction_bound="accuracy"`` and a law with an accuracy rate
+    the accuracy bound."""
+    dissipation = (
+        (system.forms.friction_rate, system.form_params)
+        if system.friction_law is not None
+        else None
+    )
+    margin = FRICTION_MARGIN
+    text = f"lambda = max(|Omega|, omega_g) (omega_g = {omega_g:.6g} rad/s)"
+    if (
+        dissipation is not None
+        and system.friction_bound == "accuracy"
+        and system.implicit is not None
+        and system.implicit.accuracy_rate is not None
+    ):
+        dissipation = (
+            system.implicit.accuracy_rate,
+            (system.form_params, system.friction.accuracy_scale, omega_g),
+        )
+        margin = ACCURACY_MARGIN
+        text += (
+            f", lambda_d = the {system.friction_law} law's stiffness at N and the mobility "
+            "along the table (friction_bound='accuracy')"
+        )
+    elif dissipation is not None:
+        text += f", lambda_d = the {system.friction_law} law's stiffness at 2 max(m g, N)"
+    return dissipation, margin, text
 
 
 def max_stable_step(

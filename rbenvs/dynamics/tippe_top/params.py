@@ -61,6 +61,19 @@ def tippe_rotation_rate(p, y):
     return maximum(sqrt(w0 * w0 + w1 * w1 + w2 * w2), omega_g)
 
 
+def _require_finite_products(a, m, g, alpha, big_a, big_c) -> None:
+    """The products the dynamics forms, refused here by name rather than overflowing in a step."""
+    require_finite_result(
+        "mass, radius and inertia", m * a * a + big_a + big_c, "m a^2 + A + C [kg m^2]"
+    )
+    require_finite_result(
+        "radius and inertia",
+        (a + alpha * a) * (a + alpha * a) / min(big_a, big_c),
+        "(a + h)^2 / min(A, C) [1/kg]",
+    )
+    require_finite_result("mass and gravity", m * g * a, "m g a [J]")
+
+
 @dataclass(frozen=True)
 class TippeTopParams:
     """Physical parameters. Defaults: the tippe top of Leine and Glocker (2003), docs/physics.md §3.
@@ -92,71 +105,11 @@ class TippeTopParams:
     height: float = field(init=False, repr=False)  # h = alpha a [m]
 
     def __post_init__(self):
-        a = require_finite_positive("radius", self.radius)
-        m = require_finite_positive("mass", self.mass)
-        g = require_finite_positive("gravity", self.gravity)
-        alpha = require_finite_positive("offset", self.offset)
-        if not alpha < 1.0:
-            raise ValueError(
-                "offset (alpha = h/R, centre-of-mass offset over radius) must lie in (0, 1), got "
-                f"{self.offset!r}"
-            )
-        big_a, big_c = require_real_vector(
-            "inertia",
-            self.inertia,
-            2,
-            " (A, C): the transverse and axial moments about the centre of mass",
-        )
-        big_a = require_finite_positive("inertia[0] (A)", big_a)
-        big_c = require_finite_positive("inertia[1] (C)", big_c)
-        if big_c > 2.0 * big_a:
-            raise ValueError(
-                "inertia must satisfy C <= 2 A (triangle inequality of a real body), got "
-                f"A={big_a!r}, C={big_c!r}"
-            )
-        mu = require_finite_nonnegative("friction", self.friction)
-        require_choice("friction_law", self.friction_law, FRICTION_LAWS)
-        eps = require_finite_positive("slip_regularization", self.slip_regularization)
-        # products the dynamics forms: refused here, by name, rather than overflowing in a step
-        require_finite_result(
-            "mass, radius and inertia", m * a * a + big_a + big_c, "m a^2 + A + C [kg m^2]"
-        )
-        require_finite_result(
-            "radius and inertia",
-            (a + alpha * a) * (a + alpha * a) / min(big_a, big_c),
-            "(a + h)^2 / min(A, C) [1/kg]",
-        )
-        require_finite_result("mass and gravity", m * g * a, "m g a [J]")
-        stem = self.stem
-        if stem is not None:
-            b, d = require_real_vector(
-                "stem",
-                stem,
-                2,
-                " (b, d): the stem tip's radius and the distance of its centre from the centre of "
-                "mass [m]",
-            )
-            b = require_finite_positive("stem[0] (b)", b)
-            d = require_finite_positive("stem[1] (d)", d)
-            h = alpha * a
-            if not b < a:
-                raise ValueError(
-                    f"stem radius b must be below the sphere's radius a = {a!r} m, got {b!r}"
-                )
-            if not d > h:
-                raise ValueError(
-                    f"stem distance d must exceed h = alpha a = {h!r} m (the stem's centre lies "
-                    f"beyond the sphere's centre), got {d!r}"
-                )
-            if not d - h + b > a:
-                raise ValueError(
-                    "the stem must protrude past the sphere (d - h + b > a): d - h + b = "
-                    f"{d - h + b!r} m, a = {a!r} m"
-                )
-            require_finite_result(
-                "stem", (b + d) * (b + d) / min(big_a, big_c), "(b + d)^2 / min(A, C) [1/kg]"
-            )
-            stem = (b, d)
+        a, m, g, alpha = self._checked_scales()
+        big_a, big_c = self._checked_inertia()
+        mu, eps = self._checked_friction()
+        _require_finite_products(a, m, g, alpha, big_a, big_c)
+        stem = None if self.stem is None else self._checked_stem(a, alpha, big_a, big_c)
         set_ = object.__setattr__
         for name, value in (
             ("radius", a),
@@ -170,6 +123,76 @@ class TippeTopParams:
             ("height", alpha * a),
         ):
             set_(self, name, value)
+
+    def _checked_scales(self) -> tuple[float, float, float, float]:
+        """``(a, m, g, alpha)``: the radius, mass, gravity and offset, checked."""
+        a = require_finite_positive("radius", self.radius)
+        m = require_finite_positive("mass", self.mass)
+        g = require_finite_positive("gravity", self.gravity)
+        alpha = require_finite_positive("offset", self.offset)
+        if not alpha < 1.0:
+            raise ValueError(
+                "offset (alpha = h/R, centre-of-mass offset over radius) must lie in (0, 1), got "
+                f"{self.offset!r}"
+            )
+        return a, m, g, alpha
+
+    def _checked_inertia(self) -> tuple[float, float]:
+        """``(A, C)``, checked: positive and ``C <= 2 A``."""
+        big_a, big_c = require_real_vector(
+            "inertia",
+            self.inertia,
+            2,
+            " (A, C): the transverse and axial moments about the centre of mass",
+        )
+        big_a = require_finite_positive("inertia[0] (A)", big_a)
+        big_c = require_finite_positive("inertia[1] (C)", big_c)
+        if big_c > 2.0 * big_a:
+            raise ValueError(
+                "inertia must satisfy C <= 2 A (triangle inequality of a real body), got "
+                f"A={big_a!r}, C={big_c!r}"
+            )
+        return big_a, big_c
+
+    def _checked_friction(self) -> tuple[float, float]:
+        """``(mu, eps)``: the friction coefficient and slip regularisation, checked, and the
+        law's name checked between them."""
+        mu = require_finite_nonnegative("friction", self.friction)
+        require_choice("friction_law", self.friction_law, FRICTION_LAWS)
+        eps = require_finite_positive("slip_regularization", self.slip_regularization)
+        return mu, eps
+
+    def _checked_stem(self, a, alpha, big_a, big_c) -> tuple[float, float]:
+        """``(b, d)``: the stem, checked against the sphere (``a``, ``h = alpha a``) and the
+        moments (``A``, ``C``)."""
+        b, d = require_real_vector(
+            "stem",
+            self.stem,
+            2,
+            " (b, d): the stem tip's radius and the distance of its centre from the centre of "
+            "mass [m]",
+        )
+        b = require_finite_positive("stem[0] (b)", b)
+        d = require_finite_positive("stem[1] (d)", d)
+        h = alpha * a
+        if not b < a:
+            raise ValueError(
+                f"stem radius b must be below the sphere's radius a = {a!r} m, got {b!r}"
+            )
+        if not d > h:
+            raise ValueError(
+                f"stem distance d must exceed h = alpha a = {h!r} m (the stem's centre lies "
+                f"beyond the sphere's centre), got {d!r}"
+            )
+        if not d - h + b > a:
+            raise ValueError(
+                "the stem must protrude past the sphere (d - h + b > a): d - h + b = "
+                f"{d - h + b!r} m, a = {a!r} m"
+            )
+        require_finite_result(
+            "stem", (b + d) * (b + d) / min(big_a, big_c), "(b + d)^2 / min(A, C) [1/kg]"
+        )
+        return b, d
 
     @property
     def gamma(self) -> float:

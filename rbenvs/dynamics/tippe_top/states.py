@@ -91,6 +91,35 @@ def import_state(system, state: dict) -> tuple:
     """Components from :meth:`export_state`'s dict, checked against the contact constraint:
     ``z_G = a - h cos(theta)``, ``v_z`` (and, rolling, the whole velocity) as the attitude and
     angular velocity require. ``ValueError`` naming the entry otherwise."""
+    arrs = _named_arrays(state)
+    q = tuple(float(c) for c in arrs["attitude"])
+    w = tuple(float(c) for c in arrs["angular_velocity"])
+    pos = tuple(float(c) for c in arrs["position"])
+    vel = tuple(float(c) for c in arrs["velocity"])
+    y = system.state(pos, q, w, vel[:2])
+    prm = system.params
+    if system.flight:
+        return _place_flight_state(system, y, pos, vel)
+    if system.stem:  # on the stem where its constraint's height is the one given
+        on_stem = y[:11] + (1.0,)
+        if (
+            abs(pos[2] - system.height(on_stem)) <= 1e-9 * prm.radius + 1e-12
+            and system.other_gap(on_stem) >= 0.0
+        ):
+            y = on_stem
+    z = system.height(y)
+    if abs(pos[2] - z) > 1e-9 * prm.radius + 1e-12:
+        raise ValueError(
+            f"state['position'][2] must be the contact height a - h cos(theta) = {z!r} m for "
+            f"this attitude (the sphere touches the table), got {pos[2]!r}"
+        )
+    _require_contact_velocity(system, y, vel, w)
+    return y
+
+
+def _named_arrays(state) -> dict:
+    """The arrays of :meth:`export_state`'s names in ``state``, checked: a dict of exactly those
+    names, each real, finite and of its shape, the attitude a unit quaternion."""
     names = ("position", "velocity", "attitude", "angular_velocity")
     if not isinstance(state, dict):
         raise ValueError(
@@ -116,29 +145,14 @@ def import_state(system, state: dict) -> tuple:
         raise ValueError(
             f"state['attitude'] must be a unit quaternion (|q| = 1 within 1e-6), got |q| = {qn}"
         )
-    q = tuple(float(c) for c in arrs["attitude"])
-    w = tuple(float(c) for c in arrs["angular_velocity"])
-    pos = tuple(float(c) for c in arrs["position"])
-    vel = tuple(float(c) for c in arrs["velocity"])
-    y = system.state(pos, q, w, vel[:2])
-    prm = system.params
-    if system.flight:
-        return _place_flight_state(system, y, pos, vel)
-    if system.stem:  # on the stem where its constraint's height is the one given
-        on_stem = y[:11] + (1.0,)
-        if (
-            abs(pos[2] - system.height(on_stem)) <= 1e-9 * prm.radius + 1e-12
-            and system.other_gap(on_stem) >= 0.0
-        ):
-            y = on_stem
-    z = system.height(y)
-    if abs(pos[2] - z) > 1e-9 * prm.radius + 1e-12:
-        raise ValueError(
-            f"state['position'][2] must be the contact height a - h cos(theta) = {z!r} m for "
-            f"this attitude (the sphere touches the table), got {pos[2]!r}"
-        )
+    return arrs
+
+
+def _require_contact_velocity(system, y, vel, w) -> None:
+    """The given velocity ``vel`` of a top on the table at ``y``: ``v_z`` (rolling: the whole
+    velocity) as the contact constraint requires at angular velocity ``w``."""
     v_need = system.velocity(y)
-    scale = 1e-9 * (1.0 + prm.radius * float(np.linalg.norm(w)))
+    scale = 1e-9 * (1.0 + system.params.radius * float(np.linalg.norm(w)))
     checked = range(3) if system.rolling else (2,)
     for i in checked:
         if abs(vel[i] - v_need[i]) > scale:
@@ -150,7 +164,6 @@ def import_state(system, state: dict) -> tuple:
             raise ValueError(
                 f"state['velocity'] must equal {what} ({list(v_need)}), got {list(vel)}"
             )
-    return y
 
 
 def _place_flight_state(system, y, pos, vel):
