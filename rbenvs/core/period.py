@@ -79,11 +79,10 @@ class Period:
         than ``MAX_INTERNAL_STEPS`` is refused as a numerical failure: the state becomes NaN,
         never a hang). ``skip`` (a batch): elements whose result is discarded (vector
         autoreset) take ``substeps`` steps, are never refused and never stretch the loop.
-        ``comp``: the run's compensation at ``y`` (a
-        tolerance: :attr:`step_c`; ``None`` is zero), returned as it is after the period
-        (``None`` without compensation; a refused period's is zero). ``ratio`` (one state): the
-        guard's ratio at ``y`` under ``u`` where the caller has it (:meth:`CompiledForms.plan_one`).
-        """
+        ``comp``: the run's compensation at ``y`` (a tolerance: :attr:`step_c`; ``None`` is
+        zero), returned as it is after the period (``None`` without compensation; a refused
+        period's is zero). ``ratio`` (one state): the guard's ratio at ``y`` under ``u`` where
+        the caller has it (:meth:`CompiledForms.plan_one`)."""
         if plain:
             step, h = self.bound_step, self.h
             y = step(y, u, h)
@@ -99,13 +98,9 @@ class Period:
                 n = self.rule.count(self.forms.plan_one(y, u)[0] if ratio is None else ratio, n)
             if n > self.substeps and self.guard == "refuse":
                 raise self.refusal(n)
-            if (
-                self.check
-            ):  # an even count: the companion takes half as many steps of twice the size
+            if self.check:  # even: the companion takes half as many steps of twice the size
                 n += n & 1
-            if n > MAX_INTERNAL_STEPS:
-                # a state beyond what the scheme can resolve in a period: NaN (a numerical
-                # failure, reported with h = dt / n), at once, never a hang
+            if n > MAX_INTERNAL_STEPS:  # NaN at once, a numerical failure (h = dt / n), not a hang
                 return tuple(math.nan for _ in y), False, self.dt / n, self.fresh_comp
             h = self.h if n == self.substeps else self.dt / n
             y, fired, comp = self._run_one(y, u, n, h, comp)
@@ -120,33 +115,43 @@ class Period:
         if self.guard == "refuse" and over.any():
             raise self.refusal(int(n.max()), f" of sub-envs {np.flatnonzero(over).tolist()}")
         refused = n > MAX_INTERNAL_STEPS
-        if refused.any():
-            y = tuple(np.where(refused, np.nan, c) for c in y)
-            y, fired, h, comp = self.advance(
-                y, u, False, refused if skip is None else (skip | refused), comp=comp
-            )
-            return y, fired, np.where(refused, self.dt / n, h), comp
+        if refused.any():  # (a failure: off the normal path)
+            return self._refused(y, u, n, refused, skip, comp)
         uniform = bool(np.all(n == n.flat[0]))
-        if self.integrator.uniform_step_only and not uniform:
-            # a scheme that takes one scalar step for the whole batch (adaptive dop853: one
-            # solve whose step follows all members): one run per group of equal counts
-            out = [np.array(c, dtype=float) for c in y]
-            fired = np.zeros(n.shape, dtype=bool)
-            for k in np.unique(n):
-                idx = np.flatnonzero(n == k)
-                sub_u = None if u is None else tuple(c[idx] if np.ndim(c) else c for c in u)
-                sub_y, sub_fired, _ = self._loop(
-                    tuple(c[idx] for c in y), sub_u, np.full(len(idx), k), self.dt / int(k), None
-                )
-                for o, c in zip(out, sub_y):
-                    o[idx] = c
-                fired[idx] = sub_fired
-            return tuple(out), fired, self.dt / n, None
+        if self.integrator.uniform_step_only and not uniform:  # (the reference scheme only)
+            return self._grouped(y, u, n)
         h = self.dt / n.flat[0] if uniform else self.dt / n
         y, fired, comp = self._loop(y, u, n, h, comp)
         if uniform and event is None:
             return y, fired, h, comp
         return y, fired, np.broadcast_to(np.asarray(h, dtype=float), n.shape).copy(), comp
+
+    def _refused(self, y, u, n, refused, skip, comp):
+        """:meth:`advance` of a batch some of whose elements need more than
+        ``MAX_INTERNAL_STEPS``: those become NaN at once (a numerical failure, reported with
+        ``h = dt / n``) and are skipped; the others take their period."""
+        y = tuple(np.where(refused, np.nan, c) for c in y)
+        y, fired, h, comp = self.advance(
+            y, u, False, refused if skip is None else (skip | refused), comp=comp
+        )
+        return y, fired, np.where(refused, self.dt / n, h), comp
+
+    def _grouped(self, y, u, n):
+        """:meth:`advance` of a batch of unequal counts ``n`` under a scheme that takes one
+        scalar step for the whole batch (adaptive dop853: one solve whose step follows all
+        members): one run per group of equal counts."""
+        out = [np.array(c, dtype=float) for c in y]
+        fired = np.zeros(n.shape, dtype=bool)
+        for k in np.unique(n):
+            idx = np.flatnonzero(n == k)
+            sub_u = None if u is None else tuple(c[idx] if np.ndim(c) else c for c in u)
+            sub_y, sub_fired, _ = self._loop(
+                tuple(c[idx] for c in y), sub_u, np.full(len(idx), k), self.dt / int(k), None
+            )
+            for o, c in zip(out, sub_y):
+                o[idx] = c
+            fired[idx] = sub_fired
+        return tuple(out), fired, self.dt / n, None
 
     def _compensated_steps(self, comp):
         """``(step_c, first_c)``, the compensated step and first-stage step a run takes; ``None``
@@ -224,9 +229,7 @@ class Period:
         """A batch's internal steps: element ``i`` takes ``n[i]`` steps of ``h`` (``h[i]``) and is
         frozen after them or at its terminal event: ``(y, fired, comp)``. ``comp``: each
         element's compensation, carried as :meth:`_run_one` carries it (``None``: plain)."""
-        if (
-            self.check and comp is not None
-        ):  # (the checked period's runs, compiled where they can be)
+        if self.check and comp is not None:  # (the checked runs, compiled where they can be)
             forms = self.forms
             runs = forms.runs if forms.runs_tried else forms.checked_runs
             if runs is not None and u is not None:
@@ -234,6 +237,10 @@ class Period:
         step, post, event = self.bound_step, self.switching, self.event
         step_c, first_c = self._compensated_steps(comp)
         fired = np.zeros(n.shape, dtype=bool)
+        # the event's evaluation is the next first stage: a loop of its own, taken before the
+        # closure below is made (making it costs more than the call)
+        if self.shared is not None:
+            return self._loop_first_stage(y, u, n, h, comp, first_c, fired)
 
         def stepped(y, comp):  # one step of every element, and the switches after it
             if step_c is None:
@@ -257,27 +264,6 @@ class Period:
                 y, comp = stepped(y, comp)
             return y, fired, comp
         active = np.ones(n.shape, dtype=bool)
-        if self.shared is not None:  # (the event's evaluation is the next first stage, as above)
-            (first, ps), (rhs_event, pv) = self.shared
-            kk, _ = rhs_event(pv, y, u)
-            for k in range(int(n.max())):
-                if first_c is None:
-                    y_new = first(ps, y, kk, u, h)
-                else:
-                    y_new, comp_new = first_c(ps, y, comp, kk, u, h)
-                kk_new, g = rhs_event(pv, y_new, u)
-                active &= k < n
-                with np.errstate(invalid="ignore"):
-                    hit = active & (g < 0.0)
-                y = tuple(np.where(active, c_new, c) for c_new, c in zip(y_new, y))
-                kk = tuple(np.where(active, c_new, c) for c_new, c in zip(kk_new, kk))
-                if first_c is not None:  # (a frozen element keeps its compensation with its state)
-                    comp = tuple(np.where(active, c_new, c) for c_new, c in zip(comp_new, comp))
-                fired |= hit
-                active &= ~hit
-                if not np.any(active):
-                    break
-            return y, fired, comp
         for k in range(int(n.max())):
             y_new, comp_new = stepped(y, comp)
             active &= k < n
@@ -290,6 +276,32 @@ class Period:
             if event is not None:
                 fired |= hit
                 active &= ~hit
+            if not np.any(active):
+                break
+        return y, fired, comp
+
+    def _loop_first_stage(self, y, u, n, h, comp, first_c, fired):
+        """:meth:`_loop` where the event's evaluation is the next step's first stage
+        (:attr:`shared`, as :meth:`_run_one` takes it): ``(y, fired, comp)``, ``fired`` (zeros)
+        marking the elements whose event ended their steps; ``first_c`` the compensated step."""
+        active = np.ones(n.shape, dtype=bool)
+        (first, ps), (rhs_event, pv) = self.shared
+        kk, _ = rhs_event(pv, y, u)
+        for k in range(int(n.max())):
+            if first_c is None:
+                y_new = first(ps, y, kk, u, h)
+            else:
+                y_new, comp_new = first_c(ps, y, comp, kk, u, h)
+            kk_new, g = rhs_event(pv, y_new, u)
+            active &= k < n
+            with np.errstate(invalid="ignore"):
+                hit = active & (g < 0.0)
+            y = tuple(np.where(active, c_new, c) for c_new, c in zip(y_new, y))
+            kk = tuple(np.where(active, c_new, c) for c_new, c in zip(kk_new, kk))
+            if first_c is not None:  # (a frozen element keeps its compensation with its state)
+                comp = tuple(np.where(active, c_new, c) for c_new, c in zip(comp_new, comp))
+            fired |= hit
+            active &= ~hit
             if not np.any(active):
                 break
         return y, fired, comp

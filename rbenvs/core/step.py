@@ -115,24 +115,37 @@ class Engine:
         # a loader of the compiled backend (rbenvs.contracts.CompiledBackend), called where a
         # compiled form is first wanted; None: the float path only
         self.backend = backend
-        self.system, self.task, self.integrator, self.actuator = (
-            m.system,
-            m.task,
-            m.integrator,
-            m.actuator,
-        )
+        self.system, self.task = m.system, m.task
+        self.integrator, self.actuator = m.integrator, m.actuator
         self.dt, self.substeps, self.guard, self.rule = m.dt, m.substeps, m.guard, m.step_rule
         # the actuator's pure form bound once: the hot path calls it every step, and the actuators'
         # kernel_control properties make their tuple on each read
         self.control = functools.partial(*m.actuator.kernel_control)
         self.h = m.dt / m.substeps
-        system = m.system
         self.check = m.check
         # the compiled forms of the step (the single-state step, the checked runs, the period
         # plan), each built on first use where numba is installed and every part has a pure form
         self.forms = CompiledForms(self, compiled)
         # the period's integration (no run state: a run's compensation goes in and out)
-        period = self.period = Period(m, self.forms)
+        self._take_period(m, Period(m, self.forms))
+        self._take_finish(m)
+        self.compiled = compiled
+        # with a tolerance every period reports its estimated error (info["error_estimate"]): the
+        # rate at its start and the step it took; without one the step is untouched
+        self.tolerance = m.tolerance
+        self.gated = self._gate(m)
+        # tolerance_check: every period takes an even count (its companion half as many steps of
+        # twice the size: rbenvs.stepsize.controller), so neither the plain loop (substeps steps)
+        # nor the compiled single-state step (the guard's count) runs
+        if m.check:
+            self.plain = False
+        if compiled is True:  # (the form the env runs, demanded: built now, or the reason why not)
+            self.forms.require()
+
+    def _take_period(self, m, period):
+        """The engine's parts of ``period`` (its event, switches, steps and runs), and whether
+        the plain loop may run (:attr:`plain`)."""
+        self.period = period
         self.event, self.switching, self.step_c = period.event, period.switching, period.step_c
         self.event_name = None if self.event is None else self.event[0]
         self.fresh_comp, self.bound_step = period.fresh_comp, period.bound_step
@@ -149,6 +162,11 @@ class Engine:
             and self.rule.idle(m.substeps)
             and self.step_c is None
         )
+
+    def _take_finish(self, m):
+        """What the period's finish reads: the observation bounds, the metrics' and read-outs'
+        names, the failure charge, and the single env's generated finish (:attr:`finish_one`)."""
+        system = m.system
         self.high = np.asarray(m.observation_high, dtype=np.float64)
         self.high32 = self.high.astype(np.float32)
         self.high_list = self.high.tolist()
@@ -159,14 +177,12 @@ class Engine:
         self.finish_one = generated_finish(
             m.task, system, self.high_list, self.metric_names, self.readout_names
         )
-        self.compiled = compiled
-        # with a tolerance every period reports its estimated error (info["error_estimate"]): the
-        # rate at its start and the step it took; without one the step is untouched
-        self.tolerance = m.tolerance
-        # the default accuracy's gate on the float and numpy paths (StepRule.gated), where the
-        # stability bound alone never asks for more than substeps: a state within the cheap bound
-        # takes the plain loop, its estimate the bound's (the compiled paths test it themselves)
-        self.gated = _ungated
+
+    def _gate(self, m):
+        """The default accuracy's gate on the float and numpy paths (StepRule.gated), where the
+        stability bound alone never asks for more than substeps: a state within the cheap bound
+        takes the plain loop, its estimate the bound's (the compiled paths test it themselves);
+        elsewhere every state is evaluated."""
         if (
             self.rule.gate is not None
             and not m.check
@@ -176,14 +192,8 @@ class Engine:
             and self.rule.dissipation is None
             and self.rule.stable(m.substeps)
         ):
-            self.gated = self.rule.gated
-        # tolerance_check: every period takes an even count (its companion half as many steps of
-        # twice the size: rbenvs.stepsize.controller), so neither the plain loop (substeps steps)
-        # nor the compiled single-state step (the guard's count) runs
-        if m.check:
-            self.plain = False
-        if compiled is True:  # (the form the env runs, demanded: built now, or the reason why not)
-            self.forms.require()
+            return self.rule.gated
+        return _ungated
 
     def __reduce__(self):  # generated and compiled functions are made again, not pickled
         return (
@@ -311,82 +321,80 @@ class Engine:
                 status, count, h, fired, y, o, over, r, q, comp = one.compensated(
                     y0, self.comp, u, u_norm, not plain, self.guard == "refuse"
                 )
-            if status:
-                if status < 0:
-                    raise self.refusal(count)
-                out = self._failed_one(y0, u_norm, u, h, plain)
-                out[4]["error_estimate"] = e
-                return out
+            if status:  # refused (raised) or failed: off the normal path
+                return self._failed_compiled(status, count, y0, u_norm, u, h, plain, e)
             if self.comp is not None:
                 self.comp = comp
-            obs, reward, terminated, info = (
-                np.array(o, dtype=np.float32),
-                r[0],
-                r[1],
-                one.info(q, r, h, e),
-            )
-            if fired or over or terminated:
-                info["terminal_reason"] = terminal_reason(
-                    False, fired, over, terminated, self.event_name
-                )
-                terminated = True
-                if not info["is_success"]:
-                    reward += self.failure_charge
-                if over:
-                    plain = False
-            return y, obs, reward, terminated, info, u, plain
-        lam = estimate = (
-            None  # a tolerance's float path: the rates at y0 give the count and the estimate
-        )
-        if self.tolerance is not None and ratio is None:
-            estimate = self.gated(y0)
-            if estimate is None:
-                ratio, lam, lam_d, share = self.forms.plan_one(y0, u)
-        if (
-            plain or estimate is not None
-        ):  # fixed substeps, nothing watched: the loop inline (the hot path)
-            step, h, comp = self.bound_step, self.h, None
-            y = step(y0, u, h)
-            if self.substeps != 1:
-                for _ in range(self.substeps - 1):
-                    y = step(y, u, h)
-            fired = False
+            obs, reward, terminated = np.array(o, dtype=np.float32), r[0], r[1]
+            info = one.info(q, r, h, e)
         else:
-            y, fired, h, comp = self.advance(y0, u, False, comp=self.comp, ratio=ratio)
-        # a non-finite component makes the sum non-finite; the exact test runs only then
-        if not math.isfinite(sum(y)) and not all(math.isfinite(c) for c in y):
-            out = self._failed_one(y0, u_norm, u, h, plain)
-            if lam is not None:
-                out[4]["error_estimate"] = float(self.rule.estimate(lam, h, lam_d, share))
+            lam = estimate = None  # a tolerance's: the rates at y0 give the count and the estimate
+            if self.tolerance is not None and ratio is None:
+                estimate = self.gated(y0)
+                if estimate is None:
+                    ratio, lam, lam_d, share = self.forms.plan_one(y0, u)
+            if plain or estimate is not None:  # fixed substeps, nothing watched: the loop inline
+                step, h, comp, fired = self.bound_step, self.h, None, False
+                y = step(y0, u, h)
+                if self.substeps != 1:
+                    for _ in range(self.substeps - 1):
+                        y = step(y, u, h)
+            else:
+                y, fired, h, comp = self.advance(y0, u, False, comp=self.comp, ratio=ratio)
+            # a non-finite component makes the sum non-finite; the exact test runs only then
+            if not math.isfinite(sum(y)) and not all(math.isfinite(c) for c in y):
+                rates = None if lam is None else (lam, lam_d, share)
+                return self._failed_float(y0, u_norm, u, h, plain, rates, estimate)
+            if not plain and comp is not None:
+                self.comp = comp
+            finish = self.finish_one
+            if finish is not None:
+                fn, po, pe, pr = finish
+                obs, over, reward, terminated, info = fn(y, u_norm, po, pe, pr, h, u, fired)
+            else:
+                obs, over = self.observe(y)
+                reward, terminated, metrics = self.evaluate(y, u_norm)
+                info = self.info_one(y, u, fired, h, metrics, failed=False)
+            if lam is not None:  # (the estimated relative error: stepsize.forms.error_estimate)
+                info["error_estimate"] = float(self.rule.estimate(lam, h, lam_d, share))
             elif estimate is not None:
-                out[4]["error_estimate"] = estimate
-            return out
-        if not plain and comp is not None:
-            self.comp = comp
-        finish = self.finish_one
-        if finish is not None:
-            fn, po, pe, pr = finish
-            obs, over, reward, terminated, info = fn(y, u_norm, po, pe, pr, h, u, fired)
-        else:
-            obs, over = self.observe(y)
-            reward, terminated, metrics = self.evaluate(y, u_norm)
-            info = self.info_one(y, u, fired, h, metrics, failed=False)
-        if (
-            lam is not None
-        ):  # (the period's estimated relative error: rbenvs.stepsize.forms.error_estimate)
-            info["error_estimate"] = float(self.rule.estimate(lam, h, lam_d, share))
-        elif estimate is not None:
-            info["error_estimate"] = estimate
+                info["error_estimate"] = estimate
         if fired or over or terminated:  # (the common case tests three bools and goes on)
-            info["terminal_reason"] = terminal_reason(
-                False, fired, over, terminated, self.event_name
-            )
-            terminated = True
-            if not info["is_success"]:  # an end without success: ending early never pays
-                reward += self.failure_charge
-            if over:
-                plain = False  # outside the bounds the guard's static proof is void
+            reward, terminated, plain = self._ended(info, fired, over, terminated, reward, plain)
         return y, obs, reward, terminated, info, u, plain
+
+    def _ended(self, info, fired, over, terminated, reward, plain):
+        """``(reward, True, plain)`` of a period that ended its episode (the event ``fired``, the
+        state left the bounds: ``over``, the task ``terminated``): its terminal reason in
+        ``info``, the failure charge added to ``reward`` where it is no success (ending early
+        never pays), and ``plain`` false where it is ``over``."""
+        info["terminal_reason"] = terminal_reason(False, fired, over, terminated, self.event_name)
+        terminated = True
+        if not info["is_success"]:
+            reward += self.failure_charge
+        if over:
+            plain = False  # outside the bounds the guard's static proof is void
+        return reward, terminated, plain
+
+    def _failed_compiled(self, status, count, y0, u_norm, u, h, plain, e):
+        """The compiled step's period that was refused (``status < 0``: ``guard="refuse"``
+        raises, ``count`` its steps) or failed (:meth:`_failed_one`, its estimate ``e``)."""
+        if status < 0:
+            raise self.refusal(count)
+        out = self._failed_one(y0, u_norm, u, h, plain, stacklevel=6)
+        out[4]["error_estimate"] = e
+        return out
+
+    def _failed_float(self, y0, u_norm, u, h, plain, rates, estimate):
+        """The float path's period whose state went non-finite (:meth:`_failed_one`), with its
+        error estimate: from the ``rates`` ``(lam, lam_d, share)`` at ``y0``, or the gate's."""
+        out = self._failed_one(y0, u_norm, u, h, plain, stacklevel=6)
+        if rates is not None:
+            lam, lam_d, share = rates
+            out[4]["error_estimate"] = float(self.rule.estimate(lam, h, lam_d, share))
+        elif estimate is not None:
+            out[4]["error_estimate"] = estimate
+        return out
 
     def _cap_text(self, h, y0=None, u=None) -> str:
         """Why a period failed when it was refused past the cap (``h < dt / MAX_INTERNAL_STEPS``):
@@ -411,7 +419,10 @@ class Engine:
         out[4]["global_error_estimate"] = estimate
         return out
 
-    def _failed_one(self, y0, u_norm, u, h, plain, what=None, kept="the last finite state"):
+    def _failed_one(
+        self, y0, u_norm, u, h, plain, what=None, kept="the last finite state", stacklevel=5
+    ):
+        # (stacklevel: the warning names the env's caller; a helper between adds a frame)
         if what is None:
             cap = self._cap_text(h, y0, u)
             what = "the period was refused" + cap if cap else "the state became non-finite"
@@ -420,7 +431,7 @@ class Engine:
             f"{float(np.max(h)):g} s); "
             f"the episode ends and {kept} is kept",
             NumericalFailureWarning,
-            stacklevel=5,
+            stacklevel=stacklevel,
         )
         obs, _ = self.observe(y0)
         _, _, metrics = self.evaluate(y0, u_norm)
