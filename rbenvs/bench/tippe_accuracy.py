@@ -243,7 +243,6 @@ def mujoco_rows(start, t90_same, quick=False, progress=None) -> list[dict]:
         import mujoco
     except ImportError:
         return []
-    from ..verify.mujoco_adapter import MujocoSimulator
     from ..verify.simulator import problem_of
     from ..verify.tippe_top import oracle_jellett
 
@@ -251,8 +250,7 @@ def mujoco_rows(start, t90_same, quick=False, progress=None) -> list[dict]:
     env = tippe_steps.make_env(kind, spin, "coulomb", "rk4", 1, "subdivide", False, 1)
     env.reset(seed=0)
     system, y0 = env.system, tuple(float(c) for c in env.state_components)
-    problem = problem_of(system)
-    j0 = oracle_jellett(system, y0)[0]
+    top = _MujocoTop(mujoco, system, problem_of(system), y0, oracle_jellett(system, y0)[0])
     max_periods = int(math.ceil(HORIZON * t90_same / PERIOD))
     integrators, dts = (
         (("implicitfast", "RK4"), (1e-3,)) if quick else (MUJOCO_INTEGRATORS, MUJOCO_DTS)
@@ -261,57 +259,83 @@ def mujoco_rows(start, t90_same, quick=False, progress=None) -> list[dict]:
     for name in integrators:
         for cone in CONES:
             for dt in dts:
-                sim = MujocoSimulator(name, dt, cone=cone)
-                nstep = int(round(PERIOD / dt))
-                run = sim.start(problem, y0)
-                prev, drift, t90, ended, k = 0.1, 0.0, math.nan, "no inversion", 0
-                with warnings.catch_warnings():
-                    warnings.simplefilter("ignore")
-                    for k in range(1, max_periods + 1):
-                        y = run.advance(nstep, None, dt)
-                        q = y[4:8]
-                        tilt = math.acos(max(-1.0, min(1.0, 1.0 - 2.0 * (q[1] ** 2 + q[2] ** 2))))
-                        j = oracle_jellett(system, y)[0]
-                        if not (math.isfinite(j) and math.isfinite(tilt)):
-                            ended = "numerical failure"
-                            break
-                        drift = max(drift, abs(j - j0) / abs(j0))
-                        if tilt > math.pi / 2:
-                            t90, ended = (
-                                (k - 1 + (math.pi / 2 - prev) / (tilt - prev)) * PERIOD,
-                                None,
-                            )
-                            break
-                        prev = tilt
-                best = math.inf
-                for _ in range(REPEATS):
-                    timing = sim.start(problem, y0)
-                    m, d = timing.model, timing.data
-                    clock = time.perf_counter()
-                    for _ in range(k):
-                        mujoco.mj_step(m, d, nstep)
-                    best = min(best, time.perf_counter() - clock)
-                rows.append(
-                    {
-                        "engine": "mujoco",
-                        "start": start,
-                        "scheme": f"mujoco {name} {cone}",
-                        "setting": f"dt={dt:g}",
-                        "dt": dt,
-                        "fidelity": "soft contact",
-                        "t90": t90,
-                        "ended": ended,
-                        "t90_error": abs(t90 - t90_same) if ended is None else None,
-                        "jellett": drift,
-                        "steps": nstep,
-                        "cost": best / (k * PERIOD),
-                        "least_normal": None,
-                        "periods": k,
-                    }
-                )
+                rows.append(top.row(start, t90_same, name, cone, dt, max_periods))
                 if progress:
                     progress()
     return rows
+
+
+class _MujocoTop:
+    """One start of the tippe top in MuJoCo: the problem, its start state ``y0`` and Jellett's
+    ``j0`` there, each row run by :class:`~rbenvs.verify.mujoco_adapter.MujocoSimulator`."""
+
+    def __init__(self, mujoco, system, problem, y0, j0):
+        self.mujoco, self.system, self.problem, self.y0, self.j0 = mujoco, system, problem, y0, j0
+
+    def row(self, start, t90_same, name, cone, dt, max_periods) -> dict:
+        """Integrator ``name`` with the ``cone`` friction cone at step ``dt``: its inversion and
+        its cost per simulated second."""
+        from ..verify.mujoco_adapter import MujocoSimulator
+
+        sim = MujocoSimulator(name, dt, cone=cone)
+        nstep = int(round(PERIOD / dt))
+        t90, ended, drift, k = self.inversion(sim, nstep, dt, max_periods)
+        best = self.best_replay(sim, nstep, k)
+        return {
+            "engine": "mujoco",
+            "start": start,
+            "scheme": f"mujoco {name} {cone}",
+            "setting": f"dt={dt:g}",
+            "dt": dt,
+            "fidelity": "soft contact",
+            "t90": t90,
+            "ended": ended,
+            "t90_error": abs(t90 - t90_same) if ended is None else None,
+            "jellett": drift,
+            "steps": nstep,
+            "cost": best / (k * PERIOD),
+            "least_normal": None,
+            "periods": k,
+        }
+
+    def inversion(self, sim, nstep, dt, max_periods):
+        """``(t90, ended, drift, periods)``: ``sim`` read every :data:`PERIOD` (``nstep`` steps
+        of ``dt``) until the tilt passes 90 degrees (``t90`` linear in the tilt within that
+        period), the state is no longer finite, or ``max_periods`` pass; ``drift`` is Jellett's
+        largest relative drift."""
+        from ..verify.tippe_top import oracle_jellett
+
+        run = sim.start(self.problem, self.y0)
+        prev, drift, t90, ended, k = 0.1, 0.0, math.nan, "no inversion", 0
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            for k in range(1, max_periods + 1):
+                y = run.advance(nstep, None, dt)
+                q = y[4:8]
+                tilt = math.acos(max(-1.0, min(1.0, 1.0 - 2.0 * (q[1] ** 2 + q[2] ** 2))))
+                j = oracle_jellett(self.system, y)[0]
+                if not (math.isfinite(j) and math.isfinite(tilt)):
+                    ended = "numerical failure"
+                    break
+                drift = max(drift, abs(j - self.j0) / abs(self.j0))
+                if tilt > math.pi / 2:
+                    t90, ended = (k - 1 + (math.pi / 2 - prev) / (tilt - prev)) * PERIOD, None
+                    break
+                prev = tilt
+        return t90, ended, drift, k
+
+    def best_replay(self, sim, nstep, periods) -> float:
+        """The best over :data:`REPEATS` of the wall time of ``periods`` periods from the start,
+        ``mj_step(model, data, nstep)`` a period and nothing else in the loop."""
+        best = math.inf
+        for _ in range(REPEATS):
+            timing = sim.start(self.problem, self.y0)
+            m, d = timing.model, timing.data
+            clock = time.perf_counter()
+            for _ in range(periods):
+                self.mujoco.mj_step(m, d, nstep)
+            best = min(best, time.perf_counter() - clock)
+        return best
 
 
 # ------------------------------------------------------------------------------ the run
@@ -405,70 +429,87 @@ def equivalent_eps(ref, row):
 def print_report(result, file=None):
     file = sys.stdout if file is None else file
     for start, ref in result["starts"].items():
-        print(
-            f"\ntippe top, start {start} ({ref['kind']}, {ref['spin']:g} rad/s, tilt 0.1 rad), no "
-            "action; "
-            "t90 of rbenvs' regularised Coulomb model against the slip regularisation eps (rk4 "
-            "converged in the step):",
-            file=file,
-        )
-        print(
-            f"{'eps [m/s]':>10} {'steps/10ms':>10} {'t90 [s]':>14} {'step check':>10} "
-            f"{'difference':>11} {'ratio':>6}",
-            file=file,
-        )
-        for i, s in enumerate(ref["sequence"]):
-            diff = ref["differences"][i - 1] if i >= 1 and i - 1 < len(ref["differences"]) else None
-            ratio = ref["ratios"][i - 2] if i >= 2 and i - 2 < len(ref["ratios"]) else None
-            t90 = f"{s['t90']:.9f}" if s["ended"] is None else f"({s['ended']})"
-            print(
-                f"{s['eps']:>10.4g} {s['count']:>10d} {t90:>14} {_g(s['step_check']):>10} "
-                f"{_g(diff, '+.4f'):>11} {_g(ratio, '.2f'):>6}",
-                file=file,
-            )
-        if ref["converges"]:
-            print(
-                f"hard-Coulomb limit (eps -> 0, Richardson, first order): t90 = {ref['limit']:.6f} "
-                f"s, error estimate {ref['limit_error']:.1e} s",
-                file=file,
-            )
-        else:
-            fit = (
-                f"; fitted t90 = {ref['fit_t0']:.3f} s + {ref['fit_c']:.3e} m / eps"
-                if "fit_c" in ref
-                else ""
-            )
-            print(
-                "hard-Coulomb limit: none; t90 grows as eps falls (each halving adds about twice "
-                f"the last: ~1/eps){fit}. "
-                "The top enters a near-rolling phase whose slip stays below eps and whose creep, "
-                "at a rate proportional to eps, "
-                "is what raises it; under hard Coulomb it rolls without slipping there and does "
-                "not pass 90 degrees. "
-                f"Errors below are against t90_same = {ref['t90_same']:.9f} s (eps = {EPS0:g}, the "
-                "env's)",
-                file=file,
-            )
-        print(
-            f"{'engine/scheme':<30} {'setting':<10} {'fidelity':<15} {'steps/10ms':>10} "
-            f"{'cost s/s':>9} {'t90 [s]':>12} {'t90 err':>8} {'Jellett':>8}  note",
-            file=file,
-        )
-        for r in (r for r in result["rows"] if r["start"] == start):
-            t90 = f"{r['t90']:.6f}" if r["ended"] is None else "-"
-            note = "" if r["ended"] is None else f"{r['ended']} (in {r['periods'] * PERIOD:.2f} s)"
-            eq = equivalent_eps(ref, r)
-            if eq is not None:
-                note = f"t90 of rbenvs' model at eps = {eq:.1e} m/s (the fit)"
-            print(
-                f"{r['scheme']:<30} {r['setting']:<10} {r['fidelity']:<15} {r['steps']:>10.1f} "
-                f"{r['cost']:>9.2e} {t90:>12} {_g(r['t90_error']):>8} {_g(r['jellett']):>8}  "
-                f"{note}",
-                file=file,
-            )
+        _print_sequence(start, ref, file)
+        _print_limit(ref, file)
+        _print_rows(result, start, ref, file)
         line = headline(result, start)
         if line:
             print(line, file=file)
+
+
+def _print_sequence(start, ref, file):
+    """A start's references: ``t90`` at each slip regularisation, with the step check and the
+    successive differences and their ratios."""
+    print(
+        f"\ntippe top, start {start} ({ref['kind']}, {ref['spin']:g} rad/s, tilt 0.1 rad), no "
+        "action; "
+        "t90 of rbenvs' regularised Coulomb model against the slip regularisation eps (rk4 "
+        "converged in the step):",
+        file=file,
+    )
+    print(
+        f"{'eps [m/s]':>10} {'steps/10ms':>10} {'t90 [s]':>14} {'step check':>10} "
+        f"{'difference':>11} {'ratio':>6}",
+        file=file,
+    )
+    for i, s in enumerate(ref["sequence"]):
+        diff = ref["differences"][i - 1] if i >= 1 and i - 1 < len(ref["differences"]) else None
+        ratio = ref["ratios"][i - 2] if i >= 2 and i - 2 < len(ref["ratios"]) else None
+        t90 = f"{s['t90']:.9f}" if s["ended"] is None else f"({s['ended']})"
+        print(
+            f"{s['eps']:>10.4g} {s['count']:>10d} {t90:>14} {_g(s['step_check']):>10} "
+            f"{_g(diff, '+.4f'):>11} {_g(ratio, '.2f'):>6}",
+            file=file,
+        )
+
+
+def _print_limit(ref, file):
+    """What the sequence says of the hard-Coulomb limit: its extrapolation, or why there is
+    none (and the fit ``t0 + c / eps``)."""
+    if ref["converges"]:
+        print(
+            f"hard-Coulomb limit (eps -> 0, Richardson, first order): t90 = {ref['limit']:.6f} "
+            f"s, error estimate {ref['limit_error']:.1e} s",
+            file=file,
+        )
+        return
+    fit = (
+        f"; fitted t90 = {ref['fit_t0']:.3f} s + {ref['fit_c']:.3e} m / eps"
+        if "fit_c" in ref
+        else ""
+    )
+    print(
+        "hard-Coulomb limit: none; t90 grows as eps falls (each halving adds about twice "
+        f"the last: ~1/eps){fit}. "
+        "The top enters a near-rolling phase whose slip stays below eps and whose creep, "
+        "at a rate proportional to eps, "
+        "is what raises it; under hard Coulomb it rolls without slipping there and does "
+        "not pass 90 degrees. "
+        f"Errors below are against t90_same = {ref['t90_same']:.9f} s (eps = {EPS0:g}, the "
+        "env's)",
+        file=file,
+    )
+
+
+def _print_rows(result, start, ref, file):
+    """A start's rows, rbenvs' and MuJoCo's: cost, t90, its error and Jellett's drift."""
+    print(
+        f"{'engine/scheme':<30} {'setting':<10} {'fidelity':<15} {'steps/10ms':>10} "
+        f"{'cost s/s':>9} {'t90 [s]':>12} {'t90 err':>8} {'Jellett':>8}  note",
+        file=file,
+    )
+    for r in (r for r in result["rows"] if r["start"] == start):
+        t90 = f"{r['t90']:.6f}" if r["ended"] is None else "-"
+        note = "" if r["ended"] is None else f"{r['ended']} (in {r['periods'] * PERIOD:.2f} s)"
+        eq = equivalent_eps(ref, r)
+        if eq is not None:
+            note = f"t90 of rbenvs' model at eps = {eq:.1e} m/s (the fit)"
+        print(
+            f"{r['scheme']:<30} {r['setting']:<10} {r['fidelity']:<15} {r['steps']:>10.1f} "
+            f"{r['cost']:>9.2e} {t90:>12} {_g(r['t90_error']):>8} {_g(r['jellett']):>8}  "
+            f"{note}",
+            file=file,
+        )
 
 
 def plot(result, path):

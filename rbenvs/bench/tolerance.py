@@ -515,107 +515,123 @@ def run_tolerance(keys=None, progress=None, fixed=True) -> dict:
     """Every case of :data:`TOLERANCE_CASES` and every scene (:func:`scene_cases`; ``keys``: a
     subset) at each of its tolerances; ``fixed=False`` skips the search for the cheapest fixed
     substeps (the tests' run)."""
-    from ..integrators import INTEGRATORS, get_integrator
+    constants = _error_constants()
+    rows = []
+    for case in all_cases(keys):
+        row, refs = _base_row(case)
+        rows.append(row)
+        for tol in case.tolerances:
+            row = _tolerance_row(case, tol, refs, fixed)
+            rows.append(row)
+            # (a refused tolerance ran nothing: no progress)
+            if "refused" not in row and progress:
+                progress()
+    return {"constants": constants, "rows": rows}
+
+
+def _error_constants() -> dict:
+    """Per scheme with an error constant: the declared one and the measured one."""
+    from ..integrators import INTEGRATORS
     from ..integrators.error import measure_error_constant
 
-    constants = {
+    return {
         name: {"declared": cls.error_constant, "measured": measure_error_constant(name)}
         for name, cls in INTEGRATORS.items()
         if cls.error_constant is not None
     }
-    rows = []
-    for case in all_cases(keys):
-        # (integrator="auto" needs a tolerance: the row without one runs the last of the fixed
-        # schemes, rk4)
-        base = _env(
-            case
-            if not case.fixed_integrators
-            else dataclasses.replace(
-                case, kwargs=dict(case.kwargs, integrator=case.fixed_integrators[-1])
-            )
+
+
+def _row_head(case, tol) -> dict:
+    """The keys every row starts with."""
+    return {"case": case.key, "label": case.label, "periods": case.periods, "tolerance": tol}
+
+
+def _base_row(case):
+    """``(row, refs)``: the case without a tolerance (its row, ``tolerance`` ``None``) and the
+    reference states every row of the case is compared with."""
+    # (integrator="auto" needs a tolerance: the row without one runs the last of the fixed
+    # schemes, rk4)
+    base = _env(
+        case
+        if not case.fixed_integrators
+        else dataclasses.replace(
+            case, kwargs=dict(case.kwargs, integrator=case.fixed_integrators[-1])
         )
-        refs = _references(case, base, case.starts)
-        base_err, _, base_steps, base_fail = _episode(case, base, case.starts, refs)
-        rows.append(
-            {
-                "case": case.key,
-                "label": case.label,
-                "periods": case.periods,
-                "tolerance": None,
-                "error": base_err,
-                "steps": base_steps,
-                "failure": base_fail,
-            }
+    )
+    refs = _references(case, base, case.starts)
+    base_err, _, base_steps, base_fail = _episode(case, base, case.starts, refs)
+    row = {**_row_head(case, None), "error": base_err, "steps": base_steps, "failure": base_fail}
+    return row, refs
+
+
+def _tolerance_row(case, tol, refs, fixed) -> dict:
+    """The case at tolerance ``tol``: refused at construction, or its error, estimate, steps and
+    (``fixed``) the cheapest fixed setting that meets it."""
+    t0 = time.perf_counter()
+    try:
+        env = _env(
+            case,
+            tolerance=tol,
+            tolerance_horizon=case.periods,
+            **({"tolerance_check": case.check} if case.check else {}),
         )
-        for tol in case.tolerances:
-            t0 = time.perf_counter()
-            try:
-                env = _env(
-                    case,
-                    tolerance=tol,
-                    tolerance_horizon=case.periods,
-                    **({"tolerance_check": case.check} if case.check else {}),
-                )
-            except ValueError as e:
-                rows.append(
-                    {
-                        "case": case.key,
-                        "label": case.label,
-                        "periods": case.periods,
-                        "tolerance": tol,
-                        "refused": str(e),
-                    }
-                )
-                continue
-            err, est, steps, failure = _episode(case, env, case.starts, refs)
-            row = {
-                "case": case.key,
-                "label": case.label,
-                "periods": case.periods,
-                "tolerance": tol,
-                "error": err,
-                "estimate": est,
-                "steps": steps,
-                "failure": failure,
-                "seconds": time.perf_counter() - t0,
-                "integrator": env.integrator.name,
-            }
-            # (an episode ended by a numerical failure ran fewer periods: no cost to compare)
-            if fixed and tol not in case.skip_fixed and not (failure or "").startswith("ended"):
-                per_period = max(1, steps // (case.periods * len(case.starts)))
-                if case.fixed_integrators:  # the cheapest scheme too, in rhs evaluations
-                    chosen = get_integrator(row["integrator"]).evaluations
-                    best = None
-                    for name in sorted(
-                        case.fixed_integrators, key=lambda n: n != row["integrator"]
-                    ):  # the chosen scheme first
-                        evaluations = get_integrator(name).evaluations
-                        sub = dataclasses.replace(case, kwargs=dict(case.kwargs, integrator=name))
-                        # a scheme is searched only up to the substeps whose rhs evaluations would
-                        # cost what the best so far costs
-                        limit = (
-                            None
-                            if best is None
-                            else best[2] / (evaluations * case.periods * len(case.starts))
-                        )
-                        found = _cheapest_fixed(
-                            sub, tol, case.starts, refs, max(1, per_period // 4), limit
-                        )
-                        if found is not None and (best is None or found[1] * evaluations < best[2]):
-                            best = (name, found, found[1] * evaluations)
-                    if best is not None:
-                        row["fixed_integrator"] = best[0]
-                        row["fixed_substeps"], row["fixed_steps"] = best[1]
-                        row["cost_ratio"] = steps * chosen / best[2]
-                else:
-                    found = _cheapest_fixed(case, tol, case.starts, refs, max(1, per_period // 4))
-                    if found is not None:
-                        row["fixed_substeps"], row["fixed_steps"] = found
-                        row["cost_ratio"] = steps / found[1]
-            rows.append(row)
-            if progress:
-                progress()
-    return {"constants": constants, "rows": rows}
+    except ValueError as e:
+        return {**_row_head(case, tol), "refused": str(e)}
+    err, est, steps, failure = _episode(case, env, case.starts, refs)
+    row = {
+        **_row_head(case, tol),
+        "error": err,
+        "estimate": est,
+        "steps": steps,
+        "failure": failure,
+        "seconds": time.perf_counter() - t0,
+        "integrator": env.integrator.name,
+    }
+    # (an episode ended by a numerical failure ran fewer periods: no cost to compare)
+    if fixed and tol not in case.skip_fixed and not (failure or "").startswith("ended"):
+        _add_fixed(row, case, tol, refs)
+    return row
+
+
+def _add_fixed(row, case, tol, refs) -> None:
+    """Add to ``row`` the cheapest fixed setting that meets ``tol`` (``fixed_substeps``,
+    ``fixed_steps``, ``cost_ratio``; with ``integrator="auto"`` also ``fixed_integrator``, the
+    cost in rhs evaluations); nothing where none does."""
+    from ..integrators import get_integrator
+
+    steps = row["steps"]
+    per_period = max(1, steps // (case.periods * len(case.starts)))
+    if not case.fixed_integrators:
+        found = _cheapest_fixed(case, tol, case.starts, refs, max(1, per_period // 4))
+        if found is not None:
+            row["fixed_substeps"], row["fixed_steps"] = found
+            row["cost_ratio"] = steps / found[1]
+        return
+    chosen = get_integrator(row["integrator"]).evaluations
+    best = _cheapest_scheme(case, tol, refs, row["integrator"], per_period)
+    if best is not None:
+        row["fixed_integrator"] = best[0]
+        row["fixed_substeps"], row["fixed_steps"] = best[1]
+        row["cost_ratio"] = steps * chosen / best[2]
+
+
+def _cheapest_scheme(case, tol, refs, chosen, per_period):
+    """With ``integrator="auto"``: ``(scheme, (substeps, steps), rhs evaluations)`` of the
+    cheapest of ``case.fixed_integrators`` whose fewest fixed substeps meet ``tol`` (the scheme
+    ``tolerance=`` chose searched first), or ``None``."""
+    from ..integrators import get_integrator
+
+    best = None
+    for name in sorted(case.fixed_integrators, key=lambda n: n != chosen):
+        evaluations = get_integrator(name).evaluations
+        sub = dataclasses.replace(case, kwargs=dict(case.kwargs, integrator=name))
+        # a scheme is searched only up to the substeps whose rhs evaluations would cost what the
+        # best so far costs
+        limit = None if best is None else best[2] / (evaluations * case.periods * len(case.starts))
+        found = _cheapest_fixed(sub, tol, case.starts, refs, max(1, per_period // 4), limit)
+        if found is not None and (best is None or found[1] * evaluations < best[2]):
+            best = (name, found, found[1] * evaluations)
+    return best
 
 
 def _g(x, fmt=".1e"):

@@ -32,7 +32,8 @@ def _tolerance_cases():
     return TOLERANCE_CASES
 
 
-def main(argv=None) -> int:
+def _parser() -> ArgumentParser:
+    """The command's options, in the order ``--help`` lists them."""
     keys = [c.key for c in CASES]
     parser = ArgumentParser(
         prog="rbenvs bench accuracy",
@@ -73,6 +74,14 @@ def main(argv=None) -> int:
             "default: on)"
         ),
     )
+    _add_single_table_options(parser)
+    parser.add_argument("--no-progress", action="store_true", help="no progress on stderr")
+    return parser
+
+
+def _add_single_table_options(parser) -> None:
+    """The options that run one table alone: ``--tolerance`` (with ``--case``), ``--roundoff``,
+    ``--floor`` and ``--tippe``."""
     parser.add_argument(
         "--tolerance",
         action="store_true",
@@ -114,42 +123,50 @@ def main(argv=None) -> int:
         "cost per simulated second "
         "against Jellett drift and the t90 error",
     )
-    parser.add_argument("--no-progress", action="store_true", help="no progress on stderr")
-    args = parser.parse_args(argv)
-    if args.case and not args.tolerance:
-        parser.error("--case selects rows of the --tolerance table: pass --tolerance")
-    if args.tippe:
-        return _tippe_main(args)
-    if args.roundoff:
-        from ..roundoff import OFF, STARTS, print_roundoff, run_roundoff
 
-        return _table(args, "--roundoff", len(OFF) * 2 * STARTS, run_roundoff, print_roundoff)
-    if args.floor:
-        from ..floor import OFF, TOLERANCES, print_floor, run_floor
 
-        require("reference")  # mpmath, the reference: say so before the run, not after it
-        return _table(args, "--floor", len(OFF) * len(TOLERANCES), run_floor, print_floor)
-    if args.tolerance:
-        from ..tolerance import all_cases, print_tolerance, run_tolerance
+def _roundoff_main(args) -> int:
+    """``--roundoff``: :mod:`rbenvs.bench.roundoff`'s table."""
+    from ..roundoff import OFF, STARTS, print_roundoff, run_roundoff
 
-        require("cli")  # the scenes' rows read the scenes' YAML
-        everything = all_cases()
-        known = [c.key for c in everything]
-        for key in args.case or ():
-            if key not in known:
-                parser.error(f"--case {key!r}: not a case of the --tolerance table; one of {known}")
-        cases = [c for c in everything if not args.case or c.key in args.case]
-        return _table(
-            args,
-            "--tolerance",
-            sum(len(c.tolerances) for c in cases),
-            lambda progress: run_tolerance(keys=args.case, progress=progress),
-            print_tolerance,
-        )
-    if args.plot and plot_unavailable(
-        "rbenvs bench accuracy"
-    ):  # fail before the long run, not after it
-        return 2
+    return _table(args, "--roundoff", len(OFF) * 2 * STARTS, run_roundoff, print_roundoff)
+
+
+def _floor_main(args) -> int:
+    """``--floor``: :mod:`rbenvs.bench.floor`'s table."""
+    from ..floor import OFF, TOLERANCES, print_floor, run_floor
+
+    require("reference")  # mpmath, the reference: say so before the run, not after it
+    return _table(args, "--floor", len(OFF) * len(TOLERANCES), run_floor, print_floor)
+
+
+def _tolerance_main(args, parser) -> int:
+    """``--tolerance``: :mod:`rbenvs.bench.tolerance`'s table, its rows chosen by ``--case``
+    (an unknown key is a usage error, before the run)."""
+    from ..tolerance import all_cases, print_tolerance, run_tolerance
+
+    require("cli")  # the scenes' rows read the scenes' YAML
+    everything = all_cases()
+    known = [c.key for c in everything]
+    for key in args.case or ():
+        if key not in known:
+            parser.error(f"--case {key!r}: not a case of the --tolerance table; one of {known}")
+    cases = [c for c in everything if not args.case or c.key in args.case]
+    return _table(
+        args,
+        "--tolerance",
+        sum(len(c.tolerances) for c in cases),
+        lambda progress: run_tolerance(keys=args.case, progress=progress),
+        print_tolerance,
+    )
+
+
+def _full_main(args) -> int:
+    """The whole bench: every case's convergence and drift (:func:`.measure.run`), the scenes'
+    recommendation unless ``--no-scenes`` (off by default with ``--quick``), the report, the
+    plot and the JSON."""
+    if args.plot and plot_unavailable("rbenvs bench accuracy"):
+        return 2  # fail before the long run, not after it
     scenes = (not args.quick) if args.scenes is None else args.scenes
     if scenes:
         require("cli")  # the scenes are YAML: say so before the long run, not after it
@@ -169,3 +186,19 @@ def main(argv=None) -> int:
         print(f"\nplot written to {args.plot}")
     _write_json(args.json, result)
     return 0
+
+
+def main(argv=None) -> int:
+    parser = _parser()
+    args = parser.parse_args(argv)
+    if args.case and not args.tolerance:
+        parser.error("--case selects rows of the --tolerance table: pass --tolerance")
+    if args.tippe:
+        return _tippe_main(args)
+    if args.roundoff:
+        return _roundoff_main(args)
+    if args.floor:
+        return _floor_main(args)
+    if args.tolerance:
+        return _tolerance_main(args, parser)
+    return _full_main(args)

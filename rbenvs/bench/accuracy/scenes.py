@@ -72,76 +72,99 @@ def run_scenes(
     """Per scene: each integrator's error over an episode at ``substeps = 1, 2, 4, ...`` until
     it meets ``target`` (at most :data:`MAX_SUBSTEPS`), its cost per env step, and the cheapest
     integrator and substeps that meet it."""
-    from ...scenes import list_scenes, load_scene
+    from ...scenes import list_scenes
 
-    rows = []
-    for name in names or list_scenes():
-        scene = load_scene(name)
-        probe = scene.make().unwrapped
-        dt, current = probe.dt, (probe.integrator.name, probe.substeps)
-        episode = scene.make().spec.max_episode_steps
-        tippe = scene.env_id.startswith("rbenvs/TippeTop")
-        steps = min(episode, int(round(TIPPE_HORIZON / dt))) if tippe else episode
-        rng = np.random.default_rng(0)
-        space = probe.action_space
-        actions = [rng.uniform(space.low, space.high).astype(np.float32) for _ in range(steps)]
-        refs = [_scene_run(scene, REFERENCE, 1, seed, actions, steps)[0] for seed in range(seeds)]
-        candidates = []
-        ladder = [2**k for k in range(int(math.log2(MAX_SUBSTEPS)) + 1)]
-        if (
-            tippe
-        ):  # the env takes max(substeps, its own rule's count): only counts above the rule matter
-            probe.reset(seed=0)
-            n0 = probe.internal_steps(
-                probe.state_components, (0.0, 0.0, probe.params.friction, 0.0, 0.0, 0.0)
-            )
-            ladder = [1] + [k for k in (2**j for j in range(1, 9)) if k >= 2 * n0]
-        for integ in (i for i in probe.integrators if i != "dop853"):
-            for substeps in ladder:
-                errs = []
-                for seed in range(seeds):
-                    run_, failed = _scene_run(scene, integ, substeps, seed, actions, steps)
-                    errs.append(math.inf if failed else _scene_error(run_, refs[seed]))
-                err = max(errs)
-                cost = _scene_cost(scene, integ, substeps, min_time)
-                candidates.append(
-                    {
-                        "integrator": integ,
-                        "substeps": substeps,
-                        "error": err,
-                        "step_us": cost * 1e6,
-                        "meets": err <= target,
-                    }
-                )
-                cheapest = min((c["step_us"] for c in candidates if c["meets"]), default=math.inf)
-                # more substeps only cost more: stop once the target is met or this costs more
-                # than a pair that meets it
-                if err <= target or cost * 1e6 > cheapest:
-                    break
-            if progress:
-                progress()
-        meeting = [c for c in candidates if c["meets"]]
-        best = min(meeting, key=lambda c: c["step_us"]) if meeting else None
-        cur = next((c for c in candidates if (c["integrator"], c["substeps"]) == current), None)
-        if cur is not None and cur["meets"] and best["step_us"] > SAVING * cur["step_us"]:
-            best = cur  # a saving within the timing noise is no reason to change a scene
-        rows.append(
+    return [_scene_row(name, target, seeds, min_time, progress) for name in names or list_scenes()]
+
+
+def _scene_row(name, target, seeds, min_time, progress) -> dict:
+    """One scene's row of :func:`run_scenes`: the candidates measured against ``seeds``
+    reference runs under one sequence of random actions, and the recommendation."""
+    from ...scenes import load_scene
+
+    scene = load_scene(name)
+    probe = scene.make().unwrapped
+    dt, current = probe.dt, (probe.integrator.name, probe.substeps)
+    episode = scene.make().spec.max_episode_steps
+    tippe = scene.env_id.startswith("rbenvs/TippeTop")
+    steps = min(episode, int(round(TIPPE_HORIZON / dt))) if tippe else episode
+    rng = np.random.default_rng(0)
+    space = probe.action_space
+    actions = [rng.uniform(space.low, space.high).astype(np.float32) for _ in range(steps)]
+    refs = [_scene_run(scene, REFERENCE, 1, seed, actions, steps)[0] for seed in range(seeds)]
+    ladder = _substeps_ladder(probe, tippe)
+    candidates = []
+    for integ in (i for i in probe.integrators if i != "dop853"):
+        _integrator_candidates(scene, integ, ladder, actions, refs, target, min_time, candidates)
+        if progress:
+            progress()
+    best, cur = _recommended(candidates, current)
+    return {
+        "scene": name,
+        "id": scene.env_id,
+        "dt": dt,
+        "steps": steps,
+        "episode_steps": episode,
+        "current": {"integrator": current[0], "substeps": current[1]},
+        "current_error": None if cur is None else cur["error"],
+        "candidates": candidates,
+        "recommended": None
+        if best is None
+        else {"integrator": best["integrator"], "substeps": best["substeps"]},
+        "target": target,
+    }
+
+
+def _substeps_ladder(probe, tippe) -> list[int]:
+    """The substeps tried per integrator: ``1, 2, 4, ...`` up to :data:`MAX_SUBSTEPS`; the
+    tippe top takes ``max(substeps, its own rule's count)``, so only 1 and the counts of at least
+    twice the rule's at the start (to 256) matter there."""
+    ladder = [2**k for k in range(int(math.log2(MAX_SUBSTEPS)) + 1)]
+    if tippe:
+        probe.reset(seed=0)
+        n0 = probe.internal_steps(
+            probe.state_components, (0.0, 0.0, probe.params.friction, 0.0, 0.0, 0.0)
+        )
+        ladder = [1] + [k for k in (2**j for j in range(1, 9)) if k >= 2 * n0]
+    return ladder
+
+
+def _integrator_candidates(scene, integ, ladder, actions, refs, target, min_time, candidates):
+    """Append ``integ``'s candidates to ``candidates``, one per rung of ``ladder``: its worst
+    error over the seeds (``inf`` where a run failed) and its cost per env step."""
+    steps = len(actions)
+    for substeps in ladder:
+        errs = []
+        for seed, ref in enumerate(refs):
+            run_, failed = _scene_run(scene, integ, substeps, seed, actions, steps)
+            errs.append(math.inf if failed else _scene_error(run_, ref))
+        err = max(errs)
+        cost = _scene_cost(scene, integ, substeps, min_time)
+        candidates.append(
             {
-                "scene": name,
-                "id": scene.env_id,
-                "dt": dt,
-                "steps": steps,
-                "episode_steps": episode,
-                "current": {"integrator": current[0], "substeps": current[1]},
-                "current_error": None if cur is None else cur["error"],
-                "candidates": candidates,
-                "recommended": None
-                if best is None
-                else {"integrator": best["integrator"], "substeps": best["substeps"]},
-                "target": target,
+                "integrator": integ,
+                "substeps": substeps,
+                "error": err,
+                "step_us": cost * 1e6,
+                "meets": err <= target,
             }
         )
-    return rows
+        cheapest = min((c["step_us"] for c in candidates if c["meets"]), default=math.inf)
+        # more substeps only cost more: stop once the target is met or this costs more than a
+        # pair that meets it
+        if err <= target or cost * 1e6 > cheapest:
+            break
+
+
+def _recommended(candidates, current):
+    """``(best, cur)``: the cheapest candidate that meets the target (``None`` if none does)
+    and the scene's current setting's candidate (``None`` if it was not tried)."""
+    meeting = [c for c in candidates if c["meets"]]
+    best = min(meeting, key=lambda c: c["step_us"]) if meeting else None
+    cur = next((c for c in candidates if (c["integrator"], c["substeps"]) == current), None)
+    if cur is not None and cur["meets"] and best["step_us"] > SAVING * cur["step_us"]:
+        best = cur  # a saving within the timing noise is no reason to change a scene
+    return best, cur
 
 
 def _tippe_main(args) -> int:
