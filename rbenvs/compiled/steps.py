@@ -6,11 +6,21 @@ from __future__ import annotations
 
 from typing import NamedTuple
 
+import numpy as np
+
 from ..core.finish import info_function
 from ..jit import DISABLE_VARIABLE, available
 from .batch import NO_COMPENSATION, Layout, batch_kernel, finish_kernel
 from .state import plan_kernel, plans_kernel, run_kernel, runs_kernel, state_kernel
-from .vector import VectorLayout, flat_leaves, rows_kernel, split_kernel, tuple_shape, vector_kernel
+from .vector import (
+    HEAD_ARGS,
+    VectorLayout,
+    flat_leaves,
+    rows_kernel,
+    split_kernel,
+    tuple_shape,
+    vector_kernel,
+)
 
 
 class PeriodPlan:
@@ -42,8 +52,6 @@ class PeriodPlan:
         """``(R, RATE, A)`` of the ``(dim, n)`` states ``Y`` under the ``(n_control, n)``
         controls ``U`` (float64, C-contiguous): arrays, ``R`` ``(3, n)`` or ``(1, n)`` (the
         ratio is not evaluated)."""
-        import numpy as np
-
         if self._batch is None:
             self._batch = plans_kernel(self.layout)
         n = Y.shape[1]
@@ -54,8 +62,6 @@ class PeriodPlan:
 
     def ratios(self, Y, U):
         """The guard's ratios ``X`` ``(n,)`` of a batch (as :meth:`batch`'s arguments)."""
-        import numpy as np
-
         if self._ratios is None:
             self._ratios = plans_kernel(self.layout, True)
         X = np.empty(Y.shape[1])
@@ -94,6 +100,24 @@ class CheckedRuns:
         overload = self.kernel.overloads.get(tuple(numba.typeof(a) for a in args))
         self._call = overload.entry_point if overload is not None else self.kernel
         return out
+
+
+def _dtypes(values, physical) -> tuple:
+    """``(metric dtypes, read-out dtypes)``: each metric's and read-out's array type from its value
+    on a float state (``values[2:]``, ``physical``; a bool stays a bool, a count an int). (dtype
+    objects, not scalar types: np.empty converts a type on every call, ~0.3 us each.)"""
+    metric_dtypes = tuple(
+        np.dtype(np.bool_ if isinstance(v, (bool, np.bool_)) else np.float64) for v in values[2:]
+    )
+    readout_dtypes = tuple(
+        np.dtype(
+            np.bool_
+            if isinstance(v, (bool, np.bool_))
+            else (np.int64 if isinstance(v, (int, np.integer)) else np.float64)
+        )
+        for v in physical
+    )
+    return metric_dtypes, readout_dtypes
 
 
 def _switch_parts(parts) -> tuple:
@@ -256,28 +280,12 @@ class BatchStep:
         n_action: int | None = None,
         dt: float | None = None,
     ):
-        import numpy as np
-
         n_action = n_control if n_action is None else n_action
         layout, self.params, values, physical = _layout(
             parts, dim, n_obs, n_control, n_action, sample
         )
         self.n_metrics, self.n_readouts = layout.n_metrics, layout.n_readouts
-        # each metric's and read-out's array type from its value on a float state (a bool stays a
-        # bool, a count an int)
-        # (dtype objects, not scalar types: np.empty converts a type on every call, ~0.3 us each)
-        self.metric_dtypes = tuple(
-            np.dtype(np.bool_ if isinstance(v, (bool, np.bool_)) else np.float64)
-            for v in values[2:]
-        )
-        self.readout_dtypes = tuple(
-            np.dtype(
-                np.bool_
-                if isinstance(v, (bool, np.bool_))
-                else (np.int64 if isinstance(v, (int, np.integer)) else np.float64)
-            )
-            for v in physical
-        )
+        self.metric_dtypes, self.readout_dtypes = _dtypes(values, physical)
         self._bool, self._f32 = np.dtype(np.bool_), np.dtype(np.float32)
         self.layout = layout
         self.kernel = batch_kernel(layout)
@@ -302,8 +310,6 @@ class BatchStep:
         ``check``: run the guard (else ``substeps`` steps each); ``skip`` (bool ``(n,)``):
         sub-envs about to restart; ``refuse``: ``guard="refuse"``; ``CC`` ``(dim, n)``: the
         runs' compensations, carried on in place (a compensated layout: a tolerance)."""
-        import numpy as np
-
         n = Y.shape[1]
         Ynew = np.empty_like(Y)
         obs = np.empty((n, self.n_obs), self._f32)
@@ -315,7 +321,6 @@ class BatchStep:
         counts = np.empty(n, dtype=np.int64)
         metrics = tuple(np.empty(n, t) for t in self.metric_dtypes)
         readouts = tuple(np.empty(n, t) for t in self.readout_dtypes)
-        ps, po, pe, pr, pg, pa, pd, cd, pv, pw = self.params
         if skip is None:
             skip = np.zeros(n, dtype=bool)
         dt = self.dt if self.dt is not None else h * substeps
@@ -331,16 +336,7 @@ class BatchStep:
             check,
             refuse,
             skip,
-            ps,
-            po,
-            pe,
-            pr,
-            pg,
-            pa,
-            pd,
-            cd,
-            pv,
-            pw,
+            *self.params,  # PS, PO, PE, PR, PG, PA, PD, CD, PV, PW
             self.high,
             counts,
             hstep,
@@ -359,8 +355,6 @@ class BatchStep:
     def finish(self, Y):
         """``(obs, over, reward, terminated, metrics, readouts)`` of states ``Y`` ``(dim, k)`` that
         have just been reset (:func:`finish_kernel`: no control acted yet, zero action)."""
-        import numpy as np
-
         k = Y.shape[1]
         obs = np.empty((k, self.n_obs), dtype=np.float32)
         over = np.empty(k, dtype=bool)
@@ -407,6 +401,9 @@ class VectorResult(NamedTuple):
 # array shared between threads; whole SIMD blocks)
 _CHUNK_ALIGN = 64
 
+# vector_kernel's arguments after (lo, hi, phase) and before its parameters
+_HEAD = len(HEAD_ARGS)
+
 
 def _entry_point(dispatcher, args):
     """The compiled overload of ``dispatcher`` for ``args``' types, called without numba's
@@ -416,6 +413,27 @@ def _entry_point(dispatcher, args):
 
     overload = dispatcher.overloads.get(tuple(numba.typeof(a) for a in args))
     return overload.entry_point if overload is not None else dispatcher
+
+
+def _default_gate(parts, model, error):
+    """The default accuracy's gate (``parts.gate``: its function, P and limit) where the stability
+    bound alone never asks for more steps and the order ``error[1]`` is a whole number (the
+    gate's powers are written out); else ``None``."""
+    if parts.gate is not None and model.step_rule.stable(int(model.substeps)):
+        return parts.gate if float(error[1]).is_integer() else None
+    return None
+
+
+def _scratch_arrays(n: int) -> tuple:
+    """A vector step's scratch ``(counts, fired, over, ends, codes)`` for ``n`` sub-envs (no
+    caller keeps them past the step: reused until the size changes)."""
+    return (
+        np.empty(n, dtype=np.int64),
+        np.empty(n, dtype=bool),
+        np.empty(n, dtype=bool),
+        np.empty(n, dtype=np.int64),
+        np.empty(n, dtype=np.int64),
+    )
 
 
 class VectorStep:
@@ -431,7 +449,16 @@ class VectorStep:
     point after the first (numba's per-call typing of forty arguments costs more than a small
     batch's step); the actions must then be C-contiguous float32 or float64 (the caller converts).
     ``threads`` > 1: each step's sub-envs split into that many chunks, run at once
-    (:class:`rbenvs.vector.threads.ThreadTeam`), with the same bits as one call."""
+    (:class:`rbenvs.vector.threads.ThreadTeam`), with the same bits as one call.
+
+    Calling it runs one step of the states ``Y`` ``(dim, n)`` under the actions ``A``
+    ``(n, n_in)`` (float32 or float64, C-contiguous); ``steps`` and ``done`` (the episode clocks
+    and the sub-envs whose episode ended) are updated in place; ``skip``: the sub-envs to restart
+    (with ``next_step``); ``GEN`` the sub-envs' generators (a numba typed list,
+    :class:`rbenvs.draws.GeneratorTable`); ``reasons``: ``(RZ, RN, clear)`` of a
+    :class:`rbenvs.core.reasons.ReasonPool` array; ``CC`` ``(dim, n)``: the runs'
+    compensations, carried on in place (a compensated layout: a tolerance), a restarting
+    sub-env's set to zero."""
 
     def __init__(
         self,
@@ -443,8 +470,6 @@ class VectorStep:
         error=None,
         threads: int = 1,
     ):
-        import numpy as np
-
         control, pc = model.kernel_control
         u_norm, u = control(pc, (0.0,) * model.actuator.size)
         sample = tuple(float(c) for c in model.initial_state(np.random.default_rng(0)))
@@ -453,16 +478,7 @@ class VectorStep:
         start = model.kernel_start()
         self.restarts = start is not None  # restarts inside the kernel (else the caller's)
         estimate = error is not None and layout.rotation is not None
-        # the default accuracy's gate where the stability bound alone never asks for more steps
-        # (an order that is a whole number: the gate's powers are written out)
-        gate = (
-            parts.gate
-            if estimate
-            and parts.gate is not None
-            and model.step_rule.stable(int(model.substeps))
-            and float(error[1]).is_integer()
-            else None
-        )
+        gate = _default_gate(parts, model, error) if estimate else None
         self.layout = VectorLayout(
             layout,
             control,
@@ -474,48 +490,20 @@ class VectorStep:
             int(error[1]) if gate else 0,
         )
         self.kernel = vector_kernel(self.layout)
-        self._rows = rows_kernel(
-            self.layout._replace(estimate=False, gate=None, gate_order=0)
-        )  # (the rows write no estimate: one kernel for both)
-        # (dtype objects, not scalar types: np.empty converts a type on every call, ~0.3 us each)
-        self.metric_dtypes = tuple(
-            np.dtype(np.bool_ if isinstance(v, (bool, np.bool_)) else np.float64)
-            for v in values[2:]
-        )
-        self.readout_dtypes = tuple(
-            np.dtype(
-                np.bool_
-                if isinstance(v, (bool, np.bool_))
-                else (np.int64 if isinstance(v, (int, np.integer)) else np.float64)
-            )
-            for v in physical
-        )
+        # (the rows write no estimate: one kernel for both)
+        self._rows = rows_kernel(self.layout._replace(estimate=False, gate=None, gate_order=0))
+        self.metric_dtypes, self.readout_dtypes = _dtypes(values, physical)
         self._bool, self._f32 = np.dtype(np.bool_), np.dtype(np.float32)
         self.high = np.asarray(obs_high, dtype=np.float64)
         self.h, self.dt, self.substeps = float(model.h), float(model.dt), int(model.substeps)
         self.max_steps = -1 if max_steps is None else int(max_steps)
         self.charge = float(model.failure_charge)
         self.n_obs, self.dim = n_obs, dim
-        ps, po, pe, pr, pg, pa, pd, cd, pv, pw = params
-        self.params = (
-            pc,
-            start[1] if start else (),
-            ps,
-            po,
-            pe,
-            pr,
-            pg,
-            pa,
-            pd,
-            cd,
-            pv,
-            pw,
-            self.high,
-            tuple(float(v) for v in error) if estimate else (0.0, 1.0, 0.0),
-        )
-        self.gate_params = (
-            (gate[1], gate[2]) if gate else ((), 0.0)
-        )  # (PGT: the gate's P and its limit)
+        # (PC, PI, the layout's ten, the bounds, the tolerance's (C, p, dt) or a placeholder)
+        start_params = start[1] if start else ()
+        tolerance = tuple(float(v) for v in error) if estimate else (0.0, 1.0, 0.0)
+        self.params = (pc, start_params, *params, self.high, tolerance)
+        self.gate_params = (gate[1], gate[2]) if gate else ((), 0.0)  # (PGT: its P and limit)
         self._calls = {}
         self._scratch = None
         self.threads = threads
@@ -542,26 +530,11 @@ class VectorStep:
         reasons,
         CC=None,
     ) -> VectorResult:
-        """One step of the states ``Y`` ``(dim, n)`` under the actions ``A`` ``(n, n_in)``
-        (float32 or float64, C-contiguous); ``steps`` and ``done`` (the episode clocks and the
-        sub-envs whose episode ended) are updated in place; ``skip``: the sub-envs to restart
-        (with ``next_step``); ``GEN`` the sub-envs' generators (a numba typed list,
-        :class:`rbenvs.draws.GeneratorTable`); ``reasons``: ``(RZ, RN, clear)`` of a
-        :class:`rbenvs.core.reasons.ReasonPool` array; ``CC`` ``(dim, n)``: the runs'
-        compensations, carried on in place (a compensated layout: a tolerance), a restarting
-        sub-env's set to zero."""
-        import numpy as np
-
+        """One step (its arguments: the class's docstring)."""
         n = Y.shape[1]
         scratch = self._scratch  # (the arrays no caller keeps past the step: reused)
         if scratch is None or scratch[0].shape[0] != n:
-            scratch = self._scratch = (
-                np.empty(n, dtype=np.int64),
-                np.empty(n, dtype=bool),
-                np.empty(n, dtype=bool),
-                np.empty(n, dtype=np.int64),
-                np.empty(n, dtype=np.int64),
-            )
+            scratch = self._scratch = _scratch_arrays(n)
         counts, fired, over, ends, codes = scratch
         estimate = np.empty(n if self.layout.estimate else 0)
         Ynew = np.empty_like(Y)
@@ -572,58 +545,18 @@ class VectorStep:
         truncated = np.empty(n, self._bool)
         metrics = [np.empty(n, t) for t in self.metric_dtypes]
         readouts = [np.empty(n, t) for t in self.readout_dtypes]
-        head = (
-            A,
-            Y,
-            Ynew,
-            NO_COMPENSATION if CC is None else CC,
-            self.h,
-            self.dt,
-            self.substeps,
-            check,
-            refuse,
-            next_step,
-            self.max_steps,
-            self.charge,
-            steps,
-            done,
-            skip,
-            GEN,
-        )
-        tail = (
-            counts,
-            hstep,
-            fired,
-            obs,
-            over,
-            reward,
-            terminated,
-            truncated,
-            *reasons,
-            ends,
-            codes,
-            estimate,
-        )
-        if (
-            self.threads > 1 and n >= 2 * _CHUNK_ALIGN and np.isfinite(A).all() and self._splits()
-        ):  # (a bad action: refused by the whole step, nothing written)
-            leaves = (*head, *self._flat_params, *tail, *self._flat_gate, *metrics, *readouts)
-            status, k, written, r = self._split(
-                A.dtype,
-                (*head, *self.params, *tail, self.gate_params, *metrics, *readouts),
-                leaves,
-                n,
-                refuse and CC is not None,
-                ends,
-            )
+        # the kernel's arguments: one tuple, passed on as it is, (lo, hi, phase) = (0, n, 0) first
+        cc = NO_COMPENSATION if CC is None else CC
+        head = (0, n, 0, A, Y, Ynew, cc, self.h, self.dt, self.substeps, check, refuse, next_step)
+        middle = (self.max_steps, self.charge, steps, done, skip, GEN, *self.params, counts, hstep)
+        tail = (fired, obs, over, reward, terminated, truncated, *reasons, ends, codes, estimate)
+        args = (*head, *middle, *tail, self.gate_params, *metrics, *readouts)
+        # (a bad action: refused by the whole step, nothing written)
+        if self.threads > 1 and n >= 2 * _CHUNK_ALIGN and np.isfinite(A).all() and self._splits():
+            status, k, written, r = self._split(A.dtype, args, n, refuse and CC is not None, ends)
         else:
-            args = (*head, *self.params, *tail, self.gate_params, *metrics, *readouts)
             call = self._calls.get(A.dtype)
-            if call is None:
-                status, k, m, r = self.kernel(0, n, 0, *args)  # compiles
-                self._calls[A.dtype] = _entry_point(self.kernel, (0, n, 0, *args))
-            else:
-                status, k, m, r = call(0, n, 0, *args)
+            status, k, m, r = call(*args) if call is not None else self._first(A.dtype, args)
             written = ends[:m]
         return VectorResult(
             status,
@@ -644,31 +577,32 @@ class VectorStep:
             estimate if self.layout.estimate else None,
         )
 
-    def _split(self, dtype, args, leaves, n: int, keep_cc: bool, ends) -> tuple:
+    def _first(self, dtype, args) -> tuple:
+        """The first call with actions of ``dtype`` (the kernel's arguments ``args``): compiles
+        the kernel (or loads it) and keeps its overload's entry point for the next calls."""
+        out = self.kernel(*args)  # compiles
+        self._calls[dtype] = _entry_point(self.kernel, args)
+        return out
+
+    def _split(self, dtype, args, n: int, keep_cc: bool, ends) -> tuple:
         """The step as chunks of sub-envs, one per thread, in one call (:func:`split_kernel`):
         every chunk's phase 1 (the guard's counts, the period, its non-finite check) at once, then,
         where no chunk refused and every new state is finite, every chunk's phase 2.
         ``(status, k, ends, r)`` as one call's: a refusal (-1) before a non-finite count;
-        ``keep_cc``: the compensations, carried in place, put back on a refusal (one call writes
-        none)."""
+        ``args``: the one call's arguments (its ``(0, n, 0)`` dropped here: each chunk has its
+        own); ``keep_cc``: the compensations, carried in place, put back on a refusal (one call
+        writes none)."""
         import numba
-        import numpy as np
 
-        from ..vector.threads import pool_size
-
-        if self._cuts is None or self._cuts[-1] != n:  # (chunks of whole SIMD blocks)
-            cuts = [
-                min(n, round(n * c / self.threads / _CHUNK_ALIGN) * _CHUNK_ALIGN)
-                for c in range(self.threads + 1)
-            ]
-            cuts[-1] = n
-            self._cuts = np.unique(np.asarray(cuts, dtype=np.int64))
-            self._S = np.zeros((len(self._cuts) - 1, 4), dtype=np.int64)
-            self._width = min(
-                len(self._cuts) - 1, pool_size()
-            )  # (numba's threads: at most its pool)
-            self._lows = self._cuts[:-1].tolist()
+        if self._cuts is None or self._cuts[-1] != n:
+            self._chunk(n)
         cuts, S = self._cuts, self._S
+        args = args[3:]
+        # the leaves: the two parameter tuples flattened (the step's come after the kernel's
+        # _HEAD leading arguments, the gate's before the metrics' and read-outs' arrays)
+        p, q = _HEAD, _HEAD + len(self.params)
+        g = len(args) - len(self.metric_dtypes) - len(self.readout_dtypes) - 1
+        leaves = (*args[:p], *self._flat_params, *args[q:g], *self._flat_gate, *args[g + 1 :])
         CC = args[3]
         saved = CC.copy() if keep_cc else None
         call = self._split_calls.get(dtype)
@@ -699,12 +633,26 @@ class VectorStep:
         )
         return 0, sum(row[1] for row in rows), written, sum(row[3] for row in rows)
 
+    def _chunk(self, n: int) -> None:
+        """The split of ``n`` sub-envs (on the first split and a size change): ``_cuts``, the
+        chunks' bounds (whole SIMD blocks), ``_S`` their result rows, ``_width`` the threads
+        that run them (at most numba's pool), ``_lows`` their starts as ints."""
+        from ..vector.threads import pool_size
+
+        cuts = [
+            min(n, round(n * c / self.threads / _CHUNK_ALIGN) * _CHUNK_ALIGN)
+            for c in range(self.threads + 1)
+        ]
+        cuts[-1] = n
+        self._cuts = np.unique(np.asarray(cuts, dtype=np.int64))
+        self._S = np.zeros((len(self._cuts) - 1, 4), dtype=np.int64)
+        self._width = min(len(self._cuts) - 1, pool_size())  # (numba's threads: at most its pool)
+        self._lows = self._cuts[:-1].tolist()
+
     def rows(self, idx, draw, Y, GEN, obs, over, hstep, steps, metrics, readouts) -> None:
         """:func:`rows_kernel` on the sub-envs ``idx`` of a step's (or a reset's) arrays: their
         starts drawn where ``draw``, their rows of the observation, metrics and read-outs
         filled."""
-        import numpy as np
-
         self._rows(
             *self._rows_args(
                 np.asarray(idx, dtype=np.int64),
@@ -747,8 +695,6 @@ class VectorStep:
         """``(obs, over, metrics, readouts)`` of the states ``Y`` ``(dim, k)`` as after a reset (no
         control acted, zero action): :func:`rows_kernel` without draws (``GEN``: the env's
         generators, only for the kernel's one signature)."""
-        import numpy as np
-
         k = Y.shape[1]
         obs = np.empty((k, self.n_obs), dtype=np.float32)
         over = np.empty(k, dtype=bool)

@@ -172,63 +172,25 @@ def _vector_namespace(V: VectorLayout) -> dict:
     return namespace
 
 
+# vector_kernel's arguments after (i_lo, i_hi, phase) and before its parameters: the actions, the
+# states, the compensations, the period's settings, the episode clocks and the generators (a
+# split step passes the parameters between them flattened: VectorStep)
+HEAD_ARGS = (
+    "A", "Y", "Ynew", "CC", "h", "dt", "substeps", "check", "refuse", "next_step", "max_steps",
+    "FC", "steps", "done", "skip", "GEN",
+)  # fmt: skip
+# its parameters, then the arrays it writes
+PARAM_ARGS = ("PC", "PI", "PS", "PO", "PE", "PR", "PG", "PA", "PD", "CD", "PV", "PW", "HI", "PEE")
+OUT_ARGS = (
+    "counts", "hstep", "fired", "obs", "over", "reward", "terminated", "truncated", "RZ", "RN",
+    "clear", "ends", "codes", "EST", "PGT",
+)  # fmt: skip
+
+
 def _vector_args(L: Layout) -> list[str]:
     metrics = [f"M{j}" for j in range(L.n_metrics)]
     reads = [f"R{j}" for j in range(L.n_readouts)]
-    return (
-        [
-            "i_lo",
-            "i_hi",
-            "phase",
-            "A",
-            "Y",
-            "Ynew",
-            "CC",
-            "h",
-            "dt",
-            "substeps",
-            "check",
-            "refuse",
-            "next_step",
-            "max_steps",
-            "FC",
-            "steps",
-            "done",
-            "skip",
-            "GEN",
-            "PC",
-            "PI",
-            "PS",
-            "PO",
-            "PE",
-            "PR",
-            "PG",
-            "PA",
-            "PD",
-            "CD",
-            "PV",
-            "PW",
-            "HI",
-            "PEE",
-            "counts",
-            "hstep",
-            "fired",
-            "obs",
-            "over",
-            "reward",
-            "terminated",
-            "truncated",
-            "RZ",
-            "RN",
-            "clear",
-            "ends",
-            "codes",
-            "EST",
-            "PGT",
-        ]
-        + metrics
-        + reads
-    )
+    return ["i_lo", "i_hi", "phase", *HEAD_ARGS, *PARAM_ARGS, *OUT_ARGS, *metrics, *reads]
 
 
 @cache

@@ -125,10 +125,22 @@ class RigidBodyVectorEnv(VectorEnv):
         self.max_episode_steps = max_episode_steps
         self.autoreset_mode = mode = require_autoreset_mode(autoreset_mode)
         # the single env's constructor validates the arguments and builds the model; only its
-        # public model, spaces and metadata are read
-        env = self.env_class(
-            **kwargs, **({"compiled": False} if compiled is False else {})
-        )  # (False: no compiled code, the checked runs' neither)
+        # public model, spaces and metadata are read (compiled=False: no compiled code, the
+        # checked runs' neither)
+        env = self.env_class(**kwargs, **({"compiled": False} if compiled is False else {}))
+        self._adopt(env, mode)
+        # the robustness options (rbenvs.envs.options), validated by the single env
+        self._ranges, self._realism = env.param_ranges, env.realism
+        self._options = self._ranges is not None or self._realism.active
+        # tolerance_check's companion runs and param_ranges' episodes step on numpy or floats
+        checked = bool(self.model.check)
+        compiled = batch_compiled(compiled, checked, self._ranges is not None)
+        self._build_batch(env, checked)
+        self._build_steps(compiled, threads, num_threads)
+
+    def _adopt(self, env, mode) -> None:
+        """The single env's model, engine, spaces and metadata, batched over ``num_envs``
+        (construction)."""
         self.model, self.engine = env.model, env.engine
         self.metadata = dict(env.metadata, autoreset_mode=mode)
         self.render_mode = env.render_mode
@@ -136,15 +148,14 @@ class RigidBodyVectorEnv(VectorEnv):
         self.single_action_space = env.action_space
         self.observation_space = batch_space(env.observation_space, self.num_envs)
         self.action_space = batch_space(env.action_space, self.num_envs)
-        m, engine, n = self.model, self.engine, self.num_envs
+        m = self.model
         self.system, self.task, self.integrator = m.system, m.task, m.integrator
-        self._obs_dim = obs_dim = self.single_observation_space.shape[0]
-        # the robustness options (rbenvs.envs.options), validated by the single env
-        self._ranges, self._realism = env.param_ranges, env.realism
-        self._options = self._ranges is not None or self._realism.active
-        # tolerance_check's companion runs and param_ranges' episodes step on numpy or floats
-        checked = bool(m.check)
-        compiled = batch_compiled(compiled, checked, self._ranges is not None)
+        self._obs_dim = self.single_observation_space.shape[0]
+
+    def _build_batch(self, env, checked: bool) -> None:
+        """The batch's state and what each step reports (construction): the episodes of
+        ``param_ranges``, the accuracy, the robustness options, the run, info and reasons."""
+        engine, n, obs_dim = self.engine, self.num_envs, self._obs_dim
         # param_ranges: each sub-env's episode has its own model (drawn parameters) and engine
         # (with a tolerance its own estimates, with tolerance_check its own companion)
         self._episodes = (
@@ -164,6 +175,12 @@ class RigidBodyVectorEnv(VectorEnv):
         self._true, self._false = self._accuracy.true, self._accuracy.false
         self._infos = BatchInfo(engine, n, self.info_readouts, self._true, self._false)
         self._reasons = ReasonPool(n, engine.event_name)
+
+    def _build_steps(self, compiled, threads: int, num_threads) -> None:
+        """The compiled path (or the numpy one), the starts and the episode ends (construction;
+        ``compiled``: the checked setting, ``threads``: the resolved ``num_threads``)."""
+        engine, n, obs_dim = self.engine, self.num_envs, self._obs_dim
+        max_episode_steps, mode = self.max_episode_steps, self.autoreset_mode
         tables = compiled is not False and _compiled.available()
         self.compiled_path = CompiledPath(
             self.env_class.__name__, engine, obs_dim, max_episode_steps, compiled, tables, threads
@@ -273,61 +290,48 @@ class RigidBodyVectorEnv(VectorEnv):
             return self._step_episodes(actions)
         if self.compiled_path.whole is not None and self.starts.table is not None:
             return self._compiled_step_all(actions)
-        engine = self.engine
+        engine, run = self.engine, self.run
         # NEXT_STEP: the sub-envs whose episode ended last step are reset, not stepped.
-        restart = (
-            self.run.prev_done if self.autoreset_mode is AutoresetMode.NEXT_STEP else self._false
-        )
+        restart = run.prev_done if self.autoreset_mode is AutoresetMode.NEXT_STEP else self._false
         any_restart = bool(restart.any())
-        u_norm, u = (
-            self.engine.control(action_columns(actions, self.action_space.shape))
-            if control is None
-            else control
-        )
-        y0 = self.run.y
+        if control is None:
+            control = engine.control(action_columns(actions, self.action_space.shape))
+        u_norm, u = control
+        y0 = run.y
         fast = None
-        plain = self.run.plain if plain is None else plain
+        plain = run.plain if plain is None else plain
         with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
             # a sub-env blowing up is reported once, below, as the single env does
             if self.compiled_path.batch is not None:
                 y, fast, fired, h = self.compiled_path.advance(
-                    self.run, u, u_norm, restart, plain, self._false
+                    run, u, u_norm, restart, plain, self._false
                 )
             else:
-                comp = None if self.run.cc is None else tuple(self.run.cc)
+                comp = None if run.cc is None else tuple(run.cc)
                 y, fired, h, comp = engine.advance(
                     y0, u, plain, restart if any_restart else None, comp
                 )
                 if comp is not None:
-                    cc = self.run.cc = np.empty((len(comp), self.num_envs))
+                    cc = run.cc = np.empty((len(comp), self.num_envs))
                     for j, c in enumerate(comp):  # (a component may be one float for every sub-env)
                         cc[j] = c
                 if fired is False:
                     fired = self._false
         accuracy = self._accuracy
         inaccurate = None if accuracy.check is None else accuracy.companion_period(y, u, h, restart)
-        self.run.u, self.run.last_h = u, h
+        run.u, run.last_h = u, h
         accuracy.ran(h)
-        if fast is not None:  # the kernel's read-outs: every new state finite
-            self.run.y, self.run.y2d = y, fast[0]
-            obs, over, reward, terminated, metrics, physical = fast[1:]
-            if not over.any():
-                over = self._false
-            metrics = dict(zip(self.task.metric_names, metrics))
-            return self._ends.finish(
-                self.run,
-                obs,
-                over,
-                reward,
-                terminated,
-                fired,
-                None,
-                metrics,
-                restart,
-                any_restart,
-                physical,
-            )
-        return self._numpy_finish(y0, y, u_norm, fired, restart, any_restart, inaccurate)
+        if fast is None:  # (the numpy path, or a non-finite new state)
+            return self._numpy_finish(y0, y, u_norm, fired, restart, any_restart, inaccurate)
+        # the kernel's read-outs: every new state finite
+        run.y, run.y2d = y, fast[0]
+        obs, over, reward, terminated, metrics, physical = fast[1:]
+        if not over.any():
+            over = self._false
+        metrics = dict(zip(self.task.metric_names, metrics))
+        return self._ends.finish(
+            run, obs, over, reward, terminated, fired, None, metrics, restart, any_restart, physical
+        )
 
     def _numpy_finish(self, y0, y, u_norm, fired, restart, any_restart, inaccurate=None):
         """The rest of a step on numpy from the period's new states ``y``: numerical failure
