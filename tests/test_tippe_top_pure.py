@@ -399,10 +399,12 @@ def test_the_compiled_integrator_step_is_the_single_env_step(fidelity, law, flig
 
     from rbenvs.jit import register, register_all
 
-    register_all()
     system = make_system(fidelity, law, flight)
     rk4 = get_integrator("rk4")
     step, ps = rk4.kernel_step(system)
+    # the system's pure forms are made with it: registered after, as a kernel build does (before,
+    # the test passed only where an earlier test in the process had registered them)
+    register_all()
     register(step)  # (generated per scheme and layout, as rbenvs.compiled registers it)
     bound = rk4.bind(system, system.dim)
     kernel = numba.njit(error_model="numpy")(lambda ps, y, u, h: step(ps, y, u, h))

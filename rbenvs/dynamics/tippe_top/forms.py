@@ -549,30 +549,12 @@ def pure_forms(coefficient, stiffness, rolling: bool, flight: bool) -> TippeForm
         """The contact while the sphere slides: ``N`` is whatever keeps the second derivative
         of ``z_G = a - h Gamma.e3`` zero (linear in ``N``: the friction law scales with it)."""
         _, h, m, g, big_a, big_c, _, eps, _ = p
-        if flight:
-            vx, vy, qw, qx, qy, qz, w1, w2, w3 = (
-                y[3],
-                y[4],
-                y[6],
-                y[7],
-                y[8],
-                y[9],
-                y[10],
-                y[11],
-                y[12],
-            )
+        if flight:  # (the flight state carries z_G and v_z before the attitude)
+            vx, vy = y[3], y[4]
+            qw, qx, qy, qz, w1, w2, w3 = y[6], y[7], y[8], y[9], y[10], y[11], y[12]
         else:
-            vx, vy, qw, qx, qy, qz, w1, w2, w3 = (
-                y[2],
-                y[3],
-                y[4],
-                y[5],
-                y[6],
-                y[7],
-                y[8],
-                y[9],
-                y[10],
-            )
+            vx, vy = y[2], y[3]
+            qw, qx, qy, qz, w1, w2, w3 = y[4], y[5], y[6], y[7], y[8], y[9], y[10]
         rm = tippe_frame(qw, qx, qy, qz)
         g1, g2, g3 = rm[6], rm[7], rm[8]
         r = contact_arm(p, g1, g2, g3)
