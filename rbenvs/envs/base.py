@@ -206,7 +206,9 @@ class RigidBodyEnv(gym.Env):
         """The model, engine and spaces of ``system``, ``task`` and ``actuator`` under the shared
         keywords ``options`` (:mod:`rbenvs.envs.shared`), validated here."""
         integrator, render_mode = options["integrator"], options["render_mode"]
-        guard, compiled, dt, substeps, settings = self._checked_step_keywords(options)
+        guard, compiled, dt, substeps, settings = _step_keywords(
+            options, self.default_tolerance, self.registered_episode_steps()
+        )
         tolerance, horizon, check, accuracy = settings
         high = tuple(float(v) for v in observation_high)
         episode_steps = self.registered_episode_steps()
@@ -236,29 +238,6 @@ class RigidBodyEnv(gym.Env):
             type(self).__name__,
             self._rate_sources,
         )
-
-    def _checked_step_keywords(self, options: dict) -> tuple:
-        """``(guard, compiled, dt, substeps, (tolerance, horizon, check, accuracy))``: the step's
-        shared keywords of ``options``, checked in the constructor's order."""
-        guard = require_guard(options["guard"])
-        settings = accuracy_settings(
-            options["tolerance"],
-            options["tolerance_horizon"],
-            options["tolerance_check"],
-            guard,
-            self.default_tolerance,
-            self.registered_episode_steps(),
-        )
-        compiled = require_compiled(options["compiled"])
-        dt = require_finite_positive("dt", options["dt"])
-        substeps = require_int_in(
-            "substeps",
-            options["substeps"],
-            1,
-            MAX_INTERNAL_STEPS,
-            " (more internal steps in a control period is a numerical failure)",
-        )
-        return guard, compiled, dt, substeps, settings
 
     def _chosen_integrator(self, integrator, system, tolerance, model_with):
         """The integrator of ``integrator=``: with ``"auto"`` the cheapest registered scheme
@@ -579,3 +558,27 @@ class RigidBodyEnv(gym.Env):
         state = self.__dict__.copy()
         state["_renderer"] = None  # a figure (and window) is rebuilt by the next render()
         return state
+
+
+def _step_keywords(options: dict, default_tolerance, episode_steps) -> tuple:
+    """``(guard, compiled, dt, substeps, (tolerance, horizon, check, accuracy))``: the step's
+    shared keywords of ``options``, checked in the constructor's order."""
+    guard = require_guard(options["guard"])
+    settings = accuracy_settings(
+        options["tolerance"],
+        options["tolerance_horizon"],
+        options["tolerance_check"],
+        guard,
+        default_tolerance,
+        episode_steps,
+    )
+    compiled = require_compiled(options["compiled"])
+    dt = require_finite_positive("dt", options["dt"])
+    substeps = require_int_in(
+        "substeps",
+        options["substeps"],
+        1,
+        MAX_INTERNAL_STEPS,
+        " (more internal steps in a control period is a numerical failure)",
+    )
+    return guard, compiled, dt, substeps, settings

@@ -158,11 +158,11 @@ class RigidBodyVectorEnv(VectorEnv):
         engine, n, obs_dim = self.engine, self.num_envs, self._obs_dim
         # param_ranges: each sub-env's episode has its own model (drawn parameters) and engine
         # (with a tolerance its own estimates, with tolerance_check its own companion)
-        self._episodes = (
-            None
-            if self._ranges is None
-            else EpisodeBatch(env, self._ranges, n, checked, engine.tolerance is not None)
-        )
+        self._episodes = None
+        if self._ranges is not None:
+            self._episodes = EpisodeBatch(
+                env, self._ranges, n, checked, engine.tolerance is not None
+            )
         # what each step reports of its accuracy (info["error_estimate"], with tolerance_check
         # info["global_error_estimate"] and the batch's companion)
         self._accuracy = BatchAccuracy(engine, n, checked, checked and self._ranges is None)
@@ -187,16 +187,8 @@ class RigidBodyVectorEnv(VectorEnv):
         )
         self.compiled = self.compiled_path.batch is not None
         self.num_threads = batch_threads(num_threads, threads, self.compiled_path.whole)
-        self.starts = BatchStarts(
-            engine,
-            n,
-            obs_dim,
-            tables,
-            self.info_readouts,
-            self.compiled_path,
-            self._accuracy,
-            self._episodes,
-        )
+        batch = (engine, n, obs_dim, tables, self.info_readouts)
+        self.starts = BatchStarts(*batch, self.compiled_path, self._accuracy, self._episodes)
         next_step = mode is AutoresetMode.NEXT_STEP
         self._ends = BatchEnds(
             engine, self._infos, self.starts, max_episode_steps, next_step, self._false
