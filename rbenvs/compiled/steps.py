@@ -607,7 +607,7 @@ class VectorStep:
         saved = CC.copy() if keep_cc else None
         call = self._split_calls.get(dtype)
         # the chunks run on this many of numba's threads (a setting of the calling thread, put
-        # back after; set only where it differs: setting and restoring costs 2 us a step)
+        # back after; set only where it differs, so the usual step makes no call to set it)
         before = numba.get_num_threads()
         if before != self._width:
             numba.set_num_threads(self._width)

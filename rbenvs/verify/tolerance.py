@@ -96,7 +96,8 @@ def _random_start_checks(name, inertias, directions, seed, progress) -> list[Che
             "integrator": name,
             "tolerance": TOLERANCE,
         }
-        error, shortfall = _episode_error_and_shortfall(name, inertia, pi0, seed)
+        env = _checked_env(name, inertia, pi0, TOLERANCE, seed)
+        error, shortfall = _episode_error_and_shortfall(env, inertia, pi0, TOLERANCE)
         for key, value in (("error", error), ("bound", shortfall)):
             if not value <= worst[key][0]:  # (NaN too)
                 worst[key] = (value, case)
@@ -130,15 +131,16 @@ def _checked_env(name, inertia, pi0, tolerance, seed):
     return env
 
 
-def _episode_error_and_shortfall(name, inertia, pi0, seed):
-    """``(max error, max (error - global error estimate) / tolerance)`` over the periods of an
-    episode at :data:`TOLERANCE` (the shortfall over the periods whose error is above roundoff)."""
-    env = _checked_env(name, inertia, pi0, TOLERANCE, seed)
+def _episode_error_and_shortfall(env, inertia, pi0, tolerance):
+    """``(max error, max (error - global error estimate) / tolerance)`` over the periods
+    ``env``'s episode runs from ``pi0``, against the exact solution (the shortfall over the
+    periods whose error is above roundoff)."""
     blocks = tolerance_blocks(env.system)
     a = np.zeros(env.action_space.shape, np.float32)
     error = shortfall = 0.0
     with warnings.catch_warnings():
-        warnings.simplefilter("ignore")  # (an episode the estimate ends warns: counted here)
+        # (an episode the estimate ends warns: the contract, measured up to there)
+        warnings.simplefilter("ignore")
         for k in range(1, PERIODS + 1):
             _, _, terminated, _, info = env.step(a)
             if info["numerical_failure"]:
@@ -147,7 +149,7 @@ def _episode_error_and_shortfall(name, inertia, pi0, seed):
             err = float(relative_difference(blocks, ref, env.state_components))
             error = max(error, err)
             if err > ROUND_OFF_ERROR:
-                shortfall = max(shortfall, (err - info["global_error_estimate"]) / TOLERANCE)
+                shortfall = max(shortfall, (err - info["global_error_estimate"]) / tolerance)
             if terminated:
                 break
     return error, shortfall
@@ -168,29 +170,10 @@ def _separatrix_check(name, inertias, seed, progress, row, tolerance, off) -> Ch
             "tolerance": tolerance,
             "tolerance_check": True,
         }
-        error = _episode_error(_checked_env(name, inertia, pi0, tolerance, seed), inertia, pi0)
+        env = _checked_env(name, inertia, pi0, tolerance, seed)
+        error, _ = _episode_error_and_shortfall(env, inertia, pi0, tolerance)
         if not error <= worst:  # (NaN too)
             worst, worst_case = error, case
         if progress:
             progress()
     return Check("free_body", name, row, 0.0, worst, tolerance, case=worst_case)
-
-
-def _episode_error(env, inertia, pi0) -> float:
-    """The largest error of the periods ``env``'s episode runs from ``pi0``, against the exact
-    solution."""
-    blocks = tolerance_blocks(env.system)
-    a = np.zeros(env.action_space.shape, np.float32)
-    error = 0.0
-    with warnings.catch_warnings():
-        # (an episode the estimate ends warns: the contract, measured up to there)
-        warnings.simplefilter("ignore")
-        for k in range(1, PERIODS + 1):
-            _, _, terminated, _, info = env.step(a)
-            if info["numerical_failure"]:
-                break
-            ref = exact_solution(tuple(inertia), pi0, k * env.dt)
-            error = max(error, float(relative_difference(blocks, ref, env.state_components)))
-            if terminated:
-                break
-    return error
