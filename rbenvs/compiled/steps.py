@@ -424,15 +424,17 @@ def _default_gate(parts, model, error):
     return None
 
 
-def _scratch_arrays(n: int) -> tuple:
-    """A vector step's scratch ``(counts, fired, over, ends, codes)`` for ``n`` sub-envs (no
-    caller keeps them past the step: reused until the size changes)."""
+def _scratch_arrays(n: int, layout) -> tuple:
+    """A vector step's scratch ``(counts, fired, over, ends, codes, U, UN)`` for ``n`` sub-envs
+    (no caller keeps them past the step: reused until the size changes)."""
     return (
         np.empty(n, dtype=np.int64),
         np.empty(n, dtype=bool),
         np.empty(n, dtype=bool),
         np.empty(n, dtype=np.int64),
         np.empty(n, dtype=np.int64),
+        np.empty((layout.batch.n_control, n)),
+        np.empty((layout.batch.n_action, n)),
     )
 
 
@@ -534,8 +536,8 @@ class VectorStep:
         n = Y.shape[1]
         scratch = self._scratch  # (the arrays no caller keeps past the step: reused)
         if scratch is None or scratch[0].shape[0] != n:
-            scratch = self._scratch = _scratch_arrays(n)
-        counts, fired, over, ends, codes = scratch
+            scratch = self._scratch = _scratch_arrays(n, self.layout)
+        counts, fired, over, ends, codes, U, UN = scratch
         estimate = np.empty(n if self.layout.estimate else 0)
         Ynew = np.empty_like(Y)
         hstep = np.empty(n)
@@ -549,8 +551,8 @@ class VectorStep:
         cc = NO_COMPENSATION if CC is None else CC
         head = (0, n, 0, A, Y, Ynew, cc, self.h, self.dt, self.substeps, check, refuse, next_step)
         middle = (self.max_steps, self.charge, steps, done, skip, GEN, *self.params, counts, hstep)
-        tail = (fired, obs, over, reward, terminated, truncated, *reasons, ends, codes, estimate)
-        args = (*head, *middle, *tail, self.gate_params, *metrics, *readouts)
+        tail = (fired, obs, over, reward, terminated, truncated, *reasons, ends, codes, U, UN)
+        args = (*head, *middle, *tail, estimate, self.gate_params, *metrics, *readouts)
         # (a bad action: refused by the whole step, nothing written)
         if self.threads > 1 and n >= 2 * _CHUNK_ALIGN and np.isfinite(A).all() and self._splits():
             status, k, written, r = self._split(A.dtype, args, n, refuse and CC is not None, ends)

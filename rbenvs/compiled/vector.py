@@ -183,7 +183,7 @@ HEAD_ARGS = (
 PARAM_ARGS = ("PC", "PI", "PS", "PO", "PE", "PR", "PG", "PA", "PD", "CD", "PV", "PW", "HI", "PEE")
 OUT_ARGS = (
     "counts", "hstep", "fired", "obs", "over", "reward", "terminated", "truncated", "RZ", "RN",
-    "clear", "ends", "codes", "EST", "PGT",
+    "clear", "ends", "codes", "U", "UN", "EST", "PGT",
 )  # fmt: skip
 
 
@@ -202,7 +202,7 @@ def vector_kernel(V: VectorLayout):
         max_steps,
               FC, steps, done, skip, GEN, PC, PI, PS, PO, PE, PR, PG, PA, PD, CD, PV, PW, HI, PEE,
               counts, hstep, fired, obs, over, reward, terminated, truncated, RZ, RN, clear, ends,
-              codes, EST, PGT, M_1..M_k, R_1..R_m) -> (status, k, m, r)
+              codes, U, UN, EST, PGT, M_1..M_k, R_1..R_m) -> (status, k, m, r)
 
     on the sub-envs ``i_lo <= i < i_hi`` (every array is the whole batch's; one call's step: 0 and
     ``n``); ``phase`` 0 runs the whole step below; a step split over threads (:class:`VectorStep`)
@@ -214,8 +214,8 @@ def vector_kernel(V: VectorLayout):
 
     1. the actions ``A`` ``(n, n_in)`` (float32 or float64): every entry finite (else ``(-2,
        i, 0, 0)`` for the first bad sub-env ``i``, nothing else written), clipped to ``[-1, 1]``
-       (the single env's rule), mapped by the actuator's pure form into the rows of ``UN`` and
-       ``U``;
+       (the single env's rule), mapped by the actuator's pure form into the columns of the
+       scratch ``UN`` ``(n_action, n)`` and ``U`` ``(n_control, n)`` (phase 2 reads phase 1's);
     2. the period and finish of :func:`batch_kernel` (``(-1, 0, 0, 0)``: refused; ``(bad, 0,
        0, 0)``: ``bad`` new states non-finite, the caller's failure path takes over, nothing
        drawn; sub-envs in ``skip`` take ``substeps``); with ``next_step`` and a pure start, the
@@ -268,14 +268,14 @@ def vector_kernel(V: VectorLayout):
         "                return -2, np.int64(i), 0, 0",
     ]
     lines += ["    if phase != 2:", *("    " + line for line in check_actions)]
+    # (into the caller's scratch rows U and UN: a split step's phase 2 reads phase 1's)
     lines += [
-        f"    U = np.empty(({L.n_control}, n))",
-        f"    UN = np.empty(({L.n_action}, n))",
-        "    for i in range(n):",
-        "        un, u = act(PC, A, i)",
+        "    if phase != 2:",
+        "        for i in range(n):",
+        "            un, u = act(PC, A, i)",
     ]
-    lines += [f"        UN[{j}, i] = un[{j}]" for j in range(L.n_action)] + [
-        f"        U[{j}, i] = u[{j}]" for j in range(L.n_control)
+    lines += [f"            UN[{j}, i] = un[{j}]" for j in range(L.n_action)] + [
+        f"            U[{j}, i] = u[{j}]" for j in range(L.n_control)
     ]
     # 2. the period, then (NEXT_STEP) the restarting sub-envs' starts drawn into their columns
     # of Ynew, so that the finish loops fill their rows as after a reset (per-row selections:
