@@ -15,7 +15,8 @@ from gymnasium.utils.env_checker import check_env
 from rbenvs.core.step import NumericalFailureWarning
 from rbenvs.envs import FreeRigidBodyEnv, TippeTopEnv, UnstableMotionWarning
 from rbenvs.oracles import exact_solution, taylor_solution
-from rbenvs.stepsize.check import companion_ratio, relative_difference, tolerance_blocks
+from rbenvs.stepsize.controller import companion_ratio, tolerance_blocks
+from rbenvs.stepsize.forms import relative_difference
 
 # Tests here set tolerances on motions the systems call unstable (the intermediate axis, a top below
 # its critical spin, an inverting tippe top) on purpose: their UnstableMotionWarning is expected,

@@ -518,7 +518,7 @@ def test_the_tolerance_rows_pass_and_catch_an_estimate_that_falls_short(monkeypa
     down (its margin 0.3 instead of 1.25: 0.24 of the classical estimate, which measures 0.88-2
     of the error) is caught by the second row; euler, which a tolerance does not take, has no
     rows."""
-    from rbenvs.stepsize import check
+    from rbenvs.stepsize import controller as check
     from rbenvs.verify.tolerance import ROWS, tolerance_checks
 
     rows = tolerance_checks(["rk4", "euler"], seed=0, n_cases=2)

@@ -45,7 +45,7 @@ ERROR_FLOOR = 1e-13
 
 def _episode(w, tol, reference):
     from ..envs import FreeRigidBodyEnv
-    from ..stepsize.check import companion_steps
+    from ..stepsize.controller import companion_steps
 
     with warnings.catch_warnings():
         warnings.simplefilter(

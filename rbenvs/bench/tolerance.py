@@ -436,7 +436,8 @@ def _episode(case, env, starts, refs):
     steps = 0
     failure = None
     a = np.zeros(env.action_space.shape, np.float32)
-    from ..stepsize.check import companion_steps, relative_difference, tolerance_blocks
+    from ..stepsize.controller import companion_steps, tolerance_blocks
+    from ..stepsize.forms import relative_difference
 
     checked = bool(env.engine.check)  # (tolerance_check: a companion run beside the state)
     # the measured blocks: the tippe top's horizontal position (it drifts) and its contact flags

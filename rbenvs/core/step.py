@@ -38,8 +38,7 @@ import warnings
 import numpy as np
 
 from ..dynamics.validation import real_array
-from ..stepsize.check import inaccurate_text
-from ..stepsize.controller import MAX_INTERNAL_STEPS
+from ..stepsize.controller import MAX_INTERNAL_STEPS, inaccurate_text
 from .compiled_forms import CompiledForms
 from .finish import generated_finish
 from .parts import kernel_parts

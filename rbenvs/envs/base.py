@@ -23,19 +23,17 @@ from ..core.model import Model
 from ..core.step import Engine, NumericalFailureWarning, action_values
 from ..dynamics.validation import require_finite_positive, require_int_in
 from ..integrators import integrator_for
-from ..stepsize.check import GlobalErrorCheck
 from ..stepsize.controller import (
     GUARDS,
     MAX_INTERNAL_STEPS,
+    GlobalErrorCheck,
     UnstableMotionWarning,
-    require_accuracy,
-    require_guard,
-    unstable_motion_warning,
-)
-from ..stepsize.settings import (
     accuracy_settings,
     cheapest_scheme,
+    require_accuracy,
+    require_guard,
     require_resolvable,
+    unstable_motion_warning,
 )
 from .options import ParamRanges, Realism, noise_generator, noisy_observation, rekey
 from .shared import keyword_init
@@ -419,8 +417,8 @@ class RigidBodyEnv(gym.Env):
             self._y = self.system.import_state(state)
         obs, info = self.engine.reset_one(self._y)
         if self._check is not None:  # (param_ranges: this episode's engine)
-            self._check.engine, self._step_one = self.engine, self._check.step_one
-            self._check.restart(self._y)
+            self._check.restart(self._y, engine=self.engine)
+            self._step_one = self._check.step_one
             info["global_error_estimate"] = 0.0
         if self._realism.active:
             obs = self._reset_realism(obs)

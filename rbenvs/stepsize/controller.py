@@ -1,96 +1,64 @@
-"""The step controller: how many internal steps a control period takes, what error it commits and
-what an episode carries, from declarations only; its settings the stability bound alone
-(``tolerance=None``), an error bound (``tolerance=``, the env's default accuracy included) and the
-measured check (``tolerance_check=True``, the companion run below).
+"""The step controller: every decision about a control period's internal steps, every estimate of
+its error and every report of what it did, for the single env, the vector env (with and without
+``param_ranges``) and, through its pure forms (:mod:`rbenvs.stepsize.forms`), the compiled
+kernels. Its settings: the stability bound alone (``tolerance=None``), an error bound
+(``tolerance=``, the env's default accuracy included) and the measured check
+(``tolerance_check=True``). The derivations and the measurements: docs/accuracy.md.
 
-**Stability.**
+* **Stability** (:class:`StepRule`): a period of length ``dt`` from ``y`` takes ``n = max(substeps,
+  ceil(x))`` steps, ``x = max(dt lambda / b, (dt lambda)^2 / growth, dt / (c / lambda_d))`` from
+  the integrator's :class:`~rbenvs.contracts.StepRegion` and the system's
+  :meth:`~rbenvs.contracts.System.guard_rates`; more than ``MAX_INTERNAL_STEPS`` is a numerical
+  failure (reported, never a hang).
+* **Accuracy** (``tolerance=``, a relative error per episode of ``N`` periods): a scheme of order
+  ``p`` and error constant ``C`` commits ``e = C lambda dt (lambda h)^p`` a period
+  (``info["error_estimate"]``); every period meeting ``e <= log(1 + tolerance) / N`` keeps the
+  episode's compounded error within the tolerance (a decaying rate shares the budget: half for
+  it, relaxing within ``1 / lambda_d``). It assumes a motion that does not amplify errors.
+* **The measured check** (:class:`GlobalErrorCheck`): a companion run at twice the step estimates
+  the episode's global error, amplification included (Richardson's estimate, Hairer, Norsett and
+  Wanner, *Solving Ordinary Differential Equations I*, 2nd ed., Springer 1993, section II.8).
+* **Settings** (:func:`accuracy_settings`, :func:`require_accuracy`, :func:`cheapest_scheme`,
+  :func:`require_resolvable`): resolved and refused at construction, never at the first step.
 
-The integrator declares where its step can be trusted (:class:`~rbenvs.contracts.StepRegion`);
-the system declares the rates a step must resolve for that region
-(:meth:`~rbenvs.contracts.System.guard_rates`). A period of length ``dt`` that starts at ``y``
-takes ``n = max(substeps, ceil(x))`` equal internal steps with
-
-    x = max(dt lambda / b, (dt lambda)^2 / growth, dt / (c / lambda_d))
-
-``lambda`` the system's fastest oscillatory rate at ``y``, ``b`` the region's ``rotation``
-bound (or the system's own accuracy bound, which then replaces ``b`` and ``growth``),
-``lambda_d`` its stiffest decaying rate and ``c`` the part of the region's ``dissipation``
-interval the system allows. An integrator with no bound and a system with no dissipation give
-no term. More than ``MAX_INTERNAL_STEPS`` is a numerical failure (reported, never a hang).
-
-**Accuracy** (``tolerance=``, a relative error per episode of ``N`` control periods): a scheme
-of order ``p`` and error constant ``C`` (declared by the integrator, measured by
-:func:`rbenvs.integrators.error.measure_error_constant`) commits, over a period of ``n`` steps
-``h = dt / n`` at rate ``lambda``, the relative error
-
-    e = C lambda dt (lambda h)^p                                  (:func:`error_estimate`)
-
-(``n`` local errors ``C (lambda h)^(p+1)``; a rotation carries an error on without amplifying
-it). Errors of successive periods compound at worst as ``prod(1 + e_k) - 1 <=
-exp(sum e_k) - 1``, which stays within the tolerance when every period meets
-``e <= b = log(1 + tolerance) / N``. With ``z = lambda dt`` that asks for ``n^p >= (C / b)
-z^(p+1)``: the fewest such whole ``n`` (:func:`accuracy_steps`) is a fourth term of ``x``,
-and ``info["error_estimate"]`` reports ``e`` of the steps taken. Where the system also declares
-a decaying rate ``lambda_d`` the budget is shared: half for the rotation (per period, as above),
-half for the decaying mode, ``C a (lambda_d h)^p <= log(1 + tolerance) / 2`` (its error relaxes
-within ``1 / lambda_d`` instead of adding up: :func:`relaxation_steps`; ``a <= 1`` the share of
-it the mode's error is, where the system declares it: a saturated friction is not stiff). For a
-scheme whose
-leading error is in the phase (rk4) on a system with a pure vector field, ``lambda dt`` in front
-becomes ``mu dt``, the state's own relative speed (:func:`motion_rates`, :func:`step_ratio_motion`).
-The estimate assumes the motion
-does not amplify errors (a stable spin, a precession); near an unstable equilibrium (the
-intermediate axis, an upright top below its critical spin) an error grows with the motion and
-no step bounds it for long.
-
-Everything here works on floats (one state) and arrays (a batch) with the same IEEE
-operations, so a sub-env of a vector env takes exactly its single env's steps; the pure
-:func:`~rbenvs.stepsize.forms.step_ratio` is what the compiled batch step calls (the accuracy term's
-fractional power is corrected to the exact whole count by integer powers, so a last-bit difference
-between libm's ``pow`` and numpy's cannot change a count).
-
-**The measured check** (``tolerance_check=True``): a companion run at twice the step estimates
-the episode's global error, amplification included (:mod:`rbenvs.stepsize.check`).
+Everything works on floats (one state) and arrays (a batch) with the same IEEE operations, so a
+sub-env of a vector env takes exactly its single env's steps.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 
 import numpy as np
 
-from ..dynamics.validation import did_you_mean
+from ..dynamics.validation import did_you_mean, require_int_in
 from ..rotations import every, power
 from .forms import (
     accuracy_steps,
     error_estimate,
-    gate_limit,
     gated_estimate,
+    mode_share,
     motion_error_estimate,
-    motion_rates,
+    motion_form,
+    relative_difference,
     relaxation_estimate,
     relaxation_steps,
+    stability_ratio,
     step_ratio,
     step_ratio_motion,
     whole_root,
 )
 
 __all__ = [
-    "MAX_INTERNAL_STEPS",
-    "GUARDS",
-    "DEFAULT_TOLERANCE",
-    "TOLERANCE_FLOOR",
-    "UnstableMotionWarning",
-    "StepRule",
-    "require_guard",
-    "require_tolerance",
-    "default_accuracy",
-    "takes_tolerance",
-    "tolerance_schemes",
-    "require_accuracy",
-    "unstable_motion_warning",
-]
+    "MAX_INTERNAL_STEPS", "GUARDS", "DEFAULT_TOLERANCE", "TOLERANCE_FLOOR", "MARGIN",
+    "UnstableMotionWarning", "StepRule", "GlobalErrorCheck", "require_guard",
+    "require_tolerance", "require_tolerance_check", "default_accuracy", "accuracy_settings",
+    "takes_tolerance", "tolerance_schemes", "require_accuracy", "unstable_motion_warning",
+    "cheapest_scheme", "start_steps", "require_resolvable", "tolerance_blocks",
+    "companion_ratio", "companion_steps", "inaccurate_text",
+]  # fmt: skip
 
 # More internal steps than this in one control period is treated as a numerical failure.
 MAX_INTERNAL_STEPS = 1_000_000
@@ -100,6 +68,13 @@ MAX_INTERNAL_STEPS = 1_000_000
 # into more equal steps, ``"refuse"`` raises ``ValueError`` from ``step``, ``"off"`` takes
 # ``substeps`` steps regardless (a blow-up then ends the episode as a numerical failure).
 GUARDS = ("subdivide", "refuse", "off")
+# ``tolerance=``'s default: the env's default accuracy (RigidBodyEnv.default_tolerance)
+DEFAULT_TOLERANCE = "default"
+# the least tolerance float64 carries over an episode: near the free body's separatrix the motion
+# amplifies the (compensated) sums' roundoff to about this (rbenvs bench accuracy --floor)
+TOLERANCE_FLOOR = 1e-12
+# the reported global error estimate over the classical one (its next order's share)
+MARGIN = 1.25
 
 
 class UnstableMotionWarning(UserWarning):
@@ -107,6 +82,9 @@ class UnstableMotionWarning(UserWarning):
     below its critical spin, a spin about the intermediate axis, a tippe top that inverts): the
     steps hold the error they commit within the tolerance, but the motion amplifies errors
     already made, so over a horizon that spans the instability the error can end above it."""
+
+
+# --- settings, resolved and refused at construction ---
 
 
 def require_guard(guard) -> str:
@@ -117,14 +95,6 @@ def require_guard(guard) -> str:
     return guard
 
 
-# ``tolerance=``'s default: the env's default accuracy (RigidBodyEnv.default_tolerance)
-DEFAULT_TOLERANCE = "default"
-# the least tolerance float64 carries over an episode: near the free body's separatrix the motion
-# amplifies the (compensated) sums' roundoff to about this (rbenvs bench accuracy --roundoff,
-# --floor)
-TOLERANCE_FLOOR = 1e-12
-
-
 def require_tolerance(tolerance):
     """``tolerance=``: ``"default"`` (the env's default accuracy), ``None`` (no accuracy bound)
     or a finite number with ``TOLERANCE_FLOOR <= tolerance < 1`` (a relative error per episode)."""
@@ -132,8 +102,8 @@ def require_tolerance(tolerance):
         return tolerance
     rule = (
         f"{DEFAULT_TOLERANCE!r} (the env's default accuracy), None (unchecked: the stability bound "
-        "alone) or a finite number with "
-        f"{TOLERANCE_FLOOR:g} <= tolerance < 1 (the relative error allowed over an episode)"
+        f"alone) or a finite number with {TOLERANCE_FLOOR:g} <= tolerance < 1 (the relative error "
+        "allowed over an episode)"
     )
     if isinstance(tolerance, (bool, np.bool_)) or not isinstance(
         tolerance, (int, float, np.integer, np.floating)
@@ -145,13 +115,34 @@ def require_tolerance(tolerance):
     if tol < TOLERANCE_FLOOR:
         raise ValueError(
             f"tolerance={tolerance!r} is below what float64 carries over an episode "
-            f"({TOLERANCE_FLOOR:g}: near an unstable "
-            "motion the sums' roundoff alone reaches 1e-13-1e-12, 'rbenvs bench accuracy "
-            "--roundoff'); pass tolerance >= "
+            f"({TOLERANCE_FLOOR:g}: near an unstable motion the sums' roundoff alone reaches "
+            "1e-13-1e-12, 'rbenvs bench accuracy --roundoff'); pass tolerance >= "
             f"{TOLERANCE_FLOOR:g}, or integrate in extended precision outside the env "
             "(rbenvs.oracles.taylor_solution)"
         )
     return tol
+
+
+def require_tolerance_check(check, tolerance):
+    """``tolerance_check=``: ``False`` or ``True`` (a companion run checks the episode's global
+    error against ``tolerance=``, which it then needs)."""
+    if isinstance(check, str) and check == "refine":
+        raise ValueError(
+            "tolerance_check='refine' was removed (2026-11-29: each replay ran the episode again "
+            "from its start); use tolerance_check=True, which ends the episode, flagged, where the "
+            "estimate passes the tolerance, with a tighter tolerance= to hold it longer"
+        )
+    if not (check is True or check is False):
+        raise ValueError(
+            "tolerance_check must be False or True (a companion run checks the episode's global "
+            f"error and ends the episode where it passes the tolerance), got {check!r}"
+        )
+    if check and tolerance is None:
+        raise ValueError(
+            "tolerance_check=True needs tolerance= (the relative error per episode the global "
+            "error estimate is checked against)"
+        )
+    return check
 
 
 def default_accuracy(tolerance, guard: str, default):
@@ -163,6 +154,27 @@ def default_accuracy(tolerance, guard: str, default):
             (default, "default") if guard != "off" and default is not None else (None, "explicit")
         )
     return tolerance, "explicit"
+
+
+def accuracy_settings(tolerance, horizon, check, guard: str, default, episode_steps):
+    """``(tolerance, horizon, check, accuracy)`` from the keywords: ``tolerance`` validated and
+    the env's ``default`` accuracy resolved, ``horizon`` the control periods it covers (``None``:
+    the registered episode's ``episode_steps``, else 1000) and the measured check's setting."""
+    tolerance = require_tolerance(tolerance)
+    if tolerance is None and horizon is not None:
+        raise ValueError(
+            f"tolerance_horizon={horizon!r} is the span of control periods that tolerance= "
+            "covers, and tolerance is None: pass tolerance= with it, or leave tolerance_horizon out"
+        )
+    tolerance, accuracy = default_accuracy(tolerance, guard, default)
+    check = require_tolerance_check(check, tolerance)
+    if horizon is None:
+        horizon = 1000 if episode_steps is None else episode_steps
+    else:
+        horizon = require_int_in(
+            "tolerance_horizon", horizon, 1, 10**12, " (control periods over which tolerance holds)"
+        )
+    return tolerance, horizon, check, accuracy
 
 
 def takes_tolerance(cls) -> bool:
@@ -181,11 +193,10 @@ def tolerance_schemes() -> list:
 def _amplitude_reason(integrator) -> str:
     return (
         f"integrator {integrator.name!r} errs in the amplitude (each step grows a rotation by "
-        "sqrt(1 + (lambda h)^2)), which on a "
-        "nonlinear rotation moves the frequency, so its phase error grows like T^2 and no "
-        "per-period estimate bounds it without "
-        "overestimating it many times (measured: 15 times the steps of its cheapest fixed substeps "
-        "meeting the same tolerance)"
+        "sqrt(1 + (lambda h)^2)), which on a nonlinear rotation moves the frequency, so its phase "
+        "error grows like T^2 and no per-period estimate bounds it without overestimating it many "
+        "times (measured: 15 times the steps of its cheapest fixed substeps meeting the same "
+        "tolerance)"
     )
 
 
@@ -198,12 +209,10 @@ def require_accuracy(integrator, guard: str, tolerance, accuracy: str, env_name:
         if integrator.error_constant is not None:  # (euler: its error is in the amplitude)
             raise ValueError(
                 f"integrator {integrator.name!r} cannot be held to {env_name}'s default accuracy "
-                "(tolerance='default': "
-                f"{tolerance!r} relative over an episode): {_amplitude_reason(integrator)}. Pass "
-                "tolerance=None to run it "
-                "unchecked (the stability bound alone, info['error_estimate'] None), or an "
-                "integrator that takes a tolerance, "
-                f"{tolerance_schemes()}"
+                f"(tolerance='default': {tolerance!r} relative over an episode): "
+                f"{_amplitude_reason(integrator)}. Pass tolerance=None to run it unchecked (the "
+                "stability bound alone, info['error_estimate'] None), or an integrator that takes "
+                f"a tolerance, {tolerance_schemes()}"
             )
         return None, "explicit"
     if tolerance is None or accuracy != "explicit":
@@ -216,24 +225,20 @@ def require_accuracy(integrator, guard: str, tolerance, accuracy: str, env_name:
     if integrator.error_constant is None:
         raise ValueError(
             f"tolerance={tolerance!r} needs an integrator whose error it can estimate, "
-            f"{tolerance_schemes()} (or integrator='auto'): one that declares an "
-            "error constant (its error C lambda T (lambda h)^order on a rotation, "
-            "rbenvs.integrators.error) with its leading error in the "
-            f"phase; integrator {integrator.name!r} declares none "
-            "(exact sub-flows err by the system's commutators, not by one rate; an adaptive scheme "
+            f"{tolerance_schemes()} (or integrator='auto'): one that declares an error constant "
+            "(its error C lambda T (lambda h)^order on a rotation, rbenvs.integrators.error) with "
+            f"its leading error in the phase; integrator {integrator.name!r} declares none (exact "
+            "sub-flows err by the system's commutators, not by one rate; an adaptive scheme "
             "controls its own error)"
         )
     if not integrator.error_in_phase:
-        # euler: its leading error grows a rotation's amplitude (by sqrt(1 + (lambda h)^2) a
-        # step); on a nonlinear rotation the amplitude sets the frequency, so the phase error
-        # grows like T^2 and a per-period sum either misses it (with the state's own rate:
-        # 2.7 times the tolerance) or overestimates it (with lambda: 16 times the error, 15
-        # times the steps of the cheapest fixed substeps; docs/integrators.md)
+        # euler: a per-period sum either misses its T^2 phase error (with the state's own rate)
+        # or overestimates it many times (with lambda): docs/accuracy.md
         raise ValueError(
             f"tolerance={tolerance!r} needs an integrator whose leading error on a rotation is in "
-            f"the phase, {tolerance_schemes()} "
-            f"(or integrator='auto'): {_amplitude_reason(integrator)}; with tolerance=None it runs "
-            "at the guard's stability bound"
+            f"the phase, {tolerance_schemes()} (or integrator='auto'): "
+            f"{_amplitude_reason(integrator)}; with tolerance=None it runs at the guard's "
+            "stability bound"
         )
     return tolerance, accuracy
 
@@ -243,30 +248,28 @@ def unstable_motion_warning(tolerance: float, unstable: str, check: bool) -> Uns
     system's own theorem (the env says why), and what the check does about it."""
     then = (
         "tolerance_check=True: a companion run estimates the episode's global error "
-        "(info['global_error_estimate']) "
-        "and the episode ends as a numerical failure where it passes the tolerance"
+        "(info['global_error_estimate']) and the episode ends as a numerical failure where it "
+        "passes the tolerance"
         if check
         else "over a horizon that spans it the error can end above the tolerance "
-        "(tolerance_check=True estimates it and ends "
-        "the episode as a numerical failure where it passes the tolerance)"
+        "(tolerance_check=True estimates it and ends the episode as a numerical failure where it "
+        "passes the tolerance)"
     )
     return UnstableMotionWarning(
         f"tolerance={tolerance!r}: {unstable}. The steps hold the error they commit within the "
-        "tolerance, but an unstable "
-        f"motion amplifies errors already made; {then} ('rbenvs bench accuracy --tolerance' "
-        "measures it per scene; "
-        f"docs/integrators.md, 'Unstable motions')"
+        f"tolerance, but an unstable motion amplifies errors already made; {then} ('rbenvs bench "
+        "accuracy --tolerance' measures it per scene; docs/integrators.md, 'Unstable motions')"
     )
+
+
+# --- the rule: a period's steps and its error estimate ---
 
 
 @dataclass(frozen=True)
 class StepRule:
-    """The guard of one env: its system's rates, its integrator's region and its ``dt``.
-
-    ``active`` is false where nothing bounds the step (``guard="off"``, or an integrator with
-    no bound for this system): the period then always takes ``substeps`` steps. ``error``:
-    ``(C, p, dt)`` of :func:`error_estimate` where a tolerance is set, else ``None``.
-    """
+    """The rule of one env's periods: its system's rates, its integrator's region, its ``dt`` and
+    its tolerance. ``active`` is false where nothing bounds the step (``guard="off"``, or an
+    integrator with no bound for this system): a period then takes ``substeps`` steps."""
 
     rotation: tuple  # (fn, P): lambda(P, y)
     params: tuple  # (dt, bound, growth, k, p, kd) for step_ratio
@@ -277,21 +280,16 @@ class StepRule:
     active: bool
     error: tuple | None = None  # (C, p, dt) of error_estimate, with a tolerance
     accuracy_text: str = ""  # the accuracy bound in words ("" without a tolerance)
-    # with a tolerance on a system with a pure vector field: rotation is motion_rates' (fn, P),
-    # fn(P, y, u) -> (lambda, mu), and zero_control the u of internal_steps(y, None)
+    # the state's own speed in the estimate: rotation is motion_rates' (fn, P), fn(P, y, u) ->
+    # (lambda, mu, lambda_e); zero_control: the u of a state without one
     motion: bool = False
     zero_control: tuple = ()
-    # with a tolerance and a decaying rate: the system's (fn, Q), Q = (P, c_f / C) (c_f the scheme's
-    # forced_error_constant, 0 if none), fn(Q, y, u, dt, p, lambda_d) -> a in [0, 1], the share of
-    # C (lambda_d h)^p its decaying mode's error is (relaxation_steps); None: a = 1
+    # a decaying mode's share of its error: (fn, Q), fn(Q, y, u, dt, p, lambda_d) -> a in [0, 1]
     share: tuple | None = None
-    # the default accuracy's gate (motion_rates'): (fn, P, limit), fn(P, y) -> Lambda, a cheap
-    # bound of the error's rate, which holds the period within its budget at substeps steps where
-    # Lambda <= limit (forms.gate_limit); a batch tests it first (rbenvs.compiled's gate loop);
-    # None: no gate
+    # the default accuracy's gate: (fn, P, limit), fn(P, y) -> Lambda, a cheap bound of the
+    # error's rate within which substeps steps hold the budget (forms.gate_limit)
     gate: tuple | None = None
-    # with the gate: estimate(Lambda) = C Lambda dt (Lambda h)^p at substeps steps (gated_estimate)
-    gate_estimate: object = None
+    gate_estimate: object = None  # with the gate: Lambda -> C Lambda dt (Lambda h)^p (substeps)
 
     @classmethod
     def build(
@@ -308,10 +306,8 @@ class StepRule:
         gate_steps=None,
     ) -> StepRule:
         """The rule for ``rates`` (the system's :class:`~rbenvs.contracts.GuardRates` for
-        ``region``) at control period ``dt`` under ``guard``; with ``tolerance`` (a relative
-        error over ``horizon`` periods) also the accuracy bound of ``integrator`` (its
-        ``order`` and ``error_constant``). ``gate_steps``: the default accuracy's ``substeps``,
-        with which the rates test a cheap bound first (:func:`motion_rates`' gate)."""
+        ``region``) at ``dt`` under ``guard``; with ``tolerance`` (over ``horizon`` periods) also
+        ``integrator``'s accuracy bound; ``gate_steps``: the default accuracy's ``substeps``."""
         if rates.rotation_bound is not None:  # the system's accuracy bound replaces the scheme's
             bound, growth = rates.rotation_bound, math.inf
         else:
@@ -329,7 +325,7 @@ class StepRule:
             k, error = c / (half * math.log1p(tolerance) / horizon), (c, p, float(dt))
             if dissipation is not None:
                 kd = c / (half * math.log1p(tolerance))
-                share = _mode_share(rates, integrator, c)
+                share = mode_share(rates, integrator, c)
         active = guard != "off" and (
             bound != math.inf or growth != math.inf or dissipation is not None or error is not None
         )
@@ -345,7 +341,7 @@ class StepRule:
             # the state's own speed in the estimate, for a scheme whose leading error is in the
             # phase; a hybrid system keeps the rate alone unless it names the blocks its error is
             # measured on (its contact flags are not)
-            rotation, gate = _motion_rates(rates, system, dt, horizon, p, k, gate_steps)
+            rotation, gate = motion_form(rates, system, dt, horizon, p, k, gate_steps)
         # with the gate, its estimate C L dt (L h)^p at substeps steps (None without)
         gate_estimate = gate and gated_estimate(error[0], p, float(dt), float(dt) / gate_steps)
         step_text = step_d if dissipation is not None else None
@@ -356,10 +352,8 @@ class StepRule:
         return cls(*fields, accuracy, motion, tuple(zero_control), share, gate, gate_estimate)
 
     def gated(self, y):
-        """The default accuracy's gate at the states ``y`` (:attr:`gate`; floats or arrays): where
-        every state lies within the cheap bound ``Lambda``, their periods' estimates ``C Lambda dt
-        (Lambda h)^p`` at ``substeps`` steps (the rates :func:`motion_rates` gives there: the
-        period then takes ``substeps`` steps); else ``None``."""
+        """The default accuracy's gate at ``y`` (floats or arrays): where every state lies within
+        it, their periods' estimates at ``substeps`` steps (which they then take); else ``None``."""
         fn, params, limit = self.gate
         big = fn(params, y)
         return self.gate_estimate(big) if every(big <= limit) else None
@@ -385,22 +379,19 @@ class StepRule:
             return np.where(rate > 0.0, rate, 0.0)
 
     def dissipation_share(self, y, u, rate):
-        """``a`` of :func:`relaxation_steps` at ``y`` under ``u`` with the guard's decaying rate
-        ``rate`` there: the system's declared share of its decaying mode, 1.0 where it declares
-        none; floats or arrays."""
+        """The decaying mode's share ``a`` of its error at ``y`` under ``u`` and ``rate`` (1.0
+        where the system declares none); floats or arrays."""
         if self.share is None:
             return 1.0
         fa, pa = self.share
         return fa(pa, y, u, self.params[0], self.params[4], rate)
 
     def estimate(self, lam, h, lam_d=0.0, a=1.0):
-        """The relative error of a period started at rates ``lam`` (and ``lam_d``, a decaying
-        one, its error's share ``a``) with internal step ``h``: :func:`error_estimate` plus
-        ``C a (lam_d h)^p`` where the system has a decaying rate (``None`` without a tolerance)."""
+        """The relative error of a period started at rates ``lam`` (``lam_d`` a decaying one, ``a``
+        its share) with internal step ``h`` (``None`` without a tolerance; the compiled vector
+        step calls the same functions)."""
         if self.error is None:
             return None
-        # (the compiled vector step's estimate calls the same functions:
-        # rbenvs.compiled.vector_kernel)
         e = (
             motion_error_estimate(self.error, lam, h)
             if self.motion
@@ -434,12 +425,9 @@ class StepRule:
         return f"the tolerance ({self.accuracy_text})"
 
     def plan(self, y, u):
-        """One state's (floats) ``(x, lam, lam_d, a)`` at ``y`` under ``u``: the ratio ``x`` of
-        :meth:`ratio`, the rate(s) of :meth:`rate`, the decaying rate ``lam_d`` of
-        :meth:`dissipation_rate` (0 without one) and its share ``a`` (:meth:`dissipation_share`;
-        1 where ``lam_d`` is 0, whose term is then 0), each evaluated once: the period's count
-        (:meth:`count`) and its error estimate (:meth:`estimate`) come from the same values
-        (compiled: :func:`rbenvs.compiled.plan_kernel`, the same lines as the kernels' count)."""
+        """One state's ``(x, lam, lam_d, a)`` at ``y`` under ``u``, each evaluated once: the
+        period's count (:meth:`count`) and its estimate (:meth:`estimate`) come from the same
+        values (compiled: :func:`rbenvs.compiled.plan_kernel`)."""
         fn, p = self.rotation
         if self.motion:
             lam = fn(p, y, self.zero_control if u is None else u)
@@ -497,20 +485,17 @@ class StepRule:
         return x
 
     def idle(self, substeps: int) -> bool:
-        """True when no state inside the observation bounds can need more than ``substeps``
-        steps (then no check needs to run: the plain loop is exact)."""
+        """No state inside the observation bounds can need more than ``substeps`` steps."""
         return self._bounded(self.params, substeps)
 
     def stable(self, substeps: int) -> bool:
-        """True when the stability bound alone can never ask for more than ``substeps`` steps
-        inside the observation bounds (:meth:`idle` without the accuracy term): with a
-        :attr:`gate`, a batch's states within it then take ``substeps`` unevaluated."""
+        """:meth:`idle` without the accuracy term (a batch's states within the gate then take
+        ``substeps`` unevaluated)."""
         dt, bound, growth = self.params[:3]
         return self._bounded((dt, bound, growth, 0.0, 1.0, 0.0), substeps)
 
     def _bounded(self, params, substeps: int) -> bool:
-        """Whether :func:`step_ratio` with ``params`` stays within ``substeps`` up to the rate's
-        ceiling."""
+        """:func:`step_ratio` with ``params`` within ``substeps`` up to the rate's ceiling."""
         if not self.active:
             return True
         if self.dissipation is not None:
@@ -524,8 +509,8 @@ class StepRule:
         return math.ceil(x) if x <= MAX_INTERNAL_STEPS else MAX_INTERNAL_STEPS + 1
 
     def steps(self, y, u, substeps: int):
-        """``max(substeps, ceil(x))``, or ``MAX_INTERNAL_STEPS + 1`` (refused: a numerical
-        failure) for a non-finite or absurd ``x``: an int, or an int array for a batch."""
+        """``max(substeps, ceil(x))``, or ``MAX_INTERNAL_STEPS + 1`` (a numerical failure) for a
+        non-finite or absurd ``x``: an int, or an int array for a batch."""
         if not self.active:
             return substeps
         x = self.ratio(y, u)
@@ -544,46 +529,6 @@ class StepRule:
                 MAX_INTERNAL_STEPS + 1,
             )
         return np.maximum(substeps, n).astype(np.int64)
-
-
-def _mode_share(rates, integrator, c: float):
-    """The decaying mode's share of its error (``StepRule.share``): the system's declared
-    ``(fn, P)`` with the scheme's forced-mode error constant over ``C`` (0: none) added to ``P``;
-    ``None`` where the system declares none (the share is then 1)."""
-    if rates.dissipation_share is None:
-        return None
-    fn, params = rates.dissipation_share
-    forced = integrator.forced_error_constant
-    return fn, (params, 0.0 if forced is None else float(forced) / c)
-
-
-def _motion_rates(rates, system, dt: float, horizon: int, p: float, k: float, gate_steps):
-    """``(rotation, gate)`` of a rule whose estimate takes the state's own speed: the generated
-    :func:`motion_rates` with its parameters, and the default accuracy's gate ``(fn, P, limit)``
-    (``None`` without ``gate_steps``, or with rotating blocks, whose carried term no cheap bound
-    covers)."""
-    rhs, layout = system.kernel_rhs, system.layout
-    names = rates.error_blocks if rates.error_blocks is not None else tuple(layout)
-    blocks = tuple(tuple(layout[n]) for n in names)
-    rotating = tuple((tuple(layout[q]), tuple(layout[d])) for q, d in rates.rotating_blocks)
-    extra, tail, gate = {}, (), None
-    if rotating:  # (span: the mean time from a period to the horizon's end)
-        extra.update(rotating=rotating, order=p, span=(float(horizon) + 1.0) * float(dt) / 2.0)
-    if rates.speed is not None:  # the system's bound of its speed over a period
-        extra.update(speed_bound=rates.speed[0], dt=float(dt))
-        tail = (rates.speed[1],)
-    sharp = rates.accuracy is not None  # the system's sharper rate of the error, lambda_e
-    if gate_steps is not None and not rotating and (not sharp or rates.accuracy_bound is not None):
-        # C L dt (L dt / substeps)^p <= budget, i.e. (L dt)^(p + 1) <= substeps^p / k, solved
-        # once for its largest L (L: the system's cheap bound of lambda_e, else lambda)
-        fn, params = rates.accuracy_bound if sharp else rates.rotation
-        limit = gate_limit(float(dt), p + 1.0, float(gate_steps) ** p / k)
-        extra.update(gate=True, gate_rate=fn if sharp else None)
-        tail += ((limit, params if sharp else ()),)
-        gate = (fn, params, limit)
-    accuracy, accuracy_p = rates.accuracy if sharp else (None, ())
-    rate = motion_rates(rates.rotation[0], rhs[0], blocks, accuracy, **extra)
-    return (rate, (rates.rotation[1], rhs[1], accuracy_p) + tail), gate
 
 
 def describe(rates, bound, growth, step_d, integrator, tolerance, horizon, motion, share):
@@ -619,3 +564,211 @@ def describe(rates, bound, growth, step_d, integrator, tolerance, horizon, motio
         accuracy += "; a: the decaying mode's share of the error"
     accuracy += ")"
     return f"{text}; {accuracy}", accuracy
+
+
+# --- the choice of scheme and the refusals at the start ---
+
+
+def cheapest_scheme(schemes, system, tolerance, model_with, speed: float, dissipation: float):
+    """``integrator="auto"``: of the ``schemes`` that ``tolerance=`` and ``system`` take, the one
+    whose steps at the fastest start (:func:`start_steps`) times its evaluations a step cost the
+    least (ties: the first); ``model_with(scheme)``: the env's model with that scheme."""
+    if tolerance is None:
+        raise ValueError(
+            "integrator='auto' chooses the scheme that meets tolerance= at the least cost: pass "
+            "tolerance= (a relative error per episode)"
+        )
+    best = None
+    for scheme in schemes:
+        if not takes_tolerance(type(scheme)) or not scheme.evaluations:
+            continue
+        if not scheme.supports(system):
+            continue
+        model = model_with(scheme)
+        x = start_steps(model, speed, dissipation)[0]
+        steps = max(model.substeps, math.ceil(x)) if x <= MAX_INTERNAL_STEPS else math.inf
+        cost = steps * scheme.evaluations
+        if best is None or cost < best[0]:
+            best = (cost, scheme)
+    if best is None:
+        raise ValueError(
+            f"integrator='auto' found no scheme with an error constant for {type(system).__name__}"
+        )
+    return best[1]
+
+
+def start_steps(model, speed: float, dissipation: float = 0.0) -> tuple[float, str, bool]:
+    """``(x, rule, by_tolerance)``: the steps per period (``ceil(x)``) the rule asks for at the
+    fastest start (``speed`` bounds ``|Omega|``, ``dissipation`` the decaying rate), the rule in
+    words, and whether only the tolerance asks for more than ``MAX_INTERNAL_STEPS`` (a scheme
+    without a bound counts one radian of the fastest rate per step)."""
+    integrator, dt = model.integrator, model.dt
+    region = integrator.region
+    if not region.bounded:
+        region = dataclasses.replace(
+            region, rotation=1.0, reason="one radian of the fastest rate per step"
+        )
+    rates = model.system.guard_rates(region, speed)
+    rule = StepRule.build(
+        rates, region, dt, "subdivide", integrator, model.tolerance, model.horizon
+    )
+    x = step_ratio(rule.params, rates.ceiling)
+    d_stable = 0.0
+    if rule.dissipation is not None and dissipation > 0.0:
+        d_stable = dt / (rule.dissipation_step / dissipation)
+        # (the accuracy term 0 without a tolerance; the mode's full share: no state yet)
+        x = max(x, d_stable, relaxation_steps(rule.params, dissipation, 1.0))
+    if rule.error is None:
+        return x, rule.text, False
+    if not max(stability_ratio(*rule.params[:3], rates.ceiling), d_stable) <= MAX_INTERNAL_STEPS:
+        return x, rule.text, False
+    # only the tolerance asks for more: say so, with the reason
+    p = integrator.order
+    return (
+        x,
+        f"to keep the error of {model.horizon} periods within it ({rule.accuracy_text}): at a "
+        f"fixed step an order-{p} scheme's error grows without bound, like lambda T (lambda "
+        f"h)^{p}, so the steps a tolerance costs grow like (lambda T)^{(p + 1) / p:.3g} / "
+        f"tolerance^{1 / p:.3g}; raise tolerance, lower tolerance_horizon, or use a "
+        "higher-order integrator",
+        True,
+    )
+
+
+def require_resolvable(model, speed, dissipation, env_name: str, rate_sources: str) -> None:
+    """Refuse at construction a period no run could resolve (more than ``MAX_INTERNAL_STEPS``
+    steps at the start: ``dt=1e300``, a rate far above the step), naming the keywords that set
+    the rate (``rate_sources``) or the tolerance; ``guard="off"`` opts out."""
+    if model.guard == "off":
+        return
+    x, rule, by_tolerance = start_steps(model, speed, dissipation)
+    if x <= MAX_INTERNAL_STEPS:
+        return
+    name = model.integrator.name
+    if by_tolerance:
+        default = (
+            f" (tolerance='default': {env_name}'s default accuracy; tolerance=None runs "
+            "unchecked, the stability bound alone)"
+            if model.accuracy != "explicit"
+            else ""
+        )
+        raise ValueError(
+            f"tolerance={model.tolerance!r}{default} cannot be met: at the start the integrator "
+            f"{name!r} needs {x:.3g} internal steps per control period, more than "
+            f"MAX_INTERNAL_STEPS = {MAX_INTERNAL_STEPS}, {rule}"
+        )
+    raise ValueError(
+        f"dt={model.dt!r} s cannot be resolved: at the start the integrator {name!r} needs "
+        f"{x:.3g} internal steps per control period ({rule}), more than MAX_INTERNAL_STEPS = "
+        f"{MAX_INTERNAL_STEPS}; lower dt, or check {rate_sources}, which set the fastest rate"
+    )
+
+
+# --- the measured check: a companion run at twice the step ---
+
+
+def tolerance_blocks(system) -> tuple:
+    """The ``(start, stop)`` blocks of the state a tolerance is measured on: the layout's, less
+    a hybrid system's horizontal position (no scale of the motion), contact flags and hops."""
+    return tuple(
+        tuple(span)
+        for name, span in system.layout.items()
+        if not (system.hybrid and name in ("position", "contact", "hops"))
+    )
+
+
+def companion_ratio(p: float) -> float:
+    """``2^p - 1``: the companion's global error over the main run's, less one (order ``p``)."""
+    return 2.0 ** float(p) - 1.0
+
+
+def companion_steps(n):
+    """The companion's steps beside a checked period of ``n`` (even) steps (ints or arrays)."""
+    return n // 2
+
+
+class GlobalErrorCheck:
+    """The measured check of one env (or one batch): a companion run that takes every period's
+    even count ``n`` of steps as ``n / 2`` steps of twice the size. An order-``p`` scheme's
+    companion commits ``2^p`` times the run's local error, so their difference ``D`` is ``2^p -
+    1`` times the run's global error, amplification included; reported is ``MARGIN D / (2^p -
+    1)``, and where it passes the tolerance the episode ends as a numerical failure at the last
+    state within it (why even counts, and the checks against exact solutions: docs/accuracy.md,
+    "Unstable motions")."""
+
+    __slots__ = ("engine", "blocks", "ratio", "runs", "periods")
+
+    def __init__(self, engine):
+        self.engine = engine
+        self.blocks = tolerance_blocks(engine.system)
+        self.ratio = companion_ratio(engine.integrator.order)
+        self.runs = None  # the companion's state and compensation (yc, cc)
+        self.periods = 0
+
+    def restart(self, y, mask=None, engine=None):
+        """The companion starts at ``y`` (a batch: at the rows ``mask`` of ``y``, or all; with
+        ``param_ranges`` beside a new episode's ``engine``)."""
+        if engine is not None:
+            self.engine = engine
+        if mask is None or self.runs is None:
+            self.runs = (y, self.engine.fresh_comp)
+            self.periods = (
+                np.zeros(len(y[0]), dtype=np.int64) if isinstance(y[0], np.ndarray) else 0
+            )
+            return
+        yc, cc = self.runs
+        yc = tuple(np.where(mask, c, r) for c, r in zip(y, yc))
+        if cc is not None:
+            cc = tuple(np.where(mask, 0.0, c) for c in cc)
+        self.runs = (yc, cc)
+        self.periods = np.where(mask, 0, self.periods)
+
+    def period(self, y, u, n):
+        """After a period that took the run to ``y`` in ``n`` steps under ``u``: the companion's
+        period, and the global error estimate of ``y`` (floats, or arrays for a batch)."""
+        self.runs = self.engine.companion(self.runs[0], u, n, self.runs[1])
+        self.periods = self.periods + 1
+        return MARGIN * relative_difference(self.blocks, y, self.runs[0]) / self.ratio
+
+    def batch_period(self, y, u, h, restart):
+        """A batch's :meth:`period` beside the one that took the states to ``y`` under ``u`` in
+        steps ``h`` (0 where a sub-env restarts): ``(estimates, inaccurate)``, the mask of
+        sub-envs whose estimate passed the tolerance (``None`` where none did)."""
+        counts = np.rint(self.engine.dt / np.broadcast_to(h, np.shape(y[0]))).astype(np.int64)
+        with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+            estimates = np.where(restart, 0.0, self.period(y, u, counts))
+            inaccurate = estimates > self.engine.tolerance
+        return estimates, (inaccurate if inaccurate.any() else None)
+
+    def step_one(self, y0, a, plain):
+        """The engine's :meth:`~rbenvs.core.step.Engine.step_one` with the companion's period
+        after it: ``info["global_error_estimate"]``, or the episode's end at ``y0``."""
+        engine = self.engine
+        comp0 = engine.comp  # (the run's compensation at y0: kept with y0 where the period is not)
+        out = engine.step_one(y0, a, plain)
+        info = out[4]
+        if info["numerical_failure"]:
+            return out
+        n = int(round(engine.dt / info["internal_step"]))
+        runs0 = self.runs
+        e = self.period(out[0], out[5], n)
+        if e > engine.tolerance:  # the companion and the run stay with the state kept
+            self.runs, self.periods = runs0, self.periods - 1
+            return engine.inaccurate_one(
+                y0, a, info["internal_step"], plain, e, self.periods + 1, comp0
+            )
+        info["global_error_estimate"] = e
+        return out
+
+
+def inaccurate_text(estimate, periods, tolerance, dt) -> str:
+    """Why an episode ended where its global error ``estimate`` passed ``tolerance`` after
+    ``periods`` control periods of ``dt``, and what holds it longer (the warning's words)."""
+    return (
+        f"the global error estimate {float(estimate):.3g} passed tolerance={tolerance!r} after "
+        f"{int(periods)} periods ({int(periods) * dt:.6g} s; tolerance_check: a companion run at "
+        "twice the step measures the error the state carries, errors the motion amplified "
+        "included, which the steps' estimate does not budget for; more steps per period hold it "
+        "longer: a tighter tolerance= or substeps= (the least count), and 'rbenvs bench accuracy "
+        "--tolerance' shows the counts that hold each shipped scene)"
+    )

@@ -30,6 +30,9 @@ __all__ = [
     "step_ratio",
     "gate_limit",
     "gated_estimate",
+    "relative_difference",
+    "mode_share",
+    "motion_form",
 ]
 
 
@@ -352,3 +355,87 @@ def step_ratio(g, lam):
     if k != 0.0:
         x = maximum(x, accuracy_steps(k, p, dt * lam))
     return x
+
+
+def block_sums(y, yc, lo, hi):
+    """``(|y_b - yc_b|^2, |y_b|^2)`` over the components ``lo:hi`` (floats or arrays: the same
+    operations in the same order)."""
+    d2 = s2 = 0.0
+    for i in range(lo, hi):
+        d = y[i] - yc[i]
+        d2 = d2 + d * d
+        s2 = s2 + y[i] * y[i]
+    return d2, s2
+
+
+def block_difference(blocks, y, yc):
+    """:func:`relative_difference` of one state (floats). A block whose difference is NaN (a
+    companion that went non-finite beside a finite run)
+    counts as ``inf``: the check cannot vouch for the state, so its estimate passes any
+    tolerance."""
+    out = 0.0
+    for lo, hi in blocks:
+        d2, s2 = block_sums(y, yc, lo, hi)
+        r = 0.0 if d2 == 0.0 else (math.sqrt(d2 / s2) if s2 > 0.0 else math.inf)
+        r = r if r == r else math.inf
+        out = r if r > out else out
+    return out
+
+
+def relative_difference(blocks, y, yc):
+    """``max_b |y_b - yc_b| / |y_b|`` over ``blocks`` (a block of norm 0 in both: 0; a NaN
+    difference: ``inf``); one state (a float: :func:`block_difference`) or a batch (an array,
+    the same rule element by element)."""
+    if not isinstance(y[0], np.ndarray):
+        return block_difference(blocks, y, yc)
+    out = 0.0
+    for lo, hi in blocks:
+        d2, s2 = block_sums(y, yc, lo, hi)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            r = np.where(
+                d2 == 0.0,
+                0.0,
+                np.where(s2 > 0.0, np.sqrt(d2 / np.where(s2 > 0.0, s2, 1.0)), np.inf),
+            )
+        out = np.maximum(out, np.where(r == r, r, np.inf))
+    return out
+
+
+def mode_share(rates, integrator, c: float):
+    """The decaying mode's share of its error (``StepRule.share``): the system's declared
+    ``(fn, P)`` with the scheme's forced-mode error constant over ``C`` (0: none) added to ``P``;
+    ``None`` where the system declares none (the share is then 1)."""
+    if rates.dissipation_share is None:
+        return None
+    fn, params = rates.dissipation_share
+    forced = integrator.forced_error_constant
+    return fn, (params, 0.0 if forced is None else float(forced) / c)
+
+
+def motion_form(rates, system, dt: float, horizon: int, p: float, k: float, gate_steps):
+    """``(rotation, gate)`` of a rule whose estimate takes the state's own speed: the generated
+    :func:`motion_rates` with its parameters, and the default accuracy's gate ``(fn, P, limit)``
+    (``None`` without ``gate_steps``, or with rotating blocks, whose carried term no cheap bound
+    covers)."""
+    rhs, layout = system.kernel_rhs, system.layout
+    names = rates.error_blocks if rates.error_blocks is not None else tuple(layout)
+    blocks = tuple(tuple(layout[n]) for n in names)
+    rotating = tuple((tuple(layout[q]), tuple(layout[d])) for q, d in rates.rotating_blocks)
+    extra, tail, gate = {}, (), None
+    if rotating:  # (span: the mean time from a period to the horizon's end)
+        extra.update(rotating=rotating, order=p, span=(float(horizon) + 1.0) * float(dt) / 2.0)
+    if rates.speed is not None:  # the system's bound of its speed over a period
+        extra.update(speed_bound=rates.speed[0], dt=float(dt))
+        tail = (rates.speed[1],)
+    sharp = rates.accuracy is not None  # the system's sharper rate of the error, lambda_e
+    if gate_steps is not None and not rotating and (not sharp or rates.accuracy_bound is not None):
+        # C L dt (L dt / substeps)^p <= budget, i.e. (L dt)^(p + 1) <= substeps^p / k, solved
+        # once for its largest L (L: the system's cheap bound of lambda_e, else lambda)
+        fn, params = rates.accuracy_bound if sharp else rates.rotation
+        limit = gate_limit(float(dt), p + 1.0, float(gate_steps) ** p / k)
+        extra.update(gate=True, gate_rate=fn if sharp else None)
+        tail += ((limit, params if sharp else ()),)
+        gate = (fn, params, limit)
+    accuracy, accuracy_p = rates.accuracy if sharp else (None, ())
+    rate = motion_rates(rates.rotation[0], rhs[0], blocks, accuracy, **extra)
+    return (rate, (rates.rotation[1], rhs[1], accuracy_p) + tail), gate

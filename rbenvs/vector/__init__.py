@@ -79,7 +79,7 @@ from ..core.reasons import ReasonPool
 from ..core.step import action_columns
 from ..dynamics.validation import require_bool, require_int_at_least
 from ..envs.base import require_compiled
-from ..stepsize.batch import BatchAccuracy
+from .accuracy import BatchAccuracy
 from .arguments import batch_compiled, batch_threads, require_autoreset_mode, require_known
 from .compiled_path import CompiledPath
 from .ends import BatchEnds
@@ -245,7 +245,7 @@ class RigidBodyVectorEnv(VectorEnv):
 
     def _step_estimated(self, actions):
         """The step of ``actions`` (those that act) with each period's error estimate in its info
-        (:class:`rbenvs.stepsize.batch.BatchAccuracy`)."""
+        (:class:`rbenvs.vector.accuracy.BatchAccuracy`)."""
         accuracy = self._accuracy
         if not accuracy.estimated:
             return accuracy.unestimated_report(self._step(actions))

@@ -4,7 +4,7 @@ Each sub-env draws its episode's parameters from its own generator, as the singl
 ``s + i`` draws them, and gets that episode's engine (:meth:`rbenvs.envs.base.RigidBodyEnv.
 episode_env`); its periods are the single env's very step on floats, one sub-env at a time (no
 batched or compiled step of a model per row exists), with a tolerance's estimate and, with
-``tolerance_check``, its own companion (:class:`rbenvs.stepsize.check.GlobalErrorCheck`).
+``tolerance_check``, its own companion (:class:`rbenvs.stepsize.controller.GlobalErrorCheck`).
 :class:`EpisodeBatch` holds those engines and returns the batch's arrays; the vector env does
 the rest of its step (info, clocks, autoreset) as on its other paths.
 """
@@ -15,7 +15,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ..stepsize.check import GlobalErrorCheck
+from ..stepsize.controller import GlobalErrorCheck
 
 __all__ = ["EpisodeBatch", "EpisodeStep"]
 

@@ -31,7 +31,8 @@ import warnings
 import numpy as np
 
 from ..oracles import exact_solution
-from ..stepsize.check import relative_difference, tolerance_blocks
+from ..stepsize.controller import tolerance_blocks
+from ..stepsize.forms import relative_difference
 from .common import Check
 from .free_body import _random_inertia
 

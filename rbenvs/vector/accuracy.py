@@ -1,29 +1,23 @@
-"""The step controller's report over a vector env's batch (:mod:`rbenvs.stepsize.controller`).
-
-Every step of a vector env reports each sub-env's ``info["error_estimate"]`` (with a tolerance:
-the estimated relative error of its period, 0 where no period ran; without one NaN under a
-``False`` mask, the single env's ``None``) and, with ``tolerance_check``,
-``info["global_error_estimate"]`` from the batch's companion run. The estimates come from the
-step where its path writes them (the compiled vector step, from the rates at each period's
-start; with ``param_ranges`` each sub-env's episode engine), from the default accuracy's gate,
-or from the rates of the states before the step (the numpy path): :class:`BatchAccuracy` holds
-what a step leaves for its report and writes the report, so that every path reports alike and
-sub-env ``i`` reports what a single env seeded ``s + i`` reports.
-"""
+"""A vector env's accuracy report (the step controller's, :mod:`rbenvs.stepsize.controller`):
+each sub-env's ``info["error_estimate"]`` and ``info["global_error_estimate"]``, from whichever
+path ran the step, so that every path reports alike."""
 
 from __future__ import annotations
 
 import numpy as np
 
-from .check import GlobalErrorCheck
+from ..stepsize.controller import GlobalErrorCheck
 
 __all__ = ["BatchAccuracy"]
 
 
 class BatchAccuracy:
-    """The report of ``n`` sub-envs stepped by ``engine`` (its rule and tolerance); ``checked``:
-    ``tolerance_check``; ``companion``: the batch's own companion run (the numpy path; with
-    ``param_ranges`` each sub-env's episode has one of its own instead)."""
+    """A vector env's report of ``n`` sub-envs stepped by ``engine``: each sub-env's
+    ``info["error_estimate"]`` (NaN under a ``False`` mask without a tolerance) and, with
+    ``tolerance_check`` (``checked``), ``info["global_error_estimate"]``, from what each step's
+    path wrote (the compiled step, each episode's engine with ``param_ranges``), the gate, or the
+    rates before the step: sub-env ``i`` reports what a single env seeded ``s + i`` reports.
+    ``companion``: the batch's own companion run (the numpy path)."""
 
     def __init__(self, engine, n: int, checked: bool, companion: bool):
         self.engine, self.n = engine, n
@@ -40,8 +34,7 @@ class BatchAccuracy:
             array.flags.writeable = False
 
     def reset_info(self, info) -> None:
-        """A reset's keys: no period yet, so 0 with a tolerance (the single env's reset), else
-        not estimated."""
+        """A reset's keys: 0 with a tolerance (no period yet), else not estimated."""
         info["error_estimate"] = np.zeros(self.n) if self.estimated else self.unestimated
         info["_error_estimate"] = self.true if self.estimated else self.false
         if self.checked:
@@ -56,23 +49,17 @@ class BatchAccuracy:
             self.check.restart(y, mask)
 
     def companion_period(self, y, u, h, restart):
-        """The batch companion's period beside the period that took the states to ``y`` under
-        ``u`` with internal steps ``h`` (a restarting sub-env's is discarded: it restarts): the
-        sub-envs whose global error estimate passed the tolerance (a mask), or ``None``."""
-        engine = self.engine
-        counts = np.rint(engine.dt / np.broadcast_to(h, (self.n,))).astype(np.int64)
-        with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
-            self.global_ = np.where(restart, 0.0, self.check.period(y, u, counts))
-            inaccurate = self.global_ > engine.tolerance
-        return inaccurate if inaccurate.any() else None
+        """The batch companion's period (:meth:`GlobalErrorCheck.batch_period`): the mask of
+        sub-envs whose estimate passed the tolerance, or ``None``."""
+        self.global_, inaccurate = self.check.batch_period(y, u, h, restart)
+        return inaccurate
 
     def begin(self) -> None:
         """A step begins: nothing written yet."""
         self.estimates = None
 
     def wrote(self, estimates, global_=None) -> None:
-        """The step's path wrote its ``estimates`` (and, with its own companions, the global
-        ``global_``)."""
+        """The step's path wrote its ``estimates`` (and, with its own companions, ``global_``)."""
         self.estimates = estimates
         if global_ is not None:
             self.global_ = global_
@@ -83,9 +70,7 @@ class BatchAccuracy:
             self.period_h = np.array(h, dtype=np.float64)
 
     def gated(self, y):
-        """The default accuracy's gate over the batch ``y`` (:meth:`.controller.StepRule.gated`):
-        every sub-env's estimate where each one lies within it (its periods then take
-        ``substeps`` unchecked), else ``None``."""
+        """:meth:`StepRule.gated` over the batch ``y``: every sub-env's estimate, or ``None``."""
         gated = self.engine.gated(y)
         if gated is not None and np.shape(gated) != (self.n,):  # (a batch's is its own)
             gated = np.full(self.n, gated, dtype=np.float64)
@@ -102,9 +87,8 @@ class BatchAccuracy:
 
     def report(self, out, restart, estimate=None, control=None, y0=None, y2d0=None):
         """``out`` (a step's five values) with each period's ``estimate`` in its info: the one
-        the step wrote (:attr:`estimates`) or the gate's, else from the rates of the states
-        ``y0`` (``y2d0``: their ``(dim, n)`` array) before the step under ``control``; 0 where
-        no period ran (``restart``; a SAME_STEP's ended periods' go with their final info)."""
+        the step wrote or the gate's, else from the rates of the states ``y0`` (``y2d0``: as a
+        ``(dim, n)`` array) under ``control``; 0 where no period ran (``restart``)."""
         obs, reward, terminated, truncated, info = out
         if estimate is None:
             estimate = self.estimates
