@@ -385,12 +385,15 @@ class TippeForms(NamedTuple):
     state: Callable
 
 
-@cache
-def _state_forms(rolling: bool, flight: bool) -> tuple:
-    """The state functions of :class:`TippeForms` for one layout (no friction law in them). The
-    layout is a constant of each function (``rolling``, ``flight``, the offsets ``Q`` of the
-    quaternion and ``W`` of ``Omega``): compiled code keeps the one branch that applies."""
-    Q, W = (6, 10) if flight else ((2, 6) if rolling else (4, 8))
+def _offsets(rolling: bool, flight: bool) -> tuple:
+    """``(Q, W)``: where a layout's quaternion and ``Omega`` start, constants of each state
+    function (compiled code keeps the one branch that applies)."""
+    return (6, 10) if flight else ((2, 6) if rolling else (4, 8))
+
+
+def _kinematic_forms(rolling: bool, flight: bool) -> tuple:
+    """``(frame, angular_velocity, velocity, height, gap)`` of one layout."""
+    Q, W = _offsets(rolling, flight)
 
     @jitable
     def frame(p, y):
@@ -423,6 +426,13 @@ def _state_forms(rolling: bool, flight: bool) -> tuple:
             return 0.0 * y[0]
         return y[2] + p[1] * frame(p, y)[8] - p[0]
 
+    return frame, angular_velocity, velocity, height, gap
+
+
+def _measure_forms(rolling: bool, flight: bool, frame, velocity, height) -> tuple:
+    """``(slip_speed, energy, jellett, tilt, spin)`` of one layout, from its kinematic forms."""
+    W = _offsets(rolling, flight)[1]
+
     @jitable
     def slip_speed(p, y):
         if rolling:
@@ -454,6 +464,12 @@ def _state_forms(rolling: bool, flight: bool) -> tuple:
     def spin(p, y):
         return y[W + 2]
 
+    return slip_speed, energy, jellett, tilt, spin
+
+
+def _state_readouts_form(flight: bool, energy, jellett, tilt, slip_speed, gap, spin):
+    """``state_readouts(P, y, n, fired)``: the read-outs given the normal force ``n``."""
+
     @jitable
     def state_readouts(p, y, n, fired):
         """The read-outs with the normal force ``n`` solved (see :meth:`TippeTop.readouts`)."""
@@ -477,9 +493,11 @@ def _state_forms(rolling: bool, flight: bool) -> tuple:
             spin(p, y),
         )
 
-    normalize = (
-        flight_normalize if flight else (rolling_normalize if rolling else sliding_normalize)
-    )
+    return state_readouts
+
+
+def _start_form(rolling: bool, flight: bool, normalize):
+    """``state(P, x, y, q, w, v=None)``: a layout's components from a top's motion (starts)."""
 
     @jitable
     def state(p, x, y0, q, w, v=None):
@@ -500,49 +518,40 @@ def _state_forms(rolling: bool, flight: bool) -> tuple:
             return normalize(p, (x, y0, zero, vx, vy, zero) + q + w + (zero + 1.0, zero))
         return (x, y0, vx, vy) + q + w
 
-    return (
-        frame,
-        angular_velocity,
-        velocity,
-        height,
-        gap,
-        slip_speed,
-        energy,
-        jellett,
-        tilt,
-        spin,
-        normalize,
-        state,
-    ), state_readouts
+    return state
 
 
 @cache
-def pure_forms(coefficient, stiffness, rolling: bool, flight: bool) -> TippeForms:
-    """The :class:`TippeForms` of one combination: the friction law's pure ``coefficient(mu, s1,
-    s2, s3, eps)`` and ``stiffness(mu, N, mobility, eps)`` (:mod:`rbenvs.dynamics.contact`;
-    :func:`~rbenvs.dynamics.contact.no_friction` and ``None`` without friction), ``rolling`` and
-    ``flight``. Made once per combination (the functions close over the law's functions, which
-    compiled code then calls as constants)."""
-    (
-        (
-            frame,
-            angular_velocity,
-            velocity,
-            height,
-            gap,
-            slip_speed,
-            energy,
-            jellett,
-            tilt,
-            spin,
-            normalize,
-            state,
-        ),
-        state_readouts,
-    ) = _state_forms(rolling, flight)
-    derivative = (
-        flight_derivative if flight else (rolling_derivative if rolling else sliding_derivative)
+def _state_forms(rolling: bool, flight: bool) -> tuple:
+    """``(fields, state_readouts)``: the state functions of :class:`TippeForms` for one layout
+    by field name (no friction law in them) and the read-outs given ``N``."""
+    frame, angular_velocity, velocity, height, gap = _kinematic_forms(rolling, flight)
+    slip_speed, energy, jellett, tilt, spin = _measure_forms(
+        rolling, flight, frame, velocity, height
     )
+    normalize = (
+        flight_normalize if flight else (rolling_normalize if rolling else sliding_normalize)
+    )
+    fields = dict(
+        frame=frame,
+        angular_velocity=angular_velocity,
+        velocity=velocity,
+        height=height,
+        gap=gap,
+        slip_speed=slip_speed,
+        energy=energy,
+        jellett=jellett,
+        tilt=tilt,
+        spin=spin,
+        normalize=normalize,
+        state=_start_form(rolling, flight, normalize),
+    )
+    return fields, _state_readouts_form(flight, energy, jellett, tilt, slip_speed, gap, spin)
+
+
+def _sliding_contact_form(coefficient, flight: bool):
+    """``sliding_contact(P, y, u)``: the contact tuple of a gliding or frictionless top under the
+    law's pure ``coefficient`` (with ``flight``: zero off the table)."""
 
     @jitable
     def sliding_contact(p, y, u):
@@ -593,7 +602,12 @@ def pure_forms(coefficient, stiffness, rolling: bool, flight: bool) -> TippeForm
             vz,
         )
 
-    contact = rolling_contact if rolling else sliding_contact
+    return sliding_contact
+
+
+def _contact_forms(contact, derivative, state_readouts) -> dict:
+    """The fields ``rhs``, ``rhs_normal``, ``normal`` and ``readouts`` of :class:`TippeForms`:
+    each one contact solve."""
 
     @jitable
     def rhs(p, y, u):
@@ -612,38 +626,43 @@ def pure_forms(coefficient, stiffness, rolling: bool, flight: bool) -> TippeForm
     def readouts(p, y, u, fired):
         return state_readouts(p, y, contact(p, y, u)[0], fired)
 
-    friction_rate = None
-    if stiffness is not None:
+    return dict(rhs=rhs, rhs_normal=rhs_normal, normal=normal, readouts=readouts)
 
-        @jitable
-        def friction_rate(p, y, u):
-            """The guard's ``lambda_d`` [1/s]: the law's stiffness at twice ``max(m g, N)``
-            (:meth:`TippeTop.friction_stiffness`) and ``u``'s friction coefficient."""
-            m, g, mu0, eps, mobility = p[2], p[3], p[6], p[7], p[8]
-            mu = mu0 if u is None else u[2]
-            # np.maximum on floats too (an IEEE max that keeps a NaN, as on arrays)
-            load = np.maximum(m * g, contact(p, y, u)[0])
-            return stiffness(mu, 2.0 * load, mobility, eps)
 
-    forms = TippeForms(
-        frame,
-        angular_velocity,
-        velocity,
-        height,
-        gap,
-        slip_speed,
-        energy,
-        jellett,
-        tilt,
-        spin,
-        normalize,
-        contact,
-        derivative,
-        rhs,
-        rhs_normal,
-        normal,
-        readouts,
-        friction_rate,
-        state,
+def _friction_rate_form(contact, stiffness):
+    """``friction_rate(P, y, u)``: the guard's ``lambda_d`` of the law's pure ``stiffness``."""
+
+    @jitable
+    def friction_rate(p, y, u):
+        """The guard's ``lambda_d`` [1/s]: the law's stiffness at twice ``max(m g, N)``
+        (:meth:`TippeTop.friction_stiffness`) and ``u``'s friction coefficient."""
+        m, g, mu0, eps, mobility = p[2], p[3], p[6], p[7], p[8]
+        mu = mu0 if u is None else u[2]
+        # np.maximum on floats too (an IEEE max that keeps a NaN, as on arrays)
+        load = np.maximum(m * g, contact(p, y, u)[0])
+        return stiffness(mu, 2.0 * load, mobility, eps)
+
+    return friction_rate
+
+
+@cache
+def pure_forms(coefficient, stiffness, rolling: bool, flight: bool) -> TippeForms:
+    """The :class:`TippeForms` of one combination: the friction law's pure ``coefficient(mu, s1,
+    s2, s3, eps)`` and ``stiffness(mu, N, mobility, eps)`` (:mod:`rbenvs.dynamics.contact`;
+    :func:`~rbenvs.dynamics.contact.no_friction` and ``None`` without friction), ``rolling`` and
+    ``flight``. Made once per combination (the functions close over the law's functions, which
+    compiled code then calls as constants)."""
+    fields, state_readouts = _state_forms(rolling, flight)
+    derivative = (
+        flight_derivative if flight else (rolling_derivative if rolling else sliding_derivative)
     )
-    return forms
+    sliding_contact = _sliding_contact_form(coefficient, flight)
+    contact = rolling_contact if rolling else sliding_contact
+    friction_rate = None if stiffness is None else _friction_rate_form(contact, stiffness)
+    return TippeForms(
+        contact=contact,
+        derivative=derivative,
+        friction_rate=friction_rate,
+        **_contact_forms(contact, derivative, state_readouts),
+        **fields,
+    )

@@ -159,8 +159,26 @@ def implicit_forms(
     the law's (:attr:`~rbenvs.dynamics.contact.FrictionLaw.saturates`), which ``share`` reads."""
     forms = pure_forms(coefficient, stiffness, rolling, flight)
     contact, vector_field = forms.contact, forms.rhs
-    Q, W, V = (6, 10, 3) if flight else ((2, 6, 0) if rolling else (4, 8, 2))
+    layout = (6, 10, 3) if flight else ((2, 6, 0) if rolling else (4, 8, 2))
     frictionless = slope is None or rolling
+    table_slip = _table_slip_form(layout)
+    slip_change = _slip_change_form(layout)
+    factor = _factor_form(layout, frictionless, coefficient, slope, contact, table_slip)
+    solve = _solve_form(layout, frictionless, flight, slip_change)
+    rate = accuracy_rate = share = None
+    if stiffness is not None and not rolling:
+        rate_at, rate = _rate_forms(layout, stiffness, contact)
+        accuracy_rate = _accuracy_rate_form(layout, rate)
+        slip_rates = _slip_rates_form(layout, table_slip, slip_change, vector_field)
+        ratio = _stiffness_ratio_form(coefficient)
+        share = _share_form(layout, slip_rates, ratio, rate_at, saturates)
+    return ImplicitForms(factor, solve, rate, accuracy_rate, share)
+
+
+def _table_slip_form(layout: tuple):
+    """``table_slip(P, y)`` of a layout ``(Q, W, V)``: the quaternion's, ``Omega``'s and
+    ``v_G``'s offsets in the state."""
+    Q, W, V = layout
 
     @jitable
     def table_slip(p, y):
@@ -174,6 +192,13 @@ def implicit_forms(
         s1, s2, s3 = slip_velocity(rm, r, y[V], y[V + 1], vz, w1, w2, w3)
         sv = s1 * g1 + s2 * g2 + s3 * g3
         return rm, r, vz, (s1 - sv * g1, s2 - sv * g2, s3 - sv * g3)
+
+    return table_slip
+
+
+def _factor_form(layout: tuple, frictionless: bool, coefficient, slope, contact, table_slip):
+    """``factor(P, y, u, g)``: what ``W^-1`` needs at ``y`` (:class:`ImplicitForms`)."""
+    Q, W, V = layout
 
     @jitable
     def factor(p, y, u, gam):
@@ -209,6 +234,13 @@ def implicit_forms(
             + _mat_mul(dm, _mat_inverse(e))
             + (y[Q], y[Q + 1], y[Q + 2], y[Q + 3], y[V], y[V + 1], vz, w1, w2, w3)
         )
+
+    return factor
+
+
+def _slip_change_form(layout: tuple):
+    """``slip_change(P, frame, arm, q, v_G, Omega, x)``: ``sigma = C x`` of a layout."""
+    Q, W, V = layout
 
     @jitable
     def slip_change(p, rm, r1, r2, r3, qw, qx, qy, qz, v1, v2, v3, w1, w2, w3, x):
@@ -255,6 +287,13 @@ def implicit_forms(
         )
         return t1, t2, t3
 
+    return slip_change
+
+
+def _solve_form(layout: tuple, frictionless: bool, flight: bool, slip_change):
+    """``solve(P, W, x) -> W^-1 x`` (:class:`ImplicitForms`)."""
+    Q, W, V = layout
+
     @jitable
     def solve(p, wf, x):
         if frictionless:
@@ -297,131 +336,148 @@ def implicit_forms(
             )
         return (x[0], x[1], v1, v2, x[4], x[5], x[6], x[7], w1, w2, w3)
 
-    rate = None
-    if stiffness is not None and not rolling:
+    return solve
 
-        @jitable
-        def rate_at(p, y, u, top):
-            """The law's stiffness at the actual ``N`` and the mobility ``top`` along the table."""
-            mu = p[6] if u is None else u[2]
-            return stiffness(mu, maximum(contact(p, y, u)[0], 0.0 * mu), top, p[7])
 
-        @jitable
-        def rate(p, y, u):
-            rm = tippe_frame(y[Q], y[Q + 1], y[Q + 2], y[Q + 3])
-            _, top = tangential_mobility(p, rm[6], rm[7], rm[8])
-            return rate_at(p, y, u, top)
+def _rate_forms(layout: tuple, stiffness, contact) -> tuple:
+    """``(rate_at, rate)``: the law's stiffness at a given mobility, and the tight rate
+    (:class:`ImplicitForms`' ``rate``) at the largest tangential one."""
+    Q = layout[0]
 
-    accuracy_rate = None
-    if rate is not None:
+    @jitable
+    def rate_at(p, y, u, top):
+        """The law's stiffness at the actual ``N`` and the mobility ``top`` along the table."""
+        mu = p[6] if u is None else u[2]
+        return stiffness(mu, maximum(contact(p, y, u)[0], 0.0 * mu), top, p[7])
 
-        @jitable
-        def accuracy_rate(q, y, u):
-            """``max(lambda_d, K sqrt(lambda_d w))``, ``q = (P, K, omega_g)``, ``w = max(|Omega|,
-            omega_g)``: the friction guard's rate with ``friction_bound="accuracy"`` (see
-            the friction law's ``accuracy_scale``)."""
-            p, k, omega_g = q
-            lam = rate(p, y, u)
-            w = sqrt(y[W] * y[W] + y[W + 1] * y[W + 1] + y[W + 2] * y[W + 2])
-            w = maximum(w, 0.0 * w + omega_g)
-            return maximum(lam, k * sqrt(lam * w))
+    @jitable
+    def rate(p, y, u):
+        rm = tippe_frame(y[Q], y[Q + 1], y[Q + 2], y[Q + 3])
+        _, top = tangential_mobility(p, rm[6], rm[7], rm[8])
+        return rate_at(p, y, u, top)
 
-    share = None
-    if rate is not None:
+    return rate_at, rate
 
-        @jitable
-        def share(q, y, u, dt, order, guard):
-            (p, omega_g), forced_ratio = q
-            mu = p[6] if u is None else u[2]
-            eps = p[7]
-            rm, (r1, r2, r3), vz, (s1, s2, s3) = table_slip(p, y)
-            g1, g2, g3 = rm[6], rm[7], rm[8]
-            w1, w2, w3 = y[W], y[W + 1], y[W + 2]
-            f = vector_field(p, y, u)
-            t1, t2, t3 = slip_change(
-                p,
-                rm,
-                r1,
-                r2,
-                r3,
-                y[Q],
-                y[Q + 1],
-                y[Q + 2],
-                y[Q + 3],
-                y[V],
-                y[V + 1],
-                vz,
-                w1,
-                w2,
-                w3,
-                f,
+
+def _accuracy_rate_form(layout: tuple, rate):
+    """``accuracy_rate((P, K, omega_g), y, u)`` (:class:`ImplicitForms`)."""
+    W = layout[1]
+
+    @jitable
+    def accuracy_rate(q, y, u):
+        """``max(lambda_d, K sqrt(lambda_d w))``, ``q = (P, K, omega_g)``, ``w = max(|Omega|,
+        omega_g)``: the friction guard's rate with ``friction_bound="accuracy"`` (see
+        the friction law's ``accuracy_scale``)."""
+        p, k, omega_g = q
+        lam = rate(p, y, u)
+        w = sqrt(y[W] * y[W] + y[W + 1] * y[W + 1] + y[W + 2] * y[W + 2])
+        w = maximum(w, 0.0 * w + omega_g)
+        return maximum(lam, k * sqrt(lam * w))
+
+    return accuracy_rate
+
+
+def _slip_rates_form(layout: tuple, table_slip, slip_change, vector_field):
+    """``slip_rates(P, y, u)``: the frame, the table slip and its rate along the vector field
+    (both on the table's plane), what ``share`` reads."""
+    Q, W, V = layout
+
+    @jitable
+    def slip_rates(p, y, u):
+        rm, (r1, r2, r3), vz, (s1, s2, s3) = table_slip(p, y)
+        g1, g2, g3 = rm[6], rm[7], rm[8]
+        w1, w2, w3 = y[W], y[W + 1], y[W + 2]
+        f = vector_field(p, y, u)
+        t1, t2, t3 = slip_change(
+            p,
+            rm,
+            r1,
+            r2,
+            r3,
+            y[Q],
+            y[Q + 1],
+            y[Q + 2],
+            y[Q + 3],
+            y[V],
+            y[V + 1],
+            vz,
+            w1,
+            w2,
+            w3,
+            f,
+        )
+        tn = t1 * g1 + t2 * g2 + t3 * g3
+        return rm, (s1, s2, s3), (t1 - tn * g1, t2 - tn * g2, t3 - tn * g3)
+
+    return slip_rates
+
+
+def _stiffness_ratio_form(coefficient):
+    """``stiffness_ratio(mu, eps, s, t, dt) -> (|s|, kappa)`` of the law's pure ``coefficient``."""
+
+    @jitable
+    def stiffness_ratio(mu, eps, s1, s2, s3, t1, t2, t3, dt):
+        """``kappa``: the law's coefficient at the smallest slip the period can reach (``|s|``
+        closing at twice its present rate ``t``) over its value at zero slip."""
+        ns = sqrt(s1 * s1 + s2 * s2 + s3 * s3)
+        closing = (s1 * t1 + s2 * t2 + s3 * t3) / maximum(ns, 0.0 * ns + 1e-300)
+        reach = ns + 2.0 * dt * select(closing < 0.0, closing, 0.0 * closing)
+        reach = select(reach > 0.0, reach, 0.0 * reach)
+        k0 = coefficient(mu, 0.0 * ns, 0.0 * ns, 0.0 * ns, eps)
+        kappa = coefficient(mu, reach, 0.0 * ns, 0.0 * ns, eps) / select(
+            k0 < 0.0, k0, 0.0 * k0 - 1.0
+        )
+        return ns, kappa
+
+    return stiffness_ratio
+
+
+def _share_form(layout: tuple, slip_rates, stiffness_ratio, rate_at, saturates: bool):
+    """``share(((P, omega_g), c_f / C), y, u, dt, p, lambda_g)`` (:class:`ImplicitForms`)."""
+    W, V = layout[1], layout[2]
+
+    @jitable
+    def share(q, y, u, dt, order, guard):
+        (p, omega_g), forced_ratio = q
+        mu = p[6] if u is None else u[2]
+        eps = p[7]
+        rm, (s1, s2, s3), (t1, t2, t3) = slip_rates(p, y, u)
+        g1, g2, g3 = rm[6], rm[7], rm[8]
+        w1, w2, w3 = y[W], y[W + 1], y[W + 2]
+        ns, kappa = stiffness_ratio(mu, eps, s1, s2, s3, t1, t2, t3, dt)
+        # the mode at its local stiffness kappa lambda_d (lambda_d the law's at zero slip, the
+        # guard's rate at least), as large as the state
+        _, top = tangential_mobility(p, g1, g2, g3)
+        lam = rate_at(p, y, u, top)
+        full = power(kappa * lam / maximum(guard, 0.0 * guard + 1e-300), order)
+        if forced_ratio == 0.0:  # (a scheme without a forced-mode error constant)
+            return select(full < 1.0, full, 0.0 * full + 1.0)
+        # the transient, |s - s*| = |ds/dt| / lambda_d (the slip's rate in the table's
+        # frame, ds/dt + Omega x s) against the velocity it perturbs, v_G (eps at least) ...
+        c1, c2, c3 = t1 + w2 * s3 - w3 * s2, t2 + w3 * s1 - w1 * s3, t3 + w1 * s2 - w2 * s1
+        speed = sqrt(y[V] * y[V] + y[V + 1] * y[V + 1])
+        scale = lam * maximum(speed, 0.0 * speed + eps)
+        transient = full * (
+            sqrt(c1 * c1 + c2 * c2 + c3 * c3) / maximum(scale, 0.0 * scale + 1e-300)
+        )
+        # ... and the forced part: the contact turning at w drives the stiff mode; the scheme's
+        # error in following it is c_f (kappa lambda_d h)^2 (w h)^2 of the velocity (rk4's
+        # forced_error_constant), counted in units of C (forced_ratio = c_f / C)
+        w = maximum(sqrt(w1 * w1 + w2 * w2 + w3 * w3), 0.0 * w1 + omega_g)
+        m = kappa * lam * w
+        forced = forced_ratio * (m * m) / maximum(power(guard, 4.0), 0.0 * guard + 1e-300)
+        # both are errors of the slip in its stiffest mode, carried in v_G: an error dF of the
+        # friction force moves the slip by M dF h and v_G by dF h / m, so 1 / (m l_max) of it
+        # (l_max the mobility's largest eigenvalue; the slower mode is not counted)
+        a = (transient + forced) / (p[2] * top)
+        a = select(a < full, a, full)
+        if saturates:
+            # a saturating law (Coulomb): the slip can leave the band and grow to a sliding
+            # speed, amplifying the error it carries; so the error is held relative to the slip,
+            # max(|s|, eps), not to v_G (the v_G split undone), and not capped
+            return (
+                a * (p[2] * top) * maximum(speed, 0.0 * speed + eps) / maximum(ns, 0.0 * ns + eps)
             )
-            tn = t1 * g1 + t2 * g2 + t3 * g3
-            t1, t2, t3 = t1 - tn * g1, t2 - tn * g2, t3 - tn * g3
-            # kappa: the law's stiffness at the smallest slip the period can reach, over its value
-            # at zero slip (|s| closing at twice its present rate: a sliding slip's closing speeds
-            # up as the top's motion turns, measured 1.8x from one period to the next from rest)
-            ns = sqrt(s1 * s1 + s2 * s2 + s3 * s3)
-            closing = (s1 * t1 + s2 * t2 + s3 * t3) / maximum(ns, 0.0 * ns + 1e-300)
-            reach = ns + 2.0 * dt * select(closing < 0.0, closing, 0.0 * closing)
-            reach = select(reach > 0.0, reach, 0.0 * reach)
-            k0 = coefficient(mu, 0.0 * ns, 0.0 * ns, 0.0 * ns, eps)
-            kappa = coefficient(mu, reach, 0.0 * ns, 0.0 * ns, eps) / select(
-                k0 < 0.0, k0, 0.0 * k0 - 1.0
-            )
-            # the mode at its local stiffness kappa lambda_d (lambda_d the law's at zero slip, the
-            # guard's rate at least), as large as the state
-            _, top = tangential_mobility(p, g1, g2, g3)
-            lam = rate_at(p, y, u, top)
-            full = power(kappa * lam / maximum(guard, 0.0 * guard + 1e-300), order)
-            if forced_ratio == 0.0:  # (a scheme without a forced-mode error constant)
-                return select(full < 1.0, full, 0.0 * full + 1.0)
-            # the transient, |s - s*| = |ds/dt| / lambda_d (the slip's rate in the table's
-            # frame, ds/dt + Omega x s) against the velocity it perturbs, v_G (eps at least) ...
-            c1, c2, c3 = t1 + w2 * s3 - w3 * s2, t2 + w3 * s1 - w1 * s3, t3 + w1 * s2 - w2 * s1
-            speed = sqrt(y[V] * y[V] + y[V + 1] * y[V + 1])
-            scale = lam * maximum(speed, 0.0 * speed + eps)
-            transient = full * (
-                sqrt(c1 * c1 + c2 * c2 + c3 * c3) / maximum(scale, 0.0 * scale + 1e-300)
-            )
-            # ... and the forced part: the contact turning at w drives the stiff mode; the scheme's
-            # error in following it is c_f (kappa lambda_d h)^2 (w h)^2 of the velocity (rk4's
-            # forced_error_constant), counted in units of C (forced_ratio = c_f / C)
-            w = maximum(sqrt(w1 * w1 + w2 * w2 + w3 * w3), 0.0 * w1 + omega_g)
-            m = kappa * lam * w
-            forced = forced_ratio * (m * m) / maximum(power(guard, 4.0), 0.0 * guard + 1e-300)
-            # both are errors of the slip in its stiffest mode; the state carries them in v_G,
-            # where an error dF of the friction force moves the slip by M dF h and v_G by dF h / m:
-            # along that mode 1 / (m l_max) of it, l_max the mobility's largest eigenvalue (the
-            # default top: 0.29; measured before this split, the rolling top's v_G error was
-            # 0.17-0.32 of the forced term). The slower mode (l_min = r l_max) relaxes r times
-            # slower, so its forced error is r^2 of this one's and reaches v_G 1 / r more
-            # strongly: r times as much again (r = 0.94-1 for the default top; its transient r^3).
-            # It is NOT counted here: with (1 + r) the rolling rows of the tolerance bench cost 1.67
-            # times the cheapest fixed steps, while at small tilts the estimate is already ~2x the
-            # error measured period by period. After an inversion (tilt ~125 deg) this v_G share
-            # was 2.6-5.8x under a period's own v_G error (the drive |ds/dt| at mu = 0 is 0.2-0.3
-            # of w |v_G| upright, 0.8-1.9 inverted); with a saturating law the share below is
-            # held at the slip's scale instead, and a period's v_G error is 0.01-0.05 of it at
-            # both tilts (restarted from the run's own state against DOP853, tippe_invert, 1e-6)
-            a = (transient + forced) / (p[2] * top)
-            a = select(a < full, a, full)
-            if saturates:
-                # a law that saturates (Coulomb): the slip can leave the band, where it stops
-                # relaxing and grows from the band's scale to a sliding speed (the tippe top that
-                # rises: 56 times in 0.2 s), carrying the error it had relative to itself; that
-                # error is no longer forgotten but amplified by the growth. So the slip's error is
-                # held relative to the slip, max(|s|, eps), not to v_G: the v_G split undone (m
-                # l_max) and |v_G| / max(|s|, eps) on top, not capped at the mode's full error at
-                # v_G's scale. Measured (rbenvs bench accuracy --tolerance): the top that inverts
-                # from rest ended 85-100 times outside 1e-6 and 1e-9 with the share at v_G's scale,
-                # and ends within them at the cost of the cheapest fixed steps that meet them
-                return (
-                    a
-                    * (p[2] * top)
-                    * maximum(speed, 0.0 * speed + eps)
-                    / maximum(ns, 0.0 * ns + eps)
-                )
-            return select(a < 1.0, a, 0.0 * a + 1.0)
+        return select(a < 1.0, a, 0.0 * a + 1.0)
 
-    return ImplicitForms(factor, solve, rate, accuracy_rate, share)
+    return share

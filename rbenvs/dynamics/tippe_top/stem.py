@@ -7,7 +7,6 @@ from functools import cache
 from ...jit import jitable
 from .forms import (
     TippeForms,
-    _state_forms,
     _zero_counts_arrays,
     constraint_vertical_velocity,
     contact_arm,
@@ -99,33 +98,11 @@ def stem_derivative(p, y, c):
     return sliding_derivative(p, y, c) + (0.0 * y[11],)
 
 
-@cache
-def stem_forms(coefficient, stiffness) -> TippeForms:
-    """The :class:`TippeForms` of a gliding or frictionless top with the stem (``P`` of
-    :func:`pure_parameters` with ``(b, d)``; state: the gliding one and the contact flag): the
-    sphere's forms at :func:`stem_params` of the flag. The read-outs: the energy, the normal
-    force and the slip of the pressing contact, Jellett's integral of the sphere ``L.(a z_hat - h
-    k)`` (:func:`stem_jellett` gives the stem's), and as ``gap`` the sphere's gap (0 while it
-    presses)."""
-    base = pure_forms(coefficient, stiffness, False, False)
-    (
-        (
-            frame,
-            angular_velocity,
-            velocity0,
-            height0,
-            _,
-            slip0,
-            energy0,
-            jellett,
-            tilt,
-            spin,
-            normalize,
-            state0,
-        ),
-        _,
-    ) = _state_forms(False, False)
-    contact0, friction_rate0 = base.contact, base.friction_rate
+def _stem_state_forms(base: TippeForms) -> dict:
+    """The state functions that read the pressing contact (``velocity``, ``height``,
+    ``slip_speed``, ``energy``), ``gap`` (the sphere's) and ``state`` (on the sphere)."""
+    velocity0, height0, slip0 = base.velocity, base.height, base.slip_speed
+    energy0, state0 = base.energy, base.state
 
     @jitable
     def velocity(p, y):
@@ -152,6 +129,21 @@ def stem_forms(coefficient, stiffness) -> TippeForms:
         """On the sphere (flag 0), as the gliding top's state."""
         z = state0(p, x, y0, q, w, v)
         return z + (0.0 * z[0],)
+
+    return dict(
+        velocity=velocity,
+        height=height,
+        gap=gap,
+        slip_speed=slip_speed,
+        energy=energy,
+        state=state,
+    )
+
+
+def _stem_contact_forms(base: TippeForms, energy, slip_speed, gap) -> dict:
+    """The contact functions at the pressing contact's parameters (:func:`stem_params`)."""
+    contact0, friction_rate0 = base.contact, base.friction_rate
+    jellett, tilt, spin = base.jellett, base.tilt, base.spin
 
     @jitable
     def contact(p, y, u):
@@ -193,27 +185,28 @@ def stem_forms(coefficient, stiffness) -> TippeForms:
         def friction_rate(p, y, u):
             return friction_rate0(stem_params(p, y[11]), y, u)
 
-    return TippeForms(
-        frame,
-        angular_velocity,
-        velocity,
-        height,
-        gap,
-        slip_speed,
-        energy,
-        jellett,
-        tilt,
-        spin,
-        normalize,
-        contact,
-        stem_derivative,
-        rhs,
-        rhs_normal,
-        normal,
-        readouts,
-        friction_rate,
-        state,
+    return dict(
+        contact=contact,
+        rhs=rhs,
+        rhs_normal=rhs_normal,
+        normal=normal,
+        readouts=readouts,
+        friction_rate=friction_rate,
     )
+
+
+@cache
+def stem_forms(coefficient, stiffness) -> TippeForms:
+    """The :class:`TippeForms` of a gliding or frictionless top with the stem (``P`` of
+    :func:`pure_parameters` with ``(b, d)``; state: the gliding one and the contact flag): the
+    sphere's forms at :func:`stem_params` of the flag. The read-outs: the energy, the normal
+    force and the slip of the pressing contact, Jellett's integral of the sphere ``L.(a z_hat - h
+    k)`` (:func:`stem_jellett` gives the stem's), and as ``gap`` the sphere's gap (0 while it
+    presses)."""
+    base = pure_forms(coefficient, stiffness, False, False)
+    states = _stem_state_forms(base)
+    contacts = _stem_contact_forms(base, states["energy"], states["slip_speed"], states["gap"])
+    return base._replace(derivative=stem_derivative, **states, **contacts)
 
 
 @jitable
