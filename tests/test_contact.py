@@ -27,7 +27,7 @@ def test_coulomb_and_viscous_coefficients_and_stiffness():
     assert np.allclose(
         c.coefficient(0.3, s, 0.0 * s, 0.0 * s, 1e-3) * s, [-0.3e-3, -0.3], rtol=1e-6
     )
-    assert set(FRICTION_LAWS) == {"coulomb", "viscous"}
+    assert {"coulomb", "viscous"} <= set(FRICTION_LAWS)  # (a new law adds an entry, no edit here)
 
 
 def test_a_new_law_is_one_class_and_one_registry_entry(monkeypatch):

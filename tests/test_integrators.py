@@ -284,7 +284,7 @@ def test_get_integrator_registry():
         integ = get_integrator(name)
         assert isinstance(integ, Integrator) and integ.name == name
         assert integ.supports(FreeBody(FreeBodyParams(INERTIA)))
-    assert set(INTEGRATORS) == {"euler", "rk4", "splitting", "exact", "dop853"}
+    assert {"euler", "rk4", "splitting", "exact", "dop853"} <= set(INTEGRATORS)
     assert [get_integrator(n).order for n in ("euler", "rk4", "splitting", "exact")] == [1, 4, 2, 2]
     inst = get_integrator("rk4")
     assert get_integrator(inst) is inst  # instances pass through

@@ -412,10 +412,11 @@ def test_normalize_obs_enters_the_cell_key_only_when_on():
 
     from pathlib import Path
 
+    from rbenvs import ENVIRONMENTS
     from rbenvs_agents.grid import grid_cells
 
     # the published records hold every cell of the grid as configured now (docs/agents.md's
-    # table is made from them): 180 cells, 3 seeds
+    # table is made from them), 3 seeds
     published = {
         json.loads(line)["key"]
         for line in (Path(__file__).resolve().parents[1] / "docs" / "results.cells.jsonl")
@@ -423,4 +424,5 @@ def test_normalize_obs_enters_the_cell_key_only_when_on():
         .splitlines()
     }
     cells = grid_cells([0, 1, 2])
-    assert len(cells) == 180 and all(cell_key(c) in published for c in cells)
+    assert len(cells) >= 3 * len(ENVIRONMENTS)
+    assert all(cell_key(c) in published for c in cells)
