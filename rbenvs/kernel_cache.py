@@ -22,6 +22,12 @@ The key:
 * the argument types and numba's target description (triple, CPU, features), as numba keys its
   own cache.
 
+Compiled once: a process that misses takes the kernel file's lock (``<file>.lock``, an advisory
+``flock``) before it compiles, and one that finds it held waits for the file instead of compiling
+the same kernel beside it (test workers, spawned env workers, Ray tasks on one machine starting
+together); the lock goes with the compile, whatever its outcome (or the process), and a wait
+longer than ``LOCK_WAIT_S`` compiles anyway.
+
 Safe by construction: a file is written under a temporary name and renamed into place (a
 reader sees a whole file or none; several processes compiling one kernel write the same bytes);
 each file carries a SHA-256 of its contents and its own key, and one that does not verify
@@ -72,6 +78,9 @@ _MAGIC = b"RBENVSK1"  # the file format's tag (a new format: a new tag, and old 
 _SUFFIX = ".nbk"
 
 _lock = threading.Lock()
+# the compile locks this process holds, by kernel file (an open descriptor holds the flock)
+_held: dict = {}
+LOCK_WAIT_S = 300.0  # (a holder that neither finishes nor exits: compile anyway after this)
 _stats = {"loaded": 0, "compiled": 0, "rejected": 0, "saved": 0}
 # (label, argument types, "loaded" or "compiled", seconds) of this process's kernels
 _log: list = []
@@ -394,14 +403,33 @@ class _DiskCache:
         )  # (a miss: numba compiles next, then calls save_overload)
         if not _usable(self._folder):
             return None
-        from numba.core.compiler import CompileResult
-
+        self._target = target_context
         target_context.refresh()  # (numba's registries: a rebuilt kernel links against them)
         text, path = self._key(sig, target_context.codegen())
+        cres, rejected = self._read(text, path)
+        if cres is None:  # (once the lock is held, another process may have written it: again)
+            _lock_compile(path)
+            cres, again = self._read(text, path)
+            rejected = again if cres is None else False
+            if cres is not None:
+                _unlock_compile(path)
+        with _lock:
+            if cres is not None:
+                _stats["loaded"] += 1
+                _log.append((self._label, len(sig), "loaded", time.perf_counter() - self._started))
+            elif rejected:
+                _stats["rejected"] += 1
+        return cres
+
+    def _read(self, text: str, path: Path) -> tuple:
+        """``(compile result, rejected)``: the result in ``path`` where it is a whole file of this
+        kernel; ``(None, True)`` for a file that does not verify; ``(None, False)``: no file."""
+        from numba.core.compiler import CompileResult
+
         try:
             blob = path.read_bytes()
         except OSError:
-            return None
+            return None, False
         try:
             if blob[: len(_MAGIC)] != _MAGIC:
                 raise ValueError("not a kernel file")
@@ -411,15 +439,9 @@ class _DiskCache:
             stored, data = pickle.loads(payload)
             if stored != text:
                 raise ValueError("another kernel's file")
-            cres = CompileResult._rebuild(target_context, *data)
+            return CompileResult._rebuild(self._target, *data), False
         except Exception:  # a file that does not verify is compiled again (and overwritten)
-            with _lock:
-                _stats["rejected"] += 1
-            return None
-        with _lock:
-            _stats["loaded"] += 1
-            _log.append((self._label, len(sig), "loaded", time.perf_counter() - self._started))
-        return cres
+            return None, True
 
     def save_overload(self, sig, cres) -> None:
         with _lock:
@@ -455,6 +477,43 @@ class _DiskCache:
             return
         with _lock:
             _stats["saved"] += 1
+        _unlock_compile(path)
+
+
+def _lock_compile(path: Path) -> None:
+    """Hold the compile lock of the kernel file ``path`` (missing: this process is about to
+    compile it), waiting while another process holds it. Without ``flock`` (Windows), where the
+    lock file cannot be opened, or after ``LOCK_WAIT_S``: no lock."""
+    try:
+        import fcntl
+    except ImportError:
+        return
+    if path in _held:
+        return
+    try:
+        fd = os.open(path.with_name(path.name + ".lock"), os.O_RDWR | os.O_CREAT, 0o644)
+    except OSError:
+        return
+    deadline = time.monotonic() + LOCK_WAIT_S
+    while True:
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            _held[path] = fd
+            return
+        except BlockingIOError:
+            if time.monotonic() > deadline:
+                break
+            time.sleep(0.02)
+        except OSError:
+            break
+    os.close(fd)
+
+
+def _unlock_compile(path) -> None:
+    """Let go of the compile lock of the kernel file ``path`` (if this process holds it)."""
+    fd = _held.pop(path, None)
+    if fd is not None:
+        os.close(fd)  # (closing the descriptor releases the flock)
 
 
 def njit(fn, label: str, **options):
@@ -466,6 +525,17 @@ def njit(fn, label: str, **options):
     dispatcher._cache = _DiskCache(
         fn, label, options
     )  # (the attribute numba's enable_caching sets)
+    compile_ = dispatcher.compile
+
+    def compile(sig):  # (whatever the compile's outcome, the locks it took are let go)
+        before = set(_held)
+        try:
+            return compile_(sig)
+        finally:
+            for path in set(_held) - before:
+                _unlock_compile(path)
+
+    dispatcher.compile = compile
     return dispatcher
 
 

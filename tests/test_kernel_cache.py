@@ -67,7 +67,10 @@ def run(cache_dir, env_id="small", n=1, threads=1):
 
 
 def kernel_files(cache_dir):
-    return sorted(p for p in (cache_dir / "kernels").rglob("*") if p.is_file())
+    """The kernel files (beside each one compiled, its empty compile lock: not a kernel)."""
+    return sorted(
+        p for p in (cache_dir / "kernels").rglob("*") if p.is_file() and p.suffix != ".lock"
+    )
 
 
 def test_a_second_process_loads_what_the_first_compiled(tmp_path):
@@ -131,7 +134,7 @@ def test_a_file_that_does_not_verify_is_compiled_again_not_loaded(tmp_path, dama
     assert third["obs"] == first["obs"]
 
 
-def test_four_processes_compiling_one_kernel_at_once(tmp_path):
+def test_four_processes_compiling_one_kernel_at_once_compile_it_once(tmp_path):
     env = dict(os.environ, RBENVS_CACHE_DIR=str(tmp_path))
     procs = [
         subprocess.Popen(
@@ -150,6 +153,9 @@ def test_four_processes_compiling_one_kernel_at_once(tmp_path):
         results.append(json.loads(out.strip().splitlines()[-1]))
     assert all(r["obs"] == results[0]["obs"] for r in results)
     assert not any(r["warnings"] for r in results)
+    # one compiles, holding the kernel's lock; the others wait for its file and load it
+    assert sum(r["stats"]["compiled"] for r in results) == 1
+    assert sum(r["stats"]["loaded"] for r in results) == 3
     assert not [
         p for p in (tmp_path / "kernels").rglob("*") if ".tmp." in p.name
     ]  # no partial file left
