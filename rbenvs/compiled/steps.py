@@ -105,7 +105,7 @@ class CheckedRuns:
 def _dtypes(values, physical) -> tuple:
     """``(metric dtypes, read-out dtypes)``: each metric's and read-out's array type from its value
     on a float state (``values[2:]``, ``physical``; a bool stays a bool, a count an int). (dtype
-    objects, not scalar types: np.empty converts a type on every call, ~0.3 us each.)"""
+    objects, not scalar types: np.empty would convert a type on every call.)"""
     metric_dtypes = tuple(
         np.dtype(np.bool_ if isinstance(v, (bool, np.bool_)) else np.float64) for v in values[2:]
     )

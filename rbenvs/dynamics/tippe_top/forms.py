@@ -606,8 +606,19 @@ def _sliding_contact_form(coefficient, flight: bool):
 
 
 def _contact_forms(contact, derivative, state_readouts) -> dict:
-    """The fields ``rhs``, ``rhs_normal``, ``normal`` and ``readouts`` of :class:`TippeForms`:
-    each one contact solve."""
+    """The fields ``rhs``, ``rhs_normal``, ``normal`` (:func:`solve_forms`) and ``readouts`` of
+    :class:`TippeForms`: each one contact solve."""
+
+    @jitable
+    def readouts(p, y, u, fired):
+        return state_readouts(p, y, contact(p, y, u)[0], fired)
+
+    return dict(**solve_forms(contact, derivative), readouts=readouts)
+
+
+def solve_forms(contact, derivative) -> dict:
+    """``rhs``, ``rhs_normal`` and ``normal`` through one contact solve each (the sphere's and
+    the stem's alike)."""
 
     @jitable
     def rhs(p, y, u):
@@ -622,11 +633,7 @@ def _contact_forms(contact, derivative, state_readouts) -> dict:
     def normal(p, y, u):
         return contact(p, y, u)[0]
 
-    @jitable
-    def readouts(p, y, u, fired):
-        return state_readouts(p, y, contact(p, y, u)[0], fired)
-
-    return dict(rhs=rhs, rhs_normal=rhs_normal, normal=normal, readouts=readouts)
+    return dict(rhs=rhs, rhs_normal=rhs_normal, normal=normal)
 
 
 def _friction_rate_form(contact, stiffness):

@@ -13,6 +13,7 @@ from .forms import (
     pure_forms,
     sliding_derivative,
     sliding_normalize,
+    solve_forms,
     tippe_frame,
     tippe_jellett,
 )
@@ -150,19 +151,6 @@ def _stem_contact_forms(base: TippeForms, energy, slip_speed, gap) -> dict:
         return contact0(stem_params(p, y[11]), y, u)
 
     @jitable
-    def rhs(p, y, u):
-        return stem_derivative(p, y, contact(p, y, u))
-
-    @jitable
-    def rhs_normal(p, y, u):
-        c = contact(p, y, u)
-        return stem_derivative(p, y, c), c[0]
-
-    @jitable
-    def normal(p, y, u):
-        return contact(p, y, u)[0]
-
-    @jitable
     def readouts(p, y, u, fired):
         count = 0 if isinstance(y[0], float) else _zero_counts_arrays(y[0])
         return (
@@ -187,9 +175,7 @@ def _stem_contact_forms(base: TippeForms, energy, slip_speed, gap) -> dict:
 
     return dict(
         contact=contact,
-        rhs=rhs,
-        rhs_normal=rhs_normal,
-        normal=normal,
+        **solve_forms(contact, stem_derivative),
         readouts=readouts,
         friction_rate=friction_rate,
     )
