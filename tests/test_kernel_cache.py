@@ -107,6 +107,42 @@ def test_a_vector_env_its_split_step_and_generator_table_load_too(tmp_path):
     assert one_call["obs"] == first["obs"]
 
 
+# Both autoreset modes, and a pickled and a deep-copied env of each, in a fresh process: numba
+# compiles one specialization per argument types, a read-only array's type not a writable one's,
+# so one mode passing a shared read-only mask where the other passes its own array, or pickle
+# giving the shared masks back writable, compiled the whole step again (three times in all)
+MODES_SCRIPT = r"""
+import copy, json, pickle
+import gymnasium as gym
+import numpy as np
+from gymnasium.vector import AutoresetMode
+import rbenvs
+from rbenvs import kernel_cache
+obs = []
+for mode in (AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP):
+    env = gym.make_vec("rbenvs/FreeRigidBody-v0", num_envs=4,
+                       vectorization_mode="vector_entry_point", autoreset_mode=mode)
+    env.reset(seed=3)
+    for e in (env, pickle.loads(pickle.dumps(env)), copy.deepcopy(env)):
+        obs.append(e.step(np.full(env.action_space.shape, 0.3, dtype=np.float32))[0].tolist())
+print(json.dumps({"labels": [k[0] for k in kernel_cache.kernels() if k[2] == "compiled"],
+                  "obs": obs}))
+"""
+
+
+def test_both_autoreset_modes_and_pickled_copies_share_one_compiled_step(tmp_path):
+    env = dict(os.environ, RBENVS_CACHE_DIR=str(tmp_path))
+    out = subprocess.run(
+        [sys.executable, "-c", MODES_SCRIPT], env=env, capture_output=True, text=True, timeout=600
+    )
+    assert out.returncode == 0, out.stderr
+    result = json.loads(out.stdout.strip().splitlines()[-1])
+    assert result["labels"].count("vstep") == 1, result["labels"]
+    # each mode's copies go on from the same state with the same bits
+    assert result["obs"][1] == result["obs"][2] == result["obs"][0]
+    assert result["obs"][4] == result["obs"][5] == result["obs"][3]
+
+
 @pytest.mark.parametrize("damage", ["truncate", "flip", "empty", "swap"])
 def test_a_file_that_does_not_verify_is_compiled_again_not_loaded(tmp_path, damage):
     first = run(tmp_path)

@@ -94,7 +94,8 @@ class ReasonPool:
 
     def __init__(self, n: int, event_name, size: int = 2):
         self.n, self.size = n, size
-        self.names = reason_code_points(event_name)
+        # (a writable copy, as pickle gives it back: numba compiles a kernel per writability)
+        self.names = reason_code_points(event_name).copy()
         self.dtype = _reason_array(event_name).dtype
         self.entries = []  # [array, its uint32 view, the rows written into it]
         self._none = np.zeros(0, dtype=np.int64)

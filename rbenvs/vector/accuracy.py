@@ -30,8 +30,17 @@ class BatchAccuracy:
         # shared read-only arrays: every report reuses them instead of allocating
         self.true, self.false = np.ones(n, dtype=bool), np.zeros(n, dtype=bool)
         self.unestimated = np.full(n, np.nan)  # (NaN, its mask False: not estimated)
+        self._freeze()
+
+    def _freeze(self) -> None:
         for array in (self.true, self.false, self.unestimated):
             array.flags.writeable = False
+
+    def __setstate__(self, state) -> None:
+        # (pickle gives arrays back writable: freeze them again, for their sharers and for the
+        # kernels, which numba compiles once per writability of their arguments)
+        self.__dict__.update(state)
+        self._freeze()
 
     def reset_info(self, info) -> None:
         """A reset's keys: 0 with a tolerance (no period yet), else not estimated."""

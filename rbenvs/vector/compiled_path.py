@@ -96,8 +96,9 @@ class CompiledPath:
                 run.prev_done = run.prev_done.copy()
             done = run.prev_done  # in: the sub-envs to restart; out: those whose episode ended
             restart = skip = done.copy()
-        else:
-            done, restart, skip = np.empty(len(run.steps), dtype=bool), false, false
+        else:  # (skip writable as NEXT_STEP's: numba compiles a kernel per writability)
+            done, restart = np.empty(len(run.steps), dtype=bool), false
+            skip = np.zeros(len(run.steps), dtype=bool)
         # (compiled arithmetic raises no floating-point warnings: no errstate needed here)
         r = self.whole(
             a,
