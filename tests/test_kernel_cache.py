@@ -143,6 +143,42 @@ def test_both_autoreset_modes_and_pickled_copies_share_one_compiled_step(tmp_pat
     assert result["obs"][4] == result["obs"][5] == result["obs"][3]
 
 
+# After `rbenvs warmup`, a fresh process's default envs compile nothing, whether its actions are
+# float32 (the action space's, a policy's) or float64 (numpy's, a controller's): numba types the
+# two apart, so a warm-up that stepped one of them left the other's first step compiling
+FIRST_STEPS_SCRIPT = r"""
+import json
+import gymnasium as gym
+import numpy as np
+import rbenvs
+from rbenvs import kernel_cache
+for env in (gym.make("rbenvs/FreeRigidBody-v0"),
+            gym.make_vec("rbenvs/FreeRigidBody-v0", num_envs=16,
+                         vectorization_mode="vector_entry_point")):
+    env.reset(seed=1)
+    env.step(env.action_space.sample())
+    env.step(np.full(env.action_space.shape, 0.25))
+print(json.dumps(kernel_cache.stats()))
+"""
+
+
+def test_after_warmup_the_default_envs_first_steps_compile_nothing(tmp_path):
+    env = dict(os.environ, RBENVS_CACHE_DIR=str(tmp_path))
+    warm = [sys.executable, "-m", "rbenvs", "warmup", "--system", "free_body", "--no-progress"]
+    out = subprocess.run(warm, env=env, capture_output=True, text=True, timeout=600)
+    assert out.returncode == 0, out.stderr
+    out = subprocess.run(
+        [sys.executable, "-c", FIRST_STEPS_SCRIPT],
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
+    assert out.returncode == 0, out.stderr
+    stats = json.loads(out.stdout.strip().splitlines()[-1])
+    assert stats["compiled"] == 0 and stats["loaded"] >= 2, stats
+
+
 @pytest.mark.parametrize("damage", ["truncate", "flip", "empty", "swap"])
 def test_a_file_that_does_not_verify_is_compiled_again_not_loaded(tmp_path, damage):
     first = run(tmp_path)
