@@ -301,63 +301,70 @@ class Engine:
         u_norm, u = self.control(a) if control is None else control
         forms = self.forms
         one = forms.one if forms.one_tried else forms.state_step
-        if one is not None:  # the same period and finish, compiled: one call
-            e = None  # (the period's error estimate: a kernel with a tolerance's returns it last)
-            if self.comp is None:
-                if one.estimated:
-                    status, count, h, fired, y, o, over, r, q, e = one(
-                        y0, u, u_norm, not plain, self.guard == "refuse"
-                    )
-                else:
-                    status, count, h, fired, y, o, over, r, q = one(
-                        y0, u, u_norm, not plain, self.guard == "refuse"
-                    )
-            elif one.estimated:  # (the run's compensation in and out)
-                status, count, h, fired, y, o, over, r, q, comp, e = one.compensated(
-                    y0, self.comp, u, u_norm, not plain, self.guard == "refuse"
+        if one is None:  # (the float path: its own method, off the compiled hot path)
+            return self._step_float(y0, u_norm, u, plain, ratio)
+        e = None  # (the period's error estimate: a kernel with a tolerance's returns it last)
+        if self.comp is None:
+            if one.estimated:
+                status, count, h, fired, y, o, over, r, q, e = one(
+                    y0, u, u_norm, not plain, self.guard == "refuse"
                 )
             else:
-                status, count, h, fired, y, o, over, r, q, comp = one.compensated(
-                    y0, self.comp, u, u_norm, not plain, self.guard == "refuse"
+                status, count, h, fired, y, o, over, r, q = one(
+                    y0, u, u_norm, not plain, self.guard == "refuse"
                 )
-            if status:  # refused (raised) or failed: off the normal path
-                return self._failed_compiled(status, count, y0, u_norm, u, h, plain, e)
-            if self.comp is not None:
-                self.comp = comp
-            obs, reward, terminated = np.array(o, dtype=np.float32), r[0], r[1]
-            info = one.info(q, r, h, e)
+        elif one.estimated:  # (the run's compensation in and out)
+            status, count, h, fired, y, o, over, r, q, comp, e = one.compensated(
+                y0, self.comp, u, u_norm, not plain, self.guard == "refuse"
+            )
         else:
-            lam = estimate = None  # a tolerance's: the rates at y0 give the count and the estimate
-            if self.tolerance is not None and ratio is None:
-                estimate = self.gated(y0)
-                if estimate is None:
-                    ratio, lam, lam_d, share = self.forms.plan_one(y0, u)
-            if plain or estimate is not None:  # fixed substeps, nothing watched: the loop inline
-                step, h, comp, fired = self.bound_step, self.h, None, False
-                y = step(y0, u, h)
-                if self.substeps != 1:
-                    for _ in range(self.substeps - 1):
-                        y = step(y, u, h)
-            else:
-                y, fired, h, comp = self.advance(y0, u, False, comp=self.comp, ratio=ratio)
-            # a non-finite component makes the sum non-finite; the exact test runs only then
-            if not math.isfinite(sum(y)) and not all(math.isfinite(c) for c in y):
-                rates = None if lam is None else (lam, lam_d, share)
-                return self._failed_float(y0, u_norm, u, h, plain, rates, estimate)
-            if not plain and comp is not None:
-                self.comp = comp
-            finish = self.finish_one
-            if finish is not None:
-                fn, po, pe, pr = finish
-                obs, over, reward, terminated, info = fn(y, u_norm, po, pe, pr, h, u, fired)
-            else:
-                obs, over = self.observe(y)
-                reward, terminated, metrics = self.evaluate(y, u_norm)
-                info = self.info_one(y, u, fired, h, metrics, failed=False)
-            if lam is not None:  # (the estimated relative error: stepsize.forms.error_estimate)
-                info["error_estimate"] = float(self.rule.estimate(lam, h, lam_d, share))
-            elif estimate is not None:
-                info["error_estimate"] = estimate
+            status, count, h, fired, y, o, over, r, q, comp = one.compensated(
+                y0, self.comp, u, u_norm, not plain, self.guard == "refuse"
+            )
+        if status:  # refused (raised) or failed: off the normal path
+            return self._failed_compiled(status, count, y0, u_norm, u, h, plain, e)
+        if self.comp is not None:
+            self.comp = comp
+        obs, reward, terminated = np.array(o, dtype=np.float32), r[0], r[1]
+        info = one.info(q, r, h, e)
+        if fired or over or terminated:  # (the common case tests three bools and goes on)
+            reward, terminated, plain = self._ended(info, fired, over, terminated, reward, plain)
+        return y, obs, reward, terminated, info, u, plain
+
+    def _step_float(self, y0, u_norm, u, plain: bool, ratio):
+        """:meth:`step_one`'s period and finish on floats (no compiled kernel: numpy, or numba
+        absent or turned off)."""
+        lam = estimate = None  # a tolerance's: the rates at y0 give the count and the estimate
+        if self.tolerance is not None and ratio is None:
+            estimate = self.gated(y0)
+            if estimate is None:
+                ratio, lam, lam_d, share = self.forms.plan_one(y0, u)
+        if plain or estimate is not None:  # fixed substeps, nothing watched: the loop inline
+            step, h, comp, fired = self.bound_step, self.h, None, False
+            y = step(y0, u, h)
+            if self.substeps != 1:
+                for _ in range(self.substeps - 1):
+                    y = step(y, u, h)
+        else:
+            y, fired, h, comp = self.advance(y0, u, False, comp=self.comp, ratio=ratio)
+        # a non-finite component makes the sum non-finite; the exact test runs only then
+        if not math.isfinite(sum(y)) and not all(math.isfinite(c) for c in y):
+            rates = None if lam is None else (lam, lam_d, share)
+            return self._failed_float(y0, u_norm, u, h, plain, rates, estimate)
+        if not plain and comp is not None:
+            self.comp = comp
+        finish = self.finish_one
+        if finish is not None:
+            fn, po, pe, pr = finish
+            obs, over, reward, terminated, info = fn(y, u_norm, po, pe, pr, h, u, fired)
+        else:
+            obs, over = self.observe(y)
+            reward, terminated, metrics = self.evaluate(y, u_norm)
+            info = self.info_one(y, u, fired, h, metrics, failed=False)
+        if lam is not None:  # (the estimated relative error: stepsize.forms.error_estimate)
+            info["error_estimate"] = float(self.rule.estimate(lam, h, lam_d, share))
+        elif estimate is not None:
+            info["error_estimate"] = estimate
         if fired or over or terminated:  # (the common case tests three bools and goes on)
             reward, terminated, plain = self._ended(info, fired, over, terminated, reward, plain)
         return y, obs, reward, terminated, info, u, plain
