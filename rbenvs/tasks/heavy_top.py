@@ -304,11 +304,6 @@ class PrecessTask(TwoStageStart):
     final_measure = "tilt_error"
     controller = "PrecessionTracking"
 
-    def rate_target(self, system, y):
-        if self.target_rate is not None:
-            return self.target_rate
-        return slow_precession_rate(system, system.spin(y), self.target_tilt)
-
     draw_kinds = "uuu"  # tilt, azimuth, spin
 
     def kernel_start(self, system):

@@ -140,12 +140,6 @@ class TippeTop:
         w1, w2, _ = self.angular_velocity(y)
         return y[5] + self.params.height * (rm[6] * w2 - rm[7] * w1)
 
-    def in_contact(self, y):
-        """Whether the sphere is on the table (the contact flag; always true without flight)."""
-        if not self.flight:
-            return 0.0 * y[0] == 0.0
-        return y[13] == 1.0
-
     # ------------------------------------------------------------------ contact
     def _contact(self, y, u):
         """The contact tuple of :class:`TippeForms` (``N``, friction, ``dOmega``, ...) at ``y``
