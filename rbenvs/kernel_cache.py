@@ -403,13 +403,12 @@ class _DiskCache:
         )  # (a miss: numba compiles next, then calls save_overload)
         if not _usable(self._folder):
             return None
-        self._target = target_context
         target_context.refresh()  # (numba's registries: a rebuilt kernel links against them)
         text, path = self._key(sig, target_context.codegen())
-        cres, rejected = self._read(text, path)
+        cres, rejected = self._read(text, path, target_context)
         if cres is None:  # (once the lock is held, another process may have written it: again)
             _lock_compile(path)
-            cres, again = self._read(text, path)
+            cres, again = self._read(text, path, target_context)
             rejected = again if cres is None else False
             if cres is not None:
                 _unlock_compile(path)
@@ -421,7 +420,7 @@ class _DiskCache:
                 _stats["rejected"] += 1
         return cres
 
-    def _read(self, text: str, path: Path) -> tuple:
+    def _read(self, text: str, path: Path, target_context) -> tuple:
         """``(compile result, rejected)``: the result in ``path`` where it is a whole file of this
         kernel; ``(None, True)`` for a file that does not verify; ``(None, False)``: no file."""
         from numba.core.compiler import CompileResult
@@ -439,7 +438,7 @@ class _DiskCache:
             stored, data = pickle.loads(payload)
             if stored != text:
                 raise ValueError("another kernel's file")
-            return CompileResult._rebuild(self._target, *data), False
+            return CompileResult._rebuild(target_context, *data), False
         except Exception:  # a file that does not verify is compiled again (and overwritten)
             return None, True
 

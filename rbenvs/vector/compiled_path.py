@@ -20,6 +20,7 @@ class CompiledPath:
 
     def __init__(self, env_name, engine, obs_dim, max_episode_steps, compiled, tables, threads):
         self._settings = (env_name, engine, obs_dim, max_episode_steps, tables, threads)
+        self._no_skip = None  # (SAME_STEP's skip: made on its first step)
         self._build(compiled)
 
     def _build(self, compiled) -> None:
@@ -41,7 +42,7 @@ class CompiledPath:
         return {"settings": self._settings, "built": self.batch is not None}
 
     def __setstate__(self, state) -> None:
-        self._settings = state["settings"]
+        self._settings, self._no_skip = state["settings"], None
         self._build(state["built"])
 
     def advance(self, run, u, u_norm, restart, plain, false):
@@ -96,9 +97,12 @@ class CompiledPath:
                 run.prev_done = run.prev_done.copy()
             done = run.prev_done  # in: the sub-envs to restart; out: those whose episode ended
             restart = skip = done.copy()
-        else:  # (skip writable as NEXT_STEP's: numba compiles a kernel per writability)
-            done, restart = np.empty(len(run.steps), dtype=bool), false
-            skip = np.zeros(len(run.steps), dtype=bool)
+        else:
+            done, restart, skip = np.empty(len(run.steps), dtype=bool), false, self._no_skip
+            if skip is None or len(skip) != len(done):
+                # (all False and never written, but writable as NEXT_STEP's: numba compiles a
+                # kernel per argument writability)
+                skip = self._no_skip = np.zeros(len(done), dtype=bool)
         # (compiled arithmetic raises no floating-point warnings: no errstate needed here)
         r = self.whole(
             a,
