@@ -74,3 +74,17 @@ def test_a_pickled_numpy_path_env_with_observation_noise_goes_on_bit_for_bit():
     a = np.full(env.action_space.shape, 0.3, dtype=np.float32)
     for _ in range(12):
         assert all(same(x, y) for x, y in zip(env.step(a)[:4], copy.step(a)[:4]))
+
+
+def test_a_pickled_or_copied_env_keeps_its_shared_info_masks_read_only():
+    # info's masks are arrays the env shares between steps (read-only, so that a caller writing
+    # into one cannot change the next step's info); pickle gives arrays back writable
+    env = make_vec(FREE, 4)
+    _, info = env.reset(seed=0)
+    masks = [k for k, v in info.items() if k.startswith("_") and isinstance(v, np.ndarray)]
+    assert masks and not any(info[k].flags.writeable for k in masks)
+    for other in (pickle.loads(pickle.dumps(env)), copy.deepcopy(env)):
+        _, info = other.reset(seed=0)
+        assert not any(info[k].flags.writeable for k in masks)
+        info = other.step(np.zeros((4, 3), dtype=np.float32))[4]
+        assert not any(info[k].flags.writeable for k in masks)
