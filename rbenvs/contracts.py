@@ -218,9 +218,10 @@ class System(Steppable, Protocol):
     def angular_velocity(self, y):
         """Body angular velocity ``Omega`` [rad/s] (components)."""
 
-    def guard_rates(self, region: StepRegion, speed_ceiling: float) -> GuardRates:
+    def guard_rates(self, region: StepRegion, speed_ceiling: float, dt: float) -> GuardRates:
         """The rates the internal step must resolve with an integrator of ``region``;
-        ``speed_ceiling`` bounds ``|Omega|`` inside the observation bounds."""
+        ``speed_ceiling`` bounds ``|Omega|`` inside the observation bounds, ``dt`` is the control
+        period (a rate may hold over the whole period from its start)."""
 
     start_draw_kinds: str  # the kinds of the numbers the system adds to a start (rbenvs.draws)
 

@@ -129,7 +129,7 @@ def forms_of(system):
         pair = getattr(system, f"kernel_{name}")
         if pair is not None:
             out[name] = pair
-    rates = system.guard_rates(get_integrator("rk4").region)
+    rates = system.guard_rates(get_integrator("rk4").region, math.inf, 0.01)
     if rates.dissipation is not None:
         out["guard_rate"] = rates.dissipation
     invert = InvertTask(150.0, 150.0, 0.1, 0.1, 0.03)
@@ -183,8 +183,8 @@ def test_a_law_without_pure_functions_runs_on_floats_and_arrays_with_no_kernels(
         for u in (None, (0.5, -0.5, 4.0, 0.0, 0.0, 0.0)):
             want = full.rhs(y, None if u is None else u[:2] + (2.0,) + u[3:])
             assert np.allclose(np.array(half.rhs(y, u)), np.array(want), rtol=1e-14, atol=0.0)
-    fn, p = half.guard_rates(get_integrator("rk4").region).dissipation
-    gn, q = full.guard_rates(get_integrator("rk4").region).dissipation
+    fn, p = half.guard_rates(get_integrator("rk4").region, math.inf, 0.01).dissipation
+    gn, q = full.guard_rates(get_integrator("rk4").region, math.inf, 0.01).dissipation
     assert fn(p, floats[0], None) == gn(q, floats[0], None)
 
 

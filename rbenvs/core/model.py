@@ -80,7 +80,7 @@ class Model:
         require_parts(self.integrator, Integrator, "integrator")
         require_parts(self.actuator, Actuator, "actuator")
         region: StepRegion = self.integrator.region
-        rates = self.system.guard_rates(region, self.speed_ceiling)
+        rates = self.system.guard_rates(region, self.speed_ceiling, self.dt)
         zero = (
             self.actuator.control((0.0,) * self.actuator.size)[1]
             if self.tolerance is not None

@@ -375,7 +375,7 @@ class FreeBody:
                 )
         return y
 
-    def guard_rates(self, region, speed_ceiling: float = math.inf) -> GuardRates:
+    def guard_rates(self, region, speed_ceiling: float, dt: float) -> GuardRates:
         """In the body frame ``Pi`` turns about ``Omega`` at ``|Omega|`` (at a steady spin the
         linearisation's eigenvalues have modulus ``<= |Omega|``, [MR 15.9.1]): one oscillatory rate,
         ``lambda = |Omega|``, for every scheme (the splitting's pieces are exact rotations,

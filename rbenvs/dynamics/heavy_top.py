@@ -525,7 +525,7 @@ class HeavyTop:
                 )
         return y
 
-    def guard_rates(self, region, speed_ceiling: float = math.inf) -> GuardRates:
+    def guard_rates(self, region, speed_ceiling: float, dt: float) -> GuardRates:
         """Three rates bound the dynamics: the turn of ``Pi`` and ``Gamma`` about ``Omega``
         (``|Omega|``), gravity's ``omega_g = sqrt(M g l / I_min)`` (the hanging top's pendulum
         frequency, the upright top's growth rate; ``I_min`` is conservative) and the spin

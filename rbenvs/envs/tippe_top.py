@@ -124,8 +124,11 @@ class TippeTopEnv(RigidBodyEnv):
     and the largest mobility of the contact point along the table: within 1 % of the vector
     field's stiffest decay rate near zero slip): for rk4 ``h_f = min(1.25 / lambda_d, 1.25 /
     (K sqrt(lambda_d w)))``, ``w = max(|Omega|, omega_g)``, ``K`` the law's ``accuracy_scale``
-    (Coulomb 19, viscous 10.4; :mod:`rbenvs.dynamics.contact`): about 0.9 of the stability
-    bound's steps for the default top, the time to 90 degrees within 1e-4 s of the converged value
+    (Coulomb 19, viscous 10.4; :mod:`rbenvs.dynamics.contact`), ``lambda_d`` taken at the
+    smallest slip the period can reach (beyond ``|s| = 3.9 eps`` a sliding top's friction is not
+    stiff; then at least ``50 w``, what Jellett's integral needs: ``STIFF_BAND``,
+    ``JELLETT_SCALE``): 0.81-0.85 of the stability bound's steps for the default top, the time
+    to 90 degrees within 1e-4 s of the converged value
     and Jellett's drift at most 3e-9 per simulated second on every top of a sweep across the
     inversion band (tests/test_tippe_stiff.py; ``python -m rbenvs.bench.tippe_steps``). ``n`` is set
     from the state at the start of each period;

@@ -608,7 +608,7 @@ def start_steps(model, speed: float, dissipation: float = 0.0) -> tuple[float, s
         region = dataclasses.replace(
             region, rotation=1.0, reason="one radian of the fastest rate per step"
         )
-    rates = model.system.guard_rates(region, speed)
+    rates = model.system.guard_rates(region, speed, dt)
     rule = StepRule.build(
         rates, region, dt, "subdivide", integrator, model.tolerance, model.horizon
     )

@@ -36,20 +36,19 @@ def friction_stiffness(system, mu, normal_force=None):
     )
 
 
-def guard_rates(system, region, speed_ceiling: float = math.inf) -> GuardRates:
+def guard_rates(system, region, speed_ceiling: float, dt: float) -> GuardRates:
     """The contact geometry turns with the body: ``max(|Omega|, omega_g) h <= SPIN_STEP``
     (0.1 rad, an accuracy bound of this system for every scheme; ``omega_g`` from
     :meth:`TippeTopParams.gravity_rate`), and, with friction, ``h <= c / lambda_d``
     (:func:`friction_stiffness`) with ``c`` half the scheme's real-axis interval (euler
     1.0, rk4 1.39; none for dop853). With ``friction_bound="accuracy"``: ``lambda_a =
-    max(lambda_d, K sqrt(lambda_d w))`` (``K`` the law's ``accuracy_scale``;
-    :func:`implicit_forms`'
-    ``accuracy_rate``; ``lambda_d`` the tight rate: the law's stiffness at the actual ``N`` and
-    the largest mobility along the table; ``w = max(|Omega|, omega_g)``) and ``c``
-    ``ACCURACY_MARGIN`` of the interval (rk4 1.25); a law without a slope (no ``implicit``)
-    keeps the stability bound."""
+    max(lambda, K sqrt(lambda w))`` (``K`` the law's ``accuracy_scale``; :func:`implicit_forms`'
+    ``accuracy_rate``; ``lambda`` the law's stiffness at the actual ``N``, the largest mobility
+    along the table and the smallest slip a period of ``dt`` can reach, with a floor for the
+    sliding top; ``w = max(|Omega|, omega_g)``) and ``c`` ``ACCURACY_MARGIN`` of the interval
+    (rk4 1.25); a law without a slope (no ``implicit``) keeps the stability bound."""
     omega_g = system.params.gravity_rate()
-    dissipation, margin, text = _dissipation_bound(system, omega_g)
+    dissipation, margin, text = _dissipation_bound(system, omega_g, dt)
     share = None
     if (
         dissipation is not None
@@ -77,7 +76,7 @@ def guard_rates(system, region, speed_ceiling: float = math.inf) -> GuardRates:
     )
 
 
-def _dissipation_bound(system, omega_g: float) -> tuple:
+def _dissipation_bound(system, omega_g: float, dt: float) -> tuple:
     """``(dissipation, margin, text)``: the friction's rate form and its ``P`` (``None`` without
     friction), the share of the real-axis interval a step may take of it, and the rule in words:
     the stability bound, or with ``friction_bound="accuracy"`` and a law with an accuracy rate
@@ -97,12 +96,12 @@ def _dissipation_bound(system, omega_g: float) -> tuple:
     ):
         dissipation = (
             system.implicit.accuracy_rate,
-            (system.form_params, system.friction.accuracy_scale, omega_g),
+            (system.form_params, system.friction.accuracy_scale, omega_g, float(dt)),
         )
         margin = ACCURACY_MARGIN
         text += (
-            f", lambda_d = the {system.friction_law} law's stiffness at N and the mobility "
-            "along the table (friction_bound='accuracy')"
+            f", lambda_d = the {system.friction_law} law's stiffness at N, the mobility "
+            "along the table and the period's smallest slip (friction_bound='accuracy')"
         )
     elif dissipation is not None:
         text += f", lambda_d = the {system.friction_law} law's stiffness at 2 max(m g, N)"

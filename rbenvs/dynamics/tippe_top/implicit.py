@@ -10,6 +10,7 @@ from typing import NamedTuple
 from ...jit import jitable
 from ...rotations import maximum, power, select, sqrt
 from .forms import constraint_vertical_velocity, contact_arm, pure_forms, slip_velocity, tippe_frame
+from .params import JELLETT_SCALE, STIFF_BAND
 
 # ------------------------------------------------------------------------------------------
 # The friction's linearisation: what a linearly implicit scheme (rbenvs.integrators.rosenbrock)
@@ -168,9 +169,9 @@ def implicit_forms(
     rate = accuracy_rate = share = None
     if stiffness is not None and not rolling:
         rate_at, rate = _rate_forms(layout, stiffness, contact)
-        accuracy_rate = _accuracy_rate_form(layout, rate)
         slip_rates = _slip_rates_form(layout, table_slip, slip_change, vector_field)
         ratio = _stiffness_ratio_form(coefficient)
+        accuracy_rate = _accuracy_rate_form(layout, slip_rates, ratio, rate_at)
         share = _share_form(layout, slip_rates, ratio, rate_at, saturates)
     return ImplicitForms(factor, solve, rate, accuracy_rate, share)
 
@@ -359,20 +360,32 @@ def _rate_forms(layout: tuple, stiffness, contact) -> tuple:
     return rate_at, rate
 
 
-def _accuracy_rate_form(layout: tuple, rate):
-    """``accuracy_rate((P, K, omega_g), y, u)`` (:class:`ImplicitForms`)."""
+def _accuracy_rate_form(layout: tuple, slip_rates, stiffness_ratio, rate_at):
+    """``accuracy_rate((P, K, omega_g, dt), y, u)`` (:class:`ImplicitForms`)."""
     W = layout[1]
 
     @jitable
     def accuracy_rate(q, y, u):
-        """``max(lambda_d, K sqrt(lambda_d w))``, ``q = (P, K, omega_g)``, ``w = max(|Omega|,
-        omega_g)``: the friction guard's rate with ``friction_bound="accuracy"`` (see
-        the friction law's ``accuracy_scale``)."""
-        p, k, omega_g = q
-        lam = rate(p, y, u)
+        """The friction guard's rate with ``friction_bound="accuracy"``, ``q = (P, K, omega_g,
+        dt)``: ``lambda_a(kappa' lambda_d)`` with ``lambda_a(x) = max(x, K sqrt(x w))``, ``w =
+        max(|Omega|, omega_g)``, ``kappa' = min(1, STIFF_BAND kappa)``, ``kappa`` the law's
+        coefficient at the smallest slip the period of ``dt`` can reach over its value at zero
+        slip (``share``'s), and at least ``min(lambda_a(lambda_d), JELLETT_SCALE w)``
+        (:mod:`rbenvs.dynamics.tippe_top.params`; the law's ``accuracy_scale``)."""
+        p, k, omega_g, dt = q
+        mu = p[6] if u is None else u[2]
+        rm, (s1, s2, s3), (t1, t2, t3) = slip_rates(p, y, u)
+        _, kappa = stiffness_ratio(mu, p[7], s1, s2, s3, t1, t2, t3, dt)
+        _, top = tangential_mobility(p, rm[6], rm[7], rm[8])
+        full = rate_at(p, y, u, top)
+        band = STIFF_BAND * kappa
+        lam = select(band < 1.0, band, 0.0 * band + 1.0) * full
         w = sqrt(y[W] * y[W] + y[W + 1] * y[W + 1] + y[W + 2] * y[W + 2])
         w = maximum(w, 0.0 * w + omega_g)
-        return maximum(lam, k * sqrt(lam * w))
+        whole = maximum(full, k * sqrt(full * w))
+        floor = JELLETT_SCALE * w
+        floor = select(floor < whole, floor, whole)
+        return maximum(maximum(lam, k * sqrt(lam * w)), floor)
 
     return accuracy_rate
 

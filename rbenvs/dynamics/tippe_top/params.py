@@ -42,15 +42,22 @@ TOUCHDOWN_TOL = 1e-13
 SPIN_STEP = 0.1
 FRICTION_MARGIN = 0.5
 # friction_bound="accuracy": h <= ACCURACY_MARGIN of the scheme's real-axis interval over
-# lambda_a = max(lambda_d, K sqrt(lambda_d w)), lambda_d the tight rate (actual N, mobility along
-# the table), w = max(|Omega|, omega_g), K the friction law's accuracy_scale
-# (rbenvs.dynamics.contact). For rk4: h <= 1.25 / lambda_d (stable with the tight rate's growth
-# within a period, measured up to about twice: 2.5 < 2.78) and h <= 1.25 / (K sqrt(lambda_d w)):
-# near zero slip the slip relaxes at lambda_d while the contact geometry that drives it turns at
-# w, and rk4's error in the time to 90 degrees follows h^2 lambda_d w per unit time there, so a top
-# that rises slowly (long near rolling) gathers more of it; the error falls like K^-4.
+# lambda_a(lambda) = max(lambda, K sqrt(lambda w)), w = max(|Omega|, omega_g), K the friction law's
+# accuracy_scale (rbenvs.dynamics.contact). For rk4: h <= 1.25 / lambda (stable with the tight
+# rate's growth within a period, measured up to about twice: 2.5 < 2.78) and h <= 1.25 / (K
+# sqrt(lambda w)): near zero slip the slip relaxes at lambda while the contact geometry that
+# drives it turns at w, and rk4's error in the time to 90 degrees follows h^2 lambda w per unit
+# time there, so a top that rises slowly (long near rolling) gathers more of it; the error falls
+# like K^-4. lambda is the law's stiffness at the smallest slip the period can reach, kappa
+# lambda_d (lambda_d the tight rate at zero slip: actual N, mobility along the table), taken whole
+# within the band where K was fitted (STIFF_BAND kappa >= 1: |s| <= sqrt(3) eps under Coulomb):
+# a sliding top's saturated friction is not stiff. There the step is held by rk4's error on the
+# rotation, which Jellett's integral gathers like w (w h)^4 per unit time: lambda_a >=
+# JELLETT_SCALE w (0.025 rad a step for rk4), never above the zero-slip rate's lambda_a.
 FRICTION_BOUNDS = ("stability", "accuracy")
 ACCURACY_MARGIN = 0.45
+STIFF_BAND = 4.0
+JELLETT_SCALE = 50.0
 
 
 @jitable

@@ -215,6 +215,6 @@ def stem_accuracy_rate(accuracy_rate0):
 
     @jitable
     def accuracy_rate(q, y, u):
-        return accuracy_rate0((stem_params(q[0], y[11]), q[1], q[2]), y, u)
+        return accuracy_rate0((stem_params(q[0], y[11]), q[1], q[2], q[3]), y, u)
 
     return accuracy_rate

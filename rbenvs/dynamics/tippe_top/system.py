@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import math
-
 from ...contracts import GuardRates
 from ...draws import draw
 from ..state import start_as_drawn
@@ -400,10 +398,10 @@ class TippeTop:
         friction. ``mu`` and ``normal_force`` may be arrays (a batch)."""
         return friction_stiffness(self, mu, normal_force)
 
-    def guard_rates(self, region, speed_ceiling: float = math.inf) -> GuardRates:
-        """The rates a step must resolve for ``region``
+    def guard_rates(self, region, speed_ceiling: float, dt: float) -> GuardRates:
+        """The rates a step must resolve for ``region`` in periods of ``dt``
         (:func:`rbenvs.dynamics.tippe_top.guard.guard_rates`)."""
-        return guard_rates(self, region, speed_ceiling)
+        return guard_rates(self, region, speed_ceiling, dt)
 
     def max_stable_step(self, region, mu=None, normal_force=None):
         """The largest internal step [s] at which the friction law is stable for a scheme of
