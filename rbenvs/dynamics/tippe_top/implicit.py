@@ -123,7 +123,8 @@ class ImplicitForms(NamedTuple):
       (tuple of components);
     * ``rate(P, y, u) -> lambda_d``: the tight stiffness, the law's at the actual normal force
       and the largest tangential mobility (:func:`tangential_mobility`), at zero slip;
-    * ``accuracy_rate((P, K, omega_g), y, u)``: the guard's rate with ``friction_bound="accuracy"``;
+    * ``accuracy_rate((P, K, omega_g, dt), y, u)``: the guard's rate with
+      ``friction_bound="accuracy"`` over a period of ``dt``;
     * ``share(((P, omega_g), c_f / C), y, u, dt, p, lambda_g) -> a``: the share of ``C (lambda_g
       h)^p`` (``lambda_g`` the friction guard's rate at ``y``) that the slip relaxation's error is
       in a
