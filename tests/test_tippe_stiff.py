@@ -455,7 +455,7 @@ def test_accuracy_bound_is_its_rule_compiled_as_on_floats_and_is_checked(start, 
     sqrt(x w))``, ``w = max(|Omega|, omega_g)``, ``K`` the law's scale (Coulomb 19, viscous 10.4),
     from the tight rate ``lambda_d`` (recomputed here from the dense mobility): from the rolling
     start (zero slip: the law's full stiffness) ``lambda_a(lambda_d)``; from rest (sliding at
-    about 2,700 eps: the saturated friction is not stiff) the rotation's floor ``min(50 w,
+    about 270 eps: the saturated friction is not stiff) the rotation's floor ``min(50 w,
     lambda_a(lambda_d))``. The compiled step takes the float path's states and counts."""
     from rbenvs.dynamics.contact import FRICTION_LAWS
     from rbenvs.dynamics.tippe_top import ACCURACY_MARGIN, JELLETT_SCALE

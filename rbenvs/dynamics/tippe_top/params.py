@@ -50,7 +50,7 @@ FRICTION_MARGIN = 0.5
 # time there, so a top that rises slowly (long near rolling) gathers more of it; the error falls
 # like K^-4. lambda is the law's stiffness at the smallest slip the period can reach, kappa
 # lambda_d (lambda_d the tight rate at zero slip: actual N, mobility along the table), taken whole
-# within the band where K was fitted (STIFF_BAND kappa >= 1: |s| <= sqrt(3) eps under Coulomb):
+# within the band where K was fitted (STIFF_BAND kappa >= 1: |s| <= sqrt(15) eps under Coulomb):
 # a sliding top's saturated friction is not stiff. There the step is held by rk4's error on the
 # rotation, which Jellett's integral gathers like w (w h)^4 per unit time: lambda_a >=
 # JELLETT_SCALE w (0.025 rad a step for rk4), never above the zero-slip rate's lambda_a.
