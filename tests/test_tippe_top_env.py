@@ -1264,12 +1264,11 @@ def test_gravity_rate_resolves_slow_frictionless_tops(spin, tilt):
 
 
 def test_the_lift_off_check_shares_the_next_stage_contact_solve():
-    """On the float path one period of n rk4 steps solves the contact 4 n + 4 times: per step
+    """On the float path one period of n rk4 steps solves the contact 4 n + 3 times: per step
     three new stages and the lift-off check, whose solve is the next step's first stage (not 5
-    per step), plus four per period (the guard's two at the start: its rate's normal force and
-    the slip's rate along the vector field; the first stage, the read-outs' at the end; a
-    one-entry cache on the methods once shared those, the pure forms do not); the trajectory is
-    the same bits as without the sharing."""
+    per step), plus three per period (the guard's at the start, the first stage, the read-outs'
+    at the end; a one-entry cache on the methods once shared those, the pure forms do not); the
+    trajectory is the same bits as without the sharing."""
     import sys
 
     env = TippeTopEnv(compiled=False)
@@ -1289,7 +1288,7 @@ def test_the_lift_off_check_shares_the_next_stage_contact_solve():
     finally:
         sys.setprofile(None)
     n = round(env.dt / info["internal_step"])
-    assert len(calls) == 4 * n + 4, (len(calls), n)
+    assert len(calls) == 4 * n + 3, (len(calls), n)
     ref.engine.period.shared = None  # the lift-off checked by a solve of its own after every step
     _, _, _, _, ref_info = ref.step(zeros(ref))
     assert same_state(env.get_state(), ref.get_state()) and info == ref_info

@@ -160,7 +160,7 @@ def implicit_forms(
     (:mod:`rbenvs.dynamics.contact`; ``slope is None``: no friction, ``W = I``); ``saturates``:
     the law's (:attr:`~rbenvs.dynamics.contact.FrictionLaw.saturates`), which ``share`` reads."""
     forms = pure_forms(coefficient, stiffness, rolling, flight)
-    contact, vector_field = forms.contact, forms.rhs
+    contact = forms.contact
     layout = (6, 10, 3) if flight else ((2, 6, 0) if rolling else (4, 8, 2))
     frictionless = slope is None or rolling
     table_slip = _table_slip_form(layout)
@@ -170,7 +170,7 @@ def implicit_forms(
     rate = accuracy_rate = share = None
     if stiffness is not None and not rolling:
         rate_at, rate = _rate_forms(layout, stiffness, contact)
-        slip_rates = _slip_rates_form(layout, table_slip, slip_change, vector_field)
+        slip_rates = _slip_rates_form(layout, table_slip, slip_change, forms.rhs_normal)
         ratio = _stiffness_ratio_form(coefficient)
         accuracy_rate = _accuracy_rate_form(layout, slip_rates, ratio, rate_at)
         share = _share_form(layout, slip_rates, ratio, rate_at, saturates)
@@ -342,21 +342,23 @@ def _solve_form(layout: tuple, frictionless: bool, flight: bool, slip_change):
 
 
 def _rate_forms(layout: tuple, stiffness, contact) -> tuple:
-    """``(rate_at, rate)``: the law's stiffness at a given mobility, and the tight rate
-    (:class:`ImplicitForms`' ``rate``) at the largest tangential one."""
+    """``(rate_at, rate)``: the law's stiffness at a given normal force and mobility, and the
+    tight rate (:class:`ImplicitForms`' ``rate``) at the actual ``N`` and the largest tangential
+    mobility."""
     Q = layout[0]
 
     @jitable
-    def rate_at(p, y, u, top):
-        """The law's stiffness at the actual ``N`` and the mobility ``top`` along the table."""
+    def rate_at(p, u, normal, top):
+        """The law's stiffness at the normal force ``normal`` and the mobility ``top`` along the
+        table."""
         mu = p[6] if u is None else u[2]
-        return stiffness(mu, maximum(contact(p, y, u)[0], 0.0 * mu), top, p[7])
+        return stiffness(mu, maximum(normal, 0.0 * mu), top, p[7])
 
     @jitable
     def rate(p, y, u):
         rm = tippe_frame(y[Q], y[Q + 1], y[Q + 2], y[Q + 3])
         _, top = tangential_mobility(p, rm[6], rm[7], rm[8])
-        return rate_at(p, y, u, top)
+        return rate_at(p, u, contact(p, y, u)[0], top)
 
     return rate_at, rate
 
@@ -375,10 +377,10 @@ def _accuracy_rate_form(layout: tuple, slip_rates, stiffness_ratio, rate_at):
         (:mod:`rbenvs.dynamics.tippe_top.params`; the law's ``accuracy_scale``)."""
         p, k, omega_g, dt = q
         mu = p[6] if u is None else u[2]
-        rm, (s1, s2, s3), (t1, t2, t3) = slip_rates(p, y, u)
+        rm, (s1, s2, s3), (t1, t2, t3), normal = slip_rates(p, y, u)
         _, kappa = stiffness_ratio(mu, p[7], s1, s2, s3, t1, t2, t3, dt)
         _, top = tangential_mobility(p, rm[6], rm[7], rm[8])
-        full = rate_at(p, y, u, top)
+        full = rate_at(p, u, normal, top)
         band = STIFF_BAND * kappa
         lam = select(band < 1.0, band, 0.0 * band + 1.0) * full
         w = sqrt(y[W] * y[W] + y[W + 1] * y[W + 1] + y[W + 2] * y[W + 2])
@@ -391,9 +393,10 @@ def _accuracy_rate_form(layout: tuple, slip_rates, stiffness_ratio, rate_at):
     return accuracy_rate
 
 
-def _slip_rates_form(layout: tuple, table_slip, slip_change, vector_field):
+def _slip_rates_form(layout: tuple, table_slip, slip_change, rhs_normal):
     """``slip_rates(P, y, u)``: the frame, the table slip and its rate along the vector field
-    (both on the table's plane), what ``share`` reads."""
+    (both on the table's plane) and the normal force, from one contact solve: what the accuracy
+    rate and ``share`` read."""
     Q, W, V = layout
 
     @jitable
@@ -401,7 +404,7 @@ def _slip_rates_form(layout: tuple, table_slip, slip_change, vector_field):
         rm, (r1, r2, r3), vz, (s1, s2, s3) = table_slip(p, y)
         g1, g2, g3 = rm[6], rm[7], rm[8]
         w1, w2, w3 = y[W], y[W + 1], y[W + 2]
-        f = vector_field(p, y, u)
+        f, normal = rhs_normal(p, y, u)
         t1, t2, t3 = slip_change(
             p,
             rm,
@@ -421,7 +424,7 @@ def _slip_rates_form(layout: tuple, table_slip, slip_change, vector_field):
             f,
         )
         tn = t1 * g1 + t2 * g2 + t3 * g3
-        return rm, (s1, s2, s3), (t1 - tn * g1, t2 - tn * g2, t3 - tn * g3)
+        return rm, (s1, s2, s3), (t1 - tn * g1, t2 - tn * g2, t3 - tn * g3), normal
 
     return slip_rates
 
@@ -455,14 +458,14 @@ def _share_form(layout: tuple, slip_rates, stiffness_ratio, rate_at, saturates: 
         (p, omega_g), forced_ratio = q
         mu = p[6] if u is None else u[2]
         eps = p[7]
-        rm, (s1, s2, s3), (t1, t2, t3) = slip_rates(p, y, u)
+        rm, (s1, s2, s3), (t1, t2, t3), normal = slip_rates(p, y, u)
         g1, g2, g3 = rm[6], rm[7], rm[8]
         w1, w2, w3 = y[W], y[W + 1], y[W + 2]
         ns, kappa = stiffness_ratio(mu, eps, s1, s2, s3, t1, t2, t3, dt)
         # the mode at its local stiffness kappa lambda_d (lambda_d the law's at zero slip, the
         # guard's rate at least), as large as the state
         _, top = tangential_mobility(p, g1, g2, g3)
-        lam = rate_at(p, y, u, top)
+        lam = rate_at(p, u, normal, top)
         full = power(kappa * lam / maximum(guard, 0.0 * guard + 1e-300), order)
         if forced_ratio == 0.0:  # (a scheme without a forced-mode error constant)
             return select(full < 1.0, full, 0.0 * full + 1.0)
