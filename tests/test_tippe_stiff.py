@@ -495,6 +495,43 @@ def test_accuracy_bound_is_its_rule_compiled_as_on_floats_and_is_checked(start, 
         gym.make(ID, friction_bound="tight")
 
 
+def test_accuracy_bound_takes_the_stiffness_at_the_periods_smallest_slip():
+    """From rest at 150 rad/s the slip falls from 225 eps to the rolling band (0.4-0.5 eps) within
+    three periods; each period's count is ``ceil(dt max(lambda_a(kappa' lambda_d), min(lambda_a(
+    lambda_d), 50 w)) / 1.25)``, ``kappa' = min(1, 4 kappa)``, ``kappa = eps / sqrt(r^2 +
+    eps^2)`` at the smallest slip the period can reach, ``r = |s| + 2 dt min(d|s|/dt, 0)``, here
+    recomputed from the state: ``d|s|/dt`` by central differences of the slip along the vector
+    field, ``lambda_d`` the tight rate. The three branches occur: the floor while the slip is
+    far outside the band (60 steps), the reduced stiffness above the floor (73), the whole rate
+    where the slip can close within the period or lies in the band (145-146)."""
+    from rbenvs.dynamics.tippe_top import ACCURACY_MARGIN, JELLETT_SCALE, STIFF_BAND
+
+    env = gym.make(ID, start="rest", spin=150.0, compiled=False).unwrapped
+    env.reset(seed=0)
+    system, p = env.system, env.system.form_params
+    eps, scale = p[7], system.friction.accuracy_scale
+    branches = set()
+    for _ in range(12):
+        y = env.state_components
+        slip = system.forms.slip_speed(p, y)
+        f, x, d = np.array(system.rhs(y, None)), np.array(y), 1e-7
+        closing = (
+            system.forms.slip_speed(p, tuple(x + d * f))
+            - system.forms.slip_speed(p, tuple(x - d * f))
+        ) / (2.0 * d)
+        reach = max(slip + 2.0 * env.dt * min(closing, 0.0), 0.0)
+        kappa = min(1.0, STIFF_BAND * eps / math.sqrt(reach * reach + eps * eps))
+        lam_d = system.implicit.rate(p, y, None)
+        w = max(np.linalg.norm(y[8:11]), env.params.gravity_rate())
+        reduced = max(kappa * lam_d, scale * math.sqrt(kappa * lam_d * w))
+        floor = min(max(lam_d, scale * math.sqrt(lam_d * w)), JELLETT_SCALE * w)
+        _, _, _, _, info = env.step(np.zeros(env.action_space.shape, dtype=np.float32))
+        n = round(env.dt / info["internal_step"])
+        assert n == math.ceil(env.dt * max(reduced, floor) / (ACCURACY_MARGIN * 2.78))
+        branches.add("whole" if kappa == 1.0 else ("reduced" if reduced > floor else "floor"))
+    assert branches == {"floor", "reduced", "whole"}
+
+
 # The sweep of tops the accuracy bound holds (issue 44, item 5): alpha 0.1-0.3, A/C = 1 + f alpha
 # across the inversion band (1 - alpha < A/C < 1 + alpha; the lowest f per alpha the lowest whose
 # top passes 90 degrees within about 27 s at 150 rad/s), C = 7e-7 kg m^2, the default start
