@@ -29,9 +29,9 @@
   the main job, the test suite's wall and CPU time, ``verify --quick``; :mod:`rbenvs.bench.costs`).
 * ``rbenvs bench render [--frames N]``: milliseconds per ``rgb_array`` frame, beside
   ``Pendulum-v1``'s (:mod:`rbenvs.bench.render`).
-* ``rbenvs bench accuracy [--quick] [--json PATH] [--plot PNG] [--system NAME] [--tippe]``: error,
-  order, invariant drift and cost of every integrator on every system, and a recommended integrator
-  per scene (:mod:`rbenvs.bench.accuracy`).
+* ``rbenvs bench accuracy [--quick] [--json PATH] [--plot PNG] [--system NAME] [--tippe]
+  [--tippe-sweep]``: error, order, invariant drift and cost of every integrator on every system,
+  and a recommended integrator per scene (:mod:`rbenvs.bench.accuracy`).
 * ``rbenvs plot [WHAT ...] [--out DIR] [--quick]``: PNG figures (:mod:`rbenvs.plotting`; needs
   the ``plot`` extra): ``free_body``, ``heavy_top``, ``tippe_top``, ``frames`` (one rendered
   frame per system) or ``all`` (the default; the pictures under ``docs/``).

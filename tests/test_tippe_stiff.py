@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 import rbenvs  # noqa: F401  (registers the ids)
+from rbenvs.bench.tippe_steps import SWEEP, to_ninety
 from rbenvs.dynamics.contact import FRICTION_LAWS
 from rbenvs.dynamics.tippe_top import contact_arm, tangential_mobility, tippe_frame
 from rbenvs.integrators.rosenbrock import ROS2_GAMMA, Ros2, Ros34pw2, transformed
@@ -532,42 +533,23 @@ def test_accuracy_bound_takes_the_stiffness_at_the_periods_smallest_slip():
     assert branches == {"floor", "reduced", "whole"}
 
 
-# The sweep of tops the accuracy bound holds (issue 44, item 5): alpha 0.1-0.3, A/C = 1 + f alpha
-# across the inversion band (1 - alpha < A/C < 1 + alpha; the lowest f per alpha the lowest whose
-# top passes 90 degrees within about 27 s at 150 rad/s), C = 7e-7 kg m^2, the default start
-SWEEP = (
-    [(0.1, f) for f in (-0.5, -0.25, 0.0, 0.5, 0.9)]
-    + [(0.2, f) for f in (-0.7, -0.5, 0.0, 0.5, 0.9)]
-    + [(0.3, f) for f in (-0.8, -0.5, 0.0, 0.5, 0.9)]
-)
+def test_tippe_sweep_bench_prints_each_top_against_its_reference(monkeypatch, capsys):
+    """``rbenvs bench accuracy --tippe-sweep`` (the docs' figures of the sweep below): a row per
+    top with its time to 90 degrees, the error against rk4 at 2560 steps a period, Jellett's
+    drift per second and the steps a period, and the largest of each (here one top, the
+    fastest, for time)."""
+    from rbenvs.bench import tippe_steps
+    from rbenvs.bench.accuracy.command import main
 
-
-def _to_90(alpha, f, **kw):
-    """The top ``(alpha, A/C = 1 + f alpha)`` from the default start (seed 0) under zero action, up
-    to the period that passes 90 degrees: ``(t90, Jellett's largest relative drift, steps a
-    period)``, ``t90`` interpolated linearly in the period that crosses."""
-    c = 7e-7
-    env = gym.make(
-        ID, offset=alpha, inertia=((1.0 + f * alpha) * c, c), max_episode_steps=5000, **kw
-    ).unwrapped
-    _, info = env.reset(seed=0)
-    a = np.zeros(env.action_space.shape, np.float32)
-    j0, tilt, drift, steps = info["jellett"], info["tilt"], 0.0, []
-    for k in range(1, 5001):
-        _, _, terminated, _, info = env.step(a)
-        assert not terminated, (alpha, f, k, info.get("terminal_reason"))
-        steps.append(env.dt / info["internal_step"])
-        drift = max(drift, abs(info["jellett"] - j0) / abs(j0))
-        if info["tilt"] > math.pi / 2:
-            return (
-                (k - 1 + (math.pi / 2 - tilt) / (info["tilt"] - tilt)) * env.dt,
-                drift,
-                float(np.mean(steps)),
-            )
-        tilt = info["tilt"]
-    raise AssertionError(
-        f"the top {alpha}, {1 + f * alpha} did not pass 90 degrees in 5000 periods"
-    )
+    monkeypatch.setattr(tippe_steps, "SWEEP", [(0.3, 0.9)])
+    assert main(["--tippe-sweep"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    rows = [line.split("|")[1:-1] for line in lines if line.startswith("| 0.3 |")]
+    assert len(rows) == 1
+    alpha, ratio, t90, error, drift, steps = (float(x) for x in rows[0])
+    assert (alpha, ratio) == (0.3, 1.27) and 0.9 < t90 < 1.1
+    assert error < 1e-4 and drift < 3e-9 and 0 < steps < 200
+    assert lines[-1].startswith("largest t90 error")
 
 
 # viscous friction (30 s/m, from rest at 180 rad/s: the stiff case of the test above) across alpha
@@ -584,8 +566,8 @@ def test_accuracy_bound_holds_t90_under_viscous_friction(alpha, f):
     scale 10.4 holds the time to 90 degrees within 1e-4 s of rk4 at 2560 fixed steps a period
     (measured at most 2.3e-6 s over nine tops at 30 s/m and 5.1e-6 s at 3 s/m; Coulomb's 19 would
     take 1.8 times the steps)."""
-    t90, _, _ = _to_90(alpha, f, **VISCOUS)
-    t90_ref, _, _ = _to_90(alpha, f, guard="off", substeps=2560, **VISCOUS)
+    t90, _, _ = to_ninety(alpha, f, **VISCOUS)
+    t90_ref, _, _ = to_ninety(alpha, f, guard="off", substeps=2560, **VISCOUS)
     assert abs(t90 - t90_ref) < 1e-4, (t90, t90_ref)
 
 
@@ -600,8 +582,8 @@ def test_accuracy_bound_holds_t90_and_jellett_over_a_sweep_of_tops(alpha, f):
     3e-9 per simulated second up to 90 degrees (measured at most 2.7e-9/s, alpha 0.1, A/C 0.95:
     the drift gathers while the top rolls, so a top that rises slowly drifts more in all; the
     fast tops' drift, 1-2e-9/s, is the sliding phase's, at the rotation's floor)."""
-    t90, drift, steps = _to_90(alpha, f)
-    t90_ref, _, _ = _to_90(alpha, f, guard="off", substeps=2560)
+    t90, drift, steps = to_ninety(alpha, f)
+    t90_ref, _, _ = to_ninety(alpha, f, guard="off", substeps=2560)
     assert abs(t90 - t90_ref) < 1e-4, (t90, t90_ref)
     assert drift < 3e-9 * t90, (drift, t90)
     assert steps < 200  # (the accuracy bound's count, 70-162 a period here: not the reference's)

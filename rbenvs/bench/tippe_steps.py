@@ -17,6 +17,12 @@ It measures what the guard's bound is for: near zero slip the regularised fricti
 slip at ``lambda_d`` (about 6000/s for the default top) and the slow motion depends on how the
 slip lags the forcing; the count at which a scheme reproduces the converged time to 90 degrees
 is what the table shows, per start, spin sign and friction law.
+
+:func:`sweep_table` (``rbenvs bench accuracy --tippe-sweep``): the env's default guard on
+the 15 tops of :data:`SWEEP` (the tops the accuracy bound is held over, tests/test_tippe_stiff.py)
+against rk4 at ``SWEEP_REFERENCE`` fixed steps a period: per top the time to 90 degrees, its
+error, Jellett's largest drift per simulated second up to 90 degrees and the mean steps a period
+(docs/accuracy.md, "Stiff friction").
 """
 
 from __future__ import annotations
@@ -28,7 +34,17 @@ import numpy as np
 
 from ..extras import ArgumentParser
 
-__all__ = ["inversion", "rows", "table", "main", "make_env", "scheme"]
+__all__ = [
+    "inversion",
+    "rows",
+    "table",
+    "main",
+    "make_env",
+    "scheme",
+    "SWEEP",
+    "to_ninety",
+    "sweep_table",
+]
 
 ID = "rbenvs/TippeTop-v0"
 RK4_REAL_INTERVAL = 2.785  # rk4's stability interval on the negative real axis
@@ -71,6 +87,76 @@ def make_env(
         friction_bound=friction_bound,
         **options,
     ).unwrapped
+
+
+# The sweep of tops the accuracy bound holds (issue 44, item 5): alpha 0.1-0.3, A/C = 1 + f alpha
+# across the inversion band (1 - alpha < A/C < 1 + alpha; the lowest f per alpha the lowest whose
+# top passes 90 degrees within about 27 s at 150 rad/s), C = SWEEP_C, the default start
+SWEEP = (
+    [(0.1, f) for f in (-0.5, -0.25, 0.0, 0.5, 0.9)]
+    + [(0.2, f) for f in (-0.7, -0.5, 0.0, 0.5, 0.9)]
+    + [(0.3, f) for f in (-0.8, -0.5, 0.0, 0.5, 0.9)]
+)
+SWEEP_C = 7e-7  # kg m^2
+SWEEP_REFERENCE = 2560  # rk4 steps a period of the converged value
+
+
+def to_ninety(alpha, f, **options) -> tuple:
+    """The top ``(alpha, A/C = 1 + f alpha)`` from the default start (seed 0) under zero action,
+    up to the period that passes 90 degrees: ``(t90, Jellett's largest relative drift, steps a
+    period)``, ``t90`` interpolated linearly in the period that crosses; ``options``: more env
+    keywords. ``RuntimeError`` where the episode ends first or the top does not pass 90 degrees
+    in 5000 periods."""
+    import gymnasium as gym
+
+    import rbenvs  # noqa: F401  (registers the ids)
+
+    c = SWEEP_C
+    env = gym.make(
+        ID, offset=alpha, inertia=((1.0 + f * alpha) * c, c), max_episode_steps=5000, **options
+    ).unwrapped
+    _, info = env.reset(seed=0)
+    a = np.zeros(env.action_space.shape, np.float32)
+    j0, tilt, drift, steps = info["jellett"], info["tilt"], 0.0, []
+    for k in range(1, 5001):
+        _, _, terminated, _, info = env.step(a)
+        if terminated:
+            raise RuntimeError(f"the top {alpha}, {1 + f * alpha} ended: {info['terminal_reason']}")
+        steps.append(env.dt / info["internal_step"])
+        drift = max(drift, abs(info["jellett"] - j0) / abs(j0))
+        if info["tilt"] > math.pi / 2:
+            t90 = (k - 1 + (math.pi / 2 - tilt) / (info["tilt"] - tilt)) * env.dt
+            return t90, drift, float(np.mean(steps))
+        tilt = info["tilt"]
+    raise RuntimeError(f"the top {alpha}, {1 + f * alpha} did not pass 90 degrees in 5000 periods")
+
+
+def sweep_table() -> str:
+    """The table of ``rbenvs bench accuracy --tippe-sweep`` (module docstring)."""
+    lines = [
+        f"{len(SWEEP)} tops (A/C = 1 + f alpha, C = {SWEEP_C:g} kg m^2, the default start, zero "
+        f"action): the default guard against rk4 at {SWEEP_REFERENCE} fixed steps a period, up "
+        "to 90 degrees",
+        "| alpha | A/C | t90 [s] | t90 error [s] | Jellett drift per s | steps a period |",
+        "|---|---|---|---|---|---|",
+    ]
+    worst = []
+    for alpha, f in SWEEP:
+        t90, drift, steps = to_ninety(alpha, f)
+        t90_ref, _, _ = to_ninety(alpha, f, guard="off", substeps=SWEEP_REFERENCE)
+        error, rate = abs(t90 - t90_ref), drift / t90
+        worst.append((error, rate, steps, f"{alpha}, {1 + f * alpha:.3f}"))
+        lines.append(
+            f"| {alpha} | {1 + f * alpha:.3f} | {t90:.6f} | {error:.1e} | {rate:.2e} | "
+            f"{steps:.0f} |"
+        )
+    e, r = max(worst), max(worst, key=lambda x: x[1])
+    lines.append(
+        f"largest t90 error {e[0]:.1e} s (alpha, A/C = {e[3]}), largest Jellett drift "
+        f"{r[1]:.2e} per s ({r[3]}); {min(w[2] for w in worst):.0f}-"
+        f"{max(w[2] for w in worst):.0f} steps a period"
+    )
+    return "\n".join(lines)
 
 
 def tight_count(start, spin, law="coulomb") -> int:

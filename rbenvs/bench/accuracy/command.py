@@ -115,6 +115,13 @@ def _add_single_table_options(parser) -> None:
         "mpmath's Taylor solution (needs mpmath)",
     )
     parser.add_argument(
+        "--tippe-sweep",
+        action="store_true",
+        help="only the tippe top's accuracy bound over the 15 tops it is held over "
+        "(rbenvs.bench.tippe_steps.SWEEP): per top the time to 90 degrees and its error against "
+        "rk4 at 2560 steps a period, Jellett's drift per second and the steps a period",
+    )
+    parser.add_argument(
         "--tippe",
         action="store_true",
         help="only the tippe top's work-precision against MuJoCo (rbenvs.bench.tippe_accuracy): "
@@ -193,6 +200,11 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
     if args.case and not args.tolerance:
         parser.error("--case selects rows of the --tolerance table: pass --tolerance")
+    if args.tippe_sweep:
+        from ..tippe_steps import sweep_table
+
+        print(sweep_table())
+        return 0
     if args.tippe:
         return _tippe_main(args)
     if args.roundoff:
