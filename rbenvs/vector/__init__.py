@@ -79,7 +79,7 @@ from ..core.reasons import ReasonPool
 from ..core.step import action_columns
 from ..dynamics.validation import require_bool, require_int_at_least
 from ..envs.base import require_compiled
-from .accuracy import BatchAccuracy
+from ..stepsize.report import BatchAccuracy
 from .arguments import batch_compiled, batch_threads, require_autoreset_mode, require_known
 from .compiled_path import CompiledPath
 from .ends import BatchEnds
@@ -239,45 +239,14 @@ class RigidBodyVectorEnv(VectorEnv):
     def step(self, actions):
         if self.run.y is None:
             raise RuntimeError("call reset() before step()")
-        if self._options:  # (the delayed actions, then the estimate below, then the noise)
+        if self._options:  # (the delayed actions, then the step, then the noise)
             return self._step_options(actions)
-        return self._step_estimated(actions)
+        return self._accuracy.report(self._step(actions))
 
-    def _step_estimated(self, actions):
-        """The step of ``actions`` (those that act) with each period's error estimate in its info
-        (:class:`rbenvs.vector.accuracy.BatchAccuracy`)."""
-        accuracy = self._accuracy
-        if not accuracy.estimated:
-            return accuracy.unestimated_report(self._step(actions))
-        accuracy.begin()
-        vstep = self.compiled_path.whole
-        written = self._ranges is not None or (
-            vstep is not None and self.starts.table is not None and vstep.layout.estimate
-        )
-        if written and self._ranges is None:
-            # the compiled step writes the estimates (a restart's 0 too, and a step handed to
-            # the numpy path has them)
-            return accuracy.report(self._step(actions), self._false)
-        restart = (
-            self.run.prev_done.copy()
-            if self.autoreset_mode is AutoresetMode.NEXT_STEP
-            else self._false
-        )
-        # written by the step (param_ranges: each sub-env's episode engine), else from the rates
-        # of the states before the step (the numpy path, whose controls are made once for the
-        # rates and the step) or the default accuracy's gate, where every sub-env lies within it
-        # (its periods then take substeps unchecked)
-        y0, y2d0, control, gated = self.run.y, self.run.y2d, None, None
-        if not written:
-            control = self.engine.control(action_columns(actions, self.action_space.shape))
-            gated = None if accuracy.checked else accuracy.gated(y0)
-        out = self._step(actions, control, True if gated is not None else None)
-        return accuracy.report(out, restart, gated, control, y0, y2d0)
-
-    def _step(self, actions, control=None, plain=None):
-        """The step of ``actions``; ``control``: their ``(u_norm, u)`` where the caller made them
-        (the numpy path's; the other paths make their own); ``plain``: the numpy path's periods
-        take ``substeps`` unchecked (``None``: where the guard's static proof holds, ``_plain``)."""
+    def _step(self, actions):
+        """The step of ``actions`` by the path the env runs, each period's error estimate written
+        for :meth:`BatchAccuracy.report` (the numpy path's from the rates before its period, or
+        the default accuracy's gate, within which its periods take ``substeps`` unchecked)."""
         if self._ranges is not None:
             return self._step_episodes(actions)
         if self.compiled_path.whole is not None and self.starts.table is not None:
@@ -286,12 +255,11 @@ class RigidBodyVectorEnv(VectorEnv):
         # NEXT_STEP: the sub-envs whose episode ended last step are reset, not stepped.
         restart = run.prev_done if self.autoreset_mode is AutoresetMode.NEXT_STEP else self._false
         any_restart = bool(restart.any())
-        if control is None:
-            control = engine.control(action_columns(actions, self.action_space.shape))
-        u_norm, u = control
+        u_norm, u = engine.control(action_columns(actions, self.action_space.shape))
         y0 = run.y
         fast = None
-        plain = run.plain if plain is None else plain
+        accuracy = self._accuracy
+        plain = accuracy.before(y0, run.y2d, u) or run.plain
         with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
             # a sub-env blowing up is reported once, below, as the single env does
             if self.compiled_path.batch is not None:
@@ -309,10 +277,9 @@ class RigidBodyVectorEnv(VectorEnv):
                         cc[j] = c
                 if fired is False:
                     fired = self._false
-        accuracy = self._accuracy
         inaccurate = None if accuracy.check is None else accuracy.companion_period(y, u, h, restart)
         run.u, run.last_h = u, h
-        accuracy.ran(h)
+        accuracy.after(h, restart)
         if fast is None:  # (the numpy path, or a non-finite new state)
             return self._numpy_finish(y0, y, u_norm, fired, restart, any_restart, inaccurate)
         # the kernel's read-outs: every new state finite
@@ -365,8 +332,6 @@ class RigidBodyVectorEnv(VectorEnv):
         # the controls that acted: made from the actions where a failure needs them
         self.run.u, self.run.last_h = None, r.h
         if r.status > 0:  # non-finite new states: the numpy path's failure handling
-            # (the estimate's step; a SAME_STEP restart rewrites r.h's restarted rows)
-            self._accuracy.ran(r.h)
             self._accuracy.wrote(r.estimate)
             fired = r.fired if r.fired.any() else self._false
             u_norm, self.run.u = self.engine.control(action_columns(a, shape))
@@ -418,7 +383,7 @@ class RigidBodyVectorEnv(VectorEnv):
             actions = self._realism_batch.delayed(
                 np.stack(action_columns(actions, self.action_space.shape), axis=1)
             )
-        obs, reward, terminated, truncated, info = self._step_estimated(actions)
+        obs, reward, terminated, truncated, info = self._accuracy.report(self._step(actions))
         started = restart if next_step else (terminated | truncated)
         obs, info = self._realism_after(obs, info, started, same_step=not next_step)
         return obs, reward, terminated, truncated, info

@@ -19,7 +19,7 @@ class BatchStarts:
     (:class:`rbenvs.draws.GeneratorTable`), made once every sub-env has one where ``tables``
     (restarts then draw with no Python per sub-env). ``path``: the env's
     :class:`~rbenvs.vector.compiled_path.CompiledPath`; ``accuracy``: its
-    :class:`~rbenvs.vector.accuracy.BatchAccuracy` (a new run's companion); ``episodes``: its
+    :class:`~rbenvs.stepsize.report.BatchAccuracy` (a new run's companion); ``episodes``: its
     :class:`~rbenvs.vector.episodes.EpisodeBatch` with ``param_ranges`` (else ``None``)."""
 
     def __init__(self, engine, n, obs_dim, tables, info_readouts, path, accuracy, episodes):
