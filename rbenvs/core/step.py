@@ -290,19 +290,17 @@ class Engine:
         _, _, metrics = self.evaluate(y, self.actuator.control((0.0,) * self.actuator.size)[0])
         return obs, self.info_one(y, None, False, self.h, metrics, failed=False)
 
-    def step_one(self, y0, a, plain: bool, ratio=None, control=None):
+    def step_one(self, y0, a, plain: bool):
         """One control period of one env from ``y0`` under the action ``a`` (validated floats):
         a plain tuple in the fields of :class:`~rbenvs.contracts.StepResult` ``(y, obs, reward,
         terminated, info, u, plain)``, ``u`` the control that acted and ``plain`` whether the
         next period may take the plain loop (a tuple, not the NamedTuple itself: making one
-        costs 0.2 us, 4 % of a free-body step; ``StepResult._make`` names it off the hot path).
-        ``ratio``, ``control``: the guard's ratio at ``y0`` (:meth:`CompiledForms.plan_one`) and
-        ``control(a)`` where the caller has them."""
-        u_norm, u = self.control(a) if control is None else control
+        costs 0.2 us, 4 % of a free-body step; ``StepResult._make`` names it off the hot path)."""
+        u_norm, u = self.control(a)
         forms = self.forms
         one = forms.one if forms.one_tried else forms.state_step
         if one is None:  # (the float path: its own method, off the compiled hot path)
-            return self._step_float(y0, u_norm, u, plain, ratio)
+            return self._step_float(y0, u_norm, u, plain)
         e = None  # (the period's error estimate: a kernel with a tolerance's returns it last)
         if self.comp is None:
             if one.estimated:
@@ -321,8 +319,10 @@ class Engine:
             status, count, h, fired, y, o, over, r, q, comp = one.compensated(
                 y0, self.comp, u, u_norm, not plain, self.guard == "refuse"
             )
-        if status:  # refused (raised) or failed: off the normal path
-            return self._failed_compiled(status, count, y0, u_norm, u, h, plain, e)
+        if status < 0:  # refused (guard="refuse"): count is the period's steps
+            raise self.refusal(count)
+        if status:  # failed: off the normal path
+            return self._failed_one(y0, u_norm, u, h, plain, stacklevel=5, estimate=e)
         if self.comp is not None:
             self.comp = comp
         obs, reward, terminated = np.array(o, dtype=np.float32), r[0], r[1]
@@ -331,15 +331,16 @@ class Engine:
             reward, terminated, plain = self._ended(info, fired, over, terminated, reward, plain)
         return y, obs, reward, terminated, info, u, plain
 
-    def _step_float(self, y0, u_norm, u, plain: bool, ratio):
+    def _step_float(self, y0, u_norm, u, plain: bool):
         """:meth:`step_one`'s period and finish on floats (no compiled kernel: numpy, or numba
         absent or turned off)."""
-        lam = estimate = None  # a tolerance's: the rates at y0 give the count and the estimate
-        if self.tolerance is not None and ratio is None:
-            estimate = self.gated(y0)
-            if estimate is None:
-                ratio, lam, lam_d, share = self.forms.plan_one(y0, u)
-        if plain or estimate is not None:  # fixed substeps, nothing watched: the loop inline
+        plan = gated = ratio = None  # a tolerance's: the rates at y0 give the count and estimate
+        if self.tolerance is not None:
+            gated = self.gated(y0)
+            if gated is None:
+                plan = self.forms.plan_one(y0, u)  # (x, lam, lam_d, a)
+                ratio = plan[0]
+        if plain or gated is not None:  # fixed substeps, nothing watched: the loop inline
             step, h, comp, fired = self.bound_step, self.h, None, False
             y = step(y0, u, h)
             if self.substeps != 1:
@@ -347,10 +348,11 @@ class Engine:
                     y = step(y, u, h)
         else:
             y, fired, h, comp = self.advance(y0, u, False, comp=self.comp, ratio=ratio)
+        # the period's estimated relative error (stepsize.forms.error_estimate), or the gate's
+        estimate = gated if plan is None else float(self.rule.estimate(plan[1], h, *plan[2:]))
         # a non-finite component makes the sum non-finite; the exact test runs only then
         if not math.isfinite(sum(y)) and not all(math.isfinite(c) for c in y):
-            rates = None if lam is None else (lam, lam_d, share)
-            return self._failed_float(y0, u_norm, u, h, plain, rates, estimate)
+            return self._failed_one(y0, u_norm, u, h, plain, stacklevel=5, estimate=estimate)
         if not plain and comp is not None:
             self.comp = comp
         finish = self.finish_one
@@ -361,9 +363,7 @@ class Engine:
             obs, over = self.observe(y)
             reward, terminated, metrics = self.evaluate(y, u_norm)
             info = self.info_one(y, u, fired, h, metrics, failed=False)
-        if lam is not None:  # (the estimated relative error: stepsize.forms.error_estimate)
-            info["error_estimate"] = float(self.rule.estimate(lam, h, lam_d, share))
-        elif estimate is not None:
+        if self.tolerance is not None:
             info["error_estimate"] = estimate
         if fired or over or terminated:  # (the common case tests three bools and goes on)
             reward, terminated, plain = self._ended(info, fired, over, terminated, reward, plain)
@@ -381,26 +381,6 @@ class Engine:
         if over:
             plain = False  # outside the bounds the guard's static proof is void
         return reward, terminated, plain
-
-    def _failed_compiled(self, status, count, y0, u_norm, u, h, plain, e):
-        """The compiled step's period that was refused (``status < 0``: ``guard="refuse"``
-        raises, ``count`` its steps) or failed (:meth:`_failed_one`, its estimate ``e``)."""
-        if status < 0:
-            raise self.refusal(count)
-        out = self._failed_one(y0, u_norm, u, h, plain, stacklevel=6)
-        out[4]["error_estimate"] = e
-        return out
-
-    def _failed_float(self, y0, u_norm, u, h, plain, rates, estimate):
-        """The float path's period whose state went non-finite (:meth:`_failed_one`), with its
-        error estimate: from the ``rates`` ``(lam, lam_d, share)`` at ``y0``, or the gate's."""
-        out = self._failed_one(y0, u_norm, u, h, plain, stacklevel=6)
-        if rates is not None:
-            lam, lam_d, share = rates
-            out[4]["error_estimate"] = float(self.rule.estimate(lam, h, lam_d, share))
-        elif estimate is not None:
-            out[4]["error_estimate"] = estimate
-        return out
 
     def _cap_text(self, h, y0=None, u=None) -> str:
         """Why a period failed when it was refused past the cap (``h < dt / MAX_INTERNAL_STEPS``):
@@ -426,8 +406,19 @@ class Engine:
         return out
 
     def _failed_one(
-        self, y0, u_norm, u, h, plain, what=None, kept="the last finite state", stacklevel=5
+        self,
+        y0,
+        u_norm,
+        u,
+        h,
+        plain,
+        what=None,
+        kept="the last finite state",
+        stacklevel=5,
+        estimate=None,
     ):
+        """The end of an episode at ``y0``, the last state kept (``what``: why; by default a
+        refused or non-finite period), with its period's error ``estimate`` in its info."""
         # (stacklevel: the warning names the env's caller; a helper between adds a frame)
         if what is None:
             cap = self._cap_text(h, y0, u)
@@ -442,6 +433,7 @@ class Engine:
         obs, _ = self.observe(y0)
         _, _, metrics = self.evaluate(y0, u_norm)
         info = self.info_one(y0, u, False, h, metrics, failed=True)
+        info["error_estimate"] = estimate
         info["terminal_reason"] = terminal_reason(True, False, False, True, self.event_name)
         return y0, obs, 0.0 + self.failure_charge, True, info, u, plain
 
