@@ -18,9 +18,8 @@ from __future__ import annotations
 
 import numpy as np
 
-# scipy.special is imported where it is used: importing it is a large share of an env's start,
-# which every env would pay at start while only the exact solution (oracles, the exact
-# integrator) calls it
+# scipy.special is imported where it is used: importing it is a large share of an env's start
+# (rbenvs bench startup), and only the exact solution (oracles, the exact integrator) calls it
 
 __all__ = ["jacobi_sn_cn_dn", "elliptic_f", "elliptic_f_sc", "elliptic_k"]
 

@@ -102,7 +102,7 @@ def _every_one(cond):
 @jitable
 def expm1(x):
     """``exp(x) - 1`` with libm's bits for floats, arrays and compiled code (numpy's SIMD
-    ``expm1`` differs from libm's in the last bit for a third of arguments)."""
+    ``expm1`` differs from libm's in the last bit for many arguments)."""
     if isinstance(x, float):
         return math.expm1(x)
     return _expm1_arrays(x)
@@ -183,9 +183,9 @@ def atan2(y, x):
     """``atan2(y, x)`` in ``[-pi, pi]`` of floats or arrays, from IEEE arithmetic alone.
 
     Why not libm or numpy: numpy's array ``arctan2`` (SIMD) and libm's ``atan2`` (what Python's
-    ``math`` and numba call) differ in the last bit for several percent of arguments, and the
-    single env (floats), the numpy batch and the compiled kernel must compute the same bits.
-    This is fdlibm's algorithm (``e_atan2.c``, ``s_atan.c``): the ratio ``t = |y| / |x|``, reduced
+    ``math`` and numba call) differ in the last bit for some arguments, and the single env
+    (floats), the numpy batch and the compiled kernel must compute the same bits. This is
+    fdlibm's algorithm (``e_atan2.c``, ``s_atan.c``): the ratio ``t = |y| / |x|``, reduced
     to ``|r| <= 7/16`` on one of five intervals, an odd polynomial, then the quadrant. Only
     ``+ - * /`` and comparisons, so floats, arrays and compiled code give the same result
     (within 1 ulp of glibc's correctly rounded ``atan2``; tested). Signed zeros and

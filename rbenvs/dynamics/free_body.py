@@ -172,10 +172,9 @@ def error_rate(p, y):
     is stretched at up to ``sqrt((j_m - j_l)(j_h - j_m)) |Pi|`` (``j`` the inverse moments sorted:
     the intermediate axis's rate of instability, 0 with two equal moments): ``sigma`` is that
     coefficient times :data:`SEPARATRIX_MARGIN`, and its rate is added. The Jacobian's bound
-    caps it. Measured against the exact solution (``rbenvs bench accuracy --tolerance``,
-    ``tests/test_tolerance.py``): fast tumbles, the separatrix, nearly equal moments and
-    triaxial bodies from several starts, within every tolerance. A state at rest in the body frame
-    (``dPi = 0``, a steady spin) commits no error (``mu = 0``); there the bound is returned."""
+    caps it (``rbenvs bench accuracy --tolerance`` and ``tests/test_tolerance.py`` check it
+    against the exact solution). A state at rest in the body frame (``dPi = 0``, a steady spin)
+    commits no error (``mu = 0``); there the bound is returned."""
     inv, spread, sigma = p
     j1, j2, j3 = inv
     p1, p2, p3 = y[0], y[1], y[2]
@@ -261,10 +260,9 @@ def error_rate_params(inverse) -> tuple:
     return (inv, hi - lo, SEPARATRIX_MARGIN * math.sqrt((mid - lo) * (hi - mid)))
 
 
-# error_rate's sigma is the intermediate axis's rate of instability times this: with 1, rk4 at
-# tolerance=1e-9 from 0.002 off the default body's separatrix at 5 rad/s ended at 0.99 of the
-# tolerance, its summed estimate below its error; with 1.5 at 0.78, as with the Jacobian's bound
-# alone (`rbenvs bench accuracy --tolerance`'s fb_triaxial row; tests/test_tolerance.py)
+# error_rate's sigma is the intermediate axis's rate of instability times this: with 1 the summed
+# estimate fell below rk4's error just off the separatrix, 1.5 keeps the margin the Jacobian's
+# bound alone gives (`rbenvs bench accuracy --tolerance`'s fb_triaxial row; tests/test_tolerance.py)
 SEPARATRIX_MARGIN = 1.5
 
 

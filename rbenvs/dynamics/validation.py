@@ -3,8 +3,8 @@
 A value of the wrong *type* (a string where a number belongs, ``"False"`` for a flag, a
 complex number) raises :class:`ParameterTypeError`; a value of the right type that breaks a rule
 (negative, non-finite, out of range) raises ``ValueError``. ``ParameterTypeError`` is both a
-``TypeError`` and a ``ValueError``, so code that catches the ``ValueError`` every invalid
-parameter raised before keeps working.
+``TypeError`` and a ``ValueError``, so code that catches ``ValueError`` for any invalid
+parameter catches it too.
 """
 
 from __future__ import annotations

@@ -3,9 +3,8 @@
 A scheme is its coefficient table (:class:`ButcherTableau`): stage ``i`` evaluates the vector
 field at ``y + h sum_j a_ij k_j`` and the step is ``y + h sum_i b_i k_i``. The step is
 generated from the table (:mod:`rbenvs.codegen`), unrolled per state dimension: on a
-single state of plain floats a loop form's generator and zip overhead costs twice the physics
-(unrolled, a free-body RK4 step takes about 1.1 us instead of 2.9). Every stage calls the
-system's one ``rhs``, on floats or on arrays alike.
+single state of plain floats a loop's generator and zip overhead would cost more than the
+physics. Every stage calls the system's one ``rhs``, on floats or on arrays alike.
 
 The generated arithmetic follows fixed rules, so that a scheme's results do not depend on how
 it was written: a stage input with one coefficient ``a`` is ``y + (a h) k`` with ``a h``
@@ -348,8 +347,8 @@ class Euler(ExplicitRungeKutta):
         dissipation=2.0,
         reason="accuracy bounds: no stability interval on the imaginary axis; real-axis interval 2",
     )
-    # measured (rbenvs.integrators.error): 0.50013, rounded up (theory 1/2: the amplitude grows by
-    # z^2 / 2 a step)
+    # the measured constant rounded up (`rbenvs bench accuracy --tolerance` prints it); theory
+    # 1/2: the amplitude grows by z^2 / 2 a step
     error_constant = 0.501
 
 
@@ -373,8 +372,8 @@ class RK4(ExplicitRungeKutta):
         reason="imaginary-axis interval 2.83 (1.0 kept: 0.6 % amplitude error a step), "
         "real-axis interval 2.78",
     )
-    # measured (rbenvs.integrators.error): 0.0083333, rounded up (theory 1/120: the phase lags by
-    # z^5 / 120 a step)
+    # the measured constant rounded up (`rbenvs bench accuracy --tolerance` prints it); theory
+    # 1/120: the phase lags by z^5 / 120 a step
     error_constant = 0.00834
     # |R(i z)| = 1 - z^6 / 144 + ...: the amplitude's error is an order above the phase's
     error_in_phase = True

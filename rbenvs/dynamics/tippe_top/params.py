@@ -44,7 +44,7 @@ FRICTION_MARGIN = 0.5
 # friction_bound="accuracy": h <= ACCURACY_MARGIN of the scheme's real-axis interval over
 # lambda_a(lambda) = max(lambda, K sqrt(lambda w)), w = max(|Omega|, omega_g), K the friction law's
 # accuracy_scale (rbenvs.dynamics.contact). For rk4: h <= 1.25 / lambda (stable with the tight
-# rate's growth within a period, measured up to about twice: 2.5 < 2.78) and h <= 1.25 / (K
+# rate growing up to about twice within a period: 2.5 < 2.78) and h <= 1.25 / (K
 # sqrt(lambda w)): near zero slip the slip relaxes at lambda while the contact geometry that
 # drives it turns at w, and rk4's error in the time to 90 degrees follows h^2 lambda w per unit
 # time there, so a top that rises slowly (long near rolling) gathers more of it; the error falls
