@@ -108,9 +108,9 @@ def _table_kernels() -> dict:
 
 class GeneratorTable:
     """The sub-envs' generators as one numba typed list, so that the draws of any set of
-    sub-envs are one compiled call (about 50 ns per sub-env for a few numbers, against a few
-    microseconds of Python per sub-env). The ``Generator`` objects are shared, not copied: a
-    draw here advances the same stream a Python call on that generator would.
+    sub-envs are one compiled call, with no Python per sub-env. The ``Generator`` objects are
+    shared, not copied: a draw here advances the same stream a Python call on that generator
+    would.
 
     ``table[i] = rng`` replaces sub-env ``i``'s generator (a reseeded sub-env)."""
 

@@ -137,13 +137,12 @@ def elementwise(fn, n_in: int, n_out: int):
     arguments, or ``None`` where no loop can run (numba unavailable or disabled, or the
     arguments not float64 arrays of one shape): the caller then runs its numpy form.
 
-    Why: a function written once for floats and selections runs on arrays as a few dozen numpy
-    operations, each a pass over the array (on 16 elements: :func:`rbenvs.rotations.sincos` 60
-    us and :func:`rbenvs.rotations.atan2` 140 us, where libm's ``np.sin`` takes 0.5 us);
-    compiled, it is one pass. The loop runs the compiled form, which gives the same bits as the
-    numpy form element for element (each pair is tested), so a result does not depend on which
-    ran. Built once :data:`COMPILE_AFTER` elements have gone through the numpy form, once per
-    process."""
+    Why: a function written once for floats and selections (:func:`rbenvs.rotations.sincos`,
+    :func:`rbenvs.rotations.atan2`) runs on arrays as a few dozen numpy operations, each a pass
+    over the array, far slower than libm's ``np.sin`` on a small array; compiled, it is one pass.
+    The loop runs the compiled form, which gives the same bits as the numpy form element for
+    element (each pair is tested), so a result does not depend on which ran. Built once
+    :data:`COMPILE_AFTER` elements have gone through the numpy form, once per process."""
     cache: dict = {}
 
     def loop(*xs):

@@ -1,7 +1,7 @@
 """``rbenvs bench costs``: what the README's two commands cost, measured on this machine.
 
 The README states how big the set-up is and how long the main job and the tests take; typed by
-hand those figures went 3-4x stale. Here each is measured, and ``--docs README.md`` writes them
+hand those figures go stale. Here each is measured, and ``--docs README.md`` writes them
 into the README's block:
 
 * **the venv**: the size of the running interpreter's environment (``sys.prefix``), the one
@@ -16,7 +16,7 @@ into the README's block:
 
 Every step runs as a new process with this interpreter; a step that fails stops the command
 (exit 1, its output's tail shown) and nothing is written. The suite's runs take most of the
-time (20-40 minutes on 2 cores); ``--skip-tests`` measures the rest.
+time; ``--skip-tests`` measures the rest.
 """
 
 from __future__ import annotations

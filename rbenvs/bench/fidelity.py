@@ -58,9 +58,8 @@ def run(levels=LEVELS, repeat=5, progress: bool = False, quick: bool = False) ->
         action = np.zeros(env.action_space.shape, dtype=np.float32)
         substeps = env.internal_steps(y, (0.0, 0.0, env.params.friction, 0.0, 0.0, 0.0))
 
-        # A block of BLOCK steps from the start, its reset's cost subtracted once: a single step
-        # after a reset, less the reset's time, left the difference of two noisy timings of
-        # similar size (the levels whose reset costs more read 5-6x too slow).
+        # A block of BLOCK steps from the start, its reset's cost subtracted once: one step less
+        # its reset's time would be the difference of two noisy timings of similar size.
         def block():
             env.reset(seed=0)
             for _ in range(BLOCK):

@@ -14,8 +14,8 @@ does (each worker compiles or loads its kernels).
 
 The kernel caches live in a temporary folder the benchmark makes and deletes (``RBENVS_CACHE_DIR``
 for its processes), so the user's own cache is neither read nor filled. Warm figures are the
-median of ``--repeat`` processes; cold ones are one process each (a cold start compiles for
-5-30 s). Every process reads compiled bytecode, as from an installed wheel (pip writes it at
+median of ``--repeat`` processes; cold ones are one process each (a cold start compiles every
+kernel). Every process reads compiled bytecode, as from an installed wheel (pip writes it at
 install): the package's ``__pycache__`` is filled first and ``PYTHONDONTWRITEBYTECODE`` is not
 passed on (in an editable checkout under that variable, every process would compile rbenvs'
 sources again). ``--docs PAGE`` writes the table into the page's block.

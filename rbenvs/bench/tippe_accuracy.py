@@ -73,7 +73,7 @@ STARTS = {
     "rolling": ("rolling", 150.0),
 }
 EPS0 = 1e-3  # m/s, the env's slip regularisation
-BASE_COUNT = 320  # rk4 steps a period that converge t90 at EPS0 (1e-10 s; doubled as the check)
+BASE_COUNT = 320  # rk4 steps a period that converge t90 at EPS0 (doubled: ``step check``)
 HORIZON = 3.0  # runs stop at this multiple of t90_same
 REPEATS = 5
 # fixed internal steps per 10 ms (guard off), per scheme: from unstable/too few to converged
@@ -173,7 +173,7 @@ def _rbenvs_row(start, t90_same, label, scheme, setting, level="gliding", law="c
         )
     per_period = r.get(
         "us_per_period_best", r["us_per_period"]
-    )  # dop853 (~10 s per simulated s): its one measured run
+    )  # dop853 (slow, not timed again): its one measured run
     return {
         "engine": "rbenvs",
         "start": start,

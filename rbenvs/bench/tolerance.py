@@ -281,7 +281,7 @@ TOLERANCE_CASES = (
 
 # the scenes' rows: each shipped scene (configs/scenes) uncontrolled from seeds 0-2 (the tippe top:
 # seed 0) over its own episode (the tippe top: SCENE_TIPPE_HORIZON s, through the inversion of the
-# inverting scenes, whose default top passes 90 degrees near 2.7 s); the scene's scheme where a
+# inverting scenes: `rbenvs bench accuracy --tippe` prints its t90); the scene's scheme where a
 # tolerance takes it, rk4 where not (the tops' default splitting), its substeps left to the rule
 SCENE_TIPPE_HORIZON = 4.0
 SCENE_PREFIX = "scene:"

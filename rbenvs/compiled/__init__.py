@@ -5,14 +5,13 @@ The package by concern: :mod:`.batch` (a batch's period and finish, its lines an
 state's step, runs and plans) and :mod:`.steps` (the kernels with their parameters, as the
 engine and the envs call them).
 
-Why: a numpy step of a batch is one array operation per arithmetic line. At 4096 states each
-costs about 1 us, almost all of it dispatch, and a free-body RK4 step alone is about 65 of
-them; the reward, observation and read-outs as many again (``rbenvs bench throughput`` prints
-both paths). Compiled, a vector env's whole step is one call (:func:`vector_kernel`): the
-actions checked, clipped and mapped by the actuator, the guard's check where the env has
-one, the period (the physics as passes over the batch, in SIMD registers: a few ns per
-state), one loop per read-out stage, the episode clocks and end reasons, and the restarts of
-the sub-envs whose episodes ended, drawn from their own generators. :func:`batch_kernel` is
+Why: a numpy step of a batch is one array operation per arithmetic line, each mostly dispatch,
+and an RK4 step with its reward, observation and read-outs is many of them
+(``rbenvs bench throughput`` prints both paths). Compiled, a vector env's whole step is one call
+(:func:`vector_kernel`): the actions checked, clipped and mapped by the actuator, the guard's
+check where the env has one, the period (the physics as passes over the batch, in SIMD
+registers), one loop per read-out stage, the episode clocks and end reasons, and the restarts
+of the sub-envs whose episodes ended, drawn from their own generators. :func:`batch_kernel` is
 the period and finish alone (what ``rbenvs bench throughput`` times as the kernel),
 :func:`state_kernel` the same for one state (the single env's compiled step), and
 :func:`run_kernel` one state's internal steps with a given count and step (``tolerance_check``'s
@@ -41,7 +40,8 @@ env bit for bit (tested).
 
 numba is optional (the ``fast`` extra); without it, or with ``RBENVS_COMPILED=0`` in the
 environment, the vector env runs the same functions on numpy arrays. A kernel is compiled on
-first use in a process (about a second) and reused by every env of the same layout.
+first use in a process (``rbenvs bench startup`` times it) and reused by every env of the same
+layout.
 """
 
 from __future__ import annotations

@@ -18,17 +18,14 @@ from ..stepsize.forms import products
 # registers). forceinline: the kernel and, inherited, every pure function it calls are marked
 # always-inline for LLVM, so a loop body is one function however large its parts: LLVM's
 # inliner otherwise stops at its size threshold (a task's reward with an atan2 inside is over
-# it), and a call left in a loop keeps it scalar (measured: the heavy top's read-outs 19 ns a
-# state with the calls, 4 without).
+# it), and a call left in a loop keeps it scalar.
 KERNEL_OPTIONS = {"error_model": "numpy", "forceinline": True}
 
 # LLVM vectorises a loop whose stores may overlap its loads only behind run-time checks that the
 # arrays' ranges are disjoint, and gives up past a number of such checks (8 by default): a loop
 # that reads and writes the eleven rows of the tippe top's state and of its next first stage
-# needs more, and stays scalar (measured: 277 against 68 ns per sub-env and internal step with
-# the limit raised); with a tolerance its compensation's eleven rows too (33 rows, 528 pairs:
-# at a limit of 512 the vector step of 64 tippe tops took 3.9 times as long). The limits are
-# process-wide LLVM options; raising them lets more loops be
+# needs more, and stays scalar; with a tolerance its compensation's eleven rows too (33 rows,
+# 528 pairs). The limits are process-wide LLVM options; raising them lets more loops be
 # vectorised and changes no result (the checks fall back to the scalar loop where ranges
 # overlap). Set once, before rbenvs compiles its first kernel.
 LLVM_OPTIONS = ("-runtime-memory-check-threshold=2048", "-vectorize-memory-check-threshold=2048")
@@ -64,7 +61,7 @@ def _controls(L, rows: bool = False) -> tuple[str, str]:
     tuples of ``(n,)`` arrays ``U`` and ``UN`` (the batch kernel's arguments) or, with ``rows``,
     from the rows of ``(k, n)`` arrays (the vector step's, filled from the actions once: a loop
     reading unit-stride rows stays in SIMD registers, one reading each sub-env's actions from
-    the ``(n, k)`` batch would not; measured: 76 against 123 us a 4096 free-body step)."""
+    the ``(n, k)`` batch would not)."""
     access = "{name}[{j}, i]" if rows else "{name}[{j}][i]"
     return (
         f"u = ({_comps(access.format(name='U', j='{j}'), L.n_control)})",
@@ -79,8 +76,8 @@ def _physics_lines(dim: int, u: str) -> list[str]:
     return [
         "    n = Y.shape[1]",
         # substeps as passes over the batch: a runtime-length loop inside the element loop
-        # would keep it scalar (measured: 36 us against 5 us); the first pass reads Y, the
-        # rest update Ynew in place (the same steps per element, in the same order)
+        # would keep it scalar; the first pass reads Y, the rest update Ynew in place (the same
+        # steps per element, in the same order)
         "    for i in range(n):",
         f"        y = ({_comps('Y[{j}, i]', dim)})",
         f"        {u}",
@@ -336,13 +333,12 @@ def _finish_lines(
     ``HI``) and ``over``, the evaluation's ``reward``, ``terminated`` and metrics ``M_j`` under the
     normalised action ``un``, and the read-outs ``R_j`` under the control ``u`` with the event
     flag ``fired``. One loop per stage: a loop of arithmetic and unit-stride loads and stores
-    runs in SIMD registers, one fused loop would not (measured: 56 us against 15 us at 4096
-    free bodies). ``fresh`` (an expression in ``i``): the states that are new starts, finished
-    as after a reset instead (zero action; read-outs with no control acted and no event),
-    selected per component, so that the loops keep no branch."""
+    runs in SIMD registers, one fused loop would not. ``fresh`` (an expression in ``i``): the
+    states that are new starts, finished as after a reset instead (zero action; read-outs with
+    no control acted and no event), selected per component, so that the loops keep no branch."""
     # the clip (:func:`_clip_lines`) writes the components as rows of a scratch array
-    # (unit-stride stores), then one loop interleaves them into the (n, n_obs) observation
-    # (measured at 4096 reorients: 14 ns a sub-env storing into obs directly, 5 + 4 this way)
+    # (unit-stride stores, which stay in SIMD registers), then one loop interleaves them into
+    # the (n, n_obs) observation
     lines = [
         f"    OT = np.empty(({L.n_obs}, n), dtype=np.float32)",
         "    for i in range(n):",
@@ -540,7 +536,7 @@ def _lockstep_lines(L: Layout, u: str) -> list[str]:
     stage, :func:`_period_lines`' ``rhs_event`` branch, the tippe top's lift-off, has neither
     fired nor gone non-finite) and leaves the others as they are (the same operations per
     sub-env as its own loop, so the same bits; a loop of arithmetic and selections stays in SIMD
-    registers, and a period of some 160 steps per sub-env is where the time goes). ``K`` holds
+    registers, and the period's steps are where the time goes). ``K`` holds
     each sub-env's next first stage (with the event), ``live`` whether it goes on. Without an
     event (a layout without switches: the free body's and the heavy top's compensated periods)
     a sub-env takes its count, as its own loop does."""

@@ -28,8 +28,8 @@ class PeriodPlan:
     calling it with one state ``y`` and its control ``u`` (tuples of floats) returns ``(x, r,
     rate, a)``, the bits of :meth:`rbenvs.stepsize.controller.StepRule.plan`; :meth:`batch` gives a
     batch's rates and :meth:`ratios` its ratios (the vector env's estimate and checked count).
-    The first call compiles (about a second per layout and process) and then takes its
-    overload's entry point."""
+    The first call compiles (once per layout and process) and then takes its overload's entry
+    point."""
 
     def __init__(self, parts, dim: int, n_obs: int, n_control: int, n_action: int, sample):
         layout, params, _, _ = _layout(parts, dim, n_obs, n_control, n_action, sample)
@@ -73,8 +73,8 @@ class CheckedRuns:
     """One env's compiled runs for ``tolerance_check`` (:func:`run_kernel`, the main run's and
     the companion's): calling it runs ``c`` steps of ``hi`` from ``y`` with the compensation
     ``cc`` and returns ``(y, fired, cc)``, the bits of the float path's
-    :meth:`rbenvs.core.period.Period._run_one`. Each kernel's first call compiles it (about a
-    second per layout and process) and then takes its overload's entry point."""
+    :meth:`rbenvs.core.period.Period._run_one`. Each kernel's first call compiles it (once
+    per layout and process) and then takes its overload's entry point."""
 
     def __init__(self, parts, dim: int, n_obs: int, n_control: int, n_action: int, sample):
         layout, params, _, _ = _layout(parts, dim, n_obs, n_control, n_action, sample)
@@ -187,7 +187,7 @@ class StateStep:
     parameters, and a ``(readouts, metrics, h) -> info`` function. Calling it returns the
     kernel's tuple. The first call compiles (once per layout and process) and then takes the
     compiled overload's entry point for these argument types, which skips numba's per-call
-    type dispatch (about 0.9 us of a call's 1.7 with the parameter tuples)."""
+    type dispatch (much of a call's cost with the parameter tuples)."""
 
     def __init__(
         self,
@@ -407,7 +407,7 @@ _HEAD = len(HEAD_ARGS)
 
 def _entry_point(dispatcher, args):
     """The compiled overload of ``dispatcher`` for ``args``' types, called without numba's
-    per-call typing (which costs several microseconds for forty arguments); the caller then
+    per-call typing (costly with forty arguments); the caller then
     passes arguments of those types only. The dispatcher itself where none is found."""
     import numba
 

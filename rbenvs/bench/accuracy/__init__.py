@@ -34,7 +34,7 @@ Measured per case and integrator:
   (``cost / h``).
 * ``drift``: each invariant's largest change from its start over the first ``1e3`` steps and
   over a long run (``long`` steps, printed) at the case's ``drift h`` (the envs' own step), all
-  states batched as arrays (the tippe top as floats, state by state: cheaper below ~25 states).
+  states batched as arrays (the tippe top as floats, state by state: cheaper for a few states).
   Relative to: the energy ``E0`` (the heavy top: ``|kinetic| + M g l``), ``|Pi0|`` for ``|Pi|``
   and ``Pi.Gamma``, 1 for ``|Gamma|``, ``|L| (R + h)`` for Jellett's integral. A run that
   passes a drift of 1 (100%) or goes non-finite stops there: ``diverged at step k``.
@@ -61,8 +61,8 @@ relative error (relative to the block's largest norm along the reference). Cost 
 step, measured. :data:`TARGET` is the accuracy asked for; the cheapest pair meeting it is the
 recommendation (a scene that already meets it changes only for a pair at most :data:`SAVING`
 of its cost: smaller savings are within the timing noise). The tippe top's scenes are checked over
-their first :data:`TIPPE_HORIZON` seconds (their reference costs ~10 s per simulated second under
-Coulomb friction).
+their first :data:`TIPPE_HORIZON` seconds (their reference is slow under Coulomb friction:
+``rbenvs bench accuracy --tippe`` prints dop853's cost).
 
 The package by concern: :mod:`.convergence` (cases, errors, orders, drift, cost),
 :mod:`.mujoco`, :mod:`.scenes`, :mod:`.report` (tables and figure) and :mod:`.command`.

@@ -23,7 +23,7 @@ declares (its tasks, its path, its kernel), nothing listed here by hand:
   CartPole-v1's native vector env at the same N, stepped the same way (random actions from a
   seeded pool, its own resets included: its episodes end every few dozen steps), in the same run:
   ours and CartPole are timed in turn, ``ALTERNATIONS`` rounds, and the best of each is kept
-  (on a shared host the speed drifts by tens of percent within seconds).
+  (on a shared host the speed drifts within seconds).
 * ``sync/s``, ``/Cart``: the same random actions from ``reset(seed)`` with every clock at 0,
   as a run whose episodes only end at the time limit keeps them: all sub-envs restart together
   once an episode (the window holds such a step only where it reaches the time limit;
@@ -45,13 +45,12 @@ declares (its tasks, its path, its kernel), nothing listed here by hand:
 tables, integrator) contains it, in any case; ``--tables`` picks the tables (below).
 
 Slow settings (a vector step longer than the timing window, such as the stiff tippe top at
-about 0.3 s per step at 4096) are timed with fewer calls: at least one full call per round,
-best of as many rounds as fit a per-figure budget (one second). ``--quick`` is a smoke run
-(rough figures, well under a minute here, most of it compiling kernels): the task table at
-N = 64 with short windows, a setting whose single step costs over a millisecond (the tippe
-top) at N = 8, and the SB3 rows.
+4096) are timed with fewer calls: at least one full call per round, best of as many rounds as
+fit a per-figure budget (one second). ``--quick`` is a smoke run (rough figures, most of its
+time compiling kernels): the task table at N = 64 with short windows, a setting whose single
+step costs over a millisecond (the tippe top) at N = 8, and the SB3 rows.
 
-The earlier tables follow (not with ``--quick`` unless ``--tables`` names them):
+The other tables follow (not with ``--quick`` unless ``--tables`` names them):
 
 * ``integrators``: for every system and integrator (default scene, zero action), the single
   env against Pendulum-v1 as above, and the vector env for N = 1, 16, 256, 4096 against
@@ -75,10 +74,9 @@ step's true cost includes 1/400 of resetting every sub-env; ``min_time`` spans s
 ends at the larger N there.
 
 Throughput per env grows with N while the fixed cost per call dominates (Python glue, and on
-the numpy path about a microsecond of dispatch per array operation, some 150 of them per
-free-body step), and flattens once the arrays a step moves stop fitting in the caches: the
-scaling table prints those bytes per env beside the time, to read against the machine's L2
-and L3 sizes.
+the numpy path the dispatch of each of a step's many array operations), and flattens once the
+arrays a step moves stop fitting in the caches: the scaling table prints those bytes per env
+beside the time, to read against the machine's L2 and L3 sizes.
 
 Each figure is the best of ``repeat`` timings of at least ``min_time`` seconds or one call.
 ``--json PATH`` writes every row of every table.

@@ -38,7 +38,7 @@ TABLES = ("tasks", "integrators", "scaling", "sb3", "check")
 QUICK_TABLES = (
     "tasks",
     "sb3",
-)  # --quick: a smoke run well under a minute (the kernels' compilation is most of it)
+)  # --quick: a smoke run (the kernels' compilation is most of it)
 
 
 _FREE = SYSTEMS[0][0]
@@ -136,7 +136,7 @@ def _plan(args, tables: list[str]) -> _Plan:
     if args.num_envs is not None and args.num_envs < 1:
         raise ValueError(f"--num-envs must be >= 1, got {args.num_envs}")
     only = args.only
-    # the earlier tables, filtered by --only on id or integrator
+    # the other tables, filtered by --only on id or integrator
     systems = tuple((i, tuple(x for x in ints if _matches(only, i, x))) for i, ints in SYSTEMS)
     systems = tuple((i, ints) for i, ints in systems if ints) if "integrators" in tables else ()
     do_scaling = "scaling" in tables and not args.quick and _matches(only, _FREE, "rk4")
@@ -184,7 +184,7 @@ def _run(plan: _Plan, progress) -> dict:
     """Every table of ``plan`` in turn, as the JSON holds them (an empty list for one not run)."""
     results = {"tasks": _run_task_table(plan, progress), "task_notes": plan.notes}
     systems, sizes, min_time = plan.systems, plan.sizes, plan.min_time
-    legacy_budget = plan.budget if plan.quick else None  # the full run times these as before
+    legacy_budget = plan.budget if plan.quick else None  # the full run: every round, no budget
     results["single"] = (
         run_single(systems, min_time=min_time, progress=progress, budget=legacy_budget)
         if systems
@@ -210,7 +210,7 @@ def _run(plan: _Plan, progress) -> dict:
 def _run_task_table(plan: _Plan, progress) -> list[dict]:
     if not plan.settings:
         return []
-    # --quick: a smoke run, its figures rough (23 settings, each timed seven ways)
+    # --quick: a smoke run, its figures rough
     quick = plan.quick
     tasks, _ = run_tasks(
         plan.settings,

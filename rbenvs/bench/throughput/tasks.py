@@ -24,7 +24,7 @@ from .timing import (
 TASK_NUM_ENVS = 4096
 QUICK_NUM_ENVS = 64
 # --quick: a setting whose single step costs more than this runs its vector figures at
-# QUICK_SLOW_NUM_ENVS (the tippe top today: about 3 ms a step)
+# QUICK_SLOW_NUM_ENVS (the tippe top)
 QUICK_SLOW_STEP_S = 1e-3
 QUICK_SLOW_NUM_ENVS = 8
 
@@ -290,8 +290,8 @@ def _random_action_figures(
     """The vector env under ``actions``, clocks staggered (if asked) and together, against
     CartPole-v1's at the same N; ``zero_rate``: the zero-action env-steps/s, put over it too."""
     n = venv.num_envs
-    # ours and the peer in turn, the best of each: on a shared host the speed drifts by
-    # tens of percent within seconds, and the best of alternating rounds compares like with like
+    # ours and the peer in turn, the best of each: on a shared host the speed drifts within
+    # seconds, and the best of alternating rounds compares like with like
     sync = random = cart = None
     for _ in range(ALTERNATIONS):
         s_ = _random_rate(venv, actions, min_time, repeat, budget, False, seed)
