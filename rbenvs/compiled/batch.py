@@ -14,20 +14,17 @@ from ..kernel_cache import njit as _cached_njit
 from ..stepsize.forms import products
 
 # How every kernel is compiled. error_model="numpy": a float division by zero gives inf/nan as
-# on arrays (and needs no per-element check, which would keep the loops out of SIMD
-# registers). forceinline: the kernel and, inherited, every pure function it calls are marked
-# always-inline for LLVM, so a loop body is one function however large its parts: LLVM's
-# inliner otherwise stops at its size threshold (a task's reward with an atan2 inside is over
-# it), and a call left in a loop keeps it scalar.
+# on arrays, with no per-element check (which would keep the loops out of SIMD registers).
+# forceinline: the kernel and, inherited, every pure function it calls are always-inlined, so a
+# loop body is one function however large its parts (LLVM's inliner stops at a size threshold,
+# a task's reward with an atan2 is over it, and a call left in a loop keeps it scalar).
 KERNEL_OPTIONS = {"error_model": "numpy", "forceinline": True}
 
 # LLVM vectorises a loop whose stores may overlap its loads only behind run-time checks that the
-# arrays' ranges are disjoint, and gives up past a number of such checks (8 by default): a loop
-# that reads and writes the eleven rows of the tippe top's state and of its next first stage
-# needs more, and stays scalar; with a tolerance its compensation's eleven rows too (33 rows,
-# 528 pairs). The limits are process-wide LLVM options; raising them lets more loops be
-# vectorised and changes no result (the checks fall back to the scalar loop where ranges
-# overlap). Set once, before rbenvs compiles its first kernel.
+# arrays' ranges are disjoint, and gives up past 8 such checks by default: the tippe top's loops
+# (its state and next first stage, with a tolerance its compensation too: 33 rows, 528 pairs)
+# need more. Raising these process-wide limits changes no result (the checks fall back to the
+# scalar loop where ranges overlap); set once, before rbenvs compiles its first kernel.
 LLVM_OPTIONS = ("-runtime-memory-check-threshold=2048", "-vectorize-memory-check-threshold=2048")
 _llvm_tuned = False
 
