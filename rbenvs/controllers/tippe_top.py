@@ -20,9 +20,9 @@ class SlipCancelling:
     In the table frame ``dv_G/dt = F/m - a_T``, so moving the table along the slip velocity of
     the contact point, ``v_P = v_G + omega x r`` with ``r = h k - a z_hat`` (all from the
     observation), takes the slip away as far as ``max_table_acceleration`` allows. Without
-    slip, friction does no work and the top cannot climb. ``rate`` [1/s] was chosen on the
-    ``tippe_hold`` scene: about half of it lets the top escape within the episode; the
-    default keeps the tilt at its initial value. Other action entries (friction, torque) are
+    slip, friction does no work and the top cannot climb. ``rate`` [1/s]: on the ``tippe_hold``
+    scene the default keeps the tilt at its initial value, where half of it lets the top escape
+    within the episode. Other action entries (friction, torque) are
     left at 0 (the middle of ``friction_range``, no torque).
     """
 

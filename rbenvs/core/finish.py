@@ -39,10 +39,9 @@ def state_finish(
     (``u``: the control that acted, ``fired``: the period's terminal event; read-out inputs).
 
     Plain Python, generated per layout like the kernel: it calls the same pure functions
-    (observation, reward and metrics, read-outs) and builds ``info`` as one dict display (the
-    single env's step costs a few microseconds; a method call per part costs about a tenth
-    of one each). ``high``: the observation bounds; a state outside them gets the clipped
-    observation and ``over`` true.
+    (observation, reward and metrics, read-outs) and builds ``info`` as one dict display (a
+    method call per part would be a sizeable share of the single env's short step). ``high``:
+    the observation bounds; a state outside them gets the clipped observation and ``over`` true.
     """
     import numpy as np
 

@@ -83,10 +83,10 @@ class ReasonPool:
     """Zero-filled reason arrays (:func:`reason_strings`' type) for a compiled step to write
     into, handed out again once nothing else refers to them.
 
-    Why: a batch's reason array is wide (17 UCS-4 characters a sub-env: 280 KB at 4096) and
-    mostly empty; a fresh one costs a page fault for every page a reason is written to, and
-    naming the reasons with numpy's fancy indexing costs about 10 us for a hundred ends (at
-    4096 heavy tops, both together were a quarter of a step). An array is taken again only
+    Why: a batch's reason array is wide (17 UCS-4 characters a sub-env) and mostly empty; a
+    fresh one costs a page fault for every page a reason is written to, and naming the reasons
+    with numpy's fancy indexing is slow too: together a large share of a large batch's step
+    (``rbenvs bench throughput`` measures the step). An array is taken again only
     when CPython's reference count says that the pool alone holds it (the caller let go of
     that step's ``info``; a view of it keeps it out), after the rows it last held are cleared
     (by the step itself: :meth:`take` returns them). At most ``size`` arrays are kept;

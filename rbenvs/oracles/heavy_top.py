@@ -124,8 +124,7 @@ def upright_eigenvalues(I1, I3, mass, length, gravity, spin) -> np.ndarray:
 def _quadratic_roots(b: complex, c: complex, disc: complex) -> tuple[complex, complex]:
     """Roots of ``x^2 + b x + c`` given its discriminant ``b^2 - 4c``, without cancellation."""
     s = np.sqrt(disc)
-    # pick the sign that adds |b| and |s| (citardauq form); q = 0 only when b = disc = 0 (then c =
-    # 0)
+    # pick the sign that adds |b| and |s| (citardauq form); q = 0 only when b = disc = 0 (c = 0)
     if (b.conjugate() * s).real < 0.0:
         s = -s
     q = -0.5 * (b + s)

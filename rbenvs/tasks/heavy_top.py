@@ -140,8 +140,8 @@ def upright_evaluate(p, y, u):
     chi`` (:func:`tilt_sides`), ``s cos L - c sin L`` has the sign of ``sin(tilt - L)``, and
     ``tilt - L`` lies in ``(-pi, pi)``, so ``tilt > L`` iff it is positive (likewise ``tilt <
     S``); ``L = pi`` ends nothing, as ``tilt <= pi``. The same decisions as comparing
-    :func:`top_tilt` except within rounding of the boundary, without its ``atan2`` (measured:
-    about 7% of a 4096-sub-env vector step)."""
+    :func:`top_tilt` except within rounding of the boundary, without its ``atan2`` (a noticeable
+    part of a large batch's vector step)."""
     chi, control_cost, limit, success = p
     s, c = tilt_sides(chi, y)
     cos_tilt = c / vertical_norm(y)  # (c is Gamma . chi, summed in the same order)

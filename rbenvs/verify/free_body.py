@@ -89,8 +89,7 @@ def free_body_checks(
     """The free-body rows of each of ``integrators``: rbenvs integrator names or
     :class:`~rbenvs.verify.simulator.Simulator` objects (at their own step, the tolerance rule of
     :func:`~rbenvs.verify.common.scaled_tolerance`); ``n_fast`` bodies tumble fast (``rbenvs
-    verify``:
-    :data:`FAST_TUMBLE_BODIES`)."""
+    verify``: :data:`FAST_TUMBLE_BODIES`)."""
     rng = np.random.default_rng(seed)
     checks: list[Check] = []
     inertias = _random_inertia(rng, n_cases)

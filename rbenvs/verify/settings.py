@@ -205,23 +205,20 @@ class TippeSetting:
 #
 # * euler (order 1), omega_h = 1e-2: an error ~ (Omega h) per radian turned, over Omega T ~ 500
 #   radians: J 0.1 [1.8e-2], energy 0.04 [6.1e-3] (ENERGY_BOUND), rise per sample 1e-4 [1.8e-6].
-#   J's 0.1 is above MOMENTUM_BOUND (2%, rbenvs.verify.common): the worst measured at this step
-# comes within 10% of the bound, and a step small enough to hold it with a margin costs 3x.
+#   J's 0.1 is above MOMENTUM_BOUND (2%, rbenvs.verify.common): at this step the worst comes
+#   within 10% of the bound, and a step that holds it with a margin costs three times as much.
 # Settling:
 #   omega_h = 0.03, inside the window and alpha <= 0.3 only. Euler turns every rotating vector
-#   outward, a growth rate ~ w^2 h / 2 for a vector turning at w; friction damps the final
-#   states slowly. A top that stays upright (below the window; w = |C/A - 1| n, up to 0.8 n)
-#   nods ever wider and hops (seed 1: J off by 100% at 13 s); a partially inverted top rolls
-#   in a steady precession where friction hardly dissipates (J off by 7x at omega_h = 0.01 and
-#   the top hops; by 20% at 0.003, the tilt 5 degrees off after 3000 t_g); inside the window at
-#   alpha ~ 0.39 and A/C ~ 0.78 (2 of 30 tops; also at omega_h = 0.01) the climb hops. Below
-#   alpha 0.3 inside the window euler settles every top tried (30 of 30; J drifts 2e-3 to 4e-2:
-#   the final tilt of a full inversion does not depend on J).
+#   outward, a growth rate ~ w^2 h / 2 for a vector turning at w, faster than friction damps
+#   the final states: a top below the window (w = |C/A - 1| n, up to 0.8 n) nods ever wider and
+#   hops, a partially inverted one precesses where friction hardly dissipates, and near alpha
+#   0.4 the climb itself hops. Inside the window at alpha <= 0.3 euler settles every top tried
+#   (J drifts, but the final tilt of a full inversion does not depend on J).
 # * rk4 (order 4), omega_h = 0.1: local error (Omega h)^5/120 < 1e-7 per step. J 1e-6 [1.4e-8
 #   without table motion, 7.4e-8 with], energy 1e-7 [3.0e-9], rise 1e-8 [0: never rose].
 # * dop853 at rtol 1e-12 (atol 1e-14), sampled every t_g/2: 100 x rtol: J and energy 1e-10
 #   [1.4e-12, 7.4e-13], rise 1e-11 [0]. Coulomb friction regularised at 0.1 sqrt(g R) (DOP853_SLIP):
-#   at 1e-3 m/s the stiffness costs ~4e5 evaluations per 10 t_g. Settling at rtol 1e-8.
+#   a sharper one is stiff enough to cost dop853 far more evaluations. Settling at rtol 1e-8.
 TIPPE_TOP_SETTINGS = {
     "euler": TippeSetting(
         invariant_step=1e-2,

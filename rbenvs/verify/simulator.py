@@ -115,9 +115,9 @@ class _IntegratorRun:
 
 class IntegratorSimulator:
     """rbenvs' own ``integrator`` (a name or an :class:`~rbenvs.integrators.Integrator`) on
-    rbenvs' own system objects: ``integrator.step(model, y, u, h)``, the arithmetic ``rbenvs
-    verify`` always ran. ``dt=None``: the checks choose the steps and hold it to its settings'
-    tolerances (the default table); a ``dt`` runs it like any other engine at that step."""
+    rbenvs' own system objects: ``integrator.step(model, y, u, h)``. ``dt=None``: the checks
+    choose the steps and hold it to its settings' tolerances (``rbenvs verify``'s default table);
+    a ``dt`` runs it like any other engine at that step."""
 
     batched = True
 

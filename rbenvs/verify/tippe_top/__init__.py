@@ -37,7 +37,7 @@ Checks (one row per integrator and check: the worst of the cases, with its param
   angular velocity ``U(0, 0.3)/t_g``, and (gliding) an initial slip ``U(0, 0.5) sqrt(g R)`` of
   random direction. ``T = 40 t_g``, ``10 t_g`` under Coulomb friction (stiff near zero slip: the
   step is then the stability bound) and for dop853 (costly per step). A run stops at the first
-  step with ``N < 0`` (about one in ten: the top would hop; the case gives the time); a state
+  step with ``N < 0`` (the top would hop; the case gives the time); a state
   that hops before its second sample is replaced by a new draw.
 * ``energy non-increasing (<law>)``: the largest rise of the energy between two samples
   (``t_g/2`` apart), relative to ``E(0)``: friction dissipates while the table pushes
@@ -80,9 +80,9 @@ Checks (one row per integrator and check: the worst of the cases, with its param
 Integrator settings (:data:`TIPPE_TOP_SETTINGS`) give each scheme's steps and tolerances, from
 its order at its step and the worst measured over many seeds (in the comments there).
 
-The components are floats, one state per run: the tippe top's vector field costs ~2.5 us on
-floats and ~60 us on numpy arrays of a few states (one numpy call per operation), so a batch
-pays only beyond ~25 states of one parameter set, more than any check here runs.
+The components are floats, one state per run: on numpy arrays the tippe top's vector field pays
+one numpy call per operation, which a batch repays only with more states of one parameter set
+than any check here runs.
 
 The package by concern: :mod:`.settings` (settings, random tops, measurements),
 :mod:`.invariants`, :mod:`.inversion` (settling, t90, Jellett through an inversion),
