@@ -438,13 +438,13 @@ class Engine:
         return y0, obs, 0.0 + self.failure_charge, True, info, u, plain
 
     # ------------------------------------------------------------------ a batch (arrays)
-    def settle(self, y0, y, skip, h=None, inaccurate=None, estimate=None, check=None):
+    def settle(self, y0, y, skip, h=None, held=None):
         """``(y, failed)`` after a batch's period: elements that went non-finite keep their
-        last finite state, and those ``inaccurate`` (``tolerance_check``: the global error
-        ``estimate`` passed the tolerance) their last state within it; ``failed`` marks them (not
-        those in ``skip``, about to restart); a ``NumericalFailureWarning`` names them (the
+        last finite state, and those ``held`` (``tolerance_check``: their global error estimate
+        passed the tolerance) their last state within it; ``failed`` marks them (not those in
+        ``skip``, about to restart); a ``NumericalFailureWarning`` names the non-finite ones (the
         single env's words). ``failed`` is ``None`` when none failed."""
-        if inaccurate is None and np.isfinite(sum(y)).all():
+        if held is None and np.isfinite(sum(y)).all():
             return y, None
         finite = np.ones(np.shape(y[0]), dtype=bool)
         for c in y:
@@ -463,21 +463,8 @@ class Engine:
                 stacklevel=3,
             )
         kept = finite
-        if inaccurate is not None:
-            late = inaccurate & finite & ~skip
-            if late.any():
-                idx = np.flatnonzero(late)
-                why = inaccurate_text(
-                    np.max(estimate[late]), np.min(check.periods[late]), self.tolerance, self.dt
-                )
-                warnings.warn(
-                    f"sub-envs {idx.tolist()}: {why}; their episodes end "
-                    "and their last states within the tolerance are kept",
-                    NumericalFailureWarning,
-                    stacklevel=3,
-                )
-                failed = failed | late
-                kept = finite & ~late
+        if held is not None:
+            failed, kept = failed | held, finite & ~held
         return tuple(np.where(kept, c, c0) for c, c0 in zip(y, y0)), (
             failed if failed.any() else None
         )

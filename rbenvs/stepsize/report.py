@@ -6,9 +6,12 @@ reports alike."""
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 
-from .controller import GlobalErrorCheck
+from ..core.step import NumericalFailureWarning
+from .controller import GlobalErrorCheck, inaccurate_text
 
 __all__ = ["BatchAccuracy"]
 
@@ -59,11 +62,36 @@ class BatchAccuracy:
             mask[idx] = True
             self.check.restart(y, mask)
 
-    def companion_period(self, y, u, h, restart):
-        """The batch companion's period (:meth:`GlobalErrorCheck.batch_period`): the mask of
-        sub-envs whose estimate passed the tolerance, or ``None``."""
+    def held(self, y, u, h, restart):
+        """The batch companion's period beside the one that took the states to ``y`` under ``u``
+        in steps ``h`` (:meth:`GlobalErrorCheck.batch_period`; ``None`` without it): the mask of
+        finite sub-envs (not ``restart``) whose global error estimate passed the tolerance, which
+        hold their last state within it and end their episodes (a warning names them), or
+        ``None``."""
+        if self.check is None:
+            return None
         self.global_, inaccurate = self.check.batch_period(y, u, h, restart)
-        return inaccurate
+        if inaccurate is None:
+            return None
+        late = inaccurate & ~restart
+        for c in y:
+            late &= np.isfinite(c)  # (a non-finite state is reported as that)
+        if not late.any():
+            return None
+        engine = self.engine
+        why = inaccurate_text(
+            np.max(self.global_[late]),
+            np.min(self.check.periods[late]),
+            engine.tolerance,
+            engine.dt,
+        )
+        warnings.warn(
+            f"sub-envs {np.flatnonzero(late).tolist()}: {why}; their episodes end and their last "
+            "states within the tolerance are kept",
+            NumericalFailureWarning,
+            stacklevel=4,
+        )
+        return late
 
     def wrote(self, estimates, global_=None) -> None:
         """The step's path wrote its ``estimates`` (and, with its own companions, ``global_``)."""

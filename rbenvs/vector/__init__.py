@@ -277,11 +277,11 @@ class RigidBodyVectorEnv(VectorEnv):
                         cc[j] = c
                 if fired is False:
                     fired = self._false
-        inaccurate = None if accuracy.check is None else accuracy.companion_period(y, u, h, restart)
+        held = accuracy.held(y, u, h, restart)  # (tolerance_check's)
         run.u, run.last_h = u, h
         accuracy.after(h, restart)
         if fast is None:  # (the numpy path, or a non-finite new state)
-            return self._numpy_finish(y0, y, u_norm, fired, restart, any_restart, inaccurate)
+            return self._numpy_finish(y0, y, u_norm, fired, restart, any_restart, held)
         # the kernel's read-outs: every new state finite
         run.y, run.y2d = y, fast[0]
         obs, over, reward, terminated, metrics, physical = fast[1:]
@@ -292,16 +292,13 @@ class RigidBodyVectorEnv(VectorEnv):
             run, obs, over, reward, terminated, fired, None, metrics, restart, any_restart, physical
         )
 
-    def _numpy_finish(self, y0, y, u_norm, fired, restart, any_restart, inaccurate=None):
+    def _numpy_finish(self, y0, y, u_norm, fired, restart, any_restart, held=None):
         """The rest of a step on numpy from the period's new states ``y``: numerical failure
-        (``inaccurate``: the sub-envs whose global error estimate passed the tolerance),
-        observation, evaluation, then :meth:`BatchEnds.finish`."""
+        (``held``: the sub-envs whose period the accuracy check did not accept), observation,
+        evaluation, then :meth:`BatchEnds.finish`."""
         engine = self.engine
         self.run.y2d = None
-        accuracy = self._accuracy
-        y, failed = engine.settle(
-            y0, y, restart, self.run.last_h, inaccurate, accuracy.global_, accuracy.check
-        )
+        y, failed = engine.settle(y0, y, restart, self.run.last_h, held)
         self.run.y = y
         obs, over = engine.observe(y)
         reward, terminated, metrics = engine.evaluate(y, u_norm)
