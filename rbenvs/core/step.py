@@ -92,10 +92,6 @@ def action_columns(actions, shape) -> tuple:
     return tuple(np.clip(a.T, -1.0, 1.0).astype(np.float64, order="C"))
 
 
-def _ungated(y):  # (an engine without the default accuracy's gate: every state is evaluated)
-    return None
-
-
 def _to_python(v):
     if v is None:  # (error_estimate, not estimated)
         return None
@@ -132,7 +128,9 @@ class Engine:
         # with a tolerance every period reports its estimated error (info["error_estimate"]): the
         # rate at its start and the step it took; without one the step is untouched
         self.tolerance = m.tolerance
-        self.gated = self._gate(m)
+        # the default accuracy's gate: a state within it takes the plain loop (StepRule.plain_gate)
+        plain_loop = self.event is None and self.switching is None and self.step_c is None
+        self.gated = self.rule.plain_gate(m.substeps, plain_loop and not m.check)
         # tolerance_check: every period takes an even count (its companion half as many steps of
         # twice the size: rbenvs.stepsize.controller), so neither the plain loop (substeps steps)
         # nor the compiled single-state step (the guard's count) runs
@@ -176,23 +174,6 @@ class Engine:
         self.finish_one = generated_finish(
             m.task, system, self.high_list, self.metric_names, self.readout_names
         )
-
-    def _gate(self, m):
-        """The default accuracy's gate on the float and numpy paths (StepRule.gated), where the
-        stability bound alone never asks for more than substeps: a state within the cheap bound
-        takes the plain loop, its estimate the bound's (the compiled paths test it themselves);
-        elsewhere every state is evaluated."""
-        if (
-            self.rule.gate is not None
-            and not m.check
-            and self.event is None
-            and self.switching is None
-            and self.step_c is None
-            and self.rule.dissipation is None
-            and self.rule.stable(m.substeps)
-        ):
-            return self.rule.gated
-        return _ungated
 
     def __reduce__(self):  # generated and compiled functions are made again, not pickled
         return (

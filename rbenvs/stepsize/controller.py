@@ -265,6 +265,10 @@ def unstable_motion_warning(tolerance: float, unstable: str, check: bool) -> Uns
 # --- the rule: a period's steps and its error estimate ---
 
 
+def _ungated(y):  # (a rule whose gate does not apply: every state is evaluated)
+    return None
+
+
 @dataclass(frozen=True)
 class StepRule:
     """The rule of one env's periods: its system's rates, its integrator's region, its ``dt`` and
@@ -357,6 +361,17 @@ class StepRule:
         fn, params, limit = self.gate
         big = fn(params, y)
         return self.gate_estimate(big) if every(big <= limit) else None
+
+    def plain_gate(self, substeps: int, plain_loop: bool):
+        """:meth:`gated` for the float and numpy paths where a state within the gate may take the
+        plain loop (``plain_loop``: a period without event, switches, compensated sums or
+        companion) and the stability bound alone never asks for more than ``substeps``: its
+        estimate is then the bound's (the compiled paths test the gate themselves); elsewhere a
+        function that evaluates every state (returns ``None``)."""
+        if self.gate is not None and plain_loop and self.dissipation is None:
+            if self.stable(substeps):
+                return self.gated
+        return _ungated
 
     def rate(self, y, u=None):
         """``lambda`` at ``y`` (the rate both the bounds and the error estimate use); with
