@@ -86,28 +86,14 @@ class CompiledForms:
         """A batch's ``(lam, lam_d, a)``, the rates its error estimate reads (arrays; ``lam`` a
         tuple of three with the state's own speed; :meth:`StepRule.plan`'s per element, its ratio
         not evaluated): compiled in one loop over the batch where it can be
-        (:meth:`rbenvs.compiled.PeriodPlan.batch`), else numpy's. ``u``: the batch's controls
-        (``None``: the zero action's); ``Y``: ``y`` as one ``(dim, n)`` float64 array where the
-        caller has it."""
+        (:meth:`rbenvs.compiled.PeriodPlan.batch`), else numpy's (:meth:`StepRule.batch_rates`).
+        ``u``: the batch's controls (``None``: the zero action's); ``Y``: ``y`` as one ``(dim,
+        n)`` float64 array where the caller has it."""
         rule, plan = self.engine.rule, self.plan if self.plan_tried else self.planner
         if plan is not None:
             r, lam_d, a = plan.batch(*self.plan_inputs(plan, y, u, Y))
             return (tuple(r) if rule.motion else r[0]), lam_d, a
-        lam = rule.rate(y, u)
-        lam = (
-            tuple(np.array(v, dtype=np.float64) for v in lam)
-            if rule.motion
-            else np.array(lam, dtype=np.float64)
-        )
-        lam_d, a = 0.0, 1.0
-        if rule.dissipation is not None:
-            lam_d = np.array(rule.dissipation_rate(y, u), dtype=np.float64)
-            with np.errstate(
-                over="ignore", invalid="ignore", divide="ignore"
-            ):  # (a blown-up element is reported by its step)
-                a = np.array(rule.dissipation_share(y, u, lam_d), dtype=np.float64)
-            a = np.where(lam_d > 0.0, a, 1.0)  # (StepRule.plan's: no decaying mode, no share of it)
-        return lam, lam_d, a
+        return rule.batch_rates(y, u)
 
     def plan_inputs(self, plan, y, u, Y=None):
         """``(Y, U)``: a batch's states and controls as the compiled plan takes them."""

@@ -401,6 +401,24 @@ class StepRule:
         fa, pa = self.share
         return fa(pa, y, u, self.params[0], self.params[4], rate)
 
+    def batch_rates(self, y, u):
+        """A batch's ``(lam, lam_d, a)`` at ``y`` under ``u`` (:meth:`plan`'s per element, as
+        float64 arrays; ``lam`` a tuple of three with :attr:`motion`), its ratio not evaluated."""
+        lam = self.rate(y, u)
+        lam = (
+            tuple(np.array(v, dtype=np.float64) for v in lam)
+            if self.motion
+            else np.array(lam, dtype=np.float64)
+        )
+        lam_d, a = 0.0, 1.0
+        if self.dissipation is not None:
+            lam_d = np.array(self.dissipation_rate(y, u), dtype=np.float64)
+            with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+                # (a blown-up element is reported by its step)
+                a = np.array(self.dissipation_share(y, u, lam_d), dtype=np.float64)
+            a = np.where(lam_d > 0.0, a, 1.0)  # (as plan: no decaying mode, no share of it)
+        return lam, lam_d, a
+
     def estimate(self, lam, h, lam_d=0.0, a=1.0):
         """The relative error of a period started at rates ``lam`` (``lam_d`` a decaying one, ``a``
         its share) with internal step ``h`` (``None`` without a tolerance; the compiled vector
@@ -463,40 +481,21 @@ class StepRule:
         return x, lam, rate, a
 
     def ratio(self, y, u):
-        """``x`` at ``y`` under ``u`` (the period needs ``ceil(x)`` steps); floats or arrays."""
+        """``x`` at ``y`` under ``u`` (the period needs ``ceil(x)`` steps); floats or arrays (a
+        batch: :meth:`plan`'s rule per element, from :meth:`batch_rates`)."""
         if not isinstance(y[0], np.ndarray):
             return self.plan(y, u)[0]
-        fn, p = self.rotation
-        if self.motion:
-            x = step_ratio_motion(self.params, fn(p, y, self.zero_control if u is None else u))
-        else:
-            x = step_ratio(self.params, fn(p, y))
+        lam, lam_d, a = self.batch_rates(y, u)
+        x = (step_ratio_motion if self.motion else step_ratio)(self.params, lam)
         if self.dissipation is not None:
-            fd, pd = self.dissipation
-            rate = fd(pd, y, u)
-            dt = self.params[0]
-            if type(rate) is float:  # (a rate constant over the batch)
-                if rate > 0.0:
-                    x = max(x, dt / (self.dissipation_step / rate))
-                    if self.params[5] != 0.0:
-                        x = max(
-                            x,
-                            relaxation_steps(self.params, rate, self.dissipation_share(y, u, rate)),
-                        )
-            else:
-                with np.errstate(divide="ignore", invalid="ignore"):
-                    h_d = np.where(
-                        rate > 0.0, self.dissipation_step / np.where(rate > 0.0, rate, 1.0), np.inf
-                    )
-                    x = np.maximum(x, dt / h_d)
-                    if self.params[5] != 0.0:
-                        _, _, _, _, p, kd = self.params
-                        positive = rate > 0.0
-                        r = np.where(positive, rate, 0.0)
-                        a = self.dissipation_share(y, u, r)
-                        x = np.maximum(
-                            x, np.where(positive, whole_root(kd * (a * power(dt * r, p)), p), 0.0)
-                        )
+            dt, _, _, _, p, kd = self.params
+            positive = lam_d > 0.0
+            with np.errstate(divide="ignore", invalid="ignore"):
+                stable = dt / (self.dissipation_step / np.where(positive, lam_d, 1.0))
+                x = np.maximum(x, np.where(positive, stable, 0.0))
+                if kd != 0.0:
+                    accurate = whole_root(kd * (a * power(dt * lam_d, p)), p)
+                    x = np.maximum(x, np.where(positive, accurate, 0.0))
         return x
 
     def idle(self, substeps: int) -> bool:
