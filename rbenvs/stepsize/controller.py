@@ -482,18 +482,19 @@ class StepRule:
 
     def ratio(self, y, u):
         """``x`` at ``y`` under ``u`` (the period needs ``ceil(x)`` steps); floats or arrays (a
-        batch: :meth:`plan`'s rule per element, from :meth:`batch_rates`)."""
+        batch: :meth:`plan`'s rule per element)."""
         if not isinstance(y[0], np.ndarray):
             return self.plan(y, u)[0]
-        lam, lam_d, a = self.batch_rates(y, u)
-        x = (step_ratio_motion if self.motion else step_ratio)(self.params, lam)
+        x = (step_ratio_motion if self.motion else step_ratio)(self.params, self.rate(y, u))
         if self.dissipation is not None:
             dt, _, _, _, p, kd = self.params
+            lam_d = self.dissipation_rate(y, u)
             positive = lam_d > 0.0
             with np.errstate(divide="ignore", invalid="ignore"):
                 stable = dt / (self.dissipation_step / np.where(positive, lam_d, 1.0))
                 x = np.maximum(x, np.where(positive, stable, 0.0))
                 if kd != 0.0:
+                    a = self.dissipation_share(y, u, lam_d)
                     accurate = whole_root(kd * (a * power(dt * lam_d, p)), p)
                     x = np.maximum(x, np.where(positive, accurate, 0.0))
         return x
