@@ -754,3 +754,33 @@ def test_the_check_near_the_separatrix_ends_before_roundoff_passes_the_tolerance
     reference = _taylor_reference(w, 400, env.dt)
     ended, info, said = _within_until_ended(env, tol, lambda k: reference[k])
     assert ended is not None and info["numerical_failure"] and "the global error estimate" in said
+
+
+def test_a_period_that_goes_non_finite_reports_the_check_it_could_not_make():
+    """A checked period whose state goes non-finite (a torque far beyond what the period resolves)
+    ends as a numerical failure with ``global_error_estimate`` inf on every path: the single env,
+    the vector env's batch (its companion's difference with a NaN state) and the vector env with
+    ``param_ranges`` (each episode's check: the key was missing and the batch raised KeyError)."""
+    import gymnasium as gym
+
+    kw = dict(tolerance=1e-6, tolerance_check=True, max_angular_velocity=1e37, max_torque=1e9)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", NumericalFailureWarning)
+        warnings.simplefilter("ignore", UnstableMotionWarning)
+        single = FreeRigidBodyEnv(**kw)
+        single.reset(seed=0)
+        _, _, terminated, _, info = single.step(np.ones(single.action_space.shape, np.float32))
+        assert terminated and info["numerical_failure"]
+        assert info["global_error_estimate"] == math.inf
+        for extra in ({}, {"param_ranges": {"inertia": 0.1}}):
+            vec = gym.make_vec(
+                "rbenvs/FreeRigidBody-v0",
+                num_envs=2,
+                vectorization_mode="vector_entry_point",
+                **kw,
+                **extra,
+            )
+            vec.reset(seed=0)
+            _, _, terminated, _, info = vec.step(np.ones(vec.action_space.shape, np.float32))
+            assert terminated.all() and info["numerical_failure"].all(), extra
+            assert np.array_equal(info["global_error_estimate"], [math.inf, math.inf]), extra

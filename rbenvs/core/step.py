@@ -425,7 +425,9 @@ class Engine:
         passed the tolerance) their last state within it; ``failed`` marks them (not those in
         ``skip``, about to restart); a ``NumericalFailureWarning`` names the non-finite ones (the
         single env's words). ``failed`` is ``None`` when none failed."""
-        if held is None and np.isfinite(sum(y)).all():
+        with np.errstate(over="ignore", invalid="ignore"):  # (inf + -inf: not finite, no warning)
+            all_finite = bool(np.isfinite(sum(y)).all())
+        if held is None and all_finite:
             return y, None
         finite = np.ones(np.shape(y[0]), dtype=bool)
         for c in y:

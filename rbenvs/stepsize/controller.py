@@ -762,7 +762,8 @@ class GlobalErrorCheck:
         comp0 = engine.comp  # (the run's compensation at y0: kept with y0 where the period is not)
         out = engine.step_one(y0, a, plain)
         info = out[4]
-        if info["numerical_failure"]:
+        if info["numerical_failure"]:  # (no state to compare: the check cannot vouch, as a batch's
+            info["global_error_estimate"] = math.inf  # companion of a non-finite sub-env reads)
             return out
         n = int(round(engine.dt / info["internal_step"]))
         runs0 = self.runs
