@@ -162,6 +162,19 @@ def test_the_core_imports_no_compiled_code():
             assert not compiled, (name, compiled)
 
 
+def test_the_step_reaches_the_controller_through_its_objects():
+    """The step controller's pure forms (rbenvs.stepsize.forms: the counts and estimates as
+    functions) are its own and its compiled form's (issue 44): the engine, the envs and the
+    vector env take its decisions through its objects (StepRule, GlobalErrorCheck,
+    BatchAccuracy) and its settings, never from the forms; bench/ and verify/ measure them."""
+    graph = _module_imports()
+    allowed = ("rbenvs.stepsize", "rbenvs.compiled", "rbenvs.bench", "rbenvs.verify")
+    users = {name for name, deps in graph.items() if "rbenvs.stepsize.forms" in deps} - {
+        name for name in graph if name.startswith(allowed)
+    }
+    assert not users, users
+
+
 def test_no_import_cycle_in_rbenvs():
     """No module of rbenvs/ reaches itself through its imports (issue 44): each layer imports
     only below it, so a module can be read, tested and changed without the ones above it."""
