@@ -38,7 +38,7 @@ import warnings
 import numpy as np
 
 from ..dynamics.validation import real_array
-from ..stepsize.controller import MAX_INTERNAL_STEPS, inaccurate_text
+from ..stepsize.controller import MAX_INTERNAL_STEPS
 from .compiled_forms import CompiledForms
 from .finish import generated_finish
 from .parts import kernel_parts
@@ -374,17 +374,13 @@ class Engine:
             f"steps to meet {bound}"
         )
 
-    def inaccurate_one(self, y0, a, h, plain, estimate, periods, comp):
-        """The end of an episode whose global error estimate (``tolerance_check``) passed the
-        tolerance in its ``periods``-th period, the one from ``y0``: a numerical failure at
-        ``y0``, the last state within it (the run's compensation ``comp`` at it kept with it),
-        with a warning that says when."""
+    def inaccurate_one(self, y0, a, h, plain, comp, why):
+        """The end of an episode whose period from ``y0`` the accuracy check did not accept
+        (``tolerance_check``; ``why``: its words): a numerical failure at ``y0``, the last state
+        within the tolerance (the run's compensation ``comp`` at it kept with it)."""
         self.comp = comp
-        what = inaccurate_text(estimate, periods, self.tolerance, self.dt)
         u_norm, u = self.control(a)
-        out = self._failed_one(y0, u_norm, u, h, plain, what, "the last state within the tolerance")
-        out[4]["global_error_estimate"] = estimate
-        return out
+        return self._failed_one(y0, u_norm, u, h, plain, why, "the last state within the tolerance")
 
     def _failed_one(
         self,

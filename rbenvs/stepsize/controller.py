@@ -770,9 +770,10 @@ class GlobalErrorCheck:
         e = self.period(out[0], out[5], n)
         if e > engine.tolerance:  # the companion and the run stay with the state kept
             self.runs, self.periods = runs0, self.periods - 1
-            return engine.inaccurate_one(
-                y0, a, info["internal_step"], plain, e, self.periods + 1, comp0
-            )
+            why = inaccurate_text(e, self.periods + 1, engine.tolerance, engine.dt)
+            out = engine.inaccurate_one(y0, a, info["internal_step"], plain, comp0, why)
+            out[4]["global_error_estimate"] = e
+            return out
         info["global_error_estimate"] = e
         return out
 
