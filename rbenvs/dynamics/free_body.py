@@ -320,8 +320,7 @@ class FreeBody:
             self.axis_rotation(1),
             self.axis_rotation(2),
         )
-        # the hot path reads these on every call: plain attributes, not params.<field> chains
-        self._coefficients = params.coefficients
+        # the hot path reads it on every call: a plain attribute, not a params.<field> chain
         self._inverse = params.inverse
         # the vector field and the projection as pure functions of (P, y, u) and (N, y), for the
         # generated integrator steps and the compiled batch kernel (rbenvs.contracts.System)

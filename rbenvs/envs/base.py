@@ -273,7 +273,6 @@ class RigidBodyEnv(gym.Env):
         if check:
             self._step_one = self._check.step_one
         self._y = None  # the state: a tuple of floats
-        self._u = None  # the control of the last step (None after a reset: nothing acted yet)
         self._plain = self.engine.plain
 
     def _setup_options(self, options: dict):
@@ -410,7 +409,6 @@ class RigidBodyEnv(gym.Env):
             self.model, self.engine, self._step_one = episode.model, episode, episode.step_one
             params = self._ranges.info(values)
         self._plain = self.engine.plain
-        self._u = None
         if state is None:
             self._y = tuple(float(c) for c in self.model.initial_state(self.np_random))
         else:
@@ -461,7 +459,7 @@ class RigidBodyEnv(gym.Env):
         if r.delay:
             self._queue.append(a)
             a = self._queue.popleft()
-        self._y, obs, reward, terminated, info, self._u, self._plain = self._step_one(
+        self._y, obs, reward, terminated, info, _, self._plain = self._step_one(
             self._y, a, self._plain
         )
         if r.stream:
@@ -472,7 +470,7 @@ class RigidBodyEnv(gym.Env):
         if self._y is None:
             raise RuntimeError("call reset() before step()")
         a = action_values(action, self._action_shape)
-        self._y, obs, reward, terminated, info, self._u, self._plain = self._step_one(
+        self._y, obs, reward, terminated, info, _, self._plain = self._step_one(
             self._y, a, self._plain
         )
         return obs, reward, terminated, False, info

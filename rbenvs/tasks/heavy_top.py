@@ -48,10 +48,6 @@ def _transverse_basis(chi: tuple):
     return tuple(float(c) for c in t1), tuple(float(c) for c in t2)
 
 
-def _dot(a, b):
-    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-
-
 @jitable
 def clip_unit(x):
     """``x`` clipped to ``[-1, 1]`` (a unit vector's component, against round-off)."""
