@@ -762,8 +762,9 @@ class GlobalErrorCheck:
         comp0 = engine.comp  # (the run's compensation at y0: kept with y0 where the period is not)
         out = engine.step_one(y0, a, plain)
         info = out[4]
-        if info["numerical_failure"]:  # (no state to compare: the check cannot vouch, as a batch's
-            info["global_error_estimate"] = math.inf  # companion of a non-finite sub-env reads)
+        if info["numerical_failure"]:
+            # no state to compare: the check cannot vouch for it (a batch's companion reads inf)
+            info["global_error_estimate"] = math.inf
             return out
         n = int(round(engine.dt / info["internal_step"]))
         runs0 = self.runs

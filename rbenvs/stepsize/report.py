@@ -130,7 +130,8 @@ class BatchAccuracy:
             estimate = self.engine.rule.estimate(lam, np.array(h, dtype=np.float64), lam_d, share)
             self.estimates = np.broadcast_to(estimate, (self.n,)).astype(np.float64)
             self.rates = None
-        self.estimates[restart] = 0.0
+        if restart is not self.false:  # (the shared all-false mask: nothing restarts)
+            self.estimates[restart] = 0.0
 
     def report(self, out):
         """``out`` (a step's five values) with each period's estimate in its info, as the step's
