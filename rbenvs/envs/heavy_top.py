@@ -20,12 +20,13 @@ from ..dynamics.validation import (
     require_range,
 )
 from ..jit import jitable
-from ..tasks import PrecessTask, UprightTask, slow_precession_rate, transverse_basis
+from ..tasks import PrecessTask, UprightTask, transverse_basis
 from .base import RigidBodyEnv, require_authority, require_float32_bound
 
 __all__ = ["LagrangeTopEnv", "PivotTorque"]
 
-_DEFAULT_TILT_LIMIT = {"upright": math.pi / 4, "precess": 0.3}
+# the tasks by name: each declares its defaults and builds itself from the checked keywords
+TASKS = {task.name: task for task in (UprightTask, PrecessTask)}
 
 
 class LagrangeTopEnv(RigidBodyEnv):
@@ -170,7 +171,7 @@ class LagrangeTopEnv(RigidBodyEnv):
     * v0: initial release.
     """
 
-    tasks = ("upright", "precess")
+    tasks = tuple(TASKS)
     # info keys of the quantities the uncontrolled, frictionless motion conserves
     invariants = ("energy", "pi_dot_gamma", "vertical_norm")
     system_class = HeavyTop
@@ -213,26 +214,26 @@ class LagrangeTopEnv(RigidBodyEnv):
         **options,
     ):
         # every keyword is checked, whatever the task (one the task ignores must still be valid)
-        task = require_choice("task", task, self.tasks)
+        task_class = TASKS[require_choice("task", task, self.tasks)]
         params = HeavyTopParams(inertia, mass, length, gravity, com_direction, spin_friction)
         self.max_torque = require_finite_nonnegative("max_torque", max_torque)
         control_cost = require_finite_nonnegative("control_cost", control_cost)
         perturbation = require_finite_nonnegative("perturbation", perturbation)
         max_w = require_float32_bound("max_angular_velocity", max_angular_velocity)
-        limit = _tilt_limit(task, tilt_limit, perturbation)
+        limit = _tilt_limit(task_class.default_tilt_limit, tilt_limit, perturbation)
         alpha, target_rate = _targets(target_tilt, target_rate, max_w)
         self.axial_torque = require_bool("axial_torque", axial_torque)
         attitude = require_bool("attitude", attitude)
-        if task == "precess" and not params.is_lagrange:
+        if task_class.needs_lagrange and not params.is_lagrange:
             raise ValueError(
-                "task='precess' needs a Lagrange top: two equal moments and com_direction "
+                f"task={task!r} needs a Lagrange top: two equal moments and com_direction "
                 "along the third axis"
             )
+        system = HeavyTop(params, attitude=attitude)
         tilts = (limit, alpha, target_tilt, target_rate)
         task_obj, peak = _task_and_speed(
-            task, params, spin, perturbation, tilts, control_cost, max_w
+            task_class, system, spin, perturbation, tilts, control_cost, max_w
         )
-        system = HeavyTop(params, attitude=attitude)
         t1, t2 = transverse_basis(params.com_direction)
         self.torque_directions = (t1, t2) + ((params.com_direction,) if self.axial_torque else ())
         actuator = PivotTorque(self.max_torque, self.torque_directions)
@@ -340,38 +341,18 @@ def _pivot_torque_form(k: int):
     return jitable(generate(src, f"pivot torque control k={k}")["control"])
 
 
-def _spin_range(spin, task, params) -> tuple[float, float]:
+def _spin_range(spin, task_class, params) -> tuple[float, float]:
     if spin is None:
-        crit = params.critical_spin
         if not params.is_lagrange:
             return 0.0, 0.0
-        s = 0.5 * crit if task == "upright" else 2.0 * crit
+        s = task_class.default_spin[0] * params.critical_spin
         return s, s
     return require_range("spin", spin)
 
 
-def _require_real_precession(params, low, high, alpha):
-    """The torque-free regular precession [T 3.82] exists at tilt ``alpha`` for every spin drawn."""
-    a, c, mgl = params.transverse_inertia, params.axial_inertia, params.mgl
-    need = 4.0 * a * mgl * math.cos(alpha)
-    n_min = math.sqrt(max(need, 0.0)) / c
-    if need > 0.0 and (low * high <= 0.0 or min(abs(low), abs(high)) <= n_min):
-        raise ValueError(
-            "spin must satisfy (I3 spin)^2 > 4 I1 M g l cos(target_tilt) for a torque-free regular "
-            "precession "
-            f"(|spin| > {n_min:.6g} rad/s at target_tilt={alpha!r}, one sign); got the range "
-            f"({low!r}, {high!r}). "
-            "Raise the spin or give target_rate"
-        )
-
-
-def _tilt_limit(task: str, tilt_limit, perturbation: float) -> float:
-    """``tilt_limit`` (the task's default for None) in (0, pi], above ``perturbation``."""
-    limit = (
-        _DEFAULT_TILT_LIMIT[task]
-        if tilt_limit is None
-        else require_finite_positive("tilt_limit", tilt_limit)
-    )
+def _tilt_limit(default: float, tilt_limit, perturbation: float) -> float:
+    """``tilt_limit`` (the task's ``default`` for None) in (0, pi], above ``perturbation``."""
+    limit = default if tilt_limit is None else require_finite_positive("tilt_limit", tilt_limit)
     if limit > math.pi:
         raise ValueError(f"tilt_limit must be in (0, pi] rad, got {tilt_limit!r}")
     if perturbation >= limit:
@@ -399,48 +380,24 @@ def _targets(target_tilt, target_rate, max_w: float) -> tuple:
     return alpha, target_rate
 
 
-def _task_and_speed(task, params, spin, perturbation, tilts, control_cost, max_w):
-    """The task's object and the fastest start's angular speed, refused where it reaches
-    ``max_angular_velocity`` (the message names what sets it); ``tilts``: the tilt limit, the
-    target tilt (checked, and as given) and the target rate."""
-    limit, alpha, target_tilt, target_rate = tilts
-    low, high = _spin_range(spin, task, params)
+def _task_and_speed(task_class, system, spin, perturbation, tilts, control_cost, max_w):
+    """The task's object (:meth:`UprightTask.build`) and the fastest start's angular speed,
+    refused where it reaches ``max_angular_velocity`` (the message names what sets it)."""
+    low, high = _spin_range(spin, task_class, system.params)
+    task, peak, more = task_class.build(system, low, high, perturbation, tilts, control_cost)
     if spin is None:
         source = (
-            f"spin=None: {'half' if task == 'upright' else 'twice'} the critical spin "
+            f"spin=None: {task_class.default_spin[1]} the critical spin "
             "2 sqrt(M g l I1) / I3, set by mass, length, gravity and inertia"
         )
     else:
         source = "spin"
-    if task == "upright":
-        task_obj = UprightTask(low, high, perturbation, limit, control_cost)
-        peak = max(abs(low), abs(high))
-    else:
-        if not (limit < alpha < math.pi - limit):
-            raise ValueError(
-                f"target_tilt must lie in (tilt_limit, pi - tilt_limit) = ({limit!r}, "
-                f"{math.pi - limit!r}) rad, got {target_tilt!r}"
-            )
-        if target_rate is None:
-            _require_real_precession(params, low, high, alpha)
-        task_obj = PrecessTask(low, high, alpha, target_rate, perturbation, limit, control_cost)
-        system = HeavyTop(params)
-        rates = [
-            abs(
-                task_obj.target_rate
-                if target_rate is not None
-                else slow_precession_rate(system, n, alpha)
-            )
-            for n in (low, high)
-        ]
-        peak = max(2.0 * r + abs(n) for r, n in zip(rates, (low, high)))
-        source += " and the precession rate (target_rate, or the torque-free rate of [T 3.82])"
     if not peak < max_w:
         raise ValueError(
             f"max_angular_velocity ({max_w!r} rad/s) must exceed the initial angular speed "
-            f"({peak:.6g} rad/s, from {source}); lower it or raise max_angular_velocity"
+            f"({peak:.6g} rad/s, from {source}{more}); lower it or raise max_angular_velocity"
         )
-    return task_obj, peak
+    return task, peak
 
 
 def _require_slow_spin_friction(params, dt: float) -> None:

@@ -200,6 +200,21 @@ def slow_precession_rate(system, spin, tilt):
     return float(p) if np.ndim(p) == 0 else p
 
 
+def _require_real_precession(params, low, high, alpha):
+    """The torque-free regular precession [T 3.82] exists at tilt ``alpha`` for every spin drawn."""
+    a, c, mgl = params.transverse_inertia, params.axial_inertia, params.mgl
+    need = 4.0 * a * mgl * math.cos(alpha)
+    n_min = math.sqrt(max(need, 0.0)) / c
+    if need > 0.0 and (low * high <= 0.0 or min(abs(low), abs(high)) <= n_min):
+        raise ValueError(
+            "spin must satisfy (I3 spin)^2 > 4 I1 M g l cos(target_tilt) for a torque-free regular "
+            "precession "
+            f"(|spin| > {n_min:.6g} rad/s at target_tilt={alpha!r}, one sign); got the range "
+            f"({low!r}, {high!r}). "
+            "Raise the spin or give target_rate"
+        )
+
+
 @dataclass(frozen=True)
 class UprightTask(TwoStageStart):
     """Keep the top upright: the centre-of-mass axis on the upward vertical.
@@ -226,6 +241,20 @@ class UprightTask(TwoStageStart):
     controller = "UprightLQR"
 
     draw_kinds = "uuu"  # tilt, azimuth, spin
+
+    # the env's defaults for this task: tilt_limit, and spin=None's share of the critical spin
+    # (below it: the top falls without control)
+    default_tilt_limit = math.pi / 4
+    default_spin = (0.5, "half")
+    needs_lagrange = False
+
+    @classmethod
+    def build(cls, system, low, high, perturbation, tilts, control_cost):
+        """``(task, the fastest start's angular speed, what sets it besides the spin)`` from the
+        env's checked keywords (``tilts``: the tilt limit, the target tilt checked and as given,
+        the target rate; the upright task reads the limit alone)."""
+        task = cls(low, high, perturbation, tilts[0], control_cost)
+        return task, max(abs(low), abs(high)), ""
 
     def kernel_start(self, system):
         """``(upright_start, P)``: the pure form of :meth:`initial_from_draws`."""
@@ -301,6 +330,36 @@ class PrecessTask(TwoStageStart):
     controller = "PrecessionTracking"
 
     draw_kinds = "uuu"  # tilt, azimuth, spin
+
+    # the env's defaults for this task (:class:`UprightTask`'s); [T 3.82] needs a Lagrange top
+    default_tilt_limit = 0.3
+    default_spin = (2.0, "twice")
+    needs_lagrange = True
+
+    @classmethod
+    def build(cls, system, low, high, perturbation, tilts, control_cost):
+        """:meth:`UprightTask.build`: the target tilt within the tilt limit of both poles, a
+        torque-free precession for every spin drawn unless a ``target_rate`` forces one, and the
+        fastest start spinning at its spin plus twice its precession rate."""
+        limit, alpha, target_tilt, target_rate = tilts
+        if not (limit < alpha < math.pi - limit):
+            raise ValueError(
+                f"target_tilt must lie in (tilt_limit, pi - tilt_limit) = ({limit!r}, "
+                f"{math.pi - limit!r}) rad, got {target_tilt!r}"
+            )
+        if target_rate is None:
+            _require_real_precession(system.params, low, high, alpha)
+        task = cls(low, high, alpha, target_rate, perturbation, limit, control_cost)
+        rates = [
+            abs(target_rate if target_rate is not None else slow_precession_rate(system, n, alpha))
+            for n in (low, high)
+        ]
+        peak = max(2.0 * r + abs(n) for r, n in zip(rates, (low, high)))
+        return (
+            task,
+            peak,
+            (" and the precession rate (target_rate, or the torque-free rate of [T 3.82])"),
+        )
 
     def kernel_start(self, system):
         """``(precess_start, P)``: the pure form of :meth:`initial_from_draws`."""
