@@ -355,11 +355,8 @@ class PrecessTask(TwoStageStart):
             for n in (low, high)
         ]
         peak = max(2.0 * r + abs(n) for r, n in zip(rates, (low, high)))
-        return (
-            task,
-            peak,
-            (" and the precession rate (target_rate, or the torque-free rate of [T 3.82])"),
-        )
+        more = " and the precession rate (target_rate, or the torque-free rate of [T 3.82])"
+        return task, peak, more
 
     def kernel_start(self, system):
         """``(precess_start, P)``: the pure form of :meth:`initial_from_draws`."""
